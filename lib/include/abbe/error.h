@@ -1,0 +1,71 @@
+/* abbe: evaluation of the spatial error model (paper Eq. 3, docs/concepts.md).
+ *
+ * Two variants of the same evaluation read the same model:
+ *   _f32  IEEE single precision (FPU targets). Positions in mm, errors in um.
+ *   _q    fixed point, integer only (no FPU). Positions and errors in nm.
+ * Both agree with the float64 Python reference within the bound derived in
+ * docs/numerics.md (2 nm for realistic tables). Run time depends only on the
+ * table's shape, never on the input values. Evaluation is stateless; the
+ * backlash direction state is an input (abbe_comp_t tracks it for you).
+ */
+#ifndef ABBE_ERROR_H
+#define ABBE_ERROR_H
+
+#include <stdint.h>
+
+#include "abbe/model.h"
+
+/* Result flags (also reported by the compensator). */
+#define ABBE_FLAG_OUT_OF_TRAVEL 0x0001u /* a position was outside the table's travel: end value held */
+#define ABBE_FLAG_SATURATED 0x0002u     /* fixed point: a value hit its int32 limit */
+
+/* Fixed-point direction state: Q30, -2^30 = moving -, +2^30 = moving +. */
+#define ABBE_DIR_Q30_ONE ((int32_t)1 << 30)
+
+typedef struct {
+    float pos_mm[ABBE_AXES];     /* axis positions, machine coordinates, mm */
+    float dir_state[ABBE_AXES];  /* backlash direction state in [-1, 1]; ignored without BACKLASH */
+    float temp_c[ABBE_AXES];     /* axis temperatures, deg C; ignored without THERMAL */
+} abbe_input_f32_t;
+
+typedef struct {
+    float error_um[ABBE_AXES];   /* dX, dY, dZ: tool relative to workpiece, um */
+    uint32_t flags;              /* ABBE_FLAG_* */
+} abbe_error_f32_t;
+
+typedef struct {
+    abbe_nm_t pos_nm[ABBE_AXES];     /* axis positions, machine coordinates, nm */
+    int32_t dir_state_q30[ABBE_AXES];/* backlash direction state, Q30 in [-2^30, 2^30] */
+    int32_t temp_mdegc[ABBE_AXES];   /* axis temperatures, milli-degrees C */
+} abbe_input_q_t;
+
+typedef struct {
+    abbe_nm_t error_nm[ABBE_AXES];   /* dX, dY, dZ, nm, saturated to int32 */
+    uint32_t flags;                  /* ABBE_FLAG_* */
+} abbe_error_q_t;
+
+/* Spatial error at one machine position, single precision.
+ * Returns ABBE_OK; ABBE_E_ARG for NULL pointers; ABBE_E_INPUT if a position
+ * (or, where the table uses them, a temperature or direction state) is NaN or
+ * infinite, in which case *out holds zeros. Positions beyond +/-2147 mm are
+ * clamped to it (and flagged out of travel). */
+abbe_status_t abbe_error_eval_f32(const abbe_model_t *model, const abbe_input_f32_t *in,
+                                  abbe_error_f32_t *out);
+
+/* Spatial error at one machine position, fixed point. Returns ABBE_OK or
+ * ABBE_E_ARG (NULL pointers, direction state outside [-2^30, 2^30]).
+ * Saturation is reported in out->flags, never by an in-band value. */
+abbe_status_t abbe_error_eval_q(const abbe_model_t *model, const abbe_input_q_t *in,
+                                abbe_error_q_t *out);
+
+/* One fitted term d_i(j) or eps_ji at axis position pos, without the extra
+ * (backlash, thermal) terms. Linear terms in um (f32) / pm (q), angular terms
+ * in urad (f32) / prad (q). An absent term evaluates to 0.
+ * Returns ABBE_E_ARG for NULL pointers or axis/term out of range,
+ * ABBE_E_INPUT for a NaN position (f32). */
+abbe_status_t abbe_term_eval_f32(const abbe_model_t *model, unsigned axis, unsigned term,
+                                 float pos_mm, float *value);
+abbe_status_t abbe_term_eval_q(const abbe_model_t *model, unsigned axis, unsigned term,
+                               abbe_nm_t pos_nm, int32_t *value_pm_or_prad);
+
+#endif /* ABBE_ERROR_H */

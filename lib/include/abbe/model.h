@@ -1,0 +1,105 @@
+/* abbe: a validated, in-place view of a coefficient table.
+ *
+ * abbe_model_load() checks a blob completely (docs/table-format.md) and fills a
+ * caller-owned abbe_model_t with pointers into the blob plus a few integer
+ * constants derived once (reciprocals for the argument reduction). The blob is
+ * never copied and must stay valid and unchanged while the model is in use.
+ * Loading uses integer arithmetic only.
+ */
+#ifndef ABBE_MODEL_H
+#define ABBE_MODEL_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "abbe/status.h"
+
+#define ABBE_AXES 3            /* X, Y, Z */
+#define ABBE_TERMS 6           /* per axis: d_x, d_y, d_z (linear), eps_x, eps_y, eps_z (angular) */
+#define ABBE_BLOCKS 2          /* Fourier blocks per axis: 0 long wave, 1 short period */
+#define ABBE_MAX_DEGREE 7      /* Chebyshev trend degree cap */
+#define ABBE_NO_TREND 255u     /* trend_degree value meaning "no trend block" */
+#define ABBE_MAX_HARMONICS 8   /* per Fourier block */
+#define ABBE_MAX_BASIS (ABBE_MAX_DEGREE + 1 + 2 * ABBE_BLOCKS * ABBE_MAX_HARMONICS)
+
+enum { ABBE_AXIS_X = 0, ABBE_AXIS_Y = 1, ABBE_AXIS_Z = 2 };
+enum {
+    ABBE_TERM_DX = 0, ABBE_TERM_DY = 1, ABBE_TERM_DZ = 2,
+    ABBE_TERM_EX = 3, ABBE_TERM_EY = 4, ABBE_TERM_EZ = 5
+};
+
+/* Feature bits of the table header. */
+#define ABBE_FEATURE_SQUARENESS 0x1u
+#define ABBE_FEATURE_TOOL_OFFSET 0x2u
+#define ABBE_FEATURE_BACKLASH 0x4u
+#define ABBE_FEATURE_THERMAL 0x8u
+#define ABBE_FEATURE_ALL 0xFu
+
+/* Fixed-point scalings of the table's integer fields (docs/numerics.md). */
+#define ABBE_LIN_FRAC_BITS 8   /* linear coefficients: 2^-8 nm */
+#define ABBE_ANG_FRAC_BITS 36  /* angular coefficients and squareness: 2^-36 rad */
+
+/* Fixed-point position: signed nanometres, +/-2.147 m. */
+typedef int32_t abbe_nm_t;
+
+/* Per-axis view. All fields are private: read them through the accessors. */
+typedef struct {
+    const uint8_t *coef_q;      /* int32 LE, n_basis x n_terms, row-major */
+    const uint8_t *coef_f32;    /* float32 LE, same shape */
+    int32_t travel_min_nm;
+    int32_t travel_max_nm;
+    int64_t cheb_mul;           /* u_q30 = ((2p - min - max) * cheb_mul) >> cheb_shift */
+    uint32_t cheb_shift;
+    uint64_t freq[ABBE_BLOCKS]; /* round(2^64 / period): phase_q32 = ((p - origin) * freq) >> 32 */
+    int32_t origin_nm[ABBE_BLOCKS];
+    int32_t backlash_reversal_q8;
+    int32_t backlash_takeup_nm;
+    uint64_t takeup_rate_q46;   /* round(2^46 / takeup_nm): direction-state change per nm, Q30 << 16 */
+    int32_t thermal_expansion_q50;
+    int32_t thermal_offset_q16;
+    int32_t thermal_tref_mdegc;
+    uint8_t term_mask;
+    uint8_t n_terms;
+    uint8_t trend_rows;         /* trend_degree + 1, or 0 */
+    uint8_t harmonics[ABBE_BLOCKS];
+    uint8_t n_basis;
+    uint8_t column[ABBE_TERMS]; /* column of term t, or 0xFF if absent */
+} abbe_axis_model_t;
+
+/* A loaded model. Allocate it yourself (static, stack or struct member);
+ * all fields are private. */
+typedef struct {
+    const uint8_t *blob;
+    uint32_t size;
+    uint32_t crc;
+    uint32_t features;
+    uint16_t version_major;
+    uint16_t version_minor;
+    int32_t reference_nm[ABBE_AXES];
+    int32_t tool_offset_nm[ABBE_AXES];
+    int32_t squareness_q36[3];  /* S_xy, S_xz, S_yz */
+    abbe_axis_model_t axis[ABBE_AXES];
+} abbe_model_t;
+
+/* Validate blob[0 .. size) and make *model a view of it.
+ * Requires: model and blob non-NULL (else ABBE_E_ARG). size may exceed the
+ * table's total_size (a flash sector); the extra bytes are ignored.
+ * Returns ABBE_OK, or the status of the first failed check in the order of
+ * docs/table-format.md. On failure *model is left untouched, so a model that was
+ * loaded before stays usable. */
+abbe_status_t abbe_model_load(abbe_model_t *model, const void *blob, size_t size);
+
+/* CRC-32 (zlib) of the loaded table: identifies the running model. */
+uint32_t abbe_model_crc(const abbe_model_t *model);
+
+/* Feature bits (ABBE_FEATURE_*) of the loaded table. */
+uint32_t abbe_model_features(const abbe_model_t *model);
+
+/* Size of the table in bytes (its total_size field). */
+uint32_t abbe_model_size(const abbe_model_t *model);
+
+/* CRC-32 as zlib computes it, continuing from crc (start with 0). Exposed for
+ * ports that receive tables in chunks. */
+uint32_t abbe_crc32(uint32_t crc, const void *data, size_t size);
+
+#endif /* ABBE_MODEL_H */

@@ -1,0 +1,364 @@
+/* abbe: table validation and the in-place model view (docs/table-format.md).
+ *
+ * Checks run by category in the order of the spec, each over all axes, so a
+ * table with several defects reports the same status here and in the Python
+ * reader. Nothing is written to *model until every check has passed.
+ */
+#include "internal.h"
+
+#define HEADER_SIZE 64u
+#define AXIS_RECORD_SIZE 64u
+#define DATA_START (HEADER_SIZE + ABBE_AXES * AXIS_RECORD_SIZE)
+#define MIN_TOTAL_SIZE (DATA_START + 4u)
+
+/* Header field offsets. */
+#define H_MAGIC 0u
+#define H_MAJOR 4u
+#define H_MINOR 6u
+#define H_TOTAL 8u
+#define H_HEADER_SIZE 12u
+#define H_AXIS_SIZE 16u
+#define H_FEATURES 20u
+#define H_REFERENCE 24u
+#define H_TOOL 36u
+#define H_SQUARENESS 48u
+#define H_RESERVED 60u
+
+/* Axis record field offsets. */
+#define A_MIN 0u
+#define A_MAX 4u
+#define A_MASK 8u
+#define A_DEGREE 9u
+#define A_HARMONICS 10u
+#define A_PERIOD 12u
+#define A_ORIGIN 20u
+#define A_BACKLASH 28u
+#define A_TAKEUP 32u
+#define A_EXPANSION 36u
+#define A_THERMAL_OFFSET 40u
+#define A_TREF 44u
+#define A_COEF_Q 48u
+#define A_COEF_F32 52u
+#define A_COEF_COUNT 56u
+#define A_RESERVED 60u
+
+#define LIN_L1_CAP ((uint64_t)1 << 32)
+#define ANG_L1_CAP ((uint64_t)1 << 28)
+#define SQUARENESS_CAP ((int32_t)1 << 28)
+
+static unsigned popcount6(unsigned mask)
+{
+    unsigned n = 0;
+    for (unsigned t = 0; t < ABBE_TERMS; t++) {
+        n += (mask >> t) & 1u;
+    }
+    return n;
+}
+
+static unsigned trend_rows_of(uint8_t degree)
+{
+    return degree == ABBE_NO_TREND ? 0u : (unsigned)degree + 1u;
+}
+
+static uint32_t n_basis_of(const uint8_t *rec)
+{
+    return trend_rows_of(rec[A_DEGREE]) + 2u * rec[A_HARMONICS] + 2u * rec[A_HARMONICS + 1u];
+}
+
+static abbe_status_t check_header(const uint8_t *b, size_t size, uint32_t *total_out)
+{
+    if (size < HEADER_SIZE) {
+        return ABBE_E_TRUNCATED;
+    }
+    uint32_t total = abbe_ld_u32(b + H_TOTAL);
+    if (size < total) {
+        return ABBE_E_TRUNCATED;
+    }
+    if (memcmp(b + H_MAGIC, "ABBE", 4) != 0) {
+        return ABBE_E_MAGIC;
+    }
+    if (abbe_ld_u16(b + H_MAJOR) != ABBE_TABLE_FORMAT_MAJOR) {
+        return ABBE_E_VERSION_MAJOR;
+    }
+    if (abbe_ld_u16(b + H_MINOR) > ABBE_TABLE_FORMAT_MINOR) {
+        return ABBE_E_VERSION_MINOR;
+    }
+    if (abbe_ld_u32(b + H_HEADER_SIZE) != HEADER_SIZE ||
+        abbe_ld_u32(b + H_AXIS_SIZE) != AXIS_RECORD_SIZE || total < MIN_TOTAL_SIZE ||
+        (total % 4u) != 0u) {
+        return ABBE_E_SIZE;
+    }
+    if (abbe_crc32(0, b, total - 4u) != abbe_ld_u32(b + total - 4u)) {
+        return ABBE_E_CRC;
+    }
+    *total_out = total;
+    return ABBE_OK;
+}
+
+static int any_nonzero_i32(const uint8_t *p, unsigned count)
+{
+    for (unsigned i = 0; i < count; i++) {
+        if (abbe_ld_u32(p + 4u * i) != 0u) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
+static abbe_status_t check_flags(const uint8_t *b)
+{
+    uint32_t features = abbe_ld_u32(b + H_FEATURES);
+    if ((features & ~ABBE_FEATURE_ALL) != 0u || abbe_ld_u32(b + H_RESERVED) != 0u) {
+        return ABBE_E_FLAGS;
+    }
+    if (!(features & ABBE_FEATURE_TOOL_OFFSET) && any_nonzero_i32(b + H_TOOL, 3)) {
+        return ABBE_E_FLAGS;
+    }
+    if (!(features & ABBE_FEATURE_SQUARENESS) && any_nonzero_i32(b + H_SQUARENESS, 3)) {
+        return ABBE_E_FLAGS;
+    }
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        const uint8_t *rec = b + HEADER_SIZE + j * AXIS_RECORD_SIZE;
+        if (abbe_ld_u32(rec + A_RESERVED) != 0u) {
+            return ABBE_E_FLAGS;
+        }
+        if (!(features & ABBE_FEATURE_BACKLASH) && any_nonzero_i32(rec + A_BACKLASH, 2)) {
+            return ABBE_E_FLAGS;
+        }
+        if (!(features & ABBE_FEATURE_THERMAL) && any_nonzero_i32(rec + A_EXPANSION, 3)) {
+            return ABBE_E_FLAGS;
+        }
+    }
+    return ABBE_OK;
+}
+
+static abbe_status_t check_counts(const uint8_t *b)
+{
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        const uint8_t *rec = b + HEADER_SIZE + j * AXIS_RECORD_SIZE;
+        uint8_t degree = rec[A_DEGREE];
+        if ((rec[A_MASK] & 0xC0u) != 0u ||
+            (degree > ABBE_MAX_DEGREE && degree != ABBE_NO_TREND) ||
+            rec[A_HARMONICS] > ABBE_MAX_HARMONICS || rec[A_HARMONICS + 1u] > ABBE_MAX_HARMONICS) {
+            return ABBE_E_COUNT;
+        }
+        if (abbe_ld_u32(rec + A_COEF_COUNT) != n_basis_of(rec) * popcount6(rec[A_MASK])) {
+            return ABBE_E_COUNT;
+        }
+    }
+    return ABBE_OK;
+}
+
+static int array_ok(uint32_t offset, uint32_t count, uint32_t total)
+{
+    uint64_t end = (uint64_t)offset + 4u * (uint64_t)count;
+    return offset >= DATA_START && (offset % 4u) == 0u && end <= (uint64_t)total - 4u;
+}
+
+static abbe_status_t check_offsets(const uint8_t *b, uint32_t total)
+{
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        const uint8_t *rec = b + HEADER_SIZE + j * AXIS_RECORD_SIZE;
+        uint32_t count = abbe_ld_u32(rec + A_COEF_COUNT);
+        uint32_t off_q = abbe_ld_u32(rec + A_COEF_Q);
+        uint32_t off_f = abbe_ld_u32(rec + A_COEF_F32);
+        if (count == 0u) {
+            if (off_q != 0u || off_f != 0u) {
+                return ABBE_E_OFFSET;
+            }
+        } else if (!array_ok(off_q, count, total) || !array_ok(off_f, count, total)) {
+            return ABBE_E_OFFSET;
+        }
+    }
+    return ABBE_OK;
+}
+
+static abbe_status_t check_finite(const uint8_t *b)
+{
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        const uint8_t *rec = b + HEADER_SIZE + j * AXIS_RECORD_SIZE;
+        uint32_t count = abbe_ld_u32(rec + A_COEF_COUNT);
+        const uint8_t *f = b + abbe_ld_u32(rec + A_COEF_F32);
+        for (uint32_t i = 0; i < count; i++) {
+            if (abbe_f32_bits_nonfinite(abbe_ld_u32(f + 4u * i))) {
+                return ABBE_E_NONFINITE;
+            }
+        }
+    }
+    return ABBE_OK;
+}
+
+static abbe_status_t check_periods(const uint8_t *b)
+{
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        const uint8_t *rec = b + HEADER_SIZE + j * AXIS_RECORD_SIZE;
+        for (unsigned k = 0; k < ABBE_BLOCKS; k++) {
+            int32_t period = abbe_ld_i32(rec + A_PERIOD + 4u * k);
+            int32_t origin = abbe_ld_i32(rec + A_ORIGIN + 4u * k);
+            if (rec[A_HARMONICS + k] > 0u ? period <= 0 : (period != 0 || origin != 0)) {
+                return ABBE_E_PERIOD;
+            }
+        }
+    }
+    return ABBE_OK;
+}
+
+static abbe_status_t check_travel(const uint8_t *b)
+{
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        const uint8_t *rec = b + HEADER_SIZE + j * AXIS_RECORD_SIZE;
+        if (abbe_ld_i32(rec + A_MIN) >= abbe_ld_i32(rec + A_MAX)) {
+            return ABBE_E_TRAVEL;
+        }
+    }
+    return ABBE_OK;
+}
+
+static uint64_t abs_i32(int32_t v)
+{
+    return v < 0 ? (uint64_t)(-(int64_t)v) : (uint64_t)v;
+}
+
+/* The caps keep every fixed-point intermediate below 2^63 (docs/numerics.md). */
+static abbe_status_t check_ranges(const uint8_t *b)
+{
+    uint32_t features = abbe_ld_u32(b + H_FEATURES);
+    for (unsigned k = 0; k < 3u; k++) {
+        if (abs_i32(abbe_ld_i32(b + H_SQUARENESS + 4u * k)) > (uint64_t)SQUARENESS_CAP) {
+            return ABBE_E_RANGE;
+        }
+    }
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        const uint8_t *rec = b + HEADER_SIZE + j * AXIS_RECORD_SIZE;
+        if ((features & ABBE_FEATURE_BACKLASH) && abbe_ld_i32(rec + A_TAKEUP) <= 0) {
+            return ABBE_E_RANGE;
+        }
+        unsigned mask = rec[A_MASK];
+        unsigned n_terms = popcount6(mask);
+        uint32_t n_basis = n_basis_of(rec);
+        const uint8_t *q = b + abbe_ld_u32(rec + A_COEF_Q);
+        unsigned column = 0;
+        for (unsigned t = 0; t < ABBE_TERMS; t++) {
+            if (!((mask >> t) & 1u)) {
+                continue;
+            }
+            uint64_t l1 = 0;
+            for (uint32_t r = 0; r < n_basis; r++) {
+                l1 += abs_i32(abbe_ld_i32(q + 4u * (r * n_terms + column)));
+            }
+            if (l1 > (t < 3u ? LIN_L1_CAP : ANG_L1_CAP)) {
+                return ABBE_E_RANGE;
+            }
+            column++;
+        }
+    }
+    return ABBE_OK;
+}
+
+/* round(2^64 / d) for 0 < d < 2^31, without a 128-bit type. */
+static uint64_t recip64(uint32_t d)
+{
+    uint64_t q = UINT64_MAX / d;
+    uint64_t r = UINT64_MAX % d + 1u; /* 2^64 = q*d + r, 1 <= r <= d */
+    if (r == d) {
+        return q + 1u;
+    }
+    return q + (2u * r >= d ? 1u : 0u);
+}
+
+static void build_axis(abbe_axis_model_t *ax, const uint8_t *b, const uint8_t *rec)
+{
+    memset(ax, 0, sizeof *ax);
+    ax->travel_min_nm = abbe_ld_i32(rec + A_MIN);
+    ax->travel_max_nm = abbe_ld_i32(rec + A_MAX);
+    ax->term_mask = rec[A_MASK];
+    ax->n_terms = (uint8_t)popcount6(ax->term_mask);
+    ax->trend_rows = (uint8_t)trend_rows_of(rec[A_DEGREE]);
+    ax->n_basis = (uint8_t)n_basis_of(rec);
+    uint8_t column = 0;
+    for (unsigned t = 0; t < ABBE_TERMS; t++) {
+        if (((unsigned)ax->term_mask >> t) & 1u) {
+            ax->column[t] = column++;
+        } else {
+            ax->column[t] = 0xFFu;
+        }
+    }
+    if (abbe_ld_u32(rec + A_COEF_COUNT) != 0u) {
+        ax->coef_q = b + abbe_ld_u32(rec + A_COEF_Q);
+        ax->coef_f32 = b + abbe_ld_u32(rec + A_COEF_F32);
+    }
+    /* u_q30 = (num * cheb_mul) >> 32 with cheb_mul = round(2^62 / span): |num| <= span keeps
+     * the product within 2^62, and the relative error of cheb_mul is below 2^-31. */
+    uint64_t span = (uint64_t)((int64_t)ax->travel_max_nm - (int64_t)ax->travel_min_nm);
+    ax->cheb_mul = (int64_t)((((uint64_t)1 << 62) + span / 2u) / span);
+    ax->cheb_shift = 32u;
+    for (unsigned k = 0; k < ABBE_BLOCKS; k++) {
+        ax->harmonics[k] = rec[A_HARMONICS + k];
+        ax->origin_nm[k] = abbe_ld_i32(rec + A_ORIGIN + 4u * k);
+        int32_t period = abbe_ld_i32(rec + A_PERIOD + 4u * k);
+        ax->freq[k] = period > 0 ? recip64((uint32_t)period) : 0u;
+    }
+    ax->backlash_reversal_q8 = abbe_ld_i32(rec + A_BACKLASH);
+    ax->backlash_takeup_nm = abbe_ld_i32(rec + A_TAKEUP);
+    if (ax->backlash_takeup_nm > 0) {
+        uint64_t takeup = (uint64_t)ax->backlash_takeup_nm;
+        ax->takeup_rate_q46 = (((uint64_t)1 << 46) + takeup / 2u) / takeup;
+    }
+    ax->thermal_expansion_q50 = abbe_ld_i32(rec + A_EXPANSION);
+    ax->thermal_offset_q16 = abbe_ld_i32(rec + A_THERMAL_OFFSET);
+    ax->thermal_tref_mdegc = abbe_ld_i32(rec + A_TREF);
+}
+
+abbe_status_t abbe_model_load(abbe_model_t *model, const void *blob, size_t size)
+{
+    if (model == NULL || blob == NULL) {
+        return ABBE_E_ARG;
+    }
+    const uint8_t *b = (const uint8_t *)blob;
+    uint32_t total = 0;
+    abbe_status_t st = check_header(b, size, &total);
+    if (st == ABBE_OK) st = check_flags(b);
+    if (st == ABBE_OK) st = check_counts(b);
+    if (st == ABBE_OK) st = check_offsets(b, total);
+    if (st == ABBE_OK) st = check_finite(b);
+    if (st == ABBE_OK) st = check_periods(b);
+    if (st == ABBE_OK) st = check_travel(b);
+    if (st == ABBE_OK) st = check_ranges(b);
+    if (st != ABBE_OK) {
+        return st;
+    }
+
+    abbe_model_t m;
+    memset(&m, 0, sizeof m);
+    m.blob = b;
+    m.size = total;
+    m.crc = abbe_ld_u32(b + total - 4u);
+    m.features = abbe_ld_u32(b + H_FEATURES);
+    m.version_major = abbe_ld_u16(b + H_MAJOR);
+    m.version_minor = abbe_ld_u16(b + H_MINOR);
+    for (unsigned k = 0; k < 3u; k++) {
+        m.reference_nm[k] = abbe_ld_i32(b + H_REFERENCE + 4u * k);
+        m.tool_offset_nm[k] = abbe_ld_i32(b + H_TOOL + 4u * k);
+        m.squareness_q36[k] = abbe_ld_i32(b + H_SQUARENESS + 4u * k);
+    }
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        build_axis(&m.axis[j], b, b + HEADER_SIZE + j * AXIS_RECORD_SIZE);
+    }
+    *model = m;
+    return ABBE_OK;
+}
+
+uint32_t abbe_model_crc(const abbe_model_t *model)
+{
+    return model != NULL ? model->crc : 0u;
+}
+
+uint32_t abbe_model_features(const abbe_model_t *model)
+{
+    return model != NULL ? model->features : 0u;
+}
+
+uint32_t abbe_model_size(const abbe_model_t *model)
+{
+    return model != NULL ? model->size : 0u;
+}

@@ -1,0 +1,423 @@
+/* Evaluation: the golden vectors of the float64 Python reference for both
+ * variants, plus analytic cases built in C (so a sign error shared by the
+ * Python reference and the library would still be caught), kernel accuracy
+ * and the bad-input paths. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "abbe/abbe.h"
+#include "blob_builder.h"
+#include "golden_data.h"
+#include "internal.h"
+
+/* ---- golden vectors ------------------------------------------------------ */
+
+static void test_golden_error_both_variants(void **state)
+{
+    (void)state;
+    double worst_f32 = 0.0, worst_q = 0.0;
+    for (uint32_t t = 0; t < abbe_golden_table_count; t++) {
+        const abbe_golden_table_t *gt = &abbe_golden_tables[t];
+        abbe_model_t m;
+        assert_int_equal(abbe_model_load(&m, gt->blob, gt->blob_size), ABBE_OK);
+        for (uint32_t i = gt->first_point; i < gt->first_point + gt->n_points; i++) {
+            const abbe_golden_point_t *p = &abbe_golden_points[i];
+            abbe_input_f32_t in_f;
+            abbe_input_q_t in_q;
+            memcpy(in_f.pos_mm, p->pos_mm, sizeof in_f.pos_mm);
+            memcpy(in_f.dir_state, p->dir_state, sizeof in_f.dir_state);
+            memcpy(in_f.temp_c, p->temp_c, sizeof in_f.temp_c);
+            memcpy(in_q.pos_nm, p->pos_nm, sizeof in_q.pos_nm);
+            memcpy(in_q.dir_state_q30, p->dir_q30, sizeof in_q.dir_state_q30);
+            memcpy(in_q.temp_mdegc, p->temp_mdegc, sizeof in_q.temp_mdegc);
+            abbe_error_f32_t ef;
+            abbe_error_q_t eq;
+            assert_int_equal(abbe_error_eval_f32(&m, &in_f, &ef), ABBE_OK);
+            assert_int_equal(abbe_error_eval_q(&m, &in_q, &eq), ABBE_OK);
+            for (int k = 0; k < 3; k++) {
+                double df = fabs((double)ef.error_um[k] * 1e6 - p->expect_f32_pm[k]);
+                double dq = fabs((double)eq.error_nm[k] * 1e3 - p->expect_q_pm[k]);
+                if (df > worst_f32) worst_f32 = df;
+                if (dq > worst_q) worst_q = dq;
+                if (df > ABBE_GOLDEN_TOL_PM || dq > ABBE_GOLDEN_TOL_PM) {
+                    fail_msg("table %s point %u axis %d: f32 off by %.0f pm, q off by %.0f pm", gt->name,
+                             (unsigned)i, k, df, dq);
+                }
+            }
+            if ((ef.flags ^ p->expect_flags) & ABBE_FLAG_OUT_OF_TRAVEL) {
+                fail_msg("table %s point %u: f32 flags %x, expected %x (pos %.9g %.9g %.9g mm)", gt->name,
+                         (unsigned)i, ef.flags, p->expect_flags, (double)p->pos_mm[0], (double)p->pos_mm[1],
+                         (double)p->pos_mm[2]);
+            }
+            assert_int_equal(eq.flags & ABBE_FLAG_OUT_OF_TRAVEL, p->expect_flags & ABBE_FLAG_OUT_OF_TRAVEL);
+        }
+    }
+    printf("golden: max |f32 - ref| = %.0f pm, max |q - ref| = %.0f pm (bound %d pm)\n", worst_f32, worst_q,
+           ABBE_GOLDEN_TOL_PM);
+}
+
+static void test_golden_terms_both_variants(void **state)
+{
+    (void)state;
+    double worst_f32 = 0.0, worst_q = 0.0;
+    for (uint32_t t = 0; t < abbe_golden_table_count; t++) {
+        const abbe_golden_table_t *gt = &abbe_golden_tables[t];
+        abbe_model_t m;
+        assert_int_equal(abbe_model_load(&m, gt->blob, gt->blob_size), ABBE_OK);
+        for (uint32_t i = gt->first_term; i < gt->first_term + gt->n_terms; i++) {
+            const abbe_golden_term_t *g = &abbe_golden_terms[i];
+            float vf;
+            int32_t vq;
+            assert_int_equal(abbe_term_eval_f32(&m, g->axis, g->term, g->pos_mm, &vf), ABBE_OK);
+            assert_int_equal(abbe_term_eval_q(&m, g->axis, g->term, g->pos_nm, &vq), ABBE_OK);
+            /* float result in um / urad -> pico */
+            double df = fabs((double)vf * 1e6 - g->expect_f32_pico);
+            double dq = fabs((double)vq - g->expect_q_pico);
+            if (df > worst_f32) worst_f32 = df;
+            if (dq > worst_q) worst_q = dq;
+            /* 2 nm (linear) or 0.1 urad... no: a term alone must meet 1 nm / 1 nrad */
+            if (df > 1000.0 || dq > 1000.0) {
+                fail_msg("table %s term %u/%u at %d nm: f32 off by %.0f, q off by %.0f pico", gt->name, g->axis,
+                         g->term, g->pos_nm, df, dq);
+            }
+        }
+    }
+    printf("golden terms: max |f32 - ref| = %.0f pico, max |q - ref| = %.0f pico\n", worst_f32, worst_q);
+}
+
+/* ---- analytic cases ------------------------------------------------------ */
+
+static uint8_t blob[8192];
+static int32_t coef_a[64], coef_b[64], coef_c[64];
+
+static void load_table(const tb_table_t *t, abbe_model_t *m)
+{
+    size_t n = tb_build(t, blob, sizeof blob);
+    assert_true(n > 0);
+    assert_int_equal(abbe_model_load(m, blob, n), ABBE_OK);
+}
+
+static void eval_both(const abbe_model_t *m, double x_mm, double y_mm, double z_mm, double out_um[2][3],
+                      uint32_t flags[2])
+{
+    abbe_input_f32_t in_f;
+    abbe_input_q_t in_q;
+    memset(&in_f, 0, sizeof in_f);
+    memset(&in_q, 0, sizeof in_q);
+    double pos[3] = {x_mm, y_mm, z_mm};
+    for (int k = 0; k < 3; k++) {
+        in_f.pos_mm[k] = (float)pos[k];
+        in_q.pos_nm[k] = (int32_t)lround(pos[k] * 1e6);
+        in_f.temp_c[k] = 20.0f;
+        in_q.temp_mdegc[k] = 20000;
+    }
+    abbe_error_f32_t ef;
+    abbe_error_q_t eq;
+    assert_int_equal(abbe_error_eval_f32(m, &in_f, &ef), ABBE_OK);
+    assert_int_equal(abbe_error_eval_q(m, &in_q, &eq), ABBE_OK);
+    for (int k = 0; k < 3; k++) {
+        out_um[0][k] = ef.error_um[k];
+        out_um[1][k] = eq.error_nm[k] / 1000.0;
+    }
+    flags[0] = ef.flags;
+    flags[1] = eq.flags;
+}
+
+#define NM(mm) ((int32_t)((mm) * 1000000))
+#define LIN_Q(um) ((int32_t)lround((um) * 256000.0))          /* um -> 2^-8 nm */
+#define ANG_Q(urad) ((int32_t)lround((urad) * 68719.476736)) /* urad -> 2^-36 rad */
+
+/* d_x(x) = c * u, u = (2x - min - max) / span: a linear positioning error.
+ * Eq. 3: dX = -d_x(x). Checked at three points and beyond the travel (held). */
+static void test_positioning_sign_and_hold(void **state)
+{
+    (void)state;
+    tb_table_t t;
+    tb_init(&t);
+    t.axis[0].term_mask = 1u << ABBE_TERM_DX;
+    t.axis[0].trend_degree = 1;
+    coef_a[0] = 0;
+    coef_a[1] = LIN_Q(10.0); /* 10 um * u */
+    t.axis[0].coef_q = coef_a;
+    abbe_model_t m;
+    load_table(&t, &m);
+    double e[2][3];
+    uint32_t f[2];
+    const double xs[] = {0.0, 125.0, 500.0};
+    const double us[] = {-1.0, -0.5, 1.0};
+    for (int i = 0; i < 3; i++) {
+        eval_both(&m, xs[i], 0, 0, e, f);
+        for (int v = 0; v < 2; v++) {
+            assert_true(fabs(e[v][0] - (-10.0 * us[i])) < 0.002);
+            assert_true(fabs(e[v][1]) < 1e-9 && fabs(e[v][2]) < 1e-9);
+            assert_int_equal(f[v] & ABBE_FLAG_OUT_OF_TRAVEL, 0);
+        }
+    }
+    eval_both(&m, 600.0, 0, 0, e, f); /* beyond max: held at u = 1 */
+    for (int v = 0; v < 2; v++) {
+        assert_true(fabs(e[v][0] + 10.0) < 0.002);
+        assert_int_equal(f[v] & ABBE_FLAG_OUT_OF_TRAVEL, ABBE_FLAG_OUT_OF_TRAVEL);
+    }
+}
+
+/* Squareness only: dX = y S_xy - z S_xz, dY = -z S_yz, with positions relative
+ * to the reference point. */
+static void test_squareness_levers(void **state)
+{
+    (void)state;
+    tb_table_t t;
+    tb_init(&t);
+    t.features = ABBE_FEATURE_SQUARENESS;
+    t.reference_nm[0] = NM(100);
+    t.reference_nm[1] = NM(-200);
+    t.reference_nm[2] = NM(-300);
+    t.squareness_q36[0] = ANG_Q(20.0);
+    t.squareness_q36[1] = ANG_Q(-15.0);
+    t.squareness_q36[2] = ANG_Q(30.0);
+    abbe_model_t m;
+    load_table(&t, &m);
+    double e[2][3];
+    uint32_t f[2];
+    eval_both(&m, 100.0 + 50.0, -200.0 + 100.0, -300.0 - 40.0, e, f);
+    /* y = 100 mm, z = -40 mm: dX = 100*20 - (-40)(-15) = 2000 - 600 nm; dY = -(-40)*30 = 1200 nm */
+    for (int v = 0; v < 2; v++) {
+        assert_true(fabs(e[v][0] - 1.4) < 0.002);
+        assert_true(fabs(e[v][1] - 1.2) < 0.002);
+        assert_true(fabs(e[v][2]) < 0.002);
+    }
+}
+
+/* Angular errors with levers (Eq. 3) and the tool-offset Abbe terms (notes §1):
+ * constant eps_xz = a on X, eps_yx = b on Y, eps_zy = c on Z (trend degree 0). */
+static void test_angles_and_tool_offset(void **state)
+{
+    (void)state;
+    tb_table_t t;
+    tb_init(&t);
+    t.features = ABBE_FEATURE_TOOL_OFFSET;
+    t.tool_nm[0] = NM(10);
+    t.tool_nm[1] = NM(20);
+    t.tool_nm[2] = NM(150);
+    const double a = 12.0, b = -8.0, c = 5.0; /* urad */
+    t.axis[0].term_mask = 1u << ABBE_TERM_EZ;
+    t.axis[0].trend_degree = 0;
+    coef_a[0] = ANG_Q(a);
+    t.axis[0].coef_q = coef_a;
+    t.axis[1].term_mask = 1u << ABBE_TERM_EX;
+    t.axis[1].trend_degree = 0;
+    coef_b[0] = ANG_Q(b);
+    t.axis[1].coef_q = coef_b;
+    t.axis[2].term_mask = 1u << ABBE_TERM_EY;
+    t.axis[2].trend_degree = 0;
+    coef_c[0] = ANG_Q(c);
+    t.axis[2].coef_q = coef_c;
+    abbe_model_t m;
+    load_table(&t, &m);
+    const double x = 300, y = 250, z = 100; /* mm from the reference point (origin) */
+    const double tx = 10, ty = 20, tz = 150;
+    /* eps_xz = a, eps_yx = b, eps_zy = c; all others 0 */
+    double dx = -y * a + ty * a + tz * c;
+    double dy = x * a + z * b + tx * (-a) + tz * b;
+    double dz = y * b + tx * (-c) + ty * (-b);
+    double e[2][3];
+    uint32_t f[2];
+    eval_both(&m, x, y, z, e, f);
+    for (int v = 0; v < 2; v++) {
+        assert_true(fabs(e[v][0] - dx / 1000.0) < 0.002);
+        assert_true(fabs(e[v][1] - dy / 1000.0) < 0.002);
+        assert_true(fabs(e[v][2] - dz / 1000.0) < 0.002);
+    }
+}
+
+/* Backlash s*B/2 and thermal alpha*dT*(p - ref) + o*dT on the own positioning term. */
+static void test_backlash_and_thermal(void **state)
+{
+    (void)state;
+    tb_table_t t;
+    tb_init(&t);
+    t.features = ABBE_FEATURE_BACKLASH | ABBE_FEATURE_THERMAL;
+    for (int j = 0; j < 3; j++) {
+        t.axis[j].takeup_nm = NM(1);
+        t.axis[j].tref_mdegc = 20000;
+    }
+    t.axis[0].backlash_q8 = LIN_Q(8.0);                  /* B = 8 um */
+    t.axis[1].expansion_q50 = 13510799;                  /* 12 ppm/K */
+    t.axis[1].thermal_offset_q16 = 65536;                /* 1 um/K */
+    abbe_model_t m;
+    load_table(&t, &m);
+    abbe_input_f32_t in_f = {{100.0f, 300.0f, 0.0f}, {1.0f, 0.0f, 0.0f}, {20.0f, 25.0f, 20.0f}};
+    abbe_input_q_t in_q = {{NM(100), NM(300), 0}, {ABBE_DIR_Q30_ONE, 0, 0}, {20000, 25000, 20000}};
+    abbe_error_f32_t ef;
+    abbe_error_q_t eq;
+    assert_int_equal(abbe_error_eval_f32(&m, &in_f, &ef), ABBE_OK);
+    assert_int_equal(abbe_error_eval_q(&m, &in_q, &eq), ABBE_OK);
+    /* dX = -(+1 * 8/2) = -4 um; dY = -(12e-6 * 5 K * 300 mm + 1 um/K * 5 K) = -(18 + 5) um */
+    assert_true(fabs(ef.error_um[0] + 4.0f) < 0.002f);
+    assert_true(abs(eq.error_nm[0] + 4000) <= 2);
+    assert_true(fabs(ef.error_um[1] + 23.0f) < 0.002f);
+    assert_true(abs(eq.error_nm[1] + 23000) <= 2);
+    /* direction state -1: +4 um; out-of-range states are clamped to [-1, 1] */
+    in_f.dir_state[0] = -3.0f;
+    in_q.dir_state_q30[0] = -3 * (ABBE_DIR_Q30_ONE / 2);
+    assert_int_equal(abbe_error_eval_f32(&m, &in_f, &ef), ABBE_OK);
+    assert_int_equal(abbe_error_eval_q(&m, &in_q, &eq), ABBE_OK);
+    assert_true(fabs(ef.error_um[0] - 4.0f) < 0.002f);
+    assert_true(abs(eq.error_nm[0] - 4000) <= 2);
+}
+
+/* A huge temperature drives the fixed-point strain to its clamp: reported. */
+static void test_fixed_saturation_reported(void **state)
+{
+    (void)state;
+    tb_table_t t;
+    tb_init(&t);
+    t.features = ABBE_FEATURE_THERMAL;
+    t.axis[0].expansion_q50 = INT32_MAX;
+    t.axis[0].tref_mdegc = 20000;
+    abbe_model_t m;
+    load_table(&t, &m);
+    abbe_input_q_t in_q = {{NM(500), 0, 0}, {0, 0, 0}, {INT32_MAX, 0, 0}};
+    abbe_error_q_t eq;
+    assert_int_equal(abbe_error_eval_q(&m, &in_q, &eq), ABBE_OK);
+    assert_int_equal(eq.flags & ABBE_FLAG_SATURATED, ABBE_FLAG_SATURATED);
+    /* clamped strain 2^30 * 2^-36 = 1/64 over 500 mm = 7.8 mm, negated */
+    assert_true(abs(eq.error_nm[0] + 7812500) <= 2);
+    in_q.temp_mdegc[0] = 25000;
+    assert_int_equal(abbe_error_eval_q(&m, &in_q, &eq), ABBE_OK);
+    assert_int_equal(eq.flags & ABBE_FLAG_SATURATED, 0);
+}
+
+static void test_bad_inputs(void **state)
+{
+    (void)state;
+    tb_table_t t;
+    tb_init(&t);
+    t.features = ABBE_FEATURE_THERMAL;
+    abbe_model_t m;
+    load_table(&t, &m);
+    abbe_input_f32_t in_f = {{1.0f, 2.0f, 3.0f}, {0, 0, 0}, {20, 20, 20}};
+    abbe_error_f32_t ef;
+    abbe_input_q_t in_q;
+    memset(&in_q, 0, sizeof in_q);
+    abbe_error_q_t eq;
+    float v;
+    int32_t vq;
+    assert_int_equal(abbe_error_eval_f32(NULL, &in_f, &ef), ABBE_E_ARG);
+    assert_int_equal(abbe_error_eval_f32(&m, NULL, &ef), ABBE_E_ARG);
+    assert_int_equal(abbe_error_eval_f32(&m, &in_f, NULL), ABBE_E_ARG);
+    assert_int_equal(abbe_error_eval_q(NULL, &in_q, &eq), ABBE_E_ARG);
+    assert_int_equal(abbe_error_eval_q(&m, NULL, &eq), ABBE_E_ARG);
+    assert_int_equal(abbe_error_eval_q(&m, &in_q, NULL), ABBE_E_ARG);
+    assert_int_equal(abbe_term_eval_f32(&m, 3, 0, 0.0f, &v), ABBE_E_ARG);
+    assert_int_equal(abbe_term_eval_f32(&m, 0, 6, 0.0f, &v), ABBE_E_ARG);
+    assert_int_equal(abbe_term_eval_q(&m, 0, 6, 0, &vq), ABBE_E_ARG);
+    assert_int_equal(abbe_term_eval_f32(&m, 0, 0, NAN, &v), ABBE_E_INPUT);
+
+    in_f.pos_mm[1] = NAN;
+    assert_int_equal(abbe_error_eval_f32(&m, &in_f, &ef), ABBE_E_INPUT);
+    assert_true(ef.error_um[0] == 0.0f && ef.error_um[1] == 0.0f);
+    in_f.pos_mm[1] = INFINITY;
+    assert_int_equal(abbe_error_eval_f32(&m, &in_f, &ef), ABBE_E_INPUT);
+    in_f.pos_mm[1] = 2.0f;
+    in_f.temp_c[2] = NAN; /* used: the table has thermal terms */
+    assert_int_equal(abbe_error_eval_f32(&m, &in_f, &ef), ABBE_E_INPUT);
+    in_f.temp_c[2] = 20.0f;
+    in_f.dir_state[0] = NAN; /* ignored: no backlash in this table */
+    assert_int_equal(abbe_error_eval_f32(&m, &in_f, &ef), ABBE_OK);
+    /* beyond +/-2147 mm: clamped and flagged, not undefined */
+    in_f.pos_mm[0] = 1e9f;
+    assert_int_equal(abbe_error_eval_f32(&m, &in_f, &ef), ABBE_OK);
+    assert_int_equal(ef.flags & ABBE_FLAG_OUT_OF_TRAVEL, ABBE_FLAG_OUT_OF_TRAVEL);
+}
+
+/* ---- kernels (white box) -------------------------------------------------- */
+
+static void test_sincos_accuracy(void **state)
+{
+    (void)state;
+    double worst_q = 0.0, worst_f = 0.0;
+    uint32_t phase = 12345u;
+    for (int i = 0; i < 200000; i++) {
+        phase = phase * 1664525u + 1013904223u;
+        uint32_t p = (i < 16) ? (uint32_t)i << 28 : phase; /* multiples of 1/16 turn, then random */
+        double th = 6.283185307179586 * (double)p / 4294967296.0;
+        int32_t sq, cq;
+        float sf, cf;
+        abbe_sincos_q30(p, &sq, &cq);
+        abbe_sincos_f32(p, &sf, &cf);
+        double eq = fmax(fabs(sq / 1073741824.0 - sin(th)), fabs(cq / 1073741824.0 - cos(th)));
+        double ef = fmax(fabs(sf - sin(th)), fabs(cf - cos(th)));
+        if (eq > worst_q) worst_q = eq;
+        if (ef > worst_f) worst_f = ef;
+    }
+    printf("sincos: max error q30 %.3g, f32 %.3g\n", worst_q, worst_f);
+    assert_true(worst_q < 4e-9);
+    assert_true(worst_f < 2e-7);
+}
+
+/* The phase of a 5 mm period 2 m from its origin stays exact to ~1 LSB. */
+static void test_phase_far_from_origin(void **state)
+{
+    (void)state;
+    tb_table_t t;
+    tb_init(&t);
+    t.axis[0].travel_min_nm = NM(-2100);
+    t.axis[0].travel_max_nm = NM(2100);
+    t.axis[0].harmonics[1] = 1;
+    t.axis[0].period_nm[1] = 4999999; /* not a power of two, not a round number */
+    t.axis[0].origin_nm[1] = NM(-2000);
+    abbe_model_t m;
+    load_table(&t, &m);
+    const int32_t ps[] = {NM(-2000), NM(-1999) + 3, 0, NM(2000) - 17, NM(2100)};
+    for (size_t i = 0; i < sizeof ps / sizeof ps[0]; i++) {
+        uint32_t ph = abbe_arg_phase_q32(&m.axis[0], 1, ps[i]);
+        long double turns = ((long double)ps[i] - (long double)NM(-2000)) / 4999999.0L;
+        long double frac = turns - floorl(turns);
+        long double got = (long double)ph / 4294967296.0L;
+        long double d = fabsl(got - frac);
+        if (d > 0.5L) d = 1.0L - d;
+        assert_true(d < 3.0L / 4294967296.0L);
+    }
+}
+
+static void test_chebyshev_argument(void **state)
+{
+    (void)state;
+    tb_table_t t;
+    tb_init(&t);
+    t.axis[1].travel_min_nm = NM(-400);
+    t.axis[1].travel_max_nm = 0;
+    abbe_model_t m;
+    load_table(&t, &m);
+    assert_int_equal(abbe_arg_cheb_q30(&m.axis[1], NM(-400)), -ABBE_Q30_ONE);
+    assert_int_equal(abbe_arg_cheb_q30(&m.axis[1], 0), ABBE_Q30_ONE);
+    assert_int_equal(abbe_arg_cheb_q30(&m.axis[1], NM(-200)), 0);
+    int32_t u = abbe_arg_cheb_q30(&m.axis[1], NM(-100));
+    assert_true(abs(u - ABBE_Q30_ONE / 2) <= 1);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_golden_error_both_variants),
+        cmocka_unit_test(test_golden_terms_both_variants),
+        cmocka_unit_test(test_positioning_sign_and_hold),
+        cmocka_unit_test(test_squareness_levers),
+        cmocka_unit_test(test_angles_and_tool_offset),
+        cmocka_unit_test(test_backlash_and_thermal),
+        cmocka_unit_test(test_fixed_saturation_reported),
+        cmocka_unit_test(test_bad_inputs),
+        cmocka_unit_test(test_sincos_accuracy),
+        cmocka_unit_test(test_phase_far_from_origin),
+        cmocka_unit_test(test_chebyshev_argument),
+    };
+    return cmocka_run_group_tests_name("eval", tests, NULL, NULL);
+}

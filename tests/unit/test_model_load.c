@@ -1,0 +1,316 @@
+/* Table validation: every malformed table gets its own status, never a crash
+ * or an out-of-bounds read (ASan watches every case). */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "abbe/abbe.h"
+#include "blob_builder.h"
+
+/* X: all six terms, trend degree 1, block 0 with 2 harmonics, block 1 with 1:
+ * 1+1 + 4 + 2 = 8 rows x 6 columns. */
+static int32_t coef_x[8 * 6];
+
+static void base_table(tb_table_t *t)
+{
+    tb_init(t);
+    for (int i = 0; i < 8 * 6; i++) {
+        coef_x[i] = (i % 6 < 3) ? 2560000 * ((i % 5) - 2) : 3436 * ((i % 7) - 3) * 1000;
+    }
+    t->features = ABBE_FEATURE_ALL;
+    t->reference_nm[0] = 100000000;
+    t->tool_nm[2] = 150000000;
+    t->squareness_q36[0] = 687195; /* 10 urad */
+    tb_axis_t *x = &t->axis[0];
+    x->term_mask = 0x3F;
+    x->trend_degree = 1;
+    x->harmonics[0] = 2;
+    x->harmonics[1] = 1;
+    x->period_nm[0] = 1000000000;
+    x->period_nm[1] = 10000000;
+    x->origin_nm[1] = 5000;
+    x->coef_q = coef_x;
+    for (int j = 0; j < 3; j++) {
+        t->axis[j].backlash_q8 = j == 0 ? 2560000 : 0;
+        t->axis[j].takeup_nm = 1000000;
+        t->axis[j].expansion_q50 = 13510799;
+        t->axis[j].tref_mdegc = 20000;
+    }
+}
+
+static uint8_t blob[4096];
+
+static size_t build_base(void)
+{
+    tb_table_t t;
+    base_table(&t);
+    size_t n = tb_build(&t, blob, sizeof blob);
+    assert_true(n > 0);
+    return n;
+}
+
+static abbe_status_t load(size_t n)
+{
+    abbe_model_t m;
+    return abbe_model_load(&m, blob, n);
+}
+
+static void test_valid_table_loads(void **state)
+{
+    (void)state;
+    size_t n = build_base();
+    abbe_model_t m;
+    assert_int_equal(abbe_model_load(&m, blob, n), ABBE_OK);
+    assert_int_equal(abbe_model_size(&m), n);
+    assert_int_equal(abbe_model_features(&m), ABBE_FEATURE_ALL);
+    assert_int_equal(abbe_model_crc(&m), tb_get_u32(blob + n - 4));
+    /* extra bytes after the table (a flash sector) are ignored */
+    assert_int_equal(abbe_model_load(&m, blob, n + 64), ABBE_OK);
+}
+
+static void test_null_arguments(void **state)
+{
+    (void)state;
+    size_t n = build_base();
+    abbe_model_t m;
+    assert_int_equal(abbe_model_load(NULL, blob, n), ABBE_E_ARG);
+    assert_int_equal(abbe_model_load(&m, NULL, n), ABBE_E_ARG);
+}
+
+/* Truncated at every byte: each shorter copy lives in its own exact-size heap
+ * block, so ASan catches a single byte read past the end. */
+static void test_truncated_at_every_byte(void **state)
+{
+    (void)state;
+    size_t n = build_base();
+    for (size_t len = 0; len < n; len++) {
+        uint8_t *copy = malloc(len ? len : 1);
+        assert_non_null(copy);
+        memcpy(copy, blob, len);
+        abbe_model_t m;
+        assert_int_equal(abbe_model_load(&m, copy, len), ABBE_E_TRUNCATED);
+        free(copy);
+    }
+}
+
+static void test_bad_magic(void **state)
+{
+    (void)state;
+    size_t n = build_base();
+    blob[1] = 'X';
+    assert_int_equal(load(n), ABBE_E_MAGIC);
+}
+
+static void test_versions(void **state)
+{
+    (void)state;
+    size_t n = build_base();
+    blob[TB_H_MAJOR] = 2;
+    assert_int_equal(load(n), ABBE_E_VERSION_MAJOR);
+    n = build_base();
+    blob[TB_H_MAJOR] = 0;
+    assert_int_equal(load(n), ABBE_E_VERSION_MAJOR);
+    n = build_base();
+    blob[TB_H_MINOR] = 1;
+    assert_int_equal(load(n), ABBE_E_VERSION_MINOR);
+}
+
+static void test_sizes(void **state)
+{
+    (void)state;
+    size_t n = build_base();
+    tb_put_u32(blob + TB_H_HEADER_SIZE, 60);
+    assert_int_equal(load(n), ABBE_E_SIZE);
+    n = build_base();
+    tb_put_u32(blob + TB_H_AXIS_SIZE, 68);
+    assert_int_equal(load(n), ABBE_E_SIZE);
+    n = build_base();
+    tb_put_u32(blob + TB_H_TOTAL, (uint32_t)n - 2); /* not a multiple of 4 */
+    assert_int_equal(load(n), ABBE_E_SIZE);
+    n = build_base();
+    tb_put_u32(blob + TB_H_TOTAL, 100); /* below header + axis records + CRC */
+    assert_int_equal(load(n), ABBE_E_SIZE);
+}
+
+static void test_crc(void **state)
+{
+    (void)state;
+    size_t n = build_base();
+    blob[300] ^= 0x01; /* a coefficient bit */
+    assert_int_equal(load(n), ABBE_E_CRC);
+    n = build_base();
+    blob[n - 1] ^= 0x80; /* the CRC itself */
+    assert_int_equal(load(n), ABBE_E_CRC);
+}
+
+/* Mutate a u32 field, fix the CRC, expect a status. */
+static void expect_u32(size_t off, uint32_t value, abbe_status_t expected)
+{
+    size_t n = build_base();
+    tb_put_u32(blob + off, value);
+    tb_fix_crc(blob, n);
+    assert_int_equal(load(n), expected);
+}
+
+static void expect_u8(size_t off, uint8_t value, abbe_status_t expected)
+{
+    size_t n = build_base();
+    blob[off] = value;
+    tb_fix_crc(blob, n);
+    assert_int_equal(load(n), expected);
+}
+
+static void test_flags(void **state)
+{
+    (void)state;
+    expect_u32(TB_H_FEATURES, ABBE_FEATURE_ALL | 0x10u, ABBE_E_FLAGS);
+    expect_u32(TB_H_RESERVED, 1, ABBE_E_FLAGS);
+    expect_u32(TB_AXIS(1) + TB_A_RESERVED, 1, ABBE_E_FLAGS);
+    /* a field set for a feature that is off */
+    expect_u32(TB_H_FEATURES, ABBE_FEATURE_ALL & ~ABBE_FEATURE_TOOL_OFFSET, ABBE_E_FLAGS);
+    expect_u32(TB_H_FEATURES, ABBE_FEATURE_ALL & ~ABBE_FEATURE_SQUARENESS, ABBE_E_FLAGS);
+    expect_u32(TB_H_FEATURES, ABBE_FEATURE_ALL & ~ABBE_FEATURE_BACKLASH, ABBE_E_FLAGS);
+    expect_u32(TB_H_FEATURES, ABBE_FEATURE_ALL & ~ABBE_FEATURE_THERMAL, ABBE_E_FLAGS);
+}
+
+static void test_counts_over_caps(void **state)
+{
+    (void)state;
+    expect_u8(TB_AXIS(0) + TB_A_MASK, 0x7F, ABBE_E_COUNT);
+    expect_u8(TB_AXIS(0) + TB_A_DEGREE, 8, ABBE_E_COUNT);
+    expect_u8(TB_AXIS(0) + TB_A_DEGREE, 254, ABBE_E_COUNT);
+    expect_u8(TB_AXIS(0) + TB_A_HARMONICS, 9, ABBE_E_COUNT);
+    expect_u8(TB_AXIS(0) + TB_A_HARMONICS + 1, 200, ABBE_E_COUNT);
+    expect_u32(TB_AXIS(0) + TB_A_COEF_COUNT, 47, ABBE_E_COUNT);
+    expect_u32(TB_AXIS(0) + TB_A_COEF_COUNT, 0xFFFFFFFFu, ABBE_E_COUNT);
+    /* an axis with no terms must declare no coefficients */
+    expect_u32(TB_AXIS(2) + TB_A_COEF_COUNT, 6, ABBE_E_COUNT);
+}
+
+static void test_offsets_out_of_bounds(void **state)
+{
+    (void)state;
+    size_t n = build_base();
+    uint32_t off_f = tb_get_u32(blob + TB_AXIS(0) + TB_A_COEF_F32);
+    expect_u32(TB_AXIS(0) + TB_A_COEF_Q, 0, ABBE_E_OFFSET);              /* inside the header */
+    expect_u32(TB_AXIS(0) + TB_A_COEF_Q, 252, ABBE_E_OFFSET);            /* overlaps the axis records */
+    expect_u32(TB_AXIS(0) + TB_A_COEF_Q, 258, ABBE_E_OFFSET);            /* misaligned */
+    expect_u32(TB_AXIS(0) + TB_A_COEF_F32, off_f + 4, ABBE_E_OFFSET);    /* runs into the CRC */
+    expect_u32(TB_AXIS(0) + TB_A_COEF_F32, (uint32_t)n, ABBE_E_OFFSET);  /* past the end */
+    expect_u32(TB_AXIS(0) + TB_A_COEF_F32, 0xFFFFFFFCu, ABBE_E_OFFSET);  /* wraps 32 bits */
+    expect_u32(TB_AXIS(1) + TB_A_COEF_Q, 256, ABBE_E_OFFSET);            /* offset with count 0 */
+}
+
+static void test_nonfinite_coefficients(void **state)
+{
+    (void)state;
+    size_t n = build_base();
+    uint32_t off_f = tb_get_u32(blob + TB_AXIS(0) + TB_A_COEF_F32);
+    expect_u32(off_f + 4 * 5, 0x7FC00000u, ABBE_E_NONFINITE);  /* NaN */
+    expect_u32(off_f, 0x7F800000u, ABBE_E_NONFINITE);          /* +Inf */
+    expect_u32(off_f + 4 * 47, 0xFF800000u, ABBE_E_NONFINITE); /* -Inf, last element */
+    (void)n;
+}
+
+static void test_periods(void **state)
+{
+    (void)state;
+    expect_u32(TB_AXIS(0) + TB_A_PERIOD, 0, ABBE_E_PERIOD);
+    expect_u32(TB_AXIS(0) + TB_A_PERIOD + 4, (uint32_t)-5000000, ABBE_E_PERIOD);
+    expect_u32(TB_AXIS(1) + TB_A_PERIOD, 1000000, ABBE_E_PERIOD); /* unused block with a period */
+    expect_u32(TB_AXIS(1) + TB_A_ORIGIN + 4, 7, ABBE_E_PERIOD);   /* unused block with an origin */
+}
+
+static void test_travel(void **state)
+{
+    (void)state;
+    expect_u32(TB_AXIS(1) + TB_A_MAX, 0, ABBE_E_TRAVEL);
+    expect_u32(TB_AXIS(2) + TB_A_MIN, 600000000, ABBE_E_TRAVEL);
+}
+
+static void test_ranges(void **state)
+{
+    (void)state;
+    expect_u32(TB_H_SQUARENESS + 4, (1u << 28) + 1u, ABBE_E_RANGE);
+    expect_u32(TB_AXIS(2) + TB_A_TAKEUP, 0, ABBE_E_RANGE);
+    /* an angular coefficient sum over 2^28 (coef_q of column 3, row 0) */
+    size_t n = build_base();
+    uint32_t off_q = tb_get_u32(blob + TB_AXIS(0) + TB_A_COEF_Q);
+    expect_u32(off_q + 4 * 3, 1u << 28, ABBE_E_RANGE);
+    /* a linear coefficient of INT32_MIN: |c| = 2^31 alone is fine, twice is not */
+    n = build_base();
+    tb_put_u32(blob + off_q, 0x80000000u);
+    tb_put_u32(blob + off_q + 4 * 6, 0x80000000u);
+    tb_put_u32(blob + off_q + 4 * 12, 0x80000000u);
+    tb_fix_crc(blob, n);
+    assert_int_equal(load(n), ABBE_E_RANGE);
+}
+
+/* A failed load leaves a model loaded earlier intact and usable. */
+static void test_failure_keeps_previous_model(void **state)
+{
+    (void)state;
+    size_t n = build_base();
+    static uint8_t good[4096];
+    memcpy(good, blob, n);
+    abbe_model_t m;
+    assert_int_equal(abbe_model_load(&m, good, n), ABBE_OK);
+    abbe_model_t before;
+    memcpy(&before, &m, sizeof m);
+    blob[n - 5] ^= 0xFF;
+    assert_int_equal(abbe_model_load(&m, blob, n), ABBE_E_CRC);
+    assert_memory_equal(&m, &before, sizeof m);
+}
+
+static void test_strerror_distinct(void **state)
+{
+    (void)state;
+    for (int a = ABBE_E_NO_MODEL; a <= ABBE_OK; a++) {
+        const char *sa = abbe_strerror(a);
+        assert_non_null(sa);
+        assert_string_not_equal(sa, "unknown status");
+        for (int b = a + 1; b <= ABBE_OK; b++) {
+            assert_string_not_equal(sa, abbe_strerror(b));
+        }
+    }
+    assert_string_equal(abbe_strerror(-999), "unknown status");
+}
+
+static void test_crc32_reference_value(void **state)
+{
+    (void)state;
+    assert_int_equal(abbe_crc32(0, "123456789", 9), 0xCBF43926u);
+    /* chunked == whole */
+    uint32_t c = abbe_crc32(0, "1234", 4);
+    assert_int_equal(abbe_crc32(c, "56789", 5), 0xCBF43926u);
+    assert_int_equal(abbe_crc32(0, "", 0), 0u);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_valid_table_loads),
+        cmocka_unit_test(test_null_arguments),
+        cmocka_unit_test(test_truncated_at_every_byte),
+        cmocka_unit_test(test_bad_magic),
+        cmocka_unit_test(test_versions),
+        cmocka_unit_test(test_sizes),
+        cmocka_unit_test(test_crc),
+        cmocka_unit_test(test_flags),
+        cmocka_unit_test(test_counts_over_caps),
+        cmocka_unit_test(test_offsets_out_of_bounds),
+        cmocka_unit_test(test_nonfinite_coefficients),
+        cmocka_unit_test(test_periods),
+        cmocka_unit_test(test_travel),
+        cmocka_unit_test(test_ranges),
+        cmocka_unit_test(test_failure_keeps_previous_model),
+        cmocka_unit_test(test_strerror_distinct),
+        cmocka_unit_test(test_crc32_reference_value),
+    };
+    return cmocka_run_group_tests_name("model_load", tests, NULL, NULL);
+}
