@@ -1,0 +1,351 @@
+/* Compensator: fades, rate limit, limits, watchdog, axis faults, model swap,
+ * backlash direction tracking. The invariant checked throughout: the output
+ * never changes by more than the rate limit in one cycle. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "abbe/abbe.h"
+#include "blob_builder.h"
+
+#define NM(mm) ((int32_t)((mm) * 1000000))
+#define LIN_Q(um) ((int32_t)lround((um) * 256000.0))
+
+static uint8_t blob_a[4096], blob_b[4096], blob_bad[4096];
+static size_t size_a, size_b;
+static int32_t coef_a[2], coef_b[2];
+
+/* Table A: constant d_x(x) = +20 um on X (so dX = -20 um, correction +20 um),
+ * backlash B = 10 um on X with 1 mm take-up. Table B: d_x(x) = -30 um. */
+static void build_tables(void)
+{
+    tb_table_t t;
+    tb_init(&t);
+    t.features = ABBE_FEATURE_BACKLASH;
+    for (int j = 0; j < 3; j++) t.axis[j].takeup_nm = NM(1);
+    t.axis[0].backlash_q8 = LIN_Q(10.0);
+    t.axis[0].term_mask = 1u << ABBE_TERM_DX;
+    t.axis[0].trend_degree = 0;
+    coef_a[0] = LIN_Q(20.0);
+    t.axis[0].coef_q = coef_a;
+    size_a = tb_build(&t, blob_a, sizeof blob_a);
+    coef_b[0] = LIN_Q(-30.0);
+    t.axis[0].coef_q = coef_b;
+    size_b = tb_build(&t, blob_b, sizeof blob_b);
+    assert_true(size_a > 0 && size_b > 0);
+}
+
+static abbe_comp_config_t config(void)
+{
+    abbe_comp_config_t c;
+    memset(&c, 0, sizeof c);
+    for (int j = 0; j < 3; j++) {
+        c.warn_nm[j] = 50000;
+        c.limit_nm[j] = 100000;
+        c.rate_nm_per_cycle[j] = 1000;
+        c.axis_sign[j] = 1;
+    }
+    c.fade_cycles = 10;
+    c.stale_cycles = 3;
+    return c;
+}
+
+typedef struct {
+    abbe_model_t a, b, spare;
+    abbe_comp_t comp;
+    abbe_comp_output_t out;
+    int32_t last_corr[3];
+    int32_t max_step;
+} fixture_t;
+
+static fixture_t fx;
+
+static int setup(void **state)
+{
+    (void)state;
+    memset(&fx, 0, sizeof fx);
+    build_tables();
+    assert_int_equal(abbe_model_load(&fx.a, blob_a, size_a), ABBE_OK);
+    assert_int_equal(abbe_model_load(&fx.b, blob_b, size_b), ABBE_OK);
+    abbe_comp_config_t c = config();
+    assert_int_equal(abbe_comp_init(&fx.comp, &c, &fx.a), ABBE_OK);
+    return 0;
+}
+
+/* One q step at x (mm), moving in dir along X; records the largest jump. */
+static uint32_t step(double x_mm, int8_t dir, int fresh, uint8_t fault_mask)
+{
+    abbe_comp_input_q_t in;
+    memset(&in, 0, sizeof in);
+    in.pos_nm[0] = (int32_t)lround(x_mm * 1e6);
+    in.dir[0] = dir;
+    in.fresh = (uint8_t)fresh;
+    in.axis_fault_mask = fault_mask;
+    assert_int_equal(abbe_comp_step_q(&fx.comp, &in, &fx.out), ABBE_OK);
+    for (int j = 0; j < 3; j++) {
+        int32_t d = abs(fx.out.corr_nm[j] - fx.last_corr[j]);
+        if (d > fx.max_step) fx.max_step = d;
+        fx.last_corr[j] = fx.out.corr_nm[j];
+    }
+    return fx.out.flags;
+}
+
+static void test_config_checked(void **state)
+{
+    (void)state;
+    abbe_comp_t c;
+    abbe_comp_config_t cfg = config();
+    assert_int_equal(abbe_comp_init(NULL, &cfg, NULL), ABBE_E_ARG);
+    assert_int_equal(abbe_comp_init(&c, NULL, NULL), ABBE_E_ARG);
+    cfg.fade_cycles = 0;
+    assert_int_equal(abbe_comp_init(&c, &cfg, NULL), ABBE_E_ARG);
+    cfg = config();
+    cfg.stale_cycles = 0;
+    assert_int_equal(abbe_comp_init(&c, &cfg, NULL), ABBE_E_ARG);
+    cfg = config();
+    cfg.limit_nm[1] = cfg.warn_nm[1] - 1;
+    assert_int_equal(abbe_comp_init(&c, &cfg, NULL), ABBE_E_ARG);
+    cfg = config();
+    cfg.rate_nm_per_cycle[2] = 0;
+    assert_int_equal(abbe_comp_init(&c, &cfg, NULL), ABBE_E_ARG);
+    cfg = config();
+    cfg.axis_sign[0] = 0;
+    assert_int_equal(abbe_comp_init(&c, &cfg, NULL), ABBE_E_ARG);
+    cfg = config();
+    assert_int_equal(abbe_comp_init(&c, &cfg, NULL), ABBE_OK);
+}
+
+/* Disabled: zero. Enabled: ramps to +20 um without a jump; the direction state
+ * starts at 0, so backlash adds nothing until the axis moves. */
+static void test_fade_in_and_out(void **state)
+{
+    (void)state;
+    for (int i = 0; i < 5; i++) step(100.0, 0, 1, 0);
+    assert_int_equal(fx.out.corr_nm[0], 0);
+    assert_int_equal(fx.out.target_nm[0], 20000);
+    assert_int_equal(fx.out.state, ABBE_COMP_OFF);
+    assert_int_equal(abbe_comp_enable(&fx.comp), ABBE_OK);
+    uint32_t seen = 0;
+    for (int i = 0; i < 40; i++) seen |= step(100.0, 0, 1, 0);
+    assert_true(seen & ABBE_FLAG_FADING);
+    assert_int_equal(fx.out.corr_nm[0], 20000);
+    assert_int_equal(fx.out.state, ABBE_COMP_ON);
+    assert_int_equal(fx.out.flags & ABBE_FLAG_FADING, 0);
+    assert_int_equal(abbe_comp_disable(&fx.comp), ABBE_OK);
+    for (int i = 0; i < 40; i++) step(100.0, 0, 1, 0);
+    assert_int_equal(fx.out.corr_nm[0], 0);
+    assert_true(fx.max_step <= 2000); /* fade step 20000/10 at most */
+}
+
+static void test_rate_limit_clips(void **state)
+{
+    (void)state;
+    abbe_comp_config_t c = config();
+    c.fade_cycles = 1; /* instant gain: only the rate limit shapes the output */
+    assert_int_equal(abbe_comp_init(&fx.comp, &c, &fx.a), ABBE_OK);
+    abbe_comp_enable(&fx.comp);
+    uint32_t f = step(100.0, 0, 1, 0);
+    assert_true(f & ABBE_FLAG_RATE_LIMITED);
+    assert_int_equal(fx.out.corr_nm[0], 1000);
+    for (int i = 0; i < 19; i++) step(100.0, 0, 1, 0);
+    assert_int_equal(fx.out.corr_nm[0], 20000);
+    f = step(100.0, 0, 1, 0);
+    assert_int_equal(f & ABBE_FLAG_RATE_LIMITED, 0);
+    assert_int_equal(fx.max_step, 1000);
+    assert_true(abbe_comp_stats(&fx.comp).rate_limited >= 19u);
+}
+
+/* Over the error limit: fault latched, fade to zero, reported; reset then
+ * enable resumes. Over the warning limit only: flagged, still applied. */
+static void test_limits(void **state)
+{
+    (void)state;
+    abbe_comp_config_t c = config();
+    c.warn_nm[0] = 15000;
+    c.limit_nm[0] = 25000;
+    assert_int_equal(abbe_comp_init(&fx.comp, &c, &fx.a), ABBE_OK);
+    abbe_comp_enable(&fx.comp);
+    for (int i = 0; i < 30; i++) step(100.0, 0, 1, 0);
+    assert_true(fx.out.flags & ABBE_FLAG_WARN);
+    assert_int_equal(fx.out.flags & ABBE_FLAG_LIMIT, 0);
+    assert_int_equal(fx.out.corr_nm[0], 20000);
+    /* table B asks for 30 um: over the limit */
+    assert_int_equal(abbe_comp_swap_model(&fx.comp, &fx.b), ABBE_OK);
+    uint32_t f = step(100.0, 0, 1, 0);
+    assert_true(f & ABBE_FLAG_MODEL_SWAPPED);
+    assert_true(f & ABBE_FLAG_LIMIT);
+    assert_int_equal(fx.out.state, ABBE_COMP_FAULT);
+    for (int i = 0; i < 40; i++) step(100.0, 0, 1, 0);
+    assert_int_equal(fx.out.corr_nm[0], 0);
+    assert_true(fx.out.flags & ABBE_FLAG_LIMIT);
+    assert_int_equal(abbe_comp_stats(&fx.comp).limit_trips, 1u);
+    /* back to table A, reset, enable */
+    abbe_comp_swap_model(&fx.comp, &fx.a);
+    assert_int_equal(abbe_comp_reset(&fx.comp), ABBE_OK);
+    step(100.0, 0, 1, 0);
+    assert_int_equal(fx.out.state, ABBE_COMP_OFF);
+    abbe_comp_enable(&fx.comp);
+    for (int i = 0; i < 40; i++) step(100.0, 0, 1, 0);
+    assert_int_equal(fx.out.state, ABBE_COMP_ON);
+    assert_int_equal(fx.out.corr_nm[0], 20000);
+    assert_true(fx.max_step <= 2000);
+}
+
+/* No fresh input for stale_cycles: flagged, faded out; fresh again: back in. */
+static void test_stale_watchdog(void **state)
+{
+    (void)state;
+    abbe_comp_enable(&fx.comp);
+    for (int i = 0; i < 30; i++) step(100.0, 0, 1, 0);
+    assert_int_equal(fx.out.corr_nm[0], 20000);
+    uint32_t f = step(100.0, 0, 0, 0);
+    assert_true(f & ABBE_FLAG_INPUT_INVALID);
+    assert_int_equal(f & ABBE_FLAG_STALE, 0);
+    assert_int_equal(fx.out.corr_nm[0], 20000); /* one missed cycle: held */
+    step(100.0, 0, 0, 0);
+    f = step(100.0, 0, 0, 0);
+    assert_true(f & ABBE_FLAG_STALE);
+    for (int i = 0; i < 30; i++) step(100.0, 0, 0, 0);
+    assert_int_equal(fx.out.corr_nm[0], 0);
+    assert_int_equal(abbe_comp_stats(&fx.comp).stale_events, 1u);
+    f = step(100.0, 0, 1, 0);
+    assert_int_equal(f & ABBE_FLAG_STALE, 0);
+    for (int i = 0; i < 30; i++) step(100.0, 0, 1, 0);
+    assert_int_equal(fx.out.corr_nm[0], 20000);
+    assert_true(fx.max_step <= 2000);
+}
+
+/* An axis fault fades that axis only. */
+static void test_axis_fault(void **state)
+{
+    (void)state;
+    abbe_comp_config_t c = config();
+    assert_int_equal(abbe_comp_init(&fx.comp, &c, &fx.a), ABBE_OK);
+    abbe_comp_enable(&fx.comp);
+    for (int i = 0; i < 30; i++) step(100.0, 0, 1, 0);
+    uint32_t f = step(100.0, 0, 1, 0x1);
+    assert_true(f & ABBE_FLAG_AXIS_FAULT);
+    for (int i = 0; i < 30; i++) step(100.0, 0, 1, 0x1);
+    assert_int_equal(fx.out.corr_nm[0], 0);
+    assert_int_equal(fx.out.state, ABBE_COMP_ON);
+    for (int i = 0; i < 30; i++) step(100.0, 0, 1, 0);
+    assert_int_equal(fx.out.corr_nm[0], 20000);
+    assert_true(fx.max_step <= 2000);
+}
+
+/* A bad blob never replaces the running model; a good one takes effect at the
+ * next cycle boundary, not before. */
+static void test_model_swap(void **state)
+{
+    (void)state;
+    abbe_comp_enable(&fx.comp);
+    for (int i = 0; i < 30; i++) step(100.0, 0, 1, 0);
+    memcpy(blob_bad, blob_b, size_b);
+    blob_bad[size_b - 9] ^= 0x10;
+    assert_int_equal(abbe_comp_load_model(&fx.comp, &fx.spare, blob_bad, size_b), ABBE_E_CRC);
+    assert_ptr_equal(abbe_comp_model(&fx.comp), &fx.a);
+    step(100.0, 0, 1, 0);
+    assert_int_equal(fx.out.flags & ABBE_FLAG_MODEL_SWAPPED, 0);
+    assert_int_equal(fx.out.target_nm[0], 20000);
+    /* the running model's own slot cannot be overwritten */
+    assert_int_equal(abbe_comp_load_model(&fx.comp, &fx.a, blob_b, size_b), ABBE_E_ARG);
+    assert_int_equal(abbe_comp_load_model(&fx.comp, &fx.spare, blob_b, size_b), ABBE_OK);
+    assert_ptr_equal(abbe_comp_model(&fx.comp), &fx.a); /* not yet */
+    uint32_t f = step(100.0, 0, 1, 0);
+    assert_true(f & ABBE_FLAG_MODEL_SWAPPED);
+    assert_ptr_equal(abbe_comp_model(&fx.comp), &fx.spare);
+    assert_int_equal(fx.out.target_nm[0], -30000);
+    for (int i = 0; i < 60; i++) step(100.0, 0, 1, 0);
+    assert_int_equal(fx.out.corr_nm[0], -30000);
+    assert_true(fx.max_step <= 1000); /* the 50 um change went through the rate limit */
+    assert_int_equal(abbe_comp_stats(&fx.comp).model_swaps, 1u);
+}
+
+/* Without a model: output zero, flagged; a model arriving fades in. */
+static void test_no_model(void **state)
+{
+    (void)state;
+    abbe_comp_config_t c = config();
+    assert_int_equal(abbe_comp_init(&fx.comp, &c, NULL), ABBE_OK);
+    abbe_comp_enable(&fx.comp);
+    uint32_t f = step(100.0, 0, 1, 0);
+    assert_true(f & ABBE_FLAG_NO_MODEL);
+    assert_int_equal(f & ABBE_FLAG_INPUT_INVALID, 0);
+    assert_int_equal(fx.out.corr_nm[0], 0);
+    abbe_comp_swap_model(&fx.comp, &fx.a);
+    for (int i = 0; i < 30; i++) step(100.0, 0, 1, 0);
+    assert_int_equal(fx.out.corr_nm[0], 20000);
+}
+
+/* Backlash: moving + for a full take-up gives +B/2 on d_x, i.e. a correction of
+ * +(20 + 5) um; reversing, it ramps over 1 mm to +(20 - 5) um, never a step. */
+static void test_backlash_direction_tracking(void **state)
+{
+    (void)state;
+    abbe_comp_config_t c = config();
+    c.rate_nm_per_cycle[0] = 100000;
+    c.fade_cycles = 1;
+    assert_int_equal(abbe_comp_init(&fx.comp, &c, &fx.a), ABBE_OK);
+    abbe_comp_enable(&fx.comp);
+    double x = 100.0;
+    for (int i = 0; i < 30; i++, x += 0.1) step(x, 1, 1, 0);
+    assert_int_equal(fx.out.corr_nm[0], 25000);
+    fx.max_step = 0;
+    int32_t prev = fx.out.corr_nm[0];
+    for (int i = 0; i < 30; i++, x -= 0.05) {
+        step(x, -1, 1, 0);
+        /* 0.05 mm of a 1 mm take-up is a tenth of the 10 um swing: 1 um a cycle */
+        assert_true(abs(fx.out.corr_nm[0] - prev) <= 1001);
+        prev = fx.out.corr_nm[0];
+    }
+    assert_int_equal(fx.out.corr_nm[0], 15000);
+    /* standstill keeps the state */
+    for (int i = 0; i < 5; i++) step(x, 0, 1, 0);
+    assert_int_equal(fx.out.corr_nm[0], 15000);
+}
+
+/* The float step: NaN positions are bad input (held, then stale), not a crash,
+ * and a good float cycle gives the same correction as the q step. */
+static void test_f32_step(void **state)
+{
+    (void)state;
+    abbe_comp_enable(&fx.comp);
+    abbe_comp_input_f32_t in;
+    memset(&in, 0, sizeof in);
+    in.pos_mm[0] = 100.0f;
+    in.fresh = 1;
+    for (int i = 0; i < 30; i++) assert_int_equal(abbe_comp_step_f32(&fx.comp, &in, &fx.out), ABBE_OK);
+    assert_int_equal(fx.out.corr_nm[0], 20000);
+    in.pos_mm[1] = NAN;
+    assert_int_equal(abbe_comp_step_f32(&fx.comp, &in, &fx.out), ABBE_OK);
+    assert_true(fx.out.flags & ABBE_FLAG_INPUT_INVALID);
+    assert_int_equal(fx.out.corr_nm[0], 20000);
+    for (int i = 0; i < 40; i++) abbe_comp_step_f32(&fx.comp, &in, &fx.out);
+    assert_true(fx.out.flags & ABBE_FLAG_STALE);
+    assert_int_equal(fx.out.corr_nm[0], 0);
+    assert_int_equal(abbe_comp_step_f32(NULL, &in, &fx.out), ABBE_E_ARG);
+    assert_int_equal(abbe_comp_step_q(&fx.comp, NULL, &fx.out), ABBE_E_ARG);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test_setup(test_config_checked, setup),
+        cmocka_unit_test_setup(test_fade_in_and_out, setup),
+        cmocka_unit_test_setup(test_rate_limit_clips, setup),
+        cmocka_unit_test_setup(test_limits, setup),
+        cmocka_unit_test_setup(test_stale_watchdog, setup),
+        cmocka_unit_test_setup(test_axis_fault, setup),
+        cmocka_unit_test_setup(test_model_swap, setup),
+        cmocka_unit_test_setup(test_no_model, setup),
+        cmocka_unit_test_setup(test_backlash_direction_tracking, setup),
+        cmocka_unit_test_setup(test_f32_step, setup),
+    };
+    return cmocka_run_group_tests_name("comp", tests, NULL, NULL);
+}
