@@ -90,6 +90,11 @@ const abbe_model_t *abbe_comp_model(const abbe_comp_t *comp)
     return comp != NULL ? comp->model : NULL;
 }
 
+size_t abbe_comp_sizeof(void)
+{
+    return sizeof(abbe_comp_t);
+}
+
 abbe_comp_stats_t abbe_comp_stats(const abbe_comp_t *comp)
 {
     abbe_comp_stats_t none = {0, 0, 0, 0, 0, 0};

@@ -230,8 +230,13 @@ static abbe_status_t check_ranges(const uint8_t *b)
     }
     for (unsigned j = 0; j < ABBE_AXES; j++) {
         const uint8_t *rec = b + HEADER_SIZE + j * AXIS_RECORD_SIZE;
-        if ((features & ABBE_FEATURE_BACKLASH) && abbe_ld_i32(rec + A_TAKEUP) <= 0) {
-            return ABBE_E_RANGE;
+        if (features & ABBE_FEATURE_BACKLASH) {
+            /* A reversal needs a take-up distance to ramp over; an axis without
+             * reversal may leave it 0. */
+            int32_t takeup = abbe_ld_i32(rec + A_TAKEUP);
+            if (takeup < 0 || (takeup == 0 && abbe_ld_i32(rec + A_BACKLASH) != 0)) {
+                return ABBE_E_RANGE;
+            }
         }
         unsigned mask = rec[A_MASK];
         unsigned n_terms = popcount6(mask);
@@ -356,6 +361,11 @@ uint32_t abbe_model_crc(const abbe_model_t *model)
 uint32_t abbe_model_features(const abbe_model_t *model)
 {
     return model != NULL ? model->features : 0u;
+}
+
+size_t abbe_model_sizeof(void)
+{
+    return sizeof(abbe_model_t);
 }
 
 uint32_t abbe_model_size(const abbe_model_t *model)

@@ -237,7 +237,9 @@ static void test_ranges(void **state)
 {
     (void)state;
     expect_u32(TB_H_SQUARENESS + 4, (1u << 28) + 1u, ABBE_E_RANGE);
-    expect_u32(TB_AXIS(2) + TB_A_TAKEUP, 0, ABBE_E_RANGE);
+    expect_u32(TB_AXIS(0) + TB_A_TAKEUP, 0, ABBE_E_RANGE);          /* reversal without take-up */
+    expect_u32(TB_AXIS(2) + TB_A_TAKEUP, (uint32_t)-1, ABBE_E_RANGE); /* negative take-up */
+    expect_u32(TB_AXIS(2) + TB_A_TAKEUP, 0, ABBE_OK);               /* no reversal: 0 is fine */
     /* an angular coefficient sum over 2^28 (coef_q of column 3, row 0) */
     size_t n = build_base();
     uint32_t off_q = tb_get_u32(blob + TB_AXIS(0) + TB_A_COEF_Q);

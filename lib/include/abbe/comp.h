@@ -139,6 +139,9 @@ abbe_status_t abbe_comp_step_f32(abbe_comp_t *comp, const abbe_comp_input_f32_t 
 abbe_status_t abbe_comp_step_q(abbe_comp_t *comp, const abbe_comp_input_q_t *in,
                                abbe_comp_output_t *out);
 
+/* sizeof(abbe_comp_t) as this library was built (for language bindings). */
+size_t abbe_comp_sizeof(void);
+
 /* Counters since init. */
 abbe_comp_stats_t abbe_comp_stats(const abbe_comp_t *comp);
 

@@ -98,6 +98,10 @@ uint32_t abbe_model_features(const abbe_model_t *model);
 /* Size of the table in bytes (its total_size field). */
 uint32_t abbe_model_size(const abbe_model_t *model);
 
+/* sizeof(abbe_model_t) as this library was built: lets bindings in other
+ * languages (host_tools/abbe/clib.py) check their copy of the layout. */
+size_t abbe_model_sizeof(void);
+
 /* CRC-32 as zlib computes it, continuing from crc (start with 0). Exposed for
  * ports that receive tables in chunks. */
 uint32_t abbe_crc32(uint32_t crc, const void *data, size_t size);
