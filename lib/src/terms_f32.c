@@ -40,6 +40,38 @@ static unsigned basis_f32(const abbe_axis_model_t *ax, int32_t p, float basis[AB
     return k;
 }
 
+/* acc[col] = sum over rows of coef[row][col] * basis[row]. A fitted axis has
+ * all six terms: that case keeps six accumulators in registers (and lets the
+ * compiler use SIMD); sparse axes take the generic loop. */
+static void dot_rows_f32(const uint8_t *row, const float *basis, unsigned rows, unsigned n_terms,
+                         float acc[ABBE_TERMS])
+{
+    if (n_terms == ABBE_TERMS) {
+        float a0 = 0.0f, a1 = 0.0f, a2 = 0.0f, a3 = 0.0f, a4 = 0.0f, a5 = 0.0f;
+        for (unsigned r = 0; r < rows; r++, row += 4u * ABBE_TERMS) {
+            float b = basis[r];
+            a0 += abbe_ld_f32(row) * b;
+            a1 += abbe_ld_f32(row + 4) * b;
+            a2 += abbe_ld_f32(row + 8) * b;
+            a3 += abbe_ld_f32(row + 12) * b;
+            a4 += abbe_ld_f32(row + 16) * b;
+            a5 += abbe_ld_f32(row + 20) * b;
+        }
+        acc[0] = a0;
+        acc[1] = a1;
+        acc[2] = a2;
+        acc[3] = a3;
+        acc[4] = a4;
+        acc[5] = a5;
+        return;
+    }
+    for (unsigned r = 0; r < rows; r++) {
+        for (unsigned col = 0; col < n_terms; col++, row += 4) {
+            acc[col] += abbe_ld_f32(row) * basis[r];
+        }
+    }
+}
+
 void abbe_axis_terms_f32(const abbe_axis_model_t *ax, int32_t pos_nm, float value[ABBE_TERMS],
                          uint32_t *flags)
 {
@@ -55,13 +87,12 @@ void abbe_axis_terms_f32(const abbe_axis_model_t *ax, int32_t pos_nm, float valu
     float basis[ABBE_MAX_BASIS];
     unsigned rows = basis_f32(ax, p, basis);
 
-    float acc[ABBE_TERMS] = {0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
-    const uint8_t *row = ax->coef_f32;
-    for (unsigned r = 0; r < rows; r++) {
-        for (unsigned col = 0; col < ax->n_terms; col++, row += 4) {
-            acc[col] += abbe_ld_f32(row) * basis[r];
-        }
+    if (ax->n_terms == ABBE_TERMS) { /* columns are the terms: no scatter */
+        dot_rows_f32(ax->coef_f32, basis, rows, ABBE_TERMS, value);
+        return;
     }
+    float acc[ABBE_TERMS] = {0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
+    dot_rows_f32(ax->coef_f32, basis, rows, ax->n_terms, acc);
     for (unsigned t = 0; t < ABBE_TERMS; t++) {
         if (ax->column[t] != 0xFFu) {
             value[t] = acc[ax->column[t]];

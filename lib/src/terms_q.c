@@ -48,6 +48,37 @@ static unsigned basis_q30(const abbe_axis_model_t *ax, int32_t p, int32_t basis[
     return k;
 }
 
+/* acc[col] = sum over rows of coef[row][col] * basis[row], exact in int64.
+ * Six-term axes (every fitted axis) keep the accumulators in registers. */
+static void dot_rows_q(const uint8_t *row, const int32_t *basis, unsigned rows, unsigned n_terms,
+                       int64_t acc[ABBE_TERMS])
+{
+    if (n_terms == ABBE_TERMS) {
+        int64_t a0 = 0, a1 = 0, a2 = 0, a3 = 0, a4 = 0, a5 = 0;
+        for (unsigned r = 0; r < rows; r++, row += 4u * ABBE_TERMS) {
+            int64_t b = basis[r];
+            a0 += abbe_ld_i32(row) * b;
+            a1 += abbe_ld_i32(row + 4) * b;
+            a2 += abbe_ld_i32(row + 8) * b;
+            a3 += abbe_ld_i32(row + 12) * b;
+            a4 += abbe_ld_i32(row + 16) * b;
+            a5 += abbe_ld_i32(row + 20) * b;
+        }
+        acc[0] = a0;
+        acc[1] = a1;
+        acc[2] = a2;
+        acc[3] = a3;
+        acc[4] = a4;
+        acc[5] = a5;
+        return;
+    }
+    for (unsigned r = 0; r < rows; r++) {
+        for (unsigned col = 0; col < n_terms; col++, row += 4) {
+            acc[col] += (int64_t)abbe_ld_i32(row) * basis[r];
+        }
+    }
+}
+
 void abbe_axis_terms_q(const abbe_axis_model_t *ax, int32_t pos_nm, int64_t value[ABBE_TERMS],
                        uint32_t *flags)
 {
@@ -65,11 +96,12 @@ void abbe_axis_terms_q(const abbe_axis_model_t *ax, int32_t pos_nm, int64_t valu
 
     /* Sum of |c| <= 2^32 (validated) times |basis| <= 2^30: below 2^63. */
     int64_t acc[ABBE_TERMS] = {0, 0, 0, 0, 0, 0};
-    const uint8_t *row = ax->coef_q;
-    for (unsigned r = 0; r < rows; r++) {
-        for (unsigned col = 0; col < ax->n_terms; col++, row += 4) {
-            acc[col] += (int64_t)abbe_ld_i32(row) * basis[r];
+    dot_rows_q(ax->coef_q, basis, rows, ax->n_terms, acc);
+    if (ax->n_terms == ABBE_TERMS) { /* columns are the terms: no scatter */
+        for (unsigned t = 0; t < ABBE_TERMS; t++) {
+            value[t] = abbe_shr_round(acc[t], 30u);
         }
+        return;
     }
     for (unsigned t = 0; t < ABBE_TERMS; t++) {
         if (ax->column[t] != 0xFFu) {
