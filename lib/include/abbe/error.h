@@ -24,7 +24,7 @@
 
 typedef struct {
     float pos_mm[ABBE_AXES];     /* axis positions, machine coordinates, mm */
-    float dir_state[ABBE_AXES];  /* backlash direction state in [-1, 1]; ignored without BACKLASH */
+    float dir_state[ABBE_AXES];  /* backlash direction state, clamped to [-1, 1]; ignored without BACKLASH */
     float temp_c[ABBE_AXES];     /* axis temperatures, deg C; ignored without THERMAL */
 } abbe_input_f32_t;
 
@@ -35,7 +35,7 @@ typedef struct {
 
 typedef struct {
     abbe_nm_t pos_nm[ABBE_AXES];     /* axis positions, machine coordinates, nm */
-    int32_t dir_state_q30[ABBE_AXES];/* backlash direction state, Q30 in [-2^30, 2^30] */
+    int32_t dir_state_q30[ABBE_AXES];/* backlash direction state, Q30, clamped to [-2^30, 2^30] */
     int32_t temp_mdegc[ABBE_AXES];   /* axis temperatures, milli-degrees C */
 } abbe_input_q_t;
 
@@ -53,7 +53,7 @@ abbe_status_t abbe_error_eval_f32(const abbe_model_t *model, const abbe_input_f3
                                   abbe_error_f32_t *out);
 
 /* Spatial error at one machine position, fixed point. Returns ABBE_OK or
- * ABBE_E_ARG (NULL pointers, direction state outside [-2^30, 2^30]).
+ * ABBE_E_ARG (NULL pointers).
  * Saturation is reported in out->flags, never by an in-band value. */
 abbe_status_t abbe_error_eval_q(const abbe_model_t *model, const abbe_input_q_t *in,
                                 abbe_error_q_t *out);
