@@ -494,16 +494,20 @@ def test_generated_c_compiles_and_version_guard(tmp_path: Path) -> None:
     write_c(blob, tmp_path)
     inc = REPO / "lib" / "include"
     main = tmp_path / "main.c"
-    main.write_text('#include <stdio.h>\n#include "abbe_model.h"\n'
-                    "int main(void) { unsigned s = 0; uint32_t i;\n"
+    # firmware-style use: the generated array goes through the library's loader
+    main.write_text('#include <stdio.h>\n#include "abbe/abbe.h"\n#include "abbe_model.h"\n'
+                    "int main(void) { unsigned s = 0; uint32_t i; abbe_model_t m;\n"
+                    "  int st = abbe_model_load(&m, abbe_model_blob, abbe_model_blob_size);\n"
                     "  for (i = 0; i < abbe_model_blob_size; i++) s += abbe_model_blob[i];\n"
-                    '  printf("%u %u\\n", (unsigned)abbe_model_blob_size, s); return 0; }\n')
+                    '  printf("%d %u %u %u\\n", st, (unsigned)abbe_model_blob_size, s,\n'
+                    "         (unsigned)(abbe_model_crc(&m) == ABBE_MODEL_BLOB_CRC32)); return 0; }\n")
     exe = tmp_path / "m"
+    lib_sources = sorted(str(p) for p in (REPO / "lib" / "src").glob("*.c"))
     subprocess.run(["cc", "-std=c99", "-Wall", "-Wextra", "-pedantic", "-Werror", f"-I{inc}",
-                    f"-I{tmp_path}", str(main), str(tmp_path / "abbe_model.c"), "-o", str(exe)],
-                   check=True, capture_output=True)
+                    f"-I{tmp_path}", str(main), str(tmp_path / "abbe_model.c"), *lib_sources,
+                    "-o", str(exe)], check=True, capture_output=True)
     out = subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout.split()
-    assert [int(v) for v in out] == [len(blob), sum(blob)]
+    assert [int(v) for v in out] == [0, len(blob), sum(blob), 1]
     # a library with another table major refuses the generated file
     fake = tmp_path / "fake" / "abbe"
     fake.mkdir(parents=True)
