@@ -499,13 +499,8 @@ def write_blob(table: Table) -> bytes:
         if n:
             q = ai.coef_q.astype("<i4")  # row-major: c[row * n_terms + column]
             out[qoff:qoff + 4 * n] = q.tobytes(order="C")
-            f = np.empty(ai.coef_q.shape, dtype=np.float64)
-            col = 0
-            for t_i, t in enumerate(TERMS):
-                if ai.term_mask & (1 << t_i):
-                    f[:, col] = (_lin_from_q8(ai.coef_q[:, col]) if t in LINEAR_TERMS
-                                 else _ang_from_q36(ai.coef_q[:, col]))
-                    col += 1
+            # the float32 twin: each int32 converted, round to nearest even, same units
+            f = ai.coef_q.astype(np.float32)
             out[foff:foff + 4 * n] = f.astype("<f4").tobytes(order="C")
     struct.pack_into("<I", out, total - 4, zlib.crc32(bytes(out[:total - 4])) & 0xFFFFFFFF)
     return bytes(out)
@@ -628,6 +623,15 @@ def _read_ints(data: bytes, source: str) -> _TableInts:
             if not np.all(np.isfinite(f)):
                 raise err("ABBE_E_NONFINITE", "float32 coefficient is NaN or infinite",
                           f"axes.{a}.coef_f32")
+    # MISMATCH: the float32 array must be the int32 array converted, bit for bit
+    for a, r in zip(AXES, recs):
+        if r[COUNT]:
+            q = np.frombuffer(data, dtype="<i4", count=r[COUNT], offset=r[QOFF])
+            f = np.frombuffer(data, dtype="<u4", count=r[COUNT], offset=r[FOFF])
+            bad = np.flatnonzero(q.astype(np.float32).view("<u4") != f)
+            if bad.size:
+                raise err("ABBE_E_MISMATCH", f"float32 coefficient {int(bad[0])} is not its int32 "
+                          "value converted", f"axes.{a}.coef_f32")
     # PERIOD
     for a, r in zip(AXES, recs):
         for b, (h, per, org) in enumerate(((r[H0], r[P0], r[O0]), (r[H1], r[P1], r[O1]))):

@@ -122,6 +122,9 @@ def crafted_cases() -> list[tuple[str, str, bytes]]:
         ("f32 offset with count 0", "ABBE_E_OFFSET", patch(good, z + A_FOFF, "I", 256)),
         ("NaN coefficient", "ABBE_E_NONFINITE", patch(good, foff_x + 4, "f", math.nan)),
         ("Inf coefficient", "ABBE_E_NONFINITE", patch(good, foff_x, "f", -math.inf)),
+        ("float32 twin off by one ulp", "ABBE_E_MISMATCH",
+         patch(good, foff_x + 8, "I", struct.unpack_from("<I", good, foff_x + 8)[0] ^ 1)),
+        ("float32 twin huge but finite", "ABBE_E_MISMATCH", patch(good, foff_x + 12, "f", 1.06e37)),
         ("period 0", "ABBE_E_PERIOD", patch(good, x + A_P0, "i", 0)),
         ("period negative", "ABBE_E_PERIOD", patch(good, y + A_P1, "i", -10_000_000)),
         ("period of unused block", "ABBE_E_PERIOD", patch(good, x + A_P1, "i", 1000)),
@@ -140,9 +143,12 @@ def crafted_cases() -> list[tuple[str, str, bytes]]:
 
 
 def _patch_column(blob: bytes, qoff: int, n_terms: int, col: int, values: list[int]) -> bytes:
-    """Set column ``col`` of an int32 coefficient matrix (float32 left as is)."""
+    """Set column ``col`` of the X coefficient matrix, int32 and its float32 twin,
+    so that only the range check can fail."""
+    foff = struct.unpack_from("<I", blob, axis_off(0) + A_FOFF)[0]
     for row, v in enumerate(values):
         blob = patch(blob, qoff + 4 * (row * n_terms + col), "i", v)
+        blob = patch(blob, foff + 4 * (row * n_terms + col), "f", float(np.float32(v)))
     return blob
 
 
@@ -197,8 +203,8 @@ def test_layout_matches_spec() -> None:
     np.testing.assert_array_equal(q[:, 1], np.rint(np.array([10.0, 5.0, -3.0, 1.0])
                                                    * 2**36 / 1e6))
     f = np.frombuffer(blob, "<f4", count, foff).reshape(4, 2)
-    np.testing.assert_array_equal(f[:, 0], np.float32([1.5, -2.25, 0.75, 0.5]))
-    np.testing.assert_allclose(f[:, 1], [10.0, 5.0, -3.0, 1.0], atol=2e-5)
+    # the float32 twin: each int32 converted (round to nearest even), same units
+    np.testing.assert_array_equal(f, q.astype(np.float32))
     z = axis_off(2)
     assert struct.unpack_from("<BBBB", blob, z + A_MASK) == (0, 255, 0, 0)
     assert struct.unpack_from("<III", blob, z + A_QOFF) == (0, 0, 0)

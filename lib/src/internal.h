@@ -13,6 +13,14 @@ typedef char abbe_requires_arithmetic_shift[((-2 >> 1) == -1) ? 1 : -1];
 
 #define ABBE_Q30_ONE ((int32_t)1 << 30)
 
+/* Hot-path helpers that must be specialised per call site (constant column
+ * count); plain inline elsewhere. */
+#if defined(__GNUC__)
+#define ABBE_ALWAYS_INLINE inline __attribute__((always_inline))
+#else
+#define ABBE_ALWAYS_INLINE inline
+#endif
+
 /* Little-endian loads; compilers turn these into one load on LE targets. */
 static inline uint32_t abbe_ld_u32(const uint8_t *p)
 {

@@ -188,6 +188,59 @@ static abbe_status_t check_finite(const uint8_t *b)
     return ABBE_OK;
 }
 
+/* IEEE single-precision bits of v, rounded to nearest even, in integers only
+ * (the loader serves the float-free fixed-point build too). */
+static uint32_t i32_to_f32_bits(int32_t v)
+{
+    if (v == 0) {
+        return 0u;
+    }
+    uint32_t sign = v < 0 ? 0x80000000u : 0u;
+    uint32_t mag = v < 0 ? (uint32_t)(-(int64_t)v) : (uint32_t)v;
+    unsigned msb = 0;
+    for (unsigned step = 16; step > 0; step >>= 1) { /* binary search for the top bit */
+        if ((mag >> (msb + step)) != 0u) {
+            msb += step;
+        }
+    }
+    uint32_t exponent = 127u + msb;
+    uint32_t mant;
+    if (msb <= 23u) {
+        mant = mag << (23u - msb);
+    } else {
+        unsigned shift = msb - 23u;
+        uint32_t rem = mag & ((1u << shift) - 1u);
+        uint32_t half = 1u << (shift - 1u);
+        mant = mag >> shift;
+        if (rem > half || (rem == half && (mant & 1u))) {
+            mant++;
+            if (mant == (1u << 24)) {
+                mant >>= 1;
+                exponent++;
+            }
+        }
+    }
+    return sign | (exponent << 23) | (mant & 0x7FFFFFu);
+}
+
+/* The float32 array must be the int32 array converted: checked bit for bit, so
+ * both variants evaluate the same table whatever wrote it. */
+static abbe_status_t check_twins(const uint8_t *b)
+{
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        const uint8_t *rec = b + HEADER_SIZE + j * AXIS_RECORD_SIZE;
+        uint32_t count = abbe_ld_u32(rec + A_COEF_COUNT);
+        const uint8_t *q = b + abbe_ld_u32(rec + A_COEF_Q);
+        const uint8_t *f = b + abbe_ld_u32(rec + A_COEF_F32);
+        for (uint32_t i = 0; i < count; i++) {
+            if (abbe_ld_u32(f + 4u * i) != i32_to_f32_bits(abbe_ld_i32(q + 4u * i))) {
+                return ABBE_E_MISMATCH;
+            }
+        }
+    }
+    return ABBE_OK;
+}
+
 static abbe_status_t check_periods(const uint8_t *b)
 {
     for (unsigned j = 0; j < ABBE_AXES; j++) {
@@ -326,6 +379,7 @@ abbe_status_t abbe_model_load(abbe_model_t *model, const void *blob, size_t size
     if (st == ABBE_OK) st = check_counts(b);
     if (st == ABBE_OK) st = check_offsets(b, total);
     if (st == ABBE_OK) st = check_finite(b);
+    if (st == ABBE_OK) st = check_twins(b);
     if (st == ABBE_OK) st = check_periods(b);
     if (st == ABBE_OK) st = check_travel(b);
     if (st == ABBE_OK) st = check_ranges(b);

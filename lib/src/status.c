@@ -21,6 +21,7 @@ const char *abbe_strerror(int status)
     case ABBE_E_RANGE: return "table value outside its representable range";
     case ABBE_E_INPUT: return "NaN or infinite input";
     case ABBE_E_NO_MODEL: return "no model loaded";
+    case ABBE_E_MISMATCH: return "float32 coefficient differs from its int32 value";
     default: return "unknown status";
     }
 }

@@ -1,73 +1,68 @@
 /* abbe: fitted term values of one axis, single precision.
  *
- * Same structure as terms_q.c; the argument reduction stays integer (arg.c),
- * the basis and the dot products are float. Coefficients are the table's
- * float32 array (um, urad), read in place.
+ * Same structure as terms_q.c; the argument reduction stays integer, the basis
+ * and the dot products are float. The float32 coefficients are the int32
+ * coefficients converted (same units: 2^-8 nm, 2^-36 rad), so each term is
+ * scaled to um or urad once at the end.
  */
 #include "internal.h"
 
-static unsigned basis_f32(const abbe_axis_model_t *ax, int32_t p, float basis[ABBE_MAX_BASIS])
+#define UM_PER_LIN_LSB 3.90625e-6f              /* 2^-8 nm */
+#define URAD_PER_ANG_LSB 1.4551915228366852e-5f /* 2^-36 rad */
+
+static ABBE_ALWAYS_INLINE const uint8_t *mac_row_f32(const uint8_t *row, float b, unsigned n_terms,
+                                                      float acc[ABBE_TERMS])
 {
-    unsigned k = 0;
+    if (n_terms == ABBE_TERMS) { /* constant after inlining: six statements, no loop */
+        acc[0] += abbe_ld_f32(row) * b;
+        acc[1] += abbe_ld_f32(row + 4) * b;
+        acc[2] += abbe_ld_f32(row + 8) * b;
+        acc[3] += abbe_ld_f32(row + 12) * b;
+        acc[4] += abbe_ld_f32(row + 16) * b;
+        acc[5] += abbe_ld_f32(row + 20) * b;
+        return row + 4u * ABBE_TERMS;
+    }
+    for (unsigned col = 0; col < n_terms; col++) {
+        acc[col] += abbe_ld_f32(row + 4u * col) * b;
+    }
+    return row + 4u * n_terms;
+}
+
+static ABBE_ALWAYS_INLINE void dot_axis_f32(const abbe_axis_model_t *ax, int32_t p, unsigned n_terms,
+                                            float acc[ABBE_TERMS])
+{
+    const uint8_t *row = ax->coef_f32;
     if (ax->trend_rows > 0u) {
         float u = (float)abbe_arg_cheb_q30(ax, p) * 9.31322574615478515625e-10f; /* 2^-30 */
         float two_u = u + u;
-        basis[k++] = 1.0f;
+        float t_prev = 1.0f, t = u;
+        row = mac_row_f32(row, t_prev, n_terms, acc);
         if (ax->trend_rows > 1u) {
-            basis[k++] = u;
+            row = mac_row_f32(row, t, n_terms, acc);
         }
-        for (unsigned i = 2; i < ax->trend_rows; i++, k++) {
-            basis[k] = two_u * basis[k - 1u] - basis[k - 2u];
+        for (unsigned k = 2; k < ax->trend_rows; k++) {
+            float t_next = two_u * t - t_prev;
+            t_prev = t;
+            t = t_next;
+            row = mac_row_f32(row, t, n_terms, acc);
         }
     }
-    for (unsigned b = 0; b < ABBE_BLOCKS; b++) {
-        if (ax->harmonics[b] == 0u) {
+    for (unsigned blk = 0; blk < ABBE_BLOCKS; blk++) {
+        if (ax->harmonics[blk] == 0u) {
             continue;
         }
         float s1, c1;
-        abbe_sincos_f32(abbe_arg_phase_q32(ax, b, p), &s1, &c1);
+        abbe_sincos_f32(abbe_arg_phase_q32(ax, blk, p), &s1, &c1);
         float s = s1, c = c1;
-        basis[k++] = s;
-        basis[k++] = c;
-        for (unsigned n = 2; n <= ax->harmonics[b]; n++) {
+        for (unsigned n = 1;; n++) {
+            row = mac_row_f32(row, s, n_terms, acc);
+            row = mac_row_f32(row, c, n_terms, acc);
+            if (n == ax->harmonics[blk]) {
+                break;
+            }
             float sn = s * c1 + c * s1;
             c = c * c1 - s * s1;
             s = sn;
-            basis[k++] = s;
-            basis[k++] = c;
-        }
-    }
-    return k;
-}
-
-/* acc[col] = sum over rows of coef[row][col] * basis[row]. A fitted axis has
- * all six terms: that case keeps six accumulators in registers (and lets the
- * compiler use SIMD); sparse axes take the generic loop. */
-static void dot_rows_f32(const uint8_t *row, const float *basis, unsigned rows, unsigned n_terms,
-                         float acc[ABBE_TERMS])
-{
-    if (n_terms == ABBE_TERMS) {
-        float a0 = 0.0f, a1 = 0.0f, a2 = 0.0f, a3 = 0.0f, a4 = 0.0f, a5 = 0.0f;
-        for (unsigned r = 0; r < rows; r++, row += 4u * ABBE_TERMS) {
-            float b = basis[r];
-            a0 += abbe_ld_f32(row) * b;
-            a1 += abbe_ld_f32(row + 4) * b;
-            a2 += abbe_ld_f32(row + 8) * b;
-            a3 += abbe_ld_f32(row + 12) * b;
-            a4 += abbe_ld_f32(row + 16) * b;
-            a5 += abbe_ld_f32(row + 20) * b;
-        }
-        acc[0] = a0;
-        acc[1] = a1;
-        acc[2] = a2;
-        acc[3] = a3;
-        acc[4] = a4;
-        acc[5] = a5;
-        return;
-    }
-    for (unsigned r = 0; r < rows; r++) {
-        for (unsigned col = 0; col < n_terms; col++, row += 4) {
-            acc[col] += abbe_ld_f32(row) * basis[r];
         }
     }
 }
@@ -75,27 +70,27 @@ static void dot_rows_f32(const uint8_t *row, const float *basis, unsigned rows, 
 void abbe_axis_terms_f32(const abbe_axis_model_t *ax, int32_t pos_nm, float value[ABBE_TERMS],
                          uint32_t *flags)
 {
-    for (unsigned t = 0; t < ABBE_TERMS; t++) {
-        value[t] = 0.0f;
-    }
     /* The travel check comes first: a position outside it is reported even
      * for an axis without fitted terms. */
     int32_t p = abbe_arg_clamp(ax, pos_nm, flags);
-    if (ax->n_terms == 0u || ax->coef_f32 == NULL) {
-        return;
-    }
-    float basis[ABBE_MAX_BASIS];
-    unsigned rows = basis_f32(ax, p, basis);
-
-    if (ax->n_terms == ABBE_TERMS) { /* columns are the terms: no scatter */
-        dot_rows_f32(ax->coef_f32, basis, rows, ABBE_TERMS, value);
-        return;
-    }
     float acc[ABBE_TERMS] = {0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
-    dot_rows_f32(ax->coef_f32, basis, rows, ax->n_terms, acc);
+    if (ax->n_terms == ABBE_TERMS) {
+        dot_axis_f32(ax, p, ABBE_TERMS, acc);
+        for (unsigned t = 0; t < ABBE_TERMS; t++) {
+            value[t] = acc[t] * (t < 3u ? UM_PER_LIN_LSB : URAD_PER_ANG_LSB);
+        }
+        return;
+    }
+    for (unsigned t = 0; t < ABBE_TERMS; t++) {
+        value[t] = 0.0f;
+    }
+    if (ax->n_terms == 0u) {
+        return;
+    }
+    dot_axis_f32(ax, p, ax->n_terms, acc);
     for (unsigned t = 0; t < ABBE_TERMS; t++) {
         if (ax->column[t] != 0xFFu) {
-            value[t] = acc[ax->column[t]];
+            value[t] = acc[ax->column[t]] * (t < 3u ? UM_PER_LIN_LSB : URAD_PER_ANG_LSB);
         }
     }
 }

@@ -101,10 +101,8 @@ size_t tb_build(const tb_table_t *t, uint8_t *buf, size_t cap)
             for (unsigned row = 0; row < nb; row++) {
                 unsigned i = row * nt + col;
                 int32_t q = a->coef_q[i];
-                /* um for linear (2^-8 nm), urad for angular (2^-36 rad) */
-                double v = term < 3 ? (double)q / 256.0 / 1000.0 : (double)q / 68719476736.0 * 1e6;
                 put_i32(buf + data + 4u * i, q);
-                put_f32(buf + data + 4u * count + 4u * i, (float)v);
+                put_f32(buf + data + 4u * count + 4u * i, (float)q); /* the float32 twin */
             }
             col++;
         }

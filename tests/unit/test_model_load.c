@@ -217,6 +217,38 @@ static void test_nonfinite_coefficients(void **state)
     (void)n;
 }
 
+/* The float32 array must be the int32 array converted, bit for bit (the fuzzer
+ * found a finite 1e37 twin that made the float path overflow). */
+static void test_float_twin_mismatch(void **state)
+{
+    (void)state;
+    size_t n = build_base();
+    uint32_t off_f = tb_get_u32(blob + TB_AXIS(0) + TB_A_COEF_F32);
+    expect_u32(off_f + 4 * 7, tb_get_u32(blob + off_f + 4 * 7) ^ 1u, ABBE_E_MISMATCH); /* one ulp */
+    expect_u32(off_f + 4 * 9, 0x7C4F1BBDu, ABBE_E_MISMATCH);                            /* 1.06e37 */
+    (void)n;
+}
+
+/* The integer int32 -> float32 conversion of the loader is exact RNE, checked
+ * against the compiler's conversion at the rounding boundaries. */
+static void test_twin_conversion_rounding(void **state)
+{
+    (void)state;
+    static const int32_t values[] = {1, -1, 16777216, 16777217, 16777218, 16777219, -16777219,
+                                     33554435, 2147483647, -2147483647 - 1, 123456789, -987654321};
+    static int32_t coef[6];
+    for (size_t i = 0; i < sizeof values / sizeof values[0]; i++) {
+        tb_table_t t;
+        tb_init(&t);
+        t.axis[1].term_mask = 1u << ABBE_TERM_DX;
+        t.axis[1].trend_degree = 0;
+        coef[0] = values[i];
+        t.axis[1].coef_q = coef;
+        size_t n = tb_build(&t, blob, sizeof blob); /* float twin written with (float)q */
+        assert_int_equal(load(n), ABBE_OK);
+    }
+}
+
 static void test_periods(void **state)
 {
     (void)state;
@@ -240,17 +272,21 @@ static void test_ranges(void **state)
     expect_u32(TB_AXIS(0) + TB_A_TAKEUP, 0, ABBE_E_RANGE);          /* reversal without take-up */
     expect_u32(TB_AXIS(2) + TB_A_TAKEUP, (uint32_t)-1, ABBE_E_RANGE); /* negative take-up */
     expect_u32(TB_AXIS(2) + TB_A_TAKEUP, 0, ABBE_OK);               /* no reversal: 0 is fine */
-    /* an angular coefficient sum over 2^28 (coef_q of column 3, row 0) */
-    size_t n = build_base();
-    uint32_t off_q = tb_get_u32(blob + TB_AXIS(0) + TB_A_COEF_Q);
-    expect_u32(off_q + 4 * 3, 1u << 28, ABBE_E_RANGE);
-    /* a linear coefficient of INT32_MIN: |c| = 2^31 alone is fine, twice is not */
-    n = build_base();
-    tb_put_u32(blob + off_q, 0x80000000u);
-    tb_put_u32(blob + off_q + 4 * 6, 0x80000000u);
-    tb_put_u32(blob + off_q + 4 * 12, 0x80000000u);
-    tb_fix_crc(blob, n);
+    /* an angular coefficient sum over 2^28 (column 3, row 0) */
+    tb_table_t t;
+    base_table(&t);
+    coef_x[3] = 1 << 28;
+    size_t n = tb_build(&t, blob, sizeof blob);
     assert_int_equal(load(n), ABBE_E_RANGE);
+    /* a linear coefficient of INT32_MIN: |c| = 2^31 alone is fine, three are not */
+    base_table(&t);
+    coef_x[0] = coef_x[6] = coef_x[12] = INT32_MIN;
+    n = tb_build(&t, blob, sizeof blob);
+    assert_int_equal(load(n), ABBE_E_RANGE);
+    base_table(&t);
+    coef_x[0] = INT32_MIN;
+    n = tb_build(&t, blob, sizeof blob);
+    assert_int_equal(load(n), ABBE_OK);
 }
 
 /* A failed load leaves a model loaded earlier intact and usable. */
@@ -307,6 +343,8 @@ int main(void)
         cmocka_unit_test(test_counts_over_caps),
         cmocka_unit_test(test_offsets_out_of_bounds),
         cmocka_unit_test(test_nonfinite_coefficients),
+        cmocka_unit_test(test_float_twin_mismatch),
+        cmocka_unit_test(test_twin_conversion_rounding),
         cmocka_unit_test(test_periods),
         cmocka_unit_test(test_travel),
         cmocka_unit_test(test_ranges),

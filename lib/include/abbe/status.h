@@ -19,7 +19,8 @@ typedef enum {
     ABBE_E_TRAVEL = -13,        /* travel_min >= travel_max */
     ABBE_E_RANGE = -14,         /* a value outside the range that keeps fixed point exact */
     ABBE_E_INPUT = -15,         /* NaN or infinite input (float path) */
-    ABBE_E_NO_MODEL = -16       /* compensator has no model loaded */
+    ABBE_E_NO_MODEL = -16,      /* compensator has no model loaded */
+    ABBE_E_MISMATCH = -17       /* a float32 coefficient is not its int32 twin converted */
 } abbe_status_t;
 
 /* Human-readable, static, never NULL (unknown codes give "unknown status"). */
