@@ -1,0 +1,33 @@
+# Fail if an object or image references or defines a forbidden symbol.
+#   cmake -DNM=arm-none-eabi-nm -DFILE=image.elf -DFORBID=<regex> [-DWHAT=text] -P check_symbols.cmake
+# FORBID is a CMake regex matched against each symbol name (defined or undefined).
+if(NOT NM OR NOT FILE OR NOT FORBID)
+    message(FATAL_ERROR "usage: -DNM=... -DFILE=... -DFORBID=regex -P check_symbols.cmake")
+endif()
+execute_process(COMMAND "${NM}" "${FILE}"
+    OUTPUT_VARIABLE out ERROR_VARIABLE err RESULT_VARIABLE rc)
+if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "${NM} ${FILE} failed: ${err}")
+endif()
+string(REPLACE "\n" ";" lines "${out}")
+set(bad)
+set(count 0)
+foreach(line IN LISTS lines)
+    # "<addr> <type> <name>" or "         U <name>"
+    if(line MATCHES "^[0-9a-fA-F ]* ([A-Za-z]) ([^ ]+)$")
+        math(EXPR count "${count} + 1")
+        set(type "${CMAKE_MATCH_1}")
+        set(name "${CMAKE_MATCH_2}")
+        if(name MATCHES "${FORBID}")
+            list(APPEND bad "${type} ${name}")
+        endif()
+    endif()
+endforeach()
+if(count EQUAL 0)
+    message(FATAL_ERROR "no symbols read from ${FILE}: nothing was checked")
+endif()
+if(bad)
+    string(REPLACE ";" "\n  " bad "${bad}")
+    message(FATAL_ERROR "${FILE}: forbidden ${WHAT} symbols:\n  ${bad}")
+endif()
+message(STATUS "${FILE}: ${count} symbols, none forbidden (${WHAT})")

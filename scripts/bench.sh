@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# Measure the library and write bench/results.md (see scripts/bench_report.py):
+# x86-64 instructions per call (callgrind), Cortex-M4F/M3 instructions per
+# call (QEMU exec trace), flash, static RAM and stack, against a naive
+# double-precision reference. Builds in build-bench-{host,m4f,m3,m4f-os,m3-os}/.
+#   ./scripts/bench.sh            # writes bench/results.md
+#   ./scripts/bench.sh -o FILE    # writes FILE instead
+set -euo pipefail
+
+REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$REPO"
+JOBS="$(nproc 2>/dev/null || echo 2)"
+OUT="bench/results.md"
+if [[ "${1:-}" == "-o" && -n "${2:-}" ]]; then
+    OUT="$2"
+fi
+
+bash scripts/setup.sh
+
+common=(-DCMAKE_BUILD_TYPE=Release -DABBE_BUILD_BENCH=ON -DABBE_BUILD_TESTS=OFF -DABBE_STACK_USAGE=ON)
+cmake -S . -B build-bench-host "${common[@]}" >/dev/null
+cmake -S . -B build-bench-m4f -DCMAKE_TOOLCHAIN_FILE=cmake/toolchain-cortex-m4f.cmake "${common[@]}" >/dev/null
+cmake -S . -B build-bench-m3 -DCMAKE_TOOLCHAIN_FILE=cmake/toolchain-cortex-m3.cmake "${common[@]}" >/dev/null
+size=(-DCMAKE_BUILD_TYPE=MinSizeRel -DABBE_BUILD_BENCH=ON -DABBE_BUILD_TESTS=OFF -DABBE_STACK_USAGE=ON)
+cmake -S . -B build-bench-m4f-os -DCMAKE_TOOLCHAIN_FILE=cmake/toolchain-cortex-m4f.cmake "${size[@]}" >/dev/null
+cmake -S . -B build-bench-m3-os -DCMAKE_TOOLCHAIN_FILE=cmake/toolchain-cortex-m3.cmake "${size[@]}" >/dev/null
+for dir in build-bench-host build-bench-m4f build-bench-m3 build-bench-m4f-os build-bench-m3-os; do
+    cmake --build "$dir" -j "$JOBS"
+done
+
+python3 scripts/bench_report.py --repo . --host build-bench-host --m4f build-bench-m4f \
+    --m3 build-bench-m3 --m4f-os build-bench-m4f-os --m3-os build-bench-m3-os -o "$OUT"

@@ -1,0 +1,493 @@
+#!/usr/bin/env python3
+"""Measure the abbe library and write bench/results.md (run by scripts/bench.sh).
+
+Everything counted here is an instruction count or a byte count, so the
+numbers repeat exactly for the same compiler, library and table:
+
+1. x86-64 instructions per call (valgrind --tool=callgrind): the library's
+   own cost from --toggle-collect=<function> (total / calls), cross-checked by
+   the difference of two whole-program runs of N and N + 1000 calls.
+2. Cortex-M4F / Cortex-M3 instructions per call from QEMU's exec trace
+   (-singlestep -d exec,nochain: one trace line per executed instruction),
+   counted between two calls of bench_mark() minus an empty pair.
+3. Flash and static RAM of the library per use, from the link maps of the
+   bench_size_* images (input sections that come from libabbe.a).
+4. Stack: worst case from GCC's -fcallgraph-info=su call graph (deepest
+   chain), and the bytes the call really used on the target (stack painting).
+5. A naive double-precision reference (bench/naive_ref.c) for comparison.
+
+Usage: bench_report.py --repo DIR --host BUILD --m4f BUILD --m3 BUILD [-o FILE]
+Only the Python standard library is used.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import statistics
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+# Targets from the issue: reported, not asserted.
+TARGETS = {
+    "x86_f32": 400,
+    "m4f_f32": 700,
+    "m3_q": 1500,
+    "flash_bytes": 6 * 1024,
+    "stack_bytes": 256,
+}
+
+CALLGRIND_N = 2000
+CALLGRIND_EXTRA = 1000
+
+
+def run(cmd: list[str], **kw) -> subprocess.CompletedProcess:
+    """Run a command, raising with its output on failure."""
+    res = subprocess.run(cmd, capture_output=True, text=True, **kw)
+    if res.returncode != 0:
+        raise RuntimeError(f"{' '.join(map(str, cmd))} failed ({res.returncode}):\n"
+                           f"{res.stdout}\n{res.stderr}")
+    return res
+
+
+def first_line(cmd: list[str]) -> str:
+    try:
+        return subprocess.run(cmd, capture_output=True, text=True).stdout.splitlines()[0].strip()
+    except (OSError, IndexError):
+        return "not found"
+
+
+# --------------------------------------------------------------------------- host
+
+def callgrind_total(exe: Path, args: list[str], toggle: str | None) -> int:
+    """Total Ir of one callgrind run (only inside `toggle` if given)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "callgrind.out"
+        cmd = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}"]
+        if toggle:
+            cmd.append(f"--toggle-collect={toggle}")
+        run(cmd + [str(exe)] + args)
+        text = out.read_text()
+    m = re.search(r"^(?:summary|totals):\s+(\d+)", text, re.M)
+    if not m:
+        raise RuntimeError("no totals in callgrind output")
+    return int(m.group(1))
+
+
+@dataclass
+class HostResult:
+    mode: str
+    function: str
+    per_call: float          # toggle-collect: instructions inside the function per call
+    per_iter: float          # difference method: whole loop iteration
+
+
+def host_bench(build: Path) -> tuple[list[HostResult], str]:
+    exe = build / "bench" / "bench_host"
+    check = run([str(exe), "check"]).stdout.strip()
+    modes = [
+        ("f32", "abbe_error_eval_f32", 0),
+        ("q", "abbe_error_eval_q", 0),
+        ("comp_f32", "abbe_comp_step_f32", 4),
+        ("comp_q", "abbe_comp_step_q", 4),
+        ("naive", "naive_eval", 0),
+        ("empty", "bench_empty", 0),
+    ]
+    results = []
+    for mode, fn, extra_calls in modes:
+        inside = callgrind_total(exe, [mode, str(CALLGRIND_N)], fn)
+        a = callgrind_total(exe, [mode, str(CALLGRIND_N)], None)
+        b = callgrind_total(exe, [mode, str(CALLGRIND_N + CALLGRIND_EXTRA)], None)
+        results.append(HostResult(mode, fn, inside / (CALLGRIND_N + extra_calls),
+                                  (b - a) / CALLGRIND_EXTRA))
+    return results, check
+
+
+# --------------------------------------------------------------------------- target
+
+def nm_address(nm: str, image: Path, symbol: str) -> int:
+    for line in run([nm, str(image)]).stdout.splitlines():
+        parts = line.split()
+        if len(parts) == 3 and parts[2] == symbol:
+            return int(parts[0], 16) & ~1
+    raise RuntimeError(f"{symbol} not in {image}")
+
+
+TRACE_RE = re.compile(r"^Trace \d+: \S+ \[[0-9a-f]+/([0-9a-f]+)/")
+
+
+def qemu_trace_counts(machine: str, image: Path, nm: str) -> tuple[dict[str, list[int]], str]:
+    """Instructions per measured call, by PLAN name, from QEMU's exec trace."""
+    mark = nm_address(nm, image, "bench_mark")
+    with tempfile.TemporaryDirectory() as tmp:
+        log = Path(tmp) / "exec.log"
+        res = run(["qemu-system-arm", "-M", machine, "-nographic",
+                   "-semihosting-config", "enable=on,target=native", "-kernel", str(image),
+                   "-singlestep", "-d", "exec,nochain", "-D", str(log)],
+                  stdin=subprocess.DEVNULL, timeout=600)
+        hits = []
+        n = 0
+        with log.open() as f:
+            for line in f:
+                m = TRACE_RE.match(line)
+                if not m:
+                    continue
+                if int(m.group(1), 16) == mark:
+                    hits.append(n)
+                n += 1
+    stdout = res.stdout + res.stderr  # QEMU writes semihosting output to stderr
+    plan = [(m.group(1), int(m.group(2))) for m in re.finditer(r"^PLAN (\S+) (\d+)$", stdout, re.M)]
+    intervals = [hits[i + 1] - hits[i] for i in range(0, len(hits) - 1, 2)]
+    expected = sum(k for _, k in plan)
+    if len(hits) != 2 * expected:
+        raise RuntimeError(f"{image}: {len(hits)} marks in the trace, plan wants {2 * expected}")
+    counts: dict[str, list[int]] = {}
+    pos = 0
+    for name, k in plan:
+        counts.setdefault(name, []).extend(intervals[pos:pos + k])
+        pos += k
+    calib = counts.pop("calibration")[0]
+    counts.pop("stack", None)
+    return {name: [c - calib for c in v] for name, v in counts.items()}, stdout
+
+
+def stack_measured(stdout: str) -> dict[str, int]:
+    return {m.group(1): int(m.group(2)) for m in re.finditer(r"^STACK (\S+) (\d+)$", stdout, re.M)}
+
+
+# --------------------------------------------------------------------------- link maps
+
+SECTION_RE = re.compile(r"^ (\.[^\s]+)\s+0x([0-9a-f]+)\s+0x([0-9a-f]+)\s+(.+)$")
+CONT_RE = re.compile(r"^\s+0x([0-9a-f]+)\s+0x([0-9a-f]+)\s+(.+)$")
+
+
+@dataclass
+class MapSizes:
+    lib_flash: int = 0
+    lib_ram: int = 0
+    gcc_flash: int = 0
+    gcc_members: set[str] = field(default_factory=set)
+    lib_members: dict[str, int] = field(default_factory=dict)
+
+
+def parse_map(path: Path) -> MapSizes:
+    """Flash (.text*, .rodata*) and RAM (.data*, .bss*) taken from libabbe.a / libgcc.a."""
+    sizes = MapSizes()
+    lines = path.read_text().splitlines()
+    try:
+        start = next(i for i, l in enumerate(lines) if l.startswith("Linker script and memory map"))
+    except StopIteration:
+        raise RuntimeError(f"{path}: not a GNU ld map") from None
+    pending = None
+    for line in lines[start:]:
+        m = SECTION_RE.match(line)
+        if m:
+            sec, _, size, origin = m.groups()
+        elif pending and CONT_RE.match(line):
+            _, size, origin = CONT_RE.match(line).groups()
+            sec = pending
+        else:
+            pending = line.strip() if re.match(r"^ \.[^\s]+$", line) else None
+            continue
+        pending = None
+        size_b = int(size, 16)
+        if size_b == 0 or not re.search(r"\.a\(", origin):
+            continue
+        flash = sec.startswith((".text", ".rodata"))
+        ram = sec.startswith((".data", ".bss"))
+        member = origin.rsplit("(", 1)[-1].rstrip(")")
+        if "libabbe.a(" in origin:
+            if flash:
+                sizes.lib_flash += size_b
+                key = member.replace(".c.obj", ".c").replace(".c.o", ".c")
+                sizes.lib_members[key] = sizes.lib_members.get(key, 0) + size_b
+            elif ram:
+                sizes.lib_ram += size_b
+        elif "libgcc.a(" in origin and flash:
+            sizes.gcc_flash += size_b
+            sizes.gcc_members.add(member)
+    return sizes
+
+
+# --------------------------------------------------------------------------- call graph
+
+NODE_RE = re.compile(r'^node: \{ title: "([^"]+)" label: "([^"]*)"')
+EDGE_RE = re.compile(r'^edge: \{ sourcename: "([^"]+)" targetname: "([^"]+)"')
+
+
+def parse_callgraph(ci_files: list[Path]) -> tuple[dict[str, int], dict[str, set[str]]]:
+    frames: dict[str, int] = {}
+    calls: dict[str, set[str]] = {}
+    for f in ci_files:
+        for line in f.read_text().splitlines():
+            m = NODE_RE.match(line)
+            if m:
+                sm = re.search(r"\\n(\d+) bytes \(([^)]*)\)", m.group(2))
+                if sm:
+                    frames[m.group(1)] = int(sm.group(1))
+                continue
+            m = EDGE_RE.match(line)
+            if m:
+                calls.setdefault(m.group(1), set()).add(m.group(2))
+    return frames, calls
+
+
+def deepest(fn: str, frames: dict[str, int], calls: dict[str, set[str]],
+            seen: tuple[str, ...] = ()) -> tuple[int, list[str]]:
+    """Worst-case stack from fn and the chain that reaches it (recursion: error)."""
+    if fn in seen:
+        raise RuntimeError(f"recursion through {fn}: no static stack bound")
+    best, chain = 0, []
+    for callee in sorted(calls.get(fn, ())):
+        d, c = deepest(callee, frames, calls, seen + (fn,))
+        if d > best:
+            best, chain = d, c
+    return frames.get(fn, 0) + best, [fn] + chain
+
+
+def short(fn: str) -> str:
+    """Call-graph title without the absolute path GCC puts on static functions."""
+    if ":" in fn:
+        path, name = fn.rsplit(":", 1)
+        return f"{os.path.basename(path)}:{name}"
+    return fn
+
+
+def wrapper_frames(build: Path) -> dict[str, int]:
+    """Frames of the bench_target.c wrappers (.su), to take out of the measured stack."""
+    out = {}
+    for su in build.glob("bench/CMakeFiles/bench_target.dir/*.su"):
+        for line in su.read_text().splitlines():
+            parts = line.split("\t")
+            if len(parts) >= 2:
+                out[parts[0].rsplit(":", 1)[-1]] = int(parts[1])
+    return out
+
+
+# --------------------------------------------------------------------------- report
+
+def fmt_counts(v: list[int]) -> str:
+    lo, hi = min(v), max(v)
+    return f"{lo}" if lo == hi else f"{lo} to {hi} (mean {statistics.mean(v):.0f})"
+
+
+def verdict(value: float, target: float) -> str:
+    return "meets" if value <= target else "MISSES"
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repo", type=Path, required=True)
+    ap.add_argument("--host", type=Path, required=True)
+    ap.add_argument("--m4f", type=Path, required=True)
+    ap.add_argument("--m3", type=Path, required=True)
+    ap.add_argument("--m4f-os", type=Path, help="Cortex-M4F build at -Os (optional)")
+    ap.add_argument("--m3-os", type=Path, help="Cortex-M3 build at -Os (optional)")
+    ap.add_argument("-o", "--out", type=Path)
+    args = ap.parse_args()
+    nm = "arm-none-eabi-nm"
+
+    md: list[str] = []
+    w = md.append
+    w("# abbe benchmark results")
+    w("")
+    w("Written by `scripts/bench.sh` (scripts/bench_report.py); do not edit by hand.")
+    w("Instruction and byte counts, not times: they repeat exactly for the same")
+    w("compiler, library and table. Table: the `paper` golden table")
+    w("(tests/golden: 3 axes x 6 terms, Chebyshev trend degree 1 + 3 harmonics,")
+    w("squareness, tool offset). Library built with CMAKE_BUILD_TYPE=Release")
+    w("(host -O3, Cortex-M -O2, see cmake/arm-none-eabi-common.cmake).")
+    w("")
+    w("Tools: " + "; ".join([
+        first_line(["gcc", "--version"]),
+        first_line(["arm-none-eabi-gcc", "--version"]),
+        first_line(["qemu-system-arm", "--version"]),
+        first_line(["valgrind", "--version"]),
+    ]))
+    w("")
+
+    # 1. host
+    host, check = host_bench(args.host)
+    by = {r.mode: r for r in host}
+    w("## 1. x86-64 instructions per call (callgrind)")
+    w("")
+    w("`inside` = instructions executed inside the function per call")
+    w(f"(--toggle-collect, {CALLGRIND_N} calls over the table's golden points);")
+    w(f"`loop` = whole-program difference of {CALLGRIND_N + CALLGRIND_EXTRA} and "
+      f"{CALLGRIND_N} calls / {CALLGRIND_EXTRA},")
+    w("i.e. including the benchmark loop and the call itself "
+      f"(an empty call costs {by['empty'].per_iter:.0f} per iteration).")
+    w("")
+    w("| call | inside | loop |")
+    w("|---|---:|---:|")
+    names = {"f32": "abbe_error_eval_f32", "q": "abbe_error_eval_q",
+             "comp_f32": "abbe_comp_step_f32 (compensator cycle)",
+             "comp_q": "abbe_comp_step_q (compensator cycle)",
+             "naive": "naive reference (double, libm sin/cos)", "empty": "empty call"}
+    for r in host:
+        w(f"| {names[r.mode]} | {r.per_call:.1f} | {r.per_iter:.1f} |")
+    w("")
+    w(f"Target x86 f32 <= {TARGETS['x86_f32']}: {by['f32'].per_call:.0f} "
+      f"({verdict(by['f32'].per_call, TARGETS['x86_f32'])}). Naive / f32 = "
+      f"{by['naive'].per_call / by['f32'].per_call:.1f}x, naive / q = "
+      f"{by['naive'].per_call / by['q'].per_call:.1f}x.")
+    w("")
+    w("Naive reference check (`bench_host check`):")
+    w("")
+    w("```")
+    w(check)
+    w("```")
+    w("")
+
+    # 2. target
+    w("## 2. Cortex-M instructions per call (QEMU exec trace)")
+    w("")
+    w("One trace line per executed instruction (`-singlestep -d exec,nochain`),")
+    w("counted from the first to the second `bench_mark()` minus an empty pair;")
+    w("the count includes the argument set-up and the call. 8 points per variant")
+    w("(golden points of the table: in and out of travel, both directions).")
+    w("These are instructions, not cycles (no wait states, pipeline or FPU latency).")
+    w("")
+    w("| target | call | instructions |")
+    w("|---|---|---:|")
+    tgt: dict[str, dict[str, list[int]]] = {}
+    stdout_by: dict[str, str] = {}
+    naive_t: dict[str, list[int]] = {}
+    for name, build, machine in (("Cortex-M4F", args.m4f, "mps2-an386"),
+                                 ("Cortex-M3", args.m3, "mps2-an385")):
+        counts, stdout = qemu_trace_counts(machine, build / "bench" / "bench_target.elf", nm)
+        tgt[name] = counts
+        stdout_by[name] = stdout
+        ncounts, _ = qemu_trace_counts(machine, build / "bench" / "bench_naive_target.elf", nm)
+        naive_t[name] = ncounts["naive"]
+        for call, v in counts.items():
+            w(f"| {name} | {names.get(call, 'abbe_model_load' if call == 'load' else call)} "
+              f"| {fmt_counts(v)} |")
+        w(f"| {name} | naive reference (double, newlib libm) | {fmt_counts(naive_t[name])} |")
+    w("")
+    m4f_f32 = max(tgt["Cortex-M4F"]["f32"])
+    m3_q = max(tgt["Cortex-M3"]["q"])
+    w(f"Target M4F f32 <= {TARGETS['m4f_f32']}: {m4f_f32} ({verdict(m4f_f32, TARGETS['m4f_f32'])}); "
+      f"M3 q <= {TARGETS['m3_q']}: {m3_q} ({verdict(m3_q, TARGETS['m3_q'])}). "
+      f"Naive / library: M4F {statistics.mean(naive_t['Cortex-M4F']) / statistics.mean(tgt['Cortex-M4F']['f32']):.0f}x (f32), "
+      f"M3 {statistics.mean(naive_t['Cortex-M3']) / statistics.mean(tgt['Cortex-M3']['q']):.0f}x (q).")
+    w("")
+
+    # 3. flash and RAM
+    w("## 3. Flash and static RAM of the library")
+    w("")
+    w("From the link maps of minimal images (bench/bench_size.c, --gc-sections):")
+    w("`.text` + `.rodata` input sections taken from libabbe.a, and separately the")
+    w("libgcc routines they pull in. Static RAM = `.data` + `.bss` from libabbe.a.")
+    w("")
+    w("| target | use | library flash (B) | libgcc flash (B) | libgcc routines | library RAM (B) |")
+    w("|---|---|---:|---:|---|---:|")
+    flash_worst = 0
+    flash_eval_worst = 0
+    ram_worst = 0
+    member_rows = []
+    for name, build in (("Cortex-M4F", args.m4f), ("Cortex-M3", args.m3)):
+        for use in ("load", "eval_f32", "eval_q", "comp_f32", "comp_q"):
+            mp = build / "bench" / f"bench_size_{use}.map"
+            if not mp.exists():
+                continue
+            s = parse_map(mp)
+            if use != "load":
+                flash_worst = max(flash_worst, s.lib_flash)
+            if use.startswith("eval"):
+                flash_eval_worst = max(flash_eval_worst, s.lib_flash)
+            ram_worst = max(ram_worst, s.lib_ram)
+            gcc = ", ".join(sorted(m[:-2] if m.endswith(".o") else m
+                                   for m in s.gcc_members)) or "none"
+            label = {"load": "abbe_model_load only", "eval_f32": "load + eval_f32",
+                     "eval_q": "load + eval_q", "comp_f32": "load + compensator (f32)",
+                     "comp_q": "load + compensator (q)"}[use]
+            w(f"| {name} | {label} | {s.lib_flash} | {s.gcc_flash} | {gcc} | {s.lib_ram} |")
+            if use in ("comp_f32", "comp_q"):
+                member_rows.append((name, use, s.lib_members))
+    w("")
+    w(f"Target flash per variant <= {TARGETS['flash_bytes']} B: load + eval worst "
+      f"{flash_eval_worst} B ({verdict(flash_eval_worst, TARGETS['flash_bytes'])}), with the "
+      f"compensator worst {flash_worst} B ({verdict(flash_worst, TARGETS['flash_bytes'])}). "
+      f"Static RAM of the library: {ram_worst} B (must be 0: {'yes' if ram_worst == 0 else 'NO'}).")
+    w("")
+    w("Library flash by source file, compensator images:")
+    w("")
+    for name, use, members in member_rows:
+        parts = ", ".join(f"{k} {v}" for k, v in sorted(members.items(), key=lambda kv: -kv[1]))
+        w(f"- {name}, {use}: {parts}")
+    w("")
+
+    # 4. stack
+    w("## 4. Stack")
+    w("")
+    w("`static` = deepest chain in GCC's call graph (-fstack-usage,")
+    w("-fcallgraph-info=su) of the library objects; compiler helper routines")
+    w("(libgcc, memset/memcpy) are not in that graph and count as 0 there.")
+    w("`measured` = bytes really written below SP during the call on the target")
+    w("(stack painted, QEMU run), minus the frame of the benchmark wrapper.")
+    w("")
+    w("| target | entry point | static (B) | measured (B) | deepest chain (frame bytes) |")
+    w("|---|---|---:|---:|---|")
+    stack_worst = 0
+    for name, build in (("Cortex-M4F", args.m4f), ("Cortex-M3", args.m3)):
+        cis = sorted((build / "lib").rglob("*.ci"))
+        frames, calls = parse_callgraph(cis)
+        measured = stack_measured(stdout_by[name])
+        wrappers = wrapper_frames(build)
+        entries = [("load", "abbe_model_load", "run_load"),
+                   ("f32", "abbe_error_eval_f32", "run_f32"),
+                   ("q", "abbe_error_eval_q", "run_q"),
+                   ("comp_f32", "abbe_comp_step_f32", "run_comp_f32"),
+                   ("comp_q", "abbe_comp_step_q", "run_comp_q")]
+        for key, fn, wrapper in entries:
+            if fn not in frames:
+                continue
+            depth, chain = deepest(fn, frames, calls)
+            if key != "load":
+                stack_worst = max(stack_worst, depth)
+            meas = measured.get(key)
+            meas_s = "-" if meas is None else str(meas - wrappers.get(wrapper, 0))
+            chain_s = " > ".join(f"{short(c)} ({frames.get(c, 0)})" for c in chain)
+            w(f"| {name} | {fn} | {depth} | {meas_s} | {chain_s} |")
+    w("")
+    w(f"Target stack <= {TARGETS['stack_bytes']} B (evaluation and compensator): "
+      f"worst static {stack_worst} B ({verdict(stack_worst, TARGETS['stack_bytes'])}).")
+    w("")
+
+    # 5. -Os
+    if args.m4f_os and args.m3_os:
+        w("## 5. The same library built for size (-Os, CMAKE_BUILD_TYPE=MinSizeRel)")
+        w("")
+        w("| target | call | instructions | library flash, load + call (B) | static stack (B) |")
+        w("|---|---|---:|---:|---:|")
+        for name, build, machine in (("Cortex-M4F", args.m4f_os, "mps2-an386"),
+                                     ("Cortex-M3", args.m3_os, "mps2-an385")):
+            counts, _ = qemu_trace_counts(machine, build / "bench" / "bench_target.elf", nm)
+            frames, calls = parse_callgraph(sorted((build / "lib").rglob("*.ci")))
+            for key, fn, use in (("f32", "abbe_error_eval_f32", "eval_f32"),
+                                 ("q", "abbe_error_eval_q", "eval_q"),
+                                 ("comp_f32", "abbe_comp_step_f32", "comp_f32"),
+                                 ("comp_q", "abbe_comp_step_q", "comp_q")):
+                if key not in counts:
+                    continue
+                flash = parse_map(build / "bench" / f"bench_size_{use}.map").lib_flash
+                w(f"| {name} | {names[key]} | {fmt_counts(counts[key])} | {flash} | "
+                  f"{deepest(fn, frames, calls)[0]} |")
+        w("")
+
+    text = "\n".join(md) + "\n"
+    if args.out:
+        args.out.write_text(text)
+        print(f"bench_report: wrote {args.out}")
+    else:
+        sys.stdout.write(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,61 @@
+#!/usr/bin/env bash
+# Set up a Debian 12 machine for abbe: system packages and the Python venv.
+# Idempotent: installs only what is missing. Run as root (CI) or with sudo.
+#   ./scripts/setup.sh
+set -euo pipefail
+
+REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$REPO"
+
+PACKAGES=(
+    cmake build-essential pkg-config
+    libcmocka-dev libmodbus-dev
+    gcc-arm-none-eabi libnewlib-arm-none-eabi
+    qemu-system-arm
+    valgrind
+    clang libclang-rt-14-dev
+    socat can-utils
+    python3 python3-venv
+)
+
+log() { printf '[setup] %s\n' "$*"; }
+
+missing=()
+for pkg in "${PACKAGES[@]}"; do
+    if ! dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q 'install ok installed'; then
+        missing+=("$pkg")
+    fi
+done
+
+if ((${#missing[@]})); then
+    SUDO=()
+    if [[ $(id -u) -ne 0 ]]; then
+        command -v sudo >/dev/null || { echo "[setup] need root or sudo to install: ${missing[*]}" >&2; exit 1; }
+        SUDO=(sudo)
+    fi
+    log "installing: ${missing[*]}"
+    export DEBIAN_FRONTEND=noninteractive
+    "${SUDO[@]}" apt-get update -q
+    "${SUDO[@]}" apt-get install -y -q --no-install-recommends "${missing[@]}" </dev/null
+else
+    log "system packages: all present"
+fi
+
+# Python: a venv at <repo>/.venv with host_tools installed editable.
+# Re-installs only when host_tools/pyproject.toml changed since the last run.
+VENV="$REPO/.venv"
+PYTHON="${ABBE_PYTHON:-python3}"
+if [[ ! -x "$VENV/bin/python" ]]; then
+    log "creating $VENV"
+    "$PYTHON" -m venv "$VENV"
+fi
+stamp="$VENV/.abbe-host-tools.sha256"
+want="$(sha256sum host_tools/pyproject.toml | cut -d' ' -f1)"
+if [[ ! -f "$stamp" || "$(cat "$stamp")" != "$want" ]] || ! "$VENV/bin/python" -c 'import abbe' 2>/dev/null; then
+    log "installing host_tools[test,ports] into $VENV"
+    "$VENV/bin/python" -m pip install -q -e "host_tools[test,ports]" </dev/null
+    echo "$want" >"$stamp"
+else
+    log "python venv: up to date"
+fi
+log "done"

@@ -1,0 +1,89 @@
+#!/usr/bin/env bash
+# Run every abbe test: set-up, then
+#   1. host build with ASan + UBSan (build-asan/): unit tests, golden vectors, checks
+#   2. host release build (build/, gives build/lib/libabbe.so to Python) + its ctest
+#   3. Cortex-M4F cross build (build-m4f/) + its ctest under QEMU
+#   4. Cortex-M3 cross build (build-m3/), fixed point only, + its ctest under QEMU
+#   5. libFuzzer run on the table loader (build-fuzz/, clang)
+#   6. pytest host_tools/tests
+# Runs every step even after a failure; exits non-zero if any step failed.
+set -uo pipefail
+
+REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$REPO"
+JOBS="$(nproc 2>/dev/null || echo 2)"
+export CTEST_OUTPUT_ON_FAILURE=1
+export CTEST_PARALLEL_LEVEL="$JOBS"
+
+bash scripts/setup.sh || { echo "[test] FAIL: set-up failed"; exit 1; }
+
+declare -a RESULTS=()
+failed=0
+t_all=$SECONDS
+
+step() {
+    local name="$1"
+    shift
+    local t0=$SECONDS
+    echo
+    echo "==== [test] $name ===="
+    if "$@"; then
+        RESULTS+=("PASS  $name ($((SECONDS - t0)) s)")
+    else
+        RESULTS+=("FAIL  $name ($((SECONDS - t0)) s)")
+        failed=$((failed + 1))
+    fi
+}
+
+cmake_build() { # DIR [cmake args...]
+    local dir="$1"
+    shift
+    cmake -S . -B "$dir" "$@" && cmake --build "$dir" -j "$JOBS"
+}
+
+host_asan() {
+    cmake_build build-asan -DCMAKE_BUILD_TYPE=Debug -DABBE_SANITIZE=ON &&
+        ctest --test-dir build-asan --output-on-failure -j "$JOBS"
+}
+
+host_release() {
+    cmake_build build -DCMAKE_BUILD_TYPE=Release &&
+        ctest --test-dir build --output-on-failure -j "$JOBS"
+}
+
+cross() { # NAME TOOLCHAIN
+    cmake_build "build-$1" -DCMAKE_TOOLCHAIN_FILE="cmake/toolchain-$2.cmake" -DCMAKE_BUILD_TYPE=Release &&
+        ctest --test-dir "build-$1" --output-on-failure -j "$JOBS"
+}
+
+fuzz() {
+    CC=clang cmake_build build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+        -DABBE_BUILD_FUZZ=ON -DABBE_BUILD_TESTS=OFF &&
+        ctest --test-dir build-fuzz --output-on-failure -L fuzz
+}
+
+pytest_all() {
+    local rc
+    (cd host_tools && "$REPO/.venv/bin/python" -m pytest -q -p no:cacheprovider tests)
+    rc=$?
+    if [[ $rc -eq 5 ]]; then
+        echo "[test] pytest collected no tests: nothing ran"
+    fi
+    return $rc
+}
+
+step "host ASan+UBSan build and ctest (build-asan)" host_asan
+step "host release build and ctest (build)" host_release
+step "Cortex-M4F build and ctest under QEMU (build-m4f)" cross m4f cortex-m4f
+step "Cortex-M3 build and ctest under QEMU (build-m3)" cross m3 cortex-m3
+step "libFuzzer run (build-fuzz)" fuzz
+step "pytest host_tools/tests" pytest_all
+
+echo
+echo "==== [test] summary ===="
+printf '%s\n' "${RESULTS[@]}"
+if ((failed)); then
+    echo "[test] FAILED: $failed of ${#RESULTS[@]} steps failed ($((SECONDS - t_all)) s)"
+    exit 1
+fi
+echo "[test] OK: all ${#RESULTS[@]} steps passed ($((SECONDS - t_all)) s)"
