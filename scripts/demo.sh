@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
-# The main job: set up, build the C library (build/), then evaluate the
-# bundled example table (the paper's machine, examples/paper_table/) at a few
-# machine positions with the float64 Python reference and the C library's
-# f32 and fixed-point variants side by side.
+# The main job: set up, build the C library (build/), then run the demo
+# pipeline on the bundled example machine (examples/vmc500/, the paper's
+# geometry): fit the 6D laser lines -> tables (blob, C, JSON) -> build check ->
+# predict the ballbar circle through the C library -> diagnose what the model
+# misses -> compensate in the loop with the C compensator. Writes the HTML
+# report to demo-out/index.html and the figures to demo-out/summary.json.
 #   ./scripts/demo.sh
 set -euo pipefail
 
@@ -14,19 +16,6 @@ bash scripts/setup.sh
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build build -j "$JOBS" >/dev/null
 export ABBE_LIB="$REPO/build/lib/libabbe.so"
-ABBE="$REPO/.venv/bin/abbe"
-MODEL=examples/paper_table/model.bin
 
-echo "== abbe table info $MODEL"
-"$ABBE" table info "$MODEL"
-echo
-echo "== abbe table eval $MODEL ... --clib   (positions mm, errors um)"
-# Reference point (error 0 by construction), travel corners, the paper's
-# ballbar centre, the middle of the travel.
-"$ABBE" table eval "$MODEL" \
-    163.626 -212.772 -290.704 \
-    0 0 0 \
-    500 -400 -300 \
-    343.507 -285.090 -286.430 \
-    250 -200 -150 \
-    --clib
+"$REPO/.venv/bin/abbe" demo -o demo-out --json demo-out/summary.json
+echo "report: $REPO/demo-out/index.html"

@@ -31,6 +31,7 @@ STATUS_NAMES: dict[int, str] = {
     -7: "ABBE_E_CRC", -8: "ABBE_E_FLAGS", -9: "ABBE_E_COUNT", -10: "ABBE_E_OFFSET",
     -11: "ABBE_E_NONFINITE", -12: "ABBE_E_PERIOD", -13: "ABBE_E_TRAVEL",
     -14: "ABBE_E_RANGE", -15: "ABBE_E_INPUT", -16: "ABBE_E_NO_MODEL", -17: "ABBE_E_MISMATCH",
+    -18: "ABBE_E_ALIGN",
 }
 
 FLAG_OUT_OF_TRAVEL = 0x0001
@@ -52,7 +53,6 @@ class AxisModel(C.Structure):
         ("travel_min_nm", C.c_int32),
         ("travel_max_nm", C.c_int32),
         ("cheb_mul", C.c_int64),
-        ("cheb_shift", C.c_uint32),
         ("freq", C.c_uint64 * ABBE_BLOCKS),
         ("origin_nm", C.c_int32 * ABBE_BLOCKS),
         ("backlash_reversal_q8", C.c_int32),

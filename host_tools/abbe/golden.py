@@ -313,6 +313,13 @@ def render() -> tuple[str, str]:
         "do not edit. */",
         '#include "golden_data.h"',
         "",
+        "/* abbe_model_load() needs 4-byte aligned tables (ABBE_E_ALIGN). */",
+        "#if defined(__GNUC__) || defined(__clang__)",
+        "#define ABBE_GOLDEN_ALIGNED __attribute__((aligned(8)))",
+        "#else",
+        "#error \"align the golden blobs to 4 bytes for this compiler\"",
+        "#endif",
+        "",
     ]
     point_lines: list[str] = []
     term_lines: list[str] = []
@@ -323,7 +330,7 @@ def render() -> tuple[str, str]:
         trm = make_terms(rng, gt)
         sym = f"golden_blob_{gt.name}"
         c.append(f"/* table '{gt.name}': {len(gt.blob)} bytes, features 0x{gt.table.features():X} */")
-        c.append(f"static const uint8_t {sym}[{len(gt.blob)}] = {{")
+        c.append(f"static const uint8_t {sym}[{len(gt.blob)}] ABBE_GOLDEN_ALIGNED = {{")
         for i in range(0, len(gt.blob), 16):
             c.append("    " + ", ".join(f"0x{b:02X}" for b in gt.blob[i:i + 16]) + ",")
         c.append("};")

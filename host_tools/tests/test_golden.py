@@ -45,7 +45,7 @@ def _floats(s: str) -> list[float]:
 def parse_golden_c(text: str) -> dict:
     """Blobs, points and terms as written in golden_data.c."""
     blobs = {}
-    for name, body in re.findall(r"golden_blob_(\w+)\[\d+\] = \{(.*?)\};", text, re.S):
+    for name, body in re.findall(r"golden_blob_(\w+)\[\d+\](?: ABBE_GOLDEN_ALIGNED)? = \{(.*?)\};", text, re.S):
         blobs[name] = bytes(int(v, 16) for v in re.findall(r"0x([0-9A-F]{2})", body))
     tables = re.findall(r'\{golden_blob_(\w+), (\d+)u, "(\w+)", (\d+)u, (\d+)u, (\d+)u, (\d+)u\}',
                         text)

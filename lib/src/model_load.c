@@ -349,7 +349,6 @@ static void build_axis(abbe_axis_model_t *ax, const uint8_t *b, const uint8_t *r
      * the product within 2^62, and the relative error of cheb_mul is below 2^-31. */
     uint64_t span = (uint64_t)((int64_t)ax->travel_max_nm - (int64_t)ax->travel_min_nm);
     ax->cheb_mul = (int64_t)((((uint64_t)1 << 62) + span / 2u) / span);
-    ax->cheb_shift = 32u;
     for (unsigned k = 0; k < ABBE_BLOCKS; k++) {
         ax->harmonics[k] = rec[A_HARMONICS + k];
         ax->origin_nm[k] = abbe_ld_i32(rec + A_ORIGIN + 4u * k);
@@ -371,6 +370,11 @@ abbe_status_t abbe_model_load(abbe_model_t *model, const void *blob, size_t size
 {
     if (model == NULL || blob == NULL) {
         return ABBE_E_ARG;
+    }
+    /* Coefficients are read in place with word loads (one vldr per float on a
+     * Cortex-M4F), so the table must start on a 4-byte boundary. */
+    if (((uintptr_t)blob & 3u) != 0u) {
+        return ABBE_E_ALIGN;
     }
     const uint8_t *b = (const uint8_t *)blob;
     uint32_t total = 0;

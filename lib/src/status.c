@@ -22,6 +22,7 @@ const char *abbe_strerror(int status)
     case ABBE_E_INPUT: return "NaN or infinite input";
     case ABBE_E_NO_MODEL: return "no model loaded";
     case ABBE_E_MISMATCH: return "float32 coefficient differs from its int32 value";
+    case ABBE_E_ALIGN: return "table not 4-byte aligned";
     default: return "unknown status";
     }
 }

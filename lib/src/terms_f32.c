@@ -14,16 +14,16 @@ static ABBE_ALWAYS_INLINE const uint8_t *mac_row_f32(const uint8_t *row, float b
                                                       float acc[ABBE_TERMS])
 {
     if (n_terms == ABBE_TERMS) { /* constant after inlining: six statements, no loop */
-        acc[0] += abbe_ld_f32(row) * b;
-        acc[1] += abbe_ld_f32(row + 4) * b;
-        acc[2] += abbe_ld_f32(row + 8) * b;
-        acc[3] += abbe_ld_f32(row + 12) * b;
-        acc[4] += abbe_ld_f32(row + 16) * b;
-        acc[5] += abbe_ld_f32(row + 20) * b;
+        acc[0] += abbe_ld_f32_aligned(row) * b;
+        acc[1] += abbe_ld_f32_aligned(row + 4) * b;
+        acc[2] += abbe_ld_f32_aligned(row + 8) * b;
+        acc[3] += abbe_ld_f32_aligned(row + 12) * b;
+        acc[4] += abbe_ld_f32_aligned(row + 16) * b;
+        acc[5] += abbe_ld_f32_aligned(row + 20) * b;
         return row + 4u * ABBE_TERMS;
     }
     for (unsigned col = 0; col < n_terms; col++) {
-        acc[col] += abbe_ld_f32(row + 4u * col) * b;
+        acc[col] += abbe_ld_f32_aligned(row + 4u * col) * b;
     }
     return row + 4u * n_terms;
 }

@@ -76,7 +76,15 @@ void abbe_axis_terms_q(const abbe_axis_model_t *ax, int32_t pos_nm, int64_t valu
     /* The travel check comes first: a position outside it is reported even
      * for an axis without fitted terms. */
     int32_t p = abbe_arg_clamp(ax, pos_nm, flags);
-    int64_t acc[ABBE_TERMS] = {0, 0, 0, 0, 0, 0};
+    int64_t acc[ABBE_TERMS];
+    /* element by element: an aggregate initialiser becomes a memset call on
+     * ARM, a byte loop in newlib-nano (150 instructions per axis) */
+    acc[0] = 0;
+    acc[1] = 0;
+    acc[2] = 0;
+    acc[3] = 0;
+    acc[4] = 0;
+    acc[5] = 0;
     if (ax->n_terms == ABBE_TERMS) {
         dot_axis_q(ax, p, ABBE_TERMS, acc);
         for (unsigned t = 0; t < ABBE_TERMS; t++) {

@@ -17,7 +17,8 @@
 #define NM(mm) ((int32_t)((mm) * 1000000))
 #define LIN_Q(um) ((int32_t)lround((um) * 256000.0))
 
-static uint8_t blob_a[4096], blob_b[4096], blob_bad[4096];
+static uint8_t blob_a[4096] __attribute__((aligned(8))), blob_b[4096] __attribute__((aligned(8))),
+    blob_bad[4096] __attribute__((aligned(8)));
 static size_t size_a, size_b;
 static int32_t coef_a[2], coef_b[2];
 

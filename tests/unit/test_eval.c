@@ -95,7 +95,7 @@ static void test_golden_terms_both_variants(void **state)
 
 /* ---- analytic cases ------------------------------------------------------ */
 
-static uint8_t blob[8192];
+static uint8_t blob[8192] __attribute__((aligned(8))); /* tables must be 4-byte aligned */
 static int32_t coef_a[64], coef_b[64], coef_c[64];
 
 static void load_table(const tb_table_t *t, abbe_model_t *m)

@@ -48,8 +48,7 @@ typedef struct {
     const uint8_t *coef_f32;    /* float32 LE, same shape */
     int32_t travel_min_nm;
     int32_t travel_max_nm;
-    int64_t cheb_mul;           /* u_q30 = ((2p - min - max) * cheb_mul) >> cheb_shift */
-    uint32_t cheb_shift;
+    int64_t cheb_mul;           /* u_q30 = ((2p - min - max) * cheb_mul) >> 32 */
     uint64_t freq[ABBE_BLOCKS]; /* round(2^64 / period): phase_q32 = ((p - origin) * freq) >> 32 */
     int32_t origin_nm[ABBE_BLOCKS];
     int32_t backlash_reversal_q8;
@@ -82,7 +81,8 @@ typedef struct {
 } abbe_model_t;
 
 /* Validate blob[0 .. size) and make *model a view of it.
- * Requires: model and blob non-NULL (else ABBE_E_ARG). size may exceed the
+ * Requires: model and blob non-NULL (else ABBE_E_ARG); blob 4-byte aligned
+ * (else ABBE_E_ALIGN; generated C and malloc'd buffers are). size may exceed the
  * table's total_size (a flash sector); the extra bytes are ignored.
  * Returns ABBE_OK, or the status of the first failed check in the order of
  * docs/table-format.md. On failure *model is left untouched, so a model that was

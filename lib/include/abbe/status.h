@@ -20,7 +20,8 @@ typedef enum {
     ABBE_E_RANGE = -14,         /* a value outside the range that keeps fixed point exact */
     ABBE_E_INPUT = -15,         /* NaN or infinite input (float path) */
     ABBE_E_NO_MODEL = -16,      /* compensator has no model loaded */
-    ABBE_E_MISMATCH = -17       /* a float32 coefficient is not its int32 twin converted */
+    ABBE_E_MISMATCH = -17,      /* a float32 coefficient is not its int32 twin converted */
+    ABBE_E_ALIGN = -18          /* blob not 4-byte aligned (coefficients are read in place) */
 } abbe_status_t;
 
 /* Human-readable, static, never NULL (unknown codes give "unknown status"). */
