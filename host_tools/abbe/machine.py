@@ -1,0 +1,419 @@
+"""Machine file reader: the TOML description of a machine and its measurements.
+
+``load_machine(path) -> Machine`` parses and validates the file completely.
+Positions are machine coordinates in mm; paths inside the file are relative to
+the machine file's directory and are returned resolved (absolute). Every
+problem raises :class:`abbe.errors.AbbeInputError` naming the file, the line of
+the offending key (found by scanning the text: tomllib gives no line numbers)
+and the dotted field name.
+
+The schema (docs/formats.md, "Machine file") is declared once, in ``_SCHEMA``
+below; unknown keys and sections are errors.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+from abbe.errors import AbbeInputError
+
+AXES: tuple[str, ...] = ("X", "Y", "Z")
+TERMS: tuple[str, ...] = ("dx", "dy", "dz", "ex", "ey", "ez")
+#: 6D laser instrument channels (CSV columns without their unit suffix).
+CHANNELS: tuple[str, ...] = ("linear", "straight_h", "straight_v", "pitch", "yaw", "roll")
+PLANES: tuple[str, ...] = ("XY", "YZ", "ZX")
+
+#: Tolerance (mm) for "same coordinate" and "inside the travel" checks.
+COORD_TOL_MM = 1e-6
+DEFAULT_BACKLASH_TAKEUP_MM = 1.0
+
+
+# --------------------------------------------------------------------------- data
+
+
+@dataclass(frozen=True)
+class AxisSpec:
+    """One linear axis.
+
+    travel_mm: (min, max) machine coordinates, mm.
+    backlash_takeup_mm: distance over which a reversal is taken up (mm), used
+        when the fit puts a backlash term into the table.
+    """
+
+    name: str
+    travel_mm: tuple[float, float]
+    backlash_takeup_mm: float = DEFAULT_BACKLASH_TAKEUP_MM
+
+
+@dataclass(frozen=True)
+class ChannelMap:
+    """instrument channel -> model term with sign: reading = sign * term."""
+
+    channel: str
+    sign: int  # +1 or -1
+    term: str  # one of TERMS, of the line's own axis
+
+
+@dataclass(frozen=True)
+class LaserLine:
+    """One 6D laser measurement line along ``axis``.
+
+    file: resolved path of the laser CSV. start_mm, end_mm: machine coordinates
+    (x, y, z) of the line's ends, mm; only the axis' own coordinate differs.
+    map: instrument channel -> ChannelMap (only mapped channels are used).
+    """
+
+    axis: str
+    file: Path
+    start_mm: tuple[float, float, float]
+    end_mm: tuple[float, float, float]
+    map: dict[str, ChannelMap]
+    line: int | None = None  # line of the [laser.X] header in the machine file
+
+    @property
+    def axis_index(self) -> int:
+        return AXES.index(self.axis)
+
+    def term_channel(self, term: str) -> ChannelMap | None:
+        """The channel mapped to ``term``, or None if the term is not measured."""
+        for cm in self.map.values():
+            if cm.term == term:
+                return cm
+        return None
+
+
+@dataclass(frozen=True)
+class BallbarTest:
+    """One ballbar (ISO 230-4 circular) test.
+
+    file: resolved path of the ballbar CSV; plane: "XY", "YZ" or "ZX";
+    center_mm: machine coordinates of the circle centre, mm; radius_mm: mm;
+    feed_mm_min: programmed feed, mm/min.
+    """
+
+    name: str
+    file: Path
+    plane: str
+    center_mm: tuple[float, float, float]
+    radius_mm: float
+    feed_mm_min: float
+    line: int | None = None
+
+
+@dataclass(frozen=True)
+class Machine:
+    """A parsed, validated machine file.
+
+    Positions in mm (machine coordinates). ``extra`` holds the validated optional
+    sections that have no dedicated field (currently ``fit``), as plain dicts.
+    """
+
+    path: Path
+    name: str
+    axes: dict[str, AxisSpec]
+    reference_mm: tuple[float, float, float]
+    tool_offset_mm: tuple[float, float, float]
+    laser: dict[str, LaserLine]
+    ballbar: dict[str, BallbarTest]
+    sha256: str
+    extra: dict[str, Any] = field(default_factory=dict)
+    description: str = ""
+
+    def line_of(self, dotted: str) -> int | None:
+        """Line (1-based) of a dotted key in the machine file, best effort."""
+        return _KeyLocator(self.path.read_text(encoding="utf-8")).line(dotted)
+
+
+# --------------------------------------------------------------------- locating
+
+
+class _KeyLocator:
+    """Maps dotted key paths to the line that defines them (best effort).
+
+    Understands ``[table]`` / ``[[array]]`` headers, bare/quoted/dotted keys and
+    the top-level keys of one-line inline tables (``map = { a = "+dx", ... }``).
+    """
+
+    _HEADER = re.compile(r"^\s*\[\[?\s*([^\]]+?)\s*\]\]?\s*(#.*)?$")
+    _KEY = re.compile(r"^\s*((?:[A-Za-z0-9_\-]+|\"[^\"]*\"|'[^']*')"
+                      r"(?:\s*\.\s*(?:[A-Za-z0-9_\-]+|\"[^\"]*\"|'[^']*'))*)\s*=")
+    _INLINE_KEY = re.compile(r"[{,]\s*([A-Za-z0-9_\-]+|\"[^\"]*\")\s*=")
+
+    def __init__(self, text: str) -> None:
+        self.lines: dict[str, int] = {}
+        section: list[str] = []
+        for no, raw in enumerate(text.splitlines(), start=1):
+            m = self._HEADER.match(raw)
+            if m:
+                section = self._split(m.group(1))
+                self.lines.setdefault(".".join(section), no)
+                continue
+            m = self._KEY.match(raw)
+            if not m:
+                continue
+            path = section + self._split(m.group(1))
+            self.lines.setdefault(".".join(path), no)
+            rest = raw[m.end():]
+            if "{" in rest:
+                for km in self._INLINE_KEY.finditer(rest):
+                    self.lines.setdefault(".".join(path + [km.group(1).strip("\"'")]), no)
+
+    @staticmethod
+    def _split(dotted: str) -> list[str]:
+        parts = re.findall(r"\"[^\"]*\"|'[^']*'|[^.\s]+", dotted)
+        return [p.strip("\"'") for p in parts]
+
+    def line(self, dotted: str) -> int | None:
+        parts = dotted.split(".")
+        while parts:
+            no = self.lines.get(".".join(parts))
+            if no is not None:
+                return no
+            parts.pop()
+        return None
+
+
+#: Public name of the locator (used by other readers of TOML files, e.g. sim_spec).
+KeyLocator = _KeyLocator
+
+
+# ---------------------------------------------------------------------- schema
+
+_Check = Callable[[Any, "_Ctx", str], Any]
+
+
+class _Ctx:
+    def __init__(self, path: Path, text: str) -> None:
+        self.path = path
+        self.loc = _KeyLocator(text)
+
+    def err(self, dotted: str, msg: str) -> AbbeInputError:
+        return AbbeInputError(msg, file=str(self.path), line=self.loc.line(dotted), field=dotted)
+
+
+def _number(v: Any, ctx: _Ctx, f: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise ctx.err(f, f"expected a number, got {v!r}")
+    x = float(v)
+    if not math.isfinite(x):
+        raise ctx.err(f, f"expected a finite number, got {v!r}")
+    return x
+
+
+def _positive(v: Any, ctx: _Ctx, f: str) -> float:
+    x = _number(v, ctx, f)
+    if x <= 0:
+        raise ctx.err(f, f"expected a number > 0, got {v!r}")
+    return x
+
+
+def _string(v: Any, ctx: _Ctx, f: str) -> str:
+    if not isinstance(v, str):
+        raise ctx.err(f, f"expected a string, got {v!r}")
+    return v
+
+
+def _vec(n: int) -> _Check:
+    def check(v: Any, ctx: _Ctx, f: str) -> tuple[float, ...]:
+        if not isinstance(v, list) or len(v) != n:
+            raise ctx.err(f, f"expected an array of {n} numbers (mm), got {v!r}")
+        return tuple(_number(x, ctx, f) for x in v)
+    return check
+
+
+def _int_range(lo: int, hi: int) -> _Check:
+    def check(v: Any, ctx: _Ctx, f: str) -> int:
+        if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+            raise ctx.err(f, f"expected an integer in [{lo}, {hi}], got {v!r}")
+        return v
+    return check
+
+
+def _choice(options: tuple[str, ...]) -> _Check:
+    def check(v: Any, ctx: _Ctx, f: str) -> str:
+        if v not in options:
+            raise ctx.err(f, f"expected one of {', '.join(options)}, got {v!r}")
+        return v
+    return check
+
+
+def _travel(v: Any, ctx: _Ctx, f: str) -> tuple[float, float]:
+    lo, hi = _vec(2)(v, ctx, f)
+    if not lo < hi:
+        raise ctx.err(f, f"expected [min, max] with min < max (mm), got {v!r}")
+    return (lo, hi)
+
+
+_MAP_RE = re.compile(r"^([+-])(dx|dy|dz|ex|ey|ez)$")
+
+
+def _chan_map(v: Any, ctx: _Ctx, f: str) -> dict[str, ChannelMap]:
+    if not isinstance(v, dict) or not v:
+        raise ctx.err(f, "expected an inline table channel -> \"+term\"/\"-term\"")
+    out: dict[str, ChannelMap] = {}
+    used: dict[str, str] = {}
+    for ch, spec in v.items():
+        fk = f"{f}.{ch}"
+        if ch not in CHANNELS:
+            raise ctx.err(fk, f"unknown instrument channel {ch!r}; expected one of {', '.join(CHANNELS)}")
+        m = _MAP_RE.match(spec) if isinstance(spec, str) else None
+        if not m:
+            raise ctx.err(fk, f"expected \"+term\" or \"-term\" with term one of {', '.join(TERMS)}, got {spec!r}")
+        term = m.group(2)
+        if term in used:
+            raise ctx.err(fk, f"term {term!r} is already mapped from channel {used[term]!r}")
+        used[term] = ch
+        out[ch] = ChannelMap(ch, 1 if m.group(1) == "+" else -1, term)
+    return out
+
+
+# section name -> {key: (check, required, default)}
+_Spec = dict[str, tuple[_Check, bool, Any]]
+
+_MACHINE: _Spec = {"name": (_string, False, ""), "description": (_string, False, "")}
+_AXIS: _Spec = {"travel_mm": (_travel, True, None),
+                "backlash_takeup_mm": (_positive, False, DEFAULT_BACKLASH_TAKEUP_MM)}
+_REFERENCE: _Spec = {"point_mm": (_vec(3), True, None)}
+_TOOL: _Spec = {"offset_mm": (_vec(3), False, (0.0, 0.0, 0.0))}
+_LASER: _Spec = {"file": (_string, True, None), "start_mm": (_vec(3), True, None),
+                 "end_mm": (_vec(3), True, None), "map": (_chan_map, True, None)}
+_BALLBAR: _Spec = {"file": (_string, True, None), "plane": (_choice(PLANES), True, None),
+                   "center_mm": (_vec(3), True, None), "radius_mm": (_positive, True, None),
+                   "feed_mm_min": (_positive, True, None)}
+#: Optional fit settings (docs/formats.md); CLI options override them.
+_FIT: _Spec = {"max_trend_degree": (_int_range(0, 7), False, 7),
+               "max_harmonics": (_int_range(0, 8), False, 8),
+               "folds": (_int_range(2, 50), False, 5),
+               "backlash_sigma": (_positive, False, 3.0)}
+
+_TOP = ("machine", "axes", "reference", "tool", "laser", "ballbar", "fit")
+
+
+def _table(v: Any, ctx: _Ctx, f: str) -> dict[str, Any]:
+    if not isinstance(v, dict):
+        raise ctx.err(f, f"expected a table [{f}], got {v!r}")
+    return v
+
+
+def _section(data: Any, spec: _Spec, ctx: _Ctx, f: str) -> dict[str, Any]:
+    data = _table(data, ctx, f)
+    for key in data:
+        if key not in spec:
+            raise ctx.err(f"{f}.{key}", f"unknown key; expected one of {', '.join(spec)}")
+    out: dict[str, Any] = {}
+    for key, (check, required, default) in spec.items():
+        if key in data:
+            out[key] = check(data[key], ctx, f"{f}.{key}")
+        elif required:
+            raise ctx.err(f, f"missing required key {key!r}")
+        else:
+            out[key] = default
+    return out
+
+
+# ---------------------------------------------------------------------- loading
+
+
+def load_machine(path: str | Path) -> Machine:
+    """Read and validate a machine file (TOML).
+
+    Returns a :class:`Machine` with file paths resolved relative to the machine
+    file. Raises AbbeInputError (file, line, field) on any problem: TOML syntax,
+    unknown or missing keys, wrong types, a laser line whose start/end differ in
+    another axis' coordinate or lie outside the travel, a map naming an unknown
+    channel or term.
+    """
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise AbbeInputError(f"cannot read machine file: {exc.strerror}", file=str(path)) from None
+    try:
+        text = raw.decode("utf-8")
+        data = tomllib.loads(text)
+    except UnicodeDecodeError:
+        raise AbbeInputError("not UTF-8 text", file=str(path)) from None
+    except tomllib.TOMLDecodeError as exc:
+        m = re.search(r"line (\d+)", str(exc))
+        raise AbbeInputError(f"TOML syntax error: {exc}", file=str(path),
+                             line=int(m.group(1)) if m else None) from None
+    ctx = _Ctx(path, text)
+    base = path.resolve().parent
+
+    for key in data:
+        if key not in _TOP:
+            raise ctx.err(key, f"unknown section; expected one of {', '.join(_TOP)}")
+
+    mach = _section(data.get("machine", {}), _MACHINE, ctx, "machine")
+
+    axes_raw = _table(data.get("axes"), ctx, "axes") if "axes" in data else None
+    if not axes_raw:
+        raise AbbeInputError("missing [axes.X] / [axes.Y] / [axes.Z] sections",
+                             file=str(path), field="axes")
+    axes: dict[str, AxisSpec] = {}
+    for name in axes_raw:
+        if name not in AXES:
+            raise ctx.err(f"axes.{name}", f"unknown axis; expected one of {', '.join(AXES)}")
+    for name in AXES:
+        if name in axes_raw:
+            a = _section(axes_raw[name], _AXIS, ctx, f"axes.{name}")
+            axes[name] = AxisSpec(name, a["travel_mm"], a["backlash_takeup_mm"])
+
+    if "reference" not in data:
+        raise AbbeInputError("missing [reference] section (point_mm = [x, y, z])",
+                             file=str(path), field="reference")
+    ref = _section(data["reference"], _REFERENCE, ctx, "reference")["point_mm"]
+    tool = _section(data.get("tool", {}), _TOOL, ctx, "tool")["offset_mm"]
+
+    laser: dict[str, LaserLine] = {}
+    for name, sec in _table(data.get("laser", {}), ctx, "laser").items():
+        f = f"laser.{name}"
+        if name not in AXES:
+            raise ctx.err(f, f"unknown axis; a laser section is named after its axis ({', '.join(AXES)})")
+        if name not in axes:
+            raise ctx.err(f, f"laser line for axis {name} but no [axes.{name}] section")
+        s = _section(sec, _LASER, ctx, f)
+        _check_line(ctx, f, AXES.index(name), s["start_mm"], s["end_mm"], axes)
+        laser[name] = LaserLine(name, (base / s["file"]).resolve(), s["start_mm"], s["end_mm"],
+                                s["map"], ctx.loc.line(f))
+
+    ballbar: dict[str, BallbarTest] = {}
+    for name, sec in _table(data.get("ballbar", {}), ctx, "ballbar").items():
+        f = f"ballbar.{name}"
+        s = _section(sec, _BALLBAR, ctx, f)
+        ballbar[name] = BallbarTest(name, (base / s["file"]).resolve(), s["plane"], s["center_mm"],
+                                    s["radius_mm"], s["feed_mm_min"], ctx.loc.line(f))
+
+    extra: dict[str, Any] = {}
+    if "fit" in data:
+        extra["fit"] = _section(data["fit"], _FIT, ctx, "fit")
+
+    return Machine(path=path, name=mach["name"] or path.stem, axes=axes, reference_mm=ref,
+                   tool_offset_mm=tool, laser=laser, ballbar=ballbar,
+                   sha256=hashlib.sha256(raw).hexdigest(), extra=extra,
+                   description=mach["description"])
+
+
+def _check_line(ctx: _Ctx, f: str, j: int, start: tuple[float, ...], end: tuple[float, ...],
+                axes: dict[str, AxisSpec]) -> None:
+    """A laser line moves along its own axis only, inside every axis' travel."""
+    for k in range(3):
+        if k != j and abs(start[k] - end[k]) > COORD_TOL_MM:
+            raise ctx.err(f"{f}.end_mm", f"a line along {AXES[j]} must keep {AXES[k].lower()} constant: "
+                          f"start {start[k]} mm, end {end[k]} mm")
+    if abs(start[j] - end[j]) <= COORD_TOL_MM:
+        raise ctx.err(f"{f}.end_mm", f"start and end {AXES[j].lower()} are equal ({start[j]} mm): "
+                      "a line must move along its axis")
+    for key, pt in (("start_mm", start), ("end_mm", end)):
+        for k, ax in enumerate(AXES):
+            if ax in axes:
+                lo, hi = axes[ax].travel_mm
+                if not lo - COORD_TOL_MM <= pt[k] <= hi + COORD_TOL_MM:
+                    raise ctx.err(f"{f}.{key}", f"{ax.lower()} = {pt[k]} mm is outside the "
+                                  f"travel [{lo}, {hi}] mm of axis {ax}")

@@ -1,0 +1,93 @@
+"""Pre-processing of one axis' term data before fitting (steps 3-5 of ``abbe fit``).
+
+* :func:`average_runs`: bidirectional mean per target, reversal per target (the
+  backlash estimate) and run-to-run spread (the noise estimate);
+* :func:`detrend_line`: least-squares straightness detrending (paper Eq. 1);
+* :func:`relative_to_reference`: values relative to the reference point.
+
+Arrays of runs have shape (n_runs, 2, T): axis 1 is the approach direction
+(0 = ``+``, 1 = ``-``); T targets ascending. Units follow the term: um for
+dx/dy/dz, urad for ex/ey/ez; positions mm.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Why squareness stays zero in a fit from 6D laser lines (notes.md §2).
+SQUARENESS_NOTE = (
+    "Squareness S_xy, S_xz, S_yz is unobservable from these lines: the least-squares "
+    "line removed from each straightness (paper Eq. 1) also removes any squareness, so "
+    "a model fitted from single 6D laser lines has none. It is left at zero; a circular "
+    "(ballbar) or diagonal test reveals it.")
+
+
+@dataclass
+class RunStats:
+    """Run averaging of one term (shape (T,) unless noted).
+
+    mean: bidirectional mean per target (mean over runs and both directions).
+    mean_up, mean_down: per-direction means. reversal: mean_up - mean_down per
+    target (ISO 230-2 B_i; for the own positioning term, the backlash estimate).
+    s_up, s_down: run-to-run standard deviations (n - 1). noise: pooled
+    run-to-run standard deviation over all targets and both directions (scalar),
+    the noise estimate.
+    """
+
+    mean: np.ndarray
+    mean_up: np.ndarray
+    mean_down: np.ndarray
+    reversal: np.ndarray
+    s_up: np.ndarray
+    s_down: np.ndarray
+    noise: float
+    n_runs: int
+
+
+def average_runs(runs: np.ndarray) -> RunStats:
+    """Step 3: average the runs of one term. ``runs``: (n_runs, 2, T)."""
+    r = np.asarray(runs, dtype=np.float64)
+    if r.ndim != 3 or r.shape[1] != 2:
+        raise ValueError(f"runs must be (n_runs, 2, T), got {r.shape}")
+    n = r.shape[0]
+    up, dn = r[:, 0, :].mean(axis=0), r[:, 1, :].mean(axis=0)
+    if n > 1:
+        s = r.std(axis=0, ddof=1)  # (2, T)
+        noise = float(np.sqrt(np.mean(s ** 2)))
+    else:
+        s = np.zeros(r.shape[1:])
+        noise = float("nan")
+    return RunStats(mean=0.5 * (up + dn), mean_up=up, mean_down=dn, reversal=up - dn,
+                    s_up=s[0], s_down=s[1], noise=noise, n_runs=n)
+
+
+def detrend_line(pos_mm: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """Step 4 (paper Eq. 1): remove the least-squares line k * p + b.
+
+    ``pos_mm`` (T,), ``values`` (T,) in um. Returns (values - (k p + b), k, b)
+    with k in um/mm (= mrad; x 1000 for urad) and b in um.
+    """
+    p = np.asarray(pos_mm, dtype=np.float64)
+    y = np.asarray(values, dtype=np.float64)
+    A = np.column_stack([p, np.ones_like(p)])
+    (k, b), *_ = np.linalg.lstsq(A, y, rcond=None)
+    return y - (k * p + b), float(k), float(b)
+
+
+def value_at(pos_mm: np.ndarray, values: np.ndarray, at_mm: float) -> float:
+    """Linear interpolation of ``values`` at ``at_mm`` (held at the ends)."""
+    return float(np.interp(at_mm, np.asarray(pos_mm, float), np.asarray(values, float)))
+
+
+def relative_to_reference(pos_mm: np.ndarray, values: np.ndarray, ref_mm: float,
+                          value_at_ref: float | None = None) -> tuple[np.ndarray, float]:
+    """Step 5: each term minus its value at the reference point's coordinate.
+
+    ``value_at_ref`` defaults to the linear interpolation of ``values`` at
+    ``ref_mm``; ``abbe fit`` passes the fitted model's value there, so the stored
+    term is exactly zero at the reference point. Returns (values - v, v).
+    """
+    v = value_at(pos_mm, values, ref_mm) if value_at_ref is None else float(value_at_ref)
+    return np.asarray(values, dtype=np.float64) - v, v

@@ -1,0 +1,31 @@
+"""Helpers shared by the fit-side tests (laser, iso230_2, fit, cmd_fit)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from abbe.synthetic import write_laser_csv
+
+ESS_DAT = Path("/work/shared/data/ess-target/x_iso230_2.dat")
+
+
+def small_laser(path: Path, n_runs: int = 3, targets: np.ndarray | None = None,
+                seed: int = 0) -> Path:
+    """A valid small laser CSV (targets 0..100 mm step 10 unless given)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, 101.0, 10.0) if targets is None else targets
+    chans = ("linear", "straight_h", "straight_v", "pitch", "yaw", "roll")
+    readings = {c: rng.normal(0, 1, (n_runs, 2, t.size)) for c in chans}
+    write_laser_csv(path, t, readings)
+    return path
+
+
+def lines_of(path: Path) -> list[str]:
+    return path.read_text().splitlines()
+
+
+def write_lines(path: Path, lines: list[str]) -> Path:
+    path.write_text("\n".join(lines) + "\n")
+    return path
