@@ -18,6 +18,10 @@ COMMANDS: list[str] = [
     "abbe.cmd_table",
     "abbe.cmd_iso230_2",
     "abbe.cmd_fit",
+    "abbe.cmd_simulate",
+    "abbe.cmd_ballbar",
+    "abbe.cmd_predict",
+    "abbe.cmd_demo",
 ]
 
 
