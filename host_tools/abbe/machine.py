@@ -27,6 +27,17 @@ AXES: tuple[str, ...] = ("X", "Y", "Z")
 TERMS: tuple[str, ...] = ("dx", "dy", "dz", "ex", "ey", "ez")
 #: 6D laser instrument channels (CSV columns without their unit suffix).
 CHANNELS: tuple[str, ...] = ("linear", "straight_h", "straight_v", "pitch", "yaw", "roll")
+#: Typical 6D laser conventions per measured axis (instrument reading = sign * model
+#: term); X is the paper's Table 2. Machine files state their own ``map``; the
+#: simulator and the synthetic test data start from these.
+DEFAULT_MAPS: dict[str, dict[str, str]] = {
+    "X": {"linear": "+dx", "straight_h": "+dy", "straight_v": "+dz",
+          "yaw": "-ez", "pitch": "-ey", "roll": "+ex"},
+    "Y": {"linear": "+dy", "straight_h": "+dx", "straight_v": "+dz",
+          "yaw": "-ez", "pitch": "-ex", "roll": "+ey"},
+    "Z": {"linear": "+dz", "straight_h": "+dx", "straight_v": "+dy",
+          "yaw": "-ey", "pitch": "-ex", "roll": "+ez"},
+}
 PLANES: tuple[str, ...] = ("XY", "YZ", "ZX")
 
 #: Tolerance (mm) for "same coordinate" and "inside the travel" checks.

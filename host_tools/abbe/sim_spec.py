@@ -31,17 +31,7 @@ from abbe.table import AXES, TERMS
 from abbe.truth import (ANGULAR_TERMS, LINEAR_TERMS, OWN_TERM, Effects, MachineTruth,
                         build_axis, is_straightness)
 
-CHANNELS: tuple[str, ...] = ("linear", "straight_h", "straight_v", "pitch", "yaw", "roll")
-#: Default instrument conventions per axis (instrument reading = sign * model term);
-#: X follows the paper's Table 2.
-DEFAULT_MAPS: dict[str, dict[str, str]] = {
-    "X": {"linear": "+dx", "straight_h": "+dy", "straight_v": "+dz",
-          "yaw": "-ez", "pitch": "-ey", "roll": "+ex"},
-    "Y": {"linear": "+dy", "straight_h": "+dx", "straight_v": "+dz",
-          "yaw": "-ez", "pitch": "-ex", "roll": "+ey"},
-    "Z": {"linear": "+dz", "straight_h": "+dx", "straight_v": "+dy",
-          "yaw": "-ey", "pitch": "-ex", "roll": "+ez"},
-}
+from abbe.machine import CHANNELS, DEFAULT_MAPS  # noqa: E402  (one definition)
 OWN_ROTATION = {"X": "ex", "Y": "ey", "Z": "ez"}
 _MAP_RE = re.compile(r"^([+-])(dx|dy|dz|ex|ey|ez)$")
 

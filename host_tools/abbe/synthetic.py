@@ -27,14 +27,7 @@ import numpy as np
 AXES = ("X", "Y", "Z")
 TRAVEL_MM = {"X": (0.0, 500.0), "Y": (-400.0, 0.0), "Z": (-300.0, 0.0)}
 REFERENCE_MM = (163.626, -212.772, -290.704)
-MAPS: dict[str, dict[str, str]] = {
-    "X": {"linear": "+dx", "straight_h": "+dy", "straight_v": "+dz",
-          "yaw": "-ez", "pitch": "-ey", "roll": "+ex"},
-    "Y": {"linear": "+dy", "straight_h": "+dx", "straight_v": "+dz",
-          "yaw": "-ez", "pitch": "-ex", "roll": "+ey"},
-    "Z": {"linear": "+dz", "straight_h": "+dx", "straight_v": "+dy",
-          "yaw": "-ey", "pitch": "-ex", "roll": "+ez"},
-}
+from abbe.machine import DEFAULT_MAPS as MAPS  # noqa: E402  (one definition)
 OWN = {"X": "dx", "Y": "dy", "Z": "dz"}
 CSV_COLUMNS = ("run", "direction", "target_mm", "linear_um", "straight_h_um", "straight_v_um",
                "pitch_urad", "yaw_urad", "roll_urad", "time_s")
