@@ -9,8 +9,6 @@ import sys
 import tempfile
 from pathlib import Path
 
-from abbe.ballbar import (check_test_in_travel, check_trace_timing, evaluate_ballbar,
-                          from_machine, plot_polar, read_ballbar_csv)
 from abbe.errors import AbbeInputError
 from abbe.machine import load_machine
 
@@ -32,6 +30,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # imported here: abbe.ballbar pulls in scipy, which every other command would pay for
+    from abbe.ballbar import (check_test_in_travel, check_trace_timing, evaluate_ballbar,
+                              from_machine, plot_polar, read_ballbar_csv)
+
     m = load_machine(args.machine)
     if args.name not in m.ballbar:
         avail = ", ".join(sorted(m.ballbar)) or "none"

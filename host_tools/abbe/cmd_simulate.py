@@ -6,11 +6,6 @@ import argparse
 import json
 import sys
 
-import numpy as np
-
-from abbe.campaign import simulate_campaign, write_campaign
-from abbe.sim_spec import load_spec
-
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
@@ -28,6 +23,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def linearisation_check(spec, n: int = 4000) -> float:
     """Max |exact chain - Eq. 3 on the true table| (um) over random workspace points."""
+    import numpy as np
+
     from abbe.reference import spatial_error
     from abbe.sim import VirtualMachine
     from abbe.table import AXES
@@ -47,6 +44,10 @@ def linearisation_check(spec, n: int = 4000) -> float:
 
 
 def run(args: argparse.Namespace) -> int:
+    # imported here: the simulator pulls in scipy, which every other command would pay for
+    from abbe.campaign import simulate_campaign, write_campaign
+    from abbe.sim_spec import load_spec
+
     spec = load_spec(args.spec)
     files = simulate_campaign(spec)
     written = write_campaign(files, args.out)
