@@ -325,7 +325,7 @@ static void test_failure_keeps_previous_model(void **state)
 static void test_strerror_distinct(void **state)
 {
     (void)state;
-    for (int a = ABBE_E_NO_MODEL; a <= ABBE_OK; a++) {
+    for (int a = ABBE_STATUS_MIN; a <= ABBE_OK; a++) {
         const char *sa = abbe_strerror(a);
         assert_non_null(sa);
         assert_string_not_equal(sa, "unknown status");
@@ -334,6 +334,7 @@ static void test_strerror_distinct(void **state)
         }
     }
     assert_string_equal(abbe_strerror(-999), "unknown status");
+    assert_string_equal(abbe_strerror(ABBE_STATUS_MIN - 1), "unknown status");
 }
 
 static void test_crc32_reference_value(void **state)

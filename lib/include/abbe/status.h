@@ -24,6 +24,10 @@ typedef enum {
     ABBE_E_ALIGN = -18          /* blob not 4-byte aligned (coefficients are read in place) */
 } abbe_status_t;
 
+/* The most negative status: every status lies in [ABBE_STATUS_MIN, ABBE_OK].
+ * Move it with the enum when a status is added. */
+#define ABBE_STATUS_MIN ABBE_E_ALIGN
+
 /* Human-readable, static, never NULL (unknown codes give "unknown status"). */
 const char *abbe_strerror(int status);
 
