@@ -391,23 +391,24 @@ abbe_status_t abbe_model_load(abbe_model_t *model, const void *blob, size_t size
         return st;
     }
 
-    abbe_model_t m;
-    memset(&m, 0, sizeof m);
-    m.blob = b;
-    m.size = total;
-    m.crc = abbe_ld_u32(b + total - 4u);
-    m.features = abbe_ld_u32(b + H_FEATURES);
-    m.version_major = abbe_ld_u16(b + H_MAJOR);
-    m.version_minor = abbe_ld_u16(b + H_MINOR);
+    /* Every check above only read the blob: *model is written from here on,
+     * after the last possible failure, so a refused table leaves it untouched
+     * (and no second abbe_model_t is needed on the stack). */
+    memset(model, 0, sizeof *model);
+    model->blob = b;
+    model->size = total;
+    model->crc = abbe_ld_u32(b + total - 4u);
+    model->features = abbe_ld_u32(b + H_FEATURES);
+    model->version_major = abbe_ld_u16(b + H_MAJOR);
+    model->version_minor = abbe_ld_u16(b + H_MINOR);
     for (unsigned k = 0; k < 3u; k++) {
-        m.reference_nm[k] = abbe_ld_i32(b + H_REFERENCE + 4u * k);
-        m.tool_offset_nm[k] = abbe_ld_i32(b + H_TOOL + 4u * k);
-        m.squareness_q36[k] = abbe_ld_i32(b + H_SQUARENESS + 4u * k);
+        model->reference_nm[k] = abbe_ld_i32(b + H_REFERENCE + 4u * k);
+        model->tool_offset_nm[k] = abbe_ld_i32(b + H_TOOL + 4u * k);
+        model->squareness_q36[k] = abbe_ld_i32(b + H_SQUARENESS + 4u * k);
     }
     for (unsigned j = 0; j < ABBE_AXES; j++) {
-        build_axis(&m.axis[j], b, b + HEADER_SIZE + j * AXIS_RECORD_SIZE);
+        build_axis(&model->axis[j], b, b + HEADER_SIZE + j * AXIS_RECORD_SIZE);
     }
-    *model = m;
     return ABBE_OK;
 }
 
