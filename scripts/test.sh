@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Run every abbe test: set-up, then
-#   1. host build with ASan + UBSan (build-asan/): unit tests, golden vectors, checks
-#   2. host release build (build/, gives build/lib/libabbe.so to Python) + its ctest
+#   1. host build with ASan + UBSan (build-asan/): unit tests, golden vectors, checks,
+#      the CAN and Modbus ports and their tests
+#   2. host release build (build/, gives build/lib/libabbe.so and the port daemons
+#      to Python) + its ctest
 #   3. Cortex-M4F cross build (build-m4f/) + its ctest under QEMU
 #   4. Cortex-M3 cross build (build-m3/), fixed point only, + its ctest under QEMU
 #   5. libFuzzer run on the table loader (build-fuzz/, clang)
@@ -42,12 +44,12 @@ cmake_build() { # DIR [cmake args...]
 }
 
 host_asan() {
-    cmake_build build-asan -DCMAKE_BUILD_TYPE=Debug -DABBE_SANITIZE=ON &&
+    cmake_build build-asan -DCMAKE_BUILD_TYPE=Debug -DABBE_SANITIZE=ON -DABBE_BUILD_PORTS=ON &&
         ctest --test-dir build-asan --output-on-failure -j "$JOBS"
 }
 
 host_release() {
-    cmake_build build -DCMAKE_BUILD_TYPE=Release &&
+    cmake_build build -DCMAKE_BUILD_TYPE=Release -DABBE_BUILD_PORTS=ON &&
         ctest --test-dir build --output-on-failure -j "$JOBS"
 }
 

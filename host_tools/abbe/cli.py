@@ -22,6 +22,7 @@ COMMANDS: list[str] = [
     "abbe.cmd_ballbar",
     "abbe.cmd_predict",
     "abbe.cmd_demo",
+    "abbe.cmd_modbus",
 ]
 
 

@@ -36,6 +36,16 @@ abbe_status_t abbe_comp_init(abbe_comp_t *comp, const abbe_comp_config_t *cfg, c
     return ABBE_OK;
 }
 
+abbe_status_t abbe_comp_set_config(abbe_comp_t *comp, const abbe_comp_config_t *cfg)
+{
+    if (comp == NULL || cfg == NULL || !config_ok(cfg)) {
+        return ABBE_E_ARG;
+    }
+    comp->cfg = *cfg;
+    comp->gain_step_q16 = (GAIN_ONE + cfg->fade_cycles - 1u) / cfg->fade_cycles;
+    return ABBE_OK;
+}
+
 abbe_status_t abbe_comp_enable(abbe_comp_t *comp)
 {
     if (comp == NULL) {

@@ -334,6 +334,38 @@ static void test_f32_step(void **state)
     assert_int_equal(abbe_comp_step_q(&fx.comp, NULL, &fx.out), ABBE_E_ARG);
 }
 
+/* Limits and rates change while running: no jump, the direction state and
+ * counters survive, a bad config is refused and the old one stays. */
+static void test_set_config_while_running(void **state)
+{
+    (void)state;
+    abbe_comp_config_t c = config();
+    c.fade_cycles = 1;
+    c.rate_nm_per_cycle[0] = 100000;
+    assert_int_equal(abbe_comp_init(&fx.comp, &c, &fx.a), ABBE_OK);
+    abbe_comp_enable(&fx.comp);
+    double x = 100.0;
+    for (int i = 0; i < 30; i++, x += 0.1) step(x, 1, 1, 0);
+    assert_int_equal(fx.out.corr_nm[0], 25000); /* 20 um + B/2 moving + */
+    uint32_t cycles = abbe_comp_stats(&fx.comp).cycles;
+
+    abbe_comp_config_t bad = c;
+    bad.rate_nm_per_cycle[1] = 0;
+    assert_int_equal(abbe_comp_set_config(&fx.comp, &bad), ABBE_E_ARG);
+    assert_int_equal(abbe_comp_set_config(NULL, &c), ABBE_E_ARG);
+
+    c.rate_nm_per_cycle[0] = 10;
+    c.warn_nm[0] = 24000;
+    assert_int_equal(abbe_comp_set_config(&fx.comp, &c), ABBE_OK);
+    fx.max_step = 0;
+    uint32_t f = step(x, 1, 1, 0);
+    assert_int_equal(fx.out.corr_nm[0], 25000); /* no jump, direction state kept */
+    assert_true(f & ABBE_FLAG_WARN);             /* the new warning limit applies */
+    assert_int_equal(abbe_comp_stats(&fx.comp).cycles, cycles + 1u);
+    for (int i = 0; i < 20; i++, x -= 0.05) step(x, -1, 1, 0);
+    assert_true(fx.max_step <= 10); /* the new rate limit shapes the reversal */
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -347,6 +379,7 @@ int main(void)
         cmocka_unit_test_setup(test_no_model, setup),
         cmocka_unit_test_setup(test_backlash_direction_tracking, setup),
         cmocka_unit_test_setup(test_f32_step, setup),
+        cmocka_unit_test_setup(test_set_config_while_running, setup),
     };
     return cmocka_run_group_tests_name("comp", tests, NULL, NULL);
 }

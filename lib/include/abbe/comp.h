@@ -110,6 +110,14 @@ typedef struct {
 abbe_status_t abbe_comp_init(abbe_comp_t *comp, const abbe_comp_config_t *cfg,
                              const abbe_model_t *model);
 
+/* Replace the configuration of a running compensator (limits, rates, fades,
+ * watchdog, axis signs) without touching its state: the outputs, gains,
+ * backlash direction states, model and counters go on; the new rate limit and
+ * fade apply from the next step, so the change itself causes no jump. A
+ * latched limit fault stays latched until abbe_comp_reset(). Returns
+ * ABBE_E_ARG (config unchanged) for NULL or an out-of-range value. */
+abbe_status_t abbe_comp_set_config(abbe_comp_t *comp, const abbe_comp_config_t *cfg);
+
 /* Enable: corrections fade in over fade_cycles. Disable: they fade out. */
 abbe_status_t abbe_comp_enable(abbe_comp_t *comp);
 abbe_status_t abbe_comp_disable(abbe_comp_t *comp);

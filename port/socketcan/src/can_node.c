@@ -1,0 +1,450 @@
+/* abbe CAN port: the node (portable C99, no heap, no I/O).
+ *
+ * Receive side: every frame is classified; positions and statusword are
+ * latched per axis with a "fresh since the previous SYNC" bit. On SYNC one
+ * compensator cycle runs on the latched positions (abbe_comp_step_q, fresh =
+ * every axis fresh) and the RPDOs / status / info frames are produced.
+ */
+#include <string.h>
+
+#include "abbe_can.h"
+
+static int running_slot(const abbe_can_node_t *node)
+{
+    const abbe_model_t *m = abbe_comp_model(&node->comp);
+    if (m == &node->model[0]) {
+        return 0;
+    }
+    if (m == &node->model[1]) {
+        return 1;
+    }
+    return -1;
+}
+
+/* The slot neither running nor queued, or -1 while a model is queued. */
+static int spare_slot(const abbe_can_node_t *node)
+{
+    if (node->pending_slot >= 0) {
+        return -1;
+    }
+    return running_slot(node) == 0 ? 1 : 0;
+}
+
+int abbe_can_node_init(abbe_can_node_t *node, const abbe_can_config_t *cfg)
+{
+    if (node == NULL || cfg == NULL) {
+        return ABBE_CAN_E_ARG;
+    }
+    abbe_can_config_t c = *cfg;
+    if (abbe_can_config_check(&c, NULL, NULL) != ABBE_CAN_OK) {
+        return ABBE_CAN_E_CONFIG;
+    }
+    abbe_comp_config_t cc;
+    memset(&cc, 0, sizeof cc);
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        cc.warn_nm[j] = c.axis[j].warn_nm;
+        cc.limit_nm[j] = c.axis[j].limit_nm;
+        cc.rate_nm_per_cycle[j] = c.axis[j].rate_nm_per_cycle;
+        cc.axis_sign[j] = c.axis[j].correction_sign;
+    }
+    cc.fade_cycles = c.fade_cycles;
+    cc.stale_cycles = c.stale_cycles;
+    abbe_comp_t comp;
+    if (abbe_comp_init(&comp, &cc, NULL) != ABBE_OK) {
+        return ABBE_CAN_E_CONFIG;
+    }
+    memset(node, 0, sizeof *node);
+    node->cfg = c;
+    node->comp = comp;
+    node->pending_slot = -1;
+    node->info_countdown = c.info_period_cycles;
+    if (c.enable_on_start) {
+        (void)abbe_comp_enable(&node->comp);
+    }
+    return ABBE_CAN_OK;
+}
+
+const abbe_can_config_t *abbe_can_node_config(const abbe_can_node_t *node)
+{
+    return node != NULL ? &node->cfg : NULL;
+}
+
+/* ---- model slots ----------------------------------------------------------- */
+
+void abbe_can_node_note_load_failure(abbe_can_node_t *node, int status)
+{
+    if (node == NULL) {
+        return;
+    }
+    node->count.model_loads_failed++;
+    node->last_load_status = status;
+    node->info_due = 1;
+}
+
+uint8_t *abbe_can_node_model_buffer(abbe_can_node_t *node, size_t *capacity)
+{
+    if (node == NULL) {
+        return NULL;
+    }
+    int s = spare_slot(node);
+    if (s < 0) {
+        return NULL;
+    }
+    if (capacity != NULL) {
+        *capacity = ABBE_CAN_BLOB_MAX;
+    }
+    return node->blob[s];
+}
+
+int abbe_can_node_commit_model(abbe_can_node_t *node, size_t size)
+{
+    if (node == NULL) {
+        return ABBE_CAN_E_ARG;
+    }
+    int s = spare_slot(node);
+    int st;
+    if (s < 0) {
+        st = ABBE_CAN_E_BUSY;
+    } else if (size > ABBE_CAN_BLOB_MAX) {
+        st = ABBE_CAN_E_TOO_BIG;
+    } else {
+        st = abbe_comp_load_model(&node->comp, &node->model[s], node->blob[s], size);
+    }
+    if (st != ABBE_OK) {
+        abbe_can_node_note_load_failure(node, st);
+        return st;
+    }
+    node->pending_slot = (int8_t)s;
+    node->count.model_loads_ok++;
+    node->last_load_status = ABBE_OK;
+    node->info_due = 1;
+    return ABBE_CAN_OK;
+}
+
+int abbe_can_node_load_model(abbe_can_node_t *node, const void *blob, size_t size)
+{
+    if (node == NULL || blob == NULL) {
+        return ABBE_CAN_E_ARG;
+    }
+    size_t cap = 0;
+    uint8_t *buf = abbe_can_node_model_buffer(node, &cap);
+    if (buf == NULL) {
+        abbe_can_node_note_load_failure(node, ABBE_CAN_E_BUSY);
+        return ABBE_CAN_E_BUSY;
+    }
+    if (size > cap) {
+        abbe_can_node_note_load_failure(node, ABBE_CAN_E_TOO_BIG);
+        return ABBE_CAN_E_TOO_BIG;
+    }
+    memcpy(buf, blob, size);
+    return abbe_can_node_commit_model(node, size);
+}
+
+int abbe_can_node_model_pending(const abbe_can_node_t *node)
+{
+    return node != NULL && node->pending_slot >= 0;
+}
+
+int abbe_can_node_take_reload_request(abbe_can_node_t *node)
+{
+    if (node == NULL || !node->reload_requested) {
+        return 0;
+    }
+    node->reload_requested = 0;
+    return 1;
+}
+
+void abbe_can_node_request_reload(abbe_can_node_t *node)
+{
+    if (node != NULL) {
+        node->reload_requested = 1;
+    }
+}
+
+int abbe_can_node_enable(abbe_can_node_t *node)
+{
+    return node != NULL ? (int)abbe_comp_enable(&node->comp) : ABBE_CAN_E_ARG;
+}
+
+int abbe_can_node_disable(abbe_can_node_t *node)
+{
+    return node != NULL ? (int)abbe_comp_disable(&node->comp) : ABBE_CAN_E_ARG;
+}
+
+int abbe_can_node_reset(abbe_can_node_t *node)
+{
+    return node != NULL ? (int)abbe_comp_reset(&node->comp) : ABBE_CAN_E_ARG;
+}
+
+/* ---- counters and observers ------------------------------------------------- */
+
+void abbe_can_node_count_malformed(abbe_can_node_t *node)
+{
+    if (node != NULL) {
+        node->count.malformed++;
+    }
+}
+
+void abbe_can_node_count_tx_error(abbe_can_node_t *node)
+{
+    if (node != NULL) {
+        node->count.tx_errors++;
+    }
+}
+
+abbe_can_counters_t abbe_can_node_counters(const abbe_can_node_t *node)
+{
+    abbe_can_counters_t none;
+    memset(&none, 0, sizeof none);
+    return node != NULL ? node->count : none;
+}
+
+uint32_t abbe_can_node_ignored(const abbe_can_node_t *node)
+{
+    if (node == NULL) {
+        return 0;
+    }
+    const abbe_can_counters_t *c = &node->count;
+    return c->bad_dlc + c->unknown_id + c->rtr + c->error_frames + c->bad_command + c->malformed;
+}
+
+const abbe_comp_output_t *abbe_can_node_output(const abbe_can_node_t *node)
+{
+    return node != NULL ? &node->out : NULL;
+}
+
+abbe_comp_stats_t abbe_can_node_comp_stats(const abbe_can_node_t *node)
+{
+    return abbe_comp_stats(node != NULL ? &node->comp : NULL);
+}
+
+uint32_t abbe_can_node_age(const abbe_can_node_t *node, unsigned axis)
+{
+    return node != NULL && axis < ABBE_AXES ? node->ax[axis].age_cycles : 0u;
+}
+
+uint32_t abbe_can_node_model_crc(const abbe_can_node_t *node)
+{
+    const abbe_model_t *m = node != NULL ? abbe_comp_model(&node->comp) : NULL;
+    return m != NULL ? abbe_model_crc(m) : 0u;
+}
+
+int abbe_can_node_last_load_status(const abbe_can_node_t *node)
+{
+    return node != NULL ? node->last_load_status : ABBE_CAN_E_ARG;
+}
+
+/* ---- the cycle ---------------------------------------------------------------- */
+
+/* Direction with hysteresis: the sign of the last move larger than the
+ * deadband, measured from the furthest point reached in the current
+ * direction. At standstill it keeps its value (the compensator then sees no
+ * distance, so the backlash state does not change). */
+static void update_dir(abbe_can_axis_state_t *st, int32_t pos_nm, int32_t deadband_nm)
+{
+    if (!st->anchor_valid) {
+        st->anchor_nm = pos_nm;
+        st->anchor_valid = 1;
+        return;
+    }
+    int64_t d = (int64_t)pos_nm - st->anchor_nm;
+    if (d > deadband_nm) {
+        st->dir = 1;
+        st->anchor_nm = pos_nm;
+    } else if (d < -(int64_t)deadband_nm) {
+        st->dir = -1;
+        st->anchor_nm = pos_nm;
+    } else if ((d > 0 && st->dir > 0) || (d < 0 && st->dir < 0)) {
+        st->anchor_nm = pos_nm;
+    }
+}
+
+static uint8_t sat_u8(uint32_t v)
+{
+    return v >= ABBE_CAN_AGE_MAX ? (uint8_t)ABBE_CAN_AGE_MAX : (uint8_t)v;
+}
+
+static size_t build_frames(abbe_can_node_t *node, abbe_can_frame_t tx[ABBE_CAN_MAX_TX])
+{
+    const abbe_can_config_t *cfg = &node->cfg;
+    size_t n = 0;
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        const abbe_can_axis_config_t *ax = &cfg->axis[j];
+        size_t k = 0;
+        while (k < n && tx[k].id != ax->rpdo_cob_id) {
+            k++;
+        }
+        if (k == n) {
+            memset(&tx[n], 0, sizeof tx[n]);
+            tx[n].id = ax->rpdo_cob_id;
+            tx[n].dlc = ax->rpdo_dlc;
+            n++;
+        }
+        abbe_can_put_i32(&tx[k].data[ax->offset_byte], abbe_can_nm_to_incr(ax, node->out.corr_nm[j]));
+    }
+    uint32_t ignored = abbe_can_node_ignored(node);
+    if (cfg->info_period_cycles > 0u) {
+        /* every info_period_cycles cycles, plus once after each model load
+         * attempt (which does not shift the period) */
+        int periodic = 0;
+        if (node->info_countdown > 0u) {
+            node->info_countdown--;
+        }
+        if (node->info_countdown == 0u) {
+            periodic = 1;
+            node->info_countdown = cfg->info_period_cycles;
+        }
+        if (periodic || node->info_due) {
+            abbe_can_frame_t *f = &tx[n++];
+            memset(f, 0, sizeof *f);
+            f->id = cfg->info_cob_id;
+            f->dlc = ABBE_CAN_INFO_DLC;
+            abbe_can_put_u32(&f->data[0], abbe_can_node_model_crc(node));
+            int ls = node->last_load_status;
+            int8_t ls8 = (int8_t)(ls < -128 ? -128 : (ls > 127 ? 127 : ls));
+            f->data[4] = (uint8_t)ls8;
+            f->data[5] = (uint8_t)(abbe_comp_stats(&node->comp).model_swaps & 0xFFu);
+            abbe_can_put_u16(&f->data[6], (uint16_t)(ignored > 0xFFFFu ? 0xFFFFu : ignored));
+            node->info_due = 0;
+        }
+    }
+    if (cfg->status_enable) {
+        abbe_can_frame_t *f = &tx[n++];
+        memset(f, 0, sizeof *f);
+        f->id = cfg->status_cob_id;
+        f->dlc = ABBE_CAN_STATUS_DLC;
+        f->data[0] = (uint8_t)(((unsigned)node->out.state & 0x03u) |
+                               (abbe_comp_model(&node->comp) != NULL ? 0x04u : 0u) |
+                               (node->last_load_status != 0 ? 0x08u : 0u) |
+                               ((unsigned)node->fresh_mask << 4));
+        abbe_can_put_u16(&f->data[1], (uint16_t)(node->out.flags & 0xFFFFu));
+        f->data[3] = node->seq;
+        for (unsigned j = 0; j < ABBE_AXES; j++) {
+            f->data[4 + j] = sat_u8(node->ax[j].age_cycles);
+        }
+        f->data[7] = (uint8_t)(ignored & 0xFFu);
+    }
+    return n;
+}
+
+static size_t run_cycle(abbe_can_node_t *node, abbe_can_frame_t tx[ABBE_CAN_MAX_TX])
+{
+    const abbe_can_config_t *cfg = &node->cfg;
+    abbe_comp_input_q_t in;
+    memset(&in, 0, sizeof in);
+    uint8_t fresh_mask = 0, fault_mask = 0;
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        const abbe_can_axis_config_t *ax = &cfg->axis[j];
+        abbe_can_axis_state_t *st = &node->ax[j];
+        int32_t pos_nm = st->have_pos ? abbe_can_incr_to_nm(ax, st->pos_incr) : 0;
+        if (st->fresh) {
+            st->age_cycles = 0;
+            fresh_mask = (uint8_t)(fresh_mask | (1u << j));
+            update_dir(st, pos_nm, ax->deadband_nm);
+        } else if (st->age_cycles < UINT32_MAX) {
+            st->age_cycles++;
+        }
+        in.pos_nm[j] = pos_nm;
+        in.temp_mdegc[j] = ax->temp_mdegc;
+        in.dir[j] = st->dir;
+        if (ax->statusword_byte != ABBE_CAN_NO_BYTE && st->have_pos &&
+            (st->statusword & ABBE_CAN_STATUSWORD_FAULT) != 0u) {
+            fault_mask = (uint8_t)(fault_mask | (1u << j));
+        }
+        st->fresh = 0;
+    }
+    in.fresh = fresh_mask == 0x07u ? 1u : 0u;
+    in.axis_fault_mask = fault_mask;
+    if (!in.fresh) {
+        node->count.stale_cycles++;
+    }
+    (void)abbe_comp_step_q(&node->comp, &in, &node->out); /* cannot fail: pointers valid */
+    node->pending_slot = -1; /* a queued model took effect at the start of that step */
+    node->fresh_mask = fresh_mask;
+    size_t n = build_frames(node, tx);
+    node->seq++;
+    node->count.syncs++;
+    node->count.frames_tx += (uint32_t)n;
+    return n;
+}
+
+static int rx_command(abbe_can_node_t *node, const abbe_can_frame_t *rx)
+{
+    if (rx->dlc != 1u) {
+        node->count.bad_dlc++;
+        return ABBE_CAN_RX_BAD_DLC;
+    }
+    switch (rx->data[0]) {
+    case ABBE_CAN_CMD_ENABLE: (void)abbe_comp_enable(&node->comp); break;
+    case ABBE_CAN_CMD_DISABLE: (void)abbe_comp_disable(&node->comp); break;
+    case ABBE_CAN_CMD_RESET: (void)abbe_comp_reset(&node->comp); break;
+    case ABBE_CAN_CMD_RELOAD: node->reload_requested = 1; break;
+    default: node->count.bad_command++; return ABBE_CAN_RX_BAD_COMMAND;
+    }
+    node->count.commands++;
+    return ABBE_CAN_RX_COMMAND;
+}
+
+static int rx_position(abbe_can_node_t *node, const abbe_can_frame_t *rx)
+{
+    int matched = 0;
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        const abbe_can_axis_config_t *ax = &node->cfg.axis[j];
+        if (ax->tpdo_cob_id != rx->id) {
+            continue;
+        }
+        if (rx->dlc != ax->tpdo_dlc) { /* axes sharing a TPDO share its DLC */
+            node->count.bad_dlc++;
+            return ABBE_CAN_RX_BAD_DLC;
+        }
+        abbe_can_axis_state_t *st = &node->ax[j];
+        st->pos_incr = abbe_can_get_i32(&rx->data[ax->position_byte]);
+        if (ax->statusword_byte != ABBE_CAN_NO_BYTE) {
+            st->statusword = abbe_can_get_u16(&rx->data[ax->statusword_byte]);
+        }
+        st->have_pos = 1;
+        st->fresh = 1;
+        matched = 1;
+    }
+    if (!matched) {
+        node->count.unknown_id++;
+        return ABBE_CAN_RX_UNKNOWN;
+    }
+    node->count.positions++;
+    return ABBE_CAN_RX_POSITION;
+}
+
+int abbe_can_node_rx(abbe_can_node_t *node, const abbe_can_frame_t *rx,
+                     abbe_can_frame_t tx[ABBE_CAN_MAX_TX], size_t *n_tx)
+{
+    if (node == NULL || rx == NULL || tx == NULL || n_tx == NULL) {
+        return ABBE_CAN_E_ARG;
+    }
+    *n_tx = 0;
+    node->count.frames_rx++;
+    const abbe_can_config_t *cfg = &node->cfg;
+    if (rx->id & ABBE_CAN_ERR_FLAG) {
+        node->count.error_frames++;
+        return ABBE_CAN_RX_ERROR;
+    }
+    if (rx->id & ABBE_CAN_RTR_FLAG) {
+        node->count.rtr++;
+        return ABBE_CAN_RX_RTR;
+    }
+    if ((rx->id & ABBE_CAN_EFF_FLAG) || rx->id > ABBE_CAN_SFF_MASK) {
+        node->count.unknown_id++;
+        return ABBE_CAN_RX_UNKNOWN;
+    }
+    if (rx->id == cfg->sync_cob_id) {
+        if (rx->dlc > 1u) { /* CiA 301: no data, or the 1-byte SYNC counter */
+            node->count.bad_dlc++;
+            return ABBE_CAN_RX_BAD_DLC;
+        }
+        *n_tx = run_cycle(node, tx);
+        return ABBE_CAN_RX_SYNC;
+    }
+    if (cfg->command_enable && rx->id == cfg->command_cob_id) {
+        return rx_command(node, rx);
+    }
+    return rx_position(node, rx);
+}
