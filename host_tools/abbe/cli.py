@@ -20,6 +20,7 @@ COMMANDS: list[str] = [
     "abbe.cmd_fit",
     "abbe.cmd_simulate",
     "abbe.cmd_ballbar",
+    "abbe.cmd_diagnose",
     "abbe.cmd_predict",
     "abbe.cmd_demo",
     "abbe.cmd_modbus",

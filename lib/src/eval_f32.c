@@ -59,21 +59,20 @@ abbe_status_t abbe_error_eval_f32(const abbe_model_t *m, const abbe_input_f32_t 
     out->error_um[0] = out->error_um[1] = out->error_um[2] = 0.0f;
     out->flags = 0;
     uint32_t flags = 0;
-    int32_t pos_nm[ABBE_AXES];
-    for (unsigned j = 0; j < ABBE_AXES; j++) {
-        if (abbe_mm_to_nm_f32(in->pos_mm[j], &pos_nm[j], &flags) != ABBE_OK) {
-            return ABBE_E_INPUT;
-        }
-    }
     if (inputs_nonfinite(m, in)) {
         return ABBE_E_INPUT;
     }
-
+    /* One axis at a time, so only the term values stay on the stack; a bad
+     * position is found before any output is written. */
     float v[ABBE_AXES][ABBE_TERMS]; /* v[j][0..2] um, v[j][3..5] urad */
     float lev[ABBE_AXES];           /* mm from the reference point */
     for (unsigned j = 0; j < ABBE_AXES; j++) {
-        abbe_axis_terms_f32(&m->axis[j], pos_nm[j], v[j], &flags);
-        lev[j] = lever_mm(pos_nm[j], m->reference_nm[j]);
+        int32_t pos_nm;
+        if (abbe_mm_to_nm_f32(in->pos_mm[j], &pos_nm, &flags) != ABBE_OK) {
+            return ABBE_E_INPUT;
+        }
+        abbe_axis_terms_f32(&m->axis[j], pos_nm, v[j], &flags);
+        lev[j] = lever_mm(pos_nm, m->reference_nm[j]);
         v[j][j] += extras_um(m, j, lev[j], in->dir_state[j], in->temp_c[j]);
     }
     const float x = lev[0], y = lev[1], z = lev[2];

@@ -169,11 +169,11 @@ void abbe_sincos_f32(uint32_t phase_q32, float *sin_out, float *cos_out);
 /* ---- per-axis fitted term values ---- */
 
 /* Fixed: linear terms in 2^-8 nm, angular in 2^-36 rad; absent terms 0. */
-void abbe_axis_terms_q(const abbe_axis_model_t *ax, int32_t pos_nm, int64_t value[ABBE_TERMS],
+void abbe_axis_terms_q(const abbe_axis_model_t *ax, int32_t pos_nm, int64_t *restrict value,
                        uint32_t *flags);
 
 /* Float: linear terms in um, angular in urad; absent terms 0. */
-void abbe_axis_terms_f32(const abbe_axis_model_t *ax, int32_t pos_nm, float value[ABBE_TERMS],
+void abbe_axis_terms_f32(const abbe_axis_model_t *ax, int32_t pos_nm, float *restrict value,
                          uint32_t *flags);
 
 /* Float mm -> integer nm, exact to 0.56 nm over +/-2147 mm (docs/numerics.md).

@@ -11,7 +11,7 @@
 #define URAD_PER_ANG_LSB 1.4551915228366852e-5f /* 2^-36 rad */
 
 static ABBE_ALWAYS_INLINE const uint8_t *mac_row_f32(const uint8_t *row, float b, unsigned n_terms,
-                                                      float acc[ABBE_TERMS])
+                                                      float *restrict acc)
 {
     if (n_terms == ABBE_TERMS) { /* constant after inlining: six statements, no loop */
         acc[0] += abbe_ld_f32_aligned(row) * b;
@@ -29,7 +29,7 @@ static ABBE_ALWAYS_INLINE const uint8_t *mac_row_f32(const uint8_t *row, float b
 }
 
 static ABBE_ALWAYS_INLINE void dot_axis_f32(const abbe_axis_model_t *ax, int32_t p, unsigned n_terms,
-                                            float acc[ABBE_TERMS])
+                                            float *restrict acc)
 {
     const uint8_t *row = ax->coef_f32;
     if (ax->trend_rows > 0u) {
@@ -67,31 +67,34 @@ static ABBE_ALWAYS_INLINE void dot_axis_f32(const abbe_axis_model_t *ax, int32_t
     }
 }
 
-void abbe_axis_terms_f32(const abbe_axis_model_t *ax, int32_t pos_nm, float value[ABBE_TERMS],
+void abbe_axis_terms_f32(const abbe_axis_model_t *ax, int32_t pos_nm, float *restrict value,
                          uint32_t *flags)
 {
     /* The travel check comes first: a position outside it is reported even
      * for an axis without fitted terms. */
     int32_t p = abbe_arg_clamp(ax, pos_nm, flags);
-    float acc[ABBE_TERMS] = {0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
-    if (ax->n_terms == ABBE_TERMS) {
-        dot_axis_f32(ax, p, ABBE_TERMS, acc);
-        for (unsigned t = 0; t < ABBE_TERMS; t++) {
-            value[t] = acc[t] * (t < 3u ? UM_PER_LIN_LSB : URAD_PER_ANG_LSB);
-        }
-        return;
-    }
     for (unsigned t = 0; t < ABBE_TERMS; t++) {
         value[t] = 0.0f;
+    }
+    if (ax->n_terms == ABBE_TERMS) {
+        /* accumulate in place (restrict: no aliasing with the table, so the
+         * sums stay in registers and no second array is on the stack) */
+        dot_axis_f32(ax, p, ABBE_TERMS, value);
+        for (unsigned t = 0; t < ABBE_TERMS; t++) {
+            value[t] *= t < 3u ? UM_PER_LIN_LSB : URAD_PER_ANG_LSB;
+        }
+        return;
     }
     if (ax->n_terms == 0u) {
         return;
     }
-    dot_axis_f32(ax, p, ax->n_terms, acc);
-    for (unsigned t = 0; t < ABBE_TERMS; t++) {
-        if (ax->column[t] != 0xFFu) {
-            value[t] = acc[ax->column[t]] * (t < 3u ? UM_PER_LIN_LSB : URAD_PER_ANG_LSB);
-        }
+    /* Sparse axis: accumulate packed into value[0 .. n_terms), then spread in
+     * place from the last term down (column[t] <= t, so no source is
+     * overwritten before it is read). */
+    dot_axis_f32(ax, p, ax->n_terms, value);
+    for (unsigned t = ABBE_TERMS; t-- > 0u;) {
+        uint8_t col = ax->column[t];
+        value[t] = col == 0xFFu ? 0.0f : value[col] * (t < 3u ? UM_PER_LIN_LSB : URAD_PER_ANG_LSB);
     }
 }
 

@@ -12,7 +12,7 @@
 /* acc[col] += coef[row][col] * b. Sum of |c| <= 2^32 (validated) times
  * |b| <= 2^30 stays below 2^63. */
 static ABBE_ALWAYS_INLINE const uint8_t *mac_row_q(const uint8_t *row, int32_t b, unsigned n_terms,
-                                                    int64_t acc[ABBE_TERMS])
+                                                    int64_t *restrict acc)
 {
     if (n_terms == ABBE_TERMS) { /* constant after inlining: six statements, no loop */
         acc[0] += (int64_t)abbe_ld_i32(row) * b;
@@ -30,7 +30,7 @@ static ABBE_ALWAYS_INLINE const uint8_t *mac_row_q(const uint8_t *row, int32_t b
 }
 
 static ABBE_ALWAYS_INLINE void dot_axis_q(const abbe_axis_model_t *ax, int32_t p, unsigned n_terms,
-                                          int64_t acc[ABBE_TERMS])
+                                          int64_t *restrict acc)
 {
     const uint8_t *row = ax->coef_q;
     if (ax->trend_rows > 0u) {
@@ -70,38 +70,36 @@ static ABBE_ALWAYS_INLINE void dot_axis_q(const abbe_axis_model_t *ax, int32_t p
     }
 }
 
-void abbe_axis_terms_q(const abbe_axis_model_t *ax, int32_t pos_nm, int64_t value[ABBE_TERMS],
+void abbe_axis_terms_q(const abbe_axis_model_t *ax, int32_t pos_nm, int64_t *restrict value,
                        uint32_t *flags)
 {
     /* The travel check comes first: a position outside it is reported even
      * for an axis without fitted terms. */
     int32_t p = abbe_arg_clamp(ax, pos_nm, flags);
-    int64_t acc[ABBE_TERMS];
-    /* element by element: an aggregate initialiser becomes a memset call on
-     * ARM, a byte loop in newlib-nano (150 instructions per axis) */
-    acc[0] = 0;
-    acc[1] = 0;
-    acc[2] = 0;
-    acc[3] = 0;
-    acc[4] = 0;
-    acc[5] = 0;
+    /* element by element: an aggregate initialiser or a loop becomes a memset
+     * call on ARM, a byte loop in newlib-nano (150 instructions per axis) */
+    value[0] = 0;
+    value[1] = 0;
+    value[2] = 0;
+    value[3] = 0;
+    value[4] = 0;
+    value[5] = 0;
     if (ax->n_terms == ABBE_TERMS) {
-        dot_axis_q(ax, p, ABBE_TERMS, acc);
+        /* accumulate in place (restrict: no aliasing with the table) */
+        dot_axis_q(ax, p, ABBE_TERMS, value);
         for (unsigned t = 0; t < ABBE_TERMS; t++) {
-            value[t] = abbe_shr_round(acc[t], 30u);
+            value[t] = abbe_shr_round(value[t], 30u);
         }
         return;
-    }
-    for (unsigned t = 0; t < ABBE_TERMS; t++) {
-        value[t] = 0;
     }
     if (ax->n_terms == 0u) {
         return;
     }
-    dot_axis_q(ax, p, ax->n_terms, acc);
-    for (unsigned t = 0; t < ABBE_TERMS; t++) {
-        if (ax->column[t] != 0xFFu) {
-            value[t] = abbe_shr_round(acc[ax->column[t]], 30u);
-        }
+    /* Sparse axis: packed into value[0 .. n_terms), spread in place from the
+     * last term down (column[t] <= t: no source is overwritten early). */
+    dot_axis_q(ax, p, ax->n_terms, value);
+    for (unsigned t = ABBE_TERMS; t-- > 0u;) {
+        uint8_t col = ax->column[t];
+        value[t] = col == 0xFFu ? 0 : abbe_shr_round(value[col], 30u);
     }
 }
