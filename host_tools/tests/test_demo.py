@@ -65,3 +65,21 @@ def test_demo_fit_beats_paper_models_on_wave_type_errors(demo) -> None:
         r = rows[key]
         assert r["chosen_emax"] < r["paper_fourier3_emax"], key
         assert r["chosen_emax"] < r["paper_poly7_emax"], key
+
+
+def test_demo_diagnoses_the_squareness_and_the_gap_shrinks(demo) -> None:
+    """Issue 5 in the demo: the laser cannot see the XY squareness; diagnose names
+    it (true value 30 urad), adds it to the table, and the gap shrinks."""
+    out, s = demo
+    effects = {e["id"]: e for e in s["effects"]}
+    sq = effects["squareness_xy"]
+    assert sq["unit"] == "urad" and sq["ci95"][0] <= sq["value"] <= sq["ci95"][1]
+    assert 25.0 < sq["value"] < 35.0
+    gap = s["diagnose_gap"]
+    assert gap["after"]["rms_um"] < 0.5 * gap["before"]["rms_um"]
+    assert gap["held_out_after"]["rms_um"] < 0.5 * gap["held_out_before"]["rms_um"]
+    assert s["prediction_max_residual_um"] < s["prediction_max_residual_laser_only_um"]
+    # the compensated model is the updated one, and it holds the squareness
+    from abbe.table import read_blob
+    model = read_blob((out / "report" / s["model"]).read_bytes())
+    assert abs(model.squareness_urad[0] - sq["value"]) < 0.01
