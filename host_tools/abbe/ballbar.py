@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares
 
-from abbe.errors import AbbeInputError
+from abbe.errors import AbbeInputError, parse_finite
 
 PLANES: tuple[str, ...] = ("XY", "YZ", "ZX")
 #: plane -> indices (a, b) of the axes spanning it: theta from +a toward +b.
@@ -210,16 +210,7 @@ def read_ballbar_csv(path: str | Path) -> BallbarTrace:
             raise AbbeInputError(f"expected 'ccw' or 'cw', got {r[idx['direction']]!r}", file=f,
                                  line=no, field="direction")
         for c in COLUMNS[1:]:
-            cell = r[idx[c]].strip()
-            try:
-                v = float(cell)
-            except ValueError:
-                raise AbbeInputError(f"expected a number, got {cell!r}", file=f, line=no,
-                                     field=c) from None
-            if not math.isfinite(v):
-                raise AbbeInputError(f"expected a finite number, got {cell!r}", file=f, line=no,
-                                     field=c)
-            vals[c].append(v)
+            vals[c].append(parse_finite(r[idx[c]].strip(), file=f, line=no, field=c))
         dirs.append(d)
         nos.append(no)
     tr = BallbarTrace(direction=np.array(dirs), angle_deg=np.array(vals["angle_deg"]),

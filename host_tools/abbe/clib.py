@@ -230,10 +230,10 @@ def load_library() -> C.CDLL:
         fn.argtypes = args
     # The binding allocates abbe_model_t / abbe_comp_t itself: a layout that
     # differs from the library's would corrupt memory silently, so refuse it.
-    for struct, fn in ((Model, lib.abbe_model_sizeof), (Comp, lib.abbe_comp_sizeof)):
-        if C.sizeof(struct) != fn():
+    for mirror, fn in ((Model, lib.abbe_model_sizeof), (Comp, lib.abbe_comp_sizeof)):
+        if C.sizeof(mirror) != fn():
             raise LibraryNotFound(
-                f"{path}: sizeof({struct.__name__}) is {fn()} in the library but {C.sizeof(struct)} "
+                f"{path}: sizeof({mirror.__name__}) is {fn()} in the library but {C.sizeof(mirror)} "
                 "in abbe/clib.py: the binding and the library are from different versions")
     _LIB = lib
     return lib

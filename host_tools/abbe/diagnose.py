@@ -1129,7 +1129,6 @@ def _final_fit(eng: Engine, sel: list[_Sel], W: np.ndarray
         # re-linearise (columns at the current point)
         cols = []
         for s, v in zip(sel, values):
-            th_all = np.zeros(len(s.cand.spec.params))
             c = eng.sensitivity(s.cand.spec, s.cand.scan_value, t, p, y)
             cols.append(c[:, s.cand.param_idx])
         X = np.hstack([prob.nuis] + cols) * W[:, None]

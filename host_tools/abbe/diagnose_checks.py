@@ -29,7 +29,7 @@ import numpy as np
 
 from abbe.effects import OWN_SIGN, OWN_TERM, PredParams
 from abbe.errors import AbbeInputError
-from abbe.table import AXES, Table, quantize, write_blob
+from abbe.table import AXES, Table, write_blob
 
 PLANE_AXES: dict[str, tuple[int, int]] = {"XY": (0, 1), "ZX": (2, 0), "YZ": (1, 2)}
 LINEAR_TERMS = ("dx", "dy", "dz")

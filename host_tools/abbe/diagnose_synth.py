@@ -23,7 +23,6 @@ from typing import Any
 import numpy as np
 
 from abbe.diagnose_checks import PLANE_AXES, BallbarCheck, Check, LaserChannel, LaserCheck
-from abbe.effects import OWN_TERM
 from abbe.table import AXES, TERMS, Table
 
 TRAVEL_MM = {"X": (0.0, 500.0), "Y": (-400.0, 0.0), "Z": (-300.0, 0.0)}

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 
 class AbbeInputError(Exception):
     """Bad input: names the file, the line, the field and what was expected.
@@ -27,3 +29,16 @@ class AbbeInputError(Exception):
             where += ": "
         field = f"field '{self.field}': " if self.field is not None else ""
         return f"{where}{field}{self.message}"
+
+
+def parse_finite(text: str, *, file: str | None, line: int | None, field: str | None) -> float:
+    """A finite number from a text cell, or an AbbeInputError naming where."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise AbbeInputError(f"expected a number, got {text!r}", file=file, line=line,
+                             field=field) from None
+    if not math.isfinite(v):
+        raise AbbeInputError(f"expected a finite number, got {text!r}", file=file, line=line,
+                             field=field)
+    return v

@@ -17,13 +17,12 @@ raises AbbeInputError naming file, line and key.
 from __future__ import annotations
 
 import hashlib
-import math
 import re
 from pathlib import Path
 
 import numpy as np
 
-from abbe.errors import AbbeInputError
+from abbe.errors import AbbeInputError, parse_finite
 from abbe.iso230_2 import PositioningData
 
 _KEY = re.compile(r"^([A-Z_][A-Z0-9_]*)(?:\[\s*(\d+)\s*(?:,\s*(\d+)\s*)?\])?$")
@@ -76,15 +75,7 @@ def read_dat(path: str | Path) -> PositioningData:
         name, i, c = m.group(1), m.group(2), m.group(3)
 
         def num() -> float:
-            try:
-                v = float(value)
-            except ValueError:
-                raise AbbeInputError(f"expected a number, got {value!r}", file=fname, line=no,
-                                     field=key) from None
-            if not math.isfinite(v):
-                raise AbbeInputError(f"expected a finite number, got {value!r}", file=fname,
-                                     line=no, field=key)
-            return v
+            return parse_finite(value, file=fname, line=no, field=key)
 
         if name == "TGT_DATA" and i is not None and c is None:
             if int(i) in tgt:

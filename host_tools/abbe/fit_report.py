@@ -207,7 +207,7 @@ def index_html(res: "FitResult") -> str:
             out.append("<table><tr><th class='l' rowspan='2'>model</th>"
                        "<th colspan='4'>in-sample</th><th colspan='4'>held-out</th></tr><tr>"
                        + "".join(f"<th>{h}</th>" for h in
-                                 (f"emax ({u})", "R&sup2;", f"SSE", f"RMSE ({u})") * 2)
+                                 (f"emax ({u})", "R&sup2;", "SSE", f"RMSE ({u})") * 2)
                        + "</tr>")
             ho = {k: tr.metrics[k]["held_out"]["emax"] for k in COMPARED}
             best = min(ho, key=lambda k: ho[k] if np.isfinite(ho[k]) else np.inf)

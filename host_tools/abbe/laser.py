@@ -17,13 +17,12 @@ import csv
 import difflib
 import hashlib
 import io
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from abbe.errors import AbbeInputError
+from abbe.errors import AbbeInputError, parse_finite
 from abbe.machine import CHANNELS, LaserLine
 
 #: channel -> CSV column (with unit)
@@ -148,16 +147,7 @@ def read_laser_csv(path: str | Path, *, channels: tuple[str, ...] = CHANNELS,
                                  field="direction")
         dirn[k] = DIRECTIONS.index(d)
         for c in value_cols:
-            cell = rec[col[c]]
-            try:
-                v = float(cell)
-            except ValueError:
-                raise AbbeInputError(f"expected a number, got {cell!r}", file=fname, line=no,
-                                     field=c) from None
-            if not math.isfinite(v):
-                raise AbbeInputError(f"expected a finite number, got {cell!r}", file=fname,
-                                     line=no, field=c)
-            vals[c][k] = v
+            vals[c][k] = parse_finite(rec[col[c]], file=fname, line=no, field=c)
 
     # Passes: contiguous blocks of equal (run, direction), in measured order.
     breaks = np.flatnonzero((np.diff(run) != 0) | (np.diff(dirn) != 0)) + 1
@@ -189,7 +179,6 @@ def read_laser_csv(path: str | Path, *, channels: tuple[str, ...] = CHANNELS,
         passes[key] = np.arange(s, e) if key[1] == 0 else np.arange(e - 1, s - 1, -1)
 
     runs = sorted({r for r, _ in passes})
-    n_runs = len(runs)
     for want, r in enumerate(runs, start=1):
         if r != want:
             raise AbbeInputError(f"runs must be numbered 1..n without gaps: run {want} is missing",

@@ -842,7 +842,7 @@ def table_from_json(d: dict, source: str = "<json>") -> Table:
             want = "um" if t in LINEAR_TERMS else "urad"
             if t not in TERMS or unit != want:
                 raise AbbeInputError(
-                    f"unknown term key; use dx_um, dy_um, dz_um, ex_urad, ey_urad, ez_urad",
+                    "unknown term key; use dx_um, dy_um, dz_um, ex_urad, ey_urad, ez_urad",
                     file=source, field=tw)
             if not isinstance(vals, list) or len(vals) != nb:
                 raise AbbeInputError(f"expected a list of {nb} coefficients (one per row)",

@@ -13,7 +13,7 @@ from abbe import clib
 from abbe.cli import main as cli_main
 from abbe.errors import AbbeInputError
 from abbe.machine import load_machine
-from abbe.table import AXES, quantize, write_blob
+from abbe.table import quantize, write_blob
 from abbe.truth import load_truth, truth_table
 
 REPO = Path(__file__).resolve().parents[2]
