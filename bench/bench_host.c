@@ -15,6 +15,18 @@
 #include "bench_common.h"
 #include "naive_ref.h"
 
+/* The naive evaluator at a golden point's f32 input (the same float values). */
+static void naive_eval_point(const naive_model_t *nm, const abbe_golden_point_t *p, double err[3])
+{
+    double pos[3], dir[3], temp[3];
+    for (int j = 0; j < 3; j++) {
+        pos[j] = p->pos_mm[j];
+        dir[j] = p->dir_state[j];
+        temp[j] = p->temp_c[j];
+    }
+    naive_eval(nm, pos, dir, temp, err);
+}
+
 static volatile float sink_f;
 static volatile int32_t sink_i;
 static volatile double sink_d;
@@ -40,13 +52,8 @@ static int check(const abbe_model_t *model, const abbe_golden_table_t *paper)
         double table_worst = 0.0;
         for (uint32_t i = gt->first_point; i < gt->first_point + gt->n_points; i++) {
             const abbe_golden_point_t *p = &abbe_golden_points[i];
-            double pos[3], dir[3], temp[3], err[3];
-            for (int j = 0; j < 3; j++) {
-                pos[j] = p->pos_mm[j];
-                dir[j] = p->dir_state[j];
-                temp[j] = p->temp_c[j];
-            }
-            naive_eval(&nm, pos, dir, temp, err);
+            double err[3];
+            naive_eval_point(&nm, p, err);
             for (int j = 0; j < 3; j++) {
                 double d = fabs(err[j] * 1e6 - p->expect_f32_pm[j]);
                 table_worst = d > table_worst ? d : table_worst;
@@ -134,13 +141,8 @@ int main(int argc, char **argv)
         naive_load(&nm, paper->blob, paper->blob_size);
         for (uint32_t k = 0; k < n; k++) {
             const abbe_golden_point_t *p = &pts[k % np];
-            double pos[3], dir[3], temp[3], err[3];
-            for (int j = 0; j < 3; j++) {
-                pos[j] = p->pos_mm[j];
-                dir[j] = p->dir_state[j];
-                temp[j] = p->temp_c[j];
-            }
-            naive_eval(&nm, pos, dir, temp, err);
+            double err[3];
+            naive_eval_point(&nm, p, err);
             sink_d = err[0];
         }
     } else if (strcmp(mode, "comp_f32") == 0 || strcmp(mode, "comp_q") == 0) {
