@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from abbe.synthetic import write_laser_csv
+from cases.synthetic_laser import write_laser_csv
 
 ESS_DAT = Path("/work/shared/data/ess-target/x_iso230_2.dat")
 

@@ -7,9 +7,9 @@ from typing import Any
 
 import numpy as np
 
-from abbe.ballbar import CircleTest
-from abbe.table import AXES, TERMS
-from abbe.truth import Effects, MachineTruth, build_axis
+from abbe.analysis.iso230_4 import CircleTest
+from abbe.formats.blob import AXES, TERMS
+from abbe.sim.truth import Effects, MachineTruth, build_axis
 
 TRAVEL = {"X": (0.0, 500.0), "Y": (-400.0, 0.0), "Z": (-300.0, 0.0)}
 REF = (163.626, -212.772, -290.704)

@@ -1,0 +1,403 @@
+"""The ``abbe fit`` pipeline: machine file + 6D laser lines -> table, metrics, provenance.
+
+Per measured axis (docs/formats.md, "abbe fit"):
+
+1. read the laser CSV and convert instrument channels to model terms (map signs);
+2. ISO 230-2 evaluation of the axis' own positioning term;
+3. run averaging (bidirectional mean, reversal per target, run-to-run noise);
+4. least-squares straightness detrending (paper Eq. 1) of the two straightness
+   terms; squareness is unobservable and stays zero;
+5. values relative to the reference point;
+6. model selection and fitting (:mod:`abbe.analysis.fit.select`), with the paper's models for
+   comparison; the stored term is shifted so it is exactly 0 at the reference;
+7. quantisation into the table format, worst-case quantisation error per term.
+
+Backlash: the mean reversal of the own positioning term goes into the table
+(``AxisTable.backlash_um``) only when it is significant against the run-to-run
+noise; it is always reported.
+
+Units: mm, um (linear terms), urad (angular terms).
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from abbe import __version__
+from abbe.errors import AbbeInputError
+from abbe.analysis.fit.select import COMPARED, AxisFit, FitOptions, fit_axis
+from abbe.analysis.iso230_2 import Iso230Result, PositioningData, evaluate
+from abbe.formats.laser_csv import LaserData, read_laser_csv, to_terms
+from abbe.formats.machine import AXES, TERMS, LaserLine, Machine
+from abbe.analysis.fit.prep import (SQUARENESS_NOTE, RunStats, average_runs, detrend_line,
+                       relative_to_reference)
+from abbe.formats.blob import (LINEAR_TERMS, AxisTable, Table, basis_matrix, quantization_error,
+                        read_blob, table_to_json, write_blob)
+
+OWN_TERM = {"X": "dx", "Y": "dy", "Z": "dz"}
+TERM_NAMES = {"dx": "d_x", "dy": "d_y", "dz": "d_z", "ex": "eps_x", "ey": "eps_y",
+              "ez": "eps_z"}
+JSON_FORMAT = "abbe-fit"
+
+
+def unit_of(term: str) -> str:
+    """um for linear terms, urad for angular terms."""
+    return "um" if term in LINEAR_TERMS else "urad"
+
+
+def role_of(axis: str, term: str) -> str:
+    """positioning / straightness / angular (roll, pitch or yaw by axis)."""
+    if term == OWN_TERM[axis]:
+        return "positioning"
+    if term in LINEAR_TERMS:
+        return "straightness"
+    about = term[1]
+    return "roll" if about == axis.lower() else "angular"
+
+
+@dataclass
+class TermResult:
+    """One fitted term. Arrays over the T targets; runs (n_runs, 2, T).
+
+    All values are after detrending and relative to the reference point (the
+    stored model is 0 there). ``ref_shift`` is the total value subtracted.
+    """
+
+    axis: str
+    term: str
+    channel: str
+    sign: int
+    runs: np.ndarray
+    stats: RunStats
+    detrend: dict[str, float] | None
+    ref_shift: float
+    order: tuple[int, int]
+    coef: np.ndarray
+    predictions: dict[str, dict[str, np.ndarray]]
+    metrics: dict[str, dict[str, dict[str, float]]]
+    paper_f3_period_mm: float | None
+    post_shift: float = 0.0  # the part of ref_shift applied after the fit (exact zero at ref)
+    quant_error: float = float("nan")
+
+    @property
+    def unit(self) -> str:
+        return unit_of(self.term)
+
+
+@dataclass
+class AxisResult:
+    """Fit of one measured axis."""
+
+    axis: str
+    line: LaserLine
+    data: LaserData
+    targets_mm: np.ndarray
+    fit: AxisFit
+    terms: dict[str, TermResult]
+    backlash: dict[str, Any]
+    iso: Iso230Result | None
+    table: AxisTable
+
+
+@dataclass
+class FitResult:
+    """Everything ``abbe fit`` writes."""
+
+    machine: Machine
+    options: FitOptions
+    table: Table
+    blob: bytes
+    axes: dict[str, AxisResult]
+    model_json: dict[str, Any] = field(default_factory=dict)
+
+
+def options_from_machine(machine: Machine, **overrides: Any) -> FitOptions:
+    """FitOptions from the machine file's [fit] section, then non-None overrides."""
+    opts = FitOptions()
+    fit = machine.extra.get("fit", {})
+    if fit:
+        opts.max_degree = fit["max_trend_degree"]
+        opts.max_harmonics = fit["max_harmonics"]
+        opts.folds = fit["folds"]
+    for k, v in overrides.items():
+        if v is not None:
+            setattr(opts, k, v)
+    return opts
+
+
+def backlash_sigma(machine: Machine) -> float:
+    """Significance threshold (in standard errors) for a backlash term."""
+    return float(machine.extra.get("fit", {}).get("backlash_sigma", 3.0))
+
+
+def assess_backlash(stats: RunStats, sigma: float) -> dict[str, Any]:
+    """Mean reversal of the own positioning term and its significance.
+
+    reversal B = mean over targets of (mean + approach - mean - approach), um.
+    Its standard error from the run-to-run noise s: a single target's reversal
+    has SE s * sqrt(2 / n); the mean over T targets is not credited with 1/sqrt(T)
+    because run-to-run errors (drift) are correlated along the line. Significant
+    when |B| > sigma * s * sqrt(2 / n).
+    """
+    n = stats.n_runs
+    B = float(np.mean(stats.reversal))
+    se = float(stats.noise * np.sqrt(2.0 / n)) if n > 1 else float("nan")
+    sig = bool(n > 1 and np.isfinite(se) and abs(B) > sigma * se)
+    return {"mean_reversal_um": B, "max_abs_reversal_um": float(np.max(np.abs(stats.reversal))),
+            "reversal_std_um": float(np.std(stats.reversal, ddof=1)) if stats.reversal.size > 1
+            else 0.0, "noise_um": float(stats.noise), "se_um": se, "threshold_sigma": sigma,
+            "significant": sig}
+
+
+def _check_reference(machine: Machine, axis: str, targets: np.ndarray) -> float:
+    j = AXES.index(axis)
+    r = machine.reference_mm[j]
+    lo, hi = float(targets[0]), float(targets[-1])
+    if not lo - 1e-6 <= r <= hi + 1e-6:
+        raise AbbeInputError(
+            f"the reference point's {axis.lower()} = {r} mm lies outside the measured targets "
+            f"[{lo}, {hi}] mm of laser line {axis}: terms cannot be taken relative to it",
+            file=str(machine.path), line=machine.line_of("reference.point_mm"),
+            field="reference.point_mm")
+    return r
+
+
+def fit_line(machine: Machine, axis: str, opts: FitOptions) -> AxisResult:
+    """Steps 1-6 for one laser line."""
+    line = machine.laser[axis]
+    j = AXES.index(axis)
+    spec = machine.axes[axis]
+    data = read_laser_csv(line.file, travel_mm=spec.travel_mm,
+                          span_mm=(line.start_mm[j], line.end_mm[j]))
+    terms = to_terms(data, line)
+    p = data.targets_mm
+    if p.size < 5:
+        raise AbbeInputError(f"{p.size} targets: the fit needs at least 5", file=str(data.file),
+                             field="target_mm")
+    ref = _check_reference(machine, axis, p)
+    present = [t for t in TERMS if t in terms]
+
+    own = OWN_TERM[axis]
+    iso = None
+    if own in terms and data.n_runs >= 2:
+        iso = evaluate(PositioningData(str(data.file), p, terms[own][:, 0, :],
+                                       terms[own][:, 1, :]))
+
+    runs_pre: dict[str, np.ndarray] = {}
+    detr: dict[str, dict[str, float] | None] = {}
+    shift: dict[str, float] = {}
+    for t in present:
+        r = terms[t].astype(float)
+        st = average_runs(r)
+        d = None
+        if t in LINEAR_TERMS and t != own:  # straightness: paper Eq. 1
+            _, k, b = detrend_line(p, st.mean)
+            r = r - (k * p + b)
+            d = {"slope_urad": k * 1000.0, "intercept_um": b}
+        _, v = relative_to_reference(p, average_runs(r).mean, ref)
+        runs_pre[t] = r - v
+        detr[t] = d
+        shift[t] = v
+
+    Y = np.column_stack([average_runs(runs_pre[t]).mean for t in present])
+    af = fit_axis(p, Y, opts)
+    tab = af.model.table
+    # Exact reference adaptation: shift so every stored term is 0 at the reference.
+    bref = basis_matrix(tab, np.array([ref]))[0]
+    coefs: dict[str, np.ndarray] = {}
+    results: dict[str, TermResult] = {}
+    for i, t in enumerate(present):
+        c = af.model.coef[i].copy()
+        v2 = float(bref @ c)
+        c[0] -= v2  # row T_0 == 1 everywhere: every candidate has a trend block
+        coefs[t] = c
+        runs = runs_pre[t] - v2
+        preds = {k: {"in_sample": af.in_sample[k][:, i] - v2, "held_out": af.held_out[k][:, i] - v2}
+                 for k in COMPARED}
+        f3 = af.paper_f3[i]
+        cm = line.term_channel(t)
+        results[t] = TermResult(
+            axis=axis, term=t, channel=cm.channel, sign=cm.sign, runs=runs,
+            stats=average_runs(runs), detrend=detr[t], ref_shift=shift[t] + v2,
+            order=af.model.orders[i], coef=c, predictions=preds, metrics=af.metrics[i],
+            paper_f3_period_mm=None if f3 is None else f3.period_mm, post_shift=v2)
+
+    bl = {"mean_reversal_um": 0.0, "significant": False, "note": "no positioning term measured"}
+    backlash_um, takeup = 0.0, 0.0
+    if own in terms:
+        bl = assess_backlash(average_runs(terms[own]), backlash_sigma(machine))
+        bl["takeup_mm"] = spec.backlash_takeup_mm
+        if bl["significant"]:
+            backlash_um, takeup = bl["mean_reversal_um"], spec.backlash_takeup_mm
+        bl["in_table"] = bool(bl["significant"])
+    axt = AxisTable(travel_mm=tab.travel_mm, trend_degree=tab.trend_degree, blocks=tab.blocks,
+                    coef=coefs, backlash_um=backlash_um, backlash_takeup_mm=takeup)
+    return AxisResult(axis=axis, line=line, data=data, targets_mm=p, fit=af, terms=results,
+                      backlash=bl, iso=iso, table=axt)
+
+
+def fit_machine(machine: Machine, opts: FitOptions) -> FitResult:
+    """Fit every laser line of ``machine`` and build the (float) table and its blob."""
+    if not machine.laser:
+        raise AbbeInputError("no [laser.X/Y/Z] sections: nothing to fit", file=str(machine.path),
+                             field="laser")
+    axes: dict[str, AxisResult] = {}
+    for a in AXES:
+        if a in machine.laser:
+            axes[a] = fit_line(machine, a, opts)
+    tables = {}
+    for a in AXES:
+        if a in axes:
+            tables[a] = axes[a].table
+        else:
+            tr = machine.axes[a].travel_mm if a in machine.axes else (0.0, 1.0)
+            tables[a] = AxisTable(travel_mm=tr)
+    table = Table(axes=tables, reference_mm=machine.reference_mm,
+                  tool_offset_mm=machine.tool_offset_mm, squareness_urad=(0.0, 0.0, 0.0))
+    blob = write_blob(table)
+    qerr = quantization_error(table)
+    for (a, t), e in qerr.items():
+        axes[a].terms[t].quant_error = float(e)
+    res = FitResult(machine=machine, options=opts, table=table, blob=blob, axes=axes)
+    res.model_json = model_json(res)
+    return res
+
+
+# --------------------------------------------------------------------------- JSON
+
+
+def _r(x: float, nd: int = 6) -> float | None:
+    """Round for the JSON (stable text across platforms); None for NaN."""
+    x = float(x)
+    if not np.isfinite(x):
+        return None
+    return float(f"{x:.{nd}g}") if nd else x
+
+
+def _metrics_json(m: dict[str, dict[str, dict[str, float]]], unit: str) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for name, d in m.items():
+        out[name] = {kind: {f"emax_{unit}": _r(v["emax"]), "r2": _r(v["r2"]),
+                            f"sse_{unit}2": _r(v["sse"]), f"rmse_{unit}": _r(v["rmse"])}
+                     for kind, v in d.items()}
+    return out
+
+
+def axis_warnings(ar: AxisResult, opts: FitOptions) -> list[str]:
+    """Caveats about one line's data that the metrics cannot show."""
+    out = []
+    dp = np.diff(ar.targets_mm)
+    if dp.size and float(dp.max()) <= 1.05 * float(dp.min()):
+        s = float(np.median(dp))
+        out.append(
+            f"targets evenly spaced ({s:g} mm): a cyclic error with a period below {2 * s:g} mm "
+            "(e.g. a ball-screw lead) aliases into an apparent longer wave that fits the targets "
+            "and the held-out targets alike but is wrong between them; ISO 230-2 advises "
+            "unevenly spaced targets")
+    if ar.data.n_runs < 5:
+        out.append(f"{ar.data.n_runs} runs: ISO 230-2 asks for 5 bidirectional runs")
+    return out
+
+
+def _rel(path: Path, base: Path) -> str:
+    try:
+        return os.path.relpath(path, base)
+    except ValueError:
+        return str(path)
+
+
+def model_json(res: FitResult) -> dict[str, Any]:
+    """model.json: coefficients with units, fit metrics and provenance. No timestamps."""
+    m = res.machine
+    base = m.path.resolve().parent
+    qt = read_blob(res.blob)
+    axes: dict[str, Any] = {}
+    for a, ar in res.axes.items():
+        tab = ar.table
+        blk = tab.blocks[0]
+        spacing = float(np.median(np.diff(ar.targets_mm)))
+        terms: dict[str, Any] = {}
+        for t, tr in ar.terms.items():
+            u = tr.unit
+            d, h = tr.order
+            terms[t] = {
+                "name": f"{TERM_NAMES[t]}({a.lower()})",
+                "role": role_of(a, t),
+                "unit": u,
+                "channel": tr.channel, "sign": tr.sign,
+                "family": "polynomial" if h == 0 else "trend+fourier",
+                "trend_degree": d, "harmonics": h, "n_parameters": d + 1 + 2 * h,
+                f"coef_{u}": [float(v) for v in tr.coef],
+                f"coef_quantized_{u}": [float(v) for v in qt.axes[a].coef[t]],
+                f"quantization_error_{u}": _r(tr.quant_error),
+                "detrend": None if tr.detrend is None else
+                {"slope_urad": _r(tr.detrend["slope_urad"]),
+                 "intercept_um": _r(tr.detrend["intercept_um"])},
+                f"reference_shift_{u}": _r(tr.ref_shift),
+                f"noise_{u}": _r(tr.stats.noise),
+                f"max_abs_reversal_{u}": _r(float(np.max(np.abs(tr.stats.reversal)))),
+                "paper_fourier3_period_mm": _r(tr.paper_f3_period_mm) if tr.paper_f3_period_mm
+                else None,
+                "metrics": _metrics_json(tr.metrics, u),
+            }
+        axes[a] = {
+            "laser_file": _rel(ar.line.file, base),
+            "n_targets": int(ar.targets_mm.size), "n_runs": ar.data.n_runs,
+            "targets_mm": [float(v) for v in ar.targets_mm],
+            "travel_mm": [float(v) for v in tab.travel_mm],
+            "trend_degree": tab.trend_degree,
+            "block0": None if blk is None else {"period_mm": blk.period_mm,
+                                                "origin_mm": blk.origin_mm,
+                                                "harmonics": blk.harmonics},
+            "block1": None,
+            "block1_note": ("unused: cyclic errors with periods below "
+                            f"{_r(res.options.samples_per_wavelength * spacing, 4)} mm "
+                            f"({res.options.samples_per_wavelength} target spacings) are not "
+                            "resolved by these data"),
+            "selection_score": _r(ar.fit.model.score),
+            "warnings": axis_warnings(ar, res.options),
+            "backlash": {k: (_r(v) if isinstance(v, float) else v) for k, v in ar.backlash.items()},
+            "iso230_2": None if ar.iso is None else {
+                "B_um": _r(ar.iso.B_um), "R_um": _r(ar.iso.R_um), "E_um": _r(ar.iso.E_um),
+                "A_um": _r(ar.iso.A_um), "M_um": _r(ar.iso.M_um)},
+            "terms": terms,
+        }
+    o = res.options
+    return {
+        "format": JSON_FORMAT,
+        "units": {"position": "mm", "linear": "um", "angular": "urad",
+                  "sse": "unit^2 (um^2 or urad^2)"},
+        "provenance": {
+            "tool": "abbe", "version": __version__,
+            "python": platform.python_version(), "numpy": np.__version__,
+            "inputs": {"machine": {"file": m.path.name, "sha256": m.sha256},
+                       **{f"laser.{a}": {"file": _rel(ar.data.file, base),
+                                         "sha256": ar.data.sha256}
+                          for a, ar in res.axes.items()}},
+        },
+        "options": {"model": o.model, "max_trend_degree": o.max_degree,
+                    "max_harmonics": o.max_harmonics, "folds": o.folds,
+                    "samples_per_wavelength": o.samples_per_wavelength,
+                    "max_wave_trend_degree": o.max_wave_degree,
+                    "column_independence_tol": o.col_tol, "one_standard_error_rule": o.one_se,
+                    "backlash_sigma": backlash_sigma(m)},
+        "machine": {"name": m.name, "reference_mm": list(m.reference_mm),
+                    "tool_offset_mm": list(m.tool_offset_mm)},
+        "squareness": {"S_xy_urad": 0.0, "S_xz_urad": 0.0, "S_yz_urad": 0.0,
+                       "observable": False, "note": SQUARENESS_NOTE},
+        "metrics_note": ("emax, R^2, SSE, RMSE per paper Eqs. 6-8 on the bidirectional mean at "
+                         "the targets; in_sample: fitted on all targets; held_out: each target "
+                         "predicted by an outer K-fold (target i in fold i mod K) that repeats "
+                         "the whole selection on the other targets. paper_fourier3: a_0 + 3 "
+                         "harmonics, period fitted per term by least squares; paper_poly7: "
+                         "degree-7 polynomial."),
+        "table": {"crc32": f"0x{int.from_bytes(res.blob[-4:], 'little'):08X}",
+                  "size_bytes": len(res.blob), **table_to_json(qt)},
+        "axes": axes,
+    }

@@ -1,0 +1,74 @@
+"""``abbe ballbar MACHINE.toml NAME``: ISO 230-4 circular-test evaluation and polar plot."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+from pathlib import Path
+
+from abbe.errors import AbbeInputError
+from abbe.formats.machine import load_machine
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "ballbar", help="evaluate a ballbar test (ISO 230-4: G, H, centre, radius; polar plot)",
+        description="Evaluate the ballbar test NAME of a machine file: least-squares circle, "
+                    "centre offset, radius deviation, circular deviation G per direction and "
+                    "bidirectional, circular hysteresis H (um; feed-in/out arcs excluded), and "
+                    "a polar plot PNG.")
+    p.add_argument("machine", help="machine file (TOML) with a [ballbar.NAME] section")
+    p.add_argument("name", help="ballbar test name")
+    p.add_argument("--json", action="store_true", help="print JSON instead of text")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--plot", metavar="PNG", help="polar plot path (default ballbar_NAME.png)")
+    g.add_argument("--no-plot", action="store_true", help="do not write the plot")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    # imported here: abbe.analysis.iso230_4 pulls in scipy, which every other command would pay for
+    from abbe.analysis.iso230_4 import (check_test_in_travel, check_trace_timing, evaluate_ballbar,
+                              from_machine, plot_polar, read_ballbar_csv)
+
+    m = load_machine(args.machine)
+    if args.name not in m.ballbar:
+        avail = ", ".join(sorted(m.ballbar)) or "none"
+        raise AbbeInputError(f"no ballbar test {args.name!r} (available: {avail})",
+                             file=str(m.path), field=f"ballbar.{args.name}")
+    bt = m.ballbar[args.name]
+    test = from_machine(bt)
+    travel = {a: s.travel_mm for a, s in m.axes.items()}
+    try:
+        check_test_in_travel(test, travel, file=str(m.path))
+    except AbbeInputError as exc:
+        raise AbbeInputError(exc.message, file=exc.file, line=m.line_of(exc.field or ""),
+                             field=exc.field) from None
+    trace = read_ballbar_csv(bt.file)
+    check_trace_timing(trace, test, str(m.path))
+    res = evaluate_ballbar(trace, test)
+    plot = None if args.no_plot else Path(args.plot or f"ballbar_{args.name}.png")
+    if plot is not None:
+        plot.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=".ballbar-", suffix=".png", dir=plot.parent)
+        os.close(fd)
+        try:
+            plot_polar(res, tmp, title=f"{m.name} ballbar {args.name}: {test.plane}, "
+                       f"R {test.radius_mm:g} mm, F {test.feed_mm_min:g} mm/min")
+            os.replace(tmp, plot)
+        finally:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+    if args.json:
+        d = {"machine": str(m.path), "file": str(bt.file), **res.to_json(),
+             "plot": None if plot is None else str(plot)}
+        json.dump(d, sys.stdout, indent=2)
+        sys.stdout.write("\n")
+    else:
+        print(res.format_text())
+        if plot is not None:
+            print(f"  polar plot: {plot}")
+    return 0

@@ -1,0 +1,88 @@
+"""``abbe diagnose``: name what the model is missing, add it to the table, show the gap shrink.
+
+    abbe diagnose MACHINE.toml --model OUT/model.bin [--ballbar NAME ...] [--laser AXIS ...]
+                  [--json FILE] -o OUT2/
+    abbe diagnose --iso230-2 FILE --axis X [--model M.bin] [--json FILE] -o OUT2/
+
+See docs/effects.md (the catalogue and the method) and docs/formats.md ("diagnose JSON").
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "diagnose", help="name the effects the model is missing (ballbar / laser / ISO 230-2 "
+                         "checks), add them to the table, show the gap shrink",
+        description="Predict every check measurement with the model through the C library, "
+                    "compare, test the catalogue of missing effects (docs/effects.md) with "
+                    "stepwise selection (F-test against the noise, BIC, held-out data), name "
+                    "what is missing with values and 95 % intervals, write the updated table "
+                    "(blob, C, JSON) and show the residual before and after.")
+    p.add_argument("machine", nargs="?", help="machine file (TOML) with the check tests")
+    p.add_argument("--model", help="the current model: table blob (model.bin) or table JSON; "
+                                   "optional with --iso230-2 (default: position-only model)")
+    p.add_argument("--ballbar", nargs="+", metavar="NAME", help="ballbar tests to use")
+    p.add_argument("--laser", nargs="+", metavar="AXIS", help="laser lines to use (X, Y, Z)")
+    p.add_argument("--iso230-2", dest="iso", metavar="FILE",
+                   help="repeated positioning runs: ESS ecmc .dat or laser CSV")
+    p.add_argument("--axis", help="axis of --iso230-2 data (X, Y or Z)")
+    p.add_argument("--json", metavar="FILE", help="also write the diagnose JSON here")
+    p.add_argument("-o", "--out", required=True, metavar="DIR", help="output directory")
+    p.add_argument("--alpha", type=float, default=0.01,
+                   help="significance level per step (default 0.01, Bonferroni over candidates)")
+    p.add_argument("--min-effect-um", type=float, default=0.15,
+                   help="smallest effect (RMS on the checks, um) worth naming (default 0.15)")
+    p.add_argument("--candidates", nargs="+", metavar="ID",
+                   help="restrict the catalogue (ids or keys, e.g. squareness_xy backlash_x)")
+    p.add_argument("--rezeroed", action="store_true",
+                   help="the laser was re-zeroed before every run (a zero offset per run)")
+    p.add_argument("--backend", choices=("c", "reference"), default="c",
+                   help="predict through the C library (default) or the float64 reference")
+    p.add_argument("--no-plots", action="store_true", help="do not write the PNG plots")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from abbe.diagnose.selection import DiagnoseOptions, diagnose_machine, diagnose_positioning
+    from abbe.diagnose.report import format_text, write_outputs
+    from abbe.diagnose.effects import catalogue
+    from abbe.errors import AbbeInputError
+
+    if args.candidates:
+        known = {e.key for e in catalogue()} | {e.family for e in catalogue()}
+        bad = [c for c in args.candidates if c not in known]
+        if bad:
+            raise AbbeInputError(f"unknown effect {bad[0]!r}; known: {', '.join(sorted(known))}",
+                                 field="candidates")
+    if not 0.0 < args.alpha < 0.5:
+        raise AbbeInputError(f"--alpha {args.alpha} must be in (0, 0.5)", field="alpha")
+    opts = DiagnoseOptions(alpha=args.alpha, min_effect_um=args.min_effect_um,
+                           candidates=args.candidates, backend=args.backend)
+    if args.iso:
+        if args.machine or args.ballbar or args.laser:
+            raise AbbeInputError("--iso230-2 takes no machine file, --ballbar or --laser",
+                                 field="iso230-2")
+        if not args.axis:
+            raise AbbeInputError("--iso230-2 needs --axis X|Y|Z", field="axis")
+        res = diagnose_positioning(args.iso, args.axis, args.model, opts, rezeroed=args.rezeroed)
+        extra = {"input": {"iso230_2": args.iso, "axis": args.axis.upper(),
+                           "model": args.model or "position-only (built from the data)"}}
+    else:
+        if not args.machine:
+            raise AbbeInputError("give a machine file (MACHINE.toml --model M.bin) or "
+                                 "--iso230-2 FILE --axis X", field="machine")
+        if not args.model:
+            raise AbbeInputError("--model is required with a machine file (the table to check)",
+                                 file=args.machine, field="model")
+        res = diagnose_machine(args.machine, args.model, args.ballbar, args.laser, opts,
+                               rezeroed=args.rezeroed)
+        extra = {"input": {"machine": args.machine, "model": args.model,
+                           "ballbar": args.ballbar, "laser": args.laser}}
+    written = write_outputs(res, args.out, args.json, plots=not args.no_plots, extra_json=extra)
+    sys.stdout.write(format_text(res, str(written["model.bin"])))
+    print(f"wrote {len(written)} files to {args.out}" + (f" and {args.json}" if args.json else ""))
+    return 0

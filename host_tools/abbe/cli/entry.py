@@ -1,0 +1,51 @@
+"""The ``abbe`` command line: one sub-command per module in COMMANDS.
+
+Each command module exposes ``register(subparsers)`` which adds its parser and
+sets ``func`` (taking the parsed args, returning an exit status).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from abbe import __version__
+from abbe.errors import AbbeInputError
+
+# Modules providing sub-commands, in help order.
+COMMANDS: list[str] = [
+    "abbe.cli.table",
+    "abbe.cli.iso230_2",
+    "abbe.cli.fit",
+    "abbe.cli.simulate",
+    "abbe.cli.ballbar",
+    "abbe.cli.diagnose",
+    "abbe.cli.predict",
+    "abbe.cli.demo",
+    "abbe.cli.modbus",
+]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="abbe", description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action="version", version=f"abbe {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    for name in COMMANDS:
+        importlib.import_module(name).register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except AbbeInputError as exc:
+        print(f"abbe {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

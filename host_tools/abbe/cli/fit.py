@@ -1,0 +1,153 @@
+"""``abbe fit MACHINE.toml -o OUT/``: fit the error model from 6D laser lines.
+
+Writes OUT/model.bin (the table blob), OUT/abbe_model.c and .h (generated C),
+OUT/model.json (coefficients with units, fit metrics, provenance) and
+OUT/report/ (one PNG per term + index.html). Outputs are built in a temporary
+directory next to OUT and moved into place only when everything succeeded, so
+bad input never leaves partial output. Before finishing, the blob is read back
+and evaluated by the C library against the Python reference (2 nm bound);
+``--no-clib-check`` skips that (for tests without a built library).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from abbe.analysis.fit.select import MODELS
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "fit", help="fit the geometric error table from 6D laser data",
+        description="Fit the 18 error terms from the machine file's laser lines and write "
+                    "the table (blob, generated C), model.json and an HTML/PNG report.")
+    p.add_argument("machine", help="machine file (TOML)")
+    p.add_argument("-o", "--out", required=True, help="output directory")
+    p.add_argument("--model", choices=MODELS, default=None,
+                   help="auto (default): period search + cross-validated orders; "
+                        "paper-fourier3 / paper-poly7: the paper's fixed models")
+    p.add_argument("--folds", type=int, default=None,
+                   help="outer cross-validation folds for held-out metrics (default 5)")
+    p.add_argument("--max-degree", type=int, default=None, choices=range(0, 8),
+                   help="highest Chebyshev trend degree (0..7, default 7)")
+    p.add_argument("--max-harmonics", type=int, default=None, choices=range(0, 9),
+                   help="most harmonics in Fourier block 0 (0..8, default 8)")
+    p.add_argument("--no-report", action="store_true", help="skip the PNG/HTML report")
+    p.add_argument("--no-clib-check", action="store_true",
+                   help="do not check the table with the C library (tests without the library)")
+    p.add_argument("--bench", action="store_true", help="print the time of each stage")
+    p.add_argument("-q", "--quiet", action="store_true",
+                   help="do not print the metrics table (paper Table 4 layout)")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    t0 = time.perf_counter()
+    times: dict[str, float] = {}
+
+    def lap(name: str) -> None:
+        times[name] = time.perf_counter() - t0 - sum(times.values())
+
+    from abbe.analysis.fit.check import ClibMismatch, ClibMissing, check_blob, require_clib
+    from abbe.analysis.fit.pipeline import fit_machine, options_from_machine
+    from abbe.formats.machine import load_machine
+
+    if Path(args.out).exists() and not Path(args.out).is_dir():
+        print(f"abbe fit: error: {args.out} exists and is not a directory", file=sys.stderr)
+        return 2
+    if not args.no_clib_check:
+        try:
+            require_clib()
+        except ClibMissing as exc:
+            print(f"abbe fit: error: {exc}", file=sys.stderr)
+            return 3
+    machine = load_machine(args.machine)
+    opts = options_from_machine(machine, model=args.model, folds=args.folds,
+                                max_degree=args.max_degree, max_harmonics=args.max_harmonics)
+    if opts.folds < 2:
+        print("abbe fit: error: --folds must be >= 2", file=sys.stderr)
+        return 2
+    lap("read+imports")
+    res = fit_machine(machine, opts)
+    lap("fit")
+    check = None
+    if not args.no_clib_check:
+        try:
+            check = check_blob(res.blob)
+        except ClibMismatch as exc:
+            print(f"abbe fit: error: {exc}", file=sys.stderr)
+            return 4
+        res.model_json["clib_check"] = check.to_json()
+    else:
+        res.model_json["clib_check"] = None
+    lap("clib check")
+    write_outputs(res, Path(args.out), report=not args.no_report, times=times, t0=t0)
+    total = time.perf_counter() - t0
+    if not args.quiet:
+        from abbe.analysis.fit.report import metrics_text
+        print(metrics_text(res))
+    summary = ", ".join(f"{a}: {_axis_summary(res, a)}" for a in res.axes)
+    print(f"abbe fit: wrote {args.out} ({summary})")
+    if check is not None:
+        print(f"abbe fit: C library agrees with the reference: max |f32 - ref| "
+              f"{check.max_diff_f32_nm:.3f} nm, max |q - ref| {check.max_diff_q_nm:.3f} nm "
+              f"(bound {check.bound_nm} nm, {check.n_points} points)")
+    if args.bench:
+        for k, v in times.items():
+            print(f"bench: {k:<14} {v * 1000:8.1f} ms")
+        print(f"bench: {'total':<14} {total * 1000:8.1f} ms")
+    return 0
+
+
+def _axis_summary(res, a: str) -> str:
+    blk = res.axes[a].table.blocks[0]
+    d = res.axes[a].table.trend_degree
+    return f"degree {d}" + (f" + {blk.harmonics} harm. P={blk.period_mm:.1f} mm" if blk else "")
+
+
+def write_outputs(res, out: Path, report: bool = True, times: dict | None = None,
+                  t0: float = 0.0) -> None:
+    """Write every output into a temp dir beside ``out``, then move them into place."""
+    from abbe.analysis.fit.report import write_report
+    from abbe.formats.blob import write_c
+
+    out = Path(out)
+    parent = out.resolve().parent
+    parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=parent))
+    try:
+        (tmp / "model.bin").write_bytes(res.blob)
+        write_c(res.blob, tmp)
+        (tmp / "model.json").write_text(json.dumps(res.model_json, indent=2) + "\n",
+                                        encoding="utf-8")
+        if times is not None:
+            times["write table+json"] = time.perf_counter() - t0 - sum(times.values())
+        if report:
+            write_report(res, tmp / "report")
+            if times is not None:
+                times["report"] = time.perf_counter() - t0 - sum(times.values())
+        _move_into_place(tmp, out)
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _move_into_place(tmp: Path, out: Path) -> None:
+    """Rename tmp to out if out does not exist, else replace out's entries by tmp's."""
+    if not out.exists():
+        os.replace(tmp, out)
+        return
+    if not out.is_dir():
+        raise NotADirectoryError(f"{out} exists and is not a directory")
+    for entry in sorted(tmp.iterdir()):
+        dest = out / entry.name
+        if dest.is_dir() and not dest.is_symlink():
+            shutil.rmtree(dest)
+        os.replace(entry, dest)

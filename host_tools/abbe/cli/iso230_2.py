@@ -1,0 +1,31 @@
+"""``abbe iso230-2 FILE [--json]``: ISO 230-2 positioning evaluation of one axis."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from abbe.analysis.iso230_2 import evaluate, load_positioning
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "iso230-2", help="ISO 230-2 bidirectional positioning evaluation (B, R, E, A, M in um)",
+        description="Evaluate bidirectional positioning data per ISO 230-2: a laser CSV "
+                    "(run,direction,target_mm,linear_um) or an ESS ecmc .dat file.")
+    p.add_argument("file", help="laser CSV or ecmc ISO 230-2 .dat file")
+    p.add_argument("--json", action="store_true",
+                   help="print JSON (B_um, R_um, E_um, A_um, M_um + per-target detail)")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    res = evaluate(load_positioning(args.file))
+    if args.json:
+        d = {"file": args.file, **res.to_json()}
+        json.dump(d, sys.stdout, indent=2)
+        sys.stdout.write("\n")
+    else:
+        print(res.format_text())
+    return 0

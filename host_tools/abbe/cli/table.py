@@ -1,0 +1,198 @@
+"""``abbe table``: inspect, evaluate and convert error tables.
+
+Sub-commands:
+
+* ``info MODEL.bin``: validate, print features, per-axis shape and CRC;
+* ``eval MODEL.bin X Y Z [X Y Z ...]``: reference spatial error (um) at machine
+  positions (mm); ``--clib`` adds the C library's f32 and q results;
+* ``cgen MODEL.bin -o DIR``: generated C (abbe_model.c / .h);
+* ``from-json MODEL.json -o MODEL.bin``; ``to-json MODEL.bin [-o MODEL.json]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from abbe.errors import AbbeInputError
+from abbe.formats.blob import (AXES, LINEAR_TERMS, Table, atomic_write, blob_crc, feature_names,
+                        read_blob, table_from_json, table_to_json, write_blob, write_c)
+
+
+def _read_bin(path: Path) -> tuple[bytes, Table]:
+    try:
+        data = Path(path).read_bytes()
+    except OSError as exc:
+        raise AbbeInputError(f"cannot read: {exc.strerror}", file=str(path)) from None
+    return data, read_blob(data, source=str(path))
+
+
+def _cmd_info(args: argparse.Namespace) -> int:
+    data, table = _read_bin(args.model)
+    total = int.from_bytes(data[8:12], "little")
+    out = [f"{args.model}: abbe table format 1.0, {total} bytes, CRC-32 0x{blob_crc(data):08X}",
+           "features: " + (", ".join(feature_names(table.features())) or "none"),
+           "reference_mm: " + " ".join(f"{v:.6f}" for v in table.reference_mm)]
+    if table.features() & 0x2:
+        out.append("tool_offset_mm: " + " ".join(f"{v:.6f}" for v in table.tool_offset_mm))
+    if table.features() & 0x1:
+        out.append("squareness_urad: S_xy %.4f S_xz %.4f S_yz %.4f" % table.squareness_urad)
+    for a in AXES:
+        ax = table.axes[a]
+        trend = "none" if ax.trend_degree is None else f"degree {ax.trend_degree}"
+        blocks = []
+        for b, blk in enumerate(ax.blocks):
+            if blk is not None:
+                blocks.append(f"block{b} {blk.harmonics} harmonics period {blk.period_mm:g} mm "
+                              f"origin {blk.origin_mm:g} mm")
+        terms = []
+        for t in ax.present_terms():
+            unit = "um" if t in LINEAR_TERMS else "urad"
+            terms.append(f"{t}({unit})")
+        out.append(f"axis {a}: travel [{ax.travel_mm[0]:g}, {ax.travel_mm[1]:g}] mm; "
+                   f"trend {trend}; " + ("; ".join(blocks) or "no Fourier blocks")
+                   + f"; {ax.n_basis()} rows x {len(terms)} terms: "
+                   + (" ".join(terms) or "none"))
+        if ax.backlash_um or ax.backlash_takeup_mm:
+            out.append(f"  backlash {ax.backlash_um:.4f} um, take-up {ax.backlash_takeup_mm:g} mm")
+        if ax.thermal_expansion_ppm_per_k or ax.thermal_offset_um_per_k or ax.thermal_tref_c:
+            out.append(f"  thermal {ax.thermal_expansion_ppm_per_k:.4f} ppm/K, offset "
+                       f"{ax.thermal_offset_um_per_k:.4f} um/K, T_ref {ax.thermal_tref_c:.3f} C")
+    print("\n".join(out))
+    return 0
+
+
+def _cmd_eval(args: argparse.Namespace) -> int:
+    from abbe.model.reference import out_of_travel, spatial_error
+    data, table = _read_bin(args.model)
+    if len(args.pos) % 3:
+        raise AbbeInputError(f"{len(args.pos)} numbers given; positions come in X Y Z triples",
+                             field="pos_mm")
+    pos = np.array(args.pos, dtype=np.float64).reshape(-1, 3)
+    if not np.all(np.isfinite(pos)):
+        raise AbbeInputError("positions must be finite", field="pos_mm")
+    dirs = None
+    if args.dir is not None:
+        dirs = np.tile(np.array(args.dir, dtype=np.float64), (pos.shape[0], 1))
+        if np.any(np.abs(dirs) > 1):
+            raise AbbeInputError("direction state must be in [-1, 1]", field="dir")
+    temps = None if args.temp_c is None else np.tile(np.array(args.temp_c, dtype=np.float64),
+                                                      (pos.shape[0], 1))
+    ref = spatial_error(table, pos, dirs, temps)
+    oot = out_of_travel(table, pos)
+    cm = None
+    if args.clib:
+        if np.any(np.abs(pos) > 2147.0):
+            raise AbbeInputError("with --clib positions must lie within +/-2147 mm (int32 nm)",
+                                 field="pos_mm")
+        from abbe.model import clib
+        try:
+            cm = clib.CModel(data, source=str(args.model))
+        except clib.LibraryNotFound as exc:
+            raise AbbeInputError(str(exc), field="--clib") from None
+    head = "pos_mm X Y Z | ref dX dY dZ um"
+    if cm is not None:
+        head += " | f32 dX dY dZ um | q dX dY dZ um | max |diff| nm (f32, q)"
+    print(head)
+    for i, p in enumerate(pos):
+        line = (" ".join(f"{v:.4f}" for v in p) + " | " + " ".join(f"{v:.4f}" for v in ref[i]))
+        if cm is not None:
+            ds = None if dirs is None else dirs[i:i + 1]
+            tc = None if temps is None else temps[i:i + 1]
+            f32, _ = cm.error_f32(p[None, :], ds, tc)
+            pnm = np.rint(p * 1e6).astype(np.int64)[None, :]
+            dq = None if dirs is None else np.rint(dirs[i:i + 1] * (1 << 30)).astype(np.int64)
+            tq = None if temps is None else np.rint(temps[i:i + 1] * 1000).astype(np.int64)
+            qv, _ = cm.error_q(pnm, dq, tq)
+            qum = qv[0] / 1000.0
+            line += (" | " + " ".join(f"{v:.4f}" for v in f32[0])
+                     + " | " + " ".join(f"{v:.4f}" for v in qum)
+                     + f" | {np.max(np.abs(f32[0] - ref[i])) * 1e3:.3f} "
+                       f"{np.max(np.abs(qum - ref[i])) * 1e3:.3f}")
+        if oot[i]:
+            line += "  (outside travel: end values held)"
+        print(line)
+    return 0
+
+
+def _cmd_cgen(args: argparse.Namespace) -> int:
+    data, _ = _read_bin(args.model)
+    h, c = write_c(data, args.out, stem=args.stem)
+    print(h)
+    print(c)
+    return 0
+
+
+def _cmd_from_json(args: argparse.Namespace) -> int:
+    src = str(args.json)
+    try:
+        text = Path(args.json).read_text(encoding="utf-8")
+    except OSError as exc:
+        raise AbbeInputError(f"cannot read: {exc.strerror}", file=src) from None
+    try:
+        d = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise AbbeInputError(f"invalid JSON: {exc.msg}", file=src, line=exc.lineno) from None
+    table = table_from_json(d, source=src)
+    try:
+        blob = write_blob(table)
+    except AbbeInputError as exc:
+        exc.file = src  # name the JSON file; field says where in it
+        raise
+    atomic_write(args.out, blob)
+    print(f"{args.out}: {len(blob)} bytes, CRC-32 0x{blob_crc(blob):08X}")
+    return 0
+
+
+def _cmd_to_json(args: argparse.Namespace) -> int:
+    _, table = _read_bin(args.model)
+    text = json.dumps(table_to_json(table), indent=2) + "\n"
+    if args.out is None:
+        sys.stdout.write(text)
+    else:
+        atomic_write(args.out, text.encode())
+    return 0
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``abbe table`` and its sub-commands."""
+    p = subparsers.add_parser("table", help="inspect, evaluate and convert error tables",
+                              description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="table_command", metavar="SUBCOMMAND")
+    sub.required = True
+
+    q = sub.add_parser("info", help="validate a table and show its shape, features and CRC")
+    q.add_argument("model", type=Path, help="table blob (model.bin)")
+    q.set_defaults(func=_cmd_info)
+
+    q = sub.add_parser("eval", help="spatial error (um) at machine positions (mm)")
+    q.add_argument("model", type=Path, help="table blob (model.bin)")
+    q.add_argument("pos", nargs="+", type=float, metavar="X Y Z",
+                   help="machine positions, mm, in X Y Z triples")
+    q.add_argument("--dir", nargs=3, type=float, metavar=("SX", "SY", "SZ"),
+                   help="backlash direction state per axis in [-1, 1] (default 0)")
+    q.add_argument("--temp-c", nargs=3, type=float, metavar=("TX", "TY", "TZ"),
+                   help="axis temperatures, deg C (default: no thermal term)")
+    q.add_argument("--clib", action="store_true",
+                   help="also evaluate with the C library (f32 and q) and show the difference")
+    q.set_defaults(func=_cmd_eval)
+
+    q = sub.add_parser("cgen", help="write abbe_model.c / abbe_model.h")
+    q.add_argument("model", type=Path, help="table blob (model.bin)")
+    q.add_argument("-o", "--out", type=Path, required=True, help="output directory")
+    q.add_argument("--stem", default="abbe_model", help="file and symbol stem (abbe_model)")
+    q.set_defaults(func=_cmd_cgen)
+
+    q = sub.add_parser("from-json", help="convert a JSON table to a blob")
+    q.add_argument("json", type=Path, help="table JSON (model.json)")
+    q.add_argument("-o", "--out", type=Path, required=True, help="output blob (model.bin)")
+    q.set_defaults(func=_cmd_from_json)
+
+    q = sub.add_parser("to-json", help="convert a blob to JSON (stdout unless -o)")
+    q.add_argument("model", type=Path, help="table blob (model.bin)")
+    q.add_argument("-o", "--out", type=Path, help="output JSON file")
+    q.set_defaults(func=_cmd_to_json)

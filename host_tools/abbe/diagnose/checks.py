@@ -1,0 +1,624 @@
+"""Check measurements for ``abbe diagnose``: measured vector + prediction through the model.
+
+A :class:`Check` is one measurement the model must reproduce: a ballbar trace
+(ISO 230-4) or a laser line (6D laser CSV, or ISO 230-2 positioning data). It
+holds the measured values ``y`` (um or urad), labels (direction, run, time,
+replicate cell, hold-out folds), the nuisance columns that are always allowed
+(ballbar centre offset and radius set-up error; laser zero offsets, straightness
+set-up slopes, per-run offsets where the instrument was re-zeroed) and a
+``predict(evaluator, table, pred_params)`` function.
+
+Predictions go through an :class:`Evaluator`: the C library (``abbe.model.clib``,
+``abbe_error_eval_f32`` / ``abbe_term_eval_f32`` on the blob written by
+``abbe.formats.blob.write_blob``) by default, or the float64 reference
+(``abbe.model.reference``) of the quantized table.
+
+Units: positions mm, linear values um, angles urad, time s (drift variable h,
+run or K as stated by ``drift_unit``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import OrderedDict
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from abbe.diagnose.effects import OWN_SIGN, OWN_TERM, PredParams
+from abbe.errors import AbbeInputError
+from abbe.formats.blob import AXES, Table, write_blob
+
+PLANE_AXES: dict[str, tuple[int, int]] = {"XY": (0, 1), "ZX": (2, 0), "YZ": (1, 2)}
+LINEAR_TERMS = ("dx", "dy", "dz")
+
+
+# --------------------------------------------------------------------------- evaluation backend
+
+
+class Evaluator:
+    """Evaluates tables: ``backend`` "c" (C library, f32 path), "reference" (float64
+    reference of the quantized table) or "auto" (C if the library loads).
+
+    Loaded models are cached by blob bytes (small LRU). ``calls`` counts model
+    evaluations (for the benchmark).
+    """
+
+    def __init__(self, backend: str = "auto", cache: int = 64) -> None:
+        if backend not in ("auto", "c", "reference"):
+            raise ValueError(f"backend {backend!r}: expected auto, c or reference")
+        if backend in ("auto", "c"):
+            from abbe.model import clib
+            ok = clib.available()
+            if not ok and backend == "c":
+                raise AbbeInputError(
+                    f"the C library is not built ({clib.library_path()} missing): build it "
+                    "with cmake (target abbe_shared) or set ABBE_LIB", field="backend")
+            backend = "c" if ok else "reference"
+        self.backend = backend
+        self._cache: OrderedDict[bytes, Any] = OrderedDict()
+        self._size = cache
+        self.calls = 0
+
+    def model(self, table: Table) -> Any:
+        """The loaded model of ``table`` (CModel or quantized Table)."""
+        blob = write_blob(table)
+        m = self._cache.get(blob)
+        if m is not None:
+            self._cache.move_to_end(blob)
+            return m
+        if self.backend == "c":
+            from abbe.model.clib import CModel
+            m = CModel(blob)
+        else:
+            from abbe.formats.blob import read_blob
+            m = read_blob(blob)
+        self._cache[blob] = m
+        if len(self._cache) > self._size:
+            self._cache.popitem(last=False)
+        return m
+
+    def error(self, table: Table, pos_mm: np.ndarray, dir_state: np.ndarray | None = None,
+              temp_c: np.ndarray | None = None) -> np.ndarray:
+        """Spatial error (N, 3) um at positions (N, 3) mm."""
+        m = self.model(table)
+        pos = np.asarray(pos_mm, dtype=np.float64).reshape(-1, 3)
+        self.calls += 1
+        if self.backend == "c":
+            err, _ = m.error_f32(pos, dir_state, temp_c)
+            return np.asarray(err, dtype=np.float64)
+        from abbe.model.reference import spatial_error
+        return spatial_error(m, pos, dir_state, temp_c)
+
+    def term(self, table: Table, axis: str, term: str, pos_mm: np.ndarray) -> np.ndarray:
+        """Fitted term value (um / urad) at axis positions (N,) mm (no backlash/thermal)."""
+        m = self.model(table)
+        p = np.asarray(pos_mm, dtype=np.float64).reshape(-1)
+        self.calls += 1
+        if self.backend == "c":
+            return m.term_f32(axis, term, p)
+        from abbe.model.reference import term_values
+        return term_values(m, axis, term, p)
+
+    def own_extra(self, table: Table, axis: str, pos_mm: np.ndarray, dir_state: np.ndarray,
+                  temp_c: np.ndarray | None) -> np.ndarray:
+        """Backlash + thermal addition to the own positioning term of ``axis`` (um),
+        through the library: the difference of the spatial error with and without the
+        direction state / temperature, on the axis' own component."""
+        ax = table.axes[axis]
+        has_b = bool(ax.backlash_um)
+        has_t = temp_c is not None and bool(ax.thermal_expansion_ppm_per_k
+                                            or ax.thermal_offset_um_per_k)
+        pos = np.asarray(pos_mm, dtype=np.float64).reshape(-1, 3)
+        if not (has_b or has_t):
+            return np.zeros(pos.shape[0])
+        j = AXES.index(axis)
+        with_ = self.error(table, pos, dir_state if has_b else None, temp_c if has_t else None)
+        without = self.error(table, pos, None, None)
+        return OWN_SIGN[axis] * (with_[:, j] - without[:, j])
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def direction_state(pos_mm: np.ndarray, takeup_mm: float, s0: float | None = None) -> np.ndarray:
+    """Backlash direction state s in [-1, 1] along a polyline path of positions (N,) mm.
+
+    s changes by 2 dp / takeup while the axis moves and is clipped to [-1, 1] (the
+    library compensator's model); standstill keeps it. ``s0`` defaults to the sign of
+    the first motion. ``takeup_mm`` <= 0: s is the sign of the motion (0 at rest).
+    """
+    p = np.asarray(pos_mm, dtype=np.float64).reshape(-1)
+    n = p.size
+    out = np.zeros(n)
+    if n < 2:
+        return out
+    dp = np.diff(p)
+    if s0 is None:
+        nz = np.flatnonzero(np.abs(dp) > 1e-12)
+        s0 = float(np.sign(dp[nz[0]])) if nz.size else 0.0
+    if takeup_mm <= 0:
+        sg = np.sign(dp)
+        out[1:] = sg
+        out[0] = s0
+        return out
+    k = 2.0 / float(takeup_mm)
+    s = float(np.clip(s0, -1.0, 1.0))
+    out[0] = s
+    # Piecewise: s_{i+1} = clip(s_i + k dp_i); loop in numpy-sized chunks of equal sign.
+    sg = np.sign(dp)
+    i = 0
+    while i < n - 1:
+        j = i
+        while j + 1 < n - 1 and sg[j + 1] == sg[i]:
+            j += 1
+        seg = np.cumsum(dp[i:j + 1])
+        out[i + 1:j + 2] = np.clip(s + k * seg, -1.0, 1.0)
+        s = out[j + 1]
+        i = j + 1
+    return out
+
+
+def _outside_msg(axis: str, lo: float, hi: float, vmin: float, vmax: float) -> str:
+    return (f"spans {axis} = [{vmin:g}, {vmax:g}] mm but the model covers only "
+            f"[{lo:g}, {hi:g}] mm of axis {axis}: the check is outside the model's travel "
+            "(or the model belongs to another machine)")
+
+
+# --------------------------------------------------------------------------- checks
+
+
+@dataclass
+class Check:
+    """One check measurement (base class; see :class:`BallbarCheck`, :class:`LaserCheck`).
+
+    y: (N,) measured values; group: (N,) noise-group index into ``group_names`` /
+    ``group_units`` ("um" or "urad"); cell: (N,) replicate cell (samples that repeat
+    the same situation: same target, direction, channel) or -1; folds: split name ->
+    (N,) {0, 1} hold-out labels, in order of preference; nuisance: (N, m) columns
+    always fitted; drift_options: unit -> (N,) drift variable (time "h", "run"
+    index, temperature "K"), one chosen by :meth:`set_drift_unit`; x: (N,) angle (deg) or target (mm) for plots; direction: (N,) labels;
+    run: (N,) run numbers (1..n) or zeros; source: file and line for messages.
+    """
+
+    name: str
+    kind: str
+    y: np.ndarray
+    group: np.ndarray
+    group_names: list[str]
+    group_units: list[str]
+    cell: np.ndarray
+    folds: dict[str, np.ndarray]
+    nuisance: np.ndarray
+    nuisance_names: list[str]
+    drift_options: dict[str, np.ndarray]
+    x: np.ndarray
+    direction: np.ndarray
+    run: np.ndarray
+    source: str = ""
+    meta: dict[str, Any] = field(default_factory=dict)
+    drift_unit: str | None = None
+
+    @property
+    def n(self) -> int:
+        return int(self.y.size)
+
+    @property
+    def drift(self) -> np.ndarray | None:
+        """The active drift variable (N,) (unit ``drift_unit``), or None."""
+        if self.drift_unit is None:
+            return None
+        return self.drift_options.get(self.drift_unit)
+
+    def set_drift_unit(self, unit: str | None) -> None:
+        """Select the drift variable: "h" (time), "K" (temperature), "run" or None."""
+        self.drift_unit = unit if unit in self.drift_options else None
+
+    def predict(self, ev: Evaluator, table: Table, pp: PredParams) -> np.ndarray:  # pragma: no cover
+        raise NotImplementedError
+
+    def positions(self) -> np.ndarray:  # pragma: no cover
+        """Distinct commanded positions (M, 3) mm (for the travel check)."""
+        raise NotImplementedError
+
+    def sample_positions(self) -> np.ndarray:  # pragma: no cover
+        """Position (N, 3) mm of every sample."""
+        raise NotImplementedError
+
+    def with_y(self, y: np.ndarray) -> "Check":
+        """A copy with other measured values (same geometry)."""
+        import copy
+        c = copy.copy(self)
+        c.y = np.asarray(y, dtype=np.float64).reshape(-1).copy()
+        return c
+
+
+class BallbarCheck(Check):
+    """A ballbar trace (CCW then CW) of one circular test.
+
+    Prediction: the actual position of each plane axis is the commanded circle point
+    ``lag`` earlier (servo lag, PredParams), the backlash direction state is tracked
+    along the commanded path (feed arcs included) with the table's take-up, and the
+    radial deviation is the exact length change ``|p + E - c| - R`` (um) with E the
+    model's spatial error (+ the time drift of PredParams).
+    """
+
+    def __init__(self, name: str, plane: str, center_mm: tuple[float, float, float],
+                 radius_mm: float, feed_mm_min: float, direction: np.ndarray,
+                 angle_deg: np.ndarray, radial_um: np.ndarray, time_s: np.ndarray,
+                 reference_mm: tuple[float, float, float], source: str = "",
+                 temp_c: np.ndarray | None = None, drift_ref_c: float | None = None) -> None:
+        self.plane = plane
+        self.center_mm = np.asarray(center_mm, dtype=np.float64)
+        self.radius_mm = float(radius_mm)
+        self.feed_mm_min = float(feed_mm_min)
+        self.all_dir = np.asarray(direction).astype(str)
+        self.all_ang = np.asarray(angle_deg, dtype=np.float64)
+        self.all_time = np.asarray(time_s, dtype=np.float64)
+        self.all_temp = None if temp_c is None else np.asarray(temp_c, dtype=np.float64)
+        self.reference_mm = np.asarray(reference_mm, dtype=np.float64)
+        m = (self.all_ang >= 0.0) & (self.all_ang < 360.0)
+        self.mask = m
+        ang = self.all_ang[m]
+        d = self.all_dir[m]
+        th = np.radians(ang)
+        nuis = np.stack([np.cos(th), np.sin(th), np.ones_like(th)], axis=1)
+        a, b = PLANE_AXES[plane]
+        na, nb = "XYZ"[a], "XYZ"[b]
+        sector = (np.floor(ang / 45.0).astype(int) % 2)
+        t = self.all_time[m]
+        drift = {"h": (t - float(self.all_time.min())) / 3600.0}
+        self.temp_first_c: float | None = None
+        if self.all_temp is not None:
+            tref = float(self.all_temp[0]) if drift_ref_c is None else float(drift_ref_c)
+            drift["K"] = self.all_temp[m] - tref
+            self.temp_first_c = tref
+        super().__init__(
+            name=name, kind="ballbar", y=np.asarray(radial_um, dtype=np.float64)[m],
+            group=np.zeros(ang.size, dtype=int), group_names=[f"{name}:radial"],
+            group_units=["um"], cell=np.full(ang.size, -1),
+            folds={"angle sectors (alternate 45 deg, both directions)": sector,
+                   "direction (fit CCW, judge CW and back)": (d == "cw").astype(int)},
+            nuisance=nuis,
+            nuisance_names=[f"centre_{na.lower()}_um", f"centre_{nb.lower()}_um", "radius_um"],
+            drift_options=drift, x=ang, direction=d,
+            run=np.where(d == "ccw", 1, 2), source=source,
+            meta={"plane": plane, "radius_mm": self.radius_mm, "center_mm": self.center_mm.tolist(),
+                  "feed_mm_min": self.feed_mm_min})
+
+    def _angles(self, pp: PredParams) -> dict[int, np.ndarray]:
+        """Per plane axis: the (lagged) angle in rad of every trace sample."""
+        om = self.feed_mm_min / 60.0 / self.radius_mm  # rad/s
+        s = np.where(self.all_dir == "cw", -1.0, 1.0)
+        th = np.radians(self.all_ang)
+        a, b = PLANE_AXES[self.plane]
+        la, lb = pp.plane_lags_ms(self.plane)
+        return {a: th - s * om * la * 1e-3, b: th - s * om * lb * 1e-3}
+
+    def commanded_all(self) -> np.ndarray:
+        """Commanded positions (M, 3) mm of all trace samples (feed arcs included)."""
+        th = np.radians(self.all_ang)
+        a, b = PLANE_AXES[self.plane]
+        p = np.tile(self.center_mm, (th.size, 1))
+        p[:, a] += self.radius_mm * np.cos(th)
+        p[:, b] += self.radius_mm * np.sin(th)
+        return p
+
+    def positions(self) -> np.ndarray:
+        return self.commanded_all()[self.mask]
+
+    def sample_positions(self) -> np.ndarray:
+        """Commanded position (N, 3) mm of every sample."""
+        return self.positions()
+
+    def predict(self, ev: Evaluator, table: Table, pp: PredParams) -> np.ndarray:
+        angs = self._angles(pp)
+        a, b = PLANE_AXES[self.plane]
+        cmd = self.commanded_all()
+        pos = cmd.copy()
+        pos[:, a] = self.center_mm[a] + self.radius_mm * np.cos(angs[a])
+        pos[:, b] = self.center_mm[b] + self.radius_mm * np.sin(angs[b])
+        ds = np.zeros_like(cmd)
+        for j, ax in enumerate(AXES):
+            at = table.axes[ax]
+            if at.backlash_um:
+                ds[:, j] = direction_state(cmd[:, j], at.backlash_takeup_mm)
+        m = self.mask
+        temp = None
+        if self.all_temp is not None:
+            temp = np.repeat(self.all_temp[m][:, None], 3, axis=1)
+        e = ev.error(table, pos[m], ds[m], temp)
+        if self.drift is not None and (np.any(pp.drift_offset) or np.any(pp.drift_scale_ppm)):
+            rel = pos[m] - self.reference_mm
+            for j, ax in enumerate(AXES):
+                own = (pp.drift_offset[j] + pp.drift_scale_ppm[j] * rel[:, j] * 1e-3) \
+                    * pp.drift_shape(self.drift)
+                e[:, j] += OWN_SIGN[ax] * own
+        v = pos[m] + e * 1e-3 - self.center_mm
+        return (np.linalg.norm(v, axis=1) - self.radius_mm) * 1e3
+
+
+@dataclass
+class LaserChannel:
+    """One instrument channel of a laser line mapped to a model term (reading = sign * term)."""
+
+    channel: str
+    term: str
+    sign: int
+    values: np.ndarray  # (n_runs, 2, T) instrument readings (um / urad)
+
+
+class LaserCheck(Check):
+    """A laser line (6D laser CSV channels, or ISO 230-2 positioning = the linear channel).
+
+    Readings are ``sign * term`` of the line's axis at the targets (docs/formats.md);
+    the own positioning term also carries backlash (direction state +1 for the ``+``
+    approach, -1 for ``-``), the table's thermal term (with a temperature column) and
+    the drift of PredParams (time/run-driven; with ``K`` the table's thermal term). Nuisance: a zero offset per channel (per run and channel
+    with ``rezeroed``), and a set-up slope for straightness channels.
+    """
+
+    def __init__(self, name: str, axis: str, line_mm: tuple[float, float, float],
+                 targets_mm: np.ndarray, channels: list[LaserChannel],
+                 order: np.ndarray, reference_mm: tuple[float, float, float],
+                 time_s: np.ndarray | None = None, temp_c: np.ndarray | None = None,
+                 rezeroed: bool = False, source: str = "", drift_ref_c: float | None = None) -> None:
+        self.axis = axis
+        self.j = AXES.index(axis)
+        self.line_mm = np.asarray(line_mm, dtype=np.float64)
+        self.targets = np.asarray(targets_mm, dtype=np.float64)
+        self.channels = channels
+        self.reference_mm = np.asarray(reference_mm, dtype=np.float64)
+        n_runs, _, T = channels[0].values.shape
+        self.n_runs, self.T = n_runs, T
+        self.temp_grid = None if temp_c is None else np.asarray(temp_c, dtype=np.float64)
+        # Drift variables per reading (n_runs, 2, T): time (h), temperature (K) or,
+        # without a time column, the fractional run index from the measured order.
+        grids: dict[str, np.ndarray] = {}
+        if time_s is not None:
+            ts = np.asarray(time_s, dtype=np.float64)
+            grids["h"] = (ts - float(ts.min())) / 3600.0
+        else:
+            rank = np.argsort(np.argsort(np.asarray(order).reshape(-1))).reshape(order.shape)
+            grids["run"] = (rank + 0.5) / (2.0 * T)
+        self.temp_first_c: float | None = None
+        if temp_c is not None:
+            first = int(np.argmin(np.asarray(order).reshape(-1)))
+            tref = float(self.temp_grid.reshape(-1)[first]) if drift_ref_c is None \
+                else float(drift_ref_c)
+            grids["K"] = self.temp_grid - tref
+            self.temp_first_c = tref
+        self.drift_grids = grids
+        ys, grp, cell, runs, dirs, xs, fold_t, fold_s = [], [], [], [], [], [], [], []
+        nuis_cols: list[np.ndarray] = []
+        nuis_names: list[str] = []
+        r_idx, d_idx, t_idx = np.meshgrid(np.arange(n_runs), np.arange(2), np.arange(T), indexing="ij")
+        r_idx, d_idx, t_idx = r_idx.reshape(-1), d_idx.reshape(-1), t_idx.reshape(-1)
+        n_per = r_idx.size
+        early = int(math.ceil(n_runs / 2.0))
+        total = n_per * len(channels)
+        self._rows = (r_idx, d_idx, t_idx)
+        for c_i, ch in enumerate(channels):
+            ys.append(ch.values.reshape(-1))
+            grp.append(np.full(n_per, c_i))
+            cell.append(c_i * 2 * T + d_idx * T + t_idx)
+            runs.append(r_idx + 1)
+            dirs.append(np.where(d_idx == 0, "+", "-"))
+            xs.append(self.targets[t_idx])
+            fold_t.append((r_idx >= early).astype(int))
+            fold_s.append(t_idx % 2)
+            sl = slice(c_i * n_per, (c_i + 1) * n_per)
+            if rezeroed:
+                for r in range(n_runs):
+                    col = np.zeros(total)
+                    col[sl] = (r_idx == r).astype(float)
+                    nuis_cols.append(col)
+                    nuis_names.append(f"{ch.channel}_zero_run{r + 1}")
+            else:
+                col = np.zeros(total)
+                col[sl] = 1.0
+                nuis_cols.append(col)
+                nuis_names.append(f"{ch.channel}_zero")
+            if ch.term in LINEAR_TERMS and ch.term != OWN_TERM[axis]:
+                lo, hi = float(self.targets.min()), float(self.targets.max())
+                col = np.zeros(total)
+                col[sl] = (2.0 * self.targets[t_idx] - lo - hi) / max(hi - lo, 1e-9)
+                nuis_cols.append(col)
+                nuis_names.append(f"{ch.channel}_setup_slope")
+        units = ["um" if ch.term in LINEAR_TERMS else "urad" for ch in channels]
+        if n_runs >= 2:
+            folds = {"runs (fit early runs, judge late runs and back)": np.concatenate(fold_t),
+                     "alternate targets": np.concatenate(fold_s)}
+        else:
+            folds = {"alternate targets": np.concatenate(fold_s)}
+        super().__init__(
+            name=name, kind="laser", y=np.concatenate(ys), group=np.concatenate(grp),
+            group_names=[f"{name}:{ch.channel}" for ch in channels], group_units=units,
+            cell=np.concatenate(cell), folds=folds, nuisance=np.stack(nuis_cols, axis=1),
+            nuisance_names=nuis_names,
+            drift_options={u: np.tile(g.reshape(-1), len(channels)) for u, g in grids.items()},
+            x=np.concatenate(xs), direction=np.concatenate(dirs), run=np.concatenate(runs),
+            source=source, meta={"axis": axis, "line_mm": self.line_mm.tolist(),
+                                 "channels": [f"{ch.channel}={'+' if ch.sign > 0 else '-'}{ch.term}"
+                                              for ch in channels], "runs": n_runs})
+
+    def positions(self) -> np.ndarray:
+        p = np.tile(self.line_mm, (self.T, 1))
+        p[:, self.j] = self.targets
+        return p
+
+    def sample_positions(self) -> np.ndarray:
+        """Position (N, 3) mm of every reading row."""
+        t_idx = self._rows[2]
+        return np.tile(self.positions()[t_idx], (len(self.channels), 1))
+
+    def predict(self, ev: Evaluator, table: Table, pp: PredParams) -> np.ndarray:
+        r_idx, d_idx, t_idx = self._rows
+        pos_t = self.positions()
+        out = []
+        own = OWN_TERM[self.axis]
+        extra = None
+        for ch in self.channels:
+            v = ev.term(table, self.axis, ch.term, self.targets)[t_idx]
+            if ch.term == own:
+                if extra is None:
+                    extra = self._own_extra(ev, table, pp, pos_t)
+                v = v + extra
+            out.append(ch.sign * v)
+        return np.concatenate(out)
+
+    def _own_extra(self, ev: Evaluator, table: Table, pp: PredParams,
+                   pos_t: np.ndarray) -> np.ndarray:
+        """Backlash + thermal (table) + drift (PredParams) of the own term per reading row."""
+        r_idx, d_idx, t_idx = self._rows
+        j = self.j
+        at = table.axes[self.axis]
+        n = r_idx.size
+        extra = np.zeros(n)
+        has_t = self.temp_grid is not None and bool(at.thermal_expansion_ppm_per_k
+                                                     or at.thermal_offset_um_per_k)
+        if at.backlash_um or has_t:
+            if has_t:
+                pos = pos_t[t_idx]
+                ds = np.zeros((n, 3))
+                ds[:, j] = np.where(d_idx == 0, 1.0, -1.0)
+                temp = np.repeat(self.temp_grid.reshape(-1)[:, None], 3, axis=1)
+                extra += ev.own_extra(table, self.axis, pos, ds, temp)
+            else:
+                # Direction only: evaluate each (direction, target) once.
+                pos = np.concatenate([pos_t, pos_t])
+                ds = np.zeros((2 * self.T, 3))
+                ds[: self.T, j] = 1.0
+                ds[self.T:, j] = -1.0
+                e2 = ev.own_extra(table, self.axis, pos, ds, None)
+                extra += e2[d_idx * self.T + t_idx]
+        if np.any(pp.drift_offset) or np.any(pp.drift_scale_ppm):
+            rel = self.targets[t_idx] - self.reference_mm[j]
+            if self.drift is not None:
+                extra += (pp.drift_offset[j] + pp.drift_scale_ppm[j] * rel * 1e-3) \
+                    * pp.drift_shape(self.drift[:n])
+        return extra
+
+
+# --------------------------------------------------------------------------- builders
+
+
+def check_travel(checks: list[Check], table: Table, tol_mm: float = 1e-3) -> None:
+    """Every check must lie inside the model's travel (else AbbeInputError)."""
+    for c in checks:
+        pos = c.positions()
+        for j, a in enumerate(AXES):
+            lo, hi = table.axes[a].travel_mm
+            vmin, vmax = float(pos[:, j].min()), float(pos[:, j].max())
+            if vmin < lo - tol_mm or vmax > hi + tol_mm:
+                src = c.meta.get("source_file")
+                raise AbbeInputError(f"{c.kind} {c.name!r} " + _outside_msg(a, lo, hi, vmin, vmax),
+                                     file=src, line=c.meta.get("source_line"),
+                                     field=c.meta.get("source_field"))
+
+
+def ballbar_check(machine: Any, name: str, reference_mm: tuple[float, float, float]) -> BallbarCheck:
+    """Read the ballbar test ``name`` of a machine file into a check."""
+    from abbe.analysis.iso230_4 import check_trace_timing, from_machine, read_ballbar_csv
+    if name not in machine.ballbar:
+        raise AbbeInputError(f"no [ballbar.{name}] section; the machine file has "
+                             f"{sorted(machine.ballbar) or 'none'}", file=str(machine.path),
+                             field=f"ballbar.{name}")
+    bt = machine.ballbar[name]
+    tr = read_ballbar_csv(bt.file)
+    check_trace_timing(tr, from_machine(bt), str(machine.path))
+    c = BallbarCheck(name, bt.plane, bt.center_mm, bt.radius_mm, bt.feed_mm_min, tr.direction,
+                     tr.angle_deg, tr.radial_um, tr.time_s, reference_mm, source=str(bt.file))
+    c.meta.update(source_file=str(machine.path), source_line=bt.line,
+                  source_field=f"ballbar.{name}.center_mm")
+    return c
+
+
+def laser_check(machine: Any, axis: str, reference_mm: tuple[float, float, float],
+                rezeroed: bool = False) -> LaserCheck:
+    """Read the laser line of ``axis`` of a machine file into a check (mapped channels)."""
+    from abbe.formats.laser_csv import read_laser_csv
+    if axis not in machine.laser:
+        raise AbbeInputError(f"no [laser.{axis}] section; the machine file has "
+                             f"{sorted(machine.laser) or 'none'}", file=str(machine.path),
+                             field=f"laser.{axis}")
+    line = machine.laser[axis]
+    j = AXES.index(axis)
+    data = read_laser_csv(line.file, channels=tuple(line.map),
+                          span_mm=(line.start_mm[j], line.end_mm[j]))
+    chans = [LaserChannel(ch, cm.term, cm.sign, data.channels[ch]) for ch, cm in line.map.items()]
+    c = LaserCheck(f"laser_{axis}", axis, line.start_mm, data.targets_mm, chans, data.line_no,
+                   reference_mm, time_s=data.time_s, temp_c=data.temp_c, rezeroed=rezeroed,
+                   source=str(line.file))
+    c.meta.update(source_file=str(machine.path), source_line=line.line,
+                  source_field=f"laser.{axis}.start_mm")
+    return c
+
+
+def positioning_check(path: str | Path, axis: str, reference_mm: tuple[float, float, float],
+                      rezeroed: bool = False) -> LaserCheck:
+    """ISO 230-2 positioning data (ESS ecmc .dat, or a laser CSV's linear channel) of
+    ``axis`` as a check: deviation = + own positioning term."""
+    from abbe.analysis.iso230_2 import load_positioning
+    from abbe.formats import ess_dat as ess
+    path = Path(path)
+    data = load_positioning(path)
+    n_runs, T = data.up_um.shape
+    vals = np.stack([data.up_um, data.down_um], axis=1)  # (n_runs, 2, T)
+    time_s = temp_c = None
+    if ess.looks_like_dat(path):
+        # Runs in time order: cycle c forward (ascending) then backward (descending).
+        order = np.zeros((n_runs, 2, T), dtype=np.int64)
+        for r in range(n_runs):
+            order[r, 0] = r * 2 * T + np.arange(T)
+            order[r, 1] = r * 2 * T + T + np.arange(T)[::-1]
+    else:
+        from abbe.formats.laser_csv import read_laser_csv
+        d = read_laser_csv(path, channels=("linear",))
+        order, time_s, temp_c = d.line_no, d.time_s, d.temp_c
+    line = list(reference_mm)
+    chans = [LaserChannel("linear", OWN_TERM[axis], +1, vals)]
+    c = LaserCheck(f"positioning_{axis}", axis, tuple(line), data.targets_mm, chans, order,
+                   reference_mm, time_s=time_s, temp_c=temp_c, rezeroed=rezeroed,
+                   source=str(path))
+    c.meta.update(source_file=str(path), source_field="target")
+    return c
+
+
+def position_only_table(check: LaserCheck, travel_mm: tuple[float, float] | None = None) -> Table:
+    """A position-only model of a positioning check's axis: its own positioning term
+    interpolates the bidirectional mean deviation of every target over all runs (a
+    square, well-conditioned basis: Fourier block 0 with period T x mean target spacing
+    and up to 8 harmonics, plus a Chebyshev trend for the remaining functions, at most
+    degree 7; least squares if more than 24 targets), zero at the reference point; no
+    backlash, no drift; the other axes carry no terms. Units um, mm."""
+    from abbe.formats.blob import AxisTable, FourierBlock, basis_matrix
+    from abbe.diagnose.effects import OWN_TERM as OWN
+    a = check.axis
+    tg = check.targets
+    ch = next(c for c in check.channels if c.term == OWN[a])
+    mean = ch.sign * ch.values.mean(axis=(0, 1))
+    lo, hi = (float(tg.min()), float(tg.max())) if travel_mm is None else travel_mm
+    T = tg.size
+    h = int(min(8, (T - 1) // 2))
+    deg = int(min(7, max(T - 1 - 2 * h, 0)))
+    block = None
+    if h > 0:
+        period = (float(tg.max()) - float(tg.min())) * T / max(T - 1, 1)
+        block = FourierBlock(period_mm=period, origin_mm=float(tg.min()), harmonics=h)
+    ax = AxisTable(travel_mm=(lo, hi), trend_degree=deg, blocks=(block, None))
+    B = basis_matrix(ax, tg)
+    coef, *_ = np.linalg.lstsq(B, mean, rcond=None)
+    ref = float(check.reference_mm[check.j])
+    coef[0] -= float((basis_matrix(ax, np.array([ref])) @ coef)[0])
+    ax.coef[OWN[a]] = coef
+    axes = {}
+    for j, name in enumerate(AXES):
+        if name == a:
+            axes[name] = ax
+        else:
+            r = float(check.reference_mm[j])
+            axes[name] = AxisTable(travel_mm=(r - 1.0, r + 1.0))
+    return Table(axes=axes, reference_mm=tuple(float(v) for v in check.reference_mm))

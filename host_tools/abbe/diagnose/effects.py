@@ -1,0 +1,392 @@
+"""Catalogue of the effects ``abbe diagnose`` can name (docs/effects.md).
+
+Each candidate effect is a set of **extra parameters of the model**: either a
+change of the :class:`abbe.formats.blob.Table` (squareness, backlash, scale, cyclic
+block, tool offset, straightness bow, thermal coefficients) or a parameter of
+the *prediction model* that the table cannot hold (servo lag, a time-driven
+drift). :meth:`EffectSpec.apply` returns the modified (table, prediction
+parameters); the diagnosis computes an effect's signature on a test by
+re-predicting the test through the model with the parameter perturbed, never
+from a hand-drawn shape, so a new test geometry needs no new code.
+
+Sign conventions follow docs/table-format.md and notes.md §1: an axis' own
+positioning term (d_x of X, d_y of Y, d_z of Z) enters the spatial error with
+the sign ``OWN_SIGN`` (-1, -1, +1); backlash is the table's ISO 230-2 reversal B
+(mean(+ approach) - mean(- approach) of the own term), applied as s B / 2.
+
+Units: positions mm, linear values um, angles urad, lags ms, scale ppm.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from abbe.formats.blob import AXES, AxisTable, FourierBlock, Table, basis_matrix
+
+OWN_TERM: dict[str, str] = {"X": "dx", "Y": "dy", "Z": "dz"}
+#: Sign with which an axis' own positioning term enters its component of Eq. 3.
+OWN_SIGN: dict[str, int] = {"X": -1, "Y": -1, "Z": +1}
+PLANES: dict[str, tuple[int, int]] = {"XY": (0, 1), "YZ": (1, 2), "ZX": (2, 0)}
+SERVO_PLANES: tuple[str, ...] = ("XY", "YZ", "ZX")
+
+
+class NotRepresentable(Exception):
+    """The effect cannot be put into this table (e.g. no free Fourier block)."""
+
+
+# --------------------------------------------------------------------------- prediction parameters
+
+
+@dataclass
+class PredParams:
+    """Parameters of the prediction model that the table does not hold.
+
+    servo_lag_ms: (3,) position-loop lag of each axis (ms): the actual position
+        is the commanded one ``lag`` earlier along the path (only differences
+        within a plane change a circle's radius).
+    servo_mismatch_ms: (3,) lag difference tau_b - tau_a (ms) of the planes XY, YZ,
+        ZX (a, b as in the plane name), acting only on circles in that plane.
+    drift_offset: (3,) own-positioning-term offset per unit of the drift
+        variable (um per h, per run, or per K; see ``Check.drift_unit``).
+    drift_scale_ppm: (3,) own-positioning-term scale per unit of the drift
+        variable (ppm per h / run / K), about the reference point.
+    drift_tau: time constant of a time-driven drift (same unit as the drift
+        variable; inf = linear in time): the drift follows a first-order warm-up,
+        tau (1 - exp(-t / tau)), whose initial rate is the offset / scale above.
+    """
+
+    servo_lag_ms: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    servo_mismatch_ms: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    drift_offset: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    drift_scale_ppm: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    drift_tau: float = math.inf
+
+    def copy(self) -> "PredParams":
+        return PredParams(self.servo_lag_ms.copy(), self.servo_mismatch_ms.copy(),
+                          self.drift_offset.copy(), self.drift_scale_ppm.copy(), self.drift_tau)
+
+    def drift_shape(self, v: np.ndarray) -> np.ndarray:
+        """The drift variable through the warm-up shape tau (1 - exp(-v / tau))."""
+        if not math.isfinite(self.drift_tau):
+            return v
+        return -self.drift_tau * np.expm1(-v / self.drift_tau)
+
+    def is_zero(self) -> bool:
+        return not (np.any(self.servo_lag_ms) or np.any(self.servo_mismatch_ms)
+                    or np.any(self.drift_offset) or np.any(self.drift_scale_ppm))
+
+    def plane_lags_ms(self, plane: str) -> tuple[float, float]:
+        """Lags (ms) of the plane's first and second axis on a circle in ``plane``."""
+        a, b = PLANES[plane]
+        d = float(self.servo_mismatch_ms[SERVO_PLANES.index(plane)])
+        return float(self.servo_lag_ms[a]) - 0.5 * d, float(self.servo_lag_ms[b]) + 0.5 * d
+
+
+# --------------------------------------------------------------------------- table editing
+
+
+def copy_table(t: Table) -> Table:
+    """Deep copy of a table (coefficient arrays copied)."""
+    return copy.deepcopy(t)
+
+
+def _nb0(ax: AxisTable) -> int:
+    return ax.n_trend() + (0 if ax.blocks[0] is None else 2 * int(ax.blocks[0].harmonics))
+
+
+def ensure_term(ax: AxisTable, term: str) -> None:
+    """Add ``term`` with zero coefficients if absent."""
+    if term not in ax.coef:
+        ax.coef[term] = np.zeros(ax.n_basis())
+
+
+def ensure_trend(ax: AxisTable, degree: int) -> None:
+    """Raise the axis' trend degree to at least ``degree`` (new rows zero)."""
+    cur = -1 if ax.trend_degree is None else int(ax.trend_degree)
+    if cur >= degree:
+        return
+    add = degree - cur
+    n_old = ax.n_trend()
+    for t, c in list(ax.coef.items()):
+        c = np.asarray(c, dtype=np.float64)
+        ax.coef[t] = np.concatenate([c[:n_old], np.zeros(add), c[n_old:]])
+    ax.trend_degree = degree
+
+
+def add_block(ax: AxisTable, period_mm: float, origin_mm: float, harmonics: int = 1) -> int:
+    """Make a Fourier block with this period available; returns its index.
+
+    Reuses a block with the same period and origin (raising its harmonics if
+    needed), else takes a free slot (block 1 first: the short-period block).
+    Raises NotRepresentable if both blocks are in use with other periods.
+    """
+    for b, blk in enumerate(ax.blocks):
+        if (blk is not None and math.isclose(blk.period_mm, period_mm, rel_tol=1e-12)
+                and math.isclose(blk.origin_mm, origin_mm, abs_tol=1e-9)):
+            if blk.harmonics < harmonics:
+                _set_block(ax, b, FourierBlock(blk.period_mm, blk.origin_mm, harmonics))
+            return b
+    for b in (1, 0):
+        if ax.blocks[b] is None:
+            _set_block(ax, b, FourierBlock(float(period_mm), float(origin_mm), int(harmonics)))
+            return b
+    raise NotRepresentable("both Fourier blocks of the axis are in use")
+
+
+def _set_block(ax: AxisTable, b: int, blk: FourierBlock) -> None:
+    """Replace block ``b`` (rows of a shrinking block are dropped, new rows zero)."""
+    old = ax.blocks[b]
+    h_old = 0 if old is None else int(old.harmonics)
+    start = ax.n_trend() + (0 if b == 0 else (0 if ax.blocks[0] is None
+                                              else 2 * int(ax.blocks[0].harmonics)))
+    for t, c in list(ax.coef.items()):
+        c = np.asarray(c, dtype=np.float64)
+        keep = c[start:start + 2 * min(h_old, blk.harmonics)]
+        new = np.zeros(2 * blk.harmonics)
+        new[:keep.size] = keep
+        ax.coef[t] = np.concatenate([c[:start], new, c[start + 2 * h_old:]])
+    blocks = list(ax.blocks)
+    blocks[b] = blk
+    ax.blocks = (blocks[0], blocks[1])
+
+
+def block_row(ax: AxisTable, b: int) -> int:
+    """Index of the sin1 row of block ``b``."""
+    return ax.n_trend() + (0 if b == 0 else (0 if ax.blocks[0] is None
+                                             else 2 * int(ax.blocks[0].harmonics)))
+
+
+def _value_at(ax: AxisTable, coef: np.ndarray, p: float) -> float:
+    return float((basis_matrix(ax, np.array([p])) @ coef)[0])
+
+
+def add_shape(t: Table, axis: str, term: str, fn_coef: Callable[[AxisTable], np.ndarray],
+              zero_at_reference: bool = True) -> None:
+    """Add coefficients (computed by ``fn_coef`` on the prepared axis) to a term, then
+    shift T0 so the added part is 0 at the reference point."""
+    ax = t.axes[axis]
+    ensure_term(ax, term)
+    add = np.asarray(fn_coef(ax), dtype=np.float64)
+    if zero_at_reference:
+        ref = float(t.reference_mm[AXES.index(axis)])
+        if ax.trend_degree is None:
+            ensure_trend(ax, 0)
+            add = np.concatenate([[0.0], add])
+        add[0] -= _value_at(ax, add, ref)
+    ax.coef[term] = np.asarray(ax.coef[term], dtype=np.float64) + add
+
+
+# --------------------------------------------------------------------------- catalogue
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One parameter of an effect: name, unit, a typical magnitude (notes.md §7) used
+    for observability and the finite-difference step."""
+
+    name: str
+    unit: str
+    typical: float
+    limit: float = math.inf  # largest plausible |value|; beyond it the fit is not believed
+    optional: bool = False   # the candidate is also tried without this parameter
+
+
+@dataclass(frozen=True)
+class EffectSpec:
+    """A catalogue entry.
+
+    family: the id reported (``squareness_xy``, ``backlash_x``, ``thermal_drift``,
+    ``servo_mismatch``, ``tool_offset``, ``straightness`` ...); key: unique name
+    of this candidate (``thermal_drift_x``, ``servo_mismatch_xy``,
+    ``straightness_xy``); axis / plane: where it acts; params: linear
+    parameters; scan: name, unit and grid of a nonlinear parameter searched on
+    a grid (cyclic period, backlash take-up) or None; compensable: the C
+    library can evaluate it as a table term; kind: how it is applied.
+    """
+
+    family: str
+    key: str
+    params: tuple[ParamSpec, ...]
+    compensable: bool
+    kind: str
+    axis: str | None = None
+    plane: str | None = None
+    term: str | None = None
+    scan: str | None = None
+    scan_unit: str = ""
+    physics: str = ""
+    remedy: str = ""
+
+    def apply(self, table: Table, pp: PredParams, theta: np.ndarray,
+              scan_value: float | None = None, drift_on_table: bool = False,
+              tref_c: float = 20.0) -> tuple[Table, PredParams]:
+        """Return copies of (table, pp) with this effect's parameters ``theta`` added.
+
+        ``scan_value``: the nonlinear parameter (cyclic period mm, backlash take-up
+        mm). ``drift_on_table``: thermal drift driven by temperature goes into the
+        table's thermal fields (reference temperature ``tref_c``) instead of the
+        prediction parameters. Raises NotRepresentable if the table cannot hold it.
+        """
+        th = np.asarray(theta, dtype=np.float64).reshape(-1)
+        t = copy_table(table)
+        p = pp.copy()
+        k = self.kind
+        j = None if self.axis is None else AXES.index(self.axis)
+        if k == "squareness":
+            sq = list(t.squareness_urad)
+            sq[{"XY": 0, "XZ": 1, "YZ": 2}[self.plane]] += th[0]  # type: ignore[index]
+            t.squareness_urad = tuple(float(v) for v in sq)  # type: ignore[assignment]
+        elif k == "backlash":
+            ax = t.axes[self.axis]  # type: ignore[index]
+            ax.backlash_um = float(ax.backlash_um + th[0])
+            if scan_value is not None:
+                ax.backlash_takeup_mm = float(scan_value)
+            elif ax.backlash_takeup_mm <= 0:
+                ax.backlash_takeup_mm = 1.0
+        elif k == "scale":
+            a = self.axis
+            ref = float(t.reference_mm[j])  # type: ignore[index]
+
+            def scale_coef(ax: AxisTable) -> np.ndarray:
+                ensure_trend(ax, 1)
+                ensure_term(ax, OWN_TERM[a])  # type: ignore[index]
+                lo, hi = ax.travel_mm
+                c = np.zeros(ax.n_basis())
+                c[0] = th[0] * 1e-3 * (0.5 * (lo + hi) - ref)
+                c[1] = th[0] * 1e-3 * 0.5 * (hi - lo)
+                return c
+            add_shape(t, a, OWN_TERM[a], scale_coef)  # type: ignore[index]
+        elif k == "cyclic":
+            a = self.axis
+            period = float(scan_value)  # type: ignore[arg-type]
+
+            def cyc_coef(ax: AxisTable) -> np.ndarray:
+                b = add_block(ax, period, float(ax.travel_mm[0]), 1)
+                ensure_term(ax, OWN_TERM[a])  # type: ignore[index]
+                c = np.zeros(ax.n_basis())
+                r = block_row(ax, b)
+                c[r], c[r + 1] = th[0], th[1]
+                return c
+            add_shape(t, a, OWN_TERM[a], cyc_coef)  # type: ignore[index]
+        elif k == "straightness":
+            a, term = self.axis, self.term
+            ref = float(t.reference_mm[j])  # type: ignore[index]
+
+            def bow_coef(ax: AxisTable) -> np.ndarray:
+                ensure_trend(ax, 2)
+                ensure_term(ax, term)  # type: ignore[arg-type]
+                lo, hi = ax.travel_mm
+                c = np.zeros(ax.n_basis())
+                # bow * (1 - u^2) = bow * (T0 - (T0 + T2) / 2)
+                c[0] = 0.5 * th[0]
+                c[2] = -0.5 * th[0]
+                return c
+            add_shape(t, a, term, bow_coef)  # type: ignore[arg-type]
+        elif k == "tool_offset":
+            to = np.asarray(t.tool_offset_mm, dtype=np.float64) + th[:3]
+            t.tool_offset_mm = tuple(float(v) for v in to)  # type: ignore[assignment]
+        elif k == "servo":
+            p.servo_mismatch_ms[SERVO_PLANES.index(self.plane)] += th[0]  # type: ignore[arg-type]
+        elif k == "thermal":
+            if drift_on_table:
+                ax = t.axes[self.axis]  # type: ignore[index]
+                ax.thermal_offset_um_per_k = float(ax.thermal_offset_um_per_k + th[0])
+                ax.thermal_expansion_ppm_per_k = float(ax.thermal_expansion_ppm_per_k + th[1])
+                if ax.thermal_tref_c == 0.0:
+                    ax.thermal_tref_c = float(tref_c)
+            else:
+                p.drift_offset[j] += th[0]  # type: ignore[index]
+                p.drift_scale_ppm[j] += th[1]  # type: ignore[index]
+                if scan_value is not None:
+                    p.drift_tau = float(scan_value)
+        else:  # pragma: no cover - catalogue is closed
+            raise ValueError(f"unknown effect kind {k!r}")
+        return t, p
+
+
+def _axis_l(a: str) -> str:
+    return a.lower()
+
+
+def catalogue() -> list[EffectSpec]:
+    """All candidate effects, in report order."""
+    out: list[EffectSpec] = []
+    for plane, key in (("XY", "squareness_xy"), ("XZ", "squareness_xz"), ("YZ", "squareness_yz")):
+        out.append(EffectSpec(
+            family=key, key=key, kind="squareness", plane=plane, compensable=True,
+            params=(ParamSpec("S", "urad", 20.0, 1000.0),),
+            physics=f"the {plane[1]} axis is not square to {plane[0]} (S_{plane.lower()}, notes.md §1)",
+            remedy="table squareness term (SQUARENESS feature)"))
+    for a in AXES:
+        out.append(EffectSpec(
+            family=f"backlash_{_axis_l(a)}", key=f"backlash_{_axis_l(a)}", kind="backlash", axis=a,
+            compensable=True, params=(ParamSpec("B", "um", 5.0, 300.0),),
+            scan="takeup_mm", scan_unit="mm",
+            physics=f"lost motion of the {a} drive: the own positioning term differs by the "
+                    "reversal B between + and - approach",
+            remedy="table backlash term (BACKLASH feature; direction state from the compensator)"))
+    for a in AXES:
+        out.append(EffectSpec(
+            family=f"scale_{_axis_l(a)}", key=f"scale_{_axis_l(a)}", kind="scale", axis=a,
+            compensable=True, params=(ParamSpec("k", "ppm", 10.0, 1000.0),),
+            physics=f"linear positioning (scale) error of {a} about the reference point",
+            remedy="added to the own positioning term's Chebyshev trend (T0, T1)"))
+    for a in AXES:
+        out.append(EffectSpec(
+            family=f"cyclic_{_axis_l(a)}", key=f"cyclic_{_axis_l(a)}", kind="cyclic", axis=a,
+            compensable=True, params=(ParamSpec("a_sin", "um", 1.0, 50.0), ParamSpec("a_cos", "um", 1.0, 50.0)),
+            scan="period_mm", scan_unit="mm",
+            physics=f"cyclic (screw lead) error of {a}: a sine of the position with an unknown "
+                    "period, possibly shorter than the laser target spacing",
+            remedy="Fourier block (short-period block 1 if free) on the own positioning term"))
+    for a in AXES:
+        out.append(EffectSpec(
+            family="thermal_drift", key=f"thermal_drift_{_axis_l(a)}", kind="thermal", axis=a,
+            compensable=True, scan="tau",
+            params=(ParamSpec("offset", "um", 3.0, 500.0), ParamSpec("scale", "ppm", 10.0, 2000.0, optional=True)),
+            physics=f"thermal drift of {a}: own positioning offset and scale changing with time "
+                    "(or temperature) between and during runs",
+            remedy="table thermal terms when a temperature is measured; otherwise warm the "
+                   "machine up / log temperature (time drift cannot be compensated by a table)"))
+    for plane in ("XY", "YZ", "ZX"):
+        out.append(EffectSpec(
+            family="servo_mismatch", key=f"servo_mismatch_{plane.lower()}", kind="servo",
+            plane=plane, compensable=False, params=(ParamSpec("dtau", "ms", 0.5, 30.0),),
+            physics=f"unequal position-loop lag of {plane[1]} and {plane[0]} (tau_{plane[1]} - "
+                    f"tau_{plane[0]}): an oval on circles that flips with the direction",
+            remedy=f"match the position-loop gains (Kv) / feed-forward of {plane[0]} and "
+                   f"{plane[1]}; the table cannot compensate a dynamic error"))
+    out.append(EffectSpec(
+        family="tool_offset", key="tool_offset", kind="tool_offset", compensable=True,
+        params=(ParamSpec("t_x", "mm", 50.0, 400.0, optional=True),
+                ParamSpec("t_y", "mm", 50.0, 400.0, optional=True),
+                ParamSpec("t_z", "mm", 100.0, 600.0)),
+        physics="Abbe arm missing from the model: the tool tip is offset from the spindle "
+                "reference, angular errors times the offset",
+        remedy="table tool offset (TOOL_OFFSET feature)"))
+    for a in AXES:
+        for term in ("dx", "dy", "dz"):
+            if term == OWN_TERM[a]:
+                continue
+            key = f"straightness_{_axis_l(a)}{term[1]}"
+            out.append(EffectSpec(
+                family="straightness", key=key, kind="straightness", axis=a, term=term,
+                compensable=True, params=(ParamSpec("bow", "um", 2.0, 200.0),),
+                physics=f"unmodelled bow of the {a} axis straightness in {term[1].upper()} "
+                        f"(d_{term[1]}({_axis_l(a)})): value at mid-travel relative to the ends",
+                remedy=f"Chebyshev T0/T2 rows of d_{term[1]} of {a}"))
+    return out
+
+
+def by_key() -> dict[str, EffectSpec]:
+    """Catalogue indexed by key."""
+    return {e.key: e for e in catalogue()}
+
+
+#: Nonlinear scan grids.
+BACKLASH_TAKEUP_GRID_MM: tuple[float, ...] = (0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0)

@@ -1,0 +1,160 @@
+"""Reader of the ISO 230-2 ``.dat`` format of the ESS ecmc tools (key=value lines).
+
+Format (docs/formats.md, "ISO 230-2 .dat"): lines ``KEY=value``; ``#`` starts a
+comment line; blank lines are ignored. Keys:
+
+* ``TGT_DATA[i]``: target i (i = 1..POSITIONS), in UNIT
+* ``REF_DATA_FWD[i,c]`` / ``REF_DATA_BWD[i,c]``: reference reading at target i in
+  cycle (run) c = 1..CYCLES, forward (increasing) / backward approach, in UNIT
+* ``CYCLES`` (default 5), ``POSITIONS`` (default 8), ``UNIT`` (``mm`` default, or ``um``)
+* informational: ``TEST_DATA``, ``DEC``, ``REF_PV``, ``TEST_PV``, ``TGT_SET_PV``
+
+Deviation = reference reading - target, converted to um. Any other key, a
+duplicated key, a missing or out-of-range index, or a non-numeric/non-finite value
+raises AbbeInputError naming file, line and key.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+from pathlib import Path
+
+import numpy as np
+
+from abbe.errors import AbbeInputError, parse_finite
+from abbe.analysis.iso230_2 import PositioningData
+
+_KEY = re.compile(r"^([A-Z_][A-Z0-9_]*)(?:\[\s*(\d+)\s*(?:,\s*(\d+)\s*)?\])?$")
+_INFO = {"TEST_DATA", "DEC", "REF_PV", "TEST_PV", "TGT_SET_PV"}
+_UNITS_TO_UM = {"mm": 1000.0, "um": 1.0}
+
+
+def looks_like_dat(path: Path) -> bool:
+    """True if the first non-blank, non-comment line is ``KEY=...`` with an upper-case key."""
+    try:
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            for raw in fh:
+                s = raw.strip()
+                if not s or s.startswith("#"):
+                    continue
+                return bool(re.match(r"^[A-Z_][A-Z0-9_]*(\[[^\]]*\])?=", s))
+    except OSError:
+        return False
+    return False
+
+
+def read_dat(path: str | Path) -> PositioningData:
+    """Read an ecmc ISO 230-2 ``.dat`` file into :class:`PositioningData` (um).
+
+    Targets are returned ascending (a descending TGT_DATA list is reordered);
+    targets must be strictly monotonic.
+    """
+    path = Path(path)
+    fname = str(path)
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise AbbeInputError(f"cannot read .dat file: {exc.strerror}", file=fname) from None
+    text = raw.decode("utf-8", errors="replace")
+
+    scalars: dict[str, tuple[str, int]] = {}
+    tgt: dict[int, tuple[float, int]] = {}
+    ref: dict[str, dict[tuple[int, int], tuple[float, int]]] = {"FWD": {}, "BWD": {}}
+    for no, rawline in enumerate(text.splitlines(), start=1):
+        s = rawline.strip()
+        if not s or s.startswith("#"):
+            continue
+        if "=" not in s:
+            raise AbbeInputError("expected KEY=value", file=fname, line=no)
+        key, value = (p.strip() for p in s.split("=", 1))
+        m = _KEY.match(key)
+        if not m:
+            raise AbbeInputError("malformed key: expected NAME, NAME[i] or NAME[i,c]",
+                                 file=fname, line=no, field=key)
+        name, i, c = m.group(1), m.group(2), m.group(3)
+
+        def num() -> float:
+            return parse_finite(value, file=fname, line=no, field=key)
+
+        if name == "TGT_DATA" and i is not None and c is None:
+            if int(i) in tgt:
+                raise AbbeInputError(f"duplicated key (first at line {tgt[int(i)][1]})",
+                                     file=fname, line=no, field=key)
+            tgt[int(i)] = (num(), no)
+        elif name in ("REF_DATA_FWD", "REF_DATA_BWD") and i is not None and c is not None:
+            d = ref[name[-3:]]
+            k = (int(i), int(c))
+            if k in d:
+                raise AbbeInputError(f"duplicated key (first at line {d[k][1]})", file=fname,
+                                     line=no, field=key)
+            d[k] = (num(), no)
+        elif i is None and (name in _INFO or name in ("UNIT", "CYCLES", "POSITIONS")):
+            if name in scalars:
+                raise AbbeInputError(f"duplicated key (first at line {scalars[name][1]})",
+                                     file=fname, line=no, field=key)
+            scalars[name] = (value, no)
+        else:
+            raise AbbeInputError("unknown key; expected TGT_DATA[i], REF_DATA_FWD[i,c], "
+                                 "REF_DATA_BWD[i,c], UNIT, CYCLES, POSITIONS, DEC, TEST_DATA, "
+                                 "REF_PV, TEST_PV, TGT_SET_PV", file=fname, line=no, field=key)
+
+    def count(name: str, default: int) -> int:
+        if name not in scalars:
+            return default
+        v, no = scalars[name]
+        if not v.isdigit() or int(v) < 1:
+            raise AbbeInputError(f"expected a positive integer, got {v!r}", file=fname, line=no,
+                                 field=name)
+        return int(v)
+
+    cycles = count("CYCLES", 5)
+    positions = count("POSITIONS", 8)
+    unit, unit_line = scalars.get("UNIT", ("mm", None))
+    if unit not in _UNITS_TO_UM:
+        raise AbbeInputError(f"unsupported unit {unit!r}; expected mm or um", file=fname,
+                             line=unit_line, field="UNIT")
+    scale = _UNITS_TO_UM[unit]
+    if cycles < 2:
+        raise AbbeInputError("ISO 230-2 needs at least 2 cycles", file=fname,
+                             line=scalars["CYCLES"][1], field="CYCLES")
+
+    for i, (_, no) in tgt.items():
+        if i < 1 or i > positions:
+            raise AbbeInputError(f"index {i} outside 1..POSITIONS ({positions})", file=fname,
+                                 line=no, field=f"TGT_DATA[{i}]")
+    for i in range(1, positions + 1):
+        if i not in tgt:
+            raise AbbeInputError(f"missing target TGT_DATA[{i}] (POSITIONS = {positions})",
+                                 file=fname, field=f"TGT_DATA[{i}]")
+    for d, vals in ref.items():
+        for (i, c), (_, no) in vals.items():
+            if not (1 <= i <= positions and 1 <= c <= cycles):
+                raise AbbeInputError(f"index outside POSITIONS ({positions}) x CYCLES ({cycles})",
+                                     file=fname, line=no, field=f"REF_DATA_{d}[{i},{c}]")
+        for i in range(1, positions + 1):
+            for c in range(1, cycles + 1):
+                if (i, c) not in vals:
+                    raise AbbeInputError(
+                        "missing reading (unequal run counts: every target needs CYCLES "
+                        "readings per direction)", file=fname, field=f"REF_DATA_{d}[{i},{c}]")
+
+    targets = np.array([tgt[i][0] for i in range(1, positions + 1)])
+    steps = np.diff(targets)
+    order = np.arange(positions)
+    if positions > 1 and np.all(steps < 0):
+        order = order[::-1]
+    elif positions > 1 and not np.all(steps > 0):
+        k = int(np.flatnonzero(steps <= 0)[0]) + 2
+        what = "duplicated" if steps[k - 2] == 0 else "unsorted"
+        raise AbbeInputError(f"{what} target {targets[k - 1]}: targets must be strictly "
+                             "monotonic", file=fname, line=tgt[k][1], field=f"TGT_DATA[{k}]")
+
+    def grid(d: str) -> np.ndarray:
+        v = np.array([[ref[d][(i, c)][0] for i in range(1, positions + 1)]
+                      for c in range(1, cycles + 1)])
+        return ((v - targets[None, :]) * scale)[:, order]
+
+    return PositioningData(source=fname, targets_mm=targets[order] * scale / 1000.0,
+                           up_um=grid("FWD"), down_um=grid("BWD"),
+                           sha256=hashlib.sha256(raw).hexdigest())

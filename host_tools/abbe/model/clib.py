@@ -1,0 +1,524 @@
+"""ctypes binding to the abbe C library (``libabbe.so``).
+
+The shared object is looked up in ``$ABBE_LIB`` first, then
+``<repo>/build/lib/libabbe.so`` (built by CMake). The structs below mirror
+``lib/include/abbe/*.h`` field by field; keep them in step with the headers.
+
+Units as in the C API: the ``_f32`` variant takes mm / deg C and returns um
+(urad for angular terms); the ``_q`` variant takes nm / Q30 / m°C and returns
+nm (pm / prad for single terms).
+"""
+
+from __future__ import annotations
+
+import ctypes as C
+import os
+import struct
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from abbe.formats.blob import AXES, TERMS, TableError
+
+ABBE_AXES = 3
+ABBE_TERMS = 6
+ABBE_BLOCKS = 2
+
+STATUS_NAMES: dict[int, str] = {
+    0: "ABBE_OK", -1: "ABBE_E_ARG", -2: "ABBE_E_TRUNCATED", -3: "ABBE_E_MAGIC",
+    -4: "ABBE_E_VERSION_MAJOR", -5: "ABBE_E_VERSION_MINOR", -6: "ABBE_E_SIZE",
+    -7: "ABBE_E_CRC", -8: "ABBE_E_FLAGS", -9: "ABBE_E_COUNT", -10: "ABBE_E_OFFSET",
+    -11: "ABBE_E_NONFINITE", -12: "ABBE_E_PERIOD", -13: "ABBE_E_TRAVEL",
+    -14: "ABBE_E_RANGE", -15: "ABBE_E_INPUT", -16: "ABBE_E_NO_MODEL", -17: "ABBE_E_MISMATCH",
+    -18: "ABBE_E_ALIGN",
+}
+
+FLAG_OUT_OF_TRAVEL = 0x0001
+FLAG_SATURATED = 0x0002
+DIR_Q30_ONE = 1 << 30
+
+
+class LibraryNotFound(RuntimeError):
+    """The shared library is not built or not where expected."""
+
+
+# --------------------------------------------------------------------------- structs
+
+class AxisModel(C.Structure):
+    """abbe_axis_model_t (private fields, mirrored for the size and layout)."""
+    _fields_ = [
+        ("coef_q", C.c_void_p),
+        ("coef_f32", C.c_void_p),
+        ("travel_min_nm", C.c_int32),
+        ("travel_max_nm", C.c_int32),
+        ("cheb_mul", C.c_int64),
+        ("freq", C.c_uint64 * ABBE_BLOCKS),
+        ("origin_nm", C.c_int32 * ABBE_BLOCKS),
+        ("backlash_reversal_q8", C.c_int32),
+        ("backlash_takeup_nm", C.c_int32),
+        ("takeup_rate_q46", C.c_uint64),
+        ("thermal_expansion_q50", C.c_int32),
+        ("thermal_offset_q16", C.c_int32),
+        ("thermal_tref_mdegc", C.c_int32),
+        ("term_mask", C.c_uint8),
+        ("n_terms", C.c_uint8),
+        ("trend_rows", C.c_uint8),
+        ("harmonics", C.c_uint8 * ABBE_BLOCKS),
+        ("n_basis", C.c_uint8),
+        ("column", C.c_uint8 * ABBE_TERMS),
+    ]
+
+
+class Model(C.Structure):
+    """abbe_model_t."""
+    _fields_ = [
+        ("blob", C.c_void_p),
+        ("size", C.c_uint32),
+        ("crc", C.c_uint32),
+        ("features", C.c_uint32),
+        ("version_major", C.c_uint16),
+        ("version_minor", C.c_uint16),
+        ("reference_nm", C.c_int32 * ABBE_AXES),
+        ("tool_offset_nm", C.c_int32 * ABBE_AXES),
+        ("squareness_q36", C.c_int32 * 3),
+        ("axis", AxisModel * ABBE_AXES),
+    ]
+
+
+class InputF32(C.Structure):
+    _fields_ = [("pos_mm", C.c_float * ABBE_AXES), ("dir_state", C.c_float * ABBE_AXES),
+                ("temp_c", C.c_float * ABBE_AXES)]
+
+
+class ErrorF32(C.Structure):
+    _fields_ = [("error_um", C.c_float * ABBE_AXES), ("flags", C.c_uint32)]
+
+
+class InputQ(C.Structure):
+    _fields_ = [("pos_nm", C.c_int32 * ABBE_AXES), ("dir_state_q30", C.c_int32 * ABBE_AXES),
+                ("temp_mdegc", C.c_int32 * ABBE_AXES)]
+
+
+class ErrorQ(C.Structure):
+    _fields_ = [("error_nm", C.c_int32 * ABBE_AXES), ("flags", C.c_uint32)]
+
+
+class CompConfig(C.Structure):
+    _fields_ = [
+        ("warn_nm", C.c_int32 * ABBE_AXES),
+        ("limit_nm", C.c_int32 * ABBE_AXES),
+        ("rate_nm_per_cycle", C.c_int32 * ABBE_AXES),
+        ("fade_cycles", C.c_uint16),
+        ("stale_cycles", C.c_uint16),
+        ("axis_sign", C.c_int8 * ABBE_AXES),
+    ]
+
+
+class CompInputF32(C.Structure):
+    _fields_ = [("pos_mm", C.c_float * ABBE_AXES), ("temp_c", C.c_float * ABBE_AXES),
+                ("dir", C.c_int8 * ABBE_AXES), ("fresh", C.c_uint8),
+                ("axis_fault_mask", C.c_uint8)]
+
+
+class CompInputQ(C.Structure):
+    _fields_ = [("pos_nm", C.c_int32 * ABBE_AXES), ("temp_mdegc", C.c_int32 * ABBE_AXES),
+                ("dir", C.c_int8 * ABBE_AXES), ("fresh", C.c_uint8),
+                ("axis_fault_mask", C.c_uint8)]
+
+
+class CompOutput(C.Structure):
+    _fields_ = [("corr_nm", C.c_int32 * ABBE_AXES), ("target_nm", C.c_int32 * ABBE_AXES),
+                ("flags", C.c_uint32), ("state", C.c_int)]
+
+
+class CompStats(C.Structure):
+    _fields_ = [("cycles", C.c_uint32), ("invalid_inputs", C.c_uint32),
+                ("stale_events", C.c_uint32), ("limit_trips", C.c_uint32),
+                ("rate_limited", C.c_uint32), ("model_swaps", C.c_uint32)]
+
+
+class Comp(C.Structure):
+    """abbe_comp_t."""
+    _fields_ = [
+        ("cfg", CompConfig),
+        ("model", C.c_void_p),
+        ("pending", C.c_void_p),
+        ("gain_step_q16", C.c_uint32),
+        ("gain_q16", C.c_uint32 * ABBE_AXES),
+        ("out_nm", C.c_int32 * ABBE_AXES),
+        ("target_nm", C.c_int32 * ABBE_AXES),
+        ("last_pos_nm", C.c_int32 * ABBE_AXES),
+        ("dir_state_q30", C.c_int32 * ABBE_AXES),
+        ("eval_flags", C.c_uint32),
+        ("stale_count", C.c_uint16),
+        ("have_pos", C.c_uint8),
+        ("enabled", C.c_uint8),
+        ("fault", C.c_uint8),
+        ("stale", C.c_uint8),
+        ("stats", CompStats),
+    ]
+
+
+COMP_STATES = {0: "OFF", 1: "ON", 2: "FAULT"}
+
+# --------------------------------------------------------------------------- loading
+
+_LIB: C.CDLL | None = None
+
+
+def repo_root() -> Path:
+    """The repository root (host_tools/abbe/model/clib.py -> ../../../..)."""
+    return Path(__file__).resolve().parents[3]
+
+
+def library_path() -> Path:
+    """Where the shared library is expected ($ABBE_LIB, else build/lib/libabbe.so)."""
+    env = os.environ.get("ABBE_LIB")
+    if env:
+        return Path(env)
+    return repo_root() / "build" / "lib" / "libabbe.so"
+
+
+def load_library() -> C.CDLL:
+    """Load (once) and type the C library; LibraryNotFound if it is missing."""
+    global _LIB
+    if _LIB is not None:
+        return _LIB
+    path = library_path()
+    if not path.is_file():
+        raise LibraryNotFound(
+            f"abbe C library not found at {path}: build it with "
+            "'cmake -S . -B build && cmake --build build' or set ABBE_LIB")
+    try:
+        lib = C.CDLL(str(path))
+    except OSError as exc:
+        raise LibraryNotFound(f"cannot load {path}: {exc}") from exc
+    P = C.POINTER
+    sigs: dict[str, tuple[Any, list[Any]]] = {
+        "abbe_strerror": (C.c_char_p, [C.c_int]),
+        "abbe_model_load": (C.c_int, [P(Model), C.c_void_p, C.c_size_t]),
+        "abbe_model_crc": (C.c_uint32, [P(Model)]),
+        "abbe_model_features": (C.c_uint32, [P(Model)]),
+        "abbe_model_size": (C.c_uint32, [P(Model)]),
+        "abbe_crc32": (C.c_uint32, [C.c_uint32, C.c_void_p, C.c_size_t]),
+        "abbe_error_eval_f32": (C.c_int, [P(Model), P(InputF32), P(ErrorF32)]),
+        "abbe_error_eval_q": (C.c_int, [P(Model), P(InputQ), P(ErrorQ)]),
+        "abbe_term_eval_f32": (C.c_int, [P(Model), C.c_uint, C.c_uint, C.c_float,
+                                         P(C.c_float)]),
+        "abbe_term_eval_q": (C.c_int, [P(Model), C.c_uint, C.c_uint, C.c_int32,
+                                       P(C.c_int32)]),
+        "abbe_comp_init": (C.c_int, [P(Comp), P(CompConfig), P(Model)]),
+        "abbe_comp_enable": (C.c_int, [P(Comp)]),
+        "abbe_comp_disable": (C.c_int, [P(Comp)]),
+        "abbe_comp_reset": (C.c_int, [P(Comp)]),
+        "abbe_comp_swap_model": (C.c_int, [P(Comp), P(Model)]),
+        "abbe_comp_load_model": (C.c_int, [P(Comp), P(Model), C.c_void_p, C.c_size_t]),
+        "abbe_comp_model": (C.c_void_p, [P(Comp)]),
+        "abbe_comp_step_f32": (C.c_int, [P(Comp), P(CompInputF32), P(CompOutput)]),
+        "abbe_comp_step_q": (C.c_int, [P(Comp), P(CompInputQ), P(CompOutput)]),
+        "abbe_comp_stats": (CompStats, [P(Comp)]),
+        "abbe_model_sizeof": (C.c_size_t, []),
+        "abbe_comp_sizeof": (C.c_size_t, []),
+    }
+    for name, (res, args) in sigs.items():
+        try:
+            fn = getattr(lib, name)
+        except AttributeError as exc:
+            raise LibraryNotFound(f"{path} does not export {name}: rebuild it from this checkout") from exc
+        fn.restype = res
+        fn.argtypes = args
+    # The binding allocates abbe_model_t / abbe_comp_t itself: a layout that
+    # differs from the library's would corrupt memory silently, so refuse it.
+    for mirror, fn in ((Model, lib.abbe_model_sizeof), (Comp, lib.abbe_comp_sizeof)):
+        if C.sizeof(mirror) != fn():
+            raise LibraryNotFound(
+                f"{path}: sizeof({mirror.__name__}) is {fn()} in the library but {C.sizeof(mirror)} "
+                "in abbe/clib.py: the binding and the library are from different versions")
+    _LIB = lib
+    return lib
+
+
+def available() -> bool:
+    """True if the shared library can be loaded."""
+    try:
+        load_library()
+        return True
+    except LibraryNotFound:
+        return False
+
+
+def status_name(status: int) -> str:
+    """C status code -> its name (``ABBE_E_CRC``)."""
+    return STATUS_NAMES.get(int(status), f"status {int(status)}")
+
+
+def _check(status: int, what: str, source: str | None = None) -> None:
+    if status != 0:
+        lib = load_library()
+        text = lib.abbe_strerror(status)
+        msg = f"{what}: {text.decode() if text else 'unknown status'}"
+        raise TableError(msg, status=status_name(status), file=source)
+
+
+def _f32_rows(a: Any, n: int | None = None, default: float = 0.0) -> np.ndarray:
+    if a is None:
+        return np.full((n or 0, 3), default, dtype=np.float32)
+    return np.asarray(a, dtype=np.float32).reshape(-1, 3)
+
+
+def _i32_rows(a: Any, n: int | None = None, default: int = 0) -> np.ndarray:
+    if a is None:
+        return np.full((n or 0, 3), default, dtype=np.int64)
+    arr = np.asarray(a)
+    if arr.dtype.kind == "f":
+        if not np.all(arr == np.rint(arr)):
+            raise ValueError("integer input expected")
+    arr = arr.astype(np.int64).reshape(-1, 3)
+    if np.any(arr < -(1 << 31)) or np.any(arr >= (1 << 31)):
+        raise ValueError("value outside int32")
+    return arr
+
+
+def _axis_term(axis: str | int, term: str | int) -> tuple[int, int]:
+    ai = AXES.index(axis) if isinstance(axis, str) else int(axis)
+    ti = TERMS.index(term) if isinstance(term, str) else int(term)
+    return ai, ti
+
+
+# --------------------------------------------------------------------------- model
+
+class CModel:
+    """A table loaded and validated by the C library (``abbe_model_load``).
+
+    The C model points into the blob, so this object keeps its own copy of the
+    bytes alive as long as it lives.
+    """
+
+    def __init__(self, blob: bytes, source: str = "<blob>") -> None:
+        self._lib = load_library()
+        self._buf = C.create_string_buffer(bytes(blob), len(blob))
+        self._size = len(blob)
+        self._model = Model()
+        _check(self._lib.abbe_model_load(C.byref(self._model), self._buf, self._size),
+               "abbe_model_load", source)
+
+    @property
+    def ptr(self) -> Any:
+        """ctypes pointer to the abbe_model_t."""
+        return C.byref(self._model)
+
+    @property
+    def crc(self) -> int:
+        """CRC-32 of the table (abbe_model_crc)."""
+        return int(self._lib.abbe_model_crc(C.byref(self._model)))
+
+    @property
+    def features(self) -> int:
+        """Feature bits (abbe_model_features)."""
+        return int(self._lib.abbe_model_features(C.byref(self._model)))
+
+    @property
+    def size(self) -> int:
+        """total_size of the table (abbe_model_size)."""
+        return int(self._lib.abbe_model_size(C.byref(self._model)))
+
+    def tref_mdegc(self) -> np.ndarray:
+        """Per-axis thermal reference temperature (m°C) of the loaded table: the
+        default temperature input (no thermal contribution)."""
+        raw = self._buf.raw
+        return np.array([struct.unpack_from("<i", raw, 64 + 64 * j + 44)[0] for j in range(3)],
+                        dtype=np.int64)
+
+    def tref_c(self) -> np.ndarray:
+        """Per-axis thermal reference temperature, deg C."""
+        return self.tref_mdegc() / 1000.0
+
+    def error_f32(self, pos_mm: Any, dir_state: Any = None,
+                  temp_c: Any = None) -> tuple[np.ndarray, np.ndarray]:
+        """abbe_error_eval_f32 for each row: ((N,3) um float64 of the float32 result,
+        (N,) flags). ``temp_c`` None = each axis at its reference temperature.
+        Raises TableError(ABBE_E_INPUT ...) for a non-finite input."""
+        pos = _f32_rows(pos_mm)
+        n = pos.shape[0]
+        ds = _f32_rows(dir_state, n)
+        tc = (np.tile(self.tref_c(), (n, 1)).astype(np.float32) if temp_c is None
+              else _f32_rows(temp_c))
+        if ds.shape[0] != n or tc.shape[0] != n:
+            raise ValueError("dir_state / temp_c must have the same rows as pos_mm")
+        err = np.zeros((n, 3))
+        flags = np.zeros(n, dtype=np.uint32)
+        inp, out = InputF32(), ErrorF32()
+        fn = self._lib.abbe_error_eval_f32
+        for i in range(n):
+            inp.pos_mm[:] = [float(v) for v in pos[i]]
+            inp.dir_state[:] = [float(v) for v in ds[i]]
+            inp.temp_c[:] = [float(v) for v in tc[i]]
+            _check(fn(C.byref(self._model), C.byref(inp), C.byref(out)), "abbe_error_eval_f32")
+            err[i] = list(out.error_um)
+            flags[i] = out.flags
+        return err, flags
+
+    def error_q(self, pos_nm: Any, dir_q30: Any = None,
+                temp_mdegc: Any = None) -> tuple[np.ndarray, np.ndarray]:
+        """abbe_error_eval_q for each row: ((N,3) int64 nm, (N,) flags)."""
+        pos = _i32_rows(pos_nm)
+        n = pos.shape[0]
+        ds = _i32_rows(dir_q30, n)
+        tc = (np.tile(self.tref_mdegc(), (n, 1)) if temp_mdegc is None
+              else _i32_rows(temp_mdegc))
+        if ds.shape[0] != n or tc.shape[0] != n:
+            raise ValueError("dir_q30 / temp_mdegc must have the same rows as pos_nm")
+        err = np.zeros((n, 3), dtype=np.int64)
+        flags = np.zeros(n, dtype=np.uint32)
+        inp, out = InputQ(), ErrorQ()
+        fn = self._lib.abbe_error_eval_q
+        for i in range(n):
+            inp.pos_nm[:] = [int(v) for v in pos[i]]
+            inp.dir_state_q30[:] = [int(v) for v in ds[i]]
+            inp.temp_mdegc[:] = [int(v) for v in tc[i]]
+            _check(fn(C.byref(self._model), C.byref(inp), C.byref(out)), "abbe_error_eval_q")
+            err[i] = list(out.error_nm)
+            flags[i] = out.flags
+        return err, flags
+
+    def term_f32(self, axis: str | int, term: str | int, pos_mm: Any) -> np.ndarray:
+        """abbe_term_eval_f32 at each position: um (linear) / urad (angular)."""
+        ai, ti = _axis_term(axis, term)
+        p = np.asarray(pos_mm, dtype=np.float32).reshape(-1)
+        out = np.zeros(p.size)
+        v = C.c_float()
+        for i, x in enumerate(p):
+            _check(self._lib.abbe_term_eval_f32(C.byref(self._model), ai, ti, float(x),
+                                                C.byref(v)), "abbe_term_eval_f32")
+            out[i] = v.value
+        return out
+
+    def term_q(self, axis: str | int, term: str | int, pos_nm: Any) -> np.ndarray:
+        """abbe_term_eval_q at each position (int nm): pm (linear) / prad (angular)."""
+        ai, ti = _axis_term(axis, term)
+        p = np.asarray(pos_nm).astype(np.int64).reshape(-1)
+        out = np.zeros(p.size, dtype=np.int64)
+        v = C.c_int32()
+        for i, x in enumerate(p):
+            _check(self._lib.abbe_term_eval_q(C.byref(self._model), ai, ti, int(x),
+                                              C.byref(v)), "abbe_term_eval_q")
+            out[i] = v.value
+        return out
+
+
+def crc32(data: bytes, crc: int = 0) -> int:
+    """abbe_crc32 (zlib CRC-32, continuing from ``crc``)."""
+    lib = load_library()
+    buf = C.create_string_buffer(bytes(data), len(data))
+    return int(lib.abbe_crc32(crc, buf, len(data)))
+
+
+# --------------------------------------------------------------------------- compensator
+
+def _vec3(cfg: dict, key: str, default: Any = None) -> list[int]:
+    v = cfg.get(key, default)
+    if v is None:
+        raise ValueError(f"compensator config needs '{key}'")
+    if np.isscalar(v):
+        v = [v] * 3
+    v = list(v)
+    if len(v) != 3:
+        raise ValueError(f"'{key}' needs 3 values (X, Y, Z)")
+    return [int(x) for x in v]
+
+
+class CCompensator:
+    """The C compensator (abbe_comp_*), for tests and simulation.
+
+    ``config`` keys (per-axis values as 3-lists or one scalar): ``warn_nm``,
+    ``limit_nm``, ``rate_nm_per_cycle``, ``fade_cycles``, ``stale_cycles``,
+    ``axis_sign`` (default +1). ``model`` is an optional initial :class:`CModel`.
+    Every model handed to the C side is kept referenced here while the
+    compensator lives.
+    """
+
+    def __init__(self, config: dict, model: CModel | None = None) -> None:
+        self._lib = load_library()
+        cfg = CompConfig()
+        cfg.warn_nm[:] = _vec3(config, "warn_nm")
+        cfg.limit_nm[:] = _vec3(config, "limit_nm")
+        cfg.rate_nm_per_cycle[:] = _vec3(config, "rate_nm_per_cycle")
+        cfg.fade_cycles = int(config.get("fade_cycles", 1))
+        cfg.stale_cycles = int(config.get("stale_cycles", 1))
+        cfg.axis_sign[:] = _vec3(config, "axis_sign", [1, 1, 1])
+        self._cfg = cfg
+        self._comp = Comp()
+        self._keep: list[Any] = []  # models (and blobs) the C side may point at
+        if model is not None:
+            self._keep.append(model)
+        _check(self._lib.abbe_comp_init(C.byref(self._comp), C.byref(cfg),
+                                        model.ptr if model is not None else None),
+               "abbe_comp_init")
+
+    def enable(self) -> None:
+        _check(self._lib.abbe_comp_enable(C.byref(self._comp)), "abbe_comp_enable")
+
+    def disable(self) -> None:
+        _check(self._lib.abbe_comp_disable(C.byref(self._comp)), "abbe_comp_disable")
+
+    def reset(self) -> None:
+        _check(self._lib.abbe_comp_reset(C.byref(self._comp)), "abbe_comp_reset")
+
+    def swap_model(self, model: CModel) -> None:
+        """Queue an already loaded model (takes effect at the next step)."""
+        self._keep.append(model)
+        _check(self._lib.abbe_comp_swap_model(C.byref(self._comp), model.ptr),
+               "abbe_comp_swap_model")
+
+    def load_model(self, blob: bytes) -> None:
+        """abbe_comp_load_model into a fresh slot; TableError if the blob is refused
+        (the running model goes on)."""
+        buf = C.create_string_buffer(bytes(blob), len(blob))
+        slot = Model()
+        status = self._lib.abbe_comp_load_model(C.byref(self._comp), C.byref(slot), buf,
+                                                len(blob))
+        _check(status, "abbe_comp_load_model")
+        self._keep.append((slot, buf))
+
+    def has_model(self) -> bool:
+        """True if a model is in use."""
+        return bool(self._lib.abbe_comp_model(C.byref(self._comp)))
+
+    @staticmethod
+    def _result(out: CompOutput) -> dict:
+        return {"corr_nm": np.array(list(out.corr_nm), dtype=np.int64),
+                "target_nm": np.array(list(out.target_nm), dtype=np.int64),
+                "flags": int(out.flags), "state": COMP_STATES.get(out.state, out.state)}
+
+    def step_f32(self, pos_mm: Any, temp_c: Any = (20.0, 20.0, 20.0), dir: Any = (0, 0, 0),
+                 fresh: bool = True, axis_fault_mask: int = 0) -> dict:
+        """One cycle, float input (mm, deg C, dir in {-1, 0, 1}). Returns a dict with
+        corr_nm, target_nm (int arrays), flags, state ('OFF'/'ON'/'FAULT')."""
+        inp, out = CompInputF32(), CompOutput()
+        inp.pos_mm[:] = [float(v) for v in pos_mm]
+        inp.temp_c[:] = [float(v) for v in temp_c]
+        inp.dir[:] = [int(v) for v in dir]
+        inp.fresh = 1 if fresh else 0
+        inp.axis_fault_mask = int(axis_fault_mask)
+        _check(self._lib.abbe_comp_step_f32(C.byref(self._comp), C.byref(inp), C.byref(out)),
+               "abbe_comp_step_f32")
+        return self._result(out)
+
+    def step_q(self, pos_nm: Any, temp_mdegc: Any = (20000, 20000, 20000),
+               dir: Any = (0, 0, 0), fresh: bool = True, axis_fault_mask: int = 0) -> dict:
+        """One cycle, integer input (nm, m°C, dir in {-1, 0, 1})."""
+        inp, out = CompInputQ(), CompOutput()
+        inp.pos_nm[:] = [int(v) for v in pos_nm]
+        inp.temp_mdegc[:] = [int(v) for v in temp_mdegc]
+        inp.dir[:] = [int(v) for v in dir]
+        inp.fresh = 1 if fresh else 0
+        inp.axis_fault_mask = int(axis_fault_mask)
+        _check(self._lib.abbe_comp_step_q(C.byref(self._comp), C.byref(inp), C.byref(out)),
+               "abbe_comp_step_q")
+        return self._result(out)
+
+    def stats(self) -> dict[str, int]:
+        """Counters since init (abbe_comp_stats)."""
+        s = self._lib.abbe_comp_stats(C.byref(self._comp))
+        return {name: int(getattr(s, name)) for name, _ in CompStats._fields_}

@@ -1,0 +1,201 @@
+#!/usr/bin/env python3
+"""Benchmark of ``abbe diagnose`` on hidden effects (randomised, seeded).
+
+Each case is a virtual machine (abbe.sim.virtual_machine, exact kinematics; abbe.sim.instruments for the
+ballbar and 6D laser measurements, with noise) with catalogue effects hidden in the
+truth and absent from the model (cases.hidden_effects). Case mix: single effects
+(every catalogue effect the generator knows, realistic magnitudes), pairs, and clean
+machines; optionally a smooth fit error in the model (``--model-error``).
+
+Prints a confusion table (true effect -> named effects), the rate of hidden effects
+named correctly, the false-positive rate on clean machines, the value accuracy (within
+10 % or inside the 95 % interval), the held-out gap shrink, ambiguity flags and timing.
+Targets (docs/effects.md): >= 95 % named, <= 5 % false positives on clean machines,
+values within 10 % (or the interval), held-out shrink >= 70 % with an effect present.
+
+    python bench_diagnose.py --cases 120 --seed 1 [--model-error 0.1] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from collections import Counter, defaultdict
+
+import numpy as np
+
+# cases/ (the synthetic case generators) lives beside the package, not in it.
+sys.path.insert(0, str(__import__('pathlib').Path(__file__).resolve().parents[1]))
+
+from abbe.diagnose.selection import DiagnoseOptions, diagnose
+from cases.hidden_effects import HIDDEN_KEYS, compatible, hidden_case
+
+
+def draw_cases(n: int, seed: int, p_single: float = 0.45, p_pair: float = 0.3
+               ) -> list[tuple[int, tuple[str, ...]]]:
+    """(seed, hidden keys) for n cases: singles cycle through every key, pairs random."""
+    rng = np.random.default_rng(seed)
+    out: list[tuple[int, tuple[str, ...]]] = []
+    singles = list(HIDDEN_KEYS)
+    k = 0
+    for i in range(n):
+        u = rng.uniform()
+        cs = int(rng.integers(1, 2**31 - 1))
+        if u < p_single:
+            out.append((cs, (singles[k % len(singles)],)))
+            k += 1
+        elif u < p_single + p_pair:
+            while True:
+                a, b = rng.choice(len(singles), 2, replace=False)
+                keys = (singles[int(a)], singles[int(b)])
+                if compatible(keys):
+                    break
+            out.append((cs, keys))
+        else:
+            out.append((cs, ()))
+    return out
+
+
+def score_case(case, res) -> dict:
+    """Per-case outcome: hits, misses, false names, value checks, shrink."""
+    named = {e.key: e for e in res.effects}
+    exp = case.expected
+    hits = [k for k in exp if k in named]
+    misses = [k for k in exp if k not in named]
+    extra = [k for k in named if k not in exp]
+    vals = {}
+    for k in hits:
+        tv = exp[k]
+        e = named[k]
+        if tv is None or (k.startswith("thermal_drift") and e.unit != "um/K"):
+            continue
+        v = e.value
+        lo, hi = e.ci95
+        ok = abs(v - tv) <= 0.1 * abs(tv) or lo <= tv <= hi
+        vals[k] = {"true": tv, "named": v, "ci95": [lo, hi], "ok": bool(ok)}
+    g = res.gap
+    shrink = None
+    if g["held_out_before"] is not None and g["held_out_after"] is not None and exp:
+        b, a = g["held_out_before"].rms_um, g["held_out_after"].rms_um
+        um = [v["sigma"] for v in res.noise.values() if v["unit"] == "um"]
+        sig = math.sqrt(sum(x * x for x in um) / max(len(um), 1))
+        raw = 1.0 - a / b if b > 0 else 0.0
+        exc_b = math.sqrt(max(b * b - sig * sig, 1e-12))
+        exc_a = math.sqrt(max(a * a - sig * sig, 0.0))
+        shrink = {"raw": raw, "excess": 1.0 - exc_a / exc_b, "before_um": b, "after_um": a}
+    amb = {k: [x["key"] for x in named[k].ambiguous_with] for k in named if named[k].ambiguous_with}
+    return {"hidden": list(case.hidden), "expected": list(exp), "named": list(named),
+            "hits": hits, "misses": misses, "extra": extra, "values": vals, "shrink": shrink,
+            "ambiguous": amb}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cases", type=int, default=100)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--noise", type=float, default=0.15, help="ballbar noise, um (laser: max(., 0.1))")
+    ap.add_argument("--model-error", type=float, default=0.0,
+                    help="RMS of a smooth fit error added to the model, um (urad x 3)")
+    ap.add_argument("--step-deg", type=float, default=1.0, help="ballbar sample step, deg")
+    ap.add_argument("--json", help="write per-case results here")
+    ap.add_argument("--backend", default="auto", choices=("auto", "c", "reference"))
+    args = ap.parse_args(argv)
+
+    cases = draw_cases(args.cases, args.seed)
+    from abbe.diagnose.checks import Evaluator
+    print(f"backend: {Evaluator(args.backend).backend}; {len(cases)} cases, seed {args.seed}, "
+          f"noise {args.noise} um, model error {args.model_error} um, ballbar step "
+          f"{args.step_deg} deg")
+    conf: dict[str, Counter] = defaultdict(Counter)
+    rows = []
+    t_all = time.time()
+    n_exp = n_hit = 0
+    clean = clean_fp = 0
+    extra_total = 0
+    vals_ok = vals_n = 0
+    shr_raw, shr_exc = [], []
+    times = []
+    errors = 0
+    for i, (cs, keys) in enumerate(cases):
+        t0 = time.time()
+        case = hidden_case(cs, keys, noise_um=args.noise, model_error_um=args.model_error,
+                           step_deg=args.step_deg)
+        try:
+            res = diagnose(case.model, case.checks, DiagnoseOptions(backend=args.backend))
+        except Exception as exc:  # report, count as a miss
+            errors += 1
+            print(f"case {i} {keys} seed {cs}: ERROR {exc!r}", file=sys.stderr)
+            continue
+        dt = time.time() - t0
+        times.append(dt)
+        sc = score_case(case, res)
+        sc.update({"seed": cs, "time_s": round(dt, 2)})
+        rows.append(sc)
+        n_exp += len(sc["expected"])
+        n_hit += len(sc["hits"])
+        extra_total += len(sc["extra"])
+        if not case.expected:
+            clean += 1
+            clean_fp += bool(sc["named"])
+        for k, v in sc["values"].items():
+            vals_n += 1
+            vals_ok += v["ok"]
+        if sc["shrink"] is not None:
+            shr_raw.append(sc["shrink"]["raw"])
+            shr_exc.append(sc["shrink"]["excess"])
+        # row = a hidden effect (or "(none)" for a clean machine); columns = its own name
+        # if named, "(missed)" if not, and every name that is not in the truth
+        wrong = [n for n in sc["named"] if n not in sc["expected"]]
+        if not sc["expected"]:
+            for n in wrong or ["(none)"]:
+                conf["(none)"][n] += 1
+        for t in sc["expected"]:
+            conf[t][t if t in sc["named"] else "(missed)"] += 1
+            for n in wrong:
+                conf[t][n] += 1
+        flag = "" if not sc["misses"] and not sc["extra"] else "  <--"
+        print(f"[{i + 1:3d}/{len(cases)}] {'+'.join(keys) or 'clean':40s} named "
+              f"{','.join(sc['named']) or '-':40s} {dt:4.1f}s{flag}", flush=True)
+
+    # confusion table
+    labels_t = sorted(conf)
+    labels_n = sorted({n for c in conf.values() for n in c})
+    w = max(len(x) for x in labels_t + ["true \\ named"]) + 1
+    print("\nConfusion (rows: hidden effect in the truth, '(none)' = clean machine; columns: "
+          "the effect named; a name not in the truth is counted in every row of its case)")
+    short = {n: (n.replace("squareness_", "sq_").replace("backlash_", "bl_")
+                 .replace("thermal_drift_", "th_").replace("servo_mismatch_", "sv_")
+                 .replace("straightness_", "st_").replace("tool_offset", "tool")
+                 .replace("cyclic_", "cy_").replace("scale_", "sc_")) for n in labels_n}
+    print("true \\ named".ljust(w) + "".join(short[n].rjust(7) for n in labels_n))
+    for t in labels_t:
+        print(t.ljust(w) + "".join((str(conf[t][n]) if conf[t][n] else ".").rjust(7)
+                                   for n in labels_n))
+    print()
+    pct = lambda a, b: (100.0 * a / b) if b else float("nan")  # noqa: E731
+    print(f"hidden effects named correctly: {n_hit}/{n_exp} = {pct(n_hit, n_exp):.1f} %  (target >= 95 %)")
+    print(f"clean machines with a false name: {clean_fp}/{clean} = {pct(clean_fp, clean):.1f} %  (target <= 5 %)")
+    print(f"names not in the truth (all cases): {extra_total}")
+    print(f"values within 10 % or inside the 95 % interval: {vals_ok}/{vals_n} = {pct(vals_ok, vals_n):.1f} %")
+    if shr_raw:
+        ge = sum(1 for s in shr_raw if s >= 0.7)
+        ge_e = sum(1 for s in shr_exc if s >= 0.7)
+        print(f"held-out gap shrink (RMS before -> after): median {100 * np.median(shr_raw):.0f} %, "
+              f">= 70 % in {ge}/{len(shr_raw)} cases; excess over the noise: median "
+              f"{100 * np.median(shr_exc):.0f} %, >= 70 % in {ge_e}/{len(shr_exc)}")
+    amb = sum(1 for r in rows if r["ambiguous"])
+    print(f"cases with an ambiguity flag: {amb}/{len(rows)}; errors: {errors}")
+    if times:
+        print(f"time per case: median {np.median(times):.2f} s, max {max(times):.2f} s, total "
+              f"{time.time() - t_all:.0f} s")
+    if args.json:
+        with open(args.json, "w", encoding="utf-8") as fh:
+            json.dump({"cases": rows, "args": vars(args)}, fh, indent=1, default=float)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

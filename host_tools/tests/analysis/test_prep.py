@@ -1,0 +1,53 @@
+"""Steps 3-5: run averaging, straightness detrending (Eq. 1), reference adaptation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from abbe.analysis.fit.prep import average_runs, detrend_line, relative_to_reference, value_at
+
+
+def test_average_runs_mean_reversal_noise() -> None:
+    rng = np.random.default_rng(1)
+    T, n = 7, 5
+    base = np.linspace(-2, 3, T)
+    runs = np.empty((n, 2, T))
+    runs[:, 0] = base + 1.5 + rng.normal(0, 0.2, (n, T))
+    runs[:, 1] = base - 1.5 + rng.normal(0, 0.2, (n, T))
+    st = average_runs(runs)
+    np.testing.assert_allclose(st.mean, runs.mean(axis=(0, 1)))
+    np.testing.assert_allclose(st.reversal, runs[:, 0].mean(0) - runs[:, 1].mean(0))
+    assert np.mean(st.reversal) == pytest.approx(3.0, abs=0.15)
+    s = runs.std(axis=0, ddof=1)
+    assert st.noise == pytest.approx(np.sqrt(np.mean(s ** 2)))
+    assert 0.15 < st.noise < 0.25
+    with pytest.raises(ValueError):
+        average_runs(np.zeros((5, 3, 4)))
+
+
+def test_detrend_removes_exactly_the_least_squares_line() -> None:
+    p = np.linspace(0, 500, 51)
+    sag = -4 * (1 - ((2 * p - 500) / 500) ** 2)
+    y = sag + 0.03 * p + 2.0  # 30 urad set-up slope, 2 um offset
+    d, k, b = detrend_line(p, y)
+    # The residual is orthogonal to [p, 1] (normal equations) ...
+    assert abs(np.sum(d)) < 1e-9 and abs(np.sum(d * p)) < 1e-6
+    # ... and equals the sag minus the sag's own LS line.
+    ds, ks, bs = detrend_line(p, sag)
+    np.testing.assert_allclose(d, ds, atol=1e-12)
+    assert k == pytest.approx(0.03 + ks) and b == pytest.approx(2.0 + bs)
+    # A pure line detrends to zero.
+    z, k2, _ = detrend_line(p, 0.01 * p - 3)
+    assert np.max(np.abs(z)) < 1e-12 and k2 == pytest.approx(0.01)
+
+
+def test_relative_to_reference() -> None:
+    p = np.array([0.0, 10.0, 20.0])
+    y = np.array([1.0, 3.0, 7.0])
+    assert value_at(p, y, 15.0) == pytest.approx(5.0)
+    r, v = relative_to_reference(p, y, 15.0)
+    assert v == pytest.approx(5.0)
+    np.testing.assert_allclose(r, [-4.0, -2.0, 2.0])
+    r, v = relative_to_reference(p, y, 15.0, value_at_ref=1.0)
+    np.testing.assert_allclose(r, [0.0, 2.0, 6.0])
