@@ -7,7 +7,8 @@
 #   3. Cortex-M4F cross build (build-m4f/) + its ctest under QEMU
 #   4. Cortex-M3 cross build (build-m3/), fixed point only, + its ctest under QEMU
 #   5. libFuzzer run on the table loader (build-fuzz/, clang)
-#   6. pytest host_tools/tests
+#   6. the Python import contracts (lint-imports: host_tools' one-way layers)
+#   7. pytest host_tools/tests
 # Runs every step even after a failure; exits non-zero if any step failed.
 set -uo pipefail
 
@@ -64,6 +65,10 @@ fuzz() {
         ctest --test-dir build-fuzz --output-on-failure -L fuzz
 }
 
+import_contracts() {
+    (cd host_tools && "$REPO/.venv/bin/lint-imports")
+}
+
 pytest_all() {
     local rc
     (cd host_tools && "$REPO/.venv/bin/python" -m pytest -q -p no:cacheprovider tests)
@@ -79,6 +84,7 @@ step "host release build and ctest (build)" host_release
 step "Cortex-M4F build and ctest under QEMU (build-m4f)" cross m4f cortex-m4f
 step "Cortex-M3 build and ctest under QEMU (build-m3)" cross m3 cortex-m3
 step "libFuzzer run (build-fuzz)" fuzz
+step "Python import contracts (lint-imports)" import_contracts
 step "pytest host_tools/tests" pytest_all
 
 echo

@@ -30,7 +30,8 @@ import numpy as np
 # cases/ (the synthetic case generators) lives beside the package, not in it.
 sys.path.insert(0, str(__import__('pathlib').Path(__file__).resolve().parents[1]))
 
-from abbe.diagnose.selection import DiagnoseOptions, diagnose
+from abbe.diagnose.results import DiagnoseOptions
+from abbe.diagnose.selection import diagnose
 from cases.hidden_effects import HIDDEN_KEYS, compatible, hidden_case
 
 
@@ -105,7 +106,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
 
     cases = draw_cases(args.cases, args.seed)
-    from abbe.diagnose.checks import Evaluator
+    from abbe.diagnose.evaluator import Evaluator
     print(f"backend: {Evaluator(args.backend).backend}; {len(cases)} cases, seed {args.seed}, "
           f"noise {args.noise} um, model error {args.model_error} um, ballbar step "
           f"{args.step_deg} deg")

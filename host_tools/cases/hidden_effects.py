@@ -13,7 +13,6 @@ separate two ambiguous explanations.
 
 Units: mm, um, urad, s, ms.
 """
-
 from __future__ import annotations
 
 import math
@@ -22,19 +21,13 @@ from typing import Any
 
 import numpy as np
 
-from abbe.diagnose.checks import PLANE_AXES, BallbarCheck, Check, LaserChannel, LaserCheck
-from abbe.formats.blob import AXES, TERMS, Table
+from abbe.diagnose.checks import BallbarCheck, Check, LaserChannel, LaserCheck
+from abbe.model.geometry import PLANE_AXES
+from abbe.model.table import AXES, TERMS, Table
 
 TRAVEL_MM = {"X": (0.0, 500.0), "Y": (-400.0, 0.0), "Z": (-300.0, 0.0)}
 REFERENCE_MM = (163.626, -212.772, -290.704)
 CENTER_MM = (250.0, -200.0, -150.0)
-#: Laser channel map per axis (channel -> (term, sign)), as synthetic.MAPS.
-LASER_MAP: dict[str, dict[str, tuple[str, int]]] = {
-    "X": {"linear": ("dx", 1), "straight_h": ("dy", 1), "straight_v": ("dz", 1)},
-    "Y": {"linear": ("dy", 1), "straight_h": ("dx", 1), "straight_v": ("dz", 1)},
-    "Z": {"linear": ("dz", 1), "straight_h": ("dx", 1), "straight_v": ("dy", 1)},
-}
-
 #: Hidden-effect keys the generator knows (catalogue keys).
 HIDDEN_KEYS: tuple[str, ...] = (
     "squareness_xy", "squareness_xz", "squareness_yz",
@@ -46,9 +39,6 @@ HIDDEN_KEYS: tuple[str, ...] = (
     "tool_offset",
     "straightness_xy", "straightness_yx", "straightness_zx",
 )
-
-
-# --------------------------------------------------------------------------- truth
 
 
 def _shapes(rng: np.random.Generator, axis: str) -> dict[str, dict[str, Any]]:
@@ -96,66 +86,12 @@ def build_truth(seed: int, effects: Any = None, extra_bow: dict[tuple[str, str],
                         effects=effects if effects is not None else Effects())
 
 
-# --------------------------------------------------------------------------- geometry
-
-
-def ballbar_geometry(plane: str, name: str | None = None, radius_mm: float = 100.0,
-                     feed_mm_min: float = 1000.0, step_deg: float = 2.0, arc_deg: float = 10.0,
-                     pause_s: float = 1.0, center_mm: tuple[float, float, float] = CENTER_MM,
-                     t0_s: float = 0.0) -> dict[str, Any]:
-    """Samples of a CCW-then-CW ballbar test: direction, angle (deg), time (s)."""
-    om = math.degrees(feed_mm_min / 60.0 / radius_mm)  # deg/s
-    a_ccw = np.arange(-arc_deg, 360.0 + arc_deg + 1e-9, step_deg)
-    a_cw = a_ccw[::-1] + 0.5 * step_deg
-    t_ccw = t0_s + (a_ccw - a_ccw[0]) / om
-    t_cw = t_ccw[-1] + pause_s + (a_cw[0] - a_cw) / om
-    return {"name": name or f"ballbar_{plane.lower()}", "plane": plane,
-            "center_mm": center_mm, "radius_mm": radius_mm, "feed_mm_min": feed_mm_min,
-            "direction": np.array(["ccw"] * a_ccw.size + ["cw"] * a_cw.size),
-            "angle_deg": np.concatenate([a_ccw, a_cw]),
-            "time_s": np.concatenate([t_ccw, t_cw])}
-
-
-def ballbar_check_from(geom: dict[str, Any], radial_um: np.ndarray,
-                       reference_mm: tuple[float, float, float] = REFERENCE_MM) -> BallbarCheck:
-    return BallbarCheck(geom["name"], geom["plane"], geom["center_mm"], geom["radius_mm"],
-                        geom["feed_mm_min"], geom["direction"], geom["angle_deg"], radial_um,
-                        geom["time_s"], reference_mm, source="<synthetic>")
-
-
-def standard_checks(table: Table) -> list[Check]:
-    """Geometry of the usual tests for ``table`` (measured values 0): a ballbar in each
-    plane (centre mid-travel, R = min(100, 0.4 x the smaller span), F 1000 mm/min, CW + CCW)
-    and a laser line per axis through the reference point (linear + straightness)."""
-    mid = tuple(0.5 * (table.axes[a].travel_mm[0] + table.axes[a].travel_mm[1]) for a in AXES)
-    out: list[Check] = []
-    for plane in ("XY", "YZ", "ZX"):
-        a, b = PLANE_AXES[plane]
-        span = min(np.ptp(table.axes[AXES[a]].travel_mm), np.ptp(table.axes[AXES[b]].travel_mm))
-        g = ballbar_geometry(plane, radius_mm=float(min(100.0, 0.4 * span)), step_deg=4.0,
-                             center_mm=mid)  # type: ignore[arg-type]
-        out.append(ballbar_check_from(g, np.zeros(g["angle_deg"].size), table.reference_mm))
-    for a in AXES:
-        lo, hi = table.axes[a].travel_mm
-        tg = np.linspace(lo, hi, 11)
-        n_runs, T = 2, tg.size
-        order = np.arange(n_runs * 2 * T).reshape(n_runs, 2, T)
-        chans = [LaserChannel(ch, LASER_MAP[a][ch][0], LASER_MAP[a][ch][1],
-                              np.zeros((n_runs, 2, T))) for ch in LASER_MAP[a]]
-        out.append(LaserCheck(f"laser_{a}", a, table.reference_mm, tg, chans, order,
-                              table.reference_mm, time_s=order * 10.0))
-    return out
-
-
-# --------------------------------------------------------------------------- measuring
-
-
 def sim_ballbar(vm: Any, plane: str, t0_s: float, rng: np.random.Generator, *,
                 noise_um: float = 0.15, step_deg: float = 2.0, name: str | None = None,
                 radius_mm: float = 100.0, feed_mm_min: float = 1000.0,
                 center_mm: tuple[float, float, float] = CENTER_MM) -> tuple[BallbarCheck, float]:
     """A ballbar check measured by the simulator's instrument (abbe.sim.instruments)."""
-    from abbe.analysis.iso230_4 import CircleTest
+    from abbe.model.geometry import CircleTest
     from abbe.sim.instruments import circle_duration_s, simulate_ballbar
     setup = np.zeros(3)
     a, b = PLANE_AXES[plane]
@@ -215,9 +151,6 @@ def sim_laser(vm: Any, axis: str, t0_s: float, rng: np.random.Generator, *,
     return ck, run.duration_s
 
 
-# --------------------------------------------------------------------------- cases
-
-
 @dataclass
 class Case:
     """One hidden-effect case: model (lacking the hidden effects), checks, expectation.
@@ -248,8 +181,8 @@ def hidden_case(seed: int, hidden: tuple[str, ...] = (), *, noise_um: float = 0.
     ``checks``: names like "ballbar_xy", "laser_x" (default: the tests that see the
     hidden effects, plus one ballbar XY and laser X).
     """
-    from abbe.sim.virtual_machine import VirtualMachine
     from abbe.sim.truth import Effects, truth_table
+    from abbe.sim.virtual_machine import VirtualMachine
     rng = np.random.default_rng(seed)
     kw: dict[str, Any] = {"backlash_takeup_mm": (0.1, 0.1, 0.1)}
     expected: dict[str, float | None] = {}

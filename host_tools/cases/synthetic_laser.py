@@ -24,10 +24,11 @@ from typing import Callable
 
 import numpy as np
 
+from abbe.formats.machine import DEFAULT_MAPS as MAPS
+
 AXES = ("X", "Y", "Z")
 TRAVEL_MM = {"X": (0.0, 500.0), "Y": (-400.0, 0.0), "Z": (-300.0, 0.0)}
 REFERENCE_MM = (163.626, -212.772, -290.704)
-from abbe.formats.machine import DEFAULT_MAPS as MAPS  # noqa: E402  (one definition)
 OWN = {"X": "dx", "Y": "dy", "Z": "dz"}
 CSV_COLUMNS = ("run", "direction", "target_mm", "linear_um", "straight_h_um", "straight_v_um",
                "pitch_urad", "yaw_urad", "roll_urad", "time_s")

@@ -7,8 +7,8 @@ from typing import Any
 
 import numpy as np
 
-from abbe.analysis.iso230_4 import CircleTest
-from abbe.formats.blob import AXES, TERMS
+from abbe.model.geometry import CircleTest
+from abbe.model.table import AXES, TERMS
 from abbe.sim.truth import Effects, MachineTruth, build_axis
 
 TRAVEL = {"X": (0.0, 500.0), "Y": (-400.0, 0.0), "Z": (-300.0, 0.0)}

@@ -15,27 +15,12 @@ Unidirectional E, R, A per direction are reported as well. All values in um.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from abbe.errors import AbbeInputError
-
-
-@dataclass
-class PositioningData:
-    """Bidirectional positioning deviations of one axis.
-
-    targets_mm: (T,) ascending, mm. up_um, down_um: (n_runs, T) deviations
-    (measured minus target) of the ``+`` and ``-`` approaches, um.
-    """
-
-    source: str
-    targets_mm: np.ndarray
-    up_um: np.ndarray
-    down_um: np.ndarray
-    sha256: str = ""
+from abbe.formats.deviations import PositioningData
 
 
 @dataclass
@@ -128,23 +113,3 @@ def evaluate(data: PositioningData) -> Iso230Result:
         repeatability_um=ri, B_um=float(np.max(np.abs(bi))), R_um=float(np.max(ri)),
         E_um=float(both.max() - both.min()), A_um=float(A), M_um=float(mid.max() - mid.min()),
         unidirectional=uni)
-
-
-def load_positioning(path: str | Path) -> PositioningData:
-    """Positioning data from a file: ESS ecmc ``.dat`` (key=value) or a laser CSV.
-
-    The format is chosen by content: a file whose first non-comment line is
-    ``KEY=value`` is read as ``.dat`` (:mod:`abbe.formats.ess_dat`); otherwise as a laser CSV,
-    of which only run, direction, target_mm and linear_um are required (the
-    ``linear_um`` reading, instrument sign, is the deviation).
-    """
-    from abbe.formats import ess_dat as ess
-    from abbe.formats import laser_csv as laser  # local: keep this module import-light
-
-    path = Path(path)
-    if ess.looks_like_dat(path):
-        return ess.read_dat(path)
-    d = laser.read_laser_csv(path, channels=("linear",))
-    lin = d.channels["linear"]
-    return PositioningData(source=str(path), targets_mm=d.targets_mm, up_um=lin[:, 0, :],
-                           down_um=lin[:, 1, :], sha256=d.sha256)

@@ -1,9 +1,9 @@
-"""Ballbar prediction through the C library, and compensation in the loop.
+"""Prediction through the model: a ballbar test from a fitted table, against the measurement.
 
-The paper's §4 in code: predict a circular test from a fitted model, compare
-it with the measurement (Fig. 8), compute the roundness if the predicted error
-were removed exactly (the "ideal compensation"), and run the circle again on
-the virtual machine with the C compensator correcting each interpolation cycle.
+The paper's §4 in code: predict a circular test from a fitted model (through the
+C library), compare it with the measurement (Fig. 8), and compute the roundness
+if the predicted error were removed exactly (the "ideal compensation").
+Compensation in the loop on the virtual machine is :mod:`abbe.sim.compensation`.
 
 Units: positions mm, radial deviations um. "Roundness" is the ISO 230-4
 bidirectional circular deviation G (one least-squares circle through the CCW
@@ -12,27 +12,27 @@ and the CW run, max - min of the residual), the figure ballbar software quotes.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from abbe.model import clib
-from abbe.analysis.iso230_4 import (BallbarResult, BallbarTrace, CircleTest, evaluate_ballbar, fit_circle,
-                          from_machine, predict_ballbar, read_ballbar_csv)
+from abbe.analysis.iso230_4 import BallbarResult, evaluate_ballbar, fit_circle
 from abbe.errors import AbbeInputError
+from abbe.formats.ballbar_csv import BallbarTrace, read_ballbar_csv
+from abbe.formats.blob import read_blob
 from abbe.formats.machine import Machine
-from abbe.formats.blob import AXES, Table, read_blob
-
-# Compensator settings for the virtual machine's 1 kHz interpolation cycle: the
-# same safety layer a drive would run (limits, rate limit, fades, watchdog).
-DEMO_COMP_CONFIG: dict[str, Any] = {
-    "warn_nm": 30_000, "limit_nm": 100_000,   # 30 um warning, 100 um fault
-    "rate_nm_per_cycle": 500,                 # 0.5 um per ms
-    "fade_cycles": 500, "stale_cycles": 5, "axis_sign": 1,
-}
+from abbe.model import clib
+from abbe.model.evaluate import model_error_um
+from abbe.model.geometry import (
+    CircleTest,
+    circle_points,
+    from_machine,
+    radial_units,
+    travel_direction,
+)
+from abbe.model.table import AXES, Table
 
 
 @dataclass
@@ -173,35 +173,62 @@ def plot_prediction(p: Prediction, path: str | Path, title: str | None = None) -
     plt.close(fig)
 
 
-def compensated_circle(truth_path: str | Path, test: CircleTest, blob: bytes, start_time_s: float,
-                       noise_um: float, seed: int,
-                       config: dict[str, Any] | None = None) -> tuple[BallbarTrace, dict[str, int]]:
-    """Run ``test`` on the virtual machine of ``truth_path`` with the C compensator
-    (model ``blob``) in the loop at 1 kHz, and measure it with the ballbar.
+def direction_states(test: Any, angle_deg: np.ndarray, direction: np.ndarray,
+                     takeup_mm: tuple[float, float, float] | None = None) -> np.ndarray:
+    """Backlash direction state (N, 3) along the commanded samples, in their order.
 
-    Returns the measured trace and the compensator's counters.
+    Without take-up (None or 0): the direction of motion (0 at a reversal point).
+    With take-up: the state ramps by 2 dp / take-up along the path (as the library's
+    compensator does), starting from the direction of the first motion of each axis.
     """
-    from abbe.sim.instruments import ccompensator_step, run_circle_with_compensation
-    from abbe.sim.virtual_machine import VirtualMachine
-    from abbe.sim.truth import load_truth
+    from abbe.model.backlash import backlash_state
 
-    vm = VirtualMachine(load_truth(truth_path))
-    comp = clib.CCompensator(config or DEMO_COMP_CONFIG)
-    comp.load_model(blob)
-    comp.enable()
-    trace = run_circle_with_compensation(vm, test, ccompensator_step(comp), start_time_s=start_time_s,
-                                         noise_um=noise_um, rng=np.random.default_rng(seed))
-    return trace, comp.stats()
+    ang = np.asarray(angle_deg, dtype=np.float64).reshape(-1)
+    inst = travel_direction(test, ang, np.asarray(direction).reshape(-1))
+    if takeup_mm is None:
+        return inst
+    pos = circle_points(test, ang)
+    out = inst.copy()
+    for j in range(3):
+        if not takeup_mm[j] or takeup_mm[j] <= 0:
+            continue
+        nz = np.nonzero(inst[:, j])[0]
+        s0 = float(inst[nz[0], j]) if nz.size else 1.0
+        out[:, j] = backlash_state(pos[:, j], float(takeup_mm[j]), s0)
+    return out
 
 
-def campaign_test(truth_path: str | Path, name: str) -> tuple[CircleTest, float, float, float]:
-    """The simulated test ``name`` as the campaign ran it (with its simulation
-    settings), its end time (s), the gap between tests (s) and the ballbar noise (um)."""
-    d = json.loads(Path(truth_path).read_text(encoding="utf-8"))
-    entry = d["campaign"][f"ballbar.{name}"]
-    fields = {k: v for k, v in entry.items() if k not in ("start_s", "end_s")}
-    for k in ("center_mm", "setup_offset_um"):
-        if k in fields:
-            fields[k] = tuple(fields[k])
-    test = CircleTest(name=name, **fields)
-    return test, float(entry["end_s"]), float(d.get("gap_s", 0.0)), float(d["noise"]["ballbar_um"])
+def predict_ballbar(model: Any, test: Any, angle_deg: np.ndarray | None = None,
+                    direction: np.ndarray | None = None, temp_c: np.ndarray | None = None,
+                    backlash: bool = True,
+                    takeup_mm: tuple[float, float, float] | None = None) -> np.ndarray:
+    """Predicted ballbar radial deviation (um) per sample: ``u_r . E_model`` at the
+    commanded points.
+
+    ``angle_deg``/``direction``: the samples in the order run (e.g. a measured
+    trace's, feed arcs included); default one CCW revolution at 1 deg. Backlash
+    direction state: :func:`direction_states` with the take-up ``takeup_mm`` (default:
+    the Table's ``backlash_takeup_mm``; instantaneous for other models), off if
+    ``backlash`` is False. ``temp_c`` (N, 3) axis temperatures or None (no thermal).
+    Dynamic effects (servo lag) are not predicted.
+    """
+    from abbe.model.table import AXES, Table
+
+    if angle_deg is None:
+        angle_deg = np.arange(0.0, 360.0, 1.0)
+    ang = np.asarray(angle_deg, dtype=np.float64).reshape(-1)
+    dirs = (np.full(ang.size, "ccw") if direction is None
+            else np.asarray(direction).reshape(-1))
+    pos = circle_points(test, ang)
+    ds = None
+    if backlash:
+        if takeup_mm is None and isinstance(model, Table):
+            takeup_mm = tuple(float(model.axes[a].backlash_takeup_mm) for a in AXES)
+        ds = direction_states(test, ang, dirs, takeup_mm)
+    err = model_error_um(model, pos, ds, temp_c)
+    return np.einsum("ni,ni->n", radial_units(test.plane, ang), err)
+
+
+def predict_trace(model: Any, trace: BallbarTrace, test: Any, **kw: Any) -> np.ndarray:
+    """:func:`predict_ballbar` at the samples of ``trace``."""
+    return predict_ballbar(model, test, trace.angle_deg, trace.direction, **kw)

@@ -31,8 +31,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     # imported here: abbe.analysis.iso230_4 pulls in scipy, which every other command would pay for
-    from abbe.analysis.iso230_4 import (check_test_in_travel, check_trace_timing, evaluate_ballbar,
-                              from_machine, plot_polar, read_ballbar_csv)
+    from abbe.analysis.iso230_4 import evaluate_ballbar, plot_polar
+    from abbe.formats.ballbar_csv import check_trace_timing, read_ballbar_csv
+    from abbe.model.geometry import check_test_in_travel, from_machine
 
     m = load_machine(args.machine)
     if args.name not in m.ballbar:

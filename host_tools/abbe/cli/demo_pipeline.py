@@ -19,11 +19,12 @@ from typing import Any, Callable
 
 import numpy as np
 
-from abbe.model import clib
 from abbe.analysis.iso230_4 import BallbarResult, evaluate_ballbar, plot_polar
+from abbe.analysis.predict import Prediction, plot_prediction, predict
 from abbe.errors import AbbeInputError
 from abbe.formats.machine import load_machine
-from abbe.analysis.predict import Prediction, campaign_test, compensated_circle, plot_prediction, predict
+from abbe.model import clib
+from abbe.sim.compensation import campaign_test, compensated_circle
 
 # The paper's §3-4 figures (Zhang & Chen 2021), for comparison in the report.
 PAPER = {"prediction_max_residual_um": 4.5, "roundness_before_um": 19.9, "roundness_after_um": 8.2,
@@ -115,7 +116,8 @@ def run_demo(example_dir: Path, out_dir: Path, *, diagnose: bool = True,
              log: Callable[[str], None] = print) -> DemoResult:
     """Run the whole pipeline on ``example_dir`` (machine.toml, laser/, ballbar/,
     truth/) and write the report into ``out_dir``."""
-    from abbe.cli.entry import COMMANDS, main as cli_main
+    from abbe.cli.entry import COMMANDS
+    from abbe.cli.entry import main as cli_main
 
     t_start = time.perf_counter()
     res = DemoResult()
@@ -229,6 +231,7 @@ def run_demo(example_dir: Path, out_dir: Path, *, diagnose: bool = True,
 
 
 # --------------------------------------------------------------------------- report
+
 
 def _td(v: Any, nd: int = 2) -> str:
     if v is None:

@@ -47,9 +47,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from abbe.diagnose.selection import DiagnoseOptions, diagnose_machine, diagnose_positioning
-    from abbe.diagnose.report import format_text, write_outputs
     from abbe.diagnose.effects import catalogue
+    from abbe.diagnose.report import format_text, write_outputs
+    from abbe.diagnose.results import DiagnoseOptions
+    from abbe.diagnose.run import diagnose_machine, diagnose_positioning
     from abbe.errors import AbbeInputError
 
     if args.candidates:

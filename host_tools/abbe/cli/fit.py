@@ -20,7 +20,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from abbe.analysis.fit.select import MODELS
+from abbe.analysis.fit.options import MODELS
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -116,7 +116,7 @@ def write_outputs(res, out: Path, report: bool = True, times: dict | None = None
                   t0: float = 0.0) -> None:
     """Write every output into a temp dir beside ``out``, then move them into place."""
     from abbe.analysis.fit.report import write_report
-    from abbe.formats.blob import write_c
+    from abbe.formats.c_source import write_c
 
     out = Path(out)
     parent = out.resolve().parent

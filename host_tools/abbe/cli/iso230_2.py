@@ -6,7 +6,8 @@ import argparse
 import json
 import sys
 
-from abbe.analysis.iso230_2 import evaluate, load_positioning
+from abbe.analysis.iso230_2 import evaluate
+from abbe.formats.positioning import load_positioning
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

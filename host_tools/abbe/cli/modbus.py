@@ -18,9 +18,16 @@ import time
 from pathlib import Path
 
 from abbe.errors import AbbeInputError
-from abbe.ports.modbus_client import (REGMAP_VERSION, ModbusError, ModbusLink, flag_names,
-                                parse_endpoint, result_name)
-from abbe.formats.blob import blob_crc, feature_names, read_blob
+from abbe.formats.blob import blob_crc, read_blob
+from abbe.model.table import feature_names
+from abbe.ports.modbus_client import (
+    REGMAP_VERSION,
+    ModbusError,
+    ModbusLink,
+    flag_names,
+    parse_endpoint,
+    result_name,
+)
 
 
 def _add_endpoint(p: argparse.ArgumentParser) -> None:

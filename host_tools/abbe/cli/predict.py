@@ -26,8 +26,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from abbe.formats.machine import load_machine
     from abbe.analysis.predict import plot_prediction, predict
+    from abbe.formats.machine import load_machine
 
     machine = load_machine(args.machine)
     results = [predict(machine, args.model, name) for name in args.ballbar]  # all or nothing

@@ -26,9 +26,9 @@ def linearisation_check(spec, n: int = 4000) -> float:
     import numpy as np
 
     from abbe.model.reference import spatial_error
-    from abbe.sim.virtual_machine import VirtualMachine
-    from abbe.formats.blob import AXES
+    from abbe.model.table import AXES
     from abbe.sim.truth import truth_table
+    from abbe.sim.virtual_machine import VirtualMachine
 
     truth = spec.truth()
     vm = VirtualMachine(truth)

@@ -19,8 +19,11 @@ from pathlib import Path
 import numpy as np
 
 from abbe.errors import AbbeInputError
-from abbe.formats.blob import (AXES, LINEAR_TERMS, Table, atomic_write, blob_crc, feature_names,
-                        read_blob, table_from_json, table_to_json, write_blob, write_c)
+from abbe.formats.blob import blob_crc, read_blob, write_blob
+from abbe.formats.c_source import write_c
+from abbe.formats.output import atomic_write
+from abbe.formats.table_json import table_from_json, table_to_json
+from abbe.model.table import AXES, LINEAR_TERMS, Table, feature_names
 
 
 def _read_bin(path: Path) -> tuple[bytes, Table]:

@@ -8,7 +8,7 @@ replicate cell, hold-out folds), the nuisance columns that are always allowed
 set-up slopes, per-run offsets where the instrument was re-zeroed) and a
 ``predict(evaluator, table, pred_params)`` function.
 
-Predictions go through an :class:`Evaluator`: the C library (``abbe.model.clib``,
+Predictions go through an :class:`abbe.diagnose.evaluator.Evaluator`: the C library (``abbe.model.clib``,
 ``abbe_error_eval_f32`` / ``abbe_term_eval_f32`` on the blob written by
 ``abbe.formats.blob.write_blob``) by default, or the float64 reference
 (``abbe.model.reference``) of the quantized table.
@@ -20,154 +20,24 @@ run or K as stated by ``drift_unit``).
 from __future__ import annotations
 
 import math
-from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from abbe.diagnose.effects import OWN_SIGN, OWN_TERM, PredParams
+from abbe.diagnose.effects import PredParams
+from abbe.diagnose.evaluator import Evaluator
 from abbe.errors import AbbeInputError
-from abbe.formats.blob import AXES, Table, write_blob
-
-PLANE_AXES: dict[str, tuple[int, int]] = {"XY": (0, 1), "ZX": (2, 0), "YZ": (1, 2)}
-LINEAR_TERMS = ("dx", "dy", "dz")
-
-
-# --------------------------------------------------------------------------- evaluation backend
-
-
-class Evaluator:
-    """Evaluates tables: ``backend`` "c" (C library, f32 path), "reference" (float64
-    reference of the quantized table) or "auto" (C if the library loads).
-
-    Loaded models are cached by blob bytes (small LRU). ``calls`` counts model
-    evaluations (for the benchmark).
-    """
-
-    def __init__(self, backend: str = "auto", cache: int = 64) -> None:
-        if backend not in ("auto", "c", "reference"):
-            raise ValueError(f"backend {backend!r}: expected auto, c or reference")
-        if backend in ("auto", "c"):
-            from abbe.model import clib
-            ok = clib.available()
-            if not ok and backend == "c":
-                raise AbbeInputError(
-                    f"the C library is not built ({clib.library_path()} missing): build it "
-                    "with cmake (target abbe_shared) or set ABBE_LIB", field="backend")
-            backend = "c" if ok else "reference"
-        self.backend = backend
-        self._cache: OrderedDict[bytes, Any] = OrderedDict()
-        self._size = cache
-        self.calls = 0
-
-    def model(self, table: Table) -> Any:
-        """The loaded model of ``table`` (CModel or quantized Table)."""
-        blob = write_blob(table)
-        m = self._cache.get(blob)
-        if m is not None:
-            self._cache.move_to_end(blob)
-            return m
-        if self.backend == "c":
-            from abbe.model.clib import CModel
-            m = CModel(blob)
-        else:
-            from abbe.formats.blob import read_blob
-            m = read_blob(blob)
-        self._cache[blob] = m
-        if len(self._cache) > self._size:
-            self._cache.popitem(last=False)
-        return m
-
-    def error(self, table: Table, pos_mm: np.ndarray, dir_state: np.ndarray | None = None,
-              temp_c: np.ndarray | None = None) -> np.ndarray:
-        """Spatial error (N, 3) um at positions (N, 3) mm."""
-        m = self.model(table)
-        pos = np.asarray(pos_mm, dtype=np.float64).reshape(-1, 3)
-        self.calls += 1
-        if self.backend == "c":
-            err, _ = m.error_f32(pos, dir_state, temp_c)
-            return np.asarray(err, dtype=np.float64)
-        from abbe.model.reference import spatial_error
-        return spatial_error(m, pos, dir_state, temp_c)
-
-    def term(self, table: Table, axis: str, term: str, pos_mm: np.ndarray) -> np.ndarray:
-        """Fitted term value (um / urad) at axis positions (N,) mm (no backlash/thermal)."""
-        m = self.model(table)
-        p = np.asarray(pos_mm, dtype=np.float64).reshape(-1)
-        self.calls += 1
-        if self.backend == "c":
-            return m.term_f32(axis, term, p)
-        from abbe.model.reference import term_values
-        return term_values(m, axis, term, p)
-
-    def own_extra(self, table: Table, axis: str, pos_mm: np.ndarray, dir_state: np.ndarray,
-                  temp_c: np.ndarray | None) -> np.ndarray:
-        """Backlash + thermal addition to the own positioning term of ``axis`` (um),
-        through the library: the difference of the spatial error with and without the
-        direction state / temperature, on the axis' own component."""
-        ax = table.axes[axis]
-        has_b = bool(ax.backlash_um)
-        has_t = temp_c is not None and bool(ax.thermal_expansion_ppm_per_k
-                                            or ax.thermal_offset_um_per_k)
-        pos = np.asarray(pos_mm, dtype=np.float64).reshape(-1, 3)
-        if not (has_b or has_t):
-            return np.zeros(pos.shape[0])
-        j = AXES.index(axis)
-        with_ = self.error(table, pos, dir_state if has_b else None, temp_c if has_t else None)
-        without = self.error(table, pos, None, None)
-        return OWN_SIGN[axis] * (with_[:, j] - without[:, j])
-
-
-# --------------------------------------------------------------------------- helpers
-
-
-def direction_state(pos_mm: np.ndarray, takeup_mm: float, s0: float | None = None) -> np.ndarray:
-    """Backlash direction state s in [-1, 1] along a polyline path of positions (N,) mm.
-
-    s changes by 2 dp / takeup while the axis moves and is clipped to [-1, 1] (the
-    library compensator's model); standstill keeps it. ``s0`` defaults to the sign of
-    the first motion. ``takeup_mm`` <= 0: s is the sign of the motion (0 at rest).
-    """
-    p = np.asarray(pos_mm, dtype=np.float64).reshape(-1)
-    n = p.size
-    out = np.zeros(n)
-    if n < 2:
-        return out
-    dp = np.diff(p)
-    if s0 is None:
-        nz = np.flatnonzero(np.abs(dp) > 1e-12)
-        s0 = float(np.sign(dp[nz[0]])) if nz.size else 0.0
-    if takeup_mm <= 0:
-        sg = np.sign(dp)
-        out[1:] = sg
-        out[0] = s0
-        return out
-    k = 2.0 / float(takeup_mm)
-    s = float(np.clip(s0, -1.0, 1.0))
-    out[0] = s
-    # Piecewise: s_{i+1} = clip(s_i + k dp_i); loop in numpy-sized chunks of equal sign.
-    sg = np.sign(dp)
-    i = 0
-    while i < n - 1:
-        j = i
-        while j + 1 < n - 1 and sg[j + 1] == sg[i]:
-            j += 1
-        seg = np.cumsum(dp[i:j + 1])
-        out[i + 1:j + 2] = np.clip(s + k * seg, -1.0, 1.0)
-        s = out[j + 1]
-        i = j + 1
-    return out
+from abbe.model.backlash import direction_state
+from abbe.model.geometry import PLANE_AXES
+from abbe.model.table import AXES, LINEAR_TERMS, OWN_SIGN, OWN_TERM, Table
 
 
 def _outside_msg(axis: str, lo: float, hi: float, vmin: float, vmax: float) -> str:
     return (f"spans {axis} = [{vmin:g}, {vmax:g}] mm but the model covers only "
             f"[{lo:g}, {hi:g}] mm of axis {axis}: the check is outside the model's travel "
             "(or the model belongs to another machine)")
-
-
-# --------------------------------------------------------------------------- checks
 
 
 @dataclass
@@ -502,9 +372,6 @@ class LaserCheck(Check):
         return extra
 
 
-# --------------------------------------------------------------------------- builders
-
-
 def check_travel(checks: list[Check], table: Table, tol_mm: float = 1e-3) -> None:
     """Every check must lie inside the model's travel (else AbbeInputError)."""
     for c in checks:
@@ -521,7 +388,8 @@ def check_travel(checks: list[Check], table: Table, tol_mm: float = 1e-3) -> Non
 
 def ballbar_check(machine: Any, name: str, reference_mm: tuple[float, float, float]) -> BallbarCheck:
     """Read the ballbar test ``name`` of a machine file into a check."""
-    from abbe.analysis.iso230_4 import check_trace_timing, from_machine, read_ballbar_csv
+    from abbe.formats.ballbar_csv import check_trace_timing, read_ballbar_csv
+    from abbe.model.geometry import from_machine
     if name not in machine.ballbar:
         raise AbbeInputError(f"no [ballbar.{name}] section; the machine file has "
                              f"{sorted(machine.ballbar) or 'none'}", file=str(machine.path),
@@ -561,8 +429,8 @@ def positioning_check(path: str | Path, axis: str, reference_mm: tuple[float, fl
                       rezeroed: bool = False) -> LaserCheck:
     """ISO 230-2 positioning data (ESS ecmc .dat, or a laser CSV's linear channel) of
     ``axis`` as a check: deviation = + own positioning term."""
-    from abbe.analysis.iso230_2 import load_positioning
     from abbe.formats import ess_dat as ess
+    from abbe.formats.positioning import load_positioning
     path = Path(path)
     data = load_positioning(path)
     n_runs, T = data.up_um.shape
@@ -594,8 +462,8 @@ def position_only_table(check: LaserCheck, travel_mm: tuple[float, float] | None
     and up to 8 harmonics, plus a Chebyshev trend for the remaining functions, at most
     degree 7; least squares if more than 24 targets), zero at the reference point; no
     backlash, no drift; the other axes carry no terms. Units um, mm."""
-    from abbe.formats.blob import AxisTable, FourierBlock, basis_matrix
-    from abbe.diagnose.effects import OWN_TERM as OWN
+    from abbe.model.table import OWN_TERM as OWN
+    from abbe.model.table import AxisTable, FourierBlock, basis_matrix
     a = check.axis
     tg = check.targets
     ch = next(c for c in check.channels if c.term == OWN[a])

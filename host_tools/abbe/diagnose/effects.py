@@ -1,7 +1,7 @@
 """Catalogue of the effects ``abbe diagnose`` can name (docs/effects.md).
 
 Each candidate effect is a set of **extra parameters of the model**: either a
-change of the :class:`abbe.formats.blob.Table` (squareness, backlash, scale, cyclic
+change of the :class:`abbe.model.table.Table` (squareness, backlash, scale, cyclic
 block, tool offset, straightness bow, thermal coefficients) or a parameter of
 the *prediction model* that the table cannot hold (servo lag, a time-driven
 drift). :meth:`EffectSpec.apply` returns the modified (table, prediction
@@ -26,20 +26,15 @@ from typing import Callable
 
 import numpy as np
 
-from abbe.formats.blob import AXES, AxisTable, FourierBlock, Table, basis_matrix
+from abbe.model.geometry import PLANE_AXES, PLANES
+from abbe.model.table import AXES, OWN_TERM, AxisTable, FourierBlock, Table, basis_matrix
 
-OWN_TERM: dict[str, str] = {"X": "dx", "Y": "dy", "Z": "dz"}
-#: Sign with which an axis' own positioning term enters its component of Eq. 3.
-OWN_SIGN: dict[str, int] = {"X": -1, "Y": -1, "Z": +1}
-PLANES: dict[str, tuple[int, int]] = {"XY": (0, 1), "YZ": (1, 2), "ZX": (2, 0)}
-SERVO_PLANES: tuple[str, ...] = ("XY", "YZ", "ZX")
+#: Order of the servo-mismatch parameters (one per plane).
+SERVO_PLANES: tuple[str, ...] = PLANES
 
 
 class NotRepresentable(Exception):
     """The effect cannot be put into this table (e.g. no free Fourier block)."""
-
-
-# --------------------------------------------------------------------------- prediction parameters
 
 
 @dataclass
@@ -82,12 +77,9 @@ class PredParams:
 
     def plane_lags_ms(self, plane: str) -> tuple[float, float]:
         """Lags (ms) of the plane's first and second axis on a circle in ``plane``."""
-        a, b = PLANES[plane]
+        a, b = PLANE_AXES[plane]
         d = float(self.servo_mismatch_ms[SERVO_PLANES.index(plane)])
         return float(self.servo_lag_ms[a]) - 0.5 * d, float(self.servo_lag_ms[b]) + 0.5 * d
-
-
-# --------------------------------------------------------------------------- table editing
 
 
 def copy_table(t: Table) -> Table:
@@ -179,9 +171,6 @@ def add_shape(t: Table, axis: str, term: str, fn_coef: Callable[[AxisTable], np.
             add = np.concatenate([[0.0], add])
         add[0] -= _value_at(ax, add, ref)
     ax.coef[term] = np.asarray(ax.coef[term], dtype=np.float64) + add
-
-
-# --------------------------------------------------------------------------- catalogue
 
 
 @dataclass(frozen=True)
@@ -386,7 +375,5 @@ def catalogue() -> list[EffectSpec]:
 def by_key() -> dict[str, EffectSpec]:
     """Catalogue indexed by key."""
     return {e.key: e for e in catalogue()}
-
-
 #: Nonlinear scan grids.
 BACKLASH_TAKEUP_GRID_MM: tuple[float, ...] = (0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0)

@@ -28,8 +28,8 @@ from typing import Any
 
 import numpy as np
 
-from abbe.diagnose.selection import DiagnoseResult, EffectResult
 from abbe.diagnose.checks import BallbarCheck, Check, LaserCheck
+from abbe.diagnose.results import DiagnoseResult, EffectResult
 
 
 def _fmt(v: float, nd: int = 3) -> str:
@@ -220,7 +220,9 @@ def write_outputs(res: DiagnoseResult, out_dir: str | Path, json_path: str | Pat
                   plots: bool = True, extra_json: dict[str, Any] | None = None) -> dict[str, Path]:
     """Write the updated table (blob, C, JSON), diagnose.json, report.txt and plots into
     ``out_dir`` atomically; also ``json_path`` if given. Returns name -> path."""
-    from abbe.formats.blob import table_to_json, write_blob, write_c
+    from abbe.formats.blob import write_blob
+    from abbe.formats.c_source import write_c
+    from abbe.formats.table_json import table_to_json
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=".abbe-diagnose-", dir=out))

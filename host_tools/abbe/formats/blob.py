@@ -1,12 +1,9 @@
-"""The abbe coefficient table: in-memory model, binary blob, JSON and generated C.
+"""The binary table blob (format 1.0, docs/table-format.md): writer, reader, quantisation.
 
 The binary layout, the integer encodings and the validation order are specified
-in ``docs/table-format.md`` (format 1.0); this module is the host-side writer and
-reader of that format.
-
-Units of the in-memory :class:`Table`: positions, travels, periods in mm; linear
-coefficients in um; angular coefficients and squareness in urad; backlash in um;
-thermal expansion in ppm/K, thermal offset in um/K, reference temperature in deg C.
+in ``docs/table-format.md``; this module is the host-side writer and reader of
+that format. :func:`read_blob` applies every check of the C loader, in its order,
+and raises :class:`abbe.model.table.TableError` with the same status name.
 
 Integer encodings in the blob (rounded to nearest on writing):
 
@@ -24,205 +21,54 @@ temperature            m°C
 from __future__ import annotations
 
 import math
-import os
 import struct
-import tempfile
 import zlib
-from dataclasses import dataclass, field, replace
-from pathlib import Path
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
-from abbe.errors import AbbeInputError
+from abbe.model.table import (
+    AXES,
+    FEATURE_ALL,
+    FEATURE_BACKLASH,
+    FEATURE_SQUARENESS,
+    FEATURE_THERMAL,
+    FEATURE_TOOL_OFFSET,
+    LINEAR_TERMS,
+    MAX_DEGREE,
+    MAX_HARMONICS,
+    NO_TREND,
+    TERMS,
+    AxisTable,
+    FourierBlock,
+    Table,
+    TableError,
+    basis_matrix,
+)
 
-AXES: tuple[str, str, str] = ("X", "Y", "Z")
-TERMS: tuple[str, ...] = ("dx", "dy", "dz", "ex", "ey", "ez")
-LINEAR_TERMS: tuple[str, ...] = ("dx", "dy", "dz")
-ANGULAR_TERMS: tuple[str, ...] = ("ex", "ey", "ez")
 FORMAT_MAJOR, FORMAT_MINOR = 1, 0
-
-# Feature bits of the header.
-FEATURE_SQUARENESS = 0x1
-FEATURE_TOOL_OFFSET = 0x2
-FEATURE_BACKLASH = 0x4
-FEATURE_THERMAL = 0x8
-FEATURE_ALL = 0xF
-FEATURE_NAMES: dict[int, str] = {
-    FEATURE_SQUARENESS: "SQUARENESS",
-    FEATURE_TOOL_OFFSET: "TOOL_OFFSET",
-    FEATURE_BACKLASH: "BACKLASH",
-    FEATURE_THERMAL: "THERMAL",
-}
-
 MAGIC = b"ABBE"
 HEADER_SIZE = 64
 AXIS_RECORD_SIZE = 64
 COEF_START = HEADER_SIZE + 3 * AXIS_RECORD_SIZE  # 256
 MIN_TOTAL_SIZE = COEF_START + 4  # 260
-MAX_DEGREE = 7
-NO_TREND = 255
-MAX_HARMONICS = 8
-
 LIN_FRAC_BITS = 8   # linear coefficients: 2^-8 nm
 ANG_FRAC_BITS = 36  # angular coefficients and squareness: 2^-36 rad
 LIN_SUM_CAP = 1 << 32   # sum |int32 coef| of a linear term (16.7 mm)
 ANG_SUM_CAP = 1 << 28   # sum |int32 coef| of an angular term (3906 urad)
 SQUARENESS_CAP = 1 << 28
-
 INT32_MIN, INT32_MAX = -(1 << 31), (1 << 31) - 1
-
 # Unit factors: float value in table units -> integer units.
 _UM_TO_Q8 = 1000.0 * (1 << LIN_FRAC_BITS)          # um -> 2^-8 nm
 _URAD_TO_Q36_NUM = float(1 << ANG_FRAC_BITS)       # urad * 2^36 / 1e6 -> 2^-36 rad
 _PPM_K_TO_Q50_NUM = float(1 << 50)                 # ppm/K * 2^50 / 1e9 -> 2^-50 per mK
 _UM_K_TO_Q16 = float(1 << 16)                      # um/K == nm/mK -> 2^-16 nm per mK
-
 _HEADER_FMT = "<4sHHIIII3i3i3iI"
 _AXIS_FMT = "<iiBBBB2i2iiiiiiIIII"
 assert struct.calcsize(_HEADER_FMT) == HEADER_SIZE
 assert struct.calcsize(_AXIS_FMT) == AXIS_RECORD_SIZE
 
-
-class TableError(AbbeInputError):
-    """A table that cannot be written or read.
-
-    ``status`` is the name of the C status the library returns for the same
-    problem (``"ABBE_E_CRC"``, ``"ABBE_E_RANGE"``, ...).
-    """
-
-    def __init__(self, message: str, *, status: str, file: str | None = None,
-                 line: int | None = None, field: str | None = None) -> None:
-        self.status = status
-        super().__init__(f"{message} ({status})", file=file, line=line, field=field)
-
-
-@dataclass
-class FourierBlock:
-    """One Fourier block: ``harmonics`` sin/cos pairs of period ``period_mm``,
-    phase 0 at position ``origin_mm`` (both mm, machine coordinates)."""
-
-    period_mm: float
-    origin_mm: float
-    harmonics: int  # 1..8
-
-
-@dataclass
-class AxisTable:
-    """The fitted error terms of one axis.
-
-    ``coef[term]`` holds the ``n_basis()`` coefficients of a present term in the
-    table's row order (:meth:`row_names`): um for dx/dy/dz, urad for ex/ey/ez.
-    A term absent from ``coef`` is not in the table (evaluates to 0).
-    """
-
-    travel_mm: tuple[float, float]
-    trend_degree: int | None = None
-    blocks: tuple[FourierBlock | None, FourierBlock | None] = (None, None)
-    coef: dict[str, np.ndarray] = field(default_factory=dict)
-    backlash_um: float = 0.0
-    backlash_takeup_mm: float = 0.0
-    thermal_expansion_ppm_per_k: float = 0.0
-    thermal_offset_um_per_k: float = 0.0
-    thermal_tref_c: float = 0.0
-
-    def n_trend(self) -> int:
-        """Rows of the trend block (degree + 1, or 0 without trend)."""
-        return 0 if self.trend_degree is None else int(self.trend_degree) + 1
-
-    def n_basis(self) -> int:
-        """Number of basis functions (rows of the coefficient matrix)."""
-        n = self.n_trend()
-        for blk in self.blocks:
-            if blk is not None:
-                n += 2 * int(blk.harmonics)
-        return n
-
-    def row_names(self) -> list[str]:
-        """Row names in table order: ``T0..TD``, ``sin1(b0)``, ``cos1(b0)``, ..."""
-        names = [f"T{k}" for k in range(self.n_trend())]
-        for b, blk in enumerate(self.blocks):
-            if blk is None:
-                continue
-            for h in range(1, int(blk.harmonics) + 1):
-                names += [f"sin{h}(b{b})", f"cos{h}(b{b})"]
-        return names
-
-    def present_terms(self) -> list[str]:
-        """Terms in the table, in TERMS order."""
-        return [t for t in TERMS if t in self.coef]
-
-
-@dataclass
-class Table:
-    """The geometric error model of one 3-axis machine (all three axes present).
-
-    ``reference_mm``: the reference point (machine coordinates, mm);
-    ``tool_offset_mm``: tool tip relative to the spindle reference point (mm);
-    ``squareness_urad``: S_xy, S_xz, S_yz (urad).
-    """
-
-    axes: dict[str, AxisTable]
-    reference_mm: tuple[float, float, float]
-    tool_offset_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    squareness_urad: tuple[float, float, float] = (0.0, 0.0, 0.0)
-
-    def features(self) -> int:
-        """Feature bits implied by the non-zero fields (as given; write_blob
-        derives them from the quantized values)."""
-        f = 0
-        if any(v != 0 for v in self.squareness_urad):
-            f |= FEATURE_SQUARENESS
-        if any(v != 0 for v in self.tool_offset_mm):
-            f |= FEATURE_TOOL_OFFSET
-        for ax in self.axes.values():
-            if ax.backlash_um != 0 or ax.backlash_takeup_mm != 0:
-                f |= FEATURE_BACKLASH
-            if (ax.thermal_expansion_ppm_per_k != 0 or ax.thermal_offset_um_per_k != 0
-                    or ax.thermal_tref_c != 0):
-                f |= FEATURE_THERMAL
-        return f
-
-
-def feature_names(features: int) -> list[str]:
-    """Names of the set feature bits."""
-    return [name for bit, name in FEATURE_NAMES.items() if features & bit]
-
-
-# --------------------------------------------------------------------------- basis
-
-def basis_matrix(axis: AxisTable, pos_mm: np.ndarray) -> np.ndarray:
-    """Basis functions of ``axis`` at positions ``pos_mm`` (mm), shape (N, n_basis).
-
-    Positions are clamped to the travel first (end value held), then the rows
-    follow the table: Chebyshev T_0..T_D of the normalised travel
-    u = (2p - min - max) / (max - min), then sin(k phi_b), cos(k phi_b) for
-    each block, phi_b = 2 pi (p - origin_b) / period_b. The fit uses this as
-    its design matrix, so a term's value is ``basis_matrix(...) @ coef``.
-    """
-    p = np.asarray(pos_mm, dtype=np.float64).reshape(-1)
-    lo, hi = float(axis.travel_mm[0]), float(axis.travel_mm[1])
-    p = np.clip(p, lo, hi)
-    cols: list[np.ndarray] = []
-    if axis.trend_degree is not None:
-        u = (2.0 * p - lo - hi) / (hi - lo)
-        cols.append(np.polynomial.chebyshev.chebvander(u, int(axis.trend_degree)))
-    for blk in axis.blocks:
-        if blk is None or blk.harmonics == 0:
-            continue
-        phi = 2.0 * np.pi * (p - float(blk.origin_mm)) / float(blk.period_mm)
-        k = np.arange(1, int(blk.harmonics) + 1, dtype=np.float64)
-        arg = phi[:, None] * k[None, :]
-        sc = np.empty((p.size, 2 * k.size))
-        sc[:, 0::2] = np.sin(arg)
-        sc[:, 1::2] = np.cos(arg)
-        cols.append(sc)
-    if not cols:
-        return np.zeros((p.size, 0))
-    return np.hstack(cols)
-
-
-# --------------------------------------------------------------------------- encoding
 
 @dataclass
 class _AxisInts:
@@ -467,8 +313,6 @@ def quantization_error(table: Table, samples: int = 2001) -> dict[tuple[str, str
     return out
 
 
-# --------------------------------------------------------------------------- blob
-
 def write_blob(table: Table) -> bytes:
     """Serialise ``table`` to the format-1.0 blob (docs/table-format.md).
 
@@ -682,336 +526,3 @@ def _read_ints(data: bytes, source: str) -> _TableInts:
 def blob_features(data: bytes) -> int:
     """Feature bits of a blob (validated)."""
     return _read_ints(data, "<blob>").features
-
-
-# --------------------------------------------------------------------------- JSON
-
-JSON_FORMAT = "abbe-table"
-
-
-def table_to_json(table: Table) -> dict:
-    """A JSON-ready dict of ``table``: units in the key names, row names listed.
-
-    Floats are written as Python floats, so ``table_from_json(table_to_json(t))``
-    gives back exactly ``t``.
-    """
-    axes: dict[str, Any] = {}
-    for a in AXES:
-        ax = table.axes[a]
-        terms: dict[str, list[float]] = {}
-        for t in ax.present_terms():
-            unit = "um" if t in LINEAR_TERMS else "urad"
-            terms[f"{t}_{unit}"] = [float(v) for v in np.asarray(ax.coef[t]).reshape(-1)]
-        axes[a] = {
-            "travel_mm": [float(ax.travel_mm[0]), float(ax.travel_mm[1])],
-            "trend_degree": None if ax.trend_degree is None else int(ax.trend_degree),
-            "blocks": [None if b is None else {"period_mm": float(b.period_mm),
-                                               "origin_mm": float(b.origin_mm),
-                                               "harmonics": int(b.harmonics)}
-                       for b in ax.blocks],
-            "rows": ax.row_names(),
-            "terms": terms,
-            "backlash_um": float(ax.backlash_um),
-            "backlash_takeup_mm": float(ax.backlash_takeup_mm),
-            "thermal_expansion_ppm_per_k": float(ax.thermal_expansion_ppm_per_k),
-            "thermal_offset_um_per_k": float(ax.thermal_offset_um_per_k),
-            "thermal_tref_c": float(ax.thermal_tref_c),
-        }
-    return {
-        "format": JSON_FORMAT,
-        "version": f"{FORMAT_MAJOR}.{FORMAT_MINOR}",
-        "reference_mm": [float(v) for v in table.reference_mm],
-        "tool_offset_mm": [float(v) for v in table.tool_offset_mm],
-        "squareness_urad": {"S_xy": float(table.squareness_urad[0]),
-                            "S_xz": float(table.squareness_urad[1]),
-                            "S_yz": float(table.squareness_urad[2])},
-        "axes": axes,
-    }
-
-
-def _jget(d: dict, key: str, where: str, source: str, default: Any = ...) -> Any:
-    if not isinstance(d, dict):
-        raise AbbeInputError("expected an object", file=source, field=where)
-    if key not in d:
-        if default is ...:
-            raise AbbeInputError("missing", file=source, field=f"{where}.{key}".lstrip("."))
-        return default
-    return d[key]
-
-
-def _jnum(v: Any, where: str, source: str) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise AbbeInputError(f"expected a number, got {v!r}", file=source, field=where)
-    f = float(v)
-    if not math.isfinite(f):
-        raise AbbeInputError(f"not finite: {v!r}", file=source, field=where)
-    return f
-
-
-def _jvec(v: Any, n: int, where: str, source: str) -> tuple[float, ...]:
-    if not isinstance(v, list) or len(v) != n:
-        raise AbbeInputError(f"expected a list of {n} numbers", file=source, field=where)
-    return tuple(_jnum(x, f"{where}[{i}]", source) for i, x in enumerate(v))
-
-
-def _jint(v: Any, where: str, source: str) -> int:
-    if isinstance(v, bool) or not isinstance(v, int):
-        raise AbbeInputError(f"expected an integer, got {v!r}", file=source, field=where)
-    return v
-
-
-def table_from_json(d: dict, source: str = "<json>") -> Table:
-    """Build a Table from the dict of :func:`table_to_json`.
-
-    Raises AbbeInputError naming ``source`` and the field for anything missing or
-    malformed (the binary checks happen when the table is written).
-    """
-    if not isinstance(d, dict):
-        raise AbbeInputError("expected a JSON object", file=source)
-    fmt = d.get("format")
-    if fmt != JSON_FORMAT:
-        raise AbbeInputError(f"expected '{JSON_FORMAT}', got {fmt!r}", file=source,
-                             field="format")
-    ver = d.get("version")
-    if not isinstance(ver, str) or not ver.startswith(f"{FORMAT_MAJOR}."):
-        raise AbbeInputError(f"expected table format {FORMAT_MAJOR}.x, got {ver!r}",
-                             file=source, field="version")
-    ref = _jvec(_jget(d, "reference_mm", "", source), 3, "reference_mm", source)
-    tool = _jvec(_jget(d, "tool_offset_mm", "", source, [0.0, 0.0, 0.0]), 3,
-                 "tool_offset_mm", source)
-    sqd = _jget(d, "squareness_urad", "", source, {"S_xy": 0.0, "S_xz": 0.0, "S_yz": 0.0})
-    if not isinstance(sqd, dict):
-        raise AbbeInputError("expected an object with S_xy, S_xz, S_yz", file=source,
-                             field="squareness_urad")
-    extra = set(sqd) - {"S_xy", "S_xz", "S_yz"}
-    if extra:
-        raise AbbeInputError(f"unknown key(s) {sorted(extra)}", file=source,
-                             field="squareness_urad")
-    sq = tuple(_jnum(sqd.get(k, 0.0), f"squareness_urad.{k}", source)
-               for k in ("S_xy", "S_xz", "S_yz"))
-    axes_d = _jget(d, "axes", "", source)
-    if not isinstance(axes_d, dict) or set(axes_d) != set(AXES):
-        raise AbbeInputError(f"expected an object with exactly the axes {list(AXES)}",
-                             file=source, field="axes")
-    axes: dict[str, AxisTable] = {}
-    for a in AXES:
-        ad = axes_d[a]
-        pre = f"axes.{a}"
-        if not isinstance(ad, dict):
-            raise AbbeInputError("expected an object", file=source, field=pre)
-        travel = _jvec(_jget(ad, "travel_mm", pre, source), 2, f"{pre}.travel_mm", source)
-        deg = _jget(ad, "trend_degree", pre, source, None)
-        if deg is not None:
-            deg = _jint(deg, f"{pre}.trend_degree", source)
-            if not 0 <= deg <= MAX_DEGREE:
-                raise AbbeInputError(f"trend degree {deg} not in 0..{MAX_DEGREE} (or null)",
-                                     file=source, field=f"{pre}.trend_degree")
-        blocks_d = _jget(ad, "blocks", pre, source, [None, None])
-        if not isinstance(blocks_d, list) or len(blocks_d) != 2:
-            raise AbbeInputError("expected a list of 2 blocks (object or null)", file=source,
-                                 field=f"{pre}.blocks")
-        blocks: list[FourierBlock | None] = []
-        for b, bd in enumerate(blocks_d):
-            bw = f"{pre}.blocks[{b}]"
-            if bd is None:
-                blocks.append(None)
-                continue
-            h = _jint(_jget(bd, "harmonics", bw, source), f"{bw}.harmonics", source)
-            if not 1 <= h <= MAX_HARMONICS:
-                raise AbbeInputError(f"harmonics {h} not in 1..{MAX_HARMONICS}", file=source,
-                                     field=f"{bw}.harmonics")
-            per = _jnum(_jget(bd, "period_mm", bw, source), f"{bw}.period_mm", source)
-            if per <= 0:
-                raise AbbeInputError(f"period {per} mm must be > 0", file=source,
-                                     field=f"{bw}.period_mm")
-            org = _jnum(_jget(bd, "origin_mm", bw, source, 0.0), f"{bw}.origin_mm", source)
-            blocks.append(FourierBlock(per, org, h))
-        ax = AxisTable(travel_mm=(travel[0], travel[1]), trend_degree=deg,
-                       blocks=(blocks[0], blocks[1]))
-        rows = _jget(ad, "rows", pre, source, None)
-        if rows is not None and rows != ax.row_names():
-            raise AbbeInputError(f"rows {rows} do not match the basis {ax.row_names()}",
-                                 file=source, field=f"{pre}.rows")
-        terms_d = _jget(ad, "terms", pre, source, {})
-        if not isinstance(terms_d, dict):
-            raise AbbeInputError("expected an object", file=source, field=f"{pre}.terms")
-        nb = ax.n_basis()
-        for key, vals in terms_d.items():
-            tw = f"{pre}.terms.{key}"
-            t, _, unit = key.partition("_")
-            want = "um" if t in LINEAR_TERMS else "urad"
-            if t not in TERMS or unit != want:
-                raise AbbeInputError(
-                    "unknown term key; use dx_um, dy_um, dz_um, ex_urad, ey_urad, ez_urad",
-                    file=source, field=tw)
-            if not isinstance(vals, list) or len(vals) != nb:
-                raise AbbeInputError(f"expected a list of {nb} coefficients (one per row)",
-                                     file=source, field=tw)
-            ax.coef[t] = np.array([_jnum(v, f"{tw}[{i}]", source) for i, v in enumerate(vals)])
-        for name in ("backlash_um", "backlash_takeup_mm", "thermal_expansion_ppm_per_k",
-                     "thermal_offset_um_per_k", "thermal_tref_c"):
-            setattr(ax, name, _jnum(_jget(ad, name, pre, source, 0.0), f"{pre}.{name}", source))
-        axes[a] = ax
-    return Table(axes=axes, reference_mm=ref, tool_offset_mm=tool,  # type: ignore[arg-type]
-                 squareness_urad=sq)  # type: ignore[arg-type]
-
-
-# --------------------------------------------------------------------------- generated C
-
-def _c_listing(table: Table, crc: int, size: int) -> list[str]:
-    """Human-readable comment lines listing every coefficient."""
-    lines = [f"table format {FORMAT_MAJOR}.{FORMAT_MINOR}, {size} bytes, CRC-32 0x{crc:08X}",
-             "features: " + (", ".join(feature_names(table.features())) or "none"),
-             "reference_mm: " + ", ".join(f"{v:.6f}" for v in table.reference_mm)]
-    if any(table.tool_offset_mm):
-        lines.append("tool_offset_mm: " + ", ".join(f"{v:.6f}" for v in table.tool_offset_mm))
-    if any(table.squareness_urad):
-        lines.append("squareness_urad: S_xy %.6f, S_xz %.6f, S_yz %.6f" % table.squareness_urad)
-    for a in AXES:
-        ax = table.axes[a]
-        lines.append("")
-        desc = [f"axis {a}: travel_mm [{ax.travel_mm[0]:.6f}, {ax.travel_mm[1]:.6f}]",
-                "trend " + ("none" if ax.trend_degree is None else f"degree {ax.trend_degree}")]
-        for b, blk in enumerate(ax.blocks):
-            if blk is not None:
-                desc.append(f"block {b}: {blk.harmonics} harmonics, period_mm "
-                            f"{blk.period_mm:.6f}, origin_mm {blk.origin_mm:.6f}")
-        lines.append("; ".join(desc))
-        if ax.backlash_um or ax.backlash_takeup_mm:
-            lines.append(f"  backlash_um {ax.backlash_um:.6f}, takeup_mm "
-                         f"{ax.backlash_takeup_mm:.6f}")
-        if ax.thermal_expansion_ppm_per_k or ax.thermal_offset_um_per_k or ax.thermal_tref_c:
-            lines.append(f"  thermal_expansion_ppm_per_k {ax.thermal_expansion_ppm_per_k:.6f}, "
-                         f"thermal_offset_um_per_k {ax.thermal_offset_um_per_k:.6f}, "
-                         f"tref_c {ax.thermal_tref_c:.3f}")
-        terms = ax.present_terms()
-        if not terms:
-            lines.append("  no terms")
-            continue
-        head = "  " + "row".ljust(10) + "".join(
-            (f"{t}_um" if t in LINEAR_TERMS else f"{t}_urad").rjust(16) for t in terms)
-        lines.append(head)
-        for r, name in enumerate(ax.row_names()):
-            lines.append("  " + name.ljust(10) + "".join(
-                f"{float(ax.coef[t][r]):16.6f}" for t in terms))
-    return lines
-
-
-def write_c(blob: bytes, out_dir: Path, stem: str = "abbe_model") -> tuple[Path, Path]:
-    """Write ``STEM.h`` and ``STEM.c`` (docs/table-format.md "Generated C").
-
-    The blob is validated first. The .c file holds the bytes and a comment
-    listing every coefficient in um / urad; no timestamp. The symbols are
-    ``abbe_model_blob`` / ``abbe_model_blob_size`` for the default stem, else
-    ``STEM_blob`` / ``STEM_blob_size``. Both files are written to a temporary
-    name and moved into place only when both are complete.
-    """
-    table = read_blob(blob)
-    total = struct.unpack_from("<I", blob, 8)[0]
-    blob = bytes(blob[:total])
-    crc = blob_crc(blob)
-    ident = "".join(ch if ch.isalnum() else "_" for ch in stem)
-    if not ident or ident[0].isdigit():
-        raise AbbeInputError(f"stem {stem!r} is not a C identifier", field="stem")
-    guard = "ABBE_GENERATED_" + ident.upper() + "_H"  # not ABBE_MODEL_H: abbe/model.h has it
-    sym = f"{ident}_blob"
-    out_dir = Path(out_dir)
-    h_text = "\n".join([
-        f"/* {stem}.h: abbe error table (generated by abbe, do not edit). */",
-        f"#ifndef {guard}",
-        f"#define {guard}",
-        "",
-        "#include <stdint.h>",
-        "",
-        '#include "abbe/version.h"',
-        f"#if ABBE_TABLE_FORMAT_MAJOR != {FORMAT_MAJOR} || ABBE_TABLE_FORMAT_MINOR < {FORMAT_MINOR}",
-        f'#error "{stem}.c was generated for table format {FORMAT_MAJOR}.{FORMAT_MINOR}: '
-        'regenerate it with a matching abbe"',
-        "#endif",
-        "",
-        f"#define {ident.upper()}_BLOB_CRC32 0x{crc:08X}u /* abbe_model_crc() of this table */",
-        "",
-        f"extern const uint8_t {sym}[];",
-        f"extern const uint32_t {sym}_size;",
-        "",
-        f"#endif /* {guard} */",
-        "",
-    ])
-    listing = _c_listing(table, crc, total)
-    c_lines = [f"/* {stem}.c: abbe error table (generated by abbe, do not edit).", " *"]
-    c_lines += [(" * " + ln).rstrip() for ln in listing]
-    c_lines += [" */", f'#include "{stem}.h"', "",
-                "/* abbe_model_load() needs the table 4-byte aligned (ABBE_E_ALIGN). */",
-                "#if defined(__GNUC__) || defined(__clang__)",
-                "__attribute__((aligned(4)))",
-                "#elif defined(__ICCARM__)",
-                "#pragma data_alignment = 4",
-                "#elif defined(__CC_ARM)",
-                "__align(4)",
-                "#else",
-                "#error \"align abbe_model_blob to 4 bytes for this compiler\"",
-                "#endif",
-                f"const uint8_t {sym}[{total}] = {{"]
-    for i in range(0, total, 16):
-        chunk = blob[i:i + 16]
-        c_lines.append("    " + ", ".join(f"0x{b:02X}" for b in chunk) + ",")
-    c_lines += ["};", f"const uint32_t {sym}_size = {total}u;", ""]
-    c_text = "\n".join(c_lines)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    h_path, c_path = out_dir / f"{stem}.h", out_dir / f"{stem}.c"
-    _atomic_write_many({h_path: h_text.encode(), c_path: c_text.encode()})
-    return h_path, c_path
-
-
-def _atomic_write_many(files: dict[Path, bytes]) -> None:
-    """Write each file to a temporary sibling, then rename all into place."""
-    tmps: list[tuple[str, Path]] = []
-    umask = os.umask(0)
-    os.umask(umask)
-    try:
-        for path, content in files.items():
-            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-            tmps.append((tmp, path))
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(content)
-            os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; use the usual mode
-        for tmp, path in tmps:
-            os.replace(tmp, path)
-        tmps = []
-    finally:
-        for tmp, _ in tmps:
-            try:
-                os.unlink(tmp)
-            except OSError:
-                pass
-
-
-def atomic_write(path: Path, content: bytes) -> None:
-    """Write ``content`` to ``path`` via a temporary file in the same directory."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    _atomic_write_many({path: content})
-
-
-def main(argv: list[str] | None = None) -> int:
-    """``python -m abbe.formats.blob --c MODEL.bin -o DIR``: write the generated C."""
-    import argparse
-    import sys
-    ap = argparse.ArgumentParser(prog="python -m abbe.formats.blob",
-                                 description="write generated C for a table blob")
-    ap.add_argument("--c", type=Path, required=True, metavar="MODEL.bin", help="table blob")
-    ap.add_argument("-o", "--out", type=Path, default=Path("."), help="output directory")
-    ap.add_argument("--stem", default="abbe_model", help="file and symbol stem")
-    args = ap.parse_args(argv)
-    try:
-        data = args.c.read_bytes()
-        for path in write_c(data, args.out, args.stem):
-            print(path)
-    except (OSError, AbbeInputError) as exc:
-        print(f"python -m abbe.formats.blob: error: {args.c}: {exc}", file=sys.stderr)
-        return 2
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

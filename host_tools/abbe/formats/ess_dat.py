@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from abbe.errors import AbbeInputError, parse_finite
-from abbe.analysis.iso230_2 import PositioningData
+from abbe.formats.deviations import PositioningData
 
 _KEY = re.compile(r"^([A-Z_][A-Z0-9_]*)(?:\[\s*(\d+)\s*(?:,\s*(\d+)\s*)?\])?$")
 _INFO = {"TEST_DATA", "DEC", "REF_PV", "TEST_PV", "TGT_SET_PV"}

@@ -30,10 +30,11 @@ from pathlib import Path
 
 import numpy as np
 
+from abbe.formats.blob import read_blob, write_blob
+from abbe.formats.output import atomic_write_many
 from abbe.model.examples import paper_table, synthetic_axis
 from abbe.model.reference import out_of_travel, spatial_error, term_values
-from abbe.formats.blob import (AXES, TERMS, AxisTable, FourierBlock, Table, _atomic_write_many,
-                        read_blob, write_blob)
+from abbe.model.table import AXES, TERMS, AxisTable, FourierBlock, Table
 
 FLAG_OUT_OF_TRAVEL = 0x1
 TOL_PM = 2000
@@ -67,6 +68,7 @@ extern const abbe_golden_term_t abbe_golden_terms[]; extern const uint32_t abbe_
 
 
 # --------------------------------------------------------------------------- tables
+
 
 def full_table(rng: np.random.Generator) -> Table:
     """2 m travels, every feature, terms reaching 200 um / 500 urad."""
@@ -281,6 +283,7 @@ def make_terms(rng: np.random.Generator, gt: GoldenTable, per_axis: int = 8) -> 
 
 # --------------------------------------------------------------------------- C output
 
+
 def _hexf(v: float) -> str:
     """A float32 value as a C hex float literal with a decimal comment."""
     v = float(np.float32(v))
@@ -379,7 +382,7 @@ def write(out_dir: Path) -> tuple[Path, Path]:
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     hp, cp = out_dir / "golden_data.h", out_dir / "golden_data.c"
-    _atomic_write_many({hp: h.encode(), cp: c.encode()})
+    atomic_write_many({hp: h.encode(), cp: c.encode()})
     return hp, cp
 
 

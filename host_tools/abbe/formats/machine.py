@@ -22,9 +22,9 @@ from pathlib import Path
 from typing import Any, Callable
 
 from abbe.errors import AbbeInputError
+from abbe.model.geometry import PLANES
+from abbe.model.table import AXES, TERMS
 
-AXES: tuple[str, ...] = ("X", "Y", "Z")
-TERMS: tuple[str, ...] = ("dx", "dy", "dz", "ex", "ey", "ez")
 #: 6D laser instrument channels (CSV columns without their unit suffix).
 CHANNELS: tuple[str, ...] = ("linear", "straight_h", "straight_v", "pitch", "yaw", "roll")
 #: Typical 6D laser conventions per measured axis (instrument reading = sign * model
@@ -38,14 +38,9 @@ DEFAULT_MAPS: dict[str, dict[str, str]] = {
     "Z": {"linear": "+dz", "straight_h": "+dx", "straight_v": "+dy",
           "yaw": "-ey", "pitch": "-ex", "roll": "+ez"},
 }
-PLANES: tuple[str, ...] = ("XY", "YZ", "ZX")
-
 #: Tolerance (mm) for "same coordinate" and "inside the travel" checks.
 COORD_TOL_MM = 1e-6
 DEFAULT_BACKLASH_TAKEUP_MM = 1.0
-
-
-# --------------------------------------------------------------------------- data
 
 
 @dataclass(frozen=True)
@@ -138,13 +133,10 @@ class Machine:
 
     def line_of(self, dotted: str) -> int | None:
         """Line (1-based) of a dotted key in the machine file, best effort."""
-        return _KeyLocator(self.path.read_text(encoding="utf-8")).line(dotted)
+        return KeyLocator(self.path.read_text(encoding="utf-8")).line(dotted)
 
 
-# --------------------------------------------------------------------- locating
-
-
-class _KeyLocator:
+class KeyLocator:
     """Maps dotted key paths to the line that defines them (best effort).
 
     Understands ``[table]`` / ``[[array]]`` headers, bare/quoted/dotted keys and
@@ -188,21 +180,14 @@ class _KeyLocator:
                 return no
             parts.pop()
         return None
-
-
 #: Public name of the locator (used by other readers of TOML files, e.g. sim_spec).
-KeyLocator = _KeyLocator
-
-
-# ---------------------------------------------------------------------- schema
-
 _Check = Callable[[Any, "_Ctx", str], Any]
 
 
 class _Ctx:
     def __init__(self, path: Path, text: str) -> None:
         self.path = path
-        self.loc = _KeyLocator(text)
+        self.loc = KeyLocator(text)
 
     def err(self, dotted: str, msg: str) -> AbbeInputError:
         return AbbeInputError(msg, file=str(self.path), line=self.loc.line(dotted), field=dotted)
@@ -259,8 +244,6 @@ def _travel(v: Any, ctx: _Ctx, f: str) -> tuple[float, float]:
     if not lo < hi:
         raise ctx.err(f, f"expected [min, max] with min < max (mm), got {v!r}")
     return (lo, hi)
-
-
 _MAP_RE = re.compile(r"^([+-])(dx|dy|dz|ex|ey|ez)$")
 
 
@@ -282,11 +265,8 @@ def _chan_map(v: Any, ctx: _Ctx, f: str) -> dict[str, ChannelMap]:
         used[term] = ch
         out[ch] = ChannelMap(ch, 1 if m.group(1) == "+" else -1, term)
     return out
-
-
 # section name -> {key: (check, required, default)}
 _Spec = dict[str, tuple[_Check, bool, Any]]
-
 _MACHINE: _Spec = {"name": (_string, False, ""), "description": (_string, False, "")}
 _AXIS: _Spec = {"travel_mm": (_travel, True, None),
                 "backlash_takeup_mm": (_positive, False, DEFAULT_BACKLASH_TAKEUP_MM)}
@@ -302,7 +282,6 @@ _FIT: _Spec = {"max_trend_degree": (_int_range(0, 7), False, 7),
                "max_harmonics": (_int_range(0, 8), False, 8),
                "folds": (_int_range(2, 50), False, 5),
                "backlash_sigma": (_positive, False, 3.0)}
-
 _TOP = ("machine", "axes", "reference", "tool", "laser", "ballbar", "fit")
 
 
@@ -326,9 +305,6 @@ def _section(data: Any, spec: _Spec, ctx: _Ctx, f: str) -> dict[str, Any]:
         else:
             out[key] = default
     return out
-
-
-# ---------------------------------------------------------------------- loading
 
 
 def load_machine(path: str | Path) -> Machine:

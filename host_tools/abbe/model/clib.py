@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from abbe.formats.blob import AXES, TERMS, TableError
+from abbe.model.table import AXES, TERMS, TableError
 
 ABBE_AXES = 3
 ABBE_TERMS = 6
@@ -44,6 +44,7 @@ class LibraryNotFound(RuntimeError):
 
 
 # --------------------------------------------------------------------------- structs
+
 
 class AxisModel(C.Structure):
     """abbe_axis_model_t (private fields, mirrored for the size and layout)."""
@@ -288,6 +289,7 @@ def _axis_term(axis: str | int, term: str | int) -> tuple[int, int]:
 
 # --------------------------------------------------------------------------- model
 
+
 class CModel:
     """A table loaded and validated by the C library (``abbe_model_load``).
 
@@ -415,6 +417,7 @@ def crc32(data: bytes, crc: int = 0) -> int:
 
 
 # --------------------------------------------------------------------------- compensator
+
 
 def _vec3(cfg: dict, key: str, default: Any = None) -> list[int]:
     v = cfg.get(key, default)

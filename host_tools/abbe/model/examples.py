@@ -5,28 +5,21 @@ X [0, 500], Y [-400, 0], Z [-300, 0] mm, reference point (163.626, -212.772,
 -290.704) mm, every one of the 18 terms a degree-1 trend plus a 3-harmonic
 Fourier block over the travel. The coefficients are synthetic (smooth, decaying
 harmonics, magnitudes typical of a mid-size VMC), not the paper's data, which
-is not published. It stands in for a fitted table until ``abbe fit`` exists.
+is not published.
 
-``python -m abbe.model.examples OUTDIR`` writes OUTDIR/model.json and OUTDIR/model.bin
+``python -m abbe.cli.example_table OUTDIR`` writes OUTDIR/model.json and OUTDIR/model.bin
 (the repository's examples/paper_table/ is made this way).
 """
 
 from __future__ import annotations
 
-import argparse
-import json
-import sys
-from pathlib import Path
-
 import numpy as np
 
-from abbe.formats.blob import (AXES, AxisTable, FourierBlock, Table, atomic_write, basis_matrix,
-                        read_blob, table_to_json, write_blob)
+from abbe.model.table import AXES, AxisTable, FourierBlock, Table, basis_matrix
 
 PAPER_TRAVEL_MM: dict[str, tuple[float, float]] = {
     "X": (0.0, 500.0), "Y": (-400.0, 0.0), "Z": (-300.0, 0.0)}
 PAPER_REFERENCE_MM = (163.626, -212.772, -290.704)
-
 # Peak |term| over the travel for the paper-like machine: um (linear), urad (angular).
 PAPER_AMPLITUDE: dict[str, dict[str, float]] = {
     "X": {"dx": 8.0, "dy": 4.0, "dz": 5.0, "ex": 12.0, "ey": 25.0, "ez": 18.0},
@@ -117,29 +110,3 @@ def paper_table(seed: int = 2021) -> Table:
                                  trend_degree=1, blocks=(blk, None))
     return Table(axes=axes, reference_mm=PAPER_REFERENCE_MM, tool_offset_mm=(0.0, 0.0, 150.0),
                  squareness_urad=(25.0, -12.0, 8.0))
-
-
-def write_example(out_dir: Path, table: Table | None = None) -> tuple[Path, Path]:
-    """Write OUTDIR/model.bin and OUTDIR/model.json (the JSON holds the quantized
-    values, so it converts back to the identical blob)."""
-    table = paper_table() if table is None else table
-    blob = write_blob(table)
-    text = json.dumps(table_to_json(read_blob(blob)), indent=2) + "\n"
-    out_dir = Path(out_dir)
-    bin_path, json_path = out_dir / "model.bin", out_dir / "model.json"
-    atomic_write(bin_path, blob)
-    atomic_write(json_path, text.encode())
-    return bin_path, json_path
-
-
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m abbe.model.examples", description=__doc__.splitlines()[0])
-    ap.add_argument("out_dir", type=Path, help="directory for model.bin and model.json")
-    args = ap.parse_args(argv)
-    for path in write_example(args.out_dir):
-        print(path)
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from abbe.formats.blob import AXES, Table
+from abbe.model.table import AXES, Table
 
 U_F32 = 2.0 ** -24            # unit roundoff of IEEE single precision
 SINCOS_Q30 = 3.2e-9           # measured max |error| of the Q30 sin/cos kernel (tests/unit/test_eval.c)

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from abbe.formats.blob import AXES, TERMS, Table, basis_matrix
+from abbe.model.table import AXES, TERMS, Table, basis_matrix
 
 _OWN_TERM = {"X": "dx", "Y": "dy", "Z": "dz"}
 

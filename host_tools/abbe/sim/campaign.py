@@ -19,12 +19,13 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
-from abbe.analysis.iso230_4 import CircleTest
+from abbe.formats.table_json import table_to_json
+from abbe.model.geometry import CircleTest
+from abbe.model.table import AXES
 from abbe.sim.instruments import circle_duration_s, rng_for, simulate_ballbar, simulate_laser_line
-from abbe.sim.virtual_machine import VirtualMachine
 from abbe.sim.spec import CHANNELS, SimSpec
-from abbe.formats.blob import AXES, table_to_json
 from abbe.sim.truth import dumps_json, truth_table, truth_to_json
+from abbe.sim.virtual_machine import VirtualMachine
 
 
 def _num(v: float) -> str:

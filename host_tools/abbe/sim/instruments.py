@@ -27,14 +27,15 @@ import io
 import math
 import zlib
 from dataclasses import dataclass
-from typing import Any, Callable
 
 import numpy as np
 
-from abbe.analysis.iso230_4 import BallbarTrace, CircleTest, circle_points, tangent_units
-from abbe.sim.virtual_machine import VirtualMachine, backlash_state, rotation_matrices
+from abbe.formats.ballbar_csv import BallbarTrace
+from abbe.model.backlash import backlash_state
+from abbe.model.geometry import CircleTest, circle_points, tangent_units
+from abbe.model.table import LINEAR_TERMS
 from abbe.sim.spec import CHANNELS, LaserLinePlan, NoiseSpec
-from abbe.sim.truth import LINEAR_TERMS
+from abbe.sim.virtual_machine import VirtualMachine, rotation_matrices
 
 LASER_COLUMNS = ("run", "direction", "target_mm", "linear_um", "straight_h_um", "straight_v_um",
                  "pitch_urad", "yaw_urad", "roll_urad", "time_s")
@@ -45,9 +46,6 @@ _CH_COL = {"linear": "linear_um", "straight_h": "straight_h_um", "straight_v": "
 def rng_for(seed: int, kind: str, name: str) -> np.random.Generator:
     """Independent, reproducible random stream per test (PCG64 seeded by seed, kind, name)."""
     return np.random.default_rng([int(seed), zlib.crc32(kind.encode()), zlib.crc32(name.encode())])
-
-
-# --------------------------------------------------------------------------- laser
 
 
 @dataclass
@@ -176,9 +174,6 @@ def simulate_laser_line(vm: VirtualMachine, plan: LaserLinePlan, start_time_s: f
                     dir_state=dir_state)
 
 
-# --------------------------------------------------------------------------- ballbar
-
-
 @dataclass
 class CircleTimeline:
     """Commanded motion of a ballbar test: CCW run, pause, CW run (local time, s)."""
@@ -236,7 +231,7 @@ def _actual_positions(vm: VirtualMachine, tl: CircleTimeline, t: np.ndarray,
     return out
 
 
-def _simulate_circle(vm: VirtualMachine, test: CircleTest, start_time_s: float,
+def simulate_circle(vm: VirtualMachine, test: CircleTest, start_time_s: float,
                      noise_um: float, rng: np.random.Generator,
                      corr: np.ndarray | None = None, cycle_hz: float = 1000.0) -> BallbarTrace:
     tl = CircleTimeline.of(test)
@@ -273,66 +268,11 @@ def simulate_ballbar(vm: VirtualMachine, test: CircleTest, start_time_s: float =
     """Simulated ballbar trace (CCW then CW, feed arcs included) of ``test``, starting
     at campaign time ``start_time_s``."""
     rng = rng if rng is not None else np.random.default_rng(0)
-    return _simulate_circle(vm, test, start_time_s, noise_um, rng)
+    return simulate_circle(vm, test, start_time_s, noise_um, rng)
 
 
 def circle_duration_s(test: CircleTest) -> float:
     """Duration of a ballbar test (both runs, feed arcs and the pause), s."""
     return CircleTimeline.of(test).t_end
-
-
-CompensatorStep = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
-
-
-def run_circle_with_compensation(vm: VirtualMachine, test: CircleTest,
-                                 compensator_step: CompensatorStep, cycle_hz: float = 1000.0,
-                                 start_time_s: float = 0.0, noise_um: float = 0.0,
-                                 rng: np.random.Generator | None = None) -> BallbarTrace:
-    """Run the circle with a compensator in the loop and measure it with the ballbar.
-
-    Each interpolation cycle k (``cycle_hz``) the controller's nominal position
-    q_k (mm), its per-axis direction of motion d_k (-1/0/+1) and the machine
-    temperature T_k (3,) deg C go to ``compensator_step(q_k, d_k, T_k)``, which
-    returns the correction (3,) mm added to the commanded axis positions for that
-    cycle (zero-order hold); the drives follow with their servo lags.
-    ``abbe.model.clib.CCompensator`` fits via :func:`ccompensator_step`.
-    """
-    rng = rng if rng is not None else np.random.default_rng(0)
-    tl = CircleTimeline.of(test)
-    ncyc = int(math.ceil(tl.t_end * cycle_hz)) + 1
-    tk = np.arange(ncyc) / cycle_hz
-    q = circle_points(test, tl.theta(tk))
-    dirs = tangent_units(test.plane, tl.theta(tk)) * tl.theta_rate_sign(tk)[:, None]
-    dirs[np.abs(dirs) < 1e-9] = 0.0
-    dirs = np.sign(dirs).astype(np.int64)
-    temps = np.repeat(vm.truth.temperature_c(start_time_s + tk)[:, None], 3, axis=1)
-    corr = np.zeros((ncyc, 3))
-    for k in range(ncyc):
-        corr[k] = np.asarray(compensator_step(q[k], dirs[k], temps[k]), dtype=np.float64)
-    return _simulate_circle(vm, test, start_time_s, noise_um, rng, corr=corr, cycle_hz=cycle_hz)
-
-
-def ccompensator_step(comp: Any) -> CompensatorStep:
-    """Adapter: an enabled ``abbe.model.clib.CCompensator`` as a compensator_step (nm -> mm)."""
-    def step(pos_mm: np.ndarray, dir_: np.ndarray, temp_c: np.ndarray) -> np.ndarray:
-        out = comp.step_f32(pos_mm, temp_c, dir_)
-        return np.asarray(out["corr_nm"], dtype=np.float64) * 1e-6
-    return step
-
-
-def model_compensator_step(model: Any) -> CompensatorStep:
-    """An ideal compensator: correction = -E_model(q) (mm) from a Table / CModel / callable,
-    direction state = the commanded direction of motion."""
-    from abbe.analysis.iso230_4 import model_error_um
-
-    def step(pos_mm: np.ndarray, dir_: np.ndarray, temp_c: np.ndarray) -> np.ndarray:
-        e = model_error_um(model, np.asarray(pos_mm).reshape(1, 3),
-                           np.asarray(dir_, dtype=np.float64).reshape(1, 3),
-                           np.asarray(temp_c, dtype=np.float64).reshape(1, 3))
-        return -e[0] * 1e-3
-    return step
-
-
-__all__ = ["LaserRun", "simulate_laser_line", "simulate_ballbar", "run_circle_with_compensation",
-           "ccompensator_step", "model_compensator_step", "circle_duration_s", "rng_for",
-           "CircleTimeline"]
+__all__ = ["LaserRun", "simulate_laser_line", "simulate_ballbar", "simulate_circle",
+           "circle_duration_s", "rng_for", "CircleTimeline"]

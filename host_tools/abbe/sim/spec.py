@@ -24,14 +24,16 @@ from typing import Any
 
 import numpy as np
 
-from abbe.analysis.iso230_4 import PLANES, CircleTest, check_test_in_travel
 from abbe.errors import AbbeInputError
-from abbe.formats.machine import _KeyLocator  # shared best-effort key -> line locator
-from abbe.formats.blob import AXES, TERMS
-from abbe.sim.truth import (ANGULAR_TERMS, LINEAR_TERMS, OWN_TERM, Effects, MachineTruth,
-                        build_axis, is_straightness)
+from abbe.formats.machine import (
+    CHANNELS,
+    DEFAULT_MAPS,
+    KeyLocator,  # shared best-effort key -> line locator
+)
+from abbe.model.geometry import PLANES, CircleTest, check_test_in_travel
+from abbe.model.table import ANGULAR_TERMS, AXES, LINEAR_TERMS, OWN_TERM, TERMS
+from abbe.sim.truth import Effects, MachineTruth, build_axis, is_straightness
 
-from abbe.formats.machine import CHANNELS, DEFAULT_MAPS  # noqa: E402  (one definition)
 OWN_ROTATION = {"X": "ex", "Y": "ey", "Z": "ez"}
 _MAP_RE = re.compile(r"^([+-])(dx|dy|dz|ex|ey|ez)$")
 
@@ -140,7 +142,7 @@ class _Reader:
 
     def __init__(self, path: Path, text: str) -> None:
         self.path = path
-        self.loc = _KeyLocator(text)
+        self.loc = KeyLocator(text)
 
     def err(self, dotted: str, msg: str) -> AbbeInputError:
         return AbbeInputError(msg, file=str(self.path), line=self.loc.line(dotted), field=dotted)

@@ -3,7 +3,7 @@
 The simulator's machine (:mod:`abbe.sim.virtual_machine`) is defined by a :class:`MachineTruth`.
 Every one of the 18 position-dependent errors (axis j, term dx/dy/dz/ex/ey/ez)
 is held **exactly in the library's basis** (Chebyshev trend + two Fourier blocks
-per axis, ``abbe.formats.blob.basis_matrix``), built from physical shape parameters:
+per axis, ``abbe.model.table.basis_matrix``), built from physical shape parameters:
 
 * ``slope`` (um/m or urad/m): linear trend (positioning scale error, tilt);
 * ``bow`` (um / urad): parabola ``bow * (1 - u^2)``, the value at mid-travel
@@ -48,15 +48,19 @@ from typing import Any
 import numpy as np
 
 from abbe.errors import AbbeInputError
-from abbe.formats.blob import AXES, TERMS, AxisTable, FourierBlock, Table, basis_matrix
+from abbe.model.table import (
+    AXES,
+    LINEAR_TERMS,
+    OWN_SIGN,
+    OWN_TERM,
+    TERMS,
+    AxisTable,
+    FourierBlock,
+    Table,
+    basis_matrix,
+)
 
-LINEAR_TERMS: tuple[str, ...] = ("dx", "dy", "dz")
-ANGULAR_TERMS: tuple[str, ...] = ("ex", "ey", "ez")
-OWN_TERM: dict[str, str] = {"X": "dx", "Y": "dy", "Z": "dz"}
-#: Sign with which an axis' own positioning term enters its error component in Eq. 3.
-OWN_SIGN: dict[str, int] = {"X": -1, "Y": -1, "Z": +1}
 TRUTH_FORMAT = "abbe-truth-1"
-
 #: Shape keys of a term, by kind; values are unit-suffixed in the spec and JSON.
 SHAPE_KEYS_LINEAR: tuple[str, ...] = ("slope_um_per_m", "bow_um", "cantilever_um", "wave_um",
                                       "wave_phase_deg", "cantilever_end")
@@ -67,9 +71,6 @@ SHAPE_KEYS_ANGULAR: tuple[str, ...] = ("slope_urad_per_m", "bow_urad", "cantilev
 def is_straightness(axis: str, term: str) -> bool:
     """True for the two straightness terms of ``axis`` (linear, not its own)."""
     return term in LINEAR_TERMS and term != OWN_TERM[axis]
-
-
-# --------------------------------------------------------------------------- effects
 
 
 @dataclass
@@ -124,9 +125,6 @@ class Effects:
         """ISO 230-2 reversal B of each own positioning term, um (-sigma_j b_j)."""
         return tuple(float(-OWN_SIGN[a] * self.backlash_um[j])  # type: ignore[return-value]
                      for j, a in enumerate(AXES))
-
-
-# --------------------------------------------------------------------------- axes
 
 
 @dataclass
@@ -188,10 +186,6 @@ class MachineTruth:
         """Declared tool offset + the unmodelled one, mm."""
         return tuple(float(a + b) for a, b in  # type: ignore[return-value]
                      zip(self.tool_offset_mm, self.effects.tool_offset_mm))
-
-
-# --------------------------------------------------------------------------- building
-
 _GL_U, _GL_W = np.polynomial.legendre.leggauss(96)
 
 
@@ -290,16 +284,11 @@ def build_axis(name: str, travel_mm: tuple[float, float], ref_mm: float,
     for t in TERMS:
         ax.coef[t][0] -= float(ax.values(t, np.array([ref_mm]))[0])
     return ax
-
-
-# --------------------------------------------------------------------------- table
-
-
 TABLE_PARTS: tuple[str, ...] = ("squareness", "cyclic", "backlash", "thermal", "tool_offset")
 
 
 def truth_table(truth: MachineTruth, include: tuple[str, ...] | set[str] = TABLE_PARTS) -> Table:
-    """The true machine as a library :class:`abbe.formats.blob.Table`.
+    """The true machine as a library :class:`abbe.model.table.Table`.
 
     The 18 geometric terms are always included (exactly: they are built in the
     table's basis). ``include`` selects the representable extras: "squareness",
@@ -341,9 +330,6 @@ def truth_term_values(truth: MachineTruth, pos_mm: np.ndarray) -> dict[tuple[str
     """The 18 true geometric term values at machine positions (N, 3) mm: um / urad."""
     pos = np.asarray(pos_mm, dtype=np.float64).reshape(-1, 3)
     return {(a, t): truth.term_values(a, t, pos[:, j]) for j, a in enumerate(AXES) for t in TERMS}
-
-
-# --------------------------------------------------------------------------- JSON
 
 
 def _f(v: Any) -> Any:

@@ -33,10 +33,10 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from abbe.formats.blob import AXES
-from abbe.sim.truth import LINEAR_TERMS, OWN_SIGN, OWN_TERM, MachineTruth
+from abbe.model.table import AXES, LINEAR_TERMS, OWN_SIGN, OWN_TERM
+from abbe.sim.truth import MachineTruth
 
-__all__ = ["VirtualMachine", "backlash_state", "rotation_matrices", "rotation_vectors"]
+__all__ = ["VirtualMachine", "rotation_matrices", "rotation_vectors"]
 
 
 def rotation_matrices(rotvec_urad: np.ndarray) -> np.ndarray:
@@ -53,38 +53,6 @@ def rotation_vectors(mats: np.ndarray) -> np.ndarray:
 def _mv(m: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Batched matrix-vector product (N,3,3) x (N,3) (no BLAS: reproducible)."""
     return np.einsum("nij,nj->ni", m, v)
-
-
-def backlash_state(pos_mm: np.ndarray, takeup_mm: float, s0: float) -> np.ndarray:
-    """Direction state s in [-1, 1] along a path of positions (N,), mm.
-
-    s changes by 2 dp / takeup while the axis moves (+ for increasing p) and is
-    clipped to [-1, 1]: after a reversal it crosses from -1 to +1 over the
-    take-up distance (the library compensator's model). ``s0`` is the state at
-    pos_mm[0]. Exact for a piecewise-linear path through the given points.
-    """
-    p = np.asarray(pos_mm, dtype=np.float64).reshape(-1)
-    out = np.empty(p.size)
-    if p.size == 0:
-        return out
-    out[0] = s = float(np.clip(s0, -1.0, 1.0))
-    if p.size == 1:
-        return out
-    dp = np.diff(p)
-    sgn = np.sign(dp)
-    # Segments of constant motion sign (standstill steps keep the state).
-    i = 0
-    n = dp.size
-    k = 2.0 / float(takeup_mm)
-    while i < n:
-        j = i
-        while j + 1 < n and sgn[j + 1] == sgn[i]:
-            j += 1
-        seg = p[i + 1: j + 2] - p[i]
-        out[i + 1: j + 2] = np.clip(s + k * seg, -1.0, 1.0)
-        s = out[j + 1]
-        i = j + 1
-    return out
 
 
 class VirtualMachine:

@@ -9,14 +9,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from abbe.analysis.iso230_4 import (BallbarTrace, evaluate_ballbar, fit_circle, predict_ballbar,
-                          predict_trace, read_ballbar_csv)
+from abbe.analysis.iso230_4 import evaluate_ballbar, fit_circle
+from abbe.analysis.predict import predict_ballbar, predict_trace
 from abbe.cli.entry import main
 from abbe.errors import AbbeInputError
-from abbe.sim.instruments import (model_compensator_step, run_circle_with_compensation,
-                              simulate_ballbar)
-from abbe.sim.virtual_machine import VirtualMachine
+from abbe.formats.ballbar_csv import BallbarTrace, read_ballbar_csv
+from abbe.sim.compensation import model_compensator_step, run_circle_with_compensation
+from abbe.sim.instruments import simulate_ballbar
 from abbe.sim.truth import truth_table
+from abbe.sim.virtual_machine import VirtualMachine
 
 from sim_helpers import EXAMPLE, make_truth, paper_circle, typical_shapes
 
@@ -199,6 +200,8 @@ def _broken(lines: list[str], kind: str) -> tuple[list[str], int, str]:
 @pytest.mark.parametrize("kind", ["gap", "nonmonotonic", "missing_cw", "cw_first",
                                   "mixed_units_header", "mixed_units_value", "bad_cell",
                                   "time_back"])
+
+
 def test_bad_ballbar_files_name_file_line_field(tmp_path, kind):
     p, lines = _good_csv(tmp_path)
     bad, line, field = _broken(lines, kind)
@@ -324,6 +327,8 @@ def _campaign(tmp_path: Path) -> Path:
      "ballbar.circle1.center_mm"),
     ("radius_mm = 100.0", "radius_mm = 50.0", "time_s"),
 ])
+
+
 def test_cli_ballbar_inconsistent_circle(tmp_path, capsys, old, new, field):
     mf = _campaign(tmp_path)
     text = mf.read_text()
@@ -351,8 +356,8 @@ def test_compensation_with_the_c_compensator_if_built():
     clib = pytest.importorskip("abbe.model.clib")
     if not clib.available():
         pytest.skip("libabbe.so not built")
-    from abbe.sim.instruments import ccompensator_step
     from abbe.formats.blob import write_blob
+    from abbe.sim.compensation import ccompensator_step
     tr = make_truth(typical_shapes(), squareness_urad=(30.0, 0.0, 0.0),
                     backlash_um=(3.0, 3.0, 0.0), backlash_takeup_mm=(0.05, 0.05, 0.05))
     test = paper_circle(radius_mm=80.0, center_mm=(250.0, -200.0, -150.0),

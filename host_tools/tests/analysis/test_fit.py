@@ -5,10 +5,19 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from abbe.analysis.fit.select import (FitOptions, columns, design_stack, fit_axis, fit_structure, make_design,
-                      metrics, one_se_choice, paper_fourier3, paper_poly7, scan, select,
-                      select_auto)
-from abbe.formats.blob import basis_matrix
+from abbe.analysis.fit.options import FitOptions
+from abbe.analysis.fit.scan import design_stack, make_design, one_se_choice, scan
+from abbe.analysis.fit.select import (
+    columns,
+    fit_axis,
+    fit_structure,
+    metrics,
+    paper_fourier3,
+    paper_poly7,
+    select,
+    select_auto,
+)
+from abbe.model.table import basis_matrix
 
 
 def wave(p: np.ndarray, period: float, slope: float = 0.0, a1: float = 2.5, a2: float = 0.8,

@@ -8,8 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from abbe.analysis.iso230_2 import evaluate
 from abbe.cli.entry import main
-from abbe.analysis.iso230_2 import PositioningData, evaluate, load_positioning
+from abbe.formats.deviations import PositioningData
+from abbe.formats.positioning import load_positioning
 
 from fit_helpers import ESS_DAT, write_lines
 

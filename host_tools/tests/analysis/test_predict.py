@@ -9,11 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from abbe.model import clib
 from abbe.cli.entry import main as cli_main
 from abbe.errors import AbbeInputError
-from abbe.formats.machine import load_machine
 from abbe.formats.blob import quantize, write_blob
+from abbe.formats.machine import load_machine
+from abbe.model import clib
 from abbe.sim.truth import load_truth, truth_table
 
 REPO = Path(__file__).resolve().parents[3]
@@ -107,7 +107,8 @@ def test_compensation_in_the_loop_with_the_true_model(true_model: Path) -> None:
     """The C compensator with the true table removes nearly everything it can
     represent: what stays is servo lag, sub-spacing cycles and noise."""
     from abbe.analysis.iso230_4 import evaluate_ballbar
-    from abbe.analysis.predict import campaign_test, compensated_circle, predict
+    from abbe.analysis.predict import predict
+    from abbe.sim.compensation import campaign_test, compensated_circle
 
     p = predict(load_machine(VMC / "machine.toml"), true_model, "circle1")
     test, end_s, gap_s, noise = campaign_test(VMC / "truth" / "truth.json", "circle1")

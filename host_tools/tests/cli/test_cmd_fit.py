@@ -10,11 +10,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from abbe.model import clib
 from abbe.cli.entry import main
+from abbe.formats.blob import read_blob
+from abbe.model import clib
 from abbe.model.reference import term_values
+from abbe.model.table import FEATURE_BACKLASH
 from cases.synthetic_laser import make_dataset
-from abbe.formats.blob import FEATURE_BACKLASH, read_blob
 
 SMALL = {"X": 26, "Y": 21, "Z": 16}  # 20 mm spacing: quick
 

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from abbe.model import clib
 from abbe.cli.entry import main as cli_main
+from abbe.model import clib
 
 pytestmark = pytest.mark.skipif(not clib.available(), reason="C library not built (build/lib/libabbe.so)")
 

@@ -10,12 +10,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from abbe.model import clib
 from abbe.cli.entry import main
-from abbe.diagnose.selection import diagnose
 from abbe.diagnose.checks import BallbarCheck
+from abbe.diagnose.selection import diagnose
 from abbe.errors import AbbeInputError
-from abbe.formats.blob import read_blob, table_from_json, write_blob
+from abbe.formats.blob import read_blob, write_blob
+from abbe.formats.table_json import table_from_json
+from abbe.model import clib
 
 REPO = Path(__file__).resolve().parents[3]
 VMC = REPO / "examples" / "vmc500"

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from abbe.diagnose.selection import diagnose_positioning
+from abbe.diagnose.run import diagnose_positioning
 
 DAT = Path(__file__).resolve().parents[4] / "shared" / "data" / "ess-target" / "x_iso230_2.dat"
 if not DAT.is_file():

@@ -6,15 +6,27 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from abbe.diagnose.candidates import Engine
+from abbe.diagnose.effects import (
+    NotRepresentable,
+    PredParams,
+    add_block,
+    by_key,
+    catalogue,
+    copy_table,
+)
+from abbe.diagnose.evaluator import Evaluator
+from abbe.diagnose.problem import Problem, estimate_noise
+from abbe.diagnose.recommend import ballbar_check_from, ballbar_geometry
+from abbe.diagnose.results import DiagnoseOptions
+from abbe.diagnose.selection import diagnose
+from abbe.formats.blob import read_blob, write_blob
 from abbe.model import clib
-from abbe.diagnose.selection import DiagnoseOptions, Engine, Problem, diagnose, estimate_noise
-from abbe.diagnose.checks import Evaluator, direction_state
-from cases.hidden_effects import REFERENCE_MM, ballbar_geometry, ballbar_check_from, hidden_case
-from abbe.diagnose.effects import (NotRepresentable, PredParams, add_block, by_key, catalogue,
-                          copy_table)
+from abbe.model.backlash import direction_state
 from abbe.model.examples import paper_table
 from abbe.model.reference import term_values
-from abbe.formats.blob import FourierBlock, read_blob, write_blob
+from abbe.model.table import FourierBlock
+from cases.hidden_effects import CENTER_MM, REFERENCE_MM, hidden_case
 
 BACKEND = "c" if clib.available() else "reference"
 
@@ -98,9 +110,9 @@ def test_direction_state_ramps_over_the_takeup() -> None:
 
 
 def _ballbar(radial=None, step=2.0):
-    g = ballbar_geometry("XY", step_deg=step)
+    g = ballbar_geometry("XY", CENTER_MM, step_deg=step)
     y = np.zeros(g["angle_deg"].size) if radial is None else radial
-    return ballbar_check_from(g, y)
+    return ballbar_check_from(g, y, REFERENCE_MM)
 
 
 def test_noise_estimate_recovers_white_noise() -> None:

@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 from abbe.formats import golden
+from abbe.formats.blob import read_blob
 from abbe.model.reference import out_of_travel, spatial_error, term_values
-from abbe.formats.blob import AXES, TERMS, read_blob
+from abbe.model.table import AXES, TERMS
 
 REPO = Path(__file__).resolve().parents[3]
 GOLDEN = REPO / "tests" / "golden"

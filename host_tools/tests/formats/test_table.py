@@ -15,11 +15,13 @@ import numpy as np
 import pytest
 
 from abbe import cli
+from abbe.cli.example_table import write_example
 from abbe.errors import AbbeInputError
-from abbe.model.examples import paper_table, write_example
-from abbe.formats.blob import (AXES, TERMS, AxisTable, FourierBlock, Table, TableError,
-                        basis_matrix, quantization_error, quantize, read_blob,
-                        table_from_json, table_to_json, write_blob, write_c)
+from abbe.formats.blob import quantization_error, quantize, read_blob, write_blob
+from abbe.formats.c_source import write_c
+from abbe.formats.table_json import table_from_json, table_to_json
+from abbe.model.examples import paper_table
+from abbe.model.table import AXES, TERMS, AxisTable, FourierBlock, Table, TableError, basis_matrix
 
 REPO = Path(__file__).resolve().parents[3]
 
@@ -35,6 +37,7 @@ def axis_off(j: int) -> int:
 
 
 # --------------------------------------------------------------------------- tables
+
 
 def small_table() -> Table:
     """A small table with every feature: X has 2 terms, Y one, Z none."""
@@ -154,6 +157,7 @@ def _patch_column(blob: bytes, qoff: int, n_terms: int, col: int, values: list[i
 
 # --------------------------------------------------------------------------- round trips
 
+
 def assert_tables_equal(a: Table, b: Table) -> None:
     assert a.reference_mm == b.reference_mm
     assert a.tool_offset_mm == b.tool_offset_mm
@@ -241,6 +245,7 @@ def test_features_follow_values() -> None:
 
 # --------------------------------------------------------------------------- validation
 
+
 @pytest.mark.parametrize("name,status,blob", crafted_cases(), ids=[c[0] for c in crafted_cases()])
 def test_every_validation_status(name: str, status: str, blob: bytes) -> None:
     with pytest.raises(TableError) as exc:
@@ -312,6 +317,7 @@ def test_error_names_the_field() -> None:
 
 
 # --------------------------------------------------------------------------- writer refusals
+
 
 def _writer_error(t: Table) -> TableError:
     with pytest.raises(TableError) as exc:
@@ -386,6 +392,7 @@ def test_zero_harmonic_block_is_dropped() -> None:
 
 # --------------------------------------------------------------------------- basis / quantization
 
+
 def test_basis_matrix_semantics() -> None:
     ax = AxisTable(travel_mm=(-100.0, 300.0), trend_degree=3,
                    blocks=(FourierBlock(400.0, -100.0, 2), FourierBlock(7.0, 1.0, 1)))
@@ -430,6 +437,7 @@ def test_quantization_error() -> None:
 
 # --------------------------------------------------------------------------- JSON
 
+
 def test_json_round_trip_exact() -> None:
     for t in (small_table(), paper_table(), read_blob(write_blob(paper_table()))):
         d = json.loads(json.dumps(table_to_json(t)))
@@ -459,6 +467,8 @@ def test_json_round_trip_exact() -> None:
     (lambda d: d["squareness_urad"].__setitem__("S_zz", 1.0), "squareness_urad"),
     (lambda d: d["axes"]["X"].__setitem__("backlash_um", None), "axes.X.backlash_um"),
 ])
+
+
 def test_json_bad_input_names_field(mutate, field) -> None:
     d = json.loads(json.dumps(table_to_json(small_table())))
     mutate(d)
@@ -469,6 +479,7 @@ def test_json_bad_input_names_field(mutate, field) -> None:
 
 
 # --------------------------------------------------------------------------- generated C
+
 
 def test_write_c(tmp_path: Path) -> None:
     blob = write_blob(paper_table())
@@ -526,6 +537,7 @@ def test_generated_c_compiles_and_version_guard(tmp_path: Path) -> None:
 
 
 # --------------------------------------------------------------------------- example + CLI
+
 
 def test_example_files_are_reproducible(tmp_path: Path) -> None:
     write_example(tmp_path)

@@ -11,12 +11,12 @@ import zlib
 import numpy as np
 import pytest
 
-from abbe.model import clib
-
 from abbe.formats import golden
+from abbe.formats.blob import read_blob, write_blob
+from abbe.model import clib
 from abbe.model.examples import paper_table
 from abbe.model.reference import out_of_travel, spatial_error, term_values
-from abbe.formats.blob import AXES, TERMS, TableError, read_blob, write_blob
+from abbe.model.table import AXES, TERMS, TableError
 
 if not clib.available():
     pytest.skip(f"C library not built: {clib.library_path()} missing (build with cmake, or set "

@@ -5,9 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from abbe.formats import golden
-
 from abbe.formats import blob as table
+from abbe.formats import golden
 from abbe.model.numerics import error_bound
 from abbe.model.reference import spatial_error
 

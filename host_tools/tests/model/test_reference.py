@@ -7,13 +7,14 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from abbe.model.examples import paper_table
+from abbe.formats.blob import quantize
 from abbe.formats.golden import full_table
+from abbe.model.examples import paper_table
 from abbe.model.reference import extra_values, out_of_travel, spatial_error, term_values
-from abbe.formats.blob import AXES, TERMS, AxisTable, Table, quantize
-
+from abbe.model.table import AXES, TERMS, AxisTable, Table
 
 # --------------------------------------------------------------------------- independent term evaluation
+
 
 def independent_term(ax: AxisTable, term: str, p: float) -> float:
     """A term value written out from the spec, one position at a time (no basis_matrix)."""
@@ -55,6 +56,7 @@ def test_term_values_match_independent_evaluation() -> None:
 
 
 # --------------------------------------------------------------------------- Eq. 3 from transforms
+
 
 def _error_transform(d_um: np.ndarray, eps_urad: np.ndarray) -> np.ndarray:
     """4x4 error matrix of one axis: rotation by eps (exact), translation d (mm)."""
@@ -190,6 +192,7 @@ def test_full_table_chain_agreement_scales() -> None:
 
 
 # --------------------------------------------------------------------------- clamping, backlash, thermal
+
 
 def _one_axis_table(**kw) -> Table:
     axes = {a: AxisTable((0.0, 100.0)) for a in AXES}

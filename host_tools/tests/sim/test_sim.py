@@ -8,15 +8,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from abbe.sim.campaign import simulate_campaign
 from abbe.cli.entry import main
 from abbe.errors import AbbeInputError
-from abbe.sim.instruments import simulate_laser_line
+from abbe.model.backlash import backlash_state
 from abbe.model.reference import spatial_error, term_values
-from abbe.sim.virtual_machine import VirtualMachine, backlash_state
+from abbe.model.table import TERMS
+from abbe.sim.campaign import simulate_campaign
+from abbe.sim.instruments import simulate_laser_line
 from abbe.sim.spec import LaserLinePlan, NoiseSpec, load_spec
-from abbe.formats.blob import TERMS
 from abbe.sim.truth import load_truth, truth_table
+from abbe.sim.virtual_machine import VirtualMachine
 
 from sim_helpers import EXAMPLE, REF, make_truth, random_positions, typical_shapes
 
@@ -362,6 +363,8 @@ def _line_of(text: str, needle: str) -> int:
     ("wave_um = [2.0]", "wave_um = [2.0, 1, 1, 1, 1, 1, 1, 1, 1]", "errors.X.dx.wave_um",
      "dx = {"),
 ])
+
+
 def test_spec_errors_name_file_line_field(tmp_path, old, new, field, needle):
     assert old in SPEC_OK
     text = SPEC_OK.replace(old, new)
@@ -388,9 +391,10 @@ def test_spec_enabled_false_switches_an_effect_off(tmp_path):
 
 
 def test_cli_simulate_small_campaign_is_readable_by_the_shared_readers(tmp_path):
-    from abbe.analysis.iso230_2 import evaluate, load_positioning
+    from abbe.analysis.iso230_2 import evaluate
     from abbe.formats.laser_csv import read_laser_csv
     from abbe.formats.machine import load_machine
+    from abbe.formats.positioning import load_positioning
 
     spec = _write(tmp_path, SPEC_OK)
     out = tmp_path / "out"

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from abbe.formats.blob import AXES, read_blob
+from abbe.formats.blob import read_blob
+from abbe.model.table import AXES
 
 BOUND_NM = 2.0
 BUILD_HINT = ("build it with 'cmake -S . -B build && cmake --build build' in the repository "

@@ -30,17 +30,24 @@ from typing import Any
 import numpy as np
 
 from abbe import __version__
+from abbe.analysis.fit.options import COMPARED, FitOptions
+from abbe.analysis.fit.prep import (
+    SQUARENESS_NOTE,
+    RunStats,
+    average_runs,
+    detrend_line,
+    relative_to_reference,
+)
+from abbe.analysis.fit.select import AxisFit, fit_axis
+from abbe.analysis.iso230_2 import Iso230Result, evaluate
 from abbe.errors import AbbeInputError
-from abbe.analysis.fit.select import COMPARED, AxisFit, FitOptions, fit_axis
-from abbe.analysis.iso230_2 import Iso230Result, PositioningData, evaluate
+from abbe.formats.blob import quantization_error, read_blob, write_blob
+from abbe.formats.deviations import PositioningData
 from abbe.formats.laser_csv import LaserData, read_laser_csv, to_terms
-from abbe.formats.machine import AXES, TERMS, LaserLine, Machine
-from abbe.analysis.fit.prep import (SQUARENESS_NOTE, RunStats, average_runs, detrend_line,
-                       relative_to_reference)
-from abbe.formats.blob import (LINEAR_TERMS, AxisTable, Table, basis_matrix, quantization_error,
-                        read_blob, table_to_json, write_blob)
+from abbe.formats.machine import LaserLine, Machine
+from abbe.formats.table_json import table_to_json
+from abbe.model.table import AXES, LINEAR_TERMS, OWN_TERM, TERMS, AxisTable, Table, basis_matrix
 
-OWN_TERM = {"X": "dx", "Y": "dy", "Z": "dz"}
 TERM_NAMES = {"dx": "d_x", "dy": "d_y", "dz": "d_z", "ex": "eps_x", "ey": "eps_y",
               "ez": "eps_z"}
 JSON_FORMAT = "abbe-fit"
@@ -267,9 +274,6 @@ def fit_machine(machine: Machine, opts: FitOptions) -> FitResult:
     res = FitResult(machine=machine, options=opts, table=table, blob=blob, axes=axes)
     res.model_json = model_json(res)
     return res
-
-
-# --------------------------------------------------------------------------- JSON
 
 
 def _r(x: float, nd: int = 6) -> float | None:

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from abbe.analysis.fit.select import COMPARED
+from abbe.analysis.fit.options import COMPARED
 
 if TYPE_CHECKING:
     from abbe.analysis.fit.pipeline import AxisResult, FitResult, TermResult

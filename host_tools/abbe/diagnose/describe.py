@@ -1,0 +1,211 @@
+"""What ``abbe diagnose`` says about each named effect: value, interval, ambiguity.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from scipy import stats
+
+from abbe.diagnose.candidates import Cand, Engine, Selected, apply_selection
+from abbe.diagnose.checks import BallbarCheck
+from abbe.diagnose.effects import EffectSpec, NotRepresentable, PredParams
+from abbe.diagnose.problem import gap_stats, lstsq_rss, project_out, qr_basis, remove_nuisance
+from abbe.diagnose.results import EffectResult, round_to
+from abbe.model.table import Table
+
+
+def describe_effects(eng: Engine, sel: list[Selected], values: list[np.ndarray], cov: np.ndarray,
+              s2: float, W: np.ndarray, pool: list[Cand], table: Table,
+              pp: PredParams) -> list[EffectResult]:
+    """EffectResult per selected effect: value, 95 % interval, evidence, ambiguity."""
+    prob = eng.prob
+    out: list[EffectResult] = []
+    dof = max(prob.N - prob.nuis.shape[1] - sum(len(v) for v in values), 1)
+    tq = float(stats.t.ppf(0.975, dof))
+    k0 = 0
+    for i, (s, v) in enumerate(zip(sel, values)):
+        spec = s.cand.spec
+        n = len(v)
+        C = cov[k0:k0 + n, k0:k0 + n]
+        k0 += n
+        params = []
+        for jj, pi in enumerate(s.cand.param_idx):
+            ps = spec.params[pi]
+            sd = math.sqrt(max(C[jj, jj], 0.0))
+            params.append({"name": ps.name, "value": round_to(v[jj]), "unit": _unit(ps.unit, spec, eng),
+                           "ci95": [round_to(v[jj] - tq * sd), round_to(v[jj] + tq * sd)]})
+        value, unit, ci = _headline(spec, s.cand.param_idx, v, C, tq, eng)
+        # evidence: residual before/after adding this effect (through the model)
+        t_b, p_b = apply_selection(eng, sel[:i], values[:i])
+        t_a, p_a = apply_selection(eng, sel[:i + 1], values[:i + 1])
+        rb_ = remove_nuisance(prob, prob.y - prob.predict(eng.ev, t_b, p_b))
+        ra_ = remove_nuisance(prob, prob.y - prob.predict(eng.ev, t_a, p_a))
+        gb, ga = gap_stats(prob, rb_), gap_stats(prob, ra_)
+        st = s.stats
+        ho = st["heldout"]
+        ev = {
+            "residual_before": None if gb is None else gb.to_json(),
+            "residual_after": None if ga is None else ga.to_json(),
+            "delta_bic": round(st["dbic"], 2),
+            "F": round(st["F"], 3),
+            "p_value": float(f"{st['p_eff']:.3g}"),
+            "heldout_split": ho["split"],
+            "heldout_rss_before": round(ho.get("rss_without", float("nan")), 2),
+            "heldout_rss_after": round(ho.get("rss_with", float("nan")), 2),
+            "heldout_change_percent": round(100.0 * (ho["rss_with"] - ho["rss_without"])
+                                            / max(ho["rss_without"], 1e-300), 2),
+            "contribution_rms_um": round(st["contrib_rms_um"], 4),
+            "checks": _per_check_contrib(eng, s, v),
+        }
+        if spec.kind == "backlash":
+            b0 = eng.table.axes[spec.axis]  # type: ignore[index]
+            if b0.backlash_um:
+                ev["model_before"] = {"backlash_um": float(b0.backlash_um),
+                                      "takeup_mm": float(b0.backlash_takeup_mm)}
+                ev["note"] = ("the model already had a backlash term: the value is the change of "
+                              "the reversal; the take-up is the one that fits the checks")
+        amb = _ambiguity(eng, sel, i, v, W, pool, table, pp)
+        if spec.kind == "tool_offset":
+            zs = {round(float(c.center_mm[2]), 3) for c in prob.checks
+                  if isinstance(c, BallbarCheck)}
+            if len(zs) <= 1:
+                amb.append({"key": "model_angular_error", "id": "model error", "r2": None,
+                            "separating_test": "a circle at another Z height or with another "
+                                               "tool length (a tool offset scales with the "
+                                               "tool length, an error of the model's angular "
+                                               "terms with the height)"})
+        scan = None
+        if s.cand.scan_value is not None and spec.scan:
+            name = spec.scan if spec.kind != "thermal" else f"tau_{eng.drift_unit or 'h'}"
+            scan = {name: float(s.cand.scan_value)}
+        where = "table" if spec.compensable and not (spec.kind == "thermal" and not eng.drift_on_table) \
+            else "prediction model only"
+        remedy = spec.remedy
+        if spec.kind == "thermal" and not eng.drift_on_table:
+            remedy = ("not compensable by the table without a temperature input: warm the machine "
+                      "up before measuring / machining, or log the temperature (laser temp_c) so "
+                      "the table's thermal term can be fitted")
+        out.append(EffectResult(
+            id=spec.family, key=spec.key, value=value, unit=unit, ci95=ci, params=params,
+            compensable=where == "table", where=where, physics=spec.physics, remedy=remedy,
+            evidence=ev, axis=spec.axis, plane=spec.plane, scan=scan, ambiguous_with=amb,
+            stage_before=[rb_[prob.slice(k)] for k in range(len(prob.checks))],
+            stage_after=[ra_[prob.slice(k)] for k in range(len(prob.checks))]))
+    return out
+
+
+def _unit(u: str, spec: EffectSpec, eng: Engine) -> str:
+    if spec.kind == "thermal":
+        per = eng.drift_unit or "h"
+        return f"{u}/{per}"
+    return u
+
+
+def _headline(spec: EffectSpec, idx: list[int], v: np.ndarray, C: np.ndarray, tq: float,
+              eng: Engine) -> tuple[float, str, tuple[float, float]]:
+    """The effect's value, unit and 95 % interval (amplitude for cyclic, norm for the tool
+    offset, offset rate for the drift: else the single parameter)."""
+    if spec.kind == "cyclic":
+        a = float(np.hypot(v[0], v[1]))
+        g = np.array([v[0], v[1]]) / max(a, 1e-300)
+        sd = math.sqrt(max(float(g @ C @ g), 0.0))
+        return a, "um", (max(0.0, a - tq * sd), a + tq * sd)
+    if spec.kind == "tool_offset":
+        a = float(np.linalg.norm(v))
+        g = v / max(a, 1e-300)
+        sd = math.sqrt(max(float(g @ C @ g), 0.0))
+        return a, "mm", (max(0.0, a - tq * sd), a + tq * sd)
+    if spec.kind == "thermal":
+        i = 0 if 0 in idx else None
+        if i is None:
+            jj = 0
+            return float(v[jj]), _unit(spec.params[idx[0]].unit, spec, eng), \
+                (float(v[jj] - tq * math.sqrt(C[jj, jj])), float(v[jj] + tq * math.sqrt(C[jj, jj])))
+        jj = idx.index(0)
+        sd = math.sqrt(max(C[jj, jj], 0.0))
+        return float(v[jj]), _unit("um", spec, eng), (float(v[jj] - tq * sd), float(v[jj] + tq * sd))
+    sd = math.sqrt(max(C[0, 0], 0.0))
+    return float(v[0]), spec.params[idx[0]].unit, (float(v[0] - tq * sd), float(v[0] + tq * sd))
+
+
+def _per_check_contrib(eng: Engine, s: Selected, v: np.ndarray) -> dict[str, float]:
+    prob = eng.prob
+    contrib = s.cand.cols @ v
+    out = {}
+    for i, c in enumerate(prob.checks):
+        sl = prob.slice(i)
+        out[c.name] = round(float(np.sqrt(np.mean(contrib[sl] ** 2))), 4)
+    return out
+
+
+def _ambiguity(eng: Engine, sel: list[Selected], i: int, v: np.ndarray, W: np.ndarray,
+               pool: list[Cand], table: Table, pp: PredParams) -> list[dict[str, Any]]:
+    """Other candidates that reproduce >= ambiguity_r2 of this effect's fitted signature."""
+    prob = eng.prob
+    s = sel[i]
+    others = [o for j, o in enumerate(sel) if j != i]
+    X_o = np.hstack([o.cand.cols for o in others]) * W[:, None] if others else np.zeros((prob.N, 0))
+    Qb = qr_basis(np.hstack([prob.nuis * W[:, None], X_o]))
+    sig = project_out(Qb, (s.cand.cols @ v * W)[:, None])[:, 0]
+    nrm = float(sig @ sig)
+    if nrm <= 0:
+        return []
+    out = []
+    sel_keys = {o.cand.spec.key for o in sel}
+    for c in pool:
+        if c.spec.key in sel_keys or c.cols.shape[1] == 0:
+            continue
+        cols = c.cols
+        if c.spec.kind == "cyclic":
+            per, _ = eng.cyclic_scan(c.spec.axis, table, W, Qb, sig)  # type: ignore[arg-type]
+            if not np.isfinite(per):
+                continue
+            cols = eng.cyclic_cols(c.spec.axis, per, table)  # type: ignore[arg-type]
+        Z = project_out(Qb, cols * W[:, None])
+        coef, d = lstsq_rss(Z, sig)
+        r2 = d / nrm
+        ps = [c.spec.params[i] for i in c.param_idx] if c.spec.kind != "cyclic" else \
+            list(c.spec.params)
+        if any(abs(x) > p.limit for x, p in zip(coef, ps)):
+            continue  # only with an implausible value
+        if r2 >= eng.opts.ambiguity_r2:
+            out.append({"key": c.spec.key, "id": c.spec.family, "r2": round(r2, 4),
+                        "value": [round(float(x), 4) for x in coef],
+                        "unit": [p.unit for p in ps],
+                        "separating_test": _separating_test(eng, s, v, c, coef, table)})
+    return out
+
+
+def _separating_test(eng: Engine, s: Selected, v: np.ndarray, other: Cand, coef: np.ndarray,
+                     table: Table) -> str:
+    """The standard test (ballbar in each plane, CW + CCW; laser line per axis) on which the
+    two explanations differ most, computed through the model on hypothetical checks."""
+    from abbe.diagnose.recommend import standard_checks
+    best, best_d = "a test in another plane or a laser line of the axis", 0.0
+    try:
+        hyp = standard_checks(table)
+    except Exception:  # pragma: no cover - defensive
+        return best
+    for hc in hyp:
+        sub = eng.on_checks([hc], table)
+        y0 = sub.y0
+        try:
+            a = sub.sensitivity(s.cand.spec, s.cand.scan_value, table, eng.pp, y0)[:, s.cand.param_idx] @ v
+            if other.spec.kind == "cyclic":
+                continue
+            b = sub.sensitivity(other.spec, other.scan_value, table, eng.pp, y0)[:, other.param_idx] @ coef
+        except NotRepresentable:
+            continue
+        Q = qr_basis(sub.prob.nuis)
+        d = project_out(Q, (a - b)[:, None])[:, 0]
+        dn = float(np.sqrt(np.mean(d * d)))
+        if dn > best_d:
+            best, best_d = (f"{hc.name} (the two explanations differ by {dn:.2f} um RMS there)",
+                            dn)
+    if best_d < 0.1:
+        return ("none of the standard tests (ballbar XY/YZ/ZX CW+CCW, laser X/Y/Z) separates "
+                "them by 0.1 um or more")
+    return best

@@ -1,0 +1,233 @@
+"""The stacked measurement problem: every check's rows, nuisance columns, noise.
+
+:class:`Problem` stacks the checks (measured vector, block-diagonal nuisance,
+noise groups); :func:`estimate_noise` estimates each group's noise from repeated
+runs or the scatter about a smooth fit. Values um / urad.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from abbe.diagnose.checks import Check
+from abbe.diagnose.effects import PredParams
+from abbe.diagnose.evaluator import Evaluator
+from abbe.diagnose.results import GapStats
+from abbe.model.table import Table
+
+#: Smallest noise level assumed (um or urad): float32 prediction resolution and
+#: instrument resolution; keeps noiseless synthetic data from making everything significant.
+NOISE_FLOOR = 0.01
+
+
+def qr_basis(A: np.ndarray, tol: float = 1e-10) -> np.ndarray:
+    """Orthonormal basis of the column space of A (columns scaled first)."""
+    if A.shape[1] == 0:
+        return np.zeros((A.shape[0], 0))
+    nrm = np.linalg.norm(A, axis=0)
+    keep = nrm > 0
+    A = A[:, keep] / nrm[keep]
+    if A.shape[1] == 0:
+        return np.zeros((A.shape[0], 0))
+    u, s, _ = np.linalg.svd(A, full_matrices=False)
+    return u[:, s > tol * max(s[0], 1e-300)]
+
+
+def project_out(Q: np.ndarray, A: np.ndarray) -> np.ndarray:
+    if Q.shape[1] == 0:
+        return A.copy()
+    return A - Q @ (Q.T @ A)
+
+
+def lstsq_rss(Z: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, float]:
+    """Least squares of r on Z: (coef, decrease of the residual sum of squares)."""
+    if Z.shape[1] == 0:
+        return np.zeros(0), 0.0
+    coef, *_ = np.linalg.lstsq(Z, r, rcond=None)
+    fit = Z @ coef
+    return coef, float(fit @ fit)
+
+
+def is_identifiable(A: np.ndarray, tol: float = 1e-4) -> bool:
+    """Full column rank with a sane condition (columns normalised)."""
+    if A.shape[1] == 0:
+        return True
+    if A.shape[0] < A.shape[1]:
+        return False
+    nrm = np.linalg.norm(A, axis=0)
+    if np.any(nrm <= 0):
+        return False
+    s = np.linalg.svd(A / nrm, compute_uv=False)
+    return bool(s[-1] > tol * s[0])
+
+
+class Problem:
+    """All checks stacked: measured vector, nuisance (block diagonal), labels."""
+
+    def __init__(self, checks: list[Check]) -> None:
+        self.checks = checks
+        self.offsets = np.cumsum([0] + [c.n for c in checks])
+        self.N = int(self.offsets[-1])
+        self.y = np.concatenate([c.y for c in checks])
+        m = sum(c.nuisance.shape[1] for c in checks)
+        self.nuis = np.zeros((self.N, m))
+        col = 0
+        groups, units, names = [], [], []
+        for i, c in enumerate(checks):
+            s = slice(self.offsets[i], self.offsets[i + 1])
+            k = c.nuisance.shape[1]
+            self.nuis[s, col:col + k] = c.nuisance
+            col += k
+            groups.append(c.group + len(names))
+            names += c.group_names
+            units += c.group_units
+        self.group = np.concatenate(groups)
+        self.group_names = names
+        self.group_units = units
+        self.um_rows = np.array([units[g] == "um" for g in self.group])
+        self.check_of = np.concatenate([np.full(c.n, i) for i, c in enumerate(checks)])
+
+    def split(self, level: int) -> tuple[np.ndarray, str] | None:
+        """Fold labels (N,) of split ``level`` (0 = preferred) of every check."""
+        labs, names = [], []
+        for c in self.checks:
+            keys = list(c.folds)
+            if not keys:
+                return None
+            k = keys[min(level, len(keys) - 1)]
+            labs.append(c.folds[k])
+            names.append(k)
+        uniq = sorted(set(names))
+        return np.concatenate(labs), "; ".join(uniq)
+
+    def predict(self, ev: Evaluator, table: Table, pp: PredParams) -> np.ndarray:
+        return np.concatenate([c.predict(ev, table, pp) for c in self.checks])
+
+    def slice(self, i: int) -> slice:
+        return slice(int(self.offsets[i]), int(self.offsets[i + 1]))
+
+
+def remove_nuisance(prob: Problem, r: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+    """Residual with each check's nuisance fitted (unweighted per noise group) and removed.
+    ``rows``: only these rows take part (others returned as NaN)."""
+    out = np.full(prob.N, np.nan)
+    for i, c in enumerate(prob.checks):
+        s = prob.slice(i)
+        idx = np.arange(s.start, s.stop)
+        if rows is not None:
+            idx = idx[rows[s]]
+        if idx.size == 0:
+            continue
+        A = prob.nuis[idx][:, np.any(prob.nuis[idx] != 0, axis=0)]
+        rr = r[idx]
+        if A.shape[1]:
+            coef, *_ = np.linalg.lstsq(A, rr, rcond=None)
+            rr = rr - A @ coef
+        out[idx] = rr
+    return out
+
+
+def gap_stats(prob: Problem, r_clean: np.ndarray, rows: np.ndarray | None = None) -> GapStats | None:
+    sel = prob.um_rows & np.isfinite(r_clean)
+    if rows is not None:
+        sel &= rows
+    if not np.any(sel):
+        return None
+    v = r_clean[sel]
+    return GapStats(float(np.sqrt(np.mean(v * v))), float(np.max(np.abs(v))), int(v.size))
+
+
+def estimate_noise(prob: Problem, r: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict[str, dict[str, float]]]:
+    """Noise standard deviation and autocorrelation inflation per noise group.
+
+    Groups with repeated readings (laser runs): pooled within-cell scatter of the
+    residual (same channel, target and direction in every run). Ballbar groups: the
+    scatter of each direction's residual about a saturated smooth fit (Fourier series
+    in the angle, up to min(40, n/8) harmonics); the lag-1 autocorrelation rho of that
+    scatter inflates the variance by (1 + rho) / (1 - rho). Returns (sigma (G,),
+    inflation (G,), report dict). ``r`` is the current residual (N,).
+    """
+    G = len(prob.group_names)
+    pair: dict[int, float | None] = {}
+    sig = np.full(G, NOISE_FLOOR)
+    infl = np.ones(G)
+    dof = np.zeros(G)
+    for i, c in enumerate(prob.checks):
+        s = prob.slice(i)
+        rr = r[s]
+        for g in np.unique(c.group):
+            gg = int(g) + int(prob.group[s][0] - c.group[0])
+            sel = c.group == g
+            cells = c.cell[sel]
+            x = rr[sel]
+            if np.all(cells >= 0):
+                _, inv, cnt = np.unique(cells, return_inverse=True, return_counts=True)
+                means = np.bincount(inv, weights=x) / cnt
+                dev = x - means[inv]
+                d = x.size - cnt.size
+                if d >= 2:
+                    sig[gg] = max(NOISE_FLOOR, math.sqrt(float(dev @ dev) / d))
+                    dof[gg] = d
+                    continue
+            # Saturated smooth fit per direction (ballbar) / per run and direction.
+            ss, d_tot, rho_num, rho_den = 0.0, 0, 0.0, 0.0
+            labels = c.direction[sel].astype(str)
+            xs = c.x[sel]
+            for lab in np.unique(labels):
+                m = labels == lab
+                xv, rv = xs[m], x[m]
+                n = xv.size
+                K = int(min(40, max(1, n // 8)))
+                if c.kind == "ballbar":
+                    th = np.radians(xv)
+                    cols = [np.ones(n)]
+                    for k in range(1, K + 1):
+                        cols += [np.cos(k * th), np.sin(k * th)]
+                else:
+                    u = (2 * xv - xv.min() - xv.max()) / max(np.ptp(xv), 1e-9)
+                    cols = list(np.polynomial.chebyshev.chebvander(u, min(K, n - 2)).T)
+                A = np.stack(cols, axis=1)
+                coef, *_ = np.linalg.lstsq(A, rv, rcond=None)
+                e = rv - A @ coef
+                ss += float(e @ e)
+                d_tot += max(n - A.shape[1], 0)
+                rho_num += float(e[1:] @ e[:-1])
+                rho_den += float(e @ e)
+            if d_tot >= 2:
+                sig[gg] = max(NOISE_FLOOR, math.sqrt(ss / d_tot))
+                dof[gg] = d_tot
+                rho = rho_num / rho_den if rho_den > 0 else 0.0
+                rho = min(max(rho, 0.0), 0.9)
+                infl[gg] = (1 + rho) / (1 - rho)
+            if c.kind == "ballbar":
+                pair[gg] = _pair_sigma(xs, labels, x)
+    rep = {prob.group_names[g]: {"sigma": round(float(sig[g]), 5), "unit": prob.group_units[g],
+                                 "inflation": round(float(infl[g]), 4), "dof": int(dof[g])}
+           for g in range(G)}
+    for g, v in pair.items():
+        if v is not None:
+            rep[prob.group_names[g]]["pair_sigma"] = round(float(v), 5)
+    return sig, infl, rep
+
+
+def _pair_sigma(ang: np.ndarray, labels: np.ndarray, r: np.ndarray) -> float | None:
+    """Cross-check of a ballbar's noise from its CW/CCW pair: the CW residual taken at the
+    CCW angles (periodic interpolation), the difference of the pair about a smooth fit,
+    divided by sqrt(2). Direction-dependent effects not yet modelled inflate it."""
+    a, b = labels == "ccw", labels == "cw"
+    if a.sum() < 16 or b.sum() < 16:
+        return None
+    o = np.argsort(ang[b])
+    cw = np.interp(ang[a], ang[b][o], r[b][o], period=360.0)
+    d = r[a] - cw
+    th = np.radians(ang[a])
+    K = int(min(40, max(1, d.size // 8)))
+    cols = [np.ones(d.size)] + [f(k * th) for k in range(1, K + 1) for f in (np.cos, np.sin)]
+    A = np.stack(cols, axis=1)
+    e = d - A @ np.linalg.lstsq(A, d, rcond=None)[0]
+    dof = d.size - A.shape[1]
+    if dof < 2:
+        return None
+    return math.sqrt(float(e @ e) / dof / 2.0)

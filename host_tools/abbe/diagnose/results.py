@@ -1,0 +1,165 @@
+"""Options and results of ``abbe diagnose``: named effects, gaps, JSON form.
+
+Units: positions mm, linear values um, angles urad; see each field.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from abbe.diagnose.checks import Check
+from abbe.diagnose.effects import PredParams
+from abbe.model.table import Table
+
+
+@dataclass
+class DiagnoseOptions:
+    """Settings of the decision (defaults are the documented ones).
+
+    alpha: significance level of a step (Bonferroni-divided by the candidates tested);
+    bic_min: minimal BIC decrease; heldout_fraction: the held-out residual decrease must
+    be at least this fraction of the in-sample decrease (and at least 2 per parameter,
+    in noise units); ambiguity_r2: a candidate reproducing this fraction of a named
+    effect's signature makes it ambiguous; min_effect_um: an effect whose fitted
+    contribution has a smaller RMS (um, on um-valued samples) is not named;
+    candidates: keys or families to consider (None = all); max_effects: safety stop.
+    """
+
+    alpha: float = 0.01
+    bic_min: float = 10.0
+    heldout_fraction: float = 0.1
+    ambiguity_r2: float = 0.9
+    min_effect_um: float = 0.15
+    candidates: list[str] | None = None
+    max_effects: int = 8
+    backend: str = "auto"
+    max_period_mm: float = 60.0
+
+
+@dataclass
+class GapStats:
+    """RMS and max |residual| (um) over the um-valued samples, nuisance removed."""
+
+    rms_um: float
+    max_um: float
+    n: int
+
+    def to_json(self) -> dict[str, Any]:
+        return {"rms_um": round(self.rms_um, 4), "max_um": round(self.max_um, 4), "n": self.n}
+
+
+@dataclass
+class EffectResult:
+    """One named effect (see docs/formats.md "diagnose JSON")."""
+
+    id: str
+    key: str
+    value: float
+    unit: str
+    ci95: tuple[float, float]
+    params: list[dict[str, Any]]
+    compensable: bool
+    where: str
+    physics: str
+    remedy: str
+    evidence: dict[str, Any]
+    axis: str | None = None
+    plane: str | None = None
+    scan: dict[str, float] | None = None
+    ambiguous_with: list[dict[str, Any]] = field(default_factory=list)
+    #: per check: residual (nuisance removed) before / after adding this effect (plots)
+    stage_before: list[np.ndarray] = field(default_factory=list, repr=False)
+    stage_after: list[np.ndarray] = field(default_factory=list, repr=False)
+    tentative: bool = False
+
+    def to_json(self) -> dict[str, Any]:
+        d: dict[str, Any] = {"id": self.id, "key": self.key, "value": round_to(self.value),
+                             "unit": self.unit, "ci95": [round_to(self.ci95[0]), round_to(self.ci95[1])]}
+        if self.axis:
+            d["axis"] = self.axis
+        if self.plane:
+            d["plane"] = self.plane
+        d["parameters"] = self.params
+        if self.scan:
+            d["scan"] = {k: round_to(v) for k, v in self.scan.items()}
+        d["compensated_by"] = self.where
+        d["remedy"] = self.remedy
+        d["evidence"] = self.evidence
+        d["ambiguous_with"] = self.ambiguous_with
+        d["tentative"] = self.tentative
+        return d
+
+
+def round_to(v: float, nd: int = 6) -> float:
+    return float(round(float(v), nd))
+
+
+@dataclass
+class DiagnoseResult:
+    """Outcome of :func:`diagnose`.
+
+    effects: named effects in the order added; gap: "before", "after",
+    "held_out_before", "held_out_after" (GapStats or None); table: the updated
+    table (effects the library evaluates added); pred_params: the updated
+    prediction parameters (servo lag, time drift); residual_before/after: per
+    check (N_i,) residuals with nuisance removed (um / urad); notes: plain-language
+    statements (nothing missing, not observable, undecided, ...).
+    """
+
+    effects: list[EffectResult]
+    gap: dict[str, GapStats | None]
+    table: Table
+    pred_params: PredParams
+    base_table: Table
+    checks: list[Check]
+    residual_before: list[np.ndarray]
+    residual_after: list[np.ndarray]
+    noise: dict[str, dict[str, float]]
+    tested: dict[str, dict[str, Any]]
+    not_observable: list[str]
+    notes: list[str]
+    backend: str
+    drift_unit: str | None
+    lack_of_fit: float = 1.0
+    tentative: bool = False
+    heldout_split: str | None = None
+
+    @property
+    def nothing_missing(self) -> bool:
+        """No effect named and the model explains the checks down to the noise."""
+        return not self.effects and not self.tentative
+
+    def to_json(self, model_path: str | None = None) -> dict[str, Any]:
+        return {
+            "effects": [e.to_json() for e in self.effects],
+            "gap": {**{k: (None if v is None else v.to_json()) for k, v in self.gap.items()},
+                    "held_out_split": self.heldout_split},
+            "model": model_path,
+            "lack_of_fit": {"residual_over_noise": round(self.lack_of_fit, 3),
+                            "limit": LACK_OF_FIT_LIMIT, "tentative": self.tentative},
+            "backend": self.backend,
+            "checks": [{"name": c.name, "kind": c.kind, "n": c.n, **_jsonable(c.meta)}
+                       for c in self.checks],
+            "noise": self.noise,
+            "not_observable": self.not_observable,
+            "candidates": self.tested,
+            "notes": self.notes,
+        }
+
+
+def _jsonable(d: dict[str, Any]) -> dict[str, Any]:
+    out = {}
+    for k, v in d.items():
+        if k.startswith("source_"):
+            continue
+        if isinstance(v, np.ndarray):
+            v = v.tolist()
+        out[k] = v
+    return out
+
+
+#: Residual RMS after the update, in noise units, above which the names are tentative.
+LACK_OF_FIT_LIMIT = 2.0

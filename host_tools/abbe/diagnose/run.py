@@ -1,0 +1,117 @@
+"""Entry points of ``abbe diagnose``: a machine file with its checks, or one positioning file.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from abbe.diagnose.checks import Check
+from abbe.diagnose.results import DiagnoseOptions, DiagnoseResult
+from abbe.diagnose.selection import diagnose
+from abbe.errors import AbbeInputError
+from abbe.model.table import AXES, Table
+
+
+def load_model(path: str | Any) -> Table:
+    """A table from a blob (``model.bin``) or a table JSON (``model.json``); AbbeInputError
+    naming the file on any problem."""
+    import json
+    from pathlib import Path
+
+    from abbe.formats.blob import read_blob
+    from abbe.formats.table_json import table_from_json
+    from abbe.model.table import TableError
+    if isinstance(path, Table):
+        return path
+    p = Path(path)
+    try:
+        data = p.read_bytes()
+    except OSError as exc:
+        raise AbbeInputError(f"cannot read the model: {exc.strerror}", file=str(p),
+                             field="model") from None
+    if data[:4] == b"ABBE":
+        try:
+            return read_blob(data, source=str(p))
+        except TableError as exc:
+            raise AbbeInputError(exc.message, file=str(p), field=exc.field or "model") from None
+    try:
+        d = json.loads(data.decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError):
+        raise AbbeInputError("not an abbe table: neither a blob (magic ABBE) nor table JSON",
+                             file=str(p), field="model") from None
+    return table_from_json(d, str(p))
+
+
+def check_model_matches(table: Table, machine: Any, model_source: str = "model") -> None:
+    """The model must belong to the machine file: same reference point (1 um), and every
+    fitted travel inside the machine's travel (1 mm); else AbbeInputError."""
+    ref_m = np.asarray(machine.reference_mm, dtype=np.float64)
+    ref_t = np.asarray(table.reference_mm, dtype=np.float64)
+    if np.max(np.abs(ref_m - ref_t)) > 1e-3:
+        raise AbbeInputError(
+            f"the model's reference point {tuple(round(v, 3) for v in ref_t)} mm differs from the "
+            f"machine file's {tuple(round(v, 3) for v in ref_m)} mm: the model ({model_source}) "
+            "and the measurements are for different machines", file=str(machine.path),
+            line=machine.line_of("reference.point_mm"), field="reference.point_mm")
+    for a, spec in machine.axes.items():
+        lo, hi = table.axes[a].travel_mm
+        mlo, mhi = spec.travel_mm
+        if lo < mlo - 1.0 or hi > mhi + 1.0:
+            raise AbbeInputError(
+                f"the model covers {a} = [{lo:g}, {hi:g}] mm, outside the machine's travel "
+                f"[{mlo:g}, {mhi:g}] mm: the model ({model_source}) belongs to another machine",
+                file=str(machine.path), line=machine.line_of(f"axes.{a}.travel_mm"),
+                field=f"axes.{a}.travel_mm")
+
+
+def diagnose_machine(machine: Any, model: Any, ballbar: list[str] | None = None,
+                     laser: list[str] | None = None, options: DiagnoseOptions | None = None,
+                     rezeroed: bool = False) -> DiagnoseResult:
+    """Diagnose the checks of a machine file against a model (the demo's entry point).
+
+    ``machine``: path or :class:`abbe.formats.machine.Machine`; ``model``: path (blob / JSON) or
+    Table; ``ballbar``: test names, ``laser``: axes (both None = every test in the file).
+    """
+    from abbe.diagnose.checks import ballbar_check, laser_check
+    from abbe.formats.machine import load_machine
+    m = machine if hasattr(machine, "ballbar") else load_machine(machine)
+    table = load_model(model)
+    check_model_matches(table, m, str(model) if not isinstance(model, Table) else "model")
+    if ballbar is None and laser is None:
+        ballbar, laser = sorted(m.ballbar), sorted(m.laser)
+    checks: list[Check] = []
+    for name in ballbar or []:
+        checks.append(ballbar_check(m, name, table.reference_mm))
+    for axis in laser or []:
+        checks.append(laser_check(m, axis.upper(), table.reference_mm, rezeroed=rezeroed))
+    if not checks:
+        raise AbbeInputError("the machine file has no [ballbar.*] or [laser.*] test to check "
+                             "the model with", file=str(m.path), field="ballbar")
+    return diagnose(table, checks, options)
+
+
+def diagnose_positioning(path: Any, axis: str, model: Any = None,
+                         options: DiagnoseOptions | None = None,
+                         rezeroed: bool = False) -> DiagnoseResult:
+    """Diagnose repeated positioning runs (ISO 230-2 .dat or laser CSV) of one axis.
+
+    Without ``model`` the model is position-only: the axis' own positioning term
+    interpolating the mean deviation of each target (abbe.diagnose.checks.position_only_table).
+    """
+    from abbe.diagnose.checks import position_only_table, positioning_check
+    axis = axis.upper()
+    if axis not in AXES:
+        raise AbbeInputError(f"axis {axis!r}: expected X, Y or Z", field="axis")
+    if model is None:
+        c = positioning_check(path, axis, (0.0, 0.0, 0.0), rezeroed=rezeroed)
+        ref = [0.0, 0.0, 0.0]
+        tg = c.targets
+        ref[AXES.index(axis)] = 0.0 if tg.min() <= 0.0 <= tg.max() else float(tg[0])
+        c = positioning_check(path, axis, tuple(ref), rezeroed=rezeroed)  # type: ignore[arg-type]
+        table = position_only_table(c)
+    else:
+        table = load_model(model)
+        c = positioning_check(path, axis, table.reference_mm, rezeroed=rezeroed)
+    return diagnose(table, [c], options)
