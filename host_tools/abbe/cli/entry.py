@@ -22,6 +22,7 @@ COMMANDS: list[str] = [
     "abbe.cli.ballbar",
     "abbe.cli.diagnose",
     "abbe.cli.predict",
+    "abbe.cli.export",
     "abbe.cli.demo",
     "abbe.cli.modbus",
 ]
