@@ -23,6 +23,7 @@ COMMANDS: list[str] = [
     "abbe.cli.diagnose",
     "abbe.cli.predict",
     "abbe.cli.export",
+    "abbe.cli.import_cmd",
     "abbe.cli.demo",
     "abbe.cli.modbus",
 ]

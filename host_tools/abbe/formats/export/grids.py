@@ -7,7 +7,7 @@ spacing is chosen to minimise the interpolation residual: among "round"
 spacings (1, 2, 2.5, 5 x 10^k mm) and the finest spacing the limit allows, the
 lowest maximum |f - interpolant| over the travel wins; a coarser grid is
 preferred only when it is within max(0.001 um, 1 %) of the lowest. When the
-finest allowed grid still leaves more than 0.05 um and twice the points would
+chosen grid still leaves more than 0.05 um and twice the allowed points would
 shrink that by a quarter or more, the point limit is named as the cause.
 Positions mm, values um.
 """
@@ -127,7 +127,7 @@ def choose_grid(lo: float, hi: float, f: Callable[[np.ndarray], np.ndarray], lim
     hf = min(s[1] for s in scored)
     fin = next(s[0] for s in scored if s[1] == hf)
     dbl = interp_error(f, q, fq, knots_for(lo, hi, hf / 2.0))
-    cause = bool(h == hf and fin > LIMIT_CAUSE_UM and dbl < 0.75 * fin)
+    cause = bool(err > LIMIT_CAUSE_UM and dbl < 0.75 * err)
     return Grid(knots=k, spacing_mm=float(h), limit=limit, interp_residual_um=err,
                 finest_residual_um=fin, double_residual_um=dbl, limit_is_cause=cause)
 

@@ -103,7 +103,7 @@ def _components(ctx: Context) -> Export:
     per_axis = budget // 3
     if per_axis < 2:
         raise AbbeInputError("too few records for three axis tables", field="--set max_records")
-    blocks = [f"// abbe export isg-csv (components): ISO 230-1 component errors, mm and rad;",
+    blocks = ["// abbe export isg-csv (components): ISO 230-1 component errors, mm and rad;",
               "// lever arms about the machine origin; location errors from the squareness",
               " ".join(LOCATION),
               " ".join(fmt(sign * ctx.table.squareness_urad[i] * 1e-6, RAD_DECIMALS)
