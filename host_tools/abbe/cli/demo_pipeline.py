@@ -19,6 +19,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from abbe import paths
 from abbe.analysis.iso230_4 import BallbarResult, evaluate_ballbar, plot_polar
 from abbe.analysis.predict import Prediction, plot_prediction, predict
 from abbe.errors import AbbeInputError
@@ -50,9 +51,9 @@ def _build_check(fit_dir: Path) -> dict[str, Any]:
     macro = [ln for ln in header.splitlines() if "ABBE_MODEL_BLOB_CRC32" in ln and "#define" in ln]
     macro_crc = int(macro[0].split()[2].rstrip("uU"), 16) if macro else None
     result: dict[str, Any] = {"model_crc": f"0x{crc:08X}", "header_crc_matches": macro_crc == crc}
-    include = clib.repo_root() / "lib" / "include"
+    include = paths.include_dir()
     cc = shutil.which("cc") or shutil.which("gcc")
-    if cc and include.is_dir():
+    if cc and include is not None:
         r = subprocess.run([cc, "-std=c99", "-Wall", "-Wextra", "-pedantic", "-Werror", "-fsyntax-only",
                             f"-I{include}", f"-I{fit_dir}", str(fit_dir / "abbe_model.c")],
                            capture_output=True, text=True)
