@@ -9,6 +9,8 @@ import json
 import sys
 from pathlib import Path
 
+from abbe.cli.conventions import examples, list_option
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     from abbe.formats.export import TARGETS
@@ -18,7 +20,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description="Write the model (table blob, table JSON or a fit/import model.json) in a "
                     "controller's native compensation format and report what the target leaves "
                     "uncompensated over the work volume and the machine file's ballbar circles "
-                    "(OUT/residual.json). Targets: " + ", ".join(TARGETS) + ".")
+                    "(OUT/residual.json). Targets: " + ", ".join(TARGETS) + ".",
+        epilog=examples("abbe export fit-out/model.bin --format linuxcnc-comp -o lcnc "
+                        "--machine examples/vmc500/machine.toml",
+                        "abbe export model.bin -f sinumerik-cec -o cec --set tables=8 points=200",
+                        "abbe export model.bin -f fanuc-pitch --list-options -o x"))
     p.add_argument("model", type=Path, help="model: model.bin, table JSON or model.json")
     p.add_argument("--format", "-f", required=True, choices=list(TARGETS), metavar="F",
                    help="target: " + ", ".join(TARGETS))
@@ -26,8 +32,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--machine", type=Path,
                    help="machine file: its travel is the work volume, its ballbar circles are "
                         "evaluated (default: the model's travel, no circles)")
-    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help="target option (repeatable); --list-options shows them")
+    list_option(p, "--set", default=[], metavar="NAME=VALUE",
+                help="target options (repeatable); --list-options shows them")
     p.add_argument("--list-options", action="store_true", help="print the target's options")
     p.add_argument("--json", action="store_true", help="print the residual report as JSON")
     p.set_defaults(func=run)

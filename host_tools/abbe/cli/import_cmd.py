@@ -8,6 +8,8 @@ import argparse
 import json
 from pathlib import Path
 
+from abbe.cli.conventions import examples
+
 FORMATS = ("isg-csv", "isg-lis", "etalon")
 
 
@@ -16,7 +18,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "import", help="ISO 230-1 error files (ISG CSV, TF5280 .lis, Etalon) -> an abbe table",
         description="Read ISO 230-1 component errors (Beckhoff TF5280 ISG CSV or its .lis list "
                     "file, Etalon exchange format) and fit them into an abbe table with the "
-                    "model selection of abbe fit (docs/exports.md, 'abbe import').")
+                    "model selection of abbe fit (docs/exports.md, 'abbe import').",
+        epilog=examples("abbe import volcomp.lis -o imported --machine examples/vmc500/machine.toml",
+                        "abbe import lasertracer.exc -o imported --reference 163.626 -212.772 "
+                        "-290.704"))
     p.add_argument("file", type=Path, help="error file")
     p.add_argument("--format", choices=FORMATS,
                    help="isg-csv, isg-lis or etalon (default: .lis -> isg-lis, .csv -> isg-csv, "
