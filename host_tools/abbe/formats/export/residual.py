@@ -145,9 +145,10 @@ def summary(report: dict[str, Any]) -> str:
              + f"   (uncompensated |E| {u['norm']['max_um']:.3f} / {u['norm']['rms_um']:.3f})"]
     for name, c in report["circles"].items():
         r = c["residual"]
-        lines.append(f"  residual on {name}: |r| {r['norm']['max_um']:.3f} / {r['norm']['rms_um']:.3f}, "
-                     f"radial {r['radial']['max_um']:.3f} / {r['radial']['rms_um']:.3f} um "
-                     f"(uncompensated radial {c['uncompensated']['radial']['max_um']:.3f})")
+        lines.append(f"  residual on {name} (max / RMS um): "
+                     + "  ".join(f"{k} {r[k]['max_um']:.3f} / {r[k]['rms_um']:.3f}"
+                                 for k in ("dX", "dY", "dZ", "norm", "radial"))
+                     + f"   (uncompensated radial {c['uncompensated']['radial']['max_um']:.3f})")
     for t in report["tables"]:
         if t.get("limit_is_cause"):
             r = t.get("interpolation_residual_um", t.get("staircase_residual_um", 0.0))

@@ -130,3 +130,25 @@ def test_every_model_form_is_accepted_and_garbage_refused(tmp_path, capsys) -> N
                      str(tmp_path / "x")]) == 2
     assert "format" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
+
+
+def test_an_empty_model_exports_or_is_refused_cleanly(tmp_path, capsys) -> None:
+    """A table with no terms: every target either writes a null correction (residual 0)
+    or refuses with exit 2 (CEC: nothing to tabulate), never a traceback."""
+    from abbe.formats.export import TARGETS
+    from abbe.model.table import AxisTable, Table
+    t = Table(axes={a: AxisTable(travel_mm=tr) for a, tr in
+                    zip(AXES, ((0.0, 500.0), (-400.0, 0.0), (-300.0, 0.0)))},
+              reference_mm=(163.626, -212.772, -290.704))
+    model = tmp_path / "empty.bin"
+    model.write_bytes(write_blob(t))
+    for target in TARGETS:
+        out = tmp_path / target
+        rc = cli_main(["export", str(model), "-f", target, "-o", str(out)])
+        if rc == 2:
+            assert target == "sinumerik-cec" and "no single-axis part" in capsys.readouterr().err
+            continue
+        assert rc == 0, target
+        rep = json.loads((out / "residual.json").read_text())
+        assert rep["volume"]["residual"]["norm"]["max_um"] < 1e-3, target
+        assert rep["not_held"] == []
