@@ -88,6 +88,8 @@ def read_isg_csv(path: str | Path, data: ComponentData | None = None) -> Compone
             header, rows = None, []
             continue
         cells = line.replace(",", " ").replace(";", " ").split()
+        if not cells:
+            continue
         if header is None:
             for c in cells:
                 if c not in ARGUMENTS:
