@@ -28,3 +28,21 @@ def test_the_comparison_can_fail(tmp_path) -> None:
     assert compare_text("X 1.0", "Y 1.0", "f")
     assert compare_json({"a": 1.001}, {"a": 1.0}, "r")
     assert not compare_json({"a": 1.0001}, {"a": 1.0}, "r")
+
+
+def test_the_kept_fit_model_is_what_abbe_fit_gives(tmp_path) -> None:
+    """The golden fit model is `abbe fit examples/vmc500/machine.toml` (within 0.01 um over
+    the work volume). If the fit changed on purpose, regenerate the golden files
+    (golden_compare.py --write after copying the new model.bin) and review them."""
+    import numpy as np
+
+    from abbe.cli.entry import main
+    from abbe.formats.model_file import load_table
+    from abbe.model.reference import spatial_error
+    from golden_compare import MACHINE
+    assert main(["fit", str(MACHINE), "-o", str(tmp_path / "fit"), "--no-clib-check",
+                 "--no-report", "-q"]) == 0
+    a = load_table(tmp_path / "fit" / "model.bin")
+    b = load_table(GOLDEN / "vmc500-fit" / "model.bin")
+    P = np.random.default_rng(2).random((3000, 3)) * [500.0, -400.0, -300.0]
+    assert np.max(np.abs(spatial_error(a, P) - spatial_error(b, P))) < 0.01
