@@ -8,6 +8,9 @@
 #   4. Cortex-M3 cross build (build-m3/), fixed point only, + its ctest under QEMU
 #   5. libFuzzer run on the table loader (build-fuzz/, clang)
 #   6. pytest host_tools/tests
+#   7. LinuxCNC: the HAL component built and installed, halrun and simulator
+#      tests (port/linuxcnc/tests/run.sh; halrun / linuxcnc run as an
+#      unprivileged user, created when run as root)
 # Runs every step even after a failure; exits non-zero if any step failed.
 set -uo pipefail
 
@@ -80,6 +83,7 @@ step "Cortex-M4F build and ctest under QEMU (build-m4f)" cross m4f cortex-m4f
 step "Cortex-M3 build and ctest under QEMU (build-m3)" cross m3 cortex-m3
 step "libFuzzer run (build-fuzz)" fuzz
 step "pytest host_tools/tests" pytest_all
+step "LinuxCNC component: halrun and simulator tests" bash port/linuxcnc/tests/run.sh
 
 echo
 echo "==== [test] summary ===="

@@ -87,6 +87,7 @@ param rw s32 z.sign "+1 or -1: Z correction = sign * -dZ";
 param rw float fade_s "Duration of a full fade in or out, s";
 param rw float stale_s "Invalid input for this long: fade out, s";
 param rw float dir_deadband_mm "Reverse motion that turns the backlash direction, mm";
+param rw float lead_periods "Evaluate the model this many servo periods ahead (LinuxCNC applies an offset 2 periods late)";
 param rw float machine_unit_mm "mm per machine length unit: 1 (mm) or 25.4 (inch); sets eoffset-scale";
 
 option singleton yes;
@@ -159,6 +160,7 @@ author "abbe contributors";
 #undef fade_s
 #undef stale_s
 #undef dir_deadband_mm
+#undef lead_periods
 #undef machine_unit_mm
 #define PIN(name) (*__comp_inst->name)
 #define PARAM(name) (__comp_inst->name)
@@ -194,6 +196,7 @@ static void read_params(struct __comp_state *__comp_inst, abbe_lcnc_params_t *p)
     p->fade_s = PARAM(fade_s);
     p->stale_s = PARAM(stale_s);
     p->dir_deadband_mm = PARAM(dir_deadband_mm);
+    p->lead_periods = PARAM(lead_periods);
     p->machine_unit_mm = PARAM(machine_unit_mm);
 }
 
@@ -311,6 +314,7 @@ EXTRA_SETUP() {
     PARAM(fade_s) = p.fade_s;
     PARAM(stale_s) = p.stale_s;
     PARAM(dir_deadband_mm) = p.dir_deadband_mm;
+    PARAM(lead_periods) = p.lead_periods;
     PARAM(machine_unit_mm) = p.machine_unit_mm;
     return 0; /* pins do not exist yet here: FUNCTION writes every output */
 }

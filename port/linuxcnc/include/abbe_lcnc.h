@@ -12,8 +12,15 @@
  *     change takes effect through abbe_comp_set_config() (no jump);
  *   - enable, homed, machine-on and reset pins mapped onto enable / disable /
  *     reset of the compensator;
- *   - a backlash direction per axis from the commanded position, with a
- *     deadband (sticky: the last direction is kept while the axis stands);
+ *   - a lead: LinuxCNC applies an external offset two servo periods after
+ *     the commanded position it was computed for (one period from the counts
+ *     to motion's offset register, one in its offset planner), so the model
+ *     is evaluated where the axis will be then: p + lead * (p - p_previous),
+ *     in integer nm (lead_periods, default 2; 0 evaluates at p);
+ *   - a backlash direction per axis from the commanded positions (not the
+ *     extrapolated ones), with a deadband (sticky: the last direction is kept
+ *     while the axis stands); the library ramps its direction state by the
+ *     extrapolated motion in that direction;
  *   - the s32 counts for axis.L.eoffset-counts. LinuxCNC accumulates count
  *     *changes* (times eoffset-scale), and only while it is on, homed and
  *     eoffset-enable is set; it zeroes its register at machine-on. The port
@@ -60,6 +67,7 @@ typedef struct {
     double fade_s;                   /* duration of a full fade in or out (>= 0) */
     double stale_s;                  /* invalid input for this long: fade out (>= 0) */
     double dir_deadband_mm;          /* motion that sets the backlash direction (>= 0) */
+    double lead_periods;             /* evaluate this many periods ahead (0 .. 100), see below */
     double machine_unit_mm;          /* mm per LinuxCNC length unit: 1 (mm) or 25.4 (inch) */
 } abbe_lcnc_params_t;
 
@@ -115,6 +123,10 @@ typedef struct {
     int32_t anchor_nm[ABBE_AXES];
     int8_t dir[ABBE_AXES];
     uint8_t have_anchor;
+    /* lead */
+    int32_t last_pos_nm[ABBE_AXES];
+    uint8_t have_last;
+    double lead_periods;     /* lead in force */
     /* LinuxCNC's external-offset register, mirrored */
     uint32_t counts[ABBE_AXES];   /* the s32 output, two's complement */
     int64_t accepted_nm[ABBE_AXES];
@@ -122,7 +134,7 @@ typedef struct {
 } abbe_lcnc_t;
 
 /* Defaults: warn 0.05 mm, limit 0.1 mm, rate 1 mm/s, sign +1, fade 0.5 s,
- * stale 0.01 s, deadband 0.0005 mm, machine unit 1 mm. */
+ * stale 0.01 s, deadband 0.0005 mm, lead 2 periods, machine unit 1 mm. */
 void abbe_lcnc_default_params(abbe_lcnc_params_t *params);
 
 /* The compensator configuration for params at a thread period. Returns

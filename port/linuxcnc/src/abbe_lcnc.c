@@ -84,6 +84,7 @@ void abbe_lcnc_default_params(abbe_lcnc_params_t *params)
     params->fade_s = 0.5;
     params->stale_s = 0.01;
     params->dir_deadband_mm = 0.0005;
+    params->lead_periods = 2.0;
     params->machine_unit_mm = 1.0;
 }
 
@@ -109,7 +110,9 @@ abbe_status_t abbe_lcnc_params_to_config(const abbe_lcnc_params_t *params, long 
     if (!duration_cycles(params->fade_s, period_ns, &c.fade_cycles) ||
         !duration_cycles(params->stale_s, period_ns, &c.stale_cycles) ||
         !finite_d(params->dir_deadband_mm) || params->dir_deadband_mm < 0.0 ||
-        params->dir_deadband_mm > 1000.0 || !finite_d(params->machine_unit_mm) ||
+        params->dir_deadband_mm > 1000.0 || !finite_d(params->lead_periods) ||
+        params->lead_periods < 0.0 || params->lead_periods > 100.0 ||
+        !finite_d(params->machine_unit_mm) ||
         !(params->machine_unit_mm > 0.0)) {
         return ABBE_E_ARG;
     }
@@ -135,6 +138,7 @@ abbe_status_t abbe_lcnc_init(abbe_lcnc_t *port, abbe_lcnc_variant_t variant,
     port->variant = variant;
     port->cfg = cfg;
     port->deadband_nm = (int32_t)round_i64(params->dir_deadband_mm * NM_PER_MM);
+    port->lead_periods = params->lead_periods;
     port->eoffset_scale = 1.0 / (NM_PER_MM * params->machine_unit_mm);
     memcpy(&port->params_seen, params, sizeof port->params_seen);
     port->period_seen_ns = period_ns;
@@ -182,6 +186,7 @@ static void follow_params(abbe_lcnc_t *port, const abbe_lcnc_params_t *params, l
         abbe_comp_set_config(&port->comp, &cfg) == ABBE_OK) {
         port->cfg = cfg;
         port->deadband_nm = (int32_t)round_i64(params->dir_deadband_mm * NM_PER_MM);
+        port->lead_periods = params->lead_periods;
         port->eoffset_scale = 1.0 / (NM_PER_MM * params->machine_unit_mm);
         port->params_bad = 0;
     } else {
@@ -216,6 +221,27 @@ static void follow_direction(abbe_lcnc_t *port, const int32_t pos_nm[ABBE_AXES],
             port->anchor_nm[j] = pos_nm[j];
         }
     }
+}
+
+/* Replace pos_nm by the position lead_periods ahead, from this period's
+ * motion: p + round(lead * (p - p_previous)), clamped to int32. */
+static void lead(abbe_lcnc_t *port, int32_t pos_nm[ABBE_AXES])
+{
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        int32_t p = pos_nm[j];
+        if (port->have_last) {
+            double ahead = port->lead_periods * (double)((int64_t)p - port->last_pos_nm[j]);
+            if (ahead > 4294967294.0) {
+                ahead = 4294967294.0;
+            } else if (ahead < -4294967294.0) {
+                ahead = -4294967294.0;
+            }
+            int64_t q = (int64_t)p + round_i64(ahead);
+            pos_nm[j] = q > INT32_MAX ? INT32_MAX : (q < -INT32_MAX ? -INT32_MAX : (int32_t)q);
+        }
+        port->last_pos_nm[j] = p;
+    }
+    port->have_last = 1;
 }
 
 static int running_index(const abbe_lcnc_t *port)
@@ -315,14 +341,20 @@ void abbe_lcnc_step(abbe_lcnc_t *port, const abbe_lcnc_params_t *params, long pe
         }
     }
     if (fresh) {
+        /* The direction from the commanded motion itself; the positions the
+         * model sees, ahead. (A direction from the extrapolated positions
+         * would take the overshoot of every stop for a reversal.) */
         follow_direction(port, pos_nm, port->deadband_nm);
+        lead(port, pos_nm);
+    } else {
+        port->have_last = 0; /* the lead restarts from the next valid position */
     }
 
     abbe_comp_output_t co;
     if (port->variant == ABBE_LCNC_VARIANT_F32) {
         abbe_comp_input_f32_t ci;
         for (unsigned j = 0; j < ABBE_AXES; j++) {
-            ci.pos_mm[j] = (float)in->pos_mm[j];
+            ci.pos_mm[j] = fresh ? (float)((double)pos_nm[j] / NM_PER_MM) : (float)in->pos_mm[j];
             ci.temp_c[j] = thermal ? (float)in->temp_c[j] : 0.0f;
             ci.dir[j] = port->dir[j];
         }

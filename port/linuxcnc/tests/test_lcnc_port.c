@@ -514,6 +514,7 @@ static void test_direction_deadband(void **state)
         p.limit_mm[j] = 2.0;
     }
     p.dir_deadband_mm = 0.002;
+    p.lead_periods = 0.0; /* directions of the positions themselves */
     assert_int_equal(abbe_lcnc_init(&port, ABBE_LCNC_VARIANT_Q, &p, PERIOD_NS), ABBE_OK);
     assert_int_equal(abbe_lcnc_add_table(&port, aligned_blob(0, t), t->blob_size), ABBE_OK);
     abbe_model_t m;
@@ -553,6 +554,113 @@ static void test_direction_deadband(void **state)
                 fail_msg("step %zu axis %u: port target %d nm, library with dir %d: %d nm", k, j,
                          mm_nm(out.target_mm[j]), want_dir[k], co.target_nm[j]);
             }
+        }
+    }
+}
+
+/* The lead: the model is evaluated at p + lead * (p - p_previous); the first
+ * period, and the first after an invalid input, at p. */
+static void test_lead(void **state)
+{
+    (void)state;
+    abbe_lcnc_params_t p;
+    abbe_lcnc_default_params(&p);
+    p.lead_periods = 2.0;
+    p.stale_s = 1.0;
+    setup_port(ABBE_LCNC_VARIANT_Q, &p, "paper");
+    abbe_model_t m;
+    assert_int_equal(abbe_model_load(&m, blob_store[0], golden("paper")->blob_size), ABBE_OK);
+    int32_t prev[3] = {0, 0, 0};
+    for (unsigned k = 0; k < 60; k++) {
+        abbe_lcnc_input_t in;
+        abbe_lcnc_output_t out;
+        input_at(&in, 37 * k); /* big steps: the lead shows */
+        if (k == 30) {
+            in.pos_mm[0] = strtod("nan", NULL);
+        }
+        abbe_lcnc_step(&port, &p, PERIOD_NS, &in, &out);
+        if (k == 30) {
+            continue;
+        }
+        abbe_input_q_t ei;
+        abbe_error_q_t eo;
+        memset(&ei, 0, sizeof ei);
+        for (unsigned j = 0; j < 3; j++) {
+            int32_t now = mm_nm(in.pos_mm[j]);
+            ei.pos_nm[j] = (k == 0 || k == 31) ? now : now + 2 * (now - prev[j]);
+            prev[j] = now;
+        }
+        assert_int_equal(abbe_error_eval_q(&m, &ei, &eo), ABBE_OK);
+        for (unsigned j = 0; j < 3; j++) {
+            if (mm_nm(out.target_mm[j]) != -eo.error_nm[j]) {
+                fail_msg("period %u axis %u: target %d nm, model ahead %d nm", k, j,
+                         mm_nm(out.target_mm[j]), -eo.error_nm[j]);
+            }
+        }
+    }
+    /* out of range */
+    abbe_comp_config_t c;
+    p.lead_periods = -1.0;
+    assert_int_equal(abbe_lcnc_params_to_config(&p, PERIOD_NS, &c), ABBE_E_ARG);
+    p.lead_periods = 101.0;
+    assert_int_equal(abbe_lcnc_params_to_config(&p, PERIOD_NS, &c), ABBE_E_ARG);
+}
+
+/* With a lead, a stop is not a reversal: decelerating to standstill, the
+ * extrapolated position runs past the stop and comes back, but the backlash
+ * direction follows the commanded motion (still +). Compare with a plain
+ * compensator fed the lead positions and direction +. */
+static void test_lead_stop_keeps_direction(void **state)
+{
+    (void)state;
+    const abbe_golden_table_t *t = golden("full"); /* has backlash */
+    abbe_lcnc_params_t p;
+    abbe_lcnc_default_params(&p);
+    for (unsigned j = 0; j < 3; j++) {
+        p.warn_mm[j] = 1.0;
+        p.limit_mm[j] = 2.0;
+    }
+    assert_int_equal(abbe_lcnc_init(&port, ABBE_LCNC_VARIANT_Q, &p, PERIOD_NS), ABBE_OK);
+    assert_int_equal(abbe_lcnc_add_table(&port, aligned_blob(0, t), t->blob_size), ABBE_OK);
+    abbe_model_t m;
+    assert_int_equal(abbe_model_load(&m, blob_store[0], t->blob_size), ABBE_OK);
+    abbe_comp_t ref;
+    abbe_comp_config_t cfg;
+    assert_int_equal(abbe_lcnc_params_to_config(&p, PERIOD_NS, &cfg), ABBE_OK);
+    assert_int_equal(abbe_comp_init(&ref, &cfg, &m), ABBE_OK);
+    /* X at 50 mm/s, braking at 2000 mm/s^2 to a stop, then standing */
+    double x = 100.0, v = 0.05; /* mm per period */
+    int32_t prev = 0;
+    for (unsigned k = 0; k < 200; k++) {
+        if (k >= 100) {
+            v = v > 0.002 ? v - 0.002 : 0.0;
+        }
+        x += v;
+        abbe_lcnc_input_t in;
+        abbe_lcnc_output_t out;
+        memset(&in, 0, sizeof in);
+        in.pos_mm[0] = x;
+        in.pos_mm[1] = 50.0;
+        in.pos_mm[2] = -20.0;
+        in.temp_c[0] = in.temp_c[1] = in.temp_c[2] = 20.0;
+        abbe_lcnc_step(&port, &p, PERIOD_NS, &in, &out);
+        abbe_comp_input_q_t ci;
+        abbe_comp_output_t co;
+        memset(&ci, 0, sizeof ci);
+        int32_t now = mm_nm(x);
+        ci.pos_nm[0] = k == 0 ? now : now + 2 * (now - prev);
+        prev = now;
+        ci.pos_nm[1] = mm_nm(50.0);
+        ci.pos_nm[2] = mm_nm(-20.0);
+        for (unsigned j = 0; j < 3; j++) {
+            ci.temp_mdegc[j] = 20000;
+        }
+        ci.dir[0] = k == 0 ? 0 : 1;
+        ci.fresh = 1;
+        assert_int_equal(abbe_comp_step_q(&ref, &ci, &co), ABBE_OK);
+        if (mm_nm(out.target_mm[0]) != co.target_nm[0]) {
+            fail_msg("period %u: port %d nm, compensator moving + %d nm", k, mm_nm(out.target_mm[0]),
+                     co.target_nm[0]);
         }
     }
 }
@@ -671,6 +779,8 @@ int main(void)
         cmocka_unit_test(test_param_change_no_jump),
         cmocka_unit_test(test_invalid_input),
         cmocka_unit_test(test_direction_deadband),
+        cmocka_unit_test(test_lead),
+        cmocka_unit_test(test_lead_stop_keeps_direction),
         cmocka_unit_test(test_table_select),
         cmocka_unit_test(test_bad_tables),
         cmocka_unit_test(test_read_file),
