@@ -19,6 +19,8 @@ the library's reason. The first runs; \\fBtable-select\\fR switches at a cycle
 boundary. A relative path is relative to the directory LinuxCNC was started in
 (the configuration's directory).
 \\fBvariant\\fR: q (default; integer evaluation from positions in nm) or f32.
+A module built with a compiled-in table (build.sh --builtin) uses it when no
+\\fBtable\\fR is given.
 """;
 
 // ---- inputs, per axis (x, y, z) ------------------------------------------
@@ -167,6 +169,9 @@ author "abbe contributors";
 
 #include "abbe_lcnc.h"
 #include "abbe_lcnc_file.h"
+#ifdef ABBE_LCNC_BUILTIN_TABLE
+#include "abbe_model.h" /* build.sh --builtin DIR: abbe table cgen output */
+#endif
 
 /* Module parameters. */
 static char *table[ABBE_LCNC_MAX_TABLES];
@@ -275,8 +280,19 @@ EXTRA_SETUP() {
         return -EINVAL;
     }
     if (table[0] == NULL || table[0][0] == '\0') {
+#ifdef ABBE_LCNC_BUILTIN_TABLE
+        abbe_status_t st = abbe_lcnc_add_table(&abbe_port, abbe_model_blob, abbe_model_blob_size);
+        if (st != ABBE_OK) {
+            rtapi_print_msg(RTAPI_MSG_ERR, "abbe: built-in table refused: %s (status %d)\n",
+                            abbe_strerror(st), (int)st);
+            return -EINVAL;
+        }
+        rtapi_print_msg(RTAPI_MSG_INFO, "abbe: built-in table, CRC-32 0x%08X\n",
+                        (unsigned)abbe_lcnc_table_crc(&abbe_port, 0));
+#else
         rtapi_print_msg(RTAPI_MSG_ERR, "abbe: table=FILE is required (an abbe table, model.bin)\n");
         return -EINVAL;
+#endif
     }
     for (i = 0; i < ABBE_LCNC_MAX_TABLES && table[i] != NULL && table[i][0] != '\0'; i++) {
         char why[160];

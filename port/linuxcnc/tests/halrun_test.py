@@ -110,12 +110,12 @@ def write_stream(path: Path, pos, temp, lev) -> None:
     give(path)
 
 
-def hal_script(work: Path, table: Path, n: int, variant: str, fade_s: float) -> Path:
+def hal_script(work: Path, table: Path | None, n: int, variant: str, fade_s: float) -> Path:
     lines = [
         "loadrt threads name1=servo period1=1000000",
         f"loadrt streamer depth={n + 16} cfg={STREAM_CFG}",
         f"loadrt sampler depth=4000 cfg={SAMPLER_CFG}",
-        f"loadrt abbe table={table} variant={variant}",
+        f"loadrt abbe variant={variant}" + (f" table={table}" if table is not None else ""),
     ]
     for i, pin in enumerate(STREAM_PINS):
         lines.append(f"net in{i} streamer.0.pin.{i} => {pin}")
@@ -148,7 +148,7 @@ def halcmd(*args: str) -> str:
     return res.stdout.strip()
 
 
-def run_halrun(work: Path, table: Path, pos, temp, lev, variant: str, changes: bool) -> dict:
+def run_halrun(work: Path, table: Path | None, pos, temp, lev, variant: str, changes: bool) -> dict:
     """Run one scenario; returns the samples and what the driver saw."""
     n = len(pos)
     write_stream(work / "stream.txt", pos, temp, lev)
@@ -375,9 +375,55 @@ def test_bad_tables(work: Path, good: Path) -> None:
           "loadrt abbe without a table loaded")
 
 
+def test_builtin(work: Path, table: Path, info: dict) -> dict:
+    """A module built with the table compiled in (build.sh --builtin, from
+    abbe table cgen of the same table): loads without table= and runs that
+    table; a table= file given to it is still read and checked (a damaged one
+    refuses the load)."""
+    n = 1500
+    pos = circle_positions(n)
+    temp = temperatures(n, [(0, (20.5, 20.0, 19.5))])
+    lev = levels(n, [(0, 1, 1, 1)])
+    log(f"built-in table run: {n} periods")
+    seen = run_halrun(work, None, pos, temp, lev, "q", changes=False)  # no table=
+    check(seen.get("crc") == info["crc"], f"built-in model-crc 0x{seen.get('crc', 0):08X}, "
+          f"table CRC 0x{info['crc']:08X}")
+    c = columns(seen["samples"])
+    check_alignment(c, pos)
+    ref_nm, _ = reference(table, info, pos, temp)
+    target = np.column_stack([nm(c[f"abbe.{a}.target-mm"]) for a in "xyz"])
+    res = {"target_max_nm": float(np.abs(target - ref_nm).max())}
+    check(res["target_max_nm"] <= NUMERICS_BOUND_NM, f"built-in: target off by {res['target_max_nm']:.1f} nm")
+    damaged = bytearray(table.read_bytes())
+    damaged[300] ^= 1
+    bad = work / "damaged.bin"
+    bad.write_bytes(bytes(damaged))
+    give(bad)
+    script = work / "bad.hal"
+    script.write_text(f"loadrt abbe table={bad}\n")
+    give(script)
+    hal_clean()
+    r = subprocess.run(as_user(["halrun", "-f", str(script)]), cwd=work, capture_output=True,
+                       text=True, stdin=subprocess.DEVNULL, timeout=60)
+    check(r.returncode != 0 and "table CRC-32 mismatch" in r.stdout + r.stderr,
+          "built-in module: a damaged table= file did not refuse the load")
+    return res
+
+
 def main() -> None:
+    import argparse
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--builtin", action="store_true",
+                    help="test a module built with the vmc500 table compiled in (run.sh does)")
+    args = ap.parse_args()
     work = work_dir("abbe-halrun-")
     try:
+        if args.builtin:
+            table = make_table(REPO / "examples/vmc500/truth/true_table.json", work / "vmc500.bin")
+            r = test_builtin(work, table, table_info(table))
+            log(f"built-in table: target vs reference max {r['target_max_nm']:.1f} nm")
+            log("halrun built-in table test: OK")
+            return
         table = make_table(REPO / "examples/vmc500/truth/true_table.json", work / "vmc500.bin")
         info = table_info(table)
         log(f"table {table.name}: CRC 0x{info['crc']:08X}, take-up {info['takeup_mm']} mm, "

@@ -498,6 +498,41 @@ static void test_invalid_input(void **state)
     assert_int_equal(out.stats.invalid_inputs, 34);
 }
 
+/* An axis fault fades that axis out, the others go on. */
+static void test_axis_fault(void **state)
+{
+    (void)state;
+    abbe_lcnc_params_t p;
+    abbe_lcnc_default_params(&p);
+    p.fade_s = 0.02;
+    p.rate_mm_per_s[0] = p.rate_mm_per_s[1] = p.rate_mm_per_s[2] = 10.0;
+    setup_port(ABBE_LCNC_VARIANT_Q, &p, "paper");
+    abbe_lcnc_input_t in;
+    abbe_lcnc_output_t out;
+    input_at(&in, 0);
+    for (unsigned k = 0; k < 50; k++) {
+        abbe_lcnc_step(&port, &p, PERIOD_NS, &in, &out);
+    }
+    double full[3];
+    memcpy(full, out.corr_mm, sizeof full);
+    in.axis_fault[1] = 1;
+    double prev = full[1];
+    for (unsigned k = 0; k < 50; k++) {
+        abbe_lcnc_step(&port, &p, PERIOD_NS, &in, &out);
+        assert_true(fabs(out.corr_mm[1] - prev) <= fabs(full[1]) / 20.0 + 1e-9);
+        prev = out.corr_mm[1];
+    }
+    assert_true(out.corr_mm[1] == 0.0);
+    assert_true(out.flags & ABBE_FLAG_AXIS_FAULT);
+    assert_true(fabs(out.corr_mm[0] - full[0]) < 1e-9 && fabs(out.corr_mm[2] - full[2]) < 1e-9);
+    assert_int_equal(out.state, ABBE_COMP_ON);
+    in.axis_fault[1] = 0;
+    for (unsigned k = 0; k < 50; k++) {
+        abbe_lcnc_step(&port, &p, PERIOD_NS, &in, &out);
+    }
+    assert_true(fabs(out.corr_mm[1] - full[1]) < 1e-9);
+}
+
 /* ---- backlash direction ---------------------------------------------------------- */
 
 /* The port's direction with hysteresis drives the library's direction state:
@@ -778,6 +813,7 @@ int main(void)
         cmocka_unit_test(test_fault_and_reset),
         cmocka_unit_test(test_param_change_no_jump),
         cmocka_unit_test(test_invalid_input),
+        cmocka_unit_test(test_axis_fault),
         cmocka_unit_test(test_direction_deadband),
         cmocka_unit_test(test_lead),
         cmocka_unit_test(test_lead_stop_keeps_direction),
