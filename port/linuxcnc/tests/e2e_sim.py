@@ -243,16 +243,23 @@ def main() -> None:
         ini, table, info = prepare(work)
         hal_clean()
         log("LinuxCNC simulator: home, program with compensation, program without")
-        proc = subprocess.run(
+        proc = subprocess.Popen(
             as_user(["/usr/bin/python3", str(work / "sim_drive.py"), "--ini", str(ini),
-                     "--program", str(ini.parent / "ballbar_circle.ngc"), "--out", str(work)]),
-            cwd=work, stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=420)
+                     "--program", str(ini.parent / "ballbar_circle.ngc"), "--out", str(work),
+                     "--timeout", "360"]),
+            cwd=work, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+            text=True)
+        try:
+            out, err = proc.communicate(timeout=420)
+        except subprocess.TimeoutExpired:
+            proc.terminate()  # runuser passes SIGTERM on: sim_drive stops LinuxCNC
+            out, err = proc.communicate(timeout=90)
         drive_path = work / "drive.json"
         drive = json.loads(drive_path.read_text()) if drive_path.exists() else {}
         if proc.returncode != 0 or not drive.get("ok"):
             lc_log = (work / "linuxcnc.log").read_text() if (work / "linuxcnc.log").exists() else ""
-            raise TestFailure(f"driving LinuxCNC failed: {drive.get('errors')}\n{proc.stdout}\n"
-                              f"{proc.stderr}\n--- linuxcnc.log ---\n{lc_log[-3000:]}")
+            raise TestFailure(f"driving LinuxCNC failed: {drive.get('errors')}\n{out}\n"
+                              f"{err}\n--- linuxcnc.log ---\n{lc_log[-3000:]}")
         log(f"LinuxCNC: {drive['stop']}; programs {drive['runs']['enabled']['seconds']:.1f} s "
             f"and {drive['runs']['disabled']['seconds']:.1f} s")
         check(drive["model_crc"] == info["crc"], "abbe.model-crc is not the table's CRC")

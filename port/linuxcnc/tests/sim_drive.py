@@ -48,6 +48,10 @@ RECORD = [
 LOG = []
 
 
+class Abort(BaseException):
+    """SIGTERM or the overall timeout: not an Exception, so no wait swallows it."""
+
+
 def log(msg: str) -> None:
     line = f"[sim] {time.monotonic():9.2f} {msg}"
     LOG.append(line)
@@ -204,7 +208,16 @@ def main() -> int:
     ap.add_argument("--program", type=Path, required=True)
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--program-timeout", type=float, default=120.0)
+    ap.add_argument("--timeout", type=int, default=360, help="for everything, s")
     args = ap.parse_args()
+
+    def give_up(signum, _frame):
+        raise Abort(f"stopped by signal {signum} (overall timeout {args.timeout} s or SIGTERM)")
+    # Whatever happens, the finally below stops LinuxCNC: on SIGTERM (e2e_sim.py
+    # giving up) and after the overall timeout.
+    signal.signal(signal.SIGTERM, give_up)
+    signal.signal(signal.SIGALRM, give_up)
+    signal.alarm(args.timeout)
     args.ini, args.program, args.out = args.ini.resolve(), args.program.resolve(), args.out.resolve()
     result = {"ok": False, "errors": [], "runs": {}}
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
@@ -273,10 +286,12 @@ def main() -> int:
             msgs.append(m[1])
         result["operator_errors"] = msgs
         result["ok"] = True
-    except (Exception, SystemExit) as exc:  # reported by e2e_sim.py
+    except (Exception, SystemExit, Abort) as exc:  # reported by e2e_sim.py
         result["errors"].append(f"{type(exc).__name__}: {exc}")
         log(f"ERROR {exc}")
     finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)  # let the shutdown finish
         result["stop"] = stop_linuxcnc(proc)
         log(result["stop"])
         lc_log.close()
