@@ -126,19 +126,20 @@ def test_bad_frames_are_counted(setup: Path) -> None:
         bus.send(can.Message(arbitration_id=0x080, is_extended_id=False, data=b"\0\0"))   # SYNC DLC 2
         bus.send(can.Message(arbitration_id=CMD, is_extended_id=False, data=b"\x55"))     # bad command
         bus.send_raw(b"\0" * 10)                                                          # not a record
+        bus.send_raw(b"")                                      # an empty record: not the end of the bus
         assert bus.recv_all(timeout=0.3) == []           # no cycle ran
         ans = bus.sync()
         st = status(ans)
         assert st.fresh_mask == 0b110 and st.age[0] == 1
         assert st.flags & FLAG_INPUT_INVALID
-        assert st.ignored == 8
+        assert st.ignored == 9
         inf = info(ans)   # the first cycle after the model load
-        assert inf is not None and inf.ignored == 8 and inf.load_status == 0
+        assert inf is not None and inf.ignored == 9 and inf.load_status == 0
         assert inf.model_crc == zlib.crc32(EXAMPLE.read_bytes()[:-4])
         assert bus.close() == 0
     summary = bus.wait_log("counters:")
     assert "bad DLC 2" in summary and "unknown id 2" in summary and "RTR 1" in summary
-    assert "error frames 1" in summary and "bad command 1" in summary and "malformed 1" in summary
+    assert "error frames 1" in summary and "bad command 1" in summary and "malformed 2" in summary
 
 
 def test_stale_watchdog_fades_out(setup: Path) -> None:

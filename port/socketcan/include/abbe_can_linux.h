@@ -27,9 +27,11 @@ typedef struct {
 void abbe_can_fd_driver_init(abbe_can_fd_t *st, int fd, abbe_can_driver_t *drv);
 
 /* One record <-> one frame. Read: ABBE_CAN_OK, ABBE_CAN_E_AGAIN,
- * ABBE_CAN_E_FRAME (record of another size, consumed), ABBE_CAN_E_CLOSED
- * (end of file), ABBE_CAN_E_IO (errno set). Write: ABBE_CAN_OK,
- * ABBE_CAN_E_AGAIN, ABBE_CAN_E_CLOSED (EPIPE), ABBE_CAN_E_IO. */
+ * ABBE_CAN_E_FRAME (record of another size, including an empty one;
+ * consumed), ABBE_CAN_E_CLOSED (end of file: on a SOCK_SEQPACKET socket, the
+ * peer has shut down and nothing is left to read), ABBE_CAN_E_IO (errno
+ * set). Write: ABBE_CAN_OK, ABBE_CAN_E_AGAIN, ABBE_CAN_E_CLOSED (EPIPE),
+ * ABBE_CAN_E_IO. */
 int abbe_can_fd_read(int fd, abbe_can_frame_t *frame);
 int abbe_can_fd_write(int fd, const abbe_can_frame_t *frame);
 

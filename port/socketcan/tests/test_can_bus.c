@@ -392,7 +392,8 @@ static void test_bad_frames(void **state)
     bus_send(ctu_frame(CMD_ID, 2, cmd2));              /* command with a wrong DLC */
     uint8_t junk[8] = {1, 2, 3, 4, 5, 6, 7, 8};
     assert_int_equal(write(fx.peer, junk, sizeof junk), (ssize_t)sizeof junk); /* not a can_frame */
-    assert_int_equal(pump(), 14);
+    assert_int_equal(write(fx.peer, junk, 0), 0);      /* an empty record: not the end of the bus */
+    assert_int_equal(pump(), 15);
     assert_int_equal(collect().n_frames, 0);           /* nothing answered */
 
     abbe_can_counters_t c = abbe_can_node_counters(&fx.node);
@@ -401,11 +402,11 @@ static void test_bad_frames(void **state)
     assert_int_equal(c.unknown_id, 3);
     assert_int_equal(c.error_frames, 1);
     assert_int_equal(c.bad_command, 1);
-    assert_int_equal(c.malformed, 1);
+    assert_int_equal(c.malformed, 2);
     assert_int_equal(c.commands, 0);
     assert_int_equal(c.syncs, 0);
     assert_int_equal(c.positions, 2);
-    assert_int_equal(abbe_can_node_ignored(&fx.node), 12);
+    assert_int_equal(abbe_can_node_ignored(&fx.node), 13);
 
     answer_t a = checked_cycle(incr, 6u, 0); /* X never arrived: not fresh */
     assert_int_equal(a.st.fresh_mask, 6);
@@ -413,9 +414,9 @@ static void test_bad_frames(void **state)
     assert_int_equal(a.st.age[1], 0);
     assert_true(a.st.flags & ABBE_FLAG_INPUT_INVALID);
     assert_false(a.st.flags & ABBE_FLAG_STALE);
-    assert_int_equal(a.st.ignored, 12);
+    assert_int_equal(a.st.ignored, 13);
     assert_int_equal(a.have_info, 1); /* first cycle after the model load */
-    assert_int_equal(a.info.ignored, 12);
+    assert_int_equal(a.info.ignored, 13);
     assert_int_equal(a.st.state, ABBE_COMP_ON); /* the malformed DISABLE did nothing */
 
     /* A SYNC with the CiA 301 counter byte is a SYNC. */
@@ -427,6 +428,40 @@ static void test_bad_frames(void **state)
     assert_int_equal(a.n_rpdo, 3);
     assert_int_equal(a.st.fresh_mask, 7);
     assert_int_equal(abbe_can_node_counters(&fx.node).syncs, 2);
+}
+
+/* The end of the bus is the peer shutting down its end, not an empty record:
+ * empty records are counted (also one still queued when the peer shuts down),
+ * the frames behind them are handled, and only then does the poll report
+ * ABBE_CAN_E_CLOSED (once, not as a stream of empty records). */
+static void test_empty_records_and_end_of_bus(void **state)
+{
+    (void)state;
+    int32_t incr[3];
+    circle_incr(0, incr);
+    assert_int_equal(write(fx.peer, "", 0), 0);
+    send_positions(incr, 7u);
+    assert_int_equal(write(fx.peer, "", 0), 0);
+    answer_t a = sync_cycle();
+    assert_int_equal(a.st.fresh_mask, 7);
+    assert_int_equal(a.st.ignored, 2);
+    assert_int_equal(abbe_can_node_counters(&fx.node).malformed, 2);
+
+    /* an empty record, a SYNC, then the peer shuts down its sending side */
+    assert_int_equal(write(fx.peer, "", 0), 0);
+    send_positions(incr, 7u);
+    bus_send(ctu_frame(0x080u, 0, NULL));
+    assert_int_equal(shutdown(fx.peer, SHUT_WR), 0);
+    assert_int_equal(abbe_can_node_poll(&fx.node, &fx.drv, 1000u), ABBE_CAN_E_CLOSED);
+    a = collect();
+    assert_int_equal(a.have_status, 1); /* the SYNC behind the empty record ran */
+    assert_int_equal(a.st.ignored, 3);
+    abbe_can_counters_t c = abbe_can_node_counters(&fx.node);
+    assert_int_equal(c.malformed, 3);
+    assert_int_equal(c.syncs, 2);
+    abbe_can_frame_t f;
+    assert_int_equal(abbe_can_fd_read(fx.node_fd, &f), ABBE_CAN_E_CLOSED); /* and it stays closed */
+    assert_int_equal(abbe_can_node_counters(&fx.node).malformed, 3);
 }
 
 /* A position missing for stale_cycles cycles trips the watchdog: flag, fade
@@ -754,6 +789,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test_setup_teardown(test_circle, setup, teardown),
         cmocka_unit_test_setup_teardown(test_bad_frames, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_empty_records_and_end_of_bus, setup, teardown),
         cmocka_unit_test_setup_teardown(test_stale_watchdog, setup, teardown),
         cmocka_unit_test_setup_teardown(test_model_swap, setup, teardown),
         cmocka_unit_test_setup_teardown(test_commands_and_axis_fault, setup, teardown),
