@@ -72,6 +72,24 @@ def test_frame_map_matches_the_daemon(db, config: Path) -> None:
     assert db.get_message_by_name("ABBE_INFO").length == 8
 
 
+def _c_enum(header: str, prefix: str) -> dict[str, int]:
+    text = (REPO / header).read_text()
+    return {m.group(1): int(m.group(2)) for m in re.finditer(rf"\b({prefix}\w+) = (-?\d+)", text)}
+
+
+def test_load_status_names_every_status(db) -> None:
+    """Every status a load can end with has its name in the DBC's LoadStatus value table."""
+    choices = {int(k): str(v) for k, v in db.get_message_by_name("ABBE_INFO")
+               .get_signal_by_name("LoadStatus").choices.items()}
+    core = _c_enum("lib/include/abbe/status.h", "ABBE_E_")
+    assert len(core) >= 18
+    for name, code in core.items():
+        assert choices.get(code) == name, f"{name} ({code}) missing from LoadStatus"
+    port = _c_enum("port/socketcan/include/abbe_can.h", "ABBE_CAN_E_")
+    for name in ("ABBE_CAN_E_IO", "ABBE_CAN_E_BUSY", "ABBE_CAN_E_TOO_BIG"):
+        assert choices.get(port[name]) == name
+
+
 def _encode(db, name: str, values: dict) -> can.Message:
     msg = db.get_message_by_name(name)
     return can.Message(arbitration_id=msg.frame_id, is_extended_id=False, data=msg.encode(values))

@@ -7,9 +7,16 @@
  * boundary, inside abbe_comp_step_q(). Every request is checked as a whole
  * before anything changes.
  */
+#include <stddef.h>
 #include <string.h>
 
 #include "abbe/modbus_port.h"
+
+/* abbe_model_load() reads the coefficients in place and refuses a blob that is
+ * not 4-byte aligned (ABBE_E_ALIGN): every bank must be, and is, since the
+ * struct is aligned for its uint32_t members. */
+typedef char abbe_mb_bank_align_check[(offsetof(abbe_mb_regs_t, bank) % 4u == 0u &&
+                                       ABBE_MB_STAGING_MAX % 4 == 0) ? 1 : -1];
 
 #define STAGING_REGS ((uint32_t)ABBE_MB_STAGING_MAX / 2u)
 #define MAX_READ 125u

@@ -332,6 +332,17 @@ static void test_upload_refused(void **state)
     memcpy(bad, full, fsize);
     bad[4] = 2; /* format major 2 */
     expect_refused(upload(A, bad, fsize), ABBE_MB_EX_ILLEGAL_VALUE, ABBE_E_VERSION_MAJOR);
+    /* a float32 coefficient that is not its int32 twin: -17, a library status
+     * like the others (UP_RESULT -1..-99) */
+    long mlen = mbt_read_file(ABBE_MISMATCH_MODEL, bad, sizeof bad);
+    assert_true(mlen > 64);
+    uint32_t total = (uint32_t)bad[8] | (uint32_t)bad[9] << 8 | (uint32_t)bad[10] << 16 | (uint32_t)bad[11] << 24;
+    assert_true(total >= 64u && total <= (uint32_t)mlen);
+    uint32_t tcrc = abbe_crc32(0, bad, total - 4u); /* the fuzzer found it with its CRC fixed up */
+    for (unsigned k = 0; k < 4u; k++) {
+        bad[total - 4u + k] = (uint8_t)(tcrc >> (8u * k));
+    }
+    expect_refused(upload(A, bad, (size_t)mlen), ABBE_MB_EX_ILLEGAL_VALUE, ABBE_E_MISMATCH);
 
     /* incomplete: commit claims more than was received */
     assert_int_equal(begin(A), 0);
@@ -362,9 +373,9 @@ static void test_upload_refused(void **state)
     assert_int_equal(chunk(A, full, 0, 240), ABBE_MB_EX_ILLEGAL_FUNCTION);
     assert_int_equal(commit(A, (uint32_t)fsize, 0), ABBE_MB_EX_ILLEGAL_FUNCTION);
     assert_int_equal(rd32(ABBE_MB_REG_ID_MODEL_CRC), table_crc(paper, paper_size));
-    /* every refused or lost session counted once: CRC x2, format x4,
+    /* every refused or lost session counted once: CRC x2, format x5,
      * incomplete, length x2, abort */
-    assert_int_equal(rd32(ABBE_MB_REG_ST_UPLOADS_REJECTED), 10);
+    assert_int_equal(rd32(ABBE_MB_REG_ST_UPLOADS_REJECTED), 11);
     assert_int_equal(rd32(ABBE_MB_REG_ST_UPLOADS_OK), 1);
 }
 

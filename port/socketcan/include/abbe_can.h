@@ -25,9 +25,10 @@
 /* ---- status codes ------------------------------------------------------ */
 
 /* Port status codes. 0 is success; the port's failures are below -100 so they
- * never collide with the core's abbe_status_t (-1 .. -16), which port
- * functions pass through unchanged (a model that fails validation returns the
- * core's code, e.g. ABBE_E_CRC). */
+ * never collide with the core's abbe_status_t (ABBE_STATUS_MIN .. -1, today
+ * -18 .. -1; -99 .. -1 is the core's range), which port functions pass through
+ * unchanged (a model that fails validation returns the core's code, e.g.
+ * ABBE_E_CRC). */
 typedef enum {
     ABBE_CAN_OK = 0,
     ABBE_CAN_E_ARG = -101,         /* NULL pointer or argument outside its range */

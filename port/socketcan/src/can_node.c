@@ -5,9 +5,16 @@
  * compensator cycle runs on the latched positions (abbe_comp_step_q, fresh =
  * every axis fresh) and the RPDOs / status / info frames are produced.
  */
+#include <stddef.h>
 #include <string.h>
 
 #include "abbe_can.h"
+
+/* abbe_model_load() reads the coefficients in place and refuses a blob that is
+ * not 4-byte aligned (ABBE_E_ALIGN): the slots must be, and are, since the
+ * node is aligned for its uint32_t members. */
+typedef char abbe_can_blob_align_check[(offsetof(abbe_can_node_t, blob) % 4u == 0u &&
+                                        ABBE_CAN_BLOB_MAX % 4u == 0u) ? 1 : -1];
 
 static int running_slot(const abbe_can_node_t *node)
 {

@@ -75,8 +75,9 @@
 #define ABBE_MB_UPLOAD_IDLE 0u
 #define ABBE_MB_UPLOAD_OPEN 1u
 
-/* UP_RESULT: 1 OK, 0 nothing yet, a negative abbe_status_t (-1 .. -16) when
- * the table failed validation, or one of these. */
+/* UP_RESULT: 1 OK, 0 nothing yet, a negative abbe_status_t (-1 .. -99, the
+ * library's range; today down to ABBE_STATUS_MIN = -18) when the table failed
+ * validation, or one of these. */
 #define ABBE_MB_UP_OK 1
 #define ABBE_MB_UP_NONE 0
 #define ABBE_MB_UP_INCOMPLETE (-100)   /* commit length > bytes received */
