@@ -142,6 +142,36 @@ def test_bad_frames_are_counted(setup: Path) -> None:
     assert "error frames 1" in summary and "bad command 1" in summary and "malformed 2" in summary
 
 
+def test_log_names_the_cycle_of_each_event(setup: Path) -> None:
+    """Log lines "cycle N: ..." carry the number of the cycle whose status frame
+    has Seq N mod 256, also for frames sent in one burst (the daemon then reads
+    many SYNCs at once) and from the very first SYNC on."""
+    n = 30
+    with ct.SocketpairBus(setup) as bus:
+        for k in range(n):                 # one burst, no waiting for answers
+            mask = 0b101 if 12 <= k < 20 else 0b111           # Y silent: stale from cycle 14
+            send_positions(bus, [a.incr_of_mm(p) for a, p in zip(AXES, circle(k))], mask)
+            if k == 24:
+                bus.send(can.Message(arbitration_id=CMD, is_extended_id=False, data=bytes([ct.CMD_DISABLE])))
+            bus.send(can.Message(arbitration_id=0x080, is_extended_id=False))
+        statuses = [ct.decode_status(bytes(m.data)) for _ in range(n) for m in bus.recv_cycle().frames
+                    if m.arbitration_id == STATUS]
+        assert bus.close() == 0
+    assert [s.seq for s in statuses] == list(range(n))
+    log = "".join(bus.lines)
+    events = {(int(m.group(1)), m.group(2)) for m in re.finditer(r"cycle (\d+): (.*)", log)}
+    first_on = next(s.seq for s in statuses if s.state == 1)
+    first_stale = next(s.seq for s in statuses if s.flags & FLAG_STALE)
+    fresh_again = next(s.seq for s in statuses if s.seq > first_stale and not s.flags & FLAG_STALE)
+    first_off = next(s.seq for s in statuses if s.seq > first_on and s.state == 0)
+    assert (first_on, first_stale, fresh_again, first_off) == (0, 14, 20, 24)
+    assert (first_on, "compensator OFF -> ON") in events
+    assert (0, f"model 0x{zlib.crc32(EXAMPLE.read_bytes()[:-4]):08x} in use") in events
+    assert any(c == first_stale and e.startswith("stale input") for c, e in events)
+    assert (fresh_again, "positions fresh again: fading in") in events
+    assert (first_off, "compensator ON -> OFF") in events
+
+
 def test_stale_watchdog_fades_out(setup: Path) -> None:
     with ct.SocketpairBus(setup) as bus:
         for k in range(15):

@@ -111,7 +111,9 @@ static const char *state_name(abbe_comp_state_t s)
 }
 
 /* Log what changed since the last call: compensator state, stale input,
- * limit fault, model swap, newly ignored frames. */
+ * limit fault, model swap, newly ignored frames. Called after every frame, so
+ * a line names the cycle it happened in: "cycle N", N counted from 0 at the
+ * first SYNC, the cycle whose status frame carries Seq = N mod 256. */
 typedef struct {
     abbe_comp_state_t state;
     uint32_t flags;
@@ -125,31 +127,32 @@ typedef struct {
 static void monitor_cycle(monitor_t *m, const abbe_can_node_t *node, const abbe_comp_output_t *out, uint32_t syncs)
 {
     m->syncs = syncs;
+    uint32_t cycle = syncs - 1u; /* the cycle just run */
     if (out->state != m->state) {
-        logmsg("cycle %lu: compensator %s -> %s", (unsigned long)syncs, state_name(m->state),
+        logmsg("cycle %lu: compensator %s -> %s", (unsigned long)cycle, state_name(m->state),
                state_name(out->state));
         m->state = out->state;
     }
     uint32_t rise = out->flags & ~m->flags, fall = m->flags & ~out->flags;
     if (rise & ABBE_FLAG_STALE) {
         logmsg("cycle %lu: stale input (position ages X %lu, Y %lu, Z %lu cycles): fading out",
-               (unsigned long)syncs, (unsigned long)abbe_can_node_age(node, 0),
+               (unsigned long)cycle, (unsigned long)abbe_can_node_age(node, 0),
                (unsigned long)abbe_can_node_age(node, 1), (unsigned long)abbe_can_node_age(node, 2));
     }
     if (fall & ABBE_FLAG_STALE) {
-        logmsg("cycle %lu: positions fresh again: fading in", (unsigned long)syncs);
+        logmsg("cycle %lu: positions fresh again: fading in", (unsigned long)cycle);
     }
     if (rise & ABBE_FLAG_LIMIT) {
         logmsg("cycle %lu: correction over the error limit (targets %ld %ld %ld nm): fault latched",
-               (unsigned long)syncs, (long)out->target_nm[0], (long)out->target_nm[1], (long)out->target_nm[2]);
+               (unsigned long)cycle, (long)out->target_nm[0], (long)out->target_nm[1], (long)out->target_nm[2]);
     }
     if (rise & ABBE_FLAG_AXIS_FAULT) {
         logmsg("cycle %lu: a drive reports a fault (statusword bit 3): its correction fades out",
-               (unsigned long)syncs);
+               (unsigned long)cycle);
     }
     uint32_t crc = abbe_can_node_model_crc(node);
     if (crc != m->crc) {
-        logmsg("cycle %lu: model 0x%08lx in use", (unsigned long)syncs, (unsigned long)crc);
+        logmsg("cycle %lu: model 0x%08lx in use", (unsigned long)cycle, (unsigned long)crc);
         m->crc = crc;
     }
     m->flags = out->flags & (ABBE_FLAG_STALE | ABBE_FLAG_LIMIT | ABBE_FLAG_AXIS_FAULT);
@@ -176,6 +179,14 @@ static void monitor(monitor_t *m, const abbe_can_node_t *node)
         }
         m->ignored = ignored;
     }
+}
+
+static void monitor_init(monitor_t *m, int verbose)
+{
+    memset(m, 0, sizeof *m);
+    m->verbose = verbose;
+    m->state = ABBE_COMP_OFF;
+    m->next_report = 1;
 }
 
 static int parse_fd(const char *s, int *fd)
@@ -228,6 +239,8 @@ static int replay(abbe_can_node_t *node, const char *model_path, const char *in_
             return EXIT_RUNTIME;
         }
     }
+    monitor_t mon;
+    monitor_init(&mon, 0);
     char line[512];
     unsigned long lineno = 0, frames_in = 0, frames_out = 0, fd_lines = 0;
     int rc = 0;
@@ -263,6 +276,7 @@ static int replay(abbe_can_node_t *node, const char *model_path, const char *in_
         abbe_can_frame_t tx[ABBE_CAN_MAX_TX];
         size_t n_tx = 0;
         (void)abbe_can_node_rx(node, &e.frame, tx, &n_tx);
+        monitor(&mon, node);
         for (size_t i = 0; i < n_tx; i++) {
             abbe_can_log_entry_t o = e;
             o.frame = tx[i];
@@ -331,10 +345,7 @@ static int run_live(abbe_can_node_t *node, int fd, const char *model_path, int r
     abbe_can_driver_t drv;
     abbe_can_fd_driver_init(&fdst, fd, &drv);
     monitor_t mon;
-    memset(&mon, 0, sizeof mon);
-    mon.verbose = verbose;
-    mon.state = ABBE_COMP_OFF;
-    mon.next_report = 1;
+    monitor_init(&mon, verbose);
 
     if (ready_fd >= 0) {
         ssize_t w = write(ready_fd, "ready\n", 6);
@@ -377,8 +388,21 @@ static int run_live(abbe_can_node_t *node, int fd, const char *model_path, int r
             break;
         }
         if (r > 0) {
-            int st = abbe_can_node_poll(node, &drv, 64u);
-            monitor(&mon, node);
+            /* One frame at a time, each followed by the monitor, so that a
+             * burst of SYNCs is logged cycle by cycle; at most 64 before the
+             * signals are looked at again. */
+            int st = 0;
+            for (unsigned k = 0; k < 64u; k++) {
+                st = abbe_can_node_poll(node, &drv, 1u);
+                monitor(&mon, node);
+                if (st <= 0 || abbe_can_node_take_reload_request(node)) {
+                    if (st > 0) {
+                        logmsg("RELOAD command: reloading the model");
+                        reload = 1; /* before the next SYNC is handled */
+                    }
+                    break;
+                }
+            }
             if (st == ABBE_CAN_E_CLOSED) {
                 logmsg("bus closed by the peer");
                 break;
