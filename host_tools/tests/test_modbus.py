@@ -264,6 +264,36 @@ def test_exception_codes_pymodbus(server):
         assert link.status().counters["exceptions"] == 7
 
 
+@needs_server
+def test_temperature_registers(server):
+    """IN_TEMP_*: 0x8000 keeps an axis' temperature, out of -50..150 degC is
+    exception 03 and the request (cycle trigger included) changes nothing; the
+    thermal term follows the written temperatures (full table, vs abbe.reference)."""
+    g = next(g for g in golden_tables() if g.name == "full")
+    table = read_blob(g.blob)
+    pos = (400_000_000, -600_000_000, -250_000_000)
+    with _link(server) as link:
+        link.set_limits(warn_nm=10**9, limit_nm=2 * 10**9, rate_nm_per_cycle=2 * 10**9,
+                        fade_cycles=1, stale_cycles=5)
+        link.upload(g.blob)
+        link.enable()
+        out = link.cycle(pos, 1, temp_cdegc=(3000, 1500, 2500))
+        assert link.read(REG["IN_TEMP_X"], 3) == [3000, 1500, 2500]
+        kept = link.cycle(pos, 2, temp_cdegc=(0x8000, 1600, 0x8000))
+        assert link.read(REG["IN_TEMP_X"], 3) == [3000, 1600, 2500]
+        for bad in (-5001, 15001, 0x7FFF):
+            with pytest.raises(ModbusError) as ei:
+                link.cycle(pos, 3, temp_cdegc=(2000, bad, 2000))
+            assert ei.value.exception_code == 3
+        assert link.read(REG["IN_TEMP_X"], 3) == [3000, 1600, 2500]
+        assert link.read(REG["OUT_CYCLE"], 1) == [2]
+    for o, temps in ((out, (30.0, 15.0, 25.0)), (kept, (30.0, 16.0, 25.0))):
+        want = spatial_error(table, np.array([pos]) / 1e6, None, np.array([temps]))[0] * 1e3
+        assert np.max(np.abs(np.array(o.err_nm) - want)) <= 3.0
+    at_20 = spatial_error(table, np.array([pos]) / 1e6, None, np.full((1, 3), 20.0))[0] * 1e3
+    assert np.max(np.abs(np.array(out.err_nm) - at_20)) > 1000.0   # the temperatures matter
+
+
 # --------------------------------------------------------------------------- RTU over socat ptys
 
 @needs_server

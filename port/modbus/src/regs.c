@@ -313,7 +313,14 @@ static int write_inputs(abbe_mb_regs_t *r, uint16_t addr, uint16_t count, const 
             }
             dir[a - ABBE_MB_REG_IN_DIR_X] = d;
         } else if (a <= ABBE_MB_REG_IN_TEMP_Z) {
-            temp[a - ABBE_MB_REG_IN_TEMP_X] = to_i16(v[i]);
+            int16_t t = to_i16(v[i]);
+            if (t == ABBE_MB_TEMP_NO_READING) {
+                continue; /* no reading: keep the axis' temperature */
+            }
+            if (t < ABBE_MB_TEMP_MIN_CDEGC || t > ABBE_MB_TEMP_MAX_CDEGC) {
+                return ABBE_MB_EX_ILLEGAL_VALUE;
+            }
+            temp[a - ABBE_MB_REG_IN_TEMP_X] = t;
         } else if (a == ABBE_MB_REG_IN_AXIS_FAULT) {
             if (v[i] > 7u) {
                 return ABBE_MB_EX_ILLEGAL_VALUE;

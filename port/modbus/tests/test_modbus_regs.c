@@ -521,6 +521,83 @@ static void test_dir_from_position(void **state)
     }
 }
 
+/* IN_TEMP_* feed the thermal term (the full table has one on every axis):
+ * every cycle equals a local compensator given the same temperatures; 0x8000
+ * keeps an axis' temperature; a value outside -50..150 degC is exception 03
+ * and the request (with its cycle trigger) changes nothing. */
+static void test_temperatures(void **state)
+{
+    (void)state;
+    size_t fsize;
+    const uint8_t *full = full_blob(&fsize);
+    abbe_comp_t local;
+    abbe_model_t slot;
+    abbe_mb_regs_config_t cfg;
+    abbe_mb_regs_default_config(&cfg);
+    cfg.comp.fade_cycles = 1;
+    for (int j = 0; j < 3; j++) {
+        cfg.comp.warn_nm[j] = 100000000;
+        cfg.comp.limit_nm[j] = 200000000;
+        cfg.comp.rate_nm_per_cycle[j] = 100000000;
+    }
+    assert_int_equal(abbe_mb_regs_init(&R, &cfg, full, fsize), ABBE_OK);
+    assert_int_equal(abbe_comp_init(&local, &cfg.comp, NULL), ABBE_OK);
+    assert_int_equal(abbe_comp_load_model(&local, &slot, full, fsize), ABBE_OK);
+    assert_int_equal(wr1(A, ABBE_MB_REG_CT_ENABLE, 1), 0);
+    assert_int_equal(abbe_comp_enable(&local), ABBE_OK);
+    for (int j = 0; j < 3; j++) {
+        assert_int_equal(rd1((uint16_t)(ABBE_MB_REG_IN_TEMP_X + j)), 2000); /* 20 degC until written */
+    }
+    int32_t cur[3] = {20000, 20000, 20000};
+    int32_t err20 = 0, err_hot = 0;
+    const int16_t temps[][3] = {
+        {2000, 2000, 2000}, {3500, 1800, -32768}, {-32768, -32768, 2600}, {-5000, 15000, 2150}, {4000, 4000, 4000},
+    };
+    for (int k = 0; k < 5; k++) {
+        int32_t p[3] = {500000000, -700000000, -300000000};
+        uint16_t in[ABBE_MB_IN_COUNT] = {0};
+        abbe_comp_input_q_t li;
+        abbe_comp_output_t lo;
+        memset(&li, 0, sizeof li);
+        for (int j = 0; j < 3; j++) {
+            mbt_put32(&in[2 * j], (uint32_t)p[j], 0);
+            in[9 + j] = (uint16_t)temps[k][j];
+            if (temps[k][j] != ABBE_MB_TEMP_NO_READING) {
+                cur[j] = 10 * temps[k][j];
+            }
+            li.pos_nm[j] = p[j];
+            li.temp_mdegc[j] = cur[j];
+        }
+        li.fresh = 1;
+        in[13] = (uint16_t)k;
+        assert_int_equal(wr(A, ABBE_MB_REG_IN_BASE, ABBE_MB_IN_COUNT, in), 0);
+        assert_int_equal(abbe_comp_step_q(&local, &li, &lo), ABBE_OK);
+        for (int j = 0; j < 3; j++) {
+            assert_int_equal((int32_t)rd32((uint16_t)(ABBE_MB_REG_OUT_CORR_X + 2 * j)), lo.corr_nm[j]);
+            assert_int_equal((int16_t)rd1((uint16_t)(ABBE_MB_REG_IN_TEMP_X + j)), cur[j] / 10);
+        }
+        if (k == 0) {
+            err20 = (int32_t)rd32(ABBE_MB_REG_OUT_ERR_X);
+        }
+        if (k == 4) {
+            err_hot = (int32_t)rd32(ABBE_MB_REG_OUT_ERR_X);
+        }
+    }
+    assert_true(abs(err_hot - err20) > 10000); /* 20 K on X moves its error by > 10 um */
+
+    /* out of range: exception 03, no cycle, no temperature taken */
+    uint32_t cycles = rd32(ABBE_MB_REG_ST_CYCLES);
+    const int16_t bad[] = {-5001, 15001, 0x7FFF, -32767};
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        uint16_t in[5] = {2100, (uint16_t)bad[i], 2100, 0, 99}; /* IN_TEMP_X .. IN_CYCLE */
+        assert_int_equal(wr(A, ABBE_MB_REG_IN_TEMP_X, 5, in), ABBE_MB_EX_ILLEGAL_VALUE);
+        assert_int_equal(rd32(ABBE_MB_REG_ST_CYCLES), cycles);
+        assert_int_equal(rd1(ABBE_MB_REG_IN_TEMP_X), 4000);
+        assert_int_equal(rd1(ABBE_MB_REG_IN_TEMP_Y), 4000);
+        assert_true(rd1(ABBE_MB_REG_OUT_CYCLE) != 99);
+    }
+}
+
 static void test_limits_change_keeps_models_and_counters(void **state)
 {
     (void)state;
@@ -619,6 +696,7 @@ int main(void)
         cmocka_unit_test_setup(test_upload_disconnect_and_timeout, setup),
         cmocka_unit_test_setup(test_cycle_trigger_and_fresh, setup),
         cmocka_unit_test_setup(test_dir_from_position, setup),
+        cmocka_unit_test_setup(test_temperatures, setup),
         cmocka_unit_test_setup(test_limits_change_keeps_models_and_counters, setup),
         cmocka_unit_test_setup(test_fault_reset, setup),
         cmocka_unit_test_setup(test_init_args, setup),

@@ -84,14 +84,15 @@ static void print_counters(const abbe_can_node_t *node)
 {
     abbe_can_counters_t c = abbe_can_node_counters(node);
     abbe_comp_stats_t s = abbe_can_node_comp_stats(node);
-    logmsg("counters: cycles %lu, rx %lu (positions %lu, commands %lu), tx %lu (errors %lu), stale cycles %lu; "
-           "ignored %lu (bad DLC %lu, unknown id %lu, RTR %lu, error frames %lu, bad command %lu, malformed %lu); "
-           "models loaded %lu, refused %lu, swaps %lu; limit trips %lu; model 0x%08lx",
+    logmsg("counters: cycles %lu, rx %lu (positions %lu, commands %lu, temperatures %lu), tx %lu (errors %lu), "
+           "stale cycles %lu; ignored %lu (bad DLC %lu, unknown id %lu, RTR %lu, error frames %lu, bad command %lu, "
+           "bad value %lu, malformed %lu); models loaded %lu, refused %lu, swaps %lu; limit trips %lu; model 0x%08lx",
            (unsigned long)c.syncs, (unsigned long)c.frames_rx, (unsigned long)c.positions,
-           (unsigned long)c.commands, (unsigned long)c.frames_tx, (unsigned long)c.tx_errors,
-           (unsigned long)c.stale_cycles, (unsigned long)abbe_can_node_ignored(node), (unsigned long)c.bad_dlc,
-           (unsigned long)c.unknown_id, (unsigned long)c.rtr, (unsigned long)c.error_frames,
-           (unsigned long)c.bad_command, (unsigned long)c.malformed, (unsigned long)c.model_loads_ok,
+           (unsigned long)c.commands, (unsigned long)c.temperatures, (unsigned long)c.frames_tx,
+           (unsigned long)c.tx_errors, (unsigned long)c.stale_cycles, (unsigned long)abbe_can_node_ignored(node),
+           (unsigned long)c.bad_dlc, (unsigned long)c.unknown_id, (unsigned long)c.rtr,
+           (unsigned long)c.error_frames, (unsigned long)c.bad_command, (unsigned long)c.bad_value,
+           (unsigned long)c.malformed, (unsigned long)c.model_loads_ok,
            (unsigned long)c.model_loads_failed, (unsigned long)s.model_swaps, (unsigned long)s.limit_trips,
            (unsigned long)abbe_can_node_model_crc(node));
 }
@@ -122,7 +123,30 @@ typedef struct {
     uint32_t crc;
     uint32_t next_report; /* without -v: report ignored frames at 1, 10, 100, ... */
     int verbose;
+    int temp_stale;
 } monitor_t;
+
+/* "X 20.50, Y 20.10, Z 21.00 degC" */
+static void temps_text(const abbe_can_node_t *node, char *buf, size_t size)
+{
+    char part[ABBE_AXES][24];
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        long m = (long)abbe_can_node_temp_mdegc(node, j);
+        long a = m < 0 ? -m : m;
+        snprintf(part[j], sizeof part[j], "%c %s%ld.%02ld", "XYZ"[j], m < 0 ? "-" : "", a / 1000, (a % 1000) / 10);
+    }
+    snprintf(buf, size, "%s, %s, %s degC", part[0], part[1], part[2]);
+}
+
+/* A temperature age for the log: "never" or the number. */
+static const char *age_text(uint32_t age, char *buf, size_t size)
+{
+    if (age == UINT32_MAX) {
+        return "never";
+    }
+    snprintf(buf, size, "%lu", (unsigned long)age);
+    return buf;
+}
 
 static void monitor_cycle(monitor_t *m, const abbe_can_node_t *node, const abbe_comp_output_t *out, uint32_t syncs)
 {
@@ -150,6 +174,22 @@ static void monitor_cycle(monitor_t *m, const abbe_can_node_t *node, const abbe_
         logmsg("cycle %lu: a drive reports a fault (statusword bit 3): its correction fades out",
                (unsigned long)cycle);
     }
+    int temp_stale = abbe_can_node_temp_stale(node);
+    if (temp_stale != m->temp_stale) {
+        char t[96], a[ABBE_AXES + 1][16];
+        temps_text(node, t, sizeof t);
+        if (temp_stale) {
+            logmsg("cycle %lu: temperatures stale (cycles since the last temperature frame %s; since the last "
+                   "reading X %s, Y %s, Z %s): the thermal term holds %s",
+                   (unsigned long)cycle, age_text(abbe_can_node_temp_age(node, ABBE_AXES), a[3], sizeof a[3]),
+                   age_text(abbe_can_node_temp_age(node, 0), a[0], sizeof a[0]),
+                   age_text(abbe_can_node_temp_age(node, 1), a[1], sizeof a[1]),
+                   age_text(abbe_can_node_temp_age(node, 2), a[2], sizeof a[2]), t);
+        } else {
+            logmsg("cycle %lu: temperatures current: %s", (unsigned long)cycle, t);
+        }
+        m->temp_stale = temp_stale;
+    }
     uint32_t crc = abbe_can_node_model_crc(node);
     if (crc != m->crc) {
         logmsg("cycle %lu: model 0x%08lx in use", (unsigned long)cycle, (unsigned long)crc);
@@ -172,10 +212,10 @@ static void monitor(monitor_t *m, const abbe_can_node_t *node)
                 m->next_report *= 10u;
             }
             logmsg("ignored frames: %lu (bad DLC %lu, unknown id %lu, RTR %lu, error frames %lu, bad command %lu, "
-                   "malformed %lu)",
+                   "bad value %lu, malformed %lu)",
                    (unsigned long)ignored, (unsigned long)c.bad_dlc, (unsigned long)c.unknown_id,
                    (unsigned long)c.rtr, (unsigned long)c.error_frames, (unsigned long)c.bad_command,
-                   (unsigned long)c.malformed);
+                   (unsigned long)c.bad_value, (unsigned long)c.malformed);
         }
         m->ignored = ignored;
     }
@@ -209,13 +249,16 @@ static void print_map(const abbe_can_config_t *cfg)
            cfg->status_enable ? "on" : "off", (unsigned long)cfg->status_cob_id, (unsigned)cfg->info_period_cycles,
            (unsigned long)cfg->info_cob_id, cfg->command_enable ? "on" : "off",
            (unsigned long)cfg->command_cob_id);
+    printf("temperature %s 0x%03lX stale after %u cycles\n", cfg->temp_enable ? "on" : "off",
+           (unsigned long)cfg->temp_cob_id, (unsigned)cfg->temp_stale_cycles);
     for (unsigned j = 0; j < ABBE_AXES; j++) {
         const abbe_can_axis_config_t *a = &cfg->axis[j];
         printf("axis %c node %u: TPDO 0x%03lX dlc %u position@%u statusword@%d -> RPDO 0x%03lX dlc %u offset@%u; "
-               "%.6g increments/mm sign %+d\n",
+               "%.6g increments/mm sign %+d temp_c %.2f\n",
                "XYZ"[j], (unsigned)a->node_id, (unsigned long)a->tpdo_cob_id, (unsigned)a->tpdo_dlc,
                (unsigned)a->position_byte, (int)a->statusword_byte, (unsigned long)a->rpdo_cob_id,
-               (unsigned)a->rpdo_dlc, (unsigned)a->offset_byte, a->increments_per_mm, (int)a->sign);
+               (unsigned)a->rpdo_dlc, (unsigned)a->offset_byte, a->increments_per_mm, (int)a->sign,
+               (double)a->temp_mdegc / 1000.0);
     }
 }
 

@@ -39,8 +39,8 @@ int abbe_can_fd_write(int fd, const abbe_can_frame_t *frame);
 int abbe_can_fd_nonblock(int fd);
 
 /* Open a non-blocking CAN_RAW socket bound to ifname, with receive filters
- * for the SYNC, the drives' TPDOs and the command id (data and remote frames
- * of those ids), and all error frames. Returns ABBE_CAN_OK with *fd set,
+ * for the SYNC, the drives' TPDOs, the command and the temperature id (data
+ * and remote frames of those ids), and all error frames. Returns ABBE_CAN_OK with *fd set,
  * ABBE_CAN_E_UNSUPPORTED if the kernel has no SocketCAN, ABBE_CAN_E_IO
  * otherwise; why (may be NULL) gets a sentence naming the failed call. */
 int abbe_can_socket_open(const char *ifname, const abbe_can_config_t *cfg, int *fd, char *why,

@@ -178,12 +178,16 @@ int abbe_can_socket_open(const char *ifname, const abbe_can_config_t *cfg, int *
     }
     /* Standard-id data and remote frames of the ids the node reads; the RTR
      * bit is not in the mask so remote requests arrive and are counted. */
-    struct can_filter filt[2 + ABBE_AXES];
+    struct can_filter filt[3 + ABBE_AXES];
     size_t n = 0;
     filt[n].can_id = cfg->sync_cob_id;
     filt[n++].can_mask = CAN_SFF_MASK | CAN_EFF_FLAG;
     if (cfg->command_enable) {
         filt[n].can_id = cfg->command_cob_id;
+        filt[n++].can_mask = CAN_SFF_MASK | CAN_EFF_FLAG;
+    }
+    if (cfg->temp_enable) {
+        filt[n].can_id = cfg->temp_cob_id;
         filt[n++].can_mask = CAN_SFF_MASK | CAN_EFF_FLAG;
     }
     for (unsigned j = 0; j < ABBE_AXES; j++) {

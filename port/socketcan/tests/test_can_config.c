@@ -48,7 +48,11 @@ static const char GOOD[] =
     "increments_per_mm = 1000\n"                   /* 29 */
     "tpdo_dlc = 8\n"                               /* 30 */
     "statusword_byte = 0\n"                        /* 31 */
-    "position_byte = 2\n";                         /* 32 */
+    "position_byte = 2\n"                          /* 32 */
+    "\n"                                           /* 33 */
+    "[temperature]\n"                              /* 34 */
+    "enable = true\n"                              /* 35 */
+    "stale_cycles = 200\n";                        /* 36 */
 
 static void test_good_file(void **state)
 {
@@ -84,6 +88,12 @@ static void test_good_file(void **state)
     assert_int_equal(c.axis[2].position_byte, 2);
     assert_int_equal(c.axis[2].statusword_byte, 0);
     assert_int_equal(c.axis[0].statusword_byte, ABBE_CAN_NO_BYTE);
+    assert_int_equal(c.temp_enable, 1);
+    assert_int_equal(c.temp_cob_id, 0x370); /* 0x300 + the default node id: the compensator's RPDO2 */
+    assert_int_equal(c.temp_stale_cycles, 200);
+    for (unsigned j = 0; j < 3; j++) {
+        assert_int_equal(c.axis[j].temp_mdegc, 20000);
+    }
 
     /* CRLF line ends and a name without a directory */
     char crlf[2 * sizeof GOOD];
@@ -172,6 +182,13 @@ static const bad_case_t BAD[] = {
     {25, "rpdo_cob_id = 0x181", 25, "axis.Y.rpdo_cob_id", "already used by an axis' tpdo_cob_id"},
     {10, "cob_id = 0x181", 16, "axis.X.tpdo_cob_id", "already used by status.cob_id"},
     {25, "tpdo_cob_id = 0x190", 30, "axis.Z.tpdo_dlc", "axes sharing a TPDO"}, /* Y joins Z's TPDO */
+    {35, "enable = true\ncob_id = 0x080", 36, "temperature.cob_id", "already used by bus.sync_cob_id"},
+    {35, "enable = true\ncob_id = 0x202", 21, "axis.Y.rpdo_cob_id", "already used by temperature.cob_id"},
+    {36, "stale_cycles = -1", 36, "temperature.stale_cycles", "must be 0..65535"},
+    {35, "enable = 1", 35, "temperature.enable", "expected true or false"},
+    {35, "enabled = true", 35, "temperature.enabled", "unknown key"},
+    {19, "temp_c = 150.01", 19, "axis.X.temp_c", "must be -50..150 (degC)"},
+    {19, "temp_c = -51", 19, "axis.X.temp_c", "must be -50..150 (degC)"},
 };
 
 static void check_case(const bad_case_t *bc, const char *text, size_t n, const char *name)
