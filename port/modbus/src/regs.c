@@ -133,8 +133,30 @@ static abbe_comp_stats_t stats_sum(const abbe_mb_regs_t *r)
 
 /* ---- upload session ------------------------------------------------------------ */
 
+static void emit(const abbe_mb_regs_t *r, abbe_mb_event_kind_t kind, uint32_t conn, int16_t result,
+                 uint32_t size, uint32_t crc)
+{
+    if (r->event_fn == NULL) {
+        return;
+    }
+    abbe_mb_event_t ev;
+    memset(&ev, 0, sizeof ev);
+    ev.kind = kind;
+    ev.conn = conn;
+    ev.owner = r->owner;
+    ev.session = r->session;
+    ev.result = result;
+    ev.cycle = r->cycle_in;
+    ev.size = size;
+    ev.crc = crc;
+    r->event_fn(r->event_ctx, &ev);
+}
+
 static void session_close(abbe_mb_regs_t *r, int16_t result)
 {
+    uint32_t owner = r->owner;
+    uint32_t size = result == ABBE_MB_UP_OK ? r->commit_len : 0u;
+    uint32_t crc = result == ABBE_MB_UP_OK ? r->model_crc : 0u;
     r->owner = 0;
     r->staging = -1;
     r->filled = 0;
@@ -142,6 +164,7 @@ static void session_close(abbe_mb_regs_t *r, int16_t result)
     if (result != ABBE_MB_UP_OK) {
         r->uploads_rejected++;
     }
+    emit(r, ABBE_MB_EV_UPLOAD_END, owner, result, size, crc);
 }
 
 /* No session: wrong state. Someone else's: busy. */
@@ -157,6 +180,7 @@ static int upload_begin(abbe_mb_regs_t *r, uint32_t conn)
 {
     if (r->owner != 0u && r->owner != conn) {
         r->uploads_rejected++;
+        emit(r, ABBE_MB_EV_UPLOAD_BUSY, conn, 0, 0, 0);
         return ABBE_MB_EX_BUSY;
     }
     if (r->owner == conn) {
@@ -169,6 +193,7 @@ static int upload_begin(abbe_mb_regs_t *r, uint32_t conn)
     r->session = (uint16_t)(r->session == UINT16_MAX ? 1u : r->session + 1u);
     r->result = ABBE_MB_UP_NONE;
     r->last_activity_ms = r->now_ms;
+    emit(r, ABBE_MB_EV_UPLOAD_BEGIN, conn, 0, 0, 0);
     return 0;
 }
 
@@ -285,6 +310,8 @@ static void run_cycle(abbe_mb_regs_t *r)
     if (r->pending >= 0 && abbe_comp_model(&r->comp) == &r->slot[r->pending]) {
         r->running = r->pending;
         r->pending = -1;
+        const abbe_model_t *m = &r->slot[r->running];
+        emit(r, ABBE_MB_EV_MODEL_SWAP, 0, 0, abbe_model_size(m), abbe_model_crc(m));
     }
 }
 
@@ -701,6 +728,14 @@ void abbe_mb_regs_set_clients(abbe_mb_regs_t *r, uint16_t open, uint32_t refused
     if (r != NULL) {
         r->clients = open;
         r->clients_refused = refused;
+    }
+}
+
+void abbe_mb_regs_set_event_hook(abbe_mb_regs_t *r, abbe_mb_event_fn fn, void *ctx)
+{
+    if (r != NULL) {
+        r->event_fn = fn;
+        r->event_ctx = ctx;
     }
 }
 

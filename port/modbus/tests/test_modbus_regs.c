@@ -598,6 +598,75 @@ static void test_temperatures(void **state)
     }
 }
 
+/* The event hook sees every session begun, ended (with the result that
+ * UP_RESULT shows and the session it belonged to) or refused as busy, and
+ * every table taken into use, in order. */
+#define MAX_EVENTS 32
+static abbe_mb_event_t events[MAX_EVENTS];
+static int n_events;
+
+static void record_event(void *ctx, const abbe_mb_event_t *ev)
+{
+    assert_ptr_equal(ctx, &n_events);
+    assert_true(n_events < MAX_EVENTS);
+    events[n_events++] = *ev;
+}
+
+static void expect_event(int i, abbe_mb_event_kind_t kind, uint32_t conn, uint16_t session, int16_t result)
+{
+    assert_true(i < n_events);
+    assert_int_equal(events[i].kind, kind);
+    assert_int_equal(events[i].conn, conn);
+    assert_int_equal(events[i].session, session);
+    assert_int_equal(events[i].result, result);
+}
+
+static void test_event_hook(void **state)
+{
+    (void)state;
+    size_t fsize;
+    const uint8_t *full = full_blob(&fsize);
+    n_events = 0;
+    abbe_mb_regs_set_event_hook(&R, record_event, &n_events);
+    assert_int_equal(upload(A, paper, paper_size), 0);                    /* session 1: OK */
+    assert_int_equal(n_events, 2);
+    expect_event(0, ABBE_MB_EV_UPLOAD_BEGIN, A, 1, 0);
+    expect_event(1, ABBE_MB_EV_UPLOAD_END, A, 1, ABBE_MB_UP_OK);
+    assert_int_equal(events[1].crc, table_crc(paper, paper_size));
+    assert_int_equal(events[1].size, paper_size);
+    uint16_t c = 77;
+    assert_int_equal(wr(A, ABBE_MB_REG_IN_CYCLE, 1, &c), 0);               /* takes effect */
+    assert_int_equal(events[2].kind, ABBE_MB_EV_MODEL_SWAP);
+    assert_int_equal(events[2].cycle, 77);
+    assert_int_equal(events[2].crc, table_crc(paper, paper_size));
+    cycle();
+    assert_int_equal(n_events, 3);                                          /* nothing more to swap */
+
+    assert_int_equal(begin(A), 0);                                          /* session 2 */
+    assert_int_equal(begin(B), ABBE_MB_EX_BUSY);                            /* B refused: 2 is A's */
+    expect_event(4, ABBE_MB_EV_UPLOAD_BUSY, B, 2, 0);
+    assert_int_equal(events[4].owner, A);
+    assert_int_equal(begin(A), 0);                                          /* 2 aborted, 3 begun */
+    expect_event(5, ABBE_MB_EV_UPLOAD_END, A, 2, ABBE_MB_UP_ABORTED);
+    expect_event(6, ABBE_MB_EV_UPLOAD_BEGIN, A, 3, 0);
+    abbe_mb_regs_disconnect(&R, A);
+    expect_event(7, ABBE_MB_EV_UPLOAD_END, A, 3, ABBE_MB_UP_DISCONNECTED);
+    assert_int_equal(begin(B), 0);                                          /* 4: B times out */
+    abbe_mb_regs_tick(&R, 5000 + 1000);
+    expect_event(9, ABBE_MB_EV_UPLOAD_END, B, 4, ABBE_MB_UP_TIMEOUT);
+    static uint8_t bad[ABBE_MB_STAGING_MAX];
+    memcpy(bad, full, fsize);
+    bad[0] = 'X';
+    assert_int_equal(upload(A, bad, fsize), ABBE_MB_EX_ILLEGAL_VALUE);     /* 5: the table's status */
+    expect_event(11, ABBE_MB_EV_UPLOAD_END, A, 5, ABBE_E_MAGIC);
+    assert_int_equal(n_events, 12);
+    /* every END carried what UP_RESULT then showed */
+    assert_int_equal((int16_t)rd1(ABBE_MB_REG_UP_RESULT), ABBE_E_MAGIC);
+    abbe_mb_regs_set_event_hook(&R, NULL, NULL);
+    assert_int_equal(begin(A), 0);
+    assert_int_equal(n_events, 12);
+}
+
 static void test_limits_change_keeps_models_and_counters(void **state)
 {
     (void)state;
@@ -697,6 +766,7 @@ int main(void)
         cmocka_unit_test_setup(test_cycle_trigger_and_fresh, setup),
         cmocka_unit_test_setup(test_dir_from_position, setup),
         cmocka_unit_test_setup(test_temperatures, setup),
+        cmocka_unit_test_setup(test_event_hook, setup),
         cmocka_unit_test_setup(test_limits_change_keeps_models_and_counters, setup),
         cmocka_unit_test_setup(test_fault_reset, setup),
         cmocka_unit_test_setup(test_init_args, setup),
