@@ -189,6 +189,25 @@ static const bad_case_t BAD[] = {
     {35, "enabled = true", 35, "temperature.enabled", "unknown key"},
     {19, "temp_c = 150.01", 19, "axis.X.temp_c", "must be -50..150 (degC)"},
     {19, "temp_c = -51", 19, "axis.X.temp_c", "must be -50..150 (degC)"},
+    /* numbers follow TOML (what tomllib refuses is refused here too) */
+    {17, "node_id = 01", 17, "axis.X.node_id", "expected an integer"},
+    {17, "node_id = 0X1", 17, "axis.X.node_id", "expected an integer"},
+    {17, "node_id = 1__0", 17, "axis.X.node_id", "expected an integer"},
+    {17, "node_id = _1", 17, "axis.X.node_id", "expected an integer"},
+    {17, "node_id = 1_", 17, "axis.X.node_id", "expected an integer"},
+    {17, "node_id = 0x_1", 17, "axis.X.node_id", "expected an integer"},
+    {17, "node_id = -0x1", 17, "axis.X.node_id", "expected an integer"},
+    {17, "node_id = 99999999999999999999", 17, "axis.X.node_id", "must be 1..127"},
+    {19, "warn_um = .5", 19, "axis.X.warn_um", "expected a number"},
+    {19, "warn_um = 5.", 19, "axis.X.warn_um", "expected a number"},
+    {19, "warn_um = 5.e1", 19, "axis.X.warn_um", "expected a number"},
+    {19, "warn_um = 1e", 19, "axis.X.warn_um", "expected a number"},
+    {19, "warn_um = 0x1p3", 19, "axis.X.warn_um", "expected a number"},
+    {19, "warn_um = -0x10", 19, "axis.X.warn_um", "expected a number"},
+    {19, "warn_um = 00.5", 19, "axis.X.warn_um", "expected a number"},
+    {19, "warn_um = inf", 19, "axis.X.warn_um", "expected a number"},
+    {19, "warn_um = 1e400", 19, "axis.X.warn_um", "value out of range"},
+    {19, "warn_um = 1e299", 19, "axis.X.warn_um", "value out of range"},
 };
 
 static void check_case(const bad_case_t *bc, const char *text, size_t n, const char *name)
@@ -221,6 +240,29 @@ static void test_errors(void **state)
         char text[4096];
         size_t n = edit(text, sizeof text, BAD[i].line, BAD[i].text);
         check_case(&BAD[i], text, n, "cfg/can.toml");
+    }
+}
+
+/* Spellings TOML allows, with their values. */
+static void test_number_syntax(void **state)
+{
+    (void)state;
+    static const struct {
+        const char *text;
+        int32_t warn_nm;
+    } ok[] = {
+        {"warn_um = +4_0.5e0", 40500}, {"warn_um = 4.05E+1", 40500}, {"warn_um = 40", 40000},
+        {"warn_um = 0.0405e3", 40500}, {"warn_um = 1_0", 10000},     {"warn_um = 0x28", 40000},
+    };
+    for (size_t i = 0; i < sizeof ok / sizeof ok[0]; i++) {
+        char text[4096];
+        size_t n = edit(text, sizeof text, 19, ok[i].text);
+        abbe_can_config_t c;
+        abbe_can_config_error_t e;
+        if (abbe_can_config_parse(&c, text, n, "can.toml", &e) != ABBE_CAN_OK) {
+            fail_msg("'%s' refused: %s", ok[i].text, e.message);
+        }
+        assert_int_equal(c.axis[0].warn_nm, ok[i].warn_nm);
     }
 }
 
@@ -331,6 +373,7 @@ static void test_check_direct(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_number_syntax),
         cmocka_unit_test(test_good_file),       cmocka_unit_test(test_errors),
         cmocka_unit_test(test_missing_section), cmocka_unit_test(test_files),
         cmocka_unit_test(test_check_direct),
