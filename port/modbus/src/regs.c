@@ -426,8 +426,10 @@ static int write_control(abbe_mb_regs_t *r, uint16_t addr, uint16_t count, const
 
     if (limits) {
         /* The compensator must be off with zero output: re-initialising it
-         * with the new limits then cannot make a correction jump. */
-        int idle = !r->enabled && r->out.state == ABBE_COMP_OFF;
+         * with the new limits then cannot make a correction jump. A reset in
+         * the same request comes first: it clears a latched fault and
+         * disables, so "reset, limits, enable" works from FAULT too. */
+        int idle = (reset || !r->enabled) && (reset || r->out.state == ABBE_COMP_OFF);
         for (unsigned j = 0; j < ABBE_AXES; j++) {
             idle = idle && r->out.corr_nm[j] == 0;
         }

@@ -722,6 +722,28 @@ static void test_fault_reset(void **state)
     assert_int_equal(wr(A, ABBE_MB_REG_IN_BASE, ABBE_MB_IN_COUNT, in), 0);
     assert_int_equal(rd1(ABBE_MB_REG_OUT_STATE), ABBE_COMP_FAULT);
     assert_int_equal(rd32(ABBE_MB_REG_ST_LIMIT_TRIPS), 2);
+
+    /* from FAULT (output zero), one request resets, sets wider limits and
+     * enables (docs: reset, then the limits, then enable); without the reset
+     * the limits are refused while faulted */
+    uint16_t ct[ABBE_MB_CT_COUNT] = {0};
+    ct[0] = 1; /* enable */
+    ct[1] = 1; /* reset */
+    ct[4] = 1;
+    ct[5] = 10;
+    for (int j = 0; j < 3; j++) {
+        mbt_put32(&ct[6 + 2 * j], 100000000u, 0);
+        mbt_put32(&ct[12 + 2 * j], 200000000u, 0);
+        mbt_put32(&ct[18 + 2 * j], 100000000u, 0);
+        ct[24 + j] = 1;
+    }
+    assert_int_equal(wr(A, ABBE_MB_REG_CT_FADE_CYCLES, ABBE_MB_CT_COUNT - 4, &ct[4]), ABBE_MB_EX_ILLEGAL_FUNCTION);
+    assert_int_equal(wr(A, ABBE_MB_REG_CT_BASE, ABBE_MB_CT_COUNT, ct), 0);
+    assert_int_equal(rd1(ABBE_MB_REG_CT_ENABLE), 1);
+    assert_int_equal((int32_t)rd32(ABBE_MB_REG_CT_LIMIT_X), 200000000);
+    assert_int_equal(wr(A, ABBE_MB_REG_IN_BASE, ABBE_MB_IN_COUNT, in), 0);
+    assert_int_equal(rd1(ABBE_MB_REG_OUT_STATE), ABBE_COMP_ON);
+    assert_int_equal(rd32(ABBE_MB_REG_ST_LIMIT_TRIPS), 2);
 }
 
 static void test_init_args(void **state)
