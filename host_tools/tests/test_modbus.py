@@ -105,6 +105,12 @@ def test_register_map_mirrors_c_header():
     assert results == UP_RESULT_NAMES
 
 
+def test_flag_names_show_unknown_bits():
+    from abbe.modbus_client import flag_names
+    assert flag_names(0x0081) == ["OUT_OF_TRAVEL", "STALE"]
+    assert flag_names(0x2010) == ["WARN", "0x2000"]   # a reserved bit is shown, not dropped
+
+
 @pytest.mark.parametrize("text, want", [
     ("tcp://plc.local:1502", ("tcp", "plc.local", 1502)),
     ("tcp://10.0.0.2", ("tcp", "10.0.0.2", 502)),
