@@ -218,6 +218,16 @@ static void rx_checked(abbe_can_node_t *n, const abbe_can_frame_t *f, uint64_t s
     if (kind == ABBE_CAN_RX_SYNC) {
         CHECK(after.syncs == before.syncs + 1u);
         check_cycle(n, tx, n_tx);
+        /* TempStale as docs/can.md defines it, from the ages at this SYNC */
+        const abbe_can_config_t *cfg = abbe_can_node_config(n);
+        uint32_t limit = cfg->temp_stale_cycles, frame_age = abbe_can_node_temp_age(n, ABBE_AXES);
+        int stale = cfg->temp_enable && (frame_age == UINT32_MAX || (limit > 0u && frame_age >= limit));
+        for (unsigned j = 0; j < ABBE_AXES; j++) {
+            uint32_t age = abbe_can_node_temp_age(n, j);
+            stale |= cfg->temp_enable && age != UINT32_MAX && limit > 0u && age >= limit;
+            CHECK(age == UINT32_MAX || frame_age <= age);
+        }
+        CHECK(abbe_can_node_temp_stale(n) == stale);
         for (size_t i = 0; i < n_tx; i++) {
             check_round_trip(&tx[i], stamp, (uint32_t)(stamp * 7919u));
         }
