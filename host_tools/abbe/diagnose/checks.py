@@ -395,7 +395,7 @@ def ballbar_check(machine: Any, name: str, reference_mm: tuple[float, float, flo
                              f"{sorted(machine.ballbar) or 'none'}", file=str(machine.path),
                              field=f"ballbar.{name}")
     bt = machine.ballbar[name]
-    tr = read_ballbar_csv(bt.file)
+    tr = read_ballbar_csv(bt.file, columns=bt.columns)
     check_trace_timing(tr, from_machine(bt), str(machine.path))
     c = BallbarCheck(name, bt.plane, bt.center_mm, bt.radius_mm, bt.feed_mm_min, tr.direction,
                      tr.angle_deg, tr.radial_um, tr.time_s, reference_mm, source=str(bt.file))
@@ -415,7 +415,7 @@ def laser_check(machine: Any, axis: str, reference_mm: tuple[float, float, float
     line = machine.laser[axis]
     j = AXES.index(axis)
     data = read_laser_csv(line.file, channels=tuple(line.map),
-                          span_mm=(line.start_mm[j], line.end_mm[j]))
+                          span_mm=(line.start_mm[j], line.end_mm[j]), columns=line.columns)
     chans = [LaserChannel(ch, cm.term, cm.sign, data.channels[ch]) for ch, cm in line.map.items()]
     c = LaserCheck(f"laser_{axis}", axis, line.start_mm, data.targets_mm, chans, data.line_no,
                    reference_mm, time_s=data.time_s, temp_c=data.temp_c, rezeroed=rezeroed,
