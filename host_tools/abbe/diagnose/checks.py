@@ -458,9 +458,9 @@ def positioning_check(path: str | Path, axis: str, reference_mm: tuple[float, fl
 def position_only_table(check: LaserCheck, travel_mm: tuple[float, float] | None = None) -> Table:
     """A position-only model of a positioning check's axis: its own positioning term
     interpolates the bidirectional mean deviation of every target over all runs (a
-    square, well-conditioned basis: Fourier block 0 with period T x mean target spacing
-    and up to 8 harmonics, plus a Chebyshev trend for the remaining functions, at most
-    degree 7; least squares if more than 24 targets), zero at the reference point; no
+    well-conditioned basis: Fourier block 0 with period T x mean target spacing and up to
+    8 harmonics, plus a Chebyshev trend of degree <= 1; square up to 18 targets, least
+    squares beyond), zero at the reference point; no
     backlash, no drift; the other axes carry no terms. Units um, mm."""
     from abbe.model.table import OWN_TERM as OWN
     from abbe.model.table import AxisTable, FourierBlock, basis_matrix
@@ -471,7 +471,10 @@ def position_only_table(check: LaserCheck, travel_mm: tuple[float, float] | None
     lo, hi = (float(tg.min()), float(tg.max())) if travel_mm is None else travel_mm
     T = tg.size
     h = int(min(8, (T - 1) // 2))
-    deg = int(min(7, max(T - 1 - 2 * h, 0)))
+    # trend degree <= 1: a higher degree beside 8 harmonics of about the span's period is
+    # nearly collinear with them (condition ~1e3), and the cancelling coefficients
+    # overflow the table (examples/vmc500/laser/x.csv, 51 targets)
+    deg = int(min(1, max(T - 1 - 2 * h, 0)))
     block = None
     if h > 0:
         period = (float(tg.max()) - float(tg.min())) * T / max(T - 1, 1)

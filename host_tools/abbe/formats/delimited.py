@@ -22,6 +22,8 @@ from abbe.formats.text import TextFile
 
 #: Rows converted at once (bounds the transient Python strings).
 CHUNK_ROWS = 65_536
+#: Whitespace around cells: ASCII only (a no-break space is not a separator, it is garbage).
+_WS = " \t"
 DELIMITERS = {",": ",", ";": ";", "tab": "\t", "\t": "\t", "|": "|", "whitespace": None, " ": None}
 
 
@@ -39,14 +41,14 @@ class Dialect:
     def split(self, line: str, *, file: str, no: int) -> list[str]:
         """The stripped cells of one line (quotes honoured for a one-character delimiter)."""
         if self.delimiter is None:
-            return line.split()
+            return line.split(None) if line.isascii() else [c for c in line.replace("\t", " ").split(" ") if c]
         if '"' not in line:
-            return [c.strip() for c in line.split(self.delimiter)]
+            return [c.strip(_WS) for c in line.split(self.delimiter)]
         try:
             rec = next(csv.reader([line], delimiter=self.delimiter, strict=True))
         except csv.Error as exc:
             raise AbbeInputError(f"malformed quoted cell: {exc}", file=file, line=no) from None
-        return [c.strip() for c in rec]
+        return [c.strip(_WS) for c in rec]
 
 
 DEFAULT_DIALECT = Dialect()
@@ -133,7 +135,7 @@ def read_columns(tf: TextFile, dialect: Dialect, *, what: str, max_rows: int,
     for no, line in tf.lines():
         if no <= dialect.skip_lines:
             continue
-        stripped = line.strip()
+        stripped = line.strip(_WS)
         if not stripped or (dialect.comment and stripped.startswith(dialect.comment)):
             continue
         cells = dialect.split(line, file=name, no=no)

@@ -63,12 +63,12 @@ def read_dat(path: str | Path) -> PositioningData:
     tgt: dict[int, tuple[str, int]] = {}
     ref: dict[str, dict[tuple[int, int], tuple[str, int]]] = {"FWD": {}, "BWD": {}}
     for no, rawline in tf.lines():
-        s = rawline.strip()
+        s = rawline.strip(" \t")
         if not s or s.startswith("#"):
             continue
         if "=" not in s:
             raise AbbeInputError("expected KEY=value", file=fname, line=no)
-        key, value = (p.strip() for p in s.split("=", 1))
+        key, value = (p.strip(" \t") for p in s.split("=", 1))
         m = _KEY.match(key)
         if not m:
             raise AbbeInputError("malformed key: expected NAME, NAME[i] or NAME[i,c]",

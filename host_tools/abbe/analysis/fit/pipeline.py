@@ -183,7 +183,7 @@ def fit_line(machine: Machine, axis: str, opts: FitOptions) -> AxisResult:
     line = machine.laser[axis]
     j = AXES.index(axis)
     spec = machine.axes[axis]
-    data = read_laser_csv(line.file, travel_mm=spec.travel_mm,
+    data = read_laser_csv(line.file, channels=tuple(line.map), travel_mm=spec.travel_mm,
                           span_mm=(line.start_mm[j], line.end_mm[j]), columns=line.columns)
     terms = to_terms(data, line)
     p = data.targets_mm
