@@ -118,6 +118,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
 
 
 def _cmd_cgen(args: argparse.Namespace) -> int:
+    Outputs().check_directory(args.out, option="--out")
     data, _ = _read_bin(args.model)
     h, c = write_c(data, args.out, stem=args.stem, option="--out")
     print(h)

@@ -224,7 +224,7 @@ def load_table_file(path: str | Path, what: str = "model") -> tuple[bytes | None
             raise AbbeInputError(f"a table blob is at most {BLOB_MAX_BYTES} bytes", file=name)
         return raw, read_blob(raw, source=name)
     head = raw.lstrip(b"\xef\xbb\xbf \t\r\n")[:1]
-    if head != b"{":
+    if head not in (b"{", b"[") and not raw.startswith((b"\xff\xfe", b"\xfe\xff")):
         raise AbbeInputError("not an abbe table: neither a blob (magic ABBE) nor table JSON",
                              file=name)
     d, tf = json_from_bytes(raw, name=name, what="table JSON")
