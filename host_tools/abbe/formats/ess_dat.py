@@ -107,6 +107,8 @@ def read_dat(path: str | Path) -> PositioningData:
         hi = DAT_MAX_CYCLES if name == "CYCLES" else DAT_MAX_POSITIONS
         return parse_int(v, file=fname, line=no, field=name, lo=1, hi=hi)
 
+    if "DEC" in scalars:  # informational, but a number: garbage there is refused too
+        parse_int(scalars["DEC"][0], file=fname, line=scalars["DEC"][1], field="DEC", lo=0, hi=30)
     cycles = count("CYCLES", 5)
     positions = count("POSITIONS", 8)
     unit, unit_line = scalars.get("UNIT", ("mm", None))
