@@ -51,23 +51,19 @@ feed_arc_deg = 10.0
 
 DAT = """TEST_DATA=# fuzz seed
 UNIT=mm
-CYCLES=2
-POSITIONS=5
+CYCLES=3
+POSITIONS=8
 DEC=5
-TGT_DATA[1]=0
-TGT_DATA[2]=10
-TGT_DATA[3]=20
-TGT_DATA[4]=30
-TGT_DATA[5]=40
 """
 
 
 def _dat() -> str:
-    out = [DAT]
+    out = [DAT] + [f"TGT_DATA[{i}]={10 * (i - 1) + (i % 3)}\n" for i in range(1, 9)]
     for d, sgn in (("FWD", 1.0), ("BWD", -1.0)):
-        for i in range(1, 6):
-            for c in range(1, 3):
-                v = 10.0 * (i - 1) + 0.001 * (i * c) + sgn * 0.002
+        for i in range(1, 9):
+            for c in range(1, 4):
+                v = 10.0 * (i - 1) + (i % 3) + 0.001 * ((i * c) % 5) + sgn * 0.002 \
+                    + 0.0005 * ((i * i) % 4)
                 out.append(f"REF_DATA_{d}[{i},{c}]={v:.6f}\n")
     return "".join(out)
 

@@ -11,6 +11,15 @@
 from __future__ import annotations
 
 
+def _printable(s: str) -> str:
+    """One printable line: control and separator characters (a newline, U+2028, an escape
+    sequence from a hostile file) shown as escapes, never sent raw to the terminal."""
+    if s.isprintable():
+        return s
+    return "".join(ch if ch.isprintable() else ch.encode("unicode_escape").decode("ascii")
+                   for ch in s)
+
+
 class AbbeInputError(Exception):
     """Bad input: names the file, the line, the field and what was expected.
 
@@ -34,7 +43,7 @@ class AbbeInputError(Exception):
                 where += f":{self.line}"
             where += ": "
         field = f"field '{self.field}': " if self.field is not None else ""
-        return f"{where}{field}{self.message}"
+        return _printable(f"{where}{field}{self.message}")
 
     def located(self, *, file: str | None = None, line: int | None = None,
                 field: str | None = None) -> "AbbeInputError":

@@ -80,7 +80,7 @@ def test_23_digit_run_number(ws):
 
 @pytest.mark.parametrize("value", ["\u00b2", "9" * 5000, "0", "-3", "1e3"])
 def test_dat_counts(ws, value):
-    _edit(ws.dat, "CYCLES=2", f"CYCLES={value}")
+    _edit(ws.dat, "CYCLES=3", f"CYCLES={value}")
     _expect(["iso230-2", ws.dat], where=f"{ws.dat}:3:", field="CYCLES")
 
 
