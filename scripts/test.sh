@@ -9,6 +9,8 @@
 #   5. libFuzzer run on the table loader (build-fuzz/, clang)
 #   6. the Python import contracts (lint-imports: host_tools' one-way layers)
 #   7. pytest host_tools/tests
+#   8. the wheel: built from host_tools/, installed with the lock into a fresh venv
+#      outside the checkout, abbe demo / fit / diagnose run there
 # Runs every step even after a failure; exits non-zero if any step failed.
 set -uo pipefail
 
@@ -71,12 +73,17 @@ import_contracts() {
 
 pytest_all() {
     local rc
-    (cd host_tools && "$REPO/.venv/bin/python" -m pytest -q -p no:cacheprovider tests)
+    (cd host_tools && "$REPO/.venv/bin/python" -m pytest -q -p no:cacheprovider \
+        --ignore=tests/packaging tests)
     rc=$?
     if [[ $rc -eq 5 ]]; then
         echo "[test] pytest collected no tests: nothing ran"
     fi
     return $rc
+}
+
+wheel_test() {
+    (cd host_tools && "$REPO/.venv/bin/python" -m pytest -q -s -p no:cacheprovider tests/packaging)
 }
 
 step "host ASan+UBSan build and ctest (build-asan)" host_asan
@@ -86,6 +93,7 @@ step "Cortex-M3 build and ctest under QEMU (build-m3)" cross m3 cortex-m3
 step "libFuzzer run (build-fuzz)" fuzz
 step "Python import contracts (lint-imports)" import_contracts
 step "pytest host_tools/tests" pytest_all
+step "wheel: build, install outside the checkout, run abbe there" wheel_test
 
 echo
 echo "==== [test] summary ===="

@@ -13,7 +13,6 @@ Longer runs: ``python -m fuzzing.run`` (from host_tools/).
 from __future__ import annotations
 
 import shutil
-from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, given, settings
