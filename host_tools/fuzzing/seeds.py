@@ -120,7 +120,7 @@ def _declared_export(laser_csv: Path, out: Path) -> None:
 def make_workspace(root: Path) -> Workspace:
     """Create the seed workspace under ``root`` (a fresh folder)."""
     from abbe.cli.entry import main
-    from abbe.model.clib import repo_root
+    from abbe.paths import examples_dir
 
     root.mkdir(parents=True, exist_ok=True)
     spec = root / "spec.toml"
@@ -131,7 +131,7 @@ def make_workspace(root: Path) -> Workspace:
         raise RuntimeError(f"abbe simulate of the fuzz seed failed ({rc})")
     dat = root / "x.dat"
     dat.write_text(_dat())
-    ex = repo_root() / "examples" / "paper_table"
+    ex = examples_dir() / "paper_table"
     blob, tjson = root / "model.bin", root / "model.json"
     shutil.copyfile(ex / "model.bin", blob)
     shutil.copyfile(ex / "model.json", tjson)
