@@ -16,7 +16,9 @@ raises AbbeInputError naming file, line and key.
 
 from __future__ import annotations
 
+import os
 import re
+import stat
 from pathlib import Path
 
 import numpy as np
@@ -35,11 +37,18 @@ _UNITS_TO_UM = {"mm": 1000.0, "um": 1.0}
 
 def looks_like_dat(path: Path) -> bool:
     """True if the first non-blank, non-comment line is ``KEY=...`` with an upper-case key."""
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(65536)
+    try:  # never block on a FIFO nor read a device: the reader refuses those itself
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
     except (OSError, ValueError):
         return False
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            return False
+        head = os.read(fd, 65536)
+    except OSError:
+        return False
+    finally:
+        os.close(fd)
     text = head.removeprefix(b"\xef\xbb\xbf").decode("utf-8", errors="replace")
     for raw in text.replace("\r", "\n").split("\n"):
         s = raw.strip()

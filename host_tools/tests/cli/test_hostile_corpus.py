@@ -145,6 +145,9 @@ def test_machine_path_nul_loop_device(ws, tmp_path):
     os.symlink(loop, loop)
     _expect(base + [loop], [out], where=loop, text="symbolic links")
     _expect(base + ["/dev/zero"], [out], where="/dev/zero", text="not a regular file")
+    fifo = tmp_path / "fifo.csv"
+    os.mkfifo(fifo)  # nobody writes: reading it would block forever
+    _expect(["iso230-2", fifo], where=fifo, text="not a regular file")
     _edit(ws.machine, 'file = "laser/x.csv"', 'file = "/dev/zero"')
     _expect(["fit", ws.machine] + base[1:], [out], where="/dev/zero", text="not a regular file")
 
