@@ -43,7 +43,8 @@ class Dialect:
         if self.delimiter is None:
             return line.split(None) if line.isascii() else [c for c in line.replace("\t", " ").split(" ") if c]
         if '"' not in line:
-            return [c.strip(_WS) for c in line.split(self.delimiter)]
+            cells = line.split(self.delimiter)
+            return [c.strip(_WS) for c in cells] if (" " in line or "\t" in line) else cells
         try:
             rec = next(csv.reader([line], delimiter=self.delimiter, strict=True))
         except csv.Error as exc:
@@ -84,10 +85,6 @@ class Header:
     units_line: int | None = None
 
 
-def _is_blank(cells: list[str]) -> bool:
-    return all(not c for c in cells)
-
-
 def read_columns(tf: TextFile, dialect: Dialect, *, what: str, max_rows: int,
                  plan: Callable[[Header], dict[str, Column]]) -> tuple[Header, dict[str, np.ndarray], np.ndarray]:
     """Read the table of ``tf``: ``plan(header)`` names the columns to convert.
@@ -99,7 +96,7 @@ def read_columns(tf: TextFile, dialect: Dialect, *, what: str, max_rows: int,
     name = tf.name
     header: Header | None = None
     cols: dict[str, Column] = {}
-    cells_of: dict[str, list[str]] = {}
+    chunk_rows: list[list[str]] = []
     parts: dict[str, list[np.ndarray]] = {}
     line_parts: list[np.ndarray] = []
     chunk_lines: list[int] = []
@@ -110,8 +107,9 @@ def read_columns(tf: TextFile, dialect: Dialect, *, what: str, max_rows: int,
         if not chunk_lines:
             return
         ln = np.array(chunk_lines, dtype=np.int64)
+        columns = list(zip(*chunk_rows))
         for key, col in cols.items():
-            cells = cells_of[key]
+            cells = columns[col.index]
             if col.kind == "number":
                 arr = parse_number_column(cells, ln, file=name, field=col.name, lo=col.lo,
                                           hi=col.hi, unit=col.unit, decimal=dialect.decimal,
@@ -127,9 +125,9 @@ def read_columns(tf: TextFile, dialect: Dialect, *, what: str, max_rows: int,
                     raise AbbeInputError(f"expected {col.expected}, got {cells[i]!r}", file=name,
                                          line=int(ln[i]), field=col.name)
             parts[key].append(arr)
-            cells.clear()
         line_parts.append(ln)
         chunk_lines.clear()
+        chunk_rows.clear()
 
     width = 0
     for no, line in tf.lines():
@@ -139,14 +137,13 @@ def read_columns(tf: TextFile, dialect: Dialect, *, what: str, max_rows: int,
         if not stripped or (dialect.comment and stripped.startswith(dialect.comment)):
             continue
         cells = dialect.split(line, file=name, no=no)
-        if _is_blank(cells):
+        if not any(cells):
             continue
         if header is None:
             header = Header(no, cells)
             width = len(cells)
             if not want_units:
                 cols = plan(header)
-                cells_of = {k: [] for k in cols}
                 parts = {k: [] for k in cols}
             continue
         if want_units:
@@ -156,7 +153,6 @@ def read_columns(tf: TextFile, dialect: Dialect, *, what: str, max_rows: int,
             header.units, header.units_line = cells, no
             want_units = False
             cols = plan(header)
-            cells_of = {k: [] for k in cols}
             parts = {k: [] for k in cols}
             continue
         if len(cells) != width:
@@ -167,8 +163,7 @@ def read_columns(tf: TextFile, dialect: Dialect, *, what: str, max_rows: int,
             raise AbbeInputError(f"more than {max_rows} data rows: the limit for a {what} "
                                  "(docs/formats.md, \"Limits\")", file=name, line=no)
         chunk_lines.append(no)
-        for key, col in cols.items():
-            cells_of[key].append(cells[col.index])
+        chunk_rows.append(cells)
         if len(chunk_lines) >= CHUNK_ROWS:
             flush()
     if header is None:
