@@ -23,11 +23,11 @@ from fuzzing.harness import run_case
 from fuzzing.mutate import mutate
 
 #: Mutated inputs per command in CI (cheap commands get more).
-EXAMPLES = {"table info": 60, "table eval": 40, "table from-json": 60, "table to-json": 30,
-            "table cgen": 30, "iso230-2 dat": 60, "iso230-2 csv": 60, "fit machine": 25,
-            "fit laser": 25, "fit declared": 25, "simulate": 10, "ballbar machine": 12,
-            "ballbar csv": 30, "diagnose iso230-2": 10, "upload": 30, "predict": 15,
-            "diagnose machine": 6, "diagnose model": 10}
+EXAMPLES = {"table info": 100, "table eval": 60, "table from-json": 100, "table to-json": 50,
+            "table cgen": 50, "iso230-2 dat": 100, "iso230-2 csv": 100, "fit machine": 50,
+            "fit laser": 50, "fit declared": 50, "simulate": 25, "ballbar machine": 25,
+            "ballbar csv": 50, "diagnose iso230-2": 25, "upload": 50, "predict": 30,
+            "diagnose machine": 15, "diagnose model": 25}
 
 
 @pytest.fixture(scope="module")
@@ -56,6 +56,7 @@ def test_command_promises_under_mutation(seed_ws, fuzz_env, name, capsys):
                      budget_s=t.budget_s)  # a valid first run: its outputs must survive failures
     assert first.ok and first.rc in (0, 1, 3), (first.problems, first.stderr)
     seed = t.mutated.read_bytes()
+    tried = []
 
     @settings(max_examples=EXAMPLES[name], derandomize=True, database=None, deadline=None,
               suppress_health_check=list(HealthCheck))
@@ -69,10 +70,13 @@ def test_command_promises_under_mutation(seed_ws, fuzz_env, name, capsys):
                          budget_s=t.budget_s)
         finally:
             t.mutated.write_bytes(seed)
+        tried.append(o.rc)
         assert o.ok, (ops, o.problems, o.stderr[-500:])
 
     run()
     capsys.readouterr()
+    assert len(tried) >= EXAMPLES[name], f"only {len(tried)} inputs tried"
+    print(f"{name}: {len(tried)} inputs, exit 0: {tried.count(0)}, exit 2: {tried.count(2)}")
 
 
 @pytest.mark.parametrize("name", ["table eval", "fit machine", "diagnose iso230-2", "upload",

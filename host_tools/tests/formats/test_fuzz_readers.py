@@ -24,7 +24,7 @@ from abbe.errors import AbbeInputError
 from fuzzing.mutate import HOSTILE_NUMBERS, mutate, replace_number
 
 #: Mutated inputs per reader in CI (the long run: python -m fuzzing.run).
-EXAMPLES = 60
+EXAMPLES = 100
 FUZZ = settings(max_examples=EXAMPLES, derandomize=True, database=None, deadline=None,
                 suppress_health_check=list(HealthCheck))
 
