@@ -15,6 +15,7 @@ PACKAGES=(
     valgrind
     clang libclang-rt-14-dev
     socat can-utils
+    linuxcnc-uspace linuxcnc-uspace-dev
     python3 python3-venv
 )
 

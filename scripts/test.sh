@@ -11,6 +11,9 @@
 #   7. pytest host_tools/tests
 #   8. the wheel: built from host_tools/, installed with the lock into a fresh venv
 #      outside the checkout, abbe demo / fit / diagnose run there
+#   9. LinuxCNC: the HAL component built and installed, halrun and simulator
+#      tests (port/linuxcnc/tests/run.sh; halrun / linuxcnc run as an
+#      unprivileged user, created when run as root)
 # Runs every step even after a failure; exits non-zero if any step failed.
 set -uo pipefail
 
@@ -94,6 +97,7 @@ step "libFuzzer run (build-fuzz)" fuzz
 step "Python import contracts (lint-imports)" import_contracts
 step "pytest host_tools/tests" pytest_all
 step "wheel: build, install outside the checkout, run abbe there" wheel_test
+step "LinuxCNC component: halrun and simulator tests" bash port/linuxcnc/tests/run.sh
 
 echo
 echo "==== [test] summary ===="
