@@ -35,6 +35,7 @@ from abbe.analysis.fit.prep import (
     SQUARENESS_NOTE,
     RunStats,
     average_runs,
+    bin_targets,
     detrend_line,
     relative_to_reference,
 )
@@ -44,6 +45,7 @@ from abbe.errors import AbbeInputError
 from abbe.formats.blob import quantization_error, read_blob, write_blob
 from abbe.formats.deviations import PositioningData
 from abbe.formats.laser_csv import LaserData, read_laser_csv, to_terms
+from abbe.formats.limits import FIT_MAX_TARGETS
 from abbe.formats.machine import LaserLine, Machine
 from abbe.formats.table_json import table_to_json
 from abbe.model.table import AXES, LINEAR_TERMS, OWN_TERM, TERMS, AxisTable, Table, basis_matrix
@@ -110,6 +112,7 @@ class AxisResult:
     backlash: dict[str, Any]
     iso: Iso230Result | None
     table: AxisTable
+    n_measured: int = 0  # targets in the file (targets_mm holds the bins of a dense line)
 
 
 @dataclass
@@ -180,10 +183,11 @@ def fit_line(machine: Machine, axis: str, opts: FitOptions) -> AxisResult:
     line = machine.laser[axis]
     j = AXES.index(axis)
     spec = machine.axes[axis]
-    data = read_laser_csv(line.file, travel_mm=spec.travel_mm,
-                          span_mm=(line.start_mm[j], line.end_mm[j]))
+    data = read_laser_csv(line.file, channels=tuple(line.map), travel_mm=spec.travel_mm,
+                          span_mm=(line.start_mm[j], line.end_mm[j]), columns=line.columns)
     terms = to_terms(data, line)
     p = data.targets_mm
+    n_measured = int(p.size)
     if p.size < 5:
         raise AbbeInputError(f"{p.size} targets: the fit needs at least 5", file=str(data.file),
                              field="target_mm")
@@ -195,6 +199,8 @@ def fit_line(machine: Machine, axis: str, opts: FitOptions) -> AxisResult:
     if own in terms and data.n_runs >= 2:
         iso = evaluate(PositioningData(str(data.file), p, terms[own][:, 0, :],
                                        terms[own][:, 1, :]))
+    if p.size > FIT_MAX_TARGETS:  # a dense capture: fit bin means (time and memory bounded)
+        p, terms = bin_targets(p, terms, FIT_MAX_TARGETS)
 
     runs_pre: dict[str, np.ndarray] = {}
     detr: dict[str, dict[str, float] | None] = {}
@@ -246,7 +252,7 @@ def fit_line(machine: Machine, axis: str, opts: FitOptions) -> AxisResult:
     axt = AxisTable(travel_mm=tab.travel_mm, trend_degree=tab.trend_degree, blocks=tab.blocks,
                     coef=coefs, backlash_um=backlash_um, backlash_takeup_mm=takeup)
     return AxisResult(axis=axis, line=line, data=data, targets_mm=p, fit=af, terms=results,
-                      backlash=bl, iso=iso, table=axt)
+                      backlash=bl, iso=iso, table=axt, n_measured=n_measured)
 
 
 def fit_machine(machine: Machine, opts: FitOptions) -> FitResult:
@@ -353,6 +359,10 @@ def model_json(res: FitResult) -> dict[str, Any]:
         axes[a] = {
             "laser_file": _rel(ar.line.file, base),
             "n_targets": int(ar.targets_mm.size), "n_runs": ar.data.n_runs,
+            **({"n_targets_measured": ar.n_measured,
+                "binning": f"{ar.n_measured} targets fitted as {ar.targets_mm.size} bins of "
+                           "consecutive targets (bin means; docs/formats.md, \"Limits\")"}
+               if ar.n_measured > ar.targets_mm.size else {}),
             "targets_mm": [float(v) for v in ar.targets_mm],
             "travel_mm": [float(v) for v in tab.travel_mm],
             "trend_degree": tab.trend_degree,

@@ -91,3 +91,23 @@ def relative_to_reference(pos_mm: np.ndarray, values: np.ndarray, ref_mm: float,
     """
     v = value_at(pos_mm, values, ref_mm) if value_at_ref is None else float(value_at_ref)
     return np.asarray(values, dtype=np.float64) - v, v
+
+
+def bin_targets(pos_mm: np.ndarray, runs: dict[str, np.ndarray], max_targets: int
+                ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """A dense line reduced to at most ``max_targets`` bins of consecutive targets.
+
+    ``pos_mm`` (T,) ascending; ``runs[t]`` (n_runs, 2, T). Bin k holds targets
+    [k*T/B, (k+1)*T/B) (B bins of equal count, +-1); each bin is the mean of its
+    positions and of its readings per run and direction. Linear in T.
+    """
+    p = np.asarray(pos_mm, dtype=np.float64)
+    T = p.size
+    if T <= max_targets:
+        return p, runs
+    starts = (np.arange(max_targets) * T) // max_targets
+    counts = np.diff(np.append(starts, T))
+    pb = np.add.reduceat(p, starts) / counts
+    out = {t: np.add.reduceat(np.asarray(r, dtype=np.float64), starts, axis=2) / counts
+           for t, r in runs.items()}
+    return pb, out
