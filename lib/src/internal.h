@@ -110,45 +110,76 @@ static inline int abbe_f32_nonfinite(float f)
     return abbe_f32_bits_nonfinite(u);
 }
 
+/* acc + a * b, 64-bit: one SMLAL on a Cortex-M3/M4. GCC keeps the plain C
+ * form as one SMLAL in the dot products, but not where acc is made of
+ * constants (the Horner steps of sincos_q.h), which it rebuilds as a 64 x 64
+ * multiply of 7 instructions; the asm pins the single instruction there. */
+static ABBE_ALWAYS_INLINE int64_t abbe_smlal(int64_t acc, int32_t a, int32_t b)
+{
+#if defined(__GNUC__) && defined(__thumb2__) && defined(__ARMEL__)
+    uint32_t lo = (uint32_t)acc, hi = (uint32_t)((uint64_t)acc >> 32);
+    __asm__("smlal %0, %1, %2, %3" : "+r"(lo), "+r"(hi) : "r"(a), "r"(b));
+    return (int64_t)(((uint64_t)hi << 32) | lo);
+#else
+    return acc + (int64_t)a * b;
+#endif
+}
+
 /* ---- argument reduction (integer, shared by both variants) ----
  *
- * Positions are integer nm in both variants, so the Chebyshev argument and the
- * Fourier phase are computed exactly the same way, to about 1 LSB, whatever the
- * distance from the origin (docs/numerics.md). A float phase would lose 2^-24
- * of up to 4000 turns, i.e. degrees on a short-period harmonic. Inline: they
- * run once per axis and block on the hot path. */
+ * Positions are integer nm in both variants, so clamping, the Chebyshev
+ * argument and the Fourier phases are computed exactly the same way, to about
+ * 1 LSB, whatever the distance from the origin (docs/numerics.md). A float
+ * phase would lose 2^-24 of up to 4000 turns, i.e. degrees on a short-period
+ * harmonic. Everything starts from one offset per axis, d = p - travel_min
+ * with p clamped to the travel: 0 <= d <= span < 2^32, so it is a uint32 and
+ * every product below is a single 32 x 32 -> 64 multiply (one UMULL/UMLAL on
+ * a Cortex-M). Inline: they run once per axis on the hot path. */
+
+/* Offset of the clamped position from travel_min, in [0, span]; sets
+ * ABBE_FLAG_OUT_OF_TRAVEL if pos_nm is outside the travel. Branch-free. */
+static inline uint32_t abbe_arg_offset(const abbe_axis_model_t *ax, int32_t pos_nm, uint32_t *flags)
+{
+    uint32_t below = (uint32_t)(pos_nm < ax->travel_min_nm);
+    uint32_t above = (uint32_t)(pos_nm > ax->travel_max_nm);
+    uint32_t d = (uint32_t)pos_nm - (uint32_t)ax->travel_min_nm; /* mod 2^32: exact inside */
+    *flags |= (below | above) * ABBE_FLAG_OUT_OF_TRAVEL;
+    d = below ? 0u : d;
+    return above ? ax->span_nm : d;
+}
 
 /* Position clamped to the axis travel; sets ABBE_FLAG_OUT_OF_TRAVEL if clamped. */
 static inline int32_t abbe_arg_clamp(const abbe_axis_model_t *ax, int32_t pos_nm, uint32_t *flags)
 {
-    if (pos_nm < ax->travel_min_nm) {
-        *flags |= ABBE_FLAG_OUT_OF_TRAVEL;
-        return ax->travel_min_nm;
-    }
-    if (pos_nm > ax->travel_max_nm) {
-        *flags |= ABBE_FLAG_OUT_OF_TRAVEL;
-        return ax->travel_max_nm;
-    }
-    return pos_nm;
+    uint32_t d = abbe_arg_offset(ax, pos_nm, flags);
+    return abbe_u32_to_i32((uint32_t)ax->travel_min_nm + d);
 }
 
-/* Chebyshev argument u = (2p - min - max) / (max - min) in Q30, p clamped. */
-static inline int32_t abbe_arg_cheb_q30(const abbe_axis_model_t *ax, int32_t clamped_nm)
+/* Chebyshev argument u = (2p - min - max) / (max - min) = 2d / span - 1 in
+ * Q30, from the offset d. (d << shift) < 2^32 and cheb_mul = round(2^(63 -
+ * shift) / span) < 2^32 (the loader picks shift), so hi32 of their product is
+ * d * 2^31 / span to within 0.5 LSB, and the + 2^31 rounds: within 1 LSB in
+ * all. (A power-of-two span, whose exact multiplier 2^32 is stored as
+ * 2^32 - 1, comes out exact: there d << shift <= 2^31.) Range
+ * [-2^30, 2^30]. */
+static inline int32_t abbe_arg_cheb_q30(const abbe_axis_model_t *ax, uint32_t d)
 {
-    /* |num| <= span < 2^32 and cheb_mul ~ 2^62 / span: the product stays within 2^62. */
-    int64_t num = 2 * (int64_t)clamped_nm - (int64_t)ax->travel_min_nm - (int64_t)ax->travel_max_nm;
-    int64_t u = abbe_shr_round(num * ax->cheb_mul, 32u);
-    return (int32_t)abbe_clamp_i64(u, -ABBE_Q30_ONE, ABBE_Q30_ONE);
+    uint64_t prod = (uint64_t)(d << ax->cheb_shift) * ax->cheb_mul + 0x80000000u;
+    return abbe_u32_to_i32((uint32_t)(prod >> 32) - (uint32_t)ABBE_Q30_ONE);
 }
 
-/* Phase of Fourier block b as a fraction of a turn (Q32, wraps), p clamped. */
-static inline uint32_t abbe_arg_phase_q32(const abbe_axis_model_t *ax, unsigned block, int32_t clamped_nm)
+/* Phase of Fourier block b as a fraction of a turn (Q32, wraps), from the
+ * offset d: bits 32..63 of (p - origin) * freq mod 2^64, with freq = round(2^64
+ * / period). (p - origin) * freq = d * freq + (min - origin) * freq; the loader
+ * stores the second product mod 2^64 (phase_min), and the unsigned arithmetic
+ * wraps mod 2^64, which drops exactly the whole turns. d * freq mod 2^64 needs
+ * only d * freq_lo (64 bits, added to phase_min) and the low word of
+ * d * freq_hi. */
+static inline uint32_t abbe_arg_phase_q32(const abbe_axis_model_t *ax, unsigned block, uint32_t d)
 {
-    /* freq = 2^64 / period. Bits 32..63 of d * freq are the phase in Q32; the
-     * unsigned product wraps mod 2^64, which drops exactly the whole turns. */
-    int64_t d = (int64_t)clamped_nm - (int64_t)ax->origin_nm[block];
-    uint64_t product = (uint64_t)d * ax->freq[block];
-    return (uint32_t)(product >> 32);
+    uint64_t freq = ax->freq[block];
+    uint64_t low = (uint64_t)d * (uint32_t)freq + ax->phase_min[block];
+    return (uint32_t)(low >> 32) + d * (uint32_t)(freq >> 32);
 }
 
 /* Backlash direction-state change (Q30) for a move of dist_nm >= 0. */
@@ -166,18 +197,34 @@ static inline int32_t abbe_arg_takeup_q30(const abbe_axis_model_t *ax, uint32_t 
 void abbe_sincos_q30(uint32_t phase_q32, int32_t *sin_q30, int32_t *cos_q30);
 void abbe_sincos_f32(uint32_t phase_q32, float *sin_out, float *cos_out);
 
-/* ---- per-axis fitted term values ---- */
-
-/* Fixed: linear terms in 2^-8 nm, angular in 2^-36 rad; absent terms 0. */
-void abbe_axis_terms_q(const abbe_axis_model_t *ax, int32_t pos_nm, int64_t *restrict value,
-                       uint32_t *flags);
-
-/* Float: linear terms in um, angular in urad; absent terms 0. */
-void abbe_axis_terms_f32(const abbe_axis_model_t *ax, int32_t pos_nm, float *restrict value,
-                         uint32_t *flags);
+/* ---- per-axis fitted term values (terms_q.c / terms_f32.c) ----
+ *
+ * From the offset d of abbe_arg_offset(); absent terms are 0.
+ *   _q:   linear terms in 2^-6 nm (ABBE_TERM_LIN_Q_BITS), angular in 2^-35 rad
+ *         (ABBE_TERM_ANG_Q_BITS), each rounded once from the exact int64 sum;
+ *   _f32: in the coefficients' own units, 2^-8 nm and 2^-36 rad (the caller
+ *         scales once, in the assembly). */
+#define ABBE_TERM_LIN_Q_BITS 6
+#define ABBE_TERM_ANG_Q_BITS 35
+void abbe_axis_terms_q(const abbe_axis_model_t *ax, uint32_t d, int32_t value[ABBE_TERMS]);
+void abbe_axis_terms_f32(const abbe_axis_model_t *ax, uint32_t d, float value[ABBE_TERMS]);
 
 /* Float mm -> integer nm, exact to 0.56 nm over +/-2147 mm (docs/numerics.md).
  * Returns ABBE_E_INPUT for NaN/Inf; clamps beyond +/-2147 mm (flagging out of travel). */
 abbe_status_t abbe_mm_to_nm_f32(float mm, int32_t *nm, uint32_t *flags);
+
+/* ---- evaluation cores, shared by the public entry points, the batch calls and
+ * the compensator (which passes its own direction states without copying) ---- */
+
+/* Spatial error in nm (rounded, saturated) at pos_nm; returns the flags. */
+uint32_t abbe_eval_q_core(const abbe_model_t *m, const int32_t pos_nm[ABBE_AXES],
+                          const int32_t dir_q30[ABBE_AXES], const int32_t temp_mdegc[ABBE_AXES],
+                          int32_t error_nm[ABBE_AXES]);
+
+/* Spatial error in um at the float input; ABBE_OK or ABBE_E_INPUT (then the
+ * outputs are untouched). *flags gets the evaluation flags. */
+abbe_status_t abbe_eval_f32_core(const abbe_model_t *m, const float pos_mm[ABBE_AXES],
+                                 const float dir_state[ABBE_AXES], const float temp_c[ABBE_AXES],
+                                 float error_um[ABBE_AXES], uint32_t *flags);
 
 #endif /* ABBE_INTERNAL_H */
