@@ -108,6 +108,12 @@ int main(int argc, char **argv)
     const uint32_t np = paper->n_points;
     const abbe_golden_point_t *pts = &abbe_golden_points[paper->first_point];
 
+    if (strcmp(mode, "f32_base") == 0) {
+        /* x86-64: the SSE2 kernels every x86-64 runs, whatever this CPU has
+         * (model.simd is what abbe_model_load() found: 1 = x86-64-v3) */
+        model.simd = 0;
+        mode = "f32";
+    }
     if (strcmp(mode, "f32") == 0 || strcmp(mode, "empty") == 0) {
         abbe_input_f32_t *in = calloc(np, sizeof *in);
         for (uint32_t i = 0; i < np; i++) {

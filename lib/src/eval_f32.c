@@ -36,7 +36,16 @@ static float extras_um(const abbe_model_t *m, unsigned j, float lev_mm, float di
     return um;
 }
 
-static int inputs_nonfinite(uint32_t features, const float dir_state[ABBE_AXES], const float temp_c[ABBE_AXES])
+void abbe_f32_add_extras(const abbe_model_t *m, const float lev_mm[ABBE_AXES], const float dir_state[ABBE_AXES],
+                         const float temp_c[ABBE_AXES], float error_um[ABBE_AXES])
+{
+    /* own positioning terms: -d_x(x) in dX, -d_y(y) in dY, +d_z(z) in dZ */
+    error_um[0] -= extras_um(m, 0, lev_mm[0], dir_state[0], temp_c[0]);
+    error_um[1] -= extras_um(m, 1, lev_mm[1], dir_state[1], temp_c[1]);
+    error_um[2] += extras_um(m, 2, lev_mm[2], dir_state[2], temp_c[2]);
+}
+
+int abbe_f32_extras_nonfinite(uint32_t features, const float dir_state[ABBE_AXES], const float temp_c[ABBE_AXES])
 {
     int bad = 0;
     for (unsigned j = 0; j < ABBE_AXES; j++) {
@@ -46,21 +55,23 @@ static int inputs_nonfinite(uint32_t features, const float dir_state[ABBE_AXES],
     return bad;
 }
 
+#if !defined(ABBE_F32_SSE2) /* x86-64: eval_f32_sse2.c */
 abbe_status_t abbe_eval_f32_core(const abbe_model_t *m, const float pos_mm[ABBE_AXES],
                                  const float dir_state[ABBE_AXES], const float temp_c[ABBE_AXES],
                                  float error_um[ABBE_AXES], uint32_t *flags_out)
 {
     const uint32_t features = m->features;
     if ((features & (ABBE_FEATURE_BACKLASH | ABBE_FEATURE_THERMAL)) &&
-        inputs_nonfinite(features, dir_state, temp_c)) {
+        abbe_f32_extras_nonfinite(features, dir_state, temp_c)) {
         return ABBE_E_INPUT;
     }
     uint32_t flags = 0;
     int32_t p[ABBE_AXES];
-    for (unsigned j = 0; j < ABBE_AXES; j++) {
-        if (abbe_mm_to_nm_f32(pos_mm[j], &p[j], &flags) != ABBE_OK) {
-            return ABBE_E_INPUT;
-        }
+    uint32_t bad = abbe_mm_to_nm_inline(pos_mm[0], &p[0], &flags);
+    bad |= abbe_mm_to_nm_inline(pos_mm[1], &p[1], &flags);
+    bad |= abbe_mm_to_nm_inline(pos_mm[2], &p[2], &flags);
+    if (bad) {
+        return ABBE_E_INPUT;
     }
     /* Lever arms p - ref as (p >> 1) - (ref >> 1) half nm: an exact int32
      * difference (p - ref itself can need 33 bits), 1 nm of the arm at most;
@@ -76,38 +87,58 @@ abbe_status_t abbe_eval_f32_core(const abbe_model_t *m, const float pos_mm[ABBE_
     float v[ABBE_TERMS];
     float ex, ey, ez;
 
+    /* one multiply-add per weight, chained into each component (fused on a
+     * Cortex-M4F: one rounding each) */
     abbe_axis_terms_f32(&m->axis[0], abbe_arg_offset(&m->axis[0], p[0], &flags), v);
-    ex = ty_y * v[EZ] - z_tz * v[EY] - kl * v[DX];
-    ey = x_tx * v[EZ] + z_tz * v[EX] - kl * v[DY];
-    ez = -ty_y * v[EX] - x_tx * v[EY] - kl * v[DZ]; /* (y - ty) e_xx + (tx - x) e_xy */
+    ex = ty_y * v[EZ];
+    ex -= z_tz * v[EY];
+    ex -= kl * v[DX];
+    ey = x_tx * v[EZ];
+    ey += z_tz * v[EX];
+    ey -= kl * v[DY];
+    ez = -x_tx * v[EY]; /* (tx - x) e_xy + (y - ty) e_xx */
+    ez -= ty_y * v[EX];
+    ez -= kl * v[DZ];
 
     abbe_axis_terms_f32(&m->axis[1], abbe_arg_offset(&m->axis[1], p[1], &flags), v);
-    ex += ty_y * v[EZ] - z_tz * v[EY] - kl * v[DX];
-    ey += z_tz * v[EX] - tx * v[EZ] - kl * v[DY];
-    ez += tx * v[EY] - ty_y * v[EX] - kl * v[DZ];
+    ex += ty_y * v[EZ];
+    ex -= z_tz * v[EY];
+    ex -= kl * v[DX];
+    ey -= tx * v[EZ];
+    ey += z_tz * v[EX];
+    ey -= kl * v[DY];
+    ez += tx * v[EY];
+    ez -= ty_y * v[EX];
+    ez -= kl * v[DZ];
 
     abbe_axis_terms_f32(&m->axis[2], abbe_arg_offset(&m->axis[2], p[2], &flags), v);
-    ex += tz * v[EY] - ty * v[EZ] + kl * v[DX];
-    ey += tx * v[EZ] - tz * v[EX] + kl * v[DY];
-    ez += ty * v[EX] - tx * v[EY] + kl * v[DZ];
+    ex -= ty * v[EZ];
+    ex += tz * v[EY];
+    ex += kl * v[DX];
+    ey += tx * v[EZ];
+    ey -= tz * v[EX];
+    ey += kl * v[DY];
+    ez -= tx * v[EY];
+    ez += ty * v[EX];
+    ez += kl * v[DZ];
 
     /* squareness: + y S_xy - z S_xz in dX, - z S_yz in dY */
-    ex += y * m->squareness_f[0] - z * m->squareness_f[1];
+    ex += y * m->squareness_f[0];
+    ex -= z * m->squareness_f[1];
     ey -= z * m->squareness_f[2];
 
-    if (features & (ABBE_FEATURE_BACKLASH | ABBE_FEATURE_THERMAL)) {
-        /* own positioning terms: -d_x(x) in dX, -d_y(y) in dY, +d_z(z) in dZ */
-        const float mm_per_scaled = 2.0e-6f / ka; /* scaled arm -> mm */
-        ex -= extras_um(m, 0, x * mm_per_scaled, dir_state[0], temp_c[0]);
-        ey -= extras_um(m, 1, y * mm_per_scaled, dir_state[1], temp_c[1]);
-        ez += extras_um(m, 2, z * mm_per_scaled, dir_state[2], temp_c[2]);
-    }
     error_um[0] = ex;
     error_um[1] = ey;
     error_um[2] = ez;
+    if (features & (ABBE_FEATURE_BACKLASH | ABBE_FEATURE_THERMAL)) {
+        const float mm_per_scaled = 2.0e-6f / ka; /* scaled arm -> mm */
+        const float lev_mm[ABBE_AXES] = {x * mm_per_scaled, y * mm_per_scaled, z * mm_per_scaled};
+        abbe_f32_add_extras(m, lev_mm, dir_state, temp_c, error_um);
+    }
     *flags_out = flags;
     return ABBE_OK;
 }
+#endif /* !ABBE_F32_SSE2 */
 
 abbe_status_t abbe_error_eval_f32(const abbe_model_t *m, const abbe_input_f32_t *in, abbe_error_f32_t *out)
 {

@@ -21,6 +21,13 @@ typedef char abbe_requires_arithmetic_shift[((-2 >> 1) == -1) ? 1 : -1];
 #define ABBE_ALWAYS_INLINE inline
 #endif
 
+/* SIMD kernels where the target guarantees them: SSE2 is part of every
+ * x86-64. ABBE_PORTABLE_C forces the plain C kernels everywhere (the
+ * sanitizer build uses it, so both versions are tested on the host). */
+#if defined(__SSE2__) && !defined(ABBE_PORTABLE_C)
+#define ABBE_F32_SSE2 1
+#endif
+
 /* Little-endian loads; compilers turn these into one load on LE targets. */
 static inline uint32_t abbe_ld_u32(const uint8_t *p)
 {
@@ -177,9 +184,14 @@ static inline int32_t abbe_arg_cheb_q30(const abbe_axis_model_t *ax, uint32_t d)
  * d * freq_hi. */
 static inline uint32_t abbe_arg_phase_q32(const abbe_axis_model_t *ax, unsigned block, uint32_t d)
 {
+#if UINTPTR_MAX > 0xFFFFFFFFu
+    /* 64-bit targets: the product mod 2^64 is one multiply */
+    return (uint32_t)(((uint64_t)d * ax->freq[block] + ax->phase_min[block]) >> 32);
+#else
     uint64_t freq = ax->freq[block];
     uint64_t low = (uint64_t)d * (uint32_t)freq + ax->phase_min[block];
     return (uint32_t)(low >> 32) + d * (uint32_t)(freq >> 32);
+#endif
 }
 
 /* Backlash direction-state change (Q30) for a move of dist_nm >= 0. */
@@ -213,6 +225,32 @@ void abbe_axis_terms_f32(const abbe_axis_model_t *ax, uint32_t d, float value[AB
  * Returns ABBE_E_INPUT for NaN/Inf; clamps beyond +/-2147 mm (flagging out of travel). */
 abbe_status_t abbe_mm_to_nm_f32(float mm, int32_t *nm, uint32_t *flags);
 
+/* The same, inline and branch-free for the evaluation: returns nonzero for
+ * NaN/Inf (then *nm is meaningless; the out-of-travel flag may be set).
+ * The magnitude tests use the IEEE bits (a NaN is clamped like an infinity,
+ * so nothing undefined is ever converted); the position is split into whole
+ * millimetres (exact) and a fraction (exact, |f| < 1) whose product with 1e6
+ * rounds by at most 0.06 nm, where mm * 1e6 would lose 64 nm; adding
+ * 1.5 * 2^23 then rounds that product to the nearest integer (ties to even)
+ * in the float unit itself, |f * 1e6| < 2^22 being far inside the range
+ * where this is exact. */
+static ABBE_ALWAYS_INLINE uint32_t abbe_mm_to_nm_inline(float mm, int32_t *nm, uint32_t *flags)
+{
+    uint32_t bits;
+    memcpy(&bits, &mm, sizeof bits);
+    const uint32_t mag = bits & 0x7FFFFFFFu;
+    const uint32_t over = (uint32_t)(mag > 0x45063000u); /* |mm| > 2147.0f, NaN and Inf included */
+    *flags |= over * ABBE_FLAG_OUT_OF_TRAVEL;
+    bits = over ? ((bits & 0x80000000u) | 0x45063000u) : bits;
+    memcpy(&mm, &bits, sizeof mm);
+    const int32_t whole = (int32_t)mm;
+    const float rounded = (mm - (float)whole) * 1.0e6f + 12582912.0f;
+    uint32_t rounded_bits;
+    memcpy(&rounded_bits, &rounded, sizeof rounded_bits);
+    *nm = abbe_u32_to_i32((uint32_t)whole * 1000000u + (rounded_bits - 0x4B400000u));
+    return (uint32_t)(mag >= 0x7F800000u);
+}
+
 /* ---- evaluation cores, shared by the public entry points, the batch calls and
  * the compensator (which passes its own direction states without copying) ---- */
 
@@ -220,6 +258,25 @@ abbe_status_t abbe_mm_to_nm_f32(float mm, int32_t *nm, uint32_t *flags);
 uint32_t abbe_eval_q_core(const abbe_model_t *m, const int32_t pos_nm[ABBE_AXES],
                           const int32_t dir_q30[ABBE_AXES], const int32_t temp_mdegc[ABBE_AXES],
                           int32_t error_nm[ABBE_AXES]);
+
+/* The backlash and thermal terms (features BACKLASH, THERMAL), added to the
+ * own positioning terms in error_um; lev_mm: p - ref per axis, mm. */
+void abbe_f32_add_extras(const abbe_model_t *m, const float lev_mm[ABBE_AXES], const float dir_state[ABBE_AXES],
+                         const float temp_c[ABBE_AXES], float error_um[ABBE_AXES]);
+
+/* Nonzero if a direction state (BACKLASH) or temperature (THERMAL) is NaN/Inf. */
+int abbe_f32_extras_nonfinite(uint32_t features, const float dir_state[ABBE_AXES], const float temp_c[ABBE_AXES]);
+
+/* x86-64 builds also compile the f32 core for x86-64-v3 (ABBE_X86_V3, set by
+ * lib/CMakeLists.txt for GCC and Clang); abbe_model_load() records in
+ * model->simd which one this CPU runs. */
+#define ABBE_SIMD_X86_V3 1u
+#if defined(ABBE_X86_V3)
+uint8_t abbe_simd_level(void);
+abbe_status_t abbe_eval_f32_core_avx2(const abbe_model_t *m, const float pos_mm[ABBE_AXES],
+                                      const float dir_state[ABBE_AXES], const float temp_c[ABBE_AXES],
+                                      float error_um[ABBE_AXES], uint32_t *flags_out);
+#endif
 
 /* Spatial error in um at the float input; ABBE_OK or ABBE_E_INPUT (then the
  * outputs are untouched). *flags gets the evaluation flags. */

@@ -10,6 +10,17 @@
 
 #include "internal.h"
 
+/* A float constant materialised where it is used. In a kernel's block loop
+ * GCC would otherwise hoist all nine polynomial constants into callee-saved
+ * registers (nine loads, a save and a restore per axis on the Cortex-M4F)
+ * and still copy each into place: a Horner step costs one load or move plus
+ * one multiply-add either way. */
+#if defined(__GNUC__) && defined(__thumb2__) && defined(__ARM_FP)
+#define ABBE_K(name, value) float name = (value); __asm__("" : "+t"(name))
+#else
+#define ABBE_K(name, value) const float name = (value)
+#endif
+
 static ABBE_ALWAYS_INLINE void abbe_sincos_f32_inline(uint32_t phase_q32, float *sin_out, float *cos_out)
 {
     uint32_t quarter = ((phase_q32 + (1u << 29)) >> 30) & 3u;
@@ -17,13 +28,16 @@ static ABBE_ALWAYS_INLINE void abbe_sincos_f32_inline(uint32_t phase_q32, float 
     float u = (float)r * 1.86264514923095703125e-9f;          /* r / 2^29 */
     float z = u * u;
 
-    float s = u * (0.7853981256484985f +
-                   z * (-0.08074537664651871f +
-                        z * (0.0024898941721767187f + z * -3.588928186218254e-05f)));
-    float c = 1.0f +
-              z * (-0.30842512845993042f +
-                   z * (0.015854328870773315f +
-                        z * (-0.00032594305230304599f + z * 3.5318628215463832e-06f)));
+    ABBE_K(s3, -3.588928186218254e-05f);
+    ABBE_K(s2, 0.0024898941721767187f);
+    ABBE_K(s1, -0.08074537664651871f);
+    ABBE_K(s0, 0.7853981256484985f);
+    float s = u * (s0 + z * (s1 + z * (s2 + z * s3)));
+    ABBE_K(c4, 3.5318628215463832e-06f);
+    ABBE_K(c3, -0.00032594305230304599f);
+    ABBE_K(c2, 0.015854328870773315f);
+    ABBE_K(c1, -0.30842512845993042f);
+    float c = 1.0f + z * (c1 + z * (c2 + z * (c3 + z * c4)));
 
     /* quarter 0: (s, c), 1: (c, -s), 2: (-s, -c), 3: (-c, s) */
     float sw = (quarter & 1u) ? c : s;

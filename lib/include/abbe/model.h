@@ -84,11 +84,21 @@ typedef struct {
     int32_t reference_nm[ABBE_AXES];
     int32_t tool_offset_nm[ABBE_AXES];
     int32_t squareness_q36[3];  /* S_xy, S_xz, S_yz */
-    /* Precomputed for the assembly of Eq. 3 (integer only, exact): */
-    int32_t ref_half_nm[ABBE_AXES];   /* reference_nm >> 1 (float lever arms in half nm) */
+    /* Precomputed for the evaluation (integer only, exact); four lanes where
+     * a SIMD kernel loads them as one vector (the fourth lane is 0): */
     int64_t square_const_q36[2];      /* constant lever part of the squareness in dX, dY, nm x 2^-36 rad */
-    float tool_half_nm[ABBE_AXES];    /* tool_offset_nm / 2, float (exact power-of-two scaling) */
+    int32_t ref_half_nm[4];           /* reference_nm >> 1 (float lever arms in half nm) */
+    int32_t lane_min_nm[4];           /* axis travel_min, travel_max, span: copies by axis */
+    int32_t lane_max_nm[4];
+    uint32_t lane_span_nm[4];
+    uint32_t lane_cheb_shift[4];      /* axis cheb_shift, cheb_mul: copies by axis */
+    uint32_t lane_cheb_mul[4];
+    float tool_half_nm[4];            /* tool_offset_nm / 2, float (exact power-of-two scaling) */
     float squareness_f[3];            /* squareness_q36 as float, 2^-36 rad */
+    float square_dx_dy[4];            /* {S_xy, -S_yz, 0, 0}: times {y, z}: the squareness of dX, dY */
+    float square_dx_f[4];             /* {-S_xz, 0, 0, 0}: times z */
+    uint8_t any_block1;               /* some axis uses Fourier block 1 */
+    uint8_t simd;                     /* x86-64: 1 if this CPU runs the x86-64-v3 (AVX2, FMA) kernels */
     abbe_axis_model_t axis[ABBE_AXES];
 } abbe_model_t;
 
