@@ -25,47 +25,47 @@ static int64_t mac(int64_t acc, int32_t a, int32_t b)
     return acc + (int64_t)a * b;
 }
 
-/* lever [nm] * angle [2^-36 rad] -> W [2^-8 nm], rounded */
-static int64_t lever_w(int64_t lever_nm, int64_t angle_a)
-{
-    return abbe_shr_round(lever_nm * angle_a, 28u);
-}
-
-/* Extra terms on the axis' own positioning error, in W = 2^-8 nm. */
-static int64_t extras_w(const abbe_model_t *m, unsigned j, int64_t lever_nm, int32_t dir_q30,
-                        int32_t temp_mdegc, uint32_t *flags)
+/* Component j of the error in nm, from its sum E (2^-35 nm, rounding
+ * constant included) and the extra terms (backlash, thermal) on axis j's own
+ * positioning error: -d_x(x) in dX, -d_y(y) in dY, +d_z(z) in dZ. The extras
+ * can be far larger than E, so they are summed in W = 2^-8 nm (E >> 27 keeps
+ * E's rounding constant, 2^7 W) and the result saturates (flagged). Inlined
+ * once, in a loop over the components (only tables with the features run it). */
+static ABBE_ALWAYS_INLINE int32_t finish_with_extras(const abbe_model_t *m, unsigned j, int64_t e, int32_t pos_nm,
+                                                int32_t dir_q30, int32_t temp_mdegc, uint32_t *flags)
 {
     const abbe_axis_model_t *ax = &m->axis[j];
     int64_t w = 0;
     if (m->features & ABBE_FEATURE_BACKLASH) {
-        int64_t s = abbe_clamp_i64(dir_q30, -ABBE_Q30_ONE, ABBE_Q30_ONE);
-        w += abbe_shr_round((int64_t)ax->backlash_reversal_q8 * s, 31u); /* s * B / 2 */
+        int32_t s = dir_q30 > ABBE_Q30_ONE ? ABBE_Q30_ONE : (dir_q30 < -ABBE_Q30_ONE ? -ABBE_Q30_ONE : dir_q30);
+        w = abbe_shr_round((int64_t)ax->backlash_reversal_q8 * s, 31u); /* s * B / 2 */
     }
     if (m->features & ABBE_FEATURE_THERMAL) {
         /* dT in mK, clamped to +/-2^30 (a million kelvin) so alpha * dT < 2^61. */
-        int64_t dt = abbe_clamp_i64((int64_t)temp_mdegc - ax->thermal_tref_mdegc,
-                                    -((int64_t)1 << 30), (int64_t)1 << 30);
+        int64_t dt = abbe_clamp_i64((int64_t)temp_mdegc - ax->thermal_tref_mdegc, -((int64_t)1 << 30),
+                                    (int64_t)1 << 30);
         int64_t strain_a = abbe_shr_round((int64_t)ax->thermal_expansion_q50 * dt, 14u);
         if (strain_a > ABBE_Q30_ONE || strain_a < -ABBE_Q30_ONE) {
             *flags |= ABBE_FLAG_SATURATED;
             strain_a = abbe_clamp_i64(strain_a, -ABBE_Q30_ONE, ABBE_Q30_ONE);
         }
-        w += lever_w(lever_nm, strain_a);
+        /* lever [nm] * strain [2^-36] -> W, |lever| < 2^33: below 2^63 */
+        w += abbe_shr_round(((int64_t)pos_nm - m->reference_nm[j]) * strain_a, 28u);
         w += abbe_shr_round((int64_t)ax->thermal_offset_q16 * dt, 8u);
     }
-    return w;
+    return abbe_sat_i32(((e >> 27) + (j == 2u ? w : -w)) >> 8, flags);
 }
 
-uint32_t abbe_eval_q_core(const abbe_model_t *m, const int32_t pos_nm[ABBE_AXES],
-                          const int32_t dir_q30[ABBE_AXES], const int32_t temp_mdegc[ABBE_AXES],
-                          int32_t error_nm[ABBE_AXES])
+/* Eq. 3 from the 18 term values (and the extras), into error_nm. A function
+ * of its own, called after the kernels rather than around them, so the
+ * stack holds one of them at a time. */
+ABBE_NOINLINE static uint32_t assemble_q(const abbe_model_t *m, const int32_t pos_nm[ABBE_AXES],
+                                         const int32_t dir_q30[ABBE_AXES], const int32_t temp_mdegc[ABBE_AXES],
+                                         const int32_t values[ABBE_AXES * ABBE_TERMS], int32_t error_nm[ABBE_AXES],
+                                         uint32_t flags)
 {
-    uint32_t flags = 0;
-    int32_t X[ABBE_TERMS], Y[ABBE_TERMS], Z[ABBE_TERMS];
+    const int32_t *X = values, *Y = values + ABBE_TERMS, *Z = values + 2 * ABBE_TERMS;
     const int32_t px = pos_nm[0], py = pos_nm[1], pz = pos_nm[2];
-    abbe_axis_terms_q(&m->axis[0], abbe_arg_offset(&m->axis[0], px, &flags), X);
-    abbe_axis_terms_q(&m->axis[1], abbe_arg_offset(&m->axis[1], py, &flags), Y);
-    abbe_axis_terms_q(&m->axis[2], abbe_arg_offset(&m->axis[2], pz, &flags), Z);
 
     const int32_t rx = m->reference_nm[0], ry = m->reference_nm[1], rz = m->reference_nm[2];
     const int32_t tx = m->tool_offset_nm[0], ty = m->tool_offset_nm[1], tz = m->tool_offset_nm[2];
@@ -100,16 +100,10 @@ uint32_t abbe_eval_q_core(const abbe_model_t *m, const int32_t pos_nm[ABBE_AXES]
     int64_t err_z = e;
 
     if (m->features & (ABBE_FEATURE_BACKLASH | ABBE_FEATURE_THERMAL)) {
-        /* own positioning terms: -d_x(x) in dX, -d_y(y) in dY, +d_z(z) in dZ;
-         * E >> 27 is in 2^-8 nm and keeps the rounding constant (2^7) */
-        int64_t w[ABBE_AXES];
+        const int64_t e3[ABBE_AXES] = {err_x, err_y, err_z};
         for (unsigned j = 0; j < ABBE_AXES; j++) {
-            int64_t lever = (int64_t)pos_nm[j] - m->reference_nm[j];
-            w[j] = extras_w(m, j, lever, dir_q30[j], temp_mdegc[j], &flags);
+            error_nm[j] = finish_with_extras(m, j, e3[j], pos_nm[j], dir_q30[j], temp_mdegc[j], &flags);
         }
-        error_nm[0] = abbe_sat_i32(((err_x >> 27) - w[0]) >> 8, &flags);
-        error_nm[1] = abbe_sat_i32(((err_y >> 27) - w[1]) >> 8, &flags);
-        error_nm[2] = abbe_sat_i32(((err_z >> 27) + w[2]) >> 8, &flags);
     } else {
         error_nm[0] = (int32_t)(err_x >> E_BITS);
         error_nm[1] = (int32_t)(err_y >> E_BITS);
@@ -118,12 +112,25 @@ uint32_t abbe_eval_q_core(const abbe_model_t *m, const int32_t pos_nm[ABBE_AXES]
     return flags;
 }
 
+uint32_t abbe_eval_q_core(const abbe_model_t *m, const int32_t pos_nm[ABBE_AXES],
+                          const int32_t dir_q30[ABBE_AXES], const int32_t temp_mdegc[ABBE_AXES],
+                          int32_t values[ABBE_AXES * ABBE_TERMS], int32_t error_nm[ABBE_AXES])
+{
+    uint32_t flags = 0;
+    const abbe_axis_model_t *ax = m->axis;
+    abbe_axis_terms_q(&ax[0], abbe_arg_offset(&ax[0], pos_nm[0], &flags), values);
+    abbe_axis_terms_q(&ax[1], abbe_arg_offset(&ax[1], pos_nm[1], &flags), values + ABBE_TERMS);
+    abbe_axis_terms_q(&ax[2], abbe_arg_offset(&ax[2], pos_nm[2], &flags), values + 2 * ABBE_TERMS);
+    return assemble_q(m, pos_nm, dir_q30, temp_mdegc, values, error_nm, flags);
+}
+
 abbe_status_t abbe_error_eval_q(const abbe_model_t *m, const abbe_input_q_t *in, abbe_error_q_t *out)
 {
     if (m == NULL || in == NULL || out == NULL) {
         return ABBE_E_ARG;
     }
-    out->flags = abbe_eval_q_core(m, in->pos_nm, in->dir_state_q30, in->temp_mdegc, out->error_nm);
+    int32_t values[ABBE_AXES * ABBE_TERMS];
+    out->flags = abbe_eval_q_core(m, in->pos_nm, in->dir_state_q30, in->temp_mdegc, values, out->error_nm);
     return ABBE_OK;
 }
 
@@ -133,8 +140,9 @@ abbe_status_t abbe_error_eval_batch_q(const abbe_model_t *m, size_t n, const abb
     if (m == NULL || (n > 0u && (in == NULL || out == NULL))) {
         return ABBE_E_ARG;
     }
+    int32_t values[ABBE_AXES * ABBE_TERMS];
     for (size_t i = 0; i < n; i++) {
-        out[i].flags = abbe_eval_q_core(m, in[i].pos_nm, in[i].dir_state_q30, in[i].temp_mdegc,
+        out[i].flags = abbe_eval_q_core(m, in[i].pos_nm, in[i].dir_state_q30, in[i].temp_mdegc, values,
                                         out[i].error_nm);
     }
     return ABBE_OK;

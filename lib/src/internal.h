@@ -24,8 +24,18 @@ typedef char abbe_requires_arithmetic_shift[((-2 >> 1) == -1) ? 1 : -1];
 /* SIMD kernels where the target guarantees them: SSE2 is part of every
  * x86-64. ABBE_PORTABLE_C forces the plain C kernels everywhere (the
  * sanitizer build uses it, so both versions are tested on the host). */
-#if defined(__SSE2__) && !defined(ABBE_PORTABLE_C)
+#if defined(__SSE2__) && !defined(ABBE_PORTABLE_C) && defined(ABBE_WITH_F32)
 #define ABBE_F32_SSE2 1
+#endif
+/* The model's four-lane copies (model.h) are built only for those kernels. */
+#if defined(ABBE_F32_SSE2)
+#define ABBE_X86_LANES 1
+#endif
+
+#if defined(__GNUC__)
+#define ABBE_NOINLINE __attribute__((noinline))
+#else
+#define ABBE_NOINLINE
 #endif
 
 /* Little-endian loads; compilers turn these into one load on LE targets. */
@@ -254,10 +264,12 @@ static ABBE_ALWAYS_INLINE uint32_t abbe_mm_to_nm_inline(float mm, int32_t *nm, u
 /* ---- evaluation cores, shared by the public entry points, the batch calls and
  * the compensator (which passes its own direction states without copying) ---- */
 
-/* Spatial error in nm (rounded, saturated) at pos_nm; returns the flags. */
+/* Spatial error in nm (rounded, saturated) at pos_nm; returns the flags.
+ * values: working memory for the 18 term values (the compensator passes its
+ * scratch, so its cycle's stack stays small). */
 uint32_t abbe_eval_q_core(const abbe_model_t *m, const int32_t pos_nm[ABBE_AXES],
                           const int32_t dir_q30[ABBE_AXES], const int32_t temp_mdegc[ABBE_AXES],
-                          int32_t error_nm[ABBE_AXES]);
+                          int32_t values[ABBE_AXES * ABBE_TERMS], int32_t error_nm[ABBE_AXES]);
 
 /* The backlash and thermal terms (features BACKLASH, THERMAL), added to the
  * own positioning terms in error_um; lev_mm: p - ref per axis, mm. */

@@ -387,6 +387,7 @@ static void build_axis(abbe_axis_model_t *ax, const uint8_t *b, const uint8_t *r
     ax->thermal_tref_mdegc = abbe_ld_i32(rec + A_TREF);
 }
 
+#if defined(ABBE_WITH_F32)
 /* A float from its IEEE bits (no arithmetic: the fixed-point build has no FPU). */
 static float f32_from_bits(uint32_t bits)
 {
@@ -394,6 +395,7 @@ static float f32_from_bits(uint32_t bits)
     memcpy(&f, &bits, sizeof f);
     return f;
 }
+#endif
 
 /* The constants of Eq. 3 that do not depend on the position (abbe_eval_*_core). */
 static void build_assembly(abbe_model_t *m)
@@ -402,22 +404,28 @@ static void build_assembly(abbe_model_t *m)
     for (unsigned k = 0; k < ABBE_AXES; k++) {
         const abbe_axis_model_t *ax = &m->axis[k];
         m->ref_half_nm[k] = m->reference_nm[k] >> 1;
+        m->any_block1 |= (uint8_t)(ax->harmonics[1] != 0u);
+#if defined(ABBE_X86_LANES)
         m->lane_min_nm[k] = ax->travel_min_nm;
         m->lane_max_nm[k] = ax->travel_max_nm;
         m->lane_span_nm[k] = ax->span_nm;
         m->lane_cheb_shift[k] = ax->cheb_shift;
         m->lane_cheb_mul[k] = ax->cheb_mul;
+#endif
+#if defined(ABBE_WITH_F32)
         /* t / 2 in float: the converted value with its exponent lowered by one
          * (exact; |t| >= 1 is far from the subnormals) */
         uint32_t t_bits = i32_to_f32_bits(m->tool_offset_nm[k]);
         m->tool_half_nm[k] = f32_from_bits(t_bits == 0u ? 0u : t_bits - 0x00800000u);
         m->squareness_f[k] = f32_from_bits(i32_to_f32_bits(m->squareness_q36[k]));
-        m->any_block1 |= (uint8_t)(ax->harmonics[1] != 0u);
+#endif
     }
-    /* negated before the (exact, sign-symmetric) conversion; |S| <= 2^28 */
+#if defined(ABBE_X86_LANES)
+    /* negated before the conversion (sign-symmetric, so exact); |S| <= 2^28 */
     m->square_dx_dy[0] = m->squareness_f[0];
     m->square_dx_dy[1] = f32_from_bits(i32_to_f32_bits(-m->squareness_q36[2]));
     m->square_dx_f[0] = f32_from_bits(i32_to_f32_bits(-m->squareness_q36[1]));
+#endif
     /* dX has y S_xy - z S_xz, dY has -z S_yz, with y = p_y - ref_y, z = p_z - ref_z:
      * the ref parts are constants (|ref * S| <= 2^59). */
     m->square_const_q36[0] = -(int64_t)m->reference_nm[1] * sxy + (int64_t)m->reference_nm[2] * sxz;

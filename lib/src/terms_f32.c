@@ -79,7 +79,7 @@ static void terms6_f32(const abbe_axis_model_t *ax, uint32_t d, float value[ABBE
 #else /* !ABBE_F32_SSE2 */
 
 /* A fitted axis: six columns, the accumulators in registers. */
-static void terms6_f32(const abbe_axis_model_t *ax, uint32_t d, float value[ABBE_TERMS])
+ABBE_NOINLINE static void terms6_f32(const abbe_axis_model_t *ax, uint32_t d, float value[ABBE_TERMS])
 {
     const uint8_t *row = ax->coef_f32;
     float a0 = 0.0f, a1 = 0.0f, a2 = 0.0f, a3 = 0.0f, a4 = 0.0f, a5 = 0.0f;
@@ -123,24 +123,26 @@ static void terms6_f32(const abbe_axis_model_t *ax, uint32_t d, float value[ABBE
 
 #endif /* ABBE_F32_SSE2 */
 
-/* A sparse axis: n_terms < 6 packed columns, spread to the terms at the end. */
-static void terms_sparse_f32(const abbe_axis_model_t *ax, uint32_t d, float value[ABBE_TERMS])
+/* A sparse axis (n_terms < 6 packed columns): rare, so built for a small
+ * stack and little code rather than for speed: one column at a time, each
+ * with its own pass of the basis and a single accumulator. */
+ABBE_NOINLINE static void terms_sparse_f32(const abbe_axis_model_t *ax, uint32_t d, float value[ABBE_TERMS])
 {
-    const uint8_t *row = ax->coef_f32;
-    const unsigned n = ax->n_terms;
-    float a[ABBE_TERMS] = {0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
-#define FIRSTN() \
-    do { for (unsigned k = 0; k < n; k++) a[k] = LD(k); row += 4u * n; } while (0)
-#define ROWN(b) \
-    do { const float b_ = (b); for (unsigned k = 0; k < n; k++) a[k] += LD(k) * b_; row += 4u * n; } while (0)
-    if (n != 0u) {
-        ABBE_BASIS_F32(ax, d, FIRSTN, ROWN);
-    }
-#undef FIRSTN
-#undef ROWN
+    const unsigned stride = 4u * ax->n_terms;
     for (unsigned t = 0; t < ABBE_TERMS; t++) {
-        uint8_t col = ax->column[t];
-        value[t] = col == 0xFFu ? 0.0f : a[col];
+        const unsigned col = ax->column[t];
+        if (col == 0xFFu) {
+            value[t] = 0.0f;
+            continue;
+        }
+        const uint8_t *row = ax->coef_f32 + 4u * col;
+        float acc = 0.0f;
+#define FIRST1() do { acc = LD(0); row += stride; } while (0)
+#define ROW1(b) do { acc += LD(0) * (b); row += stride; } while (0)
+        ABBE_BASIS_F32(ax, d, FIRST1, ROW1);
+#undef FIRST1
+#undef ROW1
+        value[t] = acc;
     }
 }
 

@@ -32,11 +32,11 @@ static ABBE_ALWAYS_INLINE int32_t dot2_q30(int32_t a, int32_t b, int32_t c, int3
  * sin/cos of harmonic 1 (one polynomial evaluation) and the higher harmonics
  * by rotating with the fundamental. A macro so that each kernel below gets it
  * inlined around its own accumulators. */
-#define ABBE_BASIS_Q(ax, d, ROW)                                                           \
+#define ABBE_BASIS_Q(ax, d, FIRST_ROW, ROW)                                                \
     do {                                                                                   \
         const unsigned trend_rows_ = (ax)->trend_rows;                                     \
         if (trend_rows_ > 0u) {                                                            \
-            ROW(ABBE_Q30_ONE);                                                             \
+            FIRST_ROW();                                                                   \
             if (trend_rows_ > 1u) {                                                        \
                 const int32_t u_ = abbe_arg_cheb_q30((ax), (d));                           \
                 int32_t t_prev_ = ABBE_Q30_ONE, t_ = u_;                                   \
@@ -75,9 +75,12 @@ static ABBE_ALWAYS_INLINE int32_t dot2_q30(int32_t a, int32_t b, int32_t c, int3
 
 #define LD(k) abbe_ld_i32(row + 4u * (k))
 #define MAC(acc, k, b) acc += (int64_t)LD(k) * (b)
+/* T_0 = 1 (2^30): with a constant basis GCC would turn each multiply-add into
+ * a 64-bit shift sequence of seven instructions; this keeps the one SMLAL. */
+#define MAC1(acc, k) acc = abbe_smlal(acc, LD(k), ABBE_Q30_ONE)
 
 /* A fitted axis: six columns, the accumulators in registers. */
-static void terms6_q(const abbe_axis_model_t *ax, uint32_t d, int32_t value[ABBE_TERMS])
+ABBE_NOINLINE static void terms6_q(const abbe_axis_model_t *ax, uint32_t d, int32_t value[ABBE_TERMS])
 {
     const uint8_t *row = ax->coef_q;
     int64_t a0 = LIN_BIAS, a1 = LIN_BIAS, a2 = LIN_BIAS, a3 = ANG_BIAS, a4 = ANG_BIAS, a5 = ANG_BIAS;
@@ -88,7 +91,13 @@ static void terms6_q(const abbe_axis_model_t *ax, uint32_t d, int32_t value[ABBE
         MAC(a3, 3, b_); MAC(a4, 4, b_); MAC(a5, 5, b_);                                    \
         row += 24;                                                                         \
     } while (0)
-    ABBE_BASIS_Q(ax, d, ROW6);
+#define FIRST6()                                                                           \
+    do {                                                                                   \
+        MAC1(a0, 0); MAC1(a1, 1); MAC1(a2, 2); MAC1(a3, 3); MAC1(a4, 4); MAC1(a5, 5);      \
+        row += 24;                                                                         \
+    } while (0)
+    ABBE_BASIS_Q(ax, d, FIRST6, ROW6);
+#undef FIRST6
 #undef ROW6
     value[0] = (int32_t)(a0 >> LIN_SHIFT);
     value[1] = (int32_t)(a1 >> LIN_SHIFT);
@@ -98,32 +107,35 @@ static void terms6_q(const abbe_axis_model_t *ax, uint32_t d, int32_t value[ABBE
     value[5] = (int32_t)(a5 >> ANG_SHIFT);
 }
 
-/* A sparse axis: n_terms < 6 packed columns (column col holds the col-th
- * present term), spread to the terms at the end. */
-static void terms_sparse_q(const abbe_axis_model_t *ax, uint32_t d, int32_t value[ABBE_TERMS])
+/* A sparse axis (n_terms < 6 packed columns, column col holding the col-th
+ * present term): rare, so built for a small stack and little code rather
+ * than for speed: one column at a time, each with its own pass of the basis
+ * and a single accumulator. */
+ABBE_NOINLINE static void terms_sparse_q(const abbe_axis_model_t *ax, uint32_t d, int32_t value[ABBE_TERMS])
 {
-    const uint8_t *row = ax->coef_q;
-    const unsigned n = ax->n_terms;
-    int64_t a[ABBE_TERMS];
+    const unsigned stride = 4u * ax->n_terms;
     for (unsigned t = 0; t < ABBE_TERMS; t++) {
-        uint8_t col = ax->column[t];
-        if (col != 0xFFu) {
-            a[col] = t < 3u ? LIN_BIAS : ANG_BIAS;
+        const unsigned col = ax->column[t];
+        if (col == 0xFFu) {
+            value[t] = 0;
+            continue;
         }
-    }
-#define ROWN(b) \
-    do { const int32_t b_ = (b); for (unsigned k = 0; k < n; k++) MAC(a[k], k, b_); row += 4u * n; } while (0)
-    if (n != 0u) {
-        ABBE_BASIS_Q(ax, d, ROWN);
-    }
-#undef ROWN
-    for (unsigned t = 0; t < ABBE_TERMS; t++) {
-        uint8_t col = ax->column[t];
-        value[t] = col == 0xFFu ? 0 : (int32_t)(a[col] >> (t < 3u ? LIN_SHIFT : ANG_SHIFT));
+        const uint8_t *row = ax->coef_q + 4u * col;
+        /* linear or angular: shifts 32 or 31, computed (a select here would
+         * let the compiler duplicate the whole loop) */
+        const unsigned shift = (unsigned)LIN_SHIFT - (unsigned)(t >= 3u);
+        int64_t acc = (int64_t)1 << (shift - 1u);
+#define FIRST1() do { MAC1(acc, 0); row += stride; } while (0)
+#define ROW1(b) do { MAC(acc, 0, (b)); row += stride; } while (0)
+        ABBE_BASIS_Q(ax, d, FIRST1, ROW1);
+#undef FIRST1
+#undef ROW1
+        value[t] = (int32_t)(acc >> shift);
     }
 }
 
 #undef MAC
+#undef MAC1
 #undef LD
 
 void abbe_axis_terms_q(const abbe_axis_model_t *ax, uint32_t d, int32_t value[ABBE_TERMS])

@@ -102,6 +102,10 @@ typedef struct {
     uint8_t fault;
     uint8_t stale;
     abbe_comp_stats_t stats;
+    /* Working memory of one cycle's evaluation (the 18 term values and the
+     * error), kept here rather than on the stack: a cycle's stack stays
+     * within 256 B (bench/results.md). */
+    int32_t scratch[ABBE_AXES * ABBE_TERMS + ABBE_AXES];
 } abbe_comp_t;
 
 /* Check cfg and start disabled with zero corrections. model may be NULL (no
