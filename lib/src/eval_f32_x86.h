@@ -21,7 +21,7 @@
 
 static ABBE_ALWAYS_INLINE __m128i load4_i32(const int32_t *p)
 {
-    return _mm_loadu_si128((const __m128i *)p); /* the model keeps these in four lanes */
+    return abbe_ld4i(p); /* the model keeps these in four lanes */
 }
 
 /* Lane j of a phase vector's sin/cos as [s, c, s, c]. */
@@ -93,8 +93,7 @@ static ABBE_ALWAYS_INLINE abbe_status_t eval_f32_x86(const abbe_model_t *m, cons
     }
     const abbe_x86_consts_t *k = abbe_x86_consts();
     /* ---- positions: float mm -> int nm (abbe_mm_to_nm_inline, four lanes) ---- */
-    const __m128 pos = _mm_movelh_ps(_mm_castsi128_ps(_mm_loadl_epi64((const __m128i *)pos_mm)),
-                                     _mm_load_ss(&pos_mm[2]));
+    const __m128 pos = _mm_movelh_ps(abbe_ld2(pos_mm), _mm_load_ss(&pos_mm[2]));
     __m128i bits = _mm_castps_si128(pos);
     const __m128i mag = _mm_and_si128(bits, ABBE_KI(k, abs_mask));
     const __m128i over = _mm_cmpgt_epi32(mag, ABBE_KI(k, mm_limit)); /* |mm| > 2147, NaN, Inf */
@@ -191,7 +190,7 @@ static ABBE_ALWAYS_INLINE abbe_status_t eval_f32_x86(const abbe_model_t *m, cons
                 &lo, &hi);
     out = fold(out, lo, hi, wl_z, wa_z, wb_z);
 
-    _mm_storel_pi((__m64 *)error_um, out);
+    abbe_st2(error_um, out);
     _mm_store_ss(&error_um[2], _mm_movehl_ps(out, out));
     if (features & (ABBE_FEATURE_BACKLASH | ABBE_FEATURE_THERMAL)) {
         float lev_mm[4];

@@ -133,7 +133,7 @@ static inline int abbe_f32_nonfinite(float f)
  * multiply of 7 instructions; the asm pins the single instruction there. */
 static ABBE_ALWAYS_INLINE int64_t abbe_smlal(int64_t acc, int32_t a, int32_t b)
 {
-#if defined(__GNUC__) && defined(__thumb2__) && defined(__ARMEL__)
+#if defined(__GNUC__) && defined(__thumb2__) && defined(__ARMEL__) && !defined(ABBE_PORTABLE_C)
     uint32_t lo = (uint32_t)acc, hi = (uint32_t)((uint64_t)acc >> 32);
     __asm__("smlal %0, %1, %2, %3" : "+r"(lo), "+r"(hi) : "r"(a), "r"(b));
     return (int64_t)(((uint64_t)hi << 32) | lo);

@@ -25,6 +25,34 @@
 #include <emmintrin.h>
 #endif
 
+/* Unaligned loads and stores through memcpy: one movups/movq each, and no
+ * pointer cast that would claim an alignment the blob does not promise. */
+static ABBE_ALWAYS_INLINE __m128 abbe_ld4(const void *p)
+{
+    __m128 v;
+    memcpy(&v, p, sizeof v);
+    return v;
+}
+
+static ABBE_ALWAYS_INLINE __m128 abbe_ld2(const void *p) /* two floats, upper lanes 0 */
+{
+    __m128 v = _mm_setzero_ps();
+    memcpy(&v, p, 8);
+    return v;
+}
+
+static ABBE_ALWAYS_INLINE __m128i abbe_ld4i(const void *p)
+{
+    __m128i v;
+    memcpy(&v, p, sizeof v);
+    return v;
+}
+
+static ABBE_ALWAYS_INLINE void abbe_st2(void *p, __m128 v) /* the two low lanes */
+{
+    memcpy(p, &v, 8);
+}
+
 /* A broadcast or permutation of the lanes of v (pshufd: one instruction
  * that, unlike shufps, keeps its source). */
 #define ABBE_PERMUTE(v, imm) _mm_castsi128_ps(_mm_shuffle_epi32(_mm_castps_si128(v), (imm)))
@@ -117,9 +145,9 @@ static ABBE_ALWAYS_INLINE abbe_harmonic1_sse2_t abbe_harmonic1_sse2(const abbe_x
 #define ABBE_PAIR6_SSE2(pv)                                                                \
     do {                                                                                   \
         const __m128 p_ = (pv);                                                            \
-        a = _mm_add_ps(a, _mm_mul_ps(_mm_loadu_ps((const float *)row), ABBE_PERMUTE(p_, 0x00))); \
-        b = _mm_add_ps(b, _mm_mul_ps(_mm_loadu_ps((const float *)(row + 16)), ABBE_PERMUTE(p_, 0x50))); \
-        c = _mm_add_ps(c, _mm_mul_ps(_mm_loadu_ps((const float *)(row + 32)), ABBE_PERMUTE(p_, 0x55))); \
+        a = _mm_add_ps(a, _mm_mul_ps(abbe_ld4(row), ABBE_PERMUTE(p_, 0x00))); \
+        b = _mm_add_ps(b, _mm_mul_ps(abbe_ld4(row + 16), ABBE_PERMUTE(p_, 0x50))); \
+        c = _mm_add_ps(c, _mm_mul_ps(abbe_ld4(row + 32), ABBE_PERMUTE(p_, 0x55))); \
         row += 48;                                                                         \
     } while (0)
 
@@ -163,15 +191,15 @@ static ABBE_ALWAYS_INLINE void abbe_axis6_sse2(const abbe_x86_consts_t *k, const
     const unsigned trend_rows = ax->trend_rows;
     if (trend_rows > 0u) {
         if (trend_rows == 1u) { /* T_0 = 1 alone: columns 0-3 to a, 4, 5 to b's low lanes */
-            a = _mm_loadu_ps((const float *)row);
-            b = _mm_castsi128_ps(_mm_loadl_epi64((const __m128i *)(row + 16)));
+            a = abbe_ld4(row);
+            b = abbe_ld2(row + 16);
             row += 24;
         } else {
             /* ub = [u, u, u, u], the Chebyshev argument (from the caller).
              * T_0 = 1, T_1 = u: the first pair, with its ones folded in */
-            a = _mm_loadu_ps((const float *)row);
-            b = _mm_mul_ps(_mm_loadu_ps((const float *)(row + 16)), _mm_movelh_ps(ABBE_KV(k, one_f), ub));
-            c = _mm_mul_ps(_mm_loadu_ps((const float *)(row + 32)), ub);
+            a = abbe_ld4(row);
+            b = _mm_mul_ps(abbe_ld4(row + 16), _mm_movelh_ps(ABBE_KV(k, one_f), ub));
+            c = _mm_mul_ps(abbe_ld4(row + 32), ub);
             row += 48;
             const float u = _mm_cvtss_f32(ub), two_u = u + u;
             float t0 = 1.0f, t1 = u; /* T_(k-2), T_(k-1) */
@@ -183,8 +211,8 @@ static ABBE_ALWAYS_INLINE void abbe_axis6_sse2(const abbe_x86_consts_t *k, const
             }
             if (row_k < trend_rows) { /* a last trend row alone */
                 const __m128 t_ = _mm_set1_ps(two_u * t1 - t0);
-                a = _mm_add_ps(a, _mm_mul_ps(_mm_loadu_ps((const float *)row), t_));
-                b = _mm_add_ps(b, _mm_mul_ps(_mm_castsi128_ps(_mm_loadl_epi64((const __m128i *)(row + 16))), t_));
+                a = _mm_add_ps(a, _mm_mul_ps(abbe_ld4(row), t_));
+                b = _mm_add_ps(b, _mm_mul_ps(abbe_ld2(row + 16), t_));
                 row += 24;
             }
         }

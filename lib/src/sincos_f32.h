@@ -15,7 +15,7 @@
  * registers (nine loads, a save and a restore per axis on the Cortex-M4F)
  * and still copy each into place: a Horner step costs one load or move plus
  * one multiply-add either way. */
-#if defined(__GNUC__) && defined(__thumb2__) && defined(__ARM_FP)
+#if defined(__GNUC__) && defined(__thumb2__) && defined(__ARM_FP) && !defined(ABBE_PORTABLE_C)
 #define ABBE_K(name, value) float name = (value); __asm__("" : "+t"(name))
 #else
 #define ABBE_K(name, value) const float name = (value)

@@ -73,7 +73,7 @@ static void terms6_f32(const abbe_axis_model_t *ax, uint32_t d, float value[ABBE
     const float u = (float)abbe_arg_cheb_q30(ax, d) * 9.31322574615478515625e-10f; /* 2^-30 */
     abbe_axis6_sse2(abbe_x86_consts(), ax, _mm_set1_ps(u), h[0], h[1], &lo, &hi);
     _mm_storeu_ps(value, lo);
-    _mm_storel_pi((__m64 *)(value + 4), hi);
+    abbe_st2(value + 4, hi);
 }
 
 #else /* !ABBE_F32_SSE2 */
@@ -85,7 +85,8 @@ ABBE_NOINLINE static void terms6_f32(const abbe_axis_model_t *ax, uint32_t d, fl
     float a0 = 0.0f, a1 = 0.0f, a2 = 0.0f, a3 = 0.0f, a4 = 0.0f, a5 = 0.0f;
 #define FIRST6() \
     do { a0 = LD(0); a1 = LD(1); a2 = LD(2); a3 = LD(3); a4 = LD(4); a5 = LD(5); row += 24; } while (0)
-#if defined(__GNUC__) && defined(__thumb2__) && defined(__ARM_FP) && (__ARM_FP & 4) && defined(__ARMEL__)
+#if defined(__GNUC__) && defined(__thumb2__) && defined(__ARM_FP) && (__ARM_FP & 4) && defined(__ARMEL__) && \
+    !defined(ABBE_PORTABLE_C)
 /* Cortex-M4F: one VLDM brings the row's six coefficients into s8-s13
  * (GCC never combines VLDRs), then six fused multiply-adds: 7 instructions
  * per row instead of 12. Rows are 4-byte aligned (ABBE_E_ALIGN). */

@@ -93,6 +93,47 @@ static void test_golden_terms_both_variants(void **state)
     printf("golden terms: max |f32 - ref| = %.0f pico, max |q - ref| = %.0f pico\n", worst_f32, worst_q);
 }
 
+/* Every set of f32 kernels this build and CPU have (x86-64: SSE2 and, where
+ * the CPU has AVX2 and FMA, x86-64-v3; elsewhere one set), each through the
+ * golden vectors with the same tolerance, and the sets agree closely. */
+static void test_golden_f32_every_kernel_set(void **state)
+{
+    (void)state;
+    double worst_between = 0.0;
+    for (uint32_t t = 0; t < abbe_golden_table_count; t++) {
+        const abbe_golden_table_t *gt = &abbe_golden_tables[t];
+        abbe_model_t m;
+        assert_int_equal(abbe_model_load(&m, gt->blob, gt->blob_size), ABBE_OK);
+        const uint8_t detected = m.simd;
+        for (uint32_t i = gt->first_point; i < gt->first_point + gt->n_points; i++) {
+            const abbe_golden_point_t *p = &abbe_golden_points[i];
+            abbe_input_f32_t in;
+            memcpy(in.pos_mm, p->pos_mm, sizeof in.pos_mm);
+            memcpy(in.dir_state, p->dir_state, sizeof in.dir_state);
+            memcpy(in.temp_c, p->temp_c, sizeof in.temp_c);
+            abbe_error_f32_t e[2];
+            for (unsigned k = 0; k <= detected; k++) { /* 0: baseline; 1: x86-64-v3 */
+                m.simd = (uint8_t)k;
+                assert_int_equal(abbe_error_eval_f32(&m, &in, &e[k]), ABBE_OK);
+                assert_int_equal(e[k].flags, p->expect_flags);
+                for (int j = 0; j < 3; j++) {
+                    double d = fabs((double)e[k].error_um[j] * 1e6 - p->expect_f32_pm[j]);
+                    if (d > ABBE_GOLDEN_TOL_PM) {
+                        fail_msg("table %s point %u axis %d, kernels %u: off by %.0f pm", gt->name, (unsigned)i, j, k, d);
+                    }
+                }
+            }
+            for (int j = 0; detected && j < 3; j++) {
+                double d = fabs((double)e[0].error_um[j] - (double)e[1].error_um[j]) * 1e6;
+                worst_between = d > worst_between ? d : worst_between;
+            }
+            m.simd = detected;
+        }
+    }
+    printf("f32 kernel sets: max difference between them %.0f pm\n", worst_between);
+    assert_true(worst_between < 500.0);
+}
+
 /* ---- analytic cases ------------------------------------------------------ */
 
 static uint8_t blob[8192] __attribute__((aligned(8))); /* tables must be 4-byte aligned */
@@ -540,6 +581,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_golden_error_both_variants),
         cmocka_unit_test(test_golden_terms_both_variants),
+        cmocka_unit_test(test_golden_f32_every_kernel_set),
         cmocka_unit_test(test_positioning_sign_and_hold),
         cmocka_unit_test(test_squareness_levers),
         cmocka_unit_test(test_angles_and_tool_offset),
