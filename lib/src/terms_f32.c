@@ -132,7 +132,8 @@ ABBE_NOINLINE static void terms_sparse_f32(const abbe_axis_model_t *ax, uint32_t
     const unsigned stride = 4u * ax->n_terms;
     for (unsigned t = 0; t < ABBE_TERMS; t++) {
         const unsigned col = ax->column[t];
-        if (col == 0xFFu) {
+        /* no basis rows: no coefficient array either (NULL), every term is 0 */
+        if (col == 0xFFu || ax->n_basis == 0u) {
             value[t] = 0.0f;
             continue;
         }
