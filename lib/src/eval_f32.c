@@ -17,32 +17,26 @@ enum { DX = ABBE_TERM_DX, DY = ABBE_TERM_DY, DZ = ABBE_TERM_DZ, EX = ABBE_TERM_E
 #define EXPANSION_PER_K_PER_LSB 8.8817841970012523e-13f /* 2^-50 per mK, per K */
 #define OFFSET_UM_PER_K_PER_LSB 1.52587890625e-5f       /* 2^-16 nm per mK = um per K */
 
-/* Backlash and thermal terms of axis j's own positioning error, um. lev_mm:
- * p - ref in mm. */
-static float extras_um(const abbe_model_t *m, unsigned j, float lev_mm, float dir_state, float temp_c)
-{
-    const abbe_axis_model_t *ax = &m->axis[j];
-    float um = 0.0f;
-    if (m->features & ABBE_FEATURE_BACKLASH) {
-        float s = dir_state > 1.0f ? 1.0f : (dir_state < -1.0f ? -1.0f : dir_state);
-        um += 0.5f * s * ((float)ax->backlash_reversal_q8 * BACKLASH_UM_PER_LSB);
-    }
-    if (m->features & ABBE_FEATURE_THERMAL) {
-        float dt = temp_c - (float)ax->thermal_tref_mdegc * 1.0e-3f;
-        float strain = (float)ax->thermal_expansion_q50 * EXPANSION_PER_K_PER_LSB * dt;
-        um += strain * lev_mm * 1000.0f;
-        um += (float)ax->thermal_offset_q16 * OFFSET_UM_PER_K_PER_LSB * dt;
-    }
-    return um;
-}
-
 void abbe_f32_add_extras(const abbe_model_t *m, const float lev_mm[ABBE_AXES], const float dir_state[ABBE_AXES],
                          const float temp_c[ABBE_AXES], float error_um[ABBE_AXES])
 {
-    /* own positioning terms: -d_x(x) in dX, -d_y(y) in dY, +d_z(z) in dZ */
-    error_um[0] -= extras_um(m, 0, lev_mm[0], dir_state[0], temp_c[0]);
-    error_um[1] -= extras_um(m, 1, lev_mm[1], dir_state[1], temp_c[1]);
-    error_um[2] += extras_um(m, 2, lev_mm[2], dir_state[2], temp_c[2]);
+    /* Backlash and thermal terms of each axis' own positioning error, um;
+     * lev_mm = p - ref. They add to -d_x(x) in dX, -d_y(y) in dY, +d_z(z) in dZ. */
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        const abbe_axis_model_t *ax = &m->axis[j];
+        float um = 0.0f;
+        if (m->features & ABBE_FEATURE_BACKLASH) {
+            float s = dir_state[j] > 1.0f ? 1.0f : (dir_state[j] < -1.0f ? -1.0f : dir_state[j]);
+            um += 0.5f * s * ((float)ax->backlash_reversal_q8 * BACKLASH_UM_PER_LSB);
+        }
+        if (m->features & ABBE_FEATURE_THERMAL) {
+            float dt = temp_c[j] - (float)ax->thermal_tref_mdegc * 1.0e-3f;
+            float strain = (float)ax->thermal_expansion_q50 * EXPANSION_PER_K_PER_LSB * dt;
+            um += strain * lev_mm[j] * 1000.0f;
+            um += (float)ax->thermal_offset_q16 * OFFSET_UM_PER_K_PER_LSB * dt;
+        }
+        error_um[j] += j == 2u ? um : -um;
+    }
 }
 
 int abbe_f32_extras_nonfinite(uint32_t features, const float dir_state[ABBE_AXES], const float temp_c[ABBE_AXES])
@@ -65,21 +59,23 @@ abbe_status_t abbe_eval_f32_core(const abbe_model_t *m, const float pos_mm[ABBE_
         abbe_f32_extras_nonfinite(features, dir_state, temp_c)) {
         return ABBE_E_INPUT;
     }
-    uint32_t flags = 0;
-    int32_t p[ABBE_AXES];
-    uint32_t bad = abbe_mm_to_nm_inline(pos_mm[0], &p[0], &flags);
-    bad |= abbe_mm_to_nm_inline(pos_mm[1], &p[1], &flags);
-    bad |= abbe_mm_to_nm_inline(pos_mm[2], &p[2], &flags);
+    /* Per axis, in one loop (one copy of the code, flash): the position in nm,
+     * its offset in the travel, and the lever arm p - ref as (p >> 1) - (ref >> 1)
+     * half nm (an exact int32 difference, where p - ref can need 33 bits; 1 nm
+     * of the arm at most), scaled so that arm x angle LSB is um. */
+    const float ka = UM_PER_HALF_NM_X_ANG_LSB, kl = UM_PER_LIN_LSB;
+    uint32_t flags = 0, bad = 0, d[ABBE_AXES];
+    float lev[ABBE_AXES];
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        int32_t p;
+        bad |= abbe_mm_to_nm_inline(pos_mm[j], &p, &flags);
+        d[j] = abbe_arg_offset(&m->axis[j], p, &flags);
+        lev[j] = (float)((p >> 1) - m->ref_half_nm[j]) * ka;
+    }
     if (bad) {
         return ABBE_E_INPUT;
     }
-    /* Lever arms p - ref as (p >> 1) - (ref >> 1) half nm: an exact int32
-     * difference (p - ref itself can need 33 bits), 1 nm of the arm at most;
-     * scaled so that arm x angle LSB is um. The tool offset likewise. */
-    const float ka = UM_PER_HALF_NM_X_ANG_LSB, kl = UM_PER_LIN_LSB;
-    const float x = (float)((p[0] >> 1) - m->ref_half_nm[0]) * ka;
-    const float y = (float)((p[1] >> 1) - m->ref_half_nm[1]) * ka;
-    const float z = (float)((p[2] >> 1) - m->ref_half_nm[2]) * ka;
+    const float x = lev[0], y = lev[1], z = lev[2];
     const float tx = m->tool_half_nm[0] * ka, ty = m->tool_half_nm[1] * ka, tz = m->tool_half_nm[2] * ka;
     /* (dX, dY, dZ) = sum over the axes of W_j v_j (docs/table-format.md, Eq. 3
      * with the tool offset), W_j from these arms: */
@@ -89,7 +85,7 @@ abbe_status_t abbe_eval_f32_core(const abbe_model_t *m, const float pos_mm[ABBE_
 
     /* one multiply-add per weight, chained into each component (fused on a
      * Cortex-M4F: one rounding each) */
-    abbe_axis_terms_f32(&m->axis[0], abbe_arg_offset(&m->axis[0], p[0], &flags), v);
+    abbe_axis_terms_f32(&m->axis[0], d[0], v);
     ex = ty_y * v[EZ];
     ex -= z_tz * v[EY];
     ex -= kl * v[DX];
@@ -100,7 +96,7 @@ abbe_status_t abbe_eval_f32_core(const abbe_model_t *m, const float pos_mm[ABBE_
     ez -= ty_y * v[EX];
     ez -= kl * v[DZ];
 
-    abbe_axis_terms_f32(&m->axis[1], abbe_arg_offset(&m->axis[1], p[1], &flags), v);
+    abbe_axis_terms_f32(&m->axis[1], d[1], v);
     ex += ty_y * v[EZ];
     ex -= z_tz * v[EY];
     ex -= kl * v[DX];
@@ -111,7 +107,7 @@ abbe_status_t abbe_eval_f32_core(const abbe_model_t *m, const float pos_mm[ABBE_
     ez -= ty_y * v[EX];
     ez -= kl * v[DZ];
 
-    abbe_axis_terms_f32(&m->axis[2], abbe_arg_offset(&m->axis[2], p[2], &flags), v);
+    abbe_axis_terms_f32(&m->axis[2], d[2], v);
     ex -= ty * v[EZ];
     ex += tz * v[EY];
     ex += kl * v[DX];

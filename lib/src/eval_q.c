@@ -117,10 +117,10 @@ uint32_t abbe_eval_q_core(const abbe_model_t *m, const int32_t pos_nm[ABBE_AXES]
                           int32_t values[ABBE_AXES * ABBE_TERMS], int32_t error_nm[ABBE_AXES])
 {
     uint32_t flags = 0;
-    const abbe_axis_model_t *ax = m->axis;
-    abbe_axis_terms_q(&ax[0], abbe_arg_offset(&ax[0], pos_nm[0], &flags), values);
-    abbe_axis_terms_q(&ax[1], abbe_arg_offset(&ax[1], pos_nm[1], &flags), values + ABBE_TERMS);
-    abbe_axis_terms_q(&ax[2], abbe_arg_offset(&ax[2], pos_nm[2], &flags), values + 2 * ABBE_TERMS);
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        const abbe_axis_model_t *ax = &m->axis[j];
+        abbe_axis_terms_q(ax, abbe_arg_offset(ax, pos_nm[j], &flags), values + ABBE_TERMS * j);
+    }
     return assemble_q(m, pos_nm, dir_q30, temp_mdegc, values, error_nm, flags);
 }
 

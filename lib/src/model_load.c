@@ -324,15 +324,19 @@ static uint64_t recip64(uint32_t d)
     return q + (2u * r >= d ? 1u : 0u);
 }
 
-/* Number of significant bits of v > 0. */
+/* Number of significant bits of v > 0 (one CLZ where the compiler has it). */
 static unsigned bit_length(uint32_t v)
 {
+#if defined(__GNUC__)
+    return 32u - (unsigned)__builtin_clz(v);
+#else
     unsigned n = 0;
     while (v != 0u) {
         v >>= 1;
         n++;
     }
     return n;
+#endif
 }
 
 static void build_axis(abbe_axis_model_t *ax, const uint8_t *b, const uint8_t *rec)
