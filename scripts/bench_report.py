@@ -605,7 +605,8 @@ def main() -> int:
                 if key not in counts:
                     continue
                 flash = parse_map(build / "bench" / f"bench_size_{use}.map").lib_flash
-                w(f"| {name} | {names[key]} | {fmt_counts(counts[key])} | {flash} | "
+                label = "abbe_error_eval_f32" if key == "f32" else names[key]
+                w(f"| {name} | {label} | {fmt_counts(counts[key])} | {flash} | "
                   f"{deepest(fn, frames, calls)[0]} |")
         w("")
 
