@@ -151,11 +151,6 @@ static uint32_t ramp_gain(uint32_t gain, uint32_t step, int up)
     return gain <= step ? 0u : gain - step;
 }
 
-static int64_t abs64(int64_t v)
-{
-    return v < 0 ? -v : v;
-}
-
 void abbe_comp_finish(abbe_comp_t *comp, int input_ok, const int32_t *error_nm, uint32_t flags,
                       uint8_t axis_fault_mask, abbe_comp_output_t *out)
 {
@@ -163,8 +158,9 @@ void abbe_comp_finish(abbe_comp_t *comp, int input_ok, const int32_t *error_nm, 
 
     if (error_nm != NULL) {
         for (unsigned j = 0; j < ABBE_AXES; j++) {
-            int64_t target = -(int64_t)cfg->axis_sign[j] * error_nm[j];
-            comp->target_nm[j] = (int32_t)abbe_clamp_i64(target, -INT32_MAX, INT32_MAX);
+            /* -sign * error within +/-INT32_MAX, in 32 bits: only INT32_MIN needs care */
+            int32_t e = error_nm[j] == INT32_MIN ? -INT32_MAX : error_nm[j];
+            comp->target_nm[j] = cfg->axis_sign[j] > 0 ? -e : e;
         }
         comp->eval_flags = flags & (ABBE_FLAG_OUT_OF_TRAVEL | ABBE_FLAG_SATURATED);
     }
@@ -188,7 +184,8 @@ void abbe_comp_finish(abbe_comp_t *comp, int input_ok, const int32_t *error_nm, 
     }
 
     for (unsigned j = 0; j < ABBE_AXES; j++) {
-        int64_t magnitude = abs64(comp->target_nm[j]);
+        const int32_t t = comp->target_nm[j]; /* within +/-INT32_MAX: |t| fits */
+        const int32_t magnitude = t < 0 ? -t : t;
         if (magnitude > cfg->warn_nm[j]) {
             flags |= ABBE_FLAG_WARN;
         }
