@@ -17,17 +17,52 @@ enum { DX = ABBE_TERM_DX, DY = ABBE_TERM_DY, DZ = ABBE_TERM_DZ, EX = ABBE_TERM_E
 #define EXPANSION_PER_K_PER_LSB 8.8817841970012523e-13f /* 2^-50 per mK, per K */
 #define OFFSET_UM_PER_K_PER_LSB 1.52587890625e-5f       /* 2^-16 nm per mK = um per K */
 
-void abbe_f32_add_extras(const abbe_model_t *m, const float lev_mm[ABBE_AXES], const float dir_state[ABBE_AXES],
-                         const float temp_c[ABBE_AXES], float error_um[ABBE_AXES])
+#if !defined(ABBE_NO_REVERSAL)
+/* The total reversal B + R(p) of an axis (format 1.1), 2^-8 nm, from its
+ * offset d: B plus its reversal block sum_k r_k T_k(u) (none: B alone), the
+ * rows by the trend's recurrence, u the trend's argument (the clamped
+ * position). Inline: the one copy on the evaluation's path is in
+ * abbe_f32_add_extras, whose registers it shares. */
+static ABBE_ALWAYS_INLINE float axis_reversal_f32(const abbe_axis_model_t *ax, uint32_t d)
 {
-    /* Backlash and thermal terms of each axis' own positioning error, um;
-     * lev_mm = p - ref. They add to -d_x(x) in dX, -d_y(y) in dY, +d_z(z) in dZ. */
+    const unsigned rows = ax->reversal_rows;
+    float acc = (float)ax->backlash_reversal_q8;
+    if (rows > 0u) {
+        const uint8_t *row = ax->coef_f32 + 4u * ((unsigned)ax->n_basis * ax->n_terms);
+        const float u = (float)abbe_arg_cheb_q30(ax, d) * 9.31322574615478515625e-10f; /* 2^-30 */
+        const float two_u = u + u;
+        float t_prev = 1.0f, t = u;
+        acc += abbe_ld_f32_aligned(row);
+        for (unsigned k = 1; k < rows; k++) {
+            acc += abbe_ld_f32_aligned(row + 4u * k) * t;
+            float t_next = two_u * t - t_prev; /* T_k = 2u T_(k-1) - T_(k-2) */
+            t_prev = t;
+            t = t_next;
+        }
+    }
+    return acc;
+}
+#endif
+
+void abbe_f32_add_extras(const abbe_model_t *m, const float lev_mm[ABBE_AXES],
+#if !defined(ABBE_NO_REVERSAL)
+                         const uint32_t d[ABBE_AXES],
+#endif
+                         const float dir_state[ABBE_AXES], const float temp_c[ABBE_AXES], float error_um[ABBE_AXES])
+{
+    /* Backlash (the total reversal: B and the axis' reversal block) and
+     * thermal terms of each axis' own positioning error, um; lev_mm = p - ref.
+     * They add to -d_x(x) in dX, -d_y(y) in dY, +d_z(z) in dZ. */
     for (unsigned j = 0; j < ABBE_AXES; j++) {
         const abbe_axis_model_t *ax = &m->axis[j];
         float um = 0.0f;
         if (m->features & ABBE_FEATURE_BACKLASH) {
             float s = dir_state[j] > 1.0f ? 1.0f : (dir_state[j] < -1.0f ? -1.0f : dir_state[j]);
+#if defined(ABBE_NO_REVERSAL)
             um += 0.5f * s * ((float)ax->backlash_reversal_q8 * BACKLASH_UM_PER_LSB);
+#else
+            um += 0.5f * s * (axis_reversal_f32(ax, d[j]) * BACKLASH_UM_PER_LSB);
+#endif
         }
         if (m->features & ABBE_FEATURE_THERMAL) {
             float dt = temp_c[j] - (float)ax->thermal_tref_mdegc * 1.0e-3f;
@@ -129,7 +164,11 @@ abbe_status_t abbe_eval_f32_core(const abbe_model_t *m, const float pos_mm[ABBE_
     if (features & (ABBE_FEATURE_BACKLASH | ABBE_FEATURE_THERMAL)) {
         const float mm_per_scaled = 2.0e-6f / ka; /* scaled arm -> mm */
         const float lev_mm[ABBE_AXES] = {x * mm_per_scaled, y * mm_per_scaled, z * mm_per_scaled};
-        abbe_f32_add_extras(m, lev_mm, dir_state, temp_c, error_um);
+        abbe_f32_add_extras(m, lev_mm,
+#if !defined(ABBE_NO_REVERSAL)
+                            d,
+#endif
+                            dir_state, temp_c, error_um);
     }
     *flags_out = flags;
     return ABBE_OK;
@@ -181,5 +220,24 @@ abbe_status_t abbe_term_eval_f32(const abbe_model_t *m, unsigned axis, unsigned 
     float v[ABBE_TERMS];
     abbe_axis_terms_f32(ax, abbe_arg_offset(ax, pos_nm, &flags), v);
     *value = v[term] * (term < 3u ? UM_PER_LIN_LSB : 1.4551915228366852e-5f); /* 2^-36 rad in urad */
+    return ABBE_OK;
+}
+
+abbe_status_t abbe_reversal_eval_f32(const abbe_model_t *m, unsigned axis, float pos_mm, float *value_um)
+{
+    if (m == NULL || value_um == NULL || axis >= ABBE_AXES) {
+        return ABBE_E_ARG;
+    }
+    uint32_t flags = 0;
+    int32_t pos_nm;
+    if (abbe_mm_to_nm_f32(pos_mm, &pos_nm, &flags) != ABBE_OK) {
+        return ABBE_E_INPUT;
+    }
+    const abbe_axis_model_t *ax = &m->axis[axis];
+#if defined(ABBE_NO_REVERSAL)
+    *value_um = (float)ax->backlash_reversal_q8 * BACKLASH_UM_PER_LSB;
+#else
+    *value_um = axis_reversal_f32(ax, abbe_arg_offset(ax, pos_nm, &flags)) * BACKLASH_UM_PER_LSB;
+#endif
     return ABBE_OK;
 }
