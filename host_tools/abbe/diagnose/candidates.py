@@ -51,6 +51,24 @@ class Cand:
     offset: np.ndarray | None = None
 
 
+def reference_temperature(table: Table, checks: list[Check], model_temp_c: float | None) -> float:
+    """Temperature (deg C) at which the model's geometric terms hold: the table's own
+    ``thermal_tref_c`` if an axis has a thermal term, else ``model_temp_c`` (the user
+    knows when the model was measured), else the lowest temperature logged in the
+    checks (a warm-up starts from the cold machine; the model is taken as the cold
+    state). Any other choice adds a static scale alpha (T_model - T_ref) that would be
+    named as a scale error."""
+    for ax in table.axes.values():
+        if ax.thermal_expansion_ppm_per_k or ax.thermal_offset_um_per_k:
+            return float(ax.thermal_tref_c)
+    if model_temp_c is not None:
+        return float(model_temp_c)
+    lows = [float(np.min(t)) for t in (getattr(c, "all_temp", None) if isinstance(c, BallbarCheck)
+                                       else getattr(c, "temp_grid", None) for c in checks)
+            if t is not None]
+    return min(lows) if lows else 20.0
+
+
 class Engine:
     """Holds the problem, the base model and the candidate sensitivities."""
 
@@ -70,11 +88,8 @@ class Engine:
         for c in checks:
             c.set_drift_unit(self.drift_unit)
         self.drift_on_table = self.drift_unit == "K"
-        self.tref_c = 20.0
-        if self.drift_on_table:
-            temps = [getattr(c, "temp_first_c", None) for c in checks]
-            temps = [t for t in temps if t is not None]
-            self.tref_c = float(temps[0]) if temps else 20.0
+        self.tref_c = reference_temperature(table, checks, opts.model_temp_c) \
+            if self.drift_on_table else 20.0
         self.y0 = self.prob.predict(self.ev, table, self.pp)
         self.r0 = self.prob.y - self.y0
 

@@ -77,10 +77,13 @@ def describe_effects(eng: Engine, sel: list[Selected], values: list[np.ndarray],
                                                "tool length (a tool offset scales with the "
                                                "tool length, an error of the model's angular "
                                                "terms with the height)"})
-        scan = None
+        scan = scan_ci = None
         if s.cand.scan_value is not None and spec.scan:
             name = spec.scan if spec.kind != "thermal" else f"tau_{eng.drift_unit or 'h'}"
             scan = {name: float(s.cand.scan_value)}
+            sci = s.stats.get("scan_ci")
+            if sci is not None:
+                scan_ci = {name: [sci[0] if sci[2] else None, sci[1] if sci[3] else None]}
         where = "table" if spec.compensable and not (spec.kind == "thermal" and not eng.drift_on_table) \
             else "prediction model only"
         remedy = spec.remedy
@@ -91,7 +94,8 @@ def describe_effects(eng: Engine, sel: list[Selected], values: list[np.ndarray],
         out.append(EffectResult(
             id=spec.family, key=spec.key, value=value, unit=unit, ci95=ci, params=params,
             compensable=where == "table", where=where, physics=spec.physics, remedy=remedy,
-            evidence=ev, axis=spec.axis, plane=spec.plane, scan=scan, ambiguous_with=amb,
+            evidence=ev, axis=spec.axis, plane=spec.plane, scan=scan, scan_ci95=scan_ci,
+            ambiguous_with=amb,
             stage_before=[rb_[prob.slice(k)] for k in range(len(prob.checks))],
             stage_after=[ra_[prob.slice(k)] for k in range(len(prob.checks))]))
     return out

@@ -53,6 +53,10 @@ class PredParams:
     drift_tau: time constant of a time-driven drift (same unit as the drift
         variable; inf = linear in time): the drift follows a first-order warm-up,
         tau (1 - exp(-t / tau)), whose initial rate is the offset / scale above.
+    servo_gain_ms2: (3,) per plane XY, YZ, ZX, q = tau_mean x (tau_b - tau_a) (ms^2) of
+        first-order position loops: on a circle at angular speed w the second axis
+        follows with the relative amplitude 1 - w^2 q (the first 1 + w^2 q / 2 ... each
+        half); 0 = pure delays (phase only).
     """
 
     servo_lag_ms: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -60,10 +64,12 @@ class PredParams:
     drift_offset: np.ndarray = field(default_factory=lambda: np.zeros(3))
     drift_scale_ppm: np.ndarray = field(default_factory=lambda: np.zeros(3))
     drift_tau: float = math.inf
+    servo_gain_ms2: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     def copy(self) -> "PredParams":
         return PredParams(self.servo_lag_ms.copy(), self.servo_mismatch_ms.copy(),
-                          self.drift_offset.copy(), self.drift_scale_ppm.copy(), self.drift_tau)
+                          self.drift_offset.copy(), self.drift_scale_ppm.copy(), self.drift_tau,
+                          self.servo_gain_ms2.copy())
 
     def drift_shape(self, v: np.ndarray) -> np.ndarray:
         """The drift variable through the warm-up shape tau (1 - exp(-v / tau))."""
@@ -73,13 +79,20 @@ class PredParams:
 
     def is_zero(self) -> bool:
         return not (np.any(self.servo_lag_ms) or np.any(self.servo_mismatch_ms)
-                    or np.any(self.drift_offset) or np.any(self.drift_scale_ppm))
+                    or np.any(self.drift_offset) or np.any(self.drift_scale_ppm)
+                    or np.any(self.servo_gain_ms2))
 
     def plane_lags_ms(self, plane: str) -> tuple[float, float]:
         """Lags (ms) of the plane's first and second axis on a circle in ``plane``."""
         a, b = PLANE_AXES[plane]
         d = float(self.servo_mismatch_ms[SERVO_PLANES.index(plane)])
         return float(self.servo_lag_ms[a]) - 0.5 * d, float(self.servo_lag_ms[b]) + 0.5 * d
+
+    def plane_gains(self, plane: str, omega_rad_s: float) -> tuple[float, float]:
+        """Relative amplitudes (1 + h, 1 - h) of the plane's first and second axis on a
+        circle at ``omega_rad_s`` (first-order loops, h = w^2 q / 2, q in ms^2)."""
+        h = 0.5 * omega_rad_s ** 2 * float(self.servo_gain_ms2[SERVO_PLANES.index(plane)]) * 1e-6
+        return 1.0 + h, 1.0 - h
 
 
 def copy_table(t: Table) -> Table:
@@ -280,7 +293,10 @@ class EffectSpec:
             to = np.asarray(t.tool_offset_mm, dtype=np.float64) + th[:3]
             t.tool_offset_mm = tuple(float(v) for v in to)  # type: ignore[assignment]
         elif k == "servo":
-            p.servo_mismatch_ms[SERVO_PLANES.index(self.plane)] += th[0]  # type: ignore[arg-type]
+            i = SERVO_PLANES.index(self.plane)  # type: ignore[arg-type]
+            p.servo_mismatch_ms[i] += th[0]
+            if th.size > 1:
+                p.servo_gain_ms2[i] += th[1]
         elif k == "thermal":
             if drift_on_table:
                 ax = t.axes[self.axis]  # type: ignore[index]
@@ -345,9 +361,13 @@ def catalogue() -> list[EffectSpec]:
     for plane in ("XY", "YZ", "ZX"):
         out.append(EffectSpec(
             family="servo_mismatch", key=f"servo_mismatch_{plane.lower()}", kind="servo",
-            plane=plane, compensable=False, params=(ParamSpec("dtau", "ms", 0.5, 30.0),),
+            plane=plane, compensable=False,
+            params=(ParamSpec("dtau", "ms", 0.5, 30.0),
+                    ParamSpec("q", "ms^2", 20.0, 3000.0, optional=True)),
             physics=f"unequal position-loop lag of {plane[1]} and {plane[0]} (tau_{plane[1]} - "
-                    f"tau_{plane[0]}): an oval on circles that flips with the direction",
+                    f"tau_{plane[0]}): an oval on circles that flips with the direction; with "
+                    "first-order loops also an amplitude mismatch q = tau_mean dtau (an oval "
+                    "along the axes growing with the feed squared)",
             remedy=f"match the position-loop gains (Kv) / feed-forward of {plane[0]} and "
                    f"{plane[1]}; the table cannot compensate a dynamic error"))
     out.append(EffectSpec(
@@ -376,4 +396,6 @@ def by_key() -> dict[str, EffectSpec]:
     """Catalogue indexed by key."""
     return {e.key: e for e in catalogue()}
 #: Nonlinear scan grids.
-BACKLASH_TAKEUP_GRID_MM: tuple[float, ...] = (0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0)
+#: Take-up distances searched (mm): from a sharp step (a play of a few um taken up over
+#: its own size) to a soft, preloaded drive; refined continuously after selection.
+BACKLASH_TAKEUP_GRID_MM: tuple[float, ...] = (0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 4.0)

@@ -143,13 +143,16 @@ def estimate_noise(prob: Problem, r: np.ndarray) -> tuple[np.ndarray, np.ndarray
     """Noise standard deviation and autocorrelation inflation per noise group.
 
     Groups with repeated readings (laser runs): pooled within-cell scatter of the
-    residual (same channel, target and direction in every run). Ballbar groups: the
+    residual (same channel, target and direction in every run); when it exceeds the
+    robust scale (1.4826 x the median absolute deviation) by ROBUST_SWITCH, a few bad
+    readings inflate it and the robust scale is used (reported as ``robust``). Ballbar groups: the
     scatter of each direction's residual about a saturated smooth fit (Fourier series
     in the angle, up to min(40, n/8) harmonics); the lag-1 autocorrelation rho of that
     scatter inflates the variance by (1 + rho) / (1 - rho). Returns (sigma (G,),
     inflation (G,), report dict). ``r`` is the current residual (N,).
     """
     G = len(prob.group_names)
+    robust = np.zeros(G, dtype=bool)
     pair: dict[int, float | None] = {}
     sig = np.full(G, NOISE_FLOOR)
     infl = np.ones(G)
@@ -168,11 +171,18 @@ def estimate_noise(prob: Problem, r: np.ndarray) -> tuple[np.ndarray, np.ndarray
                 dev = x - means[inv]
                 d = x.size - cnt.size
                 if d >= 2:
-                    sig[gg] = max(NOISE_FLOOR, math.sqrt(float(dev @ dev) / d))
+                    sd = math.sqrt(float(dev @ dev) / d)
+                    rob = _robust_cell_sigma(dev, cnt[inv])
+                    if rob is not None and sd > ROBUST_SWITCH * rob:
+                        # a few readings (a bad run) inflate the scatter: use the robust scale
+                        sd = rob
+                        robust[gg] = True
+                    sig[gg] = max(NOISE_FLOOR, sd)
                     dof[gg] = d
                     continue
             # Saturated smooth fit per direction (ballbar) / per run and direction.
             ss, d_tot, rho_num, rho_den = 0.0, 0, 0.0, 0.0
+            resid_parts: list[np.ndarray] = []
             labels = c.direction[sel].astype(str)
             xs = c.x[sel]
             for lab in np.unique(labels):
@@ -191,12 +201,19 @@ def estimate_noise(prob: Problem, r: np.ndarray) -> tuple[np.ndarray, np.ndarray
                 A = np.stack(cols, axis=1)
                 coef, *_ = np.linalg.lstsq(A, rv, rcond=None)
                 e = rv - A @ coef
+                resid_parts.append(e)
                 ss += float(e @ e)
                 d_tot += max(n - A.shape[1], 0)
                 rho_num += float(e[1:] @ e[:-1])
                 rho_den += float(e @ e)
             if d_tot >= 2:
-                sig[gg] = max(NOISE_FLOOR, math.sqrt(ss / d_tot))
+                sd = math.sqrt(ss / d_tot)
+                rob = 1.4826 * float(np.median(np.abs(np.concatenate(resid_parts)))) \
+                    * math.sqrt(x.size / d_tot)
+                if sd > ROBUST_SWITCH * rob:
+                    sd = rob
+                    robust[gg] = True
+                sig[gg] = max(NOISE_FLOOR, sd)
                 dof[gg] = d_tot
                 rho = rho_num / rho_den if rho_den > 0 else 0.0
                 rho = min(max(rho, 0.0), 0.9)
@@ -209,7 +226,25 @@ def estimate_noise(prob: Problem, r: np.ndarray) -> tuple[np.ndarray, np.ndarray
     for g, v in pair.items():
         if v is not None:
             rep[prob.group_names[g]]["pair_sigma"] = round(float(v), 5)
+    for g in np.flatnonzero(robust):
+        rep[prob.group_names[g]]["robust"] = True
     return sig, infl, rep
+
+
+#: The plain scatter is replaced by the robust scale when it exceeds it by this factor
+#: (normal noise: the two agree within ~10 %; a few wild readings inflate the scatter).
+ROBUST_SWITCH = 1.5
+
+
+def _robust_cell_sigma(dev: np.ndarray, n_cell: np.ndarray) -> float | None:
+    """Noise sigma from deviations about cell means, robustly: 1.4826 x the median of
+    |dev| / sqrt((n - 1) / n) (the deviation of one of n readings from their mean has
+    variance sigma^2 (n - 1) / n); cells of one reading carry no information."""
+    m = n_cell >= 2
+    if m.sum() < 4:
+        return None
+    z = np.abs(dev[m]) / np.sqrt((n_cell[m] - 1.0) / n_cell[m])
+    return 1.4826 * float(np.median(z))
 
 
 def _pair_sigma(ang: np.ndarray, labels: np.ndarray, r: np.ndarray) -> float | None:

@@ -73,7 +73,16 @@ def format_text(res: DiagnoseResult, model_path: str | None = None) -> str:
         if e.scan:
             for k, v in e.scan.items():
                 txt = "linear (no saturation)" if not math.isfinite(v) else f"{v:.4g}"
-                L.append(f"    {k} = {txt} (searched on a grid)")
+                ci = (e.scan_ci95 or {}).get(k)
+                if ci is None:
+                    L.append(f"    {k} = {txt} (searched on a grid)")
+                else:
+                    lo = "<" if ci[0] is None else f"{ci[0]:.4g}"
+                    hi = ">" if ci[1] is None else f"{ci[1]:.4g}"
+                    L.append(f"    {k} = {txt}, 95 % interval [{lo}, {hi}] (profile; < / > = "
+                             "not resolved beyond the searched range)")
+        for line in (e.shape_notes or []):
+            L.append(f"    {line}")
         L.append(f"    physics: {e.physics}")
         ev = e.evidence
         if ev.get("residual_before") and ev.get("residual_after"):

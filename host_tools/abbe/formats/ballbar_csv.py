@@ -21,6 +21,8 @@ from abbe.errors import AbbeInputError, parse_finite
 from abbe.model.geometry import DIRECTIONS
 
 COLUMNS: tuple[str, ...] = ("direction", "angle_deg", "radial_um", "time_s")
+#: Optional columns: the machine temperature (deg C) logged with each sample.
+OPTIONAL_COLUMNS: tuple[str, ...] = ("temp_c",)
 
 #: A radial deviation larger than this (um) is not a ballbar reading in um.
 MAX_RADIAL_UM = 2000.0
@@ -35,7 +37,8 @@ MIN_GAP_DEG = 2.0
 class BallbarTrace:
     """A ballbar trace: per sample direction ('ccw'/'cw'), angle_deg, radial_um, time_s.
 
-    line_no: source line of each sample (None for simulated traces).
+    line_no: source line of each sample (None for simulated traces); temp_c: the
+    machine temperature (deg C) of each sample, or None.
     """
 
     direction: np.ndarray
@@ -44,6 +47,7 @@ class BallbarTrace:
     time_s: np.ndarray
     file: str | None = None
     line_no: np.ndarray | None = None
+    temp_c: np.ndarray | None = None
 
     def data_mask(self, direction: str | None = None) -> np.ndarray:
         """Samples inside [0, 360) (not feed arcs), optionally of one direction."""
@@ -53,11 +57,14 @@ class BallbarTrace:
         return m
 
     def to_csv(self) -> str:
-        """CSV text: header ``direction,angle_deg,radial_um,time_s``."""
+        """CSV text: header ``direction,angle_deg,radial_um,time_s`` (``,temp_c`` with a
+        temperature)."""
         out = io.StringIO()
-        out.write(",".join(COLUMNS) + "\n")
-        for d, a, r, t in zip(self.direction, self.angle_deg, self.radial_um, self.time_s):
-            out.write(f"{d},{a:.3f},{r:.4f},{t:.3f}\n")
+        out.write(",".join(COLUMNS + (OPTIONAL_COLUMNS if self.temp_c is not None else ())) + "\n")
+        for i, (d, a, r, t) in enumerate(zip(self.direction, self.angle_deg, self.radial_um,
+                                             self.time_s)):
+            tail = "" if self.temp_c is None else f",{self.temp_c[i]:.3f}"
+            out.write(f"{d},{a:.3f},{r:.4f},{t:.3f}{tail}\n")
         return out.getvalue()
 
 
@@ -94,7 +101,7 @@ def read_ballbar_csv(path: str | Path) -> BallbarTrace:
     hno, header = rows[0]
     header = [h.strip() for h in header]
     for h in header:
-        if h not in COLUMNS:
+        if h not in COLUMNS and h not in OPTIONAL_COLUMNS:
             hint = _unit_hint(h)
             if hint:
                 raise AbbeInputError(f"column {h!r} is in other units: expected {hint!r} "
@@ -106,9 +113,13 @@ def read_ballbar_csv(path: str | Path) -> BallbarTrace:
             raise AbbeInputError(f"missing column {c!r}", file=f, line=hno, field=c)
         if header.count(c) > 1:
             raise AbbeInputError(f"duplicate column {c!r}", file=f, line=hno, field=c)
-    idx = {c: header.index(c) for c in COLUMNS}
+    for c in OPTIONAL_COLUMNS:
+        if header.count(c) > 1:
+            raise AbbeInputError(f"duplicate column {c!r}", file=f, line=hno, field=c)
+    opt = tuple(c for c in OPTIONAL_COLUMNS if c in header)
+    idx = {c: header.index(c) for c in COLUMNS + opt}
     dirs: list[str] = []
-    vals = {c: [] for c in COLUMNS[1:]}
+    vals: dict[str, list[float]] = {c: [] for c in COLUMNS[1:] + opt}
     nos: list[int] = []
     for no, r in rows[1:]:
         if len(r) != len(header):
@@ -117,13 +128,14 @@ def read_ballbar_csv(path: str | Path) -> BallbarTrace:
         if d not in DIRECTIONS:
             raise AbbeInputError(f"expected 'ccw' or 'cw', got {r[idx['direction']]!r}", file=f,
                                  line=no, field="direction")
-        for c in COLUMNS[1:]:
+        for c in COLUMNS[1:] + opt:
             vals[c].append(parse_finite(r[idx[c]].strip(), file=f, line=no, field=c))
         dirs.append(d)
         nos.append(no)
     tr = BallbarTrace(direction=np.array(dirs), angle_deg=np.array(vals["angle_deg"]),
                       radial_um=np.array(vals["radial_um"]), time_s=np.array(vals["time_s"]),
-                      file=f, line_no=np.array(nos, dtype=np.int64))
+                      file=f, line_no=np.array(nos, dtype=np.int64),
+                      temp_c=np.array(vals["temp_c"]) if "temp_c" in opt else None)
     _validate_trace(tr)
     return tr
 
