@@ -100,10 +100,10 @@ def sim_ballbar(vm: Any, plane: str, t0_s: float, rng: np.random.Generator, *,
                       center_mm=tuple(center_mm), radius_mm=radius_mm, feed_mm_min=feed_mm_min,
                       sample_deg=step_deg, feed_arc_deg=10.0, pause_s=1.0,
                       setup_offset_um=tuple(float(v) for v in setup))
-    tr = simulate_ballbar(vm, test, t0_s, noise_um, rng)
+    tr = simulate_ballbar(vm, test, t0_s, noise_um, rng, temp_sensor_k=0.01)
     ck = BallbarCheck(test.name, plane, test.center_mm, radius_mm, feed_mm_min, tr.direction,
                       tr.angle_deg, tr.radial_um, tr.time_s, vm.truth.reference_mm,
-                      source="<simulated>")
+                      source="<simulated>", temp_c=tr.temp_c)
     return ck, circle_duration_s(test)
 
 
@@ -174,17 +174,20 @@ def _sign(rng: np.random.Generator) -> float:
 
 def hidden_case(seed: int, hidden: tuple[str, ...] = (), *, noise_um: float = 0.15,
                 model_error_um: float = 0.0, step_deg: float = 2.0, n_targets: int = 11,
-                checks: tuple[str, ...] | None = None) -> Case:
+                checks: tuple[str, ...] | None = None, takeup_mm: float = 0.1,
+                feeds_mm_min: tuple[float, ...] = (1000.0,)) -> Case:
     """Build a case with the catalogue effects ``hidden`` (keys) in the truth only.
 
     Magnitudes are drawn at random (seeded) in realistic ranges (notes.md §7).
     ``checks``: names like "ballbar_xy", "laser_x" (default: the tests that see the
-    hidden effects, plus one ballbar XY and laser X).
+    hidden effects, plus one ballbar XY and laser X). ``takeup_mm``: the backlash
+    take-up of the truth; ``feeds_mm_min``: every ballbar test is run at each of these
+    feeds (the same circle; the second and later named ``..._f<feed>``).
     """
     from abbe.sim.truth import Effects, truth_table
     from abbe.sim.virtual_machine import VirtualMachine
     rng = np.random.default_rng(seed)
-    kw: dict[str, Any] = {"backlash_takeup_mm": (0.1, 0.1, 0.1)}
+    kw: dict[str, Any] = {"backlash_takeup_mm": (takeup_mm, takeup_mm, takeup_mm)}
     expected: dict[str, float | None] = {}
     extra_bow: dict[tuple[str, str], float] = {}
     cyclic: dict[str, tuple[float, float, float]] = {}
@@ -286,10 +289,12 @@ def hidden_case(seed: int, hidden: tuple[str, ...] = (), *, noise_um: float = 0.
                            (n.startswith("ballbar_") and thermal_axis.lower() in n[8:])]
     for nm in names:
         if nm.startswith("ballbar_"):
-            ck, dur = sim_ballbar(vm, nm[8:].upper(), t_clock, rng, noise_um=noise_um,
-                                  step_deg=step_deg, name=nm)
-            out.append(ck)
-            t_clock += dur + 60.0
+            for k, feed in enumerate(feeds_mm_min):
+                ck, dur = sim_ballbar(vm, nm[8:].upper(), t_clock, rng, noise_um=noise_um,
+                                      step_deg=step_deg, name=nm if k == 0 else f"{nm}_f{feed:g}",
+                                      feed_mm_min=feed)
+                out.append(ck)
+                t_clock += dur + 60.0
         elif nm.startswith("laser_"):
             ck, dur = sim_laser(vm, nm[6:].upper(), t_clock, rng, noise_um=max(noise_um, 0.1),
                                 n_targets=n_targets)

@@ -91,14 +91,53 @@ def describe_effects(eng: Engine, sel: list[Selected], values: list[np.ndarray],
             remedy = ("not compensable by the table without a temperature input: warm the machine "
                       "up before measuring / machining, or log the temperature (laser temp_c) so "
                       "the table's thermal term can be fitted")
+        shape, shape_notes = _shape_statements(spec, s.cand.param_idx, v, C, tq)
         out.append(EffectResult(
             id=spec.family, key=spec.key, value=value, unit=unit, ci95=ci, params=params,
             compensable=where == "table", where=where, physics=spec.physics, remedy=remedy,
             evidence=ev, axis=spec.axis, plane=spec.plane, scan=scan, scan_ci95=scan_ci,
             ambiguous_with=amb,
+            shape=shape, shape_notes=shape_notes,
             stage_before=[rb_[prob.slice(k)] for k in range(len(prob.checks))],
             stage_after=[ra_[prob.slice(k)] for k in range(len(prob.checks))]))
     return out
+
+
+def _shape_statements(spec: EffectSpec, idx: list[int], v: np.ndarray, C: np.ndarray, tq: float
+                      ) -> tuple[dict[str, Any] | None, list[str]]:
+    """Derived shape of an effect: the servo model (pure delay or first-order loops with
+    their mean time constant), the positioning bow of a scale error."""
+    if spec.kind == "servo":
+        if 1 not in idx:
+            return ({"servo_model": "not resolved (no feed-squared oval)"},
+                    ["servo model: only the lag mismatch is resolved; the oval along the axes "
+                     "that the loops' mean lag gives (growing with the feed squared) is not: "
+                     "the same circle at a second, higher feed would show it"])
+        i0, i1 = idx.index(0), idx.index(1)
+        dt, q = float(v[i0]), float(v[i1])
+        if abs(dt) < 1e-9:
+            return None, []
+        g = np.zeros(len(v))
+        out: dict[str, Any] = {"servo_model": "mean lag resolved; pure delays and first-order "
+                                              "loops give the same signature on circles"}
+        txt = []
+        for name, kappa in (("delay", 1.0), ("first_order", 1.5)):
+            tm = q / (kappa * dt)
+            g[i0], g[i1] = -q / (kappa * dt ** 2), 1.0 / (kappa * dt)
+            sd = math.sqrt(max(float(g @ C @ g), 0.0))
+            ci = [round_to(tm - tq * sd), round_to(tm + tq * sd)]
+            out[f"tau_mean_ms_if_{name}"] = round_to(tm)
+            out[f"tau_mean_ms_if_{name}_ci95"] = ci
+            txt.append(f"{tm:.2f} ms [{ci[0]:.2f}, {ci[1]:.2f}] as "
+                       + ("pure delays" if name == "delay" else "first-order lags (1 / Kv)"))
+        return out, ["servo model: mean lag of the plane's loops " + " or ".join(txt)
+                     + f" (from q = {q:.4g} ms^2; circles cannot tell the two loop models "
+                       "apart, the controller settings can)"]
+    if spec.kind == "scale" and 1 in idx:
+        b = float(v[idx.index(1)])
+        return {"positioning_bow_um": round_to(b)}, [f"with a positioning bow of {b:.3f} um "
+                                                       "(sag at mid-travel relative to the ends)"]
+    return None, []
 
 
 def _unit(u: str, spec: EffectSpec, eng: Engine) -> str:
@@ -187,10 +226,10 @@ def _separating_test(eng: Engine, s: Selected, v: np.ndarray, other: Cand, coef:
                      table: Table) -> str:
     """The standard test (ballbar in each plane, CW + CCW; laser line per axis) on which the
     two explanations differ most, computed through the model on hypothetical checks."""
-    from abbe.diagnose.recommend import standard_checks
+    from abbe.diagnose.recommend import faster_circles, standard_checks
     best, best_d = "a test in another plane or a laser line of the axis", 0.0
     try:
-        hyp = standard_checks(table)
+        hyp = standard_checks(table) + faster_circles(eng.prob.checks)
     except Exception:  # pragma: no cover - defensive
         return best
     for hc in hyp:

@@ -53,10 +53,12 @@ class PredParams:
     drift_tau: time constant of a time-driven drift (same unit as the drift
         variable; inf = linear in time): the drift follows a first-order warm-up,
         tau (1 - exp(-t / tau)), whose initial rate is the offset / scale above.
-    servo_gain_ms2: (3,) per plane XY, YZ, ZX, q = tau_mean x (tau_b - tau_a) (ms^2) of
-        first-order position loops: on a circle at angular speed w the second axis
-        follows with the relative amplitude 1 - w^2 q (the first 1 + w^2 q / 2 ... each
-        half); 0 = pure delays (phase only).
+    servo_gain_ms2: (3,) per plane XY, YZ, ZX, q = kappa x tau_mean x (tau_b - tau_a)
+        (ms^2): the oval along the plane axes (R w^2 q cos 2 theta, the same in CW and
+        CCW, growing with the feed squared) that unequal loops give beyond the phase
+        mismatch: the common lag tau_mean rotates the mismatch oval (kappa = 1 for pure
+        delays) and first-order loops add an amplitude mismatch (kappa = 1.5). Modelled
+        as amplitudes 1 + w^2 q and 1 - w^2 q of the plane's first and second axis.
     """
 
     servo_lag_ms: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -90,8 +92,8 @@ class PredParams:
 
     def plane_gains(self, plane: str, omega_rad_s: float) -> tuple[float, float]:
         """Relative amplitudes (1 + h, 1 - h) of the plane's first and second axis on a
-        circle at ``omega_rad_s`` (first-order loops, h = w^2 q / 2, q in ms^2)."""
-        h = 0.5 * omega_rad_s ** 2 * float(self.servo_gain_ms2[SERVO_PLANES.index(plane)]) * 1e-6
+        circle at ``omega_rad_s`` (h = w^2 q, q in ms^2; see ``servo_gain_ms2``)."""
+        h = omega_rad_s ** 2 * float(self.servo_gain_ms2[SERVO_PLANES.index(plane)]) * 1e-6
         return 1.0 + h, 1.0 - h
 
 
@@ -255,12 +257,17 @@ class EffectSpec:
             ref = float(t.reference_mm[j])  # type: ignore[index]
 
             def scale_coef(ax: AxisTable) -> np.ndarray:
-                ensure_trend(ax, 1)
+                bow = float(th[1]) if th.size > 1 else 0.0
+                ensure_trend(ax, 2 if bow else 1)
                 ensure_term(ax, OWN_TERM[a])  # type: ignore[index]
                 lo, hi = ax.travel_mm
                 c = np.zeros(ax.n_basis())
                 c[0] = th[0] * 1e-3 * (0.5 * (lo + hi) - ref)
                 c[1] = th[0] * 1e-3 * 0.5 * (hi - lo)
+                if bow:
+                    # bow (1 - u^2) = bow (T0 - (T0 + T2) / 2): sag at mid-travel
+                    c[0] += 0.5 * bow
+                    c[2] -= 0.5 * bow
                 return c
             add_shape(t, a, OWN_TERM[a], scale_coef)  # type: ignore[index]
         elif k == "cyclic":
@@ -338,9 +345,12 @@ def catalogue() -> list[EffectSpec]:
     for a in AXES:
         out.append(EffectSpec(
             family=f"scale_{_axis_l(a)}", key=f"scale_{_axis_l(a)}", kind="scale", axis=a,
-            compensable=True, params=(ParamSpec("k", "ppm", 10.0, 1000.0),),
-            physics=f"linear positioning (scale) error of {a} about the reference point",
-            remedy="added to the own positioning term's Chebyshev trend (T0, T1)"))
+            compensable=True, params=(ParamSpec("k", "ppm", 10.0, 1000.0),
+                                      ParamSpec("bow", "um", 2.0, 200.0, optional=True)),
+            physics=f"linear positioning (scale) error of {a} about the reference point, "
+                    "optionally with a bow of the positioning error (a lead error growing "
+                    "along the screw: sag at mid-travel relative to the ends)",
+            remedy="added to the own positioning term's Chebyshev trend (T0, T1; T2 for the bow)"))
     for a in AXES:
         out.append(EffectSpec(
             family=f"cyclic_{_axis_l(a)}", key=f"cyclic_{_axis_l(a)}", kind="cyclic", axis=a,
@@ -365,9 +375,9 @@ def catalogue() -> list[EffectSpec]:
             params=(ParamSpec("dtau", "ms", 0.5, 30.0),
                     ParamSpec("q", "ms^2", 20.0, 3000.0, optional=True)),
             physics=f"unequal position-loop lag of {plane[1]} and {plane[0]} (tau_{plane[1]} - "
-                    f"tau_{plane[0]}): an oval on circles that flips with the direction; with "
-                    "first-order loops also an amplitude mismatch q = tau_mean dtau (an oval "
-                    "along the axes growing with the feed squared)",
+                    f"tau_{plane[0]}): an oval on circles that flips with the direction, and "
+                    "q = kappa tau_mean dtau, an oval along the axes growing with the feed "
+                    "squared (kappa = 1 pure delays, 1.5 first-order loops)",
             remedy=f"match the position-loop gains (Kv) / feed-forward of {plane[0]} and "
                    f"{plane[1]}; the table cannot compensate a dynamic error"))
     out.append(EffectSpec(

@@ -81,6 +81,10 @@ class Built:
     dir: Path
     expected: dict[str, float | None]
     either: list[set[str]] = field(default_factory=list)   # alternatives counted as one answer
+    #: key -> {parameter name: true value} (parameters besides the headline value)
+    params: dict[str, dict[str, float]] = field(default_factory=dict)
+    #: key -> {shape name: true value} (take-up mm, servo tau_mean ms): reported, not scored
+    shapes: dict[str, dict[str, float]] = field(default_factory=dict)
     outlier_runs: set[int] = field(default_factory=set)
     info: dict[str, Any] = field(default_factory=dict)
     machine_file: Path | None = None
@@ -108,6 +112,8 @@ class _Design:
     lasers: list[str] = field(default_factory=list)
     thermal_first: str | None = None
     only_circle: bool = False
+    params: dict[str, dict[str, float]] = field(default_factory=dict)
+    shapes: dict[str, dict[str, float]] = field(default_factory=dict)
 
 
 def _sgn(rng: np.random.Generator) -> float:
@@ -147,6 +153,9 @@ def _apply_part(part: str, rng: np.random.Generator, m: Machine, d: _Design,
             lu, ld = L, L * rng.uniform(2.5, 4.0)
         e.lost_motion[a] = LostMotion(float(b), shape, lu, ld)
         exp[f"backlash_{a.lower()}"] = -float(b)
+        if lu == ld and shape != "exp":
+            d.shapes[f"backlash_{a.lower()}"] = {"takeup_mm": float(b) * 1e-3 if shape == "play"
+                                                 else lu}
         d.lasers.append(a)
         other = "Y" if a != "Y" else "X"
         d.circles.append({"plane": _plane_of(a, other if a != "Z" else "Y")})
@@ -164,6 +173,8 @@ def _apply_part(part: str, rng: np.random.Generator, m: Machine, d: _Design,
             d.only_circle = True
         else:
             exp[f"scale_{a.lower()}"] = float(k) if part != "scale_bow" else None
+            if part == "scale_bow":
+                d.params[f"scale_{a.lower()}"] = {"bow": float(bow)}
             d.lasers.append(a)
     elif part.startswith("cyclic_"):
         a = part[-1].upper()
@@ -207,6 +218,7 @@ def _apply_part(part: str, rng: np.random.Generator, m: Machine, d: _Design,
         planes = {"XY"} | ({"YZ" if ax == 2 else "ZX"} if ax == 2 or rng.uniform() < 0.3 else set())
         for pl in sorted(planes):
             d.circles.append({"plane": pl, "feed": feed, "two_feeds": part == "servo_two_feeds"})
+        d.servo_tau_mean = base  # type: ignore[attr-defined]
     elif part.startswith("tool_offset"):
         t = (0.0, 0.0, float(rng.uniform(60.0, 200.0)))
         if rng.uniform() < 0.3:
@@ -344,10 +356,14 @@ def build(case: CaseDef, out_dir: str | Path) -> Built:
             a, b = PLANE_AXES[cp.plane]
             dt = tau[b] - tau[a]
             if abs(dt) > 1e-9:
-                exp[f"servo_mismatch_{cp.plane.lower()}"] = float(dt)
+                key = f"servo_mismatch_{cp.plane.lower()}"
+                exp[key] = float(dt)
+                if m.effects.servo.model == "first_order":
+                    d.shapes[key] = {"tau_mean_ms_if_first_order": 0.5 * (tau[a] + tau[b])}
     (out / "machine.toml").write_text(files.machine_toml(m, laser_files, circle_files, case.name))
     files.write_model(out / "model.bin", model)
-    return Built(case, out, exp, either, machine_file=out / "machine.toml",
+    return Built(case, out, exp, either, params=d.params, shapes=d.shapes,
+                 machine_file=out / "machine.toml",
                  model_file=out / "model.bin",
                  info={"circles": [c.name for c, _ in circle_files],
                        "lasers": [p.axis for p, _ in laser_files],
@@ -438,6 +454,11 @@ def score(b: Built, res: Any) -> dict[str, Any]:
         want = [k for k in exp if k in grp]
         if hit and want and hit[0] not in exp:
             exp[hit[0]] = exp.pop(want[0])
+    sign = {}
+    for grp in b.either:   # an XY circle sees kx - ky: scale_y = -scale_x
+        for k in grp:
+            if k in exp and k not in b.expected:
+                sign[k] = -1.0
     hits = [k for k in exp if k in named]
     misses = [k for k in exp if k not in named]
     extra = [k for k in named if k not in exp]
@@ -449,9 +470,41 @@ def score(b: Built, res: Any) -> dict[str, Any]:
         e = named[k]
         if k.startswith("thermal_drift") and e.unit != "um/K":
             continue
+        tv = tv * sign.get(k, 1.0)
         lo, hi = e.ci95
         ok = abs(e.value - tv) <= 0.1 * abs(tv) or lo <= tv <= hi
         vals[k] = {"true": tv, "named": e.value, "ci95": [lo, hi], "ok": bool(ok)}
+    for k, pars in b.params.items():
+        if k not in named:
+            continue
+        got = {p["name"]: p for p in named[k].params}
+        for pn, tv in pars.items():
+            p = got.get(pn)
+            if p is None:
+                vals[f"{k}.{pn}"] = {"true": tv, "named": float("nan"), "ci95": [None, None],
+                                     "ok": False}
+                continue
+            ok = abs(p["value"] - tv) <= 0.1 * abs(tv) or p["ci95"][0] <= tv <= p["ci95"][1]
+            vals[f"{k}.{pn}"] = {"true": tv, "named": p["value"], "ci95": p["ci95"], "ok": bool(ok)}
+    shapes = {}
+    for k, sh in b.shapes.items():
+        if k not in named:
+            continue
+        e = named[k]
+        for sn, tv in sh.items():
+            if sn == "takeup_mm":
+                v = (e.scan or {}).get("takeup_mm")
+                ci = (e.scan_ci95 or {}).get("takeup_mm") or [None, None]
+            else:
+                v = (e.shape or {}).get(sn)
+                ci = (e.shape or {}).get(sn + "_ci95") or [None, None]
+            if v is None:
+                shapes[f"{k}.{sn}"] = {"true": tv, "named": None, "ok": False}
+                continue
+            lo = -math.inf if ci[0] is None else ci[0]
+            hi = math.inf if ci[1] is None else ci[1]
+            shapes[f"{k}.{sn}"] = {"true": tv, "named": v, "ci95": ci,
+                                   "ok": bool(abs(v - tv) <= 0.1 * abs(tv) or lo <= tv <= hi)}
     named_out = {o.run for o in getattr(res, "outliers", []) or [] if o.excluded}
     out_ok = named_out == b.outlier_runs
     g = res.gap
@@ -467,6 +520,6 @@ def score(b: Built, res: Any) -> dict[str, Any]:
     return {"case": b.case.name, "kind": b.case.kind, "expected": sorted(exp), "named": sorted(named),
             "hits": hits, "misses": misses, "extra": extra, "values": vals,
             "exact": not misses and not extra and out_ok, "outliers_expected": sorted(b.outlier_runs),
-            "outliers_named": sorted(named_out), "shrink": shrink, "tentative": bool(res.tentative),
+            "outliers_named": sorted(named_out), "shrink": shrink, "shapes": shapes, "tentative": bool(res.tentative),
             "ambiguous": {k: [x["key"] for x in named[k].ambiguous_with] for k in named
                           if named[k].ambiguous_with}}

@@ -3,7 +3,9 @@
 * :func:`average_runs`: bidirectional mean per target, reversal per target (the
   backlash estimate) and run-to-run spread (the noise estimate);
 * :func:`detrend_line`: least-squares straightness detrending (paper Eq. 1);
-* :func:`relative_to_reference`: values relative to the reference point.
+* :func:`relative_to_reference`: values relative to the reference point;
+* :func:`estimate_thermal`: thermal offset (um/K) and expansion (ppm/K) of the own
+  positioning term from the run-to-run variation with the logged temperature.
 
 Arrays of runs have shape (n_runs, 2, T): axis 1 is the approach direction
 (0 = ``+``, 1 = ``-``); T targets ascending. Units follow the term: um for
@@ -91,3 +93,46 @@ def relative_to_reference(pos_mm: np.ndarray, values: np.ndarray, ref_mm: float,
     """
     v = value_at(pos_mm, values, ref_mm) if value_at_ref is None else float(value_at_ref)
     return np.asarray(values, dtype=np.float64) - v, v
+
+
+def estimate_thermal(runs: np.ndarray, temp_c: np.ndarray, pos_mm: np.ndarray, ref_mm: float,
+                     tref_c: float, sigma: float = 3.0) -> dict:
+    """Thermal offset o (um/K) and expansion alpha (ppm/K) of the own positioning term.
+
+    ``runs`` (n_runs, 2, T) readings of the term (um), ``temp_c`` the same shape (deg C).
+    Within-cell regression (a cell = one target and direction over the runs, so the
+    geometric term cancels): dev(y) = o dev(dT) + alpha 1e-3 dev(dT (p - ref)), dT = T -
+    tref_c. Significant when the temperature varies by >= 0.1 K and o or alpha exceeds
+    ``sigma`` standard errors. Returns the estimates, standard errors, the correction
+    to subtract from the readings (``correction_um``, same shape as ``runs``) and flags.
+    """
+    y = np.asarray(runs, dtype=np.float64)
+    T = np.asarray(temp_c, dtype=np.float64)
+    dT = T - float(tref_c)
+    lever = (np.asarray(pos_mm, dtype=np.float64) - float(ref_mm))[None, None, :] * 1e-3
+    cols = [dT, dT * lever]
+    X = np.stack([(c - c.mean(axis=0, keepdims=True)).reshape(-1) for c in cols], axis=1)
+    yd = (y - y.mean(axis=0, keepdims=True)).reshape(-1)
+    out = {"tref_c": float(tref_c), "temp_range_k": float(np.ptp(T)), "significant": False,
+           "offset_um_per_k": 0.0, "expansion_ppm_per_k": 0.0, "threshold_sigma": sigma}
+    n_cells = y.shape[1] * y.shape[2]
+    dof = yd.size - n_cells - 2
+    if y.shape[0] < 2 or dof < 3 or out["temp_range_k"] < 0.1:
+        out["note"] = "temperature constant or too few runs: no thermal term"
+        out["correction_um"] = np.zeros_like(y)
+        return out
+    coef, *_ = np.linalg.lstsq(X, yd, rcond=None)
+    e = yd - X @ coef
+    s2 = float(e @ e) / dof
+    try:
+        cov = s2 * np.linalg.inv(X.T @ X)
+    except np.linalg.LinAlgError:
+        cov = np.full((2, 2), np.inf)
+    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    z = np.abs(coef) / np.where(se > 0, se, np.inf)
+    sig = bool(np.any(z > sigma))
+    out.update({"offset_um_per_k": float(coef[0]), "expansion_ppm_per_k": float(coef[1]),
+                "se_offset_um_per_k": float(se[0]), "se_expansion_ppm_per_k": float(se[1]),
+                "significant": sig})
+    out["correction_um"] = (coef[0] * cols[0] + coef[1] * cols[1]) if sig else np.zeros_like(y)
+    return out
