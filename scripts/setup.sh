@@ -15,6 +15,7 @@ PACKAGES=(
     valgrind
     clang libclang-rt-14-dev
     socat can-utils
+    linuxcnc-uspace linuxcnc-uspace-dev
     python3 python3-venv
 )
 
@@ -41,19 +42,26 @@ else
     log "system packages: all present"
 fi
 
-# Python: a venv at <repo>/.venv with host_tools installed editable.
-# Re-installs only when host_tools/pyproject.toml changed since the last run.
+# Python: a venv at <repo>/.venv with the pinned environment of
+# host_tools/requirements.lock (versions and hashes; refresh it with
+# scripts/lock.sh) and host_tools installed editable on top, without
+# dependencies of its own and without running CMake (the library comes from
+# build/). Re-installs only when the lock or pyproject.toml changed.
 VENV="$REPO/.venv"
 PYTHON="${ABBE_PYTHON:-python3}"
+LOCK="host_tools/requirements.lock"
 if [[ ! -x "$VENV/bin/python" ]]; then
     log "creating $VENV"
     "$PYTHON" -m venv "$VENV"
 fi
 stamp="$VENV/.abbe-host-tools.sha256"
-want="$(sha256sum host_tools/pyproject.toml | cut -d' ' -f1)"
+want="$(cat host_tools/pyproject.toml "$LOCK" | sha256sum | cut -d' ' -f1)"
 if [[ ! -f "$stamp" || "$(cat "$stamp")" != "$want" ]] || ! "$VENV/bin/python" -c 'import abbe' 2>/dev/null; then
-    log "installing host_tools[test,ports] into $VENV"
-    "$VENV/bin/python" -m pip install -q -e "host_tools[test,ports]" </dev/null
+    log "installing $LOCK into $VENV"
+    "$VENV/bin/python" -m pip install -q --require-hashes --no-deps -r "$LOCK" </dev/null
+    log "installing host_tools (editable) into $VENV"
+    "$VENV/bin/python" -m pip install -q --no-deps --no-build-isolation -e host_tools </dev/null
+    "$VENV/bin/python" -m pip check
     echo "$want" >"$stamp"
 else
     log "python venv: up to date"

@@ -9,6 +9,11 @@
 #   5. libFuzzer run on the table loader (build-fuzz/, clang)
 #   6. the Python import contracts (lint-imports: host_tools' one-way layers)
 #   7. pytest host_tools/tests
+#   8. the wheel: built from host_tools/, installed with the lock into a fresh venv
+#      outside the checkout, abbe demo / fit / diagnose run there
+#   9. LinuxCNC: the HAL component built and installed, halrun and simulator
+#      tests (port/linuxcnc/tests/run.sh; halrun / linuxcnc run as an
+#      unprivileged user, created when run as root)
 # Runs every step even after a failure; exits non-zero if any step failed.
 set -uo pipefail
 
@@ -71,12 +76,17 @@ import_contracts() {
 
 pytest_all() {
     local rc
-    (cd host_tools && "$REPO/.venv/bin/python" -m pytest -q -p no:cacheprovider tests)
+    (cd host_tools && "$REPO/.venv/bin/python" -m pytest -q -p no:cacheprovider \
+        --ignore=tests/packaging tests)
     rc=$?
     if [[ $rc -eq 5 ]]; then
         echo "[test] pytest collected no tests: nothing ran"
     fi
     return $rc
+}
+
+wheel_test() {
+    (cd host_tools && "$REPO/.venv/bin/python" -m pytest -q -s -p no:cacheprovider tests/packaging)
 }
 
 step "host ASan+UBSan build and ctest (build-asan)" host_asan
@@ -86,6 +96,8 @@ step "Cortex-M3 build and ctest under QEMU (build-m3)" cross m3 cortex-m3
 step "libFuzzer run (build-fuzz)" fuzz
 step "Python import contracts (lint-imports)" import_contracts
 step "pytest host_tools/tests" pytest_all
+step "wheel: build, install outside the checkout, run abbe there" wheel_test
+step "LinuxCNC component: halrun and simulator tests" bash port/linuxcnc/tests/run.sh
 
 echo
 echo "==== [test] summary ===="

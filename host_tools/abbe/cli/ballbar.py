@@ -9,6 +9,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from abbe.cli.conventions import examples
 from abbe.errors import AbbeInputError
 from abbe.formats.machine import load_machine
 
@@ -19,7 +20,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description="Evaluate the ballbar test NAME of a machine file: least-squares circle, "
                     "centre offset, radius deviation, circular deviation G per direction and "
                     "bidirectional, circular hysteresis H (um; feed-in/out arcs excluded), and "
-                    "a polar plot PNG.")
+                    "a polar plot PNG.",
+        epilog=examples("abbe ballbar examples/vmc500/machine.toml circle1"))
     p.add_argument("machine", help="machine file (TOML) with a [ballbar.NAME] section")
     p.add_argument("name", help="ballbar test name")
     p.add_argument("--json", action="store_true", help="print JSON instead of text")

@@ -6,20 +6,24 @@ import argparse
 import json
 from pathlib import Path
 
+from abbe.cli.conventions import examples
+
 
 def _default_example() -> Path:
-    from abbe.model.clib import repo_root
-    return repo_root() / "examples" / "vmc500"
+    from abbe.paths import examples_dir
+    return examples_dir() / "vmc500"
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "demo", help="run fit -> tables -> predict -> diagnose -> compensate on the example machine",
-        description="The demo pipeline on a bundled example machine (default examples/vmc500): fit, "
-                    "tables, build check, ballbar prediction, diagnosis, compensation in the loop, and "
-                    "an HTML report.")
+        description="The demo pipeline on a bundled example machine (default: the vmc500 example "
+                    "shipped with abbe): fit, tables, build check, ballbar prediction, diagnosis, "
+                    "compensation in the loop, and an HTML report in OUT/index.html.",
+        epilog=examples("abbe demo", "abbe demo -o abbe-demo --json abbe-demo/summary.json"))
     p.add_argument("--example", type=Path, default=None, help="example machine directory")
-    p.add_argument("-o", "--out", type=Path, default=Path("demo-out"), help="output directory")
+    p.add_argument("-o", "--out", type=Path, default=Path("abbe-demo"),
+                   help="output directory (default: ./abbe-demo)")
     p.add_argument("--json", type=Path, help="write the summary figures to this JSON file")
     p.add_argument("--no-diagnose", action="store_true", help="skip the diagnose step")
     p.set_defaults(func=run)

@@ -19,6 +19,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from abbe import paths
 from abbe.analysis.iso230_4 import BallbarResult, evaluate_ballbar, plot_polar
 from abbe.analysis.predict import Prediction, plot_prediction, predict
 from abbe.errors import AbbeInputError
@@ -50,9 +51,9 @@ def _build_check(fit_dir: Path) -> dict[str, Any]:
     macro = [ln for ln in header.splitlines() if "ABBE_MODEL_BLOB_CRC32" in ln and "#define" in ln]
     macro_crc = int(macro[0].split()[2].rstrip("uU"), 16) if macro else None
     result: dict[str, Any] = {"model_crc": f"0x{crc:08X}", "header_crc_matches": macro_crc == crc}
-    include = clib.repo_root() / "lib" / "include"
+    include = paths.include_dir()
     cc = shutil.which("cc") or shutil.which("gcc")
-    if cc and include.is_dir():
+    if cc and include is not None:
         r = subprocess.run([cc, "-std=c99", "-Wall", "-Wextra", "-pedantic", "-Werror", "-fsyntax-only",
                             f"-I{include}", f"-I{fit_dir}", str(fit_dir / "abbe_model.c")],
                            capture_output=True, text=True)
@@ -241,6 +242,33 @@ def _td(v: Any, nd: int = 2) -> str:
     return f"<td>{html.escape(str(v))}</td>"
 
 
+def _timings(timings_s: dict[str, float]) -> str:
+    return ", ".join(f"{html.escape(k.replace('_', ' '))} {v:.1f} s" for k, v in timings_s.items())
+
+
+def _clib_check(c: dict[str, Any] | None) -> str:
+    if not c:
+        return "not run"
+    return (f"{c.get('n_points')} points, max |f32 - reference| {c.get('max_diff_f32_nm')} nm, "
+            f"max |q - reference| {c.get('max_diff_q_nm')} nm (bound {c.get('bound_nm')} nm)")
+
+
+def _gap_table(gap: dict[str, Any]) -> str:
+    rows = ""
+    for label, before, after in (("fitted data", gap.get("before"), gap.get("after")),
+                                 ("held-out data", gap.get("held_out_before"),
+                                  gap.get("held_out_after"))):
+        if before and after:
+            rows += (f"<tr><td>{label}</td>{_td(before.get('rms_um'), 3)}{_td(after.get('rms_um'), 3)}"
+                     f"{_td(before.get('max_um'), 3)}{_td(after.get('max_um'), 3)}</tr>")
+    return ("<table><tr><th>residual (um)</th><th>RMS before</th><th>RMS after</th>"
+            f"<th>max before</th><th>max after</th></tr>{rows}</table>") if rows else ""
+
+
+def _counters(c: dict[str, Any] | None) -> str:
+    return ", ".join(f"{html.escape(str(k).replace('_', ' '))} {v}" for k, v in (c or {}).items())
+
+
 def _report_html(res: DemoResult, table4: dict[str, Any], with_diag: bool) -> str:
     s = res.summary
     p = PAPER
@@ -259,9 +287,9 @@ def _report_html(res: DemoResult, table4: dict[str, Any], with_diag: bool) -> st
         eff = (f"<h2>4. Diagnose: what the laser-only model misses</h2>"
                f"<table><tr><th>effect</th><th>value</th><th>95 % interval</th></tr>"
                f"{eff_rows or '<tr><td colspan=3>nothing significant is missing</td></tr>'}</table>"
-               f"<p>Gap (residual RMS / max, um): before {gap.get('before')}, after {gap.get('after')}; "
-               f"held out: before {gap.get('held_out_before')}, after {gap.get('held_out_after')}. "
-               f"Details: <a href='diagnose/'>diagnose/</a>.</p>"
+               f"<p>The gap between measurement and prediction, before and after the "
+               f"named effects were added to the model:</p>{_gap_table(gap)}"
+               f"<p>Details: <a href='diagnose/'>diagnose/</a>.</p>"
                f"<img src='predict_updated.png' width='900'>")
     b, a = s["before"], s["after"]
     notes = "".join(f"<li>{html.escape(n)}</li>" for n in res.notes)
@@ -272,7 +300,7 @@ td,th{{border:1px solid #bbb;padding:3px 8px;text-align:right}}th{{background:#e
 <h1>abbe demo: {html.escape(s['machine'])}</h1>
 <p>Fit from 6D laser lines, tables for the C library, prediction of the ballbar test
 <b>{html.escape(s['ballbar'])}</b>, diagnosis of what the model misses, and compensation in the loop on the
-virtual machine with the C compensator. Units: um, urad, mm. Timings: {res.timings_s}.</p>
+virtual machine with the C compensator. Units: um, urad, mm. Timings: {_timings(res.timings_s)}.</p>
 <ul>{notes}</ul>
 <h2>1. Fit (paper Table 4, held-out metrics)</h2>
 <p>Y positioning error d_y(y), the paper's example: chosen model emax {y.get('chosen_emax') or float('nan'):.3f} um,
@@ -283,7 +311,8 @@ Full report: <a href="fit/report/index.html">fit/report/</a>.</p>
 <table><tr><th>term</th><th>chosen family</th><th>unit</th><th>emax chosen</th><th>emax Fourier-3</th><th>emax poly-7</th><th>R² chosen</th></tr>{t4}</table>
 <h2>2. Tables and build check</h2>
 <p>model.bin CRC {s['build_check']['model_crc']}; generated C compiles: {s['build_check']['generated_c_compiles']};
-header CRC matches: {s['build_check']['header_crc_matches']}; C library vs float64 reference: {s['clib_check']}.</p>
+header CRC matches: {s['build_check']['header_crc_matches']}; C library vs float64 reference:
+{_clib_check(s['clib_check'])}.</p>
 <h2>3. Prediction with the laser-only model</h2>
 <p>Residual max {s['prediction_max_residual_laser_only_um']} um, RMS {s['prediction_rms_residual_laser_only_um']} um.</p>
 <img src="predict_laser_only.png" width="900">
@@ -301,7 +330,7 @@ header CRC matches: {s['build_check']['header_crc_matches']}; C library vs float
 </table>
 <table><tr><th></th><th>G both</th><th>G CCW</th><th>G CW</th><th>centre X</th><th>centre Y</th><th>H</th></tr>
 <tr><td>before</td>{''.join(_td(v) for v in b.values())}</tr><tr><td>after</td>{''.join(_td(v) for v in a.values())}</tr></table>
-<p>Compensator counters: {s['compensator']}.</p>
+<p>Compensator counters: {_counters(s['compensator'])}.</p>
 <img src="ballbar_before.png" width="480"><img src="ballbar_after.png" width="480">
 </body></html>
 """

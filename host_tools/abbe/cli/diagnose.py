@@ -12,6 +12,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from abbe.cli.conventions import examples, list_option
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
@@ -21,12 +23,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "compare, test the catalogue of missing effects (docs/effects.md) with "
                     "stepwise selection (F-test against the noise, BIC, held-out data), name "
                     "what is missing with values and 95 % intervals, write the updated table "
-                    "(blob, C, JSON) and show the residual before and after.")
+                    "(blob, C, JSON) and show the residual before and after.",
+        epilog=examples("abbe diagnose examples/vmc500/machine.toml --model fit-out/model.bin "
+                        "--ballbar circle1 -o diagnose-out",
+                        "abbe diagnose --iso230-2 x_iso230_2.dat --axis X -o diagnose-x"))
     p.add_argument("machine", nargs="?", help="machine file (TOML) with the check tests")
     p.add_argument("--model", help="the current model: table blob (model.bin) or table JSON; "
                                    "optional with --iso230-2 (default: position-only model)")
-    p.add_argument("--ballbar", nargs="+", metavar="NAME", help="ballbar tests to use")
-    p.add_argument("--laser", nargs="+", metavar="AXIS", help="laser lines to use (X, Y, Z)")
+    list_option(p, "--ballbar", metavar="NAME", help="ballbar tests to use")
+    list_option(p, "--laser", metavar="AXIS", help="laser lines to use (X, Y, Z)")
     p.add_argument("--iso230-2", dest="iso", metavar="FILE",
                    help="repeated positioning runs: ESS ecmc .dat or laser CSV")
     p.add_argument("--axis", help="axis of --iso230-2 data (X, Y or Z)")
@@ -36,7 +41,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="significance level per step (default 0.01, Bonferroni over candidates)")
     p.add_argument("--min-effect-um", type=float, default=0.15,
                    help="smallest effect (RMS on the checks, um) worth naming (default 0.15)")
-    p.add_argument("--candidates", nargs="+", metavar="ID",
+    list_option(p, "--candidates", metavar="ID",
                    help="restrict the catalogue (ids or keys, e.g. squareness_xy backlash_x)")
     p.add_argument("--rezeroed", action="store_true",
                    help="the laser was re-zeroed before every run (a zero offset per run)")

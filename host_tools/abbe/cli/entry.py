@@ -11,6 +11,8 @@ import importlib
 import sys
 
 from abbe import __version__
+from abbe.cli import conventions
+from abbe.cli.conventions import examples
 from abbe.errors import AbbeInputError
 
 # Modules providing sub-commands, in help order.
@@ -28,18 +30,24 @@ COMMANDS: list[str] = [
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="abbe", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        prog="abbe", description="abbe: measure, model and compensate the geometric errors of "
+        "3-axis CNC machine tools. Exit status: 0 success, 1 a device or server refused, "
+        "2 bad input, 3 C library missing, 4 C library and reference disagree "
+        "(docs/formats.md, \"Exit status\").",
+        epilog=examples("abbe demo -o abbe-demo", "abbe fit MACHINE.toml -o fit-out",
+                        "abbe COMMAND --help"))
     parser.add_argument("--version", action="version", version=f"abbe {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     for name in COMMANDS:
         importlib.import_module(name).register(sub)
-    return parser
+    return conventions.apply(parser)
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = conventions.clean(parser.parse_args(argv))
     try:
         return int(args.func(args) or 0)
     except AbbeInputError as exc:

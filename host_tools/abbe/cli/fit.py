@@ -21,13 +21,15 @@ import time
 from pathlib import Path
 
 from abbe.analysis.fit.options import MODELS
+from abbe.cli.conventions import examples
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "fit", help="fit the geometric error table from 6D laser data",
         description="Fit the 18 error terms from the machine file's laser lines and write "
-                    "the table (blob, generated C), model.json and an HTML/PNG report.")
+                    "the table (blob, generated C), model.json and an HTML/PNG report.",
+        epilog=examples("abbe fit examples/vmc500/machine.toml -o fit-out"))
     p.add_argument("machine", help="machine file (TOML)")
     p.add_argument("-o", "--out", required=True, help="output directory")
     p.add_argument("--model", choices=MODELS, default=None,

@@ -7,6 +7,7 @@ import json
 import sys
 
 from abbe.analysis.iso230_2 import evaluate
+from abbe.cli.conventions import examples
 from abbe.formats.positioning import load_positioning
 
 
@@ -14,7 +15,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "iso230-2", help="ISO 230-2 bidirectional positioning evaluation (B, R, E, A, M in um)",
         description="Evaluate bidirectional positioning data per ISO 230-2: a laser CSV "
-                    "(run,direction,target_mm,linear_um) or an ESS ecmc .dat file.")
+                    "(run,direction,target_mm,linear_um) or an ESS ecmc .dat file.",
+        epilog=examples("abbe iso230-2 examples/vmc500/laser/x.csv --json"))
     p.add_argument("file", help="laser CSV or ecmc ISO 230-2 .dat file")
     p.add_argument("--json", action="store_true",
                    help="print JSON (B_um, R_um, E_um, A_um, M_um + per-target detail)")

@@ -17,6 +17,7 @@ import sys
 import time
 from pathlib import Path
 
+from abbe.cli.conventions import examples
 from abbe.errors import AbbeInputError
 from abbe.formats.blob import blob_crc, read_blob
 from abbe.model.table import feature_names
@@ -40,7 +41,11 @@ def _add_endpoint(p: argparse.ArgumentParser) -> None:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     up = subparsers.add_parser("upload", help="upload a table to a drive or gateway (Modbus)",
-                               description=__doc__.splitlines()[0])
+                               description=__doc__.splitlines()[0],
+                               epilog=examples("abbe upload --modbus tcp://127.0.0.1:1502 "
+                                               "fit-out/model.bin",
+                                               "abbe upload --modbus rtu:/dev/ttyUSB0:115200 "
+                                               "fit-out/model.bin"))
     _add_endpoint(up)
     up.add_argument("model", type=Path, help="the table (model.bin)")
     up.add_argument("--chunk", type=int, default=123, metavar="REGS",
@@ -48,7 +53,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     up.add_argument("-q", "--quiet", action="store_true", help="no progress display")
     up.set_defaults(func=run_upload)
 
-    st = subparsers.add_parser("modbus-status", help="identity and status of a Modbus server")
+    st = subparsers.add_parser("modbus-status", help="identity and status of a Modbus server",
+                               epilog=examples("abbe modbus-status --modbus tcp://127.0.0.1:1502"))
     _add_endpoint(st)
     st.set_defaults(func=run_status)
 

@@ -9,16 +9,20 @@ import argparse
 import json
 from pathlib import Path
 
+from abbe.cli.conventions import examples, list_option
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "predict", help="predict a ballbar test from a model (C library) and compare",
         description="Predict the ballbar trace from the model through the C library, compare it "
                     "with the measurement and report the residual and the roundness an exact "
-                    "compensation of the prediction would leave.")
+                    "compensation of the prediction would leave.",
+        epilog=examples("abbe predict examples/vmc500/machine.toml --model fit-out/model.bin "
+                        "--ballbar circle1"))
     p.add_argument("machine", help="machine file (TOML)")
     p.add_argument("--model", required=True, help="table blob (model.bin)")
-    p.add_argument("--ballbar", required=True, action="append", metavar="NAME",
+    list_option(p, "--ballbar", required=True, metavar="NAME",
                    help="ballbar test of the machine file (repeatable)")
     p.add_argument("-o", "--out", help="directory for the overlay plots (PNG)")
     p.add_argument("--json", action="store_true", help="print JSON instead of text")

@@ -6,6 +6,8 @@ import argparse
 import json
 import sys
 
+from abbe.cli.conventions import examples
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
@@ -14,7 +16,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "geometric errors, optional effects) and write a complete campaign: "
                     "DIR/machine.toml, the 6D laser CSVs, the ballbar CSVs and the ground "
                     "truth DIR/truth/truth.json (+ DIR/truth/true_table.json). "
-                    "Spec format: docs/formats.md, 'Ballbar and simulation'.")
+                    "Spec format: docs/formats.md, 'Ballbar and simulation'.",
+        epilog=examples("abbe simulate examples/vmc500/spec.toml -o sim-out"))
     p.add_argument("spec", help="simulation spec (TOML)")
     p.add_argument("-o", "--out", required=True, help="output directory (created if needed)")
     p.add_argument("--json", action="store_true", help="print a JSON summary")

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from abbe.cli.conventions import examples
 from abbe.errors import AbbeInputError
 from abbe.formats.blob import blob_crc, read_blob, write_blob
 from abbe.formats.c_source import write_c
@@ -164,15 +165,21 @@ def _cmd_to_json(args: argparse.Namespace) -> int:
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``abbe table`` and its sub-commands."""
     p = subparsers.add_parser("table", help="inspect, evaluate and convert error tables",
-                              description=__doc__.splitlines()[0])
+                              description=__doc__.splitlines()[0],
+                              epilog=examples("abbe table info fit-out/model.bin",
+                                              "abbe table eval fit-out/model.bin 250 -200 -150"))
     sub = p.add_subparsers(dest="table_command", metavar="SUBCOMMAND")
     sub.required = True
 
-    q = sub.add_parser("info", help="validate a table and show its shape, features and CRC")
+    q = sub.add_parser("info", help="validate a table and show its shape, features and CRC",
+                       epilog=examples("abbe table info fit-out/model.bin"))
     q.add_argument("model", type=Path, help="table blob (model.bin)")
     q.set_defaults(func=_cmd_info)
 
-    q = sub.add_parser("eval", help="spatial error (um) at machine positions (mm)")
+    q = sub.add_parser("eval", help="spatial error (um) at machine positions (mm)",
+                       epilog=examples("abbe table eval fit-out/model.bin 250 -200 -150 --clib",
+                                       "abbe table eval fit-out/model.bin 0 0 0 500 -400 -300 "
+                                       "--dir 1 1 1"))
     q.add_argument("model", type=Path, help="table blob (model.bin)")
     q.add_argument("pos", nargs="+", type=float, metavar="X Y Z",
                    help="machine positions, mm, in X Y Z triples")
@@ -184,18 +191,21 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="also evaluate with the C library (f32 and q) and show the difference")
     q.set_defaults(func=_cmd_eval)
 
-    q = sub.add_parser("cgen", help="write abbe_model.c / abbe_model.h")
+    q = sub.add_parser("cgen", help="write abbe_model.c / abbe_model.h",
+                       epilog=examples("abbe table cgen fit-out/model.bin -o firmware/"))
     q.add_argument("model", type=Path, help="table blob (model.bin)")
     q.add_argument("-o", "--out", type=Path, required=True, help="output directory")
     q.add_argument("--stem", default="abbe_model", help="file and symbol stem (abbe_model)")
     q.set_defaults(func=_cmd_cgen)
 
-    q = sub.add_parser("from-json", help="convert a JSON table to a blob")
+    q = sub.add_parser("from-json", help="convert a JSON table to a blob",
+                       epilog=examples("abbe table from-json model.json -o model.bin"))
     q.add_argument("json", type=Path, help="table JSON (model.json)")
     q.add_argument("-o", "--out", type=Path, required=True, help="output blob (model.bin)")
     q.set_defaults(func=_cmd_from_json)
 
-    q = sub.add_parser("to-json", help="convert a blob to JSON (stdout unless -o)")
+    q = sub.add_parser("to-json", help="convert a blob to JSON (stdout unless -o)",
+                       epilog=examples("abbe table to-json fit-out/model.bin -o model.json"))
     q.add_argument("model", type=Path, help="table blob (model.bin)")
     q.add_argument("-o", "--out", type=Path, help="output JSON file")
     q.set_defaults(func=_cmd_to_json)

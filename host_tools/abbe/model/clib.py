@@ -1,7 +1,8 @@
 """ctypes binding to the abbe C library (``libabbe.so``).
 
-The shared object is looked up in ``$ABBE_LIB`` first, then
-``<repo>/build/lib/libabbe.so`` (built by CMake). The structs below mirror
+The shared object is looked up in ``$ABBE_LIB`` first, then in the installed
+package (a wheel carries it), then in the checkout's ``build/lib/`` (built by
+CMake); see :mod:`abbe.paths`. The structs below mirror
 ``lib/include/abbe/*.h`` field by field; keep them in step with the headers.
 
 Units as in the C API: the ``_f32`` variant takes mm / deg C and returns um
@@ -12,13 +13,13 @@ nm (pm / prad for single terms).
 from __future__ import annotations
 
 import ctypes as C
-import os
 import struct
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from abbe import paths
 from abbe.model.table import AXES, TERMS, TableError
 
 ABBE_AXES = 3
@@ -168,17 +169,9 @@ COMP_STATES = {0: "OFF", 1: "ON", 2: "FAULT"}
 _LIB: C.CDLL | None = None
 
 
-def repo_root() -> Path:
-    """The repository root (host_tools/abbe/model/clib.py -> ../../../..)."""
-    return Path(__file__).resolve().parents[3]
-
-
 def library_path() -> Path:
-    """Where the shared library is expected ($ABBE_LIB, else build/lib/libabbe.so)."""
-    env = os.environ.get("ABBE_LIB")
-    if env:
-        return Path(env)
-    return repo_root() / "build" / "lib" / "libabbe.so"
+    """Where the shared library is expected (:func:`abbe.paths.library_path`)."""
+    return paths.library_path()
 
 
 def load_library() -> C.CDLL:

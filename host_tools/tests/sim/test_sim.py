@@ -19,6 +19,7 @@ from abbe.sim.spec import LaserLinePlan, NoiseSpec, load_spec
 from abbe.sim.truth import load_truth, truth_table
 from abbe.sim.virtual_machine import VirtualMachine
 
+from textnum import differences
 from sim_helpers import EXAMPLE, REF, make_truth, random_positions, typical_shapes
 
 RNG = np.random.default_rng(12345)
@@ -423,13 +424,15 @@ def test_cli_simulate_bad_spec_writes_nothing(tmp_path, capsys):
     assert not out.exists()
 
 
-def test_example_regenerates_byte_for_byte():
-    """examples/vmc500 was written by `abbe simulate spec.toml -o .`: same bytes again."""
+def test_example_regenerates():
+    """examples/vmc500 was written by `abbe simulate spec.toml -o .`: the same files again,
+    every character equal except the last digit of a number (docs/formats.md,
+    "Reproducibility": float64 kernels differ between CPUs)."""
     files = simulate_campaign(load_spec(EXAMPLE / "spec.toml"))
     assert {"machine.toml", "laser/x.csv", "laser/y.csv", "laser/z.csv", "ballbar/circle1.csv",
             "truth/truth.json", "truth/true_table.json"} == set(files)
     for rel, data in files.items():
-        assert (EXAMPLE / rel).read_bytes() == data, rel
+        assert differences((EXAMPLE / rel).read_text(), data.decode()) == [], rel
 
 
 def test_scale_change_switches_on_at_its_time():

@@ -1,0 +1,336 @@
+component abbe "Volumetric (21-error) geometric error compensation through external axis offsets";
+
+description """
+Evaluates an abbe error table (the 21 geometric errors of a 3-axis machine:
+positioning, straightness, roll/pitch/yaw per axis and the three squareness
+errors, plus the Abbe terms of the table's tool offset, backlash and thermal
+terms) at the commanded axis positions once per servo period, and turns it into
+rate-limited, faded, limit-checked corrections for LinuxCNC's external axis
+offsets (axis.L.eoffset-counts / axis.L.eoffset-scale).
+
+Build and install: port/linuxcnc/build.sh --install (abbe repository).
+Wiring, safety behaviour and the table workflow: docs/linuxcnc.md.
+
+\\fBloadrt abbe table=\\fIFILE\\fR[,\\fIFILE\\fR...] [\\fBvariant=q\\fR|\\fBf32\\fR]
+
+\\fBtable\\fR: up to 4 table files (model.bin, written by abbe fit / abbe table);
+each is validated completely at load time and a bad one refuses the load with
+the library's reason. The first runs; \\fBtable-select\\fR switches at a cycle
+boundary. A relative path is relative to the directory LinuxCNC was started in
+(the configuration's directory).
+\\fBvariant\\fR: q (default; integer evaluation from positions in nm) or f32.
+A module built with a compiled-in table (build.sh --builtin) uses it when no
+\\fBtable\\fR is given.
+""";
+
+// ---- inputs, per axis (x, y, z) ------------------------------------------
+pin in float x.pos_mm "Commanded X position, machine coordinates, mm: axis.x.pos-cmd (excludes the external offset)";
+pin in float y.pos_mm "Commanded Y position, mm: axis.y.pos-cmd";
+pin in float z.pos_mm "Commanded Z position, mm: axis.z.pos-cmd";
+pin in float x.temp_c = 20.0 "X axis temperature, deg C (used when the table has thermal terms)";
+pin in float y.temp_c = 20.0 "Y axis temperature, deg C";
+pin in float z.temp_c = 20.0 "Z axis temperature, deg C";
+pin in bit x.axis_fault "TRUE: the X correction fades out";
+pin in bit y.axis_fault "TRUE: the Y correction fades out";
+pin in bit z.axis_fault "TRUE: the Z correction fades out";
+
+// ---- inputs, machine state --------------------------------------------------
+pin in bit enable "Compensation wanted (fades in / out over fade-s)";
+pin in bit homed "Every joint homed: motion.is-all-homed";
+pin in bit machine_on "Motion enabled: motion.motion-enabled";
+pin in bit reset "Rising edge: clear a latched limit fault";
+pin in s32 table_select "Index of the table to run (0 = first table= file)";
+
+// ---- outputs, per axis ------------------------------------------------------
+pin out float x.corr_mm "X correction (faded, rate limited), mm";
+pin out float y.corr_mm "Y correction, mm";
+pin out float z.corr_mm "Z correction, mm";
+pin out float x.target_mm "X correction the model asks for (unfaded), mm";
+pin out float y.target_mm "Y correction the model asks for, mm";
+pin out float z.target_mm "Z correction the model asks for, mm";
+pin out float x.offset_mm "X external offset LinuxCNC has been asked for (as axis.x.eoffset-request), mm";
+pin out float y.offset_mm "Y external offset LinuxCNC has been asked for, mm";
+pin out float z.offset_mm "Z external offset LinuxCNC has been asked for, mm";
+pin out s32 x.counts "To axis.x.eoffset-counts (1 count = 1 nm)";
+pin out s32 y.counts "To axis.y.eoffset-counts";
+pin out s32 z.counts "To axis.z.eoffset-counts";
+
+// ---- outputs, state -----------------------------------------------------------
+pin out float eoffset_scale "To axis.L.eoffset-scale: 1 nm in machine units";
+pin out s32 state "0 off (or fading out), 1 on, 2 fault (latched until reset)";
+pin out bit active "State on and not held: corrections are being applied";
+pin out bit warning "A correction target is above its warning limit";
+pin out bit fault "An error limit tripped (latched until reset)";
+pin out bit config_error "A parameter is out of range: the last valid configuration stays";
+pin out u32 flags "ABBE_FLAG_* | port flags (docs/linuxcnc.md)";
+pin out u32 model_crc "CRC-32 of the running table";
+pin out s32 table_active "Index of the running table";
+pin out s32 tables "Number of tables loaded";
+pin out u32 cycles "Servo periods run";
+pin out u32 faults "Error-limit trips";
+pin out u32 invalid_inputs "Periods with a NaN/Inf position or temperature";
+pin out u32 rate_limited "Periods with a rate-limited correction";
+pin out u32 model_swaps "Tables taken into use";
+pin out u32 config_errors "Rejected parameter changes";
+
+// ---- parameters (change at run time without a jump) ---------------------------
+param rw float x.warn_mm "X warning limit on |correction|, mm (> 0)";
+param rw float y.warn_mm "Y warning limit, mm";
+param rw float z.warn_mm "Z warning limit, mm";
+param rw float x.limit_mm "X error limit, mm (>= warn): fault, fade out";
+param rw float y.limit_mm "Y error limit, mm";
+param rw float z.limit_mm "Z error limit, mm";
+param rw float x.rate_mm_per_s "X max correction speed, mm/s (> 0)";
+param rw float y.rate_mm_per_s "Y max correction speed, mm/s";
+param rw float z.rate_mm_per_s "Z max correction speed, mm/s";
+param rw s32 x.sign "+1 or -1: X correction = sign * -dX";
+param rw s32 y.sign "+1 or -1: Y correction = sign * -dY";
+param rw s32 z.sign "+1 or -1: Z correction = sign * -dZ";
+param rw float fade_s "Duration of a full fade in or out, s";
+param rw float stale_s "Invalid input for this long: fade out, s";
+param rw float dir_deadband_mm "Reverse motion that turns the backlash direction, mm";
+param rw float lead_periods "Evaluate the model this many servo periods ahead (LinuxCNC applies an offset 2 periods late)";
+param rw float machine_unit_mm "mm per machine length unit: 1 (mm) or 25.4 (inch); sets eoffset-scale";
+
+option singleton yes;
+option extra_setup yes;
+
+function _ fp "One compensator cycle: add to the servo thread after motion-controller";
+
+license "Apache-2.0";
+author "abbe contributors";
+;;
+
+/* halcompile defines a macro per pin and parameter (x_pos_mm for
+ * abbe.x.pos-mm ...); the same words are field names of the port's and the
+ * library's structs (enable, state, flags, cycles ...), so this file turns
+ * them off and reads the instance through PIN() and PARAM(). */
+#undef x_pos_mm
+#undef y_pos_mm
+#undef z_pos_mm
+#undef x_temp_c
+#undef y_temp_c
+#undef z_temp_c
+#undef x_axis_fault
+#undef y_axis_fault
+#undef z_axis_fault
+#undef enable
+#undef homed
+#undef machine_on
+#undef reset
+#undef table_select
+#undef x_corr_mm
+#undef y_corr_mm
+#undef z_corr_mm
+#undef x_target_mm
+#undef y_target_mm
+#undef z_target_mm
+#undef x_offset_mm
+#undef y_offset_mm
+#undef z_offset_mm
+#undef x_counts
+#undef y_counts
+#undef z_counts
+#undef eoffset_scale
+#undef state
+#undef active
+#undef warning
+#undef fault
+#undef config_error
+#undef flags
+#undef model_crc
+#undef table_active
+#undef tables
+#undef cycles
+#undef faults
+#undef invalid_inputs
+#undef rate_limited
+#undef model_swaps
+#undef config_errors
+#undef x_warn_mm
+#undef y_warn_mm
+#undef z_warn_mm
+#undef x_limit_mm
+#undef y_limit_mm
+#undef z_limit_mm
+#undef x_rate_mm_per_s
+#undef y_rate_mm_per_s
+#undef z_rate_mm_per_s
+#undef x_sign
+#undef y_sign
+#undef z_sign
+#undef fade_s
+#undef stale_s
+#undef dir_deadband_mm
+#undef lead_periods
+#undef machine_unit_mm
+#define PIN(name) (*__comp_inst->name)
+#define PARAM(name) (__comp_inst->name)
+
+#include "abbe_lcnc.h"
+#include "abbe_lcnc_file.h"
+#ifdef ABBE_LCNC_BUILTIN_TABLE
+#include "abbe_model.h" /* build.sh --builtin DIR: abbe table cgen output */
+#endif
+
+/* Module parameters. */
+static char *table[ABBE_LCNC_MAX_TABLES];
+RTAPI_MP_ARRAY_STRING(table, ABBE_LCNC_MAX_TABLES, "table files (model.bin), the first runs");
+static char *variant = "q";
+RTAPI_MP_STRING(variant, "evaluation variant: q (default) or f32");
+
+/* All memory is static: the port state and the tables, which are read once at
+ * load time and never written again (the realtime function only reads them). */
+static abbe_lcnc_t abbe_port;
+static uint32_t abbe_table_store[ABBE_LCNC_MAX_TABLES][ABBE_LCNC_TABLE_MAX_BYTES / 4u];
+
+static void read_params(struct __comp_state *__comp_inst, abbe_lcnc_params_t *p)
+{
+    p->warn_mm[0] = PARAM(x_warn_mm);
+    p->warn_mm[1] = PARAM(y_warn_mm);
+    p->warn_mm[2] = PARAM(z_warn_mm);
+    p->limit_mm[0] = PARAM(x_limit_mm);
+    p->limit_mm[1] = PARAM(y_limit_mm);
+    p->limit_mm[2] = PARAM(z_limit_mm);
+    p->rate_mm_per_s[0] = PARAM(x_rate_mm_per_s);
+    p->rate_mm_per_s[1] = PARAM(y_rate_mm_per_s);
+    p->rate_mm_per_s[2] = PARAM(z_rate_mm_per_s);
+    p->sign[0] = PARAM(x_sign);
+    p->sign[1] = PARAM(y_sign);
+    p->sign[2] = PARAM(z_sign);
+    p->fade_s = PARAM(fade_s);
+    p->stale_s = PARAM(stale_s);
+    p->dir_deadband_mm = PARAM(dir_deadband_mm);
+    p->lead_periods = PARAM(lead_periods);
+    p->machine_unit_mm = PARAM(machine_unit_mm);
+}
+
+FUNCTION(_) {
+    abbe_lcnc_params_t p;
+    abbe_lcnc_input_t in;
+    abbe_lcnc_output_t out;
+
+    memset(&p, 0, sizeof p); /* padding too: the port compares parameter sets bytewise */
+    read_params(__comp_inst, &p);
+    in.pos_mm[0] = PIN(x_pos_mm);
+    in.pos_mm[1] = PIN(y_pos_mm);
+    in.pos_mm[2] = PIN(z_pos_mm);
+    in.temp_c[0] = PIN(x_temp_c);
+    in.temp_c[1] = PIN(y_temp_c);
+    in.temp_c[2] = PIN(z_temp_c);
+    in.axis_fault[0] = PIN(x_axis_fault);
+    in.axis_fault[1] = PIN(y_axis_fault);
+    in.axis_fault[2] = PIN(z_axis_fault);
+    in.enable = PIN(enable);
+    in.homed = PIN(homed);
+    in.machine_on = PIN(machine_on);
+    in.reset = PIN(reset);
+    in.table_select = PIN(table_select);
+
+    abbe_lcnc_step(&abbe_port, &p, period, &in, &out);
+
+    PIN(x_corr_mm) = out.corr_mm[0];
+    PIN(y_corr_mm) = out.corr_mm[1];
+    PIN(z_corr_mm) = out.corr_mm[2];
+    PIN(x_target_mm) = out.target_mm[0];
+    PIN(y_target_mm) = out.target_mm[1];
+    PIN(z_target_mm) = out.target_mm[2];
+    PIN(x_offset_mm) = out.offset_mm[0];
+    PIN(y_offset_mm) = out.offset_mm[1];
+    PIN(z_offset_mm) = out.offset_mm[2];
+    PIN(x_counts) = out.counts[0];
+    PIN(y_counts) = out.counts[1];
+    PIN(z_counts) = out.counts[2];
+    PIN(eoffset_scale) = out.eoffset_scale;
+    PIN(state) = out.state;
+    PIN(active) = out.state == ABBE_COMP_ON && (out.flags & ABBE_LCNC_FLAG_HOLD) == 0u;
+    PIN(warning) = out.warning;
+    PIN(fault) = out.fault;
+    PIN(config_error) = out.config_error;
+    PIN(flags) = out.flags;
+    PIN(model_crc) = out.model_crc;
+    PIN(table_active) = out.table_active;
+    PIN(cycles) = out.stats.cycles;
+    PIN(faults) = out.stats.limit_trips;
+    PIN(invalid_inputs) = out.stats.invalid_inputs;
+    PIN(rate_limited) = out.stats.rate_limited;
+    PIN(model_swaps) = out.stats.model_swaps;
+    PIN(config_errors) = out.config_errors;
+    PIN(tables) = (rtapi_s32)abbe_lcnc_table_count(&abbe_port);
+}
+
+EXTRA_SETUP() {
+    abbe_lcnc_params_t p;
+    abbe_lcnc_variant_t v;
+    unsigned i;
+    (void)prefix;
+    (void)extra_arg;
+
+    if (strcmp(variant, "q") == 0) {
+        v = ABBE_LCNC_VARIANT_Q;
+    } else if (strcmp(variant, "f32") == 0) {
+        v = ABBE_LCNC_VARIANT_F32;
+    } else {
+        rtapi_print_msg(RTAPI_MSG_ERR, "abbe: variant=%s: expected q or f32\n", variant);
+        return -EINVAL;
+    }
+    abbe_lcnc_default_params(&p);
+    if (abbe_lcnc_init(&abbe_port, v, &p, 1000000L) != ABBE_OK) {
+        rtapi_print_msg(RTAPI_MSG_ERR, "abbe: internal error: default parameters rejected\n");
+        return -EINVAL;
+    }
+    if (table[0] == NULL || table[0][0] == '\0') {
+#ifdef ABBE_LCNC_BUILTIN_TABLE
+        abbe_status_t st = abbe_lcnc_add_table(&abbe_port, abbe_model_blob, abbe_model_blob_size);
+        if (st != ABBE_OK) {
+            rtapi_print_msg(RTAPI_MSG_ERR, "abbe: built-in table refused: %s (status %d)\n",
+                            abbe_strerror(st), (int)st);
+            return -EINVAL;
+        }
+        rtapi_print_msg(RTAPI_MSG_INFO, "abbe: built-in table, CRC-32 0x%08X\n",
+                        (unsigned)abbe_lcnc_table_crc(&abbe_port, 0));
+#else
+        rtapi_print_msg(RTAPI_MSG_ERR, "abbe: table=FILE is required (an abbe table, model.bin)\n");
+        return -EINVAL;
+#endif
+    }
+    for (i = 0; i < ABBE_LCNC_MAX_TABLES && table[i] != NULL && table[i][0] != '\0'; i++) {
+        char why[160];
+        size_t size = 0;
+        abbe_status_t st;
+        if (abbe_lcnc_read_file(table[i], abbe_table_store[i], sizeof abbe_table_store[i], &size,
+                                why, sizeof why) != 0) {
+            rtapi_print_msg(RTAPI_MSG_ERR, "abbe: table %s: %s\n", table[i], why);
+            return -EINVAL;
+        }
+        st = abbe_lcnc_add_table(&abbe_port, abbe_table_store[i], size);
+        if (st != ABBE_OK) {
+            rtapi_print_msg(RTAPI_MSG_ERR, "abbe: table %s refused: %s (status %d)\n", table[i],
+                            abbe_strerror(st), (int)st);
+            return -EINVAL;
+        }
+        rtapi_print_msg(RTAPI_MSG_INFO, "abbe: table %u: %s, %zu bytes, CRC-32 0x%08X\n", i, table[i],
+                        size, (unsigned)abbe_lcnc_table_crc(&abbe_port, i));
+    }
+
+    /* Parameters (struct members, unlike the pins, already exist) start at
+     * the port's defaults (one source: abbe_lcnc_default_params). */
+    PARAM(x_warn_mm) = p.warn_mm[0];
+    PARAM(y_warn_mm) = p.warn_mm[1];
+    PARAM(z_warn_mm) = p.warn_mm[2];
+    PARAM(x_limit_mm) = p.limit_mm[0];
+    PARAM(y_limit_mm) = p.limit_mm[1];
+    PARAM(z_limit_mm) = p.limit_mm[2];
+    PARAM(x_rate_mm_per_s) = p.rate_mm_per_s[0];
+    PARAM(y_rate_mm_per_s) = p.rate_mm_per_s[1];
+    PARAM(z_rate_mm_per_s) = p.rate_mm_per_s[2];
+    PARAM(x_sign) = p.sign[0];
+    PARAM(y_sign) = p.sign[1];
+    PARAM(z_sign) = p.sign[2];
+    PARAM(fade_s) = p.fade_s;
+    PARAM(stale_s) = p.stale_s;
+    PARAM(dir_deadband_mm) = p.dir_deadband_mm;
+    PARAM(lead_periods) = p.lead_periods;
+    PARAM(machine_unit_mm) = p.machine_unit_mm;
+    return 0; /* pins do not exist yet here: FUNCTION writes every output */
+}

@@ -1,0 +1,169 @@
+/* abbe LinuxCNC port: the compensator as LinuxCNC's servo thread sees it.
+ *
+ * This is the part of the HAL component (port/linuxcnc/abbe.comp) that has no
+ * LinuxCNC dependency, so it is built and unit-tested by CMake with the
+ * project's strict warnings. The .comp only copies HAL pins into
+ * abbe_lcnc_input_t, calls abbe_lcnc_step() and copies abbe_lcnc_output_t back.
+ *
+ * What it adds to abbe_comp_t (docs/linuxcnc.md has the reasons):
+ *   - HAL units: double mm / degrees C / seconds in, mm and counts out; the
+ *     limits, rate and fade are given in mm, mm/s and s and turned into the
+ *     compensator's nm per cycle with the thread period of every call, so a
+ *     change takes effect through abbe_comp_set_config() (no jump);
+ *   - enable, homed, machine-on and reset pins mapped onto enable / disable /
+ *     reset of the compensator;
+ *   - a lead: LinuxCNC applies an external offset two servo periods after
+ *     the commanded position it was computed for (one period from the counts
+ *     to motion's offset register, one in its offset planner), so the model
+ *     is evaluated where the axis will be then: p + lead * (p - p_previous),
+ *     in integer nm (lead_periods, default 2; 0 evaluates at p);
+ *   - a backlash direction per axis from the commanded positions (not the
+ *     extrapolated ones), with a deadband (sticky: the last direction is kept
+ *     while the axis stands); the library ramps its direction state by the
+ *     extrapolated motion in that direction;
+ *   - the s32 counts for axis.L.eoffset-counts. LinuxCNC accumulates count
+ *     *changes* (times eoffset-scale), and only while it is on, homed and
+ *     eoffset-enable is set; it zeroes its register at machine-on. The port
+ *     mirrors that register (offset_mm) and writes each cycle the change that
+ *     brings it to the correction, limited by the rate limit, so LinuxCNC's
+ *     requested offset equals the correction whatever the history of machine
+ *     off / on, homing and enable;
+ *   - up to ABBE_LCNC_MAX_TABLES tables validated at load time; table-select
+ *     swaps between them at a cycle boundary (abbe_comp_swap_model).
+ *
+ * No heap, no I/O, no libm: abbe_lcnc_step() runs in bounded time (the
+ * library's evaluation plus a few dozen operations).
+ */
+#ifndef ABBE_LCNC_H
+#define ABBE_LCNC_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "abbe/abbe.h"
+
+#define ABBE_LCNC_MAX_TABLES 4
+/* The largest valid table is about 6 KiB (40 rows x 6 terms x 3 axes, two
+ * arrays); a file may carry padding up to this size. */
+#define ABBE_LCNC_TABLE_MAX_BYTES 65536u
+
+/* Port flags, reported above the library's ABBE_FLAG_* bits in output.flags. */
+#define ABBE_LCNC_FLAG_CONFIG 0x00010000u       /* a parameter is out of range: the last valid configuration stays */
+#define ABBE_LCNC_FLAG_TABLE_SELECT 0x00020000u /* table-select names no loaded table: the running one stays */
+#define ABBE_LCNC_FLAG_HOLD 0x00040000u         /* LinuxCNC takes no offset changes now (machine off or not homed) */
+#define ABBE_LCNC_FLAG_CATCHUP 0x00080000u      /* LinuxCNC's offset is still moving to the correction at the rate limit */
+
+typedef enum {
+    ABBE_LCNC_VARIANT_Q = 0,  /* abbe_comp_step_q: positions as integer nm (default) */
+    ABBE_LCNC_VARIANT_F32 = 1 /* abbe_comp_step_f32: positions as float mm */
+} abbe_lcnc_variant_t;
+
+/* The HAL parameters, in the units of their names. */
+typedef struct {
+    double warn_mm[ABBE_AXES];       /* warning limit on |correction| (> 0) */
+    double limit_mm[ABBE_AXES];      /* error limit: fault, fade out (>= warn) */
+    double rate_mm_per_s[ABBE_AXES]; /* max correction speed (> 0) */
+    int32_t sign[ABBE_AXES];         /* +1 or -1: correction = sign * -(dX, dY, dZ) */
+    double fade_s;                   /* duration of a full fade in or out (>= 0) */
+    double stale_s;                  /* invalid input for this long: fade out (>= 0) */
+    double dir_deadband_mm;          /* motion that sets the backlash direction (>= 0) */
+    double lead_periods;             /* evaluate this many periods ahead (0 .. 100), see below */
+    double machine_unit_mm;          /* mm per LinuxCNC length unit: 1 (mm) or 25.4 (inch) */
+} abbe_lcnc_params_t;
+
+/* One servo period's inputs. */
+typedef struct {
+    double pos_mm[ABBE_AXES];   /* commanded axis position, machine coordinates, mm */
+    double temp_c[ABBE_AXES];   /* axis temperature, deg C (used if the table has THERMAL) */
+    uint8_t axis_fault[ABBE_AXES]; /* 1: this axis' correction fades out */
+    uint8_t enable;             /* compensation wanted */
+    uint8_t homed;              /* every joint homed (motion.is-all-homed) */
+    uint8_t machine_on;         /* motion enabled (motion.motion-enabled) */
+    uint8_t reset;              /* rising edge clears a latched limit fault */
+    int32_t table_select;       /* index of the table to run */
+} abbe_lcnc_input_t;
+
+typedef struct {
+    double corr_mm[ABBE_AXES];   /* correction (faded, rate limited), mm */
+    double target_mm[ABBE_AXES]; /* what the model asks for (unfaded), mm */
+    double offset_mm[ABBE_AXES]; /* LinuxCNC's requested external offset as the port tracks it, mm */
+    int32_t counts[ABBE_AXES];   /* for axis.L.eoffset-counts (1 count = 1 nm) */
+    double eoffset_scale;        /* for axis.L.eoffset-scale: 1 nm in machine units */
+    uint32_t flags;              /* ABBE_FLAG_* | ABBE_LCNC_FLAG_* */
+    int32_t state;               /* abbe_comp_state_t: 0 off, 1 on, 2 fault */
+    uint32_t model_crc;          /* CRC-32 of the running table */
+    int32_t table_active;        /* index of the running table */
+    uint8_t warning;             /* |target| above a warning limit */
+    uint8_t fault;               /* error limit tripped (latched until reset) */
+    uint8_t config_error;        /* parameters out of range (ABBE_LCNC_FLAG_CONFIG) */
+    abbe_comp_stats_t stats;     /* the compensator's counters */
+    uint32_t config_errors;      /* rejected parameter changes */
+} abbe_lcnc_output_t;
+
+/* Port state. Allocate it yourself (static storage in the HAL component); all
+ * fields are private. */
+typedef struct {
+    abbe_comp_t comp;
+    abbe_model_t model[ABBE_LCNC_MAX_TABLES];
+    unsigned n_tables;
+    int32_t active;          /* table running (or queued to run next cycle) */
+    abbe_lcnc_variant_t variant;
+    abbe_comp_config_t cfg;  /* configuration in force */
+    int32_t deadband_nm;     /* backlash direction deadband in force */
+    double eoffset_scale;    /* axis.L.eoffset-scale in force */
+    abbe_lcnc_params_t params_seen;
+    long period_seen_ns;
+    uint8_t params_bad;      /* the parameters last seen did not convert */
+    uint32_t config_errors;
+    /* enable logic */
+    uint8_t enabled;
+    uint8_t prev_reset;
+    uint8_t prev_machine_on;
+    /* backlash direction */
+    int32_t anchor_nm[ABBE_AXES];
+    int8_t dir[ABBE_AXES];
+    uint8_t have_anchor;
+    /* lead */
+    int32_t last_pos_nm[ABBE_AXES];
+    uint8_t have_last;
+    double lead_periods;     /* lead in force */
+    /* LinuxCNC's external-offset register, mirrored */
+    uint32_t counts[ABBE_AXES];   /* the s32 output, two's complement */
+    int64_t accepted_nm[ABBE_AXES];
+    int32_t pending_nm[ABBE_AXES];
+} abbe_lcnc_t;
+
+/* Defaults: warn 0.05 mm, limit 0.1 mm, rate 1 mm/s, sign +1, fade 0.5 s,
+ * stale 0.01 s, deadband 0.0005 mm, lead 2 periods, machine unit 1 mm. */
+void abbe_lcnc_default_params(abbe_lcnc_params_t *params);
+
+/* The compensator configuration for params at a thread period. Returns
+ * ABBE_OK, or ABBE_E_ARG (cfg untouched) for a NULL pointer, a period <= 0 or
+ * a parameter outside its range (see abbe_lcnc_params_t). */
+abbe_status_t abbe_lcnc_params_to_config(const abbe_lcnc_params_t *params, long period_ns,
+                                         abbe_comp_config_t *cfg);
+
+/* Start with no table, disabled, counts zero. The configuration is built for
+ * period_ns (use the expected servo period; every step re-checks it).
+ * Returns ABBE_E_ARG for NULL, an unknown variant or bad parameters. */
+abbe_status_t abbe_lcnc_init(abbe_lcnc_t *port, abbe_lcnc_variant_t variant,
+                             const abbe_lcnc_params_t *params, long period_ns);
+
+/* Validate a table (abbe_model_load) into the next slot; the first one added
+ * runs. blob must be 4-byte aligned and stay valid and unchanged while the port
+ * lives. Returns ABBE_OK, the loader's status (nothing added), or ABBE_E_ARG
+ * for NULL or no free slot. Call before the first step. */
+abbe_status_t abbe_lcnc_add_table(abbe_lcnc_t *port, const void *blob, size_t size);
+
+/* Tables added. */
+unsigned abbe_lcnc_table_count(const abbe_lcnc_t *port);
+
+/* CRC-32 of table i (0 if there is none). */
+uint32_t abbe_lcnc_table_crc(const abbe_lcnc_t *port, unsigned i);
+
+/* One servo period. params are the HAL parameters as they are now, period_ns
+ * the thread period of this call. Always writes *out. */
+void abbe_lcnc_step(abbe_lcnc_t *port, const abbe_lcnc_params_t *params, long period_ns,
+                    const abbe_lcnc_input_t *in, abbe_lcnc_output_t *out);
+
+#endif /* ABBE_LCNC_H */

@@ -1,0 +1,413 @@
+/* abbe LinuxCNC port: HAL units, enable logic, backlash direction and the
+ * external-offset counts around abbe_comp_t (include/abbe_lcnc.h).
+ * C99, no heap, no I/O, no libm. */
+#include <float.h>
+#include <string.h>
+
+#include "abbe_lcnc.h"
+
+#define NM_PER_MM 1e6
+
+static int finite_d(double x)
+{
+    return x >= -DBL_MAX && x <= DBL_MAX; /* false for NaN and +/-Inf */
+}
+
+/* Round to nearest (halves away from zero); x must be finite and in range. */
+static int64_t round_i64(double x)
+{
+    return (int64_t)(x >= 0.0 ? x + 0.5 : x - 0.5);
+}
+
+/* mm -> nm, rounded, clamped to +/-(2^31 - 1) nm (the library clamps to the
+ * table's travel anyway). x must be finite. */
+static int32_t mm_to_nm(double mm)
+{
+    double nm = mm * NM_PER_MM;
+    if (nm >= 2147483647.0) {
+        return INT32_MAX;
+    }
+    if (nm <= -2147483647.0) {
+        return -INT32_MAX;
+    }
+    return (int32_t)round_i64(nm);
+}
+
+/* deg C -> m deg C, rounded, clamped to +/-2e6 deg C. c must be finite. */
+static int32_t c_to_mdegc(double c)
+{
+    double clamped = c > 2e6 ? 2e6 : (c < -2e6 ? -2e6 : c);
+    return (int32_t)round_i64(clamped * 1000.0);
+}
+
+/* A length parameter in mm as a positive int32 nm (at least 1). */
+static int length_nm(double mm, int32_t *nm)
+{
+    if (!finite_d(mm) || !(mm > 0.0) || mm * NM_PER_MM > 2147483647.0) {
+        return 0;
+    }
+    int64_t v = round_i64(mm * NM_PER_MM);
+    *nm = v < 1 ? 1 : (int32_t)v;
+    return 1;
+}
+
+/* A duration in s as a cycle count in [1, 65535] (0 s -> 1 cycle). */
+static int duration_cycles(double s, long period_ns, uint16_t *cycles)
+{
+    if (!finite_d(s) || s < 0.0) {
+        return 0;
+    }
+    double c = s * 1e9 / (double)period_ns;
+    if (c > 65535.0) {
+        return 0;
+    }
+    int64_t n = (int64_t)c;
+    if ((double)n < c) {
+        n++; /* ceil: a fade never runs shorter than asked */
+    }
+    *cycles = (uint16_t)(n < 1 ? 1 : n);
+    return 1;
+}
+
+void abbe_lcnc_default_params(abbe_lcnc_params_t *params)
+{
+    if (params == NULL) {
+        return;
+    }
+    memset(params, 0, sizeof *params);
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        params->warn_mm[j] = 0.05;
+        params->limit_mm[j] = 0.1;
+        params->rate_mm_per_s[j] = 1.0;
+        params->sign[j] = 1;
+    }
+    params->fade_s = 0.5;
+    params->stale_s = 0.01;
+    params->dir_deadband_mm = 0.0005;
+    params->lead_periods = 2.0;
+    params->machine_unit_mm = 1.0;
+}
+
+abbe_status_t abbe_lcnc_params_to_config(const abbe_lcnc_params_t *params, long period_ns,
+                                         abbe_comp_config_t *cfg)
+{
+    if (params == NULL || cfg == NULL || period_ns <= 0) {
+        return ABBE_E_ARG;
+    }
+    abbe_comp_config_t c;
+    memset(&c, 0, sizeof c);
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        double rate_mm_per_cycle = params->rate_mm_per_s[j] * (double)period_ns * 1e-9;
+        if (!length_nm(params->warn_mm[j], &c.warn_nm[j]) ||
+            !length_nm(params->limit_mm[j], &c.limit_nm[j]) || c.limit_nm[j] < c.warn_nm[j] ||
+            !finite_d(params->rate_mm_per_s[j]) || !(params->rate_mm_per_s[j] > 0.0) ||
+            !length_nm(rate_mm_per_cycle, &c.rate_nm_per_cycle[j]) ||
+            (params->sign[j] != 1 && params->sign[j] != -1)) {
+            return ABBE_E_ARG;
+        }
+        c.axis_sign[j] = (int8_t)params->sign[j];
+    }
+    if (!duration_cycles(params->fade_s, period_ns, &c.fade_cycles) ||
+        !duration_cycles(params->stale_s, period_ns, &c.stale_cycles) ||
+        !finite_d(params->dir_deadband_mm) || params->dir_deadband_mm < 0.0 ||
+        params->dir_deadband_mm > 1000.0 || !finite_d(params->lead_periods) ||
+        params->lead_periods < 0.0 || params->lead_periods > 100.0 ||
+        !finite_d(params->machine_unit_mm) ||
+        !(params->machine_unit_mm > 0.0)) {
+        return ABBE_E_ARG;
+    }
+    *cfg = c;
+    return ABBE_OK;
+}
+
+abbe_status_t abbe_lcnc_init(abbe_lcnc_t *port, abbe_lcnc_variant_t variant,
+                             const abbe_lcnc_params_t *params, long period_ns)
+{
+    if (port == NULL || params == NULL ||
+        (variant != ABBE_LCNC_VARIANT_Q && variant != ABBE_LCNC_VARIANT_F32)) {
+        return ABBE_E_ARG;
+    }
+    abbe_comp_config_t cfg;
+    if (abbe_lcnc_params_to_config(params, period_ns, &cfg) != ABBE_OK) {
+        return ABBE_E_ARG;
+    }
+    memset(port, 0, sizeof *port);
+    if (abbe_comp_init(&port->comp, &cfg, NULL) != ABBE_OK) {
+        return ABBE_E_ARG;
+    }
+    port->variant = variant;
+    port->cfg = cfg;
+    port->deadband_nm = (int32_t)round_i64(params->dir_deadband_mm * NM_PER_MM);
+    port->lead_periods = params->lead_periods;
+    port->eoffset_scale = 1.0 / (NM_PER_MM * params->machine_unit_mm);
+    memcpy(&port->params_seen, params, sizeof port->params_seen);
+    port->period_seen_ns = period_ns;
+    return ABBE_OK;
+}
+
+abbe_status_t abbe_lcnc_add_table(abbe_lcnc_t *port, const void *blob, size_t size)
+{
+    if (port == NULL || blob == NULL || port->n_tables >= ABBE_LCNC_MAX_TABLES) {
+        return ABBE_E_ARG;
+    }
+    abbe_status_t st = abbe_model_load(&port->model[port->n_tables], blob, size);
+    if (st != ABBE_OK) {
+        return st;
+    }
+    if (port->n_tables == 0u) {
+        (void)abbe_comp_swap_model(&port->comp, &port->model[0]); /* runs from the first step */
+        port->active = 0;
+    }
+    port->n_tables++;
+    return ABBE_OK;
+}
+
+unsigned abbe_lcnc_table_count(const abbe_lcnc_t *port)
+{
+    return port != NULL ? port->n_tables : 0u;
+}
+
+uint32_t abbe_lcnc_table_crc(const abbe_lcnc_t *port, unsigned i)
+{
+    return (port != NULL && i < port->n_tables) ? abbe_model_crc(&port->model[i]) : 0u;
+}
+
+/* Parameters or period changed: convert and apply without touching the state. */
+static void follow_params(abbe_lcnc_t *port, const abbe_lcnc_params_t *params, long period_ns)
+{
+    if (period_ns == port->period_seen_ns &&
+        memcmp(params, &port->params_seen, sizeof *params) == 0) {
+        return;
+    }
+    memcpy(&port->params_seen, params, sizeof port->params_seen);
+    port->period_seen_ns = period_ns;
+    abbe_comp_config_t cfg;
+    if (abbe_lcnc_params_to_config(params, period_ns, &cfg) == ABBE_OK &&
+        abbe_comp_set_config(&port->comp, &cfg) == ABBE_OK) {
+        port->cfg = cfg;
+        port->deadband_nm = (int32_t)round_i64(params->dir_deadband_mm * NM_PER_MM);
+        port->lead_periods = params->lead_periods;
+        port->eoffset_scale = 1.0 / (NM_PER_MM * params->machine_unit_mm);
+        port->params_bad = 0;
+    } else {
+        port->params_bad = 1;
+        port->config_errors++;
+    }
+}
+
+/* Backlash direction with hysteresis: the direction turns once the axis has
+ * moved back by more than the deadband from its furthest point; standing
+ * still keeps it. Before the first move it is 0. */
+static void follow_direction(abbe_lcnc_t *port, const int32_t pos_nm[ABBE_AXES], int32_t deadband_nm)
+{
+    if (!port->have_anchor) {
+        for (unsigned j = 0; j < ABBE_AXES; j++) {
+            port->anchor_nm[j] = pos_nm[j];
+            port->dir[j] = 0;
+        }
+        port->have_anchor = 1;
+        return;
+    }
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        int64_t d = (int64_t)pos_nm[j] - port->anchor_nm[j];
+        int8_t dir = port->dir[j];
+        if ((dir > 0 && d > 0) || (dir < 0 && d < 0)) {
+            port->anchor_nm[j] = pos_nm[j]; /* further in the same direction */
+        } else if (d > deadband_nm) {
+            port->dir[j] = 1;
+            port->anchor_nm[j] = pos_nm[j];
+        } else if (d < -(int64_t)deadband_nm) {
+            port->dir[j] = -1;
+            port->anchor_nm[j] = pos_nm[j];
+        }
+    }
+}
+
+/* Replace pos_nm by the position lead_periods ahead, from this period's
+ * motion: p + round(lead * (p - p_previous)), clamped to int32. */
+static void lead(abbe_lcnc_t *port, int32_t pos_nm[ABBE_AXES])
+{
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        int32_t p = pos_nm[j];
+        if (port->have_last) {
+            double ahead = port->lead_periods * (double)((int64_t)p - port->last_pos_nm[j]);
+            if (ahead > 4294967294.0) {
+                ahead = 4294967294.0;
+            } else if (ahead < -4294967294.0) {
+                ahead = -4294967294.0;
+            }
+            int64_t q = (int64_t)p + round_i64(ahead);
+            pos_nm[j] = q > INT32_MAX ? INT32_MAX : (q < -INT32_MAX ? -INT32_MAX : (int32_t)q);
+        }
+        port->last_pos_nm[j] = p;
+    }
+    port->have_last = 1;
+}
+
+static int running_index(const abbe_lcnc_t *port)
+{
+    const abbe_model_t *m = abbe_comp_model(&port->comp);
+    for (unsigned i = 0; i < port->n_tables; i++) {
+        if (m == &port->model[i]) {
+            return (int)i;
+        }
+    }
+    return -1;
+}
+
+static int32_t u32_to_i32(uint32_t u)
+{
+    int32_t v;
+    memcpy(&v, &u, sizeof v);
+    return v;
+}
+
+void abbe_lcnc_step(abbe_lcnc_t *port, const abbe_lcnc_params_t *params, long period_ns,
+                    const abbe_lcnc_input_t *in, abbe_lcnc_output_t *out)
+{
+    if (port == NULL || params == NULL || in == NULL || out == NULL) {
+        return;
+    }
+    uint32_t port_flags = 0;
+    follow_params(port, params, period_ns);
+    if (port->params_bad) {
+        port_flags |= ABBE_LCNC_FLAG_CONFIG;
+    }
+
+    /* LinuxCNC's side of last cycle: did it take the change written then?
+     * Its accept condition and its machine-on reset are visible on
+     * motion.motion-enabled / motion.is-all-homed from the motion run that
+     * read our counts (whichever side of motion-controller this runs on). */
+    int accepting = in->machine_on && in->homed;
+    if (in->machine_on && !port->prev_machine_on) {
+        for (unsigned j = 0; j < ABBE_AXES; j++) {
+            port->accepted_nm[j] = 0; /* motion zeroes its register at machine-on */
+        }
+    }
+    port->prev_machine_on = in->machine_on;
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        if (accepting) {
+            port->accepted_nm[j] += port->pending_nm[j];
+        }
+        port->pending_nm[j] = 0;
+    }
+    if (!accepting) {
+        port_flags |= ABBE_LCNC_FLAG_HOLD;
+    }
+
+    /* Table selection: a pointer swap at the start of the next library step. */
+    if (in->table_select != port->active) {
+        if (in->table_select >= 0 && (unsigned)in->table_select < port->n_tables) {
+            (void)abbe_comp_swap_model(&port->comp, &port->model[in->table_select]);
+            port->active = in->table_select;
+        } else {
+            port_flags |= ABBE_LCNC_FLAG_TABLE_SELECT;
+        }
+    }
+
+    /* Enable logic: reset clears a latched fault (and disables); the level of
+     * enable && homed && machine-on then decides. */
+    if (in->reset && !port->prev_reset) {
+        (void)abbe_comp_reset(&port->comp);
+        port->enabled = 0;
+    }
+    port->prev_reset = in->reset;
+    int run = in->enable && in->homed && in->machine_on && port->n_tables > 0u;
+    if (run && !port->enabled) {
+        (void)abbe_comp_enable(&port->comp);
+        port->enabled = 1;
+    } else if (!run && port->enabled) {
+        (void)abbe_comp_disable(&port->comp);
+        port->enabled = 0;
+    }
+
+    /* Inputs. A NaN/Inf position (or temperature, where the table uses them)
+     * is a bad input: the compensator holds, then fades out after stale_s. */
+    int fresh = 1;
+    int32_t pos_nm[ABBE_AXES];
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        if (finite_d(in->pos_mm[j])) {
+            pos_nm[j] = mm_to_nm(in->pos_mm[j]);
+        } else {
+            pos_nm[j] = 0;
+            fresh = 0;
+        }
+    }
+    int thermal = port->n_tables > 0u &&
+                  (abbe_model_features(&port->model[port->active]) & ABBE_FEATURE_THERMAL) != 0u;
+    for (unsigned j = 0; thermal && j < ABBE_AXES; j++) {
+        if (!finite_d(in->temp_c[j])) {
+            fresh = 0;
+        }
+    }
+    if (fresh) {
+        /* The direction from the commanded motion itself; the positions the
+         * model sees, ahead. (A direction from the extrapolated positions
+         * would take the overshoot of every stop for a reversal.) */
+        follow_direction(port, pos_nm, port->deadband_nm);
+        lead(port, pos_nm);
+    } else {
+        port->have_last = 0; /* the lead restarts from the next valid position */
+    }
+
+    abbe_comp_output_t co;
+    if (port->variant == ABBE_LCNC_VARIANT_F32) {
+        abbe_comp_input_f32_t ci;
+        for (unsigned j = 0; j < ABBE_AXES; j++) {
+            ci.pos_mm[j] = fresh ? (float)((double)pos_nm[j] / NM_PER_MM) : (float)in->pos_mm[j];
+            ci.temp_c[j] = thermal ? (float)in->temp_c[j] : 0.0f;
+            ci.dir[j] = port->dir[j];
+        }
+        ci.fresh = (uint8_t)fresh;
+        ci.axis_fault_mask = 0;
+        for (unsigned j = 0; j < ABBE_AXES; j++) {
+            ci.axis_fault_mask = (uint8_t)(ci.axis_fault_mask | (in->axis_fault[j] ? 1u << j : 0u));
+        }
+        (void)abbe_comp_step_f32(&port->comp, &ci, &co);
+    } else {
+        abbe_comp_input_q_t ci;
+        for (unsigned j = 0; j < ABBE_AXES; j++) {
+            ci.pos_nm[j] = pos_nm[j];
+            ci.temp_mdegc[j] = (thermal && fresh) ? c_to_mdegc(in->temp_c[j]) : 0;
+            ci.dir[j] = port->dir[j];
+        }
+        ci.fresh = (uint8_t)fresh;
+        ci.axis_fault_mask = 0;
+        for (unsigned j = 0; j < ABBE_AXES; j++) {
+            ci.axis_fault_mask = (uint8_t)(ci.axis_fault_mask | (in->axis_fault[j] ? 1u << j : 0u));
+        }
+        (void)abbe_comp_step_q(&port->comp, &ci, &co);
+    }
+
+    /* The counts: move LinuxCNC's register toward the correction, within the
+     * rate limit, only while LinuxCNC takes changes (a change written while it
+     * does not would be dropped by it and is therefore not written). */
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        int32_t delta = 0;
+        if (accepting) {
+            int64_t want = (int64_t)co.corr_nm[j] - port->accepted_nm[j];
+            int64_t rate = port->cfg.rate_nm_per_cycle[j];
+            delta = (int32_t)(want > rate ? rate : (want < -rate ? -rate : want));
+            if (want != delta) {
+                port_flags |= ABBE_LCNC_FLAG_CATCHUP;
+            }
+        }
+        port->counts[j] += (uint32_t)delta; /* wraps like LinuxCNC's s32 difference */
+        port->pending_nm[j] = delta;
+        out->counts[j] = u32_to_i32(port->counts[j]);
+        out->corr_mm[j] = (double)co.corr_nm[j] / NM_PER_MM;
+        out->target_mm[j] = (double)co.target_nm[j] / NM_PER_MM;
+        out->offset_mm[j] = (double)port->accepted_nm[j] / NM_PER_MM;
+    }
+    out->eoffset_scale = port->eoffset_scale;
+    out->flags = co.flags | port_flags;
+    out->state = (int32_t)co.state;
+    int idx = running_index(port);
+    out->table_active = idx;
+    out->model_crc = idx >= 0 ? abbe_model_crc(&port->model[idx]) : 0u;
+    out->warning = (co.flags & ABBE_FLAG_WARN) != 0u;
+    out->fault = co.state == ABBE_COMP_FAULT;
+    out->config_error = port->params_bad;
+    out->stats = abbe_comp_stats(&port->comp);
+    out->config_errors = port->config_errors;
+}

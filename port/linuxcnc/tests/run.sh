@@ -1,0 +1,50 @@
+#!/usr/bin/env bash
+# The LinuxCNC port's tests (scripts/test.sh runs this; so can you):
+#   1. build the HAL component and install it (port/linuxcnc/build.sh --install)
+#   2. halrun: the component on a 1 ms thread against the model (halrun_test.py)
+#   3. the LinuxCNC simulator running G-code with and without it (e2e_sim.py)
+#   4. a module with the table compiled in (build.sh --builtin), under halrun;
+#      then the ordinary module is installed again
+# LinuxCNC's tools refuse to run as root: as root, this creates the
+# unprivileged user $ABBE_LCNC_USER (default abbe-lcnc) if needed and the tests
+# run halrun / linuxcnc as that user (runuser). Needs scripts/setup.sh first
+# (linuxcnc-uspace(-dev), the .venv with the abbe CLI).
+# Writes the simulator figures to build-linuxcnc/e2e.json.
+set -uo pipefail
+
+HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+REPO="$(cd "$HERE/../../.." && pwd)"
+export ABBE_LCNC_USER="${ABBE_LCNC_USER:-abbe-lcnc}"
+
+command -v halrun >/dev/null || { echo "[lcnc] halrun not found: run scripts/setup.sh" >&2; exit 1; }
+[[ -x "$REPO/.venv/bin/abbe" ]] || { echo "[lcnc] $REPO/.venv/bin/abbe missing: run scripts/setup.sh" >&2; exit 1; }
+
+if [[ $(id -u) -eq 0 ]] && ! id -u "$ABBE_LCNC_USER" >/dev/null 2>&1; then
+    echo "[lcnc] creating the unprivileged user $ABBE_LCNC_USER for halrun / linuxcnc"
+    useradd --create-home --shell /bin/bash --comment "abbe LinuxCNC tests" "$ABBE_LCNC_USER" || exit 1
+fi
+
+"$HERE/../build.sh" --install || exit 1
+
+failed=0
+/usr/bin/python3 "$HERE/halrun_test.py" || failed=$((failed + 1))
+/usr/bin/python3 "$HERE/e2e_sim.py" --json "$REPO/build-linuxcnc/e2e.json" || failed=$((failed + 1))
+
+# A module with the table compiled in (abbe table cgen -> build.sh --builtin),
+# then the ordinary module installed again whatever happened.
+builtin_test() {
+    local gen="$REPO/build-linuxcnc-builtin/table"
+    mkdir -p "$gen" &&
+        "$REPO/.venv/bin/abbe" table from-json "$REPO/examples/vmc500/truth/true_table.json" \
+            -o "$gen/vmc500.bin" >/dev/null &&
+        "$REPO/.venv/bin/abbe" table cgen "$gen/vmc500.bin" -o "$gen" >/dev/null &&
+        "$HERE/../build.sh" --build-dir "$REPO/build-linuxcnc-builtin" --builtin "$gen" --install &&
+        /usr/bin/python3 "$HERE/halrun_test.py" --builtin
+}
+builtin_test || failed=$((failed + 1))
+"$HERE/../build.sh" --install >/dev/null || failed=$((failed + 1))
+if ((failed)); then
+    echo "[lcnc] FAILED: $failed of 3 LinuxCNC tests"
+    exit 1
+fi
+echo "[lcnc] OK: halrun, simulator and built-in table tests passed"
