@@ -34,6 +34,11 @@ from abbe.model.geometry import PLANE_AXES
 from abbe.model.table import AXES, LINEAR_TERMS, OWN_SIGN, OWN_TERM, Table
 
 
+#: Take-up (mm) of the direction state when the table has no backlash term (the machine
+#: file's default).
+DEFAULT_TAKEUP_MM = 1.0
+
+
 def _outside_msg(axis: str, lo: float, hi: float, vmin: float, vmax: float) -> str:
     return (f"spans {axis} = [{vmin:g}, {vmax:g}] mm but the model covers only "
             f"[{lo:g}, {hi:g}] mm of axis {axis}: the check is outside the model's travel "
@@ -224,15 +229,20 @@ class BallbarCheck(Check):
         dense = None
         for j, ax in enumerate(AXES):
             at = table.axes[ax]
-            if at.backlash_um:
+            if at.backlash_um or pp.has_reversal(j):
                 if dense is None:
                     dense, at_sample = self._reversal_path()
-                ds[:, j] = direction_state(dense[:, j], at.backlash_takeup_mm)[at_sample]
+                tk = at.backlash_takeup_mm if at.backlash_takeup_mm > 0 else DEFAULT_TAKEUP_MM
+                ds[:, j] = direction_state(dense[:, j], tk)[at_sample]
         m = self.mask
         temp = None
         if self.all_temp is not None:
             temp = np.repeat(self.all_temp[m][:, None], 3, axis=1)
         e = ev.error(table, pos[m], ds[m], temp)
+        for j, ax in enumerate(AXES):
+            if pp.has_reversal(j):
+                e[:, j] += OWN_SIGN[ax] * ds[m][:, j] * 0.5 * pp.reversal_at(
+                    j, table.axes[ax].travel_mm, pos[m][:, j])
         if self.drift is not None and (np.any(pp.drift_offset) or np.any(pp.drift_scale_ppm)):
             rel = pos[m] - self.reference_mm
             for j, ax in enumerate(AXES):
@@ -419,6 +429,9 @@ class LaserCheck(Check):
                 ds[self.T:, j] = -1.0
                 e2 = ev.own_extra(table, self.axis, pos, ds, None)
                 extra += e2[d_idx * self.T + t_idx]
+        if pp.has_reversal(j):
+            s_dir = np.where(d_idx == 0, 1.0, -1.0)
+            extra += s_dir * 0.5 * pp.reversal_at(j, at.travel_mm, self.targets[t_idx])
         if np.any(pp.drift_offset) or np.any(pp.drift_scale_ppm):
             rel = self.targets[t_idx] - self.reference_mm[j]
             if self.drift is not None:

@@ -11,10 +11,10 @@ from scipy import stats
 
 from abbe.diagnose.candidates import Cand, Engine, Selected, apply_selection
 from abbe.diagnose.checks import BallbarCheck
-from abbe.diagnose.effects import EffectSpec, NotRepresentable, PredParams
+from abbe.diagnose.effects import REVERSAL_MAX_DEGREE, EffectSpec, NotRepresentable, PredParams
 from abbe.diagnose.problem import gap_stats, lstsq_rss, project_out, qr_basis, remove_nuisance
 from abbe.diagnose.results import EffectResult, round_to
-from abbe.model.table import Table
+from abbe.model.table import AXES, Table
 
 
 def describe_effects(eng: Engine, sel: list[Selected], values: list[np.ndarray], cov: np.ndarray,
@@ -81,17 +81,24 @@ def describe_effects(eng: Engine, sel: list[Selected], values: list[np.ndarray],
         if s.cand.scan_value is not None and spec.scan:
             name = spec.scan if spec.kind != "thermal" else f"tau_{eng.drift_unit or 'h'}"
             scan = {name: float(s.cand.scan_value)}
+            if spec.kind == "reversal" and s.cand.scan_value < 0:
+                scan = {"per_target": float(-s.cand.scan_value)}
             sci = s.stats.get("scan_ci")
             if sci is not None:
                 scan_ci = {name: [sci[0] if sci[2] else None, sci[1] if sci[3] else None]}
         where = "table" if spec.compensable and not (spec.kind == "thermal" and not eng.drift_on_table) \
             else "prediction model only"
         remedy = spec.remedy
+        if spec.kind == "reversal" and not table_holds_reversal():
+            where = "prediction model only"
+            remedy = (spec.remedy + "; the C library's table cannot hold it yet (table format "
+                      "1.1 pending): evaluated by the float64 prediction model, not written into "
+                      "model.bin")
         if spec.kind == "thermal" and not eng.drift_on_table:
             remedy = ("not compensable by the table without a temperature input: warm the machine "
                       "up before measuring / machining, or log the temperature (laser temp_c) so "
                       "the table's thermal term can be fitted")
-        shape, shape_notes = _shape_statements(spec, s.cand.param_idx, v, C, tq)
+        shape, shape_notes = _shape_statements(spec, s.cand.param_idx, v, C, tq, eng, table, pp)
         out.append(EffectResult(
             id=spec.family, key=spec.key, value=value, unit=unit, ci95=ci, params=params,
             compensable=where == "table", where=where, physics=spec.physics, remedy=remedy,
@@ -103,8 +110,9 @@ def describe_effects(eng: Engine, sel: list[Selected], values: list[np.ndarray],
     return out
 
 
-def _shape_statements(spec: EffectSpec, idx: list[int], v: np.ndarray, C: np.ndarray, tq: float
-                      ) -> tuple[dict[str, Any] | None, list[str]]:
+def _shape_statements(spec: EffectSpec, idx: list[int], v: np.ndarray, C: np.ndarray, tq: float,
+                      eng: Engine | None = None, table: Table | None = None,
+                      pp: PredParams | None = None) -> tuple[dict[str, Any] | None, list[str]]:
     """Derived shape of an effect: the servo model (pure delay or first-order loops with
     their mean time constant), the positioning bow of a scale error."""
     if spec.kind == "servo":
@@ -133,11 +141,36 @@ def _shape_statements(spec: EffectSpec, idx: list[int], v: np.ndarray, C: np.nda
         return out, ["servo model: mean lag of the plane's loops " + " or ".join(txt)
                      + f" (from q = {q:.4g} ms^2; circles cannot tell the two loop models "
                        "apart, the controller settings can)"]
+    if spec.kind == "reversal" and eng is not None:
+        per_target = bool(idx) and idx[0] >= REVERSAL_MAX_DEGREE
+        form = ("per target (linear between the targets: the ISO 230-2 reversal values, as "
+                "per-point forward/reverse compensation tables hold them)" if per_target
+                else f"a smooth series of degree {len(idx)} over the travel")
+        d: dict[str, Any] = {"form": "per_target" if per_target else "chebyshev",
+                             "degree": None if per_target else len(idx)}
+        pts = eng.reversal_points(spec.axis)  # type: ignore[arg-type]
+        if pts.size and pts.size <= 64:
+            j = AXES.index(spec.axis)  # type: ignore[arg-type]
+            B = float(table.axes[spec.axis].backlash_um)  # type: ignore[index]
+            rev = B + pp.reversal_at(j, table.axes[spec.axis].travel_mm, pts)  # type: ignore[index,union-attr]
+            i_lo, i_hi = int(np.argmin(rev)), int(np.argmax(rev))
+            d.update({"targets_mm": [round_to(x) for x in pts],
+                      "total_reversal_um": [round_to(x) for x in rev]})
+            return d, [f"total reversal (backlash + position-dependent part) from "
+                       f"{rev[i_lo]:.2f} um at {pts[i_lo]:g} mm to {rev[i_hi]:.2f} um at "
+                       f"{pts[i_hi]:g} mm; form: {form}"]
+        return d, [f"form: {form}"]
     if spec.kind == "scale" and 1 in idx:
         b = float(v[idx.index(1)])
         return {"positioning_bow_um": round_to(b)}, [f"with a positioning bow of {b:.3f} um "
                                                        "(sag at mid-travel relative to the ends)"]
     return None, []
+
+
+def table_holds_reversal() -> bool:
+    """True once the table format carries the position-dependent reversal block."""
+    from abbe.model.table import AxisTable
+    return "reversal_coef_um" in getattr(AxisTable, "__dataclass_fields__", {})
 
 
 def _unit(u: str, spec: EffectSpec, eng: Engine) -> str:
@@ -154,6 +187,13 @@ def _headline(spec: EffectSpec, idx: list[int], v: np.ndarray, C: np.ndarray, tq
     if spec.kind == "cyclic":
         a = float(np.hypot(v[0], v[1]))
         g = np.array([v[0], v[1]]) / max(a, 1e-300)
+        sd = math.sqrt(max(float(g @ C @ g), 0.0))
+        return a, "um", (max(0.0, a - tq * sd), a + tq * sd)
+    if spec.kind == "reversal":
+        pts, Phi = eng.reversal_design(spec.axis, idx)  # type: ignore[arg-type]
+        f = Phi @ v
+        a = float(np.sqrt(np.mean(f * f)))
+        g = Phi.T @ f / (f.size * max(a, 1e-300))
         sd = math.sqrt(max(float(g @ C @ g), 0.0))
         return a, "um", (max(0.0, a - tq * sd), a + tq * sd)
     if spec.kind == "tool_offset":

@@ -31,6 +31,20 @@ from abbe.model.table import AXES, OWN_TERM, AxisTable, FourierBlock, Table, bas
 
 #: Order of the servo-mismatch parameters (one per plane).
 SERVO_PLANES: tuple[str, ...] = PLANES
+#: Highest degree of the position-dependent reversal series (the table's Chebyshev limit).
+REVERSAL_MAX_DEGREE = 7
+#: Most targets a per-target reversal takes (parameters: targets - 1).
+REVERSAL_MAX_TARGETS = 41
+
+
+def reversal_series(travel_mm: tuple[float, float], coef: np.ndarray, pos_mm: np.ndarray) -> np.ndarray:
+    """Position-dependent part of the reversal (um) at axis positions (mm): Chebyshev
+    series of the normalised travel, the position clamped to the travel (end value
+    held, as for every table term). float64."""
+    lo, hi = float(travel_mm[0]), float(travel_mm[1])
+    p = np.clip(np.asarray(pos_mm, dtype=np.float64), lo, hi)
+    u = (2.0 * p - lo - hi) / (hi - lo)
+    return np.polynomial.chebyshev.chebval(u, np.asarray(coef, dtype=np.float64))
 
 
 class NotRepresentable(Exception):
@@ -59,6 +73,11 @@ class PredParams:
         mismatch: the common lag tau_mean rotates the mismatch oval (kappa = 1 for pure
         delays) and first-order loops add an amplitude mismatch (kappa = 1.5). Modelled
         as amplitudes 1 + w^2 q and 1 - w^2 q of the plane's first and second axis.
+    reversal_cheb_um: (3, REVERSAL_MAX_DEGREE + 1) per axis, the position-dependent part
+        of the reversal (um) as Chebyshev T0..TD of the normalised travel: the total
+        reversal at p is the table's backlash_um + this series, applied with the
+        backlash direction state (own term + s R(p) / 2). Python side of the planned
+        table format 1.1 term; evaluated in float64 (:func:`reversal_series`).
     """
 
     servo_lag_ms: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -67,11 +86,31 @@ class PredParams:
     drift_scale_ppm: np.ndarray = field(default_factory=lambda: np.zeros(3))
     drift_tau: float = math.inf
     servo_gain_ms2: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    reversal_cheb_um: np.ndarray = field(
+        default_factory=lambda: np.zeros((3, REVERSAL_MAX_DEGREE + 1)))
+    reversal_knots_mm: list = field(default_factory=lambda: [None, None, None])
+    reversal_knot_um: list = field(default_factory=lambda: [None, None, None])
 
     def copy(self) -> "PredParams":
         return PredParams(self.servo_lag_ms.copy(), self.servo_mismatch_ms.copy(),
                           self.drift_offset.copy(), self.drift_scale_ppm.copy(), self.drift_tau,
-                          self.servo_gain_ms2.copy())
+                          self.servo_gain_ms2.copy(), self.reversal_cheb_um.copy(),
+                          list(self.reversal_knots_mm),
+                          [None if v is None else v.copy() for v in self.reversal_knot_um])
+
+    def has_reversal(self, j: int) -> bool:
+        k = self.reversal_knot_um[j]
+        return bool(np.any(self.reversal_cheb_um[j]) or (k is not None and np.any(k)))
+
+    def reversal_at(self, j: int, travel_mm: tuple[float, float], pos_mm: np.ndarray) -> np.ndarray:
+        """Position-dependent part of the reversal of axis j (um) at positions (mm): the
+        Chebyshev series plus the per-target values (linear between the targets, held
+        beyond the end targets)."""
+        v = reversal_series(travel_mm, self.reversal_cheb_um[j], pos_mm)
+        k = self.reversal_knot_um[j]
+        if k is not None and np.any(k):
+            v = v + np.interp(np.asarray(pos_mm, dtype=np.float64), self.reversal_knots_mm[j], k)
+        return v
 
     def drift_shape(self, v: np.ndarray) -> np.ndarray:
         """The drift variable through the warm-up shape tau (1 - exp(-v / tau))."""
@@ -82,7 +121,7 @@ class PredParams:
     def is_zero(self) -> bool:
         return not (np.any(self.servo_lag_ms) or np.any(self.servo_mismatch_ms)
                     or np.any(self.drift_offset) or np.any(self.drift_scale_ppm)
-                    or np.any(self.servo_gain_ms2))
+                    or np.any(self.servo_gain_ms2) or np.any(self.reversal_cheb_um))
 
     def plane_lags_ms(self, plane: str) -> tuple[float, float]:
         """Lags (ms) of the plane's first and second axis on a circle in ``plane``."""
@@ -296,6 +335,16 @@ class EffectSpec:
                 c[2] = -0.5 * th[0]
                 return c
             add_shape(t, a, term, bow_coef)  # type: ignore[arg-type]
+        elif k == "reversal":
+            n = min(th.size, REVERSAL_MAX_DEGREE)
+            p.reversal_cheb_um[j, 1:1 + n] += th[:n]  # type: ignore[index]
+            pt = th[REVERSAL_MAX_DEGREE:]
+            knots = p.reversal_knots_mm[j]  # type: ignore[index]
+            if pt.size and np.any(pt) and knots is not None:
+                T = len(knots)
+                vals = np.concatenate([pt[:T - 1], [-float(np.sum(pt[:T - 1]))]])
+                old = p.reversal_knot_um[j]  # type: ignore[index]
+                p.reversal_knot_um[j] = vals if old is None else old + vals  # type: ignore[index]
         elif k == "tool_offset":
             to = np.asarray(t.tool_offset_mm, dtype=np.float64) + th[:3]
             t.tool_offset_mm = tuple(float(v) for v in to)  # type: ignore[assignment]
@@ -342,6 +391,18 @@ def catalogue() -> list[EffectSpec]:
             physics=f"lost motion of the {a} drive: the own positioning term differs by the "
                     "reversal B between + and - approach",
             remedy="table backlash term (BACKLASH feature; direction state from the compensator)"))
+    for a in AXES:
+        out.append(EffectSpec(
+            family=f"reversal_{_axis_l(a)}", key=f"reversal_{_axis_l(a)}", kind="reversal", axis=a,
+            compensable=True, scan="degree", scan_unit="",
+            params=tuple(ParamSpec(f"r{k}", "um", 3.0, 300.0) for k in range(1, REVERSAL_MAX_DEGREE + 1))
+            + tuple(ParamSpec(f"t{k}", "um", 3.0, 300.0, optional=True)
+                    for k in range(1, REVERSAL_MAX_TARGETS)),
+            physics=f"position-dependent reversal of {a}: the lost motion changes along the travel "
+                    "(wear, pitch of the screw, preload), a smooth series over the travel on top "
+                    "of the constant backlash",
+            remedy="table reversal block (direction-dependent part of the own positioning term, "
+                   "Chebyshev over the travel, applied with the backlash direction state)"))
     for a in AXES:
         out.append(EffectSpec(
             family=f"scale_{_axis_l(a)}", key=f"scale_{_axis_l(a)}", kind="scale", axis=a,

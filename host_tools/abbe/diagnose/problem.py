@@ -143,7 +143,9 @@ def estimate_noise(prob: Problem, r: np.ndarray) -> tuple[np.ndarray, np.ndarray
     """Noise standard deviation and autocorrelation inflation per noise group.
 
     Groups with repeated readings (laser runs): pooled within-cell scatter of the
-    residual (same channel, target and direction in every run); when it exceeds the
+    residual (same channel, target and direction in every run) about the cell means and
+    an offset and slope per pass (run and direction; a drift between runs moves whole
+    passes and is not noise), with n - rank degrees of freedom; when it exceeds the
     robust scale (1.4826 x the median absolute deviation) by ROBUST_SWITCH, a few bad
     readings inflate it and the robust scale is used (reported as ``robust``). Ballbar groups: the
     scatter of each direction's residual about a saturated smooth fit (Fourier series
@@ -170,9 +172,16 @@ def estimate_noise(prob: Problem, r: np.ndarray) -> tuple[np.ndarray, np.ndarray
                 means = np.bincount(inv, weights=x) / cnt
                 dev = x - means[inv]
                 d = x.size - cnt.size
+                passes = _pass_labels(c, sel)
+                by_pass = False
+                if passes is not None:
+                    dev_p, d_p = _about_cells_and_passes(inv, passes, c.x[sel], x)
+                    if d_p >= max(8, d // 4):
+                        dev, d, by_pass = dev_p, d_p, True
                 if d >= 2:
                     sd = math.sqrt(float(dev @ dev) / d)
-                    rob = _robust_cell_sigma(dev, cnt[inv])
+                    rob = (1.4826 * float(np.median(np.abs(dev))) * math.sqrt(x.size / d)
+                           if by_pass else _robust_cell_sigma(dev, cnt[inv]))
                     if rob is not None and sd > ROBUST_SWITCH * rob:
                         # a few readings (a bad run) inflate the scatter: use the robust scale
                         sd = rob
@@ -234,6 +243,36 @@ def estimate_noise(prob: Problem, r: np.ndarray) -> tuple[np.ndarray, np.ndarray
 #: The plain scatter is replaced by the robust scale when it exceeds it by this factor
 #: (normal noise: the two agree within ~10 %; a few wild readings inflate the scatter).
 ROBUST_SWITCH = 1.5
+
+
+def _pass_labels(c: Check, sel: np.ndarray) -> np.ndarray | None:
+    """Pass (run, direction) label of each selected reading of a repeated laser check, or
+    None when there are too few runs / targets for a line per pass."""
+    runs = np.asarray(c.run)[sel]
+    dirs = np.asarray(c.direction)[sel].astype(str)
+    if np.unique(runs).size < 3:
+        return None
+    lab = np.unique(np.char.add(runs.astype(str), dirs), return_inverse=True)[1]
+    per = np.bincount(lab)
+    if per.min() < 5:
+        return None
+    return lab
+
+
+def _about_cells_and_passes(cell_inv: np.ndarray, passes: np.ndarray, pos: np.ndarray,
+                            x: np.ndarray) -> tuple[np.ndarray, int]:
+    """Deviations of the readings about the cell means plus an offset and a slope per pass
+    (a drift between runs shifts and tilts whole passes, it is not noise); degrees of
+    freedom n - rank."""
+    n = x.size
+    C = np.zeros((n, int(cell_inv.max()) + 1))
+    C[np.arange(n), cell_inv] = 1.0
+    P = np.zeros((n, int(passes.max()) + 1))
+    P[np.arange(n), passes] = 1.0
+    u = (pos - pos.mean()) / max(float(np.ptp(pos)), 1e-9)
+    A = np.hstack([C, P, P * u[:, None], P * (u * u)[:, None]])
+    coef, _, rank, _ = np.linalg.lstsq(A, x, rcond=None)
+    return x - A @ coef, int(n - rank)
 
 
 def _robust_cell_sigma(dev: np.ndarray, n_cell: np.ndarray) -> float | None:

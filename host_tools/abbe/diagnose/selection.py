@@ -228,7 +228,7 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
             raise AbbeInputError(f"{c.name}: {c.n_runs} run: the noise cannot be estimated "
                                  "without repeated runs (ISO 230-2: 5 bidirectional runs; at "
                                  "least 2 needed)", file=c.source, field="run")
-    max_k = max(len(s.params) for s in specs) if specs else 1
+    max_k = max(sum(1 for p in s.params if not p.optional) for s in specs) if specs else 1
     n_nuis = prob.nuis.shape[1]
     need = max(30, 3 * (n_nuis + 2 * max_k + 2))
     if prob.N < need:
@@ -474,7 +474,7 @@ def _final_fit(eng: Engine, sel: list[Selected], W: np.ndarray
         # re-linearise (columns at the current point)
         cols = []
         for s, v in zip(sel, values):
-            c = eng.sensitivity(s.cand.spec, s.cand.scan_value, t, p, y)
+            c = eng.sensitivity(s.cand.spec, s.cand.scan_value, t, p, y, s.cand.param_idx)
             cols.append(c[:, s.cand.param_idx])
         X = np.hstack([prob.nuis] + cols) * W[:, None]
         d, *_ = np.linalg.lstsq(X, r * W, rcond=None)

@@ -428,7 +428,7 @@ def _build_positioning(case: CaseDef, out: Path, rng: np.random.Generator) -> Bu
                               noisy_cycle=noisy)
     path = out / "x_iso230_2.dat"
     path.write_text(files.ess_dat(targets, fw, bw, f"independent generator {case.name}"))
-    return Built(case, out, exp, [], outl, dat_file=path,
+    return Built(case, out, exp, outlier_runs=outl, dat_file=path,
                  info={"noise_um": noise, "outliers": outliers, "noisy": noisy, "b": b, "leg": leg})
 
 

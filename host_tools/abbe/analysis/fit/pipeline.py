@@ -34,6 +34,7 @@ from abbe.analysis.fit.options import COMPARED, FitOptions
 from abbe.analysis.fit.prep import (
     SQUARENESS_NOTE,
     RunStats,
+    assess_reversal,
     average_runs,
     estimate_thermal,
     detrend_line,
@@ -255,6 +256,13 @@ def fit_line(machine: Machine, axis: str, opts: FitOptions) -> AxisResult:
         if bl["significant"]:
             backlash_um, takeup = bl["mean_reversal_um"], spec.backlash_takeup_mm
         bl["in_table"] = bool(bl["significant"])
+        bl["reversal"] = assess_reversal(average_runs(terms[own]), p, tab.travel_mm,
+                                         backlash_sigma(machine))
+        bl["reversal"]["in_table"] = False
+        if bl["reversal"]["position_dependent"]:
+            bl["reversal"]["note"] = ("the table cannot hold a position-dependent reversal yet "
+                                      "(table format 1.1 pending): only the mean reversal is "
+                                      "in the table")
     axt = AxisTable(travel_mm=tab.travel_mm, trend_degree=tab.trend_degree, blocks=tab.blocks,
                     coef=coefs, backlash_um=backlash_um, backlash_takeup_mm=takeup)
     if thermal.get("in_table"):
