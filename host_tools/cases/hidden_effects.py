@@ -38,6 +38,7 @@ HIDDEN_KEYS: tuple[str, ...] = (
     "servo_mismatch_xy", "servo_mismatch_yz", "servo_mismatch_zx",
     "tool_offset",
     "straightness_xy", "straightness_yx", "straightness_zx",
+    "reversal_x", "reversal_y", "reversal_z",
 )
 
 
@@ -193,6 +194,7 @@ def hidden_case(seed: int, hidden: tuple[str, ...] = (), *, noise_um: float = 0.
     cyclic: dict[str, tuple[float, float, float]] = {}
     want_checks: list[str] = []
     thermal_axis = None
+    reversal_hidden: list[tuple[int, list[float]]] = []
     for key in hidden:
         suf = key.rpartition("_")[2]
         if key.startswith("squareness_"):
@@ -210,6 +212,20 @@ def hidden_case(seed: int, hidden: tuple[str, ...] = (), *, noise_um: float = 0.
             bl[j] = b
             kw["backlash_um"] = tuple(bl)
             expected[key] = float(b if j < 2 else -b)  # table reversal B = -sigma b
+            want_checks += [f"laser_{suf}"]
+        elif key.startswith("reversal_"):
+            # a constant lost motion the model knows, and its variation along the travel
+            # (odd Chebyshev shapes: zero mean over the symmetric laser targets) hidden
+            j = "xyz".index(suf)
+            b = rng.uniform(4.0, 10.0)
+            bl = list(kw.get("backlash_um", (0.0, 0.0, 0.0)))
+            bl[j] = b
+            kw["backlash_um"] = tuple(bl)
+            var = [0.0] * 9
+            var[3 * j] = _sign(rng) * rng.uniform(2.0, 5.0)
+            var[3 * j + 2] = _sign(rng) * rng.uniform(0.0, 2.0)
+            kw["backlash_variation_um"] = tuple(var)
+            reversal_hidden.append((j, var[3 * j:3 * j + 3]))
             want_checks += [f"laser_{suf}"]
         elif key.startswith("scale_"):
             j = "xyz".index(suf)
@@ -302,6 +318,15 @@ def hidden_case(seed: int, hidden: tuple[str, ...] = (), *, noise_um: float = 0.
             t_clock += dur + 60.0
         else:
             raise ValueError(f"unknown check {nm!r}")
+    # Position-dependent reversal: RMS over the laser targets of the hidden part of the
+    # reversal B_j(p) = -sigma_j b_j(p) (the table's sign, docs/formats.md)
+    for j, c in reversal_hidden:
+        a = AXES[j]
+        tg = [ck.targets for ck in out if isinstance(ck, LaserCheck) and ck.axis == a]
+        lo, hi = TRAVEL_MM[a]
+        u = (2.0 * np.concatenate(tg) - lo - hi) / (hi - lo)
+        part = np.polynomial.chebyshev.chebval(u, np.concatenate([[0.0], c]))
+        expected[f"reversal_{a.lower()}"] = float(np.sqrt(np.mean(part ** 2)))
     # A lag on one axis shows in every tested plane containing it (tau_b - tau_a).
     lag = np.asarray(kw.get("servo_lag_ms", (0.0, 0.0, 0.0)), dtype=np.float64)
     if np.any(lag):
@@ -324,7 +349,7 @@ def checks_for(key: str) -> set[str]:
     suf = key.rpartition("_")[2]
     if key.startswith("squareness_"):
         return {{"xy": "ballbar_xy", "xz": "ballbar_zx", "yz": "ballbar_yz"}[suf]}
-    if key.startswith(("backlash_", "scale_", "thermal_drift_")):
+    if key.startswith(("backlash_", "reversal_", "scale_", "thermal_drift_")):
         return {f"laser_{suf}"}
     if key.startswith("cyclic_"):
         return {{"x": "ballbar_xy", "y": "ballbar_xy", "z": "ballbar_yz"}[suf]}
@@ -347,6 +372,11 @@ def compatible(keys: tuple[str, ...]) -> bool:
         return False
     if len(set(keys)) < len(keys):
         return False
+    # a hidden reversal comes with a constant lost motion the model knows: not with a
+    # hidden backlash of the same axis
+    for k in keys:
+        if k.startswith("reversal_") and f"backlash_{k[-1]}" in keys:
+            return False
     if th:
         a = th[0][-1]
         for k in keys:
@@ -366,6 +396,22 @@ def _visible(kw: dict[str, Any], hidden: tuple[str, ...]) -> dict[str, Any]:
             drop.add("squareness_urad")
         elif key.startswith("backlash_"):
             drop.add("backlash_um")
+        elif key.startswith("reversal_"):
+            drop.add("backlash_variation_um")
+        elif key.startswith("reversal_"):
+            # a constant lost motion the model knows, and its variation along the travel
+            # (odd Chebyshev shapes: zero mean over the symmetric laser targets) hidden
+            j = "xyz".index(suf)
+            b = rng.uniform(4.0, 10.0)
+            bl = list(kw.get("backlash_um", (0.0, 0.0, 0.0)))
+            bl[j] = b
+            kw["backlash_um"] = tuple(bl)
+            var = [0.0] * 9
+            var[3 * j] = _sign(rng) * rng.uniform(2.0, 5.0)
+            var[3 * j + 2] = _sign(rng) * rng.uniform(0.0, 2.0)
+            kw["backlash_variation_um"] = tuple(var)
+            reversal_hidden.append((j, var[3 * j:3 * j + 3]))
+            want_checks += [f"laser_{suf}"]
         elif key.startswith("scale_"):
             drop |= {"scale_change_ppm", "scale_change_from_s"}
         elif key.startswith("thermal_drift_"):

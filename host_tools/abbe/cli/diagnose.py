@@ -43,6 +43,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="smallest effect (RMS on the checks, um) worth naming (default 0.15)")
     list_option(p, "--candidates", metavar="ID",
                    help="restrict the catalogue (ids or keys, e.g. squareness_xy backlash_x)")
+    p.add_argument("--model-temp-c", type=float, default=None, metavar="C",
+                   help="temperature (deg C) at which the model was measured: the reference "
+                        "of the thermal term (default: the table's, else the lowest logged)")
     p.add_argument("--rezeroed", action="store_true",
                    help="the laser was re-zeroed before every run (a zero offset per run)")
     p.add_argument("--backend", choices=("c", "reference"), default="c",
@@ -66,8 +69,12 @@ def run(args: argparse.Namespace) -> int:
                                  field="candidates")
     if not 0.0 < args.alpha < 0.5:
         raise AbbeInputError(f"--alpha {args.alpha} must be in (0, 0.5)", field="alpha")
+    if args.model_temp_c is not None and not -50.0 <= args.model_temp_c <= 150.0:
+        raise AbbeInputError(f"--model-temp-c {args.model_temp_c}: expected a temperature in "
+                             "[-50, 150] deg C", field="model-temp-c")
     opts = DiagnoseOptions(alpha=args.alpha, min_effect_um=args.min_effect_um,
-                           candidates=args.candidates, backend=args.backend)
+                           candidates=args.candidates, backend=args.backend,
+                           model_temp_c=args.model_temp_c)
     if args.iso:
         if args.machine or args.ballbar or args.laser:
             raise AbbeInputError("--iso230-2 takes no machine file, --ballbar or --laser",

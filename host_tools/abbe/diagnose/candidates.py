@@ -279,14 +279,18 @@ class Engine:
         positioning checks of the axis; circles alone: at most 3), each degree one
         alternative (look-elsewhere over the degrees)."""
         axis = spec.axis  # type: ignore[assignment]
-        lasers = [c for c in self.prob.checks if isinstance(c, LaserCheck) and c.axis == axis]
-        if lasers:
-            dmax = min(REVERSAL_MAX_DEGREE, max(c.T for c in lasers) - 2)
-        else:
-            dmax = min(3, REVERSAL_MAX_DEGREE)
+        lasers = [c for c in self.prob.checks if isinstance(c, LaserCheck) and c.axis == axis
+                  and c.n_runs >= 2]
+        if not lasers:
+            # a circle sees the reversal at its two reversal points and as level steps: the
+            # lost motion at each end is reported with a named backlash, the dependence on
+            # the position needs the axis' bidirectional (ISO 230-2) runs
+            return Cand(spec, np.zeros((self.prob.N, 0)), [], observable=False,
+                        why_not="needs bidirectional laser / ISO 230-2 runs of the axis (a "
+                                "circle shows the lost motion at its reversal points only)")
+        dmax = min(REVERSAL_MAX_DEGREE, max(c.T for c in lasers) - 2)
         none = Cand(spec, np.zeros((self.prob.N, 0)), [], observable=False,
-                    why_not="no signature on these checks (the reversal is seen only where the "
-                            "axis is approached from both directions along its travel)")
+                    why_not="no signature on these checks")
         if dmax < 1:
             return none
         j = AXES.index(axis)  # type: ignore[arg-type]

@@ -99,6 +99,10 @@ def describe_effects(eng: Engine, sel: list[Selected], values: list[np.ndarray],
                       "up before measuring / machining, or log the temperature (laser temp_c) so "
                       "the table's thermal term can be fitted")
         shape, shape_notes = _shape_statements(spec, s.cand.param_idx, v, C, tq, eng, table, pp)
+        if spec.kind == "backlash":
+            ends = _lost_motion_at_ends(eng, sel, i, values, W, tq, table, pp)
+            if ends is not None:
+                shape, shape_notes = ends
         out.append(EffectResult(
             id=spec.family, key=spec.key, value=value, unit=unit, ci95=ci, params=params,
             compensable=where == "table", where=where, physics=spec.physics, remedy=remedy,
@@ -167,6 +171,55 @@ def _shape_statements(spec: EffectSpec, idx: list[int], v: np.ndarray, C: np.nda
     return None, []
 
 
+def _lost_motion_at_ends(eng: Engine, sel: list[Selected], i: int, values: list[np.ndarray],
+                         W: np.ndarray, tq: float, table: Table, pp: PredParams
+                         ) -> tuple[dict[str, Any], list[str]] | None:
+    """Lost motion at each reversal end of the circles that move a backlash's axis (the
+    step where the axis reverses at its + end and at its - end, Renishaw's "backlash X+ /
+    X-"), with 95 % intervals: the backlash and a linear position dependence of the
+    reversal fitted together (the other effects and the nuisance refitted). None without
+    a circle moving the axis."""
+    from abbe.diagnose.checks import BallbarCheck
+    from abbe.diagnose.effects import by_key
+    s = sel[i]
+    axis = s.cand.spec.axis
+    j = AXES.index(axis)  # type: ignore[arg-type]
+    circles = [c for c in eng.prob.checks if isinstance(c, BallbarCheck) and j in
+               {"XY": (0, 1), "YZ": (1, 2), "ZX": (2, 0)}[c.plane]]
+    if not circles:
+        return None
+    lo_p = min(float(c.center_mm[j] - c.radius_mm) for c in circles)
+    hi_p = max(float(c.center_mm[j] + c.radius_mm) for c in circles)
+    prob = eng.prob
+    y = prob.predict(eng.ev, table, pp)
+    rev = by_key()[f"reversal_{axis.lower()}"]  # type: ignore[union-attr]
+    c1 = eng.sensitivity(rev, None, table, pp, y, [0])[:, 0]
+    cb = eng.sensitivity(s.cand.spec, s.cand.scan_value, table, pp, y, [0])[:, 0]
+    others = [o.cand.cols for k, o in enumerate(sel) if k != i]
+    X = np.hstack([prob.nuis] + others + [cb[:, None], c1[:, None]]) * W[:, None]
+    r = (prob.y - y) * W
+    coef, *_ = np.linalg.lstsq(X, r, rcond=None)
+    e = r - X @ coef
+    dof = max(prob.N - X.shape[1], 1)
+    s2 = max(1.0, float(e @ e) / dof)
+    cov = s2 * np.linalg.pinv(X.T @ X)[-2:, -2:]
+    B = float(table.axes[axis].backlash_um) + float(coef[-2])  # type: ignore[index]
+    t_lo, t_hi = table.axes[axis].travel_mm  # type: ignore[index]
+    out: dict[str, Any] = {}
+    txt = []
+    for name, pos in (("minus_end", lo_p), ("plus_end", hi_p)):
+        u = (2.0 * min(max(pos, t_lo), t_hi) - t_lo - t_hi) / (t_hi - t_lo)
+        g = np.array([1.0, u])
+        val = B + float(coef[-1]) * u
+        sd = math.sqrt(max(float(g @ cov @ g), 0.0))
+        out[f"reversal_at_{name}_um"] = round_to(val)
+        out[f"reversal_at_{name}_um_ci95"] = [round_to(val - tq * sd), round_to(val + tq * sd)]
+        out[f"{name}_mm"] = round_to(pos)
+        txt.append(f"{val:.2f} um [{val - tq * sd:.2f}, {val + tq * sd:.2f}] at the "
+                   f"{'-' if name == 'minus_end' else '+'} end ({pos:g} mm)")
+    return out, [f"lost motion at the circle's reversal points of {axis}: " + ", ".join(txt)]
+
+
 def table_holds_reversal() -> bool:
     """True once the table format carries the position-dependent reversal block."""
     from abbe.model.table import AxisTable
@@ -217,6 +270,8 @@ def _headline(spec: EffectSpec, idx: list[int], v: np.ndarray, C: np.ndarray, tq
 def _per_check_contrib(eng: Engine, s: Selected, v: np.ndarray) -> dict[str, float]:
     prob = eng.prob
     contrib = s.cand.cols @ v
+    if s.cand.offset is not None:
+        contrib = contrib + s.cand.offset
     out = {}
     for i, c in enumerate(prob.checks):
         sl = prob.slice(i)

@@ -7,6 +7,7 @@ runs or the scatter about a smooth fit. Values um / urad.
 
 from __future__ import annotations
 
+import hashlib
 import math
 
 import numpy as np
@@ -144,17 +145,17 @@ def estimate_noise(prob: Problem, r: np.ndarray) -> tuple[np.ndarray, np.ndarray
 
     Groups with repeated readings (laser runs): pooled within-cell scatter of the
     residual (same channel, target and direction in every run) about the cell means and
-    an offset and slope per pass (run and direction; a drift between runs moves whole
-    passes and is not noise), with n - rank degrees of freedom; when it exceeds the
-    robust scale (1.4826 x the median absolute deviation) by ROBUST_SWITCH, a few bad
-    readings inflate it and the robust scale is used (reported as ``robust``). Ballbar groups: the
+    an offset, slope and curvature per pass (run and direction; a drift between runs
+    moves whole passes and is not noise), with n - rank degrees of freedom; readings
+    more than REJECT_Z robust sigmas off are left out (reported as ``robust`` with
+    ``rejected_readings``): a few wild readings cannot inflate the estimate. Ballbar groups: the
     scatter of each direction's residual about a saturated smooth fit (Fourier series
     in the angle, up to min(40, n/8) harmonics); the lag-1 autocorrelation rho of that
     scatter inflates the variance by (1 + rho) / (1 - rho). Returns (sigma (G,),
     inflation (G,), report dict). ``r`` is the current residual (N,).
     """
     G = len(prob.group_names)
-    robust = np.zeros(G, dtype=bool)
+    robust = np.zeros(G, dtype=int)
     pair: dict[int, float | None] = {}
     sig = np.full(G, NOISE_FLOOR)
     infl = np.ones(G)
@@ -173,19 +174,22 @@ def estimate_noise(prob: Problem, r: np.ndarray) -> tuple[np.ndarray, np.ndarray
                 dev = x - means[inv]
                 d = x.size - cnt.size
                 passes = _pass_labels(c, sel)
-                by_pass = False
+                n_rej = 0
                 if passes is not None:
-                    dev_p, d_p = _about_cells_and_passes(inv, passes, c.x[sel], x)
+                    dev_p, d_p, n_rej_p = _about_cells_and_passes(inv, passes, c.x[sel], x)
                     if d_p >= max(8, d // 4):
-                        dev, d, by_pass = dev_p, d_p, True
+                        dev, d, n_rej = dev_p, d_p, n_rej_p
+                else:
+                    rob = _robust_cell_sigma(dev, cnt[inv])
+                    if rob is not None and cnt.min() >= 3:
+                        z = np.abs(dev) / np.sqrt((cnt[inv] - 1.0) / cnt[inv])
+                        rej = z > REJECT_Z * rob
+                        if rej.any():
+                            dev, d, n_rej = dev[~rej], d - int(rej.sum()), int(rej.sum())
                 if d >= 2:
                     sd = math.sqrt(float(dev @ dev) / d)
-                    rob = (1.4826 * float(np.median(np.abs(dev))) * math.sqrt(x.size / d)
-                           if by_pass else _robust_cell_sigma(dev, cnt[inv]))
-                    if rob is not None and sd > ROBUST_SWITCH * rob:
-                        # a few readings (a bad run) inflate the scatter: use the robust scale
-                        sd = rob
-                        robust[gg] = True
+                    if n_rej:
+                        robust[gg] = n_rej
                     sig[gg] = max(NOISE_FLOOR, sd)
                     dof[gg] = d
                     continue
@@ -216,12 +220,12 @@ def estimate_noise(prob: Problem, r: np.ndarray) -> tuple[np.ndarray, np.ndarray
                 rho_num += float(e[1:] @ e[:-1])
                 rho_den += float(e @ e)
             if d_tot >= 2:
-                sd = math.sqrt(ss / d_tot)
-                rob = 1.4826 * float(np.median(np.abs(np.concatenate(resid_parts)))) \
-                    * math.sqrt(x.size / d_tot)
-                if sd > ROBUST_SWITCH * rob:
-                    sd = rob
-                    robust[gg] = True
+                ee = np.concatenate(resid_parts)
+                rob = 1.4826 * float(np.median(np.abs(ee))) * math.sqrt(x.size / d_tot)
+                rej = np.abs(ee) > REJECT_Z * rob * math.sqrt(d_tot / x.size)
+                sd = math.sqrt((ss - float(ee[rej] @ ee[rej])) / max(d_tot - int(rej.sum()), 1))
+                if rej.any():
+                    robust[gg] = int(rej.sum())
                 sig[gg] = max(NOISE_FLOOR, sd)
                 dof[gg] = d_tot
                 rho = rho_num / rho_den if rho_den > 0 else 0.0
@@ -237,12 +241,14 @@ def estimate_noise(prob: Problem, r: np.ndarray) -> tuple[np.ndarray, np.ndarray
             rep[prob.group_names[g]]["pair_sigma"] = round(float(v), 5)
     for g in np.flatnonzero(robust):
         rep[prob.group_names[g]]["robust"] = True
+        rep[prob.group_names[g]]["rejected_readings"] = int(robust[g])
     return sig, infl, rep
 
 
-#: The plain scatter is replaced by the robust scale when it exceeds it by this factor
-#: (normal noise: the two agree within ~10 %; a few wild readings inflate the scatter).
-ROBUST_SWITCH = 1.5
+#: Readings this many robust sigmas off (Huber fit / median absolute deviation) are
+#: left out of the noise estimate: for normal noise none is (P < 1e-6 per reading), a
+#: few wild readings cannot inflate it.
+REJECT_Z = 5.0
 
 
 def _pass_labels(c: Check, sel: np.ndarray) -> np.ndarray | None:
@@ -260,10 +266,12 @@ def _pass_labels(c: Check, sel: np.ndarray) -> np.ndarray | None:
 
 
 def _about_cells_and_passes(cell_inv: np.ndarray, passes: np.ndarray, pos: np.ndarray,
-                            x: np.ndarray) -> tuple[np.ndarray, int]:
-    """Deviations of the readings about the cell means plus an offset and a slope per pass
-    (a drift between runs shifts and tilts whole passes, it is not noise); degrees of
-    freedom n - rank."""
+                            x: np.ndarray) -> tuple[np.ndarray, int, float]:
+    """Deviations of the readings about the cell means plus an offset, a slope and a
+    curvature per pass (a drift between runs moves whole passes, it is not noise), with
+    the readings more than REJECT_Z robust sigmas off left out (robust sigma: the median
+    |residual| of a Huber fit, calibrated for this design by simulating unit normal
+    noise); returns (deviations of the readings kept, n_kept - rank, readings left out)."""
     n = x.size
     C = np.zeros((n, int(cell_inv.max()) + 1))
     C[np.arange(n), cell_inv] = 1.0
@@ -271,8 +279,33 @@ def _about_cells_and_passes(cell_inv: np.ndarray, passes: np.ndarray, pos: np.nd
     P[np.arange(n), passes] = 1.0
     u = (pos - pos.mean()) / max(float(np.ptp(pos)), 1e-9)
     A = np.hstack([C, P, P * u[:, None], P * (u * u)[:, None]])
-    coef, _, rank, _ = np.linalg.lstsq(A, x, rcond=None)
-    return x - A @ coef, int(n - rank)
+    key = hashlib.sha1(A.tobytes()).hexdigest()
+    if key not in _ROBUST_FACTOR:
+        rng = np.random.default_rng(2301)
+        _ROBUST_FACTOR[key] = float(np.median([np.median(np.abs(_huber(A, rng.normal(size=n))))
+                                                for _ in range(15)]))
+    er = _huber(A, x)
+    rob = float(np.median(np.abs(er))) / _ROBUST_FACTOR[key]
+    keep = np.abs(er) <= REJECT_Z * rob
+    coef, _, rank, _ = np.linalg.lstsq(A[keep], x[keep], rcond=None)
+    e = x[keep] - A[keep] @ coef
+    return e, int(keep.sum() - rank), int((~keep).sum())
+
+
+_ROBUST_FACTOR: dict[str, float] = {}
+
+
+def _huber(A: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Residuals of a Huber IRLS fit of x on A (one wild reading is not smeared over the
+    other readings of its pass, as in least squares)."""
+    coef, *_ = np.linalg.lstsq(A, x, rcond=None)
+    er = x - A @ coef
+    for _ in range(10):
+        k = 1.345 * max(1.4826 * float(np.median(np.abs(er))), 1e-12)
+        sw = np.sqrt(np.minimum(1.0, k / np.maximum(np.abs(er), 1e-300)))
+        coef, *_ = np.linalg.lstsq(A * sw[:, None], x * sw, rcond=None)
+        er = x - A @ coef
+    return er
 
 
 def _robust_cell_sigma(dev: np.ndarray, n_cell: np.ndarray) -> float | None:

@@ -96,6 +96,8 @@ def _eval_candidate(eng: Engine, cand: Cand, sel: list[Selected], W: np.ndarray,
     dbic = -dr / s2 + k_eff * math.log(N)
     # fitted contribution (um rows)
     contrib = cand.cols @ coef if k else np.zeros(N)
+    if cand.offset is not None:
+        contrib = contrib + cand.offset   # the change the grid value alone causes (a take-up)
     um = prob.um_rows
     contrib_rms = float(np.sqrt(np.mean(contrib[um] ** 2))) if np.any(um) else 0.0
     ho = _heldout(eng, sel, cand, W, s2)
