@@ -55,7 +55,7 @@ def _rss_fn(eng: Engine, sel: list[Selected], i: int, W: np.ndarray
     return f
 
 
-def _golden(g: Callable[[float], float], lo: float, hi: float, it: int = 24) -> float:
+def _golden(g: Callable[[float], float], lo: float, hi: float, it: int = 18) -> float:
     gr = (math.sqrt(5.0) - 1.0) / 2.0
     a, b = hi - gr * (hi - lo), lo + gr * (hi - lo)
     ga, gb = g(a), g(b)
@@ -84,7 +84,7 @@ def _edge(g: Callable[[float], float], x0: float, step: float, bound: float, lev
             nx = bound
         if g(nx) > level:
             a, b = x, nx
-            for _ in range(30):
+            for _ in range(12):
                 m = 0.5 * (a + b)
                 if g(m) > level:
                     b = m

@@ -37,7 +37,6 @@ from cases.independent.measure import (
 )
 from cases.independent.physics import (
     AXES,
-    OWN_TERM,
     LostMotion,
     Machine,
     Servo,
@@ -218,7 +217,6 @@ def _apply_part(part: str, rng: np.random.Generator, m: Machine, d: _Design,
         planes = {"XY"} | ({"YZ" if ax == 2 else "ZX"} if ax == 2 or rng.uniform() < 0.3 else set())
         for pl in sorted(planes):
             d.circles.append({"plane": pl, "feed": feed, "two_feeds": part == "servo_two_feeds"})
-        d.servo_tau_mean = base  # type: ignore[attr-defined]
     elif part.startswith("tool_offset"):
         t = (0.0, 0.0, float(rng.uniform(60.0, 200.0)))
         if rng.uniform() < 0.3:

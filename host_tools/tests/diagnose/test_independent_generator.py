@@ -139,3 +139,25 @@ def test_smooth_term_is_zero_at_reference_and_has_no_slope_if_straightness() -> 
             g = np.linspace(*term.travel, 801)
             assert abs(np.polyfit(g, term(g), 1)[0]) < 1e-9
     assert isinstance(next(iter(m.terms.values())), SmoothTerm)
+
+
+def test_generator_is_independent_of_the_simulator() -> None:
+    """cases/independent imports neither abbe.sim nor cases.hidden_effects (nor the
+    diagnosis outside the suite's entry points): it must not share effect code with
+    what it evaluates."""
+    import ast
+    root = Path(__file__).resolve().parents[2] / "cases" / "independent"
+    allowed = {"abbe.model.table", "abbe.formats.blob", "abbe.diagnose.results",
+               "abbe.diagnose.run"}
+    for f in sorted(root.glob("*.py")):
+        tree = ast.parse(f.read_text())
+        for node in ast.walk(tree):
+            names = []
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.module:
+                names = [node.module]
+            for n in names:
+                assert not n.startswith(("abbe.sim", "cases.hidden_effects", "cases.synthetic")), (f, n)
+                if n.startswith("abbe"):
+                    assert n in allowed, (f.name, n)
