@@ -24,6 +24,8 @@ COMMANDS: list[str] = [
     "abbe.cli.ballbar",
     "abbe.cli.diagnose",
     "abbe.cli.predict",
+    "abbe.cli.export",
+    "abbe.cli.import_cmd",
     "abbe.cli.demo",
     "abbe.cli.modbus",
 ]

@@ -89,14 +89,31 @@ def spatial_error(table: Table, pos_mm: np.ndarray, dir_state: np.ndarray | None
     """
     pos = np.asarray(pos_mm, dtype=np.float64).reshape(-1, 3)
     e = all_terms(table, pos, dir_state, temp_c)
-    ref = np.asarray(table.reference_mm, dtype=np.float64)
+    return combine_eq3(e, pos, table.reference_mm, table.tool_offset_mm, table.squareness_urad)
+
+
+def combine_eq3(e: dict[tuple[str, str], np.ndarray], pos_mm: np.ndarray,
+                reference_mm: tuple[float, float, float] | np.ndarray,
+                tool_offset_mm: tuple[float, float, float] | np.ndarray,
+                squareness_urad: tuple[float, float, float] | np.ndarray) -> np.ndarray:
+    """Eq. 3 (dZ typo corrected) plus squareness and the tool offset's Abbe terms.
+
+    ``e[(axis, term)]``: term values (N,) at the points, um / urad, as
+    :func:`all_terms` returns them (missing keys count as 0); ``pos_mm`` (N, 3) the
+    machine positions whose offsets from ``reference_mm`` are the lever arms.
+    Returns (dX, dY, dZ) (N, 3) um. Exposed so that a table held in another form
+    (a controller's sampled columns) is combined by exactly the same equations.
+    """
+    pos = np.asarray(pos_mm, dtype=np.float64).reshape(-1, 3)
+    ref = np.asarray(reference_mm, dtype=np.float64)
     # mm * urad = nm: scale by 1e-3 to um.
     x, y, z = ((pos - ref) * 1e-3).T
-    tx, ty, tz = (np.asarray(table.tool_offset_mm, dtype=np.float64) * 1e-3)
-    sxy, sxz, syz = table.squareness_urad
+    tx, ty, tz = (np.asarray(tool_offset_mm, dtype=np.float64) * 1e-3)
+    sxy, sxz, syz = (float(v) for v in squareness_urad)
+    zero = np.zeros(pos.shape[0])
 
     def E(a: str, t: str) -> np.ndarray:
-        return e[(a, t)]
+        return e.get((a, t), zero)
 
     dX = (-E("X", "dx") - E("Y", "dx") + E("Z", "dx")
           - y * (E("X", "ez") + E("Y", "ez")) - z * (E("X", "ey") + E("Y", "ey"))

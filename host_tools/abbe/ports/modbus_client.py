@@ -84,8 +84,11 @@ def result_name(code: int) -> str:
 
 
 def flag_names(flags: int) -> list[str]:
-    """Names of the set ABBE_FLAG_* bits."""
-    return [n for bit, n in FLAG_NAMES.items() if flags & bit]
+    """Names of the set ABBE_FLAG_* bits; a set bit without a name (reserved in
+    docs/modbus-registers.md, maybe defined by a newer server) as its hex value."""
+    names = [n for bit, n in FLAG_NAMES.items() if flags & bit]
+    unknown = flags & 0xFFFF & ~sum(FLAG_NAMES)
+    return names + [f"0x{1 << b:04X}" for b in range(16) if unknown >> b & 1]
 
 
 class ModbusError(Exception):

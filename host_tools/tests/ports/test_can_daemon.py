@@ -12,6 +12,7 @@ Needs the daemon: $ABBE_CAND, or build/bin/abbe-cand (cmake -DABBE_BUILD_PORTS=O
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 import shutil
@@ -26,9 +27,10 @@ import can
 import numpy as np
 import pytest
 
-from abbe.ports import can_tools as ct
+from abbe.formats.blob import read_blob, write_blob
 from abbe.model.numerics import error_bound
-from abbe.formats.blob import read_blob
+from abbe.model.reference import spatial_error
+from abbe.ports import can_tools as ct
 
 DAEMON = ct.daemon_path()
 if not DAEMON.is_file():
@@ -126,19 +128,126 @@ def test_bad_frames_are_counted(setup: Path) -> None:
         bus.send(can.Message(arbitration_id=0x080, is_extended_id=False, data=b"\0\0"))   # SYNC DLC 2
         bus.send(can.Message(arbitration_id=CMD, is_extended_id=False, data=b"\x55"))     # bad command
         bus.send_raw(b"\0" * 10)                                                          # not a record
+        bus.send_raw(b"")                                      # an empty record: not the end of the bus
         assert bus.recv_all(timeout=0.3) == []           # no cycle ran
         ans = bus.sync()
         st = status(ans)
         assert st.fresh_mask == 0b110 and st.age[0] == 1
         assert st.flags & FLAG_INPUT_INVALID
-        assert st.ignored == 8
+        assert st.ignored == 9
         inf = info(ans)   # the first cycle after the model load
-        assert inf is not None and inf.ignored == 8 and inf.load_status == 0
+        assert inf is not None and inf.ignored == 9 and inf.load_status == 0
         assert inf.model_crc == zlib.crc32(EXAMPLE.read_bytes()[:-4])
         assert bus.close() == 0
     summary = bus.wait_log("counters:")
     assert "bad DLC 2" in summary and "unknown id 2" in summary and "RTR 1" in summary
-    assert "error frames 1" in summary and "bad command 1" in summary and "malformed 1" in summary
+    assert "error frames 1" in summary and "bad command 1" in summary and "malformed 2" in summary
+
+
+def test_log_names_the_cycle_of_each_event(setup: Path) -> None:
+    """Log lines "cycle N: ..." carry the number of the cycle whose status frame
+    has Seq N mod 256, also for frames sent in one burst (the daemon then reads
+    many SYNCs at once) and from the very first SYNC on."""
+    n = 30
+    with ct.SocketpairBus(setup) as bus:
+        for k in range(n):                 # one burst, no waiting for answers
+            mask = 0b101 if 12 <= k < 20 else 0b111           # Y silent: stale from cycle 14
+            send_positions(bus, [a.incr_of_mm(p) for a, p in zip(AXES, circle(k))], mask)
+            if k == 24:
+                bus.send(can.Message(arbitration_id=CMD, is_extended_id=False, data=bytes([ct.CMD_DISABLE])))
+            bus.send(can.Message(arbitration_id=0x080, is_extended_id=False))
+        statuses = [ct.decode_status(bytes(m.data)) for _ in range(n) for m in bus.recv_cycle().frames
+                    if m.arbitration_id == STATUS]
+        assert bus.close() == 0
+    assert [s.seq for s in statuses] == list(range(n))
+    log = "".join(bus.lines)
+    events = {(int(m.group(1)), m.group(2)) for m in re.finditer(r"cycle (\d+): (.*)", log)}
+    first_on = next(s.seq for s in statuses if s.state == 1)
+    first_stale = next(s.seq for s in statuses if s.flags & FLAG_STALE)
+    fresh_again = next(s.seq for s in statuses if s.seq > first_stale and not s.flags & FLAG_STALE)
+    first_off = next(s.seq for s in statuses if s.seq > first_on and s.state == 0)
+    assert (first_on, first_stale, fresh_again, first_off) == (0, 14, 20, 24)
+    assert (first_on, "compensator OFF -> ON") in events
+    assert (0, f"model 0x{zlib.crc32(EXAMPLE.read_bytes()[:-4]):08x} in use") in events
+    assert any(c == first_stale and e.startswith("stale input") for c, e in events)
+    assert (fresh_again, "positions fresh again: fading in") in events
+    assert (first_off, "compensator ON -> OFF") in events
+
+
+def _thermal_table():
+    """The example table with thermal terms (expansion and offset per kelvin) on every axis."""
+    t = read_blob(EXAMPLE.read_bytes())
+    coef = {"X": (11.5, 0.8, 20.0), "Y": (10.0, -0.5, 20.0), "Z": (12.0, 1.5, 21.5)}
+    axes = {a: dataclasses.replace(t.axes[a], thermal_expansion_ppm_per_k=c[0], thermal_offset_um_per_k=c[1],
+                                   thermal_tref_c=c[2]) for a, c in coef.items()}
+    return read_blob(write_blob(dataclasses.replace(t, axes=axes)))
+
+
+def temperature_frame(cdegc: tuple[int, int, int], dlc: int = 6) -> can.Message:
+    data = b"".join(int(v).to_bytes(2, "little", signed=True) for v in cdegc)
+    return can.Message(arbitration_id=0x370, is_extended_id=False, data=data[:dlc])
+
+
+NO_READING = -32768
+
+
+def test_temperature_frame_feeds_the_thermal_term(tmp_path: Path) -> None:
+    """Offsets along a circle with axis temperatures from the temperature frame
+    match the float64 reference given the same temperatures; Z has no sensor
+    (NO_READING) and keeps its temp_c; bad frames are counted and change
+    nothing; TempStale until the first frame and after stale_cycles without."""
+    table = _thermal_table()
+    (tmp_path / "model.bin").write_bytes(write_blob(table))
+    cfg = tmp_path / "can.toml"
+    text = ct.config_text("model.bin", AXES, compensator="fade_cycles = 5\nstale_cycles = 3",
+                          extra="[temperature]\nenable = true\nstale_cycles = 4",
+                          axis_extra="rate_um_per_cycle = 1000\nwarn_um = 500\nlimit_um = 900")
+    cfg.write_text(text.replace("[axis.Z]\n", "[axis.Z]\ntemp_c = 23.5\n"))
+    n = 120
+    rng = np.random.default_rng(3)
+    walk = np.column_stack([2300 + np.cumsum(rng.integers(-40, 41, n)), 1800 + np.cumsum(rng.integers(-40, 41, n))])
+    current = [20.0, 20.0, 23.5]                 # what the thermal term should use, degC
+    incrs, got, used, stale = [], [], [], []
+    with ct.SocketpairBus(cfg) as bus:
+        for k in range(n):
+            if k >= 2 and not 60 <= k < 70:       # none in the first 2 cycles, a gap of 10
+                bus.send(temperature_frame((walk[k, 0], walk[k, 1], NO_READING)))
+                current[:2] = walk[k] / 100.0
+            if k == 30:
+                bus.send(temperature_frame((2000, 15001, 2000)))    # 150.01 degC: the whole frame ignored
+                bus.send(temperature_frame((2000, 2000, 2000), dlc=4))
+            incr = [a.incr_of_mm(p) for a, p in zip(AXES, circle(k))]
+            send_positions(bus, incr)
+            ans = bus.sync()
+            assert status(ans).ignored == (2 if k >= 30 else 0)
+            stale.append(bytes(ans.by_id(STATUS)[0].data)[0] >> 7)
+            incrs.append(incr)
+            got.append(offsets(ans))
+            used.append(list(current))
+        assert bus.close() == 0
+    assert stale == [1 if k < 2 or 63 <= k < 70 else 0 for k in range(n)]
+    assert bus.wait_log("cycle 0: temperatures stale")
+    assert "Z 23.50 degC" in bus.wait_log("cycle 2: temperatures current")
+    assert "since the last reading X 4, Y 4, Z never" in bus.wait_log("cycle 63: temperatures stale")
+    assert bus.wait_log("cycle 70: temperatures current")
+    summary = bus.wait_log("counters:")
+    assert "temperatures 108" in summary and "bad value 1" in summary and "bad DLC 1" in summary
+
+    pos_mm = np.array([[a.nm_of_incr(int(v)) / 1e6 for a, v in zip(AXES, row)] for row in incrs])
+    csign = np.array([a.correction_sign for a in AXES])
+
+    def offsets_for(temp_c: np.ndarray) -> np.ndarray:
+        corr_nm = -csign * spatial_error(table, pos_mm, None, temp_c) * 1e3
+        return np.array([[a.incr_of_corr(c) for a, c in zip(AXES, row)] for row in corr_nm])
+
+    want = offsets_for(np.array(used))[20:]
+    got_a = np.array(got)[20:]
+    bound_nm = error_bound(table).q_nm
+    tol = np.array([math.floor(b * a.increments_per_mm / 1e6) + 1 for b, a in zip(bound_nm, AXES)])
+    diff = np.abs(got_a - want)
+    assert (diff <= tol).all(), f"max diff {diff.max(axis=0)} increments, allowed {tol}"
+    at_20 = offsets_for(np.full((n, 3), 20.0))[20:]
+    assert (np.abs(at_20 - want).max(axis=0) > 5 * tol).all()   # the temperatures matter on every axis
 
 
 def test_stale_watchdog_fades_out(setup: Path) -> None:

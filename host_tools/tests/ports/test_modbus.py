@@ -51,9 +51,11 @@ needs_server = pytest.mark.skipif(SERVER is None or not SERVER.exists(),
 class Server:
     """abbe-modbusd started with a ready pipe, stopped by pid."""
 
-    def __init__(self, *args: str) -> None:
+    def __init__(self, *args: str, log: Path | None = None) -> None:
         r, w = os.pipe()
-        self.proc = subprocess.Popen([str(SERVER), *args, "--ready-fd", str(w)], pass_fds=(w,))
+        self.log = open(log, "w") if log is not None else None
+        self.proc = subprocess.Popen([str(SERVER), *args, "--ready-fd", str(w)], pass_fds=(w,),
+                                     stderr=self.log)
         os.close(w)
         with os.fdopen(r) as f:
             ready, _, _ = select.select([f], [], [], 30)
@@ -66,7 +68,10 @@ class Server:
 
     def stop(self) -> int:
         self.proc.send_signal(signal.SIGTERM)
-        return self.proc.wait(timeout=30)
+        rc = self.proc.wait(timeout=30)
+        if self.log is not None:
+            self.log.close()
+        return rc
 
 
 @pytest.fixture
@@ -98,6 +103,12 @@ def test_register_map_mirrors_c_header():
                for m in re.finditer(r"#define ABBE_MB_UP_(\w+) \(?(-?\d+)\)?\s", text)}
     from abbe.ports.modbus_client import UP_RESULT_NAMES
     assert results == UP_RESULT_NAMES
+
+
+def test_flag_names_show_unknown_bits():
+    from abbe.ports.modbus_client import flag_names
+    assert flag_names(0x0081) == ["OUT_OF_TRAVEL", "STALE"]
+    assert flag_names(0x2010) == ["WARN", "0x2000"]   # a reserved bit is shown, not dropped
 
 
 @pytest.mark.parametrize("text, want", [
@@ -262,6 +273,85 @@ def test_exception_codes_pymodbus(server):
         assert cl.write_registers(REG["STAGING"], [1, 2]).exception_code == 1  # no session
         assert not cl.read_input_registers(REG["ID_SELFTEST"], count=2).isError()
         assert link.status().counters["exceptions"] == 7
+
+
+@needs_server
+def test_temperature_registers(server):
+    """IN_TEMP_*: 0x8000 keeps an axis' temperature, out of -50..150 degC is
+    exception 03 and the request (cycle trigger included) changes nothing; the
+    thermal term follows the written temperatures (full table, vs abbe.model.reference)."""
+    g = next(g for g in golden_tables() if g.name == "full")
+    table = read_blob(g.blob)
+    pos = (400_000_000, -600_000_000, -250_000_000)
+    with _link(server) as link:
+        link.set_limits(warn_nm=10**9, limit_nm=2 * 10**9, rate_nm_per_cycle=2 * 10**9,
+                        fade_cycles=1, stale_cycles=5)
+        link.upload(g.blob)
+        link.enable()
+        out = link.cycle(pos, 1, temp_cdegc=(3000, 1500, 2500))
+        assert link.read(REG["IN_TEMP_X"], 3) == [3000, 1500, 2500]
+        kept = link.cycle(pos, 2, temp_cdegc=(0x8000, 1600, 0x8000))
+        assert link.read(REG["IN_TEMP_X"], 3) == [3000, 1600, 2500]
+        for bad in (-5001, 15001, 0x7FFF):
+            with pytest.raises(ModbusError) as ei:
+                link.cycle(pos, 3, temp_cdegc=(2000, bad, 2000))
+            assert ei.value.exception_code == 3
+        assert link.read(REG["IN_TEMP_X"], 3) == [3000, 1600, 2500]
+        assert link.read(REG["OUT_CYCLE"], 1) == [2]
+    for o, temps in ((out, (30.0, 15.0, 25.0)), (kept, (30.0, 16.0, 25.0))):
+        want = spatial_error(table, np.array([pos]) / 1e6, None, np.array([temps]))[0] * 1e3
+        assert np.max(np.abs(np.array(o.err_nm) - want)) <= 3.0
+    at_20 = spatial_error(table, np.array([pos]) / 1e6, None, np.full((1, 3), 20.0))[0] * 1e3
+    assert np.max(np.abs(np.array(out.err_nm) - at_20)) > 1000.0   # the temperatures matter
+
+
+@needs_server
+def test_verbose_log_names_connections_and_sessions(tmp_path):
+    """-v logs each connection (opened, refused, closed with the reason) and each
+    upload session with its own number and result, also when one BEGIN ends the
+    previous session and when a refused BEGIN leaves the open one alone."""
+    log = tmp_path / "server.log"
+    srv = Server("--tcp", "127.0.0.1:0", "--max-clients", "2", "-v", log=log)
+    try:
+        paper = PAPER.read_bytes()
+        with _link(srv) as a, _link(srv) as b:
+            a.upload(paper)                                    # session 1: OK
+            a.write(REG["IN_CYCLE"], [9])
+            a.write(REG["UP_CMD"], [1])                        # session 2
+            with pytest.raises(ModbusError):
+                b.write(REG["UP_CMD"], [1])                    # busy
+            a.write(REG["UP_CMD"], [1])                        # 2 aborted, 3 begun
+            with pytest.raises(ModbusError):
+                ModbusLink(parse_endpoint(f"tcp://127.0.0.1:{srv.port}"), timeout_s=1).connect()
+        # a and b closed with session 3 open
+        with _link(srv) as c:
+            for _ in range(2000):
+                if not c.status().upload_open:
+                    break
+    finally:
+        assert srv.stop() == 0
+    text = log.read_text()
+    crc = f"0x{blob_crc(paper):08X}"
+    want = [r"connection 1 from 127\.0\.0\.1:\d+ opened \(1 of 2 open\)",
+            r"connection 2 from 127\.0\.0\.1:\d+ opened \(2 of 2 open\)",
+            r"upload session 1 begun by connection 1",
+            rf"upload session 1 \(connection 1\) ended: OK, table CRC-32 {crc}, {len(paper)} bytes",
+            rf"table CRC-32 {crc} \({len(paper)} bytes\) in use from the cycle with IN_CYCLE 9",
+            r"upload session 2 begun by connection 1",
+            r"upload BEGIN from connection 2 refused: session 2 of connection 1 is open \(busy\)",
+            r"upload session 2 \(connection 1\) ended: ABORTED \(-103\)",
+            r"upload session 3 begun by connection 1",
+            r"connection from 127\.0\.0\.1:\d+ refused: all connections in use \(2 of 2 open\)",
+            r"connection 1 from 127\.0\.0\.1:\d+ closed: closed by the client",
+            r"upload session 3 \(connection 1\) ended: DISCONNECTED \(-104\)",
+            r"connection 3 from 127\.0\.0\.1:\d+ opened",
+            r"connection 3 from 127\.0\.0\.1:\d+ closed: server stopping|connection 3 .* closed: closed by the client"]
+    pos = 0
+    for pattern in want:
+        m = re.compile(r"^abbe-modbusd: (?:" + pattern + ")", re.M).search(text, pos)
+        assert m, f"no line {pattern!r} after offset {pos} in:\n{text}"
+        pos = m.end()
+    assert text.count("ended:") == 3
 
 
 # --------------------------------------------------------------------------- RTU over socat ptys

@@ -31,6 +31,90 @@ static void on_signal(int sig)
     stop_requested = 1;
 }
 
+/* ---- -v: the log (port/modbus/README.md "Log") ------------------------------------ */
+
+static int rtu_mode;
+
+static const char *result_name(int16_t result)
+{
+    switch (result) {
+    case ABBE_MB_UP_OK: return "OK";
+    case ABBE_MB_UP_NONE: return "NONE";
+    case ABBE_MB_UP_INCOMPLETE: return "INCOMPLETE";
+    case ABBE_MB_UP_CRC_MISMATCH: return "CRC_MISMATCH";
+    case ABBE_MB_UP_LENGTH: return "LENGTH";
+    case ABBE_MB_UP_ABORTED: return "ABORTED";
+    case ABBE_MB_UP_DISCONNECTED: return "DISCONNECTED";
+    case ABBE_MB_UP_TIMEOUT: return "TIMEOUT";
+    default: return result < 0 && result > -100 ? "table refused" : "unknown result";
+    }
+}
+
+/* "connection 3", or "the serial line" (RTU has one master) */
+static const char *who(uint32_t conn, char *buf, size_t size)
+{
+    if (rtu_mode) {
+        return "the serial line";
+    }
+    snprintf(buf, size, "connection %lu", (unsigned long)conn);
+    return buf;
+}
+
+static void on_regs_event(void *ctx, const abbe_mb_event_t *ev)
+{
+    (void)ctx;
+    char a[32], b[32];
+    switch (ev->kind) {
+    case ABBE_MB_EV_UPLOAD_BEGIN:
+        fprintf(stderr, "abbe-modbusd: upload session %u begun by %s\n", (unsigned)ev->session,
+                who(ev->conn, a, sizeof a));
+        break;
+    case ABBE_MB_EV_UPLOAD_END:
+        if (ev->result == ABBE_MB_UP_OK) {
+            fprintf(stderr,
+                    "abbe-modbusd: upload session %u (%s) ended: OK, table CRC-32 0x%08lX, %lu bytes, "
+                    "queued for the next cycle\n",
+                    (unsigned)ev->session, who(ev->conn, a, sizeof a), (unsigned long)ev->crc,
+                    (unsigned long)ev->size);
+        } else if (ev->result < 0 && ev->result > -100) {
+            fprintf(stderr, "abbe-modbusd: upload session %u (%s) ended: table refused (%d): %s\n",
+                    (unsigned)ev->session, who(ev->conn, a, sizeof a), (int)ev->result,
+                    abbe_strerror(ev->result));
+        } else {
+            fprintf(stderr, "abbe-modbusd: upload session %u (%s) ended: %s (%d)\n", (unsigned)ev->session,
+                    who(ev->conn, a, sizeof a), result_name(ev->result), (int)ev->result);
+        }
+        break;
+    case ABBE_MB_EV_UPLOAD_BUSY:
+        fprintf(stderr, "abbe-modbusd: upload BEGIN from %s refused: session %u of %s is open (busy)\n",
+                who(ev->conn, a, sizeof a), (unsigned)ev->session, who(ev->owner, b, sizeof b));
+        break;
+    case ABBE_MB_EV_MODEL_SWAP:
+        fprintf(stderr, "abbe-modbusd: table CRC-32 0x%08lX (%lu bytes) in use from the cycle with IN_CYCLE %u\n",
+                (unsigned long)ev->crc, (unsigned long)ev->size, (unsigned)ev->cycle);
+        break;
+    }
+}
+
+static void on_conn_event(void *ctx, const abbe_mb_conn_event_t *ev)
+{
+    (void)ctx;
+    switch (ev->kind) {
+    case ABBE_MB_CONN_OPENED:
+        fprintf(stderr, "abbe-modbusd: connection %lu from %s opened (%u of %u open)\n", (unsigned long)ev->conn,
+                ev->peer, (unsigned)ev->open, (unsigned)ev->max);
+        break;
+    case ABBE_MB_CONN_CLOSED:
+        fprintf(stderr, "abbe-modbusd: connection %lu from %s closed: %s (%u of %u open)\n",
+                (unsigned long)ev->conn, ev->peer, ev->reason, (unsigned)ev->open, (unsigned)ev->max);
+        break;
+    case ABBE_MB_CONN_REFUSED:
+        fprintf(stderr, "abbe-modbusd: connection from %s refused: %s (%u of %u open)\n", ev->peer, ev->reason,
+                (unsigned)ev->open, (unsigned)ev->max);
+        break;
+    }
+}
+
 static void usage(FILE *f)
 {
     fprintf(f,
@@ -163,6 +247,10 @@ int main(int argc, char **argv)
         static const uint8_t one[2] = {0, 1};
         (void)abbe_mb_regs_write(&regs, 0, ABBE_MB_REG_CT_ENABLE, 1, one);
     }
+    if (verbose) {
+        rtu_mode = rtu != NULL;
+        abbe_mb_regs_set_event_hook(&regs, on_regs_event, NULL);
+    }
 
     char spec[256];
     int rc;
@@ -211,6 +299,9 @@ int main(int argc, char **argv)
                 modbus_strerror(errno));
         return 1;
     }
+    if (verbose) {
+        abbe_mb_server_set_conn_hook(&server, on_conn_event, NULL);
+    }
 
     struct sigaction sa;
     memset(&sa, 0, sizeof sa);
@@ -238,7 +329,6 @@ int main(int argc, char **argv)
         close(fd);
     }
 
-    uint32_t ok = 0, rejected = 0;
     int status = 0;
     while (!stop_requested) {
         if (abbe_mb_server_poll(&server, 100) < 0 && errno != EINTR) {
@@ -246,21 +336,9 @@ int main(int argc, char **argv)
             status = 1;
             break;
         }
-        uint16_t cnt[4], up[4];
-        if (verbose && abbe_mb_regs_read(&regs, 0, ABBE_MB_REG_ST_UPLOADS_OK, 4, cnt) == 0 &&
-            abbe_mb_regs_read(&regs, 0, ABBE_MB_REG_UP_BASE, 4, up) == 0) {
-            uint32_t n_ok = (uint32_t)cnt[0] << 16 | cnt[1], n_rej = (uint32_t)cnt[2] << 16 | cnt[3];
-            if (cfg.word_order == ABBE_MB_WORD_ORDER_LOW_FIRST) {
-                n_ok = (uint32_t)cnt[1] << 16 | cnt[0];
-                n_rej = (uint32_t)cnt[3] << 16 | cnt[2];
-            }
-            if (n_ok != ok || n_rej != rejected) {
-                ok = n_ok;
-                rejected = n_rej;
-                fprintf(stderr, "abbe-modbusd: upload session %u ended: result %d\n",
-                        (unsigned)up[2], (int)(int16_t)up[3]);
-            }
-        }
+    }
+    if (verbose) {
+        fprintf(stderr, "abbe-modbusd: stopping\n");
     }
     abbe_mb_server_close(&server);
     return status;

@@ -7,9 +7,16 @@
  * boundary, inside abbe_comp_step_q(). Every request is checked as a whole
  * before anything changes.
  */
+#include <stddef.h>
 #include <string.h>
 
 #include "abbe/modbus_port.h"
+
+/* abbe_model_load() reads the coefficients in place and refuses a blob that is
+ * not 4-byte aligned (ABBE_E_ALIGN): every bank must be, and is, since the
+ * struct is aligned for its uint32_t members. */
+typedef char abbe_mb_bank_align_check[(offsetof(abbe_mb_regs_t, bank) % 4u == 0u &&
+                                       ABBE_MB_STAGING_MAX % 4 == 0) ? 1 : -1];
 
 #define STAGING_REGS ((uint32_t)ABBE_MB_STAGING_MAX / 2u)
 #define MAX_READ 125u
@@ -126,8 +133,30 @@ static abbe_comp_stats_t stats_sum(const abbe_mb_regs_t *r)
 
 /* ---- upload session ------------------------------------------------------------ */
 
+static void emit(const abbe_mb_regs_t *r, abbe_mb_event_kind_t kind, uint32_t conn, int16_t result,
+                 uint32_t size, uint32_t crc)
+{
+    if (r->event_fn == NULL) {
+        return;
+    }
+    abbe_mb_event_t ev;
+    memset(&ev, 0, sizeof ev);
+    ev.kind = kind;
+    ev.conn = conn;
+    ev.owner = r->owner;
+    ev.session = r->session;
+    ev.result = result;
+    ev.cycle = r->cycle_in;
+    ev.size = size;
+    ev.crc = crc;
+    r->event_fn(r->event_ctx, &ev);
+}
+
 static void session_close(abbe_mb_regs_t *r, int16_t result)
 {
+    uint32_t owner = r->owner;
+    uint32_t size = result == ABBE_MB_UP_OK ? r->commit_len : 0u;
+    uint32_t crc = result == ABBE_MB_UP_OK ? r->model_crc : 0u;
     r->owner = 0;
     r->staging = -1;
     r->filled = 0;
@@ -135,6 +164,7 @@ static void session_close(abbe_mb_regs_t *r, int16_t result)
     if (result != ABBE_MB_UP_OK) {
         r->uploads_rejected++;
     }
+    emit(r, ABBE_MB_EV_UPLOAD_END, owner, result, size, crc);
 }
 
 /* No session: wrong state. Someone else's: busy. */
@@ -150,6 +180,7 @@ static int upload_begin(abbe_mb_regs_t *r, uint32_t conn)
 {
     if (r->owner != 0u && r->owner != conn) {
         r->uploads_rejected++;
+        emit(r, ABBE_MB_EV_UPLOAD_BUSY, conn, 0, 0, 0);
         return ABBE_MB_EX_BUSY;
     }
     if (r->owner == conn) {
@@ -162,6 +193,7 @@ static int upload_begin(abbe_mb_regs_t *r, uint32_t conn)
     r->session = (uint16_t)(r->session == UINT16_MAX ? 1u : r->session + 1u);
     r->result = ABBE_MB_UP_NONE;
     r->last_activity_ms = r->now_ms;
+    emit(r, ABBE_MB_EV_UPLOAD_BEGIN, conn, 0, 0, 0);
     return 0;
 }
 
@@ -278,6 +310,8 @@ static void run_cycle(abbe_mb_regs_t *r)
     if (r->pending >= 0 && abbe_comp_model(&r->comp) == &r->slot[r->pending]) {
         r->running = r->pending;
         r->pending = -1;
+        const abbe_model_t *m = &r->slot[r->running];
+        emit(r, ABBE_MB_EV_MODEL_SWAP, 0, 0, abbe_model_size(m), abbe_model_crc(m));
     }
 }
 
@@ -306,7 +340,14 @@ static int write_inputs(abbe_mb_regs_t *r, uint16_t addr, uint16_t count, const 
             }
             dir[a - ABBE_MB_REG_IN_DIR_X] = d;
         } else if (a <= ABBE_MB_REG_IN_TEMP_Z) {
-            temp[a - ABBE_MB_REG_IN_TEMP_X] = to_i16(v[i]);
+            int16_t t = to_i16(v[i]);
+            if (t == ABBE_MB_TEMP_NO_READING) {
+                continue; /* no reading: keep the axis' temperature */
+            }
+            if (t < ABBE_MB_TEMP_MIN_CDEGC || t > ABBE_MB_TEMP_MAX_CDEGC) {
+                return ABBE_MB_EX_ILLEGAL_VALUE;
+            }
+            temp[a - ABBE_MB_REG_IN_TEMP_X] = t;
         } else if (a == ABBE_MB_REG_IN_AXIS_FAULT) {
             if (v[i] > 7u) {
                 return ABBE_MB_EX_ILLEGAL_VALUE;
@@ -385,8 +426,10 @@ static int write_control(abbe_mb_regs_t *r, uint16_t addr, uint16_t count, const
 
     if (limits) {
         /* The compensator must be off with zero output: re-initialising it
-         * with the new limits then cannot make a correction jump. */
-        int idle = !r->enabled && r->out.state == ABBE_COMP_OFF;
+         * with the new limits then cannot make a correction jump. A reset in
+         * the same request comes first: it clears a latched fault and
+         * disables, so "reset, limits, enable" works from FAULT too. */
+        int idle = (reset || !r->enabled) && (reset || r->out.state == ABBE_COMP_OFF);
         for (unsigned j = 0; j < ABBE_AXES; j++) {
             idle = idle && r->out.corr_nm[j] == 0;
         }
@@ -687,6 +730,14 @@ void abbe_mb_regs_set_clients(abbe_mb_regs_t *r, uint16_t open, uint32_t refused
     if (r != NULL) {
         r->clients = open;
         r->clients_refused = refused;
+    }
+}
+
+void abbe_mb_regs_set_event_hook(abbe_mb_regs_t *r, abbe_mb_event_fn fn, void *ctx)
+{
+    if (r != NULL) {
+        r->event_fn = fn;
+        r->event_ctx = ctx;
     }
 }
 

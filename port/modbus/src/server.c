@@ -1,11 +1,13 @@
 /* abbe Modbus port: libmodbus server loop (abbe/modbus_server.h). */
 #define _POSIX_C_SOURCE 200809L
 
+#include <arpa/inet.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
 #include <poll.h>
+#include <stdio.h>
 #include <string.h>
 #include <sys/socket.h>
 #include <time.h>
@@ -162,14 +164,51 @@ static uint16_t open_clients(const abbe_mb_server_t *srv)
     return n;
 }
 
-static void client_close(abbe_mb_server_t *srv, abbe_mb_client_t *c)
+static void conn_event(const abbe_mb_server_t *srv, abbe_mb_conn_event_kind_t kind, uint32_t conn,
+                       const char *peer, const char *reason)
+{
+    if (srv->conn_fn == NULL) {
+        return;
+    }
+    abbe_mb_conn_event_t ev;
+    ev.kind = kind;
+    ev.conn = conn;
+    ev.peer = peer;
+    ev.reason = reason != NULL ? reason : "";
+    ev.open = open_clients(srv);
+    ev.max = (uint16_t)srv->max_clients;
+    srv->conn_fn(srv->conn_ctx, &ev);
+}
+
+/* "ADDRESS:PORT" of an accepted socket's peer. */
+static void peer_text(const struct sockaddr_storage *ss, char *buf, size_t size)
+{
+    char host[INET6_ADDRSTRLEN];
+    if (ss->ss_family == AF_INET) {
+        const struct sockaddr_in *a = (const struct sockaddr_in *)(const void *)ss;
+        if (inet_ntop(AF_INET, &a->sin_addr, host, sizeof host) != NULL) {
+            snprintf(buf, size, "%s:%u", host, (unsigned)ntohs(a->sin_port));
+            return;
+        }
+    } else if (ss->ss_family == AF_INET6) {
+        const struct sockaddr_in6 *a = (const struct sockaddr_in6 *)(const void *)ss;
+        if (inet_ntop(AF_INET6, &a->sin6_addr, host, sizeof host) != NULL) {
+            snprintf(buf, size, "[%s]:%u", host, (unsigned)ntohs(a->sin6_port));
+            return;
+        }
+    }
+    snprintf(buf, size, "?");
+}
+
+static void client_close(abbe_mb_server_t *srv, abbe_mb_client_t *c, const char *reason)
 {
     if (c->fd < 0) {
         return;
     }
     close(c->fd);
-    abbe_mb_regs_disconnect(srv->regs, c->conn);
     c->fd = -1;
+    conn_event(srv, ABBE_MB_CONN_CLOSED, c->conn, c->peer, reason);
+    abbe_mb_regs_disconnect(srv->regs, c->conn); /* drops its upload session, if any */
     c->len = 0;
     c->conn = 0;
     abbe_mb_regs_set_clients(srv->regs, open_clients(srv), srv->refused);
@@ -178,10 +217,15 @@ static void client_close(abbe_mb_server_t *srv, abbe_mb_client_t *c)
 static void accept_clients(abbe_mb_server_t *srv, uint32_t now)
 {
     for (int k = 0; k < MAX_ACCEPT_PER_POLL; k++) {
-        int fd = accept(srv->listen_fd, NULL, NULL);
+        struct sockaddr_storage ss;
+        socklen_t sl = sizeof ss;
+        memset(&ss, 0, sizeof ss);
+        int fd = accept(srv->listen_fd, (struct sockaddr *)&ss, &sl);
         if (fd < 0) {
             return; /* EAGAIN: no more pending; other errors: try next poll */
         }
+        char peer[ABBE_MB_PEER_MAX];
+        peer_text(&ss, peer, sizeof peer);
         abbe_mb_client_t *slot = NULL;
         if (open_clients(srv) < (uint16_t)srv->max_clients) {
             for (int i = 0; i < ABBE_MB_MAX_CLIENTS && slot == NULL; i++) {
@@ -194,6 +238,8 @@ static void accept_clients(abbe_mb_server_t *srv, uint32_t now)
             close(fd);
             srv->refused++;
             abbe_mb_regs_set_clients(srv->regs, open_clients(srv), srv->refused);
+            conn_event(srv, ABBE_MB_CONN_REFUSED, 0, peer,
+                       slot == NULL ? "all connections in use" : "cannot make the socket non-blocking");
             continue;
         }
         int one = 1;
@@ -203,7 +249,9 @@ static void accept_clients(abbe_mb_server_t *srv, uint32_t now)
         slot->conn = srv->next_conn;
         slot->len = 0;
         slot->last_rx_ms = now;
+        memcpy(slot->peer, peer, sizeof slot->peer);
         abbe_mb_regs_set_clients(srv->regs, open_clients(srv), srv->refused);
+        conn_event(srv, ABBE_MB_CONN_OPENED, slot->conn, slot->peer, "");
     }
 }
 
@@ -212,8 +260,14 @@ static void accept_clients(abbe_mb_server_t *srv, uint32_t now)
 static int client_serve(abbe_mb_server_t *srv, abbe_mb_client_t *c, uint32_t now)
 {
     ssize_t got = recv(c->fd, c->buf + c->len, sizeof c->buf - c->len, 0);
-    if (got == 0 || (got < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)) {
-        client_close(srv, c);
+    if (got == 0) {
+        client_close(srv, c, "closed by the client");
+        return 0;
+    }
+    if (got < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) {
+        char why[96];
+        snprintf(why, sizeof why, "receive error: %s", strerror(errno));
+        client_close(srv, c, why);
         return 0;
     }
     if (got < 0) {
@@ -225,7 +279,10 @@ static int client_serve(abbe_mb_server_t *srv, abbe_mb_client_t *c, uint32_t now
     while (c->len >= TCP_HEADER) {
         uint16_t protocol = be16(c->buf + 2), length = be16(c->buf + 4);
         if (protocol != 0u || length < 2u || length > MODBUS_TCP_MAX_ADU_LENGTH - 6u) {
-            client_close(srv, c); /* not Modbus/TCP: no way to find the next frame */
+            char why[96];
+            snprintf(why, sizeof why, "not Modbus/TCP (protocol id %u, length %u)", (unsigned)protocol,
+                     (unsigned)length);
+            client_close(srv, c, why); /* no way to find the next frame */
             return served;
         }
         uint16_t total = (uint16_t)(6u + length);
@@ -236,7 +293,7 @@ static int client_serve(abbe_mb_server_t *srv, abbe_mb_client_t *c, uint32_t now
         int rc = handle(srv, c->conn, c->buf, total, TCP_HEADER, 0);
         modbus_set_socket(srv->ctx, -1);
         if (rc < 0) {
-            client_close(srv, c); /* could not send: peer gone or not reading */
+            client_close(srv, c, "the answer could not be sent at once (client gone or not reading)");
             return served;
         }
         served++;
@@ -384,18 +441,28 @@ int abbe_mb_server_poll(abbe_mb_server_t *srv, int timeout_ms)
         } else if (ev & POLLIN) {
             served += client_serve(srv, who[k], now);
         } else {
-            client_close(srv, who[k]); /* POLLERR / POLLHUP without data */
+            client_close(srv, who[k], (ev & POLLHUP) ? "hung up" : "socket error"); /* no data */
         }
     }
     if (!srv->rtu && srv->idle_timeout_ms != 0u) {
         for (int i = 0; i < ABBE_MB_MAX_CLIENTS; i++) {
             abbe_mb_client_t *c = &srv->client[i];
             if (c->fd >= 0 && (uint32_t)(now - c->last_rx_ms) >= srv->idle_timeout_ms) {
-                client_close(srv, c);
+                char why[64];
+                snprintf(why, sizeof why, "idle for %lu ms", (unsigned long)srv->idle_timeout_ms);
+                client_close(srv, c, why);
             }
         }
     }
     return served;
+}
+
+void abbe_mb_server_set_conn_hook(abbe_mb_server_t *srv, abbe_mb_conn_fn fn, void *ctx)
+{
+    if (srv != NULL) {
+        srv->conn_fn = fn;
+        srv->conn_ctx = ctx;
+    }
 }
 
 int abbe_mb_server_port(const abbe_mb_server_t *srv)
@@ -409,7 +476,7 @@ void abbe_mb_server_close(abbe_mb_server_t *srv)
         return;
     }
     for (int i = 0; i < ABBE_MB_MAX_CLIENTS; i++) {
-        client_close(srv, &srv->client[i]);
+        client_close(srv, &srv->client[i], "server stopping");
     }
     if (srv->listen_fd >= 0) {
         close(srv->listen_fd);

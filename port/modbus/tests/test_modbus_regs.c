@@ -332,6 +332,17 @@ static void test_upload_refused(void **state)
     memcpy(bad, full, fsize);
     bad[4] = 2; /* format major 2 */
     expect_refused(upload(A, bad, fsize), ABBE_MB_EX_ILLEGAL_VALUE, ABBE_E_VERSION_MAJOR);
+    /* a float32 coefficient that is not its int32 twin: -17, a library status
+     * like the others (UP_RESULT -1..-99) */
+    long mlen = mbt_read_file(ABBE_MISMATCH_MODEL, bad, sizeof bad);
+    assert_true(mlen > 64);
+    uint32_t total = (uint32_t)bad[8] | (uint32_t)bad[9] << 8 | (uint32_t)bad[10] << 16 | (uint32_t)bad[11] << 24;
+    assert_true(total >= 64u && total <= (uint32_t)mlen);
+    uint32_t tcrc = abbe_crc32(0, bad, total - 4u); /* the fuzzer found it with its CRC fixed up */
+    for (unsigned k = 0; k < 4u; k++) {
+        bad[total - 4u + k] = (uint8_t)(tcrc >> (8u * k));
+    }
+    expect_refused(upload(A, bad, (size_t)mlen), ABBE_MB_EX_ILLEGAL_VALUE, ABBE_E_MISMATCH);
 
     /* incomplete: commit claims more than was received */
     assert_int_equal(begin(A), 0);
@@ -362,9 +373,9 @@ static void test_upload_refused(void **state)
     assert_int_equal(chunk(A, full, 0, 240), ABBE_MB_EX_ILLEGAL_FUNCTION);
     assert_int_equal(commit(A, (uint32_t)fsize, 0), ABBE_MB_EX_ILLEGAL_FUNCTION);
     assert_int_equal(rd32(ABBE_MB_REG_ID_MODEL_CRC), table_crc(paper, paper_size));
-    /* every refused or lost session counted once: CRC x2, format x4,
+    /* every refused or lost session counted once: CRC x2, format x5,
      * incomplete, length x2, abort */
-    assert_int_equal(rd32(ABBE_MB_REG_ST_UPLOADS_REJECTED), 10);
+    assert_int_equal(rd32(ABBE_MB_REG_ST_UPLOADS_REJECTED), 11);
     assert_int_equal(rd32(ABBE_MB_REG_ST_UPLOADS_OK), 1);
 }
 
@@ -510,6 +521,152 @@ static void test_dir_from_position(void **state)
     }
 }
 
+/* IN_TEMP_* feed the thermal term (the full table has one on every axis):
+ * every cycle equals a local compensator given the same temperatures; 0x8000
+ * keeps an axis' temperature; a value outside -50..150 degC is exception 03
+ * and the request (with its cycle trigger) changes nothing. */
+static void test_temperatures(void **state)
+{
+    (void)state;
+    size_t fsize;
+    const uint8_t *full = full_blob(&fsize);
+    abbe_comp_t local;
+    abbe_model_t slot;
+    abbe_mb_regs_config_t cfg;
+    abbe_mb_regs_default_config(&cfg);
+    cfg.comp.fade_cycles = 1;
+    for (int j = 0; j < 3; j++) {
+        cfg.comp.warn_nm[j] = 100000000;
+        cfg.comp.limit_nm[j] = 200000000;
+        cfg.comp.rate_nm_per_cycle[j] = 100000000;
+    }
+    assert_int_equal(abbe_mb_regs_init(&R, &cfg, full, fsize), ABBE_OK);
+    assert_int_equal(abbe_comp_init(&local, &cfg.comp, NULL), ABBE_OK);
+    assert_int_equal(abbe_comp_load_model(&local, &slot, full, fsize), ABBE_OK);
+    assert_int_equal(wr1(A, ABBE_MB_REG_CT_ENABLE, 1), 0);
+    assert_int_equal(abbe_comp_enable(&local), ABBE_OK);
+    for (int j = 0; j < 3; j++) {
+        assert_int_equal(rd1((uint16_t)(ABBE_MB_REG_IN_TEMP_X + j)), 2000); /* 20 degC until written */
+    }
+    int32_t cur[3] = {20000, 20000, 20000};
+    int32_t err20 = 0, err_hot = 0;
+    const int16_t temps[][3] = {
+        {2000, 2000, 2000}, {3500, 1800, -32768}, {-32768, -32768, 2600}, {-5000, 15000, 2150}, {4000, 4000, 4000},
+    };
+    for (int k = 0; k < 5; k++) {
+        int32_t p[3] = {500000000, -700000000, -300000000};
+        uint16_t in[ABBE_MB_IN_COUNT] = {0};
+        abbe_comp_input_q_t li;
+        abbe_comp_output_t lo;
+        memset(&li, 0, sizeof li);
+        for (int j = 0; j < 3; j++) {
+            mbt_put32(&in[2 * j], (uint32_t)p[j], 0);
+            in[9 + j] = (uint16_t)temps[k][j];
+            if (temps[k][j] != ABBE_MB_TEMP_NO_READING) {
+                cur[j] = 10 * temps[k][j];
+            }
+            li.pos_nm[j] = p[j];
+            li.temp_mdegc[j] = cur[j];
+        }
+        li.fresh = 1;
+        in[13] = (uint16_t)k;
+        assert_int_equal(wr(A, ABBE_MB_REG_IN_BASE, ABBE_MB_IN_COUNT, in), 0);
+        assert_int_equal(abbe_comp_step_q(&local, &li, &lo), ABBE_OK);
+        for (int j = 0; j < 3; j++) {
+            assert_int_equal((int32_t)rd32((uint16_t)(ABBE_MB_REG_OUT_CORR_X + 2 * j)), lo.corr_nm[j]);
+            assert_int_equal((int16_t)rd1((uint16_t)(ABBE_MB_REG_IN_TEMP_X + j)), cur[j] / 10);
+        }
+        if (k == 0) {
+            err20 = (int32_t)rd32(ABBE_MB_REG_OUT_ERR_X);
+        }
+        if (k == 4) {
+            err_hot = (int32_t)rd32(ABBE_MB_REG_OUT_ERR_X);
+        }
+    }
+    assert_true(abs(err_hot - err20) > 10000); /* 20 K on X moves its error by > 10 um */
+
+    /* out of range: exception 03, no cycle, no temperature taken */
+    uint32_t cycles = rd32(ABBE_MB_REG_ST_CYCLES);
+    const int16_t bad[] = {-5001, 15001, 0x7FFF, -32767};
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        uint16_t in[5] = {2100, (uint16_t)bad[i], 2100, 0, 99}; /* IN_TEMP_X .. IN_CYCLE */
+        assert_int_equal(wr(A, ABBE_MB_REG_IN_TEMP_X, 5, in), ABBE_MB_EX_ILLEGAL_VALUE);
+        assert_int_equal(rd32(ABBE_MB_REG_ST_CYCLES), cycles);
+        assert_int_equal(rd1(ABBE_MB_REG_IN_TEMP_X), 4000);
+        assert_int_equal(rd1(ABBE_MB_REG_IN_TEMP_Y), 4000);
+        assert_true(rd1(ABBE_MB_REG_OUT_CYCLE) != 99);
+    }
+}
+
+/* The event hook sees every session begun, ended (with the result that
+ * UP_RESULT shows and the session it belonged to) or refused as busy, and
+ * every table taken into use, in order. */
+#define MAX_EVENTS 32
+static abbe_mb_event_t events[MAX_EVENTS];
+static int n_events;
+
+static void record_event(void *ctx, const abbe_mb_event_t *ev)
+{
+    assert_ptr_equal(ctx, &n_events);
+    assert_true(n_events < MAX_EVENTS);
+    events[n_events++] = *ev;
+}
+
+static void expect_event(int i, abbe_mb_event_kind_t kind, uint32_t conn, uint16_t session, int16_t result)
+{
+    assert_true(i < n_events);
+    assert_int_equal(events[i].kind, kind);
+    assert_int_equal(events[i].conn, conn);
+    assert_int_equal(events[i].session, session);
+    assert_int_equal(events[i].result, result);
+}
+
+static void test_event_hook(void **state)
+{
+    (void)state;
+    size_t fsize;
+    const uint8_t *full = full_blob(&fsize);
+    n_events = 0;
+    abbe_mb_regs_set_event_hook(&R, record_event, &n_events);
+    assert_int_equal(upload(A, paper, paper_size), 0);                    /* session 1: OK */
+    assert_int_equal(n_events, 2);
+    expect_event(0, ABBE_MB_EV_UPLOAD_BEGIN, A, 1, 0);
+    expect_event(1, ABBE_MB_EV_UPLOAD_END, A, 1, ABBE_MB_UP_OK);
+    assert_int_equal(events[1].crc, table_crc(paper, paper_size));
+    assert_int_equal(events[1].size, paper_size);
+    uint16_t c = 77;
+    assert_int_equal(wr(A, ABBE_MB_REG_IN_CYCLE, 1, &c), 0);               /* takes effect */
+    assert_int_equal(events[2].kind, ABBE_MB_EV_MODEL_SWAP);
+    assert_int_equal(events[2].cycle, 77);
+    assert_int_equal(events[2].crc, table_crc(paper, paper_size));
+    cycle();
+    assert_int_equal(n_events, 3);                                          /* nothing more to swap */
+
+    assert_int_equal(begin(A), 0);                                          /* session 2 */
+    assert_int_equal(begin(B), ABBE_MB_EX_BUSY);                            /* B refused: 2 is A's */
+    expect_event(4, ABBE_MB_EV_UPLOAD_BUSY, B, 2, 0);
+    assert_int_equal(events[4].owner, A);
+    assert_int_equal(begin(A), 0);                                          /* 2 aborted, 3 begun */
+    expect_event(5, ABBE_MB_EV_UPLOAD_END, A, 2, ABBE_MB_UP_ABORTED);
+    expect_event(6, ABBE_MB_EV_UPLOAD_BEGIN, A, 3, 0);
+    abbe_mb_regs_disconnect(&R, A);
+    expect_event(7, ABBE_MB_EV_UPLOAD_END, A, 3, ABBE_MB_UP_DISCONNECTED);
+    assert_int_equal(begin(B), 0);                                          /* 4: B times out */
+    abbe_mb_regs_tick(&R, 5000 + 1000);
+    expect_event(9, ABBE_MB_EV_UPLOAD_END, B, 4, ABBE_MB_UP_TIMEOUT);
+    static uint8_t bad[ABBE_MB_STAGING_MAX];
+    memcpy(bad, full, fsize);
+    bad[0] = 'X';
+    assert_int_equal(upload(A, bad, fsize), ABBE_MB_EX_ILLEGAL_VALUE);     /* 5: the table's status */
+    expect_event(11, ABBE_MB_EV_UPLOAD_END, A, 5, ABBE_E_MAGIC);
+    assert_int_equal(n_events, 12);
+    /* every END carried what UP_RESULT then showed */
+    assert_int_equal((int16_t)rd1(ABBE_MB_REG_UP_RESULT), ABBE_E_MAGIC);
+    abbe_mb_regs_set_event_hook(&R, NULL, NULL);
+    assert_int_equal(begin(A), 0);
+    assert_int_equal(n_events, 12);
+}
+
 static void test_limits_change_keeps_models_and_counters(void **state)
 {
     (void)state;
@@ -565,6 +722,28 @@ static void test_fault_reset(void **state)
     assert_int_equal(wr(A, ABBE_MB_REG_IN_BASE, ABBE_MB_IN_COUNT, in), 0);
     assert_int_equal(rd1(ABBE_MB_REG_OUT_STATE), ABBE_COMP_FAULT);
     assert_int_equal(rd32(ABBE_MB_REG_ST_LIMIT_TRIPS), 2);
+
+    /* from FAULT (output zero), one request resets, sets wider limits and
+     * enables (docs: reset, then the limits, then enable); without the reset
+     * the limits are refused while faulted */
+    uint16_t ct[ABBE_MB_CT_COUNT] = {0};
+    ct[0] = 1; /* enable */
+    ct[1] = 1; /* reset */
+    ct[4] = 1;
+    ct[5] = 10;
+    for (int j = 0; j < 3; j++) {
+        mbt_put32(&ct[6 + 2 * j], 100000000u, 0);
+        mbt_put32(&ct[12 + 2 * j], 200000000u, 0);
+        mbt_put32(&ct[18 + 2 * j], 100000000u, 0);
+        ct[24 + j] = 1;
+    }
+    assert_int_equal(wr(A, ABBE_MB_REG_CT_FADE_CYCLES, ABBE_MB_CT_COUNT - 4, &ct[4]), ABBE_MB_EX_ILLEGAL_FUNCTION);
+    assert_int_equal(wr(A, ABBE_MB_REG_CT_BASE, ABBE_MB_CT_COUNT, ct), 0);
+    assert_int_equal(rd1(ABBE_MB_REG_CT_ENABLE), 1);
+    assert_int_equal((int32_t)rd32(ABBE_MB_REG_CT_LIMIT_X), 200000000);
+    assert_int_equal(wr(A, ABBE_MB_REG_IN_BASE, ABBE_MB_IN_COUNT, in), 0);
+    assert_int_equal(rd1(ABBE_MB_REG_OUT_STATE), ABBE_COMP_ON);
+    assert_int_equal(rd32(ABBE_MB_REG_ST_LIMIT_TRIPS), 2);
 }
 
 static void test_init_args(void **state)
@@ -608,6 +787,8 @@ int main(void)
         cmocka_unit_test_setup(test_upload_disconnect_and_timeout, setup),
         cmocka_unit_test_setup(test_cycle_trigger_and_fresh, setup),
         cmocka_unit_test_setup(test_dir_from_position, setup),
+        cmocka_unit_test_setup(test_temperatures, setup),
+        cmocka_unit_test_setup(test_event_hook, setup),
         cmocka_unit_test_setup(test_limits_change_keeps_models_and_counters, setup),
         cmocka_unit_test_setup(test_fault_reset, setup),
         cmocka_unit_test_setup(test_init_args, setup),

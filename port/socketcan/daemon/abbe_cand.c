@@ -84,14 +84,15 @@ static void print_counters(const abbe_can_node_t *node)
 {
     abbe_can_counters_t c = abbe_can_node_counters(node);
     abbe_comp_stats_t s = abbe_can_node_comp_stats(node);
-    logmsg("counters: cycles %lu, rx %lu (positions %lu, commands %lu), tx %lu (errors %lu), stale cycles %lu; "
-           "ignored %lu (bad DLC %lu, unknown id %lu, RTR %lu, error frames %lu, bad command %lu, malformed %lu); "
-           "models loaded %lu, refused %lu, swaps %lu; limit trips %lu; model 0x%08lx",
+    logmsg("counters: cycles %lu, rx %lu (positions %lu, commands %lu, temperatures %lu), tx %lu (errors %lu), "
+           "stale cycles %lu; ignored %lu (bad DLC %lu, unknown id %lu, RTR %lu, error frames %lu, bad command %lu, "
+           "bad value %lu, malformed %lu); models loaded %lu, refused %lu, swaps %lu; limit trips %lu; model 0x%08lx",
            (unsigned long)c.syncs, (unsigned long)c.frames_rx, (unsigned long)c.positions,
-           (unsigned long)c.commands, (unsigned long)c.frames_tx, (unsigned long)c.tx_errors,
-           (unsigned long)c.stale_cycles, (unsigned long)abbe_can_node_ignored(node), (unsigned long)c.bad_dlc,
-           (unsigned long)c.unknown_id, (unsigned long)c.rtr, (unsigned long)c.error_frames,
-           (unsigned long)c.bad_command, (unsigned long)c.malformed, (unsigned long)c.model_loads_ok,
+           (unsigned long)c.commands, (unsigned long)c.temperatures, (unsigned long)c.frames_tx,
+           (unsigned long)c.tx_errors, (unsigned long)c.stale_cycles, (unsigned long)abbe_can_node_ignored(node),
+           (unsigned long)c.bad_dlc, (unsigned long)c.unknown_id, (unsigned long)c.rtr,
+           (unsigned long)c.error_frames, (unsigned long)c.bad_command, (unsigned long)c.bad_value,
+           (unsigned long)c.malformed, (unsigned long)c.model_loads_ok,
            (unsigned long)c.model_loads_failed, (unsigned long)s.model_swaps, (unsigned long)s.limit_trips,
            (unsigned long)abbe_can_node_model_crc(node));
 }
@@ -111,7 +112,9 @@ static const char *state_name(abbe_comp_state_t s)
 }
 
 /* Log what changed since the last call: compensator state, stale input,
- * limit fault, model swap, newly ignored frames. */
+ * limit fault, model swap, newly ignored frames. Called after every frame, so
+ * a line names the cycle it happened in: "cycle N", N counted from 0 at the
+ * first SYNC, the cycle whose status frame carries Seq = N mod 256. */
 typedef struct {
     abbe_comp_state_t state;
     uint32_t flags;
@@ -120,36 +123,76 @@ typedef struct {
     uint32_t crc;
     uint32_t next_report; /* without -v: report ignored frames at 1, 10, 100, ... */
     int verbose;
+    int temp_stale;
 } monitor_t;
+
+/* "X 20.50, Y 20.10, Z 21.00 degC" */
+static void temps_text(const abbe_can_node_t *node, char *buf, size_t size)
+{
+    char part[ABBE_AXES][24];
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        long m = (long)abbe_can_node_temp_mdegc(node, j);
+        long a = m < 0 ? -m : m;
+        snprintf(part[j], sizeof part[j], "%c %s%ld.%02ld", "XYZ"[j], m < 0 ? "-" : "", a / 1000, (a % 1000) / 10);
+    }
+    snprintf(buf, size, "%s, %s, %s degC", part[0], part[1], part[2]);
+}
+
+/* A temperature age for the log: "never" or the number. */
+static const char *age_text(uint32_t age, char *buf, size_t size)
+{
+    if (age == UINT32_MAX) {
+        return "never";
+    }
+    snprintf(buf, size, "%lu", (unsigned long)age);
+    return buf;
+}
 
 static void monitor_cycle(monitor_t *m, const abbe_can_node_t *node, const abbe_comp_output_t *out, uint32_t syncs)
 {
     m->syncs = syncs;
+    uint32_t cycle = syncs - 1u; /* the cycle just run */
     if (out->state != m->state) {
-        logmsg("cycle %lu: compensator %s -> %s", (unsigned long)syncs, state_name(m->state),
+        logmsg("cycle %lu: compensator %s -> %s", (unsigned long)cycle, state_name(m->state),
                state_name(out->state));
         m->state = out->state;
     }
     uint32_t rise = out->flags & ~m->flags, fall = m->flags & ~out->flags;
     if (rise & ABBE_FLAG_STALE) {
         logmsg("cycle %lu: stale input (position ages X %lu, Y %lu, Z %lu cycles): fading out",
-               (unsigned long)syncs, (unsigned long)abbe_can_node_age(node, 0),
+               (unsigned long)cycle, (unsigned long)abbe_can_node_age(node, 0),
                (unsigned long)abbe_can_node_age(node, 1), (unsigned long)abbe_can_node_age(node, 2));
     }
     if (fall & ABBE_FLAG_STALE) {
-        logmsg("cycle %lu: positions fresh again: fading in", (unsigned long)syncs);
+        logmsg("cycle %lu: positions fresh again: fading in", (unsigned long)cycle);
     }
     if (rise & ABBE_FLAG_LIMIT) {
         logmsg("cycle %lu: correction over the error limit (targets %ld %ld %ld nm): fault latched",
-               (unsigned long)syncs, (long)out->target_nm[0], (long)out->target_nm[1], (long)out->target_nm[2]);
+               (unsigned long)cycle, (long)out->target_nm[0], (long)out->target_nm[1], (long)out->target_nm[2]);
     }
     if (rise & ABBE_FLAG_AXIS_FAULT) {
         logmsg("cycle %lu: a drive reports a fault (statusword bit 3): its correction fades out",
-               (unsigned long)syncs);
+               (unsigned long)cycle);
+    }
+    int temp_stale = abbe_can_node_temp_stale(node);
+    if (temp_stale != m->temp_stale) {
+        char t[96], a[ABBE_AXES + 1][16];
+        temps_text(node, t, sizeof t);
+        if (temp_stale) {
+            logmsg("cycle %lu: temperatures stale (cycles since the last temperature frame %s; since the last "
+                   "reading X %s, Y %s, Z %s): the thermal term holds %s",
+                   (unsigned long)cycle, age_text(abbe_can_node_temp_age(node, ABBE_AXES), a[3], sizeof a[3]),
+                   age_text(abbe_can_node_temp_age(node, 0), a[0], sizeof a[0]),
+                   age_text(abbe_can_node_temp_age(node, 1), a[1], sizeof a[1]),
+                   age_text(abbe_can_node_temp_age(node, 2), a[2], sizeof a[2]), t);
+        } else {
+            logmsg("cycle %lu: temperatures current: %s", (unsigned long)cycle, t);
+        }
+        m->temp_stale = temp_stale;
     }
     uint32_t crc = abbe_can_node_model_crc(node);
     if (crc != m->crc) {
-        logmsg("cycle %lu: model 0x%08lx in use", (unsigned long)syncs, (unsigned long)crc);
+        logmsg("cycle %lu: model 0x%08lx in use", (unsigned long)cycle, (unsigned long)crc);
         m->crc = crc;
     }
     m->flags = out->flags & (ABBE_FLAG_STALE | ABBE_FLAG_LIMIT | ABBE_FLAG_AXIS_FAULT);
@@ -169,13 +212,21 @@ static void monitor(monitor_t *m, const abbe_can_node_t *node)
                 m->next_report *= 10u;
             }
             logmsg("ignored frames: %lu (bad DLC %lu, unknown id %lu, RTR %lu, error frames %lu, bad command %lu, "
-                   "malformed %lu)",
+                   "bad value %lu, malformed %lu)",
                    (unsigned long)ignored, (unsigned long)c.bad_dlc, (unsigned long)c.unknown_id,
                    (unsigned long)c.rtr, (unsigned long)c.error_frames, (unsigned long)c.bad_command,
-                   (unsigned long)c.malformed);
+                   (unsigned long)c.bad_value, (unsigned long)c.malformed);
         }
         m->ignored = ignored;
     }
+}
+
+static void monitor_init(monitor_t *m, int verbose)
+{
+    memset(m, 0, sizeof *m);
+    m->verbose = verbose;
+    m->state = ABBE_COMP_OFF;
+    m->next_report = 1;
 }
 
 static int parse_fd(const char *s, int *fd)
@@ -198,13 +249,16 @@ static void print_map(const abbe_can_config_t *cfg)
            cfg->status_enable ? "on" : "off", (unsigned long)cfg->status_cob_id, (unsigned)cfg->info_period_cycles,
            (unsigned long)cfg->info_cob_id, cfg->command_enable ? "on" : "off",
            (unsigned long)cfg->command_cob_id);
+    printf("temperature %s 0x%03lX stale after %u cycles\n", cfg->temp_enable ? "on" : "off",
+           (unsigned long)cfg->temp_cob_id, (unsigned)cfg->temp_stale_cycles);
     for (unsigned j = 0; j < ABBE_AXES; j++) {
         const abbe_can_axis_config_t *a = &cfg->axis[j];
         printf("axis %c node %u: TPDO 0x%03lX dlc %u position@%u statusword@%d -> RPDO 0x%03lX dlc %u offset@%u; "
-               "%.6g increments/mm sign %+d\n",
+               "%.6g increments/mm sign %+d temp_c %.2f\n",
                "XYZ"[j], (unsigned)a->node_id, (unsigned long)a->tpdo_cob_id, (unsigned)a->tpdo_dlc,
                (unsigned)a->position_byte, (int)a->statusword_byte, (unsigned long)a->rpdo_cob_id,
-               (unsigned)a->rpdo_dlc, (unsigned)a->offset_byte, a->increments_per_mm, (int)a->sign);
+               (unsigned)a->rpdo_dlc, (unsigned)a->offset_byte, a->increments_per_mm, (int)a->sign,
+               (double)a->temp_mdegc / 1000.0);
     }
 }
 
@@ -228,6 +282,8 @@ static int replay(abbe_can_node_t *node, const char *model_path, const char *in_
             return EXIT_RUNTIME;
         }
     }
+    monitor_t mon;
+    monitor_init(&mon, 0);
     char line[512];
     unsigned long lineno = 0, frames_in = 0, frames_out = 0, fd_lines = 0;
     int rc = 0;
@@ -263,6 +319,7 @@ static int replay(abbe_can_node_t *node, const char *model_path, const char *in_
         abbe_can_frame_t tx[ABBE_CAN_MAX_TX];
         size_t n_tx = 0;
         (void)abbe_can_node_rx(node, &e.frame, tx, &n_tx);
+        monitor(&mon, node);
         for (size_t i = 0; i < n_tx; i++) {
             abbe_can_log_entry_t o = e;
             o.frame = tx[i];
@@ -331,10 +388,7 @@ static int run_live(abbe_can_node_t *node, int fd, const char *model_path, int r
     abbe_can_driver_t drv;
     abbe_can_fd_driver_init(&fdst, fd, &drv);
     monitor_t mon;
-    memset(&mon, 0, sizeof mon);
-    mon.verbose = verbose;
-    mon.state = ABBE_COMP_OFF;
-    mon.next_report = 1;
+    monitor_init(&mon, verbose);
 
     if (ready_fd >= 0) {
         ssize_t w = write(ready_fd, "ready\n", 6);
@@ -377,8 +431,21 @@ static int run_live(abbe_can_node_t *node, int fd, const char *model_path, int r
             break;
         }
         if (r > 0) {
-            int st = abbe_can_node_poll(node, &drv, 64u);
-            monitor(&mon, node);
+            /* One frame at a time, each followed by the monitor, so that a
+             * burst of SYNCs is logged cycle by cycle; at most 64 before the
+             * signals are looked at again. */
+            int st = 0;
+            for (unsigned k = 0; k < 64u; k++) {
+                st = abbe_can_node_poll(node, &drv, 1u);
+                monitor(&mon, node);
+                if (st <= 0 || abbe_can_node_take_reload_request(node)) {
+                    if (st > 0) {
+                        logmsg("RELOAD command: reloading the model");
+                        reload = 1; /* before the next SYNC is handled */
+                    }
+                    break;
+                }
+            }
             if (st == ABBE_CAN_E_CLOSED) {
                 logmsg("bus closed by the peer");
                 break;

@@ -9,9 +9,11 @@
  *   abbe_can_linux.h   file-descriptor driver, SocketCAN socket, model files (Linux)
  *
  * The cycle (docs/can.md): drives send their position actual value (0x6064) in
- * a TPDO; on each SYNC the node takes the latest position of every axis, runs
- * abbe_comp_step_q() and answers with each drive's position offset (0x60B0) in
- * an RPDO, plus an optional status frame (and, periodically, an info frame).
+ * a TPDO; on each SYNC the node takes the latest position of every axis (and,
+ * when configured, the latest axis temperatures from the temperature frame),
+ * runs abbe_comp_step_q() and answers with each drive's position offset
+ * (0x60B0) in an RPDO, plus an optional status frame (and, periodically, an
+ * info frame).
  * All state is in the caller-owned abbe_can_node_t.
  */
 #ifndef ABBE_CAN_H
@@ -25,9 +27,10 @@
 /* ---- status codes ------------------------------------------------------ */
 
 /* Port status codes. 0 is success; the port's failures are below -100 so they
- * never collide with the core's abbe_status_t (-1 .. -16), which port
- * functions pass through unchanged (a model that fails validation returns the
- * core's code, e.g. ABBE_E_CRC). */
+ * never collide with the core's abbe_status_t (ABBE_STATUS_MIN .. -1, today
+ * -18 .. -1; -99 .. -1 is the core's range), which port functions pass through
+ * unchanged (a model that fails validation returns the core's code, e.g.
+ * ABBE_E_CRC). */
 typedef enum {
     ABBE_CAN_OK = 0,
     ABBE_CAN_E_ARG = -101,         /* NULL pointer or argument outside its range */
@@ -83,7 +86,19 @@ uint32_t abbe_can_get_u32(const uint8_t *p);
 #define ABBE_CAN_TPDO1_BASE 0x180u
 #define ABBE_CAN_RPDO1_BASE 0x200u
 #define ABBE_CAN_TPDO2_BASE 0x280u
+#define ABBE_CAN_RPDO2_BASE 0x300u
 #define ABBE_CAN_DEFAULT_NODE_ID 0x70u /* the compensator's own node id */
+
+/* Temperature frame (docs/can.md): DLC 6, three INT16 axis temperatures X, Y,
+ * Z in 0.01 degC, little-endian. ABBE_CAN_TEMP_NO_READING for an axis means
+ * "no reading in this frame": the axis keeps the temperature it has. Any
+ * other value outside [ABBE_CAN_TEMP_MIN_CDEGC, ABBE_CAN_TEMP_MAX_CDEGC]
+ * (-50 .. +150 degC: a sensor fault, not a machine temperature) makes the
+ * whole frame a bad value: counted and ignored. */
+#define ABBE_CAN_TEMP_DLC 6u
+#define ABBE_CAN_TEMP_NO_READING (-32768)
+#define ABBE_CAN_TEMP_MIN_CDEGC (-5000)
+#define ABBE_CAN_TEMP_MAX_CDEGC 15000
 
 /* CiA 402 statusword bit 3: Fault. A drive reporting it is an axis fault. */
 #define ABBE_CAN_STATUSWORD_FAULT 0x0008u
@@ -106,7 +121,8 @@ typedef struct {
     int32_t limit_nm;           /* error limit on |correction|, nm, >= warn_nm */
     int32_t rate_nm_per_cycle;  /* max correction change per SYNC cycle, nm, > 0 */
     int32_t deadband_nm;        /* direction detection deadband, nm, >= 0 */
-    int32_t temp_mdegc;         /* axis temperature handed to the model, m°C */
+    int32_t temp_mdegc;         /* axis temperature handed to the model until the temperature
+                                   frame gives one (or always, without that frame), m°C */
     uint32_t tpdo_cob_id;       /* drive -> compensator: position actual value 0x6064 */
     uint8_t tpdo_dlc;           /* exact DLC of that TPDO, 4..8 */
     uint8_t position_byte;      /* INT32 position at data[position_byte .. +4) */
@@ -130,6 +146,9 @@ typedef struct {
     uint16_t fade_cycles;                 /* compensator fade length, >= 1 */
     uint16_t stale_cycles;                /* SYNC cycles without a position before fading out, >= 1 */
     uint8_t enable_on_start;              /* enable the compensator at start */
+    uint8_t temp_enable;                  /* read axis temperatures from the temperature frame */
+    uint32_t temp_cob_id;                 /* 0: 0x300 + node_id (the compensator's RPDO2) */
+    uint16_t temp_stale_cycles;           /* cycles without a reading before TEMP_STALE; 0: never */
     abbe_can_axis_config_t axis[ABBE_AXES];
 } abbe_can_config_t;
 
@@ -160,8 +179,8 @@ int32_t abbe_can_nm_to_incr(const abbe_can_axis_config_t *ax, int32_t corr_nm);
 /* Ages at or above this are reported as 255 in the status frame. */
 #define ABBE_CAN_AGE_MAX 255u
 
-/* What a received frame was. Every kind but SYNC, POSITION and COMMAND is
- * counted and otherwise ignored. */
+/* What a received frame was. Every kind but SYNC, POSITION, COMMAND and
+ * TEMPERATURE is counted and otherwise ignored. */
 typedef enum {
     ABBE_CAN_RX_SYNC = 0,      /* a cycle ran; frames to send were produced */
     ABBE_CAN_RX_POSITION = 1,  /* a drive's position TPDO */
@@ -170,7 +189,9 @@ typedef enum {
     ABBE_CAN_RX_UNKNOWN = 4,   /* id not in the frame map (includes 29-bit ids) */
     ABBE_CAN_RX_RTR = 5,       /* remote request */
     ABBE_CAN_RX_ERROR = 6,     /* error frame */
-    ABBE_CAN_RX_BAD_COMMAND = 7 /* command frame with an unknown command byte */
+    ABBE_CAN_RX_BAD_COMMAND = 7, /* command frame with an unknown command byte */
+    ABBE_CAN_RX_TEMPERATURE = 8, /* the temperature frame */
+    ABBE_CAN_RX_BAD_VALUE = 9    /* temperature frame with a value out of range */
 } abbe_can_rx_kind_t;
 
 typedef struct {
@@ -183,7 +204,9 @@ typedef struct {
     uint32_t rtr;
     uint32_t error_frames;
     uint32_t bad_command;
+    uint32_t bad_value;       /* temperature frames with a value out of range */
     uint32_t malformed;       /* records that were not one CAN frame (driver level) */
+    uint32_t temperatures;    /* temperature frames taken */
     uint32_t frames_tx;       /* frames produced */
     uint32_t tx_errors;       /* frames the driver could not send */
     uint32_t stale_cycles;    /* cycles in which some axis had no fresh position */
@@ -220,6 +243,14 @@ typedef struct {
     uint8_t info_due;
     uint16_t info_countdown;
     int last_load_status;
+    /* temperatures (from cfg axis temp_mdegc until the temperature frame gives them) */
+    int32_t temp_mdegc[ABBE_AXES];
+    uint32_t temp_age[ABBE_AXES];    /* cycles since the axis' last reading */
+    uint32_t temp_frame_age;         /* cycles since the last temperature frame taken */
+    uint8_t temp_reading;            /* bit j: axis j has had a reading */
+    uint8_t temp_fresh;              /* bit j: a reading for axis j since the last SYNC; bit 3: a frame */
+    uint8_t temp_frame_seen;         /* a temperature frame was ever taken */
+    uint8_t temp_stale;              /* TEMP_STALE of the last cycle */
 } abbe_can_node_t;
 
 /* Check *cfg (abbe_can_config_check) and start the node without a model; the
@@ -278,6 +309,14 @@ const abbe_comp_output_t *abbe_can_node_output(const abbe_can_node_t *node); /* 
 abbe_comp_stats_t abbe_can_node_comp_stats(const abbe_can_node_t *node);
 uint32_t abbe_can_node_age(const abbe_can_node_t *node, unsigned axis); /* cycles since its last position */
 uint32_t abbe_can_node_model_crc(const abbe_can_node_t *node);      /* running model, 0 if none */
+/* Temperature of an axis the next cycle uses: its latest reading from the
+ * temperature frame, else axis temp_c; m°C (0 for a bad axis/NULL). */
+int32_t abbe_can_node_temp_mdegc(const abbe_can_node_t *node, unsigned axis);
+/* Cycles since the axis' last temperature reading; axis ABBE_AXES: since the
+ * last temperature frame (UINT32_MAX: never). */
+uint32_t abbe_can_node_temp_age(const abbe_can_node_t *node, unsigned axis);
+/* 1 if the last cycle's status frame reported TEMP_STALE (docs/can.md). */
+int abbe_can_node_temp_stale(const abbe_can_node_t *node);
 int abbe_can_node_last_load_status(const abbe_can_node_t *node);     /* 0 or the last failure */
 
 /* ---- status and info frames (layout documented in docs/abbe.dbc) -------- */
@@ -290,6 +329,7 @@ typedef struct {
     uint8_t model_loaded;
     uint8_t load_failed;     /* the last model load was refused */
     uint8_t fresh_mask;      /* bit j: axis j had a fresh position this cycle */
+    uint8_t temp_stale;      /* temperatures not current (temperature frame enabled) */
     uint16_t flags;          /* ABBE_FLAG_* (low 16 bits) */
     uint8_t seq;             /* cycle counter, wraps */
     uint8_t age[ABBE_AXES];  /* cycles since the axis' last position, saturated at 255 */

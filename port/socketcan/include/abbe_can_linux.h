@@ -27,9 +27,11 @@ typedef struct {
 void abbe_can_fd_driver_init(abbe_can_fd_t *st, int fd, abbe_can_driver_t *drv);
 
 /* One record <-> one frame. Read: ABBE_CAN_OK, ABBE_CAN_E_AGAIN,
- * ABBE_CAN_E_FRAME (record of another size, consumed), ABBE_CAN_E_CLOSED
- * (end of file), ABBE_CAN_E_IO (errno set). Write: ABBE_CAN_OK,
- * ABBE_CAN_E_AGAIN, ABBE_CAN_E_CLOSED (EPIPE), ABBE_CAN_E_IO. */
+ * ABBE_CAN_E_FRAME (record of another size, including an empty one;
+ * consumed), ABBE_CAN_E_CLOSED (end of file: on a SOCK_SEQPACKET socket, the
+ * peer has shut down and nothing is left to read), ABBE_CAN_E_IO (errno
+ * set). Write: ABBE_CAN_OK, ABBE_CAN_E_AGAIN, ABBE_CAN_E_CLOSED (EPIPE),
+ * ABBE_CAN_E_IO. */
 int abbe_can_fd_read(int fd, abbe_can_frame_t *frame);
 int abbe_can_fd_write(int fd, const abbe_can_frame_t *frame);
 
@@ -37,8 +39,8 @@ int abbe_can_fd_write(int fd, const abbe_can_frame_t *frame);
 int abbe_can_fd_nonblock(int fd);
 
 /* Open a non-blocking CAN_RAW socket bound to ifname, with receive filters
- * for the SYNC, the drives' TPDOs and the command id (data and remote frames
- * of those ids), and all error frames. Returns ABBE_CAN_OK with *fd set,
+ * for the SYNC, the drives' TPDOs, the command and the temperature id (data
+ * and remote frames of those ids), and all error frames. Returns ABBE_CAN_OK with *fd set,
  * ABBE_CAN_E_UNSUPPORTED if the kernel has no SocketCAN, ABBE_CAN_E_IO
  * otherwise; why (may be NULL) gets a sentence naming the failed call. */
 int abbe_can_socket_open(const char *ifname, const abbe_can_config_t *cfg, int *fd, char *why,

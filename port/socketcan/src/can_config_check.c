@@ -19,6 +19,7 @@ void abbe_can_config_defaults(abbe_can_config_t *cfg)
     cfg->fade_cycles = 100;
     cfg->stale_cycles = 10;
     cfg->enable_on_start = 1;
+    cfg->temp_stale_cycles = 1000;
     for (unsigned j = 0; j < ABBE_AXES; j++) {
         abbe_can_axis_config_t *ax = &cfg->axis[j];
         ax->sign = 1;
@@ -40,10 +41,10 @@ void abbe_can_config_defaults(abbe_can_config_t *cfg)
      "axis." A ".correction_sign", "axis." A ".warn_um", "axis." A ".limit_um",            \
      "axis." A ".rate_um_per_cycle", "axis." A ".deadband_um", "axis." A ".tpdo_cob_id",  \
      "axis." A ".tpdo_dlc", "axis." A ".position_byte", "axis." A ".statusword_byte",      \
-     "axis." A ".rpdo_cob_id", "axis." A ".rpdo_dlc", "axis." A ".offset_byte"}
+     "axis." A ".rpdo_cob_id", "axis." A ".rpdo_dlc", "axis." A ".offset_byte", "axis." A ".temp_c"}
 enum {
     F_NODE, F_IPM, F_SIGN, F_CSIGN, F_WARN, F_LIMIT, F_RATE, F_DEADBAND, F_TPDO, F_TPDO_DLC,
-    F_POS_BYTE, F_SW_BYTE, F_RPDO, F_RPDO_DLC, F_OFS_BYTE, F_COUNT
+    F_POS_BYTE, F_SW_BYTE, F_RPDO, F_RPDO_DLC, F_OFS_BYTE, F_TEMP, F_COUNT
 };
 static const char *const axis_field[ABBE_AXES][F_COUNT] = {AXIS_FIELDS("X"), AXIS_FIELDS("Y"),
                                                            AXIS_FIELDS("Z")};
@@ -65,11 +66,12 @@ static int cob_ok(uint32_t id)
 }
 
 /* Roles in the frame map, for the collision check. */
-enum { R_SYNC, R_STATUS, R_INFO, R_COMMAND, R_TPDO, R_RPDO };
+enum { R_SYNC, R_STATUS, R_INFO, R_COMMAND, R_TEMP, R_TPDO, R_RPDO };
 static const char *const role_msg[] = {
-    "COB-ID already used by bus.sync_cob_id",   "COB-ID already used by status.cob_id",
-    "COB-ID already used by status.info_cob_id", "COB-ID already used by command.cob_id",
-    "COB-ID already used by an axis' tpdo_cob_id", "COB-ID already used by an axis' rpdo_cob_id",
+    "COB-ID already used by bus.sync_cob_id",     "COB-ID already used by status.cob_id",
+    "COB-ID already used by status.info_cob_id",  "COB-ID already used by command.cob_id",
+    "COB-ID already used by temperature.cob_id",  "COB-ID already used by an axis' tpdo_cob_id",
+    "COB-ID already used by an axis' rpdo_cob_id",
 };
 
 typedef struct {
@@ -106,6 +108,9 @@ static int check_axis(const abbe_can_axis_config_t *ax, unsigned j, const char *
     }
     if (ax->deadband_nm < 0) {
         return fail(field, why, f[F_DEADBAND], "must be >= 0");
+    }
+    if (ax->temp_mdegc < 10 * ABBE_CAN_TEMP_MIN_CDEGC || ax->temp_mdegc > 10 * ABBE_CAN_TEMP_MAX_CDEGC) {
+        return fail(field, why, f[F_TEMP], "must be -50..150 (degC), like a temperature frame reading");
     }
     if (!cob_ok(ax->tpdo_cob_id)) {
         return fail(field, why, f[F_TPDO], "must be an 11-bit COB-ID, 0x001..0x7FF");
@@ -186,6 +191,9 @@ int abbe_can_config_check(abbe_can_config_t *cfg, const char **field, const char
     if (cfg->command_cob_id == 0u) {
         cfg->command_cob_id = ABBE_CAN_RPDO1_BASE + cfg->node_id;
     }
+    if (cfg->temp_cob_id == 0u) {
+        cfg->temp_cob_id = ABBE_CAN_RPDO2_BASE + cfg->node_id;
+    }
     if (!cob_ok(cfg->sync_cob_id)) {
         return fail(field, why, "bus.sync_cob_id", "must be an 11-bit COB-ID, 0x001..0x7FF");
     }
@@ -197,6 +205,12 @@ int abbe_can_config_check(abbe_can_config_t *cfg, const char **field, const char
     }
     if (!cob_ok(cfg->command_cob_id)) {
         return fail(field, why, "command.cob_id", "must be an 11-bit COB-ID, 0x001..0x7FF");
+    }
+    if (!cob_ok(cfg->temp_cob_id)) {
+        return fail(field, why, "temperature.cob_id", "must be an 11-bit COB-ID, 0x001..0x7FF");
+    }
+    if (cfg->temp_enable > 1u) {
+        return fail(field, why, "temperature.enable", "must be true or false");
     }
     if (cfg->fade_cycles < 1u) {
         return fail(field, why, "compensator.fade_cycles", "must be >= 1");
@@ -220,7 +234,7 @@ int abbe_can_config_check(abbe_can_config_t *cfg, const char **field, const char
         }
     }
 
-    map_entry_t map[4 + 2 * ABBE_AXES];
+    map_entry_t map[5 + 2 * ABBE_AXES];
     unsigned n = 0;
     map[n++] = (map_entry_t){cfg->sync_cob_id, R_SYNC, -1, "bus.sync_cob_id"};
     if (cfg->status_enable) {
@@ -231,6 +245,9 @@ int abbe_can_config_check(abbe_can_config_t *cfg, const char **field, const char
     }
     if (cfg->command_enable) {
         map[n++] = (map_entry_t){cfg->command_cob_id, R_COMMAND, -1, "command.cob_id"};
+    }
+    if (cfg->temp_enable) {
+        map[n++] = (map_entry_t){cfg->temp_cob_id, R_TEMP, -1, "temperature.cob_id"};
     }
     for (int j = 0; j < (int)ABBE_AXES; j++) {
         map[n++] = (map_entry_t){cfg->axis[j].tpdo_cob_id, R_TPDO, j, axis_field[j][F_TPDO]};

@@ -1,5 +1,6 @@
 /* abbe CAN port: configuration file parser (host; a TOML subset, no heap). */
 #include <errno.h>
+#include <limits.h>
 #include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -47,6 +48,9 @@ static const field_t FIELDS[] = {
     {"compensator", "fade_cycles", V_U16, CFG(fade_cycles), 1, 65535, 0, 0, 0},
     {"compensator", "stale_cycles", V_U16, CFG(stale_cycles), 1, 65535, 0, 0, 0},
     {"compensator", "enable_on_start", V_BOOL, CFG(enable_on_start), 0, 1, 0, 0, 0},
+    {"temperature", "enable", V_BOOL, CFG(temp_enable), 0, 1, 0, 0, 0},
+    {"temperature", "cob_id", V_U32, CFG(temp_cob_id), 1, 0x7FF, 0, 0, 0},
+    {"temperature", "stale_cycles", V_U16, CFG(temp_stale_cycles), 0, 65535, 0, 0, 0},
     {"axis", "node_id", V_U8, AX(node_id), 1, 127, 0, 0, 1},
     {"axis", "increments_per_mm", V_DOUBLE, AX(increments_per_mm), 0, 0, 0, 0, 1},
     {"axis", "sign", V_I8, AX(sign), -1, 1, 0, 0, 0},
@@ -67,10 +71,11 @@ static const field_t FIELDS[] = {
 };
 #define N_FIELDS (sizeof FIELDS / sizeof FIELDS[0])
 
-static const char *const SECTIONS[] = {"bus", "model", "status", "command", "compensator",
+static const char *const SECTIONS[] = {"bus", "model", "status", "command", "compensator", "temperature",
                                        "axis.X", "axis.Y", "axis.Z"};
 #define N_SECTIONS (sizeof SECTIONS / sizeof SECTIONS[0])
-#define AXIS_SECTION0 5u /* index of axis.X */
+#define AXIS_SECTION0 6u /* index of axis.X */
+typedef char abbe_can_axis_sections_last[(N_SECTIONS == AXIS_SECTION0 + ABBE_AXES) ? 1 : -1];
 
 #define MAX_SEEN 160u
 
@@ -167,7 +172,8 @@ static int parse_header(parser_t *ps, const char *p, unsigned line)
         return ABBE_CAN_OK;
     }
     return error(ps, line, name,
-                 "unknown section (expected bus, model, status, command, compensator, axis.X, axis.Y, axis.Z)");
+                 "unknown section (expected bus, model, status, command, compensator, temperature, axis.X, "
+                 "axis.Y, axis.Z)");
 }
 
 /* A value token: a "string", or the characters of a number / true / false. */
@@ -214,9 +220,7 @@ static const char *read_value(parser_t *ps, const char *p, unsigned line, const 
             *status = error(ps, line, field, "value too long");
             return p;
         }
-        if (*p != '_') { /* TOML digit separators */
-            tok->text[n++] = *p;
-        }
+        tok->text[n++] = *p;
         p++;
     }
     tok->text[n] = '\0';
@@ -226,49 +230,146 @@ static const char *read_value(parser_t *ps, const char *p, unsigned line, const 
     return p;
 }
 
+/* TOML number syntax (a digit run allows single '_' between digits):
+ *   decimal integer  [+-]? (0 | [1-9] digits)
+ *   hex integer      0x hexdigits              (no sign)
+ *   float            decimal integer (. digits)? ([eE] [+-]? digits)?, with a
+ *                    fraction or an exponent; inf and nan are not accepted.
+ * Each function checks the syntax, then converts the text without the '_'. */
+
+static int is_digit(char c)
+{
+    return c >= '0' && c <= '9';
+}
+
+static int is_hex(char c)
+{
+    return is_digit(c) || (c >= 'a' && c <= 'f') || (c >= 'A' && c <= 'F');
+}
+
+/* A run of digits (hex or decimal) with single '_' between them; returns the
+ * position after it, or NULL if there is none or an '_' is misplaced. */
+static const char *digit_run(const char *p, int hex)
+{
+    if (!(hex ? is_hex(*p) : is_digit(*p))) {
+        return NULL;
+    }
+    while (hex ? is_hex(*p) : is_digit(*p)) {
+        p++;
+        if (*p == '_') {
+            p++;
+            if (!(hex ? is_hex(*p) : is_digit(*p))) {
+                return NULL;
+            }
+        }
+    }
+    return p;
+}
+
+/* The decimal integer part: sign, no leading zero. */
+static const char *decimal_int(const char *p)
+{
+    if (*p == '+' || *p == '-') {
+        p++;
+    }
+    if (p[0] == '0') {
+        return (is_digit(p[1]) || p[1] == '_') ? NULL : p + 1;
+    }
+    return digit_run(p, 0);
+}
+
+/* s without '_' into buf (the syntax was checked: it fits). */
+static void strip(const char *s, char *buf, size_t cap)
+{
+    size_t n = 0;
+    for (; *s != '\0' && n + 1u < cap; s++) {
+        if (*s != '_') {
+            buf[n++] = *s;
+        }
+    }
+    buf[n] = '\0';
+}
+
+/* 1: *out set; 0: not an integer; -1: an integer beyond 64 bits. */
 static int parse_int(const char *s, long long *out)
 {
+    char buf[64];
     char *end = NULL;
     errno = 0;
     long long v;
-    if ((s[0] == '0' && (s[1] == 'x' || s[1] == 'X'))) {
-        if (s[2] == '\0' || s[2] == '-' || s[2] == '+') {
+    if (s[0] == '0' && s[1] == 'x') {
+        const char *e = digit_run(s + 2, 1);
+        if (e == NULL || *e != '\0') {
             return 0;
         }
-        v = (long long)strtoull(s + 2, &end, 16);
-        if (v < 0) {
-            return 0;
+        strip(s + 2, buf, sizeof buf);
+        unsigned long long u = strtoull(buf, &end, 16);
+        if (errno != 0 || u > (unsigned long long)0x7FFFFFFFFFFFFFFFLL) {
+            return -1;
         }
+        v = (long long)u;
     } else {
-        if (strpbrk(s, ".eExX") != NULL) {
+        const char *e = decimal_int(s);
+        if (e == NULL || *e != '\0') {
             return 0;
         }
-        v = strtoll(s, &end, 10);
-    }
-    if (errno != 0 || end == NULL || *end != '\0' || end == s) {
-        return 0;
+        strip(s, buf, sizeof buf);
+        v = strtoll(buf, &end, 10);
+        if (errno != 0) {
+            return -1;
+        }
     }
     *out = v;
     return 1;
 }
 
+/* 1: *out set (finite, |v| < 1e300); 0: not a number; -1: out of that range. */
 static int parse_number(const char *s, double *out)
 {
     long long i;
-    if (parse_int(s, &i)) {
+    int st = parse_int(s, &i);
+    if (st != 0) {
         *out = (double)i;
-        return 1;
+        return st;
     }
-    if (s[0] == '0' && (s[1] == 'x' || s[1] == 'X')) {
+    const char *p = decimal_int(s);
+    if (p == NULL) {
         return 0;
     }
+    int has_fraction = 0, has_exponent = 0;
+    if (*p == '.') {
+        p = digit_run(p + 1, 0);
+        if (p == NULL) {
+            return 0;
+        }
+        has_fraction = 1;
+    }
+    if (*p == 'e' || *p == 'E') {
+        p++;
+        if (*p == '+' || *p == '-') {
+            p++;
+        }
+        p = digit_run(p, 0);
+        if (p == NULL) {
+            return 0;
+        }
+        has_exponent = 1;
+    }
+    if (*p != '\0' || !(has_fraction || has_exponent)) {
+        return 0;
+    }
+    char buf[64];
+    strip(s, buf, sizeof buf);
     char *end = NULL;
     errno = 0;
-    double v = strtod(s, &end);
-    if (errno != 0 || end == s || *end != '\0' || !(v > -1e300 && v < 1e300)) {
-        return 0; /* also rejects nan / inf spellings */
+    double v = strtod(buf, &end);
+    if (end == buf || *end != '\0') {
+        return 0;
     }
-    *out = v;
+    if (!(v > -1e300 && v < 1e300)) {
+        return -1; /* overflow to infinity */
+    }
+    *out = v; /* an underflow to 0 or a subnormal is that value */
     return 1;
 }
 
@@ -307,8 +408,12 @@ static int store(parser_t *ps, const field_t *f, void *base, const token_t *tok,
     }
     if (f->kind == V_DOUBLE || f->kind == V_SCALED) {
         double v;
-        if (!parse_number(tok->text, &v)) {
-            return error(ps, line, field, "expected a number");
+        int st = parse_number(tok->text, &v);
+        if (st == 0) {
+            return error(ps, line, field, "expected a number (TOML syntax: 10000, -0.5, 2.6214e4, 1_000)");
+        }
+        if (st < 0) {
+            return error(ps, line, field, "value out of range");
         }
         if (f->kind == V_DOUBLE) {
             memcpy(dst, &v, sizeof v);
@@ -323,8 +428,12 @@ static int store(parser_t *ps, const field_t *f, void *base, const token_t *tok,
         return ABBE_CAN_OK;
     }
     long long v;
-    if (!parse_int(tok->text, &v)) {
+    int ist = parse_int(tok->text, &v);
+    if (ist == 0) {
         return error(ps, line, field, "expected an integer (decimal or 0x hex)");
+    }
+    if (ist < 0) {
+        v = tok->text[0] == '-' ? LLONG_MIN : LLONG_MAX; /* reported as out of range below */
     }
     if (v < f->min || v > f->max) {
         char msg[96];

@@ -46,6 +46,7 @@ int abbe_can_status_decode(const abbe_can_frame_t *f, abbe_can_status_frame_t *s
     s->model_loaded = (uint8_t)((f->data[0] >> 2) & 1u);
     s->load_failed = (uint8_t)((f->data[0] >> 3) & 1u);
     s->fresh_mask = (uint8_t)((f->data[0] >> 4) & 0x07u);
+    s->temp_stale = (uint8_t)((f->data[0] >> 7) & 1u);
     s->flags = abbe_can_get_u16(&f->data[1]);
     s->seq = f->data[3];
     for (unsigned j = 0; j < ABBE_AXES; j++) {

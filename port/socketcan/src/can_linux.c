@@ -1,11 +1,13 @@
 /* abbe CAN port: file-descriptor target, SocketCAN socket, model files (Linux). */
-#define _POSIX_C_SOURCE 200809L
+#define _GNU_SOURCE /* POLLRDHUP: Linux only, like the rest of this file */
 
 #include <errno.h>
 #include <fcntl.h>
 #include <net/if.h>
+#include <poll.h>
 #include <stdio.h>
 #include <string.h>
+#include <sys/ioctl.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -16,6 +18,40 @@
 
 /* The record layout this port writes is the kernel's. */
 typedef char abbe_can_record_size_check[(sizeof(struct can_frame) == ABBE_CAN_RECORD_SIZE) ? 1 : -1];
+
+/* read() gave 0 bytes: the end of the stream, or a record of 0 bytes (which
+ * SOCK_SEQPACKET and SOCK_DGRAM sockets deliver like any other record). */
+static int zero_length_read(int fd)
+{
+    int type = 0;
+    socklen_t len = sizeof type;
+    if (getsockopt(fd, SOL_SOCKET, SO_TYPE, &type, &len) != 0) {
+        return ABBE_CAN_E_CLOSED; /* not a socket (pipe, file): end of file */
+    }
+    if (type == SOCK_DGRAM || type == SOCK_RAW) {
+        return ABBE_CAN_E_FRAME; /* datagram sockets have no end of stream */
+    }
+    if (type != SOCK_SEQPACKET) {
+        return ABBE_CAN_E_CLOSED; /* a stream: end of stream */
+    }
+    /* SEQPACKET: the end of the stream only once the peer has shut down and
+     * no record is left behind the empty one (FIONREAD sums the queued bytes). */
+    struct pollfd p;
+    p.fd = fd;
+    p.events = POLLRDHUP;
+    p.revents = 0;
+    if (poll(&p, 1, 0) < 0) {
+        return ABBE_CAN_E_IO;
+    }
+    if ((p.revents & (POLLRDHUP | POLLHUP)) == 0) {
+        return ABBE_CAN_E_FRAME;
+    }
+    int queued = 0;
+    if (ioctl(fd, FIONREAD, &queued) == 0 && queued > 0) {
+        return ABBE_CAN_E_FRAME;
+    }
+    return ABBE_CAN_E_CLOSED;
+}
 
 int abbe_can_fd_read(int fd, abbe_can_frame_t *frame)
 {
@@ -40,7 +76,7 @@ int abbe_can_fd_read(int fd, abbe_can_frame_t *frame)
         return ABBE_CAN_E_IO;
     }
     if (n == 0) {
-        return ABBE_CAN_E_CLOSED;
+        return zero_length_read(fd);
     }
     if ((size_t)n != sizeof(struct can_frame)) {
         return ABBE_CAN_E_FRAME;
@@ -142,12 +178,16 @@ int abbe_can_socket_open(const char *ifname, const abbe_can_config_t *cfg, int *
     }
     /* Standard-id data and remote frames of the ids the node reads; the RTR
      * bit is not in the mask so remote requests arrive and are counted. */
-    struct can_filter filt[2 + ABBE_AXES];
+    struct can_filter filt[3 + ABBE_AXES];
     size_t n = 0;
     filt[n].can_id = cfg->sync_cob_id;
     filt[n++].can_mask = CAN_SFF_MASK | CAN_EFF_FLAG;
     if (cfg->command_enable) {
         filt[n].can_id = cfg->command_cob_id;
+        filt[n++].can_mask = CAN_SFF_MASK | CAN_EFF_FLAG;
+    }
+    if (cfg->temp_enable) {
+        filt[n].can_id = cfg->temp_cob_id;
         filt[n++].can_mask = CAN_SFF_MASK | CAN_EFF_FLAG;
     }
     for (unsigned j = 0; j < ABBE_AXES; j++) {

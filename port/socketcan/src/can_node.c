@@ -5,9 +5,16 @@
  * compensator cycle runs on the latched positions (abbe_comp_step_q, fresh =
  * every axis fresh) and the RPDOs / status / info frames are produced.
  */
+#include <stddef.h>
 #include <string.h>
 
 #include "abbe_can.h"
+
+/* abbe_model_load() reads the coefficients in place and refuses a blob that is
+ * not 4-byte aligned (ABBE_E_ALIGN): the slots must be, and are, since the
+ * node is aligned for its uint32_t members. */
+typedef char abbe_can_blob_align_check[(offsetof(abbe_can_node_t, blob) % 4u == 0u &&
+                                        ABBE_CAN_BLOB_MAX % 4u == 0u) ? 1 : -1];
 
 static int running_slot(const abbe_can_node_t *node)
 {
@@ -58,6 +65,12 @@ int abbe_can_node_init(abbe_can_node_t *node, const abbe_can_config_t *cfg)
     node->comp = comp;
     node->pending_slot = -1;
     node->info_countdown = c.info_period_cycles;
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        node->temp_mdegc[j] = c.axis[j].temp_mdegc;
+        node->temp_age[j] = UINT32_MAX;
+    }
+    node->temp_frame_age = UINT32_MAX;
+    node->temp_stale = c.temp_enable; /* no temperature frame yet */
     if (c.enable_on_start) {
         (void)abbe_comp_enable(&node->comp);
     }
@@ -205,7 +218,7 @@ uint32_t abbe_can_node_ignored(const abbe_can_node_t *node)
         return 0;
     }
     const abbe_can_counters_t *c = &node->count;
-    return c->bad_dlc + c->unknown_id + c->rtr + c->error_frames + c->bad_command + c->malformed;
+    return c->bad_dlc + c->unknown_id + c->rtr + c->error_frames + c->bad_command + c->bad_value + c->malformed;
 }
 
 const abbe_comp_output_t *abbe_can_node_output(const abbe_can_node_t *node)
@@ -227,6 +240,24 @@ uint32_t abbe_can_node_model_crc(const abbe_can_node_t *node)
 {
     const abbe_model_t *m = node != NULL ? abbe_comp_model(&node->comp) : NULL;
     return m != NULL ? abbe_model_crc(m) : 0u;
+}
+
+int32_t abbe_can_node_temp_mdegc(const abbe_can_node_t *node, unsigned axis)
+{
+    return node != NULL && axis < ABBE_AXES ? node->temp_mdegc[axis] : 0;
+}
+
+uint32_t abbe_can_node_temp_age(const abbe_can_node_t *node, unsigned axis)
+{
+    if (node == NULL || axis > ABBE_AXES) {
+        return UINT32_MAX;
+    }
+    return axis == ABBE_AXES ? node->temp_frame_age : node->temp_age[axis];
+}
+
+int abbe_can_node_temp_stale(const abbe_can_node_t *node)
+{
+    return node != NULL && node->temp_stale;
 }
 
 int abbe_can_node_last_load_status(const abbe_can_node_t *node)
@@ -316,7 +347,7 @@ static size_t build_frames(abbe_can_node_t *node, abbe_can_frame_t tx[ABBE_CAN_M
         f->data[0] = (uint8_t)(((unsigned)node->out.state & 0x03u) |
                                (abbe_comp_model(&node->comp) != NULL ? 0x04u : 0u) |
                                (node->last_load_status != 0 ? 0x08u : 0u) |
-                               ((unsigned)node->fresh_mask << 4));
+                               ((unsigned)node->fresh_mask << 4) | (node->temp_stale ? 0x80u : 0u));
         abbe_can_put_u16(&f->data[1], (uint16_t)(node->out.flags & 0xFFFFu));
         f->data[3] = node->seq;
         for (unsigned j = 0; j < ABBE_AXES; j++) {
@@ -325,6 +356,36 @@ static size_t build_frames(abbe_can_node_t *node, abbe_can_frame_t tx[ABBE_CAN_M
         f->data[7] = (uint8_t)(ignored & 0xFFu);
     }
     return n;
+}
+
+static uint32_t age_step(uint32_t age, int fresh)
+{
+    if (fresh) {
+        return 0;
+    }
+    return age < UINT32_MAX - 1u ? age + 1u : UINT32_MAX - 1u; /* UINT32_MAX: never */
+}
+
+/* Temperature ages at a SYNC, and TEMP_STALE: the frame is enabled and either
+ * none was taken yet, or none (or, for an axis that has had readings, no
+ * reading of it) for temp_stale_cycles cycles. */
+static void temperature_cycle(abbe_can_node_t *node)
+{
+    const abbe_can_config_t *cfg = &node->cfg;
+    if (node->temp_frame_seen) {
+        node->temp_frame_age = age_step(node->temp_frame_age, (node->temp_fresh & 0x08u) != 0u);
+    }
+    int stale = cfg->temp_enable && !node->temp_frame_seen;
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        if (node->temp_reading & (1u << j)) {
+            node->temp_age[j] = age_step(node->temp_age[j], (node->temp_fresh & (1u << j)) != 0u);
+            stale |= cfg->temp_stale_cycles > 0u && node->temp_age[j] >= cfg->temp_stale_cycles;
+        }
+    }
+    stale |= cfg->temp_enable && cfg->temp_stale_cycles > 0u && node->temp_frame_seen &&
+             node->temp_frame_age >= cfg->temp_stale_cycles;
+    node->temp_stale = (uint8_t)(stale != 0);
+    node->temp_fresh = 0;
 }
 
 static size_t run_cycle(abbe_can_node_t *node, abbe_can_frame_t tx[ABBE_CAN_MAX_TX])
@@ -345,7 +406,7 @@ static size_t run_cycle(abbe_can_node_t *node, abbe_can_frame_t tx[ABBE_CAN_MAX_
             st->age_cycles++;
         }
         in.pos_nm[j] = pos_nm;
-        in.temp_mdegc[j] = ax->temp_mdegc;
+        in.temp_mdegc[j] = node->temp_mdegc[j];
         in.dir[j] = st->dir;
         if (ax->statusword_byte != ABBE_CAN_NO_BYTE && st->have_pos &&
             (st->statusword & ABBE_CAN_STATUSWORD_FAULT) != 0u) {
@@ -355,6 +416,7 @@ static size_t run_cycle(abbe_can_node_t *node, abbe_can_frame_t tx[ABBE_CAN_MAX_
     }
     in.fresh = fresh_mask == 0x07u ? 1u : 0u;
     in.axis_fault_mask = fault_mask;
+    temperature_cycle(node);
     if (!in.fresh) {
         node->count.stale_cycles++;
     }
@@ -383,6 +445,42 @@ static int rx_command(abbe_can_node_t *node, const abbe_can_frame_t *rx)
     }
     node->count.commands++;
     return ABBE_CAN_RX_COMMAND;
+}
+
+/* The whole frame is checked before any value is taken. */
+static int rx_temperature(abbe_can_node_t *node, const abbe_can_frame_t *rx)
+{
+    if (rx->dlc != ABBE_CAN_TEMP_DLC) {
+        node->count.bad_dlc++;
+        return ABBE_CAN_RX_BAD_DLC;
+    }
+    int32_t cdegc[ABBE_AXES];
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        uint16_t u = abbe_can_get_u16(&rx->data[2u * j]);
+        cdegc[j] = u <= 0x7FFFu ? (int32_t)u : (int32_t)u - 65536;
+        if (cdegc[j] != ABBE_CAN_TEMP_NO_READING &&
+            (cdegc[j] < ABBE_CAN_TEMP_MIN_CDEGC || cdegc[j] > ABBE_CAN_TEMP_MAX_CDEGC)) {
+            node->count.bad_value++;
+            return ABBE_CAN_RX_BAD_VALUE;
+        }
+    }
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        if (cdegc[j] != ABBE_CAN_TEMP_NO_READING) {
+            node->temp_mdegc[j] = 10 * cdegc[j];
+            node->temp_reading = (uint8_t)(node->temp_reading | (1u << j));
+            node->temp_fresh = (uint8_t)(node->temp_fresh | (1u << j));
+            if (node->temp_age[j] == UINT32_MAX) {
+                node->temp_age[j] = 0;
+            }
+        }
+    }
+    node->temp_fresh = (uint8_t)(node->temp_fresh | 0x08u);
+    if (!node->temp_frame_seen) {
+        node->temp_frame_seen = 1;
+        node->temp_frame_age = 0;
+    }
+    node->count.temperatures++;
+    return ABBE_CAN_RX_TEMPERATURE;
 }
 
 static int rx_position(abbe_can_node_t *node, const abbe_can_frame_t *rx)
@@ -445,6 +543,9 @@ int abbe_can_node_rx(abbe_can_node_t *node, const abbe_can_frame_t *rx,
     }
     if (cfg->command_enable && rx->id == cfg->command_cob_id) {
         return rx_command(node, rx);
+    }
+    if (cfg->temp_enable && rx->id == cfg->temp_cob_id) {
+        return rx_temperature(node, rx);
     }
     return rx_position(node, rx);
 }

@@ -49,6 +49,8 @@ const char *abbe_can_status_name(int status)
     case ABBE_E_RANGE: return "ABBE_E_RANGE";
     case ABBE_E_INPUT: return "ABBE_E_INPUT";
     case ABBE_E_NO_MODEL: return "ABBE_E_NO_MODEL";
+    case ABBE_E_MISMATCH: return "ABBE_E_MISMATCH";
+    case ABBE_E_ALIGN: return "ABBE_E_ALIGN";
     default: return "unknown status";
     }
 }

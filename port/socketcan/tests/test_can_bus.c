@@ -57,6 +57,7 @@ typedef struct {
     uint16_t z_statusword;
     char dir[256];
     int32_t last_incr[3];
+    int32_t shadow_temp[3]; /* temperatures the shadow compensator is given, m°C */
 } fixture_t;
 
 static fixture_t fx;
@@ -179,6 +180,9 @@ static int setup(void **state)
     size_t n = ctu_read_file(CTU_EXAMPLE_MODEL, blob, sizeof blob);
     assert_int_equal(shadow_load(blob, n), ABBE_OK);
     fx.z_statusword = SW_OK;
+    for (unsigned j = 0; j < 3; j++) {
+        fx.shadow_temp[j] = 20000;
+    }
     ctu_tmpdir(fx.dir, sizeof fx.dir);
     return 0;
 }
@@ -281,7 +285,7 @@ static abbe_comp_output_t shadow_step(const int32_t incr[3], int fresh, uint8_t 
     memset(&in, 0, sizeof in);
     for (unsigned j = 0; j < 3; j++) {
         in.pos_nm[j] = nm_of_incr(j, incr[j]);
-        in.temp_mdegc[j] = 20000;
+        in.temp_mdegc[j] = fx.shadow_temp[j];
     }
     in.fresh = (uint8_t)fresh;
     in.axis_fault_mask = fault_mask;
@@ -392,7 +396,8 @@ static void test_bad_frames(void **state)
     bus_send(ctu_frame(CMD_ID, 2, cmd2));              /* command with a wrong DLC */
     uint8_t junk[8] = {1, 2, 3, 4, 5, 6, 7, 8};
     assert_int_equal(write(fx.peer, junk, sizeof junk), (ssize_t)sizeof junk); /* not a can_frame */
-    assert_int_equal(pump(), 14);
+    assert_int_equal(write(fx.peer, junk, 0), 0);      /* an empty record: not the end of the bus */
+    assert_int_equal(pump(), 15);
     assert_int_equal(collect().n_frames, 0);           /* nothing answered */
 
     abbe_can_counters_t c = abbe_can_node_counters(&fx.node);
@@ -401,11 +406,11 @@ static void test_bad_frames(void **state)
     assert_int_equal(c.unknown_id, 3);
     assert_int_equal(c.error_frames, 1);
     assert_int_equal(c.bad_command, 1);
-    assert_int_equal(c.malformed, 1);
+    assert_int_equal(c.malformed, 2);
     assert_int_equal(c.commands, 0);
     assert_int_equal(c.syncs, 0);
     assert_int_equal(c.positions, 2);
-    assert_int_equal(abbe_can_node_ignored(&fx.node), 12);
+    assert_int_equal(abbe_can_node_ignored(&fx.node), 13);
 
     answer_t a = checked_cycle(incr, 6u, 0); /* X never arrived: not fresh */
     assert_int_equal(a.st.fresh_mask, 6);
@@ -413,9 +418,9 @@ static void test_bad_frames(void **state)
     assert_int_equal(a.st.age[1], 0);
     assert_true(a.st.flags & ABBE_FLAG_INPUT_INVALID);
     assert_false(a.st.flags & ABBE_FLAG_STALE);
-    assert_int_equal(a.st.ignored, 12);
+    assert_int_equal(a.st.ignored, 13);
     assert_int_equal(a.have_info, 1); /* first cycle after the model load */
-    assert_int_equal(a.info.ignored, 12);
+    assert_int_equal(a.info.ignored, 13);
     assert_int_equal(a.st.state, ABBE_COMP_ON); /* the malformed DISABLE did nothing */
 
     /* A SYNC with the CiA 301 counter byte is a SYNC. */
@@ -427,6 +432,40 @@ static void test_bad_frames(void **state)
     assert_int_equal(a.n_rpdo, 3);
     assert_int_equal(a.st.fresh_mask, 7);
     assert_int_equal(abbe_can_node_counters(&fx.node).syncs, 2);
+}
+
+/* The end of the bus is the peer shutting down its end, not an empty record:
+ * empty records are counted (also one still queued when the peer shuts down),
+ * the frames behind them are handled, and only then does the poll report
+ * ABBE_CAN_E_CLOSED (once, not as a stream of empty records). */
+static void test_empty_records_and_end_of_bus(void **state)
+{
+    (void)state;
+    int32_t incr[3];
+    circle_incr(0, incr);
+    assert_int_equal(write(fx.peer, "", 0), 0);
+    send_positions(incr, 7u);
+    assert_int_equal(write(fx.peer, "", 0), 0);
+    answer_t a = sync_cycle();
+    assert_int_equal(a.st.fresh_mask, 7);
+    assert_int_equal(a.st.ignored, 2);
+    assert_int_equal(abbe_can_node_counters(&fx.node).malformed, 2);
+
+    /* an empty record, a SYNC, then the peer shuts down its sending side */
+    assert_int_equal(write(fx.peer, "", 0), 0);
+    send_positions(incr, 7u);
+    bus_send(ctu_frame(0x080u, 0, NULL));
+    assert_int_equal(shutdown(fx.peer, SHUT_WR), 0);
+    assert_int_equal(abbe_can_node_poll(&fx.node, &fx.drv, 1000u), ABBE_CAN_E_CLOSED);
+    a = collect();
+    assert_int_equal(a.have_status, 1); /* the SYNC behind the empty record ran */
+    assert_int_equal(a.st.ignored, 3);
+    abbe_can_counters_t c = abbe_can_node_counters(&fx.node);
+    assert_int_equal(c.malformed, 3);
+    assert_int_equal(c.syncs, 2);
+    abbe_can_frame_t f;
+    assert_int_equal(abbe_can_fd_read(fx.node_fd, &f), ABBE_CAN_E_CLOSED); /* and it stays closed */
+    assert_int_equal(abbe_can_node_counters(&fx.node).malformed, 3);
 }
 
 /* A position missing for stale_cycles cycles trips the watchdog: flag, fade
@@ -749,15 +788,162 @@ static void test_direction_deadband(void **state)
     assert_true(abs((t_up - t_down) - b_nm) <= 2);
 }
 
+/* ---- temperatures ---------------------------------------------------------------- */
+
+#define TEMP_ID 0x370u /* 0x300 + the compensator's node id 0x70 */
+
+static abbe_can_frame_t temp_frame(int32_t x_cdegc, int32_t y_cdegc, int32_t z_cdegc, uint8_t dlc)
+{
+    abbe_can_frame_t f = ctu_frame(TEMP_ID, dlc, NULL);
+    const int32_t v[3] = {x_cdegc, y_cdegc, z_cdegc};
+    for (unsigned j = 0; j < 3; j++) {
+        abbe_can_put_u16(&f.data[2u * j], (uint16_t)(v[j] < 0 ? v[j] + 65536 : v[j]));
+    }
+    return f;
+}
+
+/* The example table with thermal terms on every axis (12 ppm/K, 1 um/K offset
+ * on X, reference 20 degC), into the node (restarted with the temperature
+ * frame enabled) and the shadow. */
+static void start_thermal(uint16_t stale_cycles)
+{
+    static uint8_t blob[ABBE_CAN_BLOB_MAX];
+    size_t n = ctu_read_file(CTU_EXAMPLE_MODEL, blob, sizeof blob);
+    abbe_can_put_u32(blob + 20, abbe_can_get_u32(blob + 20) | ABBE_FEATURE_THERMAL);
+    for (unsigned j = 0; j < 3; j++) {
+        uint8_t *rec = blob + 64 + 64 * j;
+        ctu_put_i32(rec + 36, 13510799);            /* 12 ppm/K */
+        ctu_put_i32(rec + 40, j == 0 ? 65536 : 0);  /* X: 1 um/K */
+        ctu_put_i32(rec + 44, 20000);
+    }
+    ctu_fix_crc(blob);
+    abbe_can_config_t cfg;
+    make_config(&cfg);
+    cfg.temp_enable = 1;
+    cfg.temp_stale_cycles = stale_cycles;
+    cfg.axis[2].temp_mdegc = 23000; /* Z has no sensor: its fixed temperature */
+    assert_int_equal(abbe_can_node_init(&fx.node, &cfg), ABBE_CAN_OK);
+    assert_int_equal(abbe_can_node_load_model(&fx.node, blob, n), ABBE_CAN_OK);
+    abbe_comp_config_t cc = shadow_config(&cfg);
+    assert_int_equal(abbe_comp_init(&fx.shadow, &cc, NULL), ABBE_OK);
+    assert_int_equal(abbe_comp_enable(&fx.shadow), ABBE_OK);
+    assert_int_equal(shadow_load(blob, n), ABBE_OK);
+    fx.shadow_temp[0] = 20000;
+    fx.shadow_temp[1] = 20000;
+    fx.shadow_temp[2] = 23000;
+}
+
+/* The temperature frame feeds the thermal term: every cycle equals the shadow
+ * compensator given the same temperatures; bad frames change nothing and are
+ * counted; TEMP_STALE until the first frame, after stale_cycles without one,
+ * and when an axis that had readings stops getting them. */
+static void test_temperature_frame(void **state)
+{
+    (void)state;
+    start_thermal(5);
+    int32_t incr[3];
+    int k = 0;
+    answer_t a;
+    for (; k < 15; k++) { /* no temperature frame yet: axis temp_c, TEMP_STALE */
+        circle_incr(k, incr);
+        a = checked_cycle(incr, 7u, 0);
+        assert_int_equal(a.st.temp_stale, 1);
+    }
+    int32_t t20 = abbe_can_node_output(&fx.node)->target_nm[0];
+
+    /* X 30 degC, Y 18.5 degC, Z no reading (keeps its temp_c) */
+    bus_send(temp_frame(3000, 1850, ABBE_CAN_TEMP_NO_READING, 6));
+    fx.shadow_temp[0] = 30000;
+    fx.shadow_temp[1] = 18500;
+    a = checked_cycle(incr, 7u, 0); /* same positions: only the temperature changed */
+    assert_int_equal(a.st.temp_stale, 0);
+    assert_int_equal(abbe_can_node_temp_mdegc(&fx.node, 0), 30000);
+    assert_int_equal(abbe_can_node_temp_mdegc(&fx.node, 2), 23000);
+    assert_int_equal(abbe_can_node_counters(&fx.node).temperatures, 1);
+    for (int m = 0; m < 10; m++) { /* let the rate limit catch up */
+        bus_send(temp_frame(3000, 1850, ABBE_CAN_TEMP_NO_READING, 6));
+        a = checked_cycle(incr, 7u, 0);
+    }
+    /* 10 K warmer on X: its 1 um/K offset alone moves the target by 10 um
+     * (the expansion adds or takes 12 ppm/K of the lever from the reference) */
+    int32_t t30 = abbe_can_node_output(&fx.node)->target_nm[0];
+    assert_true(abs(t30 - t20) > 9000);
+
+    /* bad frames: wrong DLC, a value out of range; neither changes a temperature */
+    uint32_t ignored = abbe_can_node_ignored(&fx.node);
+    bus_send(temp_frame(2500, 2500, 2500, 5));
+    bus_send(temp_frame(2500, 15001, 2500, 6));
+    bus_send(temp_frame(-5001, 2500, 2500, 6));
+    bus_send(temp_frame(0x7FFF, 2500, 2500, 6));
+    a = checked_cycle(incr, 7u, 0);
+    abbe_can_counters_t c = abbe_can_node_counters(&fx.node);
+    assert_int_equal(c.bad_value, 3);
+    assert_int_equal(abbe_can_node_ignored(&fx.node), ignored + 4);
+    assert_int_equal(a.st.ignored, (uint8_t)(ignored + 4));
+    assert_int_equal(abbe_can_node_temp_mdegc(&fx.node, 1), 18500);
+    /* the range ends are accepted */
+    bus_send(temp_frame(-5000, 15000, ABBE_CAN_TEMP_NO_READING, 6));
+    fx.shadow_temp[0] = -50000;
+    fx.shadow_temp[1] = 150000;
+    a = checked_cycle(incr, 7u, 0);
+    bus_send(temp_frame(2000, 2000, ABBE_CAN_TEMP_NO_READING, 6));
+    fx.shadow_temp[0] = fx.shadow_temp[1] = 20000;
+    a = checked_cycle(incr, 7u, 0);
+
+    /* the frames stop: stale after 5 cycles, the last temperatures held */
+    for (int m = 1; m <= 8; m++, k++) {
+        circle_incr(k, incr);
+        a = checked_cycle(incr, 7u, 0);
+        assert_int_equal(a.st.temp_stale, m >= 5 ? 1 : 0);
+        assert_int_equal(abbe_can_node_temp_age(&fx.node, 0), (uint32_t)m);
+    }
+    assert_int_equal(abbe_can_node_temp_age(&fx.node, 2), UINT32_MAX); /* never a reading */
+    /* frames again: current at once */
+    for (int m = 0; m < 3; m++, k++) {
+        bus_send(temp_frame(2100, 2050, ABBE_CAN_TEMP_NO_READING, 6));
+        fx.shadow_temp[0] = 21000;
+        fx.shadow_temp[1] = 20500;
+        circle_incr(k, incr);
+        a = checked_cycle(incr, 7u, 0);
+        assert_int_equal(a.st.temp_stale, 0);
+    }
+    /* the frames go on but Y's sensor has gone (no reading): stale after 5
+     * cycles, Y holds its last reading; Z (never a reading) does not count */
+    for (int m = 1; m <= 8; m++, k++) {
+        bus_send(temp_frame(2200, ABBE_CAN_TEMP_NO_READING, ABBE_CAN_TEMP_NO_READING, 6));
+        fx.shadow_temp[0] = 22000;
+        circle_incr(k, incr);
+        a = checked_cycle(incr, 7u, 0);
+        assert_int_equal(a.st.temp_stale, m >= 5 ? 1 : 0);
+        assert_int_equal(abbe_can_node_temp_age(&fx.node, 1), (uint32_t)m);
+        assert_int_equal(abbe_can_node_temp_age(&fx.node, ABBE_AXES), 0);
+    }
+    assert_int_equal(abbe_can_node_temp_mdegc(&fx.node, 1), 20500);
+    assert_int_equal(abbe_can_node_counters(&fx.node).temperatures, 11 + 2 + 3 + 8);
+
+    /* with the frame disabled its id is an unknown id */
+    abbe_can_config_t cfg = *abbe_can_node_config(&fx.node);
+    cfg.temp_enable = 0;
+    assert_int_equal(abbe_can_node_init(&fx.node, &cfg), ABBE_CAN_OK);
+    abbe_can_frame_t tx[ABBE_CAN_MAX_TX];
+    size_t n_tx;
+    abbe_can_frame_t f = temp_frame(2000, 2000, 2000, 6);
+    assert_int_equal(abbe_can_node_rx(&fx.node, &f, tx, &n_tx), ABBE_CAN_RX_UNKNOWN);
+    assert_int_equal(abbe_can_node_temp_mdegc(&fx.node, 2), 23000);
+    assert_int_equal(abbe_can_node_temp_stale(&fx.node), 0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test_setup_teardown(test_circle, setup, teardown),
         cmocka_unit_test_setup_teardown(test_bad_frames, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_empty_records_and_end_of_bus, setup, teardown),
         cmocka_unit_test_setup_teardown(test_stale_watchdog, setup, teardown),
         cmocka_unit_test_setup_teardown(test_model_swap, setup, teardown),
         cmocka_unit_test_setup_teardown(test_commands_and_axis_fault, setup, teardown),
         cmocka_unit_test_setup_teardown(test_direction_deadband, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_temperature_frame, setup, teardown),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -48,7 +48,11 @@ static const char GOOD[] =
     "increments_per_mm = 1000\n"                   /* 29 */
     "tpdo_dlc = 8\n"                               /* 30 */
     "statusword_byte = 0\n"                        /* 31 */
-    "position_byte = 2\n";                         /* 32 */
+    "position_byte = 2\n"                          /* 32 */
+    "\n"                                           /* 33 */
+    "[temperature]\n"                              /* 34 */
+    "enable = true\n"                              /* 35 */
+    "stale_cycles = 200\n";                        /* 36 */
 
 static void test_good_file(void **state)
 {
@@ -84,6 +88,12 @@ static void test_good_file(void **state)
     assert_int_equal(c.axis[2].position_byte, 2);
     assert_int_equal(c.axis[2].statusword_byte, 0);
     assert_int_equal(c.axis[0].statusword_byte, ABBE_CAN_NO_BYTE);
+    assert_int_equal(c.temp_enable, 1);
+    assert_int_equal(c.temp_cob_id, 0x370); /* 0x300 + the default node id: the compensator's RPDO2 */
+    assert_int_equal(c.temp_stale_cycles, 200);
+    for (unsigned j = 0; j < 3; j++) {
+        assert_int_equal(c.axis[j].temp_mdegc, 20000);
+    }
 
     /* CRLF line ends and a name without a directory */
     char crlf[2 * sizeof GOOD];
@@ -172,6 +182,32 @@ static const bad_case_t BAD[] = {
     {25, "rpdo_cob_id = 0x181", 25, "axis.Y.rpdo_cob_id", "already used by an axis' tpdo_cob_id"},
     {10, "cob_id = 0x181", 16, "axis.X.tpdo_cob_id", "already used by status.cob_id"},
     {25, "tpdo_cob_id = 0x190", 30, "axis.Z.tpdo_dlc", "axes sharing a TPDO"}, /* Y joins Z's TPDO */
+    {35, "enable = true\ncob_id = 0x080", 36, "temperature.cob_id", "already used by bus.sync_cob_id"},
+    {35, "enable = true\ncob_id = 0x202", 21, "axis.Y.rpdo_cob_id", "already used by temperature.cob_id"},
+    {36, "stale_cycles = -1", 36, "temperature.stale_cycles", "must be 0..65535"},
+    {35, "enable = 1", 35, "temperature.enable", "expected true or false"},
+    {35, "enabled = true", 35, "temperature.enabled", "unknown key"},
+    {19, "temp_c = 150.01", 19, "axis.X.temp_c", "must be -50..150 (degC)"},
+    {19, "temp_c = -51", 19, "axis.X.temp_c", "must be -50..150 (degC)"},
+    /* numbers follow TOML (what tomllib refuses is refused here too) */
+    {17, "node_id = 01", 17, "axis.X.node_id", "expected an integer"},
+    {17, "node_id = 0X1", 17, "axis.X.node_id", "expected an integer"},
+    {17, "node_id = 1__0", 17, "axis.X.node_id", "expected an integer"},
+    {17, "node_id = _1", 17, "axis.X.node_id", "expected an integer"},
+    {17, "node_id = 1_", 17, "axis.X.node_id", "expected an integer"},
+    {17, "node_id = 0x_1", 17, "axis.X.node_id", "expected an integer"},
+    {17, "node_id = -0x1", 17, "axis.X.node_id", "expected an integer"},
+    {17, "node_id = 99999999999999999999", 17, "axis.X.node_id", "must be 1..127"},
+    {19, "warn_um = .5", 19, "axis.X.warn_um", "expected a number"},
+    {19, "warn_um = 5.", 19, "axis.X.warn_um", "expected a number"},
+    {19, "warn_um = 5.e1", 19, "axis.X.warn_um", "expected a number"},
+    {19, "warn_um = 1e", 19, "axis.X.warn_um", "expected a number"},
+    {19, "warn_um = 0x1p3", 19, "axis.X.warn_um", "expected a number"},
+    {19, "warn_um = -0x10", 19, "axis.X.warn_um", "expected a number"},
+    {19, "warn_um = 00.5", 19, "axis.X.warn_um", "expected a number"},
+    {19, "warn_um = inf", 19, "axis.X.warn_um", "expected a number"},
+    {19, "warn_um = 1e400", 19, "axis.X.warn_um", "value out of range"},
+    {19, "warn_um = 1e299", 19, "axis.X.warn_um", "value out of range"},
 };
 
 static void check_case(const bad_case_t *bc, const char *text, size_t n, const char *name)
@@ -204,6 +240,29 @@ static void test_errors(void **state)
         char text[4096];
         size_t n = edit(text, sizeof text, BAD[i].line, BAD[i].text);
         check_case(&BAD[i], text, n, "cfg/can.toml");
+    }
+}
+
+/* Spellings TOML allows, with their values. */
+static void test_number_syntax(void **state)
+{
+    (void)state;
+    static const struct {
+        const char *text;
+        int32_t warn_nm;
+    } ok[] = {
+        {"warn_um = +4_0.5e0", 40500}, {"warn_um = 4.05E+1", 40500}, {"warn_um = 40", 40000},
+        {"warn_um = 0.0405e3", 40500}, {"warn_um = 1_0", 10000},     {"warn_um = 0x28", 40000},
+    };
+    for (size_t i = 0; i < sizeof ok / sizeof ok[0]; i++) {
+        char text[4096];
+        size_t n = edit(text, sizeof text, 19, ok[i].text);
+        abbe_can_config_t c;
+        abbe_can_config_error_t e;
+        if (abbe_can_config_parse(&c, text, n, "can.toml", &e) != ABBE_CAN_OK) {
+            fail_msg("'%s' refused: %s", ok[i].text, e.message);
+        }
+        assert_int_equal(c.axis[0].warn_nm, ok[i].warn_nm);
     }
 }
 
@@ -314,6 +373,7 @@ static void test_check_direct(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_number_syntax),
         cmocka_unit_test(test_good_file),       cmocka_unit_test(test_errors),
         cmocka_unit_test(test_missing_section), cmocka_unit_test(test_files),
         cmocka_unit_test(test_check_direct),

@@ -80,7 +80,19 @@ static void test_status_strings(void **state)
     for (int st = ABBE_CAN_E_PARSE; st <= ABBE_CAN_E_ARG; st++) {
         assert_string_equal(abbe_strerror(st), "unknown status");
         assert_true(st >= -128);
+        assert_true(strncmp(abbe_can_status_name(st), "ABBE_CAN_E_", 11) == 0);
     }
+    /* every core status has its name (the log says which check refused a
+     * model), and the core's codes stay above the port's */
+    assert_true((int)ABBE_STATUS_MIN > (int)ABBE_CAN_E_ARG);
+    for (int st = ABBE_STATUS_MIN; st < 0; st++) {
+        const char *name = abbe_can_status_name(st);
+        if (strncmp(name, "ABBE_E_", 7) != 0) {
+            fail_msg("status %d has no name: '%s'", st, name);
+        }
+    }
+    assert_string_equal(abbe_can_status_name(ABBE_E_MISMATCH), "ABBE_E_MISMATCH");
+    assert_string_equal(abbe_can_status_name(ABBE_STATUS_MIN - 1), "unknown status");
 }
 
 static void parse_ok(const char *line, abbe_can_log_entry_t *e)

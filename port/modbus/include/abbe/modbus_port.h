@@ -33,6 +33,28 @@
 
 #define ABBE_MB_BANKS 3 /* running, queued, staging */
 
+/* What happened to an upload session or a table, reported to an event hook
+ * (abbe_mb_regs_set_event_hook) as it happens, e.g. for a log. */
+typedef enum {
+    ABBE_MB_EV_UPLOAD_BEGIN = 1, /* conn opened session (UP_SESSION) */
+    ABBE_MB_EV_UPLOAD_END = 2,   /* session of conn closed with result (its UP_RESULT); OK: size, crc */
+    ABBE_MB_EV_UPLOAD_BUSY = 3,  /* a BEGIN from conn refused: session of owner is open */
+    ABBE_MB_EV_MODEL_SWAP = 4    /* the queued table (crc, size) took effect in the cycle IN_CYCLE = cycle */
+} abbe_mb_event_kind_t;
+
+typedef struct {
+    abbe_mb_event_kind_t kind;
+    uint32_t conn;     /* the connection concerned (the session's owner for BEGIN/END) */
+    uint32_t owner;    /* BUSY: the connection owning the open session */
+    uint16_t session;  /* BEGIN, END, BUSY */
+    int16_t result;    /* END: ABBE_MB_UP_* or a negative abbe_status_t */
+    uint16_t cycle;    /* MODEL_SWAP: IN_CYCLE of that cycle */
+    uint32_t size;     /* END OK, MODEL_SWAP: table bytes */
+    uint32_t crc;      /* END OK, MODEL_SWAP: table CRC-32 */
+} abbe_mb_event_t;
+
+typedef void (*abbe_mb_event_fn)(void *ctx, const abbe_mb_event_t *ev);
+
 typedef struct {
     abbe_comp_config_t comp;     /* initial limits (the CT_* registers change them) */
     uint8_t word_order;          /* ABBE_MB_WORD_ORDER_* */
@@ -79,6 +101,9 @@ typedef struct {
     uint32_t requests, exceptions, uploads_ok, uploads_rejected, clients_refused;
     uint16_t clients, max_clients, last_exception;
     uint32_t now_ms;
+    /* event hook (NULL: none) */
+    abbe_mb_event_fn event_fn;
+    void *event_ctx;
 } abbe_mb_regs_t;
 
 /* Defaults: word order high first, direction from the IN_DIR registers, warn
@@ -124,6 +149,12 @@ void abbe_mb_regs_tick(abbe_mb_regs_t *r, uint32_t now_ms);
  * of open / refused connections. */
 void abbe_mb_regs_count_request(abbe_mb_regs_t *r, uint8_t function, int exception);
 void abbe_mb_regs_set_clients(abbe_mb_regs_t *r, uint16_t open, uint32_t refused);
+
+/* Call fn(ctx, event) for every upload session begun, ended or refused as
+ * busy and every table taken into use, synchronously from the call that
+ * caused it (fn must not call back into r). NULL fn: no hook. Set it after
+ * abbe_mb_regs_init (which clears it). */
+void abbe_mb_regs_set_event_hook(abbe_mb_regs_t *r, abbe_mb_event_fn fn, void *ctx);
 
 /* The compensator (read only: for status displays and tests). */
 const abbe_comp_t *abbe_mb_regs_comp(const abbe_mb_regs_t *r);

@@ -75,8 +75,9 @@
 #define ABBE_MB_UPLOAD_IDLE 0u
 #define ABBE_MB_UPLOAD_OPEN 1u
 
-/* UP_RESULT: 1 OK, 0 nothing yet, a negative abbe_status_t (-1 .. -16) when
- * the table failed validation, or one of these. */
+/* UP_RESULT: 1 OK, 0 nothing yet, a negative abbe_status_t (-1 .. -99, the
+ * library's range; today down to ABBE_STATUS_MIN = -18) when the table failed
+ * validation, or one of these. */
 #define ABBE_MB_UP_OK 1
 #define ABBE_MB_UP_NONE 0
 #define ABBE_MB_UP_INCOMPLETE (-100)   /* commit length > bytes received */
@@ -94,12 +95,19 @@
 #define ABBE_MB_REG_IN_DIR_X 0x0106u          /* int16 -1, 0, +1 (backlash tables; ignored with CT_DIR_SOURCE = 1) */
 #define ABBE_MB_REG_IN_DIR_Y 0x0107u
 #define ABBE_MB_REG_IN_DIR_Z 0x0108u
-#define ABBE_MB_REG_IN_TEMP_X 0x0109u         /* int16 axis temperature, 0.01 degC (thermal tables) */
+#define ABBE_MB_REG_IN_TEMP_X 0x0109u         /* int16 axis temperature, 0.01 degC (thermal tables), below */
 #define ABBE_MB_REG_IN_TEMP_Y 0x010Au
 #define ABBE_MB_REG_IN_TEMP_Z 0x010Bu
 #define ABBE_MB_REG_IN_AXIS_FAULT 0x010Cu     /* bit j: axis j faulted, its correction fades out */
 #define ABBE_MB_REG_IN_CYCLE 0x010Du          /* any write here runs one compensator cycle (the trigger) */
 #define ABBE_MB_IN_COUNT 0x000Eu
+
+/* IN_TEMP_*: -5000 .. 15000 (-50 .. +150 degC), or ABBE_MB_TEMP_NO_READING
+ * (-32768, 0x8000): no reading, the axis keeps its temperature. Anything else
+ * is exception 03 (a sensor fault, not a machine temperature). */
+#define ABBE_MB_TEMP_NO_READING (-32768)
+#define ABBE_MB_TEMP_MIN_CDEGC (-5000)
+#define ABBE_MB_TEMP_MAX_CDEGC 15000
 
 /* ---- outputs of the last cycle (read only) --------------------------------- */
 #define ABBE_MB_REG_OUT_BASE 0x0120u

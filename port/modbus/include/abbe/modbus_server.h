@@ -24,6 +24,27 @@
 #error "ABBE_MB_MAX_CLIENTS must be in [1, 255]"
 #endif
 
+/* A TCP connection opened, closed or refused, reported to a connection hook
+ * (abbe_mb_server_set_conn_hook), e.g. for a log. */
+typedef enum {
+    ABBE_MB_CONN_OPENED = 1,
+    ABBE_MB_CONN_CLOSED = 2,
+    ABBE_MB_CONN_REFUSED = 3 /* accepted and closed at once */
+} abbe_mb_conn_event_kind_t;
+
+typedef struct {
+    abbe_mb_conn_event_kind_t kind;
+    uint32_t conn;       /* the register map's token of the connection (0: refused) */
+    const char *peer;    /* "ADDRESS:PORT" of the client */
+    const char *reason;  /* CLOSED, REFUSED: why, a sentence fragment; else "" */
+    uint16_t open;       /* connections open after the event */
+    uint16_t max;        /* connections served at once */
+} abbe_mb_conn_event_t;
+
+typedef void (*abbe_mb_conn_fn)(void *ctx, const abbe_mb_conn_event_t *ev);
+
+#define ABBE_MB_PEER_MAX 64 /* "[v6 address]:port" */
+
 /* One TCP connection. All fields private. */
 typedef struct {
     int fd;                                  /* -1: slot free */
@@ -31,6 +52,7 @@ typedef struct {
     uint32_t last_rx_ms;
     uint16_t len;
     uint8_t buf[MODBUS_TCP_MAX_ADU_LENGTH];  /* partial request(s) */
+    char peer[ABBE_MB_PEER_MAX];
 } abbe_mb_client_t;
 
 /* Server state. Allocate it yourself; all fields private. */
@@ -45,6 +67,8 @@ typedef struct {
     uint32_t next_conn;
     uint32_t refused;
     uint32_t quiet_until_ms;  /* RTU: line hung up, poll it again from then */
+    abbe_mb_conn_fn conn_fn;  /* connection hook, NULL: none */
+    void *conn_ctx;
     abbe_mb_client_t client[ABBE_MB_MAX_CLIENTS];
     uint16_t scratch[ABBE_MB_REG_STAGING];  /* FC23 spans at most the register map below the staging area */
 } abbe_mb_server_t;
@@ -75,6 +99,11 @@ int abbe_mb_server_poll(abbe_mb_server_t *srv, int timeout_ms);
 /* Close every connection (dropping an open upload) and free the libmodbus
  * context. srv may then be opened again. */
 void abbe_mb_server_close(abbe_mb_server_t *srv);
+
+/* Call fn(ctx, event) for every TCP connection opened, closed (with the
+ * reason) or refused. Set it after abbe_mb_server_open_tcp (which clears it);
+ * NULL fn: none. The strings in the event live until fn returns. */
+void abbe_mb_server_set_conn_hook(abbe_mb_server_t *srv, abbe_mb_conn_fn fn, void *ctx);
 
 /* Milliseconds of CLOCK_MONOTONIC, wrapping (the register map's clock). */
 uint32_t abbe_mb_now_ms(void);

@@ -1,0 +1,66 @@
+"""``abbe export MODEL --format F -o OUT [--machine M.toml] [--set NAME=VALUE ...]``:
+write a model in a controller's native compensation format, with the residual the
+target leaves (docs/exports.md)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from abbe.cli.conventions import examples, list_option
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    from abbe.formats.export import TARGETS
+
+    p = subparsers.add_parser(
+        "export", help="write a model in a controller's compensation format, with its residual",
+        description="Write the model (table blob, table JSON or a fit/import model.json) in a "
+                    "controller's native compensation format and report what the target leaves "
+                    "uncompensated over the work volume and the machine file's ballbar circles "
+                    "(OUT/residual.json). Targets: " + ", ".join(TARGETS) + ".",
+        epilog=examples("abbe export fit-out/model.bin --format linuxcnc-comp -o lcnc "
+                        "--machine examples/vmc500/machine.toml",
+                        "abbe export model.bin -f sinumerik-cec -o cec --set tables=8 points=200",
+                        "abbe export model.bin -f fanuc-pitch --list-options -o x"))
+    p.add_argument("model", type=Path, help="model: model.bin, table JSON or model.json")
+    p.add_argument("--format", "-f", required=True, choices=list(TARGETS), metavar="F",
+                   help="target: " + ", ".join(TARGETS))
+    p.add_argument("-o", "--out", type=Path, required=True, help="output directory")
+    p.add_argument("--machine", type=Path,
+                   help="machine file: its travel is the work volume, its ballbar circles are "
+                        "evaluated (default: the model's travel, no circles)")
+    list_option(p, "--set", default=[], metavar="NAME=VALUE",
+                help="target options (repeatable); --list-options shows them")
+    p.add_argument("--list-options", action="store_true", help="print the target's options")
+    p.add_argument("--json", action="store_true", help="print the residual report as JSON")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from abbe.formats.export import files_to_write, run_export, target_module
+    from abbe.formats.export.residual import summary
+    from abbe.formats.machine import load_machine
+    from abbe.formats.model_file import load_table
+    from abbe.formats.output import atomic_write_many
+
+    mod = target_module(args.format)
+    if args.list_options:
+        for name, o in mod.OPTIONS.items():
+            print(f"{name} ({o.kind}, default {o.default}): {o.help}")
+        return 0
+    table = load_table(args.model)
+    machine = load_machine(args.machine) if args.machine else None
+    exp, report = run_export(table, args.format, args.set, machine, str(args.model))
+    files = files_to_write(args.out, exp, report)
+    for path in files:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_many(files)
+    if args.json:
+        json.dump(report, sys.stdout, indent=2)
+        sys.stdout.write("\n")
+    else:
+        print(summary(report).replace("wrote ", f"wrote {args.out}/: ", 1))
+    return 0

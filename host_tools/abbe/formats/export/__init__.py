@@ -1,0 +1,65 @@
+"""Exports of an abbe table to controllers' native compensation formats.
+
+One module per target (``TARGETS``); the shared machinery: the work volume and
+circles (:mod:`.volume`), the model as per-axis functions and named parts
+(:mod:`.terms`), grid choice (:mod:`.grids`), the target interface and the "not
+held" report (:mod:`.target`), the residual (:mod:`.residual`). docs/exports.md
+describes every target with its sources.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+from abbe.formats.export.target import Context, Export, parse_options
+from abbe.formats.export.volume import work_volume
+
+#: target name -> module (in help order).
+TARGETS: dict[str, str] = {
+    "isg-csv": "abbe.formats.export.isg_csv",
+    "sinumerik-lec": "abbe.formats.export.sinumerik_lec",
+    "sinumerik-cec": "abbe.formats.export.sinumerik_cec",
+    "heidenhain-com": "abbe.formats.export.heidenhain_com",
+    "fanuc-pitch": "abbe.formats.export.fanuc_pitch",
+    "klipper-skew": "abbe.formats.export.klipper_skew",
+    "marlin": "abbe.formats.export.marlin",
+    "linuxcnc-comp": "abbe.formats.export.linuxcnc_comp",
+    "linuxcnc-matrixkins": "abbe.formats.export.linuxcnc_matrixkins",
+}
+
+RESIDUAL_FILE = "residual.json"
+
+
+def target_module(name: str) -> ModuleType:
+    """The module of target ``name`` (KeyError if unknown)."""
+    return importlib.import_module(TARGETS[name])
+
+
+def run_export(table, target: str, options: list[str] | None = None, machine=None,
+               model_source: str = "") -> tuple[Export, dict[str, Any]]:
+    """Build ``target`` for ``table`` and evaluate its residual.
+
+    Returns the export (files in memory) and the residual report; nothing is
+    written. ``options``: ``NAME=VALUE`` strings (``--set``).
+    """
+    from abbe.formats.export.residual import evaluate
+
+    mod = target_module(target)
+    opts = parse_options(target, mod.OPTIONS, list(options or []))
+    ctx = Context(table=table, volume=work_volume(table, machine), options=opts,
+                  model_source=model_source)
+    exp = mod.build(ctx)
+    report = evaluate(ctx, exp)
+    report["options"] = {k: v for k, v in opts.items()}
+    return exp, report
+
+
+def files_to_write(out_dir: Path, exp: Export, report: dict[str, Any]) -> dict[Path, bytes]:
+    """Every output file (the target's and residual.json) by its path."""
+    files = {out_dir / name: data for name, data in exp.files.items()}
+    files[out_dir / RESIDUAL_FILE] = (json.dumps(report, indent=2) + "\n").encode()
+    return files

@@ -1,0 +1,445 @@
+"""Independent readers of every export format, written from the format descriptions
+(docs/exports.md and the controllers' documentation it cites), not from the writers.
+
+Each ``read_<target>(out_dir)`` parses the files as the controller would and returns
+``corr(pos_mm (N, 3), state (N, 3)) -> (N, 3) um``: what the controller adds to the
+commanded position (state: +1 after moving +, -1 after moving -). Eq. 3 for the ISG
+reader is written out here from docs/table-format.md. Nothing is imported from
+abbe.formats.export.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+AX = "XYZ"
+
+
+class FormatError(AssertionError):
+    pass
+
+
+def _num(s: str) -> float:
+    v = float(s)
+    if not np.isfinite(v):
+        raise FormatError(f"not finite: {s}")
+    return v
+
+
+def hold_interp(x, xp, fp):
+    """Linear interpolation with the end values held."""
+    return np.interp(np.asarray(x, float), np.asarray(xp, float), np.asarray(fp, float))
+
+
+# --- LinuxCNC ------------------------------------------------------------------------
+
+def load_comp_file(path: Path, comp_type: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """usrmotLoadComp: read "%lf %lf %lf" per line, stop at the first line that is not
+    three numbers; type 0 columns are actual positions (trim = nominal - column), type 1
+    the trims. Refuses what command.c refuses (more than 256, non-increasing nominals)."""
+    nom, fwd, rev = [], [], []
+    for line in path.read_text().splitlines():
+        parts = line.split()
+        try:
+            n, f, r = (float(parts[0]), float(parts[1]), float(parts[2]))
+        except (IndexError, ValueError):
+            break
+        nom.append(n)
+        if comp_type == 0:
+            fwd.append(n - f)
+            rev.append(n - r)
+        else:
+            fwd.append(f)
+            rev.append(r)
+    if len(nom) > 256:
+        raise FormatError("joint: too many compensation entries")
+    if any(b <= a for a, b in zip(nom, nom[1:])):
+        raise FormatError("compensation values must increase")
+    # emcmot_comp_entry_t stores trims as float
+    return (np.array(nom), np.array(fwd, dtype=np.float32).astype(float),
+            np.array(rev, dtype=np.float32).astype(float))
+
+
+def read_ini_comp(out: Path) -> dict[int, tuple[str, int]]:
+    """[JOINT_n] COMP_FILE / COMP_FILE_TYPE of the INI snippet."""
+    joints: dict[int, tuple[str, int]] = {}
+    cur = None
+    vals: dict[str, str] = {}
+    for line in (out / "linuxcnc.ini").read_text().splitlines() + ["[END]"]:
+        line = line.split("#")[0].strip()
+        m = re.fullmatch(r"\[(\w+)\]", line)
+        if m:
+            if cur is not None:
+                joints[cur] = (vals["COMP_FILE"], int(vals["COMP_FILE_TYPE"]))
+            cur = int(m.group(1)[6:]) if m.group(1).startswith("JOINT_") else None
+            vals = {}
+        elif "=" in line:
+            k, v = line.split("=", 1)
+            vals[k.strip()] = v.strip()
+    return joints
+
+
+def read_linuxcnc_comp(out: Path, joint_axis=(0, 1, 2)):
+    joints = read_ini_comp(out)
+    tabs = {j: load_comp_file(out / name, typ) for j, (name, typ) in joints.items()}
+
+    def corr(pos, state):
+        res = np.zeros_like(pos, dtype=float)
+        for j, (nom, fwd, rev) in tabs.items():
+            k = joint_axis.index(j)
+            f = hold_interp(pos[:, k], nom, fwd)
+            r = hold_interp(pos[:, k], nom, rev)
+            res[:, k] = np.where(state[:, k] > 0, f, r) * 1e3
+        return res
+    return corr, tabs
+
+
+def read_matrixkins(out: Path):
+    C = np.eye(3)
+    for line in (out / "matrixkins.hal").read_text().splitlines():
+        m = re.match(r"\s*setp\s+\S+\.C_([xyz])([xyz])\s+(\S+)", line)
+        if m:
+            C["xyz".index(m.group(1)), "xyz".index(m.group(2))] = _num(m.group(3))
+    return lambda pos, state: (pos @ C.T - pos) * 1e3
+
+
+# --- Klipper, Marlin -------------------------------------------------------------------
+
+def read_klipper(out: Path, profile: str = "abbe"):
+    sect, vals = None, {}
+    for line in (out / "skew_correction.cfg").read_text().splitlines():
+        line = line.split("#")[0].strip()
+        if line.startswith("["):
+            sect = line.strip("[]").strip()
+        elif "=" in line and sect == f"skew_correction {profile}":
+            k, v = line.split("=", 1)
+            vals[k.strip()] = _num(v)
+    xy, xz, yz = vals["xy_skew"], vals["xz_skew"], vals["yz_skew"]
+
+    def corr(pos, state):
+        x, y, z = pos.T
+        moved = np.column_stack([x - y * xy - z * (xz - xy * yz), y - z * yz, z])
+        return (moved - pos) * 1e3
+    return corr
+
+
+def read_marlin(out: Path):
+    xy = xz = yz = 0.0
+    back = {"X": 0.0, "Y": 0.0, "Z": 0.0}
+    frac = 1.0
+    for line in (out / "marlin.gcode").read_text().splitlines():
+        line = line.split(";")[0].strip()
+        words = dict((w[0], w[1:]) for w in line.split()[1:])
+        if line.startswith("M852"):
+            xy = _num(words.get("I", words.get("S", "0")))
+            xz, yz = _num(words.get("J", "0")), _num(words.get("K", "0"))
+        elif line.startswith("M425"):
+            frac = _num(words.get("F", "1"))
+            for a in AX:
+                if a in words:
+                    back[a] = _num(words[a])
+    d = np.array([back[a] for a in AX]) * frac
+
+    def corr(pos, state):
+        x, y, z = pos.T
+        moved = np.column_stack([x - y * xy - z * (xz - xy * yz), y - z * yz, z])
+        # backlash.cpp: after a + move the extra distance is applied, after a - move not;
+        # in between (the smoothing distance after a reversal) the share taken up so far,
+        # with state ramping from -1 to +1 over it (docs/exports.md)
+        share = np.clip(0.5 * (1.0 + np.asarray(state, float)), 0.0, 1.0)
+        applied = share * d * np.where(d > 0, 1.0, 0.0)
+        return (moved - pos + applied) * 1e3
+    return corr
+
+
+# --- Siemens ---------------------------------------------------------------------------
+
+def read_sinumerik_lec(out: Path, names=("X1", "Y1", "Z1")):
+    text = (out / "EEC.INI").read_text().splitlines()
+    if text[0].strip() != "%_N_AX_EEC_INI" or text[-1].strip() != "M17":
+        raise FormatError("not an %_N_AX_EEC_INI program ending M17")
+    vals: dict[str, dict[int, float]] = {n: {} for n in names}
+    par: dict[tuple[str, str], float] = {}
+    for line in text:
+        line = line.split(";")[0].strip()
+        m = re.fullmatch(r"\$AA_ENC_COMP\[0,(\d+),(\w+)\]=(\S+)", line)
+        if m:
+            vals[m.group(2)][int(m.group(1))] = _num(m.group(3))
+            continue
+        m = re.fullmatch(r"\$AA_ENC_COMP_(STEP|MIN|MAX|IS_MODULO)\[0,(\w+)\]=(\S+)", line)
+        if m:
+            par[(m.group(2), m.group(1))] = _num(m.group(3))
+    tabs = {}
+    for k, n in enumerate(names):
+        v = vals[n]
+        N = max(v) + 1
+        if sorted(v) != list(range(N)):
+            raise FormatError(f"{n}: interpolation points missing")
+        mn, st, mx = par[(n, "MIN")], par[(n, "STEP")], par[(n, "MAX")]
+        if abs(mn + (N - 1) * st - mx) > 1e-6:
+            raise FormatError(f"{n}: MAX != MIN + (N - 1) STEP")
+        tabs[k] = (mn + st * np.arange(N), np.array([v[i] for i in range(N)]))
+
+    def corr(pos, state):
+        res = np.zeros_like(pos, dtype=float)
+        for k, (xp, fp) in tabs.items():
+            res[:, k] = -hold_interp(pos[:, k], xp, fp) * 1e3  # positive value: axis moves -
+        return res
+    return corr
+
+
+def read_sinumerik_cec(out: Path, names=("X1", "Y1", "Z1")):
+    text = (out / "CEC.INI").read_text().splitlines()
+    if text[0].strip() != "%_N_NC_CEC_INI" or text[-1].strip() != "M17":
+        raise FormatError("not an %_N_NC_CEC_INI program ending M17")
+    vals: dict[int, dict[int, float]] = {}
+    par: dict[int, dict[str, str]] = {}
+    for line in text:
+        line = line.split(";")[0].strip()
+        m = re.fullmatch(r"\$AN_CEC\[(\d+),(\d+)\]=(\S+)", line)
+        if m:
+            vals.setdefault(int(m.group(1)), {})[int(m.group(2))] = _num(m.group(3))
+            continue
+        m = re.fullmatch(r"\$AN_CEC_(\w+)\[(\d+)\]=(\S+)", line)
+        if m:
+            par.setdefault(int(m.group(2)), {})[m.group(1)] = m.group(3)
+    tabs = []
+    for t, v in vals.items():
+        p = par[t]
+        N = max(v) + 1
+        mn, st, mx = _num(p["MIN"]), _num(p["STEP"]), _num(p["MAX"])
+        if abs(mn + (N - 1) * st - mx) > 1e-6:
+            raise FormatError(f"table {t}: MAX != MIN + (N - 1) STEP")
+        i = names.index(p["INPUT_AXIS"].strip("()"))
+        o = names.index(p["OUTPUT_AXIS"].strip("()"))
+        tabs.append((i, o, int(p["DIRECTION"]), mn + st * np.arange(N),
+                     np.array([v[n] for n in range(N)])))
+
+    def corr(pos, state):
+        res = np.zeros_like(pos, dtype=float)
+        for i, o, d, xp, fp in tabs:
+            val = hold_interp(pos[:, i], xp, fp)
+            if d:
+                val = np.where(np.sign(state[:, i]) == d, val, 0.0)
+            res[:, o] -= val * 1e3
+        return res
+    return corr, tabs
+
+
+# --- Heidenhain ------------------------------------------------------------------------
+
+def read_tnc_table(path: Path) -> tuple[list[str], list[list[str]]]:
+    lines = [ln.rstrip() for ln in path.read_text().splitlines()]
+    if not lines[0].startswith("BEGIN ") or lines[-1] != "[END]":
+        raise FormatError(f"{path.name}: not a TNC table (BEGIN ... [END])")
+    cols = lines[1].split()
+    rows = [ln.split() for ln in lines[2:-1]]
+    for r in rows:
+        if len(r) != len(cols):
+            raise FormatError(f"{path.name}: a row with {len(r)} cells for {len(cols)} columns")
+    return cols, rows
+
+
+def read_heidenhain(out: Path, limit: int = 256):
+    ccols, crows = read_tnc_table(out / "CONFIG.CMA")
+    active = [r for r in crows if r[ccols.index("ACTIVE")] == "*"]
+    if len(active) != 1:
+        raise FormatError("exactly one active line in the .CMA")
+    tabs = []
+    for a in AX:
+        if a not in ccols:
+            continue
+        cols, rows = read_tnc_table(out / active[0][ccols.index(a)])
+        if len(rows) > limit:
+            raise FormatError("more than 256 entries")
+        data = np.array([[_num(v) for v in r] for r in rows])
+        pos = data[:, cols.index("AXISPOS")]
+        outs = {b: data[:, cols.index(b)] for b in AX if b in cols}
+        bl = data[:, cols.index("BACKLASH")] if "BACKLASH" in cols else None
+        tabs.append((AX.index(a), pos, outs, bl))
+
+    def corr(p, state):
+        res = np.zeros_like(p, dtype=float)
+        for i, pos, outs, bl in tabs:
+            for b, col in outs.items():
+                k = AX.index(b)
+                v = hold_interp(p[:, i], pos, col)
+                if k == i and bl is not None:  # negative traverse: value + BACKLASH
+                    v = v + np.where(state[:, i] < 0, hold_interp(p[:, i], pos, bl), 0.0)
+                res[:, k] -= v * 1e3
+        return res
+    return corr
+
+
+# --- Fanuc -----------------------------------------------------------------------------
+
+def read_fanuc(out: Path, unit_um: float = 1.0, reference=(0.0, 0.0, 0.0),
+               ref_return=(1, 1, 1)):
+    lines = (out / "fanuc_pitch.prm").read_text().split()
+    if lines[0] != "%" or lines[-1] != "%":
+        raise FormatError("tape must start and end with %")
+    par: dict[int, dict[int, int]] = {}
+    data: dict[int, int] = {}
+    for w in lines[1:-1]:
+        m = re.fullmatch(r"N(\d+)((?:A\d+P-?\d+)+|P-?\d+)", w)
+        if not m:
+            raise FormatError(f"bad tape word {w}")
+        no = int(m.group(1))
+        if no >= 10000:
+            data[no - 10000] = int(m.group(2)[1:])
+        else:
+            par[no] = {int(a): (int(v, 2) if no == 3605 else int(v))
+                       for a, v in re.findall(r"A(\d+)P(-?\d+)", m.group(2))}
+    axes = []
+    for k in range(3):
+        A = k + 1
+        nref, nmin, nmax = par[3620][A], par[3621][A], par[3622][A]
+        mag, iv = par[3623][A], par[3624][A]
+        h = iv * unit_um / 1000.0
+        bidir = bool(par[3605][A] & 1)
+
+        def absolute(first: int, at_ref: float):
+            # Q(n): cumulative increments from the reference point
+            Q = {nref: at_ref}
+            for n in range(nref + 1, nmax + 1):
+                Q[n] = Q[n - 1] + data[first + n - nmin] * mag * unit_um
+            for n in range(nref, nmin - 1, -1):
+                Q[n - 1] = Q[n] - data[first + n - nmin] * mag * unit_um
+            return Q
+        plus = absolute(nmin, 0.0)
+        minus = None
+        if bidir:
+            minus = absolute(par[3626][A], par[3627][A] * unit_um)
+            if ref_return[k] < 0:
+                plus, minus = absolute(nmin, par[3627][A] * unit_um), absolute(par[3626][A], 0.0)
+        axes.append((reference[k], h, nref, nmin, nmax, plus, minus))
+
+    def stair(p, r, h, nref, nmin, nmax, Q):
+        k = (p - r) / h
+        n = nref + np.where(k >= 0, np.floor(k + 1e-9), np.ceil(k - 1e-9)).astype(int)
+        n = np.clip(n, nmin - 1, nmax)
+        return np.array([Q[int(i)] for i in n])
+
+    def corr(pos, state):
+        res = np.zeros_like(pos, dtype=float)
+        for k, (r, h, nref, nmin, nmax, plus, minus) in enumerate(axes):
+            u = stair(pos[:, k], r, h, nref, nmin, nmax, plus)
+            if minus is None:
+                res[:, k] = u
+            else:
+                d = stair(pos[:, k], r, h, nref, nmin, nmax, minus)
+                res[:, k] = np.where(state[:, k] < 0, d, u)
+        return res
+    return corr
+
+
+# --- Beckhoff ISG CSV ------------------------------------------------------------------
+
+def read_isg_blocks(path: Path) -> list[tuple[list[str], np.ndarray]]:
+    """Blocks of an ISG CSV file: '//' comments, '#' starts a block, a header, records."""
+    blocks, header, rows = [], None, []
+    for line in path.read_text().splitlines() + ["#"]:
+        line = line.split("//")[0].strip()
+        if not line:
+            continue
+        if line == "#":
+            if header is not None:
+                blocks.append((header, np.array(rows, dtype=float).reshape(len(rows), len(header))))
+            header, rows = None, []
+        elif header is None:
+            header = line.split()
+        else:
+            rows.append([_num(v) for v in line.split()])
+    return blocks
+
+
+def eq3(e, pos, ref, tool, S):
+    """docs/table-format.md, "What the table means", written out (um, urad, mm)."""
+    x, y, z = ((pos - np.asarray(ref)) * 1e-3).T
+    tx, ty, tz = np.asarray(tool) * 1e-3
+    sxy, sxz, syz = S
+    E = lambda a, t: e[a][t]  # noqa: E731
+    dX = (-E("X", "dx") - E("Y", "dx") + E("Z", "dx") - y * (E("X", "ez") + E("Y", "ez"))
+          - z * (E("X", "ey") + E("Y", "ey")) + y * sxy - z * sxz
+          + ty * (E("X", "ez") + E("Y", "ez") - E("Z", "ez"))
+          + tz * (E("Z", "ey") - E("X", "ey") - E("Y", "ey")))
+    dY = (-E("X", "dy") - E("Y", "dy") + E("Z", "dy") + x * E("X", "ez")
+          + z * (E("X", "ex") + E("Y", "ex")) - z * syz
+          + tx * (E("Z", "ez") - E("X", "ez") - E("Y", "ez"))
+          + tz * (E("X", "ex") + E("Y", "ex") - E("Z", "ex")))
+    dZ = (-E("X", "dz") - E("Y", "dz") + E("Z", "dz") - x * E("X", "ey")
+          + y * (E("X", "ex") + E("Y", "ex"))
+          + tx * (E("X", "ey") + E("Y", "ey") - E("Z", "ey"))
+          + ty * (E("Z", "ex") - E("X", "ex") - E("Y", "ex")))
+    return np.column_stack([dX, dY, dZ])
+
+
+def read_isg(out: Path, tool=(0.0, 0.0, 0.0)):
+    lis = {}
+    for line in (out / "volcomp.lis").read_text().splitlines():
+        line = line.split("#")[0].strip()
+        if line:
+            k, v = line.split(None, 1)
+            lis[k] = v.strip()
+    if lis.get("file_format[0]") != "ISG_CSV" or lis.get("interpolation") != "GRID":
+        raise FormatError("expected an ISG_CSV file with GRID interpolation")
+    blocks = read_isg_blocks(out / lis["file[0]"])
+    if any(h[:3] == ["X", "Y", "Z"] for h, _ in blocks):  # the 3D map layout
+        h, d = next(b for b in blocks if b[0][:3] == ["X", "Y", "Z"])
+        ks = [np.unique(d[:, i]) for i in range(3)]
+        shape = tuple(k.size for k in ks)
+        if shape[0] * shape[1] * shape[2] != d.shape[0]:
+            raise FormatError("not a full grid")
+        order = np.lexsort((d[:, 2], d[:, 1], d[:, 0]))
+        grid = d[order][:, 3:6].reshape(*shape, 3) * 1e3
+        from scipy.interpolate import RegularGridInterpolator
+        f = [RegularGridInterpolator(ks, grid[..., c]) for c in range(3)]
+
+        def corr(pos, state):
+            p = np.column_stack([np.clip(pos[:, i], ks[i][0], ks[i][-1]) for i in range(3)])
+            return -np.column_stack([g(p) for g in f])
+        return corr
+    terms = {"X": "dx", "Y": "dy", "Z": "dz", "A": "ex", "B": "ey", "C": "ez"}
+    comp: dict[str, tuple[np.ndarray, dict[str, np.ndarray]]] = {}
+    S = [0.0, 0.0, 0.0]
+    for header, d in blocks:
+        if header[0] in AX and len(header) > 1:
+            a = header[0]
+            cols = {}
+            for i, name in enumerate(header[1:], start=1):
+                assert name[0] == "E" and name[2] == a, name
+                t = terms[name[1]]
+                cols[t] = d[:, i] * (1e3 if t.startswith("d") else 1e6)
+            comp[a] = (d[:, 0], cols)
+        else:
+            for i, name in enumerate(header):
+                v = d[0, i] * 1e6
+                if name == "C0Y":
+                    S[0] = v
+                elif name == "B0Z":
+                    S[1] = -v
+                elif name == "A0Z":
+                    S[2] = v
+
+    def corr(pos, state):
+        e = {a: {t: hold_interp(pos[:, AX.index(a)], comp[a][0], comp[a][1].get(
+            t, np.zeros(comp[a][0].size))) for t in ("dx", "dy", "dz", "ex", "ey", "ez")}
+            for a in AX}
+        return -eq3(e, pos, (0.0, 0.0, 0.0), tool, S)
+    return corr
+
+
+READERS = {
+    "linuxcnc-comp": lambda out: read_linuxcnc_comp(out)[0],
+    "linuxcnc-matrixkins": read_matrixkins,
+    "klipper-skew": read_klipper,
+    "marlin": read_marlin,
+    "sinumerik-lec": read_sinumerik_lec,
+    "sinumerik-cec": lambda out: read_sinumerik_cec(out)[0],
+    "heidenhain-com": read_heidenhain,
+    "fanuc-pitch": read_fanuc,
+    "isg-csv": read_isg,
+}
