@@ -221,7 +221,7 @@ def hidden_case(seed: int, hidden: tuple[str, ...] = (), *, noise_um: float = 0.
             bl = list(kw.get("backlash_um", (0.0, 0.0, 0.0)))
             bl[j] = b
             kw["backlash_um"] = tuple(bl)
-            var = [0.0] * 9
+            var = list(kw.get("backlash_variation_um", (0.0,) * 9))
             var[3 * j] = _sign(rng) * rng.uniform(2.0, 5.0)
             var[3 * j + 2] = _sign(rng) * rng.uniform(0.0, 2.0)
             kw["backlash_variation_um"] = tuple(var)
@@ -395,7 +395,12 @@ def _visible(kw: dict[str, Any], hidden: tuple[str, ...]) -> dict[str, Any]:
         if key.startswith("squareness_"):
             drop.add("squareness_urad")
         elif key.startswith("backlash_"):
-            drop.add("backlash_um")
+            # only the hidden axis' lost motion: a reversal case of another axis keeps its
+            # constant lost motion in the model
+            j = "xyz".index(key[-1])
+            bl = list(out.get("backlash_um", (0.0, 0.0, 0.0)))
+            bl[j] = 0.0
+            out["backlash_um"] = tuple(bl)
         elif key.startswith("reversal_"):
             drop.add("backlash_variation_um")
         elif key.startswith("reversal_"):
@@ -406,7 +411,7 @@ def _visible(kw: dict[str, Any], hidden: tuple[str, ...]) -> dict[str, Any]:
             bl = list(kw.get("backlash_um", (0.0, 0.0, 0.0)))
             bl[j] = b
             kw["backlash_um"] = tuple(bl)
-            var = [0.0] * 9
+            var = list(kw.get("backlash_variation_um", (0.0,) * 9))
             var[3 * j] = _sign(rng) * rng.uniform(2.0, 5.0)
             var[3 * j + 2] = _sign(rng) * rng.uniform(0.0, 2.0)
             kw["backlash_variation_um"] = tuple(var)

@@ -309,13 +309,27 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
         dof_noise = float(sum(v["dof"] for v in noise_rep.values())) or float(prob.N)
 
     # Backward check: every selected effect must still be significant with the others.
+    # Shape parameters (take-up, period): refined continuously, with 95 % intervals, before
+    # the backward passes (an effect may only have absorbed a shape on the grid) and again
+    # after them.
+    refine_scans(eng, selected, W)
     selected = _backward(eng, selected, W, dof_noise, notes)
     selected = _heldout_removal(eng, selected, W, notes)
-    # Shape parameters (take-up, period): refined continuously, with 95 % intervals.
     refine_scans(eng, selected, W)
 
-    # Final fit through the model (Gauss-Newton), values, intervals.
+    # Final fit through the model (Gauss-Newton), values, intervals; an effect whose final
+    # contribution is below the size threshold is dropped and the rest refitted.
     new_table, new_pp, values, cov, s2_final = _final_fit(eng, selected, W)
+    while len(selected) > 1:
+        small = [(i, _final_contribution(prob, s, v)) for i, (s, v) in enumerate(zip(selected, values))]
+        small = [(i, c) for i, c in small if c < opts.min_effect_um]
+        if not small:
+            break
+        i, c = min(small, key=lambda x: x[1])
+        notes.append(f"{selected[i].cand.spec.key} dropped: its contribution in the final fit "
+                     f"is {c:.3f} um RMS (< {opts.min_effect_um:g} um) once the others are in")
+        selected = selected[:i] + selected[i + 1:]
+        new_table, new_pp, values, cov, s2_final = _final_fit(eng, selected, W)
     y_after = prob.predict(eng.ev, new_table, new_pp)
     r_after = prob.y - y_after
     clean_after = remove_nuisance(prob, r_after)
@@ -438,6 +452,15 @@ def _backward(eng: Engine, sel: list[Selected], W: np.ndarray, dof_noise: float,
                 changed = True
                 break
     return sel
+def _final_contribution(prob: Problem, s: Selected, v: np.ndarray) -> float:
+    """RMS (um, um-valued samples) of a named effect's part of the final prediction."""
+    c = s.cand.cols @ v
+    if s.cand.offset is not None:
+        c = c + s.cand.offset
+    um = prob.um_rows
+    return float(np.sqrt(np.mean(c[um] ** 2))) if np.any(um) else math.inf
+
+
 def _heldout_removal(eng: Engine, sel: list[Selected], W: np.ndarray,
                      notes: list[str]) -> list[Selected]:
     """Drop, one at a time, a named effect whose removal leaves the held-out residual
