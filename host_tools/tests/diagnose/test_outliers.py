@@ -118,3 +118,8 @@ def test_positioning_diagnosis_excludes_the_outlier_and_names_the_reversal(tmp_p
     assert res.checks[0].run_numbers == [2, 3, 4, 5]
     d = res.to_json()
     assert d["outliers"][0]["run"] == 1 and d["outliers"][0]["readings"][0]["target_mm"] == -15.0
+    from abbe.diagnose.report import format_text
+    txt = format_text(res, "m.bin")
+    assert "outlier runs (excluded from the check; the rest is diagnosed):" in txt
+    line = next(x for x in txt.splitlines() if "start-up outlier, cycle 1" in x)
+    assert " um at -15 mm (forward)" in line and " um at 10 mm (forward)" in line
