@@ -1,8 +1,10 @@
 /* Host benchmark driver, run under valgrind --tool=callgrind by
  * scripts/bench_report.py (instruction counts, not time).
  *
- *   bench_host MODE N     MODE: f32 q comp_f32 comp_q naive empty
+ *   bench_host MODE N     MODE: f32 f32_base q comp_f32 comp_q naive lean empty
  *                         runs N calls over the "paper" golden table's points
+ *                         (f32_base: the x86-64 SSE2 kernels whatever the CPU
+ *                         has; lean: the lean reference evaluator, lean_ref.c)
  *   bench_host check      naive reference against the golden vectors and the
  *                         library (prints max abs differences, exit 1 if the
  *                         naive reference is off by more than 2 nm)
@@ -13,6 +15,7 @@
 #include <string.h>
 
 #include "bench_common.h"
+#include "lean_ref.h"
 #include "naive_ref.h"
 
 /* The naive evaluator at a golden point's f32 input (the same float values). */
@@ -85,6 +88,25 @@ static int check(const abbe_model_t *model, const abbe_golden_table_t *paper)
     }
     printf("naive vs abbe_error_eval_f32 ('%s', 1000 path points): max |diff| %.0f pm\n",
            paper->name, worst_lib);
+    /* the lean reference leaves the tool offset out (and reduces phases in
+     * float): how far that is from the model, for the record */
+    lean_model_t lm;
+    double worst_lean = 0.0;
+    lean_load(&lm, paper->blob, paper->blob_size);
+    for (uint32_t i = paper->first_point; i < paper->first_point + paper->n_points; i++) {
+        const abbe_golden_point_t *p = &abbe_golden_points[i];
+        float err[3];
+        if (p->expect_flags != 0u) {
+            continue; /* outside the travel: the lean evaluator does not clamp */
+        }
+        lean_eval(&lm, p->pos_mm, err);
+        for (int j = 0; j < 3; j++) {
+            double d = fabs((double)err[j] * 1e6 - p->expect_f32_pm[j]);
+            worst_lean = d > worst_lean ? d : worst_lean;
+        }
+    }
+    printf("lean reference vs golden '%s', points in the travel (tool offset left out): max |diff| %.0f pm\n",
+           paper->name, worst_lean);
     return worst_golden <= ABBE_GOLDEN_TOL_PM ? 0 : 1;
 }
 
@@ -97,10 +119,14 @@ int main(int argc, char **argv)
         return 2;
     }
     if (argc == 2 && strcmp(argv[1], "check") == 0) {
+#if defined(__x86_64__)
+        printf("x86-64 f32 kernels on this CPU: %s\n",
+               model.simd ? "x86-64-v3 (AVX2, FMA)" : "SSE2 (or plain C if built with ABBE_PORTABLE_C)");
+#endif
         return check(&model, paper);
     }
     if (argc != 3) {
-        fprintf(stderr, "usage: bench_host f32|q|comp_f32|comp_q|naive|empty N | check\n");
+        fprintf(stderr, "usage: bench_host f32|f32_base|q|comp_f32|comp_q|naive|lean|empty N | check\n");
         return 2;
     }
     const char *mode = argv[1];
@@ -108,6 +134,12 @@ int main(int argc, char **argv)
     const uint32_t np = paper->n_points;
     const abbe_golden_point_t *pts = &abbe_golden_points[paper->first_point];
 
+    if (strcmp(mode, "f32_base") == 0) {
+        /* x86-64: the SSE2 kernels every x86-64 runs, whatever this CPU has
+         * (model.simd is what abbe_model_load() found: 1 = x86-64-v3) */
+        model.simd = 0;
+        mode = "f32";
+    }
     if (strcmp(mode, "f32") == 0 || strcmp(mode, "empty") == 0) {
         abbe_input_f32_t *in = calloc(np, sizeof *in);
         for (uint32_t i = 0; i < np; i++) {
@@ -136,6 +168,14 @@ int main(int argc, char **argv)
             sink_i = out.error_nm[0];
         }
         free(in);
+    } else if (strcmp(mode, "lean") == 0) {
+        lean_model_t lm;
+        lean_load(&lm, paper->blob, paper->blob_size);
+        for (uint32_t k = 0; k < n; k++) {
+            float err[3];
+            lean_eval(&lm, pts[k % np].pos_mm, err);
+            sink_f = err[0];
+        }
     } else if (strcmp(mode, "naive") == 0) {
         naive_model_t nm;
         naive_load(&nm, paper->blob, paper->blob_size);

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Run every abbe test: set-up, then
 #   1. host build with ASan + UBSan (build-asan/): unit tests, golden vectors, checks,
-#      the CAN and Modbus ports and their tests
+#      the CAN and Modbus ports and their tests; the library's plain C kernels
+#      (ABBE_PORTABLE_C: the SIMD ones run in steps 2 and 5)
 #   2. host release build (build/, gives build/lib/libabbe.so and the port daemons
 #      to Python) + its ctest
 #   3. Cortex-M4F cross build (build-m4f/) + its ctest under QEMU
@@ -50,7 +51,7 @@ cmake_build() { # DIR [cmake args...]
 }
 
 host_asan() {
-    cmake_build build-asan -DCMAKE_BUILD_TYPE=Debug -DABBE_SANITIZE=ON -DABBE_BUILD_PORTS=ON &&
+    cmake_build build-asan -DCMAKE_BUILD_TYPE=Debug -DABBE_SANITIZE=ON -DABBE_BUILD_PORTS=ON -DABBE_PORTABLE_C=ON &&
         ctest --test-dir build-asan --output-on-failure -j "$JOBS"
 }
 

@@ -151,11 +151,6 @@ static uint32_t ramp_gain(uint32_t gain, uint32_t step, int up)
     return gain <= step ? 0u : gain - step;
 }
 
-static int64_t abs64(int64_t v)
-{
-    return v < 0 ? -v : v;
-}
-
 void abbe_comp_finish(abbe_comp_t *comp, int input_ok, const int32_t *error_nm, uint32_t flags,
                       uint8_t axis_fault_mask, abbe_comp_output_t *out)
 {
@@ -163,8 +158,9 @@ void abbe_comp_finish(abbe_comp_t *comp, int input_ok, const int32_t *error_nm, 
 
     if (error_nm != NULL) {
         for (unsigned j = 0; j < ABBE_AXES; j++) {
-            int64_t target = -(int64_t)cfg->axis_sign[j] * error_nm[j];
-            comp->target_nm[j] = (int32_t)abbe_clamp_i64(target, -INT32_MAX, INT32_MAX);
+            /* -sign * error within +/-INT32_MAX, in 32 bits: only INT32_MIN needs care */
+            int32_t e = error_nm[j] == INT32_MIN ? -INT32_MAX : error_nm[j];
+            comp->target_nm[j] = cfg->axis_sign[j] > 0 ? -e : e;
         }
         comp->eval_flags = flags & (ABBE_FLAG_OUT_OF_TRAVEL | ABBE_FLAG_SATURATED);
     }
@@ -188,13 +184,20 @@ void abbe_comp_finish(abbe_comp_t *comp, int input_ok, const int32_t *error_nm, 
     }
 
     for (unsigned j = 0; j < ABBE_AXES; j++) {
-        int64_t magnitude = abs64(comp->target_nm[j]);
+        const int32_t t = comp->target_nm[j]; /* within +/-INT32_MAX: |t| fits */
+        const int32_t magnitude = t < 0 ? -t : t;
         if (magnitude > cfg->warn_nm[j]) {
             flags |= ABBE_FLAG_WARN;
         }
         if (magnitude > cfg->limit_nm[j] && comp->model != NULL && !comp->fault) {
             comp->fault = 1;
             comp->stats.limit_trips++;
+            /* Fade out from the output as it is, never toward the target that
+             * tripped the limit: it is beyond the limit by definition. */
+            for (unsigned k = 0; k < ABBE_AXES; k++) {
+                comp->fault_from_nm[k] = comp->out_nm[k];
+                comp->gain_q16[k] = GAIN_ONE;
+            }
         }
     }
     if (comp->fault) {
@@ -211,7 +214,10 @@ void abbe_comp_finish(abbe_comp_t *comp, int input_ok, const int32_t *error_nm, 
         comp->gain_q16[j] = ramp_gain(comp->gain_q16[j], comp->gain_step_q16, up);
         fading |= comp->gain_q16[j] > 0u && comp->gain_q16[j] < GAIN_ONE;
 
-        int64_t desired = abbe_shr_round((int64_t)comp->target_nm[j] * comp->gain_q16[j], 16u);
+        /* Faulted: the held output fades to zero (monotonic, within the rate
+         * limit); otherwise the output follows gain * target. */
+        int32_t base = comp->fault ? comp->fault_from_nm[j] : comp->target_nm[j];
+        int64_t desired = abbe_shr_round((int64_t)base * comp->gain_q16[j], 16u);
         int64_t delta = desired - comp->out_nm[j];
         int64_t rate = cfg->rate_nm_per_cycle[j];
         if (delta > rate || delta < -rate) {

@@ -29,25 +29,24 @@ abbe_status_t abbe_comp_step_f32(abbe_comp_t *comp, const abbe_comp_input_f32_t 
         uint32_t ignored = 0; /* out-of-travel is reported by the evaluation below */
         input_ok = abbe_mm_to_nm_f32(in->pos_mm[j], &pos_nm[j], &ignored) == ABBE_OK;
     }
-    int32_t error_nm[ABBE_AXES] = {0, 0, 0};
+    int32_t error_nm[ABBE_AXES];
     int have_error = 0;
     if (input_ok && comp->model != NULL) {
         abbe_comp_track_direction(comp, pos_nm, in->dir);
-        abbe_input_f32_t eval_in;
-        abbe_error_f32_t err;
+        float dir_state[ABBE_AXES], error_um[ABBE_AXES];
+        uint32_t eval_flags = 0;
         for (unsigned j = 0; j < ABBE_AXES; j++) {
-            eval_in.pos_mm[j] = in->pos_mm[j];
-            eval_in.dir_state[j] = (float)comp->dir_state_q30[j] * 9.31322574615478515625e-10f;
-            eval_in.temp_c[j] = in->temp_c[j];
+            dir_state[j] = (float)comp->dir_state_q30[j] * 9.31322574615478515625e-10f; /* 2^-30 */
         }
         /* NaN temperature or direction state: a bad input like a NaN position */
-        have_error = abbe_error_eval_f32(comp->model, &eval_in, &err) == ABBE_OK;
+        have_error = abbe_eval_f32_core(comp->model, in->pos_mm, dir_state, in->temp_c, error_um,
+                                        &eval_flags) == ABBE_OK;
         input_ok = have_error;
         for (unsigned j = 0; have_error && j < ABBE_AXES; j++) {
-            error_nm[j] = um_to_nm(err.error_um[j], &flags);
+            error_nm[j] = um_to_nm(error_um[j], &flags);
         }
         if (have_error) {
-            flags |= err.flags;
+            flags |= eval_flags;
         }
     }
     abbe_comp_finish(comp, input_ok, have_error ? error_nm : NULL, flags, in->axis_fault_mask, out);

@@ -2,54 +2,139 @@
  *
  * Positions are converted to integer nm first (exact to 0.56 nm), so clamping,
  * the Chebyshev argument and the Fourier phases are those of the fixed-point
- * path. Linear values are um, angles urad, lever arms mm: mm * urad = nm.
+ * path. Term values come in the coefficients' units (2^-8 nm, 2^-36 rad); the
+ * lever arms are scaled once so that lever x angle is in um, and each axis'
+ * six values are folded into (dX, dY, dZ) as soon as they are known, each by
+ * one multiply-add: no term array, no per-term scaling.
  */
 #include "internal.h"
 
 enum { DX = ABBE_TERM_DX, DY = ABBE_TERM_DY, DZ = ABBE_TERM_DZ, EX = ABBE_TERM_EX, EY = ABBE_TERM_EY, EZ = ABBE_TERM_EZ };
 
-#define NM_PER_MM_INV 1.0e-6f
-#define UM_PER_NM 1.0e-3f
-#define SQUARENESS_URAD_PER_LSB 1.4551915228366852e-5f /* 2^-36 rad in urad */
+#define UM_PER_LIN_LSB 3.90625e-6f                      /* 2^-8 nm in um */
+#define UM_PER_HALF_NM_X_ANG_LSB 2.9103830456733704e-14f /* 2 nm x 2^-36 rad in um: 2^-35 x 1e-3 */
 #define BACKLASH_UM_PER_LSB 3.90625e-6f                 /* 2^-8 nm in um */
 #define EXPANSION_PER_K_PER_LSB 8.8817841970012523e-13f /* 2^-50 per mK, per K */
 #define OFFSET_UM_PER_K_PER_LSB 1.52587890625e-5f       /* 2^-16 nm per mK = um per K */
 
-/* p - ref in mm. The difference can need 33 bits; halving it keeps the int32 ->
- * float conversion (one instruction on an FPU) and costs 1 nm of a lever arm. */
-static float lever_mm(int32_t pos_nm, int32_t ref_nm)
+void abbe_f32_add_extras(const abbe_model_t *m, const float lev_mm[ABBE_AXES], const float dir_state[ABBE_AXES],
+                         const float temp_c[ABBE_AXES], float error_um[ABBE_AXES])
 {
-    int64_t half = ((int64_t)pos_nm - ref_nm) / 2;
-    return (float)(int32_t)half * 2.0e-6f;
-}
-
-static float extras_um(const abbe_model_t *m, unsigned j, float lev_mm, float dir_state, float temp_c)
-{
-    const abbe_axis_model_t *ax = &m->axis[j];
-    float um = 0.0f;
-    if (m->features & ABBE_FEATURE_BACKLASH) {
-        float s = dir_state > 1.0f ? 1.0f : (dir_state < -1.0f ? -1.0f : dir_state);
-        um += 0.5f * s * ((float)ax->backlash_reversal_q8 * BACKLASH_UM_PER_LSB);
-    }
-    if (m->features & ABBE_FEATURE_THERMAL) {
-        float dt = temp_c - (float)ax->thermal_tref_mdegc * 1.0e-3f;
-        float strain = (float)ax->thermal_expansion_q50 * EXPANSION_PER_K_PER_LSB * dt;
-        um += strain * lev_mm * 1000.0f;
-        um += (float)ax->thermal_offset_q16 * OFFSET_UM_PER_K_PER_LSB * dt;
-    }
-    return um;
-}
-
-static int inputs_nonfinite(const abbe_model_t *m, const abbe_input_f32_t *in)
-{
+    /* Backlash and thermal terms of each axis' own positioning error, um;
+     * lev_mm = p - ref. They add to -d_x(x) in dX, -d_y(y) in dY, +d_z(z) in dZ. */
     for (unsigned j = 0; j < ABBE_AXES; j++) {
-        if (((m->features & ABBE_FEATURE_BACKLASH) && abbe_f32_nonfinite(in->dir_state[j])) ||
-            ((m->features & ABBE_FEATURE_THERMAL) && abbe_f32_nonfinite(in->temp_c[j]))) {
-            return 1;
+        const abbe_axis_model_t *ax = &m->axis[j];
+        float um = 0.0f;
+        if (m->features & ABBE_FEATURE_BACKLASH) {
+            float s = dir_state[j] > 1.0f ? 1.0f : (dir_state[j] < -1.0f ? -1.0f : dir_state[j]);
+            um += 0.5f * s * ((float)ax->backlash_reversal_q8 * BACKLASH_UM_PER_LSB);
         }
+        if (m->features & ABBE_FEATURE_THERMAL) {
+            float dt = temp_c[j] - (float)ax->thermal_tref_mdegc * 1.0e-3f;
+            float strain = (float)ax->thermal_expansion_q50 * EXPANSION_PER_K_PER_LSB * dt;
+            um += strain * lev_mm[j] * 1000.0f;
+            um += (float)ax->thermal_offset_q16 * OFFSET_UM_PER_K_PER_LSB * dt;
+        }
+        error_um[j] += j == 2u ? um : -um;
     }
-    return 0;
 }
+
+int abbe_f32_extras_nonfinite(uint32_t features, const float dir_state[ABBE_AXES], const float temp_c[ABBE_AXES])
+{
+    int bad = 0;
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        bad |= ((features & ABBE_FEATURE_BACKLASH) && abbe_f32_nonfinite(dir_state[j])) ||
+               ((features & ABBE_FEATURE_THERMAL) && abbe_f32_nonfinite(temp_c[j]));
+    }
+    return bad;
+}
+
+#if !defined(ABBE_F32_SSE2) /* x86-64: eval_f32_sse2.c */
+abbe_status_t abbe_eval_f32_core(const abbe_model_t *m, const float pos_mm[ABBE_AXES],
+                                 const float dir_state[ABBE_AXES], const float temp_c[ABBE_AXES],
+                                 float error_um[ABBE_AXES], uint32_t *flags_out)
+{
+    const uint32_t features = m->features;
+    if ((features & (ABBE_FEATURE_BACKLASH | ABBE_FEATURE_THERMAL)) &&
+        abbe_f32_extras_nonfinite(features, dir_state, temp_c)) {
+        return ABBE_E_INPUT;
+    }
+    /* Per axis, in one loop (one copy of the code, flash): the position in nm,
+     * its offset in the travel, and the lever arm p - ref as (p >> 1) - (ref >> 1)
+     * half nm (an exact int32 difference, where p - ref can need 33 bits; 1 nm
+     * of the arm at most), scaled so that arm x angle LSB is um. */
+    const float ka = UM_PER_HALF_NM_X_ANG_LSB, kl = UM_PER_LIN_LSB;
+    uint32_t flags = 0, bad = 0, d[ABBE_AXES];
+    float lev[ABBE_AXES];
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        int32_t p;
+        bad |= abbe_mm_to_nm_inline(pos_mm[j], &p, &flags);
+        d[j] = abbe_arg_offset(&m->axis[j], p, &flags);
+        lev[j] = (float)((p >> 1) - m->ref_half_nm[j]) * ka;
+    }
+    if (bad) {
+        return ABBE_E_INPUT;
+    }
+    const float x = lev[0], y = lev[1], z = lev[2];
+    const float tx = m->tool_half_nm[0] * ka, ty = m->tool_half_nm[1] * ka, tz = m->tool_half_nm[2] * ka;
+    /* (dX, dY, dZ) = sum over the axes of W_j v_j (docs/table-format.md, Eq. 3
+     * with the tool offset), W_j from these arms: */
+    const float ty_y = ty - y, z_tz = z + tz, x_tx = x - tx;
+    float v[ABBE_TERMS];
+    float ex, ey, ez;
+
+    /* one multiply-add per weight, chained into each component (fused on a
+     * Cortex-M4F: one rounding each) */
+    abbe_axis_terms_f32(&m->axis[0], d[0], v);
+    ex = ty_y * v[EZ];
+    ex -= z_tz * v[EY];
+    ex -= kl * v[DX];
+    ey = x_tx * v[EZ];
+    ey += z_tz * v[EX];
+    ey -= kl * v[DY];
+    ez = -x_tx * v[EY]; /* (tx - x) e_xy + (y - ty) e_xx */
+    ez -= ty_y * v[EX];
+    ez -= kl * v[DZ];
+
+    abbe_axis_terms_f32(&m->axis[1], d[1], v);
+    ex += ty_y * v[EZ];
+    ex -= z_tz * v[EY];
+    ex -= kl * v[DX];
+    ey -= tx * v[EZ];
+    ey += z_tz * v[EX];
+    ey -= kl * v[DY];
+    ez += tx * v[EY];
+    ez -= ty_y * v[EX];
+    ez -= kl * v[DZ];
+
+    abbe_axis_terms_f32(&m->axis[2], d[2], v);
+    ex -= ty * v[EZ];
+    ex += tz * v[EY];
+    ex += kl * v[DX];
+    ey += tx * v[EZ];
+    ey -= tz * v[EX];
+    ey += kl * v[DY];
+    ez -= tx * v[EY];
+    ez += ty * v[EX];
+    ez += kl * v[DZ];
+
+    /* squareness: + y S_xy - z S_xz in dX, - z S_yz in dY */
+    ex += y * m->squareness_f[0];
+    ex -= z * m->squareness_f[1];
+    ey -= z * m->squareness_f[2];
+
+    error_um[0] = ex;
+    error_um[1] = ey;
+    error_um[2] = ez;
+    if (features & (ABBE_FEATURE_BACKLASH | ABBE_FEATURE_THERMAL)) {
+        const float mm_per_scaled = 2.0e-6f / ka; /* scaled arm -> mm */
+        const float lev_mm[ABBE_AXES] = {x * mm_per_scaled, y * mm_per_scaled, z * mm_per_scaled};
+        abbe_f32_add_extras(m, lev_mm, dir_state, temp_c, error_um);
+    }
+    *flags_out = flags;
+    return ABBE_OK;
+}
+#endif /* !ABBE_F32_SSE2 */
 
 abbe_status_t abbe_error_eval_f32(const abbe_model_t *m, const abbe_input_f32_t *in, abbe_error_f32_t *out)
 {
@@ -58,46 +143,27 @@ abbe_status_t abbe_error_eval_f32(const abbe_model_t *m, const abbe_input_f32_t 
     }
     out->error_um[0] = out->error_um[1] = out->error_um[2] = 0.0f;
     out->flags = 0;
-    uint32_t flags = 0;
-    if (inputs_nonfinite(m, in)) {
-        return ABBE_E_INPUT;
-    }
-    /* One axis at a time, so only the term values stay on the stack; a bad
-     * position is found before any output is written. */
-    float v[ABBE_AXES][ABBE_TERMS]; /* v[j][0..2] um, v[j][3..5] urad */
-    float lev[ABBE_AXES];           /* mm from the reference point */
-    for (unsigned j = 0; j < ABBE_AXES; j++) {
-        int32_t pos_nm;
-        if (abbe_mm_to_nm_f32(in->pos_mm[j], &pos_nm, &flags) != ABBE_OK) {
-            return ABBE_E_INPUT;
-        }
-        abbe_axis_terms_f32(&m->axis[j], pos_nm, v[j], &flags);
-        lev[j] = lever_mm(pos_nm, m->reference_nm[j]);
-        v[j][j] += extras_um(m, j, lev[j], in->dir_state[j], in->temp_c[j]);
-    }
-    const float x = lev[0], y = lev[1], z = lev[2];
-    const float sxy = (float)m->squareness_q36[0] * SQUARENESS_URAD_PER_LSB;
-    const float sxz = (float)m->squareness_q36[1] * SQUARENESS_URAD_PER_LSB;
-    const float syz = (float)m->squareness_q36[2] * SQUARENESS_URAD_PER_LSB;
-    const float *X = v[0], *Y = v[1], *Z = v[2];
+    return abbe_eval_f32_core(m, in->pos_mm, in->dir_state, in->temp_c, out->error_um, &out->flags);
+}
 
-    /* Lever products in nm (mm * urad), scaled to um once per component. */
-    float lx_nm = y * (sxy - X[EZ] - Y[EZ]) + z * (-sxz - X[EY] - Y[EY]);
-    float ly_nm = x * X[EZ] + z * (X[EX] + Y[EX] - syz);
-    float lz_nm = -x * X[EY] + y * (X[EX] + Y[EX]);
-    if (m->features & ABBE_FEATURE_TOOL_OFFSET) {
-        const float tx = (float)m->tool_offset_nm[0] * NM_PER_MM_INV;
-        const float ty = (float)m->tool_offset_nm[1] * NM_PER_MM_INV;
-        const float tz = (float)m->tool_offset_nm[2] * NM_PER_MM_INV;
-        lx_nm += ty * (X[EZ] + Y[EZ] - Z[EZ]) + tz * (Z[EY] - X[EY] - Y[EY]);
-        ly_nm += tx * (Z[EZ] - X[EZ] - Y[EZ]) + tz * (X[EX] + Y[EX] - Z[EX]);
-        lz_nm += tx * (X[EY] + Y[EY] - Z[EY]) + ty * (Z[EX] - X[EX] - Y[EX]);
+abbe_status_t abbe_error_eval_batch_f32(const abbe_model_t *m, size_t n, const abbe_input_f32_t *in,
+                                        abbe_error_f32_t *out)
+{
+    if (m == NULL || (n > 0u && (in == NULL || out == NULL))) {
+        return ABBE_E_ARG;
     }
-    out->error_um[0] = -X[DX] - Y[DX] + Z[DX] + lx_nm * UM_PER_NM;
-    out->error_um[1] = -X[DY] - Y[DY] + Z[DY] + ly_nm * UM_PER_NM;
-    out->error_um[2] = -X[DZ] - Y[DZ] + Z[DZ] + lz_nm * UM_PER_NM;
-    out->flags = flags;
-    return ABBE_OK;
+    abbe_status_t result = ABBE_OK;
+    for (size_t i = 0; i < n; i++) {
+        abbe_error_f32_t *o = &out[i];
+        o->error_um[0] = o->error_um[1] = o->error_um[2] = 0.0f;
+        o->flags = 0;
+        if (abbe_eval_f32_core(m, in[i].pos_mm, in[i].dir_state, in[i].temp_c, o->error_um, &o->flags) !=
+            ABBE_OK) {
+            o->flags = ABBE_FLAG_INPUT_INVALID;
+            result = ABBE_E_INPUT;
+        }
+    }
+    return result;
 }
 
 abbe_status_t abbe_term_eval_f32(const abbe_model_t *m, unsigned axis, unsigned term, float pos_mm,
@@ -111,8 +177,9 @@ abbe_status_t abbe_term_eval_f32(const abbe_model_t *m, unsigned axis, unsigned 
     if (abbe_mm_to_nm_f32(pos_mm, &pos_nm, &flags) != ABBE_OK) {
         return ABBE_E_INPUT;
     }
+    const abbe_axis_model_t *ax = &m->axis[axis];
     float v[ABBE_TERMS];
-    abbe_axis_terms_f32(&m->axis[axis], pos_nm, v, &flags);
-    *value = v[term];
+    abbe_axis_terms_f32(ax, abbe_arg_offset(ax, pos_nm, &flags), v);
+    *value = v[term] * (term < 3u ? UM_PER_LIN_LSB : 1.4551915228366852e-5f); /* 2^-36 rad in urad */
     return ABBE_OK;
 }

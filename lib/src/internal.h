@@ -21,6 +21,23 @@ typedef char abbe_requires_arithmetic_shift[((-2 >> 1) == -1) ? 1 : -1];
 #define ABBE_ALWAYS_INLINE inline
 #endif
 
+/* SIMD kernels where the target guarantees them: SSE2 is part of every
+ * x86-64. ABBE_PORTABLE_C forces the plain C kernels everywhere (the
+ * sanitizer build uses it, so both versions are tested on the host). */
+#if defined(__SSE2__) && !defined(ABBE_PORTABLE_C) && defined(ABBE_WITH_F32)
+#define ABBE_F32_SSE2 1
+#endif
+/* The model's four-lane copies (model.h) are built only for those kernels. */
+#if defined(ABBE_F32_SSE2)
+#define ABBE_X86_LANES 1
+#endif
+
+#if defined(__GNUC__)
+#define ABBE_NOINLINE __attribute__((noinline))
+#else
+#define ABBE_NOINLINE
+#endif
+
 /* Little-endian loads; compilers turn these into one load on LE targets. */
 static inline uint32_t abbe_ld_u32(const uint8_t *p)
 {
@@ -110,45 +127,81 @@ static inline int abbe_f32_nonfinite(float f)
     return abbe_f32_bits_nonfinite(u);
 }
 
+/* acc + a * b, 64-bit: one SMLAL on a Cortex-M3/M4. GCC keeps the plain C
+ * form as one SMLAL in the dot products, but not where acc is made of
+ * constants (the Horner steps of sincos_q.h), which it rebuilds as a 64 x 64
+ * multiply of 7 instructions; the asm pins the single instruction there. */
+static ABBE_ALWAYS_INLINE int64_t abbe_smlal(int64_t acc, int32_t a, int32_t b)
+{
+#if defined(__GNUC__) && defined(__thumb2__) && defined(__ARMEL__) && !defined(ABBE_PORTABLE_C)
+    uint32_t lo = (uint32_t)acc, hi = (uint32_t)((uint64_t)acc >> 32);
+    __asm__("smlal %0, %1, %2, %3" : "+r"(lo), "+r"(hi) : "r"(a), "r"(b));
+    return (int64_t)(((uint64_t)hi << 32) | lo);
+#else
+    return acc + (int64_t)a * b;
+#endif
+}
+
 /* ---- argument reduction (integer, shared by both variants) ----
  *
- * Positions are integer nm in both variants, so the Chebyshev argument and the
- * Fourier phase are computed exactly the same way, to about 1 LSB, whatever the
- * distance from the origin (docs/numerics.md). A float phase would lose 2^-24
- * of up to 4000 turns, i.e. degrees on a short-period harmonic. Inline: they
- * run once per axis and block on the hot path. */
+ * Positions are integer nm in both variants, so clamping, the Chebyshev
+ * argument and the Fourier phases are computed exactly the same way, to about
+ * 1 LSB, whatever the distance from the origin (docs/numerics.md). A float
+ * phase would lose 2^-24 of up to 4000 turns, i.e. degrees on a short-period
+ * harmonic. Everything starts from one offset per axis, d = p - travel_min
+ * with p clamped to the travel: 0 <= d <= span < 2^32, so it is a uint32 and
+ * every product below is a single 32 x 32 -> 64 multiply (one UMULL/UMLAL on
+ * a Cortex-M). Inline: they run once per axis on the hot path. */
+
+/* Offset of the clamped position from travel_min, in [0, span]; sets
+ * ABBE_FLAG_OUT_OF_TRAVEL if pos_nm is outside the travel. Branch-free. */
+static inline uint32_t abbe_arg_offset(const abbe_axis_model_t *ax, int32_t pos_nm, uint32_t *flags)
+{
+    uint32_t below = (uint32_t)(pos_nm < ax->travel_min_nm);
+    uint32_t above = (uint32_t)(pos_nm > ax->travel_max_nm);
+    uint32_t d = (uint32_t)pos_nm - (uint32_t)ax->travel_min_nm; /* mod 2^32: exact inside */
+    *flags |= (below | above) * ABBE_FLAG_OUT_OF_TRAVEL;
+    d = below ? 0u : d;
+    return above ? ax->span_nm : d;
+}
 
 /* Position clamped to the axis travel; sets ABBE_FLAG_OUT_OF_TRAVEL if clamped. */
 static inline int32_t abbe_arg_clamp(const abbe_axis_model_t *ax, int32_t pos_nm, uint32_t *flags)
 {
-    if (pos_nm < ax->travel_min_nm) {
-        *flags |= ABBE_FLAG_OUT_OF_TRAVEL;
-        return ax->travel_min_nm;
-    }
-    if (pos_nm > ax->travel_max_nm) {
-        *flags |= ABBE_FLAG_OUT_OF_TRAVEL;
-        return ax->travel_max_nm;
-    }
-    return pos_nm;
+    uint32_t d = abbe_arg_offset(ax, pos_nm, flags);
+    return abbe_u32_to_i32((uint32_t)ax->travel_min_nm + d);
 }
 
-/* Chebyshev argument u = (2p - min - max) / (max - min) in Q30, p clamped. */
-static inline int32_t abbe_arg_cheb_q30(const abbe_axis_model_t *ax, int32_t clamped_nm)
+/* Chebyshev argument u = (2p - min - max) / (max - min) = 2d / span - 1 in
+ * Q30, from the offset d. (d << shift) < 2^32 and cheb_mul = round(2^(63 -
+ * shift) / span) < 2^32 (the loader picks shift), so hi32 of their product is
+ * d * 2^31 / span to within 0.5 LSB, and the + 2^31 rounds: within 1 LSB in
+ * all. (A power-of-two span, whose exact multiplier 2^32 is stored as
+ * 2^32 - 1, comes out exact: there d << shift <= 2^31.) Range
+ * [-2^30, 2^30]. */
+static inline int32_t abbe_arg_cheb_q30(const abbe_axis_model_t *ax, uint32_t d)
 {
-    /* |num| <= span < 2^32 and cheb_mul ~ 2^62 / span: the product stays within 2^62. */
-    int64_t num = 2 * (int64_t)clamped_nm - (int64_t)ax->travel_min_nm - (int64_t)ax->travel_max_nm;
-    int64_t u = abbe_shr_round(num * ax->cheb_mul, 32u);
-    return (int32_t)abbe_clamp_i64(u, -ABBE_Q30_ONE, ABBE_Q30_ONE);
+    uint64_t prod = (uint64_t)(d << ax->cheb_shift) * ax->cheb_mul + 0x80000000u;
+    return abbe_u32_to_i32((uint32_t)(prod >> 32) - (uint32_t)ABBE_Q30_ONE);
 }
 
-/* Phase of Fourier block b as a fraction of a turn (Q32, wraps), p clamped. */
-static inline uint32_t abbe_arg_phase_q32(const abbe_axis_model_t *ax, unsigned block, int32_t clamped_nm)
+/* Phase of Fourier block b as a fraction of a turn (Q32, wraps), from the
+ * offset d: bits 32..63 of (p - origin) * freq mod 2^64, with freq = round(2^64
+ * / period). (p - origin) * freq = d * freq + (min - origin) * freq; the loader
+ * stores the second product mod 2^64 (phase_min), and the unsigned arithmetic
+ * wraps mod 2^64, which drops exactly the whole turns. d * freq mod 2^64 needs
+ * only d * freq_lo (64 bits, added to phase_min) and the low word of
+ * d * freq_hi. */
+static inline uint32_t abbe_arg_phase_q32(const abbe_axis_model_t *ax, unsigned block, uint32_t d)
 {
-    /* freq = 2^64 / period. Bits 32..63 of d * freq are the phase in Q32; the
-     * unsigned product wraps mod 2^64, which drops exactly the whole turns. */
-    int64_t d = (int64_t)clamped_nm - (int64_t)ax->origin_nm[block];
-    uint64_t product = (uint64_t)d * ax->freq[block];
-    return (uint32_t)(product >> 32);
+#if UINTPTR_MAX > 0xFFFFFFFFu
+    /* 64-bit targets: the product mod 2^64 is one multiply */
+    return (uint32_t)(((uint64_t)d * ax->freq[block] + ax->phase_min[block]) >> 32);
+#else
+    uint64_t freq = ax->freq[block];
+    uint64_t low = (uint64_t)d * (uint32_t)freq + ax->phase_min[block];
+    return (uint32_t)(low >> 32) + d * (uint32_t)(freq >> 32);
+#endif
 }
 
 /* Backlash direction-state change (Q30) for a move of dist_nm >= 0. */
@@ -166,18 +219,81 @@ static inline int32_t abbe_arg_takeup_q30(const abbe_axis_model_t *ax, uint32_t 
 void abbe_sincos_q30(uint32_t phase_q32, int32_t *sin_q30, int32_t *cos_q30);
 void abbe_sincos_f32(uint32_t phase_q32, float *sin_out, float *cos_out);
 
-/* ---- per-axis fitted term values ---- */
-
-/* Fixed: linear terms in 2^-8 nm, angular in 2^-36 rad; absent terms 0. */
-void abbe_axis_terms_q(const abbe_axis_model_t *ax, int32_t pos_nm, int64_t *restrict value,
-                       uint32_t *flags);
-
-/* Float: linear terms in um, angular in urad; absent terms 0. */
-void abbe_axis_terms_f32(const abbe_axis_model_t *ax, int32_t pos_nm, float *restrict value,
-                         uint32_t *flags);
+/* ---- per-axis fitted term values (terms_q.c / terms_f32.c) ----
+ *
+ * From the offset d of abbe_arg_offset(); absent terms are 0.
+ *   _q:   linear terms in 2^-6 nm (ABBE_TERM_LIN_Q_BITS), angular in 2^-35 rad
+ *         (ABBE_TERM_ANG_Q_BITS), each rounded once from the exact int64 sum;
+ *   _f32: in the coefficients' own units, 2^-8 nm and 2^-36 rad (the caller
+ *         scales once, in the assembly). */
+#define ABBE_TERM_LIN_Q_BITS 6
+#define ABBE_TERM_ANG_Q_BITS 35
+void abbe_axis_terms_q(const abbe_axis_model_t *ax, uint32_t d, int32_t value[ABBE_TERMS]);
+void abbe_axis_terms_f32(const abbe_axis_model_t *ax, uint32_t d, float value[ABBE_TERMS]);
 
 /* Float mm -> integer nm, exact to 0.56 nm over +/-2147 mm (docs/numerics.md).
  * Returns ABBE_E_INPUT for NaN/Inf; clamps beyond +/-2147 mm (flagging out of travel). */
 abbe_status_t abbe_mm_to_nm_f32(float mm, int32_t *nm, uint32_t *flags);
+
+/* The same, inline and branch-free for the evaluation: returns nonzero for
+ * NaN/Inf (then *nm is meaningless; the out-of-travel flag may be set).
+ * The magnitude tests use the IEEE bits (a NaN is clamped like an infinity,
+ * so nothing undefined is ever converted); the position is split into whole
+ * millimetres (exact) and a fraction (exact, |f| < 1) whose product with 1e6
+ * rounds by at most 0.06 nm, where mm * 1e6 would lose 64 nm; adding
+ * 1.5 * 2^23 then rounds that product to the nearest integer (ties to even)
+ * in the float unit itself, |f * 1e6| < 2^22 being far inside the range
+ * where this is exact. */
+static ABBE_ALWAYS_INLINE uint32_t abbe_mm_to_nm_inline(float mm, int32_t *nm, uint32_t *flags)
+{
+    uint32_t bits;
+    memcpy(&bits, &mm, sizeof bits);
+    const uint32_t mag = bits & 0x7FFFFFFFu;
+    const uint32_t over = (uint32_t)(mag > 0x45063000u); /* |mm| > 2147.0f, NaN and Inf included */
+    *flags |= over * ABBE_FLAG_OUT_OF_TRAVEL;
+    bits = over ? ((bits & 0x80000000u) | 0x45063000u) : bits;
+    memcpy(&mm, &bits, sizeof mm);
+    const int32_t whole = (int32_t)mm;
+    const float rounded = (mm - (float)whole) * 1.0e6f + 12582912.0f;
+    uint32_t rounded_bits;
+    memcpy(&rounded_bits, &rounded, sizeof rounded_bits);
+    *nm = abbe_u32_to_i32((uint32_t)whole * 1000000u + (rounded_bits - 0x4B400000u));
+    return (uint32_t)(mag >= 0x7F800000u);
+}
+
+/* ---- evaluation cores, shared by the public entry points, the batch calls and
+ * the compensator (which passes its own direction states without copying) ---- */
+
+/* Spatial error in nm (rounded, saturated) at pos_nm; returns the flags.
+ * values: working memory for the 18 term values (the compensator passes its
+ * scratch, so its cycle's stack stays small). */
+uint32_t abbe_eval_q_core(const abbe_model_t *m, const int32_t pos_nm[ABBE_AXES],
+                          const int32_t dir_q30[ABBE_AXES], const int32_t temp_mdegc[ABBE_AXES],
+                          int32_t values[ABBE_AXES * ABBE_TERMS], int32_t error_nm[ABBE_AXES]);
+
+/* The backlash and thermal terms (features BACKLASH, THERMAL), added to the
+ * own positioning terms in error_um; lev_mm: p - ref per axis, mm. */
+void abbe_f32_add_extras(const abbe_model_t *m, const float lev_mm[ABBE_AXES], const float dir_state[ABBE_AXES],
+                         const float temp_c[ABBE_AXES], float error_um[ABBE_AXES]);
+
+/* Nonzero if a direction state (BACKLASH) or temperature (THERMAL) is NaN/Inf. */
+int abbe_f32_extras_nonfinite(uint32_t features, const float dir_state[ABBE_AXES], const float temp_c[ABBE_AXES]);
+
+/* x86-64 builds also compile the f32 core for x86-64-v3 (ABBE_X86_V3, set by
+ * lib/CMakeLists.txt for GCC and Clang); abbe_model_load() records in
+ * model->simd which one this CPU runs. */
+#define ABBE_SIMD_X86_V3 1u
+#if defined(ABBE_X86_V3)
+uint8_t abbe_simd_level(void);
+abbe_status_t abbe_eval_f32_core_avx2(const abbe_model_t *m, const float pos_mm[ABBE_AXES],
+                                      const float dir_state[ABBE_AXES], const float temp_c[ABBE_AXES],
+                                      float error_um[ABBE_AXES], uint32_t *flags_out);
+#endif
+
+/* Spatial error in um at the float input; ABBE_OK or ABBE_E_INPUT (then the
+ * outputs are untouched). *flags gets the evaluation flags. */
+abbe_status_t abbe_eval_f32_core(const abbe_model_t *m, const float pos_mm[ABBE_AXES],
+                                 const float dir_state[ABBE_AXES], const float temp_c[ABBE_AXES],
+                                 float error_um[ABBE_AXES], uint32_t *flags);
 
 #endif /* ABBE_INTERNAL_H */

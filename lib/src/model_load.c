@@ -324,6 +324,21 @@ static uint64_t recip64(uint32_t d)
     return q + (2u * r >= d ? 1u : 0u);
 }
 
+/* Number of significant bits of v > 0 (one CLZ where the compiler has it). */
+static unsigned bit_length(uint32_t v)
+{
+#if defined(__GNUC__)
+    return 32u - (unsigned)__builtin_clz(v);
+#else
+    unsigned n = 0;
+    while (v != 0u) {
+        v >>= 1;
+        n++;
+    }
+    return n;
+#endif
+}
+
 static void build_axis(abbe_axis_model_t *ax, const uint8_t *b, const uint8_t *rec)
 {
     memset(ax, 0, sizeof *ax);
@@ -345,15 +360,25 @@ static void build_axis(abbe_axis_model_t *ax, const uint8_t *b, const uint8_t *r
         ax->coef_q = b + abbe_ld_u32(rec + A_COEF_Q);
         ax->coef_f32 = b + abbe_ld_u32(rec + A_COEF_F32);
     }
-    /* u_q30 = (num * cheb_mul) >> 32 with cheb_mul = round(2^62 / span): |num| <= span keeps
-     * the product within 2^62, and the relative error of cheb_mul is below 2^-31. */
-    uint64_t span = (uint64_t)((int64_t)ax->travel_max_nm - (int64_t)ax->travel_min_nm);
-    ax->cheb_mul = (int64_t)((((uint64_t)1 << 62) + span / 2u) / span);
+    /* Chebyshev argument (abbe_arg_cheb_q30): with n the bit length of the
+     * span, shift = 32 - n keeps d << shift below 2^32, and
+     * cheb_mul = round(2^(31 + n) / span) lies in (2^31, 2^32], 2^32 only for
+     * a power-of-two span, stored as 2^32 - 1 (exact all the same there:
+     * d << shift <= 2^31, internal.h). */
+    uint32_t span = (uint32_t)ax->travel_max_nm - (uint32_t)ax->travel_min_nm; /* < 2^32, > 0 */
+    unsigned n = bit_length(span);
+    uint64_t mul = (((uint64_t)1 << (31u + n)) + span / 2u) / span;
+    ax->span_nm = span;
+    ax->cheb_shift = (uint8_t)(32u - n);
+    ax->cheb_mul = mul > UINT32_MAX ? UINT32_MAX : (uint32_t)mul;
     for (unsigned k = 0; k < ABBE_BLOCKS; k++) {
         ax->harmonics[k] = rec[A_HARMONICS + k];
-        ax->origin_nm[k] = abbe_ld_i32(rec + A_ORIGIN + 4u * k);
+        int32_t origin = abbe_ld_i32(rec + A_ORIGIN + 4u * k);
         int32_t period = abbe_ld_i32(rec + A_PERIOD + 4u * k);
         ax->freq[k] = period > 0 ? recip64((uint32_t)period) : 0u;
+        /* phase of travel_min, so an evaluation multiplies only d = p - min */
+        uint64_t from_origin = (uint64_t)((int64_t)ax->travel_min_nm - origin); /* mod 2^64 */
+        ax->phase_min[k] = from_origin * ax->freq[k];
     }
     ax->backlash_reversal_q8 = abbe_ld_i32(rec + A_BACKLASH);
     ax->backlash_takeup_nm = abbe_ld_i32(rec + A_TAKEUP);
@@ -364,6 +389,51 @@ static void build_axis(abbe_axis_model_t *ax, const uint8_t *b, const uint8_t *r
     ax->thermal_expansion_q50 = abbe_ld_i32(rec + A_EXPANSION);
     ax->thermal_offset_q16 = abbe_ld_i32(rec + A_THERMAL_OFFSET);
     ax->thermal_tref_mdegc = abbe_ld_i32(rec + A_TREF);
+}
+
+#if defined(ABBE_WITH_F32)
+/* A float from its IEEE bits (no arithmetic: the fixed-point build has no FPU). */
+static float f32_from_bits(uint32_t bits)
+{
+    float f;
+    memcpy(&f, &bits, sizeof f);
+    return f;
+}
+#endif
+
+/* The constants of Eq. 3 that do not depend on the position (abbe_eval_*_core). */
+static void build_assembly(abbe_model_t *m)
+{
+    const int64_t sxy = m->squareness_q36[0], sxz = m->squareness_q36[1], syz = m->squareness_q36[2];
+    for (unsigned k = 0; k < ABBE_AXES; k++) {
+        const abbe_axis_model_t *ax = &m->axis[k];
+        m->ref_half_nm[k] = m->reference_nm[k] >> 1;
+        m->any_block1 |= (uint8_t)(ax->harmonics[1] != 0u);
+#if defined(ABBE_X86_LANES)
+        m->lane_min_nm[k] = ax->travel_min_nm;
+        m->lane_max_nm[k] = ax->travel_max_nm;
+        m->lane_span_nm[k] = ax->span_nm;
+        m->lane_cheb_shift[k] = ax->cheb_shift;
+        m->lane_cheb_mul[k] = ax->cheb_mul;
+#endif
+#if defined(ABBE_WITH_F32)
+        /* t / 2 in float: the converted value with its exponent lowered by one
+         * (exact; |t| >= 1 is far from the subnormals) */
+        uint32_t t_bits = i32_to_f32_bits(m->tool_offset_nm[k]);
+        m->tool_half_nm[k] = f32_from_bits(t_bits == 0u ? 0u : t_bits - 0x00800000u);
+        m->squareness_f[k] = f32_from_bits(i32_to_f32_bits(m->squareness_q36[k]));
+#endif
+    }
+#if defined(ABBE_X86_LANES)
+    /* negated before the conversion (sign-symmetric, so exact); |S| <= 2^28 */
+    m->square_dx_dy[0] = m->squareness_f[0];
+    m->square_dx_dy[1] = f32_from_bits(i32_to_f32_bits(-m->squareness_q36[2]));
+    m->square_dx_f[0] = f32_from_bits(i32_to_f32_bits(-m->squareness_q36[1]));
+#endif
+    /* dX has y S_xy - z S_xz, dY has -z S_yz, with y = p_y - ref_y, z = p_z - ref_z:
+     * the ref parts are constants (|ref * S| <= 2^59). */
+    m->square_const_q36[0] = -(int64_t)m->reference_nm[1] * sxy + (int64_t)m->reference_nm[2] * sxz;
+    m->square_const_q36[1] = (int64_t)m->reference_nm[2] * syz;
 }
 
 abbe_status_t abbe_model_load(abbe_model_t *model, const void *blob, size_t size)
@@ -409,6 +479,10 @@ abbe_status_t abbe_model_load(abbe_model_t *model, const void *blob, size_t size
     for (unsigned j = 0; j < ABBE_AXES; j++) {
         build_axis(&model->axis[j], b, b + HEADER_SIZE + j * AXIS_RECORD_SIZE);
     }
+    build_assembly(model);
+#if defined(ABBE_X86_V3)
+    model->simd = abbe_simd_level();
+#endif
     return ABBE_OK;
 }
 

@@ -93,6 +93,47 @@ static void test_golden_terms_both_variants(void **state)
     printf("golden terms: max |f32 - ref| = %.0f pico, max |q - ref| = %.0f pico\n", worst_f32, worst_q);
 }
 
+/* Every set of f32 kernels this build and CPU have (x86-64: SSE2 and, where
+ * the CPU has AVX2 and FMA, x86-64-v3; elsewhere one set), each through the
+ * golden vectors with the same tolerance, and the sets agree closely. */
+static void test_golden_f32_every_kernel_set(void **state)
+{
+    (void)state;
+    double worst_between = 0.0;
+    for (uint32_t t = 0; t < abbe_golden_table_count; t++) {
+        const abbe_golden_table_t *gt = &abbe_golden_tables[t];
+        abbe_model_t m;
+        assert_int_equal(abbe_model_load(&m, gt->blob, gt->blob_size), ABBE_OK);
+        const uint8_t detected = m.simd;
+        for (uint32_t i = gt->first_point; i < gt->first_point + gt->n_points; i++) {
+            const abbe_golden_point_t *p = &abbe_golden_points[i];
+            abbe_input_f32_t in;
+            memcpy(in.pos_mm, p->pos_mm, sizeof in.pos_mm);
+            memcpy(in.dir_state, p->dir_state, sizeof in.dir_state);
+            memcpy(in.temp_c, p->temp_c, sizeof in.temp_c);
+            abbe_error_f32_t e[2];
+            for (unsigned k = 0; k <= detected; k++) { /* 0: baseline; 1: x86-64-v3 */
+                m.simd = (uint8_t)k;
+                assert_int_equal(abbe_error_eval_f32(&m, &in, &e[k]), ABBE_OK);
+                assert_int_equal(e[k].flags, p->expect_flags);
+                for (int j = 0; j < 3; j++) {
+                    double d = fabs((double)e[k].error_um[j] * 1e6 - p->expect_f32_pm[j]);
+                    if (d > ABBE_GOLDEN_TOL_PM) {
+                        fail_msg("table %s point %u axis %d, kernels %u: off by %.0f pm", gt->name, (unsigned)i, j, k, d);
+                    }
+                }
+            }
+            for (int j = 0; detected && j < 3; j++) {
+                double d = fabs((double)e[0].error_um[j] - (double)e[1].error_um[j]) * 1e6;
+                worst_between = d > worst_between ? d : worst_between;
+            }
+            m.simd = detected;
+        }
+    }
+    printf("f32 kernel sets: max difference between them %.0f pm\n", worst_between);
+    assert_true(worst_between < 500.0);
+}
+
 /* ---- analytic cases ------------------------------------------------------ */
 
 static uint8_t blob[8192] __attribute__((aligned(8))); /* tables must be 4-byte aligned */
@@ -363,6 +404,42 @@ static void test_sincos_accuracy(void **state)
     assert_true(worst_f < 2e-7);
 }
 
+/* Offset of the clamped position from travel_min (the one argument
+ * reduction per axis), as the evaluation computes it: clamped and flagged. */
+static uint32_t offset_of(const abbe_axis_model_t *ax, int32_t pos_nm, uint32_t *flags)
+{
+    return abbe_arg_offset(ax, pos_nm, flags);
+}
+
+static void test_offset_clamps_and_flags(void **state)
+{
+    (void)state;
+    tb_table_t t;
+    tb_init(&t);
+    t.axis[0].travel_min_nm = INT32_MIN; /* the widest travel: span 2^32 - 1 */
+    t.axis[0].travel_max_nm = INT32_MAX;
+    t.axis[1].travel_min_nm = NM(-400);
+    t.axis[1].travel_max_nm = NM(100);
+    abbe_model_t m;
+    load_table(&t, &m);
+    uint32_t f = 0;
+    assert_int_equal(offset_of(&m.axis[0], INT32_MIN, &f), 0u);
+    assert_int_equal(offset_of(&m.axis[0], INT32_MAX, &f), UINT32_MAX);
+    assert_int_equal(offset_of(&m.axis[0], 0, &f), 2147483648u);
+    assert_int_equal(f, 0u);
+    assert_int_equal(offset_of(&m.axis[1], NM(-400), &f), 0u);
+    assert_int_equal(offset_of(&m.axis[1], NM(100), &f), (uint32_t)NM(500));
+    assert_int_equal(f, 0u);
+    assert_int_equal(offset_of(&m.axis[1], NM(-400) - 1, &f), 0u);
+    assert_int_equal(f, ABBE_FLAG_OUT_OF_TRAVEL);
+    f = 0;
+    assert_int_equal(offset_of(&m.axis[1], INT32_MAX, &f), (uint32_t)NM(500));
+    assert_int_equal(f, ABBE_FLAG_OUT_OF_TRAVEL);
+    f = 0;
+    assert_int_equal(offset_of(&m.axis[1], INT32_MIN, &f), 0u);
+    assert_int_equal(f, ABBE_FLAG_OUT_OF_TRAVEL);
+}
+
 /* The phase of a 5 mm period 2 m from its origin stays exact to ~1 LSB. */
 static void test_phase_far_from_origin(void **state)
 {
@@ -376,9 +453,10 @@ static void test_phase_far_from_origin(void **state)
     t.axis[0].origin_nm[1] = NM(-2000);
     abbe_model_t m;
     load_table(&t, &m);
-    const int32_t ps[] = {NM(-2000), NM(-1999) + 3, 0, NM(2000) - 17, NM(2100)};
+    const int32_t ps[] = {NM(-2100), NM(-2000), NM(-1999) + 3, 0, NM(2000) - 17, NM(2100)};
     for (size_t i = 0; i < sizeof ps / sizeof ps[0]; i++) {
-        uint32_t ph = abbe_arg_phase_q32(&m.axis[0], 1, ps[i]);
+        uint32_t f = 0;
+        uint32_t ph = abbe_arg_phase_q32(&m.axis[0], 1, offset_of(&m.axis[0], ps[i], &f));
         long double turns = ((long double)ps[i] - (long double)NM(-2000)) / 4999999.0L;
         long double frac = turns - floorl(turns);
         long double got = (long double)ph / 4294967296.0L;
@@ -397,11 +475,105 @@ static void test_chebyshev_argument(void **state)
     t.axis[1].travel_max_nm = 0;
     abbe_model_t m;
     load_table(&t, &m);
-    assert_int_equal(abbe_arg_cheb_q30(&m.axis[1], NM(-400)), -ABBE_Q30_ONE);
-    assert_int_equal(abbe_arg_cheb_q30(&m.axis[1], 0), ABBE_Q30_ONE);
-    assert_int_equal(abbe_arg_cheb_q30(&m.axis[1], NM(-200)), 0);
-    int32_t u = abbe_arg_cheb_q30(&m.axis[1], NM(-100));
+    uint32_t f = 0;
+    assert_int_equal(abbe_arg_cheb_q30(&m.axis[1], offset_of(&m.axis[1], NM(-400), &f)), -ABBE_Q30_ONE);
+    assert_int_equal(abbe_arg_cheb_q30(&m.axis[1], offset_of(&m.axis[1], 0, &f)), ABBE_Q30_ONE);
+    assert_int_equal(abbe_arg_cheb_q30(&m.axis[1], offset_of(&m.axis[1], NM(-200), &f)), 0);
+    int32_t u = abbe_arg_cheb_q30(&m.axis[1], offset_of(&m.axis[1], NM(-100), &f));
     assert_true(abs(u - ABBE_Q30_ONE / 2) <= 1);
+}
+
+/* u_q30 = 2^30 (2d / span - 1) to within 1 LSB (exact to rounding for a power-of-two span),
+ * for spans from 1 nm to 2^32 - 1 nm, over the whole travel. */
+static void test_chebyshev_argument_any_span(void **state)
+{
+    (void)state;
+    static const uint32_t spans[] = {1u, 2u, 3u, 1000u, 65536u, 999999937u, 1073741824u, 1073741825u,
+                                     2147483648u, 3000000000u, 4294967295u};
+    uint32_t rnd = 99991u;
+    long double worst = 0.0L, worst_pow2 = 0.0L;
+    for (size_t i = 0; i < sizeof spans / sizeof spans[0]; i++) {
+        tb_table_t t;
+        tb_init(&t);
+        t.axis[2].travel_min_nm = INT32_MIN;
+        t.axis[2].travel_max_nm = (int32_t)((int64_t)INT32_MIN + spans[i]);
+        abbe_model_t m;
+        load_table(&t, &m);
+        const uint32_t span = spans[i];
+        const int pow2 = (span & (span - 1u)) == 0u;
+        for (int k = 0; k < 4000; k++) {
+            rnd = rnd * 1664525u + 1013904223u;
+            uint32_t d = k == 0 ? 0u : (k == 1 ? span : (uint32_t)((uint64_t)rnd * ((uint64_t)span + 1u) >> 32));
+            int32_t u = abbe_arg_cheb_q30(&m.axis[2], d);
+            long double exact = (2.0L * d / span - 1.0L) * 1073741824.0L;
+            long double e = fabsl((long double)u - exact);
+            if (pow2) {
+                worst_pow2 = e > worst_pow2 ? e : worst_pow2;
+            } else {
+                worst = e > worst ? e : worst;
+            }
+        }
+    }
+    printf("chebyshev argument: max error %.3Lf LSB, %.3Lf LSB for power-of-two spans\n", worst, worst_pow2);
+    assert_true(worst <= 1.0L);
+    assert_true(worst_pow2 <= 0.5L);
+}
+
+/* The batch calls give exactly the single-point results, and a bad point
+ * neither stops the batch nor changes the other points. */
+static void test_batch_matches_single_points(void **state)
+{
+    (void)state;
+    enum { N = 64 };
+    abbe_input_f32_t in_f[N];
+    abbe_input_q_t in_q[N];
+    abbe_error_f32_t out_f[N], one_f;
+    abbe_error_q_t out_q[N], one_q;
+    for (uint32_t t = 0; t < abbe_golden_table_count; t++) {
+        const abbe_golden_table_t *gt = &abbe_golden_tables[t];
+        abbe_model_t m;
+        assert_int_equal(abbe_model_load(&m, gt->blob, gt->blob_size), ABBE_OK);
+        for (unsigned i = 0; i < N; i++) {
+            const abbe_golden_point_t *p = &abbe_golden_points[gt->first_point + i % gt->n_points];
+            memcpy(in_f[i].pos_mm, p->pos_mm, sizeof in_f[i].pos_mm);
+            memcpy(in_f[i].dir_state, p->dir_state, sizeof in_f[i].dir_state);
+            memcpy(in_f[i].temp_c, p->temp_c, sizeof in_f[i].temp_c);
+            memcpy(in_q[i].pos_nm, p->pos_nm, sizeof in_q[i].pos_nm);
+            memcpy(in_q[i].dir_state_q30, p->dir_q30, sizeof in_q[i].dir_state_q30);
+            memcpy(in_q[i].temp_mdegc, p->temp_mdegc, sizeof in_q[i].temp_mdegc);
+        }
+        in_f[5].pos_mm[2] = NAN;
+        in_f[17].pos_mm[0] = -INFINITY;
+        memset(out_f, 0x5A, sizeof out_f);
+        assert_int_equal(abbe_error_eval_batch_f32(&m, N, in_f, out_f), ABBE_E_INPUT);
+        assert_int_equal(abbe_error_eval_batch_q(&m, N, in_q, out_q), ABBE_OK);
+        for (unsigned i = 0; i < N; i++) {
+            abbe_status_t st = abbe_error_eval_f32(&m, &in_f[i], &one_f);
+            assert_int_equal(st, (i == 5 || i == 17) ? ABBE_E_INPUT : ABBE_OK);
+            if (st == ABBE_OK) {
+                assert_memory_equal(&out_f[i], &one_f, sizeof one_f);
+            } else {
+                assert_true(out_f[i].error_um[0] == 0.0f && out_f[i].error_um[1] == 0.0f &&
+                            out_f[i].error_um[2] == 0.0f);
+                assert_int_equal(out_f[i].flags, ABBE_FLAG_INPUT_INVALID);
+            }
+            assert_int_equal(abbe_error_eval_q(&m, &in_q[i], &one_q), ABBE_OK);
+            assert_memory_equal(&out_q[i], &one_q, sizeof one_q);
+        }
+        in_f[5].pos_mm[2] = 0.0f;
+        in_f[17].pos_mm[0] = 0.0f;
+        assert_int_equal(abbe_error_eval_batch_f32(&m, N, in_f, out_f), ABBE_OK);
+    }
+    abbe_model_t m;
+    assert_int_equal(abbe_model_load(&m, abbe_golden_tables[0].blob, abbe_golden_tables[0].blob_size), ABBE_OK);
+    assert_int_equal(abbe_error_eval_batch_f32(&m, 0, NULL, NULL), ABBE_OK);
+    assert_int_equal(abbe_error_eval_batch_q(&m, 0, NULL, NULL), ABBE_OK);
+    assert_int_equal(abbe_error_eval_batch_f32(NULL, 1, in_f, out_f), ABBE_E_ARG);
+    assert_int_equal(abbe_error_eval_batch_f32(&m, 1, NULL, out_f), ABBE_E_ARG);
+    assert_int_equal(abbe_error_eval_batch_f32(&m, 1, in_f, NULL), ABBE_E_ARG);
+    assert_int_equal(abbe_error_eval_batch_q(NULL, 1, in_q, out_q), ABBE_E_ARG);
+    assert_int_equal(abbe_error_eval_batch_q(&m, 1, NULL, out_q), ABBE_E_ARG);
+    assert_int_equal(abbe_error_eval_batch_q(&m, 1, in_q, NULL), ABBE_E_ARG);
 }
 
 int main(void)
@@ -409,6 +581,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_golden_error_both_variants),
         cmocka_unit_test(test_golden_terms_both_variants),
+        cmocka_unit_test(test_golden_f32_every_kernel_set),
         cmocka_unit_test(test_positioning_sign_and_hold),
         cmocka_unit_test(test_squareness_levers),
         cmocka_unit_test(test_angles_and_tool_offset),
@@ -416,8 +589,11 @@ int main(void)
         cmocka_unit_test(test_fixed_saturation_reported),
         cmocka_unit_test(test_bad_inputs),
         cmocka_unit_test(test_sincos_accuracy),
+        cmocka_unit_test(test_offset_clamps_and_flags),
         cmocka_unit_test(test_phase_far_from_origin),
         cmocka_unit_test(test_chebyshev_argument),
+        cmocka_unit_test(test_chebyshev_argument_any_span),
+        cmocka_unit_test(test_batch_matches_single_points),
     };
     return cmocka_run_group_tests_name("eval", tests, NULL, NULL);
 }

@@ -21,7 +21,7 @@ import numpy as np
 from abbe.analysis.iso230_4 import BallbarResult, evaluate_ballbar, fit_circle
 from abbe.errors import AbbeInputError
 from abbe.formats.ballbar_csv import BallbarTrace, read_ballbar_csv
-from abbe.formats.blob import read_blob
+from abbe.formats.blob import read_blob_file
 from abbe.formats.machine import Machine
 from abbe.model import clib
 from abbe.model.evaluate import model_error_um
@@ -87,7 +87,7 @@ def _ballbar(machine: Machine, name: str) -> tuple[CircleTest, BallbarTrace]:
         raise AbbeInputError(f"no ballbar test {name!r} (the machine file has: {known})",
                              file=str(machine.path), field=f"ballbar.{name}")
     bt = machine.ballbar[name]
-    return from_machine(bt), read_ballbar_csv(bt.file)
+    return from_machine(bt), read_ballbar_csv(bt.file, columns=bt.columns)
 
 
 def _check_model_fits_machine(machine: Machine, table: Table, model_path: str) -> None:
@@ -108,12 +108,7 @@ def _check_model_fits_machine(machine: Machine, table: Table, model_path: str) -
 
 def load_model(path: str | Path) -> tuple[bytes, Table, clib.CModel]:
     """Read a model blob; validate it in Python and in the C library."""
-    path = Path(path)
-    try:
-        blob = path.read_bytes()
-    except OSError as exc:
-        raise AbbeInputError(f"cannot read model: {exc}", file=str(path)) from None
-    table = read_blob(blob, source=str(path))
+    blob, table = read_blob_file(path)
     return blob, table, clib.CModel(blob)
 
 

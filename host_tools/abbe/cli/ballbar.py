@@ -4,14 +4,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
-import tempfile
 from pathlib import Path
 
 from abbe.cli.conventions import examples
 from abbe.errors import AbbeInputError
 from abbe.formats.machine import load_machine
+from abbe.formats.output import Outputs
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -32,11 +31,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    # imported here: abbe.analysis.iso230_4 pulls in scipy, which every other command would pay for
+    # scipy (abbe.analysis.iso230_4) is imported inside: every other command would pay for it
+    with Outputs() as outs:
+        return _run(args, outs)
+
+
+def _run(args: argparse.Namespace, outs: Outputs) -> int:
     from abbe.analysis.iso230_4 import evaluate_ballbar, plot_polar
     from abbe.formats.ballbar_csv import check_trace_timing, read_ballbar_csv
     from abbe.model.geometry import check_test_in_travel, from_machine
 
+    plot = None if args.no_plot else Path(args.plot or f"ballbar_{args.name}.png")
+    staged = None if plot is None else outs.file(plot, option="--plot")
     m = load_machine(args.machine)
     if args.name not in m.ballbar:
         avail = ", ".join(sorted(m.ballbar)) or "none"
@@ -50,25 +56,16 @@ def run(args: argparse.Namespace) -> int:
     except AbbeInputError as exc:
         raise AbbeInputError(exc.message, file=exc.file, line=m.line_of(exc.field or ""),
                              field=exc.field) from None
-    trace = read_ballbar_csv(bt.file)
+    trace = read_ballbar_csv(bt.file, columns=bt.columns)
     check_trace_timing(trace, test, str(m.path))
     res = evaluate_ballbar(trace, test)
-    plot = None if args.no_plot else Path(args.plot or f"ballbar_{args.name}.png")
-    if plot is not None:
-        plot.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=".ballbar-", suffix=".png", dir=plot.parent)
-        os.close(fd)
-        try:
-            plot_polar(res, tmp, title=f"{m.name} ballbar {args.name}: {test.plane}, "
-                       f"R {test.radius_mm:g} mm, F {test.feed_mm_min:g} mm/min")
-            os.replace(tmp, plot)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+    if staged is not None:
+        plot_polar(res, str(staged), title=f"{m.name} ballbar {args.name}: {test.plane}, "
+                   f"R {test.radius_mm:g} mm, F {test.feed_mm_min:g} mm/min")
     if args.json:
         d = {"machine": str(m.path), "file": str(bt.file), **res.to_json(),
              "plot": None if plot is None else str(plot)}
-        json.dump(d, sys.stdout, indent=2)
+        json.dump(d, sys.stdout, indent=2, allow_nan=False)
         sys.stdout.write("\n")
     else:
         print(res.format_text())

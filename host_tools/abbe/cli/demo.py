@@ -29,17 +29,31 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def _unstage(staging: Path, final: Path) -> None:
+    """The demo ran in ``staging``: name ``final`` instead in the files that record paths."""
+    old, new = str(staging), str(final)
+    for p in staging.rglob("*"):
+        if p.suffix in (".json", ".txt", ".html") and p.is_file():
+            text = p.read_text(encoding="utf-8")
+            if old in text:
+                p.write_text(text.replace(old, new), encoding="utf-8")
+
+
 def run(args: argparse.Namespace) -> int:
     from abbe.cli.demo_pipeline import run_demo
+    from abbe.formats.output import Outputs
 
     example = args.example or _default_example()
-    res = run_demo(example, args.out, diagnose=not args.no_diagnose)
+    with Outputs() as outs:
+        staging = outs.directory(args.out, option="--out")
+        js = outs.file(args.json, option="--json") if args.json else None
+        res = run_demo(example, staging, diagnose=not args.no_diagnose)
+        _unstage(staging, Path(args.out).resolve())
+        if js is not None:
+            js.write_text(json.dumps(res.summary, indent=2, default=str, allow_nan=False))
     s = res.summary
     print(f"abbe demo ({s['machine']}, {s['ballbar']}): prediction max residual "
           f"{s['prediction_max_residual_laser_only_um']} um (laser-only) -> {s['prediction_max_residual_um']} um; "
           f"roundness {s['roundness_before_um']} -> {s['roundness_after_um']} um "
           f"({s['improvement_pct']} % better, model-ideal {s['ideal_improvement_pct']} %)")
-    if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(s, indent=2, default=str))
     return 0

@@ -13,6 +13,7 @@ import argparse
 import sys
 
 from abbe.cli.conventions import examples, list_option
+from abbe.cli.options import in_range
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -37,13 +38,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--axis", help="axis of --iso230-2 data (X, Y or Z)")
     p.add_argument("--json", metavar="FILE", help="also write the diagnose JSON here")
     p.add_argument("-o", "--out", required=True, metavar="DIR", help="output directory")
-    p.add_argument("--alpha", type=float, default=0.01,
-                   help="significance level per step (default 0.01, Bonferroni over candidates)")
-    p.add_argument("--min-effect-um", type=float, default=0.15,
-                   help="smallest effect (RMS on the checks, um) worth naming (default 0.15)")
+    p.add_argument("--alpha", type=in_range(0.0, 0.5, lo_open=True, hi_open=True), default=0.01,
+                   help="significance level per step, (0, 0.5) (default 0.01, Bonferroni over "
+                        "candidates)")
+    p.add_argument("--min-effect-um", type=in_range(0.0, 1000.0, "um"), default=0.15,
+                   help="smallest effect (RMS on the checks, um) worth naming, [0, 1000] "
+                        "(default 0.15)")
     list_option(p, "--candidates", metavar="ID",
                    help="restrict the catalogue (ids or keys, e.g. squareness_xy backlash_x)")
-    p.add_argument("--model-temp-c", type=float, default=None, metavar="C",
+    p.add_argument("--model-temp-c", type=in_range(-50.0, 150.0, "deg C"), default=None,
+                   metavar="C",
                    help="temperature (deg C) at which the model was measured: the reference "
                         "of the thermal term (default: the table's, else the lowest logged)")
     p.add_argument("--rezeroed", action="store_true",
@@ -67,11 +71,10 @@ def run(args: argparse.Namespace) -> int:
         if bad:
             raise AbbeInputError(f"unknown effect {bad[0]!r}; known: {', '.join(sorted(known))}",
                                  field="candidates")
-    if not 0.0 < args.alpha < 0.5:
-        raise AbbeInputError(f"--alpha {args.alpha} must be in (0, 0.5)", field="alpha")
-    if args.model_temp_c is not None and not -50.0 <= args.model_temp_c <= 150.0:
-        raise AbbeInputError(f"--model-temp-c {args.model_temp_c}: expected a temperature in "
-                             "[-50, 150] deg C", field="model-temp-c")
+    from abbe.formats.output import Outputs
+    Outputs().check_directory(args.out, option="--out")  # before the work; written at the end
+    if args.json:
+        Outputs().check_file(args.json, option="--json")
     opts = DiagnoseOptions(alpha=args.alpha, min_effect_um=args.min_effect_um,
                            candidates=args.candidates, backend=args.backend,
                            model_temp_c=args.model_temp_c)
@@ -81,6 +84,8 @@ def run(args: argparse.Namespace) -> int:
                                  field="iso230-2")
         if not args.axis:
             raise AbbeInputError("--iso230-2 needs --axis X|Y|Z", field="axis")
+        if args.axis.upper() not in ("X", "Y", "Z"):
+            raise AbbeInputError(f"expected X, Y or Z, got {args.axis!r}", field="axis")
         res = diagnose_positioning(args.iso, args.axis, args.model, opts, rezeroed=args.rezeroed)
         extra = {"input": {"iso230_2": args.iso, "axis": args.axis.upper(),
                            "model": args.model or "position-only (built from the data)"}}

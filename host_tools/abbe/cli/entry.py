@@ -2,6 +2,13 @@
 
 Each command module exposes ``register(subparsers)`` which adds its parser and
 sets ``func`` (taking the parsed args, returning an exit status).
+
+Exit statuses (docs/formats.md, "Exit statuses"): 0 done; 2 bad input or usage
+(``FILE:LINE: field 'F': message``, nothing written); 3 the C library is not
+built; 4 the C library and the reference disagree (``abbe fit``); 1 a port's
+server refused or could not be reached; 70 an internal error -- a bug: one line
+on stderr naming a log file with the traceback (:func:`abbe.cli.guard.run_guarded`);
+130 interrupted.
 """
 
 from __future__ import annotations
@@ -13,7 +20,6 @@ import sys
 from abbe import __version__
 from abbe.cli import conventions
 from abbe.cli.conventions import examples
-from abbe.errors import AbbeInputError
 
 # Modules providing sub-commands, in help order.
 COMMANDS: list[str] = [
@@ -35,7 +41,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="abbe", description="abbe: measure, model and compensate the geometric errors of "
         "3-axis CNC machine tools. Exit status: 0 success, 1 a device or server refused, "
-        "2 bad input, 3 C library missing, 4 C library and reference disagree "
+        "2 bad input, 3 C library missing, 4 C library and reference disagree, "
+        "70 internal error (a bug: the message names a log file) "
         "(docs/formats.md, \"Exit status\").",
         epilog=examples("abbe demo -o abbe-demo", "abbe fit MACHINE.toml -o fit-out",
                         "abbe COMMAND --help"))
@@ -48,13 +55,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from abbe.cli.guard import run_guarded
+
     parser = build_parser()
     args = conventions.clean(parser.parse_args(argv))
-    try:
-        return int(args.func(args) or 0)
-    except AbbeInputError as exc:
-        print(f"abbe {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+    return run_guarded(f"abbe {args.command}", lambda: int(args.func(args) or 0), argv)
 
 
 if __name__ == "__main__":

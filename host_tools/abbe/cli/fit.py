@@ -3,8 +3,9 @@
 Writes OUT/model.bin (the table blob), OUT/abbe_model.c and .h (generated C),
 OUT/model.json (coefficients with units, fit metrics, provenance) and
 OUT/report/ (one PNG per term + index.html). Outputs are built in a temporary
-directory next to OUT and moved into place only when everything succeeded, so
-bad input never leaves partial output. Before finishing, the blob is read back
+directory next to OUT and swapped in by one rename only when everything
+succeeded (:class:`abbe.formats.output.Outputs`), so bad input never leaves
+partial output and a failure keeps the old result intact. Before finishing, the blob is read back
 and evaluated by the C library against the Python reference (2 nm bound);
 ``--no-clib-check`` skips that (for tests without a built library).
 """
@@ -13,15 +14,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import shutil
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 from abbe.analysis.fit.options import MODELS
 from abbe.cli.conventions import examples
+from abbe.cli.options import int_range
+from abbe.formats.output import Outputs
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -35,11 +35,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--model", choices=MODELS, default=None,
                    help="auto (default): period search + cross-validated orders; "
                         "paper-fourier3 / paper-poly7: the paper's fixed models")
-    p.add_argument("--folds", type=int, default=None,
-                   help="outer cross-validation folds for held-out metrics (default 5)")
-    p.add_argument("--max-degree", type=int, default=None, choices=range(0, 8),
+    p.add_argument("--folds", type=int_range(2, 50), default=None, metavar="K",
+                   help="outer cross-validation folds for held-out metrics (2..50, default 5)")
+    p.add_argument("--max-degree", type=int_range(0, 7), default=None, metavar="D",
                    help="highest Chebyshev trend degree (0..7, default 7)")
-    p.add_argument("--max-harmonics", type=int, default=None, choices=range(0, 9),
+    p.add_argument("--max-harmonics", type=int_range(0, 8), default=None, metavar="H",
                    help="most harmonics in Fourier block 0 (0..8, default 8)")
     p.add_argument("--no-report", action="store_true", help="skip the PNG/HTML report")
     p.add_argument("--no-clib-check", action="store_true",
@@ -51,6 +51,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    outs = Outputs()
+    try:
+        staging = outs.directory(args.out, option="--out")
+        rc, done = _run(args, staging)
+    except BaseException:
+        outs.abort()
+        raise
+    if rc != 0:
+        outs.abort()
+        return rc
+    outs.commit()
+    _print_summary(args, *done)
+    return 0
+
+
+def _run(args: argparse.Namespace, staging: Path) -> tuple[int, tuple]:
+    """The fit into ``staging``: (exit status, what the summary prints)."""
     t0 = time.perf_counter()
     times: dict[str, float] = {}
 
@@ -61,21 +78,15 @@ def run(args: argparse.Namespace) -> int:
     from abbe.analysis.fit.pipeline import fit_machine, options_from_machine
     from abbe.formats.machine import load_machine
 
-    if Path(args.out).exists() and not Path(args.out).is_dir():
-        print(f"abbe fit: error: {args.out} exists and is not a directory", file=sys.stderr)
-        return 2
     if not args.no_clib_check:
         try:
             require_clib()
         except ClibMissing as exc:
             print(f"abbe fit: error: {exc}", file=sys.stderr)
-            return 3
+            return 3, ()
     machine = load_machine(args.machine)
     opts = options_from_machine(machine, model=args.model, folds=args.folds,
                                 max_degree=args.max_degree, max_harmonics=args.max_harmonics)
-    if opts.folds < 2:
-        print("abbe fit: error: --folds must be >= 2", file=sys.stderr)
-        return 2
     lap("read+imports")
     res = fit_machine(machine, opts)
     lap("fit")
@@ -85,12 +96,16 @@ def run(args: argparse.Namespace) -> int:
             check = check_blob(res.blob)
         except ClibMismatch as exc:
             print(f"abbe fit: error: {exc}", file=sys.stderr)
-            return 4
+            return 4, ()
         res.model_json["clib_check"] = check.to_json()
     else:
         res.model_json["clib_check"] = None
     lap("clib check")
-    write_outputs(res, Path(args.out), report=not args.no_report, times=times, t0=t0)
+    write_outputs(res, staging, report=not args.no_report, times=times, t0=t0)
+    return 0, (res, check, times, t0)
+
+
+def _print_summary(args: argparse.Namespace, res, check, times: dict, t0: float) -> None:
     total = time.perf_counter() - t0
     if not args.quiet:
         from abbe.analysis.fit.report import metrics_text
@@ -105,7 +120,6 @@ def run(args: argparse.Namespace) -> int:
         for k, v in times.items():
             print(f"bench: {k:<14} {v * 1000:8.1f} ms")
         print(f"bench: {'total':<14} {total * 1000:8.1f} ms")
-    return 0
 
 
 def _axis_summary(res, a: str) -> str:
@@ -116,40 +130,18 @@ def _axis_summary(res, a: str) -> str:
 
 def write_outputs(res, out: Path, report: bool = True, times: dict | None = None,
                   t0: float = 0.0) -> None:
-    """Write every output into a temp dir beside ``out``, then move them into place."""
+    """Write every output into the folder ``out`` (a staging folder of :class:`Outputs`)."""
     from abbe.analysis.fit.report import write_report
     from abbe.formats.c_source import write_c
 
     out = Path(out)
-    parent = out.resolve().parent
-    parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=parent))
-    try:
-        (tmp / "model.bin").write_bytes(res.blob)
-        write_c(res.blob, tmp)
-        (tmp / "model.json").write_text(json.dumps(res.model_json, indent=2) + "\n",
-                                        encoding="utf-8")
+    (out / "model.bin").write_bytes(res.blob)
+    write_c(res.blob, out)
+    (out / "model.json").write_text(json.dumps(res.model_json, indent=2, allow_nan=False) + "\n",
+                                    encoding="utf-8")
+    if times is not None:
+        times["write table+json"] = time.perf_counter() - t0 - sum(times.values())
+    if report:
+        write_report(res, out / "report")
         if times is not None:
-            times["write table+json"] = time.perf_counter() - t0 - sum(times.values())
-        if report:
-            write_report(res, tmp / "report")
-            if times is not None:
-                times["report"] = time.perf_counter() - t0 - sum(times.values())
-        _move_into_place(tmp, out)
-    finally:
-        if tmp.exists():
-            shutil.rmtree(tmp, ignore_errors=True)
-
-
-def _move_into_place(tmp: Path, out: Path) -> None:
-    """Rename tmp to out if out does not exist, else replace out's entries by tmp's."""
-    if not out.exists():
-        os.replace(tmp, out)
-        return
-    if not out.is_dir():
-        raise NotADirectoryError(f"{out} exists and is not a directory")
-    for entry in sorted(tmp.iterdir()):
-        dest = out / entry.name
-        if dest.is_dir() and not dest.is_symlink():
-            shutil.rmtree(dest)
-        os.replace(entry, dest)
+            times["report"] = time.perf_counter() - t0 - sum(times.values())

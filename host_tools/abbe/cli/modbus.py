@@ -19,7 +19,8 @@ from pathlib import Path
 
 from abbe.cli.conventions import examples
 from abbe.errors import AbbeInputError
-from abbe.formats.blob import blob_crc, read_blob
+from abbe.cli.options import in_range, int_range
+from abbe.formats.blob import blob_crc, read_blob_file
 from abbe.model.table import feature_names
 from abbe.ports.modbus_client import (
     REGMAP_VERSION,
@@ -34,9 +35,10 @@ from abbe.ports.modbus_client import (
 def _add_endpoint(p: argparse.ArgumentParser) -> None:
     p.add_argument("--modbus", required=True, metavar="URL",
                    help="tcp://HOST:PORT or rtu:DEVICE:BAUD[:PDS] (e.g. rtu:/dev/ttyUSB0:115200:E81)")
-    p.add_argument("--unit", type=int, default=1, help="Modbus unit id (default 1)")
-    p.add_argument("--timeout", type=float, default=3.0, metavar="S",
-                   help="response timeout in seconds (default 3)")
+    p.add_argument("--unit", type=int_range(0, 247), default=1,
+                   help="Modbus unit id, 0..247 (default 1)")
+    p.add_argument("--timeout", type=in_range(0.0, 600.0, "s", lo_open=True), default=3.0,
+                   metavar="S", help="response timeout in seconds, (0, 600] (default 3)")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -48,7 +50,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                                                "fit-out/model.bin"))
     _add_endpoint(up)
     up.add_argument("model", type=Path, help="the table (model.bin)")
-    up.add_argument("--chunk", type=int, default=123, metavar="REGS",
+    up.add_argument("--chunk", type=int_range(1, 123), default=123, metavar="REGS",
                     help="registers per write request, 1..123 (default 123)")
     up.add_argument("-q", "--quiet", action="store_true", help="no progress display")
     up.set_defaults(func=run_upload)
@@ -86,11 +88,7 @@ def _progress(quiet: bool):  # type: ignore[no-untyped-def]
 
 def run_upload(args: argparse.Namespace) -> int:
     path: Path = args.model
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise AbbeInputError(f"cannot read: {exc.strerror}", file=str(path)) from None
-    read_blob(data, source=str(path))  # the server would refuse it: say why here
+    data, _ = read_blob_file(path)  # the server would refuse a bad table: say why here
     total = int.from_bytes(data[8:12], "little")
     data = data[:total]
     if not 1 <= args.chunk <= 123:

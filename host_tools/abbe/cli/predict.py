@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import argparse
 import json
-from pathlib import Path
 
 from abbe.cli.conventions import examples, list_option
 
@@ -33,16 +32,18 @@ def run(args: argparse.Namespace) -> int:
     from abbe.analysis.predict import plot_prediction, predict
     from abbe.formats.machine import load_machine
 
-    machine = load_machine(args.machine)
-    results = [predict(machine, args.model, name) for name in args.ballbar]  # all or nothing
-    if args.out:
-        out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        for p in results:
-            plot_prediction(p, out / f"predict_{p.name}.png")
+    from abbe.formats.output import Outputs
+
+    with Outputs() as outs:
+        out = outs.directory(args.out, option="--out") if args.out else None
+        machine = load_machine(args.machine)
+        results = [predict(machine, args.model, name) for name in args.ballbar]  # all or nothing
+        if out is not None:
+            for p in results:
+                plot_prediction(p, out / f"predict_{p.name}.png")
     if args.json:
         print(json.dumps({"model": str(args.model), "predictions": [p.to_json() for p in results]},
-                         indent=2))
+                         indent=2, allow_nan=False))
         return 0
     for p in results:
         print(f"ballbar {p.name}: measured roundness G = {p.roundness_before_um:.2f} um (bidirectional)")

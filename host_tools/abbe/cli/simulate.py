@@ -51,9 +51,13 @@ def run(args: argparse.Namespace) -> int:
     from abbe.sim.campaign import simulate_campaign, write_campaign
     from abbe.sim.spec import load_spec
 
-    spec = load_spec(args.spec)
-    files = simulate_campaign(spec)
-    written = write_campaign(files, args.out)
+    from abbe.formats.output import Outputs
+
+    with Outputs() as outs:
+        outs.directory(args.out, option="--out")  # checked before the work
+        spec = load_spec(args.spec)
+        files = simulate_campaign(spec)
+        written = write_campaign(files, args.out, outs)
     lin = linearisation_check(spec)
     if args.json:
         json.dump({"out": args.out, "files": sorted(files), "linearisation_max_um": lin},

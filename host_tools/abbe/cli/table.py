@@ -20,19 +20,18 @@ import numpy as np
 
 from abbe.cli.conventions import examples
 from abbe.errors import AbbeInputError
-from abbe.formats.blob import blob_crc, read_blob, write_blob
+from abbe.cli.options import in_range
+from abbe.formats.blob import blob_crc, read_blob_file, write_blob
 from abbe.formats.c_source import write_c
-from abbe.formats.output import atomic_write
+from abbe.formats.limits import TABLE_JSON_MAX_BYTES
+from abbe.formats.output import Outputs, atomic_write
+from abbe.formats.structured import JsonLocator, load_json
 from abbe.formats.table_json import table_from_json, table_to_json
 from abbe.model.table import AXES, LINEAR_TERMS, Table, feature_names
 
 
 def _read_bin(path: Path) -> tuple[bytes, Table]:
-    try:
-        data = Path(path).read_bytes()
-    except OSError as exc:
-        raise AbbeInputError(f"cannot read: {exc.strerror}", file=str(path)) from None
-    return data, read_blob(data, source=str(path))
+    return read_blob_file(path)
 
 
 def _cmd_info(args: argparse.Namespace) -> int:
@@ -77,13 +76,9 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         raise AbbeInputError(f"{len(args.pos)} numbers given; positions come in X Y Z triples",
                              field="pos_mm")
     pos = np.array(args.pos, dtype=np.float64).reshape(-1, 3)
-    if not np.all(np.isfinite(pos)):
-        raise AbbeInputError("positions must be finite", field="pos_mm")
     dirs = None
     if args.dir is not None:
         dirs = np.tile(np.array(args.dir, dtype=np.float64), (pos.shape[0], 1))
-        if np.any(np.abs(dirs) > 1):
-            raise AbbeInputError("direction state must be in [-1, 1]", field="dir")
     temps = None if args.temp_c is None else np.tile(np.array(args.temp_c, dtype=np.float64),
                                                       (pos.shape[0], 1))
     ref = spatial_error(table, pos, dirs, temps)
@@ -124,8 +119,9 @@ def _cmd_eval(args: argparse.Namespace) -> int:
 
 
 def _cmd_cgen(args: argparse.Namespace) -> int:
+    Outputs().check_directory(args.out, option="--out")
     data, _ = _read_bin(args.model)
-    h, c = write_c(data, args.out, stem=args.stem)
+    h, c = write_c(data, args.out, stem=args.stem, option="--out")
     print(h)
     print(c)
     return 0
@@ -133,23 +129,29 @@ def _cmd_cgen(args: argparse.Namespace) -> int:
 
 def _cmd_from_json(args: argparse.Namespace) -> int:
     src = str(args.json)
-    try:
-        text = Path(args.json).read_text(encoding="utf-8")
-    except OSError as exc:
-        raise AbbeInputError(f"cannot read: {exc.strerror}", file=src) from None
-    try:
-        d = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise AbbeInputError(f"invalid JSON: {exc.msg}", file=src, line=exc.lineno) from None
-    table = table_from_json(d, source=src)
-    try:
-        blob = write_blob(table)
-    except AbbeInputError as exc:
-        exc.file = src  # name the JSON file; field says where in it
-        raise
-    atomic_write(args.out, blob)
+    with Outputs() as outs:
+        out = outs.file(args.out, option="--out")
+        d, tf = load_json(args.json, what="table JSON", max_bytes=TABLE_JSON_MAX_BYTES)
+        loc = JsonLocator(tf.text)
+        table = table_from_json(d, source=src, locator=loc)
+        try:
+            blob = write_blob(table)
+        except AbbeInputError as exc:  # name the JSON file and the line; field says where
+            raise exc.located(file=src, line=loc.line(_json_field(exc.field))) from None
+        out.write_bytes(blob)
     print(f"{args.out}: {len(blob)} bytes, CRC-32 0x{blob_crc(blob):08X}")
     return 0
+
+
+def _json_field(blob_field: str | None) -> str | None:
+    """The table JSON field an encoder field (``axes.X.coef.dx``) lives in."""
+    if not blob_field:
+        return None
+    parts = blob_field.split(".")
+    if len(parts) >= 4 and parts[0] == "axes" and parts[2] == "coef":
+        unit = "um" if parts[3] in LINEAR_TERMS else "urad"
+        return f"axes.{parts[1]}.terms.{parts[3]}_{unit}"
+    return blob_field.replace("[", ".").split(".")[0] if "[" in blob_field else blob_field
 
 
 def _cmd_to_json(args: argparse.Namespace) -> int:
@@ -158,7 +160,7 @@ def _cmd_to_json(args: argparse.Namespace) -> int:
     if args.out is None:
         sys.stdout.write(text)
     else:
-        atomic_write(args.out, text.encode())
+        atomic_write(args.out, text.encode(), option="--out")
     return 0
 
 
@@ -181,11 +183,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                                        "abbe table eval fit-out/model.bin 0 0 0 500 -400 -300 "
                                        "--dir 1 1 1"))
     q.add_argument("model", type=Path, help="table blob (model.bin)")
-    q.add_argument("pos", nargs="+", type=float, metavar="X Y Z",
+    q.add_argument("pos", nargs="+", type=in_range(-1e5, 1e5, "mm"), metavar="X Y Z",
                    help="machine positions, mm, in X Y Z triples")
-    q.add_argument("--dir", nargs=3, type=float, metavar=("SX", "SY", "SZ"),
+    q.add_argument("--dir", nargs=3, type=in_range(-1.0, 1.0), metavar=("SX", "SY", "SZ"),
                    help="backlash direction state per axis in [-1, 1] (default 0)")
-    q.add_argument("--temp-c", nargs=3, type=float, metavar=("TX", "TY", "TZ"),
+    q.add_argument("--temp-c", nargs=3, type=in_range(-100.0, 200.0, "deg C"),
+                   metavar=("TX", "TY", "TZ"),
                    help="axis temperatures, deg C (default: no thermal term)")
     q.add_argument("--clib", action="store_true",
                    help="also evaluate with the C library (f32 and q) and show the difference")

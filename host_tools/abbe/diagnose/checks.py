@@ -463,7 +463,7 @@ def ballbar_check(machine: Any, name: str, reference_mm: tuple[float, float, flo
                              f"{sorted(machine.ballbar) or 'none'}", file=str(machine.path),
                              field=f"ballbar.{name}")
     bt = machine.ballbar[name]
-    tr = read_ballbar_csv(bt.file)
+    tr = read_ballbar_csv(bt.file, columns=bt.columns)
     check_trace_timing(tr, from_machine(bt), str(machine.path))
     c = BallbarCheck(name, bt.plane, bt.center_mm, bt.radius_mm, bt.feed_mm_min, tr.direction,
                      tr.angle_deg, tr.radial_um, tr.time_s, reference_mm, source=str(bt.file),
@@ -484,7 +484,7 @@ def laser_check(machine: Any, axis: str, reference_mm: tuple[float, float, float
     line = machine.laser[axis]
     j = AXES.index(axis)
     data = read_laser_csv(line.file, channels=tuple(line.map),
-                          span_mm=(line.start_mm[j], line.end_mm[j]))
+                          span_mm=(line.start_mm[j], line.end_mm[j]), columns=line.columns)
     chans = [LaserChannel(ch, cm.term, cm.sign, data.channels[ch]) for ch, cm in line.map.items()]
     c = LaserCheck(f"laser_{axis}", axis, line.start_mm, data.targets_mm, chans, data.line_no,
                    reference_mm, time_s=data.time_s, temp_c=data.temp_c, rezeroed=rezeroed,
@@ -527,9 +527,9 @@ def positioning_check(path: str | Path, axis: str, reference_mm: tuple[float, fl
 def position_only_table(check: LaserCheck, travel_mm: tuple[float, float] | None = None) -> Table:
     """A position-only model of a positioning check's axis: its own positioning term
     interpolates the bidirectional mean deviation of every target over all runs (a
-    square, well-conditioned basis: Fourier block 0 with period T x mean target spacing
-    and up to 8 harmonics, plus a Chebyshev trend for the remaining functions, at most
-    degree 7; least squares if more than 24 targets), zero at the reference point; no
+    well-conditioned basis: Fourier block 0 with period T x mean target spacing and up to
+    8 harmonics, plus a Chebyshev trend of degree <= 1; square up to 18 targets, least
+    squares beyond), zero at the reference point; no
     backlash, no drift; the other axes carry no terms. Units um, mm."""
     from abbe.model.table import OWN_TERM as OWN
     from abbe.model.table import AxisTable, FourierBlock, basis_matrix
@@ -540,7 +540,10 @@ def position_only_table(check: LaserCheck, travel_mm: tuple[float, float] | None
     lo, hi = (float(tg.min()), float(tg.max())) if travel_mm is None else travel_mm
     T = tg.size
     h = int(min(8, (T - 1) // 2))
-    deg = int(min(7, max(T - 1 - 2 * h, 0)))
+    # trend degree <= 1: a higher degree beside 8 harmonics of about the span's period is
+    # nearly collinear with them (condition ~1e3), and the cancelling coefficients
+    # overflow the table (examples/vmc500/laser/x.csv, 51 targets)
+    deg = int(min(1, max(T - 1 - 2 * h, 0)))
     block = None
     if h > 0:
         period = (float(tg.max()) - float(tg.min())) * T / max(T - 1, 1)

@@ -1,7 +1,7 @@
 """Outputs of ``abbe diagnose``: text report, diagnose JSON, residual plots, updated tables.
 
-:func:`write_outputs` writes into OUT/ (all files first into a temporary directory
-inside OUT, then renamed into place, so a failure leaves no partial output):
+:func:`write_outputs` writes OUT/ (built in a temporary folder beside OUT and swapped in
+by one rename, so a failure leaves no partial output and keeps the old result):
 
 * ``model.bin``, ``abbe_model.c`` / ``abbe_model.h``, ``model.json``: the updated
   table (the effects the C library evaluates added);
@@ -20,9 +20,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import shutil
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -241,56 +238,50 @@ def _safe(name: str) -> str:
 def write_outputs(res: DiagnoseResult, out_dir: str | Path, json_path: str | Path | None = None,
                   plots: bool = True, extra_json: dict[str, Any] | None = None) -> dict[str, Path]:
     """Write the updated table (blob, C, JSON), diagnose.json, report.txt and plots into
-    ``out_dir`` atomically; also ``json_path`` if given. Returns name -> path."""
+    ``out_dir``, and ``json_path`` if given: all or nothing (abbe.formats.output.Outputs:
+    OUT is swapped in by one rename, the old result stays intact on any failure, no
+    empty folder is left). Returns name -> final path."""
+    from abbe.formats.output import Outputs
+
+    with Outputs() as outs:
+        tmp = outs.directory(out_dir, option="--out")
+        jtmp = outs.file(json_path, option="--json") if json_path is not None else None
+        return _write_into(res, Path(out_dir), tmp, jtmp, json_path, plots, extra_json)
+
+
+def _write_into(res: DiagnoseResult, out: Path, tmp: Path, jtmp: Path | None,
+                json_path: str | Path | None, plots: bool,
+                extra_json: dict[str, Any] | None) -> dict[str, Path]:
     from abbe.formats.blob import write_blob
     from abbe.formats.c_source import write_c
     from abbe.formats.table_json import table_to_json
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=".abbe-diagnose-", dir=out))
+    from abbe.model.table import TableError
     try:
         blob = write_blob(res.table)
-        (tmp / "model.bin").write_bytes(blob)
-        write_c(blob, tmp)
-        (tmp / "model.json").write_text(json.dumps(table_to_json(res.table), indent=1) + "\n",
-                                        encoding="utf-8")
-        model_path = str(out / "model.bin")
-        d = res.to_json(model_path)
-        if extra_json:
-            d.update(extra_json)
-        text = json.dumps(clean_json(d), indent=1, default=_json_default, allow_nan=False) + "\n"
-        (tmp / "diagnose.json").write_text(text, encoding="utf-8")
-        (tmp / "report.txt").write_text(format_text(res, model_path), encoding="utf-8")
-        if plots:
-            write_plots(res, tmp / "plots")
-        json_tmp = None
-        if json_path is not None:
-            jp = Path(json_path)
-            jp.parent.mkdir(parents=True, exist_ok=True)
-            fd, json_tmp = tempfile.mkstemp(prefix=".diagnose-", suffix=".json", dir=jp.parent)
-            with os.fdopen(fd, "w", encoding="utf-8") as fh:
-                fh.write(text)
-        written: dict[str, Path] = {}
-        for src in sorted(tmp.rglob("*")):
-            if src.is_dir():
-                continue
-            rel = src.relative_to(tmp)
-            dst = out / rel
-            dst.parent.mkdir(parents=True, exist_ok=True)
-            os.replace(src, dst)
-            written[str(rel)] = dst
-        # plots of an earlier run that this run did not write would mislead: remove them
-        if (out / "plots").is_dir():
-            for old in (out / "plots").glob("*.png"):
-                if str(old.relative_to(out)) not in written and old.name.startswith(
-                        ("residual_", "effect_")):
-                    old.unlink()
-        if json_tmp is not None:
-            os.replace(json_tmp, json_path)  # type: ignore[arg-type]
-            written["json"] = Path(json_path)  # type: ignore[arg-type]
-        return written
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+    except TableError as exc:  # the updated table does not fit the table format
+        raise exc.located(file=str(out / "model.bin")) from None
+    (tmp / "model.bin").write_bytes(blob)
+    write_c(blob, tmp)
+    (tmp / "model.json").write_text(json.dumps(table_to_json(res.table), indent=1) + "\n",
+                                    encoding="utf-8")
+    model_path = str(out / "model.bin")
+    d = res.to_json(model_path)
+    if extra_json:
+        d.update(extra_json)
+    text = json.dumps(clean_json(d), indent=1, default=_json_default, allow_nan=False) + "\n"
+    (tmp / "diagnose.json").write_text(text, encoding="utf-8")
+    (tmp / "report.txt").write_text(format_text(res, model_path), encoding="utf-8")
+    if plots:
+        write_plots(res, tmp / "plots")
+    if jtmp is not None:
+        jtmp.write_text(text, encoding="utf-8")
+    # plots/ is replaced as a whole: plots of an earlier run that this run did not
+    # write would mislead
+    written = {str(src.relative_to(tmp)): out / src.relative_to(tmp)
+               for src in sorted(tmp.rglob("*")) if not src.is_dir()}
+    if json_path is not None:
+        written["json"] = Path(json_path)
+    return written
 
 
 def clean_json(o: Any) -> Any:

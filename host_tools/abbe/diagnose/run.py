@@ -17,31 +17,13 @@ from abbe.model.table import AXES, Table
 def load_model(path: str | Any) -> Table:
     """A table from a blob (``model.bin``) or a table JSON (``model.json``); AbbeInputError
     naming the file on any problem."""
-    import json
-    from pathlib import Path
-
-    from abbe.formats.blob import read_blob
-    from abbe.formats.table_json import table_from_json
-    from abbe.model.table import TableError
+    from abbe.formats.table_json import load_table_file
     if isinstance(path, Table):
         return path
-    p = Path(path)
     try:
-        data = p.read_bytes()
-    except OSError as exc:
-        raise AbbeInputError(f"cannot read the model: {exc.strerror}", file=str(p),
-                             field="model") from None
-    if data[:4] == b"ABBE":
-        try:
-            return read_blob(data, source=str(p))
-        except TableError as exc:
-            raise AbbeInputError(exc.message, file=str(p), field=exc.field or "model") from None
-    try:
-        d = json.loads(data.decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError):
-        raise AbbeInputError("not an abbe table: neither a blob (magic ABBE) nor table JSON",
-                             file=str(p), field="model") from None
-    return table_from_json(d, str(p))
+        return load_table_file(path, what="model")[1]
+    except AbbeInputError as exc:
+        raise exc.located(field="model") from None
 
 
 def check_model_matches(table: Table, machine: Any, model_source: str = "model") -> None:

@@ -8,7 +8,6 @@ AbbeInputError naming file, line and column (docs/formats.md, "Ballbar CSV").
 
 from __future__ import annotations
 
-import csv
 import io
 import math
 from dataclasses import dataclass
@@ -17,7 +16,11 @@ from typing import Any
 
 import numpy as np
 
-from abbe.errors import AbbeInputError, parse_finite
+from abbe.errors import AbbeInputError
+from abbe.formats.columns import BALLBAR_ROLES, Columns, plan_columns
+from abbe.formats.delimited import DEFAULT_DIALECT, Column, Header, read_columns
+from abbe.formats.limits import BALLBAR_CSV_MAX_BYTES, BALLBAR_CSV_MAX_ROWS
+from abbe.formats.text import read_text
 from abbe.model.geometry import DIRECTIONS
 
 COLUMNS: tuple[str, ...] = ("direction", "angle_deg", "radial_um", "time_s")
@@ -76,72 +79,82 @@ def _unit_hint(name: str) -> str | None:
     return None
 
 
-def read_ballbar_csv(path: str | Path) -> BallbarTrace:
-    """Read and validate a ballbar CSV (``direction,angle_deg,radial_um,time_s``).
+def read_ballbar_csv(path: str | Path, columns: Columns | None = None) -> BallbarTrace:
+    """Read and validate a ballbar CSV (``direction,angle_deg,radial_um,time_s``, or as
+    ``columns`` declares: machine file ``[ballbar.N.columns]``).
 
     Raises AbbeInputError naming file, line and column for: a missing/unknown
     column or a column in other units (``radial_mm``, ``angle_rad`` ...), a bad
     cell, an unknown direction, CW rows before CCW rows or interleaved, a missing
     direction, angles not monotonic in the direction of travel, time going
     backwards, a radial value too large to be um, a gap in the data arc or a
-    data arc that does not cover [0, 360).
+    data arc that does not cover [0, 360). Wrapped angles (an export writing
+    359.5 then 0) are unwrapped first (:func:`unwrap_angles`).
     """
     path = Path(path)
     f = str(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise AbbeInputError(f"cannot read ballbar file: {exc.strerror}", file=f) from None
-    except UnicodeDecodeError:
-        raise AbbeInputError("not UTF-8 text", file=f) from None
-    rows = [(no, r) for no, r in enumerate(csv.reader(io.StringIO(text)), start=1)
-            if r and not (len(r) == 1 and not r[0].strip()) and not r[0].lstrip().startswith("#")]
-    if not rows:
-        raise AbbeInputError("empty file: expected header " + ",".join(COLUMNS), file=f, line=1)
-    hno, header = rows[0]
-    header = [h.strip() for h in header]
-    for h in header:
-        if h not in COLUMNS and h not in OPTIONAL_COLUMNS:
-            hint = _unit_hint(h)
-            if hint:
-                raise AbbeInputError(f"column {h!r} is in other units: expected {hint!r} "
-                                     "(angles deg, deviations um, time s)", file=f, line=hno, field=h)
-            raise AbbeInputError(f"unknown column; expected {','.join(COLUMNS)}", file=f,
-                                 line=hno, field=h)
-    for c in COLUMNS:
-        if c not in header:
-            raise AbbeInputError(f"missing column {c!r}", file=f, line=hno, field=c)
-        if header.count(c) > 1:
-            raise AbbeInputError(f"duplicate column {c!r}", file=f, line=hno, field=c)
-    for c in OPTIONAL_COLUMNS:
-        if header.count(c) > 1:
-            raise AbbeInputError(f"duplicate column {c!r}", file=f, line=hno, field=c)
-    opt = tuple(c for c in OPTIONAL_COLUMNS if c in header)
-    idx = {c: header.index(c) for c in COLUMNS + opt}
-    dirs: list[str] = []
-    vals: dict[str, list[float]] = {c: [] for c in COLUMNS[1:] + opt}
-    nos: list[int] = []
-    for no, r in rows[1:]:
-        if len(r) != len(header):
-            raise AbbeInputError(f"expected {len(header)} cells, got {len(r)}", file=f, line=no)
-        d = r[idx["direction"]].strip().lower()
-        if d not in DIRECTIONS:
-            raise AbbeInputError(f"expected 'ccw' or 'cw', got {r[idx['direction']]!r}", file=f,
-                                 line=no, field="direction")
-        for c in COLUMNS[1:] + opt:
-            vals[c].append(parse_finite(r[idx[c]].strip(), file=f, line=no, field=c))
-        dirs.append(d)
-        nos.append(no)
-    tr = BallbarTrace(direction=np.array(dirs), angle_deg=np.array(vals["angle_deg"]),
-                      radial_um=np.array(vals["radial_um"]), time_s=np.array(vals["time_s"]),
-                      file=f, line_no=np.array(nos, dtype=np.int64),
-                      temp_c=np.array(vals["temp_c"]) if "temp_c" in opt else None)
-    _validate_trace(tr)
+    dialect = columns.dialect if columns is not None else DEFAULT_DIALECT
+    tf = read_text(path, what="ballbar CSV", max_bytes=BALLBAR_CSV_MAX_BYTES,
+                   encoding=dialect.encoding)
+
+    def plan(header: Header) -> dict[str, Column]:
+        if columns is None:
+            for h in header.names:
+                if h not in COLUMNS:
+                    hint = _unit_hint(h)
+                    if hint:
+                        raise AbbeInputError(f"column {h!r} is in other units: expected {hint!r} "
+                                             "(angles deg, deviations um, time s)", file=f,
+                                             line=header.line, field=h)
+        return plan_columns(header, BALLBAR_ROLES, columns, file=f,
+                            need=tuple(r for r, v in BALLBAR_ROLES.items() if v.required),
+                            strict_names=True, default_dirs=DIRECTIONS)
+
+    header, vals, lines = read_columns(tf, dialect, what="ballbar CSV",
+                                       max_rows=BALLBAR_CSV_MAX_ROWS, plan=plan)
+    dirs = np.array(DIRECTIONS)[vals["direction"]] if lines.size else np.array([], dtype="<U3")
+    angle = unwrap_angles(vals["angle"], vals["direction"])
+    names = {r: (columns.fields[r].column if columns is not None and r in columns.fields
+                 else BALLBAR_ROLES[r].default) for r in BALLBAR_ROLES}
+    tr = BallbarTrace(direction=dirs, angle_deg=angle, radial_um=vals["radial"],
+                      time_s=vals["time"], file=f, line_no=lines, temp_c=vals.get("temp"))
+    _validate_trace(tr, names)
     return tr
 
 
-def _validate_trace(tr: BallbarTrace) -> None:
+def unwrap_angles(angle_deg: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """Undo the wrapping of instrument exports, per run (direction 0 = CCW, 1 = CW).
+
+    Along a run a step *against* the direction of travel of more than 180 deg is
+    the angle passing 360/0 (``359.5`` then ``0`` in a CCW run, ``0`` then ``359.5``
+    in a CW run): the rest of the run moves by 360 deg. Then the whole run moves
+    by the multiple of 360 deg that puts most of its samples into [0, 360) (the
+    data arc; the rest are feed arcs). A trace already in abbe's convention
+    (e.g. -45 .. 405 deg) is returned unchanged.
+    """
+    a = np.asarray(angle_deg, dtype=np.float64).copy()
+    d = np.asarray(direction)
+    for code, sgn in ((0, 1.0), (1, -1.0)):
+        sel = np.flatnonzero(d == code)
+        if sel.size < 2:
+            continue
+        x = a[sel]
+        step = np.diff(x) * sgn
+        wraps = step < -180.0
+        if wraps.any():
+            x = x + sgn * 360.0 * np.concatenate([[0.0], np.cumsum(wraps)])
+        counts = {k: int(np.count_nonzero((x + 360.0 * k >= 0.0) & (x + 360.0 * k < 360.0)))
+                  for k in range(-3, 4)}
+        best = max(counts.values())
+        k = min((k for k, c in counts.items() if c == best), key=abs)
+        a[sel] = x + 360.0 * k
+    return a
+
+
+def _validate_trace(tr: BallbarTrace, names: dict[str, str] | None = None) -> None:
     f = tr.file
+    col = {"direction": "direction", "angle": "angle_deg", "radial": "radial_um", "time": "time_s"}
+    col.update(names or {})
     lines = tr.line_no if tr.line_no is not None else np.arange(1, tr.angle_deg.size + 1) + 1
     n = tr.direction.size
     if n == 0:
@@ -150,34 +163,34 @@ def _validate_trace(tr: BallbarTrace) -> None:
     is_cw = tr.direction == "cw"
     if not is_cw.any():
         raise AbbeInputError("no 'cw' samples: a ballbar test has a CCW run then a CW run",
-                             file=f, line=int(lines[-1]), field="direction")
+                             file=f, line=int(lines[-1]), field=col["direction"])
     if is_cw.all():
         raise AbbeInputError("no 'ccw' samples: a ballbar test has a CCW run then a CW run",
-                             file=f, line=int(lines[0]), field="direction")
+                             file=f, line=int(lines[0]), field=col["direction"])
     first_cw = int(np.argmax(is_cw))
     back = np.nonzero(~is_cw[first_cw:])[0]
     if is_cw[0] or back.size:
         k = 0 if is_cw[0] else first_cw + int(back[0])
         raise AbbeInputError("the CCW run must come first, then the CW run (no interleaving)",
-                             file=f, line=int(lines[k]), field="direction")
+                             file=f, line=int(lines[k]), field=col["direction"])
     bad = np.nonzero(np.abs(tr.radial_um) > MAX_RADIAL_UM)[0]
     if bad.size:
         k = int(bad[0])
         raise AbbeInputError(f"radial deviation {tr.radial_um[k]} is implausible in um "
                              f"(> {MAX_RADIAL_UM:g}): wrong units or wrong nominal radius",
-                             file=f, line=int(lines[k]), field="radial_um")
+                             file=f, line=int(lines[k]), field=col["radial"])
     dt = np.diff(tr.time_s)
     bad = np.nonzero(dt <= 0)[0]
     if bad.size:
         k = int(bad[0]) + 1
         raise AbbeInputError("time_s must increase from sample to sample", file=f,
-                             line=int(lines[k]), field="time_s")
+                             line=int(lines[k]), field=col["time"])
     for d, sgn in (("ccw", 1.0), ("cw", -1.0)):
         sel = np.nonzero(tr.direction == d)[0]
         a = tr.angle_deg[sel]
         if a.size < 8:
             raise AbbeInputError(f"only {a.size} '{d}' samples", file=f,
-                                 line=int(lines[sel[-1]]), field="angle_deg")
+                                 line=int(lines[sel[-1]]), field=col["angle"])
         step = np.diff(a) * sgn
         bad = np.nonzero(step <= 0)[0]
         if bad.size:
@@ -185,15 +198,15 @@ def _validate_trace(tr: BallbarTrace) -> None:
             raise AbbeInputError(f"angle_deg must {'increase' if sgn > 0 else 'decrease'} "
                                  f"along the {d.upper()} run (got {tr.angle_deg[k - 1]:g} then "
                                  f"{tr.angle_deg[k]:g})", file=f, line=int(lines[k]),
-                                 field="angle_deg")
+                                 field=col["angle"])
         if a.min() < -360.0 or a.max() >= 720.0:
             k = int(sel[np.argmax((a < -360.0) | (a >= 720.0))])
             raise AbbeInputError("angle out of range [-360, 720) deg (radians?)", file=f,
-                                 line=int(lines[k]), field="angle_deg")
+                                 line=int(lines[k]), field=col["angle"])
         dm = (a >= 0.0) & (a < 360.0)
         if dm.sum() < 8:
             raise AbbeInputError(f"the '{d}' run has no data arc in [0, 360) deg", file=f,
-                                 line=int(lines[sel[-1]]), field="angle_deg")
+                                 line=int(lines[sel[-1]]), field=col["angle"])
         ad = a[dm]
         idx = sel[dm]
         med = float(np.median(np.abs(np.diff(ad))))
@@ -203,13 +216,13 @@ def _validate_trace(tr: BallbarTrace) -> None:
             k = int(idx[gaps[0] + 1])
             raise AbbeInputError(f"gap in the '{d}' data arc: {ad[gaps[0]]:g} -> "
                                  f"{ad[gaps[0] + 1]:g} deg (samples every {med:g} deg)",
-                                 file=f, line=int(lines[k]), field="angle_deg")
+                                 file=f, line=int(lines[k]), field=col["angle"])
         lo, hi = float(ad.min()), float(ad.max())
         if lo > tol or 360.0 - hi > tol:
             k = int(idx[0] if lo > tol else idx[-1])
             raise AbbeInputError(f"the '{d}' data arc covers [{lo:g}, {hi:g}] deg, not the "
                                  "full circle [0, 360)", file=f, line=int(lines[k]),
-                                 field="angle_deg")
+                                 field=col["angle"])
 
 
 def check_trace_timing(trace: BallbarTrace, test: Any, machine_file: str | None = None) -> None:

@@ -356,6 +356,14 @@ def blob_crc(data: bytes) -> int:
     return struct.unpack_from("<I", data, total - 4)[0]
 
 
+def read_blob_file(path: Any) -> tuple[bytes, Table]:
+    """A blob file (bounded read, :mod:`abbe.formats.text`) and its decoded table."""
+    from abbe.formats.limits import BLOB_MAX_BYTES
+    from abbe.formats.text import read_bytes
+    data = read_bytes(path, what="table blob", max_bytes=BLOB_MAX_BYTES)
+    return data, read_blob(data, source=str(path))
+
+
 def read_blob(data: bytes, source: str = "<blob>") -> Table:
     """Validate a blob with every check of the spec, in its order, and decode it.
 

@@ -5,11 +5,12 @@
 
 from __future__ import annotations
 
+import re
 import struct
 from pathlib import Path
 
 from abbe.errors import AbbeInputError
-from abbe.formats.blob import FORMAT_MAJOR, FORMAT_MINOR, blob_crc, read_blob
+from abbe.formats.blob import FORMAT_MAJOR, FORMAT_MINOR, blob_crc, read_blob, read_blob_file
 from abbe.formats.output import atomic_write_many
 from abbe.model.table import AXES, LINEAR_TERMS, Table, feature_names
 
@@ -53,7 +54,8 @@ def _c_listing(table: Table, crc: int, size: int) -> list[str]:
     return lines
 
 
-def write_c(blob: bytes, out_dir: Path, stem: str = "abbe_model") -> tuple[Path, Path]:
+def write_c(blob: bytes, out_dir: Path, stem: str = "abbe_model",
+            option: str = "--out") -> tuple[Path, Path]:
     """Write ``STEM.h`` and ``STEM.c`` (docs/table-format.md "Generated C").
 
     The blob is validated first. The .c file holds the bytes and a comment
@@ -66,9 +68,10 @@ def write_c(blob: bytes, out_dir: Path, stem: str = "abbe_model") -> tuple[Path,
     total = struct.unpack_from("<I", blob, 8)[0]
     blob = bytes(blob[:total])
     crc = blob_crc(blob)
-    ident = "".join(ch if ch.isalnum() else "_" for ch in stem)
-    if not ident or ident[0].isdigit():
-        raise AbbeInputError(f"stem {stem!r} is not a C identifier", field="stem")
+    ident = stem
+    if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]{0,63}", stem):
+        raise AbbeInputError(f"stem {stem!r} is not a C identifier (letters, digits, '_'; "
+                             "at most 64)", field="--stem")
     guard = "ABBE_GENERATED_" + ident.upper() + "_H"  # not ABBE_MODEL_H: abbe/model.h has it
     sym = f"{ident}_blob"
     out_dir = Path(out_dir)
@@ -113,9 +116,8 @@ def write_c(blob: bytes, out_dir: Path, stem: str = "abbe_model") -> tuple[Path,
         c_lines.append("    " + ", ".join(f"0x{b:02X}" for b in chunk) + ",")
     c_lines += ["};", f"const uint32_t {sym}_size = {total}u;", ""]
     c_text = "\n".join(c_lines)
-    out_dir.mkdir(parents=True, exist_ok=True)
     h_path, c_path = out_dir / f"{stem}.h", out_dir / f"{stem}.c"
-    atomic_write_many({h_path: h_text.encode(), c_path: c_text.encode()})
+    atomic_write_many({h_path: h_text.encode(), c_path: c_text.encode()}, option=option)
     return h_path, c_path
 
 
@@ -130,11 +132,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--stem", default="abbe_model", help="file and symbol stem")
     args = ap.parse_args(argv)
     try:
-        data = args.c.read_bytes()
+        data, _ = read_blob_file(args.c)
         for path in write_c(data, args.out, args.stem):
             print(path)
-    except (OSError, AbbeInputError) as exc:
-        print(f"python -m abbe.formats.c_source: error: {args.c}: {exc}", file=sys.stderr)
+    except AbbeInputError as exc:
+        print(f"python -m abbe.formats.c_source: error: {exc}", file=sys.stderr)
         return 2
     return 0
 

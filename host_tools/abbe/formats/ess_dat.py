@@ -16,31 +16,45 @@ raises AbbeInputError naming file, line and key.
 
 from __future__ import annotations
 
-import hashlib
+import os
 import re
+import stat
 from pathlib import Path
 
 import numpy as np
 
-from abbe.errors import AbbeInputError, parse_finite
+from abbe.errors import AbbeInputError, parse_int, parse_number
 from abbe.formats.deviations import PositioningData
+from abbe.formats.limits import DAT_MAX_BYTES, DAT_MAX_CYCLES, DAT_MAX_POSITIONS
+from abbe.formats.text import read_text
 
-_KEY = re.compile(r"^([A-Z_][A-Z0-9_]*)(?:\[\s*(\d+)\s*(?:,\s*(\d+)\s*)?\])?$")
+_KEY = re.compile(r"^([A-Z_][A-Z0-9_]*)(?:\[\s*([0-9]{1,9})\s*(?:,\s*([0-9]{1,9})\s*)?\])?$")
+#: Largest |target| or |reading| (mm) accepted.
+MAX_POSITION_MM = 1e5
 _INFO = {"TEST_DATA", "DEC", "REF_PV", "TEST_PV", "TGT_SET_PV"}
 _UNITS_TO_UM = {"mm": 1000.0, "um": 1.0}
 
 
 def looks_like_dat(path: Path) -> bool:
     """True if the first non-blank, non-comment line is ``KEY=...`` with an upper-case key."""
+    try:  # never block on a FIFO nor read a device: the reader refuses those itself
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    except (OSError, ValueError):
+        return False
     try:
-        with open(path, encoding="utf-8", errors="replace") as fh:
-            for raw in fh:
-                s = raw.strip()
-                if not s or s.startswith("#"):
-                    continue
-                return bool(re.match(r"^[A-Z_][A-Z0-9_]*(\[[^\]]*\])?=", s))
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            return False
+        head = os.read(fd, 65536)
     except OSError:
         return False
+    finally:
+        os.close(fd)
+    text = head.removeprefix(b"\xef\xbb\xbf").decode("utf-8", errors="replace")
+    for raw in text.replace("\r", "\n").split("\n"):
+        s = raw.strip()
+        if not s or s.startswith("#"):
+            continue
+        return bool(re.match(r"^[A-Z_][A-Z0-9_]*(\[[^\]]*\])?\s*=", s))
     return False
 
 
@@ -52,30 +66,26 @@ def read_dat(path: str | Path) -> PositioningData:
     """
     path = Path(path)
     fname = str(path)
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise AbbeInputError(f"cannot read .dat file: {exc.strerror}", file=fname) from None
-    text = raw.decode("utf-8", errors="replace")
+    tf = read_text(path, what=".dat file", max_bytes=DAT_MAX_BYTES)
 
     scalars: dict[str, tuple[str, int]] = {}
-    tgt: dict[int, tuple[float, int]] = {}
-    ref: dict[str, dict[tuple[int, int], tuple[float, int]]] = {"FWD": {}, "BWD": {}}
-    for no, rawline in enumerate(text.splitlines(), start=1):
-        s = rawline.strip()
+    tgt: dict[int, tuple[str, int]] = {}
+    ref: dict[str, dict[tuple[int, int], tuple[str, int]]] = {"FWD": {}, "BWD": {}}
+    for no, rawline in tf.lines():
+        s = rawline.strip(" \t")
         if not s or s.startswith("#"):
             continue
         if "=" not in s:
             raise AbbeInputError("expected KEY=value", file=fname, line=no)
-        key, value = (p.strip() for p in s.split("=", 1))
+        key, value = (p.strip(" \t") for p in s.split("=", 1))
         m = _KEY.match(key)
         if not m:
             raise AbbeInputError("malformed key: expected NAME, NAME[i] or NAME[i,c]",
                                  file=fname, line=no, field=key)
         name, i, c = m.group(1), m.group(2), m.group(3)
 
-        def num() -> float:
-            return parse_finite(value, file=fname, line=no, field=key)
+        def num() -> str:
+            return value
 
         if name == "TGT_DATA" and i is not None and c is None:
             if int(i) in tgt:
@@ -103,11 +113,11 @@ def read_dat(path: str | Path) -> PositioningData:
         if name not in scalars:
             return default
         v, no = scalars[name]
-        if not v.isdigit() or int(v) < 1:
-            raise AbbeInputError(f"expected a positive integer, got {v!r}", file=fname, line=no,
-                                 field=name)
-        return int(v)
+        hi = DAT_MAX_CYCLES if name == "CYCLES" else DAT_MAX_POSITIONS
+        return parse_int(v, file=fname, line=no, field=name, lo=1, hi=hi)
 
+    if "DEC" in scalars:  # informational, but a number: garbage there is refused too
+        parse_int(scalars["DEC"][0], file=fname, line=scalars["DEC"][1], field="DEC", lo=0, hi=30)
     cycles = count("CYCLES", 5)
     positions = count("POSITIONS", 8)
     unit, unit_line = scalars.get("UNIT", ("mm", None))
@@ -123,7 +133,7 @@ def read_dat(path: str | Path) -> PositioningData:
         if i < 1 or i > positions:
             raise AbbeInputError(f"index {i} outside 1..POSITIONS ({positions})", file=fname,
                                  line=no, field=f"TGT_DATA[{i}]")
-    for i in range(1, positions + 1):
+    for i in range(1, positions + 1):  # stops at the first gap: <= len(tgt) + 1 steps
         if i not in tgt:
             raise AbbeInputError(f"missing target TGT_DATA[{i}] (POSITIONS = {positions})",
                                  file=fname, field=f"TGT_DATA[{i}]")
@@ -132,14 +142,20 @@ def read_dat(path: str | Path) -> PositioningData:
             if not (1 <= i <= positions and 1 <= c <= cycles):
                 raise AbbeInputError(f"index outside POSITIONS ({positions}) x CYCLES ({cycles})",
                                      file=fname, line=no, field=f"REF_DATA_{d}[{i},{c}]")
-        for i in range(1, positions + 1):
-            for c in range(1, cycles + 1):
-                if (i, c) not in vals:
-                    raise AbbeInputError(
-                        "missing reading (unequal run counts: every target needs CYCLES "
-                        "readings per direction)", file=fname, field=f"REF_DATA_{d}[{i},{c}]")
+        if len(vals) < positions * cycles:  # then a gap exists within len(vals) + 1 steps
+            for i in range(1, positions + 1):
+                for c in range(1, cycles + 1):
+                    if (i, c) not in vals:
+                        raise AbbeInputError(
+                            "missing reading (unequal run counts: every target needs CYCLES "
+                            "readings per direction)", file=fname, field=f"REF_DATA_{d}[{i},{c}]")
 
-    targets = np.array([tgt[i][0] for i in range(1, positions + 1)])
+    lim = MAX_POSITION_MM * 1000.0 / scale  # in the file's unit
+
+    def value(text: str, no: int, key: str) -> float:
+        return parse_number(text, file=fname, line=no, field=key, lo=-lim, hi=lim, unit=unit)
+
+    targets = np.array([value(*tgt[i], f"TGT_DATA[{i}]") for i in range(1, positions + 1)])
     steps = np.diff(targets)
     order = np.arange(positions)
     if positions > 1 and np.all(steps < 0):
@@ -151,10 +167,10 @@ def read_dat(path: str | Path) -> PositioningData:
                              "monotonic", file=fname, line=tgt[k][1], field=f"TGT_DATA[{k}]")
 
     def grid(d: str) -> np.ndarray:
-        v = np.array([[ref[d][(i, c)][0] for i in range(1, positions + 1)]
-                      for c in range(1, cycles + 1)])
+        v = np.array([[value(*ref[d][(i, c)], f"REF_DATA_{d}[{i},{c}]")
+                       for i in range(1, positions + 1)] for c in range(1, cycles + 1)])
         return ((v - targets[None, :]) * scale)[:, order]
 
     return PositioningData(source=fname, targets_mm=targets[order] * scale / 1000.0,
                            up_um=grid("FWD"), down_um=grid("BWD"),
-                           sha256=hashlib.sha256(raw).hexdigest())
+                           sha256=tf.sha256)

@@ -13,17 +13,17 @@ line (1-based, the header is line 1 unless comments precede it) and the column.
 
 from __future__ import annotations
 
-import csv
-import difflib
-import hashlib
-import io
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from abbe.errors import AbbeInputError, parse_finite
+from abbe.errors import AbbeInputError
+from abbe.formats.columns import LASER_ROLES, Columns, plan_columns
+from abbe.formats.delimited import DEFAULT_DIALECT, Column, Header, read_columns
+from abbe.formats.limits import LASER_CSV_MAX_BYTES, LASER_CSV_MAX_ROWS, LASER_MAX_RUNS
 from abbe.formats.machine import CHANNELS, LaserLine
+from abbe.formats.text import read_text
 
 #: channel -> CSV column (with unit)
 CHANNEL_COLUMNS: dict[str, str] = {
@@ -55,99 +55,55 @@ class LaserData:
     temp_c: np.ndarray | None
     line_no: np.ndarray
     sha256: str
+    columns: Columns | None = None
 
     @property
     def n_runs(self) -> int:
         return int(self.line_no.shape[0])
 
 
-def _suggest(name: str, options: list[str]) -> str:
-    close = difflib.get_close_matches(name, options, n=1, cutoff=0.6)
-    return f" (did you mean {close[0]!r}?)" if close else ""
-
-
 def read_laser_csv(path: str | Path, *, channels: tuple[str, ...] = CHANNELS,
                    travel_mm: tuple[float, float] | None = None,
-                   span_mm: tuple[float, float] | None = None) -> LaserData:
-    """Read and validate a 6D laser CSV.
+                   span_mm: tuple[float, float] | None = None,
+                   columns: Columns | None = None) -> LaserData:
+    """Read and validate a 6D laser CSV (abbe's format, or as ``columns`` declares).
 
     ``channels``: instrument channels whose columns are required (the others are
     optional and read if present). ``travel_mm``: the axis travel (mm); a target
     outside it is an error. ``span_mm``: the line's (start, end) coordinate on its
-    axis (mm, any order); a target outside it is an error.
+    axis (mm, any order); a target outside it is an error. ``columns``: a declared
+    instrument export (machine file ``[laser.A.columns]``, :mod:`abbe.formats.columns`):
+    dialect, column names, units and signs; values are converted to mm / um / urad.
 
     Checks: header (missing, unknown or misspelt columns, duplicates), every cell
-    numeric and finite, ``run`` an integer 1..n, ``direction`` ``+``/``-``, each
-    pass (run, direction) one contiguous block of rows, targets strictly
-    ascending in ``+`` passes and descending in ``-`` passes, no duplicated
-    target, every run having both passes over the same targets (equal run
-    counts at every target).
+    a strict number in its range (:mod:`abbe.errors.numbers`), ``run`` an integer
+    1..100, ``direction`` ``+``/``-``, each pass (run, direction) one contiguous
+    block of rows, targets strictly ascending in ``+`` passes and descending in
+    ``-`` passes, no duplicated target, every run having both passes over the
+    same targets (equal run counts at every target). Bounds: file size, line
+    length and rows (:mod:`abbe.formats.limits`).
     """
     path = Path(path)
     fname = str(path)
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise AbbeInputError(f"cannot read laser CSV: {exc.strerror}", file=fname) from None
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        raise AbbeInputError("not UTF-8 text", file=fname) from None
+    dialect = columns.dialect if columns is not None else DEFAULT_DIALECT
+    tf = read_text(path, what="laser CSV", max_bytes=LASER_CSV_MAX_BYTES,
+                   encoding=dialect.encoding)
+    need = ("run", "direction", "target") + tuple(channels)
 
-    rows: list[tuple[int, list[str]]] = []
-    for no, rec in enumerate(csv.reader(io.StringIO(text)), start=1):
-        if not rec or all(not c.strip() for c in rec) or rec[0].lstrip().startswith("#"):
-            continue
-        rows.append((no, [c.strip() for c in rec]))
-    if not rows:
-        raise AbbeInputError("empty file: expected a header row", file=fname, line=1)
+    def plan(header: Header) -> dict[str, Column]:
+        p = plan_columns(header, LASER_ROLES, columns, file=fname, need=need,
+                         strict_names=True, default_dirs=DIRECTIONS)
+        p["run"].hi = LASER_MAX_RUNS
+        return p
 
-    hdr_line, header = rows[0]
-    known = list(BASE_COLUMNS) + list(CHANNEL_COLUMNS.values()) + list(OPTIONAL_COLUMNS)
-    col: dict[str, int] = {}
-    for i, name in enumerate(header):
-        if name not in known:
-            raise AbbeInputError(f"unknown column{_suggest(name, known)}; expected columns "
-                                 f"{', '.join(known)}", file=fname, line=hdr_line, field=name)
-        if name in col:
-            raise AbbeInputError("duplicated column", file=fname, line=hdr_line, field=name)
-        col[name] = i
-    required = list(BASE_COLUMNS) + [CHANNEL_COLUMNS[c] for c in channels]
-    for name in required:
-        if name not in col:
-            raise AbbeInputError(f"missing column {name!r}{_suggest(name, header)}",
-                                 file=fname, line=hdr_line, field=name)
-    data_rows = rows[1:]
-    if not data_rows:
+    header, vals, lines = read_columns(tf, dialect, what="laser CSV",
+                                       max_rows=LASER_CSV_MAX_ROWS, plan=plan)
+    hdr_line = header.line
+    if lines.size == 0:
         raise AbbeInputError("no data rows after the header", file=fname, line=hdr_line)
-
-    value_cols = [c for c in header if c not in ("run", "direction")]
-    n = len(data_rows)
-    run = np.empty(n, dtype=np.int64)
-    dirn = np.empty(n, dtype=np.int64)
-    lines = np.empty(n, dtype=np.int64)
-    vals = {c: np.empty(n) for c in value_cols}
-    for k, (no, rec) in enumerate(data_rows):
-        if len(rec) != len(header):
-            raise AbbeInputError(f"row has {len(rec)} cells, the header has {len(header)}",
-                                 file=fname, line=no)
-        lines[k] = no
-        r = rec[col["run"]]
-        try:
-            run[k] = int(r)
-        except ValueError:
-            raise AbbeInputError(f"expected a run number 1..n, got {r!r}", file=fname, line=no,
-                                 field="run") from None
-        if run[k] < 1:
-            raise AbbeInputError(f"expected a run number >= 1, got {r!r}", file=fname, line=no,
-                                 field="run")
-        d = rec[col["direction"]]
-        if d not in DIRECTIONS:
-            raise AbbeInputError(f"expected '+' or '-', got {d!r}", file=fname, line=no,
-                                 field="direction")
-        dirn[k] = DIRECTIONS.index(d)
-        for c in value_cols:
-            vals[c][k] = parse_finite(rec[col[c]], file=fname, line=no, field=c)
+    n = int(lines.size)
+    run = vals["run"]
+    dirn = vals["direction"]
 
     # Passes: contiguous blocks of equal (run, direction), in measured order.
     breaks = np.flatnonzero((np.diff(run) != 0) | (np.diff(dirn) != 0)) + 1
@@ -155,27 +111,31 @@ def read_laser_csv(path: str | Path, *, channels: tuple[str, ...] = CHANNELS,
     ends = np.concatenate([breaks, [n]])
     seen: dict[tuple[int, int], int] = {}
     passes: dict[tuple[int, int], np.ndarray] = {}
-    tgt = vals["target_mm"]
+    tgt = vals["target"]
+    tcol = header.names[plan_index(header, columns, "target")]
+    rcol = header.names[plan_index(header, columns, "run")]
+    dcol = header.names[plan_index(header, columns, "direction")]
     for s, e in zip(starts, ends):
         key = (int(run[s]), int(dirn[s]))
         if key in seen:
             raise AbbeInputError(
                 f"run {key[0]} direction '{DIRECTIONS[key[1]]}' continues here after other "
                 f"rows (first block at line {seen[key]}): each pass must be one contiguous "
-                "block of rows in measured order", file=fname, line=int(lines[s]), field="run")
+                "block of rows in measured order", file=fname, line=int(lines[s]), field=rcol)
         seen[key] = int(lines[s])
         t = tgt[s:e]
         step = np.diff(t) if key[1] == 0 else -np.diff(t)
-        for i in range(step.size):
+        bad = np.flatnonzero((np.abs(step) <= TARGET_TOL_MM) | (step < 0))
+        if bad.size:
+            i = int(bad[0])
             if abs(step[i]) <= TARGET_TOL_MM:
-                raise AbbeInputError(f"duplicated target {t[i + 1]} mm in run {key[0]} "
+                raise AbbeInputError(f"duplicated target {t[i + 1]:.6g} mm in run {key[0]} "
                                      f"direction '{DIRECTIONS[key[1]]}'", file=fname,
-                                     line=int(lines[s + i + 1]), field="target_mm")
-            if step[i] < 0:
-                order = "ascending" if key[1] == 0 else "descending"
-                raise AbbeInputError(f"targets of a '{DIRECTIONS[key[1]]}' pass must be {order}: "
-                                     f"{t[i + 1]} mm follows {t[i]} mm", file=fname,
-                                     line=int(lines[s + i + 1]), field="target_mm")
+                                     line=int(lines[s + i + 1]), field=tcol)
+            order = "ascending" if key[1] == 0 else "descending"
+            raise AbbeInputError(f"targets of a '{DIRECTIONS[key[1]]}' pass must be {order}: "
+                                 f"{t[i + 1]:.6g} mm follows {t[i]:.6g} mm", file=fname,
+                                 line=int(lines[s + i + 1]), field=tcol)
         passes[key] = np.arange(s, e) if key[1] == 0 else np.arange(e - 1, s - 1, -1)
 
     runs = sorted({r for r, _ in passes})
@@ -183,11 +143,11 @@ def read_laser_csv(path: str | Path, *, channels: tuple[str, ...] = CHANNELS,
         if r != want:
             raise AbbeInputError(f"runs must be numbered 1..n without gaps: run {want} is missing",
                                  file=fname, line=seen[(r, 0)] if (r, 0) in seen else seen[(r, 1)],
-                                 field="run")
+                                 field=rcol)
     first = passes.get((1, 0))
     if first is None:
         raise AbbeInputError("run 1 has no '+' pass", file=fname, line=seen[(1, 1)],
-                             field="direction")
+                             field=dcol)
     targets = tgt[first]
     T = targets.size
     for r in runs:
@@ -196,7 +156,7 @@ def read_laser_csv(path: str | Path, *, channels: tuple[str, ...] = CHANNELS,
                 other = seen[(r, 1 - d)]
                 raise AbbeInputError(f"run {r} has no '{DIRECTIONS[d]}' pass: every run needs "
                                      "both directions (equal run counts at every target)",
-                                     file=fname, line=other, field="direction")
+                                     file=fname, line=other, field=dcol)
             idx = passes[(r, d)]
             t = tgt[idx]
             if t.size != T or np.any(np.abs(t - targets) > TARGET_TOL_MM):
@@ -219,7 +179,7 @@ def read_laser_csv(path: str | Path, *, channels: tuple[str, ...] = CHANNELS,
                 raise AbbeInputError(
                     f"run {r} direction '{DIRECTIONS[d]}' has {t.size} targets, run 1 '+' has "
                     f"{T}: {what} (every run must visit the same targets: equal run counts)",
-                    file=fname, line=int(lines[row]), field="target_mm")
+                    file=fname, line=int(lines[row]), field=tcol)
 
     order = np.array([[passes[(r, d)] for d in (0, 1)] for r in runs])  # (n_runs, 2, T)
     for lim, what in ((travel_mm, "the axis travel"), (span_mm, "the line's start..end")):
@@ -229,15 +189,22 @@ def read_laser_csv(path: str | Path, *, channels: tuple[str, ...] = CHANNELS,
         bad = np.flatnonzero((tgt < lo - TARGET_TOL_MM) | (tgt > hi + TARGET_TOL_MM))
         if bad.size:
             k = int(bad[0])
-            raise AbbeInputError(f"target {tgt[k]} mm is outside {what} [{lo}, {hi}] mm",
-                                 file=fname, line=int(lines[k]), field="target_mm")
+            raise AbbeInputError(f"target {tgt[k]:.6g} mm is outside {what} [{lo:g}, {hi:g}] mm",
+                                 file=fname, line=int(lines[k]), field=tcol)
 
-    chans = {ch: vals[c][order] for ch, c in CHANNEL_COLUMNS.items() if c in vals}
+    chans = {ch: vals[ch][order] for ch in CHANNEL_COLUMNS if ch in vals}
     return LaserData(
         file=path, targets_mm=targets.copy(), channels=chans,
-        time_s=vals["time_s"][order] if "time_s" in vals else None,
-        temp_c=vals["temp_c"][order] if "temp_c" in vals else None,
-        line_no=lines[order], sha256=hashlib.sha256(raw).hexdigest())
+        time_s=vals["time"][order] if "time" in vals else None,
+        temp_c=vals["temp"][order] if "temp" in vals else None,
+        line_no=lines[order], sha256=tf.sha256, columns=columns)
+
+
+def plan_index(header: Header, columns: Columns | None, role: str) -> int:
+    """Index in the header of the column holding ``role``."""
+    name = (columns.fields[role].column if columns is not None and role in columns.fields
+            else LASER_ROLES[role].default)
+    return header.names.index(name)
 
 
 def to_terms(data: LaserData, line: LaserLine) -> dict[str, np.ndarray]:
@@ -250,8 +217,9 @@ def to_terms(data: LaserData, line: LaserLine) -> dict[str, np.ndarray]:
     out: dict[str, np.ndarray] = {}
     for ch, cm in line.map.items():
         if ch not in data.channels:
+            col = (data.columns.fields[ch].column if data.columns is not None
+                   and ch in data.columns.fields else CHANNEL_COLUMNS[ch])
             raise AbbeInputError(f"the machine file maps channel {ch!r} but the file has no "
-                                 f"column {CHANNEL_COLUMNS[ch]!r}", file=str(data.file), line=1,
-                                 field=CHANNEL_COLUMNS[ch])
+                                 f"column {col!r}", file=str(data.file), line=1, field=col)
         out[cm.term] = cm.sign * data.channels[ch]
     return out

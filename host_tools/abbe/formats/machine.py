@@ -13,15 +13,16 @@ below; unknown keys and sections are errors.
 
 from __future__ import annotations
 
-import hashlib
-import math
 import re
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-from abbe.errors import AbbeInputError
+from abbe.errors import AbbeInputError, check_number
+from abbe.errors.numbers import show_value
+from abbe.formats.columns import BALLBAR_ROLES, LASER_ROLES, Columns, parse_columns
+from abbe.formats.limits import MACHINE_FILE_MAX_BYTES
+from abbe.formats.structured import load_toml, unknown_key
 from abbe.model.geometry import PLANES
 from abbe.model.table import AXES, TERMS
 
@@ -41,6 +42,13 @@ DEFAULT_MAPS: dict[str, dict[str, str]] = {
 #: Tolerance (mm) for "same coordinate" and "inside the travel" checks.
 COORD_TOL_MM = 1e-6
 DEFAULT_BACKLASH_TAKEUP_MM = 1.0
+#: Machine coordinates a table can hold: int32 nm (docs/table-format.md).
+MAX_COORD_MM = 2147.0
+#: Ranges of the other numbers of a machine file (docs/formats.md, "Limits").
+TAKEUP_RANGE_MM = (0.0, 100.0)
+RADIUS_RANGE_MM = (1.0, 2000.0)
+FEED_RANGE_MM_MIN = (1.0, 100_000.0)
+BACKLASH_SIGMA_RANGE = (0.5, 100.0)
 
 
 @dataclass(frozen=True)
@@ -81,6 +89,7 @@ class LaserLine:
     end_mm: tuple[float, float, float]
     map: dict[str, ChannelMap]
     line: int | None = None  # line of the [laser.X] header in the machine file
+    columns: Columns | None = None  # a declared instrument export ([laser.X.columns])
 
     @property
     def axis_index(self) -> int:
@@ -110,6 +119,7 @@ class BallbarTest:
     radius_mm: float
     feed_mm_min: float
     line: int | None = None
+    columns: Columns | None = None  # a declared instrument export ([ballbar.N.columns])
 
 
 @dataclass(frozen=True)
@@ -130,10 +140,11 @@ class Machine:
     sha256: str
     extra: dict[str, Any] = field(default_factory=dict)
     description: str = ""
+    text: str = field(default="", repr=False, compare=False)
 
     def line_of(self, dotted: str) -> int | None:
         """Line (1-based) of a dotted key in the machine file, best effort."""
-        return KeyLocator(self.path.read_text(encoding="utf-8")).line(dotted)
+        return KeyLocator(self.text).line(dotted)
 
 
 class KeyLocator:
@@ -155,7 +166,8 @@ class KeyLocator:
             m = self._HEADER.match(raw)
             if m:
                 section = self._split(m.group(1))
-                self.lines.setdefault(".".join(section), no)
+                for k in range(1, len(section) + 1):  # [a.b.c] also locates a and a.b
+                    self.lines.setdefault(".".join(section[:k]), no)
                 continue
             m = self._KEY.match(raw)
             if not m:
@@ -193,32 +205,30 @@ class _Ctx:
         return AbbeInputError(msg, file=str(self.path), line=self.loc.line(dotted), field=dotted)
 
 
-def _number(v: Any, ctx: _Ctx, f: str) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise ctx.err(f, f"expected a number, got {v!r}")
-    x = float(v)
-    if not math.isfinite(x):
-        raise ctx.err(f, f"expected a finite number, got {v!r}")
-    return x
+def _number(v: Any, ctx: _Ctx, f: str, lo: float = -MAX_COORD_MM, hi: float = MAX_COORD_MM,
+            unit: str = "mm", lo_open: bool = False) -> float:
+    return check_number(v, file=str(ctx.path), line=ctx.loc.line(f), field=f, lo=lo, hi=hi,
+                        unit=unit, lo_open=lo_open)
 
 
-def _positive(v: Any, ctx: _Ctx, f: str) -> float:
-    x = _number(v, ctx, f)
-    if x <= 0:
-        raise ctx.err(f, f"expected a number > 0, got {v!r}")
-    return x
+def _in(lo: float, hi: float, unit: str, lo_open: bool = False) -> _Check:
+    def check(v: Any, ctx: _Ctx, f: str) -> float:
+        return _number(v, ctx, f, lo, hi, unit, lo_open)
+    return check
 
 
 def _string(v: Any, ctx: _Ctx, f: str) -> str:
     if not isinstance(v, str):
-        raise ctx.err(f, f"expected a string, got {v!r}")
+        raise ctx.err(f, f"expected a string, got {show_value(v)}")
+    if "\0" in v:
+        raise ctx.err(f, "the string contains a NUL character")
     return v
 
 
 def _vec(n: int) -> _Check:
     def check(v: Any, ctx: _Ctx, f: str) -> tuple[float, ...]:
         if not isinstance(v, list) or len(v) != n:
-            raise ctx.err(f, f"expected an array of {n} numbers (mm), got {v!r}")
+            raise ctx.err(f, f"expected an array of {n} numbers (mm), got {show_value(v)}")
         return tuple(_number(x, ctx, f) for x in v)
     return check
 
@@ -226,15 +236,15 @@ def _vec(n: int) -> _Check:
 def _int_range(lo: int, hi: int) -> _Check:
     def check(v: Any, ctx: _Ctx, f: str) -> int:
         if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
-            raise ctx.err(f, f"expected an integer in [{lo}, {hi}], got {v!r}")
+            raise ctx.err(f, f"expected an integer in [{lo}, {hi}], got {show_value(v)}")
         return v
     return check
 
 
 def _choice(options: tuple[str, ...]) -> _Check:
     def check(v: Any, ctx: _Ctx, f: str) -> str:
-        if v not in options:
-            raise ctx.err(f, f"expected one of {', '.join(options)}, got {v!r}")
+        if not isinstance(v, str) or v not in options:
+            raise ctx.err(f, f"expected one of {', '.join(options)}, got {show_value(v)}")
         return v
     return check
 
@@ -242,7 +252,7 @@ def _choice(options: tuple[str, ...]) -> _Check:
 def _travel(v: Any, ctx: _Ctx, f: str) -> tuple[float, float]:
     lo, hi = _vec(2)(v, ctx, f)
     if not lo < hi:
-        raise ctx.err(f, f"expected [min, max] with min < max (mm), got {v!r}")
+        raise ctx.err(f, f"expected [min, max] with min < max (mm), got {show_value(v)}")
     return (lo, hi)
 _MAP_RE = re.compile(r"^([+-])(dx|dy|dz|ex|ey|ez)$")
 
@@ -255,10 +265,11 @@ def _chan_map(v: Any, ctx: _Ctx, f: str) -> dict[str, ChannelMap]:
     for ch, spec in v.items():
         fk = f"{f}.{ch}"
         if ch not in CHANNELS:
-            raise ctx.err(fk, f"unknown instrument channel {ch!r}; expected one of {', '.join(CHANNELS)}")
+            raise ctx.err(fk, unknown_key(ch, CHANNELS, "instrument channel"))
         m = _MAP_RE.match(spec) if isinstance(spec, str) else None
         if not m:
-            raise ctx.err(fk, f"expected \"+term\" or \"-term\" with term one of {', '.join(TERMS)}, got {spec!r}")
+            raise ctx.err(fk, f"expected \"+term\" or \"-term\" with term one of {', '.join(TERMS)}, "
+                          f"got {show_value(spec)}")
         term = m.group(2)
         if term in used:
             raise ctx.err(fk, f"term {term!r} is already mapped from channel {used[term]!r}")
@@ -269,25 +280,35 @@ def _chan_map(v: Any, ctx: _Ctx, f: str) -> dict[str, ChannelMap]:
 _Spec = dict[str, tuple[_Check, bool, Any]]
 _MACHINE: _Spec = {"name": (_string, False, ""), "description": (_string, False, "")}
 _AXIS: _Spec = {"travel_mm": (_travel, True, None),
-                "backlash_takeup_mm": (_positive, False, DEFAULT_BACKLASH_TAKEUP_MM)}
+                "backlash_takeup_mm": (_in(*TAKEUP_RANGE_MM, "mm", lo_open=True), False,
+                                       DEFAULT_BACKLASH_TAKEUP_MM)}
 _REFERENCE: _Spec = {"point_mm": (_vec(3), True, None)}
 _TOOL: _Spec = {"offset_mm": (_vec(3), False, (0.0, 0.0, 0.0))}
+def _columns(roles: dict, dirs: tuple[str, str]) -> _Check:
+    def check(v: Any, ctx: _Ctx, f: str) -> Columns:
+        return parse_columns(v, roles, f, ctx.err, dirs)
+    return check
+
+
 _LASER: _Spec = {"file": (_string, True, None), "start_mm": (_vec(3), True, None),
-                 "end_mm": (_vec(3), True, None), "map": (_chan_map, True, None)}
+                 "end_mm": (_vec(3), True, None), "map": (_chan_map, True, None),
+                 "columns": (_columns(LASER_ROLES, ("+", "-")), False, None)}
 _BALLBAR: _Spec = {"file": (_string, True, None), "plane": (_choice(PLANES), True, None),
-                   "center_mm": (_vec(3), True, None), "radius_mm": (_positive, True, None),
-                   "feed_mm_min": (_positive, True, None)}
+                   "center_mm": (_vec(3), True, None),
+                   "radius_mm": (_in(*RADIUS_RANGE_MM, "mm"), True, None),
+                   "feed_mm_min": (_in(*FEED_RANGE_MM_MIN, "mm/min"), True, None),
+                   "columns": (_columns(BALLBAR_ROLES, ("ccw", "cw")), False, None)}
 #: Optional fit settings (docs/formats.md); CLI options override them.
 _FIT: _Spec = {"max_trend_degree": (_int_range(0, 7), False, 7),
                "max_harmonics": (_int_range(0, 8), False, 8),
                "folds": (_int_range(2, 50), False, 5),
-               "backlash_sigma": (_positive, False, 3.0)}
+               "backlash_sigma": (_in(*BACKLASH_SIGMA_RANGE, ""), False, 3.0)}
 _TOP = ("machine", "axes", "reference", "tool", "laser", "ballbar", "fit")
 
 
 def _table(v: Any, ctx: _Ctx, f: str) -> dict[str, Any]:
     if not isinstance(v, dict):
-        raise ctx.err(f, f"expected a table [{f}], got {v!r}")
+        raise ctx.err(f, f"expected a table [{f}], got {show_value(v)}")
     return v
 
 
@@ -295,7 +316,7 @@ def _section(data: Any, spec: _Spec, ctx: _Ctx, f: str) -> dict[str, Any]:
     data = _table(data, ctx, f)
     for key in data:
         if key not in spec:
-            raise ctx.err(f"{f}.{key}", f"unknown key; expected one of {', '.join(spec)}")
+            raise ctx.err(f"{f}.{key}", unknown_key(key, spec))
     out: dict[str, Any] = {}
     for key, (check, required, default) in spec.items():
         if key in data:
@@ -317,25 +338,14 @@ def load_machine(path: str | Path) -> Machine:
     channel or term.
     """
     path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise AbbeInputError(f"cannot read machine file: {exc.strerror}", file=str(path)) from None
-    try:
-        text = raw.decode("utf-8")
-        data = tomllib.loads(text)
-    except UnicodeDecodeError:
-        raise AbbeInputError("not UTF-8 text", file=str(path)) from None
-    except tomllib.TOMLDecodeError as exc:
-        m = re.search(r"line (\d+)", str(exc))
-        raise AbbeInputError(f"TOML syntax error: {exc}", file=str(path),
-                             line=int(m.group(1)) if m else None) from None
+    data, tf = load_toml(path, what="machine file", max_bytes=MACHINE_FILE_MAX_BYTES)
+    text = tf.text
     ctx = _Ctx(path, text)
     base = path.resolve().parent
 
     for key in data:
         if key not in _TOP:
-            raise ctx.err(key, f"unknown section; expected one of {', '.join(_TOP)}")
+            raise ctx.err(key, unknown_key(key, _TOP, "section"))
 
     mach = _section(data.get("machine", {}), _MACHINE, ctx, "machine")
 
@@ -346,7 +356,7 @@ def load_machine(path: str | Path) -> Machine:
     axes: dict[str, AxisSpec] = {}
     for name in axes_raw:
         if name not in AXES:
-            raise ctx.err(f"axes.{name}", f"unknown axis; expected one of {', '.join(AXES)}")
+            raise ctx.err(f"axes.{name}", unknown_key(name, AXES, "axis"))
     for name in AXES:
         if name in axes_raw:
             a = _section(axes_raw[name], _AXIS, ctx, f"axes.{name}")
@@ -367,15 +377,16 @@ def load_machine(path: str | Path) -> Machine:
             raise ctx.err(f, f"laser line for axis {name} but no [axes.{name}] section")
         s = _section(sec, _LASER, ctx, f)
         _check_line(ctx, f, AXES.index(name), s["start_mm"], s["end_mm"], axes)
-        laser[name] = LaserLine(name, (base / s["file"]).resolve(), s["start_mm"], s["end_mm"],
-                                s["map"], ctx.loc.line(f))
+        laser[name] = LaserLine(name, _resolve(base, s["file"], ctx, f"{f}.file"), s["start_mm"],
+                                s["end_mm"], s["map"], ctx.loc.line(f), s["columns"])
 
     ballbar: dict[str, BallbarTest] = {}
     for name, sec in _table(data.get("ballbar", {}), ctx, "ballbar").items():
         f = f"ballbar.{name}"
         s = _section(sec, _BALLBAR, ctx, f)
-        ballbar[name] = BallbarTest(name, (base / s["file"]).resolve(), s["plane"], s["center_mm"],
-                                    s["radius_mm"], s["feed_mm_min"], ctx.loc.line(f))
+        ballbar[name] = BallbarTest(name, _resolve(base, s["file"], ctx, f"{f}.file"), s["plane"],
+                                    s["center_mm"], s["radius_mm"], s["feed_mm_min"],
+                                    ctx.loc.line(f), s["columns"])
 
     extra: dict[str, Any] = {}
     if "fit" in data:
@@ -383,8 +394,17 @@ def load_machine(path: str | Path) -> Machine:
 
     return Machine(path=path, name=mach["name"] or path.stem, axes=axes, reference_mm=ref,
                    tool_offset_mm=tool, laser=laser, ballbar=ballbar,
-                   sha256=hashlib.sha256(raw).hexdigest(), extra=extra,
-                   description=mach["description"])
+                   sha256=tf.sha256, extra=extra, description=mach["description"], text=text)
+
+
+def _resolve(base: Path, rel: str, ctx: _Ctx, f: str) -> Path:
+    """A data file path of the machine file, made absolute (symlink loops are the reader's)."""
+    if not rel.strip():
+        raise ctx.err(f, "expected a file name, got an empty string")
+    try:
+        return (base / rel).resolve()
+    except (OSError, RuntimeError) as exc:  # RuntimeError: a symlink loop (Python < 3.13)
+        raise ctx.err(f, f"cannot resolve the path: {exc}") from None
 
 
 def _check_line(ctx: _Ctx, f: str, j: int, start: tuple[float, ...], end: tuple[float, ...],

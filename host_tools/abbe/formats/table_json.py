@@ -7,13 +7,17 @@ missing or malformed.
 
 from __future__ import annotations
 
-import math
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from abbe.errors import AbbeInputError
+from abbe.errors import AbbeInputError, check_number
+from abbe.errors.numbers import show_value
 from abbe.formats.blob import FORMAT_MAJOR, FORMAT_MINOR
+from abbe.formats.limits import BLOB_MAX_BYTES, TABLE_JSON_MAX_BYTES
+from abbe.formats.structured import JsonLocator, json_from_bytes, load_json, unknown_key
+from abbe.formats.text import read_bytes
 from abbe.model.table import (
     AXES,
     LINEAR_TERMS,
@@ -68,128 +72,160 @@ def table_to_json(table: Table) -> dict:
     }
 
 
-def _jget(d: dict, key: str, where: str, source: str, default: Any = ...) -> Any:
-    if not isinstance(d, dict):
-        raise AbbeInputError("expected an object", file=source, field=where)
-    if key not in d:
-        if default is ...:
-            raise AbbeInputError("missing", file=source, field=f"{where}.{key}".lstrip("."))
-        return default
-    return d[key]
+_TOP_KEYS = ("format", "version", "reference_mm", "tool_offset_mm", "squareness_urad", "axes")
+_AXIS_KEYS = ("travel_mm", "trend_degree", "blocks", "rows", "terms", "backlash_um",
+              "backlash_takeup_mm", "thermal_expansion_ppm_per_k", "thermal_offset_um_per_k",
+              "thermal_tref_c")
+_BLOCK_KEYS = ("period_mm", "origin_mm", "harmonics")
+#: Ranges of the numbers of a table JSON (unit); the blob encoder checks the finer limits.
+_RANGES = {"mm": 2147.0, "um": 1e7, "urad": 1e7, "ppm_per_k": 1e4, "um_per_k": 1e6, "c": 1e4}
+_SHOW_UNIT = {"mm": "mm", "um": "um", "urad": "urad", "ppm_per_k": "ppm/K", "um_per_k": "um/K",
+              "c": "deg C"}
 
 
-def _jnum(v: Any, where: str, source: str) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise AbbeInputError(f"expected a number, got {v!r}", file=source, field=where)
-    f = float(v)
-    if not math.isfinite(f):
-        raise AbbeInputError(f"not finite: {v!r}", file=source, field=where)
-    return f
+class _Src:
+    """Where a table JSON came from: file name and a field -> line locator."""
+
+    def __init__(self, source: str, locator: JsonLocator | None) -> None:
+        self.source = source
+        self.loc = locator
+
+    def err(self, msg: str, field: str | None = None) -> AbbeInputError:
+        line = self.loc.line(field) if (self.loc is not None and field) else None
+        return AbbeInputError(msg, file=self.source, line=line, field=field or None)
+
+    def obj(self, v: Any, where: str, keys: tuple[str, ...]) -> dict:
+        if not isinstance(v, dict):
+            raise self.err(f"expected an object, got {show_value(v)}", where)
+        for k in v:
+            if k not in keys:
+                raise self.err(unknown_key(k, keys), f"{where}.{k}" if where else k)
+        return v
+
+    def num(self, v: Any, where: str, unit: str) -> float:
+        lim = _RANGES[unit]
+        line = self.loc.line(where) if self.loc is not None else None
+        return check_number(v, file=self.source, line=line, field=where, lo=-lim, hi=lim,
+                            unit=_SHOW_UNIT[unit])
+
+    def vec(self, v: Any, n: int, where: str, unit: str) -> tuple[float, ...]:
+        if not isinstance(v, list) or len(v) != n:
+            raise self.err(f"expected a list of {n} numbers ({unit}), got {show_value(v)}", where)
+        return tuple(self.num(x, f"{where}[{i}]", unit) for i, x in enumerate(v))
+
+    def int_(self, v: Any, where: str, lo: int, hi: int, what: str) -> int:
+        if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+            raise self.err(f"{what}: expected an integer in {lo}..{hi}, got {show_value(v)}", where)
+        return v
 
 
-def _jvec(v: Any, n: int, where: str, source: str) -> tuple[float, ...]:
-    if not isinstance(v, list) or len(v) != n:
-        raise AbbeInputError(f"expected a list of {n} numbers", file=source, field=where)
-    return tuple(_jnum(x, f"{where}[{i}]", source) for i, x in enumerate(v))
-
-
-def _jint(v: Any, where: str, source: str) -> int:
-    if isinstance(v, bool) or not isinstance(v, int):
-        raise AbbeInputError(f"expected an integer, got {v!r}", file=source, field=where)
-    return v
-
-
-def table_from_json(d: dict, source: str = "<json>") -> Table:
+def table_from_json(d: Any, source: str = "<json>", locator: JsonLocator | None = None) -> Table:
     """Build a Table from the dict of :func:`table_to_json`.
 
-    Raises AbbeInputError naming ``source`` and the field for anything missing or
-    malformed (the binary checks happen when the table is written).
+    Raises AbbeInputError naming ``source``, the field and (with ``locator``) its
+    line for anything missing, malformed, out of range or unknown (a misspelt key
+    is refused with a suggestion, never ignored). The blob's own limits are
+    checked when the table is written.
     """
-    if not isinstance(d, dict):
-        raise AbbeInputError("expected a JSON object", file=source)
+    src = _Src(source, locator)
+    d = src.obj(d, "", _TOP_KEYS)
     fmt = d.get("format")
     if fmt != JSON_FORMAT:
-        raise AbbeInputError(f"expected '{JSON_FORMAT}', got {fmt!r}", file=source,
-                             field="format")
+        raise src.err(f"expected '{JSON_FORMAT}', got {show_value(fmt)}", "format")
     ver = d.get("version")
     if not isinstance(ver, str) or not ver.startswith(f"{FORMAT_MAJOR}."):
-        raise AbbeInputError(f"expected table format {FORMAT_MAJOR}.x, got {ver!r}",
-                             file=source, field="version")
-    ref = _jvec(_jget(d, "reference_mm", "", source), 3, "reference_mm", source)
-    tool = _jvec(_jget(d, "tool_offset_mm", "", source, [0.0, 0.0, 0.0]), 3,
-                 "tool_offset_mm", source)
-    sqd = _jget(d, "squareness_urad", "", source, {"S_xy": 0.0, "S_xz": 0.0, "S_yz": 0.0})
-    if not isinstance(sqd, dict):
-        raise AbbeInputError("expected an object with S_xy, S_xz, S_yz", file=source,
-                             field="squareness_urad")
-    extra = set(sqd) - {"S_xy", "S_xz", "S_yz"}
-    if extra:
-        raise AbbeInputError(f"unknown key(s) {sorted(extra)}", file=source,
-                             field="squareness_urad")
-    sq = tuple(_jnum(sqd.get(k, 0.0), f"squareness_urad.{k}", source)
+        raise src.err(f"expected table format {FORMAT_MAJOR}.x, got {show_value(ver)}", "version")
+    if "reference_mm" not in d:
+        raise src.err("missing", "reference_mm")
+    ref = src.vec(d["reference_mm"], 3, "reference_mm", "mm")
+    tool = src.vec(d.get("tool_offset_mm", [0.0, 0.0, 0.0]), 3, "tool_offset_mm", "mm")
+    sqd = src.obj(d.get("squareness_urad", {}), "squareness_urad", ("S_xy", "S_xz", "S_yz"))
+    sq = tuple(src.num(sqd.get(k, 0.0), f"squareness_urad.{k}", "urad")
                for k in ("S_xy", "S_xz", "S_yz"))
-    axes_d = _jget(d, "axes", "", source)
-    if not isinstance(axes_d, dict) or set(axes_d) != set(AXES):
-        raise AbbeInputError(f"expected an object with exactly the axes {list(AXES)}",
-                             file=source, field="axes")
+    if "axes" not in d:
+        raise src.err("missing", "axes")
+    axes_d = src.obj(d["axes"], "axes", AXES)
     axes: dict[str, AxisTable] = {}
     for a in AXES:
-        ad = axes_d[a]
         pre = f"axes.{a}"
-        if not isinstance(ad, dict):
-            raise AbbeInputError("expected an object", file=source, field=pre)
-        travel = _jvec(_jget(ad, "travel_mm", pre, source), 2, f"{pre}.travel_mm", source)
-        deg = _jget(ad, "trend_degree", pre, source, None)
+        if a not in axes_d:
+            raise src.err(f"missing axis {a}: expected exactly the axes {list(AXES)}", "axes")
+        ad = src.obj(axes_d[a], pre, _AXIS_KEYS)
+        if "travel_mm" not in ad:
+            raise src.err("missing", f"{pre}.travel_mm")
+        travel = src.vec(ad["travel_mm"], 2, f"{pre}.travel_mm", "mm")
+        deg = ad.get("trend_degree")
         if deg is not None:
-            deg = _jint(deg, f"{pre}.trend_degree", source)
-            if not 0 <= deg <= MAX_DEGREE:
-                raise AbbeInputError(f"trend degree {deg} not in 0..{MAX_DEGREE} (or null)",
-                                     file=source, field=f"{pre}.trend_degree")
-        blocks_d = _jget(ad, "blocks", pre, source, [None, None])
+            deg = src.int_(deg, f"{pre}.trend_degree", 0, MAX_DEGREE, "trend degree (or null)")
+        blocks_d = ad.get("blocks", [None, None])
         if not isinstance(blocks_d, list) or len(blocks_d) != 2:
-            raise AbbeInputError("expected a list of 2 blocks (object or null)", file=source,
-                                 field=f"{pre}.blocks")
+            raise src.err("expected a list of 2 blocks (object or null)", f"{pre}.blocks")
         blocks: list[FourierBlock | None] = []
         for b, bd in enumerate(blocks_d):
             bw = f"{pre}.blocks[{b}]"
             if bd is None:
                 blocks.append(None)
                 continue
-            h = _jint(_jget(bd, "harmonics", bw, source), f"{bw}.harmonics", source)
-            if not 1 <= h <= MAX_HARMONICS:
-                raise AbbeInputError(f"harmonics {h} not in 1..{MAX_HARMONICS}", file=source,
-                                     field=f"{bw}.harmonics")
-            per = _jnum(_jget(bd, "period_mm", bw, source), f"{bw}.period_mm", source)
+            bd = src.obj(bd, bw, _BLOCK_KEYS)
+            for k in ("harmonics", "period_mm"):
+                if k not in bd:
+                    raise src.err("missing", f"{bw}.{k}")
+            h = src.int_(bd["harmonics"], f"{bw}.harmonics", 1, MAX_HARMONICS, "harmonics")
+            per = src.num(bd["period_mm"], f"{bw}.period_mm", "mm")
             if per <= 0:
-                raise AbbeInputError(f"period {per} mm must be > 0", file=source,
-                                     field=f"{bw}.period_mm")
-            org = _jnum(_jget(bd, "origin_mm", bw, source, 0.0), f"{bw}.origin_mm", source)
+                raise src.err(f"period {per:g} mm must be > 0", f"{bw}.period_mm")
+            org = src.num(bd.get("origin_mm", 0.0), f"{bw}.origin_mm", "mm")
             blocks.append(FourierBlock(per, org, h))
         ax = AxisTable(travel_mm=(travel[0], travel[1]), trend_degree=deg,
                        blocks=(blocks[0], blocks[1]))
-        rows = _jget(ad, "rows", pre, source, None)
+        rows = ad.get("rows")
         if rows is not None and rows != ax.row_names():
-            raise AbbeInputError(f"rows {rows} do not match the basis {ax.row_names()}",
-                                 file=source, field=f"{pre}.rows")
-        terms_d = _jget(ad, "terms", pre, source, {})
+            raise src.err(f"rows {show_value(rows)} do not match the basis {ax.row_names()}",
+                          f"{pre}.rows")
+        terms_d = ad.get("terms", {})
         if not isinstance(terms_d, dict):
-            raise AbbeInputError("expected an object", file=source, field=f"{pre}.terms")
+            raise src.err(f"expected an object, got {show_value(terms_d)}", f"{pre}.terms")
         nb = ax.n_basis()
+        keys = tuple(f"{t}_{'um' if t in LINEAR_TERMS else 'urad'}" for t in TERMS)
         for key, vals in terms_d.items():
             tw = f"{pre}.terms.{key}"
+            if key not in keys:
+                raise src.err(unknown_key(key, keys, "term key"), tw)
             t, _, unit = key.partition("_")
-            want = "um" if t in LINEAR_TERMS else "urad"
-            if t not in TERMS or unit != want:
-                raise AbbeInputError(
-                    "unknown term key; use dx_um, dy_um, dz_um, ex_urad, ey_urad, ez_urad",
-                    file=source, field=tw)
             if not isinstance(vals, list) or len(vals) != nb:
-                raise AbbeInputError(f"expected a list of {nb} coefficients (one per row)",
-                                     file=source, field=tw)
-            ax.coef[t] = np.array([_jnum(v, f"{tw}[{i}]", source) for i, v in enumerate(vals)])
-        for name in ("backlash_um", "backlash_takeup_mm", "thermal_expansion_ppm_per_k",
-                     "thermal_offset_um_per_k", "thermal_tref_c"):
-            setattr(ax, name, _jnum(_jget(ad, name, pre, source, 0.0), f"{pre}.{name}", source))
+                raise src.err(f"expected a list of {nb} coefficients (one per row), got "
+                              f"{show_value(vals)}", tw)
+            ax.coef[t] = np.array([src.num(v, f"{tw}[{i}]", unit) for i, v in enumerate(vals)])
+        for name, unit in (("backlash_um", "um"), ("backlash_takeup_mm", "mm"),
+                           ("thermal_expansion_ppm_per_k", "ppm_per_k"),
+                           ("thermal_offset_um_per_k", "um_per_k"), ("thermal_tref_c", "c")):
+            setattr(ax, name, src.num(ad.get(name, 0.0), f"{pre}.{name}", unit))
         axes[a] = ax
     return Table(axes=axes, reference_mm=ref, tool_offset_mm=tool,  # type: ignore[arg-type]
                  squareness_urad=sq)  # type: ignore[arg-type]
+
+
+def load_table_json(path: str | Path) -> Table:
+    """A table from a table JSON file: bounded, strict JSON, every error located."""
+    d, tf = load_json(path, what="table JSON", max_bytes=TABLE_JSON_MAX_BYTES)
+    return table_from_json(d, tf.name, JsonLocator(tf.text))
+
+
+def load_table_file(path: str | Path, what: str = "model") -> tuple[bytes | None, Table]:
+    """A table from a blob (``model.bin``, magic ABBE) or a table JSON, chosen by content.
+
+    Returns (blob bytes or None for JSON, Table); AbbeInputError naming the file.
+    """
+    from abbe.formats.blob import MAGIC, read_blob
+    name = str(path)
+    raw = read_bytes(path, what=what, max_bytes=TABLE_JSON_MAX_BYTES)
+    if raw[:4] == MAGIC:
+        if len(raw) > BLOB_MAX_BYTES:
+            raise AbbeInputError(f"a table blob is at most {BLOB_MAX_BYTES} bytes", file=name)
+        return raw, read_blob(raw, source=name)
+    head = raw.lstrip(b"\xef\xbb\xbf \t\r\n")[:1]
+    if head not in (b"{", b"[") and not raw.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise AbbeInputError("not an abbe table: neither a blob (magic ABBE) nor table JSON",
+                             file=name)
+    d, tf = json_from_bytes(raw, name=name, what="table JSON")
+    return None, table_from_json(d, name, JsonLocator(tf.text))

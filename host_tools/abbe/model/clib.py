@@ -37,6 +37,7 @@ STATUS_NAMES: dict[int, str] = {
 
 FLAG_OUT_OF_TRAVEL = 0x0001
 FLAG_SATURATED = 0x0002
+FLAG_INPUT_INVALID = 0x0200
 DIR_Q30_ONE = 1 << 30
 
 
@@ -52,17 +53,19 @@ class AxisModel(C.Structure):
     _fields_ = [
         ("coef_q", C.c_void_p),
         ("coef_f32", C.c_void_p),
+        ("freq", C.c_uint64 * ABBE_BLOCKS),
+        ("phase_min", C.c_uint64 * ABBE_BLOCKS),
+        ("takeup_rate_q46", C.c_uint64),
         ("travel_min_nm", C.c_int32),
         ("travel_max_nm", C.c_int32),
-        ("cheb_mul", C.c_int64),
-        ("freq", C.c_uint64 * ABBE_BLOCKS),
-        ("origin_nm", C.c_int32 * ABBE_BLOCKS),
+        ("span_nm", C.c_uint32),
+        ("cheb_mul", C.c_uint32),
         ("backlash_reversal_q8", C.c_int32),
         ("backlash_takeup_nm", C.c_int32),
-        ("takeup_rate_q46", C.c_uint64),
         ("thermal_expansion_q50", C.c_int32),
         ("thermal_offset_q16", C.c_int32),
         ("thermal_tref_mdegc", C.c_int32),
+        ("cheb_shift", C.c_uint8),
         ("term_mask", C.c_uint8),
         ("n_terms", C.c_uint8),
         ("trend_rows", C.c_uint8),
@@ -84,6 +87,19 @@ class Model(C.Structure):
         ("reference_nm", C.c_int32 * ABBE_AXES),
         ("tool_offset_nm", C.c_int32 * ABBE_AXES),
         ("squareness_q36", C.c_int32 * 3),
+        ("square_const_q36", C.c_int64 * 2),
+        ("ref_half_nm", C.c_int32 * 4),
+        ("lane_min_nm", C.c_int32 * 4),
+        ("lane_max_nm", C.c_int32 * 4),
+        ("lane_span_nm", C.c_uint32 * 4),
+        ("lane_cheb_shift", C.c_uint32 * 4),
+        ("lane_cheb_mul", C.c_uint32 * 4),
+        ("tool_half_nm", C.c_float * 4),
+        ("squareness_f", C.c_float * 3),
+        ("square_dx_dy", C.c_float * 4),
+        ("square_dx_f", C.c_float * 4),
+        ("any_block1", C.c_uint8),
+        ("simd", C.c_uint8),
         ("axis", AxisModel * ABBE_AXES),
     ]
 
@@ -150,6 +166,7 @@ class Comp(C.Structure):
         ("gain_q16", C.c_uint32 * ABBE_AXES),
         ("out_nm", C.c_int32 * ABBE_AXES),
         ("target_nm", C.c_int32 * ABBE_AXES),
+        ("fault_from_nm", C.c_int32 * ABBE_AXES),
         ("last_pos_nm", C.c_int32 * ABBE_AXES),
         ("dir_state_q30", C.c_int32 * ABBE_AXES),
         ("eval_flags", C.c_uint32),
@@ -159,10 +176,16 @@ class Comp(C.Structure):
         ("fault", C.c_uint8),
         ("stale", C.c_uint8),
         ("stats", CompStats),
+        ("scratch", C.c_int32 * (ABBE_AXES * ABBE_TERMS + ABBE_AXES)),
     ]
 
 
 COMP_STATES = {0: "OFF", 1: "ON", 2: "FAULT"}
+
+# numpy views of abbe_error_f32_t / abbe_error_q_t rows for the batch calls
+_ERROR_F32_DTYPE = np.dtype([("error_um", np.float32, (ABBE_AXES,)), ("flags", np.uint32)])
+_ERROR_Q_DTYPE = np.dtype([("error_nm", np.int32, (ABBE_AXES,)), ("flags", np.uint32)])
+assert _ERROR_F32_DTYPE.itemsize == C.sizeof(ErrorF32) and _ERROR_Q_DTYPE.itemsize == C.sizeof(ErrorQ)
 
 # --------------------------------------------------------------------------- loading
 
@@ -198,6 +221,8 @@ def load_library() -> C.CDLL:
         "abbe_crc32": (C.c_uint32, [C.c_uint32, C.c_void_p, C.c_size_t]),
         "abbe_error_eval_f32": (C.c_int, [P(Model), P(InputF32), P(ErrorF32)]),
         "abbe_error_eval_q": (C.c_int, [P(Model), P(InputQ), P(ErrorQ)]),
+        "abbe_error_eval_batch_f32": (C.c_int, [P(Model), C.c_size_t, P(InputF32), P(ErrorF32)]),
+        "abbe_error_eval_batch_q": (C.c_int, [P(Model), C.c_size_t, P(InputQ), P(ErrorQ)]),
         "abbe_term_eval_f32": (C.c_int, [P(Model), C.c_uint, C.c_uint, C.c_float,
                                          P(C.c_float)]),
         "abbe_term_eval_q": (C.c_int, [P(Model), C.c_uint, C.c_uint, C.c_int32,
@@ -341,18 +366,18 @@ class CModel:
               else _f32_rows(temp_c))
         if ds.shape[0] != n or tc.shape[0] != n:
             raise ValueError("dir_state / temp_c must have the same rows as pos_mm")
-        err = np.zeros((n, 3))
-        flags = np.zeros(n, dtype=np.uint32)
-        inp, out = InputF32(), ErrorF32()
-        fn = self._lib.abbe_error_eval_f32
-        for i in range(n):
-            inp.pos_mm[:] = [float(v) for v in pos[i]]
-            inp.dir_state[:] = [float(v) for v in ds[i]]
-            inp.temp_c[:] = [float(v) for v in tc[i]]
-            _check(fn(C.byref(self._model), C.byref(inp), C.byref(out)), "abbe_error_eval_f32")
-            err[i] = list(out.error_um)
-            flags[i] = out.flags
-        return err, flags
+        # one call for all rows (abbe_error_eval_batch_f32): rows of
+        # abbe_input_f32_t (9 floats) in, abbe_error_f32_t (3 floats, flags) out
+        inp = np.ascontiguousarray(np.hstack([pos, ds, tc]), dtype=np.float32)
+        out = np.zeros(n, dtype=_ERROR_F32_DTYPE)
+        status = self._lib.abbe_error_eval_batch_f32(
+            C.byref(self._model), n, inp.ctypes.data_as(C.POINTER(InputF32)),
+            out.ctypes.data_as(C.POINTER(ErrorF32)))
+        if status != 0:
+            bad = np.flatnonzero(out["flags"] & FLAG_INPUT_INVALID)
+            where = f" (row {int(bad[0])})" if bad.size else ""
+            _check(status, f"abbe_error_eval_f32{where}")
+        return out["error_um"].astype(np.float64), out["flags"].copy()
 
     def error_q(self, pos_nm: Any, dir_q30: Any = None,
                 temp_mdegc: Any = None) -> tuple[np.ndarray, np.ndarray]:
@@ -364,18 +389,13 @@ class CModel:
               else _i32_rows(temp_mdegc))
         if ds.shape[0] != n or tc.shape[0] != n:
             raise ValueError("dir_q30 / temp_mdegc must have the same rows as pos_nm")
-        err = np.zeros((n, 3), dtype=np.int64)
-        flags = np.zeros(n, dtype=np.uint32)
-        inp, out = InputQ(), ErrorQ()
-        fn = self._lib.abbe_error_eval_q
-        for i in range(n):
-            inp.pos_nm[:] = [int(v) for v in pos[i]]
-            inp.dir_state_q30[:] = [int(v) for v in ds[i]]
-            inp.temp_mdegc[:] = [int(v) for v in tc[i]]
-            _check(fn(C.byref(self._model), C.byref(inp), C.byref(out)), "abbe_error_eval_q")
-            err[i] = list(out.error_nm)
-            flags[i] = out.flags
-        return err, flags
+        # one call for all rows (abbe_error_eval_batch_q)
+        inp = np.ascontiguousarray(np.hstack([pos, ds, tc]), dtype=np.int32)
+        out = np.zeros(n, dtype=_ERROR_Q_DTYPE)
+        _check(self._lib.abbe_error_eval_batch_q(
+            C.byref(self._model), n, inp.ctypes.data_as(C.POINTER(InputQ)),
+            out.ctypes.data_as(C.POINTER(ErrorQ))), "abbe_error_eval_q")
+        return out["error_nm"].astype(np.int64), out["flags"].copy()
 
     def term_f32(self, axis: str | int, term: str | int, pos_mm: Any) -> np.ndarray:
         """abbe_term_eval_f32 at each position: um (linear) / urad (angular)."""

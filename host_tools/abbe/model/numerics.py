@@ -18,7 +18,7 @@ import numpy as np
 from abbe.model.table import AXES, Table
 
 U_F32 = 2.0 ** -24            # unit roundoff of IEEE single precision
-SINCOS_Q30 = 3.2e-9           # measured max |error| of the Q30 sin/cos kernel (tests/unit/test_eval.c)
+SINCOS_Q30 = 2.1e-9           # measured max |error| of the Q30 sin/cos kernel (tests/unit/test_eval.c: 2.04e-9)
 SINCOS_F32 = 1.2e-7           # measured max |error| of the float sin/cos kernel, with margin
 PHASE_Q32 = 2 * math.pi * 1.5 * 2.0 ** -32   # phase reduction: <= 1.5 LSB of a Q32 turn, in rad
 POS_F32_NM = 0.56             # float mm -> integer nm conversion (docs/numerics.md)
@@ -138,14 +138,21 @@ def error_bound(table: Table) -> Bound:
             if v == "q":
                 n_ang_terms = sum(len(terms) for _, terms, _ in _ARMS[i])
                 worst_arm = max(arm_mm[arm] for arm, _, _ in _ARMS[i])
-                rounding = (3 * 0.5 * 2.0 ** -8                       # linear term values (2^-8 nm)
-                            + n_ang_terms * 0.5 * 2.0 ** -36 * worst_arm * 1e6  # angle values x arm
-                            + (len(_ARMS[i]) + 3) * 0.5 * 2.0 ** -8   # lever products and extras
+                # term values rounded once from their exact int64 sums: linear to 2^-6 nm,
+                # angular to 2^-35 rad; the lever products and their sum are exact int64
+                # (docs/numerics.md), the squareness sum is halved (floor, 2^-35 nm), the
+                # extras round in 2^-8 nm as before and E >> 27 floors (1 x 2^-8 nm)
+                rounding = (3 * 0.5 * 2.0 ** -6                       # linear term values
+                            + n_ang_terms * 0.5 * 2.0 ** -35 * worst_arm * 1e6  # angle values x arm
+                            + 2.0 ** -35                             # squareness halving
+                            + 4 * 0.5 * 2.0 ** -8 + 2.0 ** -8        # extras, E >> 27
                             + 0.5)                                   # final rounding to whole nm
                 out[v].append(lin + ang + rounding)
             else:
-                # arms carry 2u relative + 1 nm absolute error; about 12 roundings in the assembly
-                arm_err = sum((2 * U_F32 * arm_mm[arm] + 1e-6) * (sum(mag.get(k, 0.0) for k in terms)
+                # arms carry 4u relative (float conversion, the scale to um per angle LSB
+                # and its own rounding, the arm differences such as t_y - y) + 1 nm absolute
+                # error; about 12 roundings act on each component in the assembly
+                arm_err = sum((4 * U_F32 * arm_mm[arm] + 1e-6) * (sum(mag.get(k, 0.0) for k in terms)
                                                                + sum(sq[s] for s in sqs))
                               for arm, terms, sqs in _ARMS[i])
                 out[v].append(lin + ang + arm_err + 12 * U_F32 * (lin_mag_nm + ang_mag_nm))

@@ -296,6 +296,9 @@ class ModbusLink:
         except ModbusException as exc:
             self.requests += 1
             raise ModbusError(f"{what}: {exc}") from None
+        except OSError as exc:  # the server reset or closed the connection mid-request
+            self.requests += 1
+            raise ModbusError(f"{what}: connection lost ({exc.strerror or exc})") from None
         return self._check(rsp, what)
 
     def read(self, addr: int, count: int) -> list[int]:

@@ -12,13 +12,11 @@ listed in the spec), then ballbar tests (as listed), separated by
 
 from __future__ import annotations
 
-import os
-import shutil
-import tempfile
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
+from abbe.formats.output import Outputs
 from abbe.formats.table_json import table_to_json
 from abbe.model.geometry import CircleTest
 from abbe.model.table import AXES
@@ -101,23 +99,24 @@ def _test_json(t: CircleTest) -> dict[str, Any]:
     return {k: (list(v) if isinstance(v, tuple) else v) for k, v in d.items()}
 
 
-def write_campaign(files: dict[str, bytes], out_dir: str | Path) -> list[Path]:
-    """Write the files under ``out_dir`` (created if needed): all are first written to
-    a temporary directory inside ``out_dir``, then renamed into place."""
+def write_campaign(files: dict[str, bytes], out_dir: str | Path,
+                   outs: Outputs | None = None) -> list[Path]:
+    """Write the files under ``out_dir`` all or nothing (abbe.formats.output.Outputs: built
+    beside it, swapped in by one rename; entries of ``out_dir`` the campaign does not
+    write are kept). With ``outs`` (already holding ``out_dir``) the caller commits."""
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=".abbe-simulate-", dir=out))
-    written: list[Path] = []
+    own = outs is None
+    outs = Outputs() if outs is None else outs
     try:
+        tmp = outs.directory(out, option="--out") if own else outs.staging_of(out)
         for rel, data in files.items():
             p = tmp / rel
             p.parent.mkdir(parents=True, exist_ok=True)
             p.write_bytes(data)
-        for rel in files:
-            dst = out / rel
-            dst.parent.mkdir(parents=True, exist_ok=True)
-            os.replace(tmp / rel, dst)
-            written.append(dst)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-    return written
+    except BaseException:
+        if own:
+            outs.abort()
+        raise
+    if own:
+        outs.commit()
+    return [out / rel for rel in files]

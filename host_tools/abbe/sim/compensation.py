@@ -8,7 +8,6 @@ compensator; radial deviations um.
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Any, Callable
@@ -54,8 +53,16 @@ def compensated_circle(truth_path: str | Path, test: CircleTest, blob: bytes, st
 def campaign_test(truth_path: str | Path, name: str) -> tuple[CircleTest, float, float, float]:
     """The simulated test ``name`` as the campaign ran it (with its simulation
     settings), its end time (s), the gap between tests (s) and the ballbar noise (um)."""
-    d = json.loads(Path(truth_path).read_text(encoding="utf-8"))
-    entry = d["campaign"][f"ballbar.{name}"]
+    from abbe.errors import AbbeInputError
+    from abbe.formats.limits import TRUTH_JSON_MAX_BYTES
+    from abbe.formats.structured import load_json
+    d, _ = load_json(truth_path, what="truth file", max_bytes=TRUTH_JSON_MAX_BYTES)
+    try:
+        entry = d["campaign"][f"ballbar.{name}"]
+    except (KeyError, TypeError):
+        raise AbbeInputError(f"no campaign entry for ballbar test {name!r}: not the truth file "
+                             "of this campaign", file=str(truth_path),
+                             field=f"campaign.ballbar.{name}") from None
     fields = {k: v for k, v in entry.items() if k not in ("start_s", "end_s")}
     for k in ("center_mm", "setup_offset_um"):
         if k in fields:

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import math
 import re
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -25,6 +24,9 @@ from typing import Any
 import numpy as np
 
 from abbe.errors import AbbeInputError
+from abbe.errors.numbers import show_value
+from abbe.formats.limits import SPEC_FILE_MAX_BYTES
+from abbe.formats.structured import load_toml, unknown_key
 from abbe.formats.machine import (
     CHANNELS,
     DEFAULT_MAPS,
@@ -38,6 +40,8 @@ OWN_ROTATION = {"X": "ex", "Y": "ey", "Z": "ez"}
 _MAP_RE = re.compile(r"^([+-])(dx|dy|dz|ex|ey|ez)$")
 
 # Limits of "possible" magnitudes (beyond them the spec is refused).
+#: Most targets of a simulated laser line (spacing_mm >= length / this).
+SIM_MAX_TARGETS = 10_000
 MAX_LINEAR_UM = 1000.0
 MAX_ANGULAR_URAD = 2000.0
 MAX_SLOPE_PER_M = 1000.0
@@ -137,6 +141,13 @@ class SimSpec:
 _REQ = object()
 
 
+def _finite(v: Any) -> bool:
+    """A TOML number that is finite and fits a double (a 400-digit integer does not)."""
+    if isinstance(v, float):
+        return math.isfinite(v)
+    return abs(v) <= 1e300
+
+
 class _Reader:
     """Typed access to TOML tables with file/line/field errors."""
 
@@ -149,12 +160,12 @@ class _Reader:
 
     def table(self, d: Any, dotted: str, allowed: tuple[str, ...] | None) -> dict[str, Any]:
         if not isinstance(d, dict):
-            raise self.err(dotted, f"expected a table, got {d!r}")
+            raise self.err(dotted, f"expected a table, got {show_value(d)}")
         if allowed is not None:
             for k in d:
                 if k not in allowed:
                     raise self.err(f"{dotted}.{k}" if dotted else k,
-                                   f"unknown key; expected one of {', '.join(allowed)}")
+                                   unknown_key(k, allowed, "key" if dotted else "section"))
         return d
 
     def num(self, d: dict, key: str, dotted: str, default: Any = _REQ, lo: float | None = None,
@@ -165,8 +176,8 @@ class _Reader:
                 raise self.err(dotted, f"missing required key {key!r}")
             return default
         v = d[key]
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)):
-            raise self.err(f, f"expected a finite number{' (' + unit + ')' if unit else ''}, got {v!r}")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not _finite(v):
+            raise self.err(f, f"expected a finite number{' (' + unit + ')' if unit else ''}, got {show_value(v)}")
         x = float(v)
         self._range(f, x, lo, hi, lo_open, unit)
         return x
@@ -189,9 +200,9 @@ class _Reader:
             return tuple(default)
         v = d[key]
         if not isinstance(v, list) or len(v) != n or any(
-                isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(float(x))
+                isinstance(x, bool) or not isinstance(x, (int, float)) or not _finite(x)
                 for x in v):
-            raise self.err(f, f"expected an array of {n} finite numbers{' (' + unit + ')' if unit else ''}, got {v!r}")
+            raise self.err(f, f"expected an array of {n} finite numbers{' (' + unit + ')' if unit else ''}, got {show_value(v)}")
         out = tuple(float(x) for x in v)
         for x in out:
             self._range(f, abs(x) if absolute else x, lo, hi, lo_open, unit)
@@ -203,7 +214,7 @@ class _Reader:
             return default
         v = d[key]
         if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
-            raise self.err(f, f"expected an integer in [{lo}, {hi}], got {v!r}")
+            raise self.err(f, f"expected an integer in [{lo}, {hi}], got {show_value(v)}")
         return int(v)
 
     def str_(self, d: dict, key: str, dotted: str, default: Any = _REQ,
@@ -215,9 +226,9 @@ class _Reader:
             return default
         v = d[key]
         if not isinstance(v, str):
-            raise self.err(f, f"expected a string, got {v!r}")
+            raise self.err(f, f"expected a string, got {show_value(v)}")
         if choices is not None and v not in choices:
-            raise self.err(f, f"expected one of {', '.join(choices)}, got {v!r}")
+            raise self.err(f, f"expected one of {', '.join(choices)}, got {show_value(v)}")
         return v
 
     def bool_(self, d: dict, key: str, dotted: str, default: bool) -> bool:
@@ -225,7 +236,7 @@ class _Reader:
             return default
         v = d[key]
         if not isinstance(v, bool):
-            raise self.err(f"{dotted}.{key}", f"expected true or false, got {v!r}")
+            raise self.err(f"{dotted}.{key}", f"expected true or false, got {show_value(v)}")
         return v
 
 
@@ -292,7 +303,7 @@ def _effects(r: _Reader, raw: Any) -> Effects:
         s, on = got
         f = "effects.backlash"
         b = r.vec(s, "lost_motion_um", f, 3, lo=0.0, hi=500.0, unit="um")
-        tk = r.vec(s, "takeup_mm", f, 3, (0.1, 0.1, 0.1), lo=0.0, hi=50.0, lo_open=True, unit="mm")
+        tk = r.vec(s, "takeup_mm", f, 3, (0.1, 0.1, 0.1), lo=0.001, hi=50.0, unit="mm")
         if on:
             kw["backlash_um"] = b
         kw["backlash_takeup_mm"] = tk
@@ -301,7 +312,7 @@ def _effects(r: _Reader, raw: Any) -> Effects:
         s, on = got
         f = "effects.cyclic"
         a = r.vec(s, "amplitude_um", f, 3, lo=0.0, hi=50.0, unit="um")
-        p = r.vec(s, "period_mm", f, 3, lo=0.0, hi=1000.0, lo_open=True, unit="mm")
+        p = r.vec(s, "period_mm", f, 3, lo=0.1, hi=1000.0, unit="mm")
         ph = r.vec(s, "phase_deg", f, 3, (0.0, 0.0, 0.0), lo=-360.0, hi=360.0, unit="deg")
         if on:
             kw["cyclic_um"] = a
@@ -314,8 +325,8 @@ def _effects(r: _Reader, raw: Any) -> Effects:
         f = "effects.thermal"
         kw["thermal_start_c"] = r.num(s, "start_c", f, 20.0, lo=-20.0, hi=60.0, unit="deg C")
         rise = r.num(s, "rise_k", f, lo=-30.0, hi=30.0, unit="K")
-        kw["thermal_time_constant_s"] = r.num(s, "time_constant_s", f, 3600.0, lo=0.0, hi=1e6,
-                                              lo_open=True, unit="s")
+        kw["thermal_time_constant_s"] = r.num(s, "time_constant_s", f, 3600.0, lo=1.0, hi=1e6,
+                                              unit="s")
         kw["thermal_expansion_ppm_per_k"] = r.vec(s, "expansion_ppm_per_k", f, 3, (0.0,) * 3,
                                                   hi=50.0, unit="ppm/K", absolute=True)
         kw["thermal_offset_um_per_k"] = r.vec(s, "offset_um_per_k", f, 3, (0.0,) * 3, hi=100.0,
@@ -369,9 +380,11 @@ def _laser(r: _Reader, name: str, raw: Any, travel: dict[str, tuple[float, float
             if not lo - 1e-6 <= pt[k] <= hi + 1e-6:
                 raise r.err(f"{f}.{key}", f"{ax.lower()} = {pt[k]:g} mm is outside the travel "
                             f"[{lo:g}, {hi:g}] mm")
-    spacing = r.num(d, "spacing_mm", f, 10.0, lo=0.0, hi=length, lo_open=True, unit="mm")
+    # at most SIM_MAX_TARGETS targets per line: memory and time stay bounded
+    spacing = r.num(d, "spacing_mm", f, 10.0, lo=max(length / SIM_MAX_TARGETS, 1e-3), hi=length,
+                    unit="mm")
     runs = r.int_(d, "runs", f, 5, 1, 20)
-    feed = r.num(d, "feed_mm_min", f, 200.0, lo=0.0, hi=60000.0, lo_open=True, unit="mm/min")
+    feed = r.num(d, "feed_mm_min", f, 200.0, lo=1.0, hi=60000.0, unit="mm/min")
     dwell = r.num(d, "dwell_s", f, 3.0, lo=0.0, hi=600.0, unit="s")
     over = r.num(d, "overrun_mm", f, 2.0, lo=0.0, hi=50.0, unit="mm")
     mis = r.vec(d, "misalignment_urad", f, 2, (0.0, 0.0), hi=5000.0, unit="urad", absolute=True)
@@ -387,7 +400,7 @@ def _laser(r: _Reader, name: str, raw: Any, travel: dict[str, tuple[float, float
             m = _MAP_RE.match(v) if isinstance(v, str) else None
             if not m:
                 raise r.err(f"{f}.map.{ch}", f"expected \"+term\" or \"-term\" (term one of "
-                            f"{', '.join(TERMS)}), got {v!r}")
+                            f"{', '.join(TERMS)}), got {show_value(v)}")
             mp[ch] = v
         terms = {ch: mp[ch][1:] for ch in CHANNELS}
         if terms["linear"] != OWN_TERM[name]:
@@ -422,8 +435,8 @@ def _ballbar(r: _Reader, name: str, raw: Any, travel: dict[str, tuple[float, flo
         name=name,
         plane=r.str_(d, "plane", f, choices=PLANES),
         center_mm=r.vec(d, "center_mm", f, 3, unit="mm"),  # type: ignore[arg-type]
-        radius_mm=r.num(d, "radius_mm", f, lo=0.0, hi=2000.0, lo_open=True, unit="mm"),
-        feed_mm_min=r.num(d, "feed_mm_min", f, lo=0.0, hi=60000.0, lo_open=True, unit="mm/min"),
+        radius_mm=r.num(d, "radius_mm", f, lo=1.0, hi=2000.0, unit="mm"),
+        feed_mm_min=r.num(d, "feed_mm_min", f, lo=1.0, hi=60000.0, unit="mm/min"),
         sample_deg=r.num(d, "sample_deg", f, 0.5, lo=0.01, hi=5.0, unit="deg"),
         feed_arc_deg=r.num(d, "feed_arc_deg", f, 45.0, lo=0.0, hi=180.0, unit="deg"),
         pause_s=r.num(d, "pause_s", f, 2.0, lo=0.0, hi=3600.0, unit="s"),
@@ -442,19 +455,8 @@ def _ballbar(r: _Reader, name: str, raw: Any, travel: dict[str, tuple[float, flo
 def load_spec(path: str | Path) -> SimSpec:
     """Read and validate a simulation spec (TOML). Raises AbbeInputError(file, line, field)."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise AbbeInputError(f"cannot read spec: {exc.strerror}", file=str(path)) from None
-    except UnicodeDecodeError:
-        raise AbbeInputError("not UTF-8 text", file=str(path)) from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        m = re.search(r"line (\d+)", str(exc))
-        raise AbbeInputError(f"TOML syntax error: {exc}", file=str(path),
-                             line=int(m.group(1)) if m else None) from None
-    r = _Reader(path, text)
+    data, tf = load_toml(path, what="simulation spec", max_bytes=SPEC_FILE_MAX_BYTES)
+    r = _Reader(path, tf.text)
     r.table(data, "", _TOP)
     if "machine" not in data:
         raise AbbeInputError("missing [machine] section", file=str(path), field="machine")
@@ -472,7 +474,7 @@ def load_spec(path: str | Path) -> SimSpec:
     td = r.table(md["travel_mm"], "machine.travel_mm", AXES)
     travel: dict[str, tuple[float, float]] = {}
     for a in AXES:
-        lo, hi = r.vec(td, a, "machine.travel_mm", 2, lo=-10000.0, hi=10000.0, unit="mm")
+        lo, hi = r.vec(td, a, "machine.travel_mm", 2, lo=-2147.0, hi=2147.0, unit="mm")
         if not lo < hi:
             raise r.err(f"machine.travel_mm.{a}", f"expected [min, max] with min < max, got [{lo:g}, {hi:g}]")
         travel[a] = (lo, hi)
@@ -495,7 +497,7 @@ def load_spec(path: str | Path) -> SimSpec:
         ad = r.table(ed[a], f, ("wave_period_mm",) + TERMS)
         lo, hi = travel[a]
         if "wave_period_mm" in ad:
-            wave[a] = r.num(ad, "wave_period_mm", f, lo=0.0, hi=100.0 * (hi - lo), lo_open=True,
+            wave[a] = r.num(ad, "wave_period_mm", f, lo=1.0, hi=100.0 * (hi - lo),
                             unit="mm")
         for t in TERMS:
             if t in ad:

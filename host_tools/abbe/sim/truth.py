@@ -438,9 +438,7 @@ def truth_from_json(d: dict[str, Any], source: str = "<truth>") -> MachineTruth:
 
 def load_truth(path: str | Path) -> MachineTruth:
     """Read ``truth.json`` written by ``abbe simulate``."""
-    path = Path(path)
-    try:
-        d = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError) as exc:
-        raise AbbeInputError(f"cannot read truth file: {exc}", file=str(path)) from None
+    from abbe.formats.limits import TRUTH_JSON_MAX_BYTES
+    from abbe.formats.structured import load_json
+    d, _ = load_json(path, what="truth file", max_bytes=TRUTH_JSON_MAX_BYTES)
     return truth_from_json(d, str(path))

@@ -84,7 +84,7 @@ BAD = [
     ("unsorted targets", "TGT_DATA[2]", "TGT_DATA[2]=30", 8, "TGT_DATA[3]", "unsorted"),
     ("duplicated target", "TGT_DATA[3]", "TGT_DATA[3]=10", 8, "TGT_DATA[3]", "duplicated"),
     ("bad unit", "UNIT=", "UNIT=inch", 2, "UNIT", "unsupported unit"),
-    ("bad cycles", "CYCLES=", "CYCLES=two", 3, "CYCLES", "positive integer"),
+    ("bad cycles", "CYCLES=", "CYCLES=two", 3, "CYCLES", "expected an integer"),
 ]
 
 

@@ -83,7 +83,7 @@ BAD = [
     ("[axes.Z]", "[axes.W]", 9, "axes.W", "unknown axis"),
     ("travel_mm = [0.0, 500.0]", "travel_mm = [500.0, 0.0]", 5, "axes.X.travel_mm", "min < max"),
     ("travel_mm = [0.0, 500.0]", "travel_mm = [0.0, \"a\"]", 5, "axes.X.travel_mm", "number"),
-    ("backlash_takeup_mm = 2.0", "backlash_takeup_mm = -2.0", 6, "axes.X.backlash_takeup_mm", "> 0"),
+    ("backlash_takeup_mm = 2.0", "backlash_takeup_mm = -2.0", 6, "axes.X.backlash_takeup_mm", "in (0, 100] mm"),
     ("point_mm = [163.626, -212.772, -290.704]", "point_mm = [163.626, -212.772]", 13,
      "reference.point_mm", "3 numbers"),
     ("yaw = \"-ez\"", "yawn = \"-ez\"", 22, "laser.X.map.yawn", "unknown instrument channel"),
@@ -99,7 +99,7 @@ BAD = [
     ("file = \"laser/x.csv\"", "fiel = \"laser/x.csv\"", 19, "laser.X.fiel", "unknown key"),
     ("[laser.X]", "[laser.Q]", 18, "laser.Q", "unknown axis"),
     ("plane = \"XY\"", "plane = \"XZ\"", 26, "ballbar.circle1.plane", "XY, YZ, ZX"),
-    ("radius_mm = 100.0", "radius_mm = 0", 28, "ballbar.circle1.radius_mm", "> 0"),
+    ("radius_mm = 100.0", "radius_mm = 0", 28, "ballbar.circle1.radius_mm", "in [1, 2000] mm"),
     ("feed_mm_min = 200.0", "feed_mm_min = true", 29, "ballbar.circle1.feed_mm_min", "number"),
     ("folds = 4", "folds = 1", 32, "fit.folds", "integer in"),
 ]

@@ -465,7 +465,7 @@ def test_json_round_trip_exact() -> None:
     (lambda d: d["axes"]["Z"].__setitem__("trend_degree", 9), "axes.Z.trend_degree"),
     (lambda d: d["axes"].pop("Z"), "axes"),
     (lambda d: d["axes"]["Z"].__setitem__("travel_mm", [0.0]), "axes.Z.travel_mm"),
-    (lambda d: d["squareness_urad"].__setitem__("S_zz", 1.0), "squareness_urad"),
+    (lambda d: d["squareness_urad"].__setitem__("S_zz", 1.0), "squareness_urad.S_zz"),
     (lambda d: d["axes"]["X"].__setitem__("backlash_um", None), "axes.X.backlash_um"),
 ])
 
@@ -604,8 +604,9 @@ def test_cli_bad_input(tmp_path: Path, capsys) -> None:
 
     d = table_to_json(small_table())
     d["axes"]["X"]["terms"]["ez_urad"] = [5000.0, 0.0, 0.0, 0.0]   # over the angular cap
-    js.write_text(json.dumps(d))
+    js.write_text(json.dumps(d, indent=2))
     assert cli.main(["table", "from-json", str(js), "-o", str(out)]) == 2
     err = capsys.readouterr().err
-    assert f"{js}: field 'axes.X.coef.ez':" in err and "ABBE_E_RANGE" in err
+    line = next(i for i, ln in enumerate(js.read_text().splitlines(), 1) if '"ez_urad"' in ln)
+    assert f"{js}:{line}: field 'axes.X.coef.ez':" in err and "ABBE_E_RANGE" in err
     assert not out.exists()

@@ -28,7 +28,7 @@
 #define ABBE_FLAG_RATE_LIMITED 0x0040u  /* an output change was clipped by the rate limit */
 #define ABBE_FLAG_STALE 0x0080u         /* no fresh input for stale_cycles */
 #define ABBE_FLAG_FADING 0x0100u        /* some axis gain is between 0 and 1 */
-#define ABBE_FLAG_INPUT_INVALID 0x0200u /* this cycle's input was NaN/Inf or marked not fresh */
+/* ABBE_FLAG_INPUT_INVALID (0x0200, abbe/error.h): this cycle's input was NaN/Inf or marked not fresh */
 #define ABBE_FLAG_MODEL_SWAPPED 0x0400u /* a new model took effect this cycle */
 #define ABBE_FLAG_NO_MODEL 0x0800u      /* no model: output fades to zero */
 #define ABBE_FLAG_AXIS_FAULT 0x1000u    /* the caller reported an axis fault */
@@ -93,6 +93,7 @@ typedef struct {
     uint32_t gain_q16[ABBE_AXES];
     int32_t out_nm[ABBE_AXES];
     int32_t target_nm[ABBE_AXES];
+    int32_t fault_from_nm[ABBE_AXES]; /* output when the fault latched: the fade-out starts there */
     int32_t last_pos_nm[ABBE_AXES];
     int32_t dir_state_q30[ABBE_AXES];
     uint32_t eval_flags;
@@ -102,6 +103,10 @@ typedef struct {
     uint8_t fault;
     uint8_t stale;
     abbe_comp_stats_t stats;
+    /* Working memory of one cycle's evaluation (the 18 term values and the
+     * error), kept here rather than on the stack: a cycle's stack stays
+     * within 256 B (bench/results.md). */
+    int32_t scratch[ABBE_AXES * ABBE_TERMS + ABBE_AXES];
 } abbe_comp_t;
 
 /* Check cfg and start disabled with zero corrections. model may be NULL (no

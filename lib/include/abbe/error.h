@@ -11,6 +11,7 @@
 #ifndef ABBE_ERROR_H
 #define ABBE_ERROR_H
 
+#include <stddef.h>
 #include <stdint.h>
 
 #include "abbe/model.h"
@@ -18,6 +19,9 @@
 /* Result flags (also reported by the compensator). */
 #define ABBE_FLAG_OUT_OF_TRAVEL 0x0001u /* a position was outside the table's travel: end value held */
 #define ABBE_FLAG_SATURATED 0x0002u     /* fixed point: a value hit its int32 limit */
+/* A batch point (or, in the compensator, a cycle) whose input was NaN/Inf;
+ * the compensator also sets it for input marked not fresh. */
+#define ABBE_FLAG_INPUT_INVALID 0x0200u
 
 /* Fixed-point direction state: Q30, -2^30 = moving -, +2^30 = moving +. */
 #define ABBE_DIR_Q30_ONE ((int32_t)1 << 30)
@@ -57,6 +61,20 @@ abbe_status_t abbe_error_eval_f32(const abbe_model_t *model, const abbe_input_f3
  * Saturation is reported in out->flags, never by an in-band value. */
 abbe_status_t abbe_error_eval_q(const abbe_model_t *model, const abbe_input_q_t *in,
                                 abbe_error_q_t *out);
+
+/* n points in one call (hosts, simulation, diagnosis): out[i] is what
+ * abbe_error_eval_f32(model, &in[i], &out[i]) gives, except that a point with
+ * NaN/Inf input has zero errors and flags ABBE_FLAG_INPUT_INVALID; the other
+ * points are evaluated all the same. Returns ABBE_OK, ABBE_E_INPUT if any
+ * point was invalid, ABBE_E_ARG for a NULL model, or NULL arrays with n > 0. */
+abbe_status_t abbe_error_eval_batch_f32(const abbe_model_t *model, size_t n, const abbe_input_f32_t *in,
+                                        abbe_error_f32_t *out);
+
+/* n points, fixed point: out[i] is what abbe_error_eval_q(model, &in[i],
+ * &out[i]) gives. Returns ABBE_OK, or ABBE_E_ARG for a NULL model, or NULL
+ * arrays with n > 0. */
+abbe_status_t abbe_error_eval_batch_q(const abbe_model_t *model, size_t n, const abbe_input_q_t *in,
+                                      abbe_error_q_t *out);
 
 /* One fitted term d_i(j) or eps_ji at axis position pos, without the extra
  * (backlash, thermal) terms. Linear terms in um (f32) / pm (q), angular terms

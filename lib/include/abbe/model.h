@@ -1,10 +1,12 @@
 /* abbe: a validated, in-place view of a coefficient table.
  *
  * abbe_model_load() checks a blob completely (docs/table-format.md) and fills a
- * caller-owned abbe_model_t with pointers into the blob plus a few integer
- * constants derived once (reciprocals for the argument reduction). The blob is
- * never copied and must stay valid and unchanged while the model is in use.
- * Loading uses integer arithmetic only.
+ * caller-owned abbe_model_t with pointers into the blob plus the constants an
+ * evaluation needs, derived once (reciprocals and phase offsets for the
+ * argument reduction, the constant parts of Eq. 3, float twins of the scalar
+ * fields). The blob is never copied and must stay valid and unchanged while
+ * the model is in use. Loading uses integer arithmetic only (the float twins
+ * are built bit by bit), so it also serves targets without an FPU.
  */
 #ifndef ABBE_MODEL_H
 #define ABBE_MODEL_H
@@ -42,21 +44,26 @@ enum {
 /* Fixed-point position: signed nanometres, +/-2.147 m. */
 typedef int32_t abbe_nm_t;
 
-/* Per-axis view. All fields are private: read them through the accessors. */
+/* Per-axis view and evaluation plan, built once by abbe_model_load(). All
+ * fields are private: read them through the accessors. Everything the
+ * evaluation needs per call is precomputed here (integer reciprocals, phase
+ * offsets), so a call does one shared argument reduction per axis. */
 typedef struct {
     const uint8_t *coef_q;      /* int32 LE, n_basis x n_terms, row-major */
     const uint8_t *coef_f32;    /* float32 LE, same shape */
+    uint64_t freq[ABBE_BLOCKS]; /* round(2^64 / period), 0 for an unused block */
+    uint64_t phase_min[ABBE_BLOCKS]; /* phase at travel_min, Q64 turn: (min - origin) * freq mod 2^64 */
+    uint64_t takeup_rate_q46;   /* round(2^46 / takeup_nm): direction-state change per nm, Q30 << 16 */
     int32_t travel_min_nm;
     int32_t travel_max_nm;
-    int64_t cheb_mul;           /* u_q30 = ((2p - min - max) * cheb_mul) >> 32 */
-    uint64_t freq[ABBE_BLOCKS]; /* round(2^64 / period): phase_q32 = ((p - origin) * freq) >> 32 */
-    int32_t origin_nm[ABBE_BLOCKS];
+    uint32_t span_nm;           /* travel_max - travel_min */
+    uint32_t cheb_mul;          /* u_q30 = hi32((d << cheb_shift) * cheb_mul + 2^31) - 2^30, d = p - min */
     int32_t backlash_reversal_q8;
     int32_t backlash_takeup_nm;
-    uint64_t takeup_rate_q46;   /* round(2^46 / takeup_nm): direction-state change per nm, Q30 << 16 */
     int32_t thermal_expansion_q50;
     int32_t thermal_offset_q16;
     int32_t thermal_tref_mdegc;
+    uint8_t cheb_shift;
     uint8_t term_mask;
     uint8_t n_terms;
     uint8_t trend_rows;         /* trend_degree + 1, or 0 */
@@ -77,6 +84,21 @@ typedef struct {
     int32_t reference_nm[ABBE_AXES];
     int32_t tool_offset_nm[ABBE_AXES];
     int32_t squareness_q36[3];  /* S_xy, S_xz, S_yz */
+    /* Precomputed for the evaluation (integer only, exact); four lanes where
+     * a SIMD kernel loads them as one vector (the fourth lane is 0): */
+    int64_t square_const_q36[2];      /* constant lever part of the squareness in dX, dY, nm x 2^-36 rad */
+    int32_t ref_half_nm[4];           /* reference_nm >> 1 (float lever arms in half nm) */
+    int32_t lane_min_nm[4];           /* axis travel_min, travel_max, span: copies by axis */
+    int32_t lane_max_nm[4];
+    uint32_t lane_span_nm[4];
+    uint32_t lane_cheb_shift[4];      /* axis cheb_shift, cheb_mul: copies by axis */
+    uint32_t lane_cheb_mul[4];
+    float tool_half_nm[4];            /* tool_offset_nm / 2, float (exact power-of-two scaling) */
+    float squareness_f[3];            /* squareness_q36 as float, 2^-36 rad */
+    float square_dx_dy[4];            /* {S_xy, -S_yz, 0, 0}: times {y, z}: the squareness of dX, dY */
+    float square_dx_f[4];             /* {-S_xz, 0, 0, 0}: times z */
+    uint8_t any_block1;               /* some axis uses Fourier block 1 */
+    uint8_t simd;                     /* x86-64: 1 if this CPU runs the x86-64-v3 (AVX2, FMA) kernels */
     abbe_axis_model_t axis[ABBE_AXES];
 } abbe_model_t;
 

@@ -36,6 +36,7 @@ from abbe.analysis.fit.prep import (
     RunStats,
     assess_reversal,
     average_runs,
+    bin_targets,
     estimate_thermal,
     detrend_line,
     relative_to_reference,
@@ -46,6 +47,7 @@ from abbe.errors import AbbeInputError
 from abbe.formats.blob import quantization_error, read_blob, write_blob
 from abbe.formats.deviations import PositioningData
 from abbe.formats.laser_csv import LaserData, read_laser_csv, to_terms
+from abbe.formats.limits import FIT_MAX_TARGETS
 from abbe.formats.machine import LaserLine, Machine
 from abbe.formats.table_json import table_to_json
 from abbe.model.table import AXES, LINEAR_TERMS, OWN_TERM, TERMS, AxisTable, Table, basis_matrix
@@ -112,6 +114,7 @@ class AxisResult:
     backlash: dict[str, Any]
     iso: Iso230Result | None
     table: AxisTable
+    n_measured: int = 0  # targets in the file (targets_mm holds the bins of a dense line)
     thermal: dict[str, Any] = field(default_factory=dict)
 
 
@@ -183,10 +186,11 @@ def fit_line(machine: Machine, axis: str, opts: FitOptions) -> AxisResult:
     line = machine.laser[axis]
     j = AXES.index(axis)
     spec = machine.axes[axis]
-    data = read_laser_csv(line.file, travel_mm=spec.travel_mm,
-                          span_mm=(line.start_mm[j], line.end_mm[j]))
+    data = read_laser_csv(line.file, channels=tuple(line.map), travel_mm=spec.travel_mm,
+                          span_mm=(line.start_mm[j], line.end_mm[j]), columns=line.columns)
     terms = to_terms(data, line)
     p = data.targets_mm
+    n_measured = int(p.size)
     if p.size < 5:
         raise AbbeInputError(f"{p.size} targets: the fit needs at least 5", file=str(data.file),
                              field="target_mm")
@@ -208,6 +212,8 @@ def fit_line(machine: Machine, axis: str, opts: FitOptions) -> AxisResult:
     if own in terms and data.n_runs >= 2:
         iso = evaluate(PositioningData(str(data.file), p, terms[own][:, 0, :],
                                        terms[own][:, 1, :]))
+    if p.size > FIT_MAX_TARGETS:  # a dense capture: fit bin means (time and memory bounded)
+        p, terms = bin_targets(p, terms, FIT_MAX_TARGETS)
 
     runs_pre: dict[str, np.ndarray] = {}
     detr: dict[str, dict[str, float] | None] = {}
@@ -270,7 +276,8 @@ def fit_line(machine: Machine, axis: str, opts: FitOptions) -> AxisResult:
         axt.thermal_expansion_ppm_per_k = thermal["expansion_ppm_per_k"]
         axt.thermal_tref_c = thermal["tref_c"]
     return AxisResult(axis=axis, line=line, data=data, targets_mm=p, fit=af, terms=results,
-                      backlash=bl, iso=iso, table=axt, thermal=thermal)
+                      backlash=bl, iso=iso, table=axt, n_measured=n_measured,
+                      thermal=thermal)
 
 
 def fit_machine(machine: Machine, opts: FitOptions) -> FitResult:
@@ -377,6 +384,10 @@ def model_json(res: FitResult) -> dict[str, Any]:
         axes[a] = {
             "laser_file": _rel(ar.line.file, base),
             "n_targets": int(ar.targets_mm.size), "n_runs": ar.data.n_runs,
+            **({"n_targets_measured": ar.n_measured,
+                "binning": f"{ar.n_measured} targets fitted as {ar.targets_mm.size} bins of "
+                           "consecutive targets (bin means; docs/formats.md, \"Limits\")"}
+               if ar.n_measured > ar.targets_mm.size else {}),
             "targets_mm": [float(v) for v in ar.targets_mm],
             "travel_mm": [float(v) for v in tab.travel_mm],
             "trend_degree": tab.trend_degree,

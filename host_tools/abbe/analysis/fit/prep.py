@@ -180,3 +180,23 @@ def assess_reversal(stats: RunStats, pos_mm: np.ndarray, travel_mm: tuple[float,
                     "residual_rms_um": float(np.sqrt(np.mean(
                         (B - np.polynomial.chebyshev.chebval(u, c)) ** 2)))})
     return out
+
+
+def bin_targets(pos_mm: np.ndarray, runs: dict[str, np.ndarray], max_targets: int
+                ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """A dense line reduced to at most ``max_targets`` bins of consecutive targets.
+
+    ``pos_mm`` (T,) ascending; ``runs[t]`` (n_runs, 2, T). Bin k holds targets
+    [k*T/B, (k+1)*T/B) (B bins of equal count, +-1); each bin is the mean of its
+    positions and of its readings per run and direction. Linear in T.
+    """
+    p = np.asarray(pos_mm, dtype=np.float64)
+    T = p.size
+    if T <= max_targets:
+        return p, runs
+    starts = (np.arange(max_targets) * T) // max_targets
+    counts = np.diff(np.append(starts, T))
+    pb = np.add.reduceat(p, starts) / counts
+    out = {t: np.add.reduceat(np.asarray(r, dtype=np.float64), starts, axis=2) / counts
+           for t, r in runs.items()}
+    return pb, out

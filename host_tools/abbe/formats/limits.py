@@ -1,0 +1,41 @@
+"""Resource bounds of every reader, in one place (docs/formats.md, "Limits").
+
+A file beyond a bound is refused with an AbbeInputError naming the file (and the
+line, where there is one) before the work it would cause is started, so memory
+and time stay linear in an input of bounded size. Sizes in bytes, lengths in
+characters.
+"""
+
+from __future__ import annotations
+
+KIB, MIB = 1 << 10, 1 << 20
+
+#: Longest line of any text file (characters, without the newline).
+MAX_LINE_CHARS = 65_536
+#: Deepest nesting of arrays / tables / objects in TOML and JSON files.
+MAX_NESTING = 32
+
+MACHINE_FILE_MAX_BYTES = 1 * MIB
+SPEC_FILE_MAX_BYTES = 1 * MIB
+
+#: 6D laser CSV: a continuous capture of 10^6 readings is about 100 MiB.
+LASER_CSV_MAX_BYTES = 256 * MIB
+LASER_CSV_MAX_ROWS = 2_000_000
+LASER_MAX_RUNS = 100
+
+BALLBAR_CSV_MAX_BYTES = 64 * MIB
+BALLBAR_CSV_MAX_ROWS = 1_000_000
+
+DAT_MAX_BYTES = 64 * MIB
+DAT_MAX_POSITIONS = 100_000
+DAT_MAX_CYCLES = 100
+
+#: A table blob is at most a few KiB (docs/table-format.md); anything larger is not one.
+BLOB_MAX_BYTES = 64 * KIB
+#: Table JSON (``model.json`` of ``abbe fit`` included, with its targets and metrics).
+TABLE_JSON_MAX_BYTES = 16 * MIB
+TRUTH_JSON_MAX_BYTES = 64 * MIB
+
+#: ``abbe fit`` fits lines with more targets on this many bins of consecutive targets
+#: (the mean of each bin), so its time and memory do not grow with a dense capture.
+FIT_MAX_TARGETS = 256

@@ -1,0 +1,149 @@
+"""A small valid workspace for fuzzing and the argument lines of every command.
+
+:func:`make_workspace` simulates a small campaign (one X laser line of 11 targets x 2
+runs, one ballbar circle sampled every 2 deg) with ``abbe simulate`` and adds an ESS
+``.dat`` file, the example table (blob + JSON), and a declared-dialect laser export
+(semicolon, decimal comma, nm, arcsec, a units row). Everything is seeded: the same
+bytes every time.
+"""
+
+from __future__ import annotations
+
+import re
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+
+SPEC = """
+[machine]
+name = "fuzz"
+seed = 7
+travel_mm = { X = [0.0, 500.0], Y = [-400.0, 0.0], Z = [-300.0, 0.0] }
+reference_mm = [163.626, -212.772, -290.704]
+
+[errors.X]
+dx = { slope_um_per_m = 24.0, bow_um = 3.0 }
+dy = { bow_um = 7.0 }
+ez = { slope_urad_per_m = 16.0, bow_urad = 10.0 }
+
+[effects.squareness]
+xy_urad = 30.0
+
+[noise]
+laser_linear_um = 0.1
+ballbar_um = 0.1
+
+[laser.X]
+start_mm = [0.0, -212.772, -290.704]
+end_mm = [500.0, -212.772, -290.704]
+spacing_mm = 50.0
+runs = 2
+dwell_s = 1.0
+
+[ballbar.circle1]
+plane = "XY"
+center_mm = [343.507, -285.09, -286.43]
+radius_mm = 100.0
+feed_mm_min = 2000.0
+sample_deg = 2.0
+feed_arc_deg = 10.0
+"""
+
+DAT = """TEST_DATA=# fuzz seed
+UNIT=mm
+CYCLES=3
+POSITIONS=8
+DEC=5
+"""
+
+
+def _dat() -> str:
+    out = [DAT] + [f"TGT_DATA[{i}]={10 * (i - 1) + (i % 3)}\n" for i in range(1, 9)]
+    for d, sgn in (("FWD", 1.0), ("BWD", -1.0)):
+        for i in range(1, 9):
+            for c in range(1, 4):
+                v = 10.0 * (i - 1) + (i % 3) + 0.001 * ((i * c) % 5) + sgn * 0.002 \
+                    + 0.0005 * ((i * i) % 4)
+                out.append(f"REF_DATA_{d}[{i},{c}]={v:.6f}\n")
+    return "".join(out)
+
+
+DECLARED = """
+[laser.X.columns]
+delimiter = ";"
+decimal = ","
+skip_lines = 2
+units_row = true
+run = "Run"
+direction = "Dir"
+direction_values = ["fwd", "bwd"]
+target = "Position"
+linear = { column = "Lin. dev.", sign = -1 }
+yaw = "Yaw"
+"""
+
+
+@dataclass
+class Workspace:
+    """Paths of the seed files (all under ``root``)."""
+
+    root: Path
+    machine: Path
+    spec: Path
+    laser: Path
+    ballbar: Path
+    dat: Path
+    blob: Path
+    table_json: Path
+    declared_machine: Path
+    declared_laser: Path
+
+
+def _declared_export(laser_csv: Path, out: Path) -> None:
+    """The laser CSV as an instrument export: preamble, semicolons, decimal comma, units
+    row, nm and arcsec, the linear sign flipped, directions as fwd/bwd, CRLF, a BOM."""
+    lines = laser_csv.read_text().splitlines()
+    hdr = lines[0].split(",")
+    ix = {n: i for i, n in enumerate(hdr)}
+    rows = ["\ufeffExported by LaserTool 4.2", "Axis;X", "Run;Dir;Position;Lin. dev.;Yaw",
+            ";;[mm];[nm];[arcsec]"]
+    for ln in lines[1:]:
+        c = ln.split(",")
+        lin_nm = -float(c[ix["linear_um"]]) * 1000.0
+        yaw_as = float(c[ix["yaw_urad"]]) / 4.84813681109536
+        cells = [c[ix["run"]], "fwd" if c[ix["direction"]] == "+" else "bwd",
+                 c[ix["target_mm"]], f"{lin_nm:.1f}", f"{yaw_as:.5f}"]
+        rows.append(";".join(x.replace(".", ",") for x in cells))
+    out.write_bytes(("\r\n".join(rows) + "\r\n").encode("utf-8"))
+
+
+def make_workspace(root: Path) -> Workspace:
+    """Create the seed workspace under ``root`` (a fresh folder)."""
+    from abbe.cli.entry import main
+    from abbe.paths import examples_dir
+
+    root.mkdir(parents=True, exist_ok=True)
+    spec = root / "spec.toml"
+    spec.write_text(SPEC)
+    camp = root / "camp"
+    rc = main(["simulate", str(spec), "-o", str(camp)])
+    if rc != 0:
+        raise RuntimeError(f"abbe simulate of the fuzz seed failed ({rc})")
+    dat = root / "x.dat"
+    dat.write_text(_dat())
+    ex = examples_dir() / "paper_table"
+    blob, tjson = root / "model.bin", root / "model.json"
+    shutil.copyfile(ex / "model.bin", blob)
+    shutil.copyfile(ex / "model.json", tjson)
+    declared_laser = camp / "laser" / "x_export.csv"
+    _declared_export(camp / "laser" / "x.csv", declared_laser)
+    text = (camp / "machine.toml").read_text()
+    dm = camp / "machine_declared.toml"
+    text = text.replace('file = "laser/x.csv"', 'file = "laser/x_export.csv"')
+    text = re.sub(r'^map = \{ linear = "\+dx".*$', 'map = { linear = "+dx", yaw = "-ez" }', text,
+                  flags=re.M)
+    dm.write_text(text + DECLARED)
+    return Workspace(root=root, machine=camp / "machine.toml", spec=spec,
+                     laser=camp / "laser" / "x.csv", ballbar=camp / "ballbar" / "circle1.csv",
+                     dat=dat, blob=blob, table_json=tjson, declared_machine=dm,
+                     declared_laser=declared_laser)

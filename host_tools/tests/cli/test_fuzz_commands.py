@@ -1,0 +1,108 @@
+"""Mutation fuzzing of every command through the promise-checking harness (seeded, bounded).
+
+For each command (fuzzing.commands): its input file is replaced by mutated bytes
+(hypothesis-drawn operators of fuzzing.mutate) and the command is run in-process;
+the harness checks that it exits 0 or 2 (3 without the C library; 1 for a Modbus
+client without a server), never 70 or a traceback, prints one line naming the file,
+leaves every output exactly as it was when it fails (the outputs of a first, valid
+run are in place, so "the old result stays intact" is checked too), leaves no
+staging folders, and writes strict JSON. Option values are fuzzed the same way.
+Longer runs: ``python -m fuzzing.run`` (from host_tools/).
+"""
+
+from __future__ import annotations
+
+import shutil
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from fuzzing.commands import OPTION_VALUES, targets
+from fuzzing.harness import run_case
+from fuzzing.mutate import mutate
+
+#: Mutated inputs per command in CI (cheap commands get more).
+EXAMPLES = {"table info": 100, "table eval": 60, "table from-json": 100, "table to-json": 50,
+            "table cgen": 50, "iso230-2 dat": 100, "iso230-2 csv": 100, "fit machine": 50,
+            "fit laser": 50, "fit declared": 50, "simulate": 25, "ballbar machine": 25,
+            "ballbar csv": 50, "diagnose iso230-2": 25, "upload": 50, "predict": 30,
+            "diagnose machine": 15, "diagnose model": 25}
+
+
+@pytest.fixture(scope="module")
+def fuzz_env(seed_ws, tmp_path_factory):
+    from abbe.cli.entry import main
+    from abbe.model import clib
+    root = tmp_path_factory.mktemp("fuzzcmd")
+    model = root / "fit0"
+    assert main(["fit", str(seed_ws.machine), "-o", str(model), "--no-clib-check", "--no-report",
+                 "-q"]) == 0
+    return root, model / "model.bin", clib.available()
+
+
+def _names():
+    return list(EXAMPLES)
+
+
+@pytest.mark.parametrize("name", _names())
+def test_command_promises_under_mutation(seed_ws, fuzz_env, name, capsys):
+    root, model, have_clib = fuzz_env
+    out = root / name.replace(" ", "_")
+    t = {x.name: x for x in targets(seed_ws, out, model)}[name]
+    if t.needs_clib and not have_clib:
+        pytest.skip("C library not built")
+    first = run_case(t.argv, t.outputs, allowed=t.allowed, json_stdout=t.json_stdout,
+                     budget_s=t.budget_s)  # a valid first run: its outputs must survive failures
+    assert first.ok and first.rc in (0, 1, 3), (first.problems, first.stderr)
+    seed = t.mutated.read_bytes()
+    tried = []
+
+    @settings(max_examples=EXAMPLES[name], derandomize=True, database=None, deadline=None,
+              suppress_health_check=list(HealthCheck))
+    @given(st.data())
+    def run(data):
+        pick = lambda n: data.draw(st.integers(0, max(n - 1, 0)))  # noqa: E731
+        blob, ops = mutate(seed, pick, data.draw(st.integers(1, 3)))
+        t.mutated.write_bytes(blob)
+        try:
+            o = run_case(t.argv, t.outputs, allowed=t.allowed, json_stdout=t.json_stdout,
+                         budget_s=t.budget_s)
+        finally:
+            t.mutated.write_bytes(seed)
+        tried.append(o.rc)
+        assert o.ok, (ops, o.problems, o.stderr[-500:])
+
+    run()
+    capsys.readouterr()
+    assert len(tried) >= EXAMPLES[name], f"only {len(tried)} inputs tried"
+    print(f"{name}: {len(tried)} inputs, exit 0: {tried.count(0)}, exit 2: {tried.count(2)}")
+
+
+@pytest.mark.parametrize("name", ["table eval", "fit machine", "diagnose iso230-2", "upload"])
+def test_option_values_are_range_checked(seed_ws, fuzz_env, name, capsys):
+    """Every numeric option value replaced by a hostile one: 0 or 2, never a crash."""
+    root, model, _ = fuzz_env
+    out = root / ("opt_" + name.replace(" ", "_"))
+    t = {x.name: x for x in targets(seed_ws, out, model)}[name]
+    extra = {"table eval": ["--temp-c", "20", "20", "20"],
+             "fit machine": ["--folds", "5", "--max-degree", "3", "--max-harmonics", "2"],
+             "diagnose iso230-2": ["--alpha", "0.01", "--min-effect-um", "0.15"],
+             "upload": ["--unit", "1", "--chunk", "100"]}[name]
+    argv = t.argv + extra
+    numeric = [i for i, a in enumerate(argv) if a.lstrip("-").replace(".", "").isdigit()
+               and i > 0 and not argv[i - 1].startswith(("-o", "--out", "--json", "--plot"))]
+    assert numeric
+
+    @settings(max_examples=25, derandomize=True, database=None, deadline=None,
+              suppress_health_check=list(HealthCheck))
+    @given(st.sampled_from(numeric), st.sampled_from(OPTION_VALUES))
+    def run(i, value):
+        a = list(argv)
+        a[i] = value
+        o = run_case(a, t.outputs, allowed=t.allowed, budget_s=t.budget_s)
+        assert o.ok, (a, o.problems, o.stderr[-400:])
+
+    run()
+    capsys.readouterr()
+    shutil.rmtree(out, ignore_errors=True)
