@@ -230,7 +230,8 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
             raise AbbeInputError(f"{c.name}: {c.n_runs} run: the noise cannot be estimated "
                                  "without repeated runs (ISO 230-2: 5 bidirectional runs; at "
                                  "least 2 needed)", file=c.source, field="run")
-    max_k = max(sum(1 for p in s.params if not p.optional) for s in specs) if specs else 1
+    # parameters of the largest candidate (a reversal's degree adapts to the targets: 1)
+    max_k = max((1 if s.kind == "reversal" else len(s.params)) for s in specs) if specs else 1
     n_nuis = prob.nuis.shape[1]
     need = max(30, 3 * (n_nuis + 2 * max_k + 2))
     if prob.N < need:
