@@ -39,7 +39,7 @@ def main(argv: list[str] | None = None) -> int:
     os.environ["ABBE_CRASH_DIR"] = str(root / "crash")
 
     from abbe.cli.entry import main as abbe
-    from fuzzing.commands import OPTION_VALUES, targets
+    from fuzzing.commands import OPTION_VALUES, option_slots, targets, with_option_value
     from fuzzing.harness import run_case
     from fuzzing.mutate import mutate
     from fuzzing.seeds import make_workspace
@@ -71,9 +71,9 @@ def main(argv: list[str] | None = None) -> int:
             argv = list(t.argv)
             if rng.random() < 0.15:  # an option value instead of the file
                 blob, ops = seed, ["option"]
-                nums = [i for i, a in enumerate(argv) if a.lstrip("-").replace(".", "").isdigit()]
-                if nums:
-                    argv[rng.choice(nums)] = rng.choice(OPTION_VALUES)
+                slots = option_slots(argv)
+                if slots:
+                    argv = with_option_value(argv, rng.choice(slots), rng.choice(OPTION_VALUES))
             else:
                 blob, ops = mutate(seed, pick, rng.randint(1, 4))
             t.mutated.write_bytes(blob)
