@@ -192,6 +192,12 @@ void abbe_comp_finish(abbe_comp_t *comp, int input_ok, const int32_t *error_nm, 
         if (magnitude > cfg->limit_nm[j] && comp->model != NULL && !comp->fault) {
             comp->fault = 1;
             comp->stats.limit_trips++;
+            /* Fade out from the output as it is, never toward the target that
+             * tripped the limit: it is beyond the limit by definition. */
+            for (unsigned k = 0; k < ABBE_AXES; k++) {
+                comp->fault_from_nm[k] = comp->out_nm[k];
+                comp->gain_q16[k] = GAIN_ONE;
+            }
         }
     }
     if (comp->fault) {
@@ -208,7 +214,10 @@ void abbe_comp_finish(abbe_comp_t *comp, int input_ok, const int32_t *error_nm, 
         comp->gain_q16[j] = ramp_gain(comp->gain_q16[j], comp->gain_step_q16, up);
         fading |= comp->gain_q16[j] > 0u && comp->gain_q16[j] < GAIN_ONE;
 
-        int64_t desired = abbe_shr_round((int64_t)comp->target_nm[j] * comp->gain_q16[j], 16u);
+        /* Faulted: the held output fades to zero (monotonic, within the rate
+         * limit); otherwise the output follows gain * target. */
+        int32_t base = comp->fault ? comp->fault_from_nm[j] : comp->target_nm[j];
+        int64_t desired = abbe_shr_round((int64_t)base * comp->gain_q16[j], 16u);
         int64_t delta = desired - comp->out_nm[j];
         int64_t rate = cfg->rate_nm_per_cycle[j];
         if (delta > rate || delta < -rate) {

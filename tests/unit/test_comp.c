@@ -198,6 +198,36 @@ static void test_limits(void **state)
     assert_true(fx.max_step <= 2000);
 }
 
+/* A target beyond the error limit trips the fault; the output must never move
+ * toward it, not even in the cycle that trips, whatever the rate limit: it
+ * fades out from where it was, monotonically (found by fuzz_modbus_regs). */
+static void test_limit_trip_never_grows_the_output(void **state)
+{
+    (void)state;
+    abbe_comp_config_t c = config();
+    c.warn_nm[0] = 15000;
+    c.limit_nm[0] = 25000;
+    c.rate_nm_per_cycle[0] = 100000; /* no rate limit to hide behind */
+    assert_int_equal(abbe_comp_init(&fx.comp, &c, &fx.a), ABBE_OK);
+    abbe_comp_enable(&fx.comp);
+    for (int i = 0; i < 5; i++) step(100.0, 0, 1, 0); /* fading in toward 20 um */
+    int32_t before = fx.out.corr_nm[0];
+    assert_true(before > 0 && before < 20000);
+    fx.max_step = 0;
+    assert_int_equal(abbe_comp_swap_model(&fx.comp, &fx.b), ABBE_OK); /* asks for 30 um */
+    int32_t last = before;
+    for (int i = 0; i < 40; i++) {
+        step(100.0, 0, 1, 0);
+        assert_int_equal(fx.out.state, ABBE_COMP_FAULT);
+        assert_true(fx.out.corr_nm[0] >= 0 && fx.out.corr_nm[0] <= last);
+        assert_true(fx.out.corr_nm[0] <= c.limit_nm[0]);
+        last = fx.out.corr_nm[0];
+    }
+    assert_int_equal(fx.out.corr_nm[0], 0);
+    /* the fade-out takes fade_cycles from the held output: no step beyond it */
+    assert_true(fx.max_step <= before / c.fade_cycles + 1);
+}
+
 /* No fresh input for stale_cycles: flagged, faded out; fresh again: back in. */
 static void test_stale_watchdog(void **state)
 {
@@ -373,6 +403,7 @@ int main(void)
         cmocka_unit_test_setup(test_fade_in_and_out, setup),
         cmocka_unit_test_setup(test_rate_limit_clips, setup),
         cmocka_unit_test_setup(test_limits, setup),
+        cmocka_unit_test_setup(test_limit_trip_never_grows_the_output, setup),
         cmocka_unit_test_setup(test_stale_watchdog, setup),
         cmocka_unit_test_setup(test_axis_fault, setup),
         cmocka_unit_test_setup(test_model_swap, setup),

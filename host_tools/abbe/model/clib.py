@@ -166,6 +166,7 @@ class Comp(C.Structure):
         ("gain_q16", C.c_uint32 * ABBE_AXES),
         ("out_nm", C.c_int32 * ABBE_AXES),
         ("target_nm", C.c_int32 * ABBE_AXES),
+        ("fault_from_nm", C.c_int32 * ABBE_AXES),
         ("last_pos_nm", C.c_int32 * ABBE_AXES),
         ("dir_state_q30", C.c_int32 * ABBE_AXES),
         ("eval_flags", C.c_uint32),

@@ -93,6 +93,7 @@ typedef struct {
     uint32_t gain_q16[ABBE_AXES];
     int32_t out_nm[ABBE_AXES];
     int32_t target_nm[ABBE_AXES];
+    int32_t fault_from_nm[ABBE_AXES]; /* output when the fault latched: the fade-out starts there */
     int32_t last_pos_nm[ABBE_AXES];
     int32_t dir_state_q30[ABBE_AXES];
     uint32_t eval_flags;
