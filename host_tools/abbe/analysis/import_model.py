@@ -165,6 +165,12 @@ def _encode(table: Table, data: ComponentData) -> bytes:
                 raise AbbeInputError(f"the fitted {t} of axis {a} does not fit in a table: "
                                      f"{exc.message}", file=c.file or data.file, line=c.line,
                                      field=f"E{ISO[t]}{a}") from None
+        if len(parts) >= 2 and parts[0] == "axes" and parts[1] in AXES:
+            c = next((c for (a, _), c in data.curves.items() if a == parts[1]), None)
+            if c is not None:
+                raise AbbeInputError(f"axis {parts[1]} does not fit in a table: {exc.message}",
+                                     file=c.file or data.file, line=c.line,
+                                     field=parts[1]) from None
         if fld.startswith("squareness"):
             raise AbbeInputError(f"the squareness does not fit in a table: {exc.message}",
                                  file=data.file, field="C0Y B0Z A0Z") from None

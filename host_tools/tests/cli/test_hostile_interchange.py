@@ -99,6 +99,15 @@ def test_a_curve_the_table_cannot_hold_is_located(ws, tmp_path):
             text="does not fit in a table")
 
 
+def test_a_span_below_a_nanometre_is_located(tmp_path):
+    f = tmp_path / "tiny.csv"
+    f.write_text("// positions 0.1 nm apart\nX EXX\n" + "".join(
+        f"{i * 1e-7:.7f} {0.001 * (i % 2)}\n" for i in range(6)))
+    out = tmp_path / "o"
+    _expect(["import", f, "-o", out, "--reference", "0", "0", "0"], [out], where=f"{f}:2:",
+            field="X", text="whole nm")
+
+
 @pytest.mark.parametrize("old,new,fld,text", [
     ("Gridpoints = {", "Gridpionts = {", "EXX.Gridpionts", "did you mean 'Gridpoints'"),
     ("[EXX]\nGridpoints = {", "[EXX]\nVALUE = 0.001\nGridpoints = {", "EXX", "component error"),
