@@ -25,6 +25,9 @@ class Target:
     json_stdout: bool = False
     needs_clib: bool = False
     budget_s: float = 60.0
+    #: every number of the mutated file is data: one replaced by a hostile number
+    #: (fuzzing.mutate.replace_number) must make the command refuse it (exit 2)
+    hostile_numbers: bool = False
 
 
 def targets(ws: Workspace, out: Path, fit_model: Path | None = None) -> list[Target]:
@@ -44,9 +47,10 @@ def targets(ws: Workspace, out: Path, fit_model: Path | None = None) -> list[Tar
                [o("m.json")]),
         Target("table cgen", ["table", "cgen", blob, "-o", str(o("cgen"))], ws.blob, [o("cgen")]),
         Target("iso230-2 dat", ["iso230-2", dat, "--json"], ws.dat, json_stdout=True),
-        Target("iso230-2 csv", ["iso230-2", str(ws.laser), "--json"], ws.laser, json_stdout=True),
+        Target("iso230-2 csv", ["iso230-2", str(ws.laser), "--json"], ws.laser, json_stdout=True,
+               hostile_numbers=True),
         Target("fit machine", fit, ws.machine, [o("fit")]),
-        Target("fit laser", fit, ws.laser, [o("fit")]),
+        Target("fit laser", fit, ws.laser, [o("fit")], hostile_numbers=True),
         Target("fit declared", ["fit", str(ws.declared_machine), "-o", str(o("fitd")),
                                 "--no-clib-check", "--no-report", "-q"], ws.declared_laser,
                [o("fitd")]),
@@ -55,7 +59,7 @@ def targets(ws: Workspace, out: Path, fit_model: Path | None = None) -> list[Tar
         Target("ballbar machine", ["ballbar", mach, "circle1", "--json", "--plot",
                                    str(o("bb.png"))], ws.machine, [o("bb.png")], json_stdout=True),
         Target("ballbar csv", ["ballbar", mach, "circle1", "--no-plot", "--json"], ws.ballbar,
-               json_stdout=True),
+               json_stdout=True, hostile_numbers=True),
         Target("diagnose iso230-2", ["diagnose", "--iso230-2", dat, "--axis", "X", "-o",
                                      str(o("diag")), "--json", str(o("diag.json")), "--no-plots",
                                      "--backend", "reference"], ws.dat,
@@ -93,12 +97,13 @@ def targets(ws: Workspace, out: Path, fit_model: Path | None = None) -> list[Tar
                [o("exp-linuxcnc-matrixkins")]),
         Target("import isg-csv", ["import", str(ws.isg_csv), "-o", str(o("imp-csv")),
                                   "--reference", *ref, "--max-points", "60"], ws.isg_csv,
-               [o("imp-csv")], budget_s=120.0),
+               [o("imp-csv")], budget_s=120.0, hostile_numbers=True),
         Target("import isg-lis", ["import", str(ws.isg_lis), "-o", str(o("imp-lis")),
                                   "--machine", mach], ws.isg_lis, [o("imp-lis")], budget_s=120.0),
         Target("import etalon", ["import", str(ws.etalon), "-o", str(o("imp-etalon")),
                                  "--reference", *ref, "--tool-offset", "0", "0", "150",
-                                 "--no-unfold"], ws.etalon, [o("imp-etalon")], budget_s=120.0),
+                                 "--no-unfold"], ws.etalon, [o("imp-etalon")], budget_s=120.0,
+               hostile_numbers=True),
         Target("import machine", ["import", str(ws.isg_lis), "-o", str(o("imp-machine")),
                                   "--machine", mach], ws.machine, [o("imp-machine")],
                budget_s=120.0),
@@ -128,6 +133,11 @@ def targets(ws: Workspace, out: Path, fit_model: Path | None = None) -> list[Tar
 OPTION_VALUES = ("nan", "inf", "-1", "0", "1e400", "1_0", "\u0663", "", "-0", "1e-320",
                  "99999999999999999999999", "2", "0.5", "X", "--", "-o", "1e9", "10001", "3.5",
                  "../x", "a b", "X=nan", "X=1,X=2", "Q=1", "\n", "\uff11")
+
+
+def without_comments(data: bytes) -> bytes:
+    """The seed without its ``//`` comment lines (a number in a comment is text)."""
+    return b"\n".join(ln for ln in data.split(b"\n") if not ln.lstrip().startswith(b"//"))
 
 
 def option_slots(argv: list[str]) -> list[int]:

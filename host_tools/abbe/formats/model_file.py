@@ -11,8 +11,9 @@ Accepted (by content, not by name):
   informational ``crc32`` and ``size_bytes`` are the only extra members).
 
 The file is read by the bounded reader (``TABLE_JSON_MAX_BYTES``), JSON strictly
-(no NaN / Infinity, no duplicated keys, bounded nesting and number length), and
-every problem raises :class:`abbe.errors.AbbeInputError` naming the file, the line
+(no NaN / Infinity, no duplicated keys, bounded nesting and number length); a JSON
+table must be one the table format can hold (travel min < max, every value within
+the blob's caps: what the controller-side library would load); every problem raises :class:`abbe.errors.AbbeInputError` naming the file, the line
 and the field.
 """
 
@@ -23,12 +24,12 @@ from typing import Any
 
 from abbe.errors import AbbeInputError
 from abbe.errors.numbers import show_value
-from abbe.formats.blob import MAGIC, read_blob
+from abbe.formats.blob import MAGIC, read_blob, write_blob
 from abbe.formats.limits import BLOB_MAX_BYTES, TABLE_JSON_MAX_BYTES
 from abbe.formats.structured import JsonLocator, json_from_bytes
 from abbe.formats.table_json import JSON_FORMAT, table_from_json
 from abbe.formats.text import read_bytes
-from abbe.model.table import Table
+from abbe.model.table import Table, TableError
 
 #: JSON documents that carry a table under "table".
 WRAPPED_FORMATS = ("abbe-fit", "abbe-import")
@@ -62,6 +63,18 @@ def _wrapped(doc: dict[str, Any], name: str, loc: JsonLocator) -> Table:
         raise
 
 
+def _holdable(table: Table, name: str, loc: JsonLocator, prefix: str = "") -> Table:
+    """``table`` if the table format can hold it (travel ordered, every value within the
+    blob's caps: what the C library would load), else the encoder's error located."""
+    try:
+        write_blob(table)
+    except TableError as exc:
+        fld = prefix + (exc.field or "")
+        raise AbbeInputError(exc.message, file=name, line=loc.line(fld) if fld else None,
+                             field=fld or None) from None
+    return table
+
+
 def load_table(path: str | Path) -> Table:
     """The table in ``path`` (blob, table JSON, or a fit/import model.json)."""
     name = str(path)
@@ -82,9 +95,9 @@ def load_table(path: str | Path) -> Table:
                              field="model")
     fmt = doc.get("format")
     if fmt in WRAPPED_FORMATS:
-        return _wrapped(doc, name, loc)
+        return _holdable(_wrapped(doc, name, loc), name, loc, "table.")
     if fmt != JSON_FORMAT:
         raise AbbeInputError(f"expected a table ('{JSON_FORMAT}') or a model.json of "
                              f"{' / '.join(WRAPPED_FORMATS)}, got {show_value(fmt)}",
                              file=name, line=loc.line("format"), field="format")
-    return table_from_json(doc, name, loc)
+    return _holdable(table_from_json(doc, name, loc), name, loc)

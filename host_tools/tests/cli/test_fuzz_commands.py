@@ -18,9 +18,15 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from fuzzing.commands import OPTION_VALUES, option_slots, targets, with_option_value
+from fuzzing.commands import (
+    OPTION_VALUES,
+    option_slots,
+    targets,
+    with_option_value,
+    without_comments,
+)
 from fuzzing.harness import run_case
-from fuzzing.mutate import mutate
+from fuzzing.mutate import mutate, replace_number
 
 #: Mutated inputs per command in CI (cheap commands get more).
 EXAMPLES = {"table info": 100, "table eval": 60, "table from-json": 100, "table to-json": 50,
@@ -115,3 +121,32 @@ def test_option_values_are_range_checked(seed_ws, fuzz_env, name, capsys):
     run()
     capsys.readouterr()
     shutil.rmtree(out, ignore_errors=True)
+
+
+HOSTILE = ["iso230-2 csv", "fit laser", "ballbar csv", "import isg-csv", "import etalon"]
+
+
+@pytest.mark.parametrize("name", HOSTILE)
+def test_a_hostile_number_makes_the_command_refuse(seed_ws, fuzz_env, name, capsys):
+    """One number of the data file replaced by a hostile one (nan, 1e400, 1_0, full-width
+    digits, ...): the command must refuse it (exit 2), never exit 0 on it."""
+    root, model, _ = fuzz_env
+    out = root / ("hostile_" + name.replace(" ", "_"))
+    t = {x.name: x for x in targets(seed_ws, out, model)}[name]
+    assert t.hostile_numbers
+    seed = t.mutated.read_bytes()
+
+    @settings(max_examples=20, derandomize=True, database=None, deadline=None,
+              suppress_health_check=list(HealthCheck))
+    @given(st.data())
+    def run(data):
+        pick = lambda n: data.draw(st.integers(0, max(n - 1, 0)))  # noqa: E731
+        t.mutated.write_bytes(replace_number(without_comments(seed), pick))
+        try:
+            o = run_case(t.argv, t.outputs, allowed=t.allowed, budget_s=t.budget_s)
+        finally:
+            t.mutated.write_bytes(seed)
+        assert o.ok and o.rc == 2, (o.rc, o.problems, o.stderr[-400:])
+
+    run()
+    capsys.readouterr()

@@ -258,6 +258,26 @@ def test_model_files_are_read_strictly(ws, tmp_path):
     assert not out.exists()
 
 
+@pytest.mark.parametrize("form", ["table JSON", "wrapped"])
+def test_a_json_table_the_format_cannot_hold_is_located(ws, tmp_path, form):
+    """Found by the long fuzz run (two lines of a table JSON swapped: a travel [3.87, 0]
+    mm reached the grid choice as a negative span, ValueError, exit 70): a JSON model is
+    checked against the table format like `table from-json` does."""
+    d = json.loads(ws.table_json.read_text())
+    d["axes"]["Y"]["travel_mm"] = [3.87, 0.0]
+    m = tmp_path / "m.json"
+    if form == "wrapped":
+        d = {"format": "abbe-fit", "table": {"crc32": "0x0", **d}}
+    m.write_text(json.dumps(d, indent=2))
+    out = tmp_path / "e"
+    fld = ("table." if form == "wrapped" else "") + "axes.Y.travel_mm"
+    ls = m.read_text().splitlines()
+    y = next(i for i, ln in enumerate(ls) if ln.strip().startswith('"Y": {'))
+    line = next(i for i, ln in enumerate(ls[y:], y + 1) if '"travel_mm"' in ln)
+    _expect(["export", m, "-f", "sinumerik-lec", "-o", out], [out], where=f"{m}:{line}:",
+            field=fld, text="must be below max")
+
+
 # --------------------------------------------------------------------------- options
 
 
