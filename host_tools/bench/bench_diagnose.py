@@ -14,6 +14,12 @@ Targets (docs/effects.md): >= 95 % named, <= 5 % false positives on clean machin
 values within 10 % (or the interval), held-out shrink >= 70 % with an effect present.
 
     python bench_diagnose.py --cases 120 --seed 1 [--model-error 0.1] [--json out.json]
+    python bench_diagnose.py --suite independent [--only backlash pos_]
+
+Two suites: ``hidden`` (cases.hidden_effects, the simulator abbe.sim) and
+``independent`` (cases.independent: a second generator written from the physics in
+docs/effects.md, its own shapes of the effects, its files read through the
+product's readers; used only to measure, never to tune thresholds).
 """
 
 from __future__ import annotations
@@ -93,33 +99,94 @@ def score_case(case, res) -> dict:
             "ambiguous": amb}
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--cases", type=int, default=100)
-    ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--noise", type=float, default=0.15, help="ballbar noise, um (laser: max(., 0.1))")
-    ap.add_argument("--model-error", type=float, default=0.0,
-                    help="RMS of a smooth fit error added to the model, um (urad x 3)")
-    ap.add_argument("--step-deg", type=float, default=1.0, help="ballbar sample step, deg")
-    ap.add_argument("--json", help="write per-case results here")
-    ap.add_argument("--backend", default="auto", choices=("auto", "c", "reference"))
-    args = ap.parse_args(argv)
-
-    cases = draw_cases(args.cases, args.seed)
-    from abbe.diagnose.evaluator import Evaluator
-    print(f"backend: {Evaluator(args.backend).backend}; {len(cases)} cases, seed {args.seed}, "
-          f"noise {args.noise} um, model error {args.model_error} um, ballbar step "
-          f"{args.step_deg} deg")
+def summarize(title: str, rows: list[dict], errors: int, times: list[float]) -> dict:
+    """Print the confusion table and the target figures of one suite; return them."""
     conf: dict[str, Counter] = defaultdict(Counter)
-    rows = []
-    t_all = time.time()
-    n_exp = n_hit = 0
-    clean = clean_fp = 0
-    extra_total = 0
-    vals_ok = vals_n = 0
+    n_exp = n_hit = clean = clean_fp = extra_total = vals_ok = vals_n = 0
+    n_case = n_exact = 0
     shr_raw, shr_exc = [], []
-    times = []
-    errors = 0
+    misses = []
+    for sc in rows:
+        n_exp += len(sc["expected"])
+        n_hit += len(sc["hits"])
+        extra_total += len(sc["extra"])
+        if not sc["expected"] and not sc.get("outliers_expected"):
+            clean += 1
+            clean_fp += bool(sc["named"])
+        else:
+            n_case += 1
+            ok = not sc["misses"] and not sc["extra"] and sc.get("outliers_ok", True)
+            n_exact += ok
+            if not ok:
+                misses.append(sc)
+        for v in sc["values"].values():
+            vals_n += 1
+            vals_ok += v["ok"]
+        if sc["shrink"] is not None:
+            shr_raw.append(sc["shrink"]["raw"])
+            shr_exc.append(sc["shrink"]["excess"])
+        wrong = [n for n in sc["named"] if n not in sc["expected"]]
+        if not sc["expected"]:
+            for n in wrong or ["(none)"]:
+                conf["(none)"][n] += 1
+        for t in sc["expected"]:
+            conf[t][t if t in sc["named"] else "(missed)"] += 1
+            for n in wrong:
+                conf[t][n] += 1
+    labels_t = sorted(conf)
+    labels_n = sorted({n for c in conf.values() for n in c})
+    w = max(len(x) for x in labels_t + ["true \\ named"]) + 1
+    print(f"\n==== {title} ====")
+    print("Confusion (rows: hidden effect in the truth, '(none)' = clean machine; columns: "
+          "the effect named; a name not in the truth is counted in every row of its case)")
+    short = {n: (n.replace("squareness_", "sq_").replace("backlash_", "bl_")
+                 .replace("thermal_drift_", "th_").replace("servo_mismatch_", "sv_")
+                 .replace("straightness_", "st_").replace("tool_offset", "tool")
+                 .replace("cyclic_", "cy_").replace("scale_", "sc_").replace("reversal_", "rv_"))
+             for n in labels_n}
+    print("true \\ named".ljust(w) + "".join(short[n].rjust(7) for n in labels_n))
+    for t in labels_t:
+        print(t.ljust(w) + "".join((str(conf[t][n]) if conf[t][n] else ".").rjust(7)
+                                   for n in labels_n))
+    print()
+    pct = lambda a, b: (100.0 * a / b) if b else float("nan")  # noqa: E731
+    out = {"effect_cases_exact": [n_exact, n_case], "effects_named": [n_hit, n_exp],
+           "clean_false": [clean_fp, clean], "extra_names": extra_total,
+           "values_ok": [vals_ok, vals_n], "errors": errors}
+    print(f"effect cases named exactly: {n_exact}/{n_case} = {pct(n_exact, n_case):.1f} %  (target >= 95 %)")
+    print(f"hidden effects named: {n_hit}/{n_exp} = {pct(n_hit, n_exp):.1f} %")
+    print(f"clean machines with a false name: {clean_fp}/{clean} = {pct(clean_fp, clean):.1f} %  (target <= 5 %)")
+    print(f"names not in the truth (all cases): {extra_total}")
+    print(f"values within 10 % or inside the 95 % interval: {vals_ok}/{vals_n} = {pct(vals_ok, vals_n):.1f} %")
+    if shr_raw:
+        ge = sum(1 for s in shr_raw if s >= 0.7)
+        ge_e = sum(1 for s in shr_exc if s >= 0.7)
+        out["shrink_median_raw"] = float(np.median(shr_raw))
+        out["shrink_median_excess"] = float(np.median(shr_exc))
+        print(f"held-out gap shrink (RMS before -> after): median {100 * np.median(shr_raw):.0f} %, "
+              f">= 70 % in {ge}/{len(shr_raw)} cases; excess over the noise: median "
+              f"{100 * np.median(shr_exc):.0f} %, >= 70 % in {ge_e}/{len(shr_exc)}  (target: median >= 70 %)")
+    amb = sum(1 for r in rows if r["ambiguous"])
+    print(f"cases with an ambiguity flag: {amb}/{len(rows)}; errors: {errors}")
+    for sc in misses:
+        print(f"  miss: {sc.get('case', '+'.join(sc['hidden']))}: expected {sc['expected']}"
+              + (f" outliers {sc.get('outliers_expected')}" if sc.get("outliers_expected") else "")
+              + f", named {sc['named']}"
+              + (f" outliers {sc.get('outliers_named')}" if sc.get("outliers_named") else ""))
+    bad_vals = [(sc.get("case", "+".join(sc.get("hidden", []))), k, v) for sc in rows
+                for k, v in sc["values"].items() if not v["ok"]]
+    for name, k, v in bad_vals:
+        print(f"  value off: {name}: {k} true {v['true']:.4g}, named {v['named']:.4g} "
+              f"[{v['ci95'][0]:.4g}, {v['ci95'][1]:.4g}]")
+    if times:
+        print(f"time per case: median {np.median(times):.2f} s, max {max(times):.2f} s, total "
+              f"{sum(times):.0f} s")
+    return out
+
+
+def run_hidden(args: argparse.Namespace) -> tuple[list[dict], int, list[float]]:
+    cases = draw_cases(args.cases, args.seed)
+    rows, times, errors = [], [], 0
     for i, (cs, keys) in enumerate(cases):
         t0 = time.time()
         case = hidden_case(cs, keys, noise_um=args.noise, model_error_um=args.model_error,
@@ -133,68 +200,79 @@ def main(argv: list[str] | None = None) -> int:
         dt = time.time() - t0
         times.append(dt)
         sc = score_case(case, res)
-        sc.update({"seed": cs, "time_s": round(dt, 2)})
+        sc.update({"seed": cs, "time_s": round(dt, 2), "case": "+".join(keys) or "clean"})
         rows.append(sc)
-        n_exp += len(sc["expected"])
-        n_hit += len(sc["hits"])
-        extra_total += len(sc["extra"])
-        if not case.expected:
-            clean += 1
-            clean_fp += bool(sc["named"])
-        for k, v in sc["values"].items():
-            vals_n += 1
-            vals_ok += v["ok"]
-        if sc["shrink"] is not None:
-            shr_raw.append(sc["shrink"]["raw"])
-            shr_exc.append(sc["shrink"]["excess"])
-        # row = a hidden effect (or "(none)" for a clean machine); columns = its own name
-        # if named, "(missed)" if not, and every name that is not in the truth
-        wrong = [n for n in sc["named"] if n not in sc["expected"]]
-        if not sc["expected"]:
-            for n in wrong or ["(none)"]:
-                conf["(none)"][n] += 1
-        for t in sc["expected"]:
-            conf[t][t if t in sc["named"] else "(missed)"] += 1
-            for n in wrong:
-                conf[t][n] += 1
         flag = "" if not sc["misses"] and not sc["extra"] else "  <--"
         print(f"[{i + 1:3d}/{len(cases)}] {'+'.join(keys) or 'clean':40s} named "
               f"{','.join(sc['named']) or '-':40s} {dt:4.1f}s{flag}", flush=True)
+    return rows, errors, times
 
-    # confusion table
-    labels_t = sorted(conf)
-    labels_n = sorted({n for c in conf.values() for n in c})
-    w = max(len(x) for x in labels_t + ["true \\ named"]) + 1
-    print("\nConfusion (rows: hidden effect in the truth, '(none)' = clean machine; columns: "
-          "the effect named; a name not in the truth is counted in every row of its case)")
-    short = {n: (n.replace("squareness_", "sq_").replace("backlash_", "bl_")
-                 .replace("thermal_drift_", "th_").replace("servo_mismatch_", "sv_")
-                 .replace("straightness_", "st_").replace("tool_offset", "tool")
-                 .replace("cyclic_", "cy_").replace("scale_", "sc_")) for n in labels_n}
-    print("true \\ named".ljust(w) + "".join(short[n].rjust(7) for n in labels_n))
-    for t in labels_t:
-        print(t.ljust(w) + "".join((str(conf[t][n]) if conf[t][n] else ".").rjust(7)
-                                   for n in labels_n))
-    print()
-    pct = lambda a, b: (100.0 * a / b) if b else float("nan")  # noqa: E731
-    print(f"hidden effects named correctly: {n_hit}/{n_exp} = {pct(n_hit, n_exp):.1f} %  (target >= 95 %)")
-    print(f"clean machines with a false name: {clean_fp}/{clean} = {pct(clean_fp, clean):.1f} %  (target <= 5 %)")
-    print(f"names not in the truth (all cases): {extra_total}")
-    print(f"values within 10 % or inside the 95 % interval: {vals_ok}/{vals_n} = {pct(vals_ok, vals_n):.1f} %")
-    if shr_raw:
-        ge = sum(1 for s in shr_raw if s >= 0.7)
-        ge_e = sum(1 for s in shr_exc if s >= 0.7)
-        print(f"held-out gap shrink (RMS before -> after): median {100 * np.median(shr_raw):.0f} %, "
-              f">= 70 % in {ge}/{len(shr_raw)} cases; excess over the noise: median "
-              f"{100 * np.median(shr_exc):.0f} %, >= 70 % in {ge_e}/{len(shr_exc)}")
-    amb = sum(1 for r in rows if r["ambiguous"])
-    print(f"cases with an ambiguity flag: {amb}/{len(rows)}; errors: {errors}")
-    if times:
-        print(f"time per case: median {np.median(times):.2f} s, max {max(times):.2f} s, total "
-              f"{time.time() - t_all:.0f} s")
+
+def run_independent(args: argparse.Namespace) -> tuple[list[dict], int, list[float]]:
+    import tempfile
+
+    from cases.independent import suite as ind
+    cases = ind.suite(args.independent_seed)
+    if args.only:
+        cases = [c for c in cases if any(o in c.name for o in args.only)]
+    rows, times, errors = [], [], 0
+    for i, c in enumerate(cases):
+        t0 = time.time()
+        with tempfile.TemporaryDirectory(prefix="abbe-ind-") as d:
+            b = ind.build(c, d)
+            try:
+                res = ind.run(b, args.backend)
+            except Exception as exc:
+                errors += 1
+                print(f"case {c.name} seed {c.seed}: ERROR {exc!r}", file=sys.stderr)
+                continue
+            sc = ind.score(b, res)
+        dt = time.time() - t0
+        times.append(dt)
+        sc["outliers_ok"] = sc["outliers_named"] == sc["outliers_expected"]
+        sc.update({"seed": c.seed, "time_s": round(dt, 2), "hidden": list(c.parts)})
+        rows.append(sc)
+        flag = "" if sc["exact"] else "  <--"
+        print(f"[{i + 1:3d}/{len(cases)}] {c.name:34s} named {','.join(sc['named']) or '-':44s}"
+              f"{' outliers ' + str(sc['outliers_named']) if sc['outliers_named'] else ''} {dt:4.1f}s{flag}",
+              flush=True)
+    return rows, errors, times
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--suite", choices=("hidden", "independent", "both"), default="both",
+                    help="hidden: cases.hidden_effects (abbe.sim); independent: "
+                         "cases.independent (written from the physics, files through the readers)")
+    ap.add_argument("--cases", type=int, default=100, help="hidden suite: number of cases")
+    ap.add_argument("--seed", type=int, default=1, help="hidden suite: seed")
+    ap.add_argument("--independent-seed", type=int, default=14, help="independent suite: seed")
+    ap.add_argument("--only", nargs="+", help="independent suite: cases whose name contains one of these")
+    ap.add_argument("--noise", type=float, default=0.15, help="ballbar noise, um (laser: max(., 0.1))")
+    ap.add_argument("--model-error", type=float, default=0.0,
+                    help="RMS of a smooth fit error added to the model, um (urad x 3)")
+    ap.add_argument("--step-deg", type=float, default=1.0, help="ballbar sample step, deg")
+    ap.add_argument("--json", help="write per-case results here")
+    ap.add_argument("--backend", default="auto", choices=("auto", "c", "reference"))
+    args = ap.parse_args(argv)
+
+    from abbe.diagnose.evaluator import Evaluator
+    print(f"backend: {Evaluator(args.backend).backend}")
+    report: dict = {"args": vars(args)}
+    if args.suite in ("hidden", "both"):
+        print(f"hidden suite (cases.hidden_effects): {args.cases} cases, seed {args.seed}, noise "
+              f"{args.noise} um, model error {args.model_error} um, ballbar step {args.step_deg} deg")
+        rows, errors, times = run_hidden(args)
+        report["hidden"] = {"summary": summarize("hidden suite (cases.hidden_effects)", rows, errors,
+                                                 times), "cases": rows}
+    if args.suite in ("independent", "both"):
+        print(f"\nindependent suite (cases.independent), seed {args.independent_seed}")
+        rows, errors, times = run_independent(args)
+        report["independent"] = {"summary": summarize("independent suite (cases.independent)",
+                                                      rows, errors, times), "cases": rows}
     if args.json:
         with open(args.json, "w", encoding="utf-8") as fh:
-            json.dump({"cases": rows, "args": vars(args)}, fh, indent=1, default=float)
+            json.dump(report, fh, indent=1, default=float)
     return 0
 
 

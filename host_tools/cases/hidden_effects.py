@@ -38,6 +38,7 @@ HIDDEN_KEYS: tuple[str, ...] = (
     "servo_mismatch_xy", "servo_mismatch_yz", "servo_mismatch_zx",
     "tool_offset",
     "straightness_xy", "straightness_yx", "straightness_zx",
+    "reversal_x", "reversal_y", "reversal_z",
 )
 
 
@@ -100,10 +101,10 @@ def sim_ballbar(vm: Any, plane: str, t0_s: float, rng: np.random.Generator, *,
                       center_mm=tuple(center_mm), radius_mm=radius_mm, feed_mm_min=feed_mm_min,
                       sample_deg=step_deg, feed_arc_deg=10.0, pause_s=1.0,
                       setup_offset_um=tuple(float(v) for v in setup))
-    tr = simulate_ballbar(vm, test, t0_s, noise_um, rng)
+    tr = simulate_ballbar(vm, test, t0_s, noise_um, rng, temp_sensor_k=0.01)
     ck = BallbarCheck(test.name, plane, test.center_mm, radius_mm, feed_mm_min, tr.direction,
                       tr.angle_deg, tr.radial_um, tr.time_s, vm.truth.reference_mm,
-                      source="<simulated>")
+                      source="<simulated>", temp_c=tr.temp_c)
     return ck, circle_duration_s(test)
 
 
@@ -174,22 +175,26 @@ def _sign(rng: np.random.Generator) -> float:
 
 def hidden_case(seed: int, hidden: tuple[str, ...] = (), *, noise_um: float = 0.15,
                 model_error_um: float = 0.0, step_deg: float = 2.0, n_targets: int = 11,
-                checks: tuple[str, ...] | None = None) -> Case:
+                checks: tuple[str, ...] | None = None, takeup_mm: float = 0.1,
+                feeds_mm_min: tuple[float, ...] = (1000.0,)) -> Case:
     """Build a case with the catalogue effects ``hidden`` (keys) in the truth only.
 
     Magnitudes are drawn at random (seeded) in realistic ranges (notes.md §7).
     ``checks``: names like "ballbar_xy", "laser_x" (default: the tests that see the
-    hidden effects, plus one ballbar XY and laser X).
+    hidden effects, plus one ballbar XY and laser X). ``takeup_mm``: the backlash
+    take-up of the truth; ``feeds_mm_min``: every ballbar test is run at each of these
+    feeds (the same circle; the second and later named ``..._f<feed>``).
     """
     from abbe.sim.truth import Effects, truth_table
     from abbe.sim.virtual_machine import VirtualMachine
     rng = np.random.default_rng(seed)
-    kw: dict[str, Any] = {"backlash_takeup_mm": (0.1, 0.1, 0.1)}
+    kw: dict[str, Any] = {"backlash_takeup_mm": (takeup_mm, takeup_mm, takeup_mm)}
     expected: dict[str, float | None] = {}
     extra_bow: dict[tuple[str, str], float] = {}
     cyclic: dict[str, tuple[float, float, float]] = {}
     want_checks: list[str] = []
     thermal_axis = None
+    reversal_hidden: list[tuple[int, list[float]]] = []
     for key in hidden:
         suf = key.rpartition("_")[2]
         if key.startswith("squareness_"):
@@ -207,6 +212,20 @@ def hidden_case(seed: int, hidden: tuple[str, ...] = (), *, noise_um: float = 0.
             bl[j] = b
             kw["backlash_um"] = tuple(bl)
             expected[key] = float(b if j < 2 else -b)  # table reversal B = -sigma b
+            want_checks += [f"laser_{suf}"]
+        elif key.startswith("reversal_"):
+            # a constant lost motion the model knows, and its variation along the travel
+            # (odd Chebyshev shapes: zero mean over the symmetric laser targets) hidden
+            j = "xyz".index(suf)
+            b = rng.uniform(4.0, 10.0)
+            bl = list(kw.get("backlash_um", (0.0, 0.0, 0.0)))
+            bl[j] = b
+            kw["backlash_um"] = tuple(bl)
+            var = list(kw.get("backlash_variation_um", (0.0,) * 9))
+            var[3 * j] = _sign(rng) * rng.uniform(2.0, 5.0)
+            var[3 * j + 2] = _sign(rng) * rng.uniform(0.0, 2.0)
+            kw["backlash_variation_um"] = tuple(var)
+            reversal_hidden.append((j, var[3 * j:3 * j + 3]))
             want_checks += [f"laser_{suf}"]
         elif key.startswith("scale_"):
             j = "xyz".index(suf)
@@ -286,10 +305,12 @@ def hidden_case(seed: int, hidden: tuple[str, ...] = (), *, noise_um: float = 0.
                            (n.startswith("ballbar_") and thermal_axis.lower() in n[8:])]
     for nm in names:
         if nm.startswith("ballbar_"):
-            ck, dur = sim_ballbar(vm, nm[8:].upper(), t_clock, rng, noise_um=noise_um,
-                                  step_deg=step_deg, name=nm)
-            out.append(ck)
-            t_clock += dur + 60.0
+            for k, feed in enumerate(feeds_mm_min):
+                ck, dur = sim_ballbar(vm, nm[8:].upper(), t_clock, rng, noise_um=noise_um,
+                                      step_deg=step_deg, name=nm if k == 0 else f"{nm}_f{feed:g}",
+                                      feed_mm_min=feed)
+                out.append(ck)
+                t_clock += dur + 60.0
         elif nm.startswith("laser_"):
             ck, dur = sim_laser(vm, nm[6:].upper(), t_clock, rng, noise_um=max(noise_um, 0.1),
                                 n_targets=n_targets)
@@ -297,6 +318,15 @@ def hidden_case(seed: int, hidden: tuple[str, ...] = (), *, noise_um: float = 0.
             t_clock += dur + 60.0
         else:
             raise ValueError(f"unknown check {nm!r}")
+    # Position-dependent reversal: RMS over the laser targets of the hidden part of the
+    # reversal B_j(p) = -sigma_j b_j(p) (the table's sign, docs/formats.md)
+    for j, c in reversal_hidden:
+        a = AXES[j]
+        tg = [ck.targets for ck in out if isinstance(ck, LaserCheck) and ck.axis == a]
+        lo, hi = TRAVEL_MM[a]
+        u = (2.0 * np.concatenate(tg) - lo - hi) / (hi - lo)
+        part = np.polynomial.chebyshev.chebval(u, np.concatenate([[0.0], c]))
+        expected[f"reversal_{a.lower()}"] = float(np.sqrt(np.mean(part ** 2)))
     # A lag on one axis shows in every tested plane containing it (tau_b - tau_a).
     lag = np.asarray(kw.get("servo_lag_ms", (0.0, 0.0, 0.0)), dtype=np.float64)
     if np.any(lag):
@@ -319,7 +349,7 @@ def checks_for(key: str) -> set[str]:
     suf = key.rpartition("_")[2]
     if key.startswith("squareness_"):
         return {{"xy": "ballbar_xy", "xz": "ballbar_zx", "yz": "ballbar_yz"}[suf]}
-    if key.startswith(("backlash_", "scale_", "thermal_drift_")):
+    if key.startswith(("backlash_", "reversal_", "scale_", "thermal_drift_")):
         return {f"laser_{suf}"}
     if key.startswith("cyclic_"):
         return {{"x": "ballbar_xy", "y": "ballbar_xy", "z": "ballbar_yz"}[suf]}
@@ -342,6 +372,11 @@ def compatible(keys: tuple[str, ...]) -> bool:
         return False
     if len(set(keys)) < len(keys):
         return False
+    # a hidden reversal comes with a constant lost motion the model knows: not with a
+    # hidden backlash of the same axis
+    for k in keys:
+        if k.startswith("reversal_") and f"backlash_{k[-1]}" in keys:
+            return False
     if th:
         a = th[0][-1]
         for k in keys:
@@ -360,7 +395,28 @@ def _visible(kw: dict[str, Any], hidden: tuple[str, ...]) -> dict[str, Any]:
         if key.startswith("squareness_"):
             drop.add("squareness_urad")
         elif key.startswith("backlash_"):
-            drop.add("backlash_um")
+            # only the hidden axis' lost motion: a reversal case of another axis keeps its
+            # constant lost motion in the model
+            j = "xyz".index(key[-1])
+            bl = list(out.get("backlash_um", (0.0, 0.0, 0.0)))
+            bl[j] = 0.0
+            out["backlash_um"] = tuple(bl)
+        elif key.startswith("reversal_"):
+            drop.add("backlash_variation_um")
+        elif key.startswith("reversal_"):
+            # a constant lost motion the model knows, and its variation along the travel
+            # (odd Chebyshev shapes: zero mean over the symmetric laser targets) hidden
+            j = "xyz".index(suf)
+            b = rng.uniform(4.0, 10.0)
+            bl = list(kw.get("backlash_um", (0.0, 0.0, 0.0)))
+            bl[j] = b
+            kw["backlash_um"] = tuple(bl)
+            var = list(kw.get("backlash_variation_um", (0.0,) * 9))
+            var[3 * j] = _sign(rng) * rng.uniform(2.0, 5.0)
+            var[3 * j + 2] = _sign(rng) * rng.uniform(0.0, 2.0)
+            kw["backlash_variation_um"] = tuple(var)
+            reversal_hidden.append((j, var[3 * j:3 * j + 3]))
+            want_checks += [f"laser_{suf}"]
         elif key.startswith("scale_"):
             drop |= {"scale_change_ppm", "scale_change_from_s"}
         elif key.startswith("thermal_drift_"):

@@ -2,6 +2,10 @@
  * integer one of comp.c; only the model evaluation is float. */
 #include "comp_core.h"
 
+#if !ABBE_WITH_F32
+#error "this is the _f32 variant: compile it with ABBE_WITH_F32=1 (or leave it undefined), or leave the file out"
+#endif
+
 /* um -> nm, rounded and saturated (the error is bounded far below this anyway). */
 static int32_t um_to_nm(float um, uint32_t *flags)
 {

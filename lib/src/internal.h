@@ -21,10 +21,19 @@ typedef char abbe_requires_arithmetic_shift[((-2 >> 1) == -1) ? 1 : -1];
 #define ABBE_ALWAYS_INLINE inline
 #endif
 
+/* The variants: both unless a build leaves one out with -DABBE_WITH_F32=0
+ * (lib/CMakeLists.txt passes its ABBE_WITH_F32 option as 0 or 1). A build
+ * without CMake (a vendor IDE, LinuxCNC's module makefile) compiles every
+ * source and gets both: the loader must then prepare the float constants
+ * the _f32 evaluation reads, so the default is "on", never "undefined". */
+#ifndef ABBE_WITH_F32
+#define ABBE_WITH_F32 1
+#endif
+
 /* SIMD kernels where the target guarantees them: SSE2 is part of every
  * x86-64. ABBE_PORTABLE_C forces the plain C kernels everywhere (the
  * sanitizer build uses it, so both versions are tested on the host). */
-#if defined(__SSE2__) && !defined(ABBE_PORTABLE_C) && defined(ABBE_WITH_F32)
+#if defined(__SSE2__) && !defined(ABBE_PORTABLE_C) && ABBE_WITH_F32
 #define ABBE_F32_SSE2 1
 #endif
 /* The model's four-lane copies (model.h) are built only for those kernels. */

@@ -391,7 +391,7 @@ static void build_axis(abbe_axis_model_t *ax, const uint8_t *b, const uint8_t *r
     ax->thermal_tref_mdegc = abbe_ld_i32(rec + A_TREF);
 }
 
-#if defined(ABBE_WITH_F32)
+#if ABBE_WITH_F32
 /* A float from its IEEE bits (no arithmetic: the fixed-point build has no FPU). */
 static float f32_from_bits(uint32_t bits)
 {
@@ -416,7 +416,7 @@ static void build_assembly(abbe_model_t *m)
         m->lane_cheb_shift[k] = ax->cheb_shift;
         m->lane_cheb_mul[k] = ax->cheb_mul;
 #endif
-#if defined(ABBE_WITH_F32)
+#if ABBE_WITH_F32
         /* t / 2 in float: the converted value with its exponent lowered by one
          * (exact; |t| >= 1 is far from the subnormals) */
         uint32_t t_bits = i32_to_f32_bits(m->tool_offset_nm[k]);

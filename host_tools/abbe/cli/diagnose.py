@@ -46,6 +46,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "(default 0.15)")
     list_option(p, "--candidates", metavar="ID",
                    help="restrict the catalogue (ids or keys, e.g. squareness_xy backlash_x)")
+    p.add_argument("--model-temp-c", type=in_range(-50.0, 150.0, "deg C"), default=None,
+                   metavar="C",
+                   help="temperature (deg C) at which the model was measured: the reference "
+                        "of the thermal term (default: the table's, else the lowest logged)")
     p.add_argument("--rezeroed", action="store_true",
                    help="the laser was re-zeroed before every run (a zero offset per run)")
     p.add_argument("--backend", choices=("c", "reference"), default="c",
@@ -72,7 +76,8 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         Outputs().check_file(args.json, option="--json")
     opts = DiagnoseOptions(alpha=args.alpha, min_effect_um=args.min_effect_um,
-                           candidates=args.candidates, backend=args.backend)
+                           candidates=args.candidates, backend=args.backend,
+                           model_temp_c=args.model_temp_c)
     if args.iso:
         if args.machine or args.ballbar or args.laser:
             raise AbbeInputError("--iso230-2 takes no machine file, --ballbar or --laser",

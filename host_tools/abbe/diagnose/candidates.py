@@ -13,9 +13,11 @@ from typing import Any
 
 import numpy as np
 
-from abbe.diagnose.checks import BallbarCheck, Check
+from abbe.diagnose.checks import BallbarCheck, Check, LaserCheck
 from abbe.diagnose.effects import (
     BACKLASH_TAKEUP_GRID_MM,
+    REVERSAL_MAX_DEGREE,
+    REVERSAL_MAX_TARGETS,
     EffectSpec,
     NotRepresentable,
     PredParams,
@@ -51,6 +53,24 @@ class Cand:
     offset: np.ndarray | None = None
 
 
+def reference_temperature(table: Table, checks: list[Check], model_temp_c: float | None) -> float:
+    """Temperature (deg C) at which the model's geometric terms hold: the table's own
+    ``thermal_tref_c`` if an axis has a thermal term, else ``model_temp_c`` (the user
+    knows when the model was measured), else the lowest temperature logged in the
+    checks (a warm-up starts from the cold machine; the model is taken as the cold
+    state). Any other choice adds a static scale alpha (T_model - T_ref) that would be
+    named as a scale error."""
+    for ax in table.axes.values():
+        if ax.thermal_expansion_ppm_per_k or ax.thermal_offset_um_per_k:
+            return float(ax.thermal_tref_c)
+    if model_temp_c is not None:
+        return float(model_temp_c)
+    lows = [float(np.min(t)) for t in (getattr(c, "all_temp", None) if isinstance(c, BallbarCheck)
+                                       else getattr(c, "temp_grid", None) for c in checks)
+            if t is not None]
+    return min(lows) if lows else 20.0
+
+
 class Engine:
     """Holds the problem, the base model and the candidate sensitivities."""
 
@@ -70,11 +90,16 @@ class Engine:
         for c in checks:
             c.set_drift_unit(self.drift_unit)
         self.drift_on_table = self.drift_unit == "K"
-        self.tref_c = 20.0
-        if self.drift_on_table:
-            temps = [getattr(c, "temp_first_c", None) for c in checks]
-            temps = [t for t in temps if t is not None]
-            self.tref_c = float(temps[0]) if temps else 20.0
+        self.tref_c = reference_temperature(table, checks, opts.model_temp_c) \
+            if self.drift_on_table else 20.0
+        # knots of a per-target reversal: the targets of each axis' repeated laser checks
+        for j, a in enumerate(AXES):
+            tg = [c.targets for c in checks if isinstance(c, LaserCheck) and c.axis == a
+                  and c.n_runs >= 2]
+            if tg and self.pp.reversal_knots_mm[j] is None:
+                kn = np.unique(np.concatenate(tg))
+                if 4 <= kn.size <= REVERSAL_MAX_TARGETS:
+                    self.pp.reversal_knots_mm[j] = kn
         self.y0 = self.prob.predict(self.ev, table, self.pp)
         self.r0 = self.prob.y - self.y0
 
@@ -100,18 +125,25 @@ class Engine:
                           tref_c=self.tref_c)
 
     def sensitivity(self, spec: EffectSpec, scan_value: float | None, table: Table,
-                    pp: PredParams, y_ref: np.ndarray) -> np.ndarray:
-        """(N, k) d prediction / d parameter, by re-predicting through the model."""
-        return self.sensitivity_offset(spec, scan_value, table, pp, y_ref)[0]
+                    pp: PredParams, y_ref: np.ndarray, idx: list[int] | None = None) -> np.ndarray:
+        """(N, k) d prediction / d parameter, by re-predicting through the model (only the
+        parameters ``idx`` are computed; the other columns are zero)."""
+        return self.sensitivity_offset(spec, scan_value, table, pp, y_ref, idx)[0]
 
     def sensitivity_offset(self, spec: EffectSpec, scan_value: float | None, table: Table,
-                           pp: PredParams, y_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+                           pp: PredParams, y_ref: np.ndarray, idx: list[int] | None = None
+                           ) -> tuple[np.ndarray, np.ndarray | None]:
         """(N, k) d prediction / d parameter by re-predicting through the model, and the
-        change (N,) the grid value alone causes (None if it causes none)."""
+        change (N,) the grid value alone causes (None if it causes none). ``idx``: the
+        parameters to compute (default: all but a reversal's per-target ones)."""
         k = len(spec.params)
         cols = np.zeros((self.prob.N, k))
         offset = None
-        for i, ps in enumerate(spec.params):
+        if idx is None:
+            idx = [i for i, ps in enumerate(spec.params)
+                   if not (spec.kind == "reversal" and ps.optional)]
+        for i in idx:
+            ps = spec.params[i]
             h = ps.typical * FD_FRACTION
             th = np.zeros(k)
             th[i] = h
@@ -161,6 +193,9 @@ class Engine:
             if spec.kind == "cyclic":
                 out.append(self._cyclic_cand(spec, table, pp, y_ref, W, Qn))
                 continue
+            if spec.kind == "reversal":
+                out.append(self._reversal_cand(spec, table, pp, y_ref, W, Qn))
+                continue
             if spec.kind == "thermal" and self.drift_unit is None:
                 out.append(Cand(spec, np.zeros((self.prob.N, 0)), [], observable=False,
                                 why_not="no time or temperature in the checks"))
@@ -204,6 +239,83 @@ class Engine:
                 self._alts[spec.key] = alts
             out.append(best)
         return out
+
+    def reversal_points(self, axis: str) -> np.ndarray:
+        """Axis positions (mm) where the checks see the reversal: the targets of the laser /
+        positioning checks of ``axis``, else the positions its ballbar circles pass."""
+        j = AXES.index(axis)
+        tg = [c.targets for c in self.prob.checks if isinstance(c, LaserCheck) and c.axis == axis]
+        if tg:
+            return np.unique(np.concatenate(tg))
+        pos = [c.positions()[:, j] for c in self.prob.checks
+               if isinstance(c, BallbarCheck) and j in PLANE_AXES[c.plane]]
+        return np.concatenate(pos) if pos else np.zeros(0)
+
+    def reversal_design(self, axis: str, param_idx: list[int]) -> tuple[np.ndarray, np.ndarray]:
+        """(points (M,) mm, J (M, k)): the position-dependent reversal at the points where
+        the checks see it is J @ theta for the parameters ``param_idx`` (Chebyshev r_k and
+        per-target contrasts t_k)."""
+        j = AXES.index(axis)
+        knots = self.pp.reversal_knots_mm[j]
+        pts = self.reversal_points(axis)
+        lo, hi = self.table.axes[axis].travel_mm
+        u = (2.0 * np.clip(pts, lo, hi) - lo - hi) / (hi - lo)
+        V = np.polynomial.chebyshev.chebvander(u, REVERSAL_MAX_DEGREE)
+        J = np.zeros((pts.size, len(param_idx)))
+        for c, i in enumerate(param_idx):
+            if i < REVERSAL_MAX_DEGREE:
+                J[:, c] = V[:, i + 1]
+            elif knots is not None:
+                e = np.zeros(len(knots))
+                e[i - REVERSAL_MAX_DEGREE] = 1.0
+                e[-1] = -1.0
+                J[:, c] = np.interp(pts, knots, e)
+        return pts, J
+
+    def _reversal_cand(self, spec: EffectSpec, table: Table, pp: PredParams, y_ref: np.ndarray,
+                       W: np.ndarray, Qn: np.ndarray) -> Cand:
+        """Position-dependent reversal: Chebyshev T1..Td of the reversal over the travel, the
+        degree d searched from 1 to min(REVERSAL_MAX_DEGREE, targets - 2) (laser /
+        positioning checks of the axis; circles alone: at most 3), each degree one
+        alternative (look-elsewhere over the degrees)."""
+        axis = spec.axis  # type: ignore[assignment]
+        lasers = [c for c in self.prob.checks if isinstance(c, LaserCheck) and c.axis == axis
+                  and c.n_runs >= 2]
+        if not lasers:
+            # a circle sees the reversal at its two reversal points and as level steps: the
+            # lost motion at each end is reported with a named backlash, the dependence on
+            # the position needs the axis' bidirectional (ISO 230-2) runs
+            return Cand(spec, np.zeros((self.prob.N, 0)), [], observable=False,
+                        why_not="needs bidirectional laser / ISO 230-2 runs of the axis (a "
+                                "circle shows the lost motion at its reversal points only)")
+        dmax = min(REVERSAL_MAX_DEGREE, max(c.T for c in lasers) - 2)
+        none = Cand(spec, np.zeros((self.prob.N, 0)), [], observable=False,
+                    why_not="no signature on these checks")
+        if dmax < 1:
+            return none
+        j = AXES.index(axis)  # type: ignore[arg-type]
+        knots = pp.reversal_knots_mm[j]
+        pt_idx = [] if knots is None else \
+            list(range(REVERSAL_MAX_DEGREE, REVERSAL_MAX_DEGREE + len(knots) - 1))
+        cols, _ = self.sensitivity_offset(spec, None, table, pp, y_ref,
+                                          list(range(dmax)) + pt_idx)
+        alts = []
+        for d in range(1, dmax + 1):
+            c = self._prune(Cand(spec, cols[:, :d], list(range(d)), float(d)), W, Qn)
+            if c.observable and c.param_idx == list(range(d)):
+                alts.append(c)
+        if pt_idx and len(pt_idx) > dmax:
+            # per target: the ISO 230-2 reversal values, linear between the targets
+            c = self._prune(Cand(spec, cols[:, pt_idx], pt_idx, -float(len(knots))), W, Qn)
+            if c.observable and c.param_idx == pt_idx:
+                alts.append(c)
+        if not alts:
+            return none
+        for c in alts:
+            c.n_scan = len(alts)
+        if len(alts) > 1:
+            self._alts[spec.key] = alts
+        return alts[0]
 
     def _tau_grid(self) -> list[float | None]:
         """Warm-up time constants to search (drift-variable units): linear (inf) and

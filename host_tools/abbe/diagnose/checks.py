@@ -34,6 +34,11 @@ from abbe.model.geometry import PLANE_AXES
 from abbe.model.table import AXES, LINEAR_TERMS, OWN_SIGN, OWN_TERM, Table
 
 
+#: Take-up (mm) of the direction state when the table has no backlash term (the machine
+#: file's default).
+DEFAULT_TAKEUP_MM = 1.0
+
+
 def _outside_msg(axis: str, lo: float, hi: float, vmin: float, vmax: float) -> str:
     return (f"spans {axis} = [{vmin:g}, {vmax:g}] mm but the model covers only "
             f"[{lo:g}, {hi:g}] mm of axis {axis}: the check is outside the model's travel "
@@ -109,7 +114,8 @@ class BallbarCheck(Check):
     """A ballbar trace (CCW then CW) of one circular test.
 
     Prediction: the actual position of each plane axis is the commanded circle point
-    ``lag`` earlier (servo lag, PredParams), the backlash direction state is tracked
+    ``lag`` earlier (servo lag, PredParams) and, with first-order loops, at a slightly
+    different amplitude (PredParams.plane_gains), the backlash direction state is tracked
     along the commanded path (feed arcs included) with the table's take-up, and the
     radial deviation is the exact length change ``|p + E - c| - R`` (um) with E the
     model's spatial error (+ the time drift of PredParams).
@@ -179,6 +185,34 @@ class BallbarCheck(Check):
     def positions(self) -> np.ndarray:
         return self.commanded_all()[self.mask]
 
+    def _reversal_path(self) -> tuple[np.ndarray, np.ndarray]:
+        """The commanded path (M, 3) with the plane axes' reversal points (the circle's
+        extremes, every 90 deg) inserted between the samples, and the index of each
+        sample in it: the direction state is then exact at the samples (the axis
+        moves monotonically between consecutive points)."""
+        key = "_rev_path"
+        if key in self.__dict__:
+            return self.__dict__[key]
+        ang = self.all_ang
+        pts, idx = [ang[:1]], [0]
+        k = 0
+        for a0, a1 in zip(ang[:-1], ang[1:]):
+            lo, hi = min(a0, a1), max(a0, a1)
+            q = np.arange(math.floor(lo / 90.0) + 1, math.ceil(hi / 90.0)) * 90.0
+            q = q[(q > lo) & (q < hi)]
+            if a1 < a0:
+                q = q[::-1]
+            pts.append(np.concatenate([q, [a1]]))
+            k += q.size + 1
+            idx.append(k)
+        th = np.radians(np.concatenate(pts))
+        a, b = PLANE_AXES[self.plane]
+        p = np.tile(self.center_mm, (th.size, 1))
+        p[:, a] += self.radius_mm * np.cos(th)
+        p[:, b] += self.radius_mm * np.sin(th)
+        self.__dict__[key] = (p, np.asarray(idx))
+        return self.__dict__[key]
+
     def sample_positions(self) -> np.ndarray:
         """Commanded position (N, 3) mm of every sample."""
         return self.positions()
@@ -188,18 +222,27 @@ class BallbarCheck(Check):
         a, b = PLANE_AXES[self.plane]
         cmd = self.commanded_all()
         pos = cmd.copy()
-        pos[:, a] = self.center_mm[a] + self.radius_mm * np.cos(angs[a])
-        pos[:, b] = self.center_mm[b] + self.radius_mm * np.sin(angs[b])
+        ga, gb = pp.plane_gains(self.plane, self.feed_mm_min / 60.0 / self.radius_mm)
+        pos[:, a] = self.center_mm[a] + self.radius_mm * ga * np.cos(angs[a])
+        pos[:, b] = self.center_mm[b] + self.radius_mm * gb * np.sin(angs[b])
         ds = np.zeros_like(cmd)
+        dense = None
         for j, ax in enumerate(AXES):
             at = table.axes[ax]
-            if at.backlash_um:
-                ds[:, j] = direction_state(cmd[:, j], at.backlash_takeup_mm)
+            if at.backlash_um or pp.has_reversal(j):
+                if dense is None:
+                    dense, at_sample = self._reversal_path()
+                tk = at.backlash_takeup_mm if at.backlash_takeup_mm > 0 else DEFAULT_TAKEUP_MM
+                ds[:, j] = direction_state(dense[:, j], tk)[at_sample]
         m = self.mask
         temp = None
         if self.all_temp is not None:
             temp = np.repeat(self.all_temp[m][:, None], 3, axis=1)
         e = ev.error(table, pos[m], ds[m], temp)
+        for j, ax in enumerate(AXES):
+            if pp.has_reversal(j):
+                e[:, j] += OWN_SIGN[ax] * ds[m][:, j] * 0.5 * pp.reversal_at(
+                    j, table.axes[ax].travel_mm, pos[m][:, j])
         if self.drift is not None and (np.any(pp.drift_offset) or np.any(pp.drift_scale_ppm)):
             rel = pos[m] - self.reference_mm
             for j, ax in enumerate(AXES):
@@ -235,6 +278,11 @@ class LaserCheck(Check):
                  order: np.ndarray, reference_mm: tuple[float, float, float],
                  time_s: np.ndarray | None = None, temp_c: np.ndarray | None = None,
                  rezeroed: bool = False, source: str = "", drift_ref_c: float | None = None) -> None:
+        self._args = dict(name=name, axis=axis, line_mm=line_mm, targets_mm=targets_mm,
+                          order=order, reference_mm=reference_mm, time_s=time_s, temp_c=temp_c,
+                          rezeroed=rezeroed, source=source, drift_ref_c=drift_ref_c)
+        #: run numbers (1-based, as in the file) of the runs this check holds
+        self.run_numbers = list(range(1, channels[0].values.shape[0] + 1))
         self.axis = axis
         self.j = AXES.index(axis)
         self.line_mm = np.asarray(line_mm, dtype=np.float64)
@@ -314,6 +362,23 @@ class LaserCheck(Check):
                                  "channels": [f"{ch.channel}={'+' if ch.sign > 0 else '-'}{ch.term}"
                                               for ch in channels], "runs": n_runs})
 
+    def without_runs(self, drop: set[int]) -> "LaserCheck":
+        """The same check without the runs ``drop`` (run numbers as in the file)."""
+        keep = [i for i, r in enumerate(self.run_numbers) if r not in drop]
+        a = dict(self._args)
+        for k in ("order", "time_s", "temp_c"):
+            if a[k] is not None:
+                a[k] = np.asarray(a[k])[keep]
+        chans = [LaserChannel(ch.channel, ch.term, ch.sign, ch.values[keep]) for ch in self.channels]
+        c = LaserCheck(channels=chans, **a)
+        c.run_numbers = [self.run_numbers[i] for i in keep]
+        c.run = np.asarray(c.run_numbers)[c.run - 1]
+        c.meta.update({k: v for k, v in self.meta.items() if k.startswith("source_")})
+        c.meta["runs_excluded"] = sorted(set(self.run_numbers) - set(c.run_numbers)) + \
+            list(self.meta.get("runs_excluded", []))
+        c.meta["runs_excluded"] = sorted(set(c.meta["runs_excluded"]))
+        return c
+
     def positions(self) -> np.ndarray:
         p = np.tile(self.line_mm, (self.T, 1))
         p[:, self.j] = self.targets
@@ -364,6 +429,9 @@ class LaserCheck(Check):
                 ds[self.T:, j] = -1.0
                 e2 = ev.own_extra(table, self.axis, pos, ds, None)
                 extra += e2[d_idx * self.T + t_idx]
+        if pp.has_reversal(j):
+            s_dir = np.where(d_idx == 0, 1.0, -1.0)
+            extra += s_dir * 0.5 * pp.reversal_at(j, at.travel_mm, self.targets[t_idx])
         if np.any(pp.drift_offset) or np.any(pp.drift_scale_ppm):
             rel = self.targets[t_idx] - self.reference_mm[j]
             if self.drift is not None:
@@ -398,7 +466,8 @@ def ballbar_check(machine: Any, name: str, reference_mm: tuple[float, float, flo
     tr = read_ballbar_csv(bt.file, columns=bt.columns)
     check_trace_timing(tr, from_machine(bt), str(machine.path))
     c = BallbarCheck(name, bt.plane, bt.center_mm, bt.radius_mm, bt.feed_mm_min, tr.direction,
-                     tr.angle_deg, tr.radial_um, tr.time_s, reference_mm, source=str(bt.file))
+                     tr.angle_deg, tr.radial_um, tr.time_s, reference_mm, source=str(bt.file),
+                     temp_c=tr.temp_c)
     c.meta.update(source_file=str(machine.path), source_line=bt.line,
                   source_field=f"ballbar.{name}.center_mm")
     return c

@@ -11,10 +11,10 @@ from scipy import stats
 
 from abbe.diagnose.candidates import Cand, Engine, Selected, apply_selection
 from abbe.diagnose.checks import BallbarCheck
-from abbe.diagnose.effects import EffectSpec, NotRepresentable, PredParams
+from abbe.diagnose.effects import REVERSAL_MAX_DEGREE, EffectSpec, NotRepresentable, PredParams
 from abbe.diagnose.problem import gap_stats, lstsq_rss, project_out, qr_basis, remove_nuisance
 from abbe.diagnose.results import EffectResult, round_to
-from abbe.model.table import Table
+from abbe.model.table import AXES, Table
 
 
 def describe_effects(eng: Engine, sel: list[Selected], values: list[np.ndarray], cov: np.ndarray,
@@ -77,24 +77,153 @@ def describe_effects(eng: Engine, sel: list[Selected], values: list[np.ndarray],
                                                "tool length (a tool offset scales with the "
                                                "tool length, an error of the model's angular "
                                                "terms with the height)"})
-        scan = None
+        scan = scan_ci = None
         if s.cand.scan_value is not None and spec.scan:
             name = spec.scan if spec.kind != "thermal" else f"tau_{eng.drift_unit or 'h'}"
             scan = {name: float(s.cand.scan_value)}
+            if spec.kind == "reversal" and s.cand.scan_value < 0:
+                scan = {"per_target": float(-s.cand.scan_value)}
+            sci = s.stats.get("scan_ci")
+            if sci is not None:
+                scan_ci = {name: [sci[0] if sci[2] else None, sci[1] if sci[3] else None]}
         where = "table" if spec.compensable and not (spec.kind == "thermal" and not eng.drift_on_table) \
             else "prediction model only"
         remedy = spec.remedy
+        if spec.kind == "reversal" and not table_holds_reversal():
+            where = "prediction model only"
+            remedy = (spec.remedy + "; the C library's table cannot hold it yet (table format "
+                      "1.1 pending): evaluated by the float64 prediction model, not written into "
+                      "model.bin")
         if spec.kind == "thermal" and not eng.drift_on_table:
             remedy = ("not compensable by the table without a temperature input: warm the machine "
                       "up before measuring / machining, or log the temperature (laser temp_c) so "
                       "the table's thermal term can be fitted")
+        shape, shape_notes = _shape_statements(spec, s.cand.param_idx, v, C, tq, eng, table, pp)
+        if spec.kind == "backlash":
+            ends = _lost_motion_at_ends(eng, sel, i, values, W, tq, table, pp)
+            if ends is not None:
+                shape, shape_notes = ends
         out.append(EffectResult(
             id=spec.family, key=spec.key, value=value, unit=unit, ci95=ci, params=params,
             compensable=where == "table", where=where, physics=spec.physics, remedy=remedy,
-            evidence=ev, axis=spec.axis, plane=spec.plane, scan=scan, ambiguous_with=amb,
+            evidence=ev, axis=spec.axis, plane=spec.plane, scan=scan, scan_ci95=scan_ci,
+            ambiguous_with=amb,
+            shape=shape, shape_notes=shape_notes,
             stage_before=[rb_[prob.slice(k)] for k in range(len(prob.checks))],
             stage_after=[ra_[prob.slice(k)] for k in range(len(prob.checks))]))
     return out
+
+
+def _shape_statements(spec: EffectSpec, idx: list[int], v: np.ndarray, C: np.ndarray, tq: float,
+                      eng: Engine | None = None, table: Table | None = None,
+                      pp: PredParams | None = None) -> tuple[dict[str, Any] | None, list[str]]:
+    """Derived shape of an effect: the servo model (pure delay or first-order loops with
+    their mean time constant), the positioning bow of a scale error."""
+    if spec.kind == "servo":
+        if 1 not in idx:
+            return ({"servo_model": "not resolved (no feed-squared oval)"},
+                    ["servo model: only the lag mismatch is resolved; the oval along the axes "
+                     "that the loops' mean lag gives (growing with the feed squared) is not: "
+                     "the same circle at a second, higher feed would show it"])
+        i0, i1 = idx.index(0), idx.index(1)
+        dt, q = float(v[i0]), float(v[i1])
+        if abs(dt) < 1e-9:
+            return None, []
+        g = np.zeros(len(v))
+        out: dict[str, Any] = {"servo_model": "mean lag resolved; pure delays and first-order "
+                                              "loops give the same signature on circles"}
+        txt = []
+        for name, kappa in (("delay", 1.0), ("first_order", 1.5)):
+            tm = q / (kappa * dt)
+            g[i0], g[i1] = -q / (kappa * dt ** 2), 1.0 / (kappa * dt)
+            sd = math.sqrt(max(float(g @ C @ g), 0.0))
+            ci = [round_to(tm - tq * sd), round_to(tm + tq * sd)]
+            out[f"tau_mean_ms_if_{name}"] = round_to(tm)
+            out[f"tau_mean_ms_if_{name}_ci95"] = ci
+            txt.append(f"{tm:.2f} ms [{ci[0]:.2f}, {ci[1]:.2f}] as "
+                       + ("pure delays" if name == "delay" else "first-order lags (1 / Kv)"))
+        return out, ["servo model: mean lag of the plane's loops " + " or ".join(txt)
+                     + f" (from q = {q:.4g} ms^2; circles cannot tell the two loop models "
+                       "apart, the controller settings can)"]
+    if spec.kind == "reversal" and eng is not None:
+        per_target = bool(idx) and idx[0] >= REVERSAL_MAX_DEGREE
+        form = ("per target (linear between the targets: the ISO 230-2 reversal values, as "
+                "per-point forward/reverse compensation tables hold them)" if per_target
+                else f"a smooth series of degree {len(idx)} over the travel")
+        d: dict[str, Any] = {"form": "per_target" if per_target else "chebyshev",
+                             "degree": None if per_target else len(idx)}
+        pts = eng.reversal_points(spec.axis)  # type: ignore[arg-type]
+        if pts.size and pts.size <= 64:
+            j = AXES.index(spec.axis)  # type: ignore[arg-type]
+            B = float(table.axes[spec.axis].backlash_um)  # type: ignore[index]
+            rev = B + pp.reversal_at(j, table.axes[spec.axis].travel_mm, pts)  # type: ignore[index,union-attr]
+            i_lo, i_hi = int(np.argmin(rev)), int(np.argmax(rev))
+            d.update({"targets_mm": [round_to(x) for x in pts],
+                      "total_reversal_um": [round_to(x) for x in rev]})
+            return d, [f"total reversal (backlash + position-dependent part) from "
+                       f"{rev[i_lo]:.2f} um at {pts[i_lo]:g} mm to {rev[i_hi]:.2f} um at "
+                       f"{pts[i_hi]:g} mm; form: {form}"]
+        return d, [f"form: {form}"]
+    if spec.kind == "scale" and 1 in idx:
+        b = float(v[idx.index(1)])
+        return {"positioning_bow_um": round_to(b)}, [f"with a positioning bow of {b:.3f} um "
+                                                       "(sag at mid-travel relative to the ends)"]
+    return None, []
+
+
+def _lost_motion_at_ends(eng: Engine, sel: list[Selected], i: int, values: list[np.ndarray],
+                         W: np.ndarray, tq: float, table: Table, pp: PredParams
+                         ) -> tuple[dict[str, Any], list[str]] | None:
+    """Lost motion at each reversal end of the circles that move a backlash's axis (the
+    step where the axis reverses at its + end and at its - end, Renishaw's "backlash X+ /
+    X-"), with 95 % intervals: the backlash and a linear position dependence of the
+    reversal fitted together (the other effects and the nuisance refitted). None without
+    a circle moving the axis."""
+    from abbe.diagnose.checks import BallbarCheck
+    from abbe.diagnose.effects import by_key
+    s = sel[i]
+    axis = s.cand.spec.axis
+    j = AXES.index(axis)  # type: ignore[arg-type]
+    circles = [c for c in eng.prob.checks if isinstance(c, BallbarCheck) and j in
+               {"XY": (0, 1), "YZ": (1, 2), "ZX": (2, 0)}[c.plane]]
+    if not circles:
+        return None
+    lo_p = min(float(c.center_mm[j] - c.radius_mm) for c in circles)
+    hi_p = max(float(c.center_mm[j] + c.radius_mm) for c in circles)
+    prob = eng.prob
+    y = prob.predict(eng.ev, table, pp)
+    rev = by_key()[f"reversal_{axis.lower()}"]  # type: ignore[union-attr]
+    c1 = eng.sensitivity(rev, None, table, pp, y, [0])[:, 0]
+    cb = eng.sensitivity(s.cand.spec, s.cand.scan_value, table, pp, y, [0])[:, 0]
+    others = [o.cand.cols for k, o in enumerate(sel) if k != i]
+    X = np.hstack([prob.nuis] + others + [cb[:, None], c1[:, None]]) * W[:, None]
+    r = (prob.y - y) * W
+    coef, *_ = np.linalg.lstsq(X, r, rcond=None)
+    e = r - X @ coef
+    dof = max(prob.N - X.shape[1], 1)
+    s2 = max(1.0, float(e @ e) / dof)
+    cov = s2 * np.linalg.pinv(X.T @ X)[-2:, -2:]
+    B = float(table.axes[axis].backlash_um) + float(coef[-2])  # type: ignore[index]
+    t_lo, t_hi = table.axes[axis].travel_mm  # type: ignore[index]
+    out: dict[str, Any] = {}
+    txt = []
+    for name, pos in (("minus_end", lo_p), ("plus_end", hi_p)):
+        u = (2.0 * min(max(pos, t_lo), t_hi) - t_lo - t_hi) / (t_hi - t_lo)
+        g = np.array([1.0, u])
+        val = B + float(coef[-1]) * u
+        sd = math.sqrt(max(float(g @ cov @ g), 0.0))
+        out[f"reversal_at_{name}_um"] = round_to(val)
+        out[f"reversal_at_{name}_um_ci95"] = [round_to(val - tq * sd), round_to(val + tq * sd)]
+        out[f"{name}_mm"] = round_to(pos)
+        txt.append(f"{val:.2f} um [{val - tq * sd:.2f}, {val + tq * sd:.2f}] at the "
+                   f"{'-' if name == 'minus_end' else '+'} end ({pos:g} mm)")
+    return out, [f"lost motion at the circle's reversal points of {axis}: " + ", ".join(txt)]
+
+
+def table_holds_reversal() -> bool:
+    """True once the table format carries the position-dependent reversal block."""
+    from abbe.model.table import AxisTable
+    return "reversal_coef_um" in getattr(AxisTable, "__dataclass_fields__", {})
 
 
 def _unit(u: str, spec: EffectSpec, eng: Engine) -> str:
@@ -111,6 +240,13 @@ def _headline(spec: EffectSpec, idx: list[int], v: np.ndarray, C: np.ndarray, tq
     if spec.kind == "cyclic":
         a = float(np.hypot(v[0], v[1]))
         g = np.array([v[0], v[1]]) / max(a, 1e-300)
+        sd = math.sqrt(max(float(g @ C @ g), 0.0))
+        return a, "um", (max(0.0, a - tq * sd), a + tq * sd)
+    if spec.kind == "reversal":
+        pts, Phi = eng.reversal_design(spec.axis, idx)  # type: ignore[arg-type]
+        f = Phi @ v
+        a = float(np.sqrt(np.mean(f * f)))
+        g = Phi.T @ f / (f.size * max(a, 1e-300))
         sd = math.sqrt(max(float(g @ C @ g), 0.0))
         return a, "um", (max(0.0, a - tq * sd), a + tq * sd)
     if spec.kind == "tool_offset":
@@ -134,6 +270,8 @@ def _headline(spec: EffectSpec, idx: list[int], v: np.ndarray, C: np.ndarray, tq
 def _per_check_contrib(eng: Engine, s: Selected, v: np.ndarray) -> dict[str, float]:
     prob = eng.prob
     contrib = s.cand.cols @ v
+    if s.cand.offset is not None:
+        contrib = contrib + s.cand.offset
     out = {}
     for i, c in enumerate(prob.checks):
         sl = prob.slice(i)
@@ -183,10 +321,10 @@ def _separating_test(eng: Engine, s: Selected, v: np.ndarray, other: Cand, coef:
                      table: Table) -> str:
     """The standard test (ballbar in each plane, CW + CCW; laser line per axis) on which the
     two explanations differ most, computed through the model on hypothetical checks."""
-    from abbe.diagnose.recommend import standard_checks
+    from abbe.diagnose.recommend import faster_circles, standard_checks
     best, best_d = "a test in another plane or a laser line of the axis", 0.0
     try:
-        hyp = standard_checks(table)
+        hyp = standard_checks(table) + faster_circles(eng.prob.checks)
     except Exception:  # pragma: no cover - defensive
         return best
     for hc in hyp:

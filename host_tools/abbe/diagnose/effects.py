@@ -31,6 +31,20 @@ from abbe.model.table import AXES, OWN_TERM, AxisTable, FourierBlock, Table, bas
 
 #: Order of the servo-mismatch parameters (one per plane).
 SERVO_PLANES: tuple[str, ...] = PLANES
+#: Highest degree of the position-dependent reversal series (the table's Chebyshev limit).
+REVERSAL_MAX_DEGREE = 7
+#: Most targets a per-target reversal takes (parameters: targets - 1).
+REVERSAL_MAX_TARGETS = 41
+
+
+def reversal_series(travel_mm: tuple[float, float], coef: np.ndarray, pos_mm: np.ndarray) -> np.ndarray:
+    """Position-dependent part of the reversal (um) at axis positions (mm): Chebyshev
+    series of the normalised travel, the position clamped to the travel (end value
+    held, as for every table term). float64."""
+    lo, hi = float(travel_mm[0]), float(travel_mm[1])
+    p = np.clip(np.asarray(pos_mm, dtype=np.float64), lo, hi)
+    u = (2.0 * p - lo - hi) / (hi - lo)
+    return np.polynomial.chebyshev.chebval(u, np.asarray(coef, dtype=np.float64))
 
 
 class NotRepresentable(Exception):
@@ -53,6 +67,17 @@ class PredParams:
     drift_tau: time constant of a time-driven drift (same unit as the drift
         variable; inf = linear in time): the drift follows a first-order warm-up,
         tau (1 - exp(-t / tau)), whose initial rate is the offset / scale above.
+    servo_gain_ms2: (3,) per plane XY, YZ, ZX, q = kappa x tau_mean x (tau_b - tau_a)
+        (ms^2): the oval along the plane axes (R w^2 q cos 2 theta, the same in CW and
+        CCW, growing with the feed squared) that unequal loops give beyond the phase
+        mismatch: the common lag tau_mean rotates the mismatch oval (kappa = 1 for pure
+        delays) and first-order loops add an amplitude mismatch (kappa = 1.5). Modelled
+        as amplitudes 1 + w^2 q and 1 - w^2 q of the plane's first and second axis.
+    reversal_cheb_um: (3, REVERSAL_MAX_DEGREE + 1) per axis, the position-dependent part
+        of the reversal (um) as Chebyshev T0..TD of the normalised travel: the total
+        reversal at p is the table's backlash_um + this series, applied with the
+        backlash direction state (own term + s R(p) / 2). Python side of the planned
+        table format 1.1 term; evaluated in float64 (:func:`reversal_series`).
     """
 
     servo_lag_ms: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -60,10 +85,32 @@ class PredParams:
     drift_offset: np.ndarray = field(default_factory=lambda: np.zeros(3))
     drift_scale_ppm: np.ndarray = field(default_factory=lambda: np.zeros(3))
     drift_tau: float = math.inf
+    servo_gain_ms2: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    reversal_cheb_um: np.ndarray = field(
+        default_factory=lambda: np.zeros((3, REVERSAL_MAX_DEGREE + 1)))
+    reversal_knots_mm: list = field(default_factory=lambda: [None, None, None])
+    reversal_knot_um: list = field(default_factory=lambda: [None, None, None])
 
     def copy(self) -> "PredParams":
         return PredParams(self.servo_lag_ms.copy(), self.servo_mismatch_ms.copy(),
-                          self.drift_offset.copy(), self.drift_scale_ppm.copy(), self.drift_tau)
+                          self.drift_offset.copy(), self.drift_scale_ppm.copy(), self.drift_tau,
+                          self.servo_gain_ms2.copy(), self.reversal_cheb_um.copy(),
+                          list(self.reversal_knots_mm),
+                          [None if v is None else v.copy() for v in self.reversal_knot_um])
+
+    def has_reversal(self, j: int) -> bool:
+        k = self.reversal_knot_um[j]
+        return bool(np.any(self.reversal_cheb_um[j]) or (k is not None and np.any(k)))
+
+    def reversal_at(self, j: int, travel_mm: tuple[float, float], pos_mm: np.ndarray) -> np.ndarray:
+        """Position-dependent part of the reversal of axis j (um) at positions (mm): the
+        Chebyshev series plus the per-target values (linear between the targets, held
+        beyond the end targets)."""
+        v = reversal_series(travel_mm, self.reversal_cheb_um[j], pos_mm)
+        k = self.reversal_knot_um[j]
+        if k is not None and np.any(k):
+            v = v + np.interp(np.asarray(pos_mm, dtype=np.float64), self.reversal_knots_mm[j], k)
+        return v
 
     def drift_shape(self, v: np.ndarray) -> np.ndarray:
         """The drift variable through the warm-up shape tau (1 - exp(-v / tau))."""
@@ -73,13 +120,20 @@ class PredParams:
 
     def is_zero(self) -> bool:
         return not (np.any(self.servo_lag_ms) or np.any(self.servo_mismatch_ms)
-                    or np.any(self.drift_offset) or np.any(self.drift_scale_ppm))
+                    or np.any(self.drift_offset) or np.any(self.drift_scale_ppm)
+                    or np.any(self.servo_gain_ms2) or np.any(self.reversal_cheb_um))
 
     def plane_lags_ms(self, plane: str) -> tuple[float, float]:
         """Lags (ms) of the plane's first and second axis on a circle in ``plane``."""
         a, b = PLANE_AXES[plane]
         d = float(self.servo_mismatch_ms[SERVO_PLANES.index(plane)])
         return float(self.servo_lag_ms[a]) - 0.5 * d, float(self.servo_lag_ms[b]) + 0.5 * d
+
+    def plane_gains(self, plane: str, omega_rad_s: float) -> tuple[float, float]:
+        """Relative amplitudes (1 + h, 1 - h) of the plane's first and second axis on a
+        circle at ``omega_rad_s`` (h = w^2 q, q in ms^2; see ``servo_gain_ms2``)."""
+        h = omega_rad_s ** 2 * float(self.servo_gain_ms2[SERVO_PLANES.index(plane)]) * 1e-6
+        return 1.0 + h, 1.0 - h
 
 
 def copy_table(t: Table) -> Table:
@@ -242,12 +296,17 @@ class EffectSpec:
             ref = float(t.reference_mm[j])  # type: ignore[index]
 
             def scale_coef(ax: AxisTable) -> np.ndarray:
-                ensure_trend(ax, 1)
+                bow = float(th[1]) if th.size > 1 else 0.0
+                ensure_trend(ax, 2 if bow else 1)
                 ensure_term(ax, OWN_TERM[a])  # type: ignore[index]
                 lo, hi = ax.travel_mm
                 c = np.zeros(ax.n_basis())
                 c[0] = th[0] * 1e-3 * (0.5 * (lo + hi) - ref)
                 c[1] = th[0] * 1e-3 * 0.5 * (hi - lo)
+                if bow:
+                    # bow (1 - u^2) = bow (T0 - (T0 + T2) / 2): sag at mid-travel
+                    c[0] += 0.5 * bow
+                    c[2] -= 0.5 * bow
                 return c
             add_shape(t, a, OWN_TERM[a], scale_coef)  # type: ignore[index]
         elif k == "cyclic":
@@ -276,11 +335,24 @@ class EffectSpec:
                 c[2] = -0.5 * th[0]
                 return c
             add_shape(t, a, term, bow_coef)  # type: ignore[arg-type]
+        elif k == "reversal":
+            n = min(th.size, REVERSAL_MAX_DEGREE)
+            p.reversal_cheb_um[j, 1:1 + n] += th[:n]  # type: ignore[index]
+            pt = th[REVERSAL_MAX_DEGREE:]
+            knots = p.reversal_knots_mm[j]  # type: ignore[index]
+            if pt.size and np.any(pt) and knots is not None:
+                T = len(knots)
+                vals = np.concatenate([pt[:T - 1], [-float(np.sum(pt[:T - 1]))]])
+                old = p.reversal_knot_um[j]  # type: ignore[index]
+                p.reversal_knot_um[j] = vals if old is None else old + vals  # type: ignore[index]
         elif k == "tool_offset":
             to = np.asarray(t.tool_offset_mm, dtype=np.float64) + th[:3]
             t.tool_offset_mm = tuple(float(v) for v in to)  # type: ignore[assignment]
         elif k == "servo":
-            p.servo_mismatch_ms[SERVO_PLANES.index(self.plane)] += th[0]  # type: ignore[arg-type]
+            i = SERVO_PLANES.index(self.plane)  # type: ignore[arg-type]
+            p.servo_mismatch_ms[i] += th[0]
+            if th.size > 1:
+                p.servo_gain_ms2[i] += th[1]
         elif k == "thermal":
             if drift_on_table:
                 ax = t.axes[self.axis]  # type: ignore[index]
@@ -321,10 +393,25 @@ def catalogue() -> list[EffectSpec]:
             remedy="table backlash term (BACKLASH feature; direction state from the compensator)"))
     for a in AXES:
         out.append(EffectSpec(
+            family=f"reversal_{_axis_l(a)}", key=f"reversal_{_axis_l(a)}", kind="reversal", axis=a,
+            compensable=True, scan="degree", scan_unit="",
+            params=tuple(ParamSpec(f"r{k}", "um", 3.0, 300.0) for k in range(1, REVERSAL_MAX_DEGREE + 1))
+            + tuple(ParamSpec(f"t{k}", "um", 3.0, 300.0, optional=True)
+                    for k in range(1, REVERSAL_MAX_TARGETS)),
+            physics=f"position-dependent reversal of {a}: the lost motion changes along the travel "
+                    "(wear, pitch of the screw, preload), a smooth series over the travel on top "
+                    "of the constant backlash",
+            remedy="table reversal block (direction-dependent part of the own positioning term, "
+                   "Chebyshev over the travel, applied with the backlash direction state)"))
+    for a in AXES:
+        out.append(EffectSpec(
             family=f"scale_{_axis_l(a)}", key=f"scale_{_axis_l(a)}", kind="scale", axis=a,
-            compensable=True, params=(ParamSpec("k", "ppm", 10.0, 1000.0),),
-            physics=f"linear positioning (scale) error of {a} about the reference point",
-            remedy="added to the own positioning term's Chebyshev trend (T0, T1)"))
+            compensable=True, params=(ParamSpec("k", "ppm", 10.0, 1000.0),
+                                      ParamSpec("bow", "um", 2.0, 200.0, optional=True)),
+            physics=f"linear positioning (scale) error of {a} about the reference point, "
+                    "optionally with a bow of the positioning error (a lead error growing "
+                    "along the screw: sag at mid-travel relative to the ends)",
+            remedy="added to the own positioning term's Chebyshev trend (T0, T1; T2 for the bow)"))
     for a in AXES:
         out.append(EffectSpec(
             family=f"cyclic_{_axis_l(a)}", key=f"cyclic_{_axis_l(a)}", kind="cyclic", axis=a,
@@ -345,9 +432,13 @@ def catalogue() -> list[EffectSpec]:
     for plane in ("XY", "YZ", "ZX"):
         out.append(EffectSpec(
             family="servo_mismatch", key=f"servo_mismatch_{plane.lower()}", kind="servo",
-            plane=plane, compensable=False, params=(ParamSpec("dtau", "ms", 0.5, 30.0),),
+            plane=plane, compensable=False,
+            params=(ParamSpec("dtau", "ms", 0.5, 30.0),
+                    ParamSpec("q", "ms^2", 20.0, 3000.0, optional=True)),
             physics=f"unequal position-loop lag of {plane[1]} and {plane[0]} (tau_{plane[1]} - "
-                    f"tau_{plane[0]}): an oval on circles that flips with the direction",
+                    f"tau_{plane[0]}): an oval on circles that flips with the direction, and "
+                    "q = kappa tau_mean dtau, an oval along the axes growing with the feed "
+                    "squared (kappa = 1 pure delays, 1.5 first-order loops)",
             remedy=f"match the position-loop gains (Kv) / feed-forward of {plane[0]} and "
                    f"{plane[1]}; the table cannot compensate a dynamic error"))
     out.append(EffectSpec(
@@ -376,4 +467,6 @@ def by_key() -> dict[str, EffectSpec]:
     """Catalogue indexed by key."""
     return {e.key: e for e in catalogue()}
 #: Nonlinear scan grids.
-BACKLASH_TAKEUP_GRID_MM: tuple[float, ...] = (0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0)
+#: Take-up distances searched (mm): from a sharp step (a play of a few um taken up over
+#: its own size) to a soft, preloaded drive; refined continuously after selection.
+BACKLASH_TAKEUP_GRID_MM: tuple[float, ...] = (0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 4.0)

@@ -7,6 +7,7 @@ runs or the scatter about a smooth fit. Values um / urad.
 
 from __future__ import annotations
 
+import hashlib
 import math
 
 import numpy as np
@@ -143,13 +144,18 @@ def estimate_noise(prob: Problem, r: np.ndarray) -> tuple[np.ndarray, np.ndarray
     """Noise standard deviation and autocorrelation inflation per noise group.
 
     Groups with repeated readings (laser runs): pooled within-cell scatter of the
-    residual (same channel, target and direction in every run). Ballbar groups: the
+    residual (same channel, target and direction in every run) about the cell means and
+    an offset, slope and curvature per pass (run and direction; a drift between runs
+    moves whole passes and is not noise), with n - rank degrees of freedom; readings
+    more than REJECT_Z robust sigmas off are left out (reported as ``robust`` with
+    ``rejected_readings``): a few wild readings cannot inflate the estimate. Ballbar groups: the
     scatter of each direction's residual about a saturated smooth fit (Fourier series
     in the angle, up to min(40, n/8) harmonics); the lag-1 autocorrelation rho of that
     scatter inflates the variance by (1 + rho) / (1 - rho). Returns (sigma (G,),
     inflation (G,), report dict). ``r`` is the current residual (N,).
     """
     G = len(prob.group_names)
+    robust = np.zeros(G, dtype=int)
     pair: dict[int, float | None] = {}
     sig = np.full(G, NOISE_FLOOR)
     infl = np.ones(G)
@@ -167,12 +173,29 @@ def estimate_noise(prob: Problem, r: np.ndarray) -> tuple[np.ndarray, np.ndarray
                 means = np.bincount(inv, weights=x) / cnt
                 dev = x - means[inv]
                 d = x.size - cnt.size
+                passes = _pass_labels(c, sel)
+                n_rej = 0
+                if passes is not None:
+                    dev_p, d_p, n_rej_p = _about_cells_and_passes(inv, passes, c.x[sel], x)
+                    if d_p >= max(8, d // 4):
+                        dev, d, n_rej = dev_p, d_p, n_rej_p
+                else:
+                    rob = _robust_cell_sigma(dev, cnt[inv])
+                    if rob is not None and cnt.min() >= 3:
+                        z = np.abs(dev) / np.sqrt((cnt[inv] - 1.0) / cnt[inv])
+                        rej = z > REJECT_Z * rob
+                        if rej.any():
+                            dev, d, n_rej = dev[~rej], d - int(rej.sum()), int(rej.sum())
                 if d >= 2:
-                    sig[gg] = max(NOISE_FLOOR, math.sqrt(float(dev @ dev) / d))
+                    sd = math.sqrt(float(dev @ dev) / d)
+                    if n_rej:
+                        robust[gg] = n_rej
+                    sig[gg] = max(NOISE_FLOOR, sd)
                     dof[gg] = d
                     continue
             # Saturated smooth fit per direction (ballbar) / per run and direction.
             ss, d_tot, rho_num, rho_den = 0.0, 0, 0.0, 0.0
+            resid_parts: list[np.ndarray] = []
             labels = c.direction[sel].astype(str)
             xs = c.x[sel]
             for lab in np.unique(labels):
@@ -191,12 +214,19 @@ def estimate_noise(prob: Problem, r: np.ndarray) -> tuple[np.ndarray, np.ndarray
                 A = np.stack(cols, axis=1)
                 coef, *_ = np.linalg.lstsq(A, rv, rcond=None)
                 e = rv - A @ coef
+                resid_parts.append(e)
                 ss += float(e @ e)
                 d_tot += max(n - A.shape[1], 0)
                 rho_num += float(e[1:] @ e[:-1])
                 rho_den += float(e @ e)
             if d_tot >= 2:
-                sig[gg] = max(NOISE_FLOOR, math.sqrt(ss / d_tot))
+                ee = np.concatenate(resid_parts)
+                rob = 1.4826 * float(np.median(np.abs(ee))) * math.sqrt(x.size / d_tot)
+                rej = np.abs(ee) > REJECT_Z * rob * math.sqrt(d_tot / x.size)
+                sd = math.sqrt((ss - float(ee[rej] @ ee[rej])) / max(d_tot - int(rej.sum()), 1))
+                if rej.any():
+                    robust[gg] = int(rej.sum())
+                sig[gg] = max(NOISE_FLOOR, sd)
                 dof[gg] = d_tot
                 rho = rho_num / rho_den if rho_den > 0 else 0.0
                 rho = min(max(rho, 0.0), 0.9)
@@ -209,7 +239,84 @@ def estimate_noise(prob: Problem, r: np.ndarray) -> tuple[np.ndarray, np.ndarray
     for g, v in pair.items():
         if v is not None:
             rep[prob.group_names[g]]["pair_sigma"] = round(float(v), 5)
+    for g in np.flatnonzero(robust):
+        rep[prob.group_names[g]]["robust"] = True
+        rep[prob.group_names[g]]["rejected_readings"] = int(robust[g])
     return sig, infl, rep
+
+
+#: Readings this many robust sigmas off (Huber fit / median absolute deviation) are
+#: left out of the noise estimate: for normal noise none is (P < 1e-6 per reading), a
+#: few wild readings cannot inflate it.
+REJECT_Z = 5.0
+
+
+def _pass_labels(c: Check, sel: np.ndarray) -> np.ndarray | None:
+    """Pass (run, direction) label of each selected reading of a repeated laser check, or
+    None when there are too few runs / targets for a line per pass."""
+    runs = np.asarray(c.run)[sel]
+    dirs = np.asarray(c.direction)[sel].astype(str)
+    if np.unique(runs).size < 3:
+        return None
+    lab = np.unique(np.char.add(runs.astype(str), dirs), return_inverse=True)[1]
+    per = np.bincount(lab)
+    if per.min() < 5:
+        return None
+    return lab
+
+
+def _about_cells_and_passes(cell_inv: np.ndarray, passes: np.ndarray, pos: np.ndarray,
+                            x: np.ndarray) -> tuple[np.ndarray, int, float]:
+    """Deviations of the readings about the cell means plus an offset, a slope and a
+    curvature per pass (a drift between runs moves whole passes, it is not noise), with
+    the readings more than REJECT_Z robust sigmas off left out (robust sigma: the median
+    |residual| of a Huber fit, calibrated for this design by simulating unit normal
+    noise); returns (deviations of the readings kept, n_kept - rank, readings left out)."""
+    n = x.size
+    C = np.zeros((n, int(cell_inv.max()) + 1))
+    C[np.arange(n), cell_inv] = 1.0
+    P = np.zeros((n, int(passes.max()) + 1))
+    P[np.arange(n), passes] = 1.0
+    u = (pos - pos.mean()) / max(float(np.ptp(pos)), 1e-9)
+    A = np.hstack([C, P, P * u[:, None], P * (u * u)[:, None]])
+    key = hashlib.sha1(A.tobytes()).hexdigest()
+    if key not in _ROBUST_FACTOR:
+        rng = np.random.default_rng(2301)
+        _ROBUST_FACTOR[key] = float(np.median([np.median(np.abs(_huber(A, rng.normal(size=n))))
+                                                for _ in range(15)]))
+    er = _huber(A, x)
+    rob = float(np.median(np.abs(er))) / _ROBUST_FACTOR[key]
+    keep = np.abs(er) <= REJECT_Z * rob
+    coef, _, rank, _ = np.linalg.lstsq(A[keep], x[keep], rcond=None)
+    e = x[keep] - A[keep] @ coef
+    return e, int(keep.sum() - rank), int((~keep).sum())
+
+
+_ROBUST_FACTOR: dict[str, float] = {}
+
+
+def _huber(A: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Residuals of a Huber IRLS fit of x on A (one wild reading is not smeared over the
+    other readings of its pass, as in least squares)."""
+    coef, *_ = np.linalg.lstsq(A, x, rcond=None)
+    er = x - A @ coef
+    for _ in range(10):
+        k = 1.345 * max(1.4826 * float(np.median(np.abs(er))), 1e-12)
+        sw = np.sqrt(np.minimum(1.0, k / np.maximum(np.abs(er), 1e-300)))
+        coef, *_ = np.linalg.lstsq(A * sw[:, None], x * sw, rcond=None)
+        er = x - A @ coef
+    return er
+
+
+def _robust_cell_sigma(dev: np.ndarray, n_cell: np.ndarray) -> float | None:
+    """Noise sigma from deviations about cell means, robustly: 1.4826 x the median of
+    |dev| / sqrt((n - 1) / n) (the deviation of one of n readings from their mean has
+    variance sigma^2 (n - 1) / n); cells of one reading carry no information."""
+    m = n_cell >= 2
+    if m.sum() < 4:
+        return None
+    z = np.abs(dev[m]) / np.sqrt((n_cell[m] - 1.0) / n_cell[m])
+    return 1.4826 * float(np.median(z))
 
 
 def _pair_sigma(ang: np.ndarray, labels: np.ndarray, r: np.ndarray) -> float | None:

@@ -71,3 +71,23 @@ def standard_checks(table: Table) -> list[Check]:
         out.append(LaserCheck(f"laser_{a}", a, table.reference_mm, tg, chans, order,
                               table.reference_mm, time_s=order * 10.0))
     return out
+
+
+def faster_circles(checks: list[Check], factor: float = 3.0) -> list[Check]:
+    """The ballbar tests among ``checks`` repeated at ``factor`` x their feed (measured
+    values 0): a dynamic error (servo mismatch) grows with the feed, a geometric one
+    does not, so the same circle at a second feed separates them."""
+    out: list[Check] = []
+    seen: set[tuple] = set()
+    for c in checks:
+        if not isinstance(c, BallbarCheck):
+            continue
+        key = (c.plane, tuple(np.round(c.center_mm, 3)), round(c.radius_mm, 3))
+        if key in seen:
+            continue
+        seen.add(key)
+        f = c.feed_mm_min * factor
+        g = ballbar_geometry(c.plane, tuple(c.center_mm), name=f"{c.name} at {f:g} mm/min",
+                             radius_mm=c.radius_mm, feed_mm_min=f, step_deg=4.0)
+        out.append(ballbar_check_from(g, np.zeros(g["angle_deg"].size), tuple(c.reference_mm)))
+    return out

@@ -44,8 +44,15 @@ def format_text(res: DiagnoseResult, model_path: str | None = None) -> str:
              "fit, cross-checked on the CW/CCW pair):")
     for g, v in res.noise.items():
         pair = f", CW/CCW pair {v['pair_sigma']:.3f}" if "pair_sigma" in v else ""
+        rej = (f", {v['rejected_readings']} wild reading(s) left out"
+               if v.get("rejected_readings") else "")
         L.append(f"  {g}: {v['sigma']:.3f} {v['unit']} (dof {v['dof']}, "
-                 f"autocorrelation inflation {v['inflation']:.2f}{pair})")
+                 f"autocorrelation inflation {v['inflation']:.2f}{pair}{rej})")
+    outl = getattr(res, "outliers", [])
+    if outl:
+        L.append("outlier runs (excluded from the check; the rest is diagnosed):")
+        for o in outl:
+            L.append(f"  - {o.message()}")
     L.append("")
     if not res.effects and not res.tentative:
         L.append("RESULT: nothing is missing.")
@@ -70,7 +77,22 @@ def format_text(res: DiagnoseResult, model_path: str | None = None) -> str:
         if e.scan:
             for k, v in e.scan.items():
                 txt = "linear (no saturation)" if not math.isfinite(v) else f"{v:.4g}"
-                L.append(f"    {k} = {txt} (searched on a grid)")
+                ci = (e.scan_ci95 or {}).get(k)
+                if k == "per_target":
+                    L.append(f"    form: per target ({int(v)} targets; chosen against the smooth "
+                             "degrees by BIC)")
+                elif k == "degree" and e.id.startswith("reversal"):
+                    L.append(f"    form: smooth, degree {int(v)} over the travel (chosen by BIC "
+                             "among the degrees and the per-target form)")
+                elif ci is None:
+                    L.append(f"    {k} = {txt} (searched on a grid)")
+                else:
+                    lo = "<" if ci[0] is None else f"{ci[0]:.4g}"
+                    hi = ">" if ci[1] is None else f"{ci[1]:.4g}"
+                    L.append(f"    {k} = {txt}, 95 % interval [{lo}, {hi}] (profile; < / > = "
+                             "not resolved beyond the searched range)")
+        for line in (e.shape_notes or []):
+            L.append(f"    {line}")
         L.append(f"    physics: {e.physics}")
         ev = e.evidence
         if ev.get("residual_before") and ev.get("residual_after"):

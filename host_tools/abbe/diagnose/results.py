@@ -23,9 +23,13 @@ class DiagnoseOptions:
     bic_min: minimal BIC decrease; heldout_fraction: the held-out residual decrease must
     be at least this fraction of the in-sample decrease (and at least 2 per parameter,
     in noise units); ambiguity_r2: a candidate reproducing this fraction of a named
-    effect's signature makes it ambiguous; min_effect_um: an effect whose fitted
+    effect's signature makes it ambiguous (and a candidate whose signature the named
+    effects reproduce to this fraction must keep ``redundant_heldout_fraction`` of its
+    in-sample gain on held-out data); min_effect_um: an effect whose fitted
     contribution has a smaller RMS (um, on um-valued samples) is not named;
-    candidates: keys or families to consider (None = all); max_effects: safety stop.
+    candidates: keys or families to consider (None = all); max_effects: safety stop;
+    model_temp_c: temperature (deg C) at which the model was measured (thermal
+    reference; None = the table's, else the lowest logged temperature).
     """
 
     alpha: float = 0.01
@@ -37,6 +41,8 @@ class DiagnoseOptions:
     max_effects: int = 8
     backend: str = "auto"
     max_period_mm: float = 60.0
+    redundant_heldout_fraction: float = 0.5
+    model_temp_c: float | None = None
 
 
 @dataclass
@@ -69,11 +75,16 @@ class EffectResult:
     axis: str | None = None
     plane: str | None = None
     scan: dict[str, float] | None = None
+    #: 95 % profile interval of each scanned shape value; None = open (not resolved) end
+    scan_ci95: dict[str, list[float | None]] | None = None
     ambiguous_with: list[dict[str, Any]] = field(default_factory=list)
     #: per check: residual (nuisance removed) before / after adding this effect (plots)
     stage_before: list[np.ndarray] = field(default_factory=list, repr=False)
     stage_after: list[np.ndarray] = field(default_factory=list, repr=False)
     tentative: bool = False
+    #: derived shape statements (servo model, lost motion at each reversal, ...)
+    shape: dict[str, Any] | None = None
+    shape_notes: list[str] = field(default_factory=list)
 
     def to_json(self) -> dict[str, Any]:
         d: dict[str, Any] = {"id": self.id, "key": self.key, "value": round_to(self.value),
@@ -85,9 +96,14 @@ class EffectResult:
         d["parameters"] = self.params
         if self.scan:
             d["scan"] = {k: round_to(v) for k, v in self.scan.items()}
+        if self.scan_ci95:
+            d["scan_ci95"] = {k: [None if x is None else round_to(x) for x in v]
+                              for k, v in self.scan_ci95.items()}
         d["compensated_by"] = self.where
         d["remedy"] = self.remedy
         d["evidence"] = self.evidence
+        if self.shape:
+            d["shape"] = self.shape
         d["ambiguous_with"] = self.ambiguous_with
         d["tentative"] = self.tentative
         return d
@@ -126,6 +142,8 @@ class DiagnoseResult:
     lack_of_fit: float = 1.0
     tentative: bool = False
     heldout_split: str | None = None
+    #: excluded (or flagged) runs: abbe.diagnose.outliers.OutlierRun
+    outliers: list[Any] = field(default_factory=list)
 
     @property
     def nothing_missing(self) -> bool:
@@ -144,6 +162,7 @@ class DiagnoseResult:
             "checks": [{"name": c.name, "kind": c.kind, "n": c.n, **_jsonable(c.meta)}
                        for c in self.checks],
             "noise": self.noise,
+            "outliers": [o.to_json() for o in self.outliers],
             "not_observable": self.not_observable,
             "candidates": self.tested,
             "notes": self.notes,

@@ -83,6 +83,7 @@ def diagnose_positioning(path: Any, axis: str, model: Any = None,
     interpolating the mean deviation of each target (abbe.diagnose.checks.position_only_table).
     """
     from abbe.diagnose.checks import position_only_table, positioning_check
+    from abbe.diagnose.outliers import screen
     axis = axis.upper()
     if axis not in AXES:
         raise AbbeInputError(f"axis {axis!r}: expected X, Y or Z", field="axis")
@@ -92,6 +93,9 @@ def diagnose_positioning(path: Any, axis: str, model: Any = None,
         tg = c.targets
         ref[AXES.index(axis)] = 0.0 if tg.min() <= 0.0 <= tg.max() else float(tg[0])
         c = positioning_check(path, axis, tuple(ref), rezeroed=rezeroed)  # type: ignore[arg-type]
+        # outlier runs first: the position-only model is the mean of the runs kept
+        (c,), found = screen([c])
+        c.meta["outliers_found"] = found
         table = position_only_table(c)
     else:
         table = load_model(model)

@@ -43,6 +43,8 @@ from abbe.diagnose.checks import Check, LaserCheck, check_travel
 from abbe.diagnose.describe import describe_effects
 from abbe.diagnose.effects import PredParams, catalogue, copy_table
 from abbe.diagnose.evaluator import Evaluator
+from abbe.diagnose.shape import refine_scans
+from abbe.diagnose.outliers import OutlierRun, inconsistent_runs, screen
 from abbe.diagnose.problem import (
     Problem,
     estimate_noise,
@@ -94,14 +96,33 @@ def _eval_candidate(eng: Engine, cand: Cand, sel: list[Selected], W: np.ndarray,
     dbic = -dr / s2 + k_eff * math.log(N)
     # fitted contribution (um rows)
     contrib = cand.cols @ coef if k else np.zeros(N)
+    if cand.offset is not None:
+        contrib = contrib + cand.offset   # the change the grid value alone causes (a take-up)
     um = prob.um_rows
     contrib_rms = float(np.sqrt(np.mean(contrib[um] ** 2))) if np.any(um) else 0.0
     ho = _heldout(eng, sel, cand, W, s2)
+    # redundancy: the share of this candidate's fitted signature that the effects already
+    # named reproduce (nuisance projected out of both)
+    redundancy, red_with = 0.0, None
+    if sel and k:
+        Qn = qr_basis(prob.nuis * W[:, None])
+        sig_n = project_out(Qn, (S @ coef)[:, None])[:, 0]
+        sig_b = Z @ coef
+        nn = float(sig_n @ sig_n)
+        if nn > 0:
+            redundancy = max(0.0, 1.0 - float(sig_b @ sig_b) / nn)
+            best = -1.0
+            for o in sel:   # the named effect that reproduces most of it on its own
+                Zo = project_out(Qn, o.cand.cols * W[:, None])
+                _, d_o = lstsq_rss(Zo, sig_n)
+                if d_o / nn > best:
+                    best, red_with = d_o / nn, o.cand.spec.key
     implausible = [cand.spec.params[i].name for i, v in zip(cand.param_idx, coef)
                    if abs(v) > cand.spec.params[i].limit]
     return {"ok": True, "implausible": implausible, "F": F, "p": p, "p_eff": p_eff, "dbic": dbic, "drss": dr / s2,
             "k": k, "k_eff": k_eff, "coef": coef, "contrib_rms_um": contrib_rms,
-            "heldout": ho, "s2": s2, "alpha_step": eng.opts.alpha / max(n_tested, 1)}
+            "heldout": ho, "s2": s2, "alpha_step": eng.opts.alpha / max(n_tested, 1),
+            "redundancy": redundancy, "redundant_with": red_with}
 def _heldout(eng: Engine, sel: list[Selected], cand: Cand | None, W: np.ndarray,
              s2: float) -> dict[str, Any]:
     """Held-out RSS (whitened, / s2) without and with ``cand``: fit the effects (and the
@@ -160,16 +181,30 @@ def _qualifies(st: dict[str, Any], opts: DiagnoseOptions) -> tuple[bool, str]:
     ho = st["heldout"]
     if ho["split"] is None:
         return False, "cannot be validated on held-out data (not identifiable in a fold)"
-    need = max(2.0 * st["k_eff"], opts.heldout_fraction * st["drss"])
+    frac = opts.heldout_fraction
+    redundant = st.get("redundancy", 0.0) >= opts.ambiguity_r2
+    if redundant:
+        # mostly reproduced by an effect already named: the held-out data must prefer the pair
+        frac = opts.redundant_heldout_fraction
+    need = max(2.0 * st["k_eff"], frac * st["drss"])
     if not ho["gain"] >= need:
+        if redundant:
+            return False, (f"{100 * st['redundancy']:.0f} % of its signature is reproduced by "
+                           f"{st['redundant_with']} and the held-out data do not prefer the pair "
+                           f"(gain {ho['gain']:.1f} < {need:.1f} noise units)")
         return False, (f"does not hold on held-out data (gain {ho['gain']:.1f} < {need:.1f} "
                        "noise units)")
     if st["contrib_rms_um"] < opts.min_effect_um and st["contrib_rms_um"] > 0:
         return False, f"too small to matter (RMS {st['contrib_rms_um']:.3f} um)"
     return True, ""
 def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None = None,
-             pred_params: PredParams | None = None, evaluator: Evaluator | None = None) -> DiagnoseResult:
+             pred_params: PredParams | None = None, evaluator: Evaluator | None = None,
+             _outliers: list[OutlierRun] | None = None) -> DiagnoseResult:
     """Diagnose what ``table`` is missing to reproduce ``checks``; see the module doc.
+
+    Outlier runs of repeated laser / positioning checks are found first (gross readings,
+    model free) and, after the diagnosis, runs inconsistent with the others; they are
+    excluded, named in ``DiagnoseResult.outliers`` and the rest is diagnosed.
 
     Returns a :class:`DiagnoseResult` with the named effects, the gap before/after
     (also on held-out data) and the updated table. Raises AbbeInputError for checks
@@ -180,8 +215,14 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
         raise AbbeInputError("no check measurement given (--ballbar NAME / --laser AXIS / "
                              "--iso230-2 FILE)", field="checks")
     check_travel(checks, table)
+    outl = list(_outliers or [])
+    for c in checks:
+        outl += [o for o in c.meta.pop("outliers_found", []) if o not in outl]
+    checks, found = screen(checks)
+    outl += found
     eng = Engine(table, checks, opts, pred_params, evaluator)
     prob = eng.prob
+    by_key_spec = {s.key: s for s in catalogue()}
     specs = [s for s in catalogue() if opts.candidates is None
              or s.key in opts.candidates or s.family in opts.candidates]
     for c in checks:
@@ -189,7 +230,8 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
             raise AbbeInputError(f"{c.name}: {c.n_runs} run: the noise cannot be estimated "
                                  "without repeated runs (ISO 230-2: 5 bidirectional runs; at "
                                  "least 2 needed)", file=c.source, field="run")
-    max_k = max(len(s.params) for s in specs) if specs else 1
+    # parameters of the largest candidate (a reversal's degree adapts to the targets: 1)
+    max_k = max((1 if s.kind == "reversal" else len(s.params)) for s in specs) if specs else 1
     n_nuis = prob.nuis.shape[1]
     need = max(30, 3 * (n_nuis + 2 * max_k + 2))
     if prob.N < need:
@@ -268,10 +310,27 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
         dof_noise = float(sum(v["dof"] for v in noise_rep.values())) or float(prob.N)
 
     # Backward check: every selected effect must still be significant with the others.
+    # Shape parameters (take-up, period): refined continuously, with 95 % intervals, before
+    # the backward passes (an effect may only have absorbed a shape on the grid) and again
+    # after them.
+    refine_scans(eng, selected, W)
     selected = _backward(eng, selected, W, dof_noise, notes)
+    selected = _heldout_removal(eng, selected, W, notes)
+    refine_scans(eng, selected, W)
 
-    # Final fit through the model (Gauss-Newton), values, intervals.
+    # Final fit through the model (Gauss-Newton), values, intervals; an effect whose final
+    # contribution is below the size threshold is dropped and the rest refitted.
     new_table, new_pp, values, cov, s2_final = _final_fit(eng, selected, W)
+    while len(selected) > 1:
+        small = [(i, _final_contribution(prob, s, v)) for i, (s, v) in enumerate(zip(selected, values))]
+        small = [(i, c) for i, c in small if c < opts.min_effect_um]
+        if not small:
+            break
+        i, c = min(small, key=lambda x: x[1])
+        notes.append(f"{selected[i].cand.spec.key} dropped: its contribution in the final fit "
+                     f"is {c:.3f} um RMS (< {opts.min_effect_um:g} um) once the others are in")
+        selected = selected[:i] + selected[i + 1:]
+        new_table, new_pp, values, cov, s2_final = _final_fit(eng, selected, W)
     y_after = prob.predict(eng.ev, new_table, new_pp)
     r_after = prob.y - y_after
     clean_after = remove_nuisance(prob, r_after)
@@ -281,6 +340,18 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
     ho_before, ho_after, ho_split = _heldout_gap(eng, selected, W, clean0)
 
     effects = describe_effects(eng, selected, values, cov, s2_final, W, pool, new_table, new_pp)
+    # a candidate the named effects mostly reproduce, not preferred as a pair on held-out
+    # data: reported as the alternative explanation of the effect that reproduces it
+    by_key_e = {e.key: e for e in effects}
+    for k, v in tested.items():
+        e = by_key_e.get(v.get("redundant_with") or "")
+        if e is not None and not v.get("selected") and v.get("significant") \
+                and v.get("redundancy", 0.0) >= opts.ambiguity_r2 \
+                and k not in {a["key"] for a in e.ambiguous_with}:
+            e.ambiguous_with.append({"key": k, "id": by_key_spec[k].family,
+                                     "r2": v["redundancy"], "reverse": True,
+                                     "separating_test": "not preferred as a pair on held-out "
+                                     f"data: {k} alone is mostly reproduced by {e.key}"})
     lof = _lack_of_fit(eng, r_after)
     tentative = lof > LACK_OF_FIT_LIMIT
     if not effects and not tentative:
@@ -302,7 +373,24 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
                "or something outside the catalogue is present.")))
         for e in effects:
             e.tentative = True
+    if evaluator is None:
+        evaluator = eng.ev
+    w_resid = remove_nuisance(prob, r_after) * _weights(prob, *estimate_noise(prob, clean_after)[:2])
+    incons: list[OutlierRun] = []
+    for i, c in enumerate(checks):
+        if isinstance(c, LaserCheck):
+            incons += inconsistent_runs(c, w_resid[prob.slice(i)])
+    drop = {(o.check, o.run) for o in incons if o.excluded}
+    if drop:
+        new_checks = [c.without_runs({r for (n, r) in drop if n == c.name})
+                      if isinstance(c, LaserCheck) and any(n == c.name for n, _ in drop) else c
+                      for c in checks]
+        return diagnose(table, new_checks, opts, pred_params, evaluator, outl + incons)
+    outl += incons
+    for o in outl:
+        notes.insert(0, ("OUTLIER: " if o.excluded else "OUTLIER (kept): ") + o.message())
     return DiagnoseResult(
+        outliers=outl,
         effects=effects,
         gap={"before": gap_before, "after": gap_after, "held_out_before": ho_before,
              "held_out_after": ho_after},
@@ -322,6 +410,9 @@ def _summ(st: dict[str, Any], c: Cand) -> dict[str, Any]:
                   "contribution_rms_um": round(st["contrib_rms_um"], 4)})
         if c.scan_value is not None:
             d["scan"] = {c.spec.scan or "scan": round(float(c.scan_value), 4)}
+        if st.get("redundant_with"):
+            d["redundancy"] = round(float(st["redundancy"]), 4)
+            d["redundant_with"] = st["redundant_with"]
     return d
 def _linear_fit(prob: Problem, r: np.ndarray, sel: list[Selected], W: np.ndarray) -> list[np.ndarray]:
     """Coefficients of the selected effects (with nuisance) on residual r, whitened LS."""
@@ -362,6 +453,39 @@ def _backward(eng: Engine, sel: list[Selected], W: np.ndarray, dof_noise: float,
                 changed = True
                 break
     return sel
+def _final_contribution(prob: Problem, s: Selected, v: np.ndarray) -> float:
+    """RMS (um, um-valued samples) of a named effect's part of the final prediction."""
+    c = s.cand.cols @ v
+    if s.cand.offset is not None:
+        c = c + s.cand.offset
+    um = prob.um_rows
+    return float(np.sqrt(np.mean(c[um] ** 2))) if np.any(um) else math.inf
+
+
+def _heldout_removal(eng: Engine, sel: list[Selected], W: np.ndarray,
+                     notes: list[str]) -> list[Selected]:
+    """Drop, one at a time, a named effect whose removal leaves the held-out residual
+    unchanged (held-out RSS gain of keeping it < 2 per parameter, noise units)."""
+    while len(sel) > 1:
+        weakest, w_gain = None, math.inf
+        for i, s in enumerate(sel):
+            others = sel[:i] + sel[i + 1:]
+            ho = _heldout(eng, others, s.cand, W, 1.0)
+            if ho["split"] is None:
+                continue
+            need = 2.0 * s.stats.get("k_eff", s.cand.cols.shape[1])
+            if ho["gain"] < need and ho["gain"] - need < w_gain:
+                weakest, w_gain = i, ho["gain"] - need
+        if weakest is None:
+            break
+        s = sel[weakest]
+        notes.append(f"{s.cand.spec.key} dropped: removing it leaves the held-out residual "
+                     "unchanged once " + ", ".join(o.cand.spec.key for o in sel if o is not s)
+                     + " are in the model")
+        sel = sel[:weakest] + sel[weakest + 1:]
+    return sel
+
+
 def _final_fit(eng: Engine, sel: list[Selected], W: np.ndarray
                ) -> tuple[Table, PredParams, list[np.ndarray], np.ndarray, float]:
     """Gauss-Newton through the model: values of the selected parameters, covariance."""
@@ -376,7 +500,7 @@ def _final_fit(eng: Engine, sel: list[Selected], W: np.ndarray
         # re-linearise (columns at the current point)
         cols = []
         for s, v in zip(sel, values):
-            c = eng.sensitivity(s.cand.spec, s.cand.scan_value, t, p, y)
+            c = eng.sensitivity(s.cand.spec, s.cand.scan_value, t, p, y, s.cand.param_idx)
             cols.append(c[:, s.cand.param_idx])
         X = np.hstack([prob.nuis] + cols) * W[:, None]
         d, *_ = np.linalg.lstsq(X, r * W, rcond=None)

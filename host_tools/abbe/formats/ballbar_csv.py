@@ -24,6 +24,8 @@ from abbe.formats.text import read_text
 from abbe.model.geometry import DIRECTIONS
 
 COLUMNS: tuple[str, ...] = ("direction", "angle_deg", "radial_um", "time_s")
+#: Optional columns: the machine temperature (deg C) logged with each sample.
+OPTIONAL_COLUMNS: tuple[str, ...] = ("temp_c",)
 
 #: A radial deviation larger than this (um) is not a ballbar reading in um.
 MAX_RADIAL_UM = 2000.0
@@ -38,7 +40,8 @@ MIN_GAP_DEG = 2.0
 class BallbarTrace:
     """A ballbar trace: per sample direction ('ccw'/'cw'), angle_deg, radial_um, time_s.
 
-    line_no: source line of each sample (None for simulated traces).
+    line_no: source line of each sample (None for simulated traces); temp_c: the
+    machine temperature (deg C) of each sample, or None.
     """
 
     direction: np.ndarray
@@ -47,6 +50,7 @@ class BallbarTrace:
     time_s: np.ndarray
     file: str | None = None
     line_no: np.ndarray | None = None
+    temp_c: np.ndarray | None = None
 
     def data_mask(self, direction: str | None = None) -> np.ndarray:
         """Samples inside [0, 360) (not feed arcs), optionally of one direction."""
@@ -56,11 +60,14 @@ class BallbarTrace:
         return m
 
     def to_csv(self) -> str:
-        """CSV text: header ``direction,angle_deg,radial_um,time_s``."""
+        """CSV text: header ``direction,angle_deg,radial_um,time_s`` (``,temp_c`` with a
+        temperature)."""
         out = io.StringIO()
-        out.write(",".join(COLUMNS) + "\n")
-        for d, a, r, t in zip(self.direction, self.angle_deg, self.radial_um, self.time_s):
-            out.write(f"{d},{a:.3f},{r:.4f},{t:.3f}\n")
+        out.write(",".join(COLUMNS + (OPTIONAL_COLUMNS if self.temp_c is not None else ())) + "\n")
+        for i, (d, a, r, t) in enumerate(zip(self.direction, self.angle_deg, self.radial_um,
+                                             self.time_s)):
+            tail = "" if self.temp_c is None else f",{self.temp_c[i]:.3f}"
+            out.write(f"{d},{a:.3f},{r:.4f},{t:.3f}{tail}\n")
         return out.getvalue()
 
 
@@ -99,7 +106,8 @@ def read_ballbar_csv(path: str | Path, columns: Columns | None = None) -> Ballba
                         raise AbbeInputError(f"column {h!r} is in other units: expected {hint!r} "
                                              "(angles deg, deviations um, time s)", file=f,
                                              line=header.line, field=h)
-        return plan_columns(header, BALLBAR_ROLES, columns, file=f, need=tuple(BALLBAR_ROLES),
+        return plan_columns(header, BALLBAR_ROLES, columns, file=f,
+                            need=tuple(r for r, v in BALLBAR_ROLES.items() if v.required),
                             strict_names=True, default_dirs=DIRECTIONS)
 
     header, vals, lines = read_columns(tf, dialect, what="ballbar CSV",
@@ -109,7 +117,7 @@ def read_ballbar_csv(path: str | Path, columns: Columns | None = None) -> Ballba
     names = {r: (columns.fields[r].column if columns is not None and r in columns.fields
                  else BALLBAR_ROLES[r].default) for r in BALLBAR_ROLES}
     tr = BallbarTrace(direction=dirs, angle_deg=angle, radial_um=vals["radial"],
-                      time_s=vals["time"], file=f, line_no=lines)
+                      time_s=vals["time"], file=f, line_no=lines, temp_c=vals.get("temp"))
     _validate_trace(tr, names)
     return tr
 

@@ -68,6 +68,7 @@ LASER_ROLES: dict[str, Role] = {
 BALLBAR_ROLES: dict[str, Role] = {
     "direction": Role("direction", "direction"), "angle": Role("angle_deg", "angle"),
     "radial": Role("radial_um", "linear"), "time": Role("time_s", "time"),
+    "temp": Role("temp_c", "temperature", False),
 }
 _DIALECT_KEYS = ("delimiter", "decimal", "skip_lines", "units_row", "comment", "encoding",
                  "direction_values")

@@ -78,7 +78,8 @@ def simulate_campaign(spec: SimSpec) -> dict[str, bytes]:
                                   "spacing_mm": plan.spacing_mm, "map": dict(plan.map)}
         t += run.duration_s + spec.gap_s
     for n, test in spec.ballbar.items():
-        tr = simulate_ballbar(vm, test, t, spec.noise.ballbar_um, rng_for(spec.seed, "ballbar", n))
+        tr = simulate_ballbar(vm, test, t, spec.noise.ballbar_um, rng_for(spec.seed, "ballbar", n),
+                              temp_sensor_k=spec.noise.temp_sensor_k)
         files[test.file] = tr.to_csv().encode()
         d = circle_duration_s(test)
         schedule[f"ballbar.{n}"] = {"start_s": round(t, 6), "end_s": round(t + d, 6),

@@ -233,7 +233,10 @@ def _actual_positions(vm: VirtualMachine, tl: CircleTimeline, t: np.ndarray,
 
 def simulate_circle(vm: VirtualMachine, test: CircleTest, start_time_s: float,
                      noise_um: float, rng: np.random.Generator,
-                     corr: np.ndarray | None = None, cycle_hz: float = 1000.0) -> BallbarTrace:
+                     corr: np.ndarray | None = None, cycle_hz: float = 1000.0,
+                     temp_sensor_k: float = 0.0) -> BallbarTrace:
+    """Ballbar trace of ``test`` (see module doc); with thermal drift on, the machine
+    temperature of each sample (+ sensor noise, drawn after the radial noise) as temp_c."""
     tl = CircleTimeline.of(test)
     dirs, ang, tm = tl.samples()
     e = vm.truth.effects
@@ -260,15 +263,19 @@ def simulate_circle(vm: VirtualMachine, test: CircleTest, start_time_s: float,
     tool = p + err * 1e-3
     radial = (np.linalg.norm(tool - centre, axis=1) - test.radius_mm) * 1e3
     radial = radial + rng.normal(0.0, 1.0, radial.size) * noise_um
-    return BallbarTrace(direction=dirs, angle_deg=ang, radial_um=radial, time_s=tm)
+    temp = None
+    if e.thermal_on():
+        temp = vm.truth.temperature_c(start_time_s + tm) + rng.normal(0.0, 1.0, tm.size) * temp_sensor_k
+    return BallbarTrace(direction=dirs, angle_deg=ang, radial_um=radial, time_s=tm, temp_c=temp)
 
 
 def simulate_ballbar(vm: VirtualMachine, test: CircleTest, start_time_s: float = 0.0,
-                     noise_um: float = 0.0, rng: np.random.Generator | None = None) -> BallbarTrace:
+                     noise_um: float = 0.0, rng: np.random.Generator | None = None,
+                     temp_sensor_k: float = 0.0) -> BallbarTrace:
     """Simulated ballbar trace (CCW then CW, feed arcs included) of ``test``, starting
-    at campaign time ``start_time_s``."""
+    at campaign time ``start_time_s`` (with thermal drift on: temp_c per sample)."""
     rng = rng if rng is not None else np.random.default_rng(0)
-    return simulate_circle(vm, test, start_time_s, noise_um, rng)
+    return simulate_circle(vm, test, start_time_s, noise_um, rng, temp_sensor_k=temp_sensor_k)
 
 
 def circle_duration_s(test: CircleTest) -> float:

@@ -81,6 +81,8 @@ class Effects:
     backlash_um: lost motion b per axis (um, >= 0); backlash_takeup_mm: distance
         over which a reversal is taken up (mm, > 0), the direction state ramps
         linearly from -1 to +1 over it (as the library's compensator does).
+        backlash_variation_um: the lost motion varies along the travel,
+        b(p) = b + c1 T1(u) + c2 T2(u) + c3 T3(u) (u the normalised travel).
     cyclic_um, cyclic_period_mm, cyclic_phase_deg: screw (cyclic) error of each
         axis' own positioning term, amplitude um, period mm, phase deg (phase 0 at
         travel min).
@@ -99,6 +101,9 @@ class Effects:
     squareness_urad: tuple[float, float, float] = (0.0, 0.0, 0.0)
     backlash_um: tuple[float, float, float] = (0.0, 0.0, 0.0)
     backlash_takeup_mm: tuple[float, float, float] = (0.1, 0.1, 0.1)
+    #: position-dependent lost motion: Chebyshev T1, T2, T3 coefficients (um) of the lost
+    #: motion over each axis' travel, per axis (X1, X2, X3, Y1, ..., Z3)
+    backlash_variation_um: tuple[float, ...] = (0.0,) * 9
     cyclic_um: tuple[float, float, float] = (0.0, 0.0, 0.0)
     cyclic_period_mm: tuple[float, float, float] = (10.0, 10.0, 10.0)
     cyclic_phase_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -120,6 +125,16 @@ class Effects:
 
     def backlash_on(self) -> bool:
         return any(v != 0 for v in self.backlash_um)
+
+    def lost_motion_um(self, j: int, pos_mm: np.ndarray, travel_mm: tuple[float, float]) -> np.ndarray:
+        """Lost motion (um) of axis j at axis positions (mm), with its variation."""
+        c = np.asarray(self.backlash_variation_um[3 * j:3 * j + 3], dtype=np.float64)
+        b = float(self.backlash_um[j])
+        if not np.any(c):
+            return np.full(np.shape(pos_mm), b)
+        lo, hi = travel_mm
+        u = (2.0 * np.clip(pos_mm, lo, hi) - lo - hi) / (hi - lo)
+        return b + np.polynomial.chebyshev.chebval(u, np.concatenate([[0.0], c]))
 
     def reversal_um(self) -> tuple[float, float, float]:
         """ISO 230-2 reversal B of each own positioning term, um (-sigma_j b_j)."""

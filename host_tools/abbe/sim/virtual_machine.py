@@ -82,7 +82,9 @@ class VirtualMachine:
         sig = np.array([OWN_SIGN[a] for a in AXES], dtype=np.float64)
         if dir_state is not None and e.backlash_on():
             s = np.asarray(dir_state, dtype=np.float64).reshape(-1, 3)
-            out += -sig * s * np.asarray(e.backlash_um) / 2.0
+            b = np.stack([e.lost_motion_um(j, pos[:, j], self.truth.axes[a].travel_mm)
+                          for j, a in enumerate(AXES)], axis=1)
+            out += -sig * s * b / 2.0
         rel = pos - self.ref
         if time_s is not None:
             t = np.broadcast_to(np.asarray(time_s, dtype=np.float64).reshape(-1), (n,))

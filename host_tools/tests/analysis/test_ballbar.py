@@ -373,3 +373,29 @@ def test_compensation_with_the_c_compensator_if_built():
     print(f"C compensator in the loop: G {g0:.3f} -> {g1:.3f} um")
     assert g0 > 3.0
     assert g1 < 0.15 * g0
+
+
+def test_temp_c_column_is_read_and_checked(tmp_path):
+    """Optional temp_c (deg C per sample): read when present; written by the simulator
+    with thermal drift on; a bad or non-finite cell is refused with line and column."""
+    tr = make_truth(thermal_rise_k=2.0, thermal_time_constant_s=600.0,
+                    thermal_expansion_ppm_per_k=(5.0, 5.0, 5.0))
+    trace = simulate_ballbar(VirtualMachine(tr), paper_circle(sample_deg=2.0), start_time_s=300.0,
+                             temp_sensor_k=0.0)
+    assert trace.temp_c is not None and np.all(np.diff(trace.temp_c) >= 0)
+    p = tmp_path / "bb.csv"
+    p.write_text(trace.to_csv())
+    assert p.read_text().splitlines()[0] == "direction,angle_deg,radial_um,time_s,temp_c"
+    back = read_ballbar_csv(p)
+    assert np.allclose(back.temp_c, trace.temp_c, atol=1e-3)
+    lines = p.read_text().splitlines()
+    a = lines[7].split(",")
+    a[4] = "nan"
+    lines[7] = ",".join(a)
+    p.write_text("\n".join(lines) + "\n")
+    with pytest.raises(AbbeInputError) as ei:
+        read_ballbar_csv(p)
+    assert (ei.value.line, ei.value.field) == (8, "temp_c")
+    # without thermal drift: no temperature column
+    plain = simulate_ballbar(VirtualMachine(make_truth()), paper_circle(sample_deg=2.0))
+    assert plain.temp_c is None and "temp_c" not in plain.to_csv().splitlines()[0]

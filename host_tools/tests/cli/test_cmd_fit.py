@@ -277,3 +277,35 @@ def test_late_failure_leaves_no_output(tmp_path: Path, capsys) -> None:
     assert fit(syn.machine, out, "--no-clib-check") == 2
     assert f"{syn.laser['Y']}:" in capsys.readouterr().err
     assert not out.exists() and not list(tmp_path.glob(".o.tmp-*"))
+
+
+def test_thermal_terms_fitted_from_temp_c(tmp_path: Path) -> None:
+    """Laser lines with temp_c: the fit models the own positioning term's offset and
+    expansion per kelvin (the table's THERMAL feature), the other terms hold at T_ref."""
+    from abbe.model.table import FEATURE_THERMAL
+    spec = (Path(__file__).resolve().parents[3] / "examples" / "vmc500" / "spec.toml").read_text()
+    spec = (spec.replace("rise_k = 1.2", "rise_k = 4.0")
+            .replace("time_constant_s = 7200.0", "time_constant_s = 2400.0")
+            .replace("expansion_ppm_per_k = [2.0, 2.0, 3.0]", "expansion_ppm_per_k = [8.0, 6.0, 10.0]")
+            .replace("offset_um_per_k = [0.5, -0.5, 1.0]", "offset_um_per_k = [2.0, -1.5, 1.0]"))
+    (tmp_path / "spec.toml").write_text(spec)
+    assert main(["simulate", str(tmp_path / "spec.toml"), "-o", str(tmp_path / "sim")]) == 0
+    out = tmp_path / "out"
+    assert fit(tmp_path / "sim" / "machine.toml", out, "--no-clib-check", "--no-report", "-q") == 0
+    d = json.loads((out / "model.json").read_text())
+    t = read_blob((out / "model.bin").read_bytes())
+    assert t.features() & FEATURE_THERMAL
+    truth = {"X": (2.0, 8.0), "Y": (-1.5, 6.0), "Z": (1.0, 10.0)}
+    fitted = 0
+    for a, (o, al) in truth.items():
+        th = d["axes"][a]["thermal"]
+        if th["temp_range_k"] < 0.5:      # measured once warm (the Z line comes last)
+            continue
+        fitted += 1
+        assert th["in_table"], (a, th)
+        assert abs(th["offset_um_per_k"] - o) < 4 * th["se_offset_um_per_k"] + 0.1 * abs(o), (a, th)
+        assert abs(th["expansion_ppm_per_k"] - al) < 4 * th["se_expansion_ppm_per_k"] + 0.1 * al, (a, th)
+        ax = t.axes[a]
+        assert ax.thermal_offset_um_per_k == pytest.approx(th["offset_um_per_k"], abs=1e-3)
+        assert ax.thermal_tref_c == pytest.approx(th["tref_c"], abs=1e-3)
+    assert fitted >= 2

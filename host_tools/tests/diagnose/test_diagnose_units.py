@@ -199,3 +199,58 @@ def test_model_for_another_machine_is_tentative_not_confident() -> None:
     assert all(e.tentative for e in res.effects)
     assert any("LACK OF FIT" in n for n in res.notes)
     assert res.to_json()["lack_of_fit"]["tentative"] is True
+
+
+def test_reversal_adds_s_r_over_2_on_the_own_term() -> None:
+    """The position-dependent reversal acts like the constant backlash: the own term gets
+    + s R(p) / 2 (s = +1 for the + approach), R a Chebyshev series over the travel or
+    per-target values (sum zero, linear between the targets)."""
+    from abbe.diagnose.checks import LaserChannel, LaserCheck
+    from abbe.diagnose.effects import REVERSAL_MAX_DEGREE
+    table = paper_table()
+    tg = np.linspace(20.0, 480.0, 7)
+    order = np.arange(3 * 2 * tg.size).reshape(3, 2, tg.size)
+    c = LaserCheck("laser_X", "X", REFERENCE_MM, tg, [LaserChannel("linear", "dx", 1, np.zeros((3, 2, tg.size)))],
+                   order, REFERENCE_MM)
+    eng = Engine(table, [c], DiagnoseOptions(backend=BACKEND))
+    spec = by_key()["reversal_x"]
+    assert [k is not None for k in eng.pp.reversal_knots_mm] == [True, False, False]
+    th = np.zeros(len(spec.params))
+    th[0] = 4.0                                   # r1: 4 um x T1(u)
+    th[REVERSAL_MAX_DEGREE] = 2.0                 # t1: +2 um at the first target ...
+    t2, p2 = spec.apply(table, eng.pp, th)
+    d = (c.predict(eng.ev, t2, p2) - eng.y0).reshape(3, 2, tg.size)
+    lo, hi = table.axes["X"].travel_mm
+    u = (2 * tg - lo - hi) / (hi - lo)
+    per = np.zeros(tg.size)
+    per[0], per[-1] = 2.0, -2.0                   # ... and -2 um at the last (sum zero)
+    R = 4.0 * u + per
+    assert np.allclose(d[:, 0], R / 2, atol=2e-3) and np.allclose(d[:, 1], -R / 2, atol=2e-3)
+    assert table.axes["X"].backlash_um == t2.axes["X"].backlash_um   # the table is untouched
+
+
+def test_reversal_needs_bidirectional_runs_of_the_axis(table) -> None:
+    c = _ballbar()
+    eng = Engine(table, [c], DiagnoseOptions(backend=BACKEND))
+    from abbe.diagnose.problem import qr_basis
+    W = np.ones(eng.prob.N)
+    cands = eng.build_candidates(table, eng.pp, eng.y0, W, qr_basis(eng.prob.nuis),
+                                 [by_key()["reversal_x"]])
+    assert not cands[0].observable and "bidirectional" in cands[0].why_not
+
+
+def test_thermal_reference_is_the_models_temperature(table) -> None:
+    """T_ref: the table's own, else the user's, else the lowest logged temperature (not
+    the temperature of whichever check happens to be listed first)."""
+    from abbe.diagnose.candidates import reference_temperature
+    g = ballbar_geometry("XY", CENTER_MM)
+    warm = ballbar_check_from(g, np.zeros(g["angle_deg"].size), REFERENCE_MM)
+    warm.all_temp = np.full(g["angle_deg"].size, 24.0)
+    cold = _ballbar()
+    cold.all_temp = np.linspace(20.5, 21.0, cold.all_ang.size)
+    assert reference_temperature(table, [warm, cold], None) == pytest.approx(20.5)
+    assert reference_temperature(table, [warm, cold], 19.0) == pytest.approx(19.0)
+    t = copy_table(table)
+    t.axes["Y"].thermal_offset_um_per_k = 0.5
+    t.axes["Y"].thermal_tref_c = 22.25
+    assert reference_temperature(t, [warm, cold], 19.0) == pytest.approx(22.25)

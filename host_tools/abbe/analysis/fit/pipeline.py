@@ -34,8 +34,10 @@ from abbe.analysis.fit.options import COMPARED, FitOptions
 from abbe.analysis.fit.prep import (
     SQUARENESS_NOTE,
     RunStats,
+    assess_reversal,
     average_runs,
     bin_targets,
+    estimate_thermal,
     detrend_line,
     relative_to_reference,
 )
@@ -113,6 +115,7 @@ class AxisResult:
     iso: Iso230Result | None
     table: AxisTable
     n_measured: int = 0  # targets in the file (targets_mm holds the bins of a dense line)
+    thermal: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass
@@ -195,6 +198,16 @@ def fit_line(machine: Machine, axis: str, opts: FitOptions) -> AxisResult:
     present = [t for t in TERMS if t in terms]
 
     own = OWN_TERM[axis]
+    # Thermal (with temp_c): offset and expansion per kelvin of the own positioning term,
+    # from the run-to-run variation; the readings are corrected to the line's first
+    # temperature (the table's T_ref), so every fitted term holds at T_ref.
+    thermal: dict[str, Any] = {"significant": False, "note": "no temp_c column"}
+    if own in terms and data.temp_c is not None:
+        first = np.unravel_index(int(np.argmin(data.line_no)), data.line_no.shape)
+        thermal = estimate_thermal(terms[own], data.temp_c, p, ref, float(data.temp_c[first]),
+                                   backlash_sigma(machine))
+        terms[own] = terms[own] - thermal.pop("correction_um")
+        thermal["in_table"] = bool(thermal["significant"])
     iso = None
     if own in terms and data.n_runs >= 2:
         iso = evaluate(PositioningData(str(data.file), p, terms[own][:, 0, :],
@@ -249,10 +262,22 @@ def fit_line(machine: Machine, axis: str, opts: FitOptions) -> AxisResult:
         if bl["significant"]:
             backlash_um, takeup = bl["mean_reversal_um"], spec.backlash_takeup_mm
         bl["in_table"] = bool(bl["significant"])
+        bl["reversal"] = assess_reversal(average_runs(terms[own]), p, tab.travel_mm,
+                                         backlash_sigma(machine))
+        bl["reversal"]["in_table"] = False
+        if bl["reversal"]["position_dependent"]:
+            bl["reversal"]["note"] = ("the table cannot hold a position-dependent reversal yet "
+                                      "(table format 1.1 pending): only the mean reversal is "
+                                      "in the table")
     axt = AxisTable(travel_mm=tab.travel_mm, trend_degree=tab.trend_degree, blocks=tab.blocks,
                     coef=coefs, backlash_um=backlash_um, backlash_takeup_mm=takeup)
+    if thermal.get("in_table"):
+        axt.thermal_offset_um_per_k = thermal["offset_um_per_k"]
+        axt.thermal_expansion_ppm_per_k = thermal["expansion_ppm_per_k"]
+        axt.thermal_tref_c = thermal["tref_c"]
     return AxisResult(axis=axis, line=line, data=data, targets_mm=p, fit=af, terms=results,
-                      backlash=bl, iso=iso, table=axt, n_measured=n_measured)
+                      backlash=bl, iso=iso, table=axt, n_measured=n_measured,
+                      thermal=thermal)
 
 
 def fit_machine(machine: Machine, opts: FitOptions) -> FitResult:
@@ -377,6 +402,7 @@ def model_json(res: FitResult) -> dict[str, Any]:
             "selection_score": _r(ar.fit.model.score),
             "warnings": axis_warnings(ar, res.options),
             "backlash": {k: (_r(v) if isinstance(v, float) else v) for k, v in ar.backlash.items()},
+            "thermal": {k: (_r(v) if isinstance(v, float) else v) for k, v in ar.thermal.items()},
             "iso230_2": None if ar.iso is None else {
                 "B_um": _r(ar.iso.B_um), "R_um": _r(ar.iso.R_um), "E_um": _r(ar.iso.E_um),
                 "A_um": _r(ar.iso.A_um), "M_um": _r(ar.iso.M_um)},

@@ -3,7 +3,11 @@
 * :func:`average_runs`: bidirectional mean per target, reversal per target (the
   backlash estimate) and run-to-run spread (the noise estimate);
 * :func:`detrend_line`: least-squares straightness detrending (paper Eq. 1);
-* :func:`relative_to_reference`: values relative to the reference point.
+* :func:`relative_to_reference`: values relative to the reference point;
+* :func:`estimate_thermal`: thermal offset (um/K) and expansion (ppm/K) of the own
+  positioning term from the run-to-run variation with the logged temperature;
+* :func:`assess_reversal`: position dependence of the reversal (Chebyshev series over
+  the travel, degree by BIC, significance by a chi-square test against the noise).
 
 Arrays of runs have shape (n_runs, 2, T): axis 1 is the approach direction
 (0 = ``+``, 1 = ``-``); T targets ascending. Units follow the term: um for
@@ -91,6 +95,91 @@ def relative_to_reference(pos_mm: np.ndarray, values: np.ndarray, ref_mm: float,
     """
     v = value_at(pos_mm, values, ref_mm) if value_at_ref is None else float(value_at_ref)
     return np.asarray(values, dtype=np.float64) - v, v
+
+
+def estimate_thermal(runs: np.ndarray, temp_c: np.ndarray, pos_mm: np.ndarray, ref_mm: float,
+                     tref_c: float, sigma: float = 3.0) -> dict:
+    """Thermal offset o (um/K) and expansion alpha (ppm/K) of the own positioning term.
+
+    ``runs`` (n_runs, 2, T) readings of the term (um), ``temp_c`` the same shape (deg C).
+    Within-cell regression (a cell = one target and direction over the runs, so the
+    geometric term cancels): dev(y) = o dev(dT) + alpha 1e-3 dev(dT (p - ref)), dT = T -
+    tref_c. Significant when the temperature varies by >= 0.1 K and o or alpha exceeds
+    ``sigma`` standard errors. Returns the estimates, standard errors, the correction
+    to subtract from the readings (``correction_um``, same shape as ``runs``) and flags.
+    """
+    y = np.asarray(runs, dtype=np.float64)
+    T = np.asarray(temp_c, dtype=np.float64)
+    dT = T - float(tref_c)
+    lever = (np.asarray(pos_mm, dtype=np.float64) - float(ref_mm))[None, None, :] * 1e-3
+    cols = [dT, dT * lever]
+    X = np.stack([(c - c.mean(axis=0, keepdims=True)).reshape(-1) for c in cols], axis=1)
+    yd = (y - y.mean(axis=0, keepdims=True)).reshape(-1)
+    out = {"tref_c": float(tref_c), "temp_range_k": float(np.ptp(T)), "significant": False,
+           "offset_um_per_k": 0.0, "expansion_ppm_per_k": 0.0, "threshold_sigma": sigma}
+    n_cells = y.shape[1] * y.shape[2]
+    dof = yd.size - n_cells - 2
+    if y.shape[0] < 2 or dof < 3 or out["temp_range_k"] < 0.1:
+        out["note"] = "temperature constant or too few runs: no thermal term"
+        out["correction_um"] = np.zeros_like(y)
+        return out
+    coef, *_ = np.linalg.lstsq(X, yd, rcond=None)
+    e = yd - X @ coef
+    s2 = float(e @ e) / dof
+    try:
+        cov = s2 * np.linalg.inv(X.T @ X)
+    except np.linalg.LinAlgError:
+        cov = np.full((2, 2), np.inf)
+    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    z = np.abs(coef) / np.where(se > 0, se, np.inf)
+    sig = bool(np.any(z > sigma))
+    out.update({"offset_um_per_k": float(coef[0]), "expansion_ppm_per_k": float(coef[1]),
+                "se_offset_um_per_k": float(se[0]), "se_expansion_ppm_per_k": float(se[1]),
+                "significant": sig})
+    out["correction_um"] = (coef[0] * cols[0] + coef[1] * cols[1]) if sig else np.zeros_like(y)
+    return out
+
+
+def assess_reversal(stats: RunStats, pos_mm: np.ndarray, travel_mm: tuple[float, float],
+                    sigma: float = 3.0, max_degree: int = 7) -> dict:
+    """Is the reversal position dependent? The per-target reversals B_i (um) have the
+    standard error s sqrt(2 / n) (s the run-to-run noise); a Chebyshev series of degree
+    d = 1..min(max_degree, T - 2) over the travel is fitted to them (degree by BIC), and
+    it is significant when its chi-square reduction has a p-value below the two-sided
+    normal tail of ``sigma``. Returns the series (T0..Td, um, T0 = the mean level), its
+    residual, the per-target values and flags."""
+    from scipy import stats as st
+    B = np.asarray(stats.reversal, dtype=np.float64)
+    T = B.size
+    n = stats.n_runs
+    out: dict = {"per_target_um": [float(x) for x in B], "targets_mm": [float(x) for x in pos_mm],
+                 "position_dependent": False, "degree": 0, "chebyshev_um": [float(B.mean())]}
+    dmax = min(max_degree, T - 2)
+    if n < 2 or not np.isfinite(stats.noise) or dmax < 1:
+        out["note"] = "too few runs or targets to tell"
+        return out
+    se = max(float(stats.noise) * np.sqrt(2.0 / n), 1e-9)
+    lo, hi = travel_mm
+    u = (2.0 * np.clip(pos_mm, lo, hi) - lo - hi) / (hi - lo)
+    rss0 = float(np.sum((B - B.mean()) ** 2)) / se ** 2
+    best = (rss0, 0, np.array([B.mean()]))
+    best_bic = rss0
+    for d in range(1, dmax + 1):
+        c = np.polynomial.chebyshev.chebfit(u, B, d)
+        r = float(np.sum((B - np.polynomial.chebyshev.chebval(u, c)) ** 2)) / se ** 2
+        bic = r + d * np.log(T)
+        if bic < best_bic:
+            best, best_bic = (r, d, c), bic
+    r, d, c = best
+    p = float(st.chi2.sf(rss0 - r, d)) if d else 1.0
+    out.update({"se_per_target_um": se, "chi2_constant": rss0, "p_value": p,
+                "threshold_sigma": sigma})
+    if d and p < 2.0 * st.norm.sf(sigma):
+        out.update({"position_dependent": True, "degree": int(d),
+                    "chebyshev_um": [float(x) for x in c],
+                    "residual_rms_um": float(np.sqrt(np.mean(
+                        (B - np.polynomial.chebyshev.chebval(u, c)) ** 2)))})
+    return out
 
 
 def bin_targets(pos_mm: np.ndarray, runs: dict[str, np.ndarray], max_targets: int
