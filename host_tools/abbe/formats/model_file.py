@@ -85,7 +85,8 @@ def load_table(path: str | Path) -> Table:
                                  " \"Limits\")", file=name, field="model")
         return read_blob(data, source=name)
     head = data.lstrip(b"\xef\xbb\xbf \t\r\n")[:1]
-    if head != b"{" and not data.startswith((b"\xff\xfe", b"\xfe\xff")):
+    # "[" goes on to the JSON reader too: its message (nesting, syntax) says more than ours
+    if head not in (b"{", b"[") and not data.startswith((b"\xff\xfe", b"\xfe\xff")):
         raise AbbeInputError("not an abbe model: neither a table blob (magic ABBE) nor a JSON "
                              "object", file=name, field="model")
     doc, tf = json_from_bytes(data, name=name, what="model JSON")
