@@ -2,7 +2,8 @@
 
 Run from host_tools/. Seeded (the same seed tries the same inputs), round-robin over
 the commands of :mod:`fuzzing.commands` until the time is up, each input checked by
-:func:`fuzzing.harness.run_case`; the process runs under an address-space limit
+:func:`fuzzing.harness.run_case` (for the targets whose file holds only data numbers,
+one input in ten has a number replaced by a hostile one and must be refused, exit 2); the process runs under an address-space limit
 (``--memory-gib``, default 6) so a reader that loses its bound fails here instead of
 swapping. Inputs that break a promise are saved under ``--out``/findings with their
 argument line; the summary gives, per command, the inputs tried and the exit statuses.
@@ -39,9 +40,15 @@ def main(argv: list[str] | None = None) -> int:
     os.environ["ABBE_CRASH_DIR"] = str(root / "crash")
 
     from abbe.cli.entry import main as abbe
-    from fuzzing.commands import OPTION_VALUES, targets
+    from fuzzing.commands import (
+        OPTION_VALUES,
+        option_slots,
+        targets,
+        with_option_value,
+        without_comments,
+    )
     from fuzzing.harness import run_case
-    from fuzzing.mutate import mutate
+    from fuzzing.mutate import mutate, replace_number
     from fuzzing.seeds import make_workspace
 
     ws = make_workspace(root / "ws")
@@ -53,6 +60,11 @@ def main(argv: list[str] | None = None) -> int:
                      "-q"]) == 0
     ts = [t for t in targets(ws, root / "out", model / "model.bin")
           if not args.only or t.name in args.only]
+    from abbe.model import clib
+    no_clib = [t.name for t in ts if t.needs_clib] if not clib.available() else []
+    if no_clib:  # they would exit 3 every time: say so, instead of counting them as tried
+        print(f"fuzzing.run: warning: the C library is not available (or stale): "
+              f"{', '.join(no_clib)} only exit 3", file=sys.stderr)
     rng = random.Random(args.seed)
     pick = lambda n: rng.randrange(max(n, 1))  # noqa: E731
     tried: Counter = Counter()
@@ -69,11 +81,16 @@ def main(argv: list[str] | None = None) -> int:
                 break
             seed = seeds[t.name]
             argv = list(t.argv)
-            if rng.random() < 0.15:  # an option value instead of the file
+            must_refuse = False
+            r = rng.random()
+            if t.hostile_numbers and r < 0.1:  # a hostile number where a number was
+                blob, ops = replace_number(without_comments(seed), pick), ["replace_number"]
+                must_refuse = True
+            elif r < (0.25 if t.hostile_numbers else 0.15):  # an option value, not the file
                 blob, ops = seed, ["option"]
-                nums = [i for i, a in enumerate(argv) if a.lstrip("-").replace(".", "").isdigit()]
-                if nums:
-                    argv[rng.choice(nums)] = rng.choice(OPTION_VALUES)
+                slots = option_slots(argv)
+                if slots:
+                    argv = with_option_value(argv, rng.choice(slots), rng.choice(OPTION_VALUES))
             else:
                 blob, ops = mutate(seed, pick, rng.randint(1, 4))
             t.mutated.write_bytes(blob)
@@ -85,6 +102,8 @@ def main(argv: list[str] | None = None) -> int:
                 o = Outcome(argv, None, "", "", ["MemoryError: over the memory limit"])
             finally:
                 t.mutated.write_bytes(seed)
+            if must_refuse and o.rc != 2 and not o.problems:
+                o.problems.append(f"exit {o.rc} on a file holding a hostile number (expected 2)")
             tried[t.name] += 1
             codes[t.name][o.rc] += 1
             if not o.ok:
@@ -102,6 +121,8 @@ def main(argv: list[str] | None = None) -> int:
         other = sum(v for k, v in c.items() if k not in (0, 2))
         print(f"{t.name:<20} {tried[t.name]:>7} {c[0]:>7} {c[2]:>7} {other:>7}")
     print(f"{'total':<20} {sum(tried.values()):>7}; promises broken: {found}")
+    if no_clib:
+        print(f"not exercised (no C library): {', '.join(no_clib)}")
     return 1 if found else 0
 
 

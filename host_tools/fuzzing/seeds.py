@@ -2,8 +2,11 @@
 
 :func:`make_workspace` simulates a small campaign (one X laser line of 11 targets x 2
 runs, one ballbar circle sampled every 2 deg) with ``abbe simulate`` and adds an ESS
-``.dat`` file, the example table (blob + JSON), and a declared-dialect laser export
-(semicolon, decimal comma, nm, arcsec, a units row). Everything is seeded: the same
+``.dat`` file, the example table (blob + JSON), a declared-dialect laser export
+(semicolon, decimal comma, nm, arcsec, a units row), and the ISO 230-1 error files
+``abbe import`` reads: the example table exported with ``abbe export --format isg-csv``
+(ISG CSV + ``.lis``, coarse: at most 240 records) and an Etalon exchange file written
+here from the same table (21 grid points per curve). Everything is seeded: the same
 bytes every time.
 """
 
@@ -97,6 +100,9 @@ class Workspace:
     table_json: Path
     declared_machine: Path
     declared_laser: Path
+    isg_csv: Path
+    isg_lis: Path
+    etalon: Path
 
 
 def _declared_export(laser_csv: Path, out: Path) -> None:
@@ -115,6 +121,29 @@ def _declared_export(laser_csv: Path, out: Path) -> None:
                  c[ix["target_mm"]], f"{lin_nm:.1f}", f"{yaw_as:.5f}"]
         rows.append(";".join(x.replace(".", ",") for x in cells))
     out.write_bytes(("\r\n".join(rows) + "\r\n").encode("utf-8"))
+
+
+_ISO = {"dx": "X", "dy": "Y", "dz": "Z", "ex": "A", "ey": "B", "ez": "C"}
+
+
+def _etalon(table, out: Path, points: int = 21) -> None:
+    """An Etalon exchange file (Vendor variant) of ``table``'s terms and squareness."""
+    import numpy as np
+
+    from abbe.model.reference import term_values
+    from abbe.model.table import AXES
+    lines = ["// fuzz seed: Etalon exchange format (Vendor variant), mm and rad"]
+    for k, name in enumerate(("C0Y", "B0Z", "A0Z")):
+        s = table.squareness_urad[k] * (-1.0 if name == "B0Z" else 1.0)
+        lines += [f"[{name}]", f"VALUE = {s * 1e-6:.12e}"]
+    for a in AXES:
+        q = np.linspace(*table.axes[a].travel_mm, points)
+        for t in ("dx", "dy", "dz", "ex", "ey", "ez"):
+            v = term_values(table, a, t, q) * (1e-3 if t[0] == "d" else 1e-6)
+            lines += [f"[E{_ISO[t]}{a}]", "Gridpoints = {"]
+            lines += [f"   {x:.4f} {y:.12e}" for x, y in zip(q, v)]
+            lines.append(f"}}  // end of E{_ISO[t]}{a}")
+    out.write_text("\n".join(lines) + "\n")
 
 
 def make_workspace(root: Path) -> Workspace:
@@ -143,7 +172,15 @@ def make_workspace(root: Path) -> Workspace:
     text = re.sub(r'^map = \{ linear = "\+dx".*$', 'map = { linear = "+dx", yaw = "-ez" }', text,
                   flags=re.M)
     dm.write_text(text + DECLARED)
+    isg = root / "isg"
+    if main(["export", str(blob), "--format", "isg-csv", "-o", str(isg), "--set",
+             "max_records=240"]) != 0:
+        raise RuntimeError("abbe export isg-csv of the fuzz seed failed")
+    from abbe.formats.blob import read_blob_file
+    etalon = root / "lasertracer.exc"
+    _etalon(read_blob_file(blob)[1], etalon)
     return Workspace(root=root, machine=camp / "machine.toml", spec=spec,
                      laser=camp / "laser" / "x.csv", ballbar=camp / "ballbar" / "circle1.csv",
                      dat=dat, blob=blob, table_json=tjson, declared_machine=dm,
-                     declared_laser=declared_laser)
+                     declared_laser=declared_laser, isg_csv=isg / "volcomp.csv",
+                     isg_lis=isg / "volcomp.lis", etalon=etalon)

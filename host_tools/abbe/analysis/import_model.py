@@ -28,7 +28,6 @@ terms: the formats have none. Units: mm, um, urad.
 
 from __future__ import annotations
 
-import hashlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -44,7 +43,15 @@ from abbe.formats.blob import read_blob, write_blob
 from abbe.formats.components import ComponentData
 from abbe.formats.table_json import table_to_json
 from abbe.model.reference import combine_eq3, term_values
-from abbe.model.table import AXES, LINEAR_TERMS, TERMS, AxisTable, Table, basis_matrix
+from abbe.model.table import (
+    AXES,
+    LINEAR_TERMS,
+    TERMS,
+    AxisTable,
+    Table,
+    TableError,
+    basis_matrix,
+)
 
 SIDE = {"X": -1.0, "Y": -1.0, "Z": 1.0}
 #: a stored model within this of the samples is faithful (um; urad x 0.5 mm/urad)
@@ -143,6 +150,34 @@ def _unfold(axis: str, p: np.ndarray, vals: dict[str, np.ndarray], ref: np.ndarr
             vals[t] = vals.get(t, np.zeros(n)) - delta[:, k] / SIDE[axis]
 
 
+def _encode(table: Table, data: ComponentData) -> bytes:
+    """The blob of ``table``; a table the format cannot hold is an input error located at
+    the curve of the term that does not fit (file, line of its block, ISO name)."""
+    try:
+        return write_blob(table)
+    except TableError as exc:
+        fld = exc.field or ""
+        parts = fld.split(".")
+        if len(parts) >= 4 and parts[0] == "axes" and parts[2] == "coef":
+            a, t = parts[1], parts[3]
+            c = data.curves.get((a, t))
+            if c is not None:
+                raise AbbeInputError(f"the fitted {t} of axis {a} does not fit in a table: "
+                                     f"{exc.message}", file=c.file or data.file, line=c.line,
+                                     field=f"E{ISO[t]}{a}") from None
+        if len(parts) >= 2 and parts[0] == "axes" and parts[1] in AXES:
+            c = next((c for (a, _), c in data.curves.items() if a == parts[1]), None)
+            if c is not None:
+                raise AbbeInputError(f"axis {parts[1]} does not fit in a table: {exc.message}",
+                                     file=c.file or data.file, line=c.line,
+                                     field=parts[1]) from None
+        if fld.startswith("squareness"):
+            raise AbbeInputError(f"the squareness does not fit in a table: {exc.message}",
+                                 file=data.file, field="C0Y B0Z A0Z") from None
+        raise AbbeInputError(f"the imported table cannot be written: {exc.message}",
+                             file=data.file, field=fld or None) from None
+
+
 def import_components(data: ComponentData, reference_mm: tuple[float, float, float],
                       tool_offset_mm: tuple[float, float, float] = (0.0, 0.0, 0.0),
                       travel_mm: dict[str, tuple[float, float]] | None = None,
@@ -197,7 +232,7 @@ def import_components(data: ComponentData, reference_mm: tuple[float, float, flo
     sq = tuple(data.squareness_urad) if data.squareness_urad is not None else (0.0, 0.0, 0.0)
     table = Table(axes=axes, reference_mm=tuple(float(v) for v in ref),  # type: ignore[arg-type]
                   tool_offset_mm=tuple(tool_offset_mm), squareness_urad=sq)  # type: ignore[arg-type]
-    blob = write_blob(table)
+    blob = _encode(table, data)
     qt = read_blob(blob)
     for a, d in diag.items():
         p, vals = d.pop("_samples")
@@ -216,15 +251,14 @@ def import_components(data: ComponentData, reference_mm: tuple[float, float, flo
     res.model_json = {
         "format": JSON_FORMAT,
         "units": {"position": "mm", "linear": "um", "angular": "urad"},
-        "source": {"file": Path(data.file).name,
-                   "sha256": hashlib.sha256(Path(data.file).read_bytes()).hexdigest()},
+        "source": {"file": Path(data.file).name, "sha256": data.sha256},
         "provenance": {"tool": "abbe", "version": __version__},
         "options": {"unfold_lever_arms": unfold, "max_points": max_points,
                     "model": opts.model, "folds": opts.folds},
         "squareness": {"S_xy_urad": sq[0], "S_xz_urad": sq[1], "S_yz_urad": sq[2],
                        "in_file": data.squareness_urad is not None},
         "ignored": list(data.ignored),
-        "notes": notes,
+        "notes": list(data.notes) + notes,
         "table": {"crc32": f"0x{int.from_bytes(blob[-4:], 'little'):08X}",
                   "size_bytes": len(blob), **table_to_json(qt)},
         "axes": diag,

@@ -40,27 +40,26 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from abbe.formats.export import files_to_write, run_export, target_module
+    from abbe.formats.export import run_export, target_module, write_files
     from abbe.formats.export.residual import summary
     from abbe.formats.machine import load_machine
     from abbe.formats.model_file import load_table
-    from abbe.formats.output import atomic_write_many
+    from abbe.formats.output import Outputs
 
     mod = target_module(args.format)
     if args.list_options:
         for name, o in mod.OPTIONS.items():
-            print(f"{name} ({o.kind}, default {o.default}): {o.help}")
+            print(f"{name} ({o.describe()}, default {o.show_default()}): {o.help}")
         return 0
-    table = load_table(args.model)
-    machine = load_machine(args.machine) if args.machine else None
-    exp, report = run_export(table, args.format, args.set, machine, str(args.model))
-    files = files_to_write(args.out, exp, report)
-    for path in files:
-        path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_many(files)
-    if args.json:
-        json.dump(report, sys.stdout, indent=2)
-        sys.stdout.write("\n")
+    with Outputs() as outs:
+        staging = outs.directory(args.out, option="--out")  # checked before the work
+        table = load_table(args.model)
+        machine = load_machine(args.machine) if args.machine else None
+        exp, report = run_export(table, args.format, args.set, machine, str(args.model))
+        write_files(staging, exp, report)
+        text = json.dumps(report, indent=2, allow_nan=False) + "\n" if args.json else None
+    if text is not None:
+        sys.stdout.write(text)
     else:
         print(summary(report).replace("wrote ", f"wrote {args.out}/: ", 1))
     return 0

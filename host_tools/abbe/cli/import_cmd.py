@@ -9,6 +9,11 @@ import json
 from pathlib import Path
 
 from abbe.cli.conventions import examples
+from abbe.cli.options import in_range, int_range
+from abbe.formats.limits import IMPORT_MAX_POINTS
+
+#: machine coordinates (mm): a table holds int32 nm
+COORD_MM = in_range(-2147.0, 2147.0, "mm")
 
 FORMATS = ("isg-csv", "isg-lis", "etalon")
 
@@ -29,49 +34,46 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--out", type=Path, required=True, help="output directory")
     g = p.add_mutually_exclusive_group(required=True)
     g.add_argument("--machine", type=Path, help="machine file: reference point, tool offset, travel")
-    g.add_argument("--reference", type=float, nargs=3, metavar=("X", "Y", "Z"),
-                   help="reference point, mm (every linear term is 0 there)")
-    p.add_argument("--tool-offset", type=float, nargs=3, metavar=("X", "Y", "Z"),
+    g.add_argument("--reference", type=COORD_MM, nargs=3, metavar=("X", "Y", "Z"),
+                   help="reference point, mm in [-2147, 2147] (every linear term is 0 there)")
+    p.add_argument("--tool-offset", type=COORD_MM, nargs=3, metavar=("X", "Y", "Z"),
                    help="tool offset of the model, mm (with --reference; default 0 0 0)")
     p.add_argument("--no-unfold", action="store_true",
                    help="the file's lever arms are already about the reference point")
-    p.add_argument("--max-points", type=int, default=201,
-                   help="positions per axis used by the fit (default 201)")
+    p.add_argument("--max-points", type=int_range(5, IMPORT_MAX_POINTS), default=201,
+                   help=f"positions per axis used by the fit, 5..{IMPORT_MAX_POINTS} "
+                        "(default 201)")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    import math
-
     from abbe.analysis.import_model import import_components
     from abbe.errors import AbbeInputError
     from abbe.formats.etalon import read_etalon
     from abbe.formats.isg_csv import read_isg_csv, read_list
     from abbe.formats.machine import load_machine
-    from abbe.formats.output import atomic_write_many
+    from abbe.formats.output import Outputs
 
-    fmt = args.format or {".lis": "isg-lis", ".csv": "isg-csv"}.get(args.file.suffix.lower(), "etalon")
-    data = {"isg-csv": read_isg_csv, "isg-lis": read_list, "etalon": read_etalon}[fmt](args.file)
-    if args.max_points < 5:
-        raise AbbeInputError("at least 5", field="--max-points")
-    if args.machine:
-        if args.tool_offset:
-            raise AbbeInputError("the machine file gives the tool offset", field="--tool-offset")
-        m = load_machine(args.machine)
-        ref, tool = m.reference_mm, m.tool_offset_mm
-        travel = {a: m.axes[a].travel_mm for a in m.axes}
-    else:
-        if not all(math.isfinite(v) for v in args.reference):
-            raise AbbeInputError("finite numbers", field="--reference")
-        tool = tuple(args.tool_offset) if args.tool_offset else (0.0, 0.0, 0.0)
-        if not all(math.isfinite(v) for v in tool):
-            raise AbbeInputError("finite numbers", field="--tool-offset")
-        ref, travel = tuple(args.reference), None
-    res = import_components(data, ref, tool, travel, unfold=not args.no_unfold,
-                            max_points=args.max_points)
-    args.out.mkdir(parents=True, exist_ok=True)
-    atomic_write_many({args.out / "model.bin": res.blob,
-                       args.out / "model.json": (json.dumps(res.model_json, indent=2) + "\n").encode()})
+    if args.machine and args.tool_offset:
+        raise AbbeInputError("the machine file gives the tool offset", field="--tool-offset")
+    fmt = args.format or {".lis": "isg-lis", ".csv": "isg-csv"}.get(args.file.suffix.lower(),
+                                                                    "etalon")
+    with Outputs() as outs:
+        staging = outs.directory(args.out, option="--out")  # checked before the work
+        data = {"isg-csv": read_isg_csv, "isg-lis": read_list, "etalon": read_etalon}[fmt](
+            args.file)
+        if args.machine:
+            m = load_machine(args.machine)
+            ref, tool = m.reference_mm, m.tool_offset_mm
+            travel = {a: m.axes[a].travel_mm for a in m.axes}
+        else:
+            tool = tuple(args.tool_offset) if args.tool_offset else (0.0, 0.0, 0.0)
+            ref, travel = tuple(args.reference), None
+        res = import_components(data, ref, tool, travel, unfold=not args.no_unfold,
+                                max_points=args.max_points)
+        (staging / "model.bin").write_bytes(res.blob)
+        (staging / "model.json").write_text(json.dumps(res.model_json, indent=2, allow_nan=False)
+                                            + "\n", encoding="utf-8")
     print(f"abbe import: {args.file} ({fmt}) -> {args.out}/model.bin, model.json "
           f"(CRC-32 {res.model_json['table']['crc32']})")
     for a, d in res.model_json["axes"].items():

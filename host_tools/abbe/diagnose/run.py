@@ -15,13 +15,14 @@ from abbe.model.table import AXES, Table
 
 
 def load_model(path: str | Any) -> Table:
-    """A table from a blob (``model.bin``) or a table JSON (``model.json``); AbbeInputError
-    naming the file on any problem."""
-    from abbe.formats.table_json import load_table_file
+    """A table from a blob (``model.bin``), a table JSON, or the ``model.json`` of
+    ``abbe fit`` / ``abbe import`` (the one model reader, :mod:`abbe.formats.model_file`);
+    AbbeInputError naming the file on any problem."""
+    from abbe.formats.model_file import load_table
     if isinstance(path, Table):
         return path
     try:
-        return load_table_file(path, what="model")[1]
+        return load_table(path)
     except AbbeInputError as exc:
         raise exc.located(field="model") from None
 

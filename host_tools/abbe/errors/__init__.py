@@ -62,12 +62,11 @@ from abbe.errors.numbers import (  # noqa: E402  (the parser raises AbbeInputErr
     MAX_NUMBER_CHARS,
     check_int,
     check_number,
-    parse_finite,
     parse_int,
     parse_int_column,
     parse_number,
     parse_number_column,
 )
 
-__all__ = ["AbbeInputError", "MAX_NUMBER_CHARS", "check_int", "check_number", "parse_finite",
-           "parse_int", "parse_int_column", "parse_number", "parse_number_column"]
+__all__ = ["AbbeInputError", "MAX_NUMBER_CHARS", "check_int", "check_number", "parse_int",
+           "parse_int_column", "parse_number", "parse_number_column"]

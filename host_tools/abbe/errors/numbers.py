@@ -103,11 +103,13 @@ def parse_number(text: str, *, file: str | None = None, line: int | None = None,
     """
     if len(text) > MAX_NUMBER_CHARS or not _DEC[decimal].fullmatch(text):
         raise _err(_why_not(text, decimal), file, line, field)
-    v = float(text if decimal == "." else text.replace(",", ".")) * scale
-    if not math.isfinite(v):
+    raw = float(text if decimal == "." else text.replace(",", "."))
+    if not math.isfinite(raw):
         raise _err(f"expected a finite number, got {_show(text)}", file, line, field)
-    if not lo <= v <= hi:
-        got = _show(text) if scale == 1.0 else f"{_show(text)} = {_g(v)} {unit}".rstrip()
+    v = raw * scale
+    if not lo <= v <= hi:  # also a product beyond the double range (inf)
+        got = _show(text) if scale == 1.0 or not math.isfinite(v) else \
+            f"{_show(text)} = {_g(v)} {unit}".rstrip()
         raise _err(f"expected a number in {_range_text(lo, hi, unit)}, got {got}", file, line,
                    field)
     return v
@@ -125,11 +127,6 @@ def parse_int(text: str, *, file: str | None = None, line: int | None = None,
     if not lo <= v <= hi:
         raise _err(f"expected an integer in [{lo}, {hi}], got {_show(text)}", file, line, field)
     return v
-
-
-def parse_finite(text: str, *, file: str | None, line: int | None, field: str | None) -> float:
-    """A finite number from a text cell (the default range): :func:`parse_number`."""
-    return parse_number(text.strip(), file=file, line=line, field=field)
 
 
 def parse_number_column(cells: Sequence[str], lines: Sequence[int] | np.ndarray, *,
@@ -164,7 +161,8 @@ def parse_number_column(cells: Sequence[str], lines: Sequence[int] | np.ndarray,
     except ValueError:
         first_bad()
     if scale != 1.0:
-        out *= scale
+        with np.errstate(over="ignore", invalid="ignore"):  # an overflow is refused below
+            out *= scale
     bad = ~np.isfinite(out) | (out < lo) | (out > hi)
     if bad.any():
         i = int(np.argmax(bad))

@@ -3,11 +3,15 @@
 Format (Beckhoff TF5280 "Etalon Exchange Format"): INI-like blocks, each starting
 with the parameter's name in brackets; ``//`` starts a comment. A position error has
 ``VALUE = v``; a component error a lookup table ``Gridpoints = { ... }`` of records
-``argument value`` (one per line, the argument in mm), closed by ``}``. Values in mm
-and rad, names ISO 230-1 (docs/exports.md). Keys other than VALUE and Gridpoints are
-listed as ignored, never dropped silently.
+``argument value`` (the argument in mm), closed by ``}``; records may share a line
+and may follow the ``{``. Values in mm and rad, names ISO 230-1 (docs/exports.md).
 
-Every problem raises AbbeInputError with file, line and field.
+Strict: the keys are VALUE and Gridpoints (any case), one of them per block, each
+once; any other key is refused with a suggestion (a misspelt ``Gridpionts`` would
+otherwise drop a curve). Parameters of rotary axes and tool parameters are listed as
+ignored. Read by the bounded text reader; numbers by the strict parser with the
+range of the parameter (:func:`abbe.formats.components.value_range`); every
+problem raises AbbeInputError with file, line and field.
 """
 
 from __future__ import annotations
@@ -17,88 +21,151 @@ from pathlib import Path
 
 import numpy as np
 
-from abbe.errors import AbbeInputError, parse_finite
-from abbe.formats.components import ComponentData, check_name
-from abbe.formats.isg_csv import read_text
+from abbe.errors import AbbeInputError, parse_number, parse_number_column
+from abbe.formats.components import (
+    COMPONENT,
+    LOCATION,
+    ComponentData,
+    argument_range,
+    check_name,
+    value_range,
+)
+from abbe.formats.limits import COMPONENT_FILE_MAX_BYTES, COMPONENT_FILE_MAX_RECORDS
+from abbe.formats.structured import unknown_key
+from abbe.formats.text import read_text
 
-SECTION = re.compile(r"^\[\s*([A-Za-z0-9]+)\s*\]$")
+SECTION = re.compile(r"^\[[ \t]*([A-Za-z0-9]+)[ \t]*\]$")
+KEYS = ("VALUE", "Gridpoints")
+
+
+class _Block:
+    def __init__(self, name: str, line: int) -> None:
+        self.name, self.line = name, line
+        self.key: str | None = None
+        self.args: list[str] = []
+        self.vals: list[str] = []
+        self.lines: list[int] = []
 
 
 def read_etalon(path: str | Path, data: ComponentData | None = None) -> ComponentData:
-    """Curves and location errors of an Etalon exchange file."""
-    p = Path(path)
-    src = str(p)
+    """Curves and location errors of an Etalon exchange file (module docstring)."""
+    tf = read_text(path, what="Etalon exchange file", max_bytes=COMPONENT_FILE_MAX_BYTES)
+    src = tf.name
+    short = Path(src).name
     out = data or ComponentData(file=src)
-    name: str | None = None
-    grid: list[tuple[float, float]] | None = None
-    gline = 0
+    if not out.sha256:
+        out.sha256 = tf.sha256
+    blk: _Block | None = None
+    in_grid = False
     seen: set[str] = set()
+    records = 0
 
-    def close_grid() -> None:
-        pts = np.array(grid, dtype=np.float64).reshape(-1, 2)
-        out.add_curve(name, pts[:, 0], pts[:, 1], f"{p.name}:{gline}", gline, src)
+    def close_block() -> None:
+        if blk is None:
+            return
+        if blk.key is None:
+            raise AbbeInputError("block without VALUE or Gridpoints", file=src, line=blk.line,
+                                 field=blk.name)
 
-    for no, raw in enumerate(read_text(p).splitlines(), start=1):
-        line = raw.split("//", 1)[0].strip()
+    def close_grid(b: _Block) -> None:
+        name = b.name
+        if not b.args:
+            raise AbbeInputError("Gridpoints without records", file=src, line=b.line,
+                                 field=name)
+        m = COMPONENT.match(name)
+        lo, hi, unit = argument_range(m.group(2) if m else "X")
+        ln = np.array(b.lines, dtype=np.int64)
+        pos = parse_number_column(b.args, ln, file=src, field=f"{name} argument", lo=lo, hi=hi,
+                                  unit=unit)
+        vlo, vhi, vunit, scale = value_range(name)
+        vals = parse_number_column(b.vals, ln, file=src, field=f"{name} value", lo=vlo, hi=vhi,
+                                   unit=vunit, scale=scale)
+        out.add_curve(name, pos, vals, f"{short}:{b.line}", b.line, src)
+
+    def grid_body(text: str, no: int) -> bool:
+        """Records of a Gridpoints line; True when it closes the table."""
+        nonlocal records
+        assert blk is not None
+        closed = "}" in text
+        if closed:
+            text, rest = text.split("}", 1)
+            if rest.strip(" \t"):
+                raise AbbeInputError("text after '}'", file=src, line=no, field=blk.name)
+        cells = [c for c in re.split(r"[ \t]+", text) if c]
+        if len(cells) % 2:
+            raise AbbeInputError("expected records 'argument value'", file=src, line=no,
+                                 field=blk.name)
+        for i in range(0, len(cells), 2):
+            records += 1
+            if records > COMPONENT_FILE_MAX_RECORDS:
+                raise AbbeInputError(f"more than {COMPONENT_FILE_MAX_RECORDS} records: the limit "
+                                     "for an error file (docs/formats.md, \"Limits\")", file=src,
+                                     line=no, field=blk.name)
+            blk.args.append(cells[i])
+            blk.vals.append(cells[i + 1])
+            blk.lines.append(no)
+        return closed
+
+    for no, raw in tf.lines():
+        line = raw.split("//", 1)[0].strip(" \t")
         if not line:
             continue
-        if grid is not None:
-            body, closed = line, False
-            if "}" in line:
-                body, rest = line.split("}", 1)
-                if rest.strip():
-                    raise AbbeInputError("text after '}'", file=src, line=no, field=name)
-                closed = True
-            cells = body.split()
-            if len(cells) % 2:
-                raise AbbeInputError("expected records 'argument value'", file=src, line=no,
-                                     field=name)
-            for i in range(0, len(cells), 2):
-                grid.append((parse_finite(cells[i], file=src, line=no, field=f"{name} argument"),
-                             parse_finite(cells[i + 1], file=src, line=no, field=f"{name} value")))
-            if closed:
-                close_grid()
-                grid = None
+        if in_grid:
+            assert blk is not None
+            if grid_body(line, no):
+                close_grid(blk)
+                in_grid = False
             continue
-        m = SECTION.match(line)
-        if m:
+        if line.startswith("["):
+            m = SECTION.match(line)
+            if not m:
+                raise AbbeInputError("expected a block name [NAME]", file=src, line=no,
+                                     field=line[:40])
+            close_block()
             name = m.group(1)
             check_name(name, src, no)
             if name in seen:
                 raise AbbeInputError(f"block [{name}] given twice", file=src, line=no, field=name)
             seen.add(name)
+            blk = _Block(name, no)
             continue
-        if name is None:
-            raise AbbeInputError("a line before the first [NAME] block", file=src, line=no,
-                                 field=line.split("=")[0].strip())
         key, eq, val = line.partition("=")
-        key, val = key.strip(), val.strip()
+        key, val = key.strip(" \t"), val.strip(" \t")
+        if blk is None:
+            raise AbbeInputError("a line before the first [NAME] block", file=src, line=no,
+                                 field=key[:40] or None)
         if not eq:
-            raise AbbeInputError("expected KEY = VALUE", file=src, line=no, field=name)
-        if key.upper() == "VALUE":
-            out.add_location(name, parse_finite(val, file=src, line=no, field=name),
-                             f"{p.name}:{no}", no)
-        elif key.lower() == "gridpoints":
-            if not val.startswith("{"):
-                raise AbbeInputError("expected Gridpoints = {", file=src, line=no, field=name)
-            grid, gline = [], no
-            inner = val[1:].strip()
-            if inner:  # records on the same line
-                if "}" in inner:
-                    body = inner.split("}", 1)[0].split()
-                    if len(body) % 2:
-                        raise AbbeInputError("expected records 'argument value'", file=src,
-                                             line=no, field=name)
-                    for i in range(0, len(body), 2):
-                        grid.append((parse_finite(body[i], file=src, line=no, field=name),
-                                     parse_finite(body[i + 1], file=src, line=no, field=name)))
-                    close_grid()
-                    grid = None
-                else:
-                    raise AbbeInputError("records start on the line after 'Gridpoints = {'",
-                                         file=src, line=no, field=name)
+            raise AbbeInputError("expected KEY = VALUE", file=src, line=no, field=blk.name)
+        canon = next((k for k in KEYS if k.lower() == key.lower()), None)
+        if canon is None:
+            raise AbbeInputError(unknown_key(key, KEYS, f"key in [{blk.name}]"), file=src,
+                                 line=no, field=f"{blk.name}.{key[:40]}")
+        if blk.key is not None:
+            raise AbbeInputError(f"a second key in [{blk.name}]: a block holds one VALUE or one "
+                                 "Gridpoints", file=src, line=no, field=f"{blk.name}.{canon}")
+        blk.key = canon
+        if canon == "VALUE":
+            if COMPONENT.match(blk.name):
+                raise AbbeInputError(f"{blk.name} is a component error: expected Gridpoints = "
+                                     "{ ... }", file=src, line=no, field=blk.name)
+            lo, hi, unit, scale = value_range(blk.name)
+            v = parse_number(val, file=src, line=no, field=blk.name, lo=lo, hi=hi, unit=unit,
+                             scale=scale)
+            out.add_location(blk.name, v, f"{short}:{no}", no, src)
         else:
-            out.ignored.append(f"{name}.{key} ({p.name}:{no})")
-    if grid is not None:
-        raise AbbeInputError("Gridpoints not closed by '}'", file=src, line=gline, field=name)
+            if blk.name in LOCATION:
+                raise AbbeInputError(f"{blk.name} is a location error: expected VALUE = v",
+                                     file=src, line=no, field=blk.name)
+            if not val.startswith("{"):
+                raise AbbeInputError("expected Gridpoints = {", file=src, line=no, field=blk.name)
+            blk.line = no
+            if grid_body(val[1:], no):
+                close_grid(blk)
+            else:
+                in_grid = True
+    if in_grid:
+        assert blk is not None
+        raise AbbeInputError("Gridpoints not closed by '}'", file=src, line=blk.line,
+                             field=blk.name)
+    close_block()
     return out

@@ -39,3 +39,13 @@ TRUTH_JSON_MAX_BYTES = 64 * MIB
 #: ``abbe fit`` fits lines with more targets on this many bins of consecutive targets
 #: (the mean of each bin), so its time and memory do not grow with a dense capture.
 FIT_MAX_TARGETS = 256
+
+#: ISO 230-1 error files of ``abbe import``: a TF5280 ISG CSV file or an Etalon exchange
+#: file (a controller reads a few thousand records: ``vol_comp[i].max_records``).
+COMPONENT_FILE_MAX_BYTES = 16 * MIB
+COMPONENT_FILE_MAX_RECORDS = 100_000
+#: A TF5280 compensation list (``.lis``): a few dozen lines naming up to 10 files.
+LIS_MAX_BYTES = 64 * KIB
+LIS_MAX_FILES = 10
+#: ``abbe import --max-points``: positions per axis fitted (the fit's own bound).
+IMPORT_MAX_POINTS = FIT_MAX_TARGETS

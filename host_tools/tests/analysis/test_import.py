@@ -98,7 +98,7 @@ def test_bad_isg_csv_is_refused_with_line_and_field(tmp_path, capsys, text, wher
     ("[EXX]\nGridpoints = {\n 0 x\n}\n", ":3: field 'EXX value'"),
     ("VALUE = 1\n", "before the first"),
     ("[EQQ]\nVALUE = 1\n", "field 'EQQ'"),
-    ("[C0Y]\nVALUE = 1\n[C0Y]\nVALUE = 2\n", "twice"),
+    ("[C0Y]\nVALUE = 1e-4\n[C0Y]\nVALUE = 2e-4\n", "twice"),
 ])
 def test_bad_etalon_is_refused(tmp_path, capsys, text, where) -> None:
     f = tmp_path / "bad.exc"

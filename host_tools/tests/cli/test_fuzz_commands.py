@@ -18,16 +18,27 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from fuzzing.commands import OPTION_VALUES, targets
+from fuzzing.commands import (
+    OPTION_VALUES,
+    option_slots,
+    targets,
+    with_option_value,
+    without_comments,
+)
 from fuzzing.harness import run_case
-from fuzzing.mutate import mutate
+from fuzzing.mutate import mutate, replace_number
 
 #: Mutated inputs per command in CI (cheap commands get more).
 EXAMPLES = {"table info": 100, "table eval": 60, "table from-json": 100, "table to-json": 50,
             "table cgen": 50, "iso230-2 dat": 100, "iso230-2 csv": 100, "fit machine": 50,
             "fit laser": 50, "fit declared": 50, "simulate": 25, "ballbar machine": 25,
             "ballbar csv": 50, "diagnose iso230-2": 25, "upload": 50, "predict": 30,
-            "diagnose machine": 15, "diagnose model": 25}
+            "diagnose machine": 15, "diagnose model": 25,
+            "export isg-csv": 12, "export sinumerik-lec": 12, "export sinumerik-cec": 12,
+            "export heidenhain-com": 12, "export fanuc-pitch": 12, "export klipper-skew": 12,
+            "export marlin": 12, "export linuxcnc-comp": 12, "export linuxcnc-matrixkins": 12,
+            "export fit-json": 12, "import isg-csv": 15, "import isg-lis": 15,
+            "import etalon": 15, "import machine": 10}
 
 
 @pytest.fixture(scope="module")
@@ -79,30 +90,63 @@ def test_command_promises_under_mutation(seed_ws, fuzz_env, name, capsys):
     print(f"{name}: {len(tried)} inputs, exit 0: {tried.count(0)}, exit 2: {tried.count(2)}")
 
 
-@pytest.mark.parametrize("name", ["table eval", "fit machine", "diagnose iso230-2", "upload"])
+@pytest.mark.parametrize("name", ["table eval", "fit machine", "diagnose iso230-2", "upload",
+                                  "export heidenhain-com", "export fanuc-pitch",
+                                  "import isg-csv", "import etalon"])
 def test_option_values_are_range_checked(seed_ws, fuzz_env, name, capsys):
-    """Every numeric option value replaced by a hostile one: 0 or 2, never a crash."""
+    """Every numeric option value (and every --set NAME=VALUE) replaced by a hostile one:
+    0 or 2, never a crash."""
     root, model, _ = fuzz_env
     out = root / ("opt_" + name.replace(" ", "_"))
     t = {x.name: x for x in targets(seed_ws, out, model)}[name]
     extra = {"table eval": ["--temp-c", "20", "20", "20"],
              "fit machine": ["--folds", "5", "--max-degree", "3", "--max-harmonics", "2"],
              "diagnose iso230-2": ["--alpha", "0.01", "--min-effect-um", "0.15"],
-             "upload": ["--unit", "1", "--chunk", "100"]}[name]
+             "upload": ["--unit", "1", "--chunk", "100"],
+             "export heidenhain-com": [],
+             "export fanuc-pitch": ["--set", "unit_um=1", "max_value=127"],
+             "import isg-csv": [], "import etalon": []}[name]
     argv = t.argv + extra
-    numeric = [i for i, a in enumerate(argv) if a.lstrip("-").replace(".", "").isdigit()
-               and i > 0 and not argv[i - 1].startswith(("-o", "--out", "--json", "--plot"))]
+    numeric = option_slots(argv)
     assert numeric
 
     @settings(max_examples=25, derandomize=True, database=None, deadline=None,
               suppress_health_check=list(HealthCheck))
     @given(st.sampled_from(numeric), st.sampled_from(OPTION_VALUES))
     def run(i, value):
-        a = list(argv)
-        a[i] = value
+        a = with_option_value(argv, i, value)
         o = run_case(a, t.outputs, allowed=t.allowed, budget_s=t.budget_s)
         assert o.ok, (a, o.problems, o.stderr[-400:])
 
     run()
     capsys.readouterr()
     shutil.rmtree(out, ignore_errors=True)
+
+
+HOSTILE = ["iso230-2 csv", "fit laser", "ballbar csv", "import isg-csv", "import etalon"]
+
+
+@pytest.mark.parametrize("name", HOSTILE)
+def test_a_hostile_number_makes_the_command_refuse(seed_ws, fuzz_env, name, capsys):
+    """One number of the data file replaced by a hostile one (nan, 1e400, 1_0, full-width
+    digits, ...): the command must refuse it (exit 2), never exit 0 on it."""
+    root, model, _ = fuzz_env
+    out = root / ("hostile_" + name.replace(" ", "_"))
+    t = {x.name: x for x in targets(seed_ws, out, model)}[name]
+    assert t.hostile_numbers
+    seed = t.mutated.read_bytes()
+
+    @settings(max_examples=20, derandomize=True, database=None, deadline=None,
+              suppress_health_check=list(HealthCheck))
+    @given(st.data())
+    def run(data):
+        pick = lambda n: data.draw(st.integers(0, max(n - 1, 0)))  # noqa: E731
+        t.mutated.write_bytes(replace_number(without_comments(seed), pick))
+        try:
+            o = run_case(t.argv, t.outputs, allowed=t.allowed, budget_s=t.budget_s)
+        finally:
+            t.mutated.write_bytes(seed)
+        assert o.ok and o.rc == 2, (o.rc, o.problems, o.stderr[-400:])
+
+    run()
+    capsys.readouterr()

@@ -32,8 +32,11 @@ FUZZ = settings(max_examples=EXAMPLES, derandomize=True, database=None, deadline
 def _readers(ws):
     from abbe.formats.ballbar_csv import read_ballbar_csv
     from abbe.formats.blob import read_blob_file
+    from abbe.formats.etalon import read_etalon
+    from abbe.formats.isg_csv import read_isg_csv, read_list
     from abbe.formats.laser_csv import read_laser_csv
     from abbe.formats.machine import load_machine
+    from abbe.formats.model_file import load_table
     from abbe.formats.positioning import load_positioning
     from abbe.formats.table_json import load_table_file, load_table_json
     from abbe.sim.spec import load_spec
@@ -54,11 +57,16 @@ def _readers(ws):
         "blob": (ws.blob, read_blob_file),
         "model": (ws.blob, load_table_file),
         "truth": (ws.machine.parent / "truth" / "truth.json", load_truth),
+        "isg_csv": (ws.isg_csv, read_isg_csv),
+        "isg_lis": (ws.isg_lis, read_list),
+        "etalon": (ws.etalon, read_etalon),
+        "model_file blob": (ws.blob, load_table),
+        "model_file json": (ws.table_json, load_table),
     }
 
 
 READERS = ["laser", "laser_declared", "ballbar", "dat", "machine", "spec", "table_json", "blob",
-           "model", "truth"]
+           "model", "truth", "isg_csv", "isg_lis", "etalon", "model_file blob", "model_file json"]
 
 
 class _Slow(BaseException):
@@ -99,7 +107,7 @@ def test_mutated_inputs_are_read_or_refused(seed_ws, name):
         with tempfile.TemporaryDirectory() as d:
             p = Path(d) / seed_path.name
             p.write_bytes(blob)
-            if name in ("machine", "laser_declared"):  # keep the relative data paths working
+            if name in ("machine", "laser_declared", "isg_lis"):  # keep the relative data paths
                 p = seed_path.parent / f".fuzz-{seed_path.name}"
                 p.write_bytes(blob)
             try:
@@ -113,11 +121,13 @@ def test_mutated_inputs_are_read_or_refused(seed_ws, name):
     run()
 
 
-@pytest.mark.parametrize("name", ["laser", "ballbar", "dat"])
+@pytest.mark.parametrize("name", ["laser", "ballbar", "dat", "isg_csv", "etalon"])
 def test_a_hostile_number_in_a_data_file_is_always_refused(seed_ws, name):
-    """(Not the decimal-comma export: there "0,000" minus its "0" is still a number.)"""
+    """(Not the decimal-comma export: there "0,000" minus its "0" is still a number.
+    Comment lines of the error files are dropped first: a number in a comment is text.)"""
     seed_path, fn = _readers(seed_ws)[name]
-    seed = seed_path.read_bytes()
+    seed = b"\n".join(ln for ln in seed_path.read_bytes().split(b"\n")
+                      if not ln.lstrip().startswith(b"//"))
     seed_head = b""
 
     @FUZZ

@@ -59,7 +59,22 @@ def run_export(table, target: str, options: list[str] | None = None, machine=Non
 
 
 def files_to_write(out_dir: Path, exp: Export, report: dict[str, Any]) -> dict[Path, bytes]:
-    """Every output file (the target's and residual.json) by its path."""
-    files = {out_dir / name: data for name, data in exp.files.items()}
-    files[out_dir / RESIDUAL_FILE] = (json.dumps(report, indent=2) + "\n").encode()
+    """Every output file (the target's and residual.json) by its path. The names are
+    plain file names (a target's options cannot name a path); residual.json is strict
+    JSON (a NaN or Infinity would be a bug: ValueError)."""
+    files: dict[Path, bytes] = {}
+    for name, data in exp.files.items():
+        if not name or name in (".", "..", RESIDUAL_FILE) or "/" in name or "\\" in name \
+                or "\0" in name:
+            raise ValueError(f"export {exp.target}: not a plain output file name: {name!r}")
+        files[out_dir / name] = data
+    files[out_dir / RESIDUAL_FILE] = (json.dumps(report, indent=2, allow_nan=False)
+                                      + "\n").encode()
     return files
+
+
+def write_files(staging: Path, exp: Export, report: dict[str, Any]) -> None:
+    """Write the export into ``staging`` (the folder :class:`abbe.formats.output.Outputs`
+    gave for OUT)."""
+    for path, data in files_to_write(staging, exp, report).items():
+        path.write_bytes(data)

@@ -33,25 +33,29 @@ import numpy as np
 
 from abbe.errors import AbbeInputError
 from abbe.formats.export.grids import nice_spacings
-from abbe.formats.export.target import Context, Export, Option, Unheld, not_held
+from abbe.formats.export.target import Context, Export, Option, TABLE_MAX_POINTS, Unheld, not_held
 from abbe.formats.export.terms import Item, has_reversal, own_error
 from abbe.model.table import AXES
 
 NAME = "fanuc-pitch"
 SUMMARY = "Fanuc pitch error compensation: parameters 3620-3627 and point data (tape format)"
 OPTIONS = {
-    "points": Option("int", 128, "compensation points per axis and direction", lo=2),
+    "points": Option("int", 128, "compensation points per axis and direction", lo=2,
+                     hi=TABLE_MAX_POINTS),
     "total_points": Option("int", 1024, "pitch error data numbers of the control (0 .. n - 1)",
-                           lo=2),
-    "unit_um": Option("float", 1.0, "detection unit, um (IS-B metric: 1)", lo=1e-4),
-    "max_value": Option("int", 127, "largest |increment| per point (data range)", lo=1),
-    "max_magnification": Option("int", 100, "largest magnification 3623", lo=1),
+                           lo=2, hi=6 * TABLE_MAX_POINTS),
+    "unit_um": Option("float", 1.0, "detection unit, um (IS-B metric: 1)", lo=1e-4, hi=1000.0),
+    "max_value": Option("int", 127, "largest |increment| per point (data range)", lo=1,
+                        hi=32767),
+    "max_magnification": Option("int", 100, "largest magnification 3623", lo=1, hi=100),
     "rapid_mm_min": Option("float", 15000.0, "rapid traverse rate (minimum interval = rate / "
-                           "7500)", lo=0.0),
+                           "7500), mm/min", lo=0.0, hi=1e6),
     "reference": Option("axes", {"X": "0", "Y": "0", "Z": "0"},
-                        "machine coordinate of each axis' reference position, mm"),
+                        "machine coordinate of each axis' reference position, mm", item="float",
+                        lo=-2147.0, hi=2147.0),
     "ref_return": Option("axes", {"X": "+", "Y": "+", "Z": "+"},
-                         "direction of the reference position return (+ or -)"),
+                         "direction of the reference position return (+ or -)",
+                         choices=("+", "-")),
 }
 SOURCES = ["FANUC Series 0i-PB parameter manual B-63980EN/01, pitch error compensation "
            "parameters 3620-3624 and the compensation value example",

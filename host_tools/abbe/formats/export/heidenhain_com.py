@@ -32,7 +32,15 @@ from typing import Any
 import numpy as np
 
 from abbe.formats.export.grids import choose_grid
-from abbe.formats.export.target import Context, Export, Option, Unheld, fmt, not_held
+from abbe.formats.export.target import (
+    TABLE_MAX_POINTS,
+    Context,
+    Export,
+    Option,
+    Unheld,
+    fmt,
+    not_held,
+)
 from abbe.formats.export.terms import Item, has_reversal, line_error, own_error
 from abbe.model.table import AXES
 
@@ -41,7 +49,8 @@ SUMMARY = "Heidenhain nonlinear compensation: one *.COM per input axis (+ BACKLA
 DECIMALS = 5  # mm: 10 nm
 POS_DECIMALS = 4
 OPTIONS = {
-    "points": Option("int", 256, "entries per *.COM table (older TNCs: 256)", lo=2),
+    "points": Option("int", 256, "entries per *.COM table (older TNCs: 256)", lo=2,
+                     hi=TABLE_MAX_POINTS),
     "axis_names": Option("axes", {"X": "X", "Y": "Y", "Z": "Z"}, "axis keys (CfgAxes)"),
 }
 SOURCES = ["HEIDENHAIN Technical Manual MANUALplus 620 (entering compensation values in *.COM: "

@@ -56,6 +56,7 @@ from abbe.formats.export.terms import (
     reversal_range_note,
     reversal_um,
 )
+from abbe.formats.limits import COMPONENT_FILE_MAX_RECORDS
 from abbe.model.reference import combine_eq3, term_values
 from abbe.model.table import AXES, LINEAR_TERMS, OWN_SIGN, TERMS
 
@@ -74,9 +75,11 @@ OPTIONS = {
     "layout": Option("str", "components", "components (ISO 230-1 per axis) or grid (3D map)",
                      choices=("components", "grid")),
     "max_records": Option("int", 2000, "records the control reads (vol_comp[i].max_records)",
-                          lo=8),
-    "logical_axes": Option("axes", {"X": "1", "Y": "2", "Z": "3"}, "logical axis numbers"),
-    "file": Option("str", "volcomp.csv", "name of the error parameter file"),
+                          lo=8, hi=COMPONENT_FILE_MAX_RECORDS),
+    "logical_axes": Option("axes", {"X": "1", "Y": "2", "Z": "3"}, "logical axis numbers",
+                           item="int", lo=1, hi=65535),
+    "file": Option("str", "volcomp.csv", "name of the error parameter file (in OUT)",
+                   pattern=r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,63}"),
 }
 SOURCES = ["Beckhoff TF5280 Volumetric Compensation: ISG CSV format, List of parameters "
            "supported, Units of measure, General configuration, Updating (example .lis / .csv)",
@@ -246,4 +249,7 @@ def _export(ctx: Context, blocks: list[str], lis: list[str], correction, tables,
 
 
 def build(ctx: Context) -> Export:
+    if ctx.options["file"].lower() in ("volcomp.lis", "residual.json"):
+        raise AbbeInputError(f"{ctx.options['file']!r} is the name of another output file",
+                             field="--set file")
     return _components(ctx) if ctx.options["layout"] == "components" else _grid(ctx)

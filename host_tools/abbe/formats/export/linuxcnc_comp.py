@@ -44,7 +44,8 @@ OPTIONS = {
     "points": Option("int", EMCMOT_COMP_SIZE,
                      "triplets per joint (LinuxCNC holds at most 256, EMCMOT_COMP_SIZE)",
                      lo=2, hi=EMCMOT_COMP_SIZE),
-    "joints": Option("axes", {"X": "0", "Y": "1", "Z": "2"}, "joint number of each axis"),
+    "joints": Option("axes", {"X": "0", "Y": "1", "Z": "2"}, "joint number of each axis",
+                     item="int", lo=0, hi=15),
 }
 SOURCES = ["LinuxCNC docs/src/config/ini-config.adoc ([JOINT_n] COMP_FILE, COMP_FILE_TYPE)",
            "LinuxCNC src/emc/motion/motion.h (EMCMOT_COMP_SIZE 256, emcmot_comp_entry_t float trims)",

@@ -26,7 +26,8 @@ SUMMARY = "LinuxCNC matrixkins C_xx..C_zz (scale and squareness, 3x3 about the o
 DIGITS = 15  # significant digits of each coefficient
 KEYS = ("xx", "xy", "xz", "yx", "yy", "yz", "zx", "zy", "zz")
 OPTIONS = {
-    "component": Option("str", "matrixkins", "HAL component (instance) name"),
+    "component": Option("str", "matrixkins", "HAL component (instance) name",
+                        pattern=r"[A-Za-z_][A-Za-z0-9_-]{0,40}"),
 }
 SOURCES = ["LinuxCNC src/hal/components/matrixkins.comp (joint = C * axis, C_xx..C_zz, "
            "inverse matrix in kinematicsForward)"]

@@ -33,7 +33,7 @@ DIGITS = 9
 BACKLASH_DECIMALS = 4  # mm
 OPTIONS = {
     "skew_factor_max": Option("float", 1.0, "SKEW_FACTOR_MAX of the firmware (|factor| limit)",
-                              lo=0.0),
+                              lo=0.0, hi=10.0, lo_open=True),
     "skew_z": Option("int", 1, "1 if the firmware has SKEW_CORRECTION_FOR_Z (J, K)", lo=0, hi=1),
 }
 SOURCES = ["Marlin Marlin/src/gcode/calibrate/M852.cpp (M852 I J K, SKEW_FACTOR_MIN/MAX)",

@@ -36,7 +36,15 @@ import numpy as np
 from abbe.errors import AbbeInputError
 from abbe.formats.export.grids import choose_grid
 from abbe.formats.export.sinumerik_lec import POS_DECIMALS, round_grid
-from abbe.formats.export.target import Context, Export, Option, Unheld, fmt, not_held
+from abbe.formats.export.target import (
+    TABLE_MAX_POINTS,
+    Context,
+    Export,
+    Option,
+    Unheld,
+    fmt,
+    not_held,
+)
 from abbe.formats.export.terms import Item, has_reversal, line_error, own_error, reversal_um
 from abbe.model.table import AXES
 
@@ -44,8 +52,9 @@ NAME = "sinumerik-cec"
 SUMMARY = "Siemens Sinumerik CEC: %_N_NC_CEC_INI with $AN_CEC input -> output tables"
 DECIMALS = 6
 OPTIONS = {
-    "tables": Option("int", 8, "number of compensation tables (828D: 8)", lo=1),
-    "points": Option("int", 200, "points per table (MD18342; 828D: 200)", lo=2),
+    "tables": Option("int", 8, "number of compensation tables (828D: 8)", lo=1, hi=128),
+    "points": Option("int", 200, "points per table (MD18342; 828D: 200)", lo=2,
+                     hi=TABLE_MAX_POINTS),
     "axis_names": Option("axes", {"X": "X1", "Y": "Y1", "Z": "Z1"}, "machine axis names"),
     "own": Option("str", "cec", "own-axis tables: 'cec' (here) or 'lec' (left to sinumerik-lec)",
                   choices=("cec", "lec")),

@@ -28,8 +28,22 @@ from typing import Any
 import numpy as np
 
 from abbe.formats.export.grids import choose_grid
-from abbe.formats.export.target import Context, Export, Option, Unheld, fmt, not_held
-from abbe.formats.export.terms import Item, has_reversal, own_error, reversal_range_note, reversal_um
+from abbe.formats.export.target import (
+    TABLE_MAX_POINTS,
+    Context,
+    Export,
+    Option,
+    Unheld,
+    fmt,
+    not_held,
+)
+from abbe.formats.export.terms import (
+    Item,
+    has_reversal,
+    own_error,
+    reversal_range_note,
+    reversal_um,
+)
 from abbe.model.table import AXES, OWN_SIGN
 
 NAME = "sinumerik-lec"
@@ -38,7 +52,7 @@ DECIMALS = 6  # mm: 1 nm
 POS_DECIMALS = 4
 OPTIONS = {
     "points": Option("int", 200, "interpolation points per axis (MD38000 "
-                     "$MA_MM_ENC_COMP_MAX_POINTS of the control)", lo=2),
+                     "$MA_MM_ENC_COMP_MAX_POINTS of the control)", lo=2, hi=TABLE_MAX_POINTS),
     "axis_names": Option("axes", {"X": "X1", "Y": "Y1", "Z": "Z1"}, "machine axis names"),
 }
 SOURCES = ["SINUMERIK function manual Extended functions, K3 Compensations: interpolatory "

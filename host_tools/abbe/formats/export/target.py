@@ -14,12 +14,14 @@ relative to the workpiece along the machine axes; a correct compensation adds
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import numpy as np
 
 from abbe.errors import AbbeInputError
+from abbe.errors.numbers import show_value
 from abbe.formats.export.terms import Item, contribution, items
 from abbe.formats.export.volume import WorkVolume
 from abbe.model.table import Table
@@ -28,10 +30,20 @@ from abbe.model.table import Table
 ITEM_GRID_POINTS = 21
 
 
+#: A name written into a target's file (axis names, profile and component names): ASCII,
+#: no spaces, quotes or line ends, so it cannot break the file's syntax.
+NAME_PATTERN = r"[A-Za-z0-9_][A-Za-z0-9_.+-]{0,31}"
+#: abbe's own bound on the points of any one table (beyond the controllers' limits; it
+#: bounds the time and memory of a build).
+TABLE_MAX_POINTS = 10_000
+
+
 @dataclass(frozen=True)
 class Option:
     """A target option (``--set NAME=VALUE``): kind "int", "float", "str" or "axes"
-    (``X=..,Y=..,Z=..``); ``lo``/``hi`` bound numbers (hard limits of the format)."""
+    (``X=..,Y=..,Z=..``, each value of kind ``item``). ``lo``/``hi`` bound a number (every
+    number has both: the format's hard limits, or abbe's bound); ``choices`` or
+    ``pattern`` (a full-match regex) restrict a text."""
 
     kind: str
     default: Any
@@ -39,6 +51,64 @@ class Option:
     lo: float | None = None
     hi: float | None = None
     choices: tuple[str, ...] = ()
+    item: str = "str"
+    pattern: str = NAME_PATTERN
+    lo_open: bool = False
+
+    @property
+    def value_kind(self) -> str:
+        return self.item if self.kind == "axes" else self.kind
+
+    def describe(self) -> str:
+        """``int in [2, 256]``, ``one of a, b``, ``axes X=..,Y=..,Z=.. of int in [0, 15]``."""
+        k = self.value_kind
+        if self.choices:
+            what = f"one of {', '.join(self.choices)}"
+        elif k in ("int", "float"):
+            what = f"{k} in {'(' if self.lo_open else '['}{self.lo:g}, {self.hi:g}]"
+        else:
+            what = "a name"
+        return f"X=..,Y=..,Z=.. each {what}" if self.kind == "axes" else what
+
+    def show_default(self) -> str:
+        if self.kind == "axes":
+            return ",".join(f"{a}={v}" for a, v in self.default.items())
+        return str(self.default)
+
+    def check(self, text: str, fld: str) -> Any:
+        """One value (text, stripped) of this option's value kind, or an AbbeInputError
+        (the range, then what the option is)."""
+        try:
+            return self._check(text, fld)
+        except AbbeInputError as exc:
+            exc.message = f"{exc.message}: {self.help}"
+            exc.args = (str(exc),)
+            raise
+
+    def _check(self, text: str, fld: str) -> Any:
+        from abbe.errors import parse_int, parse_number
+
+        k = self.value_kind
+        if k == "int":
+            v: Any = parse_int(text, field=fld, lo=int(self.lo), hi=int(self.hi))  # type: ignore[arg-type]
+        elif k == "float":
+            v = parse_number(text, field=fld, lo=self.lo, hi=self.hi)  # type: ignore[arg-type]
+            if self.lo_open and v <= self.lo:
+                raise AbbeInputError(f"expected a number in ({self.lo:g}, {self.hi:g}], got "
+                                     f"{text!r}", field=fld)
+        elif self.choices:
+            if text not in self.choices:
+                raise AbbeInputError(f"expected one of {', '.join(self.choices)}, got "
+                                     f"{show_value(text)}", field=fld)
+            v = text
+        else:
+            if not re.fullmatch(self.pattern, text):
+                raise AbbeInputError(f"expected a name matching {self.pattern} (ASCII letters, "
+                                     f"digits, _ . + -), got {show_value(text)}", field=fld)
+            v = text
+        if self.kind == "axes":
+            return text  # as written (the target converts it; the value was checked)
+        return v
 
 
 @dataclass
@@ -74,46 +144,43 @@ class Export:
 
 
 def parse_options(target: str, spec: dict[str, Option], given: list[str]) -> dict[str, Any]:
-    """``NAME=VALUE`` strings -> values, defaults for the rest; AbbeInputError on an
-    unknown name, a malformed value or a value outside the target's limits."""
+    """``NAME=VALUE`` strings -> values, defaults for the rest; AbbeInputError (field
+    ``--set NAME``) on an unknown name (with a suggestion), a name given twice, a
+    malformed value or a value outside the option's range."""
+    from abbe.formats.structured import unknown_key
+
     out = {k: o.default for k, o in spec.items()}
+    seen: set[str] = set()
     for raw in given:
         name, eq, val = raw.partition("=")
-        name = name.strip()
+        name = name.strip(" \t")
         if not eq:
-            raise AbbeInputError(f"expected NAME=VALUE, got {raw!r}", field="--set")
+            raise AbbeInputError(f"expected NAME=VALUE, got {show_value(raw)}", field="--set")
         if name not in spec:
-            known = ", ".join(sorted(spec)) or "none"
-            raise AbbeInputError(f"{target} has no option {name!r} (options: {known})",
-                                 field=f"--set {name}")
+            raise AbbeInputError(f"{target}: " + unknown_key(name, sorted(spec) or ["(none)"],
+                                                              "option"),
+                                 field=f"--set {name[:40]}")
+        if name in seen:
+            raise AbbeInputError("given twice (it takes one value)", field=f"--set {name}")
+        seen.add(name)
         o = spec[name]
-        val = val.strip()
-        try:
-            if o.kind == "int":
-                v: Any = int(val)
-            elif o.kind == "float":
-                v = float(val)
-                if not np.isfinite(v):
-                    raise ValueError
-            elif o.kind == "axes":
-                v = dict(o.default)
-                for part in val.split(","):
-                    k, e2, w = part.partition("=")
-                    if not e2 or k.strip().upper() not in ("X", "Y", "Z"):
-                        raise ValueError
-                    v[k.strip().upper()] = w.strip()
-            else:
-                v = val
-        except ValueError:
-            raise AbbeInputError(f"expected {o.kind}, got {val!r}", field=f"--set {name}") from None
-        if o.choices and v not in o.choices:
-            raise AbbeInputError(f"expected one of {', '.join(o.choices)}, got {val!r}",
-                                 field=f"--set {name}")
-        if o.lo is not None and v < o.lo:
-            raise AbbeInputError(f"{v} is below {o.lo:g}: {o.help}", field=f"--set {name}")
-        if o.hi is not None and v > o.hi:
-            raise AbbeInputError(f"{v} is above the limit {o.hi:g}: {o.help}",
-                                 field=f"--set {name}")
+        fld = f"--set {name}"
+        val = val.strip(" \t")
+        if o.kind != "axes":
+            out[name] = o.check(val, fld)
+            continue
+        v = dict(o.default)
+        done: set[str] = set()
+        for part in val.split(","):
+            k, e2, w = part.partition("=")
+            k = k.strip(" \t").upper()
+            if not e2 or k not in ("X", "Y", "Z"):
+                raise AbbeInputError(f"expected X=..,Y=..,Z=.. (any of them), got "
+                                     f"{show_value(val)}", field=fld)
+            if k in done:
+                raise AbbeInputError(f"axis {k} given twice", field=fld)
+            done.add(k)
+            v[k] = o.check(w.strip(" \t"), f"{fld} {k}")
         out[name] = v
     return out
 
