@@ -19,14 +19,27 @@ static inline int bench_streq(const char *a, const char *b)
     return *a == *b;
 }
 
-static inline const abbe_golden_table_t *bench_table(void)
+/* The tables measured besides BENCH_TABLE (format 1.1, issue 14): the paper
+ * table with a constant backlash on every axis (format 1.0) and the same with
+ * reversal blocks of degree 3, 7 and 0: their difference is the blocks' cost.
+ * A library built without the blocks (ABBE_NO_REVERSAL) cannot load the
+ * second one and skips it. */
+#define BENCH_BACKLASH_TABLE "backlash"
+#define BENCH_REVERSAL_TABLE "reversal"
+
+static inline const abbe_golden_table_t *bench_table_named(const char *name)
 {
     for (uint32_t i = 0; i < abbe_golden_table_count; i++) {
-        if (bench_streq(abbe_golden_tables[i].name, BENCH_TABLE)) {
+        if (bench_streq(abbe_golden_tables[i].name, name)) {
             return &abbe_golden_tables[i];
         }
     }
     return NULL;
+}
+
+static inline const abbe_golden_table_t *bench_table(void)
+{
+    return bench_table_named(BENCH_TABLE);
 }
 
 /* Compensator limits wide enough that a realistic table never trips them. */

@@ -1,10 +1,13 @@
 /* Host benchmark driver, run under valgrind --tool=callgrind by
  * scripts/bench_report.py (instruction counts, not time).
  *
- *   bench_host MODE N     MODE: f32 f32_base q comp_f32 comp_q naive lean empty
+ *   bench_host MODE N [TABLE]
+ *                         MODE: f32 f32_base q comp_f32 comp_q naive lean empty
  *                         runs N calls over the "paper" golden table's points
  *                         (f32_base: the x86-64 SSE2 kernels whatever the CPU
- *                         has; lean: the lean reference evaluator, lean_ref.c)
+ *                         has; lean: the lean reference evaluator, lean_ref.c),
+ *                         or over TABLE's (another golden table: "backlash",
+ *                         "reversal"; exit 3 if this library refuses it)
  *   bench_host check      naive reference against the golden vectors and the
  *                         library (prints max abs differences, exit 1 if the
  *                         naive reference is off by more than 2 nm)
@@ -118,6 +121,18 @@ int main(int argc, char **argv)
         fprintf(stderr, "bench_host: cannot load the '%s' golden table\n", BENCH_TABLE);
         return 2;
     }
+    if (argc == 4) { /* another golden table: its points and its model */
+        paper = bench_table_named(argv[3]);
+        if (paper == NULL) {
+            fprintf(stderr, "bench_host: no golden table '%s'\n", argv[3]);
+            return 2;
+        }
+        if (abbe_model_load(&model, paper->blob, paper->blob_size) != ABBE_OK) {
+            fprintf(stderr, "bench_host: this library refuses the '%s' table\n", argv[3]);
+            return 3;
+        }
+        argc = 3;
+    }
     if (argc == 2 && strcmp(argv[1], "check") == 0) {
 #if defined(__x86_64__)
         printf("x86-64 f32 kernels on this CPU: %s\n",
@@ -126,7 +141,7 @@ int main(int argc, char **argv)
         return check(&model, paper);
     }
     if (argc != 3) {
-        fprintf(stderr, "usage: bench_host f32|f32_base|q|comp_f32|comp_q|naive|lean|empty N | check\n");
+        fprintf(stderr, "usage: bench_host f32|f32_base|q|comp_f32|comp_q|naive|lean|empty N [TABLE] | check\n");
         return 2;
     }
     const char *mode = argv[1];

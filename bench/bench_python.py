@@ -35,7 +35,7 @@ sys.path.insert(0, str(REPO / "host_tools"))
 
 def point_by_point_f32(cm, pos: np.ndarray) -> np.ndarray:
     """The pre-batch binding loop (clib.py before the batch entry points)."""
-    from abbe import clib
+    from abbe.model import clib
 
     n = pos.shape[0]
     ds = np.zeros((n, 3), dtype=np.float32)
@@ -56,7 +56,7 @@ def point_by_point_f32(cm, pos: np.ndarray) -> np.ndarray:
 
 
 def point_by_point_q(cm, pos_nm: np.ndarray) -> np.ndarray:
-    from abbe import clib
+    from abbe.model import clib
 
     n = pos_nm.shape[0]
     ds = np.zeros((n, 3), dtype=np.int64)
@@ -90,12 +90,14 @@ def main() -> int:
     args = ap.parse_args()
     if args.lib:
         os.environ["ABBE_LIB"] = str(args.lib)
-    from abbe import clib, golden, table
+    from abbe.formats import blob, golden
+    from abbe.model import clib
+    from abbe.model.table import AXES
 
-    t = table.quantize(golden.paper_table())
-    cm = clib.CModel(table.write_blob(t))
-    lo = np.array([t.axes[a].travel_mm[0] for a in table.AXES])
-    hi = np.array([t.axes[a].travel_mm[1] for a in table.AXES])
+    t = blob.quantize(golden.paper_table())
+    cm = clib.CModel(blob.write_blob(t))
+    lo = np.array([t.axes[a].travel_mm[0] for a in AXES])
+    hi = np.array([t.axes[a].travel_mm[1] for a in AXES])
     rng = np.random.default_rng(16)
     pos = (lo + (hi - lo) * rng.random((args.points, 3))).astype(np.float32)
     pos_nm = np.round(pos.astype(np.float64) * 1e6).astype(np.int64)

@@ -24,10 +24,23 @@ __attribute__((noinline)) void bench_mark(void)
     __asm__ volatile("" ::: "memory");
 }
 
+/* The table of the measurements that follow: "" for BENCH_TABLE, else its
+ * name, appended to each plan and stack label as "@name". */
+static const char *table_suffix = "";
+
+static void put_label(const char *what)
+{
+    sh_puts(what);
+    if (table_suffix[0] != '\0') {
+        sh_puts("@");
+        sh_puts(table_suffix);
+    }
+}
+
 static void plan(const char *what, uint32_t n)
 {
     sh_puts("PLAN ");
-    sh_puts(what);
+    put_label(what);
     sh_puts(" ");
     sh_put_u32(n);
     sh_puts("\n");
@@ -56,7 +69,7 @@ static void report_stack(const char *what, void (*fn)(uint32_t))
     plan("stack", 1u); /* the call below passes its marks once more */
     uint32_t used = stack_used(fn, 3u);
     sh_puts("STACK ");
-    sh_puts(what);
+    put_label(what);
     sh_puts(" ");
     sh_put_u32(used);
     sh_puts("\n");
@@ -127,9 +140,11 @@ static void run_comp_q(uint32_t k)
 }
 #endif
 
+static const abbe_golden_table_t *current;
+
 static void run_load(uint32_t unused)
 {
-    const abbe_golden_table_t *t = bench_table();
+    const abbe_golden_table_t *t = current;
     (void)unused;
     bench_mark();
     abbe_status_t st = abbe_model_load(&model, t->blob, t->blob_size);
@@ -161,6 +176,38 @@ static void measure(const char *what, void (*fn)(uint32_t), uint32_t first)
     }
 }
 
+/* Every call again on another table (plans labelled "@name"): the backlash and
+ * reversal-block tables of bench_common.h. */
+static void measure_table(const char *name)
+{
+    const abbe_golden_table_t *t = bench_table_named(name);
+    if (t == NULL || abbe_model_load(&model, t->blob, t->blob_size) != ABBE_OK) {
+        sh_puts("SKIP table ");
+        sh_puts(name);
+        sh_puts(" (not in the golden data, or refused by this library)\n");
+        return;
+    }
+    table_suffix = name;
+    current = t;
+    points = &abbe_golden_points[t->first_point];
+#if defined(BENCH_F32)
+    measure("f32", run_f32, 0u);
+#endif
+#if defined(BENCH_Q)
+    measure("q", run_q, 0u);
+#endif
+    comp_start();
+#if defined(BENCH_F32)
+    measure("comp_f32", run_comp_f32, 4u);
+    report_stack("comp_f32", run_comp_f32);
+#endif
+#if defined(BENCH_Q)
+    measure("comp_q", run_comp_q, 4u + BENCH_POINTS);
+    report_stack("comp_q", run_comp_q);
+#endif
+    table_suffix = "";
+}
+
 int main(void)
 {
     const abbe_golden_table_t *t = bench_table();
@@ -168,6 +215,7 @@ int main(void)
         sh_puts("bench_target: no 'paper' golden table\n");
         return 2;
     }
+    current = t;
     points = &abbe_golden_points[t->first_point];
 
     /* Calibration: an empty pair of marks. */
@@ -199,6 +247,8 @@ int main(void)
     measure("comp_q", run_comp_q, 4u + BENCH_POINTS);
     report_stack("comp_q", run_comp_q);
 #endif
+    measure_table(BENCH_BACKLASH_TABLE);
+    measure_table(BENCH_REVERSAL_TABLE);
     sh_puts("DONE\n");
     return 0;
 }

@@ -74,8 +74,30 @@ int naive_load(naive_model_t *m, const uint8_t *b, size_t size)
             }
             col++;
         }
+        a->reversal_rows = r[60];
+        if (a->reversal_rows > 8) {
+            return -1;
+        }
+        for (int k = 0; k < a->reversal_rows; k++) {
+            a->reversal_um[k] = rd_i32(b + off + 4u * (uint32_t)(n_basis * n_terms + k)) * LIN_UM;
+        }
     }
     return 0;
+}
+
+/* The total reversal B + sum_k r_k T_k(u) at p (mm), the block clamped; T_k = cos(k acos u). */
+static double reversal_value(const naive_axis_t *a, double p)
+{
+    double v = a->backlash_um;
+    if (a->reversal_rows > 0) {
+        p = p < a->travel_min_mm ? a->travel_min_mm : (p > a->travel_max_mm ? a->travel_max_mm : p);
+        double u = (2.0 * p - a->travel_min_mm - a->travel_max_mm) / (a->travel_max_mm - a->travel_min_mm);
+        u = u > 1.0 ? 1.0 : (u < -1.0 ? -1.0 : u);
+        for (int k = 0; k < a->reversal_rows; k++) {
+            v += a->reversal_um[k] * cos(k * acos(u));
+        }
+    }
+    return v;
 }
 
 /* One term of one axis at position p (mm): trend + Fourier, clamped. */
@@ -131,7 +153,7 @@ void naive_eval(const naive_model_t *m, const double pos_mm[3], const double dir
         lev[j] = pos_mm[j] - m->ref_mm[j];
         if (m->features & 0x4u) {
             double s = dir[j] > 1.0 ? 1.0 : (dir[j] < -1.0 ? -1.0 : dir[j]);
-            v[j][j] += s * a->backlash_um / 2.0;
+            v[j][j] += s * reversal_value(a, pos_mm[j]) / 2.0;
         }
         if (m->features & 0x8u) {
             double dt = temp_c[j] - a->tref_c;

@@ -19,6 +19,8 @@ typedef struct {
     int present[6];                  /* term present */
     double coef[6][NAIVE_MAX_BASIS]; /* per term, per basis row: um or urad */
     double backlash_um;              /* reversal B, um */
+    int reversal_rows;               /* format 1.1 reversal block (0 = none) */
+    double reversal_um[8];           /* its Chebyshev coefficients, um */
     double expansion_per_k;          /* alpha, 1/K */
     double offset_um_per_k;          /* o, um/K */
     double tref_c;                   /* reference temperature, deg C */

@@ -10,6 +10,8 @@
  *   - a failed load leaves the model untouched;
  *   - a loaded model reports a size <= the input length and a CRC that matches;
  *   - finite, in-range inputs evaluate to ABBE_OK; f32 results are finite;
+ *   - the total reversal of every axis (format 1.1 blocks) is finite and within
+ *     the loader's cap;
  *   - out-of-range axis/term arguments give ABBE_E_ARG.
  */
 #include <math.h>
@@ -69,6 +71,13 @@ static void eval_at(const abbe_model_t *m, const int32_t pos_nm[3], int32_t dir_
             CHECK(isfinite(v));
             CHECK(abbe_term_eval_q(m, axis, term, pos_nm[axis], &vq) == ABBE_OK);
         }
+        /* the total reversal (format 1.1 blocks): finite and within the
+         * loader's cap |B| + sum |r_k| <= 2^31 x 2^-8 nm */
+        float r = 0.0f;
+        int32_t rq = 0;
+        CHECK(abbe_reversal_eval_f32(m, axis, inf.pos_mm[axis], &r) == ABBE_OK);
+        CHECK(isfinite(r) && fabsf(r) <= 8400.0f); /* um: 2^31 x 2^-8 nm = 8389 um */
+        CHECK(abbe_reversal_eval_q(m, axis, pos_nm[axis], &rq) == ABBE_OK);
     }
 }
 
@@ -161,6 +170,8 @@ static void exercise(const uint8_t *data, size_t size)
     int32_t vq;
     CHECK(abbe_term_eval_f32(&model, ABBE_AXES, 0, 0.0f, &v) == ABBE_E_ARG);
     CHECK(abbe_term_eval_q(&model, 0, ABBE_TERMS, 0, &vq) == ABBE_E_ARG);
+    CHECK(abbe_reversal_eval_f32(&model, ABBE_AXES, 0.0f, &v) == ABBE_E_ARG);
+    CHECK(abbe_reversal_eval_q(&model, ABBE_AXES, 0, &vq) == ABBE_E_ARG);
     {
         abbe_input_f32_t nan_in = {{NAN, 0.0f, 0.0f}, {0.0f, 0.0f, 0.0f}, {20.0f, 20.0f, 20.0f}};
         abbe_error_f32_t of;

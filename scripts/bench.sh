@@ -2,7 +2,8 @@
 # Measure the library and write bench/results.md (see scripts/bench_report.py):
 # x86-64 instructions per call (callgrind), Cortex-M4F/M3 instructions per
 # call (QEMU exec trace), flash, static RAM and stack, against a naive
-# double-precision reference. Builds in build-bench-{host,m4f,m3,m4f-os,m3-os}/.
+# double-precision reference. Builds in build-bench-{host,m4f,m3,m4f-os,m3-os}/, and
+# build-bench-{host,m4f,m3}-1.0/ (format 1.0 libraries: what the reversal blocks cost).
 #   ./scripts/bench.sh            # writes bench/results.md
 #   ./scripts/bench.sh -o FILE    # writes FILE instead
 set -euo pipefail
@@ -21,12 +22,20 @@ common=(-DCMAKE_BUILD_TYPE=Release -DABBE_BUILD_BENCH=ON -DABBE_BUILD_TESTS=OFF 
 cmake -S . -B build-bench-host "${common[@]}" >/dev/null
 cmake -S . -B build-bench-m4f -DCMAKE_TOOLCHAIN_FILE=cmake/toolchain-cortex-m4f.cmake "${common[@]}" >/dev/null
 cmake -S . -B build-bench-m3 -DCMAKE_TOOLCHAIN_FILE=cmake/toolchain-cortex-m3.cmake "${common[@]}" >/dev/null
+# format 1.0 libraries (-DABBE_WITH_REVERSAL=OFF): what format 1.1's reversal blocks cost
+cmake -S . -B build-bench-host-1.0 "${common[@]}" -DABBE_WITH_REVERSAL=OFF >/dev/null
+cmake -S . -B build-bench-m4f-1.0 -DCMAKE_TOOLCHAIN_FILE=cmake/toolchain-cortex-m4f.cmake "${common[@]}" \
+    -DABBE_WITH_REVERSAL=OFF >/dev/null
+cmake -S . -B build-bench-m3-1.0 -DCMAKE_TOOLCHAIN_FILE=cmake/toolchain-cortex-m3.cmake "${common[@]}" \
+    -DABBE_WITH_REVERSAL=OFF >/dev/null
 size=(-DCMAKE_BUILD_TYPE=MinSizeRel -DABBE_BUILD_BENCH=ON -DABBE_BUILD_TESTS=OFF -DABBE_STACK_USAGE=ON)
 cmake -S . -B build-bench-m4f-os -DCMAKE_TOOLCHAIN_FILE=cmake/toolchain-cortex-m4f.cmake "${size[@]}" >/dev/null
 cmake -S . -B build-bench-m3-os -DCMAKE_TOOLCHAIN_FILE=cmake/toolchain-cortex-m3.cmake "${size[@]}" >/dev/null
-for dir in build-bench-host build-bench-m4f build-bench-m3 build-bench-m4f-os build-bench-m3-os; do
+for dir in build-bench-host build-bench-m4f build-bench-m3 build-bench-m4f-os build-bench-m3-os \
+    build-bench-host-1.0 build-bench-m4f-1.0 build-bench-m3-1.0; do
     cmake --build "$dir" -j "$JOBS"
 done
 
 python3 scripts/bench_report.py --repo . --host build-bench-host --m4f build-bench-m4f \
-    --m3 build-bench-m3 --m4f-os build-bench-m4f-os --m3-os build-bench-m3-os -o "$OUT"
+    --m3 build-bench-m3 --m4f-os build-bench-m4f-os --m3-os build-bench-m3-os \
+    --host-1.0 build-bench-host-1.0 --m4f-1.0 build-bench-m4f-1.0 --m3-1.0 build-bench-m3-1.0 -o "$OUT"

@@ -18,6 +18,12 @@ numbers repeat exactly for the same compiler, library and table:
    double-precision evaluator (bench/naive_ref.c) and a lean float one
    (bench/lean_ref.c: the same model without abbe's guarantees).
 6. Points per second from Python (bench/bench_python.py; wall clock).
+7. Format 1.1's reversal blocks (issue 14): the calls again on the golden
+   tables "backlash" (the paper table with a constant backlash, format 1.0) and
+   "reversal" (the same with reversal blocks), and a second set of builds with
+   -DABBE_WITH_REVERSAL=OFF (a format 1.0 library, the machine code of the
+   library before 1.1): what the blocks cost in instructions, flash and stack,
+   and that tables without them cost what they did.
 
 Usage: bench_report.py --repo DIR --host BUILD --m4f BUILD --m3 BUILD [-o FILE]
 Only the Python standard library is used.
@@ -97,6 +103,25 @@ class HostResult:
     per_iter: float          # difference method: whole loop iteration
 
 
+TABLE_MODES = [("f32", "abbe_error_eval_f32", 0), ("f32_base", "abbe_error_eval_f32", 0),
+               ("q", "abbe_error_eval_q", 0), ("comp_f32", "abbe_comp_step_f32", 4),
+               ("comp_q", "abbe_comp_step_q", 4)]
+
+
+def host_table_bench(build: Path, table: str | None) -> dict[str, float] | None:
+    """Instructions inside each call per call on a golden table (None: BENCH_TABLE);
+    None if this build's library refuses the table (bench_host exit 3)."""
+    exe = build / "bench" / "bench_host"
+    extra = [] if table is None else [table]
+    probe = subprocess.run([str(exe), "f32", "1", *extra], capture_output=True, text=True)
+    if probe.returncode == 3:
+        return None
+    if probe.returncode != 0:
+        raise RuntimeError(f"bench_host on {table}: {probe.stderr}")
+    return {mode: callgrind_total(exe, [mode, str(CALLGRIND_N), *extra], fn) / (CALLGRIND_N + calls)
+            for mode, fn, calls in TABLE_MODES}
+
+
 def host_bench(build: Path) -> tuple[list[HostResult], str]:
     exe = build / "bench" / "bench_host"
     check = run([str(exe), "check"]).stdout.strip()
@@ -164,7 +189,8 @@ def qemu_trace_counts(machine: str, image: Path, nm: str) -> tuple[dict[str, lis
         counts.setdefault(name, []).extend(intervals[pos:pos + k])
         pos += k
     calib = counts.pop("calibration")[0]
-    counts.pop("stack", None)
+    for k in [k for k in counts if k == "stack" or k.startswith("stack@")]:
+        counts.pop(k)
     return {name: [c - calib for c in v] for name, v in counts.items()}, stdout
 
 
@@ -383,6 +409,131 @@ def verdict(value: float, target: float) -> str:
     return "meets" if value <= target else "MISSES"
 
 
+TABLES_11 = ("backlash", "reversal")
+CALL_LABELS = {"f32": "abbe_error_eval_f32", "f32_base": "abbe_error_eval_f32 (SSE2 kernels)",
+               "q": "abbe_error_eval_q", "comp_f32": "abbe_comp_step_f32",
+               "comp_q": "abbe_comp_step_q"}
+
+
+def reversal_section(args, nm: str, by: dict, tgt: dict, stdout_by: dict, flash_by: dict,
+                     stack_by: dict) -> dict:
+    """Section 8 (format 1.1): instructions on the paper / backlash / reversal tables for
+    this library and for the 1.0 library (ABBE_WITH_REVERSAL=OFF builds, if given), flash
+    and stack of both. Returns the lines and the numbers the summary uses."""
+    lines: list[str] = []
+    w = lines.append
+    out: dict = {"lines": lines, "flash_10": {}}
+    w("## 8. Format 1.1: what the reversal blocks cost (issue 14)")
+    w("")
+    w("Tables (tests/golden): `paper` as above (no backlash); `backlash` = the paper table")
+    w("with a constant backlash on every axis (format 1.0); `reversal` = `backlash` with")
+    w("reversal blocks of degree 3, 7 and 0 on X, Y, Z (format 1.1). `1.0 library` = the")
+    w("same sources built with `-DABBE_WITH_REVERSAL=OFF` (a format 1.0 reader: the")
+    w("library's machine code before format 1.1; it refuses the `reversal` table). The")
+    w("blocks' cost is `reversal` - `backlash` with this library. x86-64: callgrind,")
+    w("instructions inside the call; Cortex-M: the worst of the measured points, QEMU trace.")
+    w("")
+    w("| target | call | paper | backlash | reversal | blocks' cost | paper, 1.0 library | "
+      "backlash, 1.0 library |")
+    w("|---|---|---:|---:|---:|---:|---:|---:|")
+    host = {None: {m: by[m].per_call for m, _, _ in TABLE_MODES}}
+    for t in TABLES_11:
+        host[t] = host_table_bench(args.host, t)
+    host10 = {}
+    if args.host_10:
+        for t in (None, "backlash"):
+            host10[t] = host_table_bench(args.host_10, t)
+
+    def cell(v) -> str:
+        return "-" if v is None else f"{v:.0f}"
+    for mode, _, _ in TABLE_MODES:
+        vals = [None if host[t] is None else host[t][mode] for t in (None, *TABLES_11)]
+        cost = None if None in vals[1:] else vals[2] - vals[1]
+        v10 = [None if not host10.get(t) else host10[t][mode] for t in (None, "backlash")]
+        w(f"| x86-64 | {CALL_LABELS[mode]} | " + " | ".join(cell(v) for v in vals) +
+          f" | {cell(cost)} | " + " | ".join(cell(v) for v in v10) + " |")
+    tgt10: dict[str, dict[str, list[int]]] = {}
+    stdout10: dict[str, str] = {}
+    for name, build, machine in (("Cortex-M4F", args.m4f_10, "mps2-an386"),
+                                 ("Cortex-M3", args.m3_10, "mps2-an385")):
+        if build:
+            tgt10[name], stdout10[name] = qemu_trace_counts(
+                machine, build / "bench" / "bench_target.elf", nm)
+    for name in ("Cortex-M4F", "Cortex-M3"):
+        for mode in ("f32", "q", "comp_f32", "comp_q"):
+            c = tgt[name]
+            if mode not in c:
+                continue
+            vals = [max(c[k]) if k in c else None
+                    for k in (mode, f"{mode}@backlash", f"{mode}@reversal")]
+            cost = None if None in vals[1:] else vals[2] - vals[1]
+            c10 = tgt10.get(name, {})
+            v10 = [max(c10[k]) if k in c10 else None for k in (mode, f"{mode}@backlash")]
+            w(f"| {name} | {CALL_LABELS[mode]} | " + " | ".join(cell(v) for v in vals) +
+              f" | {cell(cost)} | " + " | ".join(cell(v) for v in v10) + " |")
+            out[(name, mode)] = (vals, v10)
+    w("")
+    w("A table without reversal blocks executes no block code: `paper` (no backlash) runs")
+    w("the 1.0 paths; the few instructions either way there come from the compiler's")
+    w("register allocation in the functions that also hold the blocks' calls. With a")
+    w("backlash (`backlash` vs the 1.0 library): `_f32` adds one feature test after the")
+    w("extras and passes the axis offsets to them (the blocks are a function of their own,")
+    w("called last); `_q` tests each axis' block row count in the extras loop (the block")
+    w("replaces B by B + R before the one rounding, so a one-row block is bit for bit a")
+    w("change of B). Measured during this work: the `_f32` block code inlined into the")
+    w("extras loop instead takes 160 B less flash but costs a table with backlash and no")
+    w("blocks +23 (Cortex-M4F) / +48 (x86-64) instructions instead of +11 / +9.")
+    w("")
+
+    # flash
+    w("Flash of the library (as in section 3), this library and the 1.0 library:")
+    w("")
+    w("| target | use | this library (B) | 1.0 library (B) | the blocks (B) |")
+    w("|---|---|---:|---:|---:|")
+    labels = {"load": "abbe_model_load only", "eval_f32": "load + eval_f32",
+              "eval_q": "load + eval_q", "comp_f32": "load + compensator (f32)",
+              "comp_q": "load + compensator (q)"}
+    for name, build in (("Cortex-M4F", args.m4f_10), ("Cortex-M3", args.m3_10)):
+        for use in ("load", "eval_f32", "eval_q", "comp_f32", "comp_q"):
+            if (name, use) not in flash_by:
+                continue
+            v10 = None
+            if build and (build / "bench" / f"bench_size_{use}.map").exists():
+                v10 = parse_map(build / "bench" / f"bench_size_{use}.map").lib_flash
+                out["flash_10"][(name, use)] = v10
+            now = flash_by[(name, use)]
+            w(f"| {name} | {labels[use]} | {now} | {cell(v10)} | "
+              f"{'-' if v10 is None else f'{now - v10:+d}'} |")
+    w("")
+
+    # stack
+    w("Stack (as in section 4): static = deepest call chain; measured = painted, on the")
+    w("`reversal` table (minus the wrapper's frame):")
+    w("")
+    w("| target | entry point | static, this library (B) | static, 1.0 library (B) | "
+      "measured, reversal table (B) |")
+    w("|---|---|---:|---:|---:|")
+    for name, build, build10 in (("Cortex-M4F", args.m4f, args.m4f_10),
+                                 ("Cortex-M3", args.m3, args.m3_10)):
+        frames10 = calls10 = None
+        if build10:
+            frames10, calls10 = parse_callgraph(sorted((build10 / "lib").rglob("*.ci")))
+        measured = stack_measured(stdout_by[name])
+        wrappers = wrapper_frames(build)
+        for key, fn, wrapper in (("comp_f32", "abbe_comp_step_f32", "run_comp_f32"),
+                                 ("comp_q", "abbe_comp_step_q", "run_comp_q")):
+            if (name, key) not in stack_by:
+                continue
+            s10 = None
+            if frames10 is not None and fn in frames10:
+                s10 = deepest(fn, frames10, calls10)[0]
+            meas = measured.get(f"{key}@reversal")
+            meas_s = "-" if meas is None else str(meas - wrappers.get(wrapper, 0))
+            w(f"| {name} | {fn} | {stack_by[(name, key)]} | {cell(s10)} | {meas_s} |")
+    w("")
+    return out
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repo", type=Path, required=True)
@@ -391,6 +542,12 @@ def main() -> int:
     ap.add_argument("--m3", type=Path, required=True)
     ap.add_argument("--m4f-os", type=Path, help="Cortex-M4F build at -Os (optional)")
     ap.add_argument("--m3-os", type=Path, help="Cortex-M3 build at -Os (optional)")
+    ap.add_argument("--host-1.0", dest="host_10", type=Path,
+                    help="host build with -DABBE_WITH_REVERSAL=OFF (optional)")
+    ap.add_argument("--m4f-1.0", dest="m4f_10", type=Path,
+                    help="Cortex-M4F build with -DABBE_WITH_REVERSAL=OFF (optional)")
+    ap.add_argument("--m3-1.0", dest="m3_10", type=Path,
+                    help="Cortex-M3 build with -DABBE_WITH_REVERSAL=OFF (optional)")
     ap.add_argument("-o", "--out", type=Path)
     args = ap.parse_args()
     nm = "arm-none-eabi-nm"
@@ -403,7 +560,8 @@ def main() -> int:
     w("Instruction and byte counts, not times: they repeat exactly for the same")
     w("compiler, library and table. Table: the `paper` golden table")
     w("(tests/golden: 3 axes x 6 terms, Chebyshev trend degree 1 + 3 harmonics,")
-    w("squareness, tool offset). Library built with CMAKE_BUILD_TYPE=Release")
+    w("squareness, tool offset); section 8 adds the tables with a backlash and with")
+    w("reversal blocks (format 1.1). Library built with CMAKE_BUILD_TYPE=Release")
     w("(host -O3, Cortex-M -O2, see cmake/arm-none-eabi-common.cmake).")
     w("")
     w("Tools: " + "; ".join([
@@ -485,6 +643,8 @@ def main() -> int:
             lcounts, _ = qemu_trace_counts(machine, lean_img, nm)
             lean_t[name] = lcounts["lean"]
         for call, v in counts.items():
+            if "@" in call:
+                continue  # other tables: section 8
             label = {"f32": "abbe_error_eval_f32", "load": "abbe_model_load"}.get(call, names.get(call, call))
             w(f"| {name} | {label} | {fmt_counts(v)} |")
         w(f"| {name} | naive reference (double, newlib libm) | {fmt_counts(naive_t[name])} |")
@@ -643,7 +803,7 @@ def main() -> int:
     w("  path. The six-term kernel is kept: 1446 instructions, 6448 B.")
     w("- Cortex-M4F f32: the three per-axis kernel calls cost ~30 instructions each (frame, six")
     w("  value stores and reloads); inlining them into the core costs ~1.3 KB of flash, which")
-    w("  the f32 image does not have (6124 of 6144 B used).")
+    w("  the f32 image does not have (it was at 6124 of 6144 B then; section 3 has it now).")
     w("")
 
     # 6. Python
@@ -688,6 +848,10 @@ def main() -> int:
     w("`-DABBE_PORTABLE_C=ON` builds the plain C kernels everywhere.")
     w("")
 
+    # 8. format 1.1: the reversal blocks
+    rev = reversal_section(args, nm, by, tgt, stdout_by, flash_by, stack_by)
+    md += rev["lines"]
+
     # summary, inserted after the header
     summary: list[str] = []
     sw = summary.append
@@ -705,10 +869,21 @@ def main() -> int:
         ("stack, abbe_comp_step_q (M4F)", stack_by.get(("Cortex-M4F", "comp_q"), 0), BEFORE["stack_comp_q_m4f"], TARGETS["stack_bytes"], "B"),
         ("stack, abbe_comp_step_q (M3)", stack_by.get(("Cortex-M3", "comp_q"), 0), BEFORE["stack_comp_q_m3"], TARGETS["stack_bytes"], "B"),
     ]
+    f10 = rev["flash_10"]
+    for label, key, before in (("f32 (M4F)", ("Cortex-M4F", "comp_f32"), BEFORE["flash_f32"]),
+                               ("q (M4F)", ("Cortex-M4F", "comp_q"), BEFORE["flash_q_m4f"]),
+                               ("q (M3)", ("Cortex-M3", "comp_q"), BEFORE["flash_q_m3"])):
+        if key in f10:
+            rows.append((f"flash, load + compensator, {label}, 1.0 library (ABBE_WITH_REVERSAL=OFF)",
+                         f10[key], before, TARGETS["flash_bytes"], "B"))
     sw("## Summary: the targets (issue 16)")
     sw("")
     sw("`before` = the same measurement of commit af2baa8. Instruction counts are the worst")
     sw("over the measured points (they no longer vary: the run time depends on the table only).")
+    sw("`now` is the library that reads format 1.1 (reversal blocks, issue 14; the default);")
+    sw("the `1.0 library` rows are the same sources built with -DABBE_WITH_REVERSAL=OFF,")
+    sw("a format 1.0 reader with the machine code of the library before 1.1. Section 8 has")
+    sw("the blocks' cost per call, flash and stack.")
     sw("")
     sw("| measurement | now | before | target | |")
     sw("|---|---:|---:|---:|---|")

@@ -21,8 +21,50 @@ enum { DX = ABBE_TERM_DX, DY = ABBE_TERM_DY, DZ = ABBE_TERM_DZ, EX = ABBE_TERM_E
 #define EXPANSION_PER_K_PER_LSB 8.8817841970012523e-13f /* 2^-50 per mK, per K */
 #define OFFSET_UM_PER_K_PER_LSB 1.52587890625e-5f       /* 2^-16 nm per mK = um per K */
 
-void abbe_f32_add_extras(const abbe_model_t *m, const float lev_mm[ABBE_AXES], const float dir_state[ABBE_AXES],
-                         const float temp_c[ABBE_AXES], float error_um[ABBE_AXES])
+#if !defined(ABBE_NO_REVERSAL)
+/* An axis' reversal block (format 1.1) at its offset d: sum_k r_k T_k(u) in
+ * 2^-8 nm, u the trend's argument (the clamped position), the rows by the
+ * trend's recurrence. The axis must have a block (reversal_rows > 0). */
+static ABBE_ALWAYS_INLINE float reversal_block_f32(const abbe_axis_model_t *ax, uint32_t d)
+{
+    const uint8_t *row = ax->coef_f32 + 4u * ((unsigned)ax->n_basis * ax->n_terms);
+    const float u = (float)abbe_arg_cheb_q30(ax, d) * 9.31322574615478515625e-10f; /* 2^-30 */
+    const float two_u = u + u;
+    float t_prev = 1.0f, t = u;
+    float r = abbe_ld_f32_aligned(row);
+    for (unsigned k = 1; k < ax->reversal_rows; k++) {
+        r += abbe_ld_f32_aligned(row + 4u * k) * t;
+        float t_next = two_u * t - t_prev; /* T_k = 2u T_(k-1) - T_(k-2) */
+        t_prev = t;
+        t = t_next;
+    }
+    return r;
+}
+
+/* s R(p) / 2 on the own positioning term of each axis with a reversal block,
+ * beside the backlash's s B / 2. Out of line and called last by
+ * abbe_f32_add_extras, so a table without blocks runs that function's code as
+ * a 1.0 table did (plus one feature test). */
+ABBE_NOINLINE static void add_reversal_blocks(const abbe_model_t *m, const uint32_t d[ABBE_AXES],
+                                              const float dir_state[ABBE_AXES], float error_um[ABBE_AXES])
+{
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        const abbe_axis_model_t *ax = &m->axis[j];
+        if (ax->reversal_rows == 0u) {
+            continue;
+        }
+        float s = dir_state[j] > 1.0f ? 1.0f : (dir_state[j] < -1.0f ? -1.0f : dir_state[j]);
+        float um = 0.5f * s * (reversal_block_f32(ax, d[j]) * BACKLASH_UM_PER_LSB);
+        error_um[j] += j == 2u ? um : -um;
+    }
+}
+#endif
+
+void abbe_f32_add_extras(const abbe_model_t *m, const float lev_mm[ABBE_AXES],
+#if !defined(ABBE_NO_REVERSAL)
+                         const uint32_t d[ABBE_AXES],
+#endif
+                         const float dir_state[ABBE_AXES], const float temp_c[ABBE_AXES], float error_um[ABBE_AXES])
 {
     /* Backlash and thermal terms of each axis' own positioning error, um;
      * lev_mm = p - ref. They add to -d_x(x) in dX, -d_y(y) in dY, +d_z(z) in dZ. */
@@ -41,6 +83,11 @@ void abbe_f32_add_extras(const abbe_model_t *m, const float lev_mm[ABBE_AXES], c
         }
         error_um[j] += j == 2u ? um : -um;
     }
+#if !defined(ABBE_NO_REVERSAL)
+    if (m->features & ABBE_FEATURE_REVERSAL) {
+        add_reversal_blocks(m, d, dir_state, error_um);
+    }
+#endif
 }
 
 int abbe_f32_extras_nonfinite(uint32_t features, const float dir_state[ABBE_AXES], const float temp_c[ABBE_AXES])
@@ -133,7 +180,11 @@ abbe_status_t abbe_eval_f32_core(const abbe_model_t *m, const float pos_mm[ABBE_
     if (features & (ABBE_FEATURE_BACKLASH | ABBE_FEATURE_THERMAL)) {
         const float mm_per_scaled = 2.0e-6f / ka; /* scaled arm -> mm */
         const float lev_mm[ABBE_AXES] = {x * mm_per_scaled, y * mm_per_scaled, z * mm_per_scaled};
-        abbe_f32_add_extras(m, lev_mm, dir_state, temp_c, error_um);
+        abbe_f32_add_extras(m, lev_mm,
+#if !defined(ABBE_NO_REVERSAL)
+                            d,
+#endif
+                            dir_state, temp_c, error_um);
     }
     *flags_out = flags;
     return ABBE_OK;
@@ -185,5 +236,26 @@ abbe_status_t abbe_term_eval_f32(const abbe_model_t *m, unsigned axis, unsigned 
     float v[ABBE_TERMS];
     abbe_axis_terms_f32(ax, abbe_arg_offset(ax, pos_nm, &flags), v);
     *value = v[term] * (term < 3u ? UM_PER_LIN_LSB : 1.4551915228366852e-5f); /* 2^-36 rad in urad */
+    return ABBE_OK;
+}
+
+abbe_status_t abbe_reversal_eval_f32(const abbe_model_t *m, unsigned axis, float pos_mm, float *value_um)
+{
+    if (m == NULL || value_um == NULL || axis >= ABBE_AXES) {
+        return ABBE_E_ARG;
+    }
+    uint32_t flags = 0;
+    int32_t pos_nm;
+    if (abbe_mm_to_nm_f32(pos_mm, &pos_nm, &flags) != ABBE_OK) {
+        return ABBE_E_INPUT;
+    }
+    const abbe_axis_model_t *ax = &m->axis[axis];
+    float r = (float)ax->backlash_reversal_q8;
+#if !defined(ABBE_NO_REVERSAL)
+    if (ax->reversal_rows != 0u) {
+        r += reversal_block_f32(ax, abbe_arg_offset(ax, pos_nm, &flags));
+    }
+#endif
+    *value_um = r * BACKLASH_UM_PER_LSB;
     return ABBE_OK;
 }

@@ -195,7 +195,13 @@ static ABBE_ALWAYS_INLINE abbe_status_t eval_f32_x86(const abbe_model_t *m, cons
     if (features & (ABBE_FEATURE_BACKLASH | ABBE_FEATURE_THERMAL)) {
         float lev_mm[4];
         _mm_storeu_ps(lev_mm, _mm_mul_ps(lev, _mm_set1_ps(2.0e-6f / 2.9103830456733704e-14f)));
+#if defined(ABBE_NO_REVERSAL)
         abbe_f32_add_extras(m, lev_mm, dir_state, temp_c, error_um);
+#else
+        uint32_t offsets[4];
+        _mm_storeu_si128((__m128i *)(void *)offsets, d);
+        abbe_f32_add_extras(m, lev_mm, offsets, dir_state, temp_c, error_um);
+#endif
     }
     *flags_out = flags;
     return ABBE_OK;

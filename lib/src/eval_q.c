@@ -10,8 +10,8 @@
  * own sum in 2^-36 nm, started from its constant ref part (abbe_model_load),
  * and is halved into E. E starts at the rounding constant: the result in whole
  * nm is E >> 35, below 2^28 nm, so it needs no saturation. The extra terms
- * (backlash, thermal), which can be far larger, are summed in 2^-8 nm as
- * before, added to E >> 27 and saturated.
+ * (backlash with its reversal block, thermal), which can be far larger, are
+ * summed in 2^-8 nm as before, added to E >> 27 and saturated.
  */
 #include "internal.h"
 
@@ -24,6 +24,33 @@ static int64_t mac(int64_t acc, int32_t a, int32_t b)
 {
     return acc + (int64_t)a * b;
 }
+
+#if !defined(ABBE_NO_REVERSAL)
+/* s (B + R(p)) for an axis with a reversal block (format 1.1), 2^-8 nm x
+ * Q30: its backlash reversal B plus the block sum_k r_k T_k(u) at pos_nm
+ * (clamped: the trend's u), times the direction state s. T_k come from the
+ * trend's recurrence (the same roundings, so the same error bound per row);
+ * the int64 sum starts at B x 2^30 and the rounding constant, and
+ * |B| + sum |r_k| <= 2^31 (the loader's cap) keeps it below 2^62, so the
+ * shift by 30 rounds it once to 2^-8 nm and |(B + R) s| < 2^62. Out of line:
+ * only tables with the blocks run it. */
+ABBE_NOINLINE static int64_t axis_reversal_times(const abbe_axis_model_t *ax, int32_t pos_nm, int32_t s)
+{
+    uint32_t flags = 0; /* out of travel: the evaluation has flagged it already */
+    const uint8_t *row = ax->coef_q + 4u * ((unsigned)ax->n_basis * ax->n_terms);
+    const int32_t u = abbe_arg_cheb_q30(ax, abbe_arg_offset(ax, pos_nm, &flags));
+    int32_t t_prev = ABBE_Q30_ONE, t = u;
+    int64_t acc = (int64_t)ax->backlash_reversal_q8 * ABBE_Q30_ONE + ((int64_t)1 << 29);
+    acc = abbe_smlal(acc, abbe_ld_i32(row), ABBE_Q30_ONE); /* T_0 = 1 */
+    for (unsigned k = 1; k < ax->reversal_rows; k++) {
+        acc += (int64_t)abbe_ld_i32(row + 4u * k) * t;
+        int32_t t_next = (int32_t)((((int64_t)u * t + ((int64_t)1 << 28)) >> 29) - t_prev);
+        t_prev = t;
+        t = t_next;
+    }
+    return (acc >> 30) * s;
+}
+#endif
 
 /* Component j of the error in nm, from its sum E (2^-35 nm, rounding
  * constant included) and the extra terms (backlash, thermal) on axis j's own
@@ -38,7 +65,13 @@ static ABBE_ALWAYS_INLINE int32_t finish_with_extras(const abbe_model_t *m, unsi
     int64_t w = 0;
     if (m->features & ABBE_FEATURE_BACKLASH) {
         int32_t s = dir_q30 > ABBE_Q30_ONE ? ABBE_Q30_ONE : (dir_q30 < -ABBE_Q30_ONE ? -ABBE_Q30_ONE : dir_q30);
-        w = abbe_shr_round((int64_t)ax->backlash_reversal_q8 * s, 31u); /* s * B / 2 */
+        int64_t bs = (int64_t)ax->backlash_reversal_q8 * s; /* s * B */
+#if !defined(ABBE_NO_REVERSAL)
+        if (ax->reversal_rows != 0u) {
+            bs = axis_reversal_times(ax, pos_nm, s); /* s * (B + R(p)) */
+        }
+#endif
+        w = abbe_shr_round(bs, 31u); /* s * B / 2 */
     }
     if (m->features & ABBE_FEATURE_THERMAL) {
         /* dT in mK, clamped to +/-2^30 (a million kelvin) so alpha * dT < 2^61. */
@@ -165,5 +198,24 @@ abbe_status_t abbe_term_eval_q(const abbe_model_t *m, unsigned axis, unsigned te
         pico = abbe_shr_round((int64_t)v[term] * 244140625, 23u); /* 2^-35 rad -> prad: * 10^12 / 2^35 */
     }
     *value_pm_or_prad = abbe_sat_i32(pico, &flags);
+    return ABBE_OK;
+}
+
+abbe_status_t abbe_reversal_eval_q(const abbe_model_t *m, unsigned axis, abbe_nm_t pos_nm, int32_t *value_pm)
+{
+    if (m == NULL || value_pm == NULL || axis >= ABBE_AXES) {
+        return ABBE_E_ARG;
+    }
+    uint32_t flags = 0;
+    const abbe_axis_model_t *ax = &m->axis[axis];
+    int64_t r = ax->backlash_reversal_q8; /* 2^-8 nm */
+#if !defined(ABBE_NO_REVERSAL)
+    if (ax->reversal_rows != 0u) {
+        r = axis_reversal_times(ax, pos_nm, 1);
+    }
+#else
+    (void)pos_nm;
+#endif
+    *value_pm = abbe_sat_i32(abbe_shr_round(r * 125, 5u), &flags); /* 2^-8 nm -> pm: * 1000 / 256 */
     return ABBE_OK;
 }

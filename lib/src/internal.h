@@ -240,6 +240,7 @@ void abbe_sincos_f32(uint32_t phase_q32, float *sin_out, float *cos_out);
 void abbe_axis_terms_q(const abbe_axis_model_t *ax, uint32_t d, int32_t value[ABBE_TERMS]);
 void abbe_axis_terms_f32(const abbe_axis_model_t *ax, uint32_t d, float value[ABBE_TERMS]);
 
+
 /* Float mm -> integer nm, exact to 0.56 nm over +/-2147 mm (docs/numerics.md).
  * Returns ABBE_E_INPUT for NaN/Inf; clamps beyond +/-2147 mm (flagging out of travel). */
 abbe_status_t abbe_mm_to_nm_f32(float mm, int32_t *nm, uint32_t *flags);
@@ -281,9 +282,14 @@ uint32_t abbe_eval_q_core(const abbe_model_t *m, const int32_t pos_nm[ABBE_AXES]
                           int32_t values[ABBE_AXES * ABBE_TERMS], int32_t error_nm[ABBE_AXES]);
 
 /* The backlash and thermal terms (features BACKLASH, THERMAL), added to the
- * own positioning terms in error_um; lev_mm: p - ref per axis, mm. */
-void abbe_f32_add_extras(const abbe_model_t *m, const float lev_mm[ABBE_AXES], const float dir_state[ABBE_AXES],
-                         const float temp_c[ABBE_AXES], float error_um[ABBE_AXES]);
+ * own positioning terms in error_um; lev_mm: p - ref per axis, mm; d: the
+ * axis offsets of abbe_arg_offset(), the argument of the reversal blocks
+ * (format 1.1; a library built without them has no such parameter). */
+void abbe_f32_add_extras(const abbe_model_t *m, const float lev_mm[ABBE_AXES],
+#if !defined(ABBE_NO_REVERSAL)
+                         const uint32_t d[ABBE_AXES],
+#endif
+                         const float dir_state[ABBE_AXES], const float temp_c[ABBE_AXES], float error_um[ABBE_AXES]);
 
 /* Nonzero if a direction state (BACKLASH) or temperature (THERMAL) is NaN/Inf. */
 int abbe_f32_extras_nonfinite(uint32_t features, const float dir_state[ABBE_AXES], const float temp_c[ABBE_AXES]);

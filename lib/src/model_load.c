@@ -40,11 +40,21 @@
 #define A_COEF_Q 48u
 #define A_COEF_F32 52u
 #define A_COEF_COUNT 56u
-#define A_RESERVED 60u
+#define A_REVERSAL_ROWS 60u /* format 1.1: u8 rows of the reversal block; bytes 61..63 reserved */
 
 #define LIN_L1_CAP ((uint64_t)1 << 32)
 #define ANG_L1_CAP ((uint64_t)1 << 28)
 #define SQUARENESS_CAP ((int32_t)1 << 28)
+#define REVERSAL_L1_CAP 0x80000000u /* |B| + sum |r_k|: the total reversal stays within 8.39 mm */
+#define FEATURES_1_0 0xFu            /* the feature bits of format 1.0 */
+
+/* Rows of an axis' reversal block (format 1.1); a library built without the
+ * blocks reads format 1.0 only, where they are 0 (ABBE_NO_REVERSAL). */
+#if defined(ABBE_NO_REVERSAL)
+#define REVERSAL_ROWS(rec) 0u
+#else
+#define REVERSAL_ROWS(rec) ((unsigned)(rec)[A_REVERSAL_ROWS])
+#endif
 
 static unsigned popcount6(unsigned mask)
 {
@@ -63,6 +73,11 @@ static unsigned trend_rows_of(uint8_t degree)
 static uint32_t n_basis_of(const uint8_t *rec)
 {
     return trend_rows_of(rec[A_DEGREE]) + 2u * rec[A_HARMONICS] + 2u * rec[A_HARMONICS + 1u];
+}
+
+static uint32_t n_matrix_of(const uint8_t *rec)
+{
+    return n_basis_of(rec) * popcount6(rec[A_MASK]);
 }
 
 static abbe_status_t check_header(const uint8_t *b, size_t size, uint32_t *total_out)
@@ -108,9 +123,18 @@ static int any_nonzero_i32(const uint8_t *p, unsigned count)
 static abbe_status_t check_flags(const uint8_t *b)
 {
     uint32_t features = abbe_ld_u32(b + H_FEATURES);
-    if ((features & ~ABBE_FEATURE_ALL) != 0u || abbe_ld_u32(b + H_RESERVED) != 0u) {
+#if defined(ABBE_NO_REVERSAL)
+    if ((features & ~FEATURES_1_0) != 0u || abbe_ld_u32(b + H_RESERVED) != 0u) {
         return ABBE_E_FLAGS;
     }
+#else
+    /* a 1.0 table knows no REVERSAL bit; REVERSAL uses BACKLASH's take-up and direction state */
+    uint32_t known = ABBE_FEATURE_ALL >> (abbe_ld_u16(b + H_MINOR) == 0u); /* 1.0: FEATURES_1_0 */
+    if ((features & ~known) != 0u || abbe_ld_u32(b + H_RESERVED) != 0u ||
+        (features & (ABBE_FEATURE_REVERSAL | ABBE_FEATURE_BACKLASH)) == ABBE_FEATURE_REVERSAL) {
+        return ABBE_E_FLAGS;
+    }
+#endif
     if (!(features & ABBE_FEATURE_TOOL_OFFSET) && any_nonzero_i32(b + H_TOOL, 3)) {
         return ABBE_E_FLAGS;
     }
@@ -119,7 +143,12 @@ static abbe_status_t check_flags(const uint8_t *b)
     }
     for (unsigned j = 0; j < ABBE_AXES; j++) {
         const uint8_t *rec = b + HEADER_SIZE + j * AXIS_RECORD_SIZE;
-        if (abbe_ld_u32(rec + A_RESERVED) != 0u) {
+        /* reserved bytes 61..63, and the reversal rows (byte 60, reserved in 1.0) without REVERSAL */
+        uint32_t word = abbe_ld_u32(rec + A_REVERSAL_ROWS);
+#if !defined(ABBE_NO_REVERSAL)
+        word >>= (features & ABBE_FEATURE_REVERSAL) >> 1; /* REVERSAL: bytes 61..63 only */
+#endif
+        if (word != 0u) {
             return ABBE_E_FLAGS;
         }
         if (!(features & ABBE_FEATURE_BACKLASH) && any_nonzero_i32(rec + A_BACKLASH, 2)) {
@@ -139,10 +168,11 @@ static abbe_status_t check_counts(const uint8_t *b)
         uint8_t degree = rec[A_DEGREE];
         if ((rec[A_MASK] & 0xC0u) != 0u ||
             (degree > ABBE_MAX_DEGREE && degree != ABBE_NO_TREND) ||
-            rec[A_HARMONICS] > ABBE_MAX_HARMONICS || rec[A_HARMONICS + 1u] > ABBE_MAX_HARMONICS) {
+            rec[A_HARMONICS] > ABBE_MAX_HARMONICS || rec[A_HARMONICS + 1u] > ABBE_MAX_HARMONICS ||
+            REVERSAL_ROWS(rec) > ABBE_MAX_REVERSAL_ROWS) {
             return ABBE_E_COUNT;
         }
-        if (abbe_ld_u32(rec + A_COEF_COUNT) != n_basis_of(rec) * popcount6(rec[A_MASK])) {
+        if (abbe_ld_u32(rec + A_COEF_COUNT) != n_matrix_of(rec) + REVERSAL_ROWS(rec)) {
             return ABBE_E_COUNT;
         }
     }
@@ -267,6 +297,14 @@ static abbe_status_t check_travel(const uint8_t *b)
     return ABBE_OK;
 }
 
+#if !defined(ABBE_NO_REVERSAL)
+/* |v| as uint32 (2^31 for INT32_MIN) */
+static uint32_t mag_i32(int32_t v)
+{
+    return v < 0 ? 0u - (uint32_t)v : (uint32_t)v;
+}
+#endif
+
 static uint64_t abs_i32(int32_t v)
 {
     return v < 0 ? (uint64_t)(-(int64_t)v) : (uint64_t)v;
@@ -287,7 +325,7 @@ static abbe_status_t check_ranges(const uint8_t *b)
             /* A reversal needs a take-up distance to ramp over; an axis without
              * reversal may leave it 0. */
             int32_t takeup = abbe_ld_i32(rec + A_TAKEUP);
-            if (takeup < 0 || (takeup == 0 && abbe_ld_i32(rec + A_BACKLASH) != 0)) {
+            if (takeup < 0 || (takeup == 0 && (abbe_ld_i32(rec + A_BACKLASH) != 0 || REVERSAL_ROWS(rec) != 0u))) {
                 return ABBE_E_RANGE;
             }
         }
@@ -309,6 +347,19 @@ static abbe_status_t check_ranges(const uint8_t *b)
             }
             column++;
         }
+#if !defined(ABBE_NO_REVERSAL)
+        /* the total reversal |B + R(p)| <= |B| + sum |r_k| <= 2^31 (keeps
+         * s (B + R) below 2^62), counted down in 32 bits */
+        uint32_t left = REVERSAL_L1_CAP - mag_i32(abbe_ld_i32(rec + A_BACKLASH));
+        const uint8_t *r = q + 4u * n_basis * n_terms;
+        for (unsigned k = 0; k < REVERSAL_ROWS(rec); k++) {
+            uint32_t a = mag_i32(abbe_ld_i32(r + 4u * k));
+            if (a > left) {
+                return ABBE_E_RANGE;
+            }
+            left -= a;
+        }
+#endif
     }
     return ABBE_OK;
 }
@@ -389,6 +440,9 @@ static void build_axis(abbe_axis_model_t *ax, const uint8_t *b, const uint8_t *r
     ax->thermal_expansion_q50 = abbe_ld_i32(rec + A_EXPANSION);
     ax->thermal_offset_q16 = abbe_ld_i32(rec + A_THERMAL_OFFSET);
     ax->thermal_tref_mdegc = abbe_ld_i32(rec + A_TREF);
+#if !defined(ABBE_NO_REVERSAL)
+    ax->reversal_rows = rec[A_REVERSAL_ROWS];
+#endif
 }
 
 #if ABBE_WITH_F32

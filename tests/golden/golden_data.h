@@ -13,7 +13,8 @@ typedef struct {
   int32_t expect_q_pm[3];    /* float64 reference at the q input, picometres */
   uint32_t expect_flags;     /* ABBE_FLAG_OUT_OF_TRAVEL (0x1) if any position is outside its axis travel, else 0 */
 } abbe_golden_point_t;
-typedef struct { uint8_t axis, term; float pos_mm; int32_t pos_nm; int32_t expect_f32_pico; int32_t expect_q_pico; } abbe_golden_term_t; /* term value in pm (linear) or prad (angular) at the f32 / q position */
+typedef struct { uint8_t axis, term; float pos_mm; int32_t pos_nm; int32_t expect_f32_pico; int32_t expect_q_pico; } abbe_golden_term_t; /* term value in pm (linear) or prad (angular) at the f32 / q position; term ABBE_GOLDEN_TERM_REVERSAL: the axis' total reversal (abbe_reversal_eval_*), pm */
+#define ABBE_GOLDEN_TERM_REVERSAL 6
 extern const abbe_golden_table_t abbe_golden_tables[]; extern const uint32_t abbe_golden_table_count;
 extern const abbe_golden_point_t abbe_golden_points[]; extern const uint32_t abbe_golden_point_count;
 extern const abbe_golden_term_t abbe_golden_terms[]; extern const uint32_t abbe_golden_term_count;

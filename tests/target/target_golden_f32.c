@@ -1,7 +1,7 @@
 /* Golden vectors on the target, single-precision variant (Cortex-M4F).
  *
  * Every golden table, point and term through abbe_error_eval_f32 and
- * abbe_term_eval_f32, compared with the float64 Python reference. The
+ * abbe_term_eval_f32 (abbe_reversal_eval_f32 for the reversal entries), compared with the float64 Python reference. The
  * conversion of the float result to integer pico units is done in double (a
  * test-side choice: the library never uses double) so it adds no rounding of
  * its own. Exit 0 only if every status, flag and value is within
@@ -36,7 +36,8 @@ static abbe_status_t eval_point(const abbe_model_t *m, const abbe_golden_point_t
 static abbe_status_t eval_term(const abbe_model_t *m, const abbe_golden_term_t *g, int64_t *got_pico)
 {
     float v = 0.0f;
-    abbe_status_t st = abbe_term_eval_f32(m, g->axis, g->term, g->pos_mm, &v);
+    abbe_status_t st = g->term == ABBE_GOLDEN_TERM_REVERSAL ? abbe_reversal_eval_f32(m, g->axis, g->pos_mm, &v)
+                                                            : abbe_term_eval_f32(m, g->axis, g->term, g->pos_mm, &v);
     *got_pico = to_pico(v);
     return st;
 }

@@ -1,7 +1,7 @@
 /* Golden vectors on the target, fixed-point variant (Cortex-M3).
  *
  * Every golden table, point and term through abbe_error_eval_q and
- * abbe_term_eval_q, compared with the float64 Python reference in integers
+ * abbe_term_eval_q (abbe_reversal_eval_q for the reversal entries), compared with the float64 Python reference in integers
  * only: the image must link without any float or double routine (checked by
  * target_golden_q_no_float). Exit 0 only if every status, flag and value is
  * within ABBE_GOLDEN_TOL_PM. */
@@ -28,7 +28,8 @@ static abbe_status_t eval_point(const abbe_model_t *m, const abbe_golden_point_t
 static abbe_status_t eval_term(const abbe_model_t *m, const abbe_golden_term_t *g, int64_t *got_pico)
 {
     int32_t v = 0;
-    abbe_status_t st = abbe_term_eval_q(m, g->axis, g->term, g->pos_nm, &v);
+    abbe_status_t st = g->term == ABBE_GOLDEN_TERM_REVERSAL ? abbe_reversal_eval_q(m, g->axis, g->pos_nm, &v)
+                                                            : abbe_term_eval_q(m, g->axis, g->term, g->pos_nm, &v);
     *got_pico = v;
     return st;
 }

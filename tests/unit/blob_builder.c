@@ -48,6 +48,11 @@ static unsigned n_terms(const tb_axis_t *a)
     return n;
 }
 
+static unsigned n_coef(const tb_axis_t *a)
+{
+    return n_basis(a) * n_terms(a) + a->reversal_rows;
+}
+
 void tb_fix_crc(uint8_t *buf, size_t total)
 {
     tb_put_u32(buf + total - 4, abbe_crc32(0, buf, total - 4));
@@ -56,12 +61,13 @@ void tb_fix_crc(uint8_t *buf, size_t total)
 size_t tb_build(const tb_table_t *t, uint8_t *buf, size_t cap)
 {
     size_t total = 256;
-    for (int j = 0; j < 3; j++) total += 8u * n_basis(&t->axis[j]) * n_terms(&t->axis[j]);
+    for (int j = 0; j < 3; j++) total += 8u * n_coef(&t->axis[j]);
     total += 4;
     if (total > cap) return 0;
     memset(buf, 0, total);
     memcpy(buf, "ABBE", 4);
     buf[TB_H_MAJOR] = 1;
+    buf[TB_H_MINOR] = (uint8_t)(t->version_minor ? t->version_minor : ((t->features & 0x10u) ? 1u : 0u));
     tb_put_u32(buf + TB_H_TOTAL, (uint32_t)total);
     tb_put_u32(buf + TB_H_HEADER_SIZE, 64);
     tb_put_u32(buf + TB_H_AXIS_SIZE, 64);
@@ -90,8 +96,9 @@ size_t tb_build(const tb_table_t *t, uint8_t *buf, size_t cap)
         put_i32(r + TB_A_EXPANSION, a->expansion_q50);
         put_i32(r + TB_A_THERMAL_OFFSET, a->thermal_offset_q16);
         put_i32(r + TB_A_TREF, a->tref_mdegc);
-        unsigned nb = n_basis(a), nt = n_terms(a), count = nb * nt;
+        unsigned nb = n_basis(a), nt = n_terms(a), count = n_coef(a);
         tb_put_u32(r + TB_A_COEF_COUNT, count);
+        r[TB_A_REVERSAL_ROWS] = a->reversal_rows;
         if (count == 0) continue;
         tb_put_u32(r + TB_A_COEF_Q, (uint32_t)data);
         tb_put_u32(r + TB_A_COEF_F32, (uint32_t)(data + 4u * count));
@@ -105,6 +112,11 @@ size_t tb_build(const tb_table_t *t, uint8_t *buf, size_t cap)
                 put_f32(buf + data + 4u * count + 4u * i, (float)q); /* the float32 twin */
             }
             col++;
+        }
+        for (unsigned k = 0; k < a->reversal_rows; k++) {
+            unsigned i = nb * nt + k;
+            put_i32(buf + data + 4u * i, a->reversal_q[k]);
+            put_f32(buf + data + 4u * count + 4u * i, (float)a->reversal_q[k]);
         }
         data += 8u * count;
     }

@@ -34,7 +34,7 @@
 #define TB_A_COEF_Q 48u
 #define TB_A_COEF_F32 52u
 #define TB_A_COEF_COUNT 56u
-#define TB_A_RESERVED 60u
+#define TB_A_REVERSAL_ROWS 60u /* format 1.1; bytes 61..63 reserved */
 
 typedef struct {
     int32_t travel_min_nm, travel_max_nm;
@@ -45,9 +45,12 @@ typedef struct {
     int32_t backlash_q8, takeup_nm;
     int32_t expansion_q50, thermal_offset_q16, tref_mdegc;
     const int32_t *coef_q; /* n_basis x n_terms, row-major; f32 array derived from it */
+    uint8_t reversal_rows;     /* format 1.1 reversal block (0 = none) ... */
+    const int32_t *reversal_q; /* ... its coefficients, 2^-8 nm, after the matrix in both arrays */
 } tb_axis_t;
 
 typedef struct {
+    uint16_t version_minor; /* 0 = 1 if features has REVERSAL, else 0 */
     uint32_t features;
     int32_t reference_nm[3], tool_nm[3], squareness_q36[3];
     tb_axis_t axis[3];

@@ -341,6 +341,66 @@ static void test_backlash_direction_tracking(void **state)
     assert_int_equal(fx.out.corr_nm[0], 15000);
 }
 
+/* A position-dependent reversal (format 1.1) follows the same direction state:
+ * table C is table A with a reversal block R = 4 u um on X (total 10 + 4u),
+ * u = (2x - 500) / 500. Moving + the correction is 20 + R(x) / 2, after a
+ * reversal it ramps over the take-up to 20 - R(x) / 2; the q and f32 steps agree. */
+static void test_reversal_block_direction_tracking(void **state)
+{
+    (void)state;
+    static uint8_t blob_c[4096] __attribute__((aligned(8)));
+    static int32_t rev[2];
+    tb_table_t t;
+    tb_init(&t);
+    t.features = ABBE_FEATURE_BACKLASH | ABBE_FEATURE_REVERSAL;
+    for (int j = 0; j < 3; j++) t.axis[j].takeup_nm = NM(1);
+    t.axis[0].backlash_q8 = LIN_Q(10.0);
+    t.axis[0].term_mask = 1u << ABBE_TERM_DX;
+    t.axis[0].trend_degree = 0;
+    t.axis[0].coef_q = coef_a;
+    rev[0] = 0;
+    rev[1] = LIN_Q(4.0);
+    t.axis[0].reversal_rows = 2;
+    t.axis[0].reversal_q = rev;
+    size_t n = tb_build(&t, blob_c, sizeof blob_c);
+    abbe_model_t mc;
+    assert_int_equal(abbe_model_load(&mc, blob_c, n), ABBE_OK);
+    abbe_comp_config_t c = config();
+    c.rate_nm_per_cycle[0] = 100000;
+    c.fade_cycles = 1;
+    abbe_comp_t comp_f;
+    assert_int_equal(abbe_comp_init(&fx.comp, &c, &mc), ABBE_OK);
+    assert_int_equal(abbe_comp_init(&comp_f, &c, &mc), ABBE_OK);
+    abbe_comp_enable(&fx.comp);
+    abbe_comp_enable(&comp_f);
+    double x = 100.0;
+    abbe_comp_output_t out_f;
+    for (int i = 0; i < 60; i++) {
+        int8_t dir = i < 30 ? 1 : -1;
+        if (i == 30) {
+            fx.max_step = 0; /* the reversal from here on */
+        }
+        step(x, dir, 1, 0);
+        abbe_comp_input_f32_t in;
+        memset(&in, 0, sizeof in);
+        in.pos_mm[0] = (float)x;
+        in.temp_c[0] = in.temp_c[1] = in.temp_c[2] = 20.0f;
+        in.dir[0] = dir;
+        in.fresh = 1;
+        assert_int_equal(abbe_comp_step_f32(&comp_f, &in, &out_f), ABBE_OK);
+        assert_true(abs(out_f.corr_nm[0] - fx.out.corr_nm[0]) <= 1);
+        double r_um = 10.0 + 4.0 * (2.0 * x - 500.0) / 500.0;
+        if (i == 29) { /* moving +, state +1 */
+            assert_true(fabs(fx.out.corr_nm[0] - 1000.0 * (20.0 + r_um / 2.0)) <= 1.0);
+        }
+        if (i == 59) { /* 1.5 mm back: state -1 */
+            assert_true(fabs(fx.out.corr_nm[0] - 1000.0 * (20.0 - r_um / 2.0)) <= 1.0);
+        }
+        x += i < 29 ? 0.1 : -0.05;
+    }
+    assert_true(fx.max_step <= 1100); /* the reversal ramps (about 0.8 um a cycle), never a step */
+}
+
 /* The float step: NaN positions are bad input (held, then stale), not a crash,
  * and a good float cycle gives the same correction as the q step. */
 static void test_f32_step(void **state)
@@ -409,6 +469,7 @@ int main(void)
         cmocka_unit_test_setup(test_model_swap, setup),
         cmocka_unit_test_setup(test_no_model, setup),
         cmocka_unit_test_setup(test_backlash_direction_tracking, setup),
+        cmocka_unit_test_setup(test_reversal_block_direction_tracking, setup),
         cmocka_unit_test_setup(test_f32_step, setup),
         cmocka_unit_test_setup(test_set_config_while_running, setup),
     };

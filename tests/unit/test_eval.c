@@ -76,8 +76,13 @@ static void test_golden_terms_both_variants(void **state)
             const abbe_golden_term_t *g = &abbe_golden_terms[i];
             float vf;
             int32_t vq;
-            assert_int_equal(abbe_term_eval_f32(&m, g->axis, g->term, g->pos_mm, &vf), ABBE_OK);
-            assert_int_equal(abbe_term_eval_q(&m, g->axis, g->term, g->pos_nm, &vq), ABBE_OK);
+            if (g->term == ABBE_GOLDEN_TERM_REVERSAL) { /* the axis' total reversal, pm */
+                assert_int_equal(abbe_reversal_eval_f32(&m, g->axis, g->pos_mm, &vf), ABBE_OK);
+                assert_int_equal(abbe_reversal_eval_q(&m, g->axis, g->pos_nm, &vq), ABBE_OK);
+            } else {
+                assert_int_equal(abbe_term_eval_f32(&m, g->axis, g->term, g->pos_mm, &vf), ABBE_OK);
+                assert_int_equal(abbe_term_eval_q(&m, g->axis, g->term, g->pos_nm, &vq), ABBE_OK);
+            }
             /* float result in um / urad -> pico */
             double df = fabs((double)vf * 1e6 - g->expect_f32_pico);
             double dq = fabs((double)vq - g->expect_q_pico);
@@ -312,6 +317,149 @@ static void test_backlash_and_thermal(void **state)
     assert_int_equal(abbe_error_eval_q(&m, &in_q, &eq), ABBE_OK);
     assert_true(fabs(ef.error_um[0] - 4.0f) < 0.002f);
     assert_true(abs(eq.error_nm[0] - 4000) <= 2);
+}
+
+/* Reversal blocks (format 1.1): the own positioning term gets s (B + R(p)) / 2
+ * with R(p) = sum_k r_k T_k(u), u the trend's argument at the clamped
+ * position. X: B = 8, R = 2 + 6 u - 3 T_2 (total 13 + 6u - 6u^2); Y: no terms,
+ * B = 0, R = 4 T_7(u); Z: B = 5, a constant block -2 (total 3). The
+ * expectations come from cos/acos here, not from the Python reference. */
+static int32_t rev_a[3], rev_b[8], rev_c[1];
+
+static void reversal_tables(tb_table_t *t)
+{
+    tb_init(t);
+    t->features = ABBE_FEATURE_BACKLASH | ABBE_FEATURE_REVERSAL;
+    for (int j = 0; j < 3; j++) t->axis[j].takeup_nm = NM(1);
+    t->axis[0].backlash_q8 = LIN_Q(8.0);
+    rev_a[0] = LIN_Q(2.0);
+    rev_a[1] = LIN_Q(6.0);
+    rev_a[2] = LIN_Q(-3.0);
+    t->axis[0].reversal_rows = 3;
+    t->axis[0].reversal_q = rev_a;
+    memset(rev_b, 0, sizeof rev_b);
+    rev_b[7] = LIN_Q(4.0);
+    t->axis[1].reversal_rows = 8;
+    t->axis[1].reversal_q = rev_b;
+    t->axis[2].backlash_q8 = LIN_Q(5.0);
+    rev_c[0] = LIN_Q(-2.0);
+    t->axis[2].reversal_rows = 1;
+    t->axis[2].reversal_q = rev_c;
+}
+
+static double expected_reversal_um(int axis, double p_mm)
+{
+    double u = (2.0 * fmin(fmax(p_mm, 0.0), 500.0) - 500.0) / 500.0;
+    if (axis == 0) return 13.0 + 6.0 * u - 6.0 * u * u;
+    if (axis == 1) return 4.0 * cos(7.0 * acos(u));
+    return 3.0;
+}
+
+static void test_reversal_block(void **state)
+{
+    (void)state;
+    tb_table_t t;
+    reversal_tables(&t);
+    abbe_model_t m;
+    load_table(&t, &m);
+    const double xs[] = {0.0, 125.0, 250.0, 333.3, 500.0, 620.0, -50.0};
+    const double ss[] = {1.0, -1.0, 0.5, 0.0};
+    for (size_t i = 0; i < sizeof xs / sizeof xs[0]; i++) {
+        for (size_t k = 0; k < sizeof ss / sizeof ss[0]; k++) {
+            const double pos[3] = {xs[i], 500.0 - xs[i] * 0.7, xs[(i + 3) % 7]};
+            abbe_input_f32_t in_f;
+            abbe_input_q_t in_q;
+            for (int j = 0; j < 3; j++) {
+                in_f.pos_mm[j] = (float)pos[j];
+                in_q.pos_nm[j] = (int32_t)lround(pos[j] * 1e6);
+                in_f.dir_state[j] = (float)ss[k];
+                in_q.dir_state_q30[j] = (int32_t)lround(ss[k] * ABBE_DIR_Q30_ONE);
+                in_f.temp_c[j] = 20.0f;
+                in_q.temp_mdegc[j] = 20000;
+            }
+            abbe_error_f32_t ef;
+            abbe_error_q_t eq;
+            assert_int_equal(abbe_error_eval_f32(&m, &in_f, &ef), ABBE_OK);
+            assert_int_equal(abbe_error_eval_q(&m, &in_q, &eq), ABBE_OK);
+            for (int j = 0; j < 3; j++) {
+                /* -s R / 2 in dX, dY; +s R / 2 in dZ */
+                double want = (j == 2 ? 0.5 : -0.5) * ss[k] * expected_reversal_um(j, pos[j]);
+                if (fabs(ef.error_um[j] - want) > 0.002 || fabs(eq.error_nm[j] / 1000.0 - want) > 0.002) {
+                    fail_msg("axis %d at %.1f mm, s %.1f: f32 %.4f, q %.4f, want %.4f um", j, pos[j], ss[k],
+                             (double)ef.error_um[j], eq.error_nm[j] / 1000.0, want);
+                }
+            }
+        }
+    }
+    /* the reversal alone */
+    for (size_t i = 0; i < sizeof xs / sizeof xs[0]; i++) {
+        for (unsigned j = 0; j < 3; j++) {
+            float vf;
+            int32_t vq;
+            assert_int_equal(abbe_reversal_eval_f32(&m, j, (float)xs[i], &vf), ABBE_OK);
+            assert_int_equal(abbe_reversal_eval_q(&m, j, (int32_t)lround(xs[i] * 1e6), &vq), ABBE_OK);
+            double want = expected_reversal_um((int)j, xs[i]);
+            assert_true(fabs(vf - want) < 1e-4);
+            assert_true(fabs(vq / 1e6 - want) < 1e-4);
+        }
+    }
+    float v;
+    int32_t vq;
+    assert_int_equal(abbe_reversal_eval_f32(&m, 3, 0.0f, &v), ABBE_E_ARG);
+    assert_int_equal(abbe_reversal_eval_f32(NULL, 0, 0.0f, &v), ABBE_E_ARG);
+    assert_int_equal(abbe_reversal_eval_f32(&m, 0, 0.0f, NULL), ABBE_E_ARG);
+    assert_int_equal(abbe_reversal_eval_f32(&m, 0, NAN, &v), ABBE_E_INPUT);
+    assert_int_equal(abbe_reversal_eval_f32(&m, 0, INFINITY, &v), ABBE_E_INPUT);
+    assert_int_equal(abbe_reversal_eval_q(&m, 3, 0, &vq), ABBE_E_ARG);
+    assert_int_equal(abbe_reversal_eval_q(NULL, 0, 0, &vq), ABBE_E_ARG);
+    assert_int_equal(abbe_reversal_eval_q(&m, 0, 0, NULL), ABBE_E_ARG);
+    /* a table without BACKLASH has no reversal */
+    tb_init(&t);
+    load_table(&t, &m);
+    assert_int_equal(abbe_reversal_eval_f32(&m, 1, 10.0f, &v), ABBE_OK);
+    assert_int_equal(abbe_reversal_eval_q(&m, 1, NM(10), &vq), ABBE_OK);
+    assert_true(v == 0.0f && vq == 0);
+}
+
+/* A constant reversal block is the same as a change of backlash_um: bit for
+ * bit in fixed point; in float the block's s r_0 / 2 is added beside B's, so
+ * within two roundings of the component (the block leaves B's code alone). */
+static void test_constant_block_is_backlash(void **state)
+{
+    (void)state;
+    tb_table_t t;
+    reversal_tables(&t);
+    static uint8_t other[4096] __attribute__((aligned(8)));
+    abbe_model_t with_block, without;
+    load_table(&t, &with_block);
+    memcpy(other, blob, sizeof other);
+    assert_int_equal(abbe_model_load(&with_block, other, sizeof other), ABBE_OK);
+    t.axis[2].backlash_q8 = LIN_Q(3.0);
+    t.axis[2].reversal_rows = 0;
+    load_table(&t, &without);
+    uint32_t rnd = 7u;
+    for (int i = 0; i < 500; i++) {
+        abbe_input_q_t in_q;
+        abbe_input_f32_t in_f;
+        for (int j = 0; j < 3; j++) {
+            rnd = rnd * 1664525u + 1013904223u;
+            in_q.pos_nm[j] = (int32_t)(rnd % 700000000u) - 100000000;
+            rnd = rnd * 1664525u + 1013904223u;
+            in_q.dir_state_q30[j] = (int32_t)(rnd % (2u * ABBE_DIR_Q30_ONE + 1u)) - ABBE_DIR_Q30_ONE;
+            in_q.temp_mdegc[j] = 20000;
+            in_f.pos_mm[j] = (float)in_q.pos_nm[j] * 1e-6f;
+            in_f.dir_state[j] = (float)in_q.dir_state_q30[j] / (float)ABBE_DIR_Q30_ONE;
+            in_f.temp_c[j] = 20.0f;
+        }
+        abbe_error_q_t a, b;
+        abbe_error_f32_t fa, fb;
+        assert_int_equal(abbe_error_eval_q(&with_block, &in_q, &a), ABBE_OK);
+        assert_int_equal(abbe_error_eval_q(&without, &in_q, &b), ABBE_OK);
+        assert_int_equal(a.error_nm[2], b.error_nm[2]);
+        assert_int_equal(abbe_error_eval_f32(&with_block, &in_f, &fa), ABBE_OK);
+        assert_int_equal(abbe_error_eval_f32(&without, &in_f, &fb), ABBE_OK);
+        assert_true(fabsf(fa.error_um[2] - fb.error_um[2]) <= 2.5e-7f * (1.0f + fabsf(fb.error_um[2])));
+    }
 }
 
 /* A huge temperature drives the fixed-point strain to its clamp: reported. */
@@ -586,6 +734,8 @@ int main(void)
         cmocka_unit_test(test_squareness_levers),
         cmocka_unit_test(test_angles_and_tool_offset),
         cmocka_unit_test(test_backlash_and_thermal),
+        cmocka_unit_test(test_reversal_block),
+        cmocka_unit_test(test_constant_block_is_backlash),
         cmocka_unit_test(test_fixed_saturation_reported),
         cmocka_unit_test(test_bad_inputs),
         cmocka_unit_test(test_sincos_accuracy),

@@ -22,7 +22,8 @@ static void base_table(tb_table_t *t)
     for (int i = 0; i < 8 * 6; i++) {
         coef_x[i] = (i % 6 < 3) ? 2560000 * ((i % 5) - 2) : 3436 * ((i % 7) - 3) * 1000;
     }
-    t->features = ABBE_FEATURE_ALL;
+    t->features = ABBE_FEATURE_SQUARENESS | ABBE_FEATURE_TOOL_OFFSET | ABBE_FEATURE_BACKLASH |
+                  ABBE_FEATURE_THERMAL; /* every feature of format 1.0 */
     t->reference_nm[0] = 100000000;
     t->tool_nm[2] = 150000000;
     t->squareness_q36[0] = 687195; /* 10 urad */
@@ -43,12 +44,37 @@ static void base_table(tb_table_t *t)
     }
 }
 
+/* Format 1.1: the base table with reversal blocks on X (4 rows, after its
+ * matrix) and Z (8 rows, an axis without terms: the block is its whole array). */
+static int32_t rev_x[4], rev_z[8];
+
+static void reversal_table(tb_table_t *t)
+{
+    base_table(t);
+    t->features |= ABBE_FEATURE_REVERSAL;
+    for (int k = 0; k < 4; k++) rev_x[k] = 256000 * (3 - 2 * k); /* 3, 1, -1, -3 um */
+    for (int k = 0; k < 8; k++) rev_z[k] = 128000 * (k % 3 - 1);
+    t->axis[0].reversal_rows = 4;
+    t->axis[0].reversal_q = rev_x;
+    t->axis[2].reversal_rows = 8;
+    t->axis[2].reversal_q = rev_z;
+}
+
 static uint8_t blob[4096] __attribute__((aligned(8))); /* tables must be 4-byte aligned */
 
 static size_t build_base(void)
 {
     tb_table_t t;
     base_table(&t);
+    size_t n = tb_build(&t, blob, sizeof blob);
+    assert_true(n > 0);
+    return n;
+}
+
+static size_t build_reversal(void)
+{
+    tb_table_t t;
+    reversal_table(&t);
     size_t n = tb_build(&t, blob, sizeof blob);
     assert_true(n > 0);
     return n;
@@ -67,7 +93,7 @@ static void test_valid_table_loads(void **state)
     abbe_model_t m;
     assert_int_equal(abbe_model_load(&m, blob, n), ABBE_OK);
     assert_int_equal(abbe_model_size(&m), n);
-    assert_int_equal(abbe_model_features(&m), ABBE_FEATURE_ALL);
+    assert_int_equal(abbe_model_features(&m), 0xFu);
     assert_int_equal(abbe_model_crc(&m), tb_get_u32(blob + n - 4));
     /* extra bytes after the table (a flash sector) are ignored */
     assert_int_equal(abbe_model_load(&m, blob, n + 64), ABBE_OK);
@@ -133,7 +159,7 @@ static void test_versions(void **state)
     blob[TB_H_MAJOR] = 0;
     assert_int_equal(load(n), ABBE_E_VERSION_MAJOR);
     n = build_base();
-    blob[TB_H_MINOR] = 1;
+    blob[TB_H_MINOR] = 2; /* refused before the CRC is looked at */
     assert_int_equal(load(n), ABBE_E_VERSION_MINOR);
 }
 
@@ -185,9 +211,10 @@ static void expect_u8(size_t off, uint8_t value, abbe_status_t expected)
 static void test_flags(void **state)
 {
     (void)state;
-    expect_u32(TB_H_FEATURES, ABBE_FEATURE_ALL | 0x10u, ABBE_E_FLAGS);
+    /* 0x10 (REVERSAL) is unknown to a 1.0 table */
+    expect_u32(TB_H_FEATURES, 0xFu | ABBE_FEATURE_REVERSAL, ABBE_E_FLAGS);
     expect_u32(TB_H_RESERVED, 1, ABBE_E_FLAGS);
-    expect_u32(TB_AXIS(1) + TB_A_RESERVED, 1, ABBE_E_FLAGS);
+    expect_u32(TB_AXIS(1) + TB_A_REVERSAL_ROWS, 1, ABBE_E_FLAGS); /* reserved in 1.0 */
     /* a field set for a feature that is off */
     expect_u32(TB_H_FEATURES, ABBE_FEATURE_ALL & ~ABBE_FEATURE_TOOL_OFFSET, ABBE_E_FLAGS);
     expect_u32(TB_H_FEATURES, ABBE_FEATURE_ALL & ~ABBE_FEATURE_SQUARENESS, ABBE_E_FLAGS);
@@ -306,6 +333,140 @@ static void test_ranges(void **state)
     assert_int_equal(load(n), ABBE_OK);
 }
 
+/* ---- format 1.1: reversal blocks ----------------------------------------- */
+
+static void expect_u32_rev(size_t off, uint32_t value, abbe_status_t expected)
+{
+    size_t n = build_reversal();
+    tb_put_u32(blob + off, value);
+    tb_fix_crc(blob, n);
+    assert_int_equal(load(n), expected);
+}
+
+static void expect_u8_rev(size_t off, uint8_t value, abbe_status_t expected)
+{
+    size_t n = build_reversal();
+    blob[off] = value;
+    tb_fix_crc(blob, n);
+    assert_int_equal(load(n), expected);
+}
+
+static void test_reversal_table_loads(void **state)
+{
+    (void)state;
+    size_t n = build_reversal();
+    assert_int_equal(blob[TB_H_MINOR], 1);
+    abbe_model_t m;
+    assert_int_equal(abbe_model_load(&m, blob, n), ABBE_OK);
+    assert_int_equal(abbe_model_features(&m), ABBE_FEATURE_ALL);
+    assert_int_equal(m.axis[0].reversal_rows, 4);
+    assert_int_equal(m.axis[1].reversal_rows, 0);
+    assert_int_equal(m.axis[2].reversal_rows, 8);
+    /* the 1.0 base table, labelled 1.1, is a valid 1.1 table without blocks */
+    n = build_base();
+    blob[TB_H_MINOR] = 1;
+    tb_fix_crc(blob, n);
+    assert_int_equal(load(n), ABBE_OK);
+}
+
+/* A newer minor is refused before anything else is looked at; a 1.1 table
+ * relabelled 1.0 uses what 1.0 does not have. */
+static void test_reversal_versions(void **state)
+{
+    (void)state;
+    expect_u8_rev(TB_H_MINOR, 2, ABBE_E_VERSION_MINOR);
+    expect_u8_rev(TB_H_MINOR + 1, 1, ABBE_E_VERSION_MINOR); /* minor 257 */
+    expect_u8_rev(TB_H_MINOR, 0, ABBE_E_FLAGS);
+}
+
+static void test_reversal_truncated_at_every_byte(void **state)
+{
+    (void)state;
+    size_t n = build_reversal();
+    for (size_t len = 0; len < n; len++) {
+        uint8_t *copy = malloc(len ? len : 1);
+        assert_non_null(copy);
+        memcpy(copy, blob, len);
+        abbe_model_t m;
+        assert_int_equal(abbe_model_load(&m, copy, len), ABBE_E_TRUNCATED);
+        free(copy);
+    }
+}
+
+static void test_reversal_flags(void **state)
+{
+    (void)state;
+    expect_u32_rev(TB_H_FEATURES, ABBE_FEATURE_ALL | 0x20u, ABBE_E_FLAGS);      /* unknown in 1.1 */
+    expect_u32_rev(TB_H_FEATURES, ABBE_FEATURE_ALL & ~ABBE_FEATURE_REVERSAL, ABBE_E_FLAGS); /* rows set */
+    for (unsigned k = 1; k < 4; k++) {
+        expect_u8_rev(TB_AXIS(0) + TB_A_REVERSAL_ROWS + k, 1, ABBE_E_FLAGS);   /* bytes 61..63 */
+    }
+    /* REVERSAL needs BACKLASH (its take-up and direction state), even with no rows */
+    tb_table_t t;
+    tb_init(&t);
+    t.features = ABBE_FEATURE_REVERSAL;
+    size_t n = tb_build(&t, blob, sizeof blob);
+    assert_int_equal(load(n), ABBE_E_FLAGS);
+    t.features = ABBE_FEATURE_REVERSAL | ABBE_FEATURE_BACKLASH;
+    n = tb_build(&t, blob, sizeof blob);
+    assert_int_equal(load(n), ABBE_OK);
+}
+
+static void test_reversal_counts(void **state)
+{
+    (void)state;
+    expect_u8_rev(TB_AXIS(0) + TB_A_REVERSAL_ROWS, 9, ABBE_E_COUNT);
+    expect_u8_rev(TB_AXIS(0) + TB_A_REVERSAL_ROWS, 255, ABBE_E_COUNT);
+    expect_u8_rev(TB_AXIS(0) + TB_A_REVERSAL_ROWS, 3, ABBE_E_COUNT);  /* coef_count says 48 + 4 */
+    expect_u32_rev(TB_AXIS(0) + TB_A_COEF_COUNT, 48, ABBE_E_COUNT);   /* the matrix alone */
+    expect_u8_rev(TB_AXIS(1) + TB_A_REVERSAL_ROWS, 1, ABBE_E_COUNT);  /* a row Y does not store */
+    expect_u32_rev(TB_AXIS(2) + TB_A_COEF_COUNT, 0, ABBE_E_COUNT);
+}
+
+static void test_reversal_offsets_and_values(void **state)
+{
+    (void)state;
+    size_t n = build_reversal();
+    uint32_t off_q = tb_get_u32(blob + TB_AXIS(2) + TB_A_COEF_Q);
+    uint32_t off_f = tb_get_u32(blob + TB_AXIS(2) + TB_A_COEF_F32);
+    assert_int_equal(off_f + 32u, n - 4u); /* Z's block is the last array */
+    expect_u32_rev(TB_AXIS(2) + TB_A_COEF_F32, off_f + 4u, ABBE_E_OFFSET);  /* runs into the CRC */
+    expect_u32_rev(TB_AXIS(2) + TB_A_COEF_Q, 0, ABBE_E_OFFSET);
+    /* the reversal rows are coefficients like the others: finite twins, bit for bit */
+    uint32_t x_f = tb_get_u32(blob + TB_AXIS(0) + TB_A_COEF_F32);
+    expect_u32_rev(x_f + 4u * 49u, 0x7FC00000u, ABBE_E_NONFINITE);             /* X reversal row 1 */
+    expect_u32_rev(off_f + 4u * 7u, 0xFF800000u, ABBE_E_NONFINITE);            /* Z row 7 */
+    expect_u32_rev(x_f + 4u * 51u, tb_get_u32(blob + x_f + 4u * 51u) ^ 1u, ABBE_E_MISMATCH);
+    expect_u32_rev(off_f + 4u, 0x3F800000u, ABBE_E_MISMATCH);                /* 1.0f for 0 */
+    (void)off_q;
+}
+
+static void test_reversal_ranges(void **state)
+{
+    (void)state;
+    /* a block needs a take-up distance even where B = 0 (Z) */
+    expect_u32_rev(TB_AXIS(2) + TB_A_TAKEUP, 0, ABBE_E_RANGE);
+    expect_u32_rev(TB_AXIS(1) + TB_A_TAKEUP, 0, ABBE_OK); /* Y: no reversal at all */
+    /* |B| + sum |r_k| <= 2^31 */
+    tb_table_t t;
+    reversal_table(&t);
+    t.axis[2].backlash_q8 = INT32_MIN; /* |B| = 2^31, plus 5 x 0.5 um of r_k: over */
+    size_t n = tb_build(&t, blob, sizeof blob);
+    assert_int_equal(load(n), ABBE_E_RANGE);
+    static int32_t one[1];
+    reversal_table(&t);
+    t.axis[1].takeup_nm = 1000;
+    t.axis[1].backlash_q8 = INT32_MIN + 1;
+    t.axis[1].reversal_rows = 1;
+    t.axis[1].reversal_q = one;
+    one[0] = 1; /* 2^31 exactly: the cap */
+    n = tb_build(&t, blob, sizeof blob);
+    assert_int_equal(load(n), ABBE_OK);
+    one[0] = -2;
+    n = tb_build(&t, blob, sizeof blob);
+    assert_int_equal(load(n), ABBE_E_RANGE);
+}
+
 /* A failed load leaves a model loaded earlier intact and usable. */
 static void test_failure_keeps_previous_model(void **state)
 {
@@ -367,6 +528,13 @@ int main(void)
         cmocka_unit_test(test_periods),
         cmocka_unit_test(test_travel),
         cmocka_unit_test(test_ranges),
+        cmocka_unit_test(test_reversal_table_loads),
+        cmocka_unit_test(test_reversal_versions),
+        cmocka_unit_test(test_reversal_truncated_at_every_byte),
+        cmocka_unit_test(test_reversal_flags),
+        cmocka_unit_test(test_reversal_counts),
+        cmocka_unit_test(test_reversal_offsets_and_values),
+        cmocka_unit_test(test_reversal_ranges),
         cmocka_unit_test(test_failure_keeps_previous_model),
         cmocka_unit_test(test_strerror_distinct),
         cmocka_unit_test(test_crc32_reference_value),

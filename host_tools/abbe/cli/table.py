@@ -37,7 +37,8 @@ def _read_bin(path: Path) -> tuple[bytes, Table]:
 def _cmd_info(args: argparse.Namespace) -> int:
     data, table = _read_bin(args.model)
     total = int.from_bytes(data[8:12], "little")
-    out = [f"{args.model}: abbe table format 1.0, {total} bytes, CRC-32 0x{blob_crc(data):08X}",
+    minor = int.from_bytes(data[6:8], "little")
+    out = [f"{args.model}: abbe table format 1.{minor}, {total} bytes, CRC-32 0x{blob_crc(data):08X}",
            "features: " + (", ".join(feature_names(table.features())) or "none"),
            "reference_mm: " + " ".join(f"{v:.6f}" for v in table.reference_mm)]
     if table.features() & 0x2:
@@ -62,6 +63,10 @@ def _cmd_info(args: argparse.Namespace) -> int:
                    + (" ".join(terms) or "none"))
         if ax.backlash_um or ax.backlash_takeup_mm:
             out.append(f"  backlash {ax.backlash_um:.4f} um, take-up {ax.backlash_takeup_mm:g} mm")
+        if ax.reversal_cheb_um is not None:
+            r = ax.reversal_um(np.linspace(ax.travel_mm[0], ax.travel_mm[1], 201))
+            out.append(f"  reversal block degree {len(ax.reversal_cheb_um) - 1} (format 1.1): "
+                       f"total reversal {r.min():.4f} .. {r.max():.4f} um over the travel")
         if ax.thermal_expansion_ppm_per_k or ax.thermal_offset_um_per_k or ax.thermal_tref_c:
             out.append(f"  thermal {ax.thermal_expansion_ppm_per_k:.4f} ppm/K, offset "
                        f"{ax.thermal_offset_um_per_k:.4f} um/K, T_ref {ax.thermal_tref_c:.3f} C")

@@ -1,4 +1,8 @@
-"""The binary table blob (format 1.0, docs/table-format.md): writer, reader, quantisation.
+"""The binary table blob (format 1.1, docs/table-format.md): writer, reader, quantisation.
+
+The writer writes format 1.0 (version_minor 0) for a table without reversal
+blocks, byte for byte what earlier versions wrote, so drives with a 1.0 library
+keep accepting it, and 1.1 only for a table that uses them; the reader reads both.
 
 The binary layout, the integer encodings and the validation order are specified
 in ``docs/table-format.md``; this module is the host-side writer and reader of
@@ -11,7 +15,7 @@ Integer encodings in the blob (rounded to nearest on writing):
 positions, periods     nm (int32)
 linear coefficients    2^-8 nm (int32)
 angular coefficients   2^-36 rad (int32), squareness likewise
-backlash reversal      2^-8 nm
+backlash reversal      2^-8 nm, reversal block coefficients likewise
 thermal expansion      2^-50 per mK  (12 ppm/K = 13 510 799)
 thermal offset         2^-16 nm per mK (1 um/K = 65 536)
 temperature            m°C
@@ -32,12 +36,15 @@ from abbe.model.table import (
     AXES,
     FEATURE_ALL,
     FEATURE_BACKLASH,
+    FEATURE_REVERSAL,
     FEATURE_SQUARENESS,
     FEATURE_THERMAL,
     FEATURE_TOOL_OFFSET,
+    FEATURES_1_0,
     LINEAR_TERMS,
     MAX_DEGREE,
     MAX_HARMONICS,
+    MAX_REVERSAL_ROWS,
     NO_TREND,
     TERMS,
     AxisTable,
@@ -47,7 +54,8 @@ from abbe.model.table import (
     basis_matrix,
 )
 
-FORMAT_MAJOR, FORMAT_MINOR = 1, 0
+#: The format this module reads (older minors too); the writer writes minor 0 or 1 (module docstring).
+FORMAT_MAJOR, FORMAT_MINOR = 1, 1
 MAGIC = b"ABBE"
 HEADER_SIZE = 64
 AXIS_RECORD_SIZE = 64
@@ -58,6 +66,7 @@ ANG_FRAC_BITS = 36  # angular coefficients and squareness: 2^-36 rad
 LIN_SUM_CAP = 1 << 32   # sum |int32 coef| of a linear term (16.7 mm)
 ANG_SUM_CAP = 1 << 28   # sum |int32 coef| of an angular term (3906 urad)
 SQUARENESS_CAP = 1 << 28
+REVERSAL_SUM_CAP = 1 << 31  # |backlash| + sum |reversal coef|, 2^-8 nm (8.39 mm)
 INT32_MIN, INT32_MAX = -(1 << 31), (1 << 31) - 1
 # Unit factors: float value in table units -> integer units.
 _UM_TO_Q8 = 1000.0 * (1 << LIN_FRAC_BITS)          # um -> 2^-8 nm
@@ -84,6 +93,7 @@ class _AxisInts:
     offset_q16: int
     tref_mdegc: int
     coef_q: np.ndarray  # (n_basis, n_terms) int64 holding int32 values
+    reversal_q8: np.ndarray  # (rows,) int64 holding int32 values; rows 0 = no reversal block
 
 
 @dataclass
@@ -138,13 +148,15 @@ def _encode(table: Table) -> _TableInts:
         features |= FEATURE_SQUARENESS
     if any(tool):
         features |= FEATURE_TOOL_OFFSET
-    if any(ax.backlash_q8 or ax.takeup_nm for ax in axes):
+    if any(ax.backlash_q8 or ax.takeup_nm or ax.reversal_q8.size for ax in axes):
         features |= FEATURE_BACKLASH
         for a, ax in zip(AXES, axes):
-            if ax.takeup_nm < 0 or (ax.takeup_nm == 0 and ax.backlash_q8 != 0):
+            if ax.takeup_nm < 0 or (ax.takeup_nm == 0 and (ax.backlash_q8 != 0 or ax.reversal_q8.size)):
                 raise TableError(
-                    "backlash take-up must be > 0 where the backlash is non-zero",
+                    "backlash take-up must be > 0 where the backlash or a reversal block is non-zero",
                     status="ABBE_E_RANGE", field=f"axes.{a}.backlash_takeup_mm")
+    if any(ax.reversal_q8.size for ax in axes):
+        features |= FEATURE_REVERSAL
     if any(ax.expansion_q50 or ax.offset_q16 or ax.tref_mdegc for ax in axes):
         features |= FEATURE_THERMAL
     return _TableInts(features, ref, tool, tuple(sq), axes)  # type: ignore[arg-type]
@@ -230,8 +242,35 @@ def _encode_axis(ax: AxisTable, a: str) -> _AxisInts:
                         * _UM_K_TO_Q16, pre + "thermal_offset_um_per_k", "2^-16 nm per mK")
     tref = _to_int32(_finite(ax.thermal_tref_c, pre + "thermal_tref_c") * 1000.0,
                      pre + "thermal_tref_c", "mdegC")
+    rev_q8 = _encode_reversal(ax, b_q8, pre)
     return _AxisInts((tmin, tmax), mask, deg, (harm[0], harm[1]), (period[0], period[1]),
-                     (origin[0], origin[1]), b_q8, takeup, exp_q50, off_q16, tref, coef_q)
+                     (origin[0], origin[1]), b_q8, takeup, exp_q50, off_q16, tref, coef_q, rev_q8)
+
+
+def _encode_reversal(ax: AxisTable, b_q8: int, pre: str) -> np.ndarray:
+    """The reversal block's coefficients in 2^-8 nm (empty without a block)."""
+    where = pre + "reversal_cheb_um"
+    if ax.reversal_cheb_um is None:
+        return np.zeros(0, dtype=np.int64)
+    try:
+        c = np.asarray(ax.reversal_cheb_um, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        raise TableError("expected a sequence of numbers (um) or None", status="ABBE_E_COUNT",
+                         field=where) from None
+    if not 1 <= c.size <= MAX_REVERSAL_ROWS:
+        raise TableError(f"{c.size} coefficients: a reversal block has 1..{MAX_REVERSAL_ROWS} "
+                         "(degree 0..7), or is None", status="ABBE_E_COUNT", field=where)
+    if not np.all(np.isfinite(c)):
+        raise TableError("coefficient is NaN or infinite", status="ABBE_E_NONFINITE", field=where)
+    q = np.rint(c * _UM_TO_Q8)
+    if np.any(np.abs(q) > INT32_MAX):
+        raise TableError("coefficient does not fit in int32 2^-8 nm", status="ABBE_E_RANGE",
+                         field=where)
+    q = q.astype(np.int64)
+    if abs(b_q8) + int(np.abs(q).sum()) > REVERSAL_SUM_CAP:
+        raise TableError("|backlash_um| + sum of |reversal coefficients| exceeds the fixed-point "
+                         "cap (8.39 mm)", status="ABBE_E_RANGE", field=where)
+    return q
 
 
 def _lin_from_q8(q: Any) -> Any:
@@ -260,6 +299,8 @@ def _decode(ti: _TableInts) -> Table:
                 q = ai.coef_q[:, col]
                 coef[t] = (_lin_from_q8(q) if t in LINEAR_TERMS else _ang_from_q36(q))
                 col += 1
+        rev = (None if ai.reversal_q8.size == 0
+               else tuple(float(v) for v in _lin_from_q8(ai.reversal_q8)))
         axes[a] = AxisTable(
             travel_mm=(ai.travel_nm[0] / 1e6, ai.travel_nm[1] / 1e6),
             trend_degree=None if ai.trend_degree == NO_TREND else int(ai.trend_degree),
@@ -270,6 +311,7 @@ def _decode(ti: _TableInts) -> Table:
             thermal_expansion_ppm_per_k=ai.expansion_q50 * 1e9 / _PPM_K_TO_Q50_NUM,
             thermal_offset_um_per_k=ai.offset_q16 / _UM_K_TO_Q16,
             thermal_tref_c=ai.tref_mdegc / 1000.0,
+            reversal_cheb_um=rev,
         )
     return Table(
         axes=axes,
@@ -293,6 +335,7 @@ def quantization_error(table: Table, samples: int = 2001) -> dict[tuple[str, str
 
     Sampled on ``samples`` evenly spaced positions plus the travel ends; um for
     linear terms, urad for angular terms, keyed by (axis, term) for present terms.
+    (A reversal block's rounding, at most its row count x 2^-9 nm, is not listed.)
     """
     qt = quantize(table)
     out: dict[tuple[str, str], float] = {}
@@ -314,13 +357,15 @@ def quantization_error(table: Table, samples: int = 2001) -> dict[tuple[str, str
 
 
 def write_blob(table: Table) -> bytes:
-    """Serialise ``table`` to the format-1.0 blob (docs/table-format.md).
+    """Serialise ``table`` to the blob (docs/table-format.md): format 1.0, or 1.1
+    if an axis has a reversal block.
 
     Values are rounded to the nearest integer of their encoding; TableError if one
     cannot be represented. Same table -> same bytes.
     """
     ti = _encode(table)
-    counts = [ai.coef_q.size for ai in ti.axes]
+    minor = 1 if ti.features & FEATURE_REVERSAL else 0
+    counts = [ai.coef_q.size + ai.reversal_q8.size for ai in ti.axes]
     offsets = []
     pos = COEF_START
     for n in counts:
@@ -331,7 +376,7 @@ def write_blob(table: Table) -> bytes:
             offsets.append((0, 0))
     total = pos + 4
     out = bytearray(total)
-    struct.pack_into(_HEADER_FMT, out, 0, MAGIC, FORMAT_MAJOR, FORMAT_MINOR, total,
+    struct.pack_into(_HEADER_FMT, out, 0, MAGIC, FORMAT_MAJOR, minor, total,
                      HEADER_SIZE, AXIS_RECORD_SIZE, ti.features, *ti.reference_nm,
                      *ti.tool_nm, *ti.squareness_q36, 0)
     for i, (ai, (qoff, foff), n) in enumerate(zip(ti.axes, offsets, counts)):
@@ -339,13 +384,13 @@ def write_blob(table: Table) -> bytes:
                          ai.travel_nm[0], ai.travel_nm[1], ai.term_mask, ai.trend_degree,
                          ai.harmonics[0], ai.harmonics[1], *ai.period_nm, *ai.origin_nm,
                          ai.backlash_q8, ai.takeup_nm, ai.expansion_q50, ai.offset_q16,
-                         ai.tref_mdegc, qoff, foff, n, 0)
+                         ai.tref_mdegc, qoff, foff, n, ai.reversal_q8.size)
         if n:
-            q = ai.coef_q.astype("<i4")  # row-major: c[row * n_terms + column]
-            out[qoff:qoff + 4 * n] = q.tobytes(order="C")
+            # row-major: c[row * n_terms + column], then the reversal block's rows
+            q = np.concatenate([ai.coef_q.reshape(-1), ai.reversal_q8])
+            out[qoff:qoff + 4 * n] = q.astype("<i4").tobytes()
             # the float32 twin: each int32 converted, round to nearest even, same units
-            f = ai.coef_q.astype(np.float32)
-            out[foff:foff + 4 * n] = f.astype("<f4").tobytes(order="C")
+            out[foff:foff + 4 * n] = q.astype(np.float32).astype("<f4").tobytes()
     struct.pack_into("<I", out, total - 4, zlib.crc32(bytes(out[:total - 4])) & 0xFFFFFFFF)
     return bytes(out)
 
@@ -416,9 +461,10 @@ def _read_ints(data: bytes, source: str) -> _TableInts:
      QOFF, FOFF, COUNT, RES) = range(19)
 
     # FLAGS
-    if features & ~FEATURE_ALL:
-        raise err("ABBE_E_FLAGS", f"unknown feature bits 0x{features & ~FEATURE_ALL:X}",
-                  "features")
+    known = FEATURES_1_0 if minor == 0 else FEATURE_ALL
+    if features & ~known:
+        raise err("ABBE_E_FLAGS", f"unknown feature bits 0x{features & ~known:X} for table "
+                  f"format {major}.{minor}", "features")
     if reserved:
         raise err("ABBE_E_FLAGS", "reserved header field is not 0", "reserved")
     if not features & FEATURE_TOOL_OFFSET and any(tool):
@@ -427,9 +473,16 @@ def _read_ints(data: bytes, source: str) -> _TableInts:
     if not features & FEATURE_SQUARENESS and any(sq):
         raise err("ABBE_E_FLAGS", "squareness set but feature SQUARENESS off",
                   "squareness_q36")
+    if features & FEATURE_REVERSAL and not features & FEATURE_BACKLASH:
+        raise err("ABBE_E_FLAGS", "feature REVERSAL needs BACKLASH (its take-up and direction "
+                  "state)", "features")
     for a, r in zip(AXES, recs):
-        if r[RES]:
-            raise err("ABBE_E_FLAGS", "reserved axis field is not 0", f"axes.{a}.reserved")
+        if r[RES] >> 8:
+            raise err("ABBE_E_FLAGS", "reserved axis bytes 61..63 are not 0", f"axes.{a}.reserved")
+        if r[RES] and not features & FEATURE_REVERSAL:
+            raise err("ABBE_E_FLAGS", "reversal_rows set but feature REVERSAL off"
+                      + (" (format 1.0: reserved)" if minor == 0 else ""),
+                      f"axes.{a}.reversal_rows")
         if not features & FEATURE_BACKLASH and (r[BQ8] or r[TAKEUP]):
             raise err("ABBE_E_FLAGS", "backlash set but feature BACKLASH off",
                       f"axes.{a}.backlash")
@@ -449,12 +502,16 @@ def _read_ints(data: bytes, source: str) -> _TableInts:
             if h > MAX_HARMONICS:
                 raise err("ABBE_E_COUNT", f"harmonics {h} > {MAX_HARMONICS}",
                           f"axes.{a}.harmonics[{b}]")
+        rows = r[RES] & 0xFF
+        if rows > MAX_REVERSAL_ROWS:
+            raise err("ABBE_E_COUNT", f"reversal_rows {rows} > {MAX_REVERSAL_ROWS}",
+                      f"axes.{a}.reversal_rows")
         n_terms = bin(r[MASK]).count("1")
         n_basis = (0 if r[DEG] == NO_TREND else r[DEG] + 1) + 2 * r[H0] + 2 * r[H1]
-        if r[COUNT] != n_basis * n_terms:
+        if r[COUNT] != n_basis * n_terms + rows:
             raise err("ABBE_E_COUNT", f"coef_count {r[COUNT]} != n_basis {n_basis} x n_terms "
-                      f"{n_terms}", f"axes.{a}.coef_count")
-        shapes.append((n_basis, n_terms))
+                      f"{n_terms} + reversal_rows {rows}", f"axes.{a}.coef_count")
+        shapes.append((n_basis, n_terms, rows))
     # OFFSET
     for a, r in zip(AXES, recs):
         cnt = r[COUNT]
@@ -499,13 +556,14 @@ def _read_ints(data: bytes, source: str) -> _TableInts:
             raise err("ABBE_E_TRAVEL", f"travel_min {r[TMIN]} nm >= travel_max {r[TMAX]} nm",
                       f"axes.{a}.travel_nm")
     # RANGE
-    coefs = []
-    for a, r, (nb, nt) in zip(AXES, recs, shapes):
+    coefs, revs = [], []
+    for a, r, (nb, nt, rows) in zip(AXES, recs, shapes):
         if r[COUNT]:
-            q = np.frombuffer(data, dtype="<i4", count=r[COUNT], offset=r[QOFF])
-            q = q.astype(np.int64).reshape(nb, nt)
+            allq = np.frombuffer(data, dtype="<i4", count=r[COUNT], offset=r[QOFF]).astype(np.int64)
         else:
-            q = np.zeros((nb, nt), dtype=np.int64)
+            allq = np.zeros(0, dtype=np.int64)
+        q = allq[:nb * nt].reshape(nb, nt)
+        rev = allq[nb * nt:]
         col = 0
         for t_i, t in enumerate(TERMS):
             if r[MASK] & (1 << t_i):
@@ -514,19 +572,23 @@ def _read_ints(data: bytes, source: str) -> _TableInts:
                     raise err("ABBE_E_RANGE", "sum of |coefficients| over the fixed-point cap",
                               f"axes.{a}.coef.{t}")
                 col += 1
+        if abs(r[BQ8]) + int(np.abs(rev).sum()) > REVERSAL_SUM_CAP:
+            raise err("ABBE_E_RANGE", "|backlash| + sum of |reversal coefficients| over 2^31 "
+                      "(8.39 mm)", f"axes.{a}.reversal_q8")
         coefs.append(q)
+        revs.append(rev)
     for i, s in enumerate(sq):
         if abs(s) > SQUARENESS_CAP:
             raise err("ABBE_E_RANGE", f"|squareness| {s} > 2^28", f"squareness_q36[{i}]")
     if features & FEATURE_BACKLASH:
         for a, r in zip(AXES, recs):
-            if r[TAKEUP] < 0 or (r[TAKEUP] == 0 and r[BQ8] != 0):
-                raise err("ABBE_E_RANGE", "backlash take-up must be > 0 where the backlash is non-zero",
-                          f"axes.{a}.backlash_takeup_nm")
+            if r[TAKEUP] < 0 or (r[TAKEUP] == 0 and (r[BQ8] != 0 or r[RES] & 0xFF)):
+                raise err("ABBE_E_RANGE", "backlash take-up must be > 0 where the backlash or a "
+                          "reversal block is non-zero", f"axes.{a}.backlash_takeup_nm")
     axes = [
         _AxisInts((r[TMIN], r[TMAX]), r[MASK], r[DEG], (r[H0], r[H1]), (r[P0], r[P1]),
-                  (r[O0], r[O1]), r[BQ8], r[TAKEUP], r[EXP], r[OFF], r[TREF], q)
-        for r, q in zip(recs, coefs)
+                  (r[O0], r[O1]), r[BQ8], r[TAKEUP], r[EXP], r[OFF], r[TREF], q, rev)
+        for r, q, rev in zip(recs, coefs, revs)
     ]
     return _TableInts(features, ref, tool, sq, axes)  # type: ignore[arg-type]
 

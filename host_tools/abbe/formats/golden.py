@@ -8,7 +8,9 @@ For each table the expectations are the float64 reference (abbe.model.reference)
 the quantized table, evaluated at each input exactly as the C library gets it:
 the f32 input at its float32 values (widened to float64), the q input at its
 integers (nm, Q30 direction state, m°C). Spatial errors are in picometres,
-single terms in pm (linear) or prad (angular), rounded to the nearest integer.
+single terms in pm (linear) or prad (angular), rounded to the nearest integer;
+term index 6 (:data:`REVERSAL_TERM`) is an axis' total reversal B + R(p), pm
+(``abbe_reversal_eval_*``).
 
 Tables:
 
@@ -18,7 +20,16 @@ Tables:
   backlash, thermal);
 * ``sparse``: three terms on X only; Y and Z carry no terms (term_mask 0);
 * ``negative``: negative travels, a trend-free axis and a block-1-only axis,
-  many positions far outside the travel.
+  many positions far outside the travel;
+* ``backlash``: the paper table with a constant backlash on every axis (format 1.0);
+* ``reversal``: the same with position-dependent reversal blocks (format 1.1):
+  X degree 3 (the reversal changes sign along the travel), Y degree 7, Z degree 0
+  (a constant block: the same as a larger backlash);
+* ``reversal_sparse``: reversal blocks on axes without terms (no basis rows) and
+  on an axis whose own positioning term is absent, negative travels, thermal.
+
+The 1.0 tables come first and draw the same random numbers as before the 1.1
+tables existed, so their vectors do not change.
 """
 
 from __future__ import annotations
@@ -33,13 +44,15 @@ import numpy as np
 from abbe.formats.blob import read_blob, write_blob
 from abbe.formats.output import atomic_write_many
 from abbe.model.examples import paper_table, synthetic_axis
-from abbe.model.reference import out_of_travel, spatial_error, term_values
+from abbe.model.reference import out_of_travel, reversal_values, spatial_error, term_values
 from abbe.model.table import AXES, TERMS, AxisTable, FourierBlock, Table
 
 FLAG_OUT_OF_TRAVEL = 0x1
 TOL_PM = 2000
 DIR_STATES = (-1.0, -0.5, 0.0, 1.0)
 SEED = 2302
+#: Golden term index of an axis' total reversal (after the six TERMS).
+REVERSAL_TERM = 6
 
 HEADER = """\
 /* golden_data.h: golden vectors for the abbe C tests.
@@ -57,7 +70,8 @@ typedef struct {
   int32_t expect_q_pm[3];    /* float64 reference at the q input, picometres */
   uint32_t expect_flags;     /* ABBE_FLAG_OUT_OF_TRAVEL (0x1) if any position is outside its axis travel, else 0 */
 } abbe_golden_point_t;
-typedef struct { uint8_t axis, term; float pos_mm; int32_t pos_nm; int32_t expect_f32_pico; int32_t expect_q_pico; } abbe_golden_term_t; /* term value in pm (linear) or prad (angular) at the f32 / q position */
+typedef struct { uint8_t axis, term; float pos_mm; int32_t pos_nm; int32_t expect_f32_pico; int32_t expect_q_pico; } abbe_golden_term_t; /* term value in pm (linear) or prad (angular) at the f32 / q position; term ABBE_GOLDEN_TERM_REVERSAL: the axis' total reversal (abbe_reversal_eval_*), pm */
+#define ABBE_GOLDEN_TERM_REVERSAL 6
 extern const abbe_golden_table_t abbe_golden_tables[]; extern const uint32_t abbe_golden_table_count;
 extern const abbe_golden_point_t abbe_golden_points[]; extern const uint32_t abbe_golden_point_count;
 extern const abbe_golden_term_t abbe_golden_terms[]; extern const uint32_t abbe_golden_term_count;
@@ -131,6 +145,42 @@ def negative_table(rng: np.random.Generator) -> Table:
                  tool_offset_mm=(-30.0, 15.5, 120.0), squareness_urad=(-18.0, 0.0, 9.5))
 
 
+def backlash_table() -> Table:
+    """The paper table with a constant backlash (reversal) on every axis: format 1.0."""
+    t = paper_table()
+    for a, (b, takeup) in {"X": (9.0, 0.15), "Y": (-4.0, 0.08), "Z": (6.5, 0.2)}.items():
+        t.axes[a].backlash_um, t.axes[a].backlash_takeup_mm = b, takeup
+    return t
+
+
+def reversal_table() -> Table:
+    """:func:`backlash_table` with reversal blocks (format 1.1), um: on X the total
+    reversal runs from +35 um at one end to -9 um at the other (as on the ESS
+    stage), Y has a degree-7 block, Z a constant one (= backlash 9.0 um)."""
+    t = backlash_table()
+    t.axes["X"].reversal_cheb_um = (-4.0, -25.0, 6.0, 3.0)
+    t.axes["Y"].reversal_cheb_um = (4.0, 10.0, -6.0, 3.0, -2.0, 1.5, -1.0, 0.5)
+    t.axes["Z"].reversal_cheb_um = (2.5,)
+    return t
+
+
+def reversal_sparse_table(rng: np.random.Generator) -> Table:
+    """Reversal blocks where the axis has no basis rows (Y, Z: no terms) and where
+    its own positioning term is absent (X has dy, ey only); negative travels,
+    thermal on Z."""
+    x = synthetic_axis(rng, (-900.0, -100.0), -500.0, {"dy": 6.0, "ey": 20.0},
+                       trend_degree=2, blocks=(FourierBlock(800.0, -900.0, 2), None))
+    x.backlash_um, x.backlash_takeup_mm = 0.0, 0.3
+    x.reversal_cheb_um = (12.0, -8.0)
+    y = AxisTable((-600.0, -10.0), backlash_um=-5.0, backlash_takeup_mm=0.05,
+                  reversal_cheb_um=(3.0, 7.5, -2.0, 0.5, 1.0, -0.75, 0.25, -0.4))
+    z = AxisTable((-450.0, 50.0), backlash_um=15.0, backlash_takeup_mm=1.0,
+                  reversal_cheb_um=(0.0, 0.0, -11.0),
+                  thermal_expansion_ppm_per_k=11.0, thermal_offset_um_per_k=0.5,
+                  thermal_tref_c=20.0)
+    return Table(axes={"X": x, "Y": y, "Z": z}, reference_mm=(-500.0, -300.0, -200.0))
+
+
 @dataclass
 class GoldenTable:
     name: str
@@ -146,7 +196,10 @@ def golden_tables() -> list[GoldenTable]:
     for name, t, outside in (("paper", paper_table(), 60.0),
                              ("full", full_table(rng), 40.0),
                              ("sparse", sparse_table(rng), 100.0),
-                             ("negative", negative_table(rng), 600.0)):
+                             ("negative", negative_table(rng), 600.0),
+                             ("backlash", backlash_table(), 60.0),
+                             ("reversal", reversal_table(), 60.0),
+                             ("reversal_sparse", reversal_sparse_table(rng), 200.0)):
         blob = write_blob(t)
         out.append(GoldenTable(name, read_blob(blob), blob, outside))
     return out
@@ -255,8 +308,10 @@ class Terms:
 def make_terms(rng: np.random.Generator, gt: GoldenTable, per_axis: int = 8) -> Terms:
     """Single-term expectations: per axis ``per_axis`` entries cycling through
     its present terms (absent terms too where the axis has few), at travel ends,
-    outside and inside the travel."""
+    outside and inside the travel; for a table with reversal blocks also
+    ``per_axis`` total reversals per axis (term :data:`REVERSAL_TERM`)."""
     ax_l, tm_l, pf, pn, ef, eq = [], [], [], [], [], []
+    with_reversal = any(gt.table.axes[a].reversal_cheb_um is not None for a in AXES)
     for j, a in enumerate(AXES):
         ax = gt.table.axes[a]
         lo, hi = ax.travel_mm
@@ -277,6 +332,17 @@ def make_terms(rng: np.random.Generator, gt: GoldenTable, per_axis: int = 8) -> 
             pn.append(p_nm[0])
             ef.append(_pm(term_values(gt.table, a, t, p32))[0])
             eq.append(_pm(term_values(gt.table, a, t, p_nm / 1e6))[0])
+        if not with_reversal:
+            continue
+        for k in range(per_axis):
+            p32 = _f32(pos[k:k + 1])
+            p_nm = np.rint(pos[k:k + 1] * 1e6).astype(np.int64)
+            ax_l.append(j)
+            tm_l.append(REVERSAL_TERM)
+            pf.append(p32[0])
+            pn.append(p_nm[0])
+            ef.append(_pm(reversal_values(gt.table, a, p32))[0])
+            eq.append(_pm(reversal_values(gt.table, a, p_nm / 1e6))[0])
     return Terms(np.array(ax_l), np.array(tm_l), np.array(pf), np.array(pn), np.array(ef),
                  np.array(eq))
 
@@ -355,7 +421,7 @@ def render() -> tuple[str, str]:
             term_lines.append(
                 f"    {{{int(trm.axis[i])}, {int(trm.term[i])}, {_hexf(trm.pos_f32[i])}, "
                 f"{int(trm.pos_nm[i])}, {int(trm.expect_f32[i])}, {int(trm.expect_q[i])}}},"
-                f" /* {AXES[int(trm.axis[i])]}.{TERMS[int(trm.term[i])]} */")
+                f" /* {AXES[int(trm.axis[i])]}.{(TERMS + ('reversal',))[int(trm.term[i])]} */")
         n_pts += np_
         n_terms += nt
     c.append("const abbe_golden_table_t abbe_golden_tables[] = {")

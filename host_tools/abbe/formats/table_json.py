@@ -23,6 +23,7 @@ from abbe.model.table import (
     LINEAR_TERMS,
     MAX_DEGREE,
     MAX_HARMONICS,
+    MAX_REVERSAL_ROWS,
     TERMS,
     AxisTable,
     FourierBlock,
@@ -36,9 +37,12 @@ def table_to_json(table: Table) -> dict:
     """A JSON-ready dict of ``table``: units in the key names, row names listed.
 
     Floats are written as Python floats, so ``table_from_json(table_to_json(t))``
-    gives back exactly ``t``.
+    gives back exactly ``t``. ``version`` is the table format the blob of ``t``
+    has: 1.1 if an axis has a reversal block (key ``reversal_cheb_um``, written
+    only then), else 1.0.
     """
     axes: dict[str, Any] = {}
+    minor = 0
     for a in AXES:
         ax = table.axes[a]
         terms: dict[str, list[float]] = {}
@@ -60,9 +64,12 @@ def table_to_json(table: Table) -> dict:
             "thermal_offset_um_per_k": float(ax.thermal_offset_um_per_k),
             "thermal_tref_c": float(ax.thermal_tref_c),
         }
+        if ax.reversal_cheb_um is not None:
+            axes[a]["reversal_cheb_um"] = [float(v) for v in ax.reversal_cheb_um]
+            minor = 1
     return {
         "format": JSON_FORMAT,
-        "version": f"{FORMAT_MAJOR}.{FORMAT_MINOR}",
+        "version": f"{FORMAT_MAJOR}.{minor}",
         "reference_mm": [float(v) for v in table.reference_mm],
         "tool_offset_mm": [float(v) for v in table.tool_offset_mm],
         "squareness_urad": {"S_xy": float(table.squareness_urad[0]),
@@ -75,7 +82,7 @@ def table_to_json(table: Table) -> dict:
 _TOP_KEYS = ("format", "version", "reference_mm", "tool_offset_mm", "squareness_urad", "axes")
 _AXIS_KEYS = ("travel_mm", "trend_degree", "blocks", "rows", "terms", "backlash_um",
               "backlash_takeup_mm", "thermal_expansion_ppm_per_k", "thermal_offset_um_per_k",
-              "thermal_tref_c")
+              "thermal_tref_c", "reversal_cheb_um")
 _BLOCK_KEYS = ("period_mm", "origin_mm", "harmonics")
 #: Ranges of the numbers of a table JSON (unit); the blob encoder checks the finer limits.
 _RANGES = {"mm": 2147.0, "um": 1e7, "urad": 1e7, "ppm_per_k": 1e4, "um_per_k": 1e6, "c": 1e4}
@@ -135,6 +142,10 @@ def table_from_json(d: Any, source: str = "<json>", locator: JsonLocator | None 
     ver = d.get("version")
     if not isinstance(ver, str) or not ver.startswith(f"{FORMAT_MAJOR}."):
         raise src.err(f"expected table format {FORMAT_MAJOR}.x, got {show_value(ver)}", "version")
+    minor = ver[len(f"{FORMAT_MAJOR}."):]
+    if minor.isdigit() and int(minor) > FORMAT_MINOR:
+        raise src.err(f"table format {ver} is newer than {FORMAT_MAJOR}.{FORMAT_MINOR}, the "
+                      "newest this abbe reads", "version")
     if "reference_mm" not in d:
         raise src.err("missing", "reference_mm")
     ref = src.vec(d["reference_mm"], 3, "reference_mm", "mm")
@@ -200,6 +211,13 @@ def table_from_json(d: Any, source: str = "<json>", locator: JsonLocator | None 
                            ("thermal_expansion_ppm_per_k", "ppm_per_k"),
                            ("thermal_offset_um_per_k", "um_per_k"), ("thermal_tref_c", "c")):
             setattr(ax, name, src.num(ad.get(name, 0.0), f"{pre}.{name}", unit))
+        rev = ad.get("reversal_cheb_um")
+        if rev is not None:
+            rw = f"{pre}.reversal_cheb_um"
+            if not isinstance(rev, list) or not 1 <= len(rev) <= MAX_REVERSAL_ROWS:
+                raise src.err(f"expected a list of 1..{MAX_REVERSAL_ROWS} Chebyshev coefficients "
+                              f"(um; degree 0..7) or null, got {show_value(rev)}", rw)
+            ax.reversal_cheb_um = tuple(src.num(v, f"{rw}[{i}]", "um") for i, v in enumerate(rev))
         axes[a] = ax
     return Table(axes=axes, reference_mm=ref, tool_offset_mm=tool,  # type: ignore[arg-type]
                  squareness_urad=sq)  # type: ignore[arg-type]

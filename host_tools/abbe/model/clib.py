@@ -72,6 +72,7 @@ class AxisModel(C.Structure):
         ("harmonics", C.c_uint8 * ABBE_BLOCKS),
         ("n_basis", C.c_uint8),
         ("column", C.c_uint8 * ABBE_TERMS),
+        ("reversal_rows", C.c_uint8),
     ]
 
 
@@ -227,6 +228,8 @@ def load_library() -> C.CDLL:
                                          P(C.c_float)]),
         "abbe_term_eval_q": (C.c_int, [P(Model), C.c_uint, C.c_uint, C.c_int32,
                                        P(C.c_int32)]),
+        "abbe_reversal_eval_f32": (C.c_int, [P(Model), C.c_uint, C.c_float, P(C.c_float)]),
+        "abbe_reversal_eval_q": (C.c_int, [P(Model), C.c_uint, C.c_int32, P(C.c_int32)]),
         "abbe_comp_init": (C.c_int, [P(Comp), P(CompConfig), P(Model)]),
         "abbe_comp_enable": (C.c_int, [P(Comp)]),
         "abbe_comp_disable": (C.c_int, [P(Comp)]),
@@ -418,6 +421,32 @@ class CModel:
         for i, x in enumerate(p):
             _check(self._lib.abbe_term_eval_q(C.byref(self._model), ai, ti, int(x),
                                               C.byref(v)), "abbe_term_eval_q")
+            out[i] = v.value
+        return out
+
+
+    def reversal_f32(self, axis: str | int, pos_mm: Any) -> np.ndarray:
+        """abbe_reversal_eval_f32 at each position: the axis' total reversal
+        B + R(p), um (abbe.model.reference.reversal_values)."""
+        ai, _ = _axis_term(axis, 0)
+        p = np.asarray(pos_mm, dtype=np.float32).reshape(-1)
+        out = np.zeros(p.size)
+        v = C.c_float()
+        for i, x in enumerate(p):
+            _check(self._lib.abbe_reversal_eval_f32(C.byref(self._model), ai, float(x), C.byref(v)),
+                   "abbe_reversal_eval_f32")
+            out[i] = v.value
+        return out
+
+    def reversal_q(self, axis: str | int, pos_nm: Any) -> np.ndarray:
+        """abbe_reversal_eval_q at each position (int nm): the total reversal, pm."""
+        ai, _ = _axis_term(axis, 0)
+        p = np.asarray(pos_nm).astype(np.int64).reshape(-1)
+        out = np.zeros(p.size, dtype=np.int64)
+        v = C.c_int32()
+        for i, x in enumerate(p):
+            _check(self._lib.abbe_reversal_eval_q(C.byref(self._model), ai, int(x), C.byref(v)),
+                   "abbe_reversal_eval_q")
             out[i] = v.value
         return out
 

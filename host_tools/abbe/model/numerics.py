@@ -85,6 +85,22 @@ def _term_error(axis, coef: np.ndarray, variant: str) -> float:
     return float(mag @ (eb + (rows + 1) * U_F32 * (1.0 + eb))) + _slope(axis, coef) * POS_F32_NM
 
 
+def _reversal_error(axis, variant: str) -> float:
+    """Bound of the error of an axis' reversal block R(p) (format 1.1), um, before
+    the backlash's s / 2: the trend's Chebyshev rows and dot product (the same
+    recurrence and roundings); ``_q`` adds R's one rounding to 2^-8 nm."""
+    if axis.reversal_cheb_um is None:
+        return 0.0
+    c = np.abs(np.asarray(axis.reversal_cheb_um, dtype=float))
+    rows = c.size
+    eb = _basis_errors(rows, (0, 0), variant)
+    if variant == "q":
+        return float(c @ eb) + 0.5 * 2.0 ** -8 * 1e-3
+    span_nm = (axis.travel_mm[1] - axis.travel_mm[0]) * 1e6
+    slope = float(sum(c[k] * k * k * 2.0 / span_nm for k in range(rows)))
+    return float(c @ (eb + (rows + 1) * U_F32 * (1.0 + eb))) + slope * POS_F32_NM
+
+
 # Eq. 3 + Abbe terms: for each output component, the arms (lever "x"/"y"/"z" from the
 # reference point, tool offset "tx"/"ty"/"tz") and the angular terms (axis, about) and
 # squareness (index into squareness_urad) each arm multiplies (docs/table-format.md).
@@ -121,9 +137,12 @@ def error_bound(table: Table) -> Bound:
             mag[(a, t)] = float(np.abs(coef).sum())
         own = "d" + "xyz"[AXES.index(a)]
         lever = arm_mm["xyz"[AXES.index(a)]]
-        extra = abs(axis.backlash_um) / 2 + abs(axis.thermal_offset_um_per_k) * 50.0 \
+        rev = 0.0 if axis.reversal_cheb_um is None else float(np.abs(axis.reversal_cheb_um).sum())
+        extra = (abs(axis.backlash_um) + rev) / 2 + abs(axis.thermal_offset_um_per_k) * 50.0 \
             + abs(axis.thermal_expansion_ppm_per_k) * 1e-6 * 50.0 * lever * 1e3   # |dT| <= 50 K
         mag[(a, own)] = mag.get((a, own), 0.0) + extra
+        for v in ("f32", "q"):   # the reversal block, times |s| / 2 <= 1 / 2
+            err[v][(a, own)] = err[v].get((a, own), 0.0) + 0.5 * _reversal_error(axis, v)
     sq = [abs(float(s)) for s in table.squareness_urad]
 
     out: dict[str, list[float]] = {"f32": [], "q": []}

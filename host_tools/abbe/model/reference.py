@@ -4,9 +4,10 @@ Implements docs/table-format.md "What the table means" literally, vectorised:
 
 * fitted term values: basis rows x coefficients at the position clamped to the
   axis travel (end value held outside);
-* the axis' own positioning term (d_x of X, d_y of Y, d_z of Z) gains, with the
-  unclamped position, backlash ``s * B / 2`` and thermal
-  ``alpha * dT * (p - ref) + o * dT``;
+* the axis' own positioning term (d_x of X, d_y of Y, d_z of Z) gains backlash
+  ``s * R(p) / 2``, with the total reversal ``R(p) = B + sum_k r_k T_k(u)`` (the
+  reversal block at the clamped position, format 1.1; :func:`reversal_values`),
+  and, with the unclamped position, thermal ``alpha * dT * (p - ref) + o * dT``;
 * Eq. 3 of the paper (dZ typo corrected, notes.md §1) with x, y, z = p - reference
   (unclamped), plus squareness and the Abbe terms of the tool offset.
 
@@ -39,20 +40,34 @@ def term_values(table: Table, axis: str, term: str, pos_mm: np.ndarray) -> np.nd
     return basis_matrix(ax, p) @ np.asarray(ax.coef[term], dtype=np.float64)
 
 
+def reversal_values(table: Table, axis: str, pos_mm: np.ndarray) -> np.ndarray:
+    """The total reversal R(p) of ``axis``' own positioning term at ``pos_mm`` (mm), um.
+
+    ``backlash_um`` plus the reversal block (format 1.1) at the position clamped
+    to the travel: ISO 230-2's reversal (mean + approach minus mean - approach)
+    as the model holds it; the term gets ``s * R(p) / 2``. What the C library's
+    ``abbe_reversal_eval_*`` computes.
+    """
+    if axis not in AXES:
+        raise ValueError(f"axis {axis!r} unknown")
+    return table.axes[axis].reversal_um(pos_mm)
+
+
 def extra_values(table: Table, axis: str, pos_mm: np.ndarray,
                  dir_state: np.ndarray | None = None,
                  temp_c: np.ndarray | None = None) -> np.ndarray:
     """Backlash + thermal addition to the own positioning term of ``axis``, um.
 
     ``dir_state`` in [-1, 1] (+1 moving +), ``temp_c`` the axis temperature in
-    deg C; either None means 0 contribution. Uses the unclamped position.
+    deg C; either None means 0 contribution. Backlash is ``s * R(p) / 2``
+    (:func:`reversal_values`); thermal uses the unclamped position.
     """
     p = np.asarray(pos_mm, dtype=np.float64).reshape(-1)
     ax = table.axes[axis]
     out = np.zeros(p.shape)
-    if dir_state is not None and ax.backlash_um:
+    if dir_state is not None and ax.has_reversal():
         s = np.clip(np.asarray(dir_state, dtype=np.float64).reshape(-1), -1.0, 1.0)  # as the C library
-        out += s * (ax.backlash_um / 2.0)
+        out += s * (ax.reversal_um(p) / 2.0)
     if temp_c is not None and (ax.thermal_expansion_ppm_per_k or ax.thermal_offset_um_per_k):
         dt = np.asarray(temp_c, dtype=np.float64).reshape(-1) - ax.thermal_tref_c
         ref = table.reference_mm[AXES.index(axis)]

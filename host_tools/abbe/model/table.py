@@ -2,12 +2,14 @@
 
 A :class:`Table` holds, per axis, the fitted error terms (Chebyshev trend + up to
 two Fourier blocks, paper Eq. 3's 18 position-dependent errors), plus the
-squareness, tool offset, backlash and thermal parameters. :func:`basis_matrix` is
-the library's basis, so a term's value is ``basis_matrix(axis, p) @ coef``.
+squareness, tool offset, backlash (a constant reversal and, format 1.1, a
+position-dependent one) and thermal parameters. :func:`basis_matrix` is the
+library's basis, so a term's value is ``basis_matrix(axis, p) @ coef``;
+:func:`reversal_matrix` that of the reversal block.
 
 Units: positions, travels, periods in mm; linear coefficients in um; angular
-coefficients and squareness in urad; backlash in um; thermal expansion in ppm/K,
-thermal offset in um/K, reference temperature in deg C.
+coefficients and squareness in urad; backlash and reversal coefficients in um;
+thermal expansion in ppm/K, thermal offset in um/K, reference temperature in deg C.
 """
 
 from __future__ import annotations
@@ -39,16 +41,26 @@ FEATURE_BACKLASH = 0x4
 
 FEATURE_THERMAL = 0x8
 
-FEATURE_ALL = 0xF
+#: Format 1.1: an axis' reversal depends on its position (reversal blocks); needs BACKLASH.
+FEATURE_REVERSAL = 0x10
+
+FEATURE_ALL = 0x1F
+
+#: The feature bits a format 1.0 table may set.
+FEATURES_1_0 = 0xF
 
 FEATURE_NAMES: dict[int, str] = {
     FEATURE_SQUARENESS: "SQUARENESS",
     FEATURE_TOOL_OFFSET: "TOOL_OFFSET",
     FEATURE_BACKLASH: "BACKLASH",
     FEATURE_THERMAL: "THERMAL",
+    FEATURE_REVERSAL: "REVERSAL",
 }
 
 MAX_DEGREE = 7
+
+#: Coefficients of a reversal block: Chebyshev T_0 .. T_7 (degree <= 7).
+MAX_REVERSAL_ROWS = 8
 
 NO_TREND = 255
 
@@ -85,6 +97,15 @@ class AxisTable:
     ``coef[term]`` holds the ``n_basis()`` coefficients of a present term in the
     table's row order (:meth:`row_names`): um for dx/dy/dz, urad for ex/ey/ez.
     A term absent from ``coef`` is not in the table (evaluates to 0).
+
+    The reversal of the axis' own positioning term (ISO 230-2: the mean
+    approaching from + minus the mean approaching from -) is
+    ``R(p) = backlash_um + sum_k reversal_cheb_um[k] * T_k(u)``, um, with u the
+    trend's normalised travel at p clamped to the travel; the term gets
+    ``s * R(p) / 2`` with the backlash direction state s (+1 moving +), which
+    ramps over ``backlash_takeup_mm``. ``reversal_cheb_um`` (1..8 coefficients,
+    um; None = no block) is the position-dependent part (format 1.1); a block of
+    one coefficient c is the same as ``backlash_um + c``.
     """
 
     travel_mm: tuple[float, float]
@@ -96,6 +117,7 @@ class AxisTable:
     thermal_expansion_ppm_per_k: float = 0.0
     thermal_offset_um_per_k: float = 0.0
     thermal_tref_c: float = 0.0
+    reversal_cheb_um: tuple[float, ...] | None = None
 
     def n_trend(self) -> int:
         """Rows of the trend block (degree + 1, or 0 without trend)."""
@@ -123,6 +145,19 @@ class AxisTable:
         """Terms in the table, in TERMS order."""
         return [t for t in TERMS if t in self.coef]
 
+    def has_reversal(self) -> bool:
+        """True if the axis has a reversal (non-zero backlash_um or reversal block)."""
+        return bool(self.backlash_um != 0 or (
+            self.reversal_cheb_um is not None and any(c != 0 for c in self.reversal_cheb_um)))
+
+    def reversal_um(self, pos_mm: np.ndarray) -> np.ndarray:
+        """The total reversal R(p) (class docstring) at positions ``pos_mm`` (mm), um."""
+        p = np.asarray(pos_mm, dtype=np.float64).reshape(-1)
+        out = np.full(p.shape, float(self.backlash_um))
+        if self.reversal_cheb_um is not None:
+            out += reversal_matrix(self, p) @ np.asarray(self.reversal_cheb_um, dtype=np.float64)
+        return out
+
 
 @dataclass
 class Table:
@@ -147,8 +182,10 @@ class Table:
         if any(v != 0 for v in self.tool_offset_mm):
             f |= FEATURE_TOOL_OFFSET
         for ax in self.axes.values():
-            if ax.backlash_um != 0 or ax.backlash_takeup_mm != 0:
+            if ax.backlash_um != 0 or ax.backlash_takeup_mm != 0 or ax.reversal_cheb_um is not None:
                 f |= FEATURE_BACKLASH
+            if ax.reversal_cheb_um is not None:
+                f |= FEATURE_REVERSAL
             if (ax.thermal_expansion_ppm_per_k != 0 or ax.thermal_offset_um_per_k != 0
                     or ax.thermal_tref_c != 0):
                 f |= FEATURE_THERMAL
@@ -189,3 +226,20 @@ def basis_matrix(axis: AxisTable, pos_mm: np.ndarray) -> np.ndarray:
     if not cols:
         return np.zeros((p.size, 0))
     return np.hstack(cols)
+
+
+def reversal_matrix(axis: AxisTable, pos_mm: np.ndarray) -> np.ndarray:
+    """Rows of the reversal block of ``axis`` at positions ``pos_mm`` (mm), shape (N, rows).
+
+    Chebyshev T_0..T_(rows-1) of the trend's normalised travel u at the
+    position clamped to the travel (rows = len(reversal_cheb_um), 0 without a
+    block), so the block's value is ``reversal_matrix(...) @ reversal_cheb_um``
+    and a fit of a reversal curve can use it as its design matrix.
+    """
+    p = np.asarray(pos_mm, dtype=np.float64).reshape(-1)
+    rows = 0 if axis.reversal_cheb_um is None else len(axis.reversal_cheb_um)
+    if rows == 0:
+        return np.zeros((p.size, 0))
+    lo, hi = float(axis.travel_mm[0]), float(axis.travel_mm[1])
+    u = (2.0 * np.clip(p, lo, hi) - lo - hi) / (hi - lo)
+    return np.polynomial.chebyshev.chebvander(u, rows - 1)

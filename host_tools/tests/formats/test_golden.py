@@ -12,7 +12,7 @@ import pytest
 
 from abbe.formats import golden
 from abbe.formats.blob import read_blob
-from abbe.model.reference import out_of_travel, spatial_error, term_values
+from abbe.model.reference import out_of_travel, reversal_values, spatial_error, term_values
 from abbe.model.table import AXES, TERMS
 from textnum import differences
 
@@ -83,7 +83,8 @@ def parsed() -> dict:
 
 def test_tables_and_counts(parsed: dict) -> None:
     tables = parsed["tables"]
-    assert [t[2] for t in tables] == ["paper", "full", "sparse", "negative"]
+    assert [t[2] for t in tables] == ["paper", "full", "sparse", "negative", "backlash",
+                                      "reversal", "reversal_sparse"]
     text = (GOLDEN / "golden_data.c").read_text()
     assert f"abbe_golden_point_count = {len(parsed['points'])}u;" in text
     assert f"abbe_golden_term_count = {len(parsed['terms'])}u;" in text
@@ -91,7 +92,8 @@ def test_tables_and_counts(parsed: dict) -> None:
     for sym, size, name, fp, n_p, ft, n_t in tables:
         assert parsed["blobs"][sym] and len(parsed["blobs"][sym]) == int(size)
         assert (int(fp), int(ft)) == (first_p, first_t)
-        assert 100 <= int(n_p) <= 200 and 15 <= int(n_t) <= 30
+        # format 1.1 tables add 8 total-reversal entries per axis
+        assert 100 <= int(n_p) <= 200 and 15 <= int(n_t) <= (54 if "reversal" in name else 30)
         first_p += int(n_p)
         first_t += int(n_t)
     assert first_p == len(parsed["points"]) and first_t == len(parsed["terms"])
@@ -118,6 +120,22 @@ def test_table_shapes(parsed: dict) -> None:
     assert neg.axes["Y"].trend_degree is None and neg.axes["Z"].blocks[0] is None
     paper = t["paper"]
     assert paper.reference_mm == (163.626, -212.772, -290.704)
+    # format 1.0 tables first (minor 0, unchanged), then the reversal blocks (1.1)
+    for name, blob in parsed["blobs"].items():
+        assert blob[6] == (1 if name.startswith("reversal") else 0), name
+    rev = t["reversal"]
+    assert rev.features() == 0x17                          # all but THERMAL
+    assert [len(rev.axes[a].reversal_cheb_um) for a in AXES] == [4, 8, 1]
+    r_x = reversal_values(rev, "X", np.linspace(*rev.axes["X"].travel_mm, 201))
+    assert r_x.max() > 30.0 and r_x.min() < -5.0          # changes sign along the travel
+    for a in AXES:                                         # the backlash table + blocks
+        for k, c in rev.axes[a].coef.items():
+            np.testing.assert_array_equal(c, t["backlash"].axes[a].coef[k])
+        assert rev.axes[a].backlash_um == t["backlash"].axes[a].backlash_um
+    sp = t["reversal_sparse"]
+    assert sp.axes["Y"].coef == {} and sp.axes["Z"].coef == {}
+    assert sp.axes["X"].backlash_um == 0.0 and "dx" not in sp.axes["X"].coef
+    assert all(sp.axes[a].reversal_cheb_um is not None for a in AXES)
 
 
 def test_points_reproduce_from_the_written_inputs(parsed: dict) -> None:
@@ -156,18 +174,25 @@ def test_points_reproduce_from_the_written_inputs(parsed: dict) -> None:
                 assert np.any(ints[:, 0, j] == round(end * 1e6)), (name, a, end)
         # single terms
         for axis, term, p32, p_nm, ef, eq in parsed["terms"][ft:ft + n_t]:
-            a, k = AXES[axis], TERMS[term]
-            assert ef == pytest.approx(term_values(t, a, k, [p32])[0] * 1e6, abs=0.5 + 1e-6)
-            assert eq == pytest.approx(term_values(t, a, k, [p_nm / 1e6])[0] * 1e6,
-                                       abs=0.5 + 1e-6)
+            a = AXES[axis]
+            if term == golden.REVERSAL_TERM:      # the total reversal, pm
+                f = lambda p, a=a: reversal_values(t, a, p)  # noqa: E731
+            else:
+                f = lambda p, a=a, k=TERMS[term]: term_values(t, a, k, p)  # noqa: E731
+            assert ef == pytest.approx(f([p32])[0] * 1e6, abs=0.5 + 1e-6)
+            assert eq == pytest.approx(f([p_nm / 1e6])[0] * 1e6, abs=0.5 + 1e-6)
     assert dir_values == {-1.0, -0.5, 0.0, 1.0}
     assert n_out > 0
 
 
 def test_terms_cover_every_axis(parsed: dict) -> None:
     for sym, size, name, fp, n_p, ft, n_t in parsed["tables"]:
-        axes = [t[0] for t in parsed["terms"][int(ft):int(ft) + int(n_t)]]
+        terms = parsed["terms"][int(ft):int(ft) + int(n_t)]
+        axes = [t[0] for t in terms if t[1] != golden.REVERSAL_TERM]
         assert all(5 <= axes.count(j) <= 10 for j in range(3)), name
+        rev = [t[0] for t in terms if t[1] == golden.REVERSAL_TERM]
+        assert rev == ([] if "reversal" not in name else sorted(rev)) and \
+            all(rev.count(j) == 8 for j in (range(3) if rev else ())), name
 
 
 @pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
@@ -185,7 +210,7 @@ def test_golden_c_compiles(tmp_path: Path) -> None:
                    check=True, capture_output=True)
     out = subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout.split()
     parsed = parse_golden_c((GOLDEN / "golden_data.c").read_text())
-    assert int(out[0]) == 4 and int(out[1]) == len(parsed["points"])
+    assert int(out[0]) == 7 and int(out[1]) == len(parsed["points"])
     assert int(out[2]) == len(parsed["terms"])
     assert float(out[3]) == pytest.approx(parsed["points"][1][0][0][1], abs=0)
     assert int(out[4]) == parsed["points"][1][1][0][1]

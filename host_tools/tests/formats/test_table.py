@@ -31,6 +31,7 @@ H_TOTAL, H_HSIZE, H_ASIZE, H_FEAT, H_REF, H_TOOL, H_SQ, H_RES = 8, 12, 16, 20, 2
 A_TMIN, A_TMAX, A_MASK, A_DEG, A_H0, A_H1 = 0, 4, 8, 9, 10, 11
 A_P0, A_P1, A_O0, A_O1, A_BQ8, A_TAKEUP = 12, 16, 20, 24, 28, 32
 A_EXP, A_OFF, A_TREF, A_QOFF, A_FOFF, A_COUNT, A_RES = 36, 40, 44, 48, 52, 56, 60
+A_REV_ROWS = 60  # format 1.1: u8 reversal_rows, bytes 61..63 reserved
 
 
 def axis_off(j: int) -> int:
@@ -56,6 +57,15 @@ def small_table() -> Table:
     z = AxisTable(travel_mm=(-100.0, 0.0), backlash_takeup_mm=0.05)
     return Table(axes={"X": x, "Y": y, "Z": z}, reference_mm=(100.0, -100.0, -50.0),
                  tool_offset_mm=(0.0, 0.0, 100.0), squareness_urad=(20.0, -10.0, 5.0))
+
+
+def reversal_table() -> Table:
+    """Format 1.1: :func:`small_table` with reversal blocks on X (degree 2, after its
+    4 x 2 matrix) and Z (degree 7, an axis without terms: the block is its whole array)."""
+    t = small_table()
+    t.axes["X"].reversal_cheb_um = (2.0, -6.5, 1.25)
+    t.axes["Z"].reversal_cheb_um = (0.5, 1.0, -0.75, 0.25, 0.0, -0.125, 0.0625, 0.03125)
+    return t
 
 
 def tiny_table() -> Table:
@@ -93,7 +103,7 @@ def crafted_cases() -> list[tuple[str, str, bytes]]:
         ("magic", "ABBE_E_MAGIC", patch(good, 0, "4s", b"ABBF")),
         ("major 2", "ABBE_E_VERSION_MAJOR", patch(good, 4, "H", 2)),
         ("major 0", "ABBE_E_VERSION_MAJOR", patch(good, 4, "H", 0)),
-        ("newer minor", "ABBE_E_VERSION_MINOR", patch(good, 6, "H", 1)),
+        ("newer minor", "ABBE_E_VERSION_MINOR", patch(good, 6, "H", 2)),
         ("header_size", "ABBE_E_SIZE", patch(good, H_HSIZE, "I", 60)),
         ("axis_record_size", "ABBE_E_SIZE", patch(good, H_ASIZE, "I", 68)),
         ("total_size < 260", "ABBE_E_SIZE", patch(good, H_TOTAL, "I", 256, fix_crc=False)),
@@ -103,9 +113,10 @@ def crafted_cases() -> list[tuple[str, str, bytes]]:
         ("CRC field", "ABBE_E_CRC", patch(good, total - 4, "I",
                                           struct.unpack_from("<I", good, total - 4)[0] ^ 1,
                                           fix_crc=False)),
-        ("unknown feature bit", "ABBE_E_FLAGS", patch(good, H_FEAT, "I", 0x1F)),
+        ("unknown feature bit (REVERSAL in 1.0)", "ABBE_E_FLAGS", patch(good, H_FEAT, "I", 0x1F)),
         ("header reserved", "ABBE_E_FLAGS", patch(good, H_RES, "I", 1)),
         ("axis reserved", "ABBE_E_FLAGS", patch(good, z + A_RES, "I", 7)),
+        ("axis reserved byte 63", "ABBE_E_FLAGS", patch(good, z + A_RES + 3, "B", 1)),
         ("tool offset without feature", "ABBE_E_FLAGS", patch(good, H_FEAT, "I", 0xF & ~0x2)),
         ("squareness without feature", "ABBE_E_FLAGS", patch(good, H_FEAT, "I", 0xF & ~0x1)),
         ("backlash without feature", "ABBE_E_FLAGS", patch(good, H_FEAT, "I", 0xF & ~0x4)),
@@ -143,7 +154,47 @@ def crafted_cases() -> list[tuple[str, str, bytes]]:
         ("backlash take-up 0 with a reversal", "ABBE_E_RANGE", patch(good, x + A_TAKEUP, "i", 0)),
         ("backlash take-up negative", "ABBE_E_RANGE", patch(good, y + A_TAKEUP, "i", -1)),
     ]
-    return cases
+    return cases + crafted_reversal_cases()
+
+
+def crafted_reversal_cases() -> list[tuple[str, str, bytes]]:
+    """The checks of format 1.1's reversal blocks, on :func:`reversal_table`'s blob."""
+    good = write_blob(reversal_table())
+    x, y, z = axis_off(0), axis_off(1), axis_off(2)
+    qoff_x, foff_x, count_x = struct.unpack_from("<III", good, x + A_QOFF)
+    qoff_z, foff_z, count_z = struct.unpack_from("<III", good, z + A_QOFF)
+    assert (count_x, count_z) == (8 + 3, 8)
+    rev_x = foff_x + 4 * 8   # X's block follows its 4 x 2 matrix
+    return [
+        ("1.1 table labelled 1.0", "ABBE_E_FLAGS", patch(good, 6, "H", 0)),
+        ("1.1 minor 2", "ABBE_E_VERSION_MINOR", patch(good, 6, "H", 2)),
+        ("1.1 unknown feature bit", "ABBE_E_FLAGS", patch(good, H_FEAT, "I", 0x3F)),
+        ("REVERSAL without BACKLASH", "ABBE_E_FLAGS", patch(good, H_FEAT, "I", 0x1F & ~0x4)),
+        ("reversal rows without REVERSAL", "ABBE_E_FLAGS", patch(good, H_FEAT, "I", 0xF)),
+        ("1.1 axis reserved byte 61", "ABBE_E_FLAGS", patch(good, x + A_REV_ROWS + 1, "B", 1)),
+        ("reversal rows 9", "ABBE_E_COUNT", patch(good, z + A_REV_ROWS, "B", 9)),
+        ("reversal rows beside coef_count", "ABBE_E_COUNT", patch(good, x + A_REV_ROWS, "B", 2)),
+        ("reversal rows on an axis without them", "ABBE_E_COUNT", patch(good, y + A_REV_ROWS, "B", 1)),
+        ("reversal block past the CRC", "ABBE_E_OFFSET",
+         patch(good, z + A_FOFF, "I", len(good) - 4 * count_z)),
+        ("NaN reversal coefficient", "ABBE_E_NONFINITE", patch(good, rev_x + 4, "f", math.nan)),
+        ("Inf reversal coefficient", "ABBE_E_NONFINITE", patch(good, foff_z + 28, "f", math.inf)),
+        ("reversal twin off by one ulp", "ABBE_E_MISMATCH",
+         patch(good, rev_x + 8, "I", struct.unpack_from("<I", good, rev_x + 8)[0] ^ 1)),
+        ("reversal twin of another value", "ABBE_E_MISMATCH", patch(good, foff_z, "f", 0.0)),
+        ("take-up 0 with a reversal block", "ABBE_E_RANGE", patch(good, z + A_TAKEUP, "i", 0)),
+        ("backlash + reversal over 2^31", "ABBE_E_RANGE", patch(good, z + A_BQ8, "i", -(1 << 31))),
+        ("reversal coefficients over 2^31", "ABBE_E_RANGE",
+         _patch_values(good, qoff_x + 4 * 8, foff_x + 4 * 8, [(1 << 30), (1 << 30), 0])),
+    ]
+
+
+def _patch_values(blob: bytes, qoff: int, foff: int, values: list[int]) -> bytes:
+    """Set consecutive int32 coefficients and their float32 twins."""
+    for k, v in enumerate(values):
+        blob = patch(blob, qoff + 4 * k, "i", v)
+        blob = patch(blob, foff + 4 * k, "f", float(np.float32(v)))
+    return blob
 
 
 def _patch_column(blob: bytes, qoff: int, n_terms: int, col: int, values: list[int]) -> bytes:
@@ -172,11 +223,11 @@ def assert_tables_equal(a: Table, b: Table) -> None:
         for t in p.coef:
             np.testing.assert_array_equal(p.coef[t], q.coef[t])
         for f in ("backlash_um", "backlash_takeup_mm", "thermal_expansion_ppm_per_k",
-                  "thermal_offset_um_per_k", "thermal_tref_c"):
+                  "thermal_offset_um_per_k", "thermal_tref_c", "reversal_cheb_um"):
             assert getattr(p, f) == getattr(q, f), f
 
 
-@pytest.mark.parametrize("make", [small_table, tiny_table, paper_table])
+@pytest.mark.parametrize("make", [small_table, tiny_table, paper_table, reversal_table])
 def test_blob_round_trip(make) -> None:
     t = make()
     blob = write_blob(t)
@@ -215,6 +266,60 @@ def test_layout_matches_spec() -> None:
     assert struct.unpack_from("<III", blob, z + A_QOFF) == (0, 0, 0)
     assert struct.unpack_from("<I", blob, len(blob) - 4)[0] == zlib.crc32(blob[:-4])
     assert len(write_blob(tiny_table())) == 260
+
+
+def test_layout_1_1_matches_spec() -> None:
+    """Format 1.1: minor 1 and feature REVERSAL only for a table with a reversal block,
+    the block's rows in byte 60 and after the matrix in both arrays (2^-8 nm)."""
+    assert struct.unpack_from("<H", write_blob(small_table()), 6)[0] == 0
+    blob = write_blob(reversal_table())
+    assert struct.unpack_from("<HHIIII", blob, 4) == (1, 1, len(blob), 64, 64, 0x1F)
+    x, y, z = axis_off(0), axis_off(1), axis_off(2)
+    assert struct.unpack_from("<BBBB", blob, x + A_REV_ROWS) == (3, 0, 0, 0)
+    assert struct.unpack_from("<I", blob, y + A_REV_ROWS)[0] == 0
+    assert struct.unpack_from("<BBBB", blob, z + A_REV_ROWS) == (8, 0, 0, 0)
+    qoff, foff, count = struct.unpack_from("<III", blob, x + A_QOFF)
+    assert count == 4 * 2 + 3
+    q = np.frombuffer(blob, "<i4", count, qoff)
+    np.testing.assert_array_equal(q[8:], np.array([2.0, -6.5, 1.25]) * 256000)
+    np.testing.assert_array_equal(np.frombuffer(blob, "<f4", count, foff), q.astype(np.float32))
+    qz, fz, cz = struct.unpack_from("<III", blob, z + A_QOFF)
+    assert cz == 8 and fz + 32 == len(blob) - 4        # Z's block is the last array
+    np.testing.assert_array_equal(np.frombuffer(blob, "<i4", 8, qz),
+                                  np.rint(np.array(reversal_table().axes["Z"].reversal_cheb_um)
+                                          * 256000))
+    # a 1.0 table is written byte for byte as before format 1.1 existed
+    assert write_blob(paper_table()) == (REPO / "examples" / "paper_table" / "model.bin").read_bytes()
+
+
+def test_reversal_reference_semantics() -> None:
+    """R(p) = backlash_um + sum_k c_k T_k(u(p clamped)); the own term gets s R / 2; a
+    one-coefficient block is a change of backlash_um."""
+    from abbe.model.reference import reversal_values, spatial_error
+    from abbe.model.table import reversal_matrix
+    t = read_blob(write_blob(reversal_table()))
+    p = np.array([-50.0, 0.0, 75.0, 150.0, 300.0, 400.0])
+    u = (2 * np.clip(p, 0.0, 300.0) - 300.0) / 300.0
+    want = 4.0 + 2.0 - 6.5 * u + 1.25 * (2 * u * u - 1)
+    np.testing.assert_allclose(reversal_values(t, "X", p), want, atol=1e-12)
+    np.testing.assert_allclose(reversal_matrix(t.axes["X"], p)[:, 2], 2 * u * u - 1, atol=1e-12)
+    assert reversal_matrix(t.axes["Y"], p).shape == (6, 0)
+    np.testing.assert_array_equal(reversal_values(t, "Y", p), 0.0)
+    pos = np.tile(np.array(t.reference_mm), (p.size, 1))
+    pos[:, 0] = p
+    s = np.zeros_like(pos)
+    s[:, 0] = 1.0
+    d = spatial_error(t, pos, s) - spatial_error(t, pos, -s)
+    np.testing.assert_allclose(d[:, 0], -want, atol=1e-12)       # dX = -d_x(x): -s R / 2
+    c = small_table()
+    c.axes["X"].reversal_cheb_um = (1.5,)
+    b = small_table()
+    b.axes["X"].backlash_um += 1.5
+    np.testing.assert_allclose(spatial_error(c, pos, s), spatial_error(b, pos, s), atol=1e-12)
+    assert c.axes["X"].has_reversal() and not tiny_table().axes["X"].has_reversal()
+    z = tiny_table()
+    z.axes["X"].reversal_cheb_um = (0.0, 0.0)
+    assert not z.axes["X"].has_reversal() and z.features() == 0x14
 
 
 def test_spec_example_encodings() -> None:
@@ -257,12 +362,14 @@ def test_every_validation_status(name: str, status: str, blob: bytes) -> None:
 
 
 def test_crafted_cases_touch_one_thing() -> None:
-    """The unpatched blob is valid, so each case fails for its own reason."""
+    """The unpatched blobs are valid, so each case fails for its own reason."""
     read_blob(write_blob(small_table()))
+    read_blob(write_blob(reversal_table()))
 
 
-def test_truncated_at_every_byte() -> None:
-    blob = write_blob(small_table())
+@pytest.mark.parametrize("make", [small_table, reversal_table])
+def test_truncated_at_every_byte(make) -> None:
+    blob = write_blob(make())
     for n in range(len(blob)):
         with pytest.raises(TableError) as exc:
             read_blob(blob[:n])
@@ -384,6 +491,32 @@ def test_writer_refuses_unrepresentable_values() -> None:
     assert _writer_error(t).status == "ABBE_E_COUNT"
 
 
+@pytest.mark.parametrize("value,status", [
+    ((), "ABBE_E_COUNT"),
+    (tuple([1.0] * 9), "ABBE_E_COUNT"),
+    ((1.0, math.nan), "ABBE_E_NONFINITE"),
+    ((1.0, math.inf), "ABBE_E_NONFINITE"),
+    ((9000.0,), "ABBE_E_RANGE"),                     # 2^-8 nm: beyond int32
+    ((4195.0, -4195.0), "ABBE_E_RANGE"),             # with backlash 4 um: over 8.389 mm
+    (("a",), "ABBE_E_COUNT"),
+])
+def test_writer_refuses_bad_reversal_blocks(value, status) -> None:
+    t = small_table()
+    t.axes["X"].reversal_cheb_um = value
+    e = _writer_error(t)
+    assert (e.status, e.field) == (status, "axes.X.reversal_cheb_um")
+
+
+def test_writer_reversal_block_needs_a_takeup() -> None:
+    t = small_table()
+    t.axes["Z"].backlash_takeup_mm = 0.0
+    t.axes["Z"].reversal_cheb_um = (0.0, 1.0)      # backlash_um 0, but a block
+    e = _writer_error(t)
+    assert (e.status, e.field) == ("ABBE_E_RANGE", "axes.Z.backlash_takeup_mm")
+    t.axes["Z"].backlash_takeup_mm = 0.2
+    assert read_blob(write_blob(t)).axes["Z"].reversal_cheb_um == (0.0, 1.0)
+
+
 def test_zero_harmonic_block_is_dropped() -> None:
     t = small_table()
     t.axes["Y"].blocks = (FourierBlock(100.0, 0.0, 0), FourierBlock(10.0, 0.5, 1))
@@ -440,9 +573,16 @@ def test_quantization_error() -> None:
 
 
 def test_json_round_trip_exact() -> None:
-    for t in (small_table(), paper_table(), read_blob(write_blob(paper_table()))):
+    for t in (small_table(), paper_table(), read_blob(write_blob(paper_table())), reversal_table()):
         d = json.loads(json.dumps(table_to_json(t)))
         assert_tables_equal(table_from_json(d, "t.json"), t)
+    # the reversal block: key reversal_cheb_um (um), written only where there is one,
+    # and version 1.1 then (the blob's format)
+    d = table_to_json(reversal_table())
+    assert d["version"] == "1.1" and d["axes"]["X"]["reversal_cheb_um"] == [2.0, -6.5, 1.25]
+    assert "reversal_cheb_um" not in d["axes"]["Y"]
+    assert table_to_json(small_table())["version"] == "1.0"
+    assert "reversal_cheb_um" not in table_to_json(small_table())["axes"]["X"]
     d = table_to_json(small_table())
     assert d["axes"]["X"]["rows"] == ["T0", "T1", "sin1(b0)", "cos1(b0)"]
     assert set(d["axes"]["X"]["terms"]) == {"dx_um", "ez_urad"}
@@ -467,6 +607,15 @@ def test_json_round_trip_exact() -> None:
     (lambda d: d["axes"]["Z"].__setitem__("travel_mm", [0.0]), "axes.Z.travel_mm"),
     (lambda d: d["squareness_urad"].__setitem__("S_zz", 1.0), "squareness_urad.S_zz"),
     (lambda d: d["axes"]["X"].__setitem__("backlash_um", None), "axes.X.backlash_um"),
+    (lambda d: d.__setitem__("version", "1.2"), "version"),
+    (lambda d: d["axes"]["X"].__setitem__("reversal_cheb_um", []), "axes.X.reversal_cheb_um"),
+    (lambda d: d["axes"]["X"].__setitem__("reversal_cheb_um", [0.0] * 9), "axes.X.reversal_cheb_um"),
+    (lambda d: d["axes"]["X"].__setitem__("reversal_cheb_um", 1.0), "axes.X.reversal_cheb_um"),
+    (lambda d: d["axes"]["X"].__setitem__("reversal_cheb_um", [1.0, "NaN"]),
+     "axes.X.reversal_cheb_um[1]"),
+    (lambda d: d["axes"]["X"].__setitem__("reversal_cheb_um", [1.0, 1e8]),
+     "axes.X.reversal_cheb_um[1]"),
+    (lambda d: d["axes"]["X"].__setitem__("reversal_cheb", [1.0]), "axes.X.reversal_cheb"),
 ])
 
 
@@ -506,6 +655,19 @@ def test_write_c(tmp_path: Path) -> None:
     assert not (tmp_path / "bad" / "abbe_model.c").exists()
 
 
+def test_write_c_reversal_block(tmp_path: Path) -> None:
+    """A 1.1 table: the guard asks for a 1.1 library, the listing shows the block."""
+    blob = write_blob(reversal_table())
+    h, c = write_c(blob, tmp_path)
+    ht, ct = h.read_text(), c.read_text()
+    assert "#if ABBE_TABLE_FORMAT_MAJOR != 1 || ABBE_TABLE_FORMAT_MINOR < 1" in ht
+    assert "generated for table format 1.1" in ht
+    assert " * table format 1.1, " in ct and "REVERSAL" in ct
+    assert "reversal block (degree 2, added to backlash_um), um: R0 2.000000, R1 -6.500000, " \
+           "R2 1.250000" in ct
+    assert "reversal block (degree 7" in ct and ct.count("reversal block") == 2
+
+
 @pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
 def test_generated_c_compiles_and_version_guard(tmp_path: Path) -> None:
     blob = write_blob(small_table())
@@ -535,6 +697,13 @@ def test_generated_c_compiles_and_version_guard(tmp_path: Path) -> None:
                         f"-I{tmp_path}", str(tmp_path / "abbe_model.c")], capture_output=True,
                        text=True)
     assert r.returncode != 0 and "regenerate it" in r.stderr
+    # a 1.1 table needs a 1.1 library: a 1.0 one (ABBE_NO_REVERSAL) refuses it at build time
+    write_c(write_blob(reversal_table()), tmp_path / "r11")
+    for defs, ok in (([], True), (["-DABBE_NO_REVERSAL=1"], False)):
+        r = subprocess.run(["cc", "-std=c99", "-fsyntax-only", *defs, f"-I{inc}",
+                            f"-I{tmp_path / 'r11'}", str(tmp_path / "r11" / "abbe_model.c")],
+                           capture_output=True, text=True)
+        assert (r.returncode == 0) == ok and (ok or "table format 1.1" in r.stderr), r.stderr
 
 
 # --------------------------------------------------------------------------- example + CLI

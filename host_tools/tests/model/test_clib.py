@@ -71,10 +71,16 @@ def test_terms_match_reference_on_golden_tables(golden_sets) -> None:
         m = clib.CModel(gt.blob)
         for a, k, pf, pn, ef, eq in zip(tr.axis, tr.term, tr.pos_f32, tr.pos_nm,
                                         tr.expect_f32, tr.expect_q):
-            vf = m.term_f32(int(a), int(k), [pf])[0] * 1e6      # um / urad -> pico
-            vq = m.term_q(int(a), int(k), [pn])[0]
-            assert abs(vf - ef) <= golden.TOL_PM, (gt.name, AXES[a], TERMS[k], vf, ef)
-            assert abs(vq - eq) <= golden.TOL_PM, (gt.name, AXES[a], TERMS[k], vq, eq)
+            if k == golden.REVERSAL_TERM:                        # the total reversal, pm
+                vf = m.reversal_f32(int(a), [pf])[0] * 1e6
+                vq = m.reversal_q(int(a), [pn])[0]
+                name = "reversal"
+            else:
+                vf = m.term_f32(int(a), int(k), [pf])[0] * 1e6      # um / urad -> pico
+                vq = m.term_q(int(a), int(k), [pn])[0]
+                name = TERMS[k]
+            assert abs(vf - ef) <= golden.TOL_PM, (gt.name, AXES[a], name, vf, ef)
+            assert abs(vq - eq) <= golden.TOL_PM, (gt.name, AXES[a], name, vq, eq)
 
 
 def test_random_positions_paper_table() -> None:
@@ -95,6 +101,41 @@ def test_random_positions_paper_table() -> None:
         for k in TERMS:
             np.testing.assert_allclose(m.term_f32(a, k, x), term_values(t, a, k, x),
                                        atol=TOL_NM * 1e-3, rtol=0)
+
+
+def test_reversal_block_at_the_cap() -> None:
+    """|B| + sum |r_k| at the loader's cap (8388 um of 8388.6): no overflow in the fixed
+    point sums, both variants within the numerics bound, the direction state and the
+    block's end values as the reference has them; abbe_reversal_eval_q saturates to
+    int32 pm beyond 2147 um (documented), _f32 does not."""
+    from abbe.model.numerics import error_bound
+    from abbe.model.reference import reversal_values
+    t = golden.reversal_sparse_table(np.random.default_rng(3))
+    t.axes["Y"].backlash_um = -4000.0
+    t.axes["Y"].reversal_cheb_um = (600.0, -1000.0, 800.0, -600.0, 500.0, -400.0, 300.0, -188.0)
+    blob = write_blob(t)
+    q = read_blob(blob)
+    m = clib.CModel(blob)
+    rng = np.random.default_rng(4)
+    lo = np.array([q.axes[a].travel_mm[0] for a in AXES])
+    hi = np.array([q.axes[a].travel_mm[1] for a in AXES])
+    span = hi - lo
+    pos = lo - 0.1 * span + 1.2 * span * rng.random((4000, 3))   # outside the travel too
+    d = rng.uniform(-1.0, 1.0, (4000, 3))
+    pn, dq = np.rint(pos * 1e6), np.rint(d * 2**30)
+    eq, fq = m.error_q(pn, dq)
+    assert not np.any(fq & clib.FLAG_SATURATED)
+    b = error_bound(q)
+    got_q = np.abs(eq / 1e3 - spatial_error(q, pn / 1e6, dq / 2**30)).max(axis=0) * 1e3
+    assert np.all(got_q <= np.asarray(b.q_nm)) and got_q.max() < 2.0, got_q
+    pf, df = pos.astype(np.float32).astype(float), d.astype(np.float32).astype(float)
+    got_f = np.abs(m.error_f32(pf, df)[0] - spatial_error(q, pf, df)).max(axis=0) * 1e3
+    assert np.all(got_f <= np.asarray(b.f32_nm)), (got_f, b.f32_nm)
+    ends = np.array([-600.0, -10.0])
+    r = reversal_values(q, "Y", ends)
+    assert abs(r[1]) > 2147.0 > abs(r[0])
+    np.testing.assert_allclose(m.reversal_f32("Y", ends), r, rtol=1e-6)
+    assert list(m.reversal_q("Y", ends * 1e6)) == [round(r[0] * 1e6), -(1 << 31)]
 
 
 @pytest.mark.parametrize("name,status,blob", crafted_cases(), ids=[c[0] for c in crafted_cases()])

@@ -416,6 +416,28 @@ def test_identity(srv):
         assert c.get("ID_MODEL_FEATURES") == features
 
 
+def golden_blob(name: str) -> bytes:
+    """A golden table's bytes as tests/golden/golden_data.c spells them."""
+    text = (REPO / "tests" / "golden" / "golden_data.c").read_text()
+    body = re.search(rf"golden_blob_{name}\[\d+\][^=]*= \{{(.*?)\}};", text, re.S).group(1)
+    return bytes(int(v, 16) for v in re.findall(r"0x([0-9A-F]{2})", body))
+
+
+@needs_server
+def test_format_1_1_table_runs(srv):
+    """A table with reversal blocks (format 1.1, feature bit 16) uploads and runs; the
+    identity shows its features (the server reads format 1.1: ID_FMT_MINOR)."""
+    blob = golden_blob("reversal")
+    assert struct.unpack_from("<H", blob, 6)[0] == 1
+    with Raw(srv.port) as c:
+        assert c.get("ID_FMT_MINOR") >= 1
+        assert upload(c, blob) == 1
+        c.write1(R["IN_CYCLE"].addr, 1)
+        assert c.get("ID_MODEL_CRC") == struct.unpack("<I", blob[-4:])[0]
+        assert c.get("ID_MODEL_FEATURES") == struct.unpack_from("<I", blob, 20)[0] & 0xFFFF
+        assert c.get("ID_MODEL_FEATURES") & 16
+
+
 @needs_server
 def test_word_order(srv):
     with Raw(srv.port) as c, Raw(srv.port) as d:

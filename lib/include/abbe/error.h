@@ -6,7 +6,9 @@
  * Both agree with the float64 Python reference within the bound derived in
  * docs/numerics.md (2 nm for realistic tables). Run time depends only on the
  * table's shape, never on the input values. Evaluation is stateless; the
- * backlash direction state is an input (abbe_comp_t tracks it for you).
+ * backlash direction state is an input (abbe_comp_t tracks it for you); it
+ * multiplies the axis' reversal, constant (B) or position dependent (format
+ * 1.1 reversal block, abbe_reversal_eval_*).
  */
 #ifndef ABBE_ERROR_H
 #define ABBE_ERROR_H
@@ -85,5 +87,16 @@ abbe_status_t abbe_term_eval_f32(const abbe_model_t *model, unsigned axis, unsig
                                  float pos_mm, float *value);
 abbe_status_t abbe_term_eval_q(const abbe_model_t *model, unsigned axis, unsigned term,
                                abbe_nm_t pos_nm, int32_t *value_pm_or_prad);
+
+/* The total reversal R(p) = B + sum_k r_k T_k(u) of an axis' own positioning
+ * term at axis position pos: its backlash reversal B plus its reversal block
+ * (format 1.1; none: B alone), the block at the position clamped to the
+ * travel. The spatial error adds s R(p) / 2 to that term (s: the direction
+ * state), so this is what an ISO 230-2 bidirectional test of the axis sees as
+ * its reversal. um (f32) / pm (q, saturated to int32); 0 for a table without
+ * BACKLASH. Returns ABBE_E_ARG for NULL pointers or an axis out of range,
+ * ABBE_E_INPUT for a NaN/Inf position (f32). */
+abbe_status_t abbe_reversal_eval_f32(const abbe_model_t *model, unsigned axis, float pos_mm, float *value_um);
+abbe_status_t abbe_reversal_eval_q(const abbe_model_t *model, unsigned axis, abbe_nm_t pos_nm, int32_t *value_pm);
 
 #endif /* ABBE_ERROR_H */

@@ -23,6 +23,7 @@
 #define ABBE_NO_TREND 255u     /* trend_degree value meaning "no trend block" */
 #define ABBE_MAX_HARMONICS 8   /* per Fourier block */
 #define ABBE_MAX_BASIS (ABBE_MAX_DEGREE + 1 + 2 * ABBE_BLOCKS * ABBE_MAX_HARMONICS)
+#define ABBE_MAX_REVERSAL_ROWS 8 /* reversal block: Chebyshev T_0 .. T_7 (format 1.1) */
 
 enum { ABBE_AXIS_X = 0, ABBE_AXIS_Y = 1, ABBE_AXIS_Z = 2 };
 enum {
@@ -35,7 +36,8 @@ enum {
 #define ABBE_FEATURE_TOOL_OFFSET 0x2u
 #define ABBE_FEATURE_BACKLASH 0x4u
 #define ABBE_FEATURE_THERMAL 0x8u
-#define ABBE_FEATURE_ALL 0xFu
+#define ABBE_FEATURE_REVERSAL 0x10u /* format 1.1: position-dependent reversal blocks; needs BACKLASH */
+#define ABBE_FEATURE_ALL 0x1Fu      /* every bit this library knows (a 1.0 table may use 0xF) */
 
 /* Fixed-point scalings of the table's integer fields (docs/numerics.md). */
 #define ABBE_LIN_FRAC_BITS 8   /* linear coefficients: 2^-8 nm */
@@ -70,6 +72,7 @@ typedef struct {
     uint8_t harmonics[ABBE_BLOCKS];
     uint8_t n_basis;
     uint8_t column[ABBE_TERMS]; /* column of term t, or 0xFF if absent */
+    uint8_t reversal_rows;      /* rows of the reversal block (0 = none), after the n_basis x n_terms matrix */
 } abbe_axis_model_t;
 
 /* A loaded model. Allocate it yourself (static, stack or struct member);

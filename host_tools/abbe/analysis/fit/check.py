@@ -58,7 +58,7 @@ def require_clib() -> None:
 
 def sample_inputs(blob: bytes, n: int = 600, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """Seeded positions (n, 3) mm across each axis' table travel +/- 10 % and
-    direction states (n, 3) in [-1, 1] (0 where the axis has no backlash)."""
+    direction states (n, 3) in [-1, 1] (0 where the axis has no reversal)."""
     t = read_blob(blob)
     rng = np.random.default_rng(seed)
     pos = np.empty((n, 3))
@@ -67,7 +67,7 @@ def sample_inputs(blob: bytes, n: int = 600, seed: int = 0) -> tuple[np.ndarray,
         lo, hi = t.axes[a].travel_mm
         w = hi - lo
         pos[:, j] = rng.uniform(lo - 0.1 * w, hi + 0.1 * w, n)
-        if t.axes[a].backlash_um:
+        if t.axes[a].has_reversal():  # backlash_um or a reversal block (format 1.1)
             ds[:, j] = rng.choice([-1.0, -0.5, 0.0, 0.5, 1.0], n)
     return pos, ds
 

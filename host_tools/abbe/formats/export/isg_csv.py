@@ -49,7 +49,13 @@ from scipy.interpolate import RegularGridInterpolator
 from abbe.errors import AbbeInputError
 from abbe.formats.export.grids import choose_grid
 from abbe.formats.export.target import Context, Export, Option, Unheld, fmt, not_held
-from abbe.formats.export.terms import Item, has_reversal, model_error, reversal_um
+from abbe.formats.export.terms import (
+    Item,
+    has_reversal,
+    model_error,
+    reversal_range_note,
+    reversal_um,
+)
 from abbe.formats.limits import COMPONENT_FILE_MAX_RECORDS
 from abbe.model.reference import combine_eq3, term_values
 from abbe.model.table import AXES, LINEAR_TERMS, OWN_SIGN, TERMS
@@ -221,9 +227,11 @@ def _export(ctx: Context, blocks: list[str], lis: list[str], correction, tables,
     for a in AXES:
         if has_reversal(ctx.table, a):
             lo, hi = ctx.volume.travel_mm[a]
-            B = float(np.mean(reversal_um(ctx.table, a, np.linspace(lo, hi, 101))))
+            R = reversal_um(ctx.table, a, np.linspace(lo, hi, 101))
+            B = float(np.mean(R))
             notes.append(f"{a}: reversal {OWN_SIGN[a] * B:+.3f} um along {a} (moving + minus "
-                         "moving -): TwinCAT's backlash compensation per axis, not this file")
+                         "moving -): TwinCAT's backlash compensation per axis, not this file"
+                         + reversal_range_note(R))
 
     def cannot(item: Item) -> Unheld | None:
         if item.kind == "backlash":

@@ -112,7 +112,8 @@ def candidates(ctx: Context) -> tuple[list[Candidate], list[Candidate]]:
 def select(ctx: Context, limit: int) -> tuple[list[Candidate], list[Candidate]]:
     """Tables within the limit, greedily by benefit (RMS over the travel): a bidirectional
     table costs one table; turning an own-axis table into its direction pair costs one
-    more and gains the reversal (|B| / 2 RMS), taken only after its base table."""
+    more and gains the reversal (RMS of |B(q)| / 2); a reversal that outranks its base
+    table brings the base along (two tables for the pair at once)."""
     cands, pairs = candidates(ctx)
     upgrades = {a: [p for p in pairs if p.inp == a] for a in {p.inp for p in pairs}}
     units = [("table", c, c.benefit) for c in cands]
@@ -122,14 +123,23 @@ def select(ctx: Context, limit: int) -> tuple[list[Candidate], list[Candidate]]:
         units.append(("pair", a, b))
     chosen: list[Candidate] = []
     dropped: list[Candidate] = []
+    paired: set[str] = set()
     for kind, obj, _ in sorted(units, key=lambda u: -u[2]):
         if kind == "table":
+            if obj.inp == obj.out and obj.inp in paired:
+                continue  # its direction pair came first (a reversal larger than the mean)
             (chosen if len(chosen) < limit else dropped).append(obj)
             continue
         base = next((c for c in chosen if c.inp == obj and c.out == obj and not c.direction), None)
         if base is not None and len(chosen) < limit:
             chosen.remove(base)
             chosen += upgrades[obj]
+            paired.add(obj)
+        elif base is None and any(c.inp == obj and c.out == obj for c in cands) \
+                and len(chosen) + 2 <= limit:
+            # the pair holds the base table's mean as well: take both tables now
+            chosen += upgrades[obj]
+            paired.add(obj)
     return chosen, dropped
 
 

@@ -37,7 +37,13 @@ from abbe.formats.export.target import (
     fmt,
     not_held,
 )
-from abbe.formats.export.terms import Item, has_reversal, own_error, reversal_um
+from abbe.formats.export.terms import (
+    Item,
+    has_reversal,
+    own_error,
+    reversal_range_note,
+    reversal_um,
+)
 from abbe.model.table import AXES, OWN_SIGN
 
 NAME = "sinumerik-lec"
@@ -89,10 +95,11 @@ def build(ctx: Context) -> Export:
         tabs[a] = (k, np.array([float(v) for v in vals]))
         tables.append({"name": f"$AA_ENC_COMP {ax} (axis {a})", **g.describe()})
         if has_reversal(ctx.table, a):
-            B = float(np.mean(reversal_um(ctx.table, a, np.linspace(lo, hi, 101))))
+            R = reversal_um(ctx.table, a, np.linspace(lo, hi, 101))
+            B = float(np.mean(R))
             notes.append(f"{ax}: backlash for MD32450 $MA_BACKLASH: |reversal| = {abs(B):.2f} um "
                          f"(model reversal B = {B:.3f} um, error moving + minus moving -: "
-                         f"{OWN_SIGN[a] * B:+.3f} um along {a})")
+                         f"{OWN_SIGN[a] * B:+.3f} um along {a})" + reversal_range_note(R))
     lines.append("M17")
 
     def correction(pos: np.ndarray, state: np.ndarray) -> np.ndarray:

@@ -11,9 +11,10 @@ Everything here is evaluated through the float64 reference
   component k of it is exactly the part of dk that depends on that axis alone:
   what a one-input compensation table (input axis -> output axis) can hold.
 * :func:`reversal_um`: the model's reversal B(p) of an axis' own positioning
-  term (ISO 230-2: mean + approach minus mean - approach), um. Today it is the
-  constant ``backlash_um``; when the table gains a position-dependent reversal
-  this is the one function to extend, and every forward/reverse column follows.
+  term (ISO 230-2: mean + approach minus mean - approach), um: ``backlash_um``
+  plus the axis' reversal block (format 1.1, position dependent;
+  ``abbe.model.reference.reversal_values``). Every forward/reverse, BACKLASH,
+  direction-table and bidirectional-pitch column takes it from here.
 * :func:`items` / :func:`contribution`: the model split into named parts (each
   term's single-axis part and its products with other axes' positions,
   squareness, backlash, thermal) for the "what the target cannot hold" report.
@@ -28,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from abbe.model.reference import combine_eq3, extra_values, term_values
+from abbe.model.reference import combine_eq3, extra_values, reversal_values, term_values
 from abbe.model.table import AXES, OWN_SIGN, OWN_TERM, TERMS, AxisTable, Table
 
 ROLE = {"dx": "d_x", "dy": "d_y", "dz": "d_z", "ex": "eps_{a}x", "ey": "eps_{a}y",
@@ -76,9 +77,19 @@ def line_error(table: Table, axis: str, q_mm: np.ndarray, s: float | np.ndarray 
 
 
 def reversal_um(table: Table, axis: str, q_mm: np.ndarray) -> np.ndarray:
-    """The reversal B(q) of ``axis``' own positioning term, um (module docstring)."""
-    q = np.asarray(q_mm, dtype=np.float64).reshape(-1)
-    return np.full(q.shape, float(table.axes[axis].backlash_um))
+    """The reversal B(q) of ``axis``' own positioning term at positions ``q_mm`` (mm),
+    um: the constant ``backlash_um`` plus the reversal block (module docstring)."""
+    return reversal_values(table, axis, q_mm)
+
+
+def reversal_range_note(r_um: np.ndarray) -> str:
+    """For a target that takes one backlash value (the mean of B(q)): how far B(q)
+    ranges along the travel, or "" for a constant reversal."""
+    lo, hi = float(np.min(r_um)), float(np.max(r_um))
+    if hi - lo < 1e-3:
+        return ""
+    return (f"; the mean of a position-dependent reversal, which ranges {lo:.3f} .. "
+            f"{hi:.3f} um along the travel")
 
 
 def own_error(table: Table, axis: str, q_mm: np.ndarray, s: float) -> np.ndarray:
@@ -142,6 +153,7 @@ def _only(table: Table, axis: str | None = None, term: str | None = None,
             ax.coef[term] = np.array(src.coef[term], dtype=np.float64)
         if a == backlash:
             ax.backlash_um, ax.backlash_takeup_mm = src.backlash_um, src.backlash_takeup_mm
+            ax.reversal_cheb_um = src.reversal_cheb_um
         if a == thermal:
             ax.thermal_expansion_ppm_per_k = src.thermal_expansion_ppm_per_k
             ax.thermal_offset_um_per_k = src.thermal_offset_um_per_k

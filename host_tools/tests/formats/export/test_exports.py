@@ -15,12 +15,12 @@ import pytest
 from export_readers import READERS, FormatError, read_linuxcnc_comp
 
 from abbe.cli.entry import main as cli_main
-from abbe.formats.blob import read_blob
+from abbe.formats.blob import read_blob, write_blob
 from abbe.formats.export import TARGETS
 from abbe.model.backlash import backlash_state
 from abbe.model.geometry import circle_points, radial_units
-from abbe.model.reference import spatial_error
-from abbe.model.table import AXES, OWN_SIGN
+from abbe.model.reference import reversal_values, spatial_error
+from abbe.model.table import AXES, OWN_SIGN, Table
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parents[3]
@@ -39,11 +39,30 @@ def export(tmp: Path, model: Path, target: str, *opts: str, machine: bool = True
     return cli_main(args), out
 
 
+def reversal_model() -> Table:
+    """The demo model with a position-dependent reversal on every axis (format 1.1
+    reversal blocks, um): on X it runs from +24 um at one end to -6 um at the other,
+    as the ESS stage's does; Y has a degree-5 block, Z a bow."""
+    t = read_blob(MODELS["demo"].read_bytes())
+    t.axes["X"].reversal_cheb_um = (7.0, -15.0, 3.0, 1.0)
+    t.axes["Y"].reversal_cheb_um = (0.0, 4.0, -2.5, 1.5, 0.75, -0.5)
+    t.axes["Z"].reversal_cheb_um = (0.0, 0.0, 6.0)
+    return read_blob(write_blob(t))
+
+
 @pytest.fixture(scope="module")
-def done(tmp_path_factory):
-    """Every target for both vmc500 models: (model name, target) -> output directory."""
+def model_paths(tmp_path_factory) -> dict[str, Path]:
+    """The golden vmc500 models and the reversal model (a blob written here)."""
+    p = tmp_path_factory.mktemp("reversal-model") / "model.bin"
+    p.write_bytes(write_blob(reversal_model()))
+    return {**MODELS, "reversal": p}
+
+
+@pytest.fixture(scope="module")
+def done(tmp_path_factory, model_paths):
+    """Every target for every model: (model name, target) -> output directory."""
     res = {}
-    for name, model in MODELS.items():
+    for name, model in model_paths.items():
         base = tmp_path_factory.mktemp(name)
         for t in TARGETS:
             rc, out = export(base, model, t)
@@ -80,12 +99,12 @@ def sign_hold(p: np.ndarray) -> np.ndarray:
     return out
 
 
-@pytest.mark.parametrize("model", list(MODELS))
+@pytest.mark.parametrize("model", [*MODELS, "reversal"])
 @pytest.mark.parametrize("target", list(TARGETS))
-def test_reader_reproduces_model_within_reported_residual(done, model, target) -> None:
+def test_reader_reproduces_model_within_reported_residual(done, model_paths, model, target) -> None:
     out = done[(model, target)]
     rep = json.loads((out / "residual.json").read_text())
-    table = read_blob(MODELS[model].read_bytes())
+    table = read_blob(model_paths[model].read_bytes())
     corr = READERS[target](out)
     P = volume_grid(rep)
     r = np.vstack([residual(table, corr, P, np.full(P.shape, s), np.full(P.shape, s))
@@ -156,6 +175,55 @@ def test_linuxcnc_comp_reproduces_the_positioning_term(done) -> None:
             assert np.allclose((fwd - rev) * 1e3, -OWN_SIGN[a] * B, atol=2e-4)
 
 
+# the targets with a direction-dependent table of each axis' own positioning (forward /
+# reverse columns, BACKLASH column, bidirectional pitch, CEC direction pairs)
+DIRECTIONAL = ("linuxcnc-comp", "heidenhain-com", "fanuc-pitch", "sinumerik-cec")
+
+
+@pytest.mark.parametrize("target", DIRECTIONAL)
+def test_a_position_dependent_reversal_is_held(tmp_path, done, model_paths, target) -> None:
+    """Format 1.1 reversal blocks: what a target applies moving + minus moving -, on each
+    axis' line through the reference point, is the model's reversal R(q) there (changing
+    size and sign along the travel), within the interpolation residual the export
+    reported; the volume residual is that of the same model with a constant reversal.
+    (CEC: with 12 tables, so that every axis' direction pair fits beside its cross tables.)"""
+    out, const = done[("reversal", target)], done[("demo", target)]
+    if target == "sinumerik-cec":
+        (rc, out), (rc0, const) = (export(tmp_path / m, model_paths[m], target, "tables=12")
+                                   for m in ("reversal", "demo"))
+        assert rc == rc0 == 0
+    rep = json.loads((out / "residual.json").read_text())
+    table = read_blob(model_paths["reversal"].read_bytes())
+    corr = READERS[target](out)
+    assert not any(k.endswith("backlash / reversal of its positioning") for k in _not_held(out))
+    for j, a in enumerate(AXES):
+        lo, hi = rep["volume"]["axes"][a]["min_mm"], rep["volume"]["axes"][a]["max_mm"]
+        q = np.linspace(lo, hi, 2001)
+        pos = np.tile(np.asarray(table.reference_mm), (q.size, 1))
+        pos[:, j] = q
+        st = np.zeros_like(pos)
+        st[:, j] = 1.0
+        applied = corr(pos, st)[:, j] - corr(pos, -st)[:, j]        # um
+        want = -OWN_SIGN[a] * reversal_values(table, a, q)          # correction = -error
+        R = reversal_values(table, a, q)
+        assert np.ptp(R) > 5.0                                      # really position dependent
+        tol = 2 * rep["volume"]["residual"][f"d{a}"]["max_um"] + 0.01
+        assert np.max(np.abs(applied - want)) <= tol, (target, a, np.max(np.abs(applied - want)))
+    r_const = json.loads((const / "residual.json").read_text())["volume"]["residual"]["norm"]
+    assert rep["volume"]["residual"]["norm"]["max_um"] <= r_const["max_um"] + 0.5
+
+
+def test_the_reversal_is_named_where_a_target_cannot_hold_it(done, model_paths) -> None:
+    """Targets without direction tables name the reversal with its size: max |R(q)| / 2."""
+    table = read_blob(model_paths["reversal"].read_bytes())
+    for target in ("isg-csv", "klipper-skew", "linuxcnc-matrixkins"):
+        nh = _not_held(done[("reversal", target)])
+        for a in AXES:
+            R = reversal_values(table, a, np.linspace(*table.axes[a].travel_mm, 4001))
+            d = nh[f"{a} backlash / reversal of its positioning"]
+            assert d["max_um"] == pytest.approx(np.max(np.abs(R)) / 2, rel=2e-2), (target, a)
+
+
 def test_comp_file_holds_only_triplets_and_both_types_agree(tmp_path) -> None:
     rc0, out0 = export(tmp_path / "t0", MODELS["demo"], "linuxcnc-comp", "type=0")
     rc1, out1 = export(tmp_path / "t1", MODELS["demo"], "linuxcnc-comp", "type=1")
@@ -213,11 +281,12 @@ def test_terms_a_target_cannot_hold_are_named_with_their_size(done) -> None:
                    for k in _not_held(done[("demo", "linuxcnc-comp")]))
 
 
-def test_reversal_is_the_model_difference_of_the_two_directions() -> None:
-    """terms.reversal_um (the one place a position-dependent reversal will enter) agrees
-    with the reference evaluation of both directions."""
+@pytest.mark.parametrize("make", [lambda: read_blob(MODELS["demo"].read_bytes()), reversal_model])
+def test_reversal_is_the_model_difference_of_the_two_directions(make) -> None:
+    """terms.reversal_um (the one place the exports take the reversal from) agrees with
+    the reference evaluation of both directions, constant or position dependent."""
     from abbe.formats.export.terms import line_positions, reversal_um
-    table = read_blob(MODELS["demo"].read_bytes())
+    table = make()
     for j, a in enumerate(AXES):
         q = np.linspace(*table.axes[a].travel_mm, 57)
         pos = line_positions(table, a, q)

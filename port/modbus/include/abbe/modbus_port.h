@@ -23,7 +23,8 @@
 #include "abbe/modbus_regs.h"
 
 /* Staging area, and each of the three table banks: bytes. The largest table
- * format 1.0 allows (3 axes x 40 rows x 6 terms) is 6020 bytes. */
+ * format 1.1 allows (3 axes x 40 rows x 6 terms, plus 3 reversal blocks of 8
+ * rows) is 6212 bytes (format 1.0: 6020). */
 #ifndef ABBE_MB_STAGING_MAX
 #define ABBE_MB_STAGING_MAX 16384
 #endif
