@@ -139,13 +139,16 @@ def make_dataset(out_dir: str | Path, *, seed: int = 0, n_targets: int | dict[st
                  n_runs: int = 5, axes: tuple[str, ...] = AXES, noise: float = 0.15,
                  wave_amp_um: float = 2.5, wave_period_mm: float | dict[str, float] = 73.0,
                  reversal_um: float | dict[str, float] = 3.0, drift_um: float = 0.2,
-                 jitter_mm: float = 0.0) -> Synthetic:
+                 jitter_mm: float = 0.0,
+                 reversal_gradient_um: float | dict[str, float] = 0.0) -> Synthetic:
     """Write a seeded synthetic data set (machine.toml + laser/<axis>.csv) to ``out_dir``.
 
     n_targets per axis (int for all), evenly spaced over the travel, optionally
     jittered by up to ``jitter_mm`` (ends kept) so they are not evenly spaced as
     ISO 230-2 advises. noise: per-reading std (um or urad); drift_um: per-run
-    offset std of linear channels; reversal_um: B of the own positioning term.
+    offset std of linear channels; reversal_um: B of the own positioning term, at
+    mid-travel; reversal_gradient_um: how much B grows from the - end of the travel to
+    the + end (linear in the position; 0 = a constant reversal).
     """
     out_dir = Path(out_dir)
     rng = np.random.default_rng(seed)
@@ -161,6 +164,8 @@ def make_dataset(out_dir: str | Path, *, seed: int = 0, n_targets: int | dict[st
         nt = n_targets[a] if isinstance(n_targets, dict) else n_targets
         P = wave_period_mm[a] if isinstance(wave_period_mm, dict) else wave_period_mm
         B = reversal_um[a] if isinstance(reversal_um, dict) else reversal_um
+        G = reversal_gradient_um[a] if isinstance(reversal_gradient_um, dict) \
+            else reversal_gradient_um
         shapes = _shapes(a, rng, wave_amp_um, P)
         for t, f in shapes.items():
             truth[(a, t)] = f
@@ -177,8 +182,9 @@ def make_dataset(out_dir: str | Path, *, seed: int = 0, n_targets: int | dict[st
             term = spec[1:]
             val = np.broadcast_to(shapes[term](targets), (n_runs, 2, nt)).copy()
             if term == OWN[a]:
-                val[:, 0, :] += B / 2
-                val[:, 1, :] -= B / 2
+                b_at = B + G * ((targets - lo) / (hi - lo) - 0.5)
+                val[:, 0, :] += b_at / 2
+                val[:, 1, :] -= b_at / 2
             if term in ("dx", "dy", "dz"):
                 val += drift[:, None, None]
             val += rng.normal(0, noise, val.shape)

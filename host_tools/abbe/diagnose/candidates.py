@@ -149,7 +149,7 @@ class Engine:
             th[i] = h
             t2, p2 = self.apply(table, pp, spec, th, scan_value)
             if scan_value is not None and (
-                    (spec.kind == "backlash" and table.axes[spec.axis].backlash_um)  # type: ignore[index]
+                    (spec.kind == "backlash" and table.axes[spec.axis].has_reversal())  # type: ignore[index]
                     or (spec.kind == "thermal" and not self.drift_on_table
                         and (np.any(pp.drift_offset) or np.any(pp.drift_scale_ppm)))):
                 # the take-up changes the state of an existing backlash too: difference

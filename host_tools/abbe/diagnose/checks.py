@@ -229,7 +229,7 @@ class BallbarCheck(Check):
         dense = None
         for j, ax in enumerate(AXES):
             at = table.axes[ax]
-            if at.backlash_um or pp.has_reversal(j):
+            if at.has_reversal() or pp.has_reversal(j):
                 if dense is None:
                     dense, at_sample = self._reversal_path()
                 tk = at.backlash_takeup_mm if at.backlash_takeup_mm > 0 else DEFAULT_TAKEUP_MM
@@ -414,7 +414,7 @@ class LaserCheck(Check):
         extra = np.zeros(n)
         has_t = self.temp_grid is not None and bool(at.thermal_expansion_ppm_per_k
                                                      or at.thermal_offset_um_per_k)
-        if at.backlash_um or has_t:
+        if at.has_reversal() or has_t:
             if has_t:
                 pos = pos_t[t_idx]
                 ds = np.zeros((n, 3))

@@ -89,11 +89,8 @@ def describe_effects(eng: Engine, sel: list[Selected], values: list[np.ndarray],
         where = "table" if spec.compensable and not (spec.kind == "thermal" and not eng.drift_on_table) \
             else "prediction model only"
         remedy = spec.remedy
-        if spec.kind == "reversal" and not table_holds_reversal():
-            where = "prediction model only"
-            remedy = (spec.remedy + "; the C library's table cannot hold it yet (table format "
-                      "1.1 pending): evaluated by the float64 prediction model, not written into "
-                      "model.bin")
+        if spec.kind == "reversal":
+            remedy = spec.remedy + "; " + _reversal_in_table(table, pp, spec.axis)  # type: ignore[arg-type]
         if spec.kind == "thermal" and not eng.drift_on_table:
             remedy = ("not compensable by the table without a temperature input: warm the machine "
                       "up before measuring / machining, or log the temperature (laser temp_c) so "
@@ -155,8 +152,10 @@ def _shape_statements(spec: EffectSpec, idx: list[int], v: np.ndarray, C: np.nda
         pts = eng.reversal_points(spec.axis)  # type: ignore[arg-type]
         if pts.size and pts.size <= 64:
             j = AXES.index(spec.axis)  # type: ignore[arg-type]
-            B = float(table.axes[spec.axis].backlash_um)  # type: ignore[index]
-            rev = B + pp.reversal_at(j, table.axes[spec.axis].travel_mm, pts)  # type: ignore[index,union-attr]
+            at = table.axes[spec.axis]  # type: ignore[index]
+            # the table's backlash + reversal block, and what the prediction model holds
+            # beside them (a per-target form's remainder, fold_reversal)
+            rev = at.reversal_um(pts) + pp.reversal_at(j, at.travel_mm, pts)  # type: ignore[union-attr]
             i_lo, i_hi = int(np.argmin(rev)), int(np.argmax(rev))
             d.update({"targets_mm": [round_to(x) for x in pts],
                       "total_reversal_um": [round_to(x) for x in rev]})
@@ -203,14 +202,15 @@ def _lost_motion_at_ends(eng: Engine, sel: list[Selected], i: int, values: list[
     dof = max(prob.N - X.shape[1], 1)
     s2 = max(1.0, float(e @ e) / dof)
     cov = s2 * np.linalg.pinv(X.T @ X)[-2:, -2:]
-    B = float(table.axes[axis].backlash_um) + float(coef[-2])  # type: ignore[index]
-    t_lo, t_hi = table.axes[axis].travel_mm  # type: ignore[index]
+    at = table.axes[axis]  # type: ignore[index]
+    t_lo, t_hi = at.travel_mm
     out: dict[str, Any] = {}
     txt = []
     for name, pos in (("minus_end", lo_p), ("plus_end", hi_p)):
         u = (2.0 * min(max(pos, t_lo), t_hi) - t_lo - t_hi) / (t_hi - t_lo)
         g = np.array([1.0, u])
-        val = B + float(coef[-1]) * u
+        # the model's reversal there (backlash + block) plus the fitted change
+        val = float(at.reversal_um(np.array([pos]))[0]) + float(coef[-2]) + float(coef[-1]) * u
         sd = math.sqrt(max(float(g @ cov @ g), 0.0))
         out[f"reversal_at_{name}_um"] = round_to(val)
         out[f"reversal_at_{name}_um_ci95"] = [round_to(val - tq * sd), round_to(val + tq * sd)]
@@ -220,10 +220,22 @@ def _lost_motion_at_ends(eng: Engine, sel: list[Selected], i: int, values: list[
     return out, [f"lost motion at the circle's reversal points of {axis}: " + ", ".join(txt)]
 
 
-def table_holds_reversal() -> bool:
-    """True once the table format carries the position-dependent reversal block."""
-    from abbe.model.table import AxisTable
-    return "reversal_coef_um" in getattr(AxisTable, "__dataclass_fields__", {})
+def _reversal_in_table(table: Table, pp: PredParams, axis: str) -> str:
+    """Where the updated model holds ``axis``' reversal: the reversal block written into
+    model.bin (format 1.1) and any per-target remainder kept by the prediction model."""
+    at = table.axes[axis]
+    j = AXES.index(axis)
+    blk = at.reversal_cheb_um
+    out = ("written into model.bin as backlash "
+           f"{at.backlash_um:.2f} um plus a reversal block of degree "
+           f"{0 if blk is None else len(blk) - 1} (table format 1.1)")
+    left = pp.reversal_knot_um[j]
+    if left is not None and np.any(left):
+        out += (f"; the block leaves up to {float(np.max(np.abs(left))):.2f} um of the per-target "
+                "values, which only the prediction model holds (diagnose.json gives the "
+                "total reversal per target, for a controller's per-point forward/reverse "
+                "table)")
+    return out
 
 
 def _unit(u: str, spec: EffectSpec, eng: Engine) -> str:

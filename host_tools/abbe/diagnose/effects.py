@@ -76,8 +76,9 @@ class PredParams:
     reversal_cheb_um: (3, REVERSAL_MAX_DEGREE + 1) per axis, the position-dependent part
         of the reversal (um) as Chebyshev T0..TD of the normalised travel: the total
         reversal at p is the table's backlash_um + this series, applied with the
-        backlash direction state (own term + s R(p) / 2). Python side of the planned
-        table format 1.1 term; evaluated in float64 (:func:`reversal_series`).
+        backlash direction state (own term + s R(p) / 2); evaluated in float64
+        (:func:`reversal_series`) while the effects are searched and fitted, then moved
+        into the table's reversal block (format 1.1, :func:`fold_reversal`).
     """
 
     servo_lag_ms: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -134,6 +135,43 @@ class PredParams:
         circle at ``omega_rad_s`` (h = w^2 q, q in ms^2; see ``servo_gain_ms2``)."""
         h = omega_rad_s ** 2 * float(self.servo_gain_ms2[SERVO_PLANES.index(plane)]) * 1e-6
         return 1.0 + h, 1.0 - h
+
+
+def fold_reversal(table: Table, pp: PredParams, takeup_mm: float) -> tuple[Table, PredParams]:
+    """The position-dependent reversal of ``pp`` moved into the table's reversal blocks
+    (table format 1.1), so that ``model.bin`` carries it: the Chebyshev part exactly; a
+    per-target form as its least-squares Chebyshev series of degree <= min(7, targets - 1)
+    at the targets, what that series leaves at the targets staying in ``pp`` (the
+    prediction model only, linear between the targets). An axis without a backlash
+    take-up gets ``takeup_mm`` (mm), the one its prediction assumed. The total
+    predicted reversal is unchanged at the targets."""
+    t, p = copy_table(table), pp.copy()
+    for j, a in enumerate(AXES):
+        if not p.has_reversal(j):
+            continue
+        ax = t.axes[a]
+        series = np.asarray(p.reversal_cheb_um[j], dtype=np.float64).copy()
+        knots, vals = p.reversal_knots_mm[j], p.reversal_knot_um[j]
+        if knots is not None and vals is not None and np.any(vals):
+            k = np.asarray(knots, dtype=np.float64)
+            lo, hi = float(ax.travel_mm[0]), float(ax.travel_mm[1])
+            u = (2.0 * np.clip(k, lo, hi) - lo - hi) / (hi - lo)
+            deg = min(REVERSAL_MAX_DEGREE, k.size - 1)
+            c = np.polynomial.chebyshev.chebfit(u, vals, deg)
+            series[:c.size] += c
+            left = vals - np.polynomial.chebyshev.chebval(u, c)
+            p.reversal_knot_um[j] = left if np.max(np.abs(left)) > 1e-4 else None
+        old = np.zeros(0) if ax.reversal_cheb_um is None else np.asarray(ax.reversal_cheb_um)
+        n = max(old.size, series.size)
+        total = np.zeros(n)
+        total[:old.size] += old
+        total[:series.size] += series
+        nz = np.flatnonzero(np.abs(total) > 1e-9)
+        ax.reversal_cheb_um = tuple(float(v) for v in total[:nz[-1] + 1]) if nz.size else None
+        if ax.backlash_takeup_mm <= 0 and ax.reversal_cheb_um is not None:
+            ax.backlash_takeup_mm = float(takeup_mm)
+        p.reversal_cheb_um[j] = 0.0
+    return t, p
 
 
 def copy_table(t: Table) -> Table:

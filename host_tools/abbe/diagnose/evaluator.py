@@ -79,11 +79,11 @@ class Evaluator:
 
     def own_extra(self, table: Table, axis: str, pos_mm: np.ndarray, dir_state: np.ndarray,
                   temp_c: np.ndarray | None) -> np.ndarray:
-        """Backlash + thermal addition to the own positioning term of ``axis`` (um),
+        """Backlash / reversal + thermal addition to the own positioning term of ``axis`` (um),
         through the library: the difference of the spatial error with and without the
         direction state / temperature, on the axis' own component."""
         ax = table.axes[axis]
-        has_b = bool(ax.backlash_um)
+        has_b = ax.has_reversal()  # backlash_um or a reversal block (format 1.1)
         has_t = temp_c is not None and bool(ax.thermal_expansion_ppm_per_k
                                             or ax.thermal_offset_um_per_k)
         pos = np.asarray(pos_mm, dtype=np.float64).reshape(-1, 3)

@@ -39,9 +39,9 @@ import numpy as np
 from scipy import stats
 
 from abbe.diagnose.candidates import Cand, Engine, Selected, apply_selection, selection_residual
-from abbe.diagnose.checks import Check, LaserCheck, check_travel
+from abbe.diagnose.checks import DEFAULT_TAKEUP_MM, Check, LaserCheck, check_travel
 from abbe.diagnose.describe import describe_effects
-from abbe.diagnose.effects import PredParams, catalogue, copy_table
+from abbe.diagnose.effects import PredParams, catalogue, copy_table, fold_reversal
 from abbe.diagnose.evaluator import Evaluator
 from abbe.diagnose.shape import refine_scans
 from abbe.diagnose.outliers import OutlierRun, inconsistent_runs, screen
@@ -331,6 +331,9 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
                      f"is {c:.3f} um RMS (< {opts.min_effect_um:g} um) once the others are in")
         selected = selected[:i] + selected[i + 1:]
         new_table, new_pp, values, cov, s2_final = _final_fit(eng, selected, W)
+    # the reversal found along the travel goes into the table's reversal blocks (format
+    # 1.1): model.bin carries it, the prediction below evaluates it through the library
+    new_table, new_pp = fold_reversal(new_table, new_pp, DEFAULT_TAKEUP_MM)
     y_after = prob.predict(eng.ev, new_table, new_pp)
     r_after = prob.y - y_after
     clean_after = remove_nuisance(prob, r_after)

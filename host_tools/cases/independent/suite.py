@@ -427,7 +427,8 @@ def _build_positioning(case: CaseDef, out: Path, rng: np.random.Generator) -> Bu
     path = out / "x_iso230_2.dat"
     path.write_text(files.ess_dat(targets, fw, bw, f"independent generator {case.name}"))
     return Built(case, out, exp, outlier_runs=outl, dat_file=path,
-                 info={"noise_um": noise, "outliers": outliers, "noisy": noisy, "b": b, "leg": leg})
+                 info={"noise_um": noise, "outliers": outliers, "noisy": noisy, "b": b, "leg": leg,
+                       "travel_mm": m.travel["X"]})
 
 
 # ----------------------------------------------------------------------------- run + score

@@ -14,7 +14,7 @@ from abbe.cli.entry import main
 from abbe.formats.blob import read_blob
 from abbe.model import clib
 from abbe.model.reference import term_values
-from abbe.model.table import FEATURE_BACKLASH
+from abbe.model.table import FEATURE_BACKLASH, FEATURE_REVERSAL
 from cases.synthetic_laser import make_dataset
 
 SMALL = {"X": 26, "Y": 21, "Z": 16}  # 20 mm spacing: quick
@@ -124,6 +124,29 @@ def test_table_matches_truth_and_reference(fitted) -> None:
             err = fitted_v - truth
             err -= np.mean(err)  # the run drift and reference offsets shift by a constant
             assert np.max(np.abs(err)) < 0.45, (a, term, np.max(np.abs(err)))
+
+
+def test_a_reversal_that_changes_along_the_travel_goes_into_the_reversal_block(
+        tmp_path: Path) -> None:
+    """X's reversal grows from 1 um at one end to 11 um at the other: the table gets the
+    level in backlash_um and the slope in a format 1.1 reversal block, and its total
+    reversal R(p) follows the truth along the travel (a constant would miss it by 5 um
+    at the ends)."""
+    syn = dataset(tmp_path, seed=6, reversal_um=6.0, reversal_gradient_um=10.0, axes=("X",))
+    out = tmp_path / "o"
+    args = ("--no-report",) if clib.available() else ("--no-clib-check", "--no-report")
+    assert fit(syn.machine, out, *args) == 0
+    t = read_blob((out / "model.bin").read_bytes())
+    ax = t.axes["X"]
+    assert t.features() & FEATURE_REVERSAL and ax.reversal_cheb_um is not None
+    assert ax.reversal_cheb_um[0] == 0.0 and len(ax.reversal_cheb_um) >= 2
+    p = syn.targets_mm["X"]
+    lo, hi = p[0], p[-1]
+    truth = 6.0 + 10.0 * ((p - lo) / (hi - lo) - 0.5)
+    assert np.max(np.abs(ax.reversal_um(p) - truth)) < 0.5, ax.reversal_cheb_um
+    rv = json.loads((out / "model.json").read_text())["axes"]["X"]["backlash"]["reversal"]
+    assert rv["position_dependent"] is True and rv["in_table"] is True
+    assert "reversal block" in rv["note"]
 
 
 def test_no_backlash_term_when_reversal_is_noise(tmp_path: Path) -> None:

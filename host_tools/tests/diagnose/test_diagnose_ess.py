@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from abbe.diagnose.run import diagnose_positioning
@@ -40,7 +41,16 @@ def test_reversal_named_position_dependent(result) -> None:
     assert e.ci95[0] > 2.0                        # RMS of the position-dependent part, um
     rev = e.shape["total_reversal_um"]
     assert len(rev) == 9 and min(rev) < -30.0 and max(rev) > -20.0
-    assert e.where == "prediction model only"     # the table format cannot hold it yet
+    # into the table (format 1.1 reversal block); its zig-zag from target to target
+    # (a degree-8 component on 9 targets) is beyond the block's degree 7: what the block
+    # leaves stays in the prediction model and is named with its size
+    assert e.where == "table" and "reversal block of degree 7" in e.remedy
+    ax = result.table.axes["X"]
+    assert ax.reversal_cheb_um is not None and len(ax.reversal_cheb_um) == 8
+    left = result.pred_params.reversal_knot_um[0]
+    pts = np.array(e.shape["targets_mm"])
+    assert np.allclose(ax.reversal_um(pts) + left, rev, atol=1e-4)
+    assert f"leaves up to {np.max(np.abs(left)):.2f} um" in e.remedy
 
 
 def test_values_are_plausible(result) -> None:

@@ -50,3 +50,28 @@ def test_subset_spans_the_families() -> None:
     fams = {p.split("_")[0] for n in SUBSET for p in CASES[n].parts} | {"clean"}
     assert {"squareness", "backlash", "scale", "thermal", "servo", "tool", "pos", "clean"} <= fams
     assert math.isfinite(len(suite()))
+
+
+def test_a_smooth_reversal_is_written_into_the_table(tmp_path: Path) -> None:
+    """pos_reversal (the independent generator's lost motion growing along the travel):
+    the updated model.bin alone (its backlash + format 1.1 reversal block, no
+    prediction-side remainder) gives the true reversal at every target within the
+    measurement's uncertainty (5 runs: a per-target reversal's SE is noise x sqrt(2/5))."""
+    import numpy as np
+
+    from abbe.formats.blob import read_blob, write_blob
+    b = build(CASES["pos_reversal"], tmp_path / "case")
+    res = run(b)
+    ax = read_blob(write_blob(res.table)).axes["X"]
+    assert ax.reversal_cheb_um is not None
+    left = res.pred_params.reversal_knot_um[0]
+    assert left is None or float(np.max(np.abs(left))) < 1.0
+    e = next(x for x in res.effects if x.id == "reversal_x")
+    assert e.where == "table"
+    pts = np.asarray(e.shape["targets_mm"])
+    from cases.independent.physics import LostMotion   # the generator's lost motion
+    lm = LostMotion(float(b.info["b"]), "linear", 0.05, 0.05, b.info["leg"])
+    truth = -lm.b_at(pts, b.info["travel_mm"])          # ISO 230-2 reversal B = -b
+    se = b.info["noise_um"] * math.sqrt(2.0 / 5.0)
+    err = np.max(np.abs(ax.reversal_um(pts) - truth))
+    assert err < 3.0 * se + 0.5, (err, se, ax.reversal_um(pts), truth)

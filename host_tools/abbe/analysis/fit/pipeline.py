@@ -14,7 +14,10 @@ Per measured axis (docs/formats.md, "abbe fit"):
 
 Backlash: the mean reversal of the own positioning term goes into the table
 (``AxisTable.backlash_um``) only when it is significant against the run-to-run
-noise; it is always reported.
+noise; it is always reported. A reversal that changes along the travel
+significantly (:func:`abbe.analysis.fit.prep.assess_reversal`) goes in as its
+Chebyshev series: the level in ``backlash_um``, T1..Td in the axis' reversal block
+(``AxisTable.reversal_cheb_um``, table format 1.1).
 
 Units: mm, um (linear terms), urad (angular terms).
 """
@@ -256,6 +259,7 @@ def fit_line(machine: Machine, axis: str, opts: FitOptions) -> AxisResult:
 
     bl = {"mean_reversal_um": 0.0, "significant": False, "note": "no positioning term measured"}
     backlash_um, takeup = 0.0, 0.0
+    reversal_block: tuple[float, ...] | None = None
     if own in terms:
         bl = assess_backlash(average_runs(terms[own]), backlash_sigma(machine))
         bl["takeup_mm"] = spec.backlash_takeup_mm
@@ -264,13 +268,21 @@ def fit_line(machine: Machine, axis: str, opts: FitOptions) -> AxisResult:
         bl["in_table"] = bool(bl["significant"])
         bl["reversal"] = assess_reversal(average_runs(terms[own]), p, tab.travel_mm,
                                          backlash_sigma(machine))
-        bl["reversal"]["in_table"] = False
-        if bl["reversal"]["position_dependent"]:
-            bl["reversal"]["note"] = ("the table cannot hold a position-dependent reversal yet "
-                                      "(table format 1.1 pending): only the mean reversal is "
-                                      "in the table")
+        rev = bl["reversal"]
+        rev["in_table"] = bool(rev["position_dependent"])
+        if rev["position_dependent"]:
+            # format 1.1 reversal block: R(p) = backlash_um + sum_k r_k T_k(u) with the
+            # series' level in backlash_um and T1..Td in the block (r_0 = 0), so a
+            # controller that drops the block keeps the mean reversal
+            cheb = [float(v) for v in rev["chebyshev_um"]]
+            backlash_um, takeup = cheb[0], spec.backlash_takeup_mm
+            reversal_block = (0.0, *cheb[1:])
+            rev["note"] = (f"in the table: backlash {cheb[0]:.3f} um plus a degree {rev['degree']} "
+                           "reversal block (table format 1.1)")
+            bl["in_table"] = True
     axt = AxisTable(travel_mm=tab.travel_mm, trend_degree=tab.trend_degree, blocks=tab.blocks,
-                    coef=coefs, backlash_um=backlash_um, backlash_takeup_mm=takeup)
+                    coef=coefs, backlash_um=backlash_um, backlash_takeup_mm=takeup,
+                    reversal_cheb_um=reversal_block)
     if thermal.get("in_table"):
         axt.thermal_offset_um_per_k = thermal["offset_um_per_k"]
         axt.thermal_expansion_ppm_per_k = thermal["expansion_ppm_per_k"]

@@ -186,6 +186,12 @@ def index_html(res: "FitResult") -> str:
                        f"noise {bl['noise_um']:.3f} um (SE of one reversal {bl['se_um']:.3f} um): "
                        + ("significant, in the table" if bl["significant"] else
                           "not significant, not in the table") + ".</p>")
+            rv = bl.get("reversal") or {}
+            if rv.get("position_dependent"):
+                out.append(f"<p>Reversal: changes along the travel (Chebyshev degree "
+                           f"{rv['degree']}, p = {rv['p_value']:.2g}; per target "
+                           f"{min(rv['per_target_um']):.2f} .. {max(rv['per_target_um']):.2f} um): "
+                           f"{e(rv.get('note', ''))}.</p>")
         if aj["iso230_2"]:
             iso = aj["iso230_2"]
             out.append("<p>ISO 230-2 (own positioning term): " + ", ".join(
