@@ -22,7 +22,7 @@ if not clib.available():
     pytest.skip(f"C library not built: {clib.library_path()} missing (build with cmake, or set "
                 "ABBE_LIB)", allow_module_level=True)
 
-from test_table import crafted_cases, small_table  # noqa: E402  (same tests directory)
+from table_helpers import crafted_cases, small_table
 
 TOL_NM = golden.TOL_PM / 1000.0
 
