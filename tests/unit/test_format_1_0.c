@@ -16,6 +16,7 @@
 
 #include "abbe/abbe.h"
 #include "golden_data.h"
+#include "golden_inputs.h"
 
 static void test_reads_1_0_refuses_1_1(void **state)
 {
@@ -40,12 +41,7 @@ static void test_reads_1_0_refuses_1_1(void **state)
             const abbe_golden_point_t *p = &abbe_golden_points[i];
             abbe_input_f32_t in_f;
             abbe_input_q_t in_q;
-            memcpy(in_f.pos_mm, p->pos_mm, sizeof in_f.pos_mm);
-            memcpy(in_f.dir_state, p->dir_state, sizeof in_f.dir_state);
-            memcpy(in_f.temp_c, p->temp_c, sizeof in_f.temp_c);
-            memcpy(in_q.pos_nm, p->pos_nm, sizeof in_q.pos_nm);
-            memcpy(in_q.dir_state_q30, p->dir_q30, sizeof in_q.dir_state_q30);
-            memcpy(in_q.temp_mdegc, p->temp_mdegc, sizeof in_q.temp_mdegc);
+            golden_inputs(p, &in_f, &in_q);
             abbe_error_f32_t ef;
             abbe_error_q_t eq;
             assert_int_equal(abbe_error_eval_f32(&m, &in_f, &ef), ABBE_OK);

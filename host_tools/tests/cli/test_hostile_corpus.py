@@ -15,24 +15,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from fuzzing.harness import run_case
+from hostile import expect
 
 REPO = Path(__file__).resolve().parents[3]
 
 
-def _expect(argv, outputs=(), rc=2, *, where=None, field=None, text=None, json_stdout=False):
-    o = run_case([str(a) for a in argv], [Path(p) for p in outputs], json_stdout=json_stdout)
-    assert o.ok, (o.problems, o.stderr)
-    assert o.rc == rc, (o.rc, o.stderr)
-    if where is not None:
-        assert str(where) in o.stderr, o.stderr
-    if field is not None:
-        assert f"field '{field}'" in o.stderr, o.stderr
-    if text is not None:
-        assert re.search(text, o.stderr), o.stderr
-    assert "np.float64" not in o.stderr and "np.int64" not in o.stderr, o.stderr
-    return o
 
 
 def _edit(path: Path, old: str, new: str, count: int = 1) -> None:
@@ -58,30 +45,30 @@ def _set_cell(csv: Path, row: int, col: str, value: str) -> int:
 def test_cr_only_line_ends_are_read(ws, tmp_path):
     for f in (ws.laser, ws.ballbar):
         f.write_bytes(f.read_bytes().replace(b"\n", b"\r"))
-    _expect(["iso230-2", ws.laser, "--json"], rc=0, json_stdout=True)
-    _expect(["ballbar", ws.machine, "circle1", "--no-plot"], rc=0)
+    expect(["iso230-2", ws.laser, "--json"], rc=0, json_stdout=True)
+    expect(["ballbar", ws.machine, "circle1", "--no-plot"], rc=0)
 
 
 def test_overlong_line_even_a_comment(ws):
     s = ws.laser.read_text().splitlines()
     s.insert(3, "#" + "x" * 140_000)
     ws.laser.write_text("\n".join(s) + "\n")
-    _expect(["iso230-2", ws.laser], where=f"{ws.laser}:4:", text="limit is 65536")
+    expect(["iso230-2", ws.laser], where=f"{ws.laser}:4:", text="limit is 65536")
     b = ws.ballbar.read_text().splitlines()
     b.insert(1, "ccw," + "1" * 200_000)
     ws.ballbar.write_text("\n".join(b) + "\n")
-    _expect(["ballbar", ws.machine, "circle1", "--no-plot"], where=f"{ws.ballbar}:2:")
+    expect(["ballbar", ws.machine, "circle1", "--no-plot"], where=f"{ws.ballbar}:2:")
 
 
 def test_23_digit_run_number(ws):
     line = _set_cell(ws.laser, 1, "run", "1" * 23)
-    _expect(["iso230-2", ws.laser], where=f"{ws.laser}:{line}:", field="run")
+    expect(["iso230-2", ws.laser], where=f"{ws.laser}:{line}:", field="run")
 
 
 @pytest.mark.parametrize("value", ["\u00b2", "9" * 5000, "0", "-3", "1e3"])
 def test_dat_counts(ws, value):
     _edit(ws.dat, "CYCLES=3", f"CYCLES={value}")
-    _expect(["iso230-2", ws.dat], where=f"{ws.dat}:3:", field="CYCLES")
+    expect(["iso230-2", ws.dat], where=f"{ws.dat}:3:", field="CYCLES")
 
 
 @pytest.mark.parametrize("name,content,text", [
@@ -101,9 +88,9 @@ def test_table_json_hostile(ws, tmp_path, name, content, text):
     else:
         ws.table_json.write_text(content)
     out = tmp_path / "o.bin"
-    _expect(["table", "from-json", ws.table_json, "-o", out], [out], where=ws.table_json,
+    expect(["table", "from-json", ws.table_json, "-o", out], [out], where=ws.table_json,
             text=text)
-    _expect(["diagnose", "--iso230-2", ws.dat, "--axis", "X", "--model", ws.table_json, "-o",
+    expect(["diagnose", "--iso230-2", ws.dat, "--axis", "X", "--model", ws.table_json, "-o",
              tmp_path / "d", "--no-plots"], [tmp_path / "d"], where=ws.table_json, text=text)
 
 
@@ -117,7 +104,7 @@ def test_table_json_hostile(ws, tmp_path, name, content, text):
 def test_machine_toml_hostile(ws, tmp_path, old, new, text):
     _edit(ws.machine, old, new)
     out = tmp_path / "o"
-    _expect(["fit", ws.machine, "-o", out, "--no-clib-check", "--no-report", "-q"], [out],
+    expect(["fit", ws.machine, "-o", out, "--no-clib-check", "--no-report", "-q"], [out],
             where=ws.machine, text=text)
 
 
@@ -131,7 +118,7 @@ def test_machine_toml_hostile(ws, tmp_path, old, new, text):
 def test_spec_toml_hostile(ws, tmp_path, old, new, field):
     _edit(ws.spec, old, new)
     out = tmp_path / "sim"
-    o = _expect(["simulate", ws.spec, "-o", out], [out], where=ws.spec, field=field)
+    o = expect(["simulate", ws.spec, "-o", out], [out], where=ws.spec, field=field)
     if field == "nosie":
         assert "did you mean 'noise'" in o.stderr
         assert f"{ws.spec}:" in o.stderr and re.search(r"spec\.toml:\d+:", o.stderr)
@@ -140,16 +127,16 @@ def test_spec_toml_hostile(ws, tmp_path, old, new, field):
 def test_machine_path_nul_loop_device(ws, tmp_path):
     out = tmp_path / "o"
     base = ["fit", "-o", out, "--no-clib-check", "--no-report", "-q"]
-    _expect(base + ["mach\0ine.toml"], [out], text="NUL byte")
+    expect(base + ["mach\0ine.toml"], [out], text="NUL byte")
     loop = tmp_path / "loop.toml"
     os.symlink(loop, loop)
-    _expect(base + [loop], [out], where=loop, text="symbolic links")
-    _expect(base + ["/dev/zero"], [out], where="/dev/zero", text="not a regular file")
+    expect(base + [loop], [out], where=loop, text="symbolic links")
+    expect(base + ["/dev/zero"], [out], where="/dev/zero", text="not a regular file")
     fifo = tmp_path / "fifo.csv"
     os.mkfifo(fifo)  # nobody writes: reading it would block forever
-    _expect(["iso230-2", fifo], where=fifo, text="not a regular file")
+    expect(["iso230-2", fifo], where=fifo, text="not a regular file")
     _edit(ws.machine, 'file = "laser/x.csv"', 'file = "/dev/zero"')
-    _expect(["fit", ws.machine] + base[1:], [out], where="/dev/zero", text="not a regular file")
+    expect(["fit", ws.machine] + base[1:], [out], where="/dev/zero", text="not a regular file")
 
 
 @pytest.mark.parametrize("kind", ["is a file", "under a file", "dir for a file"])
@@ -158,19 +145,19 @@ def test_output_paths(ws, tmp_path, kind):
     f.write_text("keep me")
     if kind == "is a file":
         out, jout = f, f
-        expect = "exists and is not a folder"
+        message = "exists and is not a folder"
     elif kind == "under a file":
         out, jout = f / "sub", f / "x.json"
-        expect = "is a file, not a folder"
+        message = "is a file, not a folder"
     else:
         out, jout = tmp_path, tmp_path
-        expect = None
+        message = None
     if kind != "dir for a file":
         for argv in (["fit", ws.machine, "-o", out, "--no-clib-check", "--no-report", "-q"],
                      ["simulate", ws.spec, "-o", out],
                      ["table", "cgen", ws.blob, "-o", out],
                      ["diagnose", "--iso230-2", ws.dat, "--axis", "X", "-o", out, "--no-plots"]):
-            _expect(argv, [f], where=f, text=expect)
+            expect(argv, [f], where=f, text=message)
     if kind == "is a file":  # a file output may replace a file
         assert f.read_text() == "keep me"
         return
@@ -179,7 +166,7 @@ def test_output_paths(ws, tmp_path, kind):
                       (["diagnose", "--iso230-2", ws.dat, "--axis", "X", "-o", tmp_path / "d",
                         "--json", jout, "--no-plots"], "--json"),
                       (["ballbar", ws.machine, "circle1", "--plot", jout], "--plot")):
-        _expect(argv, [f, tmp_path / "d"], where=str(jout), field=opt)
+        expect(argv, [f, tmp_path / "d"], where=str(jout), field=opt)
     assert f.read_text() == "keep me"
 
 
@@ -189,7 +176,7 @@ def test_read_only_output_folder(ws, tmp_path):
     ro.mkdir()
     ro.chmod(0o555)
     try:
-        _expect(["fit", ws.machine, "-o", ro / "out", "--no-clib-check", "--no-report", "-q"],
+        expect(["fit", ws.machine, "-o", ro / "out", "--no-clib-check", "--no-report", "-q"],
                 [ro / "out"], text="permission denied")
     finally:
         ro.chmod(0o755)
@@ -202,27 +189,27 @@ def test_failed_diagnose_json_leaves_no_folder(ws, tmp_path):
     f = tmp_path / "afile"
     f.write_text("x")
     out = tmp_path / "new" / "deeper"
-    _expect(["diagnose", "--iso230-2", ws.dat, "--axis", "X", "-o", out, "--json", f / "d.json",
+    expect(["diagnose", "--iso230-2", ws.dat, "--axis", "X", "-o", out, "--json", f / "d.json",
              "--no-plots"], [out, tmp_path / "new"], field="--json")
     assert not (tmp_path / "new").exists()
     # and a failure after the work (bad model) leaves no folder either
-    _expect(["diagnose", "--iso230-2", ws.dat, "--axis", "X", "-o", out, "--model", f,
+    expect(["diagnose", "--iso230-2", ws.dat, "--axis", "X", "-o", out, "--model", f,
              "--no-plots"], [out, tmp_path / "new"], field="model")
     assert not (tmp_path / "new").exists()
 
 
 def test_fit_replaces_the_old_result_in_one_swap(ws, tmp_path):
     out = tmp_path / "fit"
-    _expect(["fit", ws.machine, "-o", out, "--no-clib-check", "--no-report", "-q"], [out], rc=0)
+    expect(["fit", ws.machine, "-o", out, "--no-clib-check", "--no-report", "-q"], [out], rc=0)
     (out / "notes.txt").write_text("mine")
     old = (out / "model.bin").read_bytes()
     _edit(ws.machine, 'map = { linear = "+dx"', 'map = { linear = "-dx"')
-    _expect(["fit", ws.machine, "-o", out, "--no-clib-check", "--no-report", "-q"], [], rc=0)
+    expect(["fit", ws.machine, "-o", out, "--no-clib-check", "--no-report", "-q"], [], rc=0)
     assert (out / "model.bin").read_bytes() != old
     assert (out / "notes.txt").read_text() == "mine"  # the user's files are kept
     before = sorted(p.name for p in tmp_path.iterdir())
     _set_cell(ws.laser, 2, "linear_um", "nan")
-    _expect(["fit", ws.machine, "-o", out, "--no-clib-check", "--no-report", "-q"], [out])
+    expect(["fit", ws.machine, "-o", out, "--no-clib-check", "--no-report", "-q"], [out])
     assert sorted(p.name for p in tmp_path.iterdir()) == before
 
 
@@ -237,14 +224,14 @@ def test_fit_replaces_the_old_result_in_one_swap(ws, tmp_path):
 def test_absurd_or_foreign_numbers_refused(ws, tmp_path, col, value):
     line = _set_cell(ws.laser, 3, col, value)
     out = tmp_path / "o"
-    _expect(["fit", ws.machine, "-o", out, "--no-clib-check", "--no-report", "-q"], [out],
+    expect(["fit", ws.machine, "-o", out, "--no-clib-check", "--no-report", "-q"], [out],
             where=f"{ws.laser}:{line}:", field=col)
 
 
 def test_ballbar_absurd_numbers_refused(ws):
     for col, value in (("radial_um", "1e300"), ("angle_deg", "nan"), ("time_s", "1_0")):
         line = _set_cell(ws.ballbar, 5, col, value)
-        _expect(["ballbar", ws.machine, "circle1", "--no-plot"], where=f"{ws.ballbar}:{line}:",
+        expect(["ballbar", ws.machine, "circle1", "--no-plot"], where=f"{ws.ballbar}:{line}:",
                 field=col)
         _set_cell(ws.ballbar, 5, col, "1")
 
@@ -254,7 +241,7 @@ def test_misspelt_table_key_is_refused_with_a_suggestion(ws, tmp_path):
     d["axes"]["X"]["b\u0430cklash_um"] = d["axes"]["X"].pop("backlash_um")  # Cyrillic a
     ws.table_json.write_text(json.dumps(d, indent=2))
     out = tmp_path / "o.bin"
-    o = _expect(["table", "from-json", ws.table_json, "-o", out], [out], where=ws.table_json,
+    o = expect(["table", "from-json", ws.table_json, "-o", out], [out], where=ws.table_json,
                 field="axes.X.b\u0430cklash_um")
     assert "backlash_um" in o.stderr and re.search(r"model\.json:\d+:", o.stderr)
 
@@ -264,7 +251,7 @@ def test_misspelt_table_key_is_refused_with_a_suggestion(ws, tmp_path):
     (["--temp-c", "inf", "20", "20"], "--temp-c"),
 ])
 def test_table_eval_options(ws, argv_tail, opt):
-    o = _expect(["table", "eval", ws.blob, "100", "-200", "-100", *argv_tail])
+    o = expect(["table", "eval", ws.blob, "100", "-200", "-100", *argv_tail])
     assert opt in o.stderr
 
 
@@ -272,14 +259,14 @@ def test_table_eval_options(ws, argv_tail, opt):
                                        ("--alpha", "0"), ("--alpha", "inf")])
 def test_diagnose_options(ws, tmp_path, opt, value):
     out = tmp_path / "d"
-    o = _expect(["diagnose", "--iso230-2", ws.dat, "--axis", "X", "-o", out, opt, value], [out])
+    o = expect(["diagnose", "--iso230-2", ws.dat, "--axis", "X", "-o", out, opt, value], [out])
     assert opt in o.stderr
 
 
 def test_fit_options(ws, tmp_path):
     out = tmp_path / "o"
     for opt, value in (("--folds", "1"), ("--folds", "1e400"), ("--max-degree", "8")):
-        o = _expect(["fit", ws.machine, "-o", out, opt, value], [out])
+        o = expect(["fit", ws.machine, "-o", out, opt, value], [out])
         assert opt in o.stderr
 
 
@@ -288,7 +275,7 @@ def test_fit_options(ws, tmp_path):
 
 def test_diagnose_iso230_2_on_the_example_laser_csv(tmp_path):
     out = tmp_path / "OUT"
-    _expect(["diagnose", "--iso230-2", REPO / "examples/vmc500/laser/x.csv", "--axis", "X", "-o",
+    expect(["diagnose", "--iso230-2", REPO / "examples/vmc500/laser/x.csv", "--axis", "X", "-o",
              out, "--no-plots"], [out], rc=0)
     assert (out / "model.bin").is_file()
 
@@ -296,9 +283,9 @@ def test_diagnose_iso230_2_on_the_example_laser_csv(tmp_path):
 def test_bom_and_crlf_are_valid(ws):
     for f in (ws.laser, ws.ballbar, ws.dat, ws.machine):
         f.write_bytes(b"\xef\xbb\xbf" + f.read_bytes().replace(b"\n", b"\r\n"))
-    _expect(["iso230-2", ws.dat], rc=0)  # a .dat with a BOM is still a .dat
-    _expect(["iso230-2", ws.laser], rc=0)
-    _expect(["ballbar", ws.machine, "circle1", "--no-plot"], rc=0)
+    expect(["iso230-2", ws.dat], rc=0)  # a .dat with a BOM is still a .dat
+    expect(["iso230-2", ws.laser], rc=0)
+    expect(["ballbar", ws.machine, "circle1", "--no-plot"], rc=0)
 
 
 # --------------------------------------------------------------------------- unclear messages
@@ -306,7 +293,7 @@ def test_bom_and_crlf_are_valid(ws):
 
 def test_ballbar_bom_not_in_the_field_name(ws):
     ws.ballbar.write_bytes(b"\xef\xbb\xbf" + ws.ballbar.read_bytes().replace(b"direction", b"dir", 1))
-    o = _expect(["ballbar", ws.machine, "circle1", "--no-plot"], where=f"{ws.ballbar}:1:")
+    o = expect(["ballbar", ws.machine, "circle1", "--no-plot"], where=f"{ws.ballbar}:1:")
     assert "\ufeff" not in o.stderr
 
 
@@ -316,7 +303,7 @@ def test_encoder_range_error_names_file_and_line(ws, tmp_path):
     d["axes"]["X"]["terms"][k][0] = 9e6
     ws.table_json.write_text(json.dumps(d, indent=2))
     out = tmp_path / "o.bin"
-    _expect(["table", "from-json", ws.table_json, "-o", out], [out],
+    expect(["table", "from-json", ws.table_json, "-o", out], [out],
             text=re.escape(str(ws.table_json)) + r":\d+: field 'axes\.X\.")
 
 
@@ -324,7 +311,7 @@ def test_unknown_toml_section_names_its_line(ws, tmp_path):
     ws.machine.write_text(ws.machine.read_text() + "\n[ballbaR.c2]\nfile = \"x\"\n")
     n = len(ws.machine.read_text().splitlines()) - 1
     out = tmp_path / "o"
-    _expect(["fit", ws.machine, "-o", out, "--no-clib-check", "--no-report", "-q"], [out],
+    expect(["fit", ws.machine, "-o", out, "--no-clib-check", "--no-report", "-q"], [out],
             where=f"{ws.machine}:{n}:", text="did you mean 'ballbar'")
 
 
@@ -345,7 +332,7 @@ def test_dense_line_is_fitted_on_bins(ws, tmp_path):
     _edit(ws.machine, 'map = { linear = "+dx", straight_h = "+dy", straight_v = "+dz", '
           'pitch = "-ey", yaw = "-ez", roll = "+ex" }', 'map = { linear = "+dx", yaw = "-ez" }')
     out = tmp_path / "o"
-    _expect(["fit", ws.machine, "-o", out, "--no-clib-check", "--no-report", "-q"], [out], rc=0)
+    expect(["fit", ws.machine, "-o", out, "--no-clib-check", "--no-report", "-q"], [out], rc=0)
     mj = json.loads((out / "model.json").read_text())
     assert mj["axes"]["X"]["n_targets"] == FIT_MAX_TARGETS
     assert mj["axes"]["X"]["n_targets_measured"] == 2001

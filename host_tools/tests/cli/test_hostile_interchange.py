@@ -17,24 +17,11 @@ import shutil
 from pathlib import Path
 
 import pytest
-
-from fuzzing.harness import run_case
+from hostile import expect
 
 REF = ["163.626", "-212.772", "-290.704"]
 
 
-def _expect(argv, outputs=(), rc=2, *, where=None, field=None, text=None, json_stdout=False):
-    o = run_case([str(a) for a in argv], [Path(p) for p in outputs], json_stdout=json_stdout)
-    assert o.ok, (o.problems, o.stderr)
-    assert o.rc == rc, (o.rc, o.stderr)
-    if where is not None:
-        assert str(where) in o.stderr, o.stderr
-    if field is not None:
-        assert f"field '{field}'" in o.stderr, o.stderr
-    if text is not None:
-        assert re.search(text, o.stderr), o.stderr
-    assert "np.float64" not in o.stderr and "Traceback" not in o.stderr, o.stderr
-    return o
 
 
 def _csv_import(ws, out, *extra):
@@ -66,7 +53,7 @@ def _set_isg_cell(p: Path, header: str, col: str, value: str, row: int = 1) -> i
 def test_foreign_numbers_in_an_isg_csv_are_refused(ws, tmp_path, value):
     line = _set_isg_cell(ws.isg_csv, "X EXX", "EYX", value, row=3)
     out = tmp_path / "o"
-    _expect(_csv_import(ws, out), [out], where=f"{ws.isg_csv}:{line}:")
+    expect(_csv_import(ws, out), [out], where=f"{ws.isg_csv}:{line}:")
 
 
 @pytest.mark.parametrize("header,col,value,text", [
@@ -79,7 +66,7 @@ def test_absurd_values_in_an_isg_csv_are_refused_with_the_range(ws, tmp_path, he
                                                                 value, text):
     line = _set_isg_cell(ws.isg_csv, header, col, value)
     out = tmp_path / "o"
-    _expect(_csv_import(ws, out), [out], where=f"{ws.isg_csv}:{line}:", field=col, text=text)
+    expect(_csv_import(ws, out), [out], where=f"{ws.isg_csv}:{line}:", field=col, text=text)
 
 
 def test_a_curve_the_table_cannot_hold_is_located(ws, tmp_path):
@@ -95,7 +82,7 @@ def test_a_curve_the_table_cannot_hold_is_located(ws, tmp_path):
         ls[i] = " ".join(c)
     ws.isg_csv.write_text("\n".join(ls) + "\n")
     out = tmp_path / "o"
-    _expect(_csv_import(ws, out), [out], where=f"{ws.isg_csv}:{h + 1}:", field="EXX",
+    expect(_csv_import(ws, out), [out], where=f"{ws.isg_csv}:{h + 1}:", field="EXX",
             text="does not fit in a table")
 
 
@@ -104,7 +91,7 @@ def test_a_span_below_a_nanometre_is_located(tmp_path):
     f.write_text("// positions 0.1 nm apart\nX EXX\n" + "".join(
         f"{i * 1e-7:.7f} {0.001 * (i % 2)}\n" for i in range(6)))
     out = tmp_path / "o"
-    _expect(["import", f, "-o", out, "--reference", "0", "0", "0"], [out], where=f"{f}:2:",
+    expect(["import", f, "-o", out, "--reference", "0", "0", "0"], [out], where=f"{f}:2:",
             field="X", text="whole nm")
 
 
@@ -120,7 +107,7 @@ def test_etalon_keys_are_checked(ws, tmp_path, old, new, fld, text):
     assert old in s
     ws.etalon.write_text(s.replace(old, new, 1))
     out = tmp_path / "o"
-    _expect(["import", ws.etalon, "-o", out, "--reference", *REF], [out], where=f"{ws.etalon}:",
+    expect(["import", ws.etalon, "-o", out, "--reference", *REF], [out], where=f"{ws.etalon}:",
             field=fld, text=text)
 
 
@@ -145,7 +132,7 @@ def test_list_file_keys_are_checked(ws, tmp_path, old, new, fld, text):
     assert old in s
     ws.isg_lis.write_text(s.replace(old, new, 1))
     out = tmp_path / "o"
-    _expect(["import", ws.isg_lis, "-o", out, "--machine", ws.machine], [out],
+    expect(["import", ws.isg_lis, "-o", out, "--machine", ws.machine], [out],
             where=f"{ws.isg_lis}:", field=fld, text=text)
 
 
@@ -153,7 +140,7 @@ def test_a_controller_path_in_the_list_is_read_beside_it(ws, tmp_path):
     s = ws.isg_lis.read_text().replace("file[0] volcomp.csv", "file[0] C:\\TwinCAT\\vc\\volcomp.csv")
     ws.isg_lis.write_text(s)
     out = tmp_path / "o"
-    o = _expect(["import", ws.isg_lis, "-o", out, "--machine", ws.machine], [out], rc=0)
+    o = expect(["import", ws.isg_lis, "-o", out, "--machine", ws.machine], [out], rc=0)
     assert "read as volcomp.csv beside the list file" in o.stdout
     assert json.loads((out / "model.json").read_text())["notes"]
 
@@ -166,22 +153,22 @@ def test_crlf_cr_and_bom_are_valid_error_files(ws, tmp_path, nl):
     for f in (ws.isg_csv, ws.isg_lis, ws.etalon):
         f.write_bytes(b"\xef\xbb\xbf" + f.read_bytes().replace(b"\n", nl))
     a, b = tmp_path / "a", tmp_path / "b"
-    _expect(["import", ws.isg_lis, "-o", a, "--machine", ws.machine], [a], rc=0)
-    _expect(["import", ws.etalon, "-o", b, "--reference", *REF, "--no-unfold"], [b], rc=0)
+    expect(["import", ws.isg_lis, "-o", a, "--machine", ws.machine], [a], rc=0)
+    expect(["import", ws.etalon, "-o", b, "--reference", *REF, "--no-unfold"], [b], rc=0)
 
 
 def test_encodings_and_binary_are_refused_with_their_line(ws, tmp_path):
     out = tmp_path / "o"
     text = ws.isg_csv.read_text()
     ws.isg_csv.write_bytes(text.encode("utf-16"))
-    _expect(_csv_import(ws, out), [out], where=f"{ws.isg_csv}:1:", text="UTF-16")
+    expect(_csv_import(ws, out), [out], where=f"{ws.isg_csv}:1:", text="UTF-16")
     ls = _lines(ws.etalon)
     ls[4] = ls[4] + " // \xe9"
     ws.etalon.write_bytes("\n".join(ls).encode("latin-1"))
-    _expect(["import", ws.etalon, "-o", out, "--reference", *REF], [out], where=f"{ws.etalon}:5:",
+    expect(["import", ws.etalon, "-o", out, "--reference", *REF], [out], where=f"{ws.etalon}:5:",
             text="not UTF-8")
     ws.isg_lis.write_bytes(b"x 1\n\x00\n")
-    _expect(["import", ws.isg_lis, "-o", out, "--machine", ws.machine], [out],
+    expect(["import", ws.isg_lis, "-o", out, "--machine", ws.machine], [out],
             where=f"{ws.isg_lis}:2:", text="NUL byte")
 
 
@@ -191,13 +178,13 @@ def test_line_and_size_limits(ws, tmp_path):
     ls = _lines(ws.isg_csv)
     ls.insert(1, "// " + "x" * 70_000)
     ws.isg_csv.write_text("\n".join(ls) + "\n")
-    _expect(_csv_import(ws, out), [out], where=f"{ws.isg_csv}:2:", text="limit is 65536")
+    expect(_csv_import(ws, out), [out], where=f"{ws.isg_csv}:2:", text="limit is 65536")
     rows = ["X EXX"] + [f"{i * 1e-3:.3f} 0" for i in range(COMPONENT_FILE_MAX_RECORDS + 1)]
     ws.isg_csv.write_text("\n".join(rows) + "\n")
-    _expect(_csv_import(ws, out), [out], where=f"{ws.isg_csv}:{COMPONENT_FILE_MAX_RECORDS + 2}:",
+    expect(_csv_import(ws, out), [out], where=f"{ws.isg_csv}:{COMPONENT_FILE_MAX_RECORDS + 2}:",
             text="more than 100000 records")
     ws.isg_lis.write_text("// " + "y" * 100 + "\n" * LIS_MAX_BYTES)
-    _expect(["import", ws.isg_lis, "-o", out, "--machine", ws.machine], [out], where=ws.isg_lis,
+    expect(["import", ws.isg_lis, "-o", out, "--machine", ws.machine], [out], where=ws.isg_lis,
             text="larger than the limit of 64.0 KiB")
 
 
@@ -205,16 +192,16 @@ def test_paths_that_are_not_files(ws, tmp_path):
     out = tmp_path / "o"
     loop = tmp_path / "loop.exc"
     os.symlink(loop, loop)
-    _expect(["import", loop, "-o", out, "--reference", *REF], [out], where=loop,
+    expect(["import", loop, "-o", out, "--reference", *REF], [out], where=loop,
             text="symbolic links")
     fifo = tmp_path / "fifo.csv"
     os.mkfifo(fifo)  # nobody writes: reading it would block forever
-    _expect(["import", fifo, "-o", out, "--reference", *REF], [out], where=fifo,
+    expect(["import", fifo, "-o", out, "--reference", *REF], [out], where=fifo,
             text="not a regular file")
-    _expect(["export", fifo, "-f", "marlin", "-o", out], [out], where=fifo,
+    expect(["export", fifo, "-f", "marlin", "-o", out], [out], where=fifo,
             text="not a regular file")
-    _expect(["export", "/dev/zero", "-f", "marlin", "-o", out], [out], text="not a regular file")
-    _expect(["import", tmp_path, "-o", out, "--reference", *REF], [out], text="is a directory")
+    expect(["export", "/dev/zero", "-f", "marlin", "-o", out], [out], text="not a regular file")
+    expect(["import", tmp_path, "-o", out, "--reference", *REF], [out], text="is a directory")
 
 
 # --------------------------------------------------------------------------- models
@@ -223,37 +210,37 @@ def test_paths_that_are_not_files(ws, tmp_path):
 def _fit_json(ws, tmp_path) -> Path:
     """A model.json of abbe import (a wrapped table), made from the seed .lis."""
     o = tmp_path / "imp"
-    _expect(["import", ws.isg_lis, "-o", o, "--machine", ws.machine], [o], rc=0)
+    expect(["import", ws.isg_lis, "-o", o, "--machine", ws.machine], [o], rc=0)
     return o / "model.json"
 
 
 def test_model_files_are_read_strictly(ws, tmp_path):
     out = tmp_path / "e"
     mj = _fit_json(ws, tmp_path)
-    _expect(["export", mj, "-f", "marlin", "-o", out], [out], rc=0)  # the wrapped form works
+    expect(["export", mj, "-f", "marlin", "-o", out], [out], rc=0)  # the wrapped form works
     shutil.rmtree(out)
     d = json.loads(mj.read_text())
     d["table"]["axes"]["X"]["b\u0430cklash_um"] = d["table"]["axes"]["X"].pop("backlash_um")
     mj.write_text(json.dumps(d, indent=2))
-    o = _expect(["export", mj, "-f", "marlin", "-o", out], [out],
+    o = expect(["export", mj, "-f", "marlin", "-o", out], [out],
                 field="table.axes.X.b\u0430cklash_um", text="did you mean 'backlash_um'")
     assert re.search(re.escape(str(mj)) + r":\d+:", o.stderr)
     mj.write_text(mj.read_text().replace('"S_xy": ', '"S_xy": NaN, "x": ', 1))
-    _expect(["export", mj, "-f", "marlin", "-o", out], [out], where=f"{mj}:", text="NaN")
+    expect(["export", mj, "-f", "marlin", "-o", out], [out], where=f"{mj}:", text="NaN")
     mj.write_text(json.dumps({"format": "abbe-fit", "table": [1]}))
-    _expect(["export", mj, "-f", "marlin", "-o", out], [out], field="table",
+    expect(["export", mj, "-f", "marlin", "-o", out], [out], field="table",
             text="needs a 'table' object")
     tj = ws.table_json
     tj.write_bytes(tj.read_text().encode("utf-16"))
-    _expect(["export", tj, "-f", "marlin", "-o", out], [out], where=f"{tj}:1:", text="UTF-16")
+    expect(["export", tj, "-f", "marlin", "-o", out], [out], where=f"{tj}:1:", text="UTF-16")
     tj.write_text('{"a": ' * 5000 + "1" + "}" * 5000)
-    _expect(["export", tj, "-f", "marlin", "-o", out], [out], where=tj, text="nested deeper")
+    expect(["export", tj, "-f", "marlin", "-o", out], [out], where=tj, text="nested deeper")
     blob = bytearray(ws.blob.read_bytes())
     blob[40] ^= 0xFF
     ws.blob.write_bytes(bytes(blob))
-    _expect(["export", ws.blob, "-f", "marlin", "-o", out], [out], where=ws.blob, text="CRC")
+    expect(["export", ws.blob, "-f", "marlin", "-o", out], [out], where=ws.blob, text="CRC")
     ws.blob.write_bytes(b"ABBE" + b"\0" * (70 * 1024))
-    _expect(["export", ws.blob, "-f", "marlin", "-o", out], [out], where=ws.blob,
+    expect(["export", ws.blob, "-f", "marlin", "-o", out], [out], where=ws.blob,
             text="at most 65536 bytes")
     assert not out.exists()
 
@@ -274,7 +261,7 @@ def test_a_json_table_the_format_cannot_hold_is_located(ws, tmp_path, form):
     ls = m.read_text().splitlines()
     y = next(i for i, ln in enumerate(ls) if ln.strip().startswith('"Y": {'))
     line = next(i for i, ln in enumerate(ls[y:], y + 1) if '"travel_mm"' in ln)
-    _expect(["export", m, "-f", "sinumerik-lec", "-o", out], [out], where=f"{m}:{line}:",
+    expect(["export", m, "-f", "sinumerik-lec", "-o", out], [out], where=f"{m}:{line}:",
             field=fld, text="must be below max")
 
 
@@ -303,13 +290,13 @@ def test_a_json_table_the_format_cannot_hold_is_located(ws, tmp_path, form):
 def test_export_settings_are_range_checked(ws, tmp_path, target, setting, text):
     out = tmp_path / "e"
     name = setting.partition("=")[0]
-    o = _expect(["export", ws.blob, "-f", target, "-o", out, "--set", setting], [out], text=text)
+    o = expect(["export", ws.blob, "-f", target, "-o", out, "--set", setting], [out], text=text)
     assert f"field '--set {name}" in o.stderr, o.stderr  # (an axis value names its axis too)
 
 
 def test_a_setting_given_twice_is_refused(ws, tmp_path):
     out = tmp_path / "e"
-    _expect(["export", ws.blob, "-f", "heidenhain-com", "-o", out, "--set", "points=64",
+    expect(["export", ws.blob, "-f", "heidenhain-com", "-o", out, "--set", "points=64",
              "--set", "points=128"], [out], field="--set points", text="given twice")
 
 
@@ -324,13 +311,13 @@ def test_a_setting_given_twice_is_refused(ws, tmp_path):
 ])
 def test_import_options_are_range_checked(ws, tmp_path, argv_tail, opt):
     out = tmp_path / "o"
-    o = _expect(["import", ws.isg_csv, "-o", out, *argv_tail], [out])
+    o = expect(["import", ws.isg_csv, "-o", out, *argv_tail], [out])
     assert opt in o.stderr
 
 
 def test_tool_offset_with_a_machine_file_is_refused(ws, tmp_path):
     out = tmp_path / "o"
-    _expect(["import", ws.isg_lis, "-o", out, "--machine", ws.machine, "--tool-offset", "0", "0",
+    expect(["import", ws.isg_lis, "-o", out, "--machine", ws.machine, "--tool-offset", "0", "0",
              "1"], [out], field="--tool-offset")
 
 
@@ -344,7 +331,7 @@ def test_output_paths_are_checked_before_the_work(ws, tmp_path, cmd):
     for out, text in ((f, "exists and is not a folder"), (f / "sub", "is a file, not a folder")):
         argv = (["export", ws.blob, "-f", "marlin", "-o", out] if cmd == "export"
                 else _csv_import(ws, out))
-        _expect(argv, [f], where=str(f), field="--out", text=text)
+        expect(argv, [f], where=str(f), field="--out", text=text)
     assert f.read_text() == "keep me"
 
 
@@ -354,7 +341,7 @@ def test_read_only_output_folder(ws, tmp_path):
     ro.mkdir()
     ro.chmod(0o555)
     try:
-        _expect(["export", ws.blob, "-f", "marlin", "-o", ro / "out"], [ro / "out"],
+        expect(["export", ws.blob, "-f", "marlin", "-o", ro / "out"], [ro / "out"],
                 text="permission denied")
     finally:
         ro.chmod(0o755)
@@ -362,23 +349,23 @@ def test_read_only_output_folder(ws, tmp_path):
 
 def test_a_failed_run_leaves_the_old_result_intact(ws, tmp_path):
     e, i = tmp_path / "e", tmp_path / "i"
-    _expect(["export", ws.blob, "-f", "isg-csv", "-o", e, "--machine", ws.machine], [e], rc=0)
-    _expect(_csv_import(ws, i), [i], rc=0)
+    expect(["export", ws.blob, "-f", "isg-csv", "-o", e, "--machine", ws.machine], [e], rc=0)
+    expect(_csv_import(ws, i), [i], rc=0)
     (e / "notes.txt").write_text("mine")
     before = sorted(p.name for p in tmp_path.iterdir())
     # failures after the work started: a bad machine file, a bad record deep in the file
     m = ws.machine.read_text().replace("radius_mm = 100.0", "radius_mm = 1e400")
     ws.machine.write_text(m)
-    _expect(["export", ws.blob, "-f", "isg-csv", "-o", e, "--machine", ws.machine], [e],
+    expect(["export", ws.blob, "-f", "isg-csv", "-o", e, "--machine", ws.machine], [e],
             where=ws.machine)
     line = _set_isg_cell(ws.isg_csv, "Z EXZ", "EZZ", "nan", row=5)
-    _expect(_csv_import(ws, i), [i], where=f"{ws.isg_csv}:{line}:", field="EZZ")
+    expect(_csv_import(ws, i), [i], where=f"{ws.isg_csv}:{line}:", field="EZZ")
     assert (e / "notes.txt").read_text() == "mine"
     assert sorted(p.name for p in tmp_path.iterdir()) == before  # no staging leftovers
 
 
 def test_export_json_on_stdout_is_strict(ws, tmp_path):
     out = tmp_path / "e"
-    o = _expect(["export", ws.blob, "-f", "fanuc-pitch", "-o", out, "--json"], [out], rc=0,
+    o = expect(["export", ws.blob, "-f", "fanuc-pitch", "-o", out, "--json"], [out], rc=0,
                 json_stdout=True)
     assert json.loads(o.stdout)["target"] == "fanuc-pitch"
