@@ -403,20 +403,6 @@ def _visible(kw: dict[str, Any], hidden: tuple[str, ...]) -> dict[str, Any]:
             out["backlash_um"] = tuple(bl)
         elif key.startswith("reversal_"):
             drop.add("backlash_variation_um")
-        elif key.startswith("reversal_"):
-            # a constant lost motion the model knows, and its variation along the travel
-            # (odd Chebyshev shapes: zero mean over the symmetric laser targets) hidden
-            j = "xyz".index(suf)
-            b = rng.uniform(4.0, 10.0)
-            bl = list(kw.get("backlash_um", (0.0, 0.0, 0.0)))
-            bl[j] = b
-            kw["backlash_um"] = tuple(bl)
-            var = list(kw.get("backlash_variation_um", (0.0,) * 9))
-            var[3 * j] = _sign(rng) * rng.uniform(2.0, 5.0)
-            var[3 * j + 2] = _sign(rng) * rng.uniform(0.0, 2.0)
-            kw["backlash_variation_um"] = tuple(var)
-            reversal_hidden.append((j, var[3 * j:3 * j + 3]))
-            want_checks += [f"laser_{suf}"]
         elif key.startswith("scale_"):
             drop |= {"scale_change_ppm", "scale_change_from_s"}
         elif key.startswith("thermal_drift_"):
