@@ -15,6 +15,8 @@
 #   9. LinuxCNC: the HAL component built and installed, halrun and simulator
 #      tests (port/linuxcnc/tests/run.sh; halrun / linuxcnc run as an
 #      unprivileged user, created when run as root)
+#  10. the README's demo command (scripts/demo.sh), run twice: into a new
+#      demo-out/ and over the old one
 # Runs every step even after a failure; exits non-zero if any step failed.
 set -uo pipefail
 
@@ -90,6 +92,19 @@ wheel_test() {
     (cd host_tools && "$REPO/.venv/bin/python" -m pytest -q -s -p no:cacheprovider tests/packaging)
 }
 
+readme_demo() { # the README's other command, as a user runs it: fresh, then over its result
+    local i
+    for i in 1 2; do
+        bash scripts/demo.sh || return 1
+    done
+    [[ -s demo-out/index.html && -s demo-out/summary.json ]] ||
+        { echo "[test] demo-out/index.html or summary.json missing"; return 1; }
+    if find . demo-out -maxdepth 1 -name '*.abbe-*' | grep .; then
+        echo "[test] staging leftovers of the demo (above)"
+        return 1
+    fi
+}
+
 step "host ASan+UBSan build and ctest (build-asan)" host_asan
 step "host release build and ctest (build)" host_release
 step "Cortex-M4F build and ctest under QEMU (build-m4f)" cross m4f cortex-m4f
@@ -99,6 +114,7 @@ step "Python import contracts (lint-imports)" import_contracts
 step "pytest host_tools/tests" pytest_all
 step "wheel: build, install outside the checkout, run abbe there" wheel_test
 step "LinuxCNC component: halrun and simulator tests" bash port/linuxcnc/tests/run.sh
+step "README's demo command (scripts/demo.sh), twice" readme_demo
 
 echo
 echo "==== [test] summary ===="

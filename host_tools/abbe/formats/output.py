@@ -16,7 +16,9 @@ commits every output, any exception aborts them all::
   working directory (or holds it) the command's entries are swapped into it one by
   one instead, each by one rename, with rollback: renaming the working directory
   away would leave the shell in a deleted folder.
-* A file output is a temporary file beside it, renamed over it.
+* A file output is a temporary file beside it, renamed over it; a file output inside
+  an output folder of the same command is written into that folder's staging and
+  lands with the folder.
 * Several outputs commit in order; if a later one fails the earlier ones are
   swapped back. On any failure the staging files go, and so does every folder
   this writer created: no empty output folder is left behind.
@@ -103,7 +105,7 @@ def _inside(path: Path, root: Path) -> bool:
 
 @dataclass
 class _Target:
-    kind: str  # "dir" or "file"
+    kind: str  # "dir", "file" or "nested" (a file inside a "dir" target's staging)
     final: Path
     option: str
     staging: Path
@@ -198,12 +200,19 @@ class Outputs:
         return staging
 
     def file(self, path: str | Path, *, option: str) -> Path:
-        """A staging file for the output file ``path``; checked now."""
+        """A staging file for the output file ``path``; checked now. A file inside an
+        output folder asked for before (``--json OUT/summary.json`` beside ``-o OUT``)
+        is staged inside that folder's staging and lands with it."""
         final = self._resolve(path)
         if final.is_dir():
             raise self._err(final, option, "is a folder, expected a file name")
         if final.exists() and not final.is_file():
             raise self._err(final, option, "exists and is not a regular file")
+        for d in self._targets:
+            if d.final == final:
+                raise self._err(final, option, f"is also the path of {d.option}")
+            if d.kind == "dir" and _inside(final, d.final):
+                return self._nested_file(final, option, d)
         parent = self._parent(final, option)
         try:
             fd, tmp = tempfile.mkstemp(prefix=f".{final.name}.abbe-tmp-", dir=parent)
@@ -215,6 +224,19 @@ class Outputs:
         self._targets.append(t)
         return Path(tmp)
 
+    def _nested_file(self, final: Path, option: str, d: _Target) -> Path:
+        """Stage ``final`` at its place inside the staging of the output folder ``d``."""
+        staged = d.staging / final.relative_to(d.final)
+        if os.path.lexists(staged):
+            raise self._err(final, option, f"is already a file of {d.option}")
+        try:
+            staged.parent.mkdir(parents=True, exist_ok=True)
+            staged.touch(mode=0o666 & ~_umask())
+        except OSError as exc:
+            raise self._err(final, option, f"cannot write here: {exc.strerror}") from None
+        self._targets.append(_Target("nested", final, option, staged, existed=final.exists()))
+        return staged
+
     def staging_of(self, path: str | Path) -> Path:
         """The staging path already given for the output ``path``."""
         final = self._resolve(path)
@@ -225,6 +247,8 @@ class Outputs:
 
     # ------------------------------------------------------------------ committing
     def _commit_one(self, t: _Target) -> None:
+        if t.kind == "nested":  # inside a staged folder: lands with it
+            return
         if t.kind == "file":
             if t.existed:
                 t.backup = _sibling(t.final, "old")

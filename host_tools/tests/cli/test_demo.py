@@ -20,9 +20,11 @@ KEYS = ("prediction_max_residual_um", "prediction_max_residual_laser_only_um", "
 @pytest.fixture(scope="module")
 def demo(tmp_path_factory) -> tuple[Path, dict]:
     out = tmp_path_factory.mktemp("demo")
-    rc = cli_main(["demo", "-o", str(out / "report"), "--json", str(out / "summary.json")])
+    # as scripts/demo.sh runs it: the JSON inside the report folder
+    rc = cli_main(["demo", "-o", str(out / "report"), "--json", str(out / "report" / "summary.json")])
     assert rc == 0
-    return out, json.loads((out / "summary.json").read_text())
+    assert not [p for p in out.rglob("*") if ".abbe-" in p.name]   # no staging left
+    return out, json.loads((out / "report" / "summary.json").read_text())
 
 
 def test_demo_writes_report_and_json(demo) -> None:

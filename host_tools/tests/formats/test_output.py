@@ -153,3 +153,52 @@ def test_symlinked_output_is_written_through(tmp_path):
     with Outputs() as o:
         (o.directory(link) / "a").write_text("1")
     assert link.is_symlink() and (real / "a").read_text() == "1"
+
+
+def test_a_file_inside_the_output_folder_lands_with_it(tmp_path):
+    """``-o OUT --json OUT/summary.json`` (the README's demo command): the file is staged
+    inside the folder's staging, both appear together, nothing is left beside them."""
+    out = tmp_path / "out"
+    with Outputs() as o:
+        d = o.directory(out, option="--out")
+        js = o.file(out / "summary.json", option="--json")
+        deep = o.file(out / "sub" / "x.json", option="--other")
+        assert not out.exists() and js.parent == d and deep.parent == d / "sub"
+        (d / "index.html").write_text("page")
+        js.write_text("{}")
+        deep.write_text("[]")
+    assert _tree(out) == {"index.html": b"page", "summary.json": b"{}", "sub/x.json": b"[]"}
+    _no_leftovers(tmp_path)
+    _no_leftovers(out)
+    # again over the old result: what this run writes is replaced, the rest carried over
+    (out / "mine.txt").write_text("keep")
+    with Outputs() as o:
+        d = o.directory(out, option="--out")
+        js = o.file(out / "summary.json", option="--json")
+        (d / "index.html").write_text("page 2")
+        js.write_text('{"n": 2}')
+    assert _tree(out) == {"index.html": b"page 2", "summary.json": b'{"n": 2}', "mine.txt": b"keep",
+                          "sub/x.json": b"[]"}
+    _no_leftovers(tmp_path)
+    _no_leftovers(out)
+
+
+def test_a_failure_leaves_the_folder_and_its_file_as_they_were(tmp_path):
+    out = tmp_path / "out"
+    with pytest.raises(RuntimeError):
+        with Outputs() as o:
+            o.directory(out, option="--out")
+            o.file(out / "summary.json", option="--json").write_text("half")
+            raise RuntimeError("boom")
+    assert not out.exists()
+    _no_leftovers(tmp_path)
+
+
+def test_a_file_output_cannot_be_the_output_folder(tmp_path):
+    out = tmp_path / "out"
+    with pytest.raises(AbbeInputError, match="is also the path of --out"):
+        with Outputs() as o:
+            o.directory(out, option="--out")
+            o.file(out, option="--json")
+    assert not out.exists()
+    _no_leftovers(tmp_path)
