@@ -319,13 +319,18 @@ class Outputs:
             for t in self._targets:
                 self._commit_one(t)
                 done.append(t)
-        except OSError as exc:
+        except BaseException as exc:
+            # any failure (a write error, an output that appeared meanwhile, a signal):
+            # the committed outputs go back, the staging goes
             for t in [*done, *(t for t in self._targets if t.done and t not in done)][::-1]:
                 self._undo(t)
             self.abort()
-            raise AbbeInputError(f"cannot write: {exc.strerror or exc}",
-                                 file=str(exc.filename or self._targets[0].final),
-                                 field=self._targets[0].option if self._targets else None) from None
+            if isinstance(exc, OSError) and not isinstance(exc, AbbeInputError):
+                raise AbbeInputError(f"cannot write: {exc.strerror or exc}",
+                                     file=str(exc.filename or self._targets[0].final),
+                                     field=self._targets[0].option if self._targets else None
+                                     ) from None
+            raise
         self._closed = True
         for t in self._targets:  # the old results, now out of the way
             leftover = t.staging if (t.kind == "dir" and t.existed) else None

@@ -202,3 +202,15 @@ def test_a_file_output_cannot_be_the_output_folder(tmp_path):
             o.file(out, option="--json")
     assert not out.exists()
     _no_leftovers(tmp_path)
+
+
+def test_an_output_folder_that_appears_meanwhile_is_left_alone_and_nothing_staged_stays(tmp_path):
+    out = tmp_path / "out"
+    with pytest.raises(AbbeInputError, match="appeared while the command ran"):
+        with Outputs() as o:
+            d = o.directory(out, option="--out")
+            (d / "model.bin").write_text("new")
+            out.mkdir()
+            (out / "theirs.txt").write_text("someone else's")
+    assert _tree(out) == {"theirs.txt": b"someone else's"}
+    _no_leftovers(tmp_path)
