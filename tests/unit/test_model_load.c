@@ -191,21 +191,29 @@ static void test_crc(void **state)
     assert_int_equal(load(n), ABBE_E_CRC);
 }
 
-/* Mutate a u32 field, fix the CRC, expect a status. */
-static void expect_u32(size_t off, uint32_t value, abbe_status_t expected)
+/* Build a table (build_base / build_reversal), mutate a u32 or u8 field, fix the CRC,
+ * expect a status. */
+static void expect_field(size_t (*build)(void), size_t off, int width, uint32_t value,
+                         abbe_status_t expected)
 {
-    size_t n = build_base();
-    tb_put_u32(blob + off, value);
+    size_t n = build();
+    if (width == 4) {
+        tb_put_u32(blob + off, value);
+    } else {
+        blob[off] = (uint8_t)value;
+    }
     tb_fix_crc(blob, n);
     assert_int_equal(load(n), expected);
 }
 
+static void expect_u32(size_t off, uint32_t value, abbe_status_t expected)
+{
+    expect_field(build_base, off, 4, value, expected);
+}
+
 static void expect_u8(size_t off, uint8_t value, abbe_status_t expected)
 {
-    size_t n = build_base();
-    blob[off] = value;
-    tb_fix_crc(blob, n);
-    assert_int_equal(load(n), expected);
+    expect_field(build_base, off, 1, value, expected);
 }
 
 static void test_flags(void **state)
@@ -337,18 +345,12 @@ static void test_ranges(void **state)
 
 static void expect_u32_rev(size_t off, uint32_t value, abbe_status_t expected)
 {
-    size_t n = build_reversal();
-    tb_put_u32(blob + off, value);
-    tb_fix_crc(blob, n);
-    assert_int_equal(load(n), expected);
+    expect_field(build_reversal, off, 4, value, expected);
 }
 
 static void expect_u8_rev(size_t off, uint8_t value, abbe_status_t expected)
 {
-    size_t n = build_reversal();
-    blob[off] = value;
-    tb_fix_crc(blob, n);
-    assert_int_equal(load(n), expected);
+    expect_field(build_reversal, off, 1, value, expected);
 }
 
 static void test_reversal_table_loads(void **state)
