@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -134,7 +135,7 @@ def test_a_reversal_that_changes_along_the_travel_goes_into_the_reversal_block(
     at the ends)."""
     syn = dataset(tmp_path, seed=6, reversal_um=6.0, reversal_gradient_um=10.0, axes=("X",))
     out = tmp_path / "o"
-    args = ("--no-report",) if clib.available() else ("--no-clib-check", "--no-report")
+    args = () if clib.available() else ("--no-clib-check",)
     assert fit(syn.machine, out, *args) == 0
     t = read_blob((out / "model.bin").read_bytes())
     ax = t.axes["X"]
@@ -147,6 +148,8 @@ def test_a_reversal_that_changes_along_the_travel_goes_into_the_reversal_block(
     rv = json.loads((out / "model.json").read_text())["axes"]["X"]["backlash"]["reversal"]
     assert rv["position_dependent"] is True and rv["in_table"] is True
     assert "reversal block" in rv["note"]
+    html = (out / "report" / "index.html").read_text()
+    assert re.search(r"<p>Reversal: changes along the travel \(Chebyshev degree \d, p (&lt;|=) ", html)
 
 
 def test_no_backlash_term_when_reversal_is_noise(tmp_path: Path) -> None:

@@ -188,8 +188,10 @@ def index_html(res: "FitResult") -> str:
                           "not significant, not in the table") + ".</p>")
             rv = bl.get("reversal") or {}
             if rv.get("position_dependent"):
+                pv = rv["p_value"]
+                p_txt = "p &lt; 1e-16" if pv < 1e-16 else f"p = {pv:.2g}"
                 out.append(f"<p>Reversal: changes along the travel (Chebyshev degree "
-                           f"{rv['degree']}, p = {rv['p_value']:.2g}; per target "
+                           f"{rv['degree']}, {p_txt}; per target "
                            f"{min(rv['per_target_um']):.2f} .. {max(rv['per_target_um']):.2f} um): "
                            f"{e(rv.get('note', ''))}.</p>")
         if aj["iso230_2"]:
