@@ -127,10 +127,8 @@ static void test_misaligned_blob(void **state)
 
 /* Truncated at every byte: each shorter copy lives in its own exact-size heap
  * block, so ASan catches a single byte read past the end. */
-static void test_truncated_at_every_byte(void **state)
+static void expect_truncated_at_every_byte(size_t n)
 {
-    (void)state;
-    size_t n = build_base();
     for (size_t len = 0; len < n; len++) {
         uint8_t *copy = malloc(len ? len : 1);
         assert_non_null(copy);
@@ -139,6 +137,12 @@ static void test_truncated_at_every_byte(void **state)
         assert_int_equal(abbe_model_load(&m, copy, len), ABBE_E_TRUNCATED);
         free(copy);
     }
+}
+
+static void test_truncated_at_every_byte(void **state)
+{
+    (void)state;
+    expect_truncated_at_every_byte(build_base());
 }
 
 static void test_bad_magic(void **state)
@@ -384,15 +388,7 @@ static void test_reversal_versions(void **state)
 static void test_reversal_truncated_at_every_byte(void **state)
 {
     (void)state;
-    size_t n = build_reversal();
-    for (size_t len = 0; len < n; len++) {
-        uint8_t *copy = malloc(len ? len : 1);
-        assert_non_null(copy);
-        memcpy(copy, blob, len);
-        abbe_model_t m;
-        assert_int_equal(abbe_model_load(&m, copy, len), ABBE_E_TRUNCATED);
-        free(copy);
-    }
+    expect_truncated_at_every_byte(build_reversal());
 }
 
 static void test_reversal_flags(void **state)

@@ -86,6 +86,15 @@ static const void *aligned_blob(unsigned slot, const abbe_golden_table_t *t)
 
 static abbe_lcnc_t port;
 
+/* Default parameters with a short fade (20 ms) and a fast rate limit (10 mm/s), so
+ * that faults and fades play out in a few dozen periods. */
+static void quick_params(abbe_lcnc_params_t *p)
+{
+    abbe_lcnc_default_params(p);
+    p->fade_s = 0.02;
+    p->rate_mm_per_s[0] = p->rate_mm_per_s[1] = p->rate_mm_per_s[2] = 10.0;
+}
+
 static void setup_port(abbe_lcnc_variant_t v, const abbe_lcnc_params_t *p, const char *table)
 {
     const abbe_golden_table_t *t = golden(table);
@@ -380,9 +389,7 @@ static void test_fault_and_reset(void **state)
 {
     (void)state;
     abbe_lcnc_params_t p;
-    abbe_lcnc_default_params(&p);
-    p.fade_s = 0.02;
-    p.rate_mm_per_s[0] = p.rate_mm_per_s[1] = p.rate_mm_per_s[2] = 10.0;
+    quick_params(&p);
     setup_port(ABBE_LCNC_VARIANT_Q, &p, "paper");
     abbe_lcnc_input_t in;
     abbe_lcnc_output_t out;
@@ -417,9 +424,7 @@ static void test_fault_and_reset(void **state)
     assert_int_equal(out.state, ABBE_COMP_FAULT);
     assert_int_equal(out.stats.limit_trips, 2);
     /* limits back, reset: fades in again */
-    abbe_lcnc_default_params(&p);
-    p.fade_s = 0.02;
-    p.rate_mm_per_s[0] = p.rate_mm_per_s[1] = p.rate_mm_per_s[2] = 10.0;
+    quick_params(&p);
     in.reset = 1;
     abbe_lcnc_step(&port, &p, PERIOD_NS, &in, &out);
     in.reset = 0;
@@ -503,9 +508,7 @@ static void test_axis_fault(void **state)
 {
     (void)state;
     abbe_lcnc_params_t p;
-    abbe_lcnc_default_params(&p);
-    p.fade_s = 0.02;
-    p.rate_mm_per_s[0] = p.rate_mm_per_s[1] = p.rate_mm_per_s[2] = 10.0;
+    quick_params(&p);
     setup_port(ABBE_LCNC_VARIANT_Q, &p, "paper");
     abbe_lcnc_input_t in;
     abbe_lcnc_output_t out;
