@@ -37,20 +37,21 @@ abbe_status_t abbe_comp_step_f32(abbe_comp_t *comp, const abbe_comp_input_f32_t 
     int have_error = 0;
     if (input_ok && comp->model != NULL) {
         abbe_comp_track_direction(comp, pos_nm, in->dir);
-        float dir_state[ABBE_AXES], error_um[ABBE_AXES];
-        uint32_t eval_flags = 0;
+        abbe_input_f32_t eval_in;
+        abbe_error_f32_t eval_out;
         for (unsigned j = 0; j < ABBE_AXES; j++) {
-            dir_state[j] = (float)comp->dir_state_q30[j] * 9.31322574615478515625e-10f; /* 2^-30 */
+            eval_in.pos_mm[j] = in->pos_mm[j];
+            eval_in.dir_state[j] = (float)comp->dir_state_q30[j] * 9.31322574615478515625e-10f; /* 2^-30 */
+            eval_in.temp_c[j] = in->temp_c[j];
         }
         /* NaN temperature or direction state: a bad input like a NaN position */
-        have_error = abbe_eval_f32_core(comp->model, in->pos_mm, dir_state, in->temp_c, error_um,
-                                        &eval_flags) == ABBE_OK;
+        have_error = abbe_eval_f32_core(comp->model, &eval_in, &eval_out) == ABBE_OK;
         input_ok = have_error;
         for (unsigned j = 0; have_error && j < ABBE_AXES; j++) {
-            error_nm[j] = um_to_nm(error_um[j], &flags);
+            error_nm[j] = um_to_nm(eval_out.error_um[j], &flags);
         }
         if (have_error) {
-            flags |= eval_flags;
+            flags |= eval_out.flags;
         }
     }
     abbe_comp_finish(comp, input_ok, have_error ? error_nm : NULL, flags, in->axis_fault_mask, out);

@@ -101,13 +101,14 @@ int abbe_f32_extras_nonfinite(uint32_t features, const float dir_state[ABBE_AXES
 }
 
 #if !defined(ABBE_F32_SSE2) /* x86-64: eval_f32_sse2.c */
-abbe_status_t abbe_eval_f32_core(const abbe_model_t *m, const float pos_mm[ABBE_AXES],
-                                 const float dir_state[ABBE_AXES], const float temp_c[ABBE_AXES],
-                                 float error_um[ABBE_AXES], uint32_t *flags_out)
+abbe_status_t abbe_eval_f32_core(const abbe_model_t *m, const abbe_input_f32_t *in, abbe_error_f32_t *out)
 {
+    const float *pos_mm = in->pos_mm, *dir_state = in->dir_state, *temp_c = in->temp_c;
+    float *error_um = out->error_um;
     const uint32_t features = m->features;
     if ((features & (ABBE_FEATURE_BACKLASH | ABBE_FEATURE_THERMAL)) &&
         abbe_f32_extras_nonfinite(features, dir_state, temp_c)) {
+        abbe_f32_refuse(out);
         return ABBE_E_INPUT;
     }
     /* Per axis, in one loop (one copy of the code, flash): the position in nm,
@@ -124,55 +125,29 @@ abbe_status_t abbe_eval_f32_core(const abbe_model_t *m, const float pos_mm[ABBE_
         lev[j] = (float)((p >> 1) - m->ref_half_nm[j]) * ka;
     }
     if (bad) {
+        abbe_f32_refuse(out);
         return ABBE_E_INPUT;
     }
     const float x = lev[0], y = lev[1], z = lev[2];
     const float tx = m->tool_half_nm[0] * ka, ty = m->tool_half_nm[1] * ka, tz = m->tool_half_nm[2] * ka;
-    /* (dX, dY, dZ) = sum over the axes of W_j v_j (docs/table-format.md, Eq. 3
-     * with the tool offset), W_j from these arms: */
-    const float ty_y = ty - y, z_tz = z + tz, x_tx = x - tx;
-    float v[ABBE_TERMS];
-    float ex, ey, ez;
-
-    /* one multiply-add per weight, chained into each component (fused on a
-     * Cortex-M4F: one rounding each) */
-    abbe_axis_terms_f32(&m->axis[0], d[0], v);
-    ex = ty_y * v[EZ];
-    ex -= z_tz * v[EY];
-    ex -= kl * v[DX];
-    ey = x_tx * v[EZ];
-    ey += z_tz * v[EX];
-    ey -= kl * v[DY];
-    ez = -x_tx * v[EY]; /* (tx - x) e_xy + (y - ty) e_xx */
-    ez -= ty_y * v[EX];
-    ez -= kl * v[DZ];
-
-    abbe_axis_terms_f32(&m->axis[1], d[1], v);
-    ex += ty_y * v[EZ];
-    ex -= z_tz * v[EY];
-    ex -= kl * v[DX];
-    ey -= tx * v[EZ];
-    ey += z_tz * v[EX];
-    ey -= kl * v[DY];
-    ez += tx * v[EY];
-    ez -= ty_y * v[EX];
-    ez -= kl * v[DZ];
-
-    abbe_axis_terms_f32(&m->axis[2], d[2], v);
-    ex -= ty * v[EZ];
-    ex += tz * v[EY];
-    ex += kl * v[DX];
-    ey += tx * v[EZ];
-    ey -= tz * v[EX];
-    ey += kl * v[DY];
-    ez -= tx * v[EY];
-    ez += ty * v[EX];
-    ez += kl * v[DZ];
-
-    /* squareness: + y S_xy - z S_xz in dX, - z S_yz in dY */
-    ex += y * m->squareness_f[0];
-    ex -= z * m->squareness_f[1];
-    ey -= z * m->squareness_f[2];
+    /* (dX, dY, dZ) = squareness + sum over the axes of their share (docs/
+     * table-format.md, Eq. 3 with the tool offset): -d_j (+d_z for Z) and the
+     * axis' angles crossed with its lever arm r_j (abbe_axis_fold_f32):
+     *   X: r = (x - tx, y - ty, -(z + tz)),  Y: r = (-tx, y - ty, -(z + tz)),
+     *   Z: r = (tx, ty, tz).
+     * squareness: + y S_xy - z S_xz in dX, - z S_yz in dY */
+    abbe_vec3f_t e;
+    e.x = y * m->squareness_f[0];
+    e.x -= z * m->squareness_f[1];
+    e.y = -z * m->squareness_f[2];
+    e.z = 0.0f;
+    const abbe_vec3f_t r_x = {x - tx, y - ty, -(z + tz)};
+    e = abbe_axis_fold_f32(&m->axis[0], d[0], e.x, e.y, e.z, r_x.x, r_x.y, r_x.z, -kl);
+    const abbe_vec3f_t r_y = {-tx, r_x.y, r_x.z};
+    e = abbe_axis_fold_f32(&m->axis[1], d[1], e.x, e.y, e.z, r_y.x, r_y.y, r_y.z, -kl);
+    const abbe_vec3f_t r_z = {tx, ty, tz};
+    e = abbe_axis_fold_f32(&m->axis[2], d[2], e.x, e.y, e.z, r_z.x, r_z.y, r_z.z, kl);
+    const float ex = e.x, ey = e.y, ez = e.z;
 
     error_um[0] = ex;
     error_um[1] = ey;
@@ -186,19 +161,23 @@ abbe_status_t abbe_eval_f32_core(const abbe_model_t *m, const float pos_mm[ABBE_
 #endif
                             dir_state, temp_c, error_um);
     }
-    *flags_out = flags;
+    out->flags = flags;
     return ABBE_OK;
 }
 #endif /* !ABBE_F32_SSE2 */
+
+void abbe_f32_refuse(abbe_error_f32_t *out)
+{
+    out->error_um[0] = out->error_um[1] = out->error_um[2] = 0.0f;
+    out->flags = 0;
+}
 
 abbe_status_t abbe_error_eval_f32(const abbe_model_t *m, const abbe_input_f32_t *in, abbe_error_f32_t *out)
 {
     if (m == NULL || in == NULL || out == NULL) {
         return ABBE_E_ARG;
     }
-    out->error_um[0] = out->error_um[1] = out->error_um[2] = 0.0f;
-    out->flags = 0;
-    return abbe_eval_f32_core(m, in->pos_mm, in->dir_state, in->temp_c, out->error_um, &out->flags);
+    return abbe_eval_f32_core(m, in, out);
 }
 
 abbe_status_t abbe_error_eval_batch_f32(const abbe_model_t *m, size_t n, const abbe_input_f32_t *in,
@@ -209,12 +188,8 @@ abbe_status_t abbe_error_eval_batch_f32(const abbe_model_t *m, size_t n, const a
     }
     abbe_status_t result = ABBE_OK;
     for (size_t i = 0; i < n; i++) {
-        abbe_error_f32_t *o = &out[i];
-        o->error_um[0] = o->error_um[1] = o->error_um[2] = 0.0f;
-        o->flags = 0;
-        if (abbe_eval_f32_core(m, in[i].pos_mm, in[i].dir_state, in[i].temp_c, o->error_um, &o->flags) !=
-            ABBE_OK) {
-            o->flags = ABBE_FLAG_INPUT_INVALID;
+        if (abbe_eval_f32_core(m, &in[i], &out[i]) != ABBE_OK) {
+            out[i].flags = ABBE_FLAG_INPUT_INVALID;
             result = ABBE_E_INPUT;
         }
     }

@@ -5,10 +5,8 @@
 #include "eval_f32_x86.h"
 
 #if defined(ABBE_F32_SSE2) && defined(ABBE_X86_V3)
-abbe_status_t abbe_eval_f32_core_avx2(const abbe_model_t *m, const float pos_mm[ABBE_AXES],
-                                      const float dir_state[ABBE_AXES], const float temp_c[ABBE_AXES],
-                                      float error_um[ABBE_AXES], uint32_t *flags_out)
+abbe_status_t abbe_eval_f32_core_avx2(const abbe_model_t *m, const abbe_input_f32_t *in, abbe_error_f32_t *out)
 {
-    return eval_f32_x86(m, pos_mm, dir_state, temp_c, error_um, flags_out);
+    return eval_f32_x86(m, in, out);
 }
 #endif

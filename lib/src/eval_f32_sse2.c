@@ -8,23 +8,19 @@
 #if defined(__GNUC__)
 __attribute__((noinline))
 #endif
-static abbe_status_t eval_f32_sse2(const abbe_model_t *m, const float pos_mm[ABBE_AXES],
-                                   const float dir_state[ABBE_AXES], const float temp_c[ABBE_AXES],
-                                   float error_um[ABBE_AXES], uint32_t *flags_out)
+static abbe_status_t eval_f32_sse2(const abbe_model_t *m, const abbe_input_f32_t *in, abbe_error_f32_t *out)
 {
-    return eval_f32_x86(m, pos_mm, dir_state, temp_c, error_um, flags_out);
+    return eval_f32_x86(m, in, out);
 }
 
-abbe_status_t abbe_eval_f32_core(const abbe_model_t *m, const float pos_mm[ABBE_AXES],
-                                 const float dir_state[ABBE_AXES], const float temp_c[ABBE_AXES],
-                                 float error_um[ABBE_AXES], uint32_t *flags_out)
+abbe_status_t abbe_eval_f32_core(const abbe_model_t *m, const abbe_input_f32_t *in, abbe_error_f32_t *out)
 {
 #if defined(ABBE_X86_V3)
     if (m->simd == ABBE_SIMD_X86_V3) {
-        return abbe_eval_f32_core_avx2(m, pos_mm, dir_state, temp_c, error_um, flags_out);
+        return abbe_eval_f32_core_avx2(m, in, out);
     }
 #endif
-    return eval_f32_sse2(m, pos_mm, dir_state, temp_c, error_um, flags_out);
+    return eval_f32_sse2(m, in, out);
 }
 
 #if defined(ABBE_X86_V3)

@@ -81,14 +81,15 @@ static ABBE_ALWAYS_INLINE __m128 cheb_args(const abbe_x86_consts_t *k, const abb
 #endif
 }
 
-static ABBE_ALWAYS_INLINE abbe_status_t eval_f32_x86(const abbe_model_t *m, const float pos_mm[ABBE_AXES],
-                                                     const float dir_state[ABBE_AXES],
-                                                     const float temp_c[ABBE_AXES], float error_um[ABBE_AXES],
-                                                     uint32_t *flags_out)
+static ABBE_ALWAYS_INLINE abbe_status_t eval_f32_x86(const abbe_model_t *m, const abbe_input_f32_t *in,
+                                                     abbe_error_f32_t *out)
 {
+    const float *pos_mm = in->pos_mm, *dir_state = in->dir_state, *temp_c = in->temp_c;
+    float *error_um = out->error_um;
     const uint32_t features = m->features;
     if ((features & (ABBE_FEATURE_BACKLASH | ABBE_FEATURE_THERMAL)) &&
         abbe_f32_extras_nonfinite(features, dir_state, temp_c)) {
+        abbe_f32_refuse(out);
         return ABBE_E_INPUT;
     }
     const abbe_x86_consts_t *k = abbe_x86_consts();
@@ -98,6 +99,7 @@ static ABBE_ALWAYS_INLINE abbe_status_t eval_f32_x86(const abbe_model_t *m, cons
     const __m128i mag = _mm_and_si128(bits, ABBE_KI(k, abs_mask));
     const __m128i over = _mm_cmpgt_epi32(mag, ABBE_KI(k, mm_limit)); /* |mm| > 2147, NaN, Inf */
     if (_mm_movemask_epi8(_mm_cmpgt_epi32(mag, ABBE_KI(k, finite_max))) != 0) {
+        abbe_f32_refuse(out);
         return ABBE_E_INPUT;
     }
     const __m128i limit = _mm_or_si128(_mm_and_si128(bits, ABBE_KI(k, sign)), ABBE_KI(k, mm_limit));
@@ -178,20 +180,20 @@ static ABBE_ALWAYS_INLINE abbe_status_t eval_f32_x86(const abbe_model_t *m, cons
     /* ---- the axes, each folded into (dX, dY, dZ) as soon as it is known ---- */
     __m128 lo, hi;
     /* squareness: [y, z, 0] [S_xy, -S_yz, 0] + [z, 0, 0] [-S_xz, 0, 0] */
-    __m128 out = _mm_add_ps(_mm_mul_ps(ABBE_PERMUTE(lev, 0xF9), _mm_loadu_ps(m->square_dx_dy)),
+    __m128 acc = _mm_add_ps(_mm_mul_ps(ABBE_PERMUTE(lev, 0xF9), _mm_loadu_ps(m->square_dx_dy)),
                             _mm_mul_ps(ABBE_PERMUTE(lev, 0xFE), _mm_loadu_ps(m->square_dx_f)));
     axis_values(k, &ax[0], dx, ABBE_PERMUTE(u, 0x00), lane_pair(sc0_lo, sc0_hi, 0u), lane_pair(sc1_lo, sc1_hi, 0u),
                 &lo, &hi);
-    out = fold(out, lo, hi, wl_xy, wa_x, wb_xy);
+    acc = fold(acc, lo, hi, wl_xy, wa_x, wb_xy);
     axis_values(k, &ax[1], dy, ABBE_PERMUTE(u, 0x55), lane_pair(sc0_lo, sc0_hi, 1u), lane_pair(sc1_lo, sc1_hi, 1u),
                 &lo, &hi);
-    out = fold(out, lo, hi, wl_xy, wa_y, wb_xy);
+    acc = fold(acc, lo, hi, wl_xy, wa_y, wb_xy);
     axis_values(k, &ax[2], dz, ABBE_PERMUTE(u, 0xAA), lane_pair(sc0_lo, sc0_hi, 2u), lane_pair(sc1_lo, sc1_hi, 2u),
                 &lo, &hi);
-    out = fold(out, lo, hi, wl_z, wa_z, wb_z);
+    acc = fold(acc, lo, hi, wl_z, wa_z, wb_z);
 
-    abbe_st2(error_um, out);
-    _mm_store_ss(&error_um[2], _mm_movehl_ps(out, out));
+    abbe_st2(error_um, acc);
+    _mm_store_ss(&error_um[2], _mm_movehl_ps(acc, acc));
     if (features & (ABBE_FEATURE_BACKLASH | ABBE_FEATURE_THERMAL)) {
         float lev_mm[4];
         _mm_storeu_ps(lev_mm, _mm_mul_ps(lev, _mm_set1_ps(2.0e-6f / 2.9103830456733704e-14f)));
@@ -203,7 +205,7 @@ static ABBE_ALWAYS_INLINE abbe_status_t eval_f32_x86(const abbe_model_t *m, cons
         abbe_f32_add_extras(m, lev_mm, offsets, dir_state, temp_c, error_um);
 #endif
     }
-    *flags_out = flags;
+    out->flags = flags;
     return ABBE_OK;
 }
 

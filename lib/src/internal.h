@@ -166,12 +166,11 @@ static ABBE_ALWAYS_INLINE int64_t abbe_smlal(int64_t acc, int32_t a, int32_t b)
  * ABBE_FLAG_OUT_OF_TRAVEL if pos_nm is outside the travel. Branch-free. */
 static inline uint32_t abbe_arg_offset(const abbe_axis_model_t *ax, int32_t pos_nm, uint32_t *flags)
 {
-    uint32_t below = (uint32_t)(pos_nm < ax->travel_min_nm);
-    uint32_t above = (uint32_t)(pos_nm > ax->travel_max_nm);
-    uint32_t d = (uint32_t)pos_nm - (uint32_t)ax->travel_min_nm; /* mod 2^32: exact inside */
-    *flags |= (below | above) * ABBE_FLAG_OUT_OF_TRAVEL;
-    d = below ? 0u : d;
-    return above ? ax->span_nm : d;
+    /* clamp, then one compare for the flag: two conditional moves on ARM */
+    int32_t c = pos_nm < ax->travel_min_nm ? ax->travel_min_nm : pos_nm;
+    c = c > ax->travel_max_nm ? ax->travel_max_nm : c;
+    *flags |= (uint32_t)(c != pos_nm) * ABBE_FLAG_OUT_OF_TRAVEL;
+    return (uint32_t)c - (uint32_t)ax->travel_min_nm; /* in [0, span]: exact mod 2^32 */
 }
 
 /* Position clamped to the axis travel; sets ABBE_FLAG_OUT_OF_TRAVEL if clamped. */
@@ -240,6 +239,19 @@ void abbe_sincos_f32(uint32_t phase_q32, float *sin_out, float *cos_out);
 void abbe_axis_terms_q(const abbe_axis_model_t *ax, uint32_t d, int32_t value[ABBE_TERMS]);
 void abbe_axis_terms_f32(const abbe_axis_model_t *ax, uint32_t d, float value[ABBE_TERMS]);
 
+/* Three floats: a homogeneous aggregate, returned in s0-s2 on a Cortex-M4F
+ * (and e, r, lin go in s0-s6 as scalars: GCC stores an aggregate argument to
+ * the stack on entry): no memory between the kernels. */
+typedef struct {
+    float x, y, z;
+} abbe_vec3f_t;
+
+/* e + an axis' share of Eq. 3 at its offset d: e + lin [d_x, d_y, d_z] +
+ * [eps_x, eps_y, eps_z] x r, r the axis' lever arm, in the units of e over
+ * the coefficients' (terms_f32.c; the plain C build, not x86-64's kernels). */
+abbe_vec3f_t abbe_axis_fold_f32(const abbe_axis_model_t *ax, uint32_t d, float ex, float ey, float ez, float rx,
+                                float ry, float rz, float lin);
+
 
 /* Float mm -> integer nm, exact to 0.56 nm over +/-2147 mm (docs/numerics.md).
  * Returns ABBE_E_INPUT for NaN/Inf; clamps beyond +/-2147 mm (flagging out of travel). */
@@ -300,15 +312,16 @@ int abbe_f32_extras_nonfinite(uint32_t features, const float dir_state[ABBE_AXES
 #define ABBE_SIMD_X86_V3 1u
 #if defined(ABBE_X86_V3)
 uint8_t abbe_simd_level(void);
-abbe_status_t abbe_eval_f32_core_avx2(const abbe_model_t *m, const float pos_mm[ABBE_AXES],
-                                      const float dir_state[ABBE_AXES], const float temp_c[ABBE_AXES],
-                                      float error_um[ABBE_AXES], uint32_t *flags_out);
+abbe_status_t abbe_eval_f32_core_avx2(const abbe_model_t *m, const abbe_input_f32_t *in, abbe_error_f32_t *out);
 #endif
 
-/* Spatial error in um at the float input; ABBE_OK or ABBE_E_INPUT (then the
- * outputs are untouched). *flags gets the evaluation flags. */
-abbe_status_t abbe_eval_f32_core(const abbe_model_t *m, const float pos_mm[ABBE_AXES],
-                                 const float dir_state[ABBE_AXES], const float temp_c[ABBE_AXES],
-                                 float error_um[ABBE_AXES], uint32_t *flags);
+/* Spatial error in um at the float input, with its flags, into *out; ABBE_OK,
+ * or ABBE_E_INPUT (NaN/Inf input: then *out is all zero). m, in and out are
+ * not NULL. Three pointers: all in registers, and abbe_error_eval_f32 is
+ * a tail call. */
+abbe_status_t abbe_eval_f32_core(const abbe_model_t *m, const abbe_input_f32_t *in, abbe_error_f32_t *out);
+
+/* The *out of a refused input (cold path). */
+void abbe_f32_refuse(abbe_error_f32_t *out);
 
 #endif /* ABBE_INTERNAL_H */

@@ -1,49 +1,83 @@
 /* abbe: sin and cos of a phase in single precision, inline for the per-axis
  * kernels (terms_f32.c); sincos_f32.c exports the same for the tests.
  *
- * Same reduction and polynomials as sincos_q.c: the phase stays an integer
- * fraction of a turn, so reduction is exact and only the polynomial rounds
- * (max error about 1.5e-7, a few float ulp; docs/numerics.md). Branch-free:
- * the quarter turn selects and negates with conditional moves. */
+ * The phase stays an integer fraction of a turn, so the reduction is exact
+ * and only the polynomials and the rotation round (max error about 1.1e-7,
+ * two float ulp; docs/numerics.md). Branch-free. */
 #ifndef ABBE_SINCOS_F32_H
 #define ABBE_SINCOS_F32_H
 
 #include "internal.h"
 
-/* A float constant materialised where it is used. In a kernel's block loop
- * GCC would otherwise hoist all nine polynomial constants into callee-saved
- * registers (nine loads, a save and a restore per axis on the Cortex-M4F)
- * and still copy each into place: a Horner step costs one load or move plus
- * one multiply-add either way. */
-#if defined(__GNUC__) && defined(__thumb2__) && defined(__ARM_FP) && !defined(ABBE_PORTABLE_C)
-#define ABBE_K(name, value) float name = (value); __asm__("" : "+t"(name))
-#else
-#define ABBE_K(name, value) const float name = (value)
-#endif
+/* The polynomials' coefficients (in the order the Horner steps use them,
+ * then 1), and sin and cos of the eighths of a turn, k pi/4, as (sin, cos)
+ * pairs, the irrational ones sqrt(1/2) correctly rounded. One block: a
+ * Cortex-M4F loads the seven constants with one VLDM. */
+typedef struct {
+    float poly[8]; /* S2, S1, S0, C3, C2, C1, 1, (0) */
+    float eighth[16];
+} abbe_sincos_f32_table_t;
 
+#define ABBE_R2_F32 0.70710678118654752f
+static const abbe_sincos_f32_table_t abbe_sincos_f32_table = {
+    {0.002474437700584531f, -0.08074352145195007f, 0.7853981256484985f, -0.00032427161931991577f,
+     0.01585409604012966f, -0.3084251284599304f, 1.0f, 0.0f},
+    {0.0f, 1.0f, ABBE_R2_F32, ABBE_R2_F32, 1.0f, 0.0f, ABBE_R2_F32, -ABBE_R2_F32, 0.0f, -1.0f, -ABBE_R2_F32,
+     -ABBE_R2_F32, -1.0f, 0.0f, -ABBE_R2_F32, ABBE_R2_F32},
+};
+#undef ABBE_R2_F32
+
+/* The phase is reduced to the nearest eighth of a turn k (exact, integer),
+ * leaving r in [-1/16, 1/16) turn, u = r / 2^29 in [-1/2, 1/2) and the angle
+ * pi/4 u: sin(pi/4 u) = u (S0 + S1 z + S2 z^2) and cos(pi/4 u) = 1 + C1 z +
+ * C2 z^2 + C3 z^3, z = u^2 (near-minimax, docs/numerics.md), then rotated
+ * by k pi/4 from the table: two multiplies and two multiply-adds, where a
+ * quarter-turn reduction needs longer polynomials and a swap and two
+ * negations chosen by the quarter. No branch either way. */
 static ABBE_ALWAYS_INLINE void abbe_sincos_f32_inline(uint32_t phase_q32, float *sin_out, float *cos_out)
 {
-    uint32_t quarter = ((phase_q32 + (1u << 29)) >> 30) & 3u;
-    int32_t r = abbe_u32_to_i32(phase_q32 - (quarter << 30)); /* [-2^29, 2^29) */
-    float u = (float)r * 1.86264514923095703125e-9f;          /* r / 2^29 */
-    float z = u * u;
-
-    ABBE_K(s3, -3.588928186218254e-05f);
-    ABBE_K(s2, 0.0024898941721767187f);
-    ABBE_K(s1, -0.08074537664651871f);
-    ABBE_K(s0, 0.7853981256484985f);
-    float s = u * (s0 + z * (s1 + z * (s2 + z * s3)));
-    ABBE_K(c4, 3.5318628215463832e-06f);
-    ABBE_K(c3, -0.00032594305230304599f);
-    ABBE_K(c2, 0.015854328870773315f);
-    ABBE_K(c1, -0.30842512845993042f);
-    float c = 1.0f + z * (c1 + z * (c2 + z * (c3 + z * c4)));
-
-    /* quarter 0: (s, c), 1: (c, -s), 2: (-s, -c), 3: (-c, s) */
-    float sw = (quarter & 1u) ? c : s;
-    float cw = (quarter & 1u) ? s : c;
-    *sin_out = (quarter & 2u) ? -sw : sw;
-    *cos_out = ((quarter + 1u) & 2u) ? -cw : cw;
+    const uint32_t eighth = (phase_q32 + (1u << 28)) >> 29;           /* 0..7 (wraps) */
+    const int32_t r = abbe_u32_to_i32(phase_q32 - (eighth << 29));    /* [-2^28, 2^28) */
+    const abbe_sincos_f32_table_t *k = &abbe_sincos_f32_table;
+#if defined(__GNUC__) && defined(__thumb2__) && defined(__ARM_FP) && defined(__ARMEL__) && !defined(ABBE_PORTABLE_C)
+    /* Cortex-M4F: the same operations in the same order, in one asm block:
+     * GCC hoists the seven constants out of a kernel's block loop into
+     * registers and then copies each into place (a Horner step overwrites its
+     * addend), where one VLDM per evaluation does it; VCVT with 29 fraction
+     * bits is the scaling. */
+    float u, z, so, co;
+    uint32_t row;
+    __asm__("vcvt.f32.s32 %[u], %[u], #29" : [u] "=t"(u) : "0"(r));
+    __asm__("vldmia %[k], {s8-s14}\n\t"
+            "vmul.f32 %[z], %[u], %[u]\n\t"
+            "vfma.f32 s9, %[z], s8\n\t"   /* S1 + z S2 */
+            "vfma.f32 s10, %[z], s9\n\t"  /* S0 + z (..) */
+            "vfma.f32 s12, %[z], s11\n\t" /* C2 + z C3 */
+            "vfma.f32 s13, %[z], s12\n\t" /* C1 + z (..) */
+            "vfma.f32 s14, %[z], s13\n\t" /* c = 1 + z (..) */
+            "vmul.f32 s10, s10, %[u]\n\t" /* s */
+            "add %[row], %[k], %[e], lsl #3\n\t"
+            "vldr s8, [%[row], #32]\n\t"  /* sin k pi/4 */
+            "vldr s9, [%[row], #36]\n\t"  /* cos k pi/4 */
+            "vmul.f32 %[so], s10, s9\n\t"
+            "vfma.f32 %[so], s14, s8\n\t" /* s ck + c sk */
+            "vmul.f32 %[co], s14, s9\n\t"
+            "vfms.f32 %[co], s10, s8"     /* c ck - s sk */
+            : [so] "=&t"(so), [co] "=&t"(co), [z] "=&t"(z), [row] "=&r"(row)
+            : [u] "t"(u), [k] "r"(k), [e] "r"(eighth), "m"(*k)
+            : "s8", "s9", "s10", "s11", "s12", "s13", "s14");
+    *sin_out = so;
+    *cos_out = co;
+#else
+    const float u = (float)r * 1.86264514923095703125e-9f; /* r / 2^29 */
+    const float z = u * u;
+    const float *c = k->poly;
+    const float s = u * (c[2] + z * (c[1] + z * c[0]));
+    const float cs = 1.0f + z * (c[5] + z * (c[4] + z * c[3]));
+    const float sk = k->eighth[2u * eighth], ck = k->eighth[2u * eighth + 1u];
+    *sin_out = s * ck + cs * sk;
+    *cos_out = cs * ck - s * sk;
+#endif
 }
 
 #endif /* ABBE_SINCOS_F32_H */
