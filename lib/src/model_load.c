@@ -70,7 +70,7 @@ static unsigned trend_rows_of(uint8_t degree)
     return degree == ABBE_NO_TREND ? 0u : (unsigned)degree + 1u;
 }
 
-static uint32_t n_basis_of(const uint8_t *rec)
+ABBE_NOINLINE static uint32_t n_basis_of(const uint8_t *rec)
 {
     return trend_rows_of(rec[A_DEGREE]) + 2u * rec[A_HARMONICS] + 2u * rec[A_HARMONICS + 1u];
 }
@@ -110,7 +110,9 @@ static abbe_status_t check_header(const uint8_t *b, size_t size, uint32_t *total
     return ABBE_OK;
 }
 
-static int any_nonzero_i32(const uint8_t *p, unsigned count)
+/* Out of line here and below: the loader runs once, and the copies GCC
+ * would inline cost flash the evaluation needs. */
+ABBE_NOINLINE static int any_nonzero_i32(const uint8_t *p, unsigned count)
 {
     for (unsigned i = 0; i < count; i++) {
         if (abbe_ld_u32(p + 4u * i) != 0u) {
@@ -218,40 +220,43 @@ static abbe_status_t check_finite(const uint8_t *b)
     return ABBE_OK;
 }
 
-/* IEEE single-precision bits of v, rounded to nearest even, in integers only
- * (the loader serves the float-free fixed-point build too). */
+/* IEEE single-precision bits of v, rounded to nearest even. A Cortex-M4F
+ * converts in hardware (VCVT, in the FPU's default round-to-nearest mode,
+ * which the _f32 evaluation assumes too: docs/numerics.md); elsewhere in
+ * integers only, since the loader serves the float-free fixed-point build
+ * too. */
+#if defined(__GNUC__) && defined(__thumb2__) && defined(__ARM_FP) && (__ARM_FP & 4) && !defined(ABBE_PORTABLE_C)
+static uint32_t i32_to_f32_bits(int32_t v)
+{
+    const float f = (float)v;
+    uint32_t bits;
+    memcpy(&bits, &f, sizeof bits);
+    return bits;
+}
+#else
+static unsigned bit_length(uint32_t v);
+
 static uint32_t i32_to_f32_bits(int32_t v)
 {
     if (v == 0) {
         return 0u;
     }
-    uint32_t sign = v < 0 ? 0x80000000u : 0u;
-    uint32_t mag = v < 0 ? (uint32_t)(-(int64_t)v) : (uint32_t)v;
-    unsigned msb = 0;
-    for (unsigned step = 16; step > 0; step >>= 1) { /* binary search for the top bit */
-        if ((mag >> (msb + step)) != 0u) {
-            msb += step;
-        }
-    }
-    uint32_t exponent = 127u + msb;
-    uint32_t mant;
-    if (msb <= 23u) {
-        mant = mag << (23u - msb);
+    const uint32_t sign = v < 0 ? 0x80000000u : 0u;
+    const uint32_t mag = v < 0 ? 0u - (uint32_t)v : (uint32_t)v; /* 2^31 for INT32_MIN */
+    const unsigned n = bit_length(mag);                           /* 1..32 significant bits */
+    uint32_t mant;                                                /* 24 bits, 2^23 <= mant <= 2^24 */
+    if (n <= 24u) {
+        mant = mag << (24u - n);
     } else {
-        unsigned shift = msb - 23u;
-        uint32_t rem = mag & ((1u << shift) - 1u);
-        uint32_t half = 1u << (shift - 1u);
-        mant = mag >> shift;
-        if (rem > half || (rem == half && (mant & 1u))) {
-            mant++;
-            if (mant == (1u << 24)) {
-                mant >>= 1;
-                exponent++;
-            }
-        }
+        /* round to nearest, ties to even: add half - 1, plus 1 if the kept
+         * part is odd (mag + 2^7 stays below 2^32) */
+        const unsigned shift = n - 24u;
+        mant = (mag + ((1u << (shift - 1u)) - 1u) + ((mag >> shift) & 1u)) >> shift;
     }
-    return sign | (exponent << 23) | (mant & 0x7FFFFFu);
+    /* a mantissa rounded up to 2^24 carries into the exponent by itself */
+    return sign | (((uint32_t)(126u + n) << 23) + (mant - 0x00800000u));
 }
+#endif
 
 /* The float32 array must be the int32 array converted: checked bit for bit, so
  * both variants evaluate the same table whatever wrote it. */
@@ -365,7 +370,7 @@ static abbe_status_t check_ranges(const uint8_t *b)
 }
 
 /* round(2^64 / d) for 0 < d < 2^31, without a 128-bit type. */
-static uint64_t recip64(uint32_t d)
+ABBE_NOINLINE static uint64_t recip64(uint32_t d)
 {
     uint64_t q = UINT64_MAX / d;
     uint64_t r = UINT64_MAX % d + 1u; /* 2^64 = q*d + r, 1 <= r <= d */
