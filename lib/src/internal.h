@@ -138,7 +138,7 @@ static inline int abbe_f32_nonfinite(float f)
 
 /* acc + a * b, 64-bit: one SMLAL on a Cortex-M3/M4. GCC keeps the plain C
  * form as one SMLAL in the dot products, but not where acc is made of
- * constants (the Horner steps of sincos_q.h), which it rebuilds as a 64 x 64
+ * constants (the Horner steps of sincos_q.c), which it rebuilds as a 64 x 64
  * multiply of 7 instructions; the asm pins the single instruction there. */
 static ABBE_ALWAYS_INLINE int64_t abbe_smlal(int64_t acc, int32_t a, int32_t b)
 {
@@ -225,6 +225,8 @@ static inline int32_t abbe_arg_takeup_q30(const abbe_axis_model_t *ax, uint32_t 
 
 /* ---- sin/cos of a phase (fraction of a turn, Q32): sincos_q.c / sincos_f32.c ---- */
 void abbe_sincos_q30(uint32_t phase_q32, int32_t *sin_q30, int32_t *cos_q30);
+/* The same pair as one value: sin's bits in the low word, cos's in the high. */
+uint64_t abbe_sincos_q30_pair(uint32_t phase_q32);
 void abbe_sincos_f32(uint32_t phase_q32, float *sin_out, float *cos_out);
 
 /* ---- per-axis fitted term values (terms_q.c / terms_f32.c) ----
@@ -237,6 +239,8 @@ void abbe_sincos_f32(uint32_t phase_q32, float *sin_out, float *cos_out);
 #define ABBE_TERM_LIN_Q_BITS 6
 #define ABBE_TERM_ANG_Q_BITS 35
 void abbe_axis_terms_q(const abbe_axis_model_t *ax, uint32_t d, int32_t value[ABBE_TERMS]);
+/* The same for an axis with fewer than six terms (terms_sparse_q.c). */
+void abbe_axis_terms_sparse_q(const abbe_axis_model_t *ax, uint32_t d, int32_t value[ABBE_TERMS]);
 void abbe_axis_terms_f32(const abbe_axis_model_t *ax, uint32_t d, float value[ABBE_TERMS]);
 
 /* Three floats: a homogeneous aggregate, returned in s0-s2 on a Cortex-M4F
