@@ -81,6 +81,30 @@ static ABBE_ALWAYS_INLINE __m128 cheb_args(const abbe_x86_consts_t *k, const abb
 #endif
 }
 
+/* Block b's phase of each axis (abbe_arg_phase_q32), in lanes. */
+static ABBE_ALWAYS_INLINE __m128i phases(const abbe_x86_consts_t *k, const abbe_model_t *m, unsigned b, __m128i d,
+                                         uint32_t dx, uint32_t dy, uint32_t dz)
+{
+#if defined(__AVX2__) && defined(ABBE_MODEL_X86_64_LANES)
+    /* hi32(d * freq + phase_min) mod 2^32 = hi32(d * f_lo + phase_min) + d * f_hi,
+     * in 64-bit lanes; then the low word of each */
+    const __m256i d64 = _mm256_cvtepu32_epi64(d);
+    const __m256i f = abbe_ld8i(m->lane_freq[b]);
+    const __m256i low = _mm256_add_epi64(_mm256_mul_epu32(d64, f), abbe_ld8i(m->lane_phase_min[b]));
+    const __m256i ph = _mm256_add_epi64(_mm256_srli_epi64(low, 32), _mm256_mul_epu32(d64, _mm256_srli_epi64(f, 32)));
+    (void)dx;
+    (void)dy;
+    (void)dz;
+    return _mm256_castsi256_si128(_mm256_permutevar8x32_epi32(ph, abbe_ld8i(k->even_words)));
+#else
+    (void)k;
+    (void)d;
+    const abbe_axis_model_t *ax = m->axis;
+    return _mm_setr_epi32((int32_t)abbe_arg_phase_q32(&ax[0], b, dx), (int32_t)abbe_arg_phase_q32(&ax[1], b, dy),
+                          (int32_t)abbe_arg_phase_q32(&ax[2], b, dz), 0);
+#endif
+}
+
 static ABBE_ALWAYS_INLINE abbe_status_t eval_f32_x86(const abbe_model_t *m, const abbe_input_f32_t *in,
                                                      abbe_error_f32_t *out)
 {
@@ -94,7 +118,11 @@ static ABBE_ALWAYS_INLINE abbe_status_t eval_f32_x86(const abbe_model_t *m, cons
     }
     const abbe_x86_consts_t *k = abbe_x86_consts();
     /* ---- positions: float mm -> int nm (abbe_mm_to_nm_inline, four lanes) ---- */
+#if defined(__AVX2__)
+    const __m128 pos = _mm_insert_ps(abbe_ld2(pos_mm), _mm_load_ss(&pos_mm[2]), 0x20); /* [x, y, z, 0] */
+#else
     const __m128 pos = _mm_movelh_ps(abbe_ld2(pos_mm), _mm_load_ss(&pos_mm[2]));
+#endif
     __m128i bits = _mm_castps_si128(pos);
     const __m128i mag = _mm_and_si128(bits, ABBE_KI(k, abs_mask));
     const __m128i over = _mm_cmpgt_epi32(mag, ABBE_KI(k, mm_limit)); /* |mm| > 2147, NaN, Inf */
@@ -136,19 +164,12 @@ static ABBE_ALWAYS_INLINE abbe_status_t eval_f32_x86(const abbe_model_t *m, cons
     __m128 sc0_lo, sc0_hi, sc1_lo = _mm_setzero_ps(), sc1_hi = _mm_setzero_ps();
     {
         __m128 s, c;
-        abbe_sincos4_sse2(k,
-                          _mm_setr_epi32((int32_t)abbe_arg_phase_q32(&ax[0], 0, dx),
-                                         (int32_t)abbe_arg_phase_q32(&ax[1], 0, dy),
-                                         (int32_t)abbe_arg_phase_q32(&ax[2], 0, dz), 0),
-                          &s, &c);
+        abbe_sincos4_sse2(k, phases(k, m, 0u, d, dx, dy, dz), &s, &c);
         sc0_lo = _mm_unpacklo_ps(s, c);
         sc0_hi = _mm_unpackhi_ps(s, c);
         if (m->any_block1) {
-            abbe_sincos4_sse2(k,
-                              _mm_setr_epi32((int32_t)abbe_arg_phase_q32(&ax[0], 1, dx),
-                                             (int32_t)abbe_arg_phase_q32(&ax[1], 1, dy),
-                                             (int32_t)abbe_arg_phase_q32(&ax[2], 1, dz), 0),
-                              &s, &c);
+            const abbe_x86_consts_t *k1 = abbe_x86_consts_again();
+            abbe_sincos4_sse2(k1, phases(k1, m, 1u, d, dx, dy, dz), &s, &c);
             sc1_lo = _mm_unpacklo_ps(s, c);
             sc1_hi = _mm_unpackhi_ps(s, c);
         }

@@ -36,9 +36,9 @@ static ABBE_ALWAYS_INLINE __m128 abbe_ld4(const void *p)
 
 static ABBE_ALWAYS_INLINE __m128 abbe_ld2(const void *p) /* two floats, upper lanes 0 */
 {
-    __m128 v = _mm_setzero_ps();
-    memcpy(&v, p, 8);
-    return v;
+    /* movq (a memcpy into a zeroed vector went through the stack); __m64 is
+     * a may-alias type, and movq needs no alignment */
+    return _mm_castsi128_ps(_mm_loadl_epi64(p)); /* void * converts to its pointer type */
 }
 
 static ABBE_ALWAYS_INLINE __m128i abbe_ld4i(const void *p)
@@ -47,6 +47,15 @@ static ABBE_ALWAYS_INLINE __m128i abbe_ld4i(const void *p)
     memcpy(&v, p, sizeof v);
     return v;
 }
+
+#if defined(__AVX2__)
+static ABBE_ALWAYS_INLINE __m256i abbe_ld8i(const void *p)
+{
+    __m256i v;
+    memcpy(&v, p, sizeof v);
+    return v;
+}
+#endif
 
 static ABBE_ALWAYS_INLINE void abbe_st2(void *p, __m128 v) /* the two low lanes */
 {
@@ -72,6 +81,7 @@ typedef struct {
     abbe_k4_t sign_odd; /* [0, -0, 0, -0] */
     abbe_k4_t sign_lane0, sign_lane1, sign_lane2, um_per_lever, um_per_lin_neg, um_per_lin;
     abbe_k4_t cheb_bias, cheb_scale, cheb_one_q30; /* AVX2 Chebyshev arguments */
+    abbe_k4_t even_words[2]; /* AVX2: VPERMD indices 0, 2, 4, 6: the low words of four 64-bit lanes */
 } abbe_x86_consts_t;
 
 #define ABBE_K4F(x) {.f = {(x), (x), (x), (x)}}
@@ -87,6 +97,7 @@ static const abbe_x86_consts_t abbe_x86_consts_data = {
     {.i = {INT32_MIN, 0, 0, 0}}, {.i = {0, INT32_MIN, 0, 0}}, {.i = {0, 0, INT32_MIN, 0}},
     ABBE_K4F(2.9103830456733704e-14f), ABBE_K4F(-3.90625e-6f), ABBE_K4F(3.90625e-6f),
     ABBE_K4I(INT32_MIN), ABBE_K4F(9.31322574615478515625e-10f), ABBE_K4I(1 << 30),
+    {{.i = {0, 2, 4, 6}}, {.i = {0, 2, 4, 6}}},
 };
 #undef ABBE_K4F
 #undef ABBE_K4I
@@ -95,6 +106,16 @@ static ABBE_ALWAYS_INLINE const abbe_x86_consts_t *abbe_x86_consts(void)
 {
     const abbe_x86_consts_t *k = &abbe_x86_consts_data;
     __asm__("" : "+r"(k)); /* opaque: the loads stay loads */
+    return k;
+}
+
+/* The same pointer, again opaque: for a second use of constants that GCC
+ * would otherwise load into registers once, early, for both uses (and then
+ * spill, in a function that needs every register in between). */
+static ABBE_ALWAYS_INLINE const abbe_x86_consts_t *abbe_x86_consts_again(void)
+{
+    const abbe_x86_consts_t *k = &abbe_x86_consts_data;
+    __asm__ volatile("" : "+r"(k));
     return k;
 }
 
@@ -166,16 +187,15 @@ static ABBE_ALWAYS_INLINE abbe_harmonic1_sse2_t abbe_harmonic1_sse2(const abbe_x
         }                                                                                  \
         const abbe_harmonic1_sse2_t h1 = abbe_harmonic1_sse2(k, pv);                          \
         __m128 q_ = h1.p;                                                                  \
-        switch (hn_) {                                                                     \
-        case 8: ABBE_PAIR6_SSE2(q_); ABBE_ROTATE_SSE2(q_, h1); /* fallthrough */            \
-        case 7: ABBE_PAIR6_SSE2(q_); ABBE_ROTATE_SSE2(q_, h1); /* fallthrough */            \
-        case 6: ABBE_PAIR6_SSE2(q_); ABBE_ROTATE_SSE2(q_, h1); /* fallthrough */            \
-        case 5: ABBE_PAIR6_SSE2(q_); ABBE_ROTATE_SSE2(q_, h1); /* fallthrough */            \
-        case 4: ABBE_PAIR6_SSE2(q_); ABBE_ROTATE_SSE2(q_, h1); /* fallthrough */            \
-        case 3: ABBE_PAIR6_SSE2(q_); ABBE_ROTATE_SSE2(q_, h1); /* fallthrough */            \
-        case 2: ABBE_PAIR6_SSE2(q_); ABBE_ROTATE_SSE2(q_, h1); /* fallthrough */            \
-        case 1: ABBE_PAIR6_SSE2(q_); break;                                                \
-        default: break;                                                                    \
+        switch ((hn_ - 1u) & 7u) { /* h = 1..8 as 0..7: every value a case, no range check */ \
+        case 7: ABBE_PAIR6_SSE2(q_); ABBE_ROTATE_SSE2(q_, h1); /* fallthrough */           \
+        case 6: ABBE_PAIR6_SSE2(q_); ABBE_ROTATE_SSE2(q_, h1); /* fallthrough */           \
+        case 5: ABBE_PAIR6_SSE2(q_); ABBE_ROTATE_SSE2(q_, h1); /* fallthrough */           \
+        case 4: ABBE_PAIR6_SSE2(q_); ABBE_ROTATE_SSE2(q_, h1); /* fallthrough */           \
+        case 3: ABBE_PAIR6_SSE2(q_); ABBE_ROTATE_SSE2(q_, h1); /* fallthrough */           \
+        case 2: ABBE_PAIR6_SSE2(q_); ABBE_ROTATE_SSE2(q_, h1); /* fallthrough */           \
+        case 1: ABBE_PAIR6_SSE2(q_); ABBE_ROTATE_SSE2(q_, h1); /* fallthrough */           \
+        default: ABBE_PAIR6_SSE2(q_); break; /* 0: the last (or only) harmonic */          \
         }                                                                                  \
     } while (0)
 
@@ -189,18 +209,14 @@ static ABBE_ALWAYS_INLINE void abbe_axis6_sse2(const abbe_x86_consts_t *k, const
     const uint8_t *row = ax->coef_f32;
     __m128 a = _mm_setzero_ps(), b = _mm_setzero_ps(), c = _mm_setzero_ps();
     const unsigned trend_rows = ax->trend_rows;
-    if (trend_rows > 0u) {
-        if (trend_rows == 1u) { /* T_0 = 1 alone: columns 0-3 to a, 4, 5 to b's low lanes */
-            a = abbe_ld4(row);
-            b = abbe_ld2(row + 16);
-            row += 24;
-        } else {
-            /* ub = [u, u, u, u], the Chebyshev argument (from the caller).
-             * T_0 = 1, T_1 = u: the first pair, with its ones folded in */
-            a = abbe_ld4(row);
-            b = _mm_mul_ps(abbe_ld4(row + 16), _mm_movelh_ps(ABBE_KV(k, one_f), ub));
-            c = _mm_mul_ps(abbe_ld4(row + 32), ub);
-            row += 48;
+    if (trend_rows > 1u) {
+        /* ub = [u, u, u, u], the Chebyshev argument (from the caller).
+         * T_0 = 1, T_1 = u: the first pair, with its ones folded in */
+        a = abbe_ld4(row);
+        b = _mm_mul_ps(abbe_ld4(row + 16), _mm_movelh_ps(ABBE_KV(k, one_f), ub));
+        c = _mm_mul_ps(abbe_ld4(row + 32), ub);
+        row += 48;
+        if (trend_rows > 2u) { /* degree 2 and up: one test more for a linear trend */
             const float u = _mm_cvtss_f32(ub), two_u = u + u;
             float t0 = 1.0f, t1 = u; /* T_(k-2), T_(k-1) */
             unsigned row_k = 2;
@@ -216,6 +232,10 @@ static ABBE_ALWAYS_INLINE void abbe_axis6_sse2(const abbe_x86_consts_t *k, const
                 row += 24;
             }
         }
+    } else if (trend_rows == 1u) { /* T_0 = 1 alone: columns 0-3 to a, 4, 5 to b's low lanes */
+        a = abbe_ld4(row);
+        b = abbe_ld2(row + 16);
+        row += 24;
     }
     ABBE_HARMONICS_SSE2(ax->harmonics[0], p0);
     ABBE_HARMONICS_SSE2(ax->harmonics[1], p1);

@@ -474,6 +474,12 @@ static void build_assembly(abbe_model_t *m)
         m->lane_span_nm[k] = ax->span_nm;
         m->lane_cheb_shift[k] = ax->cheb_shift;
         m->lane_cheb_mul[k] = ax->cheb_mul;
+#if defined(ABBE_MODEL_X86_64_LANES)
+        for (unsigned b = 0; b < ABBE_BLOCKS; b++) {
+            m->lane_freq[b][k] = ax->freq[b];
+            m->lane_phase_min[b][k] = ax->phase_min[b];
+        }
+#endif
 #endif
 #if ABBE_WITH_F32
         /* t / 2 in float: the converted value with its exponent lowered by one

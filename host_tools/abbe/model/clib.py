@@ -13,6 +13,7 @@ nm (pm / prad for single terms).
 from __future__ import annotations
 
 import ctypes as C
+import platform
 import struct
 from pathlib import Path
 from typing import Any
@@ -25,6 +26,8 @@ from abbe.model.table import AXES, TERMS, TableError
 ABBE_AXES = 3
 ABBE_TERMS = 6
 ABBE_BLOCKS = 2
+# abbe_model_t has the x86-64-v3 phase lanes on x86-64 only (model.h, ABBE_MODEL_X86_64_LANES)
+_X86_64 = platform.machine().lower() in ("x86_64", "amd64") and C.sizeof(C.c_void_p) == 8
 
 STATUS_NAMES: dict[int, str] = {
     0: "ABBE_OK", -1: "ABBE_E_ARG", -2: "ABBE_E_TRUNCATED", -3: "ABBE_E_MAGIC",
@@ -99,6 +102,8 @@ class Model(C.Structure):
         ("squareness_f", C.c_float * 3),
         ("square_dx_dy", C.c_float * 4),
         ("square_dx_f", C.c_float * 4),
+        *([("lane_freq", (C.c_uint64 * 4) * ABBE_BLOCKS), ("lane_phase_min", (C.c_uint64 * 4) * ABBE_BLOCKS)]
+          if _X86_64 else []),
         ("any_block1", C.c_uint8),
         ("simd", C.c_uint8),
         ("axis", AxisModel * ABBE_AXES),

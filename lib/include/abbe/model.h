@@ -46,6 +46,12 @@ enum {
 /* Fixed-point position: signed nanometres, +/-2.147 m. */
 typedef int32_t abbe_nm_t;
 
+/* x86-64: the model also holds the lanes the x86-64-v3 phases load (so a
+ * model's size depends on the target, like its pointers'). */
+#if defined(__x86_64__) || defined(_M_X64)
+#define ABBE_MODEL_X86_64_LANES 1
+#endif
+
 /* Per-axis view and evaluation plan, built once by abbe_model_load(). All
  * fields are private: read them through the accessors. Everything the
  * evaluation needs per call is precomputed here (integer reciprocals, phase
@@ -100,6 +106,10 @@ typedef struct {
     float squareness_f[3];            /* squareness_q36 as float, 2^-36 rad */
     float square_dx_dy[4];            /* {S_xy, -S_yz, 0, 0}: times {y, z}: the squareness of dX, dY */
     float square_dx_f[4];             /* {-S_xz, 0, 0, 0}: times z */
+#if defined(ABBE_MODEL_X86_64_LANES)
+    uint64_t lane_freq[ABBE_BLOCKS][4];      /* axis freq[b], phase_min[b]: copies by axis (x86-64-v3 phases) */
+    uint64_t lane_phase_min[ABBE_BLOCKS][4];
+#endif
     uint8_t any_block1;               /* some axis uses Fourier block 1 */
     uint8_t simd;                     /* x86-64: 1 if this CPU runs the x86-64-v3 (AVX2, FMA) kernels */
     abbe_axis_model_t axis[ABBE_AXES];
