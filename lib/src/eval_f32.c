@@ -13,8 +13,6 @@
 #error "this is the _f32 variant: compile it with ABBE_WITH_F32=1 (or leave it undefined), or leave the file out"
 #endif
 
-enum { DX = ABBE_TERM_DX, DY = ABBE_TERM_DY, DZ = ABBE_TERM_DZ, EX = ABBE_TERM_EX, EY = ABBE_TERM_EY, EZ = ABBE_TERM_EZ };
-
 #define UM_PER_LIN_LSB 3.90625e-6f                      /* 2^-8 nm in um */
 #define UM_PER_HALF_NM_X_ANG_LSB 2.9103830456733704e-14f /* 2 nm x 2^-36 rad in um: 2^-35 x 1e-3 */
 #define BACKLASH_UM_PER_LSB 3.90625e-6f                 /* 2^-8 nm in um */

@@ -16,7 +16,7 @@ from abbe.formats.blob import read_blob, write_blob
 from abbe.model import clib
 from abbe.model.examples import paper_table
 from abbe.model.reference import out_of_travel, spatial_error, term_values
-from abbe.model.table import AXES, TERMS, TableError
+from abbe.model.table import AXES, TERMS, AxisTable, FourierBlock, Table, TableError
 
 if not clib.available():
     pytest.skip(f"C library not built: {clib.library_path()} missing (build with cmake, or set "
@@ -101,6 +101,44 @@ def test_random_positions_paper_table() -> None:
         for k in TERMS:
             np.testing.assert_allclose(m.term_f32(a, k, x), term_values(t, a, k, x),
                                        atol=TOL_NM * 1e-3, rtol=0)
+
+
+# Basis shapes: (trend degree, harmonics of block 0, of block 1) of X; Y and Z take
+# the next two shapes in the list, so the three axes of a table always differ
+# (the x86-64 kernels run some steps for the three axes at once, to the largest count).
+_SHAPES = [(None, 1, 0), (0, 0, 0), (1, 3, 0), (2, 0, 2), (3, 8, 0), (4, 1, 1), (5, 2, 8),
+           (6, 0, 0), (7, 8, 8), (1, 0, 5), (None, 4, 3), (0, 7, 0)]
+
+
+@pytest.mark.parametrize("first", range(len(_SHAPES)))
+def test_basis_shapes_every_kernel_set(first: int) -> None:
+    """Every trend degree 0..7 (and none), 0..8 harmonics in either block, all six terms:
+    the f32 kernels this CPU has (x86-64: SSE2 and x86-64-v3) and q against float64."""
+    rng = np.random.default_rng(1000 + first)
+    axes = {}
+    for j, a in enumerate(AXES):
+        degree, h0, h1 = _SHAPES[(first + j) % len(_SHAPES)]
+        lo = float(rng.uniform(-400, 0))
+        blocks = (FourierBlock(float(rng.uniform(20, 400)), float(rng.uniform(-50, 50)), h0) if h0 else None,
+                  FourierBlock(float(rng.uniform(2, 20)), float(rng.uniform(-5, 5)), h1) if h1 else None)
+        ax = AxisTable(travel_mm=(lo, lo + float(rng.uniform(100, 800))), trend_degree=degree, blocks=blocks)
+        n = ax.n_basis()
+        ax.coef = {k: rng.normal(0.0, 2.0 if k.startswith("d") else 5.0, n) for k in TERMS}
+        axes[a] = ax
+    t = Table(axes=axes, reference_mm=(10.0, -20.0, 30.0), tool_offset_mm=(5.0, -3.0, 120.0),
+              squareness_urad=(12.0, -7.0, 4.0))
+    m = clib.CModel(write_blob(t))
+    pos = np.column_stack([rng.uniform(*axes[a].travel_mm, 200) for a in AXES]).astype(np.float32)
+    pos = pos.astype(np.float64)
+    want = spatial_error(t, pos)
+    detected = m._model.simd
+    for simd in sorted({0, detected}):                 # x86-64: 0 = SSE2, 1 = x86-64-v3
+        m._model.simd = simd
+        ef, _ = m.error_f32(pos)
+        np.testing.assert_allclose(ef, want, atol=TOL_NM * 1e-3, rtol=0, err_msg=f"kernels {simd}")
+    m._model.simd = detected
+    eq, _ = m.error_q(np.rint(pos * 1e6).astype(np.int64))
+    np.testing.assert_allclose(eq / 1e3, want, atol=TOL_NM * 1e-3, rtol=0)
 
 
 def test_reversal_block_at_the_cap() -> None:
