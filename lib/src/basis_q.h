@@ -20,9 +20,9 @@ static ABBE_ALWAYS_INLINE int32_t dot2_q30(int32_t a, int32_t b, int32_t c, int3
 
 /* The basis rows of one axis, in table order, each handed to ROW(b) (Q30) as
  * it is produced: T_0 = 1, T_1 = u, T_k by recurrence; then per Fourier block
- * sin/cos of harmonic 1 (abbe_sincos_q30_pair, sincos_q.c) and the higher harmonics
- * by rotating with the fundamental. A macro so that each kernel below gets it
- * inlined around its own accumulators. */
+ * sin/cos of harmonic 1 (abbe_sincos_q30_pair, sincos_q.c) and the higher
+ * harmonics by rotating with the fundamental. A macro so that each kernel gets
+ * it inlined around its own accumulators. */
 #define ABBE_BASIS_Q(ax, d, FIRST_ROW, ROW)                                                \
     do {                                                                                   \
         const unsigned trend_rows_ = (ax)->trend_rows;                                     \

@@ -8,7 +8,7 @@
  * an ABI in which a call clobbers every vector register: everything is inline
  * in one function. The three axes share one vector for the position
  * conversion, the offsets, the lever arms and the sin/cos of each Fourier
- * block; each axis' dot products run two rows per step (kernel_f32_sse2.h);
+ * block (on x86-64-v3 also for the phases, in 64-bit lanes); each axis' dot products run two rows per step (kernel_f32_sse2.h);
  * Eq. 3 is a vector fold, (dX, dY, dZ) += W_lin * [d_x, d_y, d_z] + W_a *
  * [e_z, e_z, e_y] + W_b * [e_y, e_x, e_x] per axis.
  */

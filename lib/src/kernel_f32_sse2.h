@@ -36,9 +36,9 @@ static ABBE_ALWAYS_INLINE __m128 abbe_ld4(const void *p)
 
 static ABBE_ALWAYS_INLINE __m128 abbe_ld2(const void *p) /* two floats, upper lanes 0 */
 {
-    /* movq (a memcpy into a zeroed vector went through the stack); __m64 is
-     * a may-alias type, and movq needs no alignment */
-    return _mm_castsi128_ps(_mm_loadl_epi64(p)); /* void * converts to its pointer type */
+    /* one movq (a memcpy into a zeroed vector went through the stack); the
+     * intrinsic reads through an unaligned may-alias type (void * converts to it) */
+    return _mm_castsi128_ps(_mm_loadl_epi64(p));
 }
 
 static ABBE_ALWAYS_INLINE __m128i abbe_ld4i(const void *p)
@@ -216,7 +216,7 @@ static ABBE_ALWAYS_INLINE void abbe_axis6_sse2(const abbe_x86_consts_t *k, const
         b = _mm_mul_ps(abbe_ld4(row + 16), _mm_movelh_ps(ABBE_KV(k, one_f), ub));
         c = _mm_mul_ps(abbe_ld4(row + 32), ub);
         row += 48;
-        if (trend_rows > 2u) { /* degree 2 and up: one test more for a linear trend */
+        if (trend_rows > 2u) { /* degree 2 and up (a linear trend skips this with one test) */
             const float u = _mm_cvtss_f32(ub), two_u = u + u;
             float t0 = 1.0f, t1 = u; /* T_(k-2), T_(k-1) */
             unsigned row_k = 2;
