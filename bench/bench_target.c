@@ -176,6 +176,34 @@ static void measure(const char *what, void (*fn)(uint32_t), uint32_t first)
     }
 }
 
+/* The evaluations and the compensator cycles on the current table, with the
+ * compensator's stack (and the evaluations' too if eval_stack). */
+static void measure_calls(int eval_stack)
+{
+#if defined(BENCH_F32)
+    measure("f32", run_f32, 0u);
+    if (eval_stack) {
+        report_stack("f32", run_f32);
+    }
+#endif
+#if defined(BENCH_Q)
+    measure("q", run_q, 0u);
+    if (eval_stack) {
+        report_stack("q", run_q);
+    }
+#endif
+    comp_start();
+#if defined(BENCH_F32)
+    measure("comp_f32", run_comp_f32, 4u);
+    report_stack("comp_f32", run_comp_f32);
+#endif
+#if defined(BENCH_Q)
+    measure("comp_q", run_comp_q, 4u + BENCH_POINTS);
+    report_stack("comp_q", run_comp_q);
+#endif
+    (void)eval_stack;
+}
+
 /* Every call again on another table (plans labelled "@name"): the backlash and
  * reversal-block tables of bench_common.h. */
 static void measure_table(const char *name)
@@ -190,21 +218,7 @@ static void measure_table(const char *name)
     table_suffix = name;
     current = t;
     points = &abbe_golden_points[t->first_point];
-#if defined(BENCH_F32)
-    measure("f32", run_f32, 0u);
-#endif
-#if defined(BENCH_Q)
-    measure("q", run_q, 0u);
-#endif
-    comp_start();
-#if defined(BENCH_F32)
-    measure("comp_f32", run_comp_f32, 4u);
-    report_stack("comp_f32", run_comp_f32);
-#endif
-#if defined(BENCH_Q)
-    measure("comp_q", run_comp_q, 4u + BENCH_POINTS);
-    report_stack("comp_q", run_comp_q);
-#endif
+    measure_calls(0);
     table_suffix = "";
 }
 
@@ -230,23 +244,7 @@ int main(void)
         return 1;
     }
     report_stack("load", run_load);
-#if defined(BENCH_F32)
-    measure("f32", run_f32, 0u);
-    report_stack("f32", run_f32);
-#endif
-#if defined(BENCH_Q)
-    measure("q", run_q, 0u);
-    report_stack("q", run_q);
-#endif
-    comp_start();
-#if defined(BENCH_F32)
-    measure("comp_f32", run_comp_f32, 4u);
-    report_stack("comp_f32", run_comp_f32);
-#endif
-#if defined(BENCH_Q)
-    measure("comp_q", run_comp_q, 4u + BENCH_POINTS);
-    report_stack("comp_q", run_comp_q);
-#endif
+    measure_calls(1);
     measure_table(BENCH_BACKLASH_TABLE);
     measure_table(BENCH_REVERSAL_TABLE);
     sh_puts("DONE\n");
