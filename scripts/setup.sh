@@ -17,6 +17,9 @@ PACKAGES=(
     socat can-utils
     linuxcnc-uspace linuxcnc-uspace-dev
     python3 python3-venv
+    postgresql
+    chromium fonts-dejavu-core
+    lld
 )
 
 log() { printf '[setup] %s\n' "$*"; }
