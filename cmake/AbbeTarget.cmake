@@ -16,9 +16,10 @@ set(ABBE_TARGET_LDSCRIPT "${ABBE_TARGET_DIR}/mps2.ld")
 add_library(abbe_target_rt OBJECT
     "${ABBE_TARGET_DIR}/startup.c" "${ABBE_TARGET_DIR}/semihost.c")
 target_include_directories(abbe_target_rt PUBLIC "${ABBE_TARGET_DIR}")
-# memcpy & co. must not be turned back into calls to themselves.
-target_compile_options(abbe_target_rt PRIVATE -ffreestanding -fno-tree-loop-distribute-patterns
-    -Wall -Wextra)
+# memcpy & co. must not be turned back into calls to themselves (clang:
+# -ffreestanding implies -fno-builtin, which keeps its loop idioms out).
+target_compile_options(abbe_target_rt PRIVATE -ffreestanding
+    $<$<C_COMPILER_ID:GNU>:-fno-tree-loop-distribute-patterns> -Wall -Wextra)
 
 # Heap and newlib allocator entry points: never in an image.
 set(ABBE_FORBID_HEAP
