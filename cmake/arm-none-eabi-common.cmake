@@ -1,6 +1,7 @@
 # Shared part of the arm-none-eabi toolchain files (do not use it directly).
 # Expects ABBE_CPU_FLAGS, ABBE_TARGET_NAME, ABBE_TARGET_HAS_FPU, ABBE_QEMU_MACHINE;
-# ABBE_CLANG_TARGET (a triple) selects clang instead of arm-none-eabi-gcc.
+# ABBE_CLANG_TARGET (a triple) selects clang instead of arm-none-eabi-gcc, with
+# ABBE_CLANG_FLAGS (optional) for clang alone.
 set(ABBE_TOOLCHAIN_PREFIX "arm-none-eabi-" CACHE STRING "Prefix of the cross tools")
 
 if(ABBE_CLANG_TARGET)
@@ -34,7 +35,13 @@ if(ABBE_CLANG_TARGET)
         message(FATAL_ERROR "newlib's headers not found: set ABBE_NEWLIB_INCLUDE")
     endif()
     string(REPLACE ";" " " _abbe_lib_dirs "${_abbe_lib_dirs}")
-    set(_abbe_compiler_flags "-isystem ${ABBE_NEWLIB_INCLUDE}")
+    # -munaligned-access: ARMv7-M loads words at any address (LDR; LDRD, LDM
+    # and VLDR still need alignment, which both compilers respect), and GCC
+    # assumes it by default there; clang assumes strict alignment on bare
+    # metal and then reads each little-endian word of a table byte by byte
+    # (abbe_ld_u32: 4 loads, 3 ORs): the fixed-point kernel ran 2x the
+    # instructions (bench/results.md, section 9).
+    set(_abbe_compiler_flags "-munaligned-access ${ABBE_CLANG_FLAGS} -isystem ${ABBE_NEWLIB_INCLUDE}")
     set(_abbe_linker_flags "-fuse-ld=lld ${_abbe_lib_dirs}")
 else()
     find_program(CMAKE_C_COMPILER NAMES ${ABBE_TOOLCHAIN_PREFIX}gcc REQUIRED)
