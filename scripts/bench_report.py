@@ -615,7 +615,7 @@ def clang_section(args, nm: str, tgt: dict, stdout_by: dict, flash_by: dict, sta
     w("-munaligned-access as GCC assumes on ARMv7-M, newlib's headers and libgcc.a of the GNU")
     w("packages). " + first_line(["clang", "--version"]) + ". The targets of the summary are")
     w("GCC's; this section reports what clang reaches. The golden vectors pass with both")
-    w("compilers (scripts/test.sh, steps 3, 4 and 10).")
+    w("compilers (scripts/test.sh: the GCC Cortex-M steps and the clang step).")
     w("")
     w("| target | call | GCC instructions | clang instructions | clang / GCC |")
     w("|---|---|---:|---:|---:|")
