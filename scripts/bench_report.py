@@ -593,9 +593,10 @@ def reversal_section(args, nm: str, by: dict, tgt: dict, stdout_by: dict, flash_
     return out
 
 
-CLANG_CALLS = (("load", "abbe_model_load", "run_load"), ("f32", "abbe_error_eval_f32", "run_f32"),
-               ("q", "abbe_error_eval_q", "run_q"), ("comp_f32", "abbe_comp_step_f32", "run_comp_f32"),
-               ("comp_q", "abbe_comp_step_q", "run_comp_q"))
+# The measured entry points: PLAN key in bench_target.c, function, its wrapper there.
+ENTRY_POINTS = (("load", "abbe_model_load", "run_load"), ("f32", "abbe_error_eval_f32", "run_f32"),
+                ("q", "abbe_error_eval_q", "run_q"), ("comp_f32", "abbe_comp_step_f32", "run_comp_f32"),
+                ("comp_q", "abbe_comp_step_q", "run_comp_q"))
 CLANG_USES = (("load", "abbe_model_load only"), ("eval_f32", "load + eval_f32"),
               ("eval_q", "load + eval_q"), ("comp_f32", "load + compensator (f32)"),
               ("comp_q", "load + compensator (q)"))
@@ -615,7 +616,11 @@ def clang_section(args, nm: str, tgt: dict, stdout_by: dict, flash_by: dict, sta
     w("-munaligned-access as GCC assumes on ARMv7-M, newlib's headers and libgcc.a of the GNU")
     w("packages). " + first_line(["clang", "--version"]) + ". The targets of the summary are")
     w("GCC's; this section reports what clang reaches. The golden vectors pass with both")
-    w("compilers (scripts/test.sh: the GCC Cortex-M steps and the clang step).")
+    w("compilers (scripts/test.sh: the GCC Cortex-M steps and the clang step). clang's flags")
+    w("(compile_commands.json, as in section 7; the -Os files as with GCC):")
+    w("")
+    for name, _, build, _ in builds:
+        w(f"- {name} (Release), lib/src/*.c: `{compile_flags(build, 'lib/src/terms_q.c')}`")
     w("")
     w("| target | call | GCC instructions | clang instructions | clang / GCC |")
     w("|---|---|---:|---:|---:|")
@@ -624,7 +629,7 @@ def clang_section(args, nm: str, tgt: dict, stdout_by: dict, flash_by: dict, sta
     for name, _, build, machine in builds:
         counts, stdout = qemu_trace_counts(machine, build / "bench" / "bench_target.elf", nm)
         clang_counts[name], clang_stdout[name] = counts, stdout
-        for key, fn, _ in CLANG_CALLS:
+        for key, fn, _ in ENTRY_POINTS:
             if key in counts and key in tgt[name]:
                 g, c = max(tgt[name][key]), max(counts[key])
                 w(f"| {name} | {fn} | {fmt_counts(tgt[name][key])} | {fmt_counts(counts[key])} | {c / g:.2f} |")
@@ -679,7 +684,7 @@ def clang_section(args, nm: str, tgt: dict, stdout_by: dict, flash_by: dict, sta
         meas_g = stack_measured(stdout_by[name])
         meas_c = stack_measured(clang_stdout[name])
         wrap_g, wrap_c = wrapper_frames(gcc_build), wrapper_frames(build)
-        for key, fn, wrapper in CLANG_CALLS:
+        for key, fn, wrapper in ENTRY_POINTS:
             if fn not in frames:
                 continue
             depth, chain = deepest(fn, frames, calls)
@@ -932,12 +937,7 @@ def main() -> int:
         frames, calls = parse_callgraph(cis)
         measured = stack_measured(stdout_by[name])
         wrappers = wrapper_frames(build)
-        entries = [("load", "abbe_model_load", "run_load"),
-                   ("f32", "abbe_error_eval_f32", "run_f32"),
-                   ("q", "abbe_error_eval_q", "run_q"),
-                   ("comp_f32", "abbe_comp_step_f32", "run_comp_f32"),
-                   ("comp_q", "abbe_comp_step_q", "run_comp_q")]
-        for key, fn, wrapper in entries:
+        for key, fn, wrapper in ENTRY_POINTS:
             if fn not in frames:
                 continue
             depth, chain = deepest(fn, frames, calls)
