@@ -16,9 +16,10 @@ set(ABBE_TARGET_LDSCRIPT "${ABBE_TARGET_DIR}/mps2.ld")
 add_library(abbe_target_rt OBJECT
     "${ABBE_TARGET_DIR}/startup.c" "${ABBE_TARGET_DIR}/semihost.c")
 target_include_directories(abbe_target_rt PUBLIC "${ABBE_TARGET_DIR}")
-# memcpy & co. must not be turned back into calls to themselves.
-target_compile_options(abbe_target_rt PRIVATE -ffreestanding -fno-tree-loop-distribute-patterns
-    -Wall -Wextra)
+# memcpy & co. must not be turned back into calls to themselves (clang:
+# -ffreestanding implies -fno-builtin, which keeps its loop idioms out).
+target_compile_options(abbe_target_rt PRIVATE -ffreestanding
+    $<$<C_COMPILER_ID:GNU>:-fno-tree-loop-distribute-patterns> -Wall -Wextra)
 
 # Heap and newlib allocator entry points: never in an image.
 set(ABBE_FORBID_HEAP
@@ -39,7 +40,12 @@ function(abbe_add_target_image name)
     set_target_properties(${name} PROPERTIES SUFFIX ".elf")
     target_link_libraries(${name} PRIVATE abbe_target_rt abbe::abbe)
     target_compile_options(${name} PRIVATE -Wall -Wextra)
-    if(ARG_NEWLIB)
+    if(ARG_NEWLIB AND CMAKE_C_COMPILER_ID MATCHES "Clang")
+        # clang has no GCC specs: newlib-nano's libc by name (the toolchain
+        # file puts newlib's multilib directory on the library path)
+        target_link_options(${name} PRIVATE -nostdlib)
+        target_link_libraries(${name} PRIVATE m c_nano gcc)
+    elseif(ARG_NEWLIB)
         target_link_options(${name} PRIVATE -nostartfiles --specs=nano.specs)
         target_link_libraries(${name} PRIVATE m c gcc)
     else()

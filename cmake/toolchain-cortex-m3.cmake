@@ -1,4 +1,5 @@
-# Cross toolchain: Arm Cortex-M3 (no FPU, soft-float ABI), arm-none-eabi-gcc.
+# Cross toolchain: Arm Cortex-M3 (no FPU, soft-float ABI), arm-none-eabi-gcc
+# (clang: cmake/toolchain-cortex-m3-clang.cmake).
 #   cmake -S . -B build-m3 -DCMAKE_TOOLCHAIN_FILE=cmake/toolchain-cortex-m3.cmake
 # The M3 build is fixed point only: ABBE_WITH_F32 defaults to OFF here and the
 # target checks fail if any float/double library routine gets linked.

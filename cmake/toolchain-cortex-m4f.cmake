@@ -1,4 +1,5 @@
-# Cross toolchain: Arm Cortex-M4F (FPv4-SP, hard-float ABI), arm-none-eabi-gcc.
+# Cross toolchain: Arm Cortex-M4F (FPv4-SP, hard-float ABI), arm-none-eabi-gcc
+# (clang: cmake/toolchain-cortex-m4f-clang.cmake).
 #   cmake -S . -B build-m4f -DCMAKE_TOOLCHAIN_FILE=cmake/toolchain-cortex-m4f.cmake
 # Tests run under qemu-system-arm -M mps2-an386 (Cortex-M4 with FPU).
 set(CMAKE_SYSTEM_NAME Generic)

@@ -2,8 +2,9 @@
 # Measure the library and write bench/results.md (see scripts/bench_report.py):
 # x86-64 instructions per call (callgrind), Cortex-M4F/M3 instructions per
 # call (QEMU exec trace), flash, static RAM and stack, against a naive
-# double-precision reference. Builds in build-bench-{host,m4f,m3,m4f-os,m3-os}/, and
-# build-bench-{host,m4f,m3}-1.0/ (format 1.0 libraries: what the reversal blocks cost).
+# double-precision reference. Builds in build-bench-{host,m4f,m3,m4f-os,m3-os}/,
+# build-bench-{host,m4f,m3}-1.0/ (format 1.0 libraries: what the reversal blocks cost),
+# and build-bench-{m4f,m3}-clang/ + build-bench-m4f-clang-nounroll/ (clang/LLVM).
 #   ./scripts/bench.sh            # writes bench/results.md
 #   ./scripts/bench.sh -o FILE    # writes FILE instead
 set -euo pipefail
@@ -31,11 +32,19 @@ cmake -S . -B build-bench-m3-1.0 -DCMAKE_TOOLCHAIN_FILE=cmake/toolchain-cortex-m
 size=(-DCMAKE_BUILD_TYPE=MinSizeRel -DABBE_BUILD_BENCH=ON -DABBE_BUILD_TESTS=OFF -DABBE_STACK_USAGE=ON)
 cmake -S . -B build-bench-m4f-os -DCMAKE_TOOLCHAIN_FILE=cmake/toolchain-cortex-m4f.cmake "${size[@]}" >/dev/null
 cmake -S . -B build-bench-m3-os -DCMAKE_TOOLCHAIN_FILE=cmake/toolchain-cortex-m3.cmake "${size[@]}" >/dev/null
+# clang/LLVM (section 9), and once without loop unrolling (what clang's flash is made of)
+cmake -S . -B build-bench-m4f-clang -DCMAKE_TOOLCHAIN_FILE=cmake/toolchain-cortex-m4f-clang.cmake "${common[@]}" >/dev/null
+cmake -S . -B build-bench-m3-clang -DCMAKE_TOOLCHAIN_FILE=cmake/toolchain-cortex-m3-clang.cmake "${common[@]}" >/dev/null
+cmake -S . -B build-bench-m4f-clang-nounroll -DCMAKE_TOOLCHAIN_FILE=cmake/toolchain-cortex-m4f-clang.cmake \
+    "${common[@]}" "-DCMAKE_C_FLAGS_RELEASE=-O2 -DNDEBUG -fno-unroll-loops" >/dev/null
 for dir in build-bench-host build-bench-m4f build-bench-m3 build-bench-m4f-os build-bench-m3-os \
-    build-bench-host-1.0 build-bench-m4f-1.0 build-bench-m3-1.0; do
+    build-bench-host-1.0 build-bench-m4f-1.0 build-bench-m3-1.0 \
+    build-bench-m4f-clang build-bench-m3-clang build-bench-m4f-clang-nounroll; do
     cmake --build "$dir" -j "$JOBS"
 done
 
 python3 scripts/bench_report.py --repo . --host build-bench-host --m4f build-bench-m4f \
     --m3 build-bench-m3 --m4f-os build-bench-m4f-os --m3-os build-bench-m3-os \
-    --host-1.0 build-bench-host-1.0 --m4f-1.0 build-bench-m4f-1.0 --m3-1.0 build-bench-m3-1.0 -o "$OUT"
+    --host-1.0 build-bench-host-1.0 --m4f-1.0 build-bench-m4f-1.0 --m3-1.0 build-bench-m3-1.0 \
+    --m4f-clang build-bench-m4f-clang --m3-clang build-bench-m3-clang \
+    --m4f-clang-nounroll build-bench-m4f-clang-nounroll -o "$OUT"

@@ -15,7 +15,9 @@
 #   9. LinuxCNC: the HAL component built and installed, halrun and simulator
 #      tests (port/linuxcnc/tests/run.sh; halrun / linuxcnc run as an
 #      unprivileged user, created when run as root)
-#  10. the README's demo command (scripts/demo.sh), run twice: into a new
+#  10. clang/LLVM cross builds (build-m4f-clang/, build-m3-clang/: the same
+#      golden vectors, C++ consumer and symbol checks under QEMU as steps 3-4)
+#  11. the README's demo command (scripts/demo.sh), run twice: into a new
 #      demo-out/ and over the old one
 # Runs every step even after a failure; exits non-zero if any step failed.
 set -uo pipefail
@@ -92,6 +94,13 @@ wheel_test() {
     (cd host_tools && "$REPO/.venv/bin/python" -m pytest -q -s -p no:cacheprovider tests/packaging)
 }
 
+cross_clang() { # both targets, each even if the other failed
+    local rc=0
+    cross m4f-clang cortex-m4f-clang || rc=1
+    cross m3-clang cortex-m3-clang || rc=1
+    return $rc
+}
+
 readme_demo() { # the README's other command, as a user runs it: fresh, then over its result
     local i
     for i in 1 2; do
@@ -114,6 +123,7 @@ step "Python import contracts (lint-imports)" import_contracts
 step "pytest host_tools/tests" pytest_all
 step "wheel: build, install outside the checkout, run abbe there" wheel_test
 step "LinuxCNC component: halrun and simulator tests" bash port/linuxcnc/tests/run.sh
+step "clang Cortex-M4F and M3 builds and ctest under QEMU (build-m{4f,3}-clang)" cross_clang
 step "README's demo command (scripts/demo.sh), twice" readme_demo
 
 echo

@@ -44,10 +44,17 @@ static ABBE_ALWAYS_INLINE void abbe_sincos_f32_inline(uint32_t phase_q32, float 
      * GCC hoists the seven constants out of a kernel's block loop into
      * registers and then copies each into place (a Horner step overwrites its
      * addend), where one VLDM per evaluation does it; VCVT with 29 fraction
-     * bits is the scaling. */
+     * bits is the scaling. The VMOV of the integer into the FPU register is
+     * in the asm: an int input tied to the float output ("0"(r)) is what GCC
+     * accepts but LLVM rejects ("matching output constraint of incompatible
+     * type"); GCC makes the same code of both (a copy of r's bits into a float
+     * first, then "+t", costs GCC 4 B of flash through register allocation). */
     float u, z, so, co;
     uint32_t row;
-    __asm__("vcvt.f32.s32 %[u], %[u], #29" : [u] "=t"(u) : "0"(r));
+    __asm__("vmov %[u], %[r]\n\t"
+            "vcvt.f32.s32 %[u], %[u], #29"
+            : [u] "=t"(u)
+            : [r] "r"(r));
     __asm__("vldmia %[k], {s8-s14}\n\t"
             "vmul.f32 %[z], %[u], %[u]\n\t"
             "vfma.f32 s9, %[z], s8\n\t"   /* S1 + z S2 */

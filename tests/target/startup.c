@@ -1,8 +1,9 @@
 /* Bare-metal start-up for the MPS2 boards under QEMU: vector table, reset
  * handler (.data copy, .bss zero, FPU enable on FP targets, stack painting),
  * fault handlers that report over semihosting, and the few C library
- * functions the compiler may call (memcpy, memset, memmove, memcmp), so the
- * images link with -nostdlib: no newlib, no heap, no stdio. */
+ * functions the compiler may call (memcpy, memset, memmove, memcmp, and the
+ * Arm run-time ABI's __aeabi_mem* that clang calls instead), so the images
+ * link with -nostdlib: no newlib, no heap, no stdio. */
 #include <stddef.h>
 #include <stdint.h>
 
@@ -129,3 +130,33 @@ int memcmp(const void *a, const void *b, size_t n)
     }
     return 0;
 }
+
+/* The Arm run-time ABI's names for the same (RTABI section 4.3.4; newlib's
+ * libc has them): clang/LLVM calls these where GCC calls memset and memcpy,
+ * e.g. __aeabi_memclr8 for clearing an 8-byte aligned struct. Note the
+ * argument order of __aeabi_memset (n before c). */
+void __aeabi_memcpy(void *dst, const void *src, size_t n);
+void __aeabi_memcpy4(void *dst, const void *src, size_t n);
+void __aeabi_memcpy8(void *dst, const void *src, size_t n);
+void __aeabi_memmove(void *dst, const void *src, size_t n);
+void __aeabi_memmove4(void *dst, const void *src, size_t n);
+void __aeabi_memmove8(void *dst, const void *src, size_t n);
+void __aeabi_memset(void *dst, size_t n, int c);
+void __aeabi_memset4(void *dst, size_t n, int c);
+void __aeabi_memset8(void *dst, size_t n, int c);
+void __aeabi_memclr(void *dst, size_t n);
+void __aeabi_memclr4(void *dst, size_t n);
+void __aeabi_memclr8(void *dst, size_t n);
+
+void __aeabi_memcpy(void *dst, const void *src, size_t n) { memcpy(dst, src, n); }
+void __aeabi_memcpy4(void *dst, const void *src, size_t n) { memcpy(dst, src, n); }
+void __aeabi_memcpy8(void *dst, const void *src, size_t n) { memcpy(dst, src, n); }
+void __aeabi_memmove(void *dst, const void *src, size_t n) { memmove(dst, src, n); }
+void __aeabi_memmove4(void *dst, const void *src, size_t n) { memmove(dst, src, n); }
+void __aeabi_memmove8(void *dst, const void *src, size_t n) { memmove(dst, src, n); }
+void __aeabi_memset(void *dst, size_t n, int c) { memset(dst, c, n); }
+void __aeabi_memset4(void *dst, size_t n, int c) { memset(dst, c, n); }
+void __aeabi_memset8(void *dst, size_t n, int c) { memset(dst, c, n); }
+void __aeabi_memclr(void *dst, size_t n) { memset(dst, 0, n); }
+void __aeabi_memclr4(void *dst, size_t n) { memset(dst, 0, n); }
+void __aeabi_memclr8(void *dst, size_t n) { memset(dst, 0, n); }

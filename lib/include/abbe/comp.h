@@ -22,6 +22,11 @@
 #include "abbe/error.h"
 #include "abbe/model.h"
 
+/* C linkage for C++ callers (firmware in C++ links the C library). */
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* Compensator flags, reported with the evaluation flags (ABBE_FLAG_*). */
 #define ABBE_FLAG_WARN 0x0010u          /* |correction target| above the warning limit */
 #define ABBE_FLAG_LIMIT 0x0020u         /* error limit exceeded: fault latched (until abbe_comp_reset) */
@@ -157,5 +162,9 @@ size_t abbe_comp_sizeof(void);
 
 /* Counters since init. */
 abbe_comp_stats_t abbe_comp_stats(const abbe_comp_t *comp);
+
+#ifdef __cplusplus
+} /* extern "C" */
+#endif
 
 #endif /* ABBE_COMP_H */

@@ -18,6 +18,11 @@
 
 #include "abbe/model.h"
 
+/* C linkage for C++ callers (firmware in C++ links the C library). */
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* Result flags (also reported by the compensator). */
 #define ABBE_FLAG_OUT_OF_TRAVEL 0x0001u /* a position was outside the table's travel: end value held */
 #define ABBE_FLAG_SATURATED 0x0002u     /* fixed point: a value hit its int32 limit */
@@ -98,5 +103,9 @@ abbe_status_t abbe_term_eval_q(const abbe_model_t *model, unsigned axis, unsigne
  * ABBE_E_INPUT for a NaN/Inf position (f32). */
 abbe_status_t abbe_reversal_eval_f32(const abbe_model_t *model, unsigned axis, float pos_mm, float *value_um);
 abbe_status_t abbe_reversal_eval_q(const abbe_model_t *model, unsigned axis, abbe_nm_t pos_nm, int32_t *value_pm);
+
+#ifdef __cplusplus
+} /* extern "C" */
+#endif
 
 #endif /* ABBE_ERROR_H */

@@ -16,6 +16,11 @@
 
 #include "abbe/status.h"
 
+/* C linkage for C++ callers (firmware in C++ links the C library). */
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 #define ABBE_AXES 3            /* X, Y, Z */
 #define ABBE_TERMS 6           /* per axis: d_x, d_y, d_z (linear), eps_x, eps_y, eps_z (angular) */
 #define ABBE_BLOCKS 2          /* Fourier blocks per axis: 0 long wave, 1 short period */
@@ -140,5 +145,9 @@ size_t abbe_model_sizeof(void);
 /* CRC-32 as zlib computes it, continuing from crc (start with 0). Exposed for
  * ports that receive tables in chunks. */
 uint32_t abbe_crc32(uint32_t crc, const void *data, size_t size);
+
+#ifdef __cplusplus
+} /* extern "C" */
+#endif
 
 #endif /* ABBE_MODEL_H */

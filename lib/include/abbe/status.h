@@ -2,6 +2,11 @@
 #ifndef ABBE_STATUS_H
 #define ABBE_STATUS_H
 
+/* C linkage for C++ callers (firmware in C++ links the C library). */
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef enum {
     ABBE_OK = 0,
     ABBE_E_ARG = -1,            /* NULL pointer or argument outside its documented range */
@@ -30,5 +35,9 @@ typedef enum {
 
 /* Human-readable, static, never NULL (unknown codes give "unknown status"). */
 const char *abbe_strerror(int status);
+
+#ifdef __cplusplus
+} /* extern "C" */
+#endif
 
 #endif /* ABBE_STATUS_H */
