@@ -106,7 +106,7 @@ def analyse(series: Series, s: Settings) -> Analysis:
     pts = series.points
     an = Analysis(series, limit, band_of(pts, s, limit))
     for i, p in enumerate(pts):
-        upto = pts[:i + 1]
+        upto = pts[max(0, i + 1 - s.trend_campaigns):i + 1]  # all trend_of uses
         if an.band is not None and i >= s.baseline_campaigns and not (
                 an.band[0] <= p.value <= an.band[1]):
             an.alerts.append(Alert(series.key, p.campaign_id, p.measured_at, "band",
