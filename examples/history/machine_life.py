@@ -92,11 +92,12 @@ def run_campaign(k: int, root: Path, db: Path) -> None:
 
 
 def expected_alerts() -> dict[str, set[int]]:
-    """Where the alerts belong, from the truth: campaign numbers (1-based) per alert."""
+    """Where the alerts belong, from the truth: campaign numbers (1-based) per alert. The
+    fit's mean reversal estimates the lost motion itself, so its alerts are compared."""
     sys.path.insert(0, str(REPO / "host_tools"))
     import tomllib
     lim = tomllib.loads(LIMITS.read_text())
-    b_lim = lim["limits"]["iso230-2 B X bi"]
+    b_lim = lim["limits"]["fit backlash X"]
     s_lim = lim["limits"]["diagnose squareness_xy"]
     q = 3 * 30.44  # days per quarter
     b = [BACKLASH_X0_UM + WEAR_UM_PER_QUARTER * k for k in range(N_CAMPAIGNS)]
@@ -105,7 +106,7 @@ def expected_alerts() -> dict[str, set[int]]:
     trend = {k + 1 for k in range(N_CAMPAIGNS) if k + 1 not in over
              and (b_lim - b[k]) / WEAR_UM_PER_QUARTER * q <= lim["horizon_days"]}
     crash = {k + 1 for k in range(CRASH_BEFORE, N_CAMPAIGNS)}
-    return {"B X trend": trend, "B X limit": over, "squareness band": crash,
+    return {"backlash X trend": trend, "backlash X limit": over, "squareness band": crash,
             "squareness limit": crash if SQUARENESS_UM[1] > s_lim else set()}
 
 
@@ -124,8 +125,10 @@ def reported_alerts(db: Path) -> dict[str, set[int]]:
         series = series_of(conn, mid)
     base.close()
     out: dict[str, set[int]] = {}
-    for name, key, kind in (("B X trend", "iso230-2 B X bi", "trend"),
-                            ("B X limit", "iso230-2 B X bi", "limit"),
+    for name, key, kind in (("backlash X trend", "fit backlash X", "trend"),
+                            ("backlash X limit", "fit backlash X", "limit"),
+                            ("ISO B X trend", "iso230-2 B X bi", "trend"),
+                            ("ISO B X limit", "iso230-2 B X bi", "limit"),
                             ("squareness band", "diagnose squareness_xy", "band"),
                             ("squareness limit", "diagnose squareness_xy", "limit")):
         an = analyse(series[key], settings)
@@ -151,6 +154,11 @@ def main() -> int:
     abbe("history", "--db", str(db), "export", "vmc500", "-o", str(root / "vmc500.csv"))
     want, got = expected_alerts(), reported_alerts(db)
     ok = True
+    # ISO 230-2 B is the largest reversal over the targets: noise only adds to it, so it
+    # runs ahead of the lost motion and its alerts may come a campaign earlier (shown, not
+    # compared)
+    for name in ("ISO B X trend", "ISO B X limit"):
+        print(f"{name:18s} report {sorted(got[name])} (B = max |B_i|, runs ahead of the truth)")
     for name in want:
         flag = "ok" if want[name] == got[name] else "DIFFERENT"
         ok &= want[name] == got[name]
