@@ -278,3 +278,24 @@ def test_history_without_the_extra(tmp_path):
                         f"{str(Path(__file__).resolve().parents[3] / 'examples/vmc500/laser/x.csv')!r}]))"],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0 and "B" in r.stdout
+
+
+def test_a_demo_folder_is_read_as_fit_and_diagnose(outputs, tmp_path):
+    """abbe demo -o OUT writes OUT/fit/, OUT/diagnose/ and OUT/diagnose.json (the same
+    bytes as OUT/diagnose/diagnose.json), beside plots and index.html."""
+    from abbe.history.ingest import read_campaign
+    demo = tmp_path / "demo"
+    shutil.copytree(outputs / "fit", demo / "fit")
+    shutil.copytree(outputs / "diagnose", demo / "diagnose")
+    shutil.copy(outputs / "diagnose" / "diagnose.json", demo / "diagnose.json")
+    (demo / "index.html").write_text("<html></html>")
+    (demo / "notes.json").write_text('{"not": "an abbe output"}')
+    c = read_campaign([str(demo)], {}, None)
+    assert c.kinds == ["diagnose", "fit"] and c.machine == "vmc500"
+    assert sorted(s for s, _, _ in c.tables) == ["diagnose", "fit"]
+    assert len([r for r in c.results if r.series == "diagnose gap rms before"]) == 1
+    # the folder read twice gives the same campaign hash; another table does not
+    assert read_campaign([str(demo)], {}, None).content_sha256() == c.content_sha256()
+    (demo / "fit" / "model.json").write_text((demo / "fit" / "model.json").read_text()
+                                             .replace('"machine"', '"machine" ', 1))
+    assert read_campaign([str(demo)], {}, None).content_sha256() != c.content_sha256()
