@@ -229,7 +229,8 @@ def format_show(machine: str, camps: list[dict], analyses: list, last: int) -> s
         by = {p.campaign_id: p.value for p in an.series.points}
         rows.append([an.series.key, an.series.unit]
                     + [f"{by[c['id']]:.4g}" if c["id"] in by else "-" for c in shown]
-                    + [f"{an.band[0]:.4g}..{an.band[1]:.4g}" if an.band else "-",
+                    + [(f"{an.band[0]:.4g}..{an.band[1]:.4g}" + ("(out)" if an.out_of_band() else ""))
+                       if an.band else "-",
                        "-" if an.limit is None else f"{an.limit:g}",
                        f"{an.trend[0] * 30.44:+.3g}" if an.trend else "-",
                        ",".join(a.kind for a in an.current()) or "-"])

@@ -100,13 +100,16 @@ def render(out: Path, machine: str, campaigns: list[dict[str, Any]],
     last_id = campaigns[-1]["id"] if campaigns else None
     current = [a for a in alerts if a.campaign_id == last_id]
     ranked = sorted(analyses, key=lambda an: (not an.alerts, an.limit is None, an.series.key))
-    plotted = [an for an in ranked if an.alerts or an.limit is not None][:MAX_PLOTS]
+    # a trend needs two points: a series seen once is in the table only
+    plotted = [an for an in ranked if (an.alerts or an.limit is not None)
+               and len(an.series.points) >= 2][:MAX_PLOTS]
     h: list[str] = [
         "<!DOCTYPE html>", "<html><head><meta charset='utf-8'>",
         f"<title>abbe history: {_esc(machine)}</title>",
         "<style>body{font-family:sans-serif;max-width:1100px;margin:auto;padding:0 1em}"
         "table{border-collapse:collapse;font-size:13px}td,th{border:1px solid #ccc;"
-        "padding:2px 6px;text-align:right}td.l,th.l{text-align:left}"
+        "padding:2px 6px;text-align:right;white-space:nowrap}td.l,th.l{text-align:left}"
+        "td.m{text-align:left;white-space:normal}"
         ".alert{color:#b00000;font-weight:bold}.ok{color:#006000}"
         "img{max-width:100%}</style></head><body>",
         f"<h1>abbe history: {_esc(machine)}</h1>",
@@ -132,7 +135,7 @@ def render(out: Path, machine: str, campaigns: list[dict[str, Any]],
         for a, n, last in runs:
             h.append(f"<tr><td>{number[a.campaign_id]}</td><td class='l'>{a.measured_at:%Y-%m-%d}"
                      f"</td><td class='l'>{_esc(a.series)}</td><td class='l'>{a.kind}</td>"
-                     f"<td>{n} (to {last + 1})</td><td class='l'>{_esc(a.message)}</td></tr>")
+                     f"<td>{n} (to {last + 1})</td><td class='m'>{_esc(a.message)}</td></tr>")
         h.append("</table>")
     else:
         h.append("<p>none</p>")
@@ -150,6 +153,8 @@ def render(out: Path, machine: str, campaigns: list[dict[str, Any]],
     for an in sorted(analyses, key=lambda a: a.series.key):
         p = an.series.points
         band = f"{an.band[0]:.4g} .. {an.band[1]:.4g}" if an.band else "-"
+        if an.out_of_band():
+            band += " (last value out)"
         trend = f"{an.trend[0] * 30.44:+.3g}" if an.trend else "-"
         cross = f"{an.crossing:%Y-%m-%d}" if an.crossing else "-"
         now = ", ".join(a.kind for a in an.current())

@@ -4,7 +4,10 @@ campaign (every alert uses only the campaigns up to and including its own).
 * **band**: the mean of the first ``baseline_campaigns`` values +- the larger of
   ``band_sigma`` x their standard deviation, the median 95 % half-interval the
   producer gave, 10 % of the limit and 5 % of the mean (a band never narrower than
-  what the measurement can resolve). A later value outside it: alert ``band``.
+  what the measurement can resolve). A later value outside it: alert ``band``, for the
+  quantities that matter -- those with a tolerance (a series without one has its band
+  drawn and marked in the tables, but raises nothing: three campaigns cannot tell the
+  noise of every by-product quantity, and a page of alerts is read by no one).
 * **limit**: \\|value\\| above the series' tolerance: alert ``limit``.
 * **trend**: least-squares line through the last ``trend_campaigns`` values
   (value against days); when its slope differs from zero by more than 2 standard
@@ -15,6 +18,7 @@ campaign (every alert uses only the campaigns up to and including its own).
 from __future__ import annotations
 
 import datetime as dt
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -45,16 +49,18 @@ class Analysis:
     crossing: dt.datetime | None = None  # when the trend at the last campaign reaches the limit
     alerts: list[Alert] = field(default_factory=list)
 
+    def out_of_band(self) -> bool:
+        """The last value lies outside the band."""
+        if self.band is None or not self.series.points:
+            return False
+        return not self.band[0] <= self.series.points[-1].value <= self.band[1]
+
     def current(self) -> list[Alert]:
         """The alerts of the last campaign."""
         if not self.series.points:
             return []
         last = self.series.points[-1].campaign_id
         return [a for a in self.alerts if a.campaign_id == last]
-
-
-def _days(points: list[Point], t0: dt.datetime) -> np.ndarray:
-    return np.array([(p.measured_at - t0).total_seconds() / 86400.0 for p in points])
 
 
 def band_of(points: list[Point], s: Settings, limit: float | None) -> tuple[float, float] | None:
@@ -74,21 +80,25 @@ def band_of(points: list[Point], s: Settings, limit: float | None) -> tuple[floa
 
 def trend_of(points: list[Point], s: Settings) -> tuple[float, float, float] | None:
     """(slope per day, its standard error, value of the line at the last point) through the
-    last ``trend_campaigns`` points; None with fewer than 3 points or no time span."""
+    last ``trend_campaigns`` points; None with fewer than 3 points or no time span.
+
+    The closed form of the straight-line least squares (a few points, called once per
+    campaign and series: numpy's general solver would dominate the report's time)."""
     pts = points[-s.trend_campaigns:]
-    if len(pts) < 3:
+    n = len(pts)
+    if n < 3:
         return None
-    t = _days(pts, pts[0].measured_at)
-    if np.ptp(t) <= 0:
+    last = pts[-1].measured_at
+    t = [(p.measured_at - last).total_seconds() / 86400.0 for p in pts]
+    v = [p.value for p in pts]
+    tm, vm = sum(t) / n, sum(v) / n
+    sxx = sum((ti - tm) ** 2 for ti in t)
+    if sxx <= 0:
         return None
-    v = np.array([p.value for p in pts])
-    A = np.column_stack([np.ones_like(t), t - t[-1]])
-    coef, *_ = np.linalg.lstsq(A, v, rcond=None)
-    r = v - A @ coef
-    dof = len(pts) - 2
-    sigma2 = float(r @ r) / dof if dof > 0 else 0.0
-    cov = sigma2 * np.linalg.inv(A.T @ A)
-    return float(coef[1]), float(np.sqrt(max(cov[1, 1], 0.0))), float(coef[0])
+    slope = sum((ti - tm) * (vi - vm) for ti, vi in zip(t, v)) / sxx
+    rss = sum((vi - vm - slope * (ti - tm)) ** 2 for ti, vi in zip(t, v))
+    se = math.sqrt(rss / (n - 2) / sxx)
+    return slope, se, vm - slope * tm
 
 
 def _crossing_days(slope: float, se: float, now: float, limit: float) -> float | None:
@@ -107,7 +117,7 @@ def analyse(series: Series, s: Settings) -> Analysis:
     an = Analysis(series, limit, band_of(pts, s, limit))
     for i, p in enumerate(pts):
         upto = pts[max(0, i + 1 - s.trend_campaigns):i + 1]  # all trend_of uses
-        if an.band is not None and i >= s.baseline_campaigns and not (
+        if limit is not None and an.band is not None and i >= s.baseline_campaigns and not (
                 an.band[0] <= p.value <= an.band[1]):
             an.alerts.append(Alert(series.key, p.campaign_id, p.measured_at, "band",
                                    f"{p.value:.4g} {series.unit} outside the band "
