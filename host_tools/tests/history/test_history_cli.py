@@ -145,7 +145,20 @@ def test_show_report_export(db, outputs, tmp_path, capsys):
     assert main(["history", "--db", db, "report", "m1", "-o", str(tmp_path / "rep")]) == 0
     page = (tmp_path / "rep" / "index.html").read_text()
     assert "Current alerts (campaign 6" in page and "ballbar G XY F200 bi [band]" in page
-    assert list((tmp_path / "rep").glob("trend_*.png"))
+    # every picture the page shows is there and is a PNG (read with the standard parser)
+    from html.parser import HTMLParser
+
+    class Imgs(HTMLParser):
+        srcs: list = []
+
+        def handle_starttag(self, tag, attrs):
+            if tag == "img":
+                self.srcs.append(dict(attrs)["src"])
+    parser = Imgs()
+    parser.feed(page)
+    assert parser.srcs and sorted(parser.srcs) == sorted(
+        p.name for p in (tmp_path / "rep").glob("trend_*.png"))
+    assert all((tmp_path / "rep" / s).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for s in parser.srcs)
     # exports, read back with the standard library's readers
     assert main(["history", "--db", db, "export", "m1", "-o", str(tmp_path / "m1.csv")]) == 0
     assert main(["history", "--db", db, "export", "-o", str(tmp_path / "all.json")]) == 0
