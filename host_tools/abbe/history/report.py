@@ -174,7 +174,7 @@ def render(out: Path, machine: str, campaigns: list[dict[str, Any]],
                  f"{c['measured_at']:%Y-%m-%d %H:%M}</td><td class='l'>{_esc(c['operator'] or '')}"
                  f"</td><td class='l'>{_esc(c['kinds'])}</td><td class='l'>"
                  f"{_esc(', '.join(d.get('instruments', [])))}</td><td class='l'>{temps}</td>"
-                 f"<td class='l'>{_esc(c.get('note') or '')}</td></tr>")
+                 f"<td class='m'>{_esc(c.get('note') or '')}</td></tr>")
     h.append("</table></body></html>")
     (out / "index.html").write_text("\n".join(h) + "\n", encoding="utf-8")
     return {"plots": written, "alerts_now": len(current), "alerts": len(alerts)}
