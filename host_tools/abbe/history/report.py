@@ -156,7 +156,11 @@ def render(out: Path, machine: str, campaigns: list[dict[str, Any]],
         if an.out_of_band():
             band += " (last value out)"
         trend = f"{an.trend[0] * 30.44:+.3g}" if an.trend else "-"
-        cross = f"{an.crossing:%Y-%m-%d}" if an.crossing else "-"
+        cross = "-"
+        if an.crossing is not None:  # a date decades away says only "not soon"
+            far = an.crossing - p[-1].measured_at > dt.timedelta(days=10 * s.horizon_days)
+            cross = f"not within {10 * s.horizon_days:g} days" if far else \
+                f"{an.crossing:%Y-%m-%d}"
         now = ", ".join(a.kind for a in an.current())
         h.append(f"<tr><td class='l'>{_esc(an.series.key)}</td><td>{_esc(an.series.unit)}</td>"
                  f"<td>{len(p)}</td><td>{p[0].value:.4g}</td><td>{p[-1].value:.4g}</td>"
