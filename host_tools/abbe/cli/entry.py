@@ -34,6 +34,7 @@ COMMANDS: list[str] = [
     "abbe.cli.import_cmd",
     "abbe.cli.demo",
     "abbe.cli.modbus",
+    "abbe.cli.history",
 ]
 
 
