@@ -15,7 +15,8 @@ assumption in docs/formats.md, to be confirmed by a real file):
 * one ``RUN DIRECTION="CCW"`` then one ``RUN DIRECTION="CW"``, each holding a
   ``DATA`` element (``UT_LENGTH_UM`` or ``UT_LENGTH_MM``): the bar's length minus the
   nominal radius, whitespace-separated, one sample every 1 / SAMPLE_RATE s from the
-  start of the feed-in arc to the end of the feed-out arc at the constant feed;
+  start of the feed-in arc to the end of the feed-out arc at the constant feed:
+  floor((360 + 2 OVERRUN_ARC) / omega x SAMPLE_RATE) + 1 samples, omega = FEEDRATE / RADIUS;
 * angles: theta from the A axis toward the B axis (abbe's convention when (A, B) is
   (X, Y), (Z, X) or (Y, Z)); a plane written the other way round is refused.
 
@@ -204,12 +205,12 @@ def read_b5r(path: str | Path) -> B5rTest:
                                  file=fname, line=run.line, field="DATA")
         de = data[0]
         scale = dt(de, {"UT_LENGTH_UM": 1.0, "UT_LENGTH_MM": 1e3})
-        cells = "".join(de.text).split()
+        cells = [c for c in re.split(r"[ \t\r\n]+", "".join(de.text)) if c]
         if len(cells) > B5R_MAX_SAMPLES:
             raise AbbeInputError(f"{len(cells)} samples: the limit is {B5R_MAX_SAMPLES}",
                                  file=fname, line=de.line, field="DATA")
-        n_need = int(total / deg_per_s * fs * 0.999)
-        if len(cells) < n_need:
+        n_need = int(math.floor(total / deg_per_s * fs + 1e-6)) + 1
+        if len(cells) != n_need:
             raise AbbeInputError(f"{len(cells)} samples, but {total:g} deg at {feed:g} mm/min "
                                  f"on R = {radius:g} mm sampled at {fs:g} Hz needs {n_need}",
                                  file=fname, line=de.line, field="DATA")

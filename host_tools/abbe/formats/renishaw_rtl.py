@@ -51,17 +51,26 @@ HEADER_KEYS = ("File type", "Owner", "Version no")
 TARGET_KEYS = ("Filetype", "Target-count", "Targets", "Flags")
 USER_KEYS = ("Machine", "Serial No", "Date", "By", "Axis", "Location", "TITLE")
 RUNS_KEYS = ("Run-count",)
-#: ENVIRONMENT key -> (unit, lo, hi) of its start/end values.
-ENV_KEYS: dict[str, tuple[str, float, float]] = {
-    "Air temp": ("deg C", -200.0, 200.0), "Air press": ("kPa", 0.0, 2000.0),
-    "Air humid": ("%", 0.0, 100.0), "Mat temp 1": ("deg C", -200.0, 200.0),
-    "Mat temp 2": ("deg C", -200.0, 200.0), "Mat temp 3": ("deg C", -200.0, 200.0),
-    "Env factor": ("", -1e6, 1e6), "Exp coeff": ("ppm/K", -1000.0, 1000.0)}
+#: ENVIRONMENT key -> (unit, lo, hi, cells): start and end values, and a flag when 3 cells
+#: (as in the public sample).
+ENV_KEYS: dict[str, tuple[str, float, float, int]] = {
+    "Air temp": ("deg C", -200.0, 200.0, 3), "Air press": ("kPa", 0.0, 2000.0, 3),
+    "Air humid": ("%", 0.0, 100.0, 2), "Mat temp 1": ("deg C", -200.0, 200.0, 3),
+    "Mat temp 2": ("deg C", -200.0, 200.0, 3), "Mat temp 3": ("deg C", -200.0, 200.0, 3),
+    "Env factor": ("", -1e6, 1e6, 2), "Exp coeff": ("ppm/K", -1000.0, 1000.0, 3)}
 ENV_OTHER = ("Date Time", "Final Data")
 #: A material temperature sensor reading this (deg C) is not connected (public sample).
 UNCONNECTED_C = -10.0
 MAX_POSITION_MM = 1e5
 MAX_READING = 1e5
+
+_BLANK = re.compile(r"[ \t]+")
+
+
+def _cells(s: str) -> list[str]:
+    """Cells separated by ASCII spaces and tabs only (a no-break space is not a separator)."""
+    return [c for c in _BLANK.split(s.strip(" \t")) if c]
+
 
 _SECTION = re.compile(r"^([A-Z][A-Z -]*)::\s*$")
 _KEYVAL = re.compile(r"^([A-Za-z][A-Za-z0-9 .\-]*?)\s*:\s*(.*)$")
@@ -220,7 +229,7 @@ def read_rtl(path: str | Path) -> RtlFile:
     targets: list[float] = []
     t_lines: list[int] = []
     for no, s in trows:
-        for cell in s.split():
+        for cell in _cells(s):
             if len(targets) >= n_t:
                 raise AbbeInputError(f"more targets than Target-count ({n_t})", file=fname,
                                      line=no, field="Targets")
@@ -239,7 +248,7 @@ def read_rtl(path: str | Path) -> RtlFile:
                              f"{tg[k - 1]:g} mm", file=fname, line=t_lines[k],
                              field="Targets")
     flags_text, fgl = need(tgt, "Flags", "TARGET DATA")
-    flags = flags_text.split()
+    flags = _cells(flags_text)
     if len(flags) != 4:
         raise AbbeInputError(f"expected four integers, got {flags_text!r}", file=fname,
                              line=fgl, field="Flags")
@@ -268,7 +277,7 @@ def read_rtl(path: str | Path) -> RtlFile:
     vals = np.empty((n_p, n_t))
     lines = np.zeros((n_p, n_t), dtype=np.int64)
     for k, (no, s) in enumerate(drows):
-        cells = s.split()
+        cells = _cells(s)
         if len(cells) != 3:
             raise AbbeInputError(f"expected 'run target value', got {len(cells)} cells",
                                  file=fname, line=no, field="Run Target Data")
@@ -290,13 +299,25 @@ def read_rtl(path: str | Path) -> RtlFile:
     env_lines: dict[str, int] = {}
     envkv, _ = keyvals("ENVIRONMENT", tuple(ENV_KEYS) + ENV_OTHER)
     for key, (text, no) in envkv.items():
-        if key in ENV_OTHER:
+        if key == "Date Time":
+            if not re.fullmatch(r'"[^"]*"[ \t]+"[^"]*"', text):
+                raise AbbeInputError(f'expected two quoted dates "start" "end", got {text!r}',
+                                     file=fname, line=no, field=key)
             continue
-        u, lo, hi = ENV_KEYS[key]
-        cells = text.split()
-        if len(cells) not in (2, 3):
-            raise AbbeInputError(f"expected start and end values (and a flag), got {text!r}",
-                                 file=fname, line=no, field=key)
+        if key == "Final Data":
+            cells = _cells(text)
+            if not 1 <= len(cells) <= 2:
+                raise AbbeInputError(f"expected one or two integers, got {text!r}", file=fname,
+                                     line=no, field=key)
+            for c in cells:
+                parse_int(c, file=fname, line=no, field=key, lo=0, hi=1_000_000)
+            continue
+        u, lo, hi, n_cells = ENV_KEYS[key]
+        cells = _cells(text)
+        if len(cells) != n_cells:
+            raise AbbeInputError(f"expected start and end values{' and a flag' if n_cells == 3 else ''}"
+                                 f" ({n_cells} numbers), got {text!r}", file=fname, line=no,
+                                 field=key)
         a, b = (parse_number(c, file=fname, line=no, field=key, lo=lo, hi=hi, unit=u)
                 for c in cells[:2])
         if len(cells) == 3:

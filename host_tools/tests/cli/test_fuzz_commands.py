@@ -38,7 +38,8 @@ EXAMPLES = {"table info": 100, "table eval": 60, "table from-json": 100, "table 
             "export heidenhain-com": 12, "export fanuc-pitch": 12, "export klipper-skew": 12,
             "export marlin": 12, "export linuxcnc-comp": 12, "export linuxcnc-matrixkins": 12,
             "export fit-json": 12, "import isg-csv": 15, "import isg-lis": 15,
-            "import etalon": 15, "import machine": 10}
+            "import etalon": 15, "import machine": 10, "iso230-2 rtl": 60, "fit rtl": 25,
+            "ballbar b5r": 30, "ballbar renishaw machine": 20}
 
 
 @pytest.fixture(scope="module")
@@ -123,7 +124,8 @@ def test_option_values_are_range_checked(seed_ws, fuzz_env, name, capsys):
     shutil.rmtree(out, ignore_errors=True)
 
 
-HOSTILE = ["iso230-2 csv", "fit laser", "ballbar csv", "import isg-csv", "import etalon"]
+HOSTILE = ["iso230-2 csv", "fit laser", "ballbar csv", "import isg-csv", "import etalon",
+           "iso230-2 rtl", "fit rtl", "ballbar b5r"]
 
 
 @pytest.mark.parametrize("name", HOSTILE)

@@ -23,7 +23,7 @@ from abbe.formats.positioning import load_positioning
 from abbe.formats.renishaw_b5r import read_b5r
 from abbe.formats.renishaw_rtl import read_rtl
 
-from renishaw_samples import (PUBLIC_ENV, b5r_from_trace, b5r_text, rtl_from_updown, rtl_text,
+from cases.renishaw import (PUBLIC_ENV, b5r_from_trace, b5r_text, rtl_from_updown, rtl_text,
                               sample_rtl, write)
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -234,18 +234,18 @@ def test_b5r_in_machine_file_must_agree(tmp_path: Path) -> None:
     shutil.copytree(VMC, tmp_path / "m")
     mf = tmp_path / "m" / "machine.toml"
     text = b5r_from_trace(VMC / "ballbar" / "circle1.csv", feed_mm_min=200.0)[0]
-    write(tmp_path / "m" / "ballbar" / "c.b5r", text.replace(
-        '<FEEDRATE DT="UT_FEEDRATE">200', '<FEEDRATE DT="UT_FEEDRATE">250'))
-    mf.write_text(mf.read_text().replace("ballbar/circle1.csv", "ballbar/c.b5r"))
+    write(tmp_path / "m" / "ballbar" / "c.b5r", text)
+    mf.write_text(mf.read_text().replace("ballbar/circle1.csv", "ballbar/c.b5r")
+                  .replace("feed_mm_min = 200.0", "feed_mm_min = 250.0"))
     r = subprocess.run(ABBE + ["ballbar", str(mf), "circle1", "--no-plot"], capture_output=True,
                        text=True)
-    assert r.returncode == 2 and "FEEDRATE" in r.stderr and "250" in r.stderr
+    assert r.returncode == 2 and "FEEDRATE" in r.stderr and "250" in r.stderr, r.stderr
 
 
 def test_b5r_small_sample(tmp_path: Path) -> None:
     """A hand-sized file: 1000 mm/min on R 50 at 50 Hz, a constant 2 um radius error."""
     deg_s = np.degrees(1000 / 60 / 50)
-    n = int(450 / deg_s * 50) + 2
+    n = int(np.floor(450 / deg_s * 50 + 1e-6)) + 1
     t = read_b5r(write(tmp_path / "s.b5r", b5r_text(radius_mm=50, feed_mm_min=1000,
                                                    sample_rate_hz=50, ccw_um=[2.0] * n,
                                                    cw_um=[2.0] * n, data_dt="UT_LENGTH_MM")))

@@ -10,17 +10,23 @@ import numpy as np
 
 
 def rtl_text(targets_mm, passes, *, owner: str = "Linear", flags: str = "0 0 2 0",
-             env: dict[str, str] | None = None, axis: str = "X", newline: str = "\r\n") -> str:
+             env: dict[str, str] | None = None, axis: str = "X", newline: str = "\r\n",
+             plain: bool = False) -> str:
     """An .rtl file: ``passes`` (P, T) deviations in target-list order, odd passes listed
-    1..T, even passes T..1, like the public writer (C#) and parser (Java) do."""
+    1..T, even passes T..1, like the public writer (C#) and parser (Java) do. ``plain``:
+    no digits outside the data (no version, dates or serial number: for the fuzzers,
+    where every number must be data)."""
     t = list(targets_mm)
-    out = ["HEADER::", "File type  : rtl", f"Owner      : {owner}", "Version no : V20.02.02", "",
+    out = ["HEADER::", "File type  : rtl", f"Owner      : {owner}"]
+    out += [] if plain else ["Version no : V20.02.02"]
+    out += ["",
            "TARGET DATA::", "Filetype  : ISO", f"Target-count: {len(t)}", "Targets :"]
     for i in range(0, len(t), 5):
         out.append(" ".join(f"{v:.3f}" for v in t[i:i + 5]))
-    out += [f"Flags: {flags}", "", "USER-TEXT::", "Machine:  vmc500", "Serial No:  0001",
-            "Date:2026-12-02 05:00:00", "By:abbe tests", f"Axis:{axis}", "Location:lab",
-            "TITLE:sample", "", "RUNS::", f"Run-count:{len(passes)}", "", "DEVIATIONS::",
+    user = (["Machine:  vmc", f"Axis:{axis}"] if plain else
+            ["Machine:  vmc500", "Serial No:  0001", "Date:2026-12-02 05:00:00", "By:abbe tests",
+             f"Axis:{axis}", "Location:lab", "TITLE:sample"])
+    out += [f"Flags: {flags}", "", "USER-TEXT::"] + user + ["", "RUNS::", f"Run-count:{len(passes)}", "", "DEVIATIONS::",
             "Run Target Data:"]
     n_t = len(t)
     for p, row in enumerate(passes, start=1):
@@ -66,9 +72,10 @@ def write(path: Path, text: str) -> Path:
 
 def b5r_text(*, plane=("X", "Y"), radius_mm=100.0, feed_mm_min=200.0, sample_rate_hz=10.0,
              overrun_deg=45.0, ccw_um=(), cw_um=(), data_dt="UT_LENGTH_UM",
-             features: dict[str, tuple[str, str]] | None = None, machine: str = "vmc500") -> str:
+             features: dict[str, tuple[str, str]] | None = None, machine: str = "vmc500",
+             plain: bool = False) -> str:
     """A .b5r file: the public parsers' metadata and FEATURE elements, the raw data as
-    abbe assumes it (renishaw_b5r's module doc)."""
+    abbe assumes it (renishaw_b5r's module doc). ``plain``: no digits outside the data."""
     a, b = plane
     feats = features if features is not None else {
         "AF_CIRCULARITY": ("UT_LENGTH_UM", "5.2"), "AF_SQUARENESS": ("UT_SQUARENESS", "-12.0")}
@@ -77,7 +84,7 @@ def b5r_text(*, plane=("X", "Y"), radius_mm=100.0, feed_mm_min=200.0, sample_rat
     def data(v):
         rows = [" ".join(f"{x:.4f}" for x in v[i:i + 10]) for i in range(0, len(v), 10)]
         return "\n".join(rows)
-    return f'''<?xml version="1.0" encoding="utf-8"?>
+    head = ("<BALLBAR_FILE>\n  <TEST_SPEC NAME=\"plain\">\n" if plain else f'''<?xml version="1.0" encoding="utf-8"?>
 <BALLBAR_FILE VERSION="5">
   <TEST_SPEC NAME="{a}{b} 360 {radius_mm:g}mm">
     <OPERATOR>abbe tests</OPERATOR>
@@ -85,7 +92,8 @@ def b5r_text(*, plane=("X", "Y"), radius_mm=100.0, feed_mm_min=200.0, sample_rat
     <MACHINE_TESTED NAME="{machine}"/>
     <SERIAL_NUMBER>QC20-0001</SERIAL_NUMBER>
     <LAST_CALIBRATED>2026-01-15</LAST_CALIBRATED>
-    <PLANE TEST_PLANE="{a}{b}">
+''')
+    return head + f'''    <PLANE TEST_PLANE="{a}{b}">
       <A_AXIS_NAME>{a}</A_AXIS_NAME>
       <B_AXIS_NAME>{b}</B_AXIS_NAME>
     </PLANE>
@@ -118,7 +126,7 @@ def b5r_from_trace(csv_path: Path, *, radius_mm=100.0, feed_mm_min=200.0, sample
     import csv
     rows = list(csv.DictReader(open(csv_path)))
     deg_per_s = np.degrees(feed_mm_min / 60.0 / radius_mm)
-    n = int((360.0 + 2 * overrun_deg) / deg_per_s * sample_rate_hz) + 1
+    n = int(np.floor((360.0 + 2 * overrun_deg) / deg_per_s * sample_rate_hz + 1e-6)) + 1
     t = np.arange(n) / sample_rate_hz
     out = []
     for d, ang in (("ccw", -overrun_deg + deg_per_s * t), ("cw", 360 + overrun_deg - deg_per_s * t)):
