@@ -15,7 +15,11 @@
 #   9. LinuxCNC: the HAL component built and installed, halrun and simulator
 #      tests (port/linuxcnc/tests/run.sh; halrun / linuxcnc run as an
 #      unprivileged user, created when run as root)
-#  10. the README's demo command (scripts/demo.sh), run twice: into a new
+#  10. measurement programs (abbe program, LinuxCNC dialect) run in LinuxCNC's
+#      simulator: targets, approach sides, dwells, travel, the ballbar arc, and the
+#      closed loop through a Renishaw .rtl file (port/linuxcnc/tests/program_sim.py,
+#      under flock /tmp/abbe-linuxcnc.lock)
+#  11. the README's demo command (scripts/demo.sh), run twice: into a new
 #      demo-out/ and over the old one
 # Runs every step even after a failure; exits non-zero if any step failed.
 set -uo pipefail
@@ -105,6 +109,11 @@ readme_demo() { # the README's other command, as a user runs it: fresh, then ove
     fi
 }
 
+lcnc_programs() { # as root, run.sh (step 9) created the unprivileged LinuxCNC user
+    flock /tmp/abbe-linuxcnc.lock /usr/bin/python3 port/linuxcnc/tests/program_sim.py \
+        --json build-linuxcnc/programs.json
+}
+
 step "host ASan+UBSan build and ctest (build-asan)" host_asan
 step "host release build and ctest (build)" host_release
 step "Cortex-M4F build and ctest under QEMU (build-m4f)" cross m4f cortex-m4f
@@ -114,6 +123,7 @@ step "Python import contracts (lint-imports)" import_contracts
 step "pytest host_tools/tests" pytest_all
 step "wheel: build, install outside the checkout, run abbe there" wheel_test
 step "LinuxCNC component: halrun and simulator tests" bash port/linuxcnc/tests/run.sh
+step "measurement programs in LinuxCNC's simulator" lcnc_programs
 step "README's demo command (scripts/demo.sh), twice" readme_demo
 
 echo

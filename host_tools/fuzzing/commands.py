@@ -73,6 +73,12 @@ def targets(ws: Workspace, out: Path, fit_model: Path | None = None) -> list[Tar
                hostile_numbers=True),
         Target("ballbar b5r", ["ballbar", str(ws.renishaw_machine), "circle1", "--no-plot",
                                "--json"], ws.b5r, json_stdout=True, hostile_numbers=True),
+        Target("program positioning", ["program", mach, "--test", "positioning", "--axis", "X",
+                                       "--dialect", "fanuc", "-o", str(o("p.nc"))], ws.machine,
+               [o("p.nc")]),
+        Target("program ballbar", ["program", mach, "--test", "ballbar", "--plane", "XY",
+                                   "--dialect", "heidenhain", "-o", str(o("bb.h"))], ws.machine,
+               [o("bb.h")]),
         Target("ballbar renishaw machine", ["ballbar", str(ws.renishaw_machine), "circle1",
                                             "--no-plot"], ws.renishaw_machine),
     ]
