@@ -250,3 +250,22 @@ def test_b5r_small_sample(tmp_path: Path) -> None:
                                                    sample_rate_hz=50, ccw_um=[2.0] * n,
                                                    cw_um=[2.0] * n, data_dt="UT_LENGTH_MM")))
     assert np.all(t.trace.radial_um == 2000.0)  # mm -> um
+
+
+def test_fit_from_an_rtl_file_equals_the_fit_from_the_csv(ws, tmp_path: Path) -> None:
+    """The seed workspace's X line as .rtl (linear) and as CSV: the same fitted term."""
+    import re
+    from abbe.cli.entry import main
+    csv_machine = ws.machine.parent / "machine_linear.toml"
+    csv_machine.write_text(re.sub(r'^map = \{ linear = "\+dx".*$', 'map = { linear = "+dx" }',
+                                  ws.machine.read_text(), flags=re.M))
+    outs = []
+    for m in (csv_machine, ws.renishaw_machine):
+        out = tmp_path / m.stem
+        assert main(["fit", str(m), "-o", str(out), "--no-clib-check", "--no-report", "-q"]) == 0
+        outs.append(json.loads((out / "model.json").read_text())["axes"]["X"])
+    a, b = outs
+    np.testing.assert_allclose(a["terms"]["dx"]["coef_um"], b["terms"]["dx"]["coef_um"],
+                               atol=1e-3)
+    assert a["iso230_2"] == pytest.approx(b["iso230_2"], abs=1e-3)
+    assert b["laser_file"].endswith("x.rtl")

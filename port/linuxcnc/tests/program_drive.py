@@ -15,16 +15,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import signal
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 import linuxcnc
 
-from sim_drive import Abort, log, rsh_hello, stop_linuxcnc, wait_for
+from sim_drive import Abort, bounded, connect, launch, log, operator_errors, shutdown, wait_for
 
 
 def record(c, s, program: Path, timeout: float) -> dict:
@@ -71,28 +68,12 @@ def main() -> int:
     ap.add_argument("programs", type=Path, nargs="+")
     args = ap.parse_args()
 
-    def give_up(signum, _frame):
-        raise Abort(f"stopped by signal {signum} (overall timeout {args.timeout} s or SIGTERM)")
-    signal.signal(signal.SIGTERM, give_up)
-    signal.signal(signal.SIGALRM, give_up)
-    signal.alarm(args.timeout)
+    bounded(args.timeout)
     ini, out = args.ini.resolve(), args.out.resolve()
     result = {"ok": False, "errors": [], "programs": {}}
-    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
-    lc_log = open(out / "linuxcnc.log", "w")
-    log(f"starting linuxcnc {ini}")
-    proc = subprocess.Popen(["linuxcnc", str(ini)], cwd=ini.parent, env=env,
-                            stdin=subprocess.DEVNULL, stdout=lc_log, stderr=subprocess.STDOUT,
-                            start_new_session=True)
+    proc, lc_log = launch(ini, out)
     try:
-        def up() -> bool:
-            if proc.poll() is not None:
-                raise SystemExit(f"linuxcnc exited with status {proc.returncode} (see linuxcnc.log)")
-            return rsh_hello()
-        wait_for(up, 90, "linuxcncrsh on 127.0.0.1:5007")
-        s, c, e = linuxcnc.stat(), linuxcnc.command(), linuxcnc.error_channel()
-        wait_for(lambda: (s.poll() or True) and s.task_state == linuxcnc.STATE_ESTOP, 30,
-                 "task in e-stop")
+        s, c, e = connect(proc)
         c.state(linuxcnc.STATE_ESTOP_RESET)
         c.wait_complete()
         c.state(linuxcnc.STATE_ON)
@@ -109,23 +90,13 @@ def main() -> int:
             result["programs"][prog.name] = {"seconds": r["seconds"], "samples": len(r["t_s"]),
                                              "stops": r["stops"]}
             log(f"{prog.name}: {r['seconds']:.1f} s, {len(r['t_s'])} samples")
-        msgs = []
-        while True:
-            m = e.poll()
-            if not m:
-                break
-            msgs.append(m[1])
-        result["operator_errors"] = msgs
+        result["operator_errors"] = operator_errors(e)
         result["ok"] = True
     except (Exception, SystemExit, Abort) as exc:
         result["errors"].append(f"{type(exc).__name__}: {exc}")
         log(f"ERROR {exc}")
     finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGTERM, signal.SIG_IGN)
-        result["stop"] = stop_linuxcnc(proc)
-        log(result["stop"])
-        lc_log.close()
+        shutdown(proc, lc_log, result)
         (out / "drive.json").write_text(json.dumps(result, indent=1))
     return 0 if result["ok"] else 1
 

@@ -419,6 +419,9 @@ def model_json(res: FitResult) -> dict[str, Any]:
             "iso230_2": None if ar.iso is None else {
                 "B_um": _r(ar.iso.B_um), "R_um": _r(ar.iso.R_um), "E_um": _r(ar.iso.E_um),
                 "A_um": _r(ar.iso.A_um), "M_um": _r(ar.iso.M_um)},
+            "normalisation_20c": (None if ar.data.normalisation is None else
+                                  {k: (_r(v) if isinstance(v, float) else v)
+                                   for k, v in ar.data.normalisation.to_json().items()}),
             "terms": terms,
         }
     o = res.options
