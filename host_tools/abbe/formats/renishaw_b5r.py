@@ -36,7 +36,7 @@ from xml.parsers import expat
 import numpy as np
 
 from abbe.errors import AbbeInputError, parse_number, parse_number_column
-from abbe.formats.ballbar_csv import BallbarTrace, _validate_trace
+from abbe.formats.ballbar_csv import BallbarTrace, validate_trace
 from abbe.formats.limits import B5R_MAX_BYTES, B5R_MAX_SAMPLES, MAX_NESTING
 from abbe.formats.text import read_text
 
@@ -229,7 +229,7 @@ def read_b5r(path: str | Path) -> B5rTest:
     tr = BallbarTrace(direction=np.concatenate(d_all), angle_deg=np.concatenate(a_all),
                       radial_um=np.concatenate(r_all), time_s=np.concatenate(t_all), file=fname,
                       line_no=np.concatenate(l_all))
-    _validate_trace(tr, {"direction": "RUN", "angle": "DATA", "radial": "DATA", "time": "DATA"})
+    validate_trace(tr, {"direction": "RUN", "angle": "DATA", "radial": "DATA", "time": "DATA"})
 
     meta: dict[str, str] = {}
     for tag in _META:

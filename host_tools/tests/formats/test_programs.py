@@ -6,8 +6,6 @@ from __future__ import annotations
 
 import math
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -15,18 +13,22 @@ import pytest
 
 from abbe.errors import AbbeInputError
 from abbe.formats.programs.plan import iso230_2_targets
+from fuzzing.harness import run_case
 
 ROOT = Path(__file__).resolve().parents[3]
 MACHINE = ROOT / "examples" / "vmc500" / "machine.toml"
-ABBE = [sys.executable, "-m", "abbe.cli"]
 DIALECTS = ("linuxcnc", "grblhal", "fanuc", "sinumerik", "heidenhain")
+
+
+def abbe(*argv: str):
+    """Run ``abbe`` in-process (the fuzz harness: exit status, output, promises checked)."""
+    return run_case(list(argv))
 
 
 def program(tmp_path: Path, dialect: str, *opts: str, machine: Path = MACHINE) -> str:
     out = tmp_path / f"p.{dialect}"
-    r = subprocess.run(ABBE + ["program", str(machine), *opts, "--dialect", dialect, "-o",
-                               str(out)], capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr
+    r = abbe("program", str(machine), *opts, "--dialect", dialect, "-o", str(out))
+    assert r.rc == 0 and r.ok, (r.stderr, r.problems)
     return out.read_text()
 
 
@@ -98,6 +100,13 @@ def replay(text: str, dialect: str) -> list[tuple]:
     return ev
 
 
+def test_long_target_lists_keep_lines_short(tmp_path: Path) -> None:
+    text = program(tmp_path, "grblhal", "--test", "positioning", "--axis", "X", "--targets", "41")
+    assert max(len(ln) for ln in text.splitlines()) < 100
+    t = " ".join(re.findall(r"\(targets mm: ([^)]*)\)", text)).split()
+    assert len(t) == 41
+
+
 def test_iso230_2_targets_uneven_and_per_metre() -> None:
     t = iso230_2_targets(0.0, 2000.0)
     assert t.size == 11 and t[0] == 0.0 and t[-1] == 2000.0
@@ -131,7 +140,7 @@ def test_every_dialect_replays_to_the_same_path(tmp_path: Path, opts) -> None:
 def test_positioning_program_visits_targets_with_overrun_and_dwell(tmp_path: Path) -> None:
     text = program(tmp_path, "linuxcnc", "--test", "positioning", "--axis", "Y",
                    "--dwell-s", "2.5")
-    t = np.array([float(v) for v in re.search(r"\(targets mm: ([^)]*)\)", text).group(1).split()])
+    t = np.array([float(v) for v in " ".join(re.findall(r"\(targets mm: ([^)]*)\)", text)).split()])
     ev = replay(text, "linuxcnc")
     caps = [ev[k - 1][2] for k, e in enumerate(ev) if e[0] == "dwell"]
     assert len(caps) == 5 * 2 * t.size
@@ -168,19 +177,17 @@ def test_ballbar_program_covers_the_data_arc_with_feed_arcs(tmp_path: Path) -> N
 ])
 def test_refusals(tmp_path: Path, opts, msg) -> None:
     out = tmp_path / "p.ngc"
-    r = subprocess.run(ABBE + ["program", str(MACHINE), *opts, "--dialect", "linuxcnc", "-o",
-                               str(out)], capture_output=True, text=True)
-    assert r.returncode == 2 and re.search(msg, r.stderr), r.stderr
+    r = abbe("program", str(MACHINE), *opts, "--dialect", "linuxcnc", "-o", str(out))
+    assert r.rc == 2 and r.ok and re.search(msg, r.stderr), r.stderr
     assert not out.exists()
 
 
 def test_circle_outside_the_travel_is_refused(tmp_path: Path) -> None:
     m = tmp_path / "m.toml"
     m.write_text(MACHINE.read_text().replace("radius_mm = 100.0", "radius_mm = 290.0"))
-    r = subprocess.run(ABBE + ["program", str(m), "--test", "ballbar", "--plane", "XY",
-                               "--dialect", "linuxcnc", "-o", str(tmp_path / "b.ngc")],
-                       capture_output=True, text=True)
-    assert r.returncode == 2 and "travel" in r.stderr and "m.toml" in r.stderr, r.stderr
+    r = abbe("program", str(m), "--test", "ballbar", "--plane", "XY", "--dialect", "linuxcnc",
+             "-o", str(tmp_path / "b.ngc"))
+    assert r.rc == 2 and "travel" in r.stderr and "m.toml" in r.stderr, r.stderr
 
 
 def test_line_program_api_refuses_unknown_sequence() -> None:

@@ -269,3 +269,20 @@ def test_fit_from_an_rtl_file_equals_the_fit_from_the_csv(ws, tmp_path: Path) ->
                                atol=1e-3)
     assert a["iso230_2"] == pytest.approx(b["iso230_2"], abs=1e-3)
     assert b["laser_file"].endswith("x.rtl")
+
+
+def test_diagnose_reads_an_rtl_positioning_file_like_the_csv(tmp_path: Path) -> None:
+    from abbe.diagnose.checks import positioning_check
+    text, t, up, down = sample_rtl(seed=4)
+    rows = ["run,direction,target_mm,linear_um"]
+    for r in range(up.shape[0]):
+        rows += [f"{r + 1},+,{x},{v}" for x, v in zip(t, up[r])]
+        rows += [f"{r + 1},-,{x},{v}" for x, v in zip(t[::-1], down[r][::-1])]
+    (tmp_path / "x.csv").write_text("\n".join(rows) + "\n")
+    ref = (0.0, -212.772, -290.704)
+    a = positioning_check(write(tmp_path / "x.rtl", text), "X", ref)
+    b = positioning_check(tmp_path / "x.csv", "X", ref)
+    np.testing.assert_allclose(a.channels[0].values, b.channels[0].values, atol=1e-12)
+    np.testing.assert_array_equal(a.targets, b.targets)
+    order = a._args["order"]  # source lines: the measured (time) order of the readings
+    assert order[0, 0, 0] < order[0, 0, -1] < order[0, 1, -1] < order[0, 1, 0] < order[1, 0, 0]

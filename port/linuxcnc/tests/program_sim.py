@@ -54,11 +54,11 @@ PROGRAMS = {
 
 
 def params_of(text: str) -> dict[str, str]:
-    """``(key = value)`` header comments and the ``(targets mm: ...)`` line of a program."""
+    """``(key = value)`` header comments and the ``(targets mm: ...)`` lines of a program."""
     p = dict(re.findall(r"^\((\w+) = ([^)]*)\)$", text, flags=re.M))
-    m = re.search(r"^\(targets mm: ([^)]*)\)$", text, flags=re.M)
-    if m:
-        p["targets_mm"] = m.group(1)
+    t = re.findall(r"^\(targets mm: ([^)]*)\)$", text, flags=re.M)
+    if t:
+        p["targets_mm"] = " ".join(t)
     return p
 
 

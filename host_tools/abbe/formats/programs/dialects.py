@@ -70,7 +70,7 @@ def _gcode(prog: Program, dialect: str) -> list[str]:
         lines.append(comment("abbe: " + prog.title))
     for k, v in prog.params.items():
         lines.append(comment(f"{k} = {v}"))
-    lines.append(comment("machine coordinates: run with a zero work offset (G54 = 0)"))
+    lines.append(comment("machine coordinates: run with a zero work offset, G54 = 0"))
     units = "G71" if sin else "G21"
     lines.append(f"{units} G90 G94 {GPLANE[prog.plane]}")
     g1, g2, g3 = ("G01", "G02", "G03") if fanuc else ("G1", "G2", "G3")

@@ -148,7 +148,8 @@ def line_program(test: str, axis: str, start_mm, end_mm, travel: dict[str, tuple
     s = prog.steps
     s.append(Comment(f"{title}: {len(targets)} targets, {runs} bidirectional runs, "
                      f"{sequence} sequence"))
-    s.append(Comment("targets mm: " + " ".join(f"{t:.3f}" for t in targets)))
+    for k in range(0, len(targets), 8):  # short lines: grbl's line buffer is 256 characters
+        s.append(Comment("targets mm: " + " ".join(f"{t:.3f}" for t in targets[k:k + 8])))
     s.append(Comment(f"dwell {dwell_s:g} s at each target for the capture; overrun "
                      f"{overrun_mm:g} mm; feed {feed:g} mm/min"))
     lo_o, hi_o = targets[0] - overrun_mm, targets[-1] + overrun_mm
