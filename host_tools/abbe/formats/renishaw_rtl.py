@@ -192,6 +192,7 @@ def read_rtl(path: str | Path) -> RtlFile:
             if not m:
                 raise AbbeInputError(f"expected 'Key : value' in {name}::", file=fname, line=no)
             key = " ".join(m.group(1).split())
+            key = {k.lower(): k for k in keys}.get(key.lower(), key)  # "Air Press" = "Air press"
             if key not in keys:
                 raise AbbeInputError(f"unknown key {key!r} in {name}::; expected one of "
                                      f"{', '.join(keys)}", file=fname, line=no, field=key)

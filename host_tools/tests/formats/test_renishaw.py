@@ -71,6 +71,15 @@ def test_rtl_iso230_2_matches_the_same_data_as_csv(tmp_path: Path) -> None:
     assert b["normalisation_20c"] is None
 
 
+def test_rtl_keys_in_the_c_writer_spelling(tmp_path: Path) -> None:
+    """The C# writer's (commented) environment lines capitalise 'Air Press', 'Air Humid'."""
+    env = {("Air Press" if k == "Air press" else "Air Humid" if k == "Air humid" else k): v
+           for k, v in PUBLIC_ENV.items()}
+    _, t, up, down = sample_rtl()
+    r = read_rtl(write(tmp_path / "c.rtl", rtl_from_updown(t, up, down, env=env)))
+    assert r.environment["Air press"][0] == 99.039005
+
+
 def test_rtl_expansion_coefficient_zero_is_not_applied(tmp_path: Path) -> None:
     env = dict(PUBLIC_ENV, **{"Exp coeff": "0.000000 0.000000 0"})
     _, t, up, down = sample_rtl()
