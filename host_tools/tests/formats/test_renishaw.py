@@ -31,6 +31,16 @@ VMC = ROOT / "examples" / "vmc500"
 ABBE = [sys.executable, "-m", "abbe.cli"]
 
 
+def write_csv(path: Path, t, up, down) -> Path:
+    """The same readings as abbe's laser CSV (linear channel), in measured order."""
+    rows = ["run,direction,target_mm,linear_um"]
+    for r in range(up.shape[0]):
+        rows += [f"{r + 1},+,{x},{v}" for x, v in zip(t, up[r])]
+        rows += [f"{r + 1},-,{x},{v}" for x, v in zip(t[::-1], down[r][::-1])]
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
 def test_rtl_reads_back_exactly(tmp_path: Path) -> None:
     text, t, up, down = sample_rtl()
     d = load_positioning(write(tmp_path / "x.rtl", text))
@@ -56,11 +66,7 @@ def test_rtl_descending_target_list_odd_passes_are_minus(tmp_path: Path) -> None
 
 def test_rtl_iso230_2_matches_the_same_data_as_csv(tmp_path: Path) -> None:
     text, t, up, down = sample_rtl(seed=3)
-    rows = ["run,direction,target_mm,linear_um"]
-    for r in range(up.shape[0]):
-        rows += [f"{r + 1},+,{x},{v}" for x, v in zip(t, up[r])]
-        rows += [f"{r + 1},-,{x},{v}" for x, v in zip(t[::-1], down[r][::-1])]
-    (tmp_path / "x.csv").write_text("\n".join(rows) + "\n")
+    write_csv(tmp_path / "x.csv", t, up, down)
     a = evaluate(load_positioning(write(tmp_path / "x.rtl", text))).to_json()
     b = evaluate(load_positioning(tmp_path / "x.csv")).to_json()
     for k in ("B_um", "R_um", "E_um", "A_um", "M_um"):
@@ -283,11 +289,7 @@ def test_fit_from_an_rtl_file_equals_the_fit_from_the_csv(ws, tmp_path: Path) ->
 def test_diagnose_reads_an_rtl_positioning_file_like_the_csv(tmp_path: Path) -> None:
     from abbe.diagnose.checks import positioning_check
     text, t, up, down = sample_rtl(seed=4)
-    rows = ["run,direction,target_mm,linear_um"]
-    for r in range(up.shape[0]):
-        rows += [f"{r + 1},+,{x},{v}" for x, v in zip(t, up[r])]
-        rows += [f"{r + 1},-,{x},{v}" for x, v in zip(t[::-1], down[r][::-1])]
-    (tmp_path / "x.csv").write_text("\n".join(rows) + "\n")
+    write_csv(tmp_path / "x.csv", t, up, down)
     ref = (0.0, -212.772, -290.704)
     a = positioning_check(write(tmp_path / "x.rtl", text), "X", ref)
     b = positioning_check(tmp_path / "x.csv", "X", ref)

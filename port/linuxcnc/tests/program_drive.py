@@ -21,7 +21,8 @@ from pathlib import Path
 
 import linuxcnc
 
-from sim_drive import Abort, bounded, connect, launch, log, operator_errors, shutdown, wait_for
+from sim_drive import (Abort, bounded, connect, home_all, launch, log, operator_errors, power_on,
+                       shutdown)
 
 
 def record(c, s, program: Path, timeout: float) -> dict:
@@ -74,16 +75,8 @@ def main() -> int:
     proc, lc_log = launch(ini, out)
     try:
         s, c, e = connect(proc)
-        c.state(linuxcnc.STATE_ESTOP_RESET)
-        c.wait_complete()
-        c.state(linuxcnc.STATE_ON)
-        c.wait_complete()
-        c.mode(linuxcnc.MODE_MANUAL)
-        c.wait_complete()
-        c.home(-1)
-        c.wait_complete()
-        wait_for(lambda: (s.poll() or True) and all(s.homed[:3]), 30, "homing")
-        log("homed")
+        power_on(c, s)
+        home_all(c, s)
         for prog in args.programs:
             r = record(c, s, prog.resolve(), args.program_timeout)
             (out / f"{prog.stem}.path.json").write_text(json.dumps(r))

@@ -239,6 +239,24 @@ def connect(proc: subprocess.Popen):
     return s, c, e
 
 
+def power_on(c, s) -> None:
+    """E-stop reset, machine on."""
+    c.state(linuxcnc.STATE_ESTOP_RESET)
+    c.wait_complete()
+    c.state(linuxcnc.STATE_ON)
+    c.wait_complete()
+    wait_for(lambda: (s.poll() or True) and s.task_state == linuxcnc.STATE_ON, 10, "machine on")
+
+
+def home_all(c, s) -> None:
+    c.mode(linuxcnc.MODE_MANUAL)
+    c.wait_complete()
+    c.home(-1)
+    c.wait_complete()
+    wait_for(lambda: (s.poll() or True) and all(s.homed[:3]), 30, "homing")
+    log("homed")
+
+
 def operator_errors(e) -> list[str]:
     msgs = []
     while True:
@@ -278,20 +296,11 @@ def main() -> int:
         log("recorder added")
 
         rec = Recorder(args.out, "run_enabled")
-        c.state(linuxcnc.STATE_ESTOP_RESET)
-        c.wait_complete()
-        c.state(linuxcnc.STATE_ON)
-        c.wait_complete()
-        wait_for(lambda: (s.poll() or True) and s.task_state == linuxcnc.STATE_ON, 10, "machine on")
+        power_on(c, s)
         time.sleep(0.3)  # recorded: machine on, not homed
         result["before_home"] = {p: getp(p) for p in ("abbe.state", "axis.x.eoffset",
                                                       "abbe.x.target-mm", "abbe.homed")}
-        c.mode(linuxcnc.MODE_MANUAL)
-        c.wait_complete()
-        c.home(-1)
-        c.wait_complete()
-        wait_for(lambda: (s.poll() or True) and all(s.homed[:3]), 30, "homing")
-        log("homed")
+        home_all(c, s)
         wait_for(lambda: getp("abbe.active") == 1.0, 10, "abbe active")
         time.sleep(1.0)  # the fade-in (0.5 s) and the offset planner settle
         result["after_home"] = {p: getp(p) for p in ("abbe.state", "abbe.x.corr-mm", "axis.x.eoffset",
