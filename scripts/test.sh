@@ -17,7 +17,11 @@
 #      unprivileged user, created when run as root)
 #  10. clang/LLVM cross builds (build-m4f-clang/, build-m3-clang/: the same
 #      golden vectors, C++ consumer and symbol checks under QEMU as steps 3-4)
-#  11. the README's demo command (scripts/demo.sh), run twice: into a new
+#  11. measurement programs (abbe program, LinuxCNC dialect) run in LinuxCNC's
+#      simulator: targets, approach sides, dwells, travel, the ballbar arc, and the
+#      closed loop through a Renishaw .rtl file (port/linuxcnc/tests/program_sim.py,
+#      under flock /tmp/abbe-linuxcnc.lock)
+#  12. the README's demo command (scripts/demo.sh), run twice: into a new
 #      demo-out/ and over the old one
 # Runs every step even after a failure; exits non-zero if any step failed.
 set -uo pipefail
@@ -114,6 +118,11 @@ readme_demo() { # the README's other command, as a user runs it: fresh, then ove
     fi
 }
 
+lcnc_programs() { # as root, run.sh (step 9) created the unprivileged LinuxCNC user
+    flock /tmp/abbe-linuxcnc.lock /usr/bin/python3 port/linuxcnc/tests/program_sim.py \
+        --json build-linuxcnc/programs.json
+}
+
 step "host ASan+UBSan build and ctest (build-asan)" host_asan
 step "host release build and ctest (build)" host_release
 step "Cortex-M4F build and ctest under QEMU (build-m4f)" cross m4f cortex-m4f
@@ -124,6 +133,7 @@ step "pytest host_tools/tests" pytest_all
 step "wheel: build, install outside the checkout, run abbe there" wheel_test
 step "LinuxCNC component: halrun and simulator tests" bash port/linuxcnc/tests/run.sh
 step "clang Cortex-M4F and M3 builds and ctest under QEMU (build-m{4f,3}-clang)" cross_clang
+step "measurement programs in LinuxCNC's simulator" lcnc_programs
 step "README's demo command (scripts/demo.sh), twice" readme_demo
 
 echo

@@ -66,6 +66,21 @@ def targets(ws: Workspace, out: Path, fit_model: Path | None = None) -> list[Tar
                [o("diag"), o("diag.json")], budget_s=120.0),
         Target("upload", ["upload", "--modbus", "tcp://127.0.0.1:9", "--timeout", "0.2", "-q",
                           blob], ws.blob, allowed={0, 1, 2, 3}),
+        Target("iso230-2 rtl", ["iso230-2", str(ws.rtl), "--json"], ws.rtl, json_stdout=True,
+               hostile_numbers=True),
+        Target("fit rtl", ["fit", str(ws.renishaw_machine), "-o", str(o("fitr")),
+                           "--no-clib-check", "--no-report", "-q"], ws.rtl, [o("fitr")],
+               hostile_numbers=True),
+        Target("ballbar b5r", ["ballbar", str(ws.renishaw_machine), "circle1", "--no-plot",
+                               "--json"], ws.b5r, json_stdout=True, hostile_numbers=True),
+        Target("program positioning", ["program", mach, "--test", "positioning", "--axis", "X",
+                                       "--dialect", "fanuc", "-o", str(o("p.nc"))], ws.machine,
+               [o("p.nc")]),
+        Target("program ballbar", ["program", mach, "--test", "ballbar", "--plane", "XY",
+                                   "--dialect", "heidenhain", "-o", str(o("bb.h"))], ws.machine,
+               [o("bb.h")]),
+        Target("ballbar renishaw machine", ["ballbar", str(ws.renishaw_machine), "circle1",
+                                            "--no-plot"], ws.renishaw_machine),
     ]
     ref = ["163.626", "-212.772", "-290.704"]
 

@@ -103,6 +103,9 @@ class Workspace:
     isg_csv: Path
     isg_lis: Path
     etalon: Path
+    rtl: Path
+    b5r: Path
+    renishaw_machine: Path
 
 
 def _declared_export(laser_csv: Path, out: Path) -> None:
@@ -179,8 +182,34 @@ def make_workspace(root: Path) -> Workspace:
     from abbe.formats.blob import read_blob_file
     etalon = root / "lasertracer.exc"
     _etalon(read_blob_file(blob)[1], etalon)
+    rtl, b5r, rmach = _renishaw(camp)
     return Workspace(root=root, machine=camp / "machine.toml", spec=spec,
                      laser=camp / "laser" / "x.csv", ballbar=camp / "ballbar" / "circle1.csv",
                      dat=dat, blob=blob, table_json=tjson, declared_machine=dm,
                      declared_laser=declared_laser, isg_csv=isg / "volcomp.csv",
-                     isg_lis=isg / "volcomp.lis", etalon=etalon)
+                     isg_lis=isg / "volcomp.lis", etalon=etalon, rtl=rtl, b5r=b5r,
+                     renishaw_machine=rmach)
+
+
+def _renishaw(camp: Path) -> tuple[Path, Path, Path]:
+    """The campaign's X line as a Renishaw .rtl file (linear) and its circle as a .b5r
+    file (sampled at 20 Hz), and a machine file naming both."""
+    from cases.renishaw import PUBLIC_ENV, b5r_from_trace, rtl_from_updown
+    from abbe.formats.laser_csv import read_laser_csv
+    d = read_laser_csv(camp / "laser" / "x.csv", channels=("linear",))
+    v = d.channels["linear"]
+    rtl = camp / "laser" / "x.rtl"
+    env = dict(PUBLIC_ENV)
+    env.pop("Date Time")  # text with digits: every number of the seed must be data
+    rtl.write_text(rtl_from_updown(d.targets_mm, v[:, 0, :], v[:, 1, :], env=env, plain=True),
+                   newline="")
+    b5r = camp / "ballbar" / "circle1.b5r"
+    b5r.write_text(b5r_from_trace(camp / "ballbar" / "circle1.csv", feed_mm_min=2000.0,
+                                  sample_rate_hz=20.0, overrun_deg=10.0, plain=True)[0])
+    text = (camp / "machine.toml").read_text()
+    text = text.replace('file = "laser/x.csv"', 'file = "laser/x.rtl"')
+    text = text.replace('file = "ballbar/circle1.csv"', 'file = "ballbar/circle1.b5r"')
+    text = re.sub(r'^map = \{ linear = "\+dx".*$', 'map = { linear = "+dx" }', text, flags=re.M)
+    rm = camp / "machine_renishaw.toml"
+    rm.write_text(text)
+    return rtl, b5r, rm

@@ -41,6 +41,8 @@ class Iso230Result:
     A_um: float
     M_um: float
     unidirectional: dict[str, dict[str, float]]
+    #: what was done about 20 deg C (abbe.formats.thermal20.Normalisation) or None
+    normalisation: Any = None
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready dict: B_um, R_um, E_um, A_um, M_um at top level + per-target detail."""
@@ -51,6 +53,8 @@ class Iso230Result:
             "B_um": self.B_um, "R_um": self.R_um, "E_um": self.E_um,
             "A_um": self.A_um, "M_um": self.M_um,
             "unidirectional": self.unidirectional,
+            "normalisation_20c": (self.normalisation.to_json() if self.normalisation is not None
+                                  else None),
             "targets": [
                 {"target_mm": float(self.targets_mm[i]),
                  "mean_up_um": float(self.mean_up_um[i]),
@@ -81,6 +85,8 @@ class Iso230Result:
         out.append(f"M (mean bidir. dev.)    {self.M_um:9.1f} um")
         for d, v in self.unidirectional.items():
             out.append(f"{d:<4} E {v['E_um']:.1f}  R {v['R_um']:.1f}  A {v['A_um']:.1f} um")
+        out.append(self.normalisation.text() if self.normalisation is not None else
+                   "20 deg C: the file carries no material temperature (results as measured)")
         return "\n".join(out)
 
 
@@ -112,4 +118,4 @@ def evaluate(data: PositioningData) -> Iso230Result:
         mean_up_um=xu, mean_down_um=xd, s_up_um=su, s_down_um=sd, reversal_um=bi,
         repeatability_um=ri, B_um=float(np.max(np.abs(bi))), R_um=float(np.max(ri)),
         E_um=float(both.max() - both.min()), A_um=float(A), M_um=float(mid.max() - mid.min()),
-        unidirectional=uni)
+        unidirectional=uni, normalisation=data.normalisation)

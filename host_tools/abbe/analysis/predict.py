@@ -20,7 +20,8 @@ import numpy as np
 
 from abbe.analysis.iso230_4 import BallbarResult, evaluate_ballbar, fit_circle
 from abbe.errors import AbbeInputError
-from abbe.formats.ballbar_csv import BallbarTrace, read_ballbar_csv
+from abbe.formats.ballbar_csv import BallbarTrace
+from abbe.formats.ballbar_file import read_ballbar_file
 from abbe.formats.blob import read_blob_file
 from abbe.formats.machine import Machine
 from abbe.model import clib
@@ -87,7 +88,7 @@ def _ballbar(machine: Machine, name: str) -> tuple[CircleTest, BallbarTrace]:
         raise AbbeInputError(f"no ballbar test {name!r} (the machine file has: {known})",
                              file=str(machine.path), field=f"ballbar.{name}")
     bt = machine.ballbar[name]
-    return from_machine(bt), read_ballbar_csv(bt.file, columns=bt.columns)
+    return from_machine(bt), read_ballbar_file(bt, str(machine.path))
 
 
 def _check_model_fits_machine(machine: Machine, table: Table, model_path: str) -> None:

@@ -38,7 +38,8 @@ def run(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace, outs: Outputs) -> int:
     from abbe.analysis.iso230_4 import evaluate_ballbar, plot_polar
-    from abbe.formats.ballbar_csv import check_trace_timing, read_ballbar_csv
+    from abbe.formats.ballbar_csv import check_trace_timing
+    from abbe.formats.ballbar_file import read_ballbar_file
     from abbe.model.geometry import check_test_in_travel, from_machine
 
     plot = None if args.no_plot else Path(args.plot or f"ballbar_{args.name}.png")
@@ -56,7 +57,7 @@ def _run(args: argparse.Namespace, outs: Outputs) -> int:
     except AbbeInputError as exc:
         raise AbbeInputError(exc.message, file=exc.file, line=m.line_of(exc.field or ""),
                              field=exc.field) from None
-    trace = read_ballbar_csv(bt.file, columns=bt.columns)
+    trace = read_ballbar_file(bt, str(m.path))
     check_trace_timing(trace, test, str(m.path))
     res = evaluate_ballbar(trace, test)
     if staged is not None:

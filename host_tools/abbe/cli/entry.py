@@ -30,6 +30,7 @@ COMMANDS: list[str] = [
     "abbe.cli.ballbar",
     "abbe.cli.diagnose",
     "abbe.cli.predict",
+    "abbe.cli.program",
     "abbe.cli.export",
     "abbe.cli.import_cmd",
     "abbe.cli.demo",

@@ -1,4 +1,5 @@
-"""``abbe iso230-2 FILE [--json]``: ISO 230-2 positioning evaluation of one axis."""
+"""``abbe iso230-2 FILE [--json]``: ISO 230-2 positioning evaluation of one axis (laser CSV,
+Renishaw ``.rtl`` or ESS ``.dat``), with what was done about 20 deg C."""
 
 from __future__ import annotations
 
@@ -15,9 +16,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "iso230-2", help="ISO 230-2 bidirectional positioning evaluation (B, R, E, A, M in um)",
         description="Evaluate bidirectional positioning data per ISO 230-2: a laser CSV "
-                    "(run,direction,target_mm,linear_um) or an ESS ecmc .dat file.",
-        epilog=examples("abbe iso230-2 examples/vmc500/laser/x.csv --json"))
-    p.add_argument("file", help="laser CSV or ecmc ISO 230-2 .dat file")
+                    "(run,direction,target_mm,linear_um; with temp_c and expansion_ppm_per_k "
+                    "normalised to 20 deg C), a Renishaw .rtl export (Linear) or an ESS ecmc "
+                    ".dat file. The output says what was done about 20 deg C.",
+        epilog=examples("abbe iso230-2 examples/vmc500/laser/x.csv --json",
+                        "abbe iso230-2 x_axis.rtl"))
+    p.add_argument("file", help="laser CSV, Renishaw .rtl or ecmc ISO 230-2 .dat file")
     p.add_argument("--json", action="store_true",
                    help="print JSON (B_um, R_um, E_um, A_um, M_um + per-target detail)")
     p.set_defaults(func=run)

@@ -456,14 +456,15 @@ def check_travel(checks: list[Check], table: Table, tol_mm: float = 1e-3) -> Non
 
 def ballbar_check(machine: Any, name: str, reference_mm: tuple[float, float, float]) -> BallbarCheck:
     """Read the ballbar test ``name`` of a machine file into a check."""
-    from abbe.formats.ballbar_csv import check_trace_timing, read_ballbar_csv
+    from abbe.formats.ballbar_csv import check_trace_timing
+    from abbe.formats.ballbar_file import read_ballbar_file
     from abbe.model.geometry import from_machine
     if name not in machine.ballbar:
         raise AbbeInputError(f"no [ballbar.{name}] section; the machine file has "
                              f"{sorted(machine.ballbar) or 'none'}", file=str(machine.path),
                              field=f"ballbar.{name}")
     bt = machine.ballbar[name]
-    tr = read_ballbar_csv(bt.file, columns=bt.columns)
+    tr = read_ballbar_file(bt, str(machine.path))
     check_trace_timing(tr, from_machine(bt), str(machine.path))
     c = BallbarCheck(name, bt.plane, bt.center_mm, bt.radius_mm, bt.feed_mm_min, tr.direction,
                      tr.angle_deg, tr.radial_um, tr.time_s, reference_mm, source=str(bt.file),
@@ -476,15 +477,15 @@ def ballbar_check(machine: Any, name: str, reference_mm: tuple[float, float, flo
 def laser_check(machine: Any, axis: str, reference_mm: tuple[float, float, float],
                 rezeroed: bool = False) -> LaserCheck:
     """Read the laser line of ``axis`` of a machine file into a check (mapped channels)."""
-    from abbe.formats.laser_csv import read_laser_csv
+    from abbe.formats.laser_file import read_laser_line
     if axis not in machine.laser:
         raise AbbeInputError(f"no [laser.{axis}] section; the machine file has "
                              f"{sorted(machine.laser) or 'none'}", file=str(machine.path),
                              field=f"laser.{axis}")
     line = machine.laser[axis]
     j = AXES.index(axis)
-    data = read_laser_csv(line.file, channels=tuple(line.map),
-                          span_mm=(line.start_mm[j], line.end_mm[j]), columns=line.columns)
+    data = read_laser_line(line, channels=tuple(line.map),
+                           span_mm=(line.start_mm[j], line.end_mm[j]))
     chans = [LaserChannel(ch, cm.term, cm.sign, data.channels[ch]) for ch, cm in line.map.items()]
     c = LaserCheck(f"laser_{axis}", axis, line.start_mm, data.targets_mm, chans, data.line_no,
                    reference_mm, time_s=data.time_s, temp_c=data.temp_c, rezeroed=rezeroed,
@@ -511,6 +512,9 @@ def positioning_check(path: str | Path, axis: str, reference_mm: tuple[float, fl
         for r in range(n_runs):
             order[r, 0] = r * 2 * T + np.arange(T)
             order[r, 1] = r * 2 * T + T + np.arange(T)[::-1]
+    elif path.suffix.lower() == ".rtl":
+        from abbe.formats.renishaw_rtl import read_rtl
+        order = read_rtl(path).by_direction()[3]  # (n_runs, 2, T) source lines: time order
     else:
         from abbe.formats.laser_csv import read_laser_csv
         d = read_laser_csv(path, channels=("linear",))

@@ -118,7 +118,7 @@ def read_ballbar_csv(path: str | Path, columns: Columns | None = None) -> Ballba
                  else BALLBAR_ROLES[r].default) for r in BALLBAR_ROLES}
     tr = BallbarTrace(direction=dirs, angle_deg=angle, radial_um=vals["radial"],
                       time_s=vals["time"], file=f, line_no=lines, temp_c=vals.get("temp"))
-    _validate_trace(tr, names)
+    validate_trace(tr, names)
     return tr
 
 
@@ -151,7 +151,9 @@ def unwrap_angles(angle_deg: np.ndarray, direction: np.ndarray) -> np.ndarray:
     return a
 
 
-def _validate_trace(tr: BallbarTrace, names: dict[str, str] | None = None) -> None:
+def validate_trace(tr: BallbarTrace, names: dict[str, str] | None = None) -> None:
+    """Every check of a ballbar trace (docs/formats.md, "Ballbar CSV"), whatever file it came
+    from; ``names``: the file's names of the direction / angle / radial / time fields."""
     f = tr.file
     col = {"direction": "direction", "angle": "angle_deg", "radial": "radial_um", "time": "time_s"}
     col.update(names or {})

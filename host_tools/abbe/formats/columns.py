@@ -40,12 +40,13 @@ UNITS: dict[str, dict[str, float]] = {
     "angle": {"deg": 1.0, "rad": 180.0 / math.pi},
     "time": {"s": 1.0, "ms": 1e-3, "min": 60.0},
     "temperature": {"c": 1.0, "degc": 1.0},
+    "expansion": {"ppm/k": 1.0, "um/m/k": 1.0},
 }
 ABBE_UNIT = {"position": "mm", "linear": "um", "angular": "urad", "angle": "deg", "time": "s",
-             "temperature": "C"}
+             "temperature": "C", "expansion": "ppm/K"}
 #: Range of each quantity in abbe's unit, whatever the file's unit (docs/formats.md, "Limits").
 RANGE = {"position": 1e5, "linear": 1e5, "angular": 1e5, "angle": 1e4, "time": 1e10,
-         "temperature": 200.0}
+         "temperature": 200.0, "expansion": 1000.0}
 
 
 @dataclass(frozen=True)
@@ -64,6 +65,7 @@ LASER_ROLES: dict[str, Role] = {
     "straight_v": Role("straight_v_um", "linear", False), "pitch": Role("pitch_urad", "angular", False),
     "yaw": Role("yaw_urad", "angular", False), "roll": Role("roll_urad", "angular", False),
     "time": Role("time_s", "time", False), "temp": Role("temp_c", "temperature", False),
+    "expansion": Role("expansion_ppm_per_k", "expansion", False),
 }
 BALLBAR_ROLES: dict[str, Role] = {
     "direction": Role("direction", "direction"), "angle": Role("angle_deg", "angle"),

@@ -4,8 +4,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from abbe.formats.thermal20 import Normalisation
 
 
 @dataclass
@@ -13,7 +17,8 @@ class PositioningData:
     """Bidirectional positioning deviations of one axis.
 
     targets_mm: (T,) ascending, mm. up_um, down_um: (n_runs, T) deviations
-    (measured minus target) of the ``+`` and ``-`` approaches, um.
+    (measured minus target) of the ``+`` and ``-`` approaches, um. normalisation:
+    what was done about 20 deg C (None: the file carries no temperature).
     """
 
     source: str
@@ -21,3 +26,4 @@ class PositioningData:
     up_um: np.ndarray
     down_um: np.ndarray
     sha256: str = ""
+    normalisation: "Normalisation | None" = None

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -56,6 +57,12 @@ class LaserData:
     line_no: np.ndarray
     sha256: str
     columns: Columns | None = None
+    #: the material's expansion coefficient (ppm/K) when the file gives it (20 deg C
+    #: normalisation, :mod:`abbe.formats.thermal20`), and the line giving it.
+    expansion_ppm_per_k: float | None = None
+    expansion_line: int | None = None
+    #: what was done about 20 deg C (abbe.formats.thermal20.Normalisation), when known
+    normalisation: Any = None
 
     @property
     def n_runs(self) -> int:
@@ -193,11 +200,26 @@ def read_laser_csv(path: str | Path, *, channels: tuple[str, ...] = CHANNELS,
                                  file=fname, line=int(lines[k]), field=tcol)
 
     chans = {ch: vals[ch][order] for ch in CHANNEL_COLUMNS if ch in vals}
+    alpha, alpha_line = None, None
+    if "expansion" in vals:
+        e = vals["expansion"]
+        diff = np.flatnonzero(e != e[0])
+        ecol = header.names[plan_index(header, columns, "expansion")]
+        if diff.size:
+            raise AbbeInputError(f"the expansion coefficient is a property of the material: "
+                                 f"{e[diff[0]]:g} here, {e[0]:g} on the first row",
+                                 file=fname, line=int(lines[diff[0]]), field=ecol)
+        if "temp" not in vals:
+            raise AbbeInputError("an expansion coefficient without a temp_c column: the "
+                                 "20 deg C normalisation needs the material temperature",
+                                 file=fname, line=hdr_line, field=ecol)
+        alpha, alpha_line = float(e[0]), int(lines[0])
     return LaserData(
         file=path, targets_mm=targets.copy(), channels=chans,
         time_s=vals["time"][order] if "time" in vals else None,
         temp_c=vals["temp"][order] if "temp" in vals else None,
-        line_no=lines[order], sha256=tf.sha256, columns=columns)
+        line_no=lines[order], sha256=tf.sha256, columns=columns,
+        expansion_ppm_per_k=alpha, expansion_line=alpha_line)
 
 
 def plan_index(header: Header, columns: Columns | None, role: str) -> int:

@@ -49,3 +49,12 @@ LIS_MAX_BYTES = 64 * KIB
 LIS_MAX_FILES = 10
 #: ``abbe import --max-points``: positions per axis fitted (the fit's own bound).
 IMPORT_MAX_POINTS = FIT_MAX_TARGETS
+
+#: Renishaw laser ``.rtl`` export: a target list and run/target/value rows.
+RTL_MAX_BYTES = 64 * MIB
+RTL_MAX_TARGETS = 100_000
+#: Passes ("runs" of the file): two per bidirectional cycle, at most LASER_MAX_RUNS cycles.
+RTL_MAX_PASSES = 2 * LASER_MAX_RUNS
+#: Renishaw ballbar ``.b5r`` (XML): a few thousand samples per run.
+B5R_MAX_BYTES = 64 * MIB
+B5R_MAX_SAMPLES = 1_000_000

@@ -90,6 +90,8 @@ class LaserLine:
     map: dict[str, ChannelMap]
     line: int | None = None  # line of the [laser.X] header in the machine file
     columns: Columns | None = None  # a declared instrument export ([laser.X.columns])
+    #: one Renishaw .rtl file per channel (``files = { linear = "x.rtl", ... }``), resolved
+    files: dict[str, Path] | None = None
 
     @property
     def axis_index(self) -> int:
@@ -290,7 +292,21 @@ def _columns(roles: dict, dirs: tuple[str, str]) -> _Check:
     return check
 
 
-_LASER: _Spec = {"file": (_string, True, None), "start_mm": (_vec(3), True, None),
+def _rtl_files(v: Any, ctx: _Ctx, f: str) -> dict[str, str]:
+    if not isinstance(v, dict) or not v:
+        raise ctx.err(f, f"expected an inline table channel -> .rtl file, got {show_value(v)}")
+    out: dict[str, str] = {}
+    for ch, name in v.items():
+        if ch not in CHANNELS:
+            raise ctx.err(f"{f}.{ch}", unknown_key(ch, CHANNELS, "channel"))
+        name = _string(name, ctx, f"{f}.{ch}")
+        if not name.lower().endswith(".rtl"):
+            raise ctx.err(f"{f}.{ch}", f"expected a Renishaw .rtl file, got {name!r}")
+        out[ch] = name
+    return out
+
+
+_LASER: _Spec = {"file": (_string, False, None), "files": (_rtl_files, False, None), "start_mm": (_vec(3), True, None),
                  "end_mm": (_vec(3), True, None), "map": (_chan_map, True, None),
                  "columns": (_columns(LASER_ROLES, ("+", "-")), False, None)}
 _BALLBAR: _Spec = {"file": (_string, True, None), "plane": (_choice(PLANES), True, None),
@@ -376,9 +392,20 @@ def load_machine(path: str | Path) -> Machine:
         if name not in axes:
             raise ctx.err(f, f"laser line for axis {name} but no [axes.{name}] section")
         s = _section(sec, _LASER, ctx, f)
+        if (s["file"] is None) == (s["files"] is None):
+            raise ctx.err(f, "expected either 'file' (a laser CSV or one .rtl file) or 'files' "
+                             "(one .rtl file per channel), not " + ("both" if s["file"] else
+                                                                    "neither"))
+        files = ({ch: _resolve(base, p, ctx, f"{f}.files.{ch}") for ch, p in s["files"].items()}
+                 if s["files"] else None)
+        if files and s["columns"] is not None:
+            raise ctx.err(f"{f}.columns", "a columns declaration describes a CSV export, not "
+                                          ".rtl files")
         _check_line(ctx, f, AXES.index(name), s["start_mm"], s["end_mm"], axes)
-        laser[name] = LaserLine(name, _resolve(base, s["file"], ctx, f"{f}.file"), s["start_mm"],
-                                s["end_mm"], s["map"], ctx.loc.line(f), s["columns"])
+        main = next(iter(files.values())) if files else _resolve(base, s["file"], ctx,
+                                                                  f"{f}.file")
+        laser[name] = LaserLine(name, main, s["start_mm"], s["end_mm"], s["map"],
+                                ctx.loc.line(f), s["columns"], files)
 
     ballbar: dict[str, BallbarTest] = {}
     for name, sec in _table(data.get("ballbar", {}), ctx, "ballbar").items():

@@ -38,7 +38,9 @@ EXAMPLES = {"table info": 100, "table eval": 60, "table from-json": 100, "table 
             "export heidenhain-com": 12, "export fanuc-pitch": 12, "export klipper-skew": 12,
             "export marlin": 12, "export linuxcnc-comp": 12, "export linuxcnc-matrixkins": 12,
             "export fit-json": 12, "import isg-csv": 15, "import isg-lis": 15,
-            "import etalon": 15, "import machine": 10}
+            "import etalon": 15, "import machine": 10, "iso230-2 rtl": 60, "fit rtl": 25,
+            "ballbar b5r": 30, "ballbar renishaw machine": 20, "program positioning": 40,
+            "program ballbar": 30}
 
 
 @pytest.fixture(scope="module")
@@ -92,7 +94,7 @@ def test_command_promises_under_mutation(seed_ws, fuzz_env, name, capsys):
 
 @pytest.mark.parametrize("name", ["table eval", "fit machine", "diagnose iso230-2", "upload",
                                   "export heidenhain-com", "export fanuc-pitch",
-                                  "import isg-csv", "import etalon"])
+                                  "import isg-csv", "import etalon", "program positioning"])
 def test_option_values_are_range_checked(seed_ws, fuzz_env, name, capsys):
     """Every numeric option value (and every --set NAME=VALUE) replaced by a hostile one:
     0 or 2, never a crash."""
@@ -105,7 +107,9 @@ def test_option_values_are_range_checked(seed_ws, fuzz_env, name, capsys):
              "upload": ["--unit", "1", "--chunk", "100"],
              "export heidenhain-com": [],
              "export fanuc-pitch": ["--set", "unit_um=1", "max_value=127"],
-             "import isg-csv": [], "import etalon": []}[name]
+             "import isg-csv": [], "import etalon": [],
+             "program positioning": ["--feed", "2000", "--dwell-s", "3", "--overrun-mm", "4",
+                                     "--runs", "5", "--targets", "7", "--seed", "3"]}[name]
     argv = t.argv + extra
     numeric = option_slots(argv)
     assert numeric
@@ -123,7 +127,8 @@ def test_option_values_are_range_checked(seed_ws, fuzz_env, name, capsys):
     shutil.rmtree(out, ignore_errors=True)
 
 
-HOSTILE = ["iso230-2 csv", "fit laser", "ballbar csv", "import isg-csv", "import etalon"]
+HOSTILE = ["iso230-2 csv", "fit laser", "ballbar csv", "import isg-csv", "import etalon",
+           "iso230-2 rtl", "fit rtl", "ballbar b5r"]
 
 
 @pytest.mark.parametrize("name", HOSTILE)

@@ -42,6 +42,15 @@ def _readers(ws):
     from abbe.sim.spec import load_spec
     from abbe.sim.truth import load_truth
 
+    from abbe.formats.ballbar_file import read_ballbar_file
+    from abbe.formats.laser_file import read_laser_line
+    from abbe.formats.renishaw_b5r import read_b5r
+
+    def renishaw(p):
+        m = load_machine(p)
+        read_laser_line(m.laser["X"], channels=tuple(m.laser["X"].map))
+        return read_ballbar_file(m.ballbar["circle1"], str(p))
+
     def declared(p):
         m = load_machine(ws.declared_machine)
         return read_laser_csv(p, channels=("linear", "yaw"), columns=m.laser["X"].columns)
@@ -62,11 +71,15 @@ def _readers(ws):
         "etalon": (ws.etalon, read_etalon),
         "model_file blob": (ws.blob, load_table),
         "model_file json": (ws.table_json, load_table),
+        "rtl": (ws.rtl, load_positioning),
+        "b5r": (ws.b5r, lambda p: read_b5r(p)),
+        "machine renishaw": (ws.renishaw_machine, renishaw),
     }
 
 
 READERS = ["laser", "laser_declared", "ballbar", "dat", "machine", "spec", "table_json", "blob",
-           "model", "truth", "isg_csv", "isg_lis", "etalon", "model_file blob", "model_file json"]
+           "model", "truth", "isg_csv", "isg_lis", "etalon", "model_file blob", "model_file json",
+           "rtl", "b5r", "machine renishaw"]
 
 
 class _Slow(BaseException):
@@ -107,7 +120,7 @@ def test_mutated_inputs_are_read_or_refused(seed_ws, name):
         with tempfile.TemporaryDirectory() as d:
             p = Path(d) / seed_path.name
             p.write_bytes(blob)
-            if name in ("machine", "laser_declared", "isg_lis"):  # keep the relative data paths
+            if name in ("machine", "laser_declared", "isg_lis", "machine renishaw"):  # keep the relative data paths
                 p = seed_path.parent / f".fuzz-{seed_path.name}"
                 p.write_bytes(blob)
             try:
@@ -121,7 +134,7 @@ def test_mutated_inputs_are_read_or_refused(seed_ws, name):
     run()
 
 
-@pytest.mark.parametrize("name", ["laser", "ballbar", "dat", "isg_csv", "etalon"])
+@pytest.mark.parametrize("name", ["laser", "ballbar", "dat", "isg_csv", "etalon", "rtl", "b5r"])
 def test_a_hostile_number_in_a_data_file_is_always_refused(seed_ws, name):
     """(Not the decimal-comma export: there "0,000" minus its "0" is still a number.
     Comment lines of the error files are dropped first: a number in a comment is text.)"""

@@ -202,6 +202,79 @@ def stop_linuxcnc(proc: subprocess.Popen) -> str:
         return how + ", linuxcnc did not exit: process group terminated"
 
 
+def bounded(timeout: int) -> None:
+    """SIGTERM (the caller giving up) and SIGALRM after ``timeout`` s raise Abort, so the
+    caller's finally stops LinuxCNC whatever happens."""
+    def give_up(signum, _frame):
+        raise Abort(f"stopped by signal {signum} (overall timeout {timeout} s or SIGTERM)")
+    signal.signal(signal.SIGTERM, give_up)
+    signal.signal(signal.SIGALRM, give_up)
+    signal.alarm(timeout)
+
+
+def launch(ini: Path, out: Path):
+    """Start ``linuxcnc INI`` headless (its output in OUT/linuxcnc.log): (process, log file)."""
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    lc_log = open(out / "linuxcnc.log", "w")
+    log(f"starting linuxcnc {ini}")
+    proc = subprocess.Popen(["linuxcnc", str(ini)], cwd=ini.parent, env=env,
+                            stdin=subprocess.DEVNULL, stdout=lc_log, stderr=subprocess.STDOUT,
+                            start_new_session=True)
+    return proc, lc_log
+
+
+def connect(proc: subprocess.Popen):
+    """Wait for linuxcncrsh and for the task in e-stop: (stat, command, error channel)."""
+    def up() -> bool:
+        if proc.poll() is not None:
+            raise SystemExit(f"linuxcnc exited with status {proc.returncode} (see linuxcnc.log)")
+        return rsh_hello()
+    wait_for(up, 90, "linuxcncrsh on 127.0.0.1:5007")
+    log("linuxcncrsh answers HELLO ACK")
+    s = linuxcnc.stat()
+    c = linuxcnc.command()
+    e = linuxcnc.error_channel()
+    wait_for(lambda: (s.poll() or True) and s.task_state == linuxcnc.STATE_ESTOP, 30,
+             "task in e-stop")
+    return s, c, e
+
+
+def power_on(c, s) -> None:
+    """E-stop reset, machine on."""
+    c.state(linuxcnc.STATE_ESTOP_RESET)
+    c.wait_complete()
+    c.state(linuxcnc.STATE_ON)
+    c.wait_complete()
+    wait_for(lambda: (s.poll() or True) and s.task_state == linuxcnc.STATE_ON, 10, "machine on")
+
+
+def home_all(c, s) -> None:
+    c.mode(linuxcnc.MODE_MANUAL)
+    c.wait_complete()
+    c.home(-1)
+    c.wait_complete()
+    wait_for(lambda: (s.poll() or True) and all(s.homed[:3]), 30, "homing")
+    log("homed")
+
+
+def operator_errors(e) -> list[str]:
+    msgs = []
+    while True:
+        m = e.poll()
+        if not m:
+            return msgs
+        msgs.append(m[1])
+
+
+def shutdown(proc: subprocess.Popen, lc_log, result: dict) -> None:
+    """Stop LinuxCNC (the finally of a driver): no alarm, SIGTERM ignored meanwhile."""
+    signal.alarm(0)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)  # let the shutdown finish
+    result["stop"] = stop_linuxcnc(proc)
+    log(result["stop"])
+    lc_log.close()
+
+
 def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--ini", type=Path, required=True)
@@ -211,53 +284,23 @@ def main() -> int:
     ap.add_argument("--timeout", type=int, default=360, help="for everything, s")
     args = ap.parse_args()
 
-    def give_up(signum, _frame):
-        raise Abort(f"stopped by signal {signum} (overall timeout {args.timeout} s or SIGTERM)")
-    # Whatever happens, the finally below stops LinuxCNC: on SIGTERM (e2e_sim.py
-    # giving up) and after the overall timeout.
-    signal.signal(signal.SIGTERM, give_up)
-    signal.signal(signal.SIGALRM, give_up)
-    signal.alarm(args.timeout)
+    bounded(args.timeout)
     args.ini, args.program, args.out = args.ini.resolve(), args.program.resolve(), args.out.resolve()
     result = {"ok": False, "errors": [], "runs": {}}
-    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
-    lc_log = open(args.out / "linuxcnc.log", "w")
-    log(f"starting linuxcnc {args.ini}")
-    proc = subprocess.Popen(["linuxcnc", str(args.ini)], cwd=args.ini.parent, env=env,
-                            stdin=subprocess.DEVNULL, stdout=lc_log, stderr=subprocess.STDOUT,
-                            start_new_session=True)
+    proc, lc_log = launch(args.ini, args.out)
     result["linuxcnc_pid"] = proc.pid
     try:
-        def up() -> bool:
-            if proc.poll() is not None:
-                raise SystemExit(f"linuxcnc exited with status {proc.returncode} (see linuxcnc.log)")
-            return rsh_hello()
-        wait_for(up, 90, "linuxcncrsh on 127.0.0.1:5007")
-        log("linuxcncrsh answers HELLO ACK")
-        s = linuxcnc.stat()
-        c = linuxcnc.command()
-        e = linuxcnc.error_channel()
-        wait_for(lambda: (s.poll() or True) and s.task_state == linuxcnc.STATE_ESTOP, 30,
-                 "task in e-stop")
+        s, c, e = connect(proc)
         result["model_crc"] = int(getp("abbe.model-crc"))
         add_recorder()
         log("recorder added")
 
         rec = Recorder(args.out, "run_enabled")
-        c.state(linuxcnc.STATE_ESTOP_RESET)
-        c.wait_complete()
-        c.state(linuxcnc.STATE_ON)
-        c.wait_complete()
-        wait_for(lambda: (s.poll() or True) and s.task_state == linuxcnc.STATE_ON, 10, "machine on")
+        power_on(c, s)
         time.sleep(0.3)  # recorded: machine on, not homed
         result["before_home"] = {p: getp(p) for p in ("abbe.state", "axis.x.eoffset",
                                                       "abbe.x.target-mm", "abbe.homed")}
-        c.mode(linuxcnc.MODE_MANUAL)
-        c.wait_complete()
-        c.home(-1)
-        c.wait_complete()
-        wait_for(lambda: (s.poll() or True) and all(s.homed[:3]), 30, "homing")
-        log("homed")
+        home_all(c, s)
         wait_for(lambda: getp("abbe.active") == 1.0, 10, "abbe active")
         time.sleep(1.0)  # the fade-in (0.5 s) and the offset planner settle
         result["after_home"] = {p: getp(p) for p in ("abbe.state", "abbe.x.corr-mm", "axis.x.eoffset",
@@ -278,23 +321,13 @@ def main() -> int:
         log(f"program without compensation: {dt:.1f} s")
         time.sleep(0.3)
         result["runs"]["disabled"] = {"seconds": dt, "overruns": rec.stop()}
-        msgs = []
-        while True:
-            m = e.poll()
-            if not m:
-                break
-            msgs.append(m[1])
-        result["operator_errors"] = msgs
+        result["operator_errors"] = operator_errors(e)
         result["ok"] = True
     except (Exception, SystemExit, Abort) as exc:  # reported by e2e_sim.py
         result["errors"].append(f"{type(exc).__name__}: {exc}")
         log(f"ERROR {exc}")
     finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGTERM, signal.SIG_IGN)  # let the shutdown finish
-        result["stop"] = stop_linuxcnc(proc)
-        log(result["stop"])
-        lc_log.close()
+        shutdown(proc, lc_log, result)
         result["log"] = LOG
         (args.out / "drive.json").write_text(json.dumps(result, indent=1))
     return 0 if result["ok"] else 1

@@ -49,7 +49,8 @@ from abbe.analysis.iso230_2 import Iso230Result, evaluate
 from abbe.errors import AbbeInputError
 from abbe.formats.blob import quantization_error, read_blob, write_blob
 from abbe.formats.deviations import PositioningData
-from abbe.formats.laser_csv import LaserData, read_laser_csv, to_terms
+from abbe.formats.laser_csv import LaserData, to_terms
+from abbe.formats.laser_file import read_laser_line
 from abbe.formats.limits import FIT_MAX_TARGETS
 from abbe.formats.machine import LaserLine, Machine
 from abbe.formats.table_json import table_to_json
@@ -189,8 +190,8 @@ def fit_line(machine: Machine, axis: str, opts: FitOptions) -> AxisResult:
     line = machine.laser[axis]
     j = AXES.index(axis)
     spec = machine.axes[axis]
-    data = read_laser_csv(line.file, channels=tuple(line.map), travel_mm=spec.travel_mm,
-                          span_mm=(line.start_mm[j], line.end_mm[j]), columns=line.columns)
+    data = read_laser_line(line, channels=tuple(line.map), travel_mm=spec.travel_mm,
+                           span_mm=(line.start_mm[j], line.end_mm[j]))
     terms = to_terms(data, line)
     p = data.targets_mm
     n_measured = int(p.size)
@@ -418,6 +419,9 @@ def model_json(res: FitResult) -> dict[str, Any]:
             "iso230_2": None if ar.iso is None else {
                 "B_um": _r(ar.iso.B_um), "R_um": _r(ar.iso.R_um), "E_um": _r(ar.iso.E_um),
                 "A_um": _r(ar.iso.A_um), "M_um": _r(ar.iso.M_um)},
+            "normalisation_20c": (None if ar.data.normalisation is None else
+                                  {k: (_r(v) if isinstance(v, float) else v)
+                                   for k, v in ar.data.normalisation.to_json().items()}),
             "terms": terms,
         }
     o = res.options

@@ -199,6 +199,12 @@ def index_html(res: "FitResult") -> str:
             out.append("<p>ISO 230-2 (own positioning term): " + ", ".join(
                 f"{k[0]} = {iso[k]:.2f} um" for k in ("B_um", "R_um", "E_um", "A_um", "M_um"))
                 + "</p>")
+        n20 = aj.get("normalisation_20c")
+        if n20:
+            nde = n20["nominal_differential_expansion_um"]
+            out.append(f"<p>20 deg C: {e(n20['status'])}"
+                       + ("" if nde is None else f", nominal differential expansion {nde:+.3f} um "
+                          f"over {n20['span_mm']:g} mm") + f" ({e(n20['reason'])}).</p>")
         for t, tr in ar.terms.items():
             u = tr.unit
             tj = aj["terms"][t]

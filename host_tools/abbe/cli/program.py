@@ -1,0 +1,108 @@
+"""``abbe program MACHINE --test T [--axis A | --plane P] --dialect D -o FILE``: the part
+program of a measurement (docs/programs.md)."""
+
+from __future__ import annotations
+
+import argparse
+
+from abbe.cli.conventions import examples
+from abbe.cli.options import in_range, int_range
+from abbe.errors import AbbeInputError
+from abbe.formats.machine import load_machine
+from abbe.formats.output import Outputs
+from abbe.formats.programs.dialects import DIALECTS, render
+from abbe.formats.programs.plan import SEQUENCES, TESTS, ballbar_program, line_program
+from abbe.model.geometry import PLANES
+from abbe.model.table import AXES
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "program", help="write the part program of a measurement (ISO 230-2, lines, ballbar)",
+        description="Write the part program for a test of the machine file: ISO 230-2 "
+                    "positioning of an axis (targets per ISO 230-2, not evenly spaced; "
+                    "overrun; a dwell at each target; bidirectional runs; linear or pendulum "
+                    "sequence), a straightness or angular line (the same motion), or a ballbar "
+                    "circle (feed-in and feed-out arcs, CCW then CW, the machine file's feed "
+                    "and radius). Positions in machine coordinates, mm (docs/programs.md).",
+        epilog=examples("abbe program MACHINE.toml --test positioning --axis X "
+                        "--dialect linuxcnc -o x_iso230.ngc",
+                        "abbe program MACHINE.toml --test ballbar --plane XY --dialect fanuc "
+                        "-o O0001.nc"))
+    p.add_argument("machine", help="machine file (TOML)")
+    p.add_argument("--test", required=True, choices=TESTS)
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--axis", choices=AXES, help="the line's axis ([laser.A] of the machine file)")
+    g.add_argument("--plane", choices=PLANES, help="the ballbar test's plane ([ballbar.*])")
+    p.add_argument("--name", help="the [ballbar.NAME] section when several share the plane")
+    p.add_argument("--dialect", required=True, choices=DIALECTS)
+    p.add_argument("-o", "--out", required=True, help="program file to write")
+    p.add_argument("--feed", type=in_range(1.0, 100000.0, "mm/min"), default=1000.0,
+                   help="feed of the line tests, mm/min (default 1000)")
+    p.add_argument("--dwell-s", type=in_range(0.0, 600.0, "s"), default=4.0,
+                   help="dwell at each target for the capture, s (default 4)")
+    p.add_argument("--overrun-mm", type=in_range(0.0, 100.0, "mm"), default=5.0,
+                   help="overrun past the end targets (and each side in a pendulum), mm (5)")
+    p.add_argument("--runs", type=int_range(1, 20), default=5,
+                   help="bidirectional runs (ISO 230-2: 5)")
+    p.add_argument("--sequence", choices=SEQUENCES, default="linear")
+    p.add_argument("--targets", type=int_range(2, 1000), default=None,
+                   help="targets (default: ISO 230-2, >= 5 per metre and >= 5)")
+    p.add_argument("--seed", type=int_range(0, 2**31 - 1), default=0,
+                   help="seed of the targets' random offsets (default 0)")
+    p.add_argument("--feed-arc-deg", type=in_range(1.0, 180.0, "deg"), default=45.0,
+                   help="ballbar feed-in and feed-out arcs, deg (default 45)")
+    p.add_argument("--pause-s", type=in_range(0.0, 600.0, "s"), default=2.0,
+                   help="ballbar pause between the CCW and the CW run, s (default 2)")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    with Outputs() as outs:
+        out = outs.file(args.out, option="--out")
+        m = load_machine(args.machine)
+        travel = {a: s.travel_mm for a, s in m.axes.items()}
+        missing = [a for a in AXES if a not in travel]
+        if missing:
+            raise AbbeInputError(f"a program needs the travel of every axis: no [axes.{missing[0]}]",
+                                 file=str(m.path), field=f"axes.{missing[0]}")
+        try:
+            if args.test == "ballbar":
+                if args.axis:
+                    raise AbbeInputError("a ballbar test is chosen with --plane (and --name)",
+                                         field="--axis")
+                cands = {n: b for n, b in m.ballbar.items()
+                         if (args.plane is None or b.plane == args.plane)
+                         and (args.name is None or n == args.name)}
+                if len(cands) != 1:
+                    what = "no" if not cands else "several"
+                    raise AbbeInputError(
+                        f"{what} [ballbar.*] sections match (plane {args.plane or 'any'}, name "
+                        f"{args.name or 'any'}): {', '.join(sorted(m.ballbar)) or 'none'}; "
+                        "choose with --plane / --name", file=str(m.path), field="ballbar")
+                name, bt = next(iter(cands.items()))
+                prog = ballbar_program(name, bt.plane, bt.center_mm, bt.radius_mm,
+                                       bt.feed_mm_min, travel, feed_arc_deg=args.feed_arc_deg,
+                                       pause_s=args.pause_s)
+            else:
+                if not args.axis:
+                    raise AbbeInputError(f"--test {args.test} needs --axis", field="--axis")
+                if args.axis not in m.laser:
+                    raise AbbeInputError(f"no [laser.{args.axis}] section: the program takes the "
+                                         "line's ends (start_mm, end_mm) from it",
+                                         file=str(m.path), field=f"laser.{args.axis}")
+                line = m.laser[args.axis]
+                prog = line_program(args.test, args.axis, line.start_mm, line.end_mm, travel,
+                                    feed=args.feed, dwell_s=args.dwell_s,
+                                    overrun_mm=args.overrun_mm, runs=args.runs,
+                                    sequence=args.sequence, n_targets=args.targets,
+                                    seed=args.seed)
+        except AbbeInputError as exc:
+            if exc.file is None and exc.field and not exc.field.startswith("--"):
+                exc.located(file=str(m.path), line=m.line_of(exc.field))
+            raise
+        prog.params = {"machine": m.name, "dialect": args.dialect, **prog.params}
+        out.write_text(render(prog, args.dialect), encoding="utf-8")
+    print(f"abbe program: wrote {args.out} ({prog.title}, {args.dialect}, "
+          f"{len(prog.steps)} steps)")
+    return 0

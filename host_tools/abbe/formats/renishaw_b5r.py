@@ -1,0 +1,264 @@
+"""Reader of Renishaw ballbar files as Ballbar 20 saves them (``.b5r``, XML).
+
+Renishaw does not publish the format. The public parsers (docs/formats.md, "Renishaw
+ballbar .b5r") read the test's metadata and Renishaw's own analysis: ``PLANE``
+(attribute ``TEST_PLANE``, children ``A_AXIS_NAME``, ``B_AXIS_NAME``), ``TEST_SPEC``
+(``NAME``), ``OPERATOR``, ``DATE_STARTED``, ``MACHINE_TESTED`` (``NAME``),
+``SERIAL_NUMBER``, ``LAST_CALIBRATED``, ``PART_NUMBER``, and ``FEATURE`` elements
+(``NAME``, unit type ``DT`` such as ``UT_LENGTH_UM``) inside ``ANALYSIS``. The raw
+data's layout is not in any public parser; abbe reads it as assumed below (every
+assumption in docs/formats.md, to be confirmed by a real file):
+
+* ``RADIUS`` (``DT="UT_LENGTH_MM"``), ``FEEDRATE`` (``UT_FEEDRATE``, mm/min),
+  ``SAMPLE_RATE`` (``UT_FREQUENCY``, Hz), ``OVERRUN_ARC`` (``UT_ANGLE``, deg: the
+  feed-in and feed-out arcs each side of the 360 deg data arc);
+* one ``RUN DIRECTION="CCW"`` then one ``RUN DIRECTION="CW"``, each holding a
+  ``DATA`` element (``UT_LENGTH_UM`` or ``UT_LENGTH_MM``): the bar's length minus the
+  nominal radius, whitespace-separated, one sample every 1 / SAMPLE_RATE s from the
+  start of the feed-in arc to the end of the feed-out arc at the constant feed:
+  floor((360 + 2 OVERRUN_ARC) / omega x SAMPLE_RATE) + 1 samples, omega = FEEDRATE / RADIUS;
+* angles: theta from the A axis toward the B axis (abbe's convention when (A, B) is
+  (X, Y), (Z, X) or (Y, Z)); a plane written the other way round is refused.
+
+Elements abbe does not use are ignored; in those it uses, anything it cannot
+interpret (a unit type, a direction, a plane, a count) is refused with what it found.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+from xml.parsers import expat
+
+import numpy as np
+
+from abbe.errors import AbbeInputError, parse_number, parse_number_column
+from abbe.formats.ballbar_csv import BallbarTrace, validate_trace
+from abbe.formats.limits import B5R_MAX_BYTES, B5R_MAX_SAMPLES, MAX_NESTING
+from abbe.formats.text import read_text
+
+#: The unit types (``DT``) of the public parsers, with their unit; abbe converts the
+#: ones it uses, and refuses any other.
+UNIT_TYPES: dict[str, str] = {
+    "UT_LENGTH_MM": "mm", "UT_LENGTH_UM": "um", "UT_LENGTH_M": "m", "UT_FEEDRATE": "mm/min",
+    "UT_SQUARENESS": "um/m", "UT_SERVO_MISMATCH": "ms", "UT_ANGLE": "deg", "UT_RANKING": "",
+    "UT_PERCENT": "%", "UT_SCALE_ERROR": "ppm", "UT_SPEED": "mm/s", "UT_FREQUENCY": "Hz"}
+#: abbe's planes as (A axis, B axis): theta runs from A toward B (docs/formats.md).
+PLANES = {("X", "Y"): "XY", ("Z", "X"): "ZX", ("Y", "Z"): "YZ"}
+_META = ("OPERATOR", "DATE_STARTED", "SERIAL_NUMBER", "LAST_CALIBRATED", "PART_NUMBER")
+_SAFE = re.compile(r"<!(DOCTYPE|ENTITY)", re.IGNORECASE)
+
+
+@dataclass
+class _El:
+    tag: str
+    attrs: dict[str, str]
+    line: int
+    text: list[str] = field(default_factory=list)
+    children: list["_El"] = field(default_factory=list)
+
+    def iter(self):
+        yield self
+        for c in self.children:
+            yield from c.iter()
+
+
+@dataclass
+class B5rTest:
+    """A ballbar test from a ``.b5r`` file: the trace (abbe's convention) and its set-up.
+
+    plane: ``XY`` / ``ZX`` / ``YZ``; radius_mm; feed_mm_min; sample_rate_hz;
+    overrun_deg: each feed arc; metadata: the test's names and dates (strings);
+    features: Renishaw's own results, NAME -> (value, unit).
+    """
+
+    trace: BallbarTrace
+    plane: str
+    radius_mm: float
+    feed_mm_min: float
+    sample_rate_hz: float
+    overrun_deg: float
+    metadata: dict[str, str]
+    features: dict[str, tuple[float, str]]
+    lines: dict[str, int]
+
+
+def _parse_xml(text: str, fname: str) -> _El:
+    m = _SAFE.search(text)
+    if m:
+        line = text.count("\n", 0, m.start()) + 1
+        raise AbbeInputError(f"<!{m.group(1)}> in a .b5r file: document types and entities are "
+                             "not read (they could expand without bound)", file=fname, line=line)
+    p = expat.ParserCreate()
+    stack: list[_El] = []
+    root: list[_El] = []
+
+    def start(tag: str, attrs: dict[str, str]) -> None:
+        if len(stack) >= MAX_NESTING:
+            raise AbbeInputError(f"XML nested deeper than {MAX_NESTING} levels", file=fname,
+                                 line=p.CurrentLineNumber, field=tag)
+        el = _El(tag, dict(attrs), p.CurrentLineNumber)
+        if stack:
+            stack[-1].children.append(el)
+        else:
+            root.append(el)
+        stack.append(el)
+
+    def end(tag: str) -> None:
+        stack.pop()
+
+    def data(s: str) -> None:
+        if stack:
+            stack[-1].text.append(s)
+
+    p.StartElementHandler = start
+    p.EndElementHandler = end
+    p.CharacterDataHandler = data
+    try:
+        p.Parse(text, True)
+    except expat.ExpatError as exc:
+        raise AbbeInputError(f"not well-formed XML: {expat.ErrorString(exc.code)}", file=fname,
+                             line=exc.lineno) from None
+    return root[0]
+
+
+def read_b5r(path: str | Path) -> B5rTest:
+    """Read and validate a ``.b5r`` ballbar file into a :class:`B5rTest` (see module doc).
+
+    Refused (file, line, element): XML that is not well-formed or declares a document
+    type or entities; a missing or duplicated element abbe uses; a unit type abbe cannot
+    interpret; a plane other than XY / ZX / YZ in abbe's axis order; runs other than one
+    CCW then one CW; a number that is not finite or outside its range; a run too short
+    for its feed arcs and data arc; then every check of a ballbar trace.
+    """
+    fname = str(path)
+    tf = read_text(path, what=".b5r file", max_bytes=B5R_MAX_BYTES)
+    root = _parse_xml(tf.text, fname)
+    els: dict[str, list[_El]] = {}
+    for el in root.iter():
+        els.setdefault(el.tag, []).append(el)
+    lines: dict[str, int] = {}
+
+    def one(tag: str) -> _El:
+        got = els.get(tag, [])
+        if not got:
+            raise AbbeInputError(f"missing element <{tag}>", file=fname, line=root.line, field=tag)
+        if len(got) > 1:
+            raise AbbeInputError(f"<{tag}> appears {len(got)} times (first at line "
+                                 f"{got[0].line})", file=fname, line=got[1].line, field=tag)
+        lines[tag] = got[0].line
+        return got[0]
+
+    def dt(el: _El, allowed: dict[str, float]) -> float:
+        u = el.attrs.get("DT")
+        if u is None:
+            raise AbbeInputError(f"<{el.tag}> has no unit type DT; expected one of "
+                                 f"{', '.join(allowed)}", file=fname, line=el.line, field=el.tag)
+        if u not in allowed:
+            known = "" if u in UNIT_TYPES else " (a unit type abbe does not know)"
+            raise AbbeInputError(f"unit type {u!r}{known}: expected one of {', '.join(allowed)}",
+                                 file=fname, line=el.line, field=el.tag)
+        return allowed[u]
+
+    def num(el: _El, allowed: dict[str, float], lo: float, hi: float, unit: str) -> float:
+        scale = dt(el, allowed)
+        v = parse_number("".join(el.text).strip(), file=fname, line=el.line, field=el.tag,
+                         lo=lo / scale, hi=hi / scale)
+        return v * scale
+
+    plane_el = one("PLANE")
+    a_el, b_el = one("A_AXIS_NAME"), one("B_AXIS_NAME")
+    ab = ("".join(a_el.text).strip().upper(), "".join(b_el.text).strip().upper())
+    tp = plane_el.attrs.get("TEST_PLANE", "").strip().upper()
+    if ab not in PLANES:
+        raise AbbeInputError(f"plane with A axis {ab[0]!r} and B axis {ab[1]!r}: abbe's planes "
+                             "are (A, B) = (X, Y), (Z, X), (Y, Z) with the angle from A toward "
+                             "B; this order is not interpreted", file=fname, line=a_el.line,
+                             field="A_AXIS_NAME")
+    plane = PLANES[ab]
+    if tp != plane:
+        raise AbbeInputError(f"TEST_PLANE {tp!r} does not match the axes A = {ab[0]}, "
+                             f"B = {ab[1]} (plane {plane})", file=fname, line=plane_el.line,
+                             field="TEST_PLANE")
+    radius = num(one("RADIUS"), {"UT_LENGTH_MM": 1.0, "UT_LENGTH_M": 1e3}, 1.0, 2000.0, "mm")
+    feed = num(one("FEEDRATE"), {"UT_FEEDRATE": 1.0}, 1.0, 1e5, "mm/min")
+    fs = num(one("SAMPLE_RATE"), {"UT_FREQUENCY": 1.0}, 1.0, 1e5, "Hz")
+    over = num(one("OVERRUN_ARC"), {"UT_ANGLE": 1.0}, 0.0, 360.0, "deg")
+
+    runs = els.get("RUN", [])
+    dirs = [r.attrs.get("DIRECTION", "").strip().upper() for r in runs]
+    if dirs != ["CCW", "CW"]:
+        at = runs[0] if runs else root
+        raise AbbeInputError(f"runs {dirs}: expected one RUN DIRECTION=\"CCW\" then one "
+                             "RUN DIRECTION=\"CW\"", file=fname, line=at.line, field="RUN")
+    deg_per_s = math.degrees(feed / 60.0 / radius)
+    total = 360.0 + 2.0 * over
+    d_all, a_all, r_all, t_all, l_all = [], [], [], [], []
+    t0 = 0.0
+    for run, d in zip(runs, ("ccw", "cw")):
+        data = [c for c in run.children if c.tag == "DATA"]
+        if len(data) != 1:
+            raise AbbeInputError(f"a RUN holds one <DATA> element, this one {len(data)}",
+                                 file=fname, line=run.line, field="DATA")
+        de = data[0]
+        scale = dt(de, {"UT_LENGTH_UM": 1.0, "UT_LENGTH_MM": 1e3})
+        cells = [c for c in re.split(r"[ \t\r\n]+", "".join(de.text)) if c]
+        if len(cells) > B5R_MAX_SAMPLES:
+            raise AbbeInputError(f"{len(cells)} samples: the limit is {B5R_MAX_SAMPLES}",
+                                 file=fname, line=de.line, field="DATA")
+        n_need = int(math.floor(total / deg_per_s * fs + 1e-6)) + 1
+        if len(cells) != n_need:
+            raise AbbeInputError(f"{len(cells)} samples, but {total:g} deg at {feed:g} mm/min "
+                                 f"on R = {radius:g} mm sampled at {fs:g} Hz needs {n_need}",
+                                 file=fname, line=de.line, field="DATA")
+        vals = parse_number_column(cells, np.full(len(cells), de.line), file=fname,
+                                   field="DATA", lo=-1e5 / scale, hi=1e5 / scale) * scale
+        t = np.arange(vals.size) / fs
+        ang = -over + deg_per_s * t
+        if d == "cw":
+            ang = 360.0 + over - deg_per_s * t
+        d_all.append(np.full(vals.size, d))
+        a_all.append(ang)
+        r_all.append(vals)
+        t_all.append(t0 + t)
+        l_all.append(np.full(vals.size, de.line))
+        t0 += t[-1] + 1.0 / fs
+    tr = BallbarTrace(direction=np.concatenate(d_all), angle_deg=np.concatenate(a_all),
+                      radial_um=np.concatenate(r_all), time_s=np.concatenate(t_all), file=fname,
+                      line_no=np.concatenate(l_all))
+    validate_trace(tr, {"direction": "RUN", "angle": "DATA", "radial": "DATA", "time": "DATA"})
+
+    meta: dict[str, str] = {}
+    for tag in _META:
+        if tag in els:
+            meta[tag.lower()] = " ".join("".join(els[tag][0].text).split())
+    for tag in ("TEST_SPEC", "MACHINE_TESTED"):
+        if tag in els and "NAME" in els[tag][0].attrs:
+            meta[tag.lower()] = els[tag][0].attrs["NAME"]
+    feats: dict[str, tuple[float, str]] = {}
+    for fe in els.get("FEATURE", []):
+        name = fe.attrs.get("NAME", "")
+        u = fe.attrs.get("DT", "")
+        if u not in UNIT_TYPES:
+            raise AbbeInputError(f"unit type {u!r} of FEATURE {name!r} is not one abbe knows: "
+                                 f"{', '.join(UNIT_TYPES)}", file=fname, line=fe.line,
+                                 field="FEATURE")
+        feats[name] = (parse_number("".join(fe.text).strip(), file=fname, line=fe.line,
+                                    field=f"FEATURE {name}"), UNIT_TYPES[u])
+    return B5rTest(trace=tr, plane=plane, radius_mm=radius, feed_mm_min=feed, sample_rate_hz=fs,
+                   overrun_deg=over, metadata=meta, features=feats, lines=lines)
+
+
+def check_against(test: B5rTest, bt: Any, machine_file: str) -> None:
+    """The machine file's ballbar section must describe the test the file holds."""
+    for what, mine, theirs, tag in (("plane", bt.plane, test.plane, "PLANE"),
+                                    ("radius_mm", bt.radius_mm, test.radius_mm, "RADIUS"),
+                                    ("feed_mm_min", bt.feed_mm_min, test.feed_mm_min, "FEEDRATE")):
+        same = mine == theirs if isinstance(mine, str) else abs(mine - theirs) <= 1e-6 * abs(theirs)
+        if not same:
+            raise AbbeInputError(f"{machine_file} says ballbar.{bt.name}.{what} = {mine!r}, the "
+                                 f"file's <{tag}> says {theirs!r}", file=test.trace.file,
+                                 line=test.lines.get(tag), field=tag)
