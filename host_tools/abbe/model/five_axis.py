@@ -163,22 +163,30 @@ def _loc(errs: FiveAxisErrors, axis: str) -> tuple[np.ndarray, np.ndarray, float
 # ---------------------------------------------------------------- exact (homogeneous)
 
 
+def _rot(t: np.ndarray, i: int) -> np.ndarray:
+    """(N, 3, 3) rotations by angles ``t`` (rad) about the machine axis ``i`` (0 x, 1 y, 2 z)."""
+    t = np.asarray(t, dtype=np.float64).reshape(-1)
+    c, s = np.cos(t), np.sin(t)
+    j, k = (i + 1) % 3, (i + 2) % 3
+    R = np.zeros((t.size, 3, 3))
+    R[:, i, i] = 1.0
+    R[:, j, j] = c
+    R[:, k, k] = c
+    R[:, j, k] = -s
+    R[:, k, j] = s
+    return R
+
+
 def _rx(t: np.ndarray) -> np.ndarray:
-    c, s, o, z = np.cos(t), np.sin(t), np.ones_like(t), np.zeros_like(t)
-    return np.stack([np.stack([o, z, z], -1), np.stack([z, c, -s], -1),
-                     np.stack([z, s, c], -1)], -2)
+    return _rot(t, 0)
 
 
 def _ry(t: np.ndarray) -> np.ndarray:
-    c, s, o, z = np.cos(t), np.sin(t), np.ones_like(t), np.zeros_like(t)
-    return np.stack([np.stack([c, z, s], -1), np.stack([z, o, z], -1),
-                     np.stack([-s, z, c], -1)], -2)
+    return _rot(t, 1)
 
 
 def _rz(t: np.ndarray) -> np.ndarray:
-    c, s, o, z = np.cos(t), np.sin(t), np.ones_like(t), np.zeros_like(t)
-    return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1),
-                     np.stack([z, z, o], -1)], -2)
+    return _rot(t, 2)
 
 
 _ROT = {"A": _rx, "B": _ry, "C": _rz}

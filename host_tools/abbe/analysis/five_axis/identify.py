@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
-from abbe.analysis.five_axis.problem import Block, Param, residual_block, residuals
+from abbe.analysis.five_axis.problem import Block, Param, residual_block
 from abbe.formats.five_axis import FiveAxisSpec
 
 #: A singular value below this fraction of the largest (scaled Jacobian) is zero.
@@ -99,7 +99,7 @@ _FIX_ORDER = {"location": 1, "squareness": 0, "motion": 2, "setup": 3}
 
 def observability(J: np.ndarray, params: list[Param]) -> Observability:
     """Rank, conditioning and estimability from the scaled Jacobian ``J``."""
-    U, s, Vt = np.linalg.svd(J, full_matrices=True)
+    _U, s, Vt = np.linalg.svd(J, full_matrices=J.shape[0] < J.shape[1])
     smax = s[0] if s.size else 1.0
     rank = int(np.sum(s > RANK_TOL * smax))
     null = Vt[rank:].T  # (P, P - rank)
@@ -107,12 +107,24 @@ def observability(J: np.ndarray, params: list[Param]) -> Observability:
     observable = weight < NULL_TOL
     groups: list[list[str]] = []
     if null.size:
-        # Confounded groups: parameters tied by the null space (rotate to a sparse basis).
-        Q, _ = np.linalg.qr(null)
-        for j in range(Q.shape[1]):
-            v = Q[:, j]
-            names = [params[i].name for i in np.flatnonzero(np.abs(v) > 0.05 * np.abs(v).max())]
-            groups.append(names)
+        # Confounded groups: parameters tied through the null space (connected components
+        # of the projector onto it), each an "only their combination is seen" set.
+        Pn = null @ null.T
+        d = np.sqrt(np.clip(np.diag(Pn), 1e-300, None))
+        tie = np.abs(Pn) / np.outer(d, d) > 0.05
+        seen: set[int] = set()
+        for i in np.flatnonzero(~observable):
+            if i in seen:
+                continue
+            comp, stack = set(), [int(i)]
+            while stack:
+                j = stack.pop()
+                if j in comp:
+                    continue
+                comp.add(j)
+                stack += [int(k) for k in np.flatnonzero(tie[j] & ~observable) if k not in comp]
+            seen |= comp
+            groups.append([params[j].name for j in sorted(comp)])
     cand = sorted(np.flatnonzero(~observable), key=lambda i: (_FIX_ORDER[params[i].kind], i))
     keep = list(range(len(params)))
     fixed: list[int] = []
@@ -128,32 +140,74 @@ def observability(J: np.ndarray, params: list[Param]) -> Observability:
     return Observability(rank, len(params), cond, s, observable, sorted(fixed), groups)
 
 
-def _solve(spec: FiveAxisSpec, params: list[Param], blocks: list[Block], free: list[int],
-           x0: np.ndarray, rows: dict[str, np.ndarray] | None = None) -> tuple[np.ndarray, int]:
-    g, h = spec.geometry, spec.fit.harmonics
-    scale = np.array([params[i].scale for i in free])
+class _Problem:
+    """The residuals of every block, unweighted (um / urad), their weights and a Jacobian
+    computed once: the model is linear to 1e-4 relative (docs/concepts.md), so
+    ``least_squares`` iterates with it fixed (refreshed at the solution)."""
 
-    def fun(z: np.ndarray) -> np.ndarray:
+    def __init__(self, spec: FiveAxisSpec, params: list[Param], blocks: list[Block]) -> None:
+        self.spec, self.params, self.blocks = spec, params, blocks
+        self.scale = np.array([p.scale for p in params])
+        sizes = [residual_block(spec.geometry, params, np.zeros(len(params)),
+                                spec.fit.harmonics, b).size for b in blocks]
+        self.offsets = np.r_[0, np.cumsum(sizes)]
+        self.J = self.jacobian(np.zeros(len(params)))
+
+    def raw(self, x: np.ndarray) -> np.ndarray:
+        g, h = self.spec.geometry, self.spec.fit.harmonics
+        return np.concatenate([residual_block(g, self.params, x, h, b) for b in self.blocks])
+
+    def weights(self) -> np.ndarray:
+        w = []
+        for k, b in enumerate(self.blocks):
+            n = self.offsets[k + 1] - self.offsets[k]
+            sig = np.asarray(b.sigma, dtype=np.float64)
+            w.append(np.tile(1.0 / sig, n // sig.size) if sig.size > 1 else np.full(n, 1.0 / sig))
+        return np.concatenate(w)
+
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
+        return _jacobian(self.raw, x, self.scale)
+
+    def rows(self, keep: dict[str, np.ndarray]) -> np.ndarray:
+        """Global residual rows of the kept observations per block key (others: all)."""
+        out = []
+        for k, b in enumerate(self.blocks):
+            lo, hi = self.offsets[k], self.offsets[k + 1]
+            if b.key in keep:
+                per = (hi - lo) // len(b.obs)
+                r = keep[b.key]
+                out.append(lo + (per * r[:, None] + np.arange(per)[None, :]).ravel())
+            else:
+                out.append(np.arange(lo, hi))
+        return np.concatenate(out)
+
+    def solve(self, free: list[int], x0: np.ndarray, rows: np.ndarray | None = None
+              ) -> tuple[np.ndarray, int]:
+        sel = slice(None) if rows is None else rows
+        w = self.weights()[sel]
+        sc = self.scale[free]
+        Jw = self.J[sel][:, free] * w[:, None]
+
+        def fun(z: np.ndarray) -> np.ndarray:
+            x = x0.copy()
+            x[free] = z * sc
+            return self.raw(x)[sel] * w
+
+        sol = least_squares(fun, x0[free] / sc, jac=lambda z: Jw, method="lm",
+                            xtol=1e-10, ftol=1e-10)
         x = x0.copy()
-        x[free] = z * scale
-        return residuals(g, params, x, h, blocks, rows)
-
-    sol = least_squares(fun, x0[free] / scale, method="lm", xtol=1e-12, ftol=1e-12)
-    x = x0.copy()
-    x[free] = sol.x * scale
-    return x, int(sol.nfev)
+        x[free] = sol.x * sc
+        return x, int(sol.nfev)
 
 
 def identify(spec: FiveAxisSpec, blocks: list[Block], params: list[Param]) -> FitResult:
     """The whole identification (module docstring)."""
     g, h = spec.geometry, spec.fit.harmonics
     P = len(params)
-    scale = np.array([p.scale for p in params])
-    x0 = np.zeros(P)
-    J = _jacobian(lambda x: residuals(g, params, x, h, blocks), x0, scale)
-    obs = observability(J, params)
+    pb = _Problem(spec, params, blocks)
+    obs = observability(pb.J * pb.weights()[:, None], params)
     free = [i for i in range(P) if i not in obs.fixed]
-    x, nfev = _solve(spec, params, blocks, free, x0)
+    x, nfev = pb.solve(free, np.zeros(P))
     # Weights: each block's standard deviation from its residuals, then refit.
     for b in blocks:
         r = residual_block(g, params, x, h, b)
@@ -164,16 +218,18 @@ def identify(spec: FiveAxisSpec, blocks: list[Block], params: list[Param]) -> Fi
             r3 = r.reshape(-1, 3)
             dof = max(len(r3) - len(free) / 3.0, 1.0)
             b.sigma = np.maximum(np.sqrt(np.sum(r3 ** 2, axis=0) / dof), 1e-3)
-    x, n2 = _solve(spec, params, blocks, free, x)
+    pb.J = pb.jacobian(x)
+    x, n2 = pb.solve(free, x)
     nfev += n2
-    Jf = _jacobian(lambda xx: residuals(g, params, xx, h, blocks), x, scale)[:, free]
-    r = residuals(g, params, x, h, blocks)
+    w = pb.weights()
+    Jf = pb.J[:, free] * w[:, None]
+    r = pb.raw(x) * w
     dof = max(r.size - len(free), 1)
     s2 = float(r @ r) / dof
     cov_z = np.linalg.pinv(Jf.T @ Jf) * s2
     sd = np.full(P, np.nan)
     sdz = np.sqrt(np.clip(np.diag(cov_z), 0.0, None))
-    sd[free] = sdz * scale[free]
+    sd[free] = sdz * pb.scale[free]
     corr = np.full((P, P), np.nan)
     with np.errstate(invalid="ignore", divide="ignore"):
         cz = cov_z / np.outer(sdz, sdz)
@@ -183,7 +239,7 @@ def identify(spec: FiveAxisSpec, blocks: list[Block], params: list[Param]) -> Fi
     xo[hide] = np.nan
     sd[hide] = np.nan
     res = FitResult(params, xo, sd, corr, obs, blocks, h, nfev=nfev)
-    _dispersion(spec, params, blocks, x, free, res)
+    _dispersion(pb, x, free, res)
     return res
 
 
@@ -198,13 +254,13 @@ def dispersion(r3: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum(r3 ** 2, axis=1)))) if r3.size else float("nan")
 
 
-def _dispersion(spec: FiveAxisSpec, params: list[Param], blocks: list[Block], x: np.ndarray,
-                free: list[int], res: FitResult) -> None:
+def _dispersion(pb: _Problem, x: np.ndarray, free: list[int], res: FitResult) -> None:
+    spec, params, blocks = pb.spec, pb.params, pb.blocks
     probes = [b for b in blocks if b.kind == "probe"]
     if not probes:
         return
     setup = [i for i in free if params[i].kind == "setup"]
-    x_before, _ = _solve(spec, params, blocks, setup, np.zeros(len(params)))
+    x_before, _ = pb.solve(setup, np.zeros(len(params)))
     res.dispersion_before_um = dispersion(np.vstack([_centre_residuals(spec, params, b, x_before)
                                                      for b in probes]))
     res.dispersion_after_um = dispersion(np.vstack([_centre_residuals(spec, params, b, x)
@@ -213,12 +269,13 @@ def _dispersion(spec: FiveAxisSpec, params: list[Param], blocks: list[Block], x:
     k = spec.fit.folds
     before, after = [], []
     for fold in range(k):
-        rows = {b.key: np.flatnonzero(np.arange(len(b.obs)) % k != fold) for b in probes}
+        train = {b.key: np.flatnonzero(np.arange(len(b.obs)) % k != fold) for b in probes}
         test = {b.key: np.flatnonzero(np.arange(len(b.obs)) % k == fold) for b in probes}
         if any(t.size == 0 for t in test.values()):
             continue
-        xf, _ = _solve(spec, params, blocks, free, x, rows)
-        xb, _ = _solve(spec, params, blocks, setup, np.zeros(len(params)), rows)
+        rows = pb.rows(train)
+        xf, _ = pb.solve(free, x, rows)
+        xb, _ = pb.solve(setup, np.zeros(len(params)), rows)
         for b in probes:
             after.append(_centre_residuals(spec, params, b, xf, test[b.key]))
             before.append(_centre_residuals(spec, params, b, xb, test[b.key]))
