@@ -205,9 +205,19 @@ def identify(spec: FiveAxisSpec, blocks: list[Block], params: list[Param]) -> Fi
     g, h = spec.geometry, spec.fit.harmonics
     P = len(params)
     pb = _Problem(spec, params, blocks)
+    x, nfev = np.zeros(P), 0
+    bilinear = [i for i, p in enumerate(params) if "mount" in p.name]
+    if bilinear:
+        # An R-test nest's mounting acts on the displacements, which are zero at the start:
+        # a first solve without it, then the observability where its effect shows.
+        keep = [i for i in range(P) if i not in bilinear]
+        o0 = observability(pb.J[:, keep] * pb.weights()[:, None], [params[i] for i in keep])
+        x, nfev = pb.solve([keep[i] for i in range(len(keep)) if i not in o0.fixed], x)
+        pb.J = pb.jacobian(x)
     obs = observability(pb.J * pb.weights()[:, None], params)
     free = [i for i in range(P) if i not in obs.fixed]
-    x, nfev = pb.solve(free, np.zeros(P))
+    x, n1 = pb.solve(free, x)
+    nfev += n1
     # Weights: each block's standard deviation from its residuals, then refit.
     for b in blocks:
         r = residual_block(g, params, x, h, b)

@@ -19,6 +19,7 @@ from abbe.formats.five_axis import FiveAxisSpec
 from abbe.model.five_axis import (LOCATION_ERRORS, MOTION_COMPONENTS, SQUARENESS,
                                   FiveAxisErrors, TrunnionGeometry, fourier_rows,
                                   linear_axis_errors, lowest_harmonic, motion_name,
+                                  small_rotation,
                                   table_transform)
 
 
@@ -85,6 +86,10 @@ def build_params(spec: FiveAxisSpec, blocks: list[Block]) -> list[Param]:
         if b.kind == "rtest":
             ps += [Param(f"rtest.{b.name} zero {c}", "setup", "um", 10.0, block=b.key)
                    for c in "xyz"]
+            # The sensor nest's mounting: its directions turned (urad) and its gain off (ppm).
+            ps += [Param(f"rtest.{b.name} mount {c}", "setup", "urad", 1000.0, block=b.key)
+                   for c in ("a", "b", "c")]
+            ps.append(Param(f"rtest.{b.name} mount gain", "setup", "ppm", 1000.0, block=b.key))
         if b.kind == "indexer":
             ps += [Param(f"indexer.{b.name} zero", "setup", "urad", 10.0, block=b.key),
                    Param(f"indexer.{b.name} reversal", "setup", "urad", 10.0, block=b.key)]
@@ -134,7 +139,9 @@ def predict_block(g: TrunnionGeometry, params: list[Param], x: np.ndarray, harmo
     Tn = table_transform(g, None, ang)
     q = np.einsum("nij,j->ni", Tn[:, :3, :3], b.sphere_mm) + Tn[:, :3, 3]
     e, _r = linear_axis_errors(g, errs, q)
-    return (centre - q) * 1e3 - e + _setup(params, x, b.key, "zero")
+    mount = _setup(params, x, b.key, "mount")  # a, b, c (urad), gain (ppm)
+    nest = small_rotation(mount[None, :3] * 1e-6)[0] * (1.0 + mount[3] * 1e-6)
+    return ((centre - q) * 1e3 - e) @ nest.T + _setup(params, x, b.key, "zero")
 
 
 def residual_block(g: TrunnionGeometry, params: list[Param], x: np.ndarray, harmonics: int,
