@@ -29,8 +29,11 @@ from abbe.formats.five_axis import FiveAxisSpec
 
 #: A singular value below this fraction of the largest (scaled Jacobian) is zero.
 RANK_TOL = 1e-7
-#: A null-space component above this makes a parameter unobservable.
-NULL_TOL = 1e-6
+#: A null-space component above this makes a parameter unobservable. Columns are scaled
+#: by each unknown's typical size, so a component of 1e-3 moves the unknown by 1e-3 of its
+#: size along a confounded direction: the model's second-order cross terms (a zero offset
+#: turning about a line that is itself 100 urad off) are of that order, not confounding.
+NULL_TOL = 1e-3
 #: Which test would see an unobservable error (docs/concepts.md).
 SEEN_BY = {
     "zero": "probing a second feature at a known angular position on the table (a workpiece "
