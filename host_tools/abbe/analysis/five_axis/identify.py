@@ -44,6 +44,7 @@ SEEN_BY = {
               "indexer for the angular motion, more rotary positions per revolution",
     "location": "probing at more angles of the other rotary axis or a second sphere height",
     "setup": "a sphere position measured in a known frame",
+    "drift": "repeating one probing position at the start, middle and end of the campaign",
 }
 
 
@@ -97,7 +98,7 @@ def _jacobian(fun, x: np.ndarray, scale: np.ndarray) -> np.ndarray:
     return J
 
 
-_FIX_ORDER = {"location": 1, "squareness": 0, "motion": 2, "setup": 3}
+_FIX_ORDER = {"location": 1, "squareness": 0, "motion": 2, "drift": 2, "setup": 3}
 
 
 def observability(J: np.ndarray, params: list[Param]) -> Observability:
@@ -207,6 +208,8 @@ def identify(spec: FiveAxisSpec, blocks: list[Block], params: list[Param]) -> Fi
     """The whole identification (module docstring)."""
     g, h = spec.geometry, spec.fit.harmonics
     P = len(params)
+    for b in blocks:  # start weights: a first solve estimates them
+        b.sigma = 5.0 if b.kind == "indexer" else 1.0
     pb = _Problem(spec, params, blocks)
     x, nfev = np.zeros(P), 0
     bilinear = [i for i, p in enumerate(params) if "mount" in p.name]

@@ -97,7 +97,8 @@ def build_params(spec: FiveAxisSpec, blocks: list[Block]) -> list[Param]:
 
 
 def errors_from(params: list[Param], x: np.ndarray, harmonics: int) -> FiveAxisErrors:
-    """The machine errors of a parameter vector (set-up parameters left out)."""
+    """The machine errors of a parameter vector (set-up and drift parameters left out)."""
+    harmonics = max([harmonics] + [p.harmonic for p in params if p.kind == "motion"])
     loc: dict[str, float] = {}
     mot: dict[tuple[str, str], np.ndarray] = {}
     sq = {s: 0.0 for s in SQUARENESS}
@@ -133,6 +134,17 @@ def predict_block(g: TrunnionGeometry, params: list[Param], x: np.ndarray, harmo
     s = b.sphere_mm + _setup(params, x, b.key, "sphere") * 1e-3
     T = table_transform(g, errs, ang)
     centre = np.einsum("nij,j->ni", T[:, :3, :3], s) + T[:, :3, 3]
+    drifts = [(p.comp, float(v)) for p, v in zip(params, x) if p.kind == "drift" and v != 0.0]
+    if drifts and b.time_s is not None:
+        # A location error drifting linearly in time (per hour): its effect is linear to
+        # 1e-4 relative, so one more transform per drifting error gives it at every row.
+        hours = (b.time_s if rows is None else b.time_s[rows]) / 3600.0
+        for name, rate in drifts:
+            moved = FiveAxisErrors({**errs.location, name: errs.location.get(name, 0.0) + 1.0},
+                                   errs.motions, errs.squareness)
+            T1 = table_transform(g, moved, ang)
+            per = np.einsum("nij,j->ni", T1[:, :3, :3], s) + T1[:, :3, 3] - centre
+            centre = centre + per * (rate * hours)[:, None]
     if b.kind == "probe":
         e, _r = linear_axis_errors(g, errs, centre)
         return centre - e * 1e-3  # the probe reads machine positions: the tool error subtracts
