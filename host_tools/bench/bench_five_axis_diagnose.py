@@ -3,7 +3,7 @@
 (cases.five_axis_hidden: clean, cyclic ECC, pivot drift): named exactly, false names on clean
 machines, value within its 95 % interval, median held-out shrink.
 
-    python bench_five_axis_diagnose.py --per-kind 8
+    python bench_five_axis_diagnose.py --per-kind 8 [--suite independent]
 """
 
 from __future__ import annotations
@@ -46,8 +46,16 @@ def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--per-kind", type=int, default=8)
     ap.add_argument("--first-seed", type=int, default=0)
+    ap.add_argument("--suite", choices=("hidden", "independent"), default="hidden",
+                    help="hidden: cases.five_axis_hidden (abbe.sim); independent: "
+                         "cases.five_axis_independent (its own kinematics and writers)")
     a = ap.parse_args()
-    rows = run(a.per_kind, a.first_seed)
+    if a.suite == "independent":
+        from cases.five_axis_suite import diagnose_cases
+        with tempfile.TemporaryDirectory(prefix="abbe-5ax-diag-") as d:
+            rows = diagnose_cases(a.per_kind, Path(d))
+    else:
+        rows = run(a.per_kind, a.first_seed)
     print("| kind | seed | expected | named | amplitude true | named (95 %) | held-out before um "
           "| after um | shrink |")
     print("|---|---|---|---|---|---|---|---|---|")

@@ -235,3 +235,22 @@ def make_campaign(seed: int, *, n_tilt: int = 4, n_c: int = 8) -> Campaign:
                     rng.normal(0, 0.05, 3), 12.5, float(rng.normal(0, 0.002)), 1.5,
                     float(rng.uniform(0, 0.3)), float(rng.uniform(0.2, 0.8)),
                     float(rng.uniform(0, 2.0)), seed % 3 == 0, n_tilt, n_c, seed)
+
+
+def make_diagnose_campaign(kind: str, seed: int) -> tuple[Campaign, str | None, float]:
+    """A campaign for the discrepancy workflow: ``clean`` (no error motion, no drift),
+    ``cyclic`` (an ECC(C) of k = 1..3 cycles per turn, 10-25 urad, with its own phase) or
+    ``drift`` (the tilt axis' line rising 4-8 um/h). Returns the campaign, the catalogue
+    key a diagnosis should name (None for clean) and the true amplitude (urad, um/h)."""
+    c = make_campaign(4 * seed + 1 if seed % 2 else 4 * seed)  # no hidden motions (seed % 4 != 3)
+    c.motions, c.drift_um_per_h, c.rtest = {}, 0.0, False
+    rng = np.random.default_rng(10_000 + seed)
+    if kind == "cyclic":
+        k = int(rng.integers(1, 4))
+        amp = float(rng.uniform(10, 25))
+        c.motions["C.C"] = Motion({k: amp}, {k: float(rng.uniform(0, 2 * math.pi))})
+        return c, f"cyclic C {k}", amp
+    if kind == "drift":
+        c.drift_um_per_h = float(rng.uniform(4, 8))
+        return c, f"pivot drift {c.tilt}", c.drift_um_per_h
+    return c, None, 0.0

@@ -105,3 +105,26 @@ def table(scores: list[CaseScore]) -> str:
                    f"{s.worst or '-'} | {', '.join(s.unobservable)} | {s.heldout_before_um:.2f} | "
                    f"{s.heldout_after_um:.3f} | {s.ratio:.4f} |")
     return "\n".join(out)
+
+
+def diagnose_cases(per_kind: int, work: Path) -> list[dict]:
+    """The discrepancy workflow on the independent generator's hidden effects."""
+    from abbe.diagnose.five_axis import diagnose_five_axis
+    from cases.five_axis_independent import make_diagnose_campaign
+
+    rows = []
+    for kind in ("clean", "cyclic", "drift"):
+        for seed in range(per_kind):
+            camp, expected, amp = make_diagnose_campaign(kind, seed)
+            mf = camp.write(work / f"diag_{kind}{seed}")
+            spec = load_machine(mf).five_axis
+            diag = diagnose_five_axis(spec, load_plan(spec).blocks)
+            names = [n.effect.key for n in diag.named]
+            n0 = diag.named[0] if diag.named else None
+            rows.append({"kind": kind, "seed": seed, "expected": expected, "named": names,
+                         "exact": names == ([expected] if expected else []), "amp_true": amp,
+                         "amp": n0.amplitude if n0 else None,
+                         "amp_ci": n0.amplitude_ci95 if n0 else None,
+                         "before": diag.base.heldout_after_um,
+                         "after": diag.final.heldout_after_um, "shrink": diag.shrink})
+    return rows

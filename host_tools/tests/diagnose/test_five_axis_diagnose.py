@@ -27,3 +27,16 @@ def test_hidden_effect_is_named(tmp_path: Path, kind: str, seed: int) -> None:
         assert "Named:" in diag.text() and diag.to_json()["named"][0]["effect"] == expected
     else:
         assert diag.shrink == 0.0 and "Nothing named" in diag.text()
+
+
+@pytest.mark.parametrize("kind, seed", [("clean", 2), ("cyclic", 2)])
+def test_independent_generator_cases(tmp_path: Path, kind: str, seed: int) -> None:
+    """The same workflow on the independent generator's campaigns (never tuned on them)."""
+    from cases.five_axis_independent import make_diagnose_campaign
+
+    camp, expected, amp = make_diagnose_campaign(kind, seed)
+    spec = load_machine(camp.write(tmp_path)).five_axis
+    diag = diagnose_five_axis(spec, load_plan(spec).blocks)
+    assert [n.effect.key for n in diag.named] == ([expected] if expected else [])
+    if expected:
+        assert abs(diag.named[0].amplitude - amp) <= max(diag.named[0].amplitude_ci95, 0.1 * amp)
