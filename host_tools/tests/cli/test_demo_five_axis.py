@@ -19,3 +19,16 @@ def test_demo_five_axis(tmp_path: Path) -> None:
     assert (out / "report" / "index.html").is_file() and (out / "truth_comparison.txt").is_file()
     doc = json.loads((out / "five_axis.json").read_text())
     assert doc["rotary_positioning"]["C"]["A_urad"] > 0
+
+
+def test_diagnose_cli_on_a_five_axis_file(tmp_path: Path, capsys) -> None:
+    from cases.five_axis_hidden import make_case
+
+    mf, expected, _amp = make_case("cyclic", 1, tmp_path / "case")
+    out, js = tmp_path / "diag", tmp_path / "d.json"
+    assert main(["diagnose", str(mf), "-o", str(out), "--json", str(js)]) == 0
+    doc = json.loads(js.read_text())
+    assert [n["effect"] for n in doc["named"]] == [expected]
+    assert doc["heldout_after_um"] < doc["heldout_before_um"]
+    assert (out / "report.txt").read_text().startswith("Five-axis discrepancy")
+    assert "Named:" in capsys.readouterr().out
