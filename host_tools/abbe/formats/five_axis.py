@@ -129,7 +129,7 @@ def parse_five_axis(data: dict[str, Any], err: Callable[[str, str], AbbeInputErr
         return check_number(v, file=file, line=line(f), field=f, lo=lo, hi=hi, unit=unit)
 
     kind = rot.get("kinematics")
-    if kind not in KINEMATICS:
+    if not isinstance(kind, str) or kind not in KINEMATICS:
         raise err("rotary.kinematics", f"expected one of {', '.join(KINEMATICS)}, got "
                   f"{show_value(kind)}" if kind is not None else "missing required key 'kinematics'")
     tilt, table = KINEMATICS[kind]

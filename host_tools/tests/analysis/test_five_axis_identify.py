@@ -115,3 +115,17 @@ def test_too_few_good_positions_is_an_input_error(tmp_path: Path) -> None:
     mf.write_text(text)
     with pytest.raises(AbbeInputError, match="pass the radius check"):
         load_plan(load_machine(mf).five_axis)
+
+
+def test_a_plan_smaller_than_its_unknowns_still_answers(tmp_path: Path) -> None:
+    """3 probing positions (9 residuals) for 13 unknowns: rank and unobservable errors named,
+    no crash."""
+    g = _geom("xyzac-trt")
+    vm = VirtualFiveAxis(g, random_errors(g, np.random.default_rng(1)), probe_noise_um=0.3)
+    mf = write_campaign(vm, tmp_path, positions=np.array([[0.0, 0.0], [30.0, 90.0], [-30.0, 200.0]]),
+                        sphere_mm=(60.0, 0.0, 30.0))
+    spec = load_machine(mf).five_axis
+    plan = load_plan(spec)
+    res = identify(spec, plan.blocks, build_params(spec, plan.blocks))
+    assert res.obs.rank <= 9 and (~res.obs.observable).sum() >= 4
+    assert np.all(np.isnan(res.x[~res.obs.observable]))

@@ -139,3 +139,14 @@ def test_bad_indexer_direction(tmp_path: Path) -> None:
     with pytest.raises(AbbeInputError) as ei:
         read_indexer(p)
     assert ei.value.line == 3 and "'+' or '-'" in str(ei.value)
+
+
+@pytest.mark.parametrize("bad", ['kinematics = ["xyzac-trt"]', "kinematics = 3", "fit = 2",
+                                 "A = 1"])
+def test_wrong_types_are_input_errors(tmp_path: Path, bad: str) -> None:
+    key = bad.split(" =")[0]
+    text = ROTARY_AC.replace('kinematics = "xyzac-trt"', bad) if key == "kinematics" else \
+        ROTARY_AC.replace("[rotary.A]\n", "[rotary.X]\n").replace("[rotary]\n", f"[rotary]\n{bad}\n") \
+        if key == "A" else ROTARY_AC.replace("[rotary]\n", f"[rotary]\n{bad}\n")
+    with pytest.raises(AbbeInputError):
+        load_machine(_machine(tmp_path, text))

@@ -197,7 +197,9 @@ class _Problem:
             x[free] = z * sc
             return self.raw(x)[sel] * w
 
-        sol = least_squares(fun, x0[free] / sc, jac=lambda z: Jw, method="lm",
+        # "lm" needs at least as many residuals as unknowns (a small plan or fold may not).
+        method = "lm" if Jw.shape[0] >= Jw.shape[1] else "trf"
+        sol = least_squares(fun, x0[free] / sc, jac=lambda z: Jw, method=method,
                             xtol=1e-10, ftol=1e-10)
         x = x0.copy()
         x[free] = sol.x * sc
