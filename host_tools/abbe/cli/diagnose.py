@@ -59,6 +59,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.machine and not args.iso:  # a [rotary] machine: the five-axis workflow
+        from abbe.cli.diagnose_five_axis import run_five_axis_diagnose
+        from abbe.cli.fit_five_axis import is_five_axis
+        if is_five_axis(args.machine):
+            return run_five_axis_diagnose(args)
     from abbe.diagnose.effects import catalogue
     from abbe.diagnose.report import format_text, write_outputs
     from abbe.diagnose.results import DiagnoseOptions

@@ -51,6 +51,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from abbe.cli.fit_five_axis import is_five_axis, run_five_axis
+    if is_five_axis(args.machine):  # a [rotary] machine: the five-axis identification
+        return run_five_axis(args)
     outs = Outputs()
     try:
         staging = outs.directory(args.out, option="--out")

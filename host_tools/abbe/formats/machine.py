@@ -20,6 +20,7 @@ from typing import Any, Callable
 
 from abbe.errors import AbbeInputError, check_number
 from abbe.errors.numbers import show_value
+from abbe.formats.five_axis import parse_five_axis
 from abbe.formats.columns import BALLBAR_ROLES, LASER_ROLES, Columns, parse_columns
 from abbe.formats.limits import MACHINE_FILE_MAX_BYTES
 from abbe.formats.structured import load_toml, unknown_key
@@ -143,6 +144,7 @@ class Machine:
     extra: dict[str, Any] = field(default_factory=dict)
     description: str = ""
     text: str = field(default="", repr=False, compare=False)
+    five_axis: Any = None  # abbe.formats.five_axis.FiveAxisSpec of a [rotary] machine, else None
 
     def line_of(self, dotted: str) -> int | None:
         """Line (1-based) of a dotted key in the machine file, best effort."""
@@ -319,7 +321,8 @@ _FIT: _Spec = {"max_trend_degree": (_int_range(0, 7), False, 7),
                "max_harmonics": (_int_range(0, 8), False, 8),
                "folds": (_int_range(2, 50), False, 5),
                "backlash_sigma": (_in(*BACKLASH_SIGMA_RANGE, ""), False, 3.0)}
-_TOP = ("machine", "axes", "reference", "tool", "laser", "ballbar", "fit")
+_TOP = ("machine", "axes", "reference", "tool", "laser", "ballbar", "fit", "rotary", "probing",
+        "rtest", "indexer")
 
 
 def _table(v: Any, ctx: _Ctx, f: str) -> dict[str, Any]:
@@ -419,9 +422,13 @@ def load_machine(path: str | Path) -> Machine:
     if "fit" in data:
         extra["fit"] = _section(data["fit"], _FIT, ctx, "fit")
 
+    five = parse_five_axis(data, ctx.err, ctx.loc.line, str(path),
+                           lambda rel, f: _resolve(base, rel, ctx, f))
+
     return Machine(path=path, name=mach["name"] or path.stem, axes=axes, reference_mm=ref,
                    tool_offset_mm=tool, laser=laser, ballbar=ballbar,
-                   sha256=tf.sha256, extra=extra, description=mach["description"], text=text)
+                   sha256=tf.sha256, extra=extra, description=mach["description"], text=text,
+                   five_axis=five)
 
 
 def _resolve(base: Path, rel: str, ctx: _Ctx, f: str) -> Path:

@@ -1,0 +1,240 @@
+"""The five-axis identification report, ISO 230-7 style: JSON, text and HTML with polar plots.
+
+Sections: the location of each axis average line (position and orientation,
+value and 95 % interval, or "not observable" with the confounded group and the
+test that would see it), the error motions (radial / axial / tilt / angular,
+Fourier coefficients and their peak-to-valley over a turn), the angular
+positioning of an indexed axis (ISO 230-2 statistics, urad), the sphere-centre
+dispersion before / after and held out, the observability table (rank,
+condition number, what the plan fixes by convention) and the strongest
+correlations. Units: um, urad, degrees.
+"""
+
+from __future__ import annotations
+
+import html
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from abbe.analysis.five_axis.data import PlanData
+from abbe.analysis.five_axis.identify import SEEN_BY, FitResult
+from abbe.analysis.iso230_2 import evaluate
+from abbe.formats.deviations import PositioningData
+from abbe.formats.five_axis import FiveAxisSpec, IndexerRuns
+from abbe.model.five_axis import MOTION_COMPONENTS, fourier_rows, motion_name
+
+#: |correlation| above this is reported.
+STRONG_CORRELATION = 0.9
+
+
+def _f(v: float) -> float | None:
+    return None if not np.isfinite(v) else float(v)
+
+
+def _group_of(res: FitResult, name: str) -> list[str]:
+    for g in res.obs.groups:
+        if name in g:
+            return [n for n in g if n != name]
+    return []
+
+
+def _seen_key(name: str, kind: str) -> str:
+    """The SEEN_BY key: an angular zero (EC0C, EA0A, EB0B) has its own."""
+    return "zero" if kind == "location" and name[1] == name[3] else kind
+
+
+def param_rows(res: FitResult) -> list[dict[str, Any]]:
+    """One row per parameter: value and 95 % interval, or why it has no number."""
+    rows = []
+    for i, p in enumerate(res.params):
+        row: dict[str, Any] = {"name": p.name, "kind": p.kind, "unit": p.unit}
+        if res.obs.observable[i]:
+            row.update(observable=True, value=_f(res.x[i]), ci95=_f(1.96 * res.sd[i]))
+        else:
+            row.update(observable=False, value=None, ci95=None,
+                       fixed_by_convention=i in res.obs.fixed,
+                       confounded_with=_group_of(res, p.name),
+                       seen_by=SEEN_BY[_seen_key(p.name, p.kind)])
+        rows.append(row)
+    return rows
+
+
+def correlations(res: FitResult) -> list[dict[str, Any]]:
+    """Pairs of observable parameters with |correlation| > STRONG_CORRELATION."""
+    out = []
+    P = len(res.params)
+    for i in range(P):
+        for j in range(i + 1, P):
+            c = res.corr[i, j]
+            if res.obs.observable[i] and res.obs.observable[j] and np.isfinite(c) \
+                    and abs(c) > STRONG_CORRELATION:
+                out.append({"a": res.params[i].name, "b": res.params[j].name, "r": float(c)})
+    return out
+
+
+def motion_curves(res: FitResult, axis: str, n: int = 360) -> dict[str, np.ndarray]:
+    """Identified error motions of ``axis`` over a turn (only components with a number)."""
+    t = np.linspace(0.0, 360.0, n, endpoint=False)
+    out: dict[str, np.ndarray] = {}
+    for comp in MOTION_COMPONENTS:
+        idx = [i for i, p in enumerate(res.params) if p.kind == "motion" and p.axis == axis
+               and p.comp == comp and res.obs.observable[i]]
+        if not idx:
+            continue
+        coef = np.zeros(2 * res.harmonics)
+        for i in idx:
+            p = res.params[i]
+            coef[2 * (p.harmonic - 1) + (0 if p.trig == "sin" else 1)] = res.x[i]
+        out[motion_name(axis, comp)] = fourier_rows(t, res.harmonics) @ coef
+    return out
+
+
+def rotary_positioning(runs: IndexerRuns) -> dict[str, Any] | None:
+    """ISO 230-2 statistics of a rotary axis from indexer runs (urad), or None when the runs
+    are not complete (every run visits every target from both sides)."""
+    tg = np.unique(runs.target_deg)
+    nr = int(runs.run.max())
+    up = np.full((nr, tg.size), np.nan)
+    down = np.full((nr, tg.size), np.nan)
+    for r, d, t, v in zip(runs.run, runs.direction, runs.target_deg, runs.deviation_urad):
+        (up if d > 0 else down)[int(r) - 1, int(np.searchsorted(tg, t))] = v
+    if np.isnan(up).any() or np.isnan(down).any() or nr < 2:
+        return None
+    res = evaluate(PositioningData("indexer", tg, up, down))
+    return {"standard": "ISO 230-2 applied to a rotary axis (values in urad, targets in deg)",
+            "n_runs": nr, "n_targets": int(tg.size), "B_urad": res.B_um, "R_urad": res.R_um,
+            "E_urad": res.E_um, "A_urad": res.A_um, "M_urad": res.M_um}
+
+
+def to_json(res: FitResult, spec: FiveAxisSpec, plan: PlanData) -> dict[str, Any]:
+    """The identification as JSON (five_axis.json)."""
+    g = spec.geometry
+    loc = {p.name: (_f(res.x[i]) if res.obs.observable[i] else None)
+           for i, p in enumerate(res.params) if p.kind == "location"}
+    motions: dict[str, Any] = {}
+    for i, p in enumerate(res.params):
+        if p.kind == "motion":
+            m = motions.setdefault(motion_name(p.axis, p.comp),
+                                   {"unit": p.unit, "period_deg": 360.0, "coef": {}})
+            m["coef"][f"{p.trig}{p.harmonic}"] = _f(res.x[i]) if res.obs.observable[i] else None
+    return {
+        "format": "abbe-five-axis 1.0",
+        "kinematics": g.kind,
+        "geometry": {"rot_point_mm": list(g.rot_point_mm), "offset_mm": list(g.offset_mm),
+                     "tool_length_mm": g.tool_length_mm,
+                     "travel_deg": {k: list(v) for k, v in g.travel_deg.items()}},
+        "table": {"location": loc, "location_units": {p.name: p.unit for p in res.params
+                                                      if p.kind == "location"},
+                  "squareness_urad": {p.name: (_f(res.x[i]) if res.obs.observable[i] else None)
+                                      for i, p in enumerate(res.params) if p.kind == "squareness"},
+                  "motions": motions,
+                  "note": "null = not observable with this plan (never 0): see observability"},
+        "parameters": param_rows(res),
+        "observability": {"rank": res.obs.rank, "n_params": res.obs.n_params,
+                          "condition_number": _f(res.obs.condition),
+                          "fixed_by_convention": [res.params[i].name for i in res.obs.fixed],
+                          "confounded_groups": res.obs.groups},
+        "correlations": correlations(res),
+        "dispersion_um": {"before": _f(res.dispersion_before_um),
+                          "after": _f(res.dispersion_after_um),
+                          "heldout_before": _f(res.heldout_before_um),
+                          "heldout_after": _f(res.heldout_after_um), "folds": spec.fit.folds},
+        "block_sigma": {b.key: np.atleast_1d(b.sigma).astype(float).tolist() for b in res.blocks},
+        "rejected_positions": [{"probing": n, "position": p, "radius_mm": r, "expected_mm": e}
+                               for n, p, r, e in plan.rejected],
+        "rotary_positioning": {ax: rotary_positioning(r) for ax, r in plan.indexer_raw.items()},
+    }
+
+
+def text_report(doc: dict[str, Any]) -> str:
+    """The text report of a five_axis.json document."""
+    out = [f"Five-axis identification ({doc['kinematics']}), ISO 230-7 notation",
+           "", "Location errors and parameters (95 % intervals):"]
+    for r in doc["parameters"]:
+        if r["observable"]:
+            out.append(f"  {r['name']:<26} {r['value']:>11.3f} {r['unit']:<4} +- {r['ci95']:.3f}")
+        else:
+            how = "fixed at 0 by convention" if r["fixed_by_convention"] else "no number"
+            conf = ", ".join(r["confounded_with"]) or "-"
+            out.append(f"  {r['name']:<26} NOT OBSERVABLE ({how}); confounded with {conf}; "
+                       f"seen by: {r['seen_by']}")
+    o = doc["observability"]
+    out += ["", f"Observability: rank {o['rank']} of {o['n_params']}, condition number "
+            f"{o['condition_number']:.3g}; fixed by convention: "
+            f"{', '.join(o['fixed_by_convention']) or 'none'}"]
+    if doc["correlations"]:
+        out.append("Strong correlations: " + ", ".join(
+            f"{c['a']} ~ {c['b']} ({c['r']:+.3f})" for c in doc["correlations"]))
+    d = doc["dispersion_um"]
+    if d["before"] is not None:
+        out += ["", "Sphere-centre dispersion (RMS, um): before {:.3f}, after {:.3f}; held out "
+                "({} folds): before {:.3f}, after {:.3f}".format(
+                    d["before"], d["after"], d["folds"], d["heldout_before"] or float("nan"),
+                    d["heldout_after"] or float("nan"))]
+    for ax, rp in doc["rotary_positioning"].items():
+        if rp:
+            out.append(f"Angular positioning of {ax} (ISO 230-2, urad): A {rp['A_urad']:.2f}, "
+                       f"E {rp['E_urad']:.2f}, R {rp['R_urad']:.2f}, B {rp['B_urad']:.2f}, "
+                       f"M {rp['M_urad']:.2f}")
+    for rj in doc["rejected_positions"]:
+        out.append(f"Rejected probing {rj['probing']} position {rj['position']}: radius "
+                   f"{rj['radius_mm']:.4f} mm, expected {rj['expected_mm']:.4f} mm")
+    return "\n".join(out) + "\n"
+
+
+def write_html(res: FitResult, doc: dict[str, Any], out: Path) -> None:
+    """report/index.html with one polar plot per rotary axis with identified error motions."""
+    import matplotlib
+    matplotlib.use("Agg")
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    out.mkdir(parents=True, exist_ok=True)
+    imgs = []
+    for axis in ("A", "B", "C"):
+        curves = motion_curves(res, axis)
+        if not curves:
+            continue
+        fig = Figure(figsize=(6, 6))
+        FigureCanvasAgg(fig)
+        ax = fig.add_subplot(projection="polar")
+        t = np.deg2rad(np.linspace(0.0, 360.0, 360, endpoint=False))
+        scale = max(float(np.max(np.abs(v))) for v in curves.values()) or 1.0
+        for name, v in curves.items():
+            ax.plot(np.r_[t, t[:1]], np.r_[v, v[:1]] + 2.0 * scale, label=name)
+        ax.set_title(f"Error motions of {axis} (um / urad about a base circle of "
+                     f"{2 * scale:.2g})", fontsize=9)
+        ax.set_yticklabels([])
+        ax.legend(fontsize=7, loc="lower left", bbox_to_anchor=(-0.15, -0.15))
+        png = f"motions_{axis}.png"
+        fig.savefig(out / png, dpi=90)
+        imgs.append(png)
+    rows = []
+    for r in doc["parameters"]:
+        if r["observable"]:
+            cell = f"{r['value']:.3f} &plusmn; {r['ci95']:.3f} {r['unit']}"
+        else:
+            cell = ("not observable" + (" (fixed at 0 by convention)" if r["fixed_by_convention"]
+                                        else "") + f"; confounded with "
+                    f"{html.escape(', '.join(r['confounded_with']) or '-')}; seen by: "
+                    f"{html.escape(r['seen_by'])}")
+        rows.append(f"<tr><td>{html.escape(r['name'])}</td><td>{cell}</td></tr>")
+    o, d = doc["observability"], doc["dispersion_um"]
+    disp = "" if d["before"] is None else (
+        f"<p>Sphere-centre dispersion (RMS, um): before {d['before']:.3f}, after {d['after']:.3f};"
+        f" held out: before {d['heldout_before']:.3f}, after {d['heldout_after']:.3f}</p>")
+    page = ("<!doctype html><html><head><meta charset='utf-8'><title>abbe five-axis report"
+            "</title></head><body>"
+            f"<h1>Five-axis identification ({html.escape(doc['kinematics'])})</h1>"
+            f"<h2>Observability</h2><p>rank {o['rank']} of {o['n_params']}, condition number "
+            f"{o['condition_number']:.3g}; fixed by convention: "
+            f"{html.escape(', '.join(o['fixed_by_convention']) or 'none')}</p>{disp}"
+            "<h2>Parameters</h2><table border='1'><tr><th>error</th><th>value (95 %)</th></tr>"
+            + "".join(rows) + "</table><h2>Error motions</h2>"
+            + ("".join(f"<img src='{p}' alt='{p}'>" for p in imgs) or
+               "<p>No error motion identified by this plan ([rotary.fit] harmonics = 0 or "
+               "not observable).</p>")
+            + f"<h2>Text</h2><pre>{html.escape(text_report(doc))}</pre></body></html>\n")
+    (out / "index.html").write_text(page, encoding="utf-8")

@@ -1,0 +1,244 @@
+"""The virtual five-axis machine and its instruments (touch probe, R-test, indexer).
+
+A :class:`VirtualFiveAxis` holds hidden errors (:class:`abbe.model.five_axis.FiveAxisErrors`:
+location errors, error motions, squareness, optionally a 3-axis linear table),
+a thermal drift of the location errors during the campaign (um/h, urad/h) and
+the set-up errors of the instruments:
+
+* touch probe on a calibration sphere: the sphere sits off its nominal place
+  (``sphere_offset_mm``) and its true radius differs from the certificate
+  (``sphere_radius_error_mm``); the probe triggers after a pre-travel that depends
+  on the approach direction (``pretravel_um`` + ``pretravel_lobe_um`` x horizontal
+  part, three lobes); the stylus radius the controller uses comes from a
+  calibration that took out the mean pre-travel; every trigger point carries noise;
+* R-test: the sphere off its nominal place; the three sensors' directions and
+  gains off by ``rtest_mount`` (a small 3 x 3 mix); zeroed at the first reading; noise;
+* laser + rotary indexer: ``ECC`` relative to the first target, a reversal
+  ``rotary_backlash_urad``, noise.
+
+Units: mm, um, urad, degrees (angles), seconds (time).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from abbe.formats.five_axis import indexer_csv, probe_csv, rtest_csv
+from abbe.model.five_axis import (LOCATION_ERRORS, MOTION_COMPONENTS, FiveAxisErrors,
+                                  TrunnionGeometry, linear_axis_errors, lowest_harmonic,
+                                  motion_values, nominal_joints, table_transform)
+
+
+@dataclass
+class VirtualFiveAxis:
+    """A five-axis machine with hidden errors and instrument set-up errors (see module)."""
+
+    geometry: TrunnionGeometry
+    errors: FiveAxisErrors
+    drift_per_h: dict[str, float] = field(default_factory=dict)  # location name -> per hour
+    sphere_offset_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    sphere_radius_error_mm: float = 0.0
+    pretravel_um: float = 0.0
+    pretravel_lobe_um: float = 0.0
+    probe_noise_um: float = 0.0
+    rtest_mount: np.ndarray = field(default_factory=lambda: np.eye(3))
+    rtest_noise_um: float = 0.0
+    indexer_noise_urad: float = 0.0
+    rotary_backlash_urad: float = 0.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        self.rng = np.random.default_rng(self.seed)
+
+    def errors_at(self, t_s: float) -> FiveAxisErrors:
+        """The errors at campaign time ``t_s`` (location errors drifted)."""
+        loc = dict(self.errors.location)
+        for k, r in self.drift_per_h.items():
+            loc[k] = loc.get(k, 0.0) + r * t_s / 3600.0
+        return FiveAxisErrors(loc, self.errors.motions, self.errors.squareness, self.errors.linear)
+
+    def sphere_centre(self, sphere_mm: np.ndarray, angles_deg: np.ndarray, t_s: float) -> np.ndarray:
+        """True machine position (mm) of the sphere's centre at ``angles_deg`` (tilt, C)."""
+        T = table_transform(self.geometry, self.errors_at(t_s), np.asarray(angles_deg)[None, :])[0]
+        s = np.asarray(sphere_mm, dtype=np.float64) + np.asarray(self.sphere_offset_mm)
+        return T[:3, :3] @ s + T[:3, 3]
+
+    # ---------------------------------------------------------------- instruments
+
+    def probe(self, sphere_mm: tuple[float, float, float], radius_mm: float, stylus_mm: float,
+              angles_deg: np.ndarray, t0_s: float = 0.0, n_points: int = 7,
+              s_per_point: float = 4.0, s_per_position: float = 20.0) -> dict[str, np.ndarray]:
+        """Probe the sphere at every angle pair (M, 2): trigger points and times.
+
+        Directions (machine frame): the pole and ``n_points - 1`` points on a circle at
+        20 degrees latitude, approached along the line through the centre the
+        controller expects (nominal kinematics), starting 2 mm outside.
+        """
+        g = self.geometry
+        ang = np.asarray(angles_deg, dtype=np.float64).reshape(-1, 2)
+        k = n_points - 1
+        phi = np.arange(k) * 2 * np.pi / k
+        lat = np.deg2rad(20.0)
+        dirs = np.vstack([[0.0, 0.0, 1.0], np.column_stack([np.cos(lat) * np.cos(phi),
+                                                            np.cos(lat) * np.sin(phi),
+                                                            np.full(k, np.sin(lat))])])
+        horiz = 1.0 - dirs[:, 2] ** 2
+        lobe = np.cos(3 * np.arctan2(dirs[:, 1], dirs[:, 0])) * horiz
+        pretravel_mm = (self.pretravel_um * (1.0 + horiz) + self.pretravel_lobe_um * lobe) * 1e-3
+        # The calibration on a reference sphere took out the mean pre-travel.
+        stylus_true = stylus_mm + float(np.mean(pretravel_mm))
+        r_true = radius_mm + self.sphere_radius_error_mm
+        pos_i, t_out, ang_out, pts = [], [], [], []
+        t = t0_s
+        expected = nominal_joints(g, np.asarray(sphere_mm)[None, :].repeat(len(ang), 0), ang)
+        for m in range(len(ang)):
+            t += s_per_position
+            for j, n in enumerate(dirs):
+                t += s_per_point
+                c = self.sphere_centre(np.asarray(sphere_mm), ang[m], t)
+                reach = r_true + stylus_true - pretravel_mm[j]
+                start = expected[m] + n * (radius_mm + stylus_mm + 2.0)
+                q = start
+                for _ in range(3):  # the tool error depends (weakly) on where it triggers
+                    e, _r = linear_axis_errors(g, self.errors, q[None, :])
+                    o = start + e[0] * 1e-3 - c
+                    b = -2.0 * float(n @ o)
+                    disc = b * b - 4.0 * (float(o @ o) - reach * reach)
+                    s = (-b - np.sqrt(disc)) / 2.0  # first contact moving along -n
+                    q = start - n * s
+                pos_i.append(m)
+                t_out.append(t)
+                ang_out.append(ang[m])
+                pts.append(q + self.rng.normal(0.0, self.probe_noise_um * 1e-3, 3))
+        return {"position": np.asarray(pos_i), "t_s": np.asarray(t_out),
+                "angles_deg": np.asarray(ang_out), "points_mm": np.asarray(pts)}
+
+    def rtest(self, sphere_mm: tuple[float, float, float], angles_deg: np.ndarray,
+              t0_s: float = 0.0, s_per_reading: float = 1.0) -> dict[str, np.ndarray]:
+        """R-test readings along a path of angle pairs (M, 2) under tool-centre-point control."""
+        g = self.geometry
+        ang = np.asarray(angles_deg, dtype=np.float64).reshape(-1, 2)
+        s_nom = np.asarray(sphere_mm, dtype=np.float64)
+        q = nominal_joints(g, s_nom[None, :].repeat(len(ang), 0), ang)
+        e, _r = linear_axis_errors(g, self.errors, q)
+        t = t0_s + s_per_reading * np.arange(len(ang))
+        d = np.array([self.sphere_centre(s_nom, ang[i], t[i]) for i in range(len(ang))])
+        d = (d - q) * 1e3 - e
+        read = d @ np.asarray(self.rtest_mount).T
+        read = read - read[0]
+        read = read + self.rng.normal(0.0, self.rtest_noise_um, read.shape)
+        read[0] = 0.0  # zeroed at the first reading
+        return {"t_s": t, "angles_deg": ang, "displacement_um": read}
+
+    def indexer(self, axis: str, targets_deg: np.ndarray, runs: int = 3) -> dict[str, np.ndarray]:
+        """ISO 230-2 cycle of a rotary axis (linear cycle, each target from + and -)."""
+        tg = np.asarray(targets_deg, dtype=np.float64)
+        ecc = motion_values(self.errors, axis, tg)[:, MOTION_COMPONENTS.index(axis)]
+        base = ecc - ecc[0]
+        run, dirn, tout, dev = [], [], [], []
+        for r in range(1, runs + 1):
+            for sgn, order in ((1, tg), (-1, tg[::-1])):
+                for x in order:
+                    i = int(np.flatnonzero(tg == x)[0])
+                    run.append(r)
+                    dirn.append(sgn)
+                    tout.append(x)
+                    dev.append(base[i] + sgn * self.rotary_backlash_urad / 2.0
+                               + self.rng.normal(0.0, self.indexer_noise_urad))
+        return {"run": np.asarray(run), "direction": np.asarray(dirn),
+                "target_deg": np.asarray(tout), "deviation_urad": np.asarray(dev)}
+
+
+def probing_positions(geom: TrunnionGeometry, n_tilt: int, n_c: int) -> np.ndarray:
+    """(n_tilt * n_c, 2) angle pairs: tilt from its travel's middle 80 %, C round its travel."""
+    tilt, table = geom.rotaries
+    lo, hi = geom.travel_deg[tilt]
+    lo_c, hi_c = geom.travel_deg[table]
+    span = min(hi_c - lo_c, 360.0)
+    ta = np.linspace(max(lo, -90.0) * 0.8 if lo < 0 else lo, min(hi, 90.0) * 0.8, n_tilt)
+    tc = lo_c + np.arange(n_c) * span / n_c if span >= 360.0 else np.linspace(lo_c, hi_c, n_c)
+    A, C = np.meshgrid(ta, tc, indexing="ij")
+    return np.column_stack([A.ravel(), C.ravel()])
+
+
+def random_errors(geom: TrunnionGeometry, rng: np.random.Generator, loc_um: float = 20.0,
+                  loc_urad: float = 50.0, motion_um: float = 0.0, motion_urad: float = 0.0,
+                  harmonics: int = 3) -> FiveAxisErrors:
+    """Hidden errors of a plausible size: location errors N(0, loc_um / loc_urad), error
+    motions with harmonics up to ``harmonics`` and amplitude ~ motion_um / motion_urad."""
+    loc: dict[str, float] = {}
+    for ax in geom.rotaries:
+        for i, n in enumerate(LOCATION_ERRORS[ax]):
+            loc[n] = float(rng.normal(0.0, loc_um if i < 2 else loc_urad))
+    mot: dict[tuple[str, str], np.ndarray] = {}
+    if motion_um or motion_urad:
+        for ax in geom.rotaries:
+            for j, comp in enumerate(MOTION_COMPONENTS):
+                lo = lowest_harmonic(ax, comp)
+                c = np.zeros(2 * harmonics)
+                c[2 * (lo - 1):] = rng.normal(0.0, (motion_um if j < 3 else motion_urad)
+                                              / np.sqrt(harmonics), 2 * (harmonics - lo + 1))
+                mot[(ax, comp)] = c
+    return FiveAxisErrors(loc, mot)
+
+
+def truth_json(vm: VirtualFiveAxis) -> dict:
+    """The hidden truth of a virtual machine as JSON (units in the keys)."""
+    e = vm.errors
+    return {"kinematics": vm.geometry.kind,
+            "location": {k: float(v) for k, v in e.location.items()},
+            "motions": {f"{a}.{c}": [float(x) for x in v] for (a, c), v in e.motions.items()},
+            "squareness_urad": [float(v) for v in e.squareness],
+            "drift_per_h": dict(vm.drift_per_h),
+            "sphere_offset_mm": list(vm.sphere_offset_mm),
+            "sphere_radius_error_mm": vm.sphere_radius_error_mm,
+            "pretravel_um": vm.pretravel_um, "pretravel_lobe_um": vm.pretravel_lobe_um,
+            "probe_noise_um": vm.probe_noise_um, "rtest_noise_um": vm.rtest_noise_um}
+
+
+def write_campaign(vm: VirtualFiveAxis, out: Path, *, positions: np.ndarray,
+                   sphere_mm: tuple[float, float, float] = (0.0, 0.0, 0.0),
+                   sphere_radius_mm: float = 12.5, stylus_radius_mm: float = 1.5,
+                   rtest_path: np.ndarray | None = None, indexer_targets: np.ndarray | None = None,
+                   harmonics: int = 0, name: str = "virtual five-axis") -> Path:
+    """Simulate a campaign into the folder ``out``: machine.toml, probe.csv (and rtest.csv,
+    indexer_C.csv), truth.json. Returns the machine file's path."""
+    g = vm.geometry
+    tilt, table = g.rotaries
+    out.mkdir(parents=True, exist_ok=True)
+    sphere = tuple(np.asarray(g.rot_point_mm) + np.asarray(sphere_mm))
+    p = vm.probe(sphere, sphere_radius_mm, stylus_radius_mm, positions)  # type: ignore[arg-type]
+    (out / "probe.csv").write_text(probe_csv(tilt, p["position"], p["t_s"], p["angles_deg"],
+                                             p["points_mm"]), encoding="utf-8")
+    offs = ("y_offset_mm", "z_offset_mm") if tilt == "A" else ("x_offset_mm", "z_offset_mm")
+    ov = (g.offset_mm[1], g.offset_mm[2]) if tilt == "A" else (g.offset_mm[0], g.offset_mm[2])
+    lines = [f'[machine]\nname = "{name}"\n',
+             "[axes.X]\ntravel_mm = [-500.0, 500.0]\n[axes.Y]\ntravel_mm = [-500.0, 500.0]\n"
+             "[axes.Z]\ntravel_mm = [-600.0, 200.0]\n",
+             "[reference]\npoint_mm = [0.0, 0.0, 0.0]\n",
+             f'[rotary]\nkinematics = "{g.kind}"\nx_rot_point_mm = {g.rot_point_mm[0]!r}\n'
+             f"y_rot_point_mm = {g.rot_point_mm[1]!r}\nz_rot_point_mm = {g.rot_point_mm[2]!r}\n"
+             f"{offs[0]} = {ov[0]!r}\n{offs[1]} = {ov[1]!r}\ntool_length_mm = {g.tool_length_mm!r}\n",
+             f"[rotary.{tilt}]\ntravel_deg = {list(g.travel_deg[tilt])!r}\n",
+             f"[rotary.{table}]\ntravel_deg = {list(g.travel_deg[table])!r}\n",
+             f"[rotary.fit]\nharmonics = {harmonics}\n",
+             f'[probing.S1]\nfile = "probe.csv"\nsphere_mm = {[float(v) for v in sphere]!r}\n'
+             f"sphere_radius_mm = {sphere_radius_mm!r}\nstylus_radius_mm = {stylus_radius_mm!r}\n"]
+    if rtest_path is not None:
+        r = vm.rtest(sphere, rtest_path, t0_s=float(p["t_s"][-1]) + 60.0)  # type: ignore[arg-type]
+        (out / "rtest.csv").write_text(rtest_csv(tilt, r["t_s"], r["angles_deg"],
+                                                 r["displacement_um"]), encoding="utf-8")
+        lines.append(f'[rtest.R1]\nfile = "rtest.csv"\nsphere_mm = {[float(v) for v in sphere]!r}\n')
+    if indexer_targets is not None:
+        ix = vm.indexer(table, indexer_targets)
+        (out / f"indexer_{table}.csv").write_text(
+            indexer_csv(ix["run"], ix["direction"], ix["target_deg"], ix["deviation_urad"]),
+            encoding="utf-8")
+        lines.append(f'[indexer.{table}]\nfile = "indexer_{table}.csv"\n')
+    (out / "machine.toml").write_text("\n".join(lines), encoding="utf-8")
+    (out / "truth.json").write_text(json.dumps(truth_json(vm), indent=2) + "\n", encoding="utf-8")
+    return out / "machine.toml"

@@ -1,0 +1,34 @@
+"""``abbe demo --five-axis``: the trunnion5ax example identified and compared with its truth."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from abbe.cli.entry import main
+
+
+def test_demo_five_axis(tmp_path: Path) -> None:
+    out, js = tmp_path / "demo", tmp_path / "s.json"
+    assert main(["demo", "--five-axis", "-o", str(out), "--json", str(js)]) == 0
+    s = json.loads(js.read_text())
+    assert s["kinematics"] == "xyzac-trt"
+    assert s["within_interval_or_1um_5urad"] == s["observable_location_errors"] >= 4
+    assert {"EA0A", "EC0C"} <= set(s["unobservable"])
+    assert s["heldout_after_um"] < s["heldout_before_um"] / 5
+    assert (out / "report" / "index.html").is_file() and (out / "truth_comparison.txt").is_file()
+    doc = json.loads((out / "five_axis.json").read_text())
+    assert doc["rotary_positioning"]["C"]["A_urad"] > 0
+
+
+def test_diagnose_cli_on_a_five_axis_file(tmp_path: Path, capsys) -> None:
+    from cases.five_axis_hidden import make_case
+
+    mf, expected, _amp = make_case("cyclic", 1, tmp_path / "case")
+    out, js = tmp_path / "diag", tmp_path / "d.json"
+    assert main(["diagnose", str(mf), "-o", str(out), "--json", str(js)]) == 0
+    doc = json.loads(js.read_text())
+    assert [n["effect"] for n in doc["named"]] == [expected]
+    assert doc["heldout_after_um"] < doc["heldout_before_um"]
+    assert (out / "report.txt").read_text().startswith("Five-axis discrepancy")
+    assert "Named:" in capsys.readouterr().out
