@@ -15,7 +15,11 @@
 #   9. LinuxCNC: the HAL component built and installed, halrun and simulator
 #      tests (port/linuxcnc/tests/run.sh; halrun / linuxcnc run as an
 #      unprivileged user, created when run as root)
-#  10. the README's demo command (scripts/demo.sh), run twice: into a new
+#  10. grblHAL: the Simulator built with the abbe plugin from the snapshots in
+#      ../shared/vendor/grblhal, G-code checked against the Python reference
+#      (port/grblhal/tests/run.sh; skipped without the snapshots, a failure
+#      under CI=true)
+#  11. the README's demo command (scripts/demo.sh), run twice: into a new
 #      demo-out/ and over the old one
 # Runs every step even after a failure; exits non-zero if any step failed.
 set -uo pipefail
@@ -114,6 +118,7 @@ step "Python import contracts (lint-imports)" import_contracts
 step "pytest host_tools/tests" pytest_all
 step "wheel: build, install outside the checkout, run abbe there" wheel_test
 step "LinuxCNC component: halrun and simulator tests" bash port/linuxcnc/tests/run.sh
+step "grblHAL plugin in grblHAL's Simulator" bash port/grblhal/tests/run.sh
 step "README's demo command (scripts/demo.sh), twice" readme_demo
 
 echo
