@@ -259,6 +259,50 @@ static void test_upload(void **state)
     assert_int_equal(abbe_model_crc(abbe_gh_model(&gh)), abbe_model_crc(&paper));
 }
 
+/* A correction beyond the limit latches a fault: the plugin reports FAULT and
+ * the correction fades out at the rate limit, never a jump; reset clears it. */
+static void test_fault_fades_out(void **state)
+{
+    (void)state;
+    start("backlash");
+    assert_int_equal(abbe_gh_set_enabled(&gh, 1), ABBE_OK);
+    float p[3] = {100.0f, -100.0f, -100.0f}, m[3];
+    for (int k = 0; k < 40; k++) {
+        p[0] += 1.0f;
+        (void)abbe_gh_forward(&gh, p, m);
+    }
+    assert_int_equal(abbe_gh_state(&gh), ABBE_GH_ON);
+    int32_t prev[3] = {gh.last_corr_nm[0], gh.last_corr_nm[1], gh.last_corr_nm[2]};
+    abbe_gh_params_t prm = gh.params;
+    prm.limit_um = 1.0f; /* below this table's correction */
+    assert_int_equal(abbe_gh_set_params(&gh, &prm), ABBE_OK);
+    int32_t rate = (int32_t)(prm.rate_um_per_seg * 1000.0f) + 1;
+    int faulted = 0;
+    for (int k = 0; k < 80; k++) {
+        p[0] += 1.0f;
+        uint32_t flags = abbe_gh_forward(&gh, p, m);
+        faulted |= (flags & ABBE_FLAG_LIMIT) != 0u;
+        for (unsigned j = 0; j < 3; j++) {
+            assert_true(abs(gh.last_corr_nm[j] - prev[j]) <= rate);
+            prev[j] = gh.last_corr_nm[j];
+        }
+    }
+    assert_true(faulted);
+    assert_int_equal(abbe_gh_state(&gh), ABBE_GH_FAULT);
+    for (unsigned j = 0; j < 3; j++) {
+        assert_int_equal(gh.last_corr_nm[j], 0);
+    }
+    prm.limit_um = 200.0f;
+    assert_int_equal(abbe_gh_set_params(&gh, &prm), ABBE_OK);
+    assert_int_equal(abbe_gh_set_enabled(&gh, 2), ABBE_OK); /* $ABBERESET */
+    assert_int_equal(abbe_gh_set_enabled(&gh, 1), ABBE_OK);
+    for (int k = 0; k < 40; k++) {
+        p[0] += 1.0f;
+        (void)abbe_gh_forward(&gh, p, m);
+    }
+    assert_int_equal(abbe_gh_state(&gh), ABBE_GH_ON);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -266,6 +310,7 @@ int main(void)
         cmocka_unit_test(test_segments),
         cmocka_unit_test(test_forward_inverse_fade),
         cmocka_unit_test(test_upload),
+        cmocka_unit_test(test_fault_fades_out),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
