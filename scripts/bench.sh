@@ -5,7 +5,7 @@
 # double-precision reference. Builds in build-bench-{host,m4f,m3,m4f-os,m3-os}/, and
 # build-bench-{host,m4f,m3}-1.0/ (format 1.0 libraries: what the reversal blocks cost).
 #   ./scripts/bench.sh            # writes bench/results.md
-#   ./scripts/bench.sh -o FILE    # writes FILE instead
+#   ./scripts/bench.sh -o FILE    # writes FILE instead (without section 9: port/grblhal/bench/cost.py)
 set -euo pipefail
 
 REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -39,3 +39,7 @@ done
 python3 scripts/bench_report.py --repo . --host build-bench-host --m4f build-bench-m4f \
     --m3 build-bench-m3 --m4f-os build-bench-m4f-os --m3-os build-bench-m3-os \
     --host-1.0 build-bench-host-1.0 --m4f-1.0 build-bench-m4f-1.0 --m3-1.0 build-bench-m3-1.0 -o "$OUT"
+# Section 9 (the grblHAL plugin per segment) is written by its own script, into bench/results.md only.
+if [[ $OUT == bench/results.md ]]; then
+    .venv/bin/python port/grblhal/bench/cost.py
+fi
