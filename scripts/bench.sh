@@ -6,7 +6,7 @@
 # build-bench-{host,m4f,m3}-1.0/ (format 1.0 libraries: what the reversal blocks cost),
 # and build-bench-{m4f,m3}-clang/ + build-bench-m4f-clang-nounroll/ (clang/LLVM).
 #   ./scripts/bench.sh            # writes bench/results.md
-#   ./scripts/bench.sh -o FILE    # writes FILE instead
+#   ./scripts/bench.sh -o FILE    # writes FILE instead (without section 9: port/grblhal/bench/cost.py)
 set -euo pipefail
 
 REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -48,3 +48,7 @@ python3 scripts/bench_report.py --repo . --host build-bench-host --m4f build-ben
     --host-1.0 build-bench-host-1.0 --m4f-1.0 build-bench-m4f-1.0 --m3-1.0 build-bench-m3-1.0 \
     --m4f-clang build-bench-m4f-clang --m3-clang build-bench-m3-clang \
     --m4f-clang-nounroll build-bench-m4f-clang-nounroll -o "$OUT"
+# Section 10 (the grblHAL plugin per segment) is written by its own script, into bench/results.md only.
+if [[ $OUT == bench/results.md ]]; then
+    .venv/bin/python port/grblhal/bench/cost.py
+fi

@@ -21,7 +21,11 @@
 #      simulator: targets, approach sides, dwells, travel, the ballbar arc, and the
 #      closed loop through a Renishaw .rtl file (port/linuxcnc/tests/program_sim.py,
 #      under flock /tmp/abbe-linuxcnc.lock)
-#  12. the README's demo command (scripts/demo.sh), run twice: into a new
+#  12. grblHAL: the Simulator built with the abbe plugin from the snapshots in
+#      ../shared/vendor/grblhal, G-code checked against the Python reference
+#      (port/grblhal/tests/run.sh; skipped without the snapshots, a failure
+#      under CI=true)
+#  13. the README's demo command (scripts/demo.sh), run twice: into a new
 #      demo-out/ and over the old one
 # Runs every step even after a failure; exits non-zero if any step failed.
 set -uo pipefail
@@ -134,6 +138,7 @@ step "wheel: build, install outside the checkout, run abbe there" wheel_test
 step "LinuxCNC component: halrun and simulator tests" bash port/linuxcnc/tests/run.sh
 step "clang Cortex-M4F and M3 builds and ctest under QEMU (build-m{4f,3}-clang)" cross_clang
 step "measurement programs in LinuxCNC's simulator" lcnc_programs
+step "grblHAL plugin in grblHAL's Simulator" bash port/grblhal/tests/run.sh
 step "README's demo command (scripts/demo.sh), twice" readme_demo
 
 echo

@@ -570,3 +570,16 @@ uint32_t abbe_model_size(const abbe_model_t *model)
 {
     return model != NULL ? model->size : 0u;
 }
+
+abbe_status_t abbe_model_axis_info(const abbe_model_t *model, unsigned axis, abbe_axis_info_t *info)
+{
+    if (model == NULL || info == NULL || axis >= ABBE_AXES) {
+        return ABBE_E_ARG;
+    }
+    const abbe_axis_model_t *ax = &model->axis[axis];
+    info->travel_min_nm = ax->travel_min_nm;
+    info->travel_max_nm = ax->travel_max_nm;
+    info->backlash_takeup_nm = (model->features & ABBE_FEATURE_BACKLASH) ? ax->backlash_takeup_nm : 0;
+    info->thermal_tref_mdegc = (model->features & ABBE_FEATURE_THERMAL) ? ax->thermal_tref_mdegc : 0;
+    return ABBE_OK;
+}

@@ -97,6 +97,21 @@ static void test_valid_table_loads(void **state)
     assert_int_equal(abbe_model_crc(&m), tb_get_u32(blob + n - 4));
     /* extra bytes after the table (a flash sector) are ignored */
     assert_int_equal(abbe_model_load(&m, blob, n + 64), ABBE_OK);
+    /* the per-axis facts a port needs (abbe_model_axis_info) */
+    tb_table_t t;
+    base_table(&t);
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        abbe_axis_info_t info;
+        assert_int_equal(abbe_model_axis_info(&m, j, &info), ABBE_OK);
+        assert_int_equal(info.travel_min_nm, t.axis[j].travel_min_nm);
+        assert_int_equal(info.travel_max_nm, t.axis[j].travel_max_nm);
+        assert_int_equal(info.backlash_takeup_nm, t.axis[j].takeup_nm);
+        assert_int_equal(info.thermal_tref_mdegc, t.axis[j].tref_mdegc);
+    }
+    abbe_axis_info_t info;
+    assert_int_equal(abbe_model_axis_info(&m, ABBE_AXES, &info), ABBE_E_ARG);
+    assert_int_equal(abbe_model_axis_info(NULL, 0, &info), ABBE_E_ARG);
+    assert_int_equal(abbe_model_axis_info(&m, 0, NULL), ABBE_E_ARG);
 }
 
 static void test_null_arguments(void **state)

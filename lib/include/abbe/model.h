@@ -138,6 +138,22 @@ uint32_t abbe_model_features(const abbe_model_t *model);
 /* Size of the table in bytes (its total_size field). */
 uint32_t abbe_model_size(const abbe_model_t *model);
 
+/* What a port needs to know about one axis of the loaded table: its travel
+ * (the model holds its end values beyond it), the backlash take-up distance
+ * (0 without BACKLASH; a reversal's correction ramps over it) and the thermal
+ * reference temperature (0 without THERMAL; feeding it as the temperature
+ * applies no thermal term). */
+typedef struct {
+    abbe_nm_t travel_min_nm;
+    abbe_nm_t travel_max_nm;
+    int32_t backlash_takeup_nm;
+    int32_t thermal_tref_mdegc;
+} abbe_axis_info_t;
+
+/* Fill *info for axis (ABBE_AXIS_X..Z) of a loaded model. Returns ABBE_E_ARG
+ * for NULL pointers or an axis out of range (*info untouched). */
+abbe_status_t abbe_model_axis_info(const abbe_model_t *model, unsigned axis, abbe_axis_info_t *info);
+
 /* sizeof(abbe_model_t) as this library was built: lets bindings in other
  * languages (host_tools/abbe/clib.py) check their copy of the layout. */
 size_t abbe_model_sizeof(void);

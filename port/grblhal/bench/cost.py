@@ -1,0 +1,129 @@
+#!/usr/bin/env python3
+"""Cost of the grblHAL plugin per segment on a Cortex-M4F (_f32) and M3 (_q).
+
+Builds port/grblhal/bench/bench_grblhal.c for both (build-bench-grblhal-m4f/,
+-m3/, the project's toolchain files) with the vmc500 table (abbe fit of
+examples/vmc500, abbe table cgen), runs it under QEMU with an exec trace and
+counts the instructions of each call exactly (scripts/bench_report.py's
+qemu_trace_counts: one trace line per executed instruction, minus an empty
+pair of marks); flash: the plugin core's object (all of it), and from the
+link map the library members it pulls in and libgcc's soft-float helpers. Writes
+section 10 of bench/results.md (between its markers; replaced on every run)
+and, with --json, the figures.
+
+  port/grblhal/bench/cost.py [--json OUT] [--no-write] [--from-json FIGURES]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[3]
+sys.path.insert(0, str(REPO / "scripts"))
+from bench_report import parse_map, qemu_trace_counts  # noqa: E402
+
+TARGETS = {"m4f": ("Cortex-M4F", "cortex-m4f", "mps2-an386", "_f32"),
+           "m3": ("Cortex-M3", "cortex-m3", "mps2-an385", "_q")}
+BEGIN = "<!-- grblhal-plugin: written by port/grblhal/bench/cost.py -->"
+END = "<!-- /grblhal-plugin -->"
+
+
+def sh(cmd: list[str], **kw) -> subprocess.CompletedProcess:
+    return subprocess.run(cmd, check=True, text=True, capture_output=True, **kw)
+
+
+def object_flash(obj: Path) -> int:
+    """Flash (.text*, .rodata*) of an object file: all of the plugin core, also
+    the functions this benchmark does not call (the upload)."""
+    total = 0
+    for line in sh(["arm-none-eabi-size", "-A", str(obj)]).stdout.splitlines():
+        parts = line.split()
+        if len(parts) >= 2 and parts[0].startswith((".text", ".rodata")):
+            total += int(parts[1])
+    return total
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--json", type=Path)
+    ap.add_argument("--no-write", action="store_true", help="do not touch bench/results.md")
+    ap.add_argument("--from-json", type=Path, help="write the section from the figures of an earlier --json")
+    args = ap.parse_args()
+    if args.from_json:
+        write_section(json.loads(args.from_json.read_text()))
+        return 0
+    abbe = REPO / ".venv" / "bin" / "abbe"
+    gen = REPO / "build-bench-grblhal-table"
+    gen.mkdir(exist_ok=True)
+    sh([str(abbe), "fit", str(REPO / "examples/vmc500/machine.toml"), "-o", str(gen / "fit"), "--no-report", "-q"])
+    sh([str(abbe), "table", "cgen", str(gen / "fit" / "model.bin"), "-o", str(gen)])
+    res: dict = {}
+    for key, (label, tc, machine, variant) in TARGETS.items():
+        build = REPO / f"build-bench-grblhal-{key}"
+        sh(["cmake", "-S", str(REPO), "-B", str(build), f"-DCMAKE_TOOLCHAIN_FILE=cmake/toolchain-{tc}.cmake",
+            "-DCMAKE_BUILD_TYPE=Release", "-DABBE_BUILD_BENCH=ON", "-DABBE_BUILD_TESTS=OFF",
+            f"-DABBE_GRBLHAL_BENCH_TABLE_DIR={gen}"], cwd=REPO)
+        sh(["cmake", "--build", str(build), "--target", "bench_grblhal", "-j", "2"])
+        image = build / "bench" / "grblhal" / "bench_grblhal.elf"
+        counts, out = qemu_trace_counts(machine, image, "arm-none-eabi-nm")
+        maps = parse_map(image.with_suffix(".map"))
+        core = object_flash(next(build.glob("**/abbe_grblhal_core.c.obj")))
+        segs = re.search(r"^SEGMENTS (\d+)$", out, re.M)
+        per_seg_circle = max(counts["forward_circle"])
+        per_seg_line = max(counts["forward_line"]) + max(counts["line_next"])
+        res[key] = {"label": label, "variant": variant, "counts": counts,
+                    "forward_max": max(max(counts["forward_circle"]), max(counts["forward_line"])),
+                    "per_segment_circle": per_seg_circle, "per_segment_line": per_seg_line,
+                    "line_begin": counts["line_begin"][0], "inverse_max": max(counts["inverse"]),
+                    "flash_core": core, "flash_lib": maps.lib_flash, "flash_libgcc": maps.gcc_flash,
+                    "line_segments": int(segs.group(1)) if segs else None}
+        print(f"{label}: forward (transform) {res[key]['forward_max']} instructions, per line segment "
+              f"{per_seg_line}, line begin {res[key]['line_begin']}, inverse {res[key]['inverse_max']}; flash "
+              f"core {core} B + library {maps.lib_flash} B + libgcc {maps.gcc_flash} B")
+    if args.json:
+        args.json.write_text(json.dumps(res, indent=2) + "\n")
+    if not args.no_write:
+        write_section(res)
+    return 0
+
+
+def write_section(res: dict) -> None:
+    gcc = sh(["arm-none-eabi-gcc", "--version"]).stdout.splitlines()[0]
+    qemu = sh(["qemu-system-arm", "--version"]).stdout.splitlines()[0]
+    w = [BEGIN, "## 10. The grblHAL plugin per segment (issue 25)", "",
+         "port/grblhal/bench/bench_grblhal.c under QEMU (exec trace, exact counts; the worst of the",
+         "measured calls), the vmc500 table of `abbe fit` (backlash, thermal; 24 rows), full gain",
+         "after a fade-in. Per segment grblHAL's mc_line() gets the next segment end",
+         "(`abbe_gh_line_next`, only on lines the plugin splits; arcs come as grblHAL's chords) and",
+         "transforms it (`abbe_gh_forward`: direction, one `abbe_comp_step`, motor = p + correction).",
+         "Per line once `abbe_gh_line_begin`; per position report `abbe_gh_inverse` (fixed point of",
+         "p = m - c(p), 1-2 iterations of one evaluation each, plus one at the last segment end).",
+         "Flash: the plugin core's object (all of it, the upload included), the library members",
+         "it links, libgcc's soft-float helpers (M3: the core's float arithmetic; grblHAL links them",
+         "anyway). Not included: the grblHAL glue (abbe_grblhal.c: settings, commands, report; it",
+         "needs grblHAL to build).", "",
+         "| target | variant | transform per segment (circle) | per line segment (next + transform) | "
+         "line begin | inverse | flash core + library + libgcc |",
+         "|---|---|---:|---:|---:|---:|---:|"]
+    for r in res.values():
+        w.append(f"| {r['label']} | {r['variant']} | {r['per_segment_circle']} | {r['per_segment_line']} | "
+                 f"{r['line_begin']} | {r['inverse_max']} | {r['flash_core']} + {r['flash_lib']} + "
+                 f"{r['flash_libgcc']} B |")
+    w += ["", f"Toolchain: {gcc}; {qemu}. Regenerate: `port/grblhal/bench/cost.py`.", END]
+    path = REPO / "bench" / "results.md"
+    text = path.read_text()
+    block = "\n".join(w) + "\n"
+    if BEGIN in text and END in text:
+        text = text[:text.index(BEGIN)] + block + text[text.index(END) + len(END) + 1:]
+    else:
+        text = text.rstrip("\n") + "\n\n" + block
+    path.write_text(text)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,561 @@
+/* abbe grblHAL plugin: installs the compensation on grblHAL's kinematics
+ * interface, adds its $ settings, the $ABBE / $ABBEU / $ABBERESET commands and
+ * the |ABBE: field of the status report (docs/grblhal.md).
+ *
+ * The plugin is Apache-2.0 (the project's licence); it includes grblHAL's
+ * headers, and a firmware image that links grblHAL is GPL-3.0-or-later.
+ * Everything that does not need grblHAL is in abbe_grblhal_core.c. */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "grbl/hal.h"
+#include "grbl/kinematics/interface.h"
+#include "grbl/machine_limits.h"
+#include "grbl/nvs_buffer.h"
+#include "grbl/planner.h"
+#include "grbl/protocol.h"
+#include "grbl/report.h"
+#include "grbl/settings.h"
+#include "grbl/state_machine.h"
+#include "grbl/system.h"
+
+#include "abbe_grblhal.h"
+#include "abbe_grblhal_core.h"
+
+#ifndef KINEMATICS_API
+#error "abbe_grblhal needs grblHAL built with KINEMATICS_API defined"
+#endif
+#if N_AXIS < 3
+#error "abbe_grblhal compensates X, Y and Z"
+#endif
+
+#ifdef ABBE_GRBLHAL_BUILTIN
+#include "abbe_model.h" /* abbe table cgen MODEL -o DIR */
+#endif
+
+#define SETTING_ENABLE ((setting_id_t)(ABBE_GRBLHAL_SETTING_BASE))
+#define SETTING_DEVIATION ((setting_id_t)(ABBE_GRBLHAL_SETTING_BASE + 1))
+#define SETTING_LIMIT ((setting_id_t)(ABBE_GRBLHAL_SETTING_BASE + 2))
+
+/* What is stored in grblHAL's non-volatile settings area. */
+typedef struct {
+    uint8_t enable;
+    float max_dev_um;
+    float limit_um;
+} abbe_nvs_settings_t;
+
+static abbe_gh_t gh;
+static abbe_nvs_settings_t cfg;
+static nvs_address_t nvs_address;
+static abbe_status_t boot_status = ABBE_OK;
+
+/* segment_line state: mc_line() keeps the pointer the first call returns and
+ * hands it to the planner after every later call, so every segment is written
+ * into seg_buf. */
+static coord_data_t seg_buf, final_target;
+static abbe_gh_line_t line;
+static uint32_t segments_left;
+static bool line_compensated;
+static volatile bool jog_cancel;
+static float last_motor[3];
+static bool have_last_motor;
+
+/* Messages wait for the foreground (on_execute_realtime). */
+static char pending_msg[112];
+static volatile bool msg_pending;
+static bool fault_reported;
+
+static on_report_options_ptr on_report_options;
+static on_realtime_report_ptr on_realtime_report;
+static on_execute_realtime_ptr on_execute_realtime;
+static on_jog_cancel_ptr on_jog_cancel;
+static travel_limits_ptr check_travel_limits;
+
+static void queue_message(const char *text)
+{
+    strncpy(pending_msg, text, sizeof pending_msg - 1u);
+    pending_msg[sizeof pending_msg - 1u] = '\0';
+    msg_pending = true;
+}
+
+/* ---- kinematics ---------------------------------------------------------- */
+
+/* Cartesian (programmed) position -> motor position: p - E(p), one
+ * compensator step per call (a segment end). Homing moves (the only other
+ * caller in grblHAL's core) go through unchanged. */
+static coord_data_t *abbe_transform_from_cartesian(coord_data_t *target, coord_data_t *position)
+{
+    uint_fast8_t idx;
+    for (idx = 0; idx < N_AXIS; idx++)
+        target->values[idx] = position->values[idx];
+
+    if (state_get() != STATE_HOMING && abbe_gh_active(&gh)) {
+        float motor[3];
+        uint32_t flags = abbe_gh_forward(&gh, position->values, motor);
+        for (idx = 0; idx < 3; idx++)
+            target->values[idx] = motor[idx];
+        if ((flags & ABBE_FLAG_LIMIT) && !fault_reported) {
+            fault_reported = true;
+            queue_message("abbe: correction limit exceeded, compensation fades out ($ABBERESET clears)");
+        }
+        if (flags & ABBE_FLAG_MODEL_SWAPPED) {
+            char text[64];
+            snprintf(text, sizeof text, "abbe: table %08lX in use", (unsigned long)abbe_model_crc(abbe_gh_model(&gh)));
+            queue_message(text);
+        }
+    }
+    return target;
+}
+
+/* Motor steps -> Cartesian position: the inverse (bounded fixed point). */
+static coord_data_t *abbe_steps_to_cartesian(coord_data_t *position, mpos_t *steps)
+{
+    uint_fast8_t idx;
+    float motor[3], cart[3];
+    for (idx = 0; idx < N_AXIS; idx++)
+        position->values[idx] = (float)steps->values[idx] / settings.axis[idx].steps_per_mm;
+    for (idx = 0; idx < 3; idx++)
+        motor[idx] = position->values[idx];
+    (void)abbe_gh_inverse(&gh, motor, cart);
+    for (idx = 0; idx < 3; idx++)
+        position->values[idx] = cart[idx];
+    return position;
+}
+
+/* Where the line starts, Cartesian: the last segment end if the planner is
+ * still there, else (after homing, a reset, a position change) the inverse of
+ * the planner's position. */
+static void line_start(const coord_data_t *position, float start[3])
+{
+    bool same = have_last_motor;
+    uint_fast8_t idx;
+    for (idx = 0; idx < 3 && same; idx++)
+        same = fabsf(position->values[idx] - last_motor[idx]) <= 0.5f / settings.axis[idx].steps_per_mm + 1e-6f;
+    if (same) {
+        memcpy(start, gh.last_cart, sizeof(float) * 3);
+    } else {
+        float motor[3] = {position->values[0], position->values[1], position->values[2]};
+        (void)abbe_gh_inverse(&gh, motor, start);
+        abbe_gh_set_position(&gh, start);
+    }
+}
+
+static coord_data_t *abbe_segment_line(coord_data_t *target, coord_data_t *position, plan_line_data_t *pl_data,
+                                       bool init)
+{
+    (void)pl_data;
+    if (init) {
+        float start[3];
+        jog_cancel = false;
+        memcpy(&final_target, target, sizeof(coord_data_t));
+        line_start(position, start);
+        line_compensated = abbe_gh_active(&gh);
+        if (line_compensated)
+            segments_left = abbe_gh_line_begin(&gh, &line, start, target->values);
+        else {
+            segments_left = 1;
+            abbe_gh_set_position(&gh, target->values);
+        }
+        /* The first return is checked against the soft limits: the programmed
+         * (Cartesian) target, as without the plugin. */
+        memcpy(&seg_buf, target, sizeof(coord_data_t));
+        return &seg_buf;
+    }
+
+    if (jog_cancel || segments_left == 0)
+        return NULL;
+    segments_left--;
+
+    if (line_compensated) {
+        coord_data_t cart;
+        memcpy(&cart, &final_target, sizeof(coord_data_t));
+        (void)abbe_gh_line_next(&line, cart.values);
+        abbe_transform_from_cartesian(&seg_buf, &cart);
+    } else
+        memcpy(&seg_buf, &final_target, sizeof(coord_data_t));
+
+    memcpy(last_motor, seg_buf.values, sizeof last_motor);
+    have_last_motor = true;
+    return &seg_buf;
+}
+
+/* Limits and homing exactly as grblHAL does them without kinematics. */
+static uint_fast8_t abbe_limits_get_axis_mask(uint_fast8_t idx)
+{
+    return bit(idx);
+}
+
+static void abbe_limits_set_target_pos(uint_fast8_t idx)
+{
+    sys.position[idx] = 0;
+}
+
+static void abbe_limits_set_machine_positions(axes_signals_t cycle)
+{
+    /* The pull-off is added after a homing cycle, not for manual homing. */
+    limits_set_machine_positions(cycle, state_get() == STATE_HOMING);
+}
+
+/* mc_line() checks the first segment_line() return, the Cartesian target. */
+static bool abbe_check_travel_limits(float *target, axes_signals_t axes, bool is_cartesian, work_envelope_t *envelope)
+{
+    (void)is_cartesian;
+    return check_travel_limits(target, axes, true, envelope);
+}
+
+static void abbe_jog_cancel(sys_state_t state)
+{
+    jog_cancel = true;
+    if (on_jog_cancel)
+        on_jog_cancel(state);
+}
+
+/* ---- settings -------------------------------------------------------------- */
+
+static void apply_settings(void)
+{
+    abbe_gh_params_t p = gh.params;
+    p.max_dev_um = cfg.max_dev_um;
+    p.limit_um = cfg.limit_um;
+    if (abbe_gh_set_params(&gh, &p) != ABBE_OK)
+        queue_message("abbe: settings out of range, the previous ones stay");
+    if ((cfg.enable != 0) != (gh.enabled != 0))
+        (void)abbe_gh_set_enabled(&gh, cfg.enable);
+}
+
+static status_code_t set_enable(setting_id_t id, uint_fast16_t value)
+{
+    (void)id;
+    cfg.enable = value ? 1 : 0;
+    apply_settings();
+    return Status_OK;
+}
+
+static uint32_t get_enable(setting_id_t id)
+{
+    (void)id;
+    return cfg.enable;
+}
+
+static status_code_t set_float(setting_id_t id, float value)
+{
+    abbe_nvs_settings_t old = cfg;
+    if (id == SETTING_DEVIATION)
+        cfg.max_dev_um = value;
+    else
+        cfg.limit_um = value;
+    abbe_gh_params_t p = gh.params;
+    p.max_dev_um = cfg.max_dev_um;
+    p.limit_um = cfg.limit_um;
+    if (abbe_gh_set_params(&gh, &p) != ABBE_OK) {
+        cfg = old;
+        return Status_SettingValueOutOfRange;
+    }
+    return Status_OK;
+}
+
+static float get_float(setting_id_t id)
+{
+    return id == SETTING_DEVIATION ? cfg.max_dev_um : cfg.limit_um;
+}
+
+static const setting_group_detail_t abbe_groups[] = {
+    {Group_Root, Group_Kinematics, "abbe compensation", NULL},
+};
+
+static const setting_detail_t abbe_settings[] = {
+    {SETTING_ENABLE, Group_Kinematics, "abbe compensation enable", NULL, Format_Bool, NULL, NULL, NULL,
+     Setting_NonCoreFn, set_enable, get_enable, NULL, {0}},
+    {SETTING_DEVIATION, Group_Kinematics, "abbe segment deviation bound", "um", Format_Decimal, "##0.00", "0.01",
+     "100", Setting_NonCoreFn, set_float, get_float, NULL, {0}},
+    {SETTING_LIMIT, Group_Kinematics, "abbe maximum correction", "um", Format_Decimal, "###0.0", "1", "2000",
+     Setting_NonCoreFn, set_float, get_float, NULL, {0}},
+};
+
+static const setting_descr_t abbe_descriptions[] = {
+    {SETTING_ENABLE, "Geometric error compensation (abbe table): on / off. Switching fades the correction in or "
+                     "out over 32 segments."},
+    {SETTING_DEVIATION, "Largest deviation of the correction from the model along a segment, um. Lines are split "
+                        "into segments of sqrt(8 x bound / curvature of the table)."},
+    {SETTING_LIMIT, "Largest correction per axis, um. Beyond it the compensation faults and fades out."},
+};
+
+static void abbe_settings_save(void)
+{
+    hal.nvs.memcpy_to_nvs(nvs_address, (uint8_t *)&cfg, sizeof cfg, true);
+}
+
+static void abbe_settings_restore(void)
+{
+    abbe_gh_params_t p;
+    abbe_gh_default_params(&p);
+    cfg.enable = 1;
+    cfg.max_dev_um = p.max_dev_um;
+    cfg.limit_um = p.limit_um;
+    hal.nvs.memcpy_to_nvs(nvs_address, (uint8_t *)&cfg, sizeof cfg, true);
+}
+
+static void abbe_settings_load(void)
+{
+    if (hal.nvs.memcpy_from_nvs((uint8_t *)&cfg, nvs_address, sizeof cfg, true) != NVS_TransferResult_OK)
+        abbe_settings_restore();
+    apply_settings();
+}
+
+static setting_details_t setting_details = {
+    .groups = abbe_groups,
+    .n_groups = sizeof(abbe_groups) / sizeof(setting_group_detail_t),
+    .settings = abbe_settings,
+    .n_settings = sizeof(abbe_settings) / sizeof(setting_detail_t),
+    .descriptions = abbe_descriptions,
+    .n_descriptions = sizeof(abbe_descriptions) / sizeof(setting_descr_t),
+    .save = abbe_settings_save,
+    .load = abbe_settings_load,
+    .restore = abbe_settings_restore,
+};
+
+/* ---- commands ---------------------------------------------------------------- */
+
+static const char *state_name(void)
+{
+    if (abbe_gh_model(&gh) == NULL && gh.running == 0xFF)
+        return "NOTABLE";
+    switch (abbe_gh_state(&gh)) {
+    case ABBE_GH_ON:
+        return "ON";
+    case ABBE_GH_FADING:
+        return "FADE";
+    case ABBE_GH_FAULT:
+        return "FAULT";
+    default:
+        return "OFF";
+    }
+}
+
+static uint32_t table_crc(void)
+{
+    const abbe_model_t *m = abbe_gh_model(&gh);
+    if (m == NULL && gh.running != 0xFF)
+        m = &gh.slot[gh.running].model;
+    return m != NULL ? abbe_model_crc(m) : 0u;
+}
+
+/* $ABBE: state, table, segmentation. */
+static status_code_t cmd_info(sys_state_t state, char *args)
+{
+    (void)state;
+    (void)args;
+    char buf[160];
+    float kappa = gh.running != 0xFF ? gh.slot[gh.running].kappa_um_per_mm2 : 0.0f;
+    snprintf(buf, sizeof buf,
+             "[ABBE:%s|TABLE:%08lX|CURV:%.4f um/mm2|SEG:%.3f mm|DEV:%.3f um|SEGMENTS:%lu|FLAGS:%04lX]" ASCII_EOL,
+             state_name(), (unsigned long)table_crc(), (double)kappa, (double)gh.seg_len_mm,
+             (double)abbe_gh_deviation_um(gh.seg_len_mm, kappa), (unsigned long)gh.segments,
+             (unsigned long)gh.flags);
+    hal.stream.write(buf);
+    if (boot_status != ABBE_OK) {
+        snprintf(buf, sizeof buf, "[ABBE:compiled-in table refused: %s]" ASCII_EOL, abbe_strerror(boot_status));
+        hal.stream.write(buf);
+    }
+    return Status_OK;
+}
+
+static status_code_t cmd_reset(sys_state_t state, char *args)
+{
+    (void)state;
+    (void)args;
+    (void)abbe_gh_set_enabled(&gh, 2);
+    fault_reported = false;
+    if (cfg.enable)
+        (void)abbe_gh_set_enabled(&gh, 1);
+    return Status_OK;
+}
+
+static int hex_nibble(char c)
+{
+    if (c >= '0' && c <= '9')
+        return c - '0';
+    if (c >= 'A' && c <= 'F')
+        return c - 'A' + 10;
+    if (c >= 'a' && c <= 'f')
+        return c - 'a' + 10;
+    return -1;
+}
+
+/* Unsigned decimal (base 10) or hex (base 16) field ending at ',' or '\0'. */
+static bool parse_u32(char **s, unsigned base, uint32_t *out)
+{
+    uint64_t v = 0;
+    char *p = *s;
+    int d;
+    if (*p == '\0' || *p == ',')
+        return false;
+    while (*p && *p != ',') {
+        d = hex_nibble(*p);
+        if (d < 0 || (unsigned)d >= base)
+            return false;
+        v = v * base + (unsigned)d;
+        if (v > 0xFFFFFFFFu)
+            return false;
+        p++;
+    }
+    if (*p == ',')
+        p++;
+    *s = p;
+    *out = (uint32_t)v;
+    return true;
+}
+
+static status_code_t upload_fail(const char *why)
+{
+    char text[112];
+    snprintf(text, sizeof text, "abbe upload refused: %s; the running table stays", why);
+    report_message(text, Message_Warning);
+    return Status_InvalidStatement;
+}
+
+/* $ABBEU=B,<size>,<crc32 hex> | D,<offset>,<hex bytes> | C | A (docs/grblhal.md). */
+static status_code_t cmd_upload(sys_state_t state, char *args)
+{
+    const char *why = "";
+    uint32_t a, b;
+    if (args == NULL || args[0] == '\0' || (args[1] != ',' && args[1] != '\0'))
+        return upload_fail("expected B,<size>,<crc32>  D,<offset>,<hex>  C  or A");
+    char op = args[0];
+    char *p = args[1] == ',' ? args + 2 : args + 1;
+    switch (op) {
+    case 'B':
+    case 'b':
+        if (!parse_u32(&p, 10, &a) || !parse_u32(&p, 16, &b) || *p != '\0')
+            return upload_fail("B needs <size in bytes, decimal>,<CRC-32, hex>");
+        if (abbe_gh_upload_begin(&gh, a, b, &why) != ABBE_OK)
+            return upload_fail(why);
+        return Status_OK;
+    case 'D':
+    case 'd': {
+        uint8_t bytes[(LINE_BUFFER_SIZE) / 2];
+        uint32_t n = 0;
+        if (!parse_u32(&p, 10, &a))
+            return upload_fail("D needs <offset, decimal>,<data, hex>");
+        while (p[0] && p[1]) {
+            int hi = hex_nibble(p[0]), lo = hex_nibble(p[1]);
+            if (hi < 0 || lo < 0 || n >= sizeof bytes) {
+                abbe_gh_upload_abort(&gh);
+                return upload_fail("data is not hex; upload aborted");
+            }
+            bytes[n++] = (uint8_t)(hi * 16 + lo);
+            p += 2;
+        }
+        if (*p != '\0' || n == 0) {
+            abbe_gh_upload_abort(&gh);
+            return upload_fail("data needs an even number (> 0) of hex digits; upload aborted");
+        }
+        if (abbe_gh_upload_data(&gh, a, bytes, n, &why) != ABBE_OK) {
+            abbe_gh_upload_abort(&gh);
+            return upload_fail(why);
+        }
+        return Status_OK;
+    }
+    case 'C':
+    case 'c':
+        if (!(state == STATE_IDLE || state == STATE_ALARM || state == STATE_CHECK_MODE)) {
+            abbe_gh_upload_abort(&gh);
+            return upload_fail("commit only when idle (the table is checked for ~0.1 s)");
+        }
+        if (abbe_gh_upload_commit(&gh, &why) != ABBE_OK)
+            return upload_fail(why);
+        report_message("abbe upload: table valid, in use from the next segment", Message_Info);
+        return Status_OK;
+    case 'A':
+    case 'a':
+        abbe_gh_upload_abort(&gh);
+        return Status_OK;
+    default:
+        return upload_fail("unknown operation (B, D, C or A)");
+    }
+}
+
+/* ---- reports --------------------------------------------------------------- */
+
+static void abbe_realtime_report(stream_write_ptr stream_write, report_tracking_flags_t report)
+{
+    char buf[32];
+    snprintf(buf, sizeof buf, "|ABBE:%s,%08lX", state_name(), (unsigned long)table_crc());
+    stream_write(buf);
+    if (on_realtime_report)
+        on_realtime_report(stream_write, report);
+}
+
+static void abbe_execute_realtime(sys_state_t state)
+{
+    if (msg_pending) {
+        msg_pending = false;
+        report_message(pending_msg, abbe_gh_state(&gh) == ABBE_GH_FAULT ? Message_Warning : Message_Info);
+    }
+    on_execute_realtime(state);
+}
+
+static void abbe_report_options(bool newopt)
+{
+    on_report_options(newopt);
+    if (!newopt)
+        hal.stream.write("[PLUGIN:abbe geometric compensation v0.1]" ASCII_EOL);
+}
+
+/* ---- init ------------------------------------------------------------------ */
+
+void abbe_grblhal_init(void)
+{
+    static const sys_command_t command_list[] = {
+        {"ABBE", cmd_info, {.noargs = On, .allow_blocking = On}, {.str = "abbe compensation state and table"}},
+        {"ABBEU", cmd_upload, {.allow_blocking = Off}, {.str = "abbe table upload: B,size,crc | D,offset,hex | C | A"}},
+        {"ABBERESET", cmd_reset, {.noargs = On}, {.str = "abbe: clear a fault, fade in again if enabled"}},
+    };
+    static sys_commands_t commands = {
+        .n_commands = sizeof(command_list) / sizeof(sys_command_t),
+        .commands = command_list,
+    };
+
+    abbe_gh_params_t p;
+    abbe_gh_default_params(&p);
+#ifdef ABBE_GRBLHAL_BUILTIN
+    boot_status = abbe_gh_init(&gh, &p, abbe_model_blob, abbe_model_blob_size);
+    if (boot_status != ABBE_OK)
+        (void)abbe_gh_init(&gh, &p, NULL, 0);
+#else
+    (void)abbe_gh_init(&gh, &p, NULL, 0);
+#endif
+    cfg.enable = 1;
+    cfg.max_dev_um = p.max_dev_um;
+    cfg.limit_um = p.limit_um;
+
+    if ((nvs_address = nvs_alloc(sizeof(abbe_nvs_settings_t))))
+        settings_register(&setting_details);
+
+    kinematics.limits_set_target_pos = abbe_limits_set_target_pos;
+    kinematics.limits_get_axis_mask = abbe_limits_get_axis_mask;
+    kinematics.limits_set_machine_positions = abbe_limits_set_machine_positions;
+    kinematics.transform_from_cartesian = abbe_transform_from_cartesian;
+    kinematics.transform_steps_to_cartesian = abbe_steps_to_cartesian;
+    kinematics.segment_line = abbe_segment_line;
+    kinematics.homing_cycle_validate = NULL;
+    kinematics.homing_cycle_get_feedrate = NULL;
+
+    check_travel_limits = grbl.check_travel_limits;
+    grbl.check_travel_limits = abbe_check_travel_limits;
+
+    on_jog_cancel = grbl.on_jog_cancel;
+    grbl.on_jog_cancel = abbe_jog_cancel;
+
+    on_realtime_report = grbl.on_realtime_report;
+    grbl.on_realtime_report = abbe_realtime_report;
+
+    on_execute_realtime = grbl.on_execute_realtime;
+    grbl.on_execute_realtime = abbe_execute_realtime;
+
+    on_report_options = grbl.on_report_options;
+    grbl.on_report_options = abbe_report_options;
+
+    system_register_commands(&commands);
+}

@@ -1,0 +1,42 @@
+#!/usr/bin/env bash
+# The grblHAL plugin's Simulator test (scripts/test.sh runs this; so can you):
+#   1. the vmc500 table: abbe fit on examples/vmc500 (the demo pipeline's fit);
+#      the true table (examples/vmc500/truth) as a second one to upload
+#   2. port/grblhal/build_sim.sh: the Simulator with the plugin and the fitted
+#      table compiled in, and the unmodified Simulator (--stock)
+#   3. tests/sim_test.py: G-code through both, checked against the Python
+#      reference (see its docstring); figures in build-grblhal/e2e.json
+# Needs the grblHAL snapshots: $ABBE_GRBLHAL_VENDOR, else ../shared/vendor/grblhal
+# beside the repository. Without them it skips with a message, except under
+# CI (CI=true), where that is a failure.
+set -uo pipefail
+
+HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+REPO="$(cd "$HERE/../../.." && pwd)"
+VENDOR="${ABBE_GRBLHAL_VENDOR:-$REPO/../shared/vendor/grblhal}"
+BUILD="$REPO/build-grblhal"
+ABBE="$REPO/.venv/bin/abbe"
+PY="$REPO/.venv/bin/python"
+
+if ! compgen -G "$VENDOR/grblhal-core-*.tar.gz" >/dev/null || ! compgen -G "$VENDOR/grblhal-simulator-*.tar.gz" >/dev/null; then
+    if [[ ${CI:-} == true ]]; then
+        echo "[grblhal] FAIL: no grblHAL snapshots in $VENDOR (CI must have shared/vendor/grblhal beside the clone)"
+        exit 1
+    fi
+    echo "[grblhal] SKIPPED: no grblHAL snapshots in $VENDOR (set ABBE_GRBLHAL_VENDOR or put shared/vendor/grblhal beside the repository)"
+    exit 0
+fi
+[[ -x $ABBE ]] || { echo "[grblhal] $ABBE missing: run scripts/setup.sh" >&2; exit 1; }
+export ABBE_GRBLHAL_VENDOR="$VENDOR"
+
+mkdir -p "$BUILD"
+"$ABBE" fit "$REPO/examples/vmc500/machine.toml" -o "$BUILD/fit" --no-report -q || exit 1
+"$ABBE" table from-json "$REPO/examples/vmc500/truth/true_table.json" -o "$BUILD/true_table.bin" >/dev/null || exit 1
+"$HERE/../build_sim.sh" --build-dir "$BUILD" --table "$BUILD/fit/model.bin" --stock 2>"$BUILD/build.log" >/dev/null || {
+    cat "$BUILD/build.log"
+    exit 1
+}
+cd "$REPO/host_tools" &&
+    "$PY" "$HERE/sim_test.py" --sim "$BUILD/cmake/sim/grblHAL_sim" --stock "$BUILD/stock/grblHAL_sim" \
+        --table "$BUILD/fit/model.bin" --table2 "$BUILD/true_table.bin" \
+        --machine "$REPO/examples/vmc500/machine.toml" --json "$BUILD/e2e.json"

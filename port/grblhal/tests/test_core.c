@@ -1,0 +1,316 @@
+/* CMocka tests of the grblHAL plugin's core (include/abbe_grblhal_core.h),
+ * built for both variants (test_grblhal_core_f32 / _q): segmentation, the
+ * deviation bound it promises, forward / inverse, fade without jumps, and
+ * table uploads that fail without touching the running table. Tables: the
+ * golden 'backlash' (and 'paper') tables of tests/golden. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "abbe_grblhal_core.h"
+#include "golden_data.h"
+
+static abbe_gh_t gh;
+
+static const abbe_golden_table_t *golden(const char *name)
+{
+    for (uint32_t i = 0; i < abbe_golden_table_count; i++) {
+        if (strcmp(abbe_golden_tables[i].name, name) == 0) {
+            return &abbe_golden_tables[i];
+        }
+    }
+    fail_msg("no golden table %s", name);
+    return NULL;
+}
+
+static void start(const char *table)
+{
+    abbe_gh_params_t p;
+    abbe_gh_default_params(&p);
+    const abbe_golden_table_t *t = golden(table);
+    assert_int_equal(abbe_gh_init(&gh, &p, t->blob, t->blob_size), ABBE_OK);
+}
+
+/* Travel box of the loaded table, mm. */
+static void travel(float lo[3], float hi[3])
+{
+    for (unsigned j = 0; j < 3; j++) {
+        abbe_axis_info_t info;
+        assert_int_equal(abbe_model_axis_info(&gh.slot[0].model, j, &info), ABBE_OK);
+        lo[j] = (float)info.travel_min_nm * 1e-6f;
+        hi[j] = (float)info.travel_max_nm * 1e-6f;
+    }
+}
+
+static uint32_t rng_state = 25u;
+static float uniform(void)
+{
+    rng_state = rng_state * 1664525u + 1013904223u;
+    return (float)(rng_state >> 8) / 16777216.0f;
+}
+
+static void error_um(const float p[3], float e[3])
+{
+    abbe_input_f32_t in = {{p[0], p[1], p[2]}, {0, 0, 0}, {20, 20, 20}};
+    abbe_axis_info_t info;
+    for (unsigned j = 0; j < 3; j++) {
+        assert_int_equal(abbe_model_axis_info(&gh.slot[0].model, j, &info), ABBE_OK);
+        in.temp_c[j] = (float)info.thermal_tref_mdegc * 1e-3f;
+    }
+    abbe_error_f32_t out;
+    assert_int_equal(abbe_error_eval_f32(&gh.slot[0].model, &in, &out), ABBE_OK);
+    memcpy(e, out.error_um, sizeof out.error_um);
+}
+
+/* The promise: along any segment of the chosen length the model leaves the
+ * chord between its end values by at most the bound (checked on 300 random
+ * segments in the travel, 65 points each). */
+static void test_deviation_bound(void **state)
+{
+    (void)state;
+    start("backlash");
+    float lo[3], hi[3];
+    travel(lo, hi);
+    float len = gh.seg_len_mm, worst = 0.0f;
+    assert_true(len > ABBE_GH_SEG_MIN_MM && len <= ABBE_GH_SEG_MAX_MM);
+    for (int k = 0; k < 300; k++) {
+        float a[3], d[3], n = 0.0f;
+        for (unsigned j = 0; j < 3; j++) {
+            a[j] = lo[j] + len + uniform() * (hi[j] - lo[j] - 2.0f * len);
+            d[j] = uniform() - 0.5f;
+            n += d[j] * d[j];
+        }
+        n = sqrtf(n);
+        float b[3], ea[3], eb[3];
+        for (unsigned j = 0; j < 3; j++) {
+            b[j] = a[j] + d[j] / n * len;
+        }
+        error_um(a, ea);
+        error_um(b, eb);
+        for (int i = 1; i < 64; i++) {
+            float t = (float)i / 64.0f, p[3], e[3];
+            for (unsigned j = 0; j < 3; j++) {
+                p[j] = a[j] + t * (b[j] - a[j]);
+            }
+            error_um(p, e);
+            for (unsigned j = 0; j < 3; j++) {
+                float dev = fabsf(e[j] - (ea[j] + t * (eb[j] - ea[j])));
+                worst = dev > worst ? dev : worst;
+            }
+        }
+    }
+    print_message("segment %.3f mm, bound %.3f um, worst deviation seen %.3f um\n", (double)len,
+                  (double)gh.params.max_dev_um, (double)worst);
+    assert_true(worst <= gh.params.max_dev_um * 1.02f);
+    /* a lower bound: shorter segments, quadratically */
+    abbe_gh_params_t p = gh.params;
+    p.max_dev_um = 0.25f;
+    assert_int_equal(abbe_gh_set_params(&gh, &p), ABBE_OK);
+    assert_float_equal(gh.seg_len_mm, len * 0.5f, len * 0.01f);
+}
+
+static void test_segments(void **state)
+{
+    (void)state;
+    start("backlash");
+    abbe_gh_line_t line;
+    float a[3] = {10.0f, -10.0f, -10.0f}, b[3] = {110.0f, -60.0f, -30.0f}, p[3], prev[3];
+    uint32_t n = abbe_gh_line_begin(&gh, &line, a, b);
+    float len = sqrtf(100.0f * 100.0f + 50.0f * 50.0f + 20.0f * 20.0f);
+    /* no direction yet: every axis "reverses" and the first segment ends at the take-up */
+    assert_true(n >= (uint32_t)ceilf(len / gh.seg_len_mm));
+    memcpy(prev, a, sizeof prev);
+    uint32_t k = 0;
+    while (abbe_gh_line_next(&line, p)) {
+        float d = 0.0f;
+        for (unsigned j = 0; j < 3; j++) {
+            d += (p[j] - prev[j]) * (p[j] - prev[j]);
+        }
+        assert_true(sqrtf(d) <= gh.seg_len_mm * 1.0001f);
+        memcpy(prev, p, sizeof prev);
+        k++;
+    }
+    assert_int_equal(k, n);
+    assert_memory_equal(prev, b, sizeof b); /* the last segment ends exactly at the target */
+    /* short line: one segment */
+    float c[3] = {10.1f, -10.0f, -10.0f};
+    gh.last_dir[0] = 1;
+    assert_int_equal(abbe_gh_line_begin(&gh, &line, a, c), 1u);
+}
+
+/* Forward then inverse gives the point back; switching never jumps. */
+static void test_forward_inverse_fade(void **state)
+{
+    (void)state;
+    start("backlash");
+    assert_int_equal(abbe_gh_active(&gh), 0); /* disabled: lines pass through */
+    assert_int_equal(abbe_gh_set_enabled(&gh, 1), ABBE_OK);
+    assert_int_equal(abbe_gh_active(&gh), 1);
+    float p[3] = {100.0f, -100.0f, -100.0f}, m[3], q[3];
+    int32_t prev[3] = {0, 0, 0}, rate = (int32_t)(gh.params.rate_um_per_seg * 1000.0f) + 1;
+    for (int k = 0; k < 80; k++) {
+        p[0] += 1.5f;
+        p[1] -= 0.7f;
+        (void)abbe_gh_forward(&gh, p, m);
+        for (unsigned j = 0; j < 3; j++) {
+            assert_true(abs(gh.last_corr_nm[j] - prev[j]) <= rate);
+            prev[j] = gh.last_corr_nm[j];
+        }
+        if (k < 30) {
+            assert_int_equal(abbe_gh_state(&gh), ABBE_GH_FADING);
+        }
+    }
+    assert_int_equal(abbe_gh_state(&gh), ABBE_GH_ON);
+    assert_true(abbe_gh_inverse(&gh, m, q) <= 4);
+    for (unsigned j = 0; j < 3; j++) {
+        assert_float_equal(q[j], p[j], 2e-5f);
+        assert_true(fabsf(m[j] - p[j]) > 0.0f || gh.last_corr_nm[j] == 0);
+    }
+    /* a motor position near the last one: the inverse follows the model */
+    float m2[3] = {m[0] + 0.5f, m[1], m[2]}, q2[3];
+    (void)abbe_gh_inverse(&gh, m2, q2);
+    (void)abbe_gh_forward(&gh, q2, m);
+    for (unsigned j = 0; j < 3; j++) {
+        assert_float_equal(m[j], m2[j], 2e-4f); /* fresh step: only the direction state moves */
+    }
+    assert_int_equal(abbe_gh_set_enabled(&gh, 0), ABBE_OK);
+    for (int k = 0; k < 80; k++) {
+        p[0] -= 1.5f;
+        (void)abbe_gh_forward(&gh, p, m);
+        for (unsigned j = 0; j < 3; j++) {
+            assert_true(abs(gh.last_corr_nm[j] - prev[j]) <= rate);
+            prev[j] = gh.last_corr_nm[j];
+        }
+    }
+    assert_int_equal(abbe_gh_state(&gh), ABBE_GH_OFF);
+    assert_int_equal(abbe_gh_active(&gh), 0);
+    assert_memory_equal(m, p, sizeof p);
+}
+
+static abbe_status_t upload(const uint8_t *blob, uint32_t size, uint32_t crc, int skip_last, int swap)
+{
+    const char *why;
+    abbe_status_t st = abbe_gh_upload_begin(&gh, size, crc, &why);
+    if (st != ABBE_OK) {
+        return st;
+    }
+    uint32_t offs[64], n = 0;
+    for (uint32_t o = 0; o < size; o += 96u) {
+        offs[n++] = o;
+    }
+    if (swap) {
+        uint32_t t = offs[1];
+        offs[1] = offs[2];
+        offs[2] = t;
+    }
+    for (uint32_t i = 0; i < n - (skip_last ? 1u : 0u); i++) {
+        uint32_t len = size - offs[i] < 96u ? size - offs[i] : 96u;
+        st = abbe_gh_upload_data(&gh, offs[i], blob + offs[i], len, &why);
+        if (st != ABBE_OK) {
+            return st;
+        }
+    }
+    st = abbe_gh_upload_commit(&gh, &why);
+    print_message("upload: %s\n", st == ABBE_OK ? "accepted" : why);
+    return st;
+}
+
+static void test_upload(void **state)
+{
+    (void)state;
+    start("backlash");
+    assert_int_equal(abbe_gh_set_enabled(&gh, 1), ABBE_OK);
+    float p[3] = {50.0f, -50.0f, -50.0f}, m[3];
+    (void)abbe_gh_forward(&gh, p, m);
+    uint32_t crc0 = abbe_model_crc(abbe_gh_model(&gh));
+    const abbe_golden_table_t *t = golden("paper");
+    uint8_t bad[ABBE_GH_TABLE_MAX_BYTES];
+    memcpy(bad, t->blob, t->blob_size);
+    bad[200] ^= 0x40u;
+    uint32_t crc = abbe_crc32(0u, t->blob, t->blob_size);
+    assert_int_not_equal(upload(t->blob, t->blob_size, crc ^ 1u, 0, 0), ABBE_OK);
+    assert_int_not_equal(upload(bad, t->blob_size, abbe_crc32(0u, bad, t->blob_size), 0, 0), ABBE_OK);
+    assert_int_not_equal(upload(t->blob, t->blob_size, crc, 1, 0), ABBE_OK);
+    assert_int_not_equal(upload(t->blob, t->blob_size, crc, 0, 1), ABBE_OK);
+    const char *why;
+    assert_int_not_equal(abbe_gh_upload_begin(&gh, ABBE_GH_TABLE_MAX_BYTES + 4u, crc, &why), ABBE_OK);
+    p[0] += 1.0f;
+    (void)abbe_gh_forward(&gh, p, m);
+    assert_int_equal(abbe_model_crc(abbe_gh_model(&gh)), crc0); /* the running table stays */
+    assert_int_equal(upload(t->blob, t->blob_size, crc, 0, 0), ABBE_OK);
+    assert_int_equal(abbe_model_crc(abbe_gh_model(&gh)), crc0); /* not before the next segment */
+    assert_int_not_equal(abbe_gh_upload_begin(&gh, t->blob_size, crc, &why), ABBE_OK); /* one at a time */
+    p[0] += 1.0f;
+    uint32_t flags = abbe_gh_forward(&gh, p, m);
+    assert_true(flags & ABBE_FLAG_MODEL_SWAPPED);
+    abbe_model_t paper;
+    assert_int_equal(abbe_model_load(&paper, t->blob, t->blob_size), ABBE_OK);
+    assert_int_equal(abbe_model_crc(abbe_gh_model(&gh)), abbe_model_crc(&paper));
+    /* the next upload goes into the other slot: the running blob is never overwritten */
+    assert_int_equal(upload(golden("backlash")->blob, golden("backlash")->blob_size,
+                            abbe_crc32(0u, golden("backlash")->blob, golden("backlash")->blob_size), 0, 0),
+                     ABBE_OK);
+    assert_int_equal(abbe_model_crc(abbe_gh_model(&gh)), abbe_model_crc(&paper));
+}
+
+/* A correction beyond the limit latches a fault: the plugin reports FAULT and
+ * the correction fades out at the rate limit, never a jump; reset clears it. */
+static void test_fault_fades_out(void **state)
+{
+    (void)state;
+    start("backlash");
+    assert_int_equal(abbe_gh_set_enabled(&gh, 1), ABBE_OK);
+    float p[3] = {100.0f, -100.0f, -100.0f}, m[3];
+    for (int k = 0; k < 40; k++) {
+        p[0] += 1.0f;
+        (void)abbe_gh_forward(&gh, p, m);
+    }
+    assert_int_equal(abbe_gh_state(&gh), ABBE_GH_ON);
+    int32_t prev[3] = {gh.last_corr_nm[0], gh.last_corr_nm[1], gh.last_corr_nm[2]};
+    abbe_gh_params_t prm = gh.params;
+    prm.limit_um = 1.0f; /* below this table's correction */
+    assert_int_equal(abbe_gh_set_params(&gh, &prm), ABBE_OK);
+    int32_t rate = (int32_t)(prm.rate_um_per_seg * 1000.0f) + 1;
+    int faulted = 0;
+    for (int k = 0; k < 80; k++) {
+        p[0] += 1.0f;
+        uint32_t flags = abbe_gh_forward(&gh, p, m);
+        faulted |= (flags & ABBE_FLAG_LIMIT) != 0u;
+        for (unsigned j = 0; j < 3; j++) {
+            assert_true(abs(gh.last_corr_nm[j] - prev[j]) <= rate);
+            prev[j] = gh.last_corr_nm[j];
+        }
+    }
+    assert_true(faulted);
+    assert_int_equal(abbe_gh_state(&gh), ABBE_GH_FAULT);
+    for (unsigned j = 0; j < 3; j++) {
+        assert_int_equal(gh.last_corr_nm[j], 0);
+    }
+    prm.limit_um = 200.0f;
+    assert_int_equal(abbe_gh_set_params(&gh, &prm), ABBE_OK);
+    assert_int_equal(abbe_gh_set_enabled(&gh, 2), ABBE_OK); /* $ABBERESET */
+    assert_int_equal(abbe_gh_set_enabled(&gh, 1), ABBE_OK);
+    for (int k = 0; k < 40; k++) {
+        p[0] += 1.0f;
+        (void)abbe_gh_forward(&gh, p, m);
+    }
+    assert_int_equal(abbe_gh_state(&gh), ABBE_GH_ON);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_deviation_bound),
+        cmocka_unit_test(test_segments),
+        cmocka_unit_test(test_forward_inverse_fade),
+        cmocka_unit_test(test_upload),
+        cmocka_unit_test(test_fault_fades_out),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
