@@ -1,0 +1,123 @@
+/* abbe: five-axis tool tip error, fixed point (abbe/five_axis.h).
+ *
+ * The same first-order model as five_eval_f32.c, in integers:
+ *   levers        2 nm (int64; an int32 difference of halved positions, exact to 1 nm)
+ *   rotations     Q30 sin/cos (abbe_sincos_q30), harmonics by rotation
+ *   w (angles)    2^-36 rad, |w_i| <= 4 x 2^28 (the loader's caps)
+ *   d (positions) 2^-8 nm, rotated by the tilt in 2^-4 nm (|d| < 2^35 q8)
+ * Bounds of every intermediate: docs/numerics.md, "Five-axis evaluation".
+ */
+#include "internal.h"
+
+#define Q30 30u
+
+/* (c, s) rotation of v about machine axis k (inverse: by -s), Q30, rounded. */
+static void rotate_q(unsigned k, int32_t c, int32_t s, int inverse, int64_t v[3])
+{
+    const unsigned j = (k + 1u) % 3u, l = (k + 2u) % 3u;
+    const int64_t sn = inverse ? -(int64_t)s : s;
+    const int64_t vj = v[j], vl = v[l];
+    v[j] = abbe_shr_round(c * vj - sn * vl, Q30);
+    v[l] = abbe_shr_round(sn * vj + c * vl, Q30);
+}
+
+/* An axis' twist (five_eval_f32.c) for a lever L (2 nm units): d in 2^-8 nm,
+ * w in 2^-36 rad. */
+static void twist_q(const abbe_rotary_model_t *ax, int32_t c, int32_t s, const int64_t L[3], int64_t d[3],
+                    int64_t w[3])
+{
+    int64_t acc[ABBE_MOTIONS] = {0, 0, 0, 0, 0, 0};
+    const unsigned n = ax->n_comp;
+    const uint8_t *row = ax->coef_q;
+    int32_t sk = s, ck = c;
+    for (unsigned k = 0; k < ax->harmonics; k++) {
+        for (unsigned col = 0; col < n; col++) {
+            /* sum |coef| x 2^30 <= 2^62 (loader cap) */
+            acc[col] += (int64_t)abbe_ld_i32(row + 4u * col) * sk + (int64_t)abbe_ld_i32(row + 4u * (n + col)) * ck;
+        }
+        row += 8u * n;
+        const int32_t sn = (int32_t)abbe_shr_round((int64_t)sk * c + (int64_t)ck * s, Q30);
+        ck = (int32_t)abbe_shr_round((int64_t)ck * c - (int64_t)sk * s, Q30);
+        sk = sn;
+    }
+    int64_t m[ABBE_MOTIONS];
+    for (unsigned i = 0; i < ABBE_MOTIONS; i++) {
+        m[i] = ax->column[i] == 0xFFu ? 0 : abbe_shr_round(acc[ax->column[i]], Q30); /* q8 or q36 */
+    }
+    int64_t phi[3] = {ax->phi_q36[0], ax->phi_q36[1], ax->phi_q36[2]};
+    int64_t delta[3] = {ax->delta_q8[0], ax->delta_q8[1], ax->delta_q8[2]};
+    rotate_q(ax->dir, c, s, 0, phi);
+    rotate_q(ax->dir, c, s, 0, delta);
+    for (unsigned i = 0; i < 3u; i++) {
+        w[i] = ax->phi_q36[i] - phi[i] + m[3u + i];
+        d[i] = ax->delta_q8[i] - delta[i] + m[i];
+    }
+    w[ax->dir] += ax->zero_q36;
+    /* w x L: 2^-36 rad x 2 nm = 2^-35 nm, each product < 2^61.5; -> 2^-8 nm */
+    d[0] += abbe_shr_round(w[1] * L[2] - w[2] * L[1], 27u);
+    d[1] += abbe_shr_round(w[2] * L[0] - w[0] * L[2], 27u);
+    d[2] += abbe_shr_round(w[0] * L[1] - w[1] * L[0], 27u);
+}
+
+uint32_t abbe_five_eval_q_core(const abbe_five_model_t *m5, const int32_t pos_nm[3], const int32_t angle_udeg[2],
+                               const int32_t dir_q30[3], const int32_t temp_mdegc[3],
+                               int32_t values[ABBE_AXES * ABBE_TERMS], int32_t error_nm[3], int32_t orient_nrad[3])
+{
+    uint32_t flags = abbe_eval_q_core(&m5->linear, pos_nm, dir_q30, temp_mdegc, values, error_nm);
+    /* orientation, 2^-36 rad: eps_Z - eps_X - eps_Y (term values in 2^-35 rad) */
+    int64_t rot[3], pos[3]; /* pos: 2^-4 nm */
+    for (unsigned c = 0; c < 3u; c++) {
+        rot[c] = 2 * ((int64_t)values[2 * ABBE_TERMS + 3 + c] - values[3 + c] - values[ABBE_TERMS + 3 + c]);
+        pos[c] = (int64_t)error_nm[c] * 16;
+    }
+    if (m5->kind != ABBE_KIN_NONE) {
+        int64_t Lt[3], Lc[3], rel[3];
+        for (unsigned i = 0; i < 3u; i++) {
+            Lt[i] = (pos_nm[i] >> 1) - (m5->tilt_pivot_nm[i] >> 1);
+            rel[i] = (pos_nm[i] >> 1) - (m5->rot_point_nm[i] >> 1);
+        }
+        const abbe_rotary_model_t *tilt = &m5->rotary[0], *table = &m5->rotary[1];
+        int32_t st, ct, sc, cc;
+        abbe_sincos_q30(abbe_udeg_phase_q32(angle_udeg[0]), &st, &ct);
+        abbe_sincos_q30(abbe_udeg_phase_q32(angle_udeg[1]), &sc, &cc);
+        memcpy(Lc, Lt, sizeof Lc);
+        rotate_q(tilt->dir, ct, st, 1, Lc);
+        for (unsigned i = 0; i < 3u; i++) {
+            Lc[i] += m5->offset_nm[i] >> 1;
+        }
+        int64_t dc[3], wc[3], dt[3], wt[3];
+        twist_q(table, cc, sc, Lc, dc, wc);
+        twist_q(tilt, ct, st, Lt, dt, wt);
+        for (unsigned i = 0; i < 3u; i++) {
+            dc[i] = abbe_shr_round(dc[i], 4u); /* 2^-4 nm: |d| < 2^31, the rotation's products < 2^61 */
+        }
+        rotate_q(tilt->dir, ct, st, 0, dc);
+        rotate_q(tilt->dir, ct, st, 0, wc);
+        /* five-axis squareness, lever from the C centre: 2 nm x 2^-36 rad -> 2^-4 nm */
+        const int64_t sxy = m5->squareness_q36[0], sxz = m5->squareness_q36[1], syz = m5->squareness_q36[2];
+        pos[0] += abbe_shr_round(rel[1] * sxy - rel[2] * sxz, 31u);
+        pos[1] -= abbe_shr_round(rel[2] * syz, 31u);
+        for (unsigned i = 0; i < 3u; i++) {
+            pos[i] -= dc[i] + abbe_shr_round(dt[i], 4u);
+            rot[i] -= wc[i] + wt[i];
+        }
+    }
+    for (unsigned i = 0; i < 3u; i++) {
+        error_nm[i] = abbe_sat_i32(abbe_shr_round(pos[i], 4u), &flags);
+        /* 2^-36 rad -> nrad: x 10^9 / 2^36 = x 1953125 / 2^27 (|rot| < 2^33: product < 2^54) */
+        orient_nrad[i] = abbe_sat_i32(abbe_shr_round(rot[i] * 1953125, 27u), &flags);
+    }
+    return flags;
+}
+
+abbe_status_t abbe_five_error_eval_q(const abbe_five_model_t *m5, const abbe_five_input_q_t *in,
+                                     abbe_five_error_q_t *out)
+{
+    if (m5 == NULL || in == NULL || out == NULL) {
+        return ABBE_E_ARG;
+    }
+    int32_t values[ABBE_AXES * ABBE_TERMS];
+    out->flags = abbe_five_eval_q_core(m5, in->pos_nm, in->angle_udeg, in->dir_state_q30, in->temp_mdegc, values,
+                                       out->error_nm, out->orient_nrad);
+    return ABBE_OK;
+}
