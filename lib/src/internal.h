@@ -334,10 +334,6 @@ abbe_status_t abbe_eval_f32_core(const abbe_model_t *m, const abbe_input_f32_t *
 #define ABBE_ROTARY_RECORD_SIZE 64u
 #define ABBE_ROTARY_DATA_START (ABBE_ROTARY_HEADER_OFFSET + ABBE_ROTARY_HEADER_SIZE + 2u * ABBE_ROTARY_RECORD_SIZE)
 
-/* model_load.c's checks of the header and the linear axes for a table that
- * may carry the rotary section (minor <= 2), and its model build. */
-abbe_status_t abbe_model_check_five(const uint8_t *b, size_t size, uint32_t *total);
-void abbe_model_build_five(abbe_model_t *model, const uint8_t *b, uint32_t total);
 
 /* Phase (Q32 turn) of a rotary angle in micro-degrees: the angle modulo one
  * turn (360 000 000 udeg, exact in integers, so a full turn is an exact

@@ -80,7 +80,9 @@ static uint32_t n_matrix_of(const uint8_t *rec)
     return n_basis_of(rec) * popcount6(rec[A_MASK]);
 }
 
-static abbe_status_t check_header(const uint8_t *b, size_t size, uint32_t *total_out, unsigned max_minor)
+/* rotary: ABBE_FEATURE_ROTARY for the five-axis loader (minor 2 read; a table
+ * with the rotary section has room for it), else 0. */
+static abbe_status_t check_header(const uint8_t *b, size_t size, uint32_t *total_out, uint32_t rotary)
 {
     if (size < HEADER_SIZE) {
         return ABBE_E_TRUNCATED;
@@ -95,12 +97,13 @@ static abbe_status_t check_header(const uint8_t *b, size_t size, uint32_t *total
     if (abbe_ld_u16(b + H_MAJOR) != ABBE_TABLE_FORMAT_MAJOR) {
         return ABBE_E_VERSION_MAJOR;
     }
-    if (abbe_ld_u16(b + H_MINOR) > max_minor) {
+    if (abbe_ld_u16(b + H_MINOR) > (rotary != 0u ? 2u : ABBE_TABLE_FORMAT_MINOR)) {
         return ABBE_E_VERSION_MINOR;
     }
     if (abbe_ld_u32(b + H_HEADER_SIZE) != HEADER_SIZE ||
         abbe_ld_u32(b + H_AXIS_SIZE) != AXIS_RECORD_SIZE || total < MIN_TOTAL_SIZE ||
-        (total % 4u) != 0u) {
+        (total % 4u) != 0u ||
+        ((abbe_ld_u32(b + H_FEATURES) & rotary) != 0u && total < ABBE_ROTARY_DATA_START + 4u)) {
         return ABBE_E_SIZE;
     }
     if (abbe_crc32(0, b, total - 4u) != abbe_ld_u32(b + total - 4u)) {
@@ -504,31 +507,28 @@ static void build_assembly(abbe_model_t *m)
 }
 
 /* The checks of docs/table-format.md in their order, over the header and the
- * three linear axes. rotary: 0 for abbe_model_load (a 1.2 table is refused
- * by its minor), ABBE_FEATURE_ROTARY for the five-axis loader (five_load.c),
- * which then checks the rotary section itself; with ROTARY set the linear
- * axes' arrays start after that section. Inlined into each loader, so the
- * 3-axis loader's code is what it was before 1.2 (constant rotary = 0). */
-static ABBE_ALWAYS_INLINE abbe_status_t check_table(const uint8_t *b, size_t size, uint32_t *total,
-                                                    uint32_t rotary)
-{
-    abbe_status_t st = check_header(b, size, total, rotary != 0u ? 2u : ABBE_TABLE_FORMAT_MINOR);
-    if (st == ABBE_OK) st = check_flags(b, rotary);
-    if (st == ABBE_OK && (abbe_ld_u32(b + H_FEATURES) & rotary) != 0u && *total < ABBE_ROTARY_DATA_START + 4u) {
-        st = ABBE_E_SIZE;
-    }
-    if (st == ABBE_OK) st = check_counts(b);
-    if (st == ABBE_OK) {
-        st = check_offsets(b, *total,
-                           (abbe_ld_u32(b + H_FEATURES) & rotary) != 0u ? ABBE_ROTARY_DATA_START : DATA_START);
-    }
-    if (st == ABBE_OK) st = check_finite(b);
-    if (st == ABBE_OK) st = check_twins(b);
-    if (st == ABBE_OK) st = check_periods(b);
-    if (st == ABBE_OK) st = check_travel(b);
-    if (st == ABBE_OK) st = check_ranges(b);
-    return st;
-}
+ * three linear axes, into st (total: the table's size). rotary: 0 for
+ * abbe_model_load (a 1.2 table is refused by its minor), ABBE_FEATURE_ROTARY
+ * for the five-axis loader (five_load.c), which then checks the rotary
+ * section itself; with ROTARY set the linear axes' arrays start after that
+ * section. A macro, not an inline function: GCC then compiles the 3-axis
+ * loader exactly as before format 1.2 (an inline wrapper cost 88 B there). */
+#define CHECK_TABLE(st, b, size, total, rotary)                                                                     \
+    do {                                                                                                           \
+        (st) = check_header((b), (size), &(total), (rotary));                                                      \
+        if ((st) == ABBE_OK) (st) = check_flags((b), (rotary));                                                    \
+        if ((st) == ABBE_OK) (st) = check_counts(b);                                                               \
+        if ((st) == ABBE_OK) {                                                                                     \
+            (st) = check_offsets((b), (total),                                                                     \
+                                 (abbe_ld_u32((b) + H_FEATURES) & (rotary)) != 0u ? ABBE_ROTARY_DATA_START        \
+                                                                                  : DATA_START);                  \
+        }                                                                                                          \
+        if ((st) == ABBE_OK) (st) = check_finite(b);                                                               \
+        if ((st) == ABBE_OK) (st) = check_twins(b);                                                                \
+        if ((st) == ABBE_OK) (st) = check_periods(b);                                                              \
+        if ((st) == ABBE_OK) (st) = check_travel(b);                                                               \
+        if ((st) == ABBE_OK) (st) = check_ranges(b);                                                               \
+    } while (0)
 
 /* *model as a view of the validated table b. */
 static ABBE_ALWAYS_INLINE void build_model(abbe_model_t *model, const uint8_t *b, uint32_t total)
@@ -554,6 +554,7 @@ static ABBE_ALWAYS_INLINE void build_model(abbe_model_t *model, const uint8_t *b
 #endif
 }
 
+#if !defined(ABBE_MODEL_LOAD_FIVE) /* the 3-axis loader's translation unit */
 abbe_status_t abbe_model_load(abbe_model_t *model, const void *blob, size_t size)
 {
     if (model == NULL || blob == NULL) {
@@ -566,7 +567,8 @@ abbe_status_t abbe_model_load(abbe_model_t *model, const void *blob, size_t size
     }
     const uint8_t *b = (const uint8_t *)blob;
     uint32_t total = 0;
-    abbe_status_t st = check_table(b, size, &total, 0u);
+    abbe_status_t st;
+    CHECK_TABLE(st, b, size, total, 0u);
     if (st != ABBE_OK) {
         return st;
     }
@@ -575,16 +577,6 @@ abbe_status_t abbe_model_load(abbe_model_t *model, const void *blob, size_t size
      * (and no second abbe_model_t is needed on the stack). */
     build_model(model, b, total);
     return ABBE_OK;
-}
-
-abbe_status_t abbe_model_check_five(const uint8_t *b, size_t size, uint32_t *total)
-{
-    return check_table(b, size, total, ABBE_FEATURE_ROTARY);
-}
-
-void abbe_model_build_five(abbe_model_t *model, const uint8_t *b, uint32_t total)
-{
-    build_model(model, b, total);
 }
 
 uint32_t abbe_model_crc(const abbe_model_t *model)
@@ -607,11 +599,13 @@ uint32_t abbe_model_size(const abbe_model_t *model)
     return model != NULL ? model->size : 0u;
 }
 
-#if !defined(ABBE_NO_REVERSAL)
+#else /* five_load.c: the five-axis loader, with its own copies of the checks */
+
 /* ---- the rotary section of a five-axis table (format 1.2; abbe/five_axis.h) ----
- * Here rather than in a file of its own: it shares the loader's helpers
- * (i32_to_f32_bits, array_ok); a firmware that never calls
- * abbe_five_model_load() links none of it. */
+ * Compiled only into five_load.c, which includes this file: the five-axis
+ * loader gets its own copies of the checks above (inlined with rotary =
+ * ABBE_FEATURE_ROTARY), and the 3-axis loader's translation unit is what it
+ * was before format 1.2, byte for byte in flash (bench/results.md). */
 
 #define RH_KIND 0u
 #define RH_ROT_POINT 4u
@@ -771,7 +765,8 @@ abbe_status_t abbe_five_model_load(abbe_five_model_t *model, const void *blob, s
     }
     const uint8_t *b = (const uint8_t *)blob;
     uint32_t total = 0;
-    abbe_status_t st = abbe_model_check_five(b, size, &total);
+    abbe_status_t st;
+    CHECK_TABLE(st, b, size, total, ABBE_FEATURE_ROTARY);
     const int rotary = st == ABBE_OK && (abbe_ld_u32(b + H_FEATURES) & ABBE_FEATURE_ROTARY) != 0u;
     if (rotary) {
         st = check_rotary(b, total);
@@ -780,7 +775,7 @@ abbe_status_t abbe_five_model_load(abbe_five_model_t *model, const void *blob, s
         return st; /* *model untouched */
     }
     memset(model, 0, sizeof *model);
-    abbe_model_build_five(&model->linear, b, total);
+    build_model(&model->linear, b, total);
     model->linear.five_view = 1u; /* the compensator's five-axis step may read the whole model */
     if (!rotary) {
         return ABBE_OK; /* a 3-axis table: no rotary errors, kind NONE */
@@ -802,4 +797,4 @@ uint32_t abbe_five_model_kind(const abbe_five_model_t *model)
 {
     return model != NULL ? model->kind : ABBE_KIN_NONE;
 }
-#endif /* !ABBE_NO_REVERSAL */
+#endif /* ABBE_MODEL_LOAD_FIVE */

@@ -474,6 +474,9 @@ def _read_ints(data: bytes, source: str, rotary: bool = False) -> _TableInts:
     if total < MIN_TOTAL_SIZE or total % 4:
         raise err("ABBE_E_SIZE", f"total_size {total} must be >= {MIN_TOTAL_SIZE} and a "
                   "multiple of 4", "total_size")
+    if rotary and features & FEATURE_ROTARY and total < ROTARY_DATA_START + 4:
+        raise err("ABBE_E_SIZE", f"total_size {total} < {ROTARY_DATA_START + 4}: no room for "
+                  "the rotary section", "total_size")
     crc_stored = struct.unpack_from("<I", data, total - 4)[0]
     crc = zlib.crc32(data[:total - 4]) & 0xFFFFFFFF
     if crc != crc_stored:
@@ -516,12 +519,7 @@ def _read_ints(data: bytes, source: str, rotary: bool = False) -> _TableInts:
         if not features & FEATURE_THERMAL and (r[EXP] or r[OFF] or r[TREF]):
             raise err("ABBE_E_FLAGS", "thermal field set but feature THERMAL off",
                       f"axes.{a}.thermal")
-    data_start = COEF_START
-    if features & FEATURE_ROTARY:
-        data_start = ROTARY_DATA_START
-        if total < ROTARY_DATA_START + 4:
-            raise err("ABBE_E_SIZE", f"total_size {total} < {ROTARY_DATA_START + 4}: no room for "
-                      "the rotary section", "total_size")
+    data_start = ROTARY_DATA_START if rotary and features & FEATURE_ROTARY else COEF_START
     # COUNT
     shapes = []
     for a, r in zip(AXES, recs):
