@@ -45,15 +45,32 @@ static void one_minus_rot_f32(unsigned k, float c, float s, const float v[3], fl
     }
 }
 
-/* An axis' twist at its angle (phase, c, s) for a point at lever L (mm):
- * d (um), w (urad). */
-static void twist_f32(const abbe_rotary_model_t *ax, float c, float s, const float L_mm[3], float d_um[3],
-                      float w_urad[3])
+/* The error motions m (X, Y, Z um; A, B, C urad) of an axis at its angle
+ * (c, s): sin k t and cos k t by rotation, k = 1 .. H. An axis with all six
+ * components (the fitted case) keeps its accumulators in registers. */
+ABBE_NOINLINE static void motions_f32(const abbe_rotary_model_t *ax, float c, float s, float m[ABBE_MOTIONS])
 {
-    float acc[ABBE_MOTIONS] = {0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
     const unsigned n = ax->n_comp;
     const uint8_t *row = ax->coef_f32;
-    float sk = s, ck = c; /* sin k t, cos k t by rotation, k = 1 .. H */
+    float sk = s, ck = c;
+    if (n == ABBE_MOTIONS) {
+        float a0 = 0.0f, a1 = 0.0f, a2 = 0.0f, a3 = 0.0f, a4 = 0.0f, a5 = 0.0f;
+        for (unsigned k = 0; k < ax->harmonics; k++, row += 48u) {
+#define MAC6(acc, i) acc += abbe_ld_f32_aligned(row + 4u * (i)) * sk + abbe_ld_f32_aligned(row + 24u + 4u * (i)) * ck
+            MAC6(a0, 0u); MAC6(a1, 1u); MAC6(a2, 2u); MAC6(a3, 3u); MAC6(a4, 4u); MAC6(a5, 5u);
+#undef MAC6
+            const float sn = sk * c + ck * s;
+            ck = ck * c - sk * s;
+            sk = sn;
+        }
+        m[0] = a0 * UM_PER_Q8; m[1] = a1 * UM_PER_Q8; m[2] = a2 * UM_PER_Q8;
+        m[3] = a3 * URAD_PER_Q36; m[4] = a4 * URAD_PER_Q36; m[5] = a5 * URAD_PER_Q36;
+        return;
+    }
+    float acc[ABBE_MOTIONS];
+    for (unsigned i = 0; i < ABBE_MOTIONS; i++) {
+        acc[i] = 0.0f;
+    }
     for (unsigned k = 0; k < ax->harmonics; k++) {
         for (unsigned col = 0; col < n; col++) {
             acc[col] += abbe_ld_f32_aligned(row + 4u * col) * sk + abbe_ld_f32_aligned(row + 4u * (n + col)) * ck;
@@ -63,10 +80,18 @@ static void twist_f32(const abbe_rotary_model_t *ax, float c, float s, const flo
         ck = ck * c - sk * s;
         sk = sn;
     }
-    float m[ABBE_MOTIONS];
     for (unsigned i = 0; i < ABBE_MOTIONS; i++) {
         m[i] = ax->column[i] == 0xFFu ? 0.0f : acc[ax->column[i]] * (i < 3u ? UM_PER_Q8 : URAD_PER_Q36);
     }
+}
+
+/* An axis' twist at its angle (c, s) for a point at lever L (mm): d (um),
+ * w (urad). */
+ABBE_NOINLINE static void twist_f32(const abbe_rotary_model_t *ax, float c, float s, const float L_mm[3], float d_um[3],
+                                    float w_urad[3])
+{
+    float m[ABBE_MOTIONS];
+    motions_f32(ax, c, s, m);
     float phi[3], delta[3], w[3], d[3];
     for (unsigned i = 0; i < 3u; i++) {
         phi[i] = (float)ax->phi_q36[i] * URAD_PER_Q36;

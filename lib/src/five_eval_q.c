@@ -21,29 +21,57 @@ static void rotate_q(unsigned k, int32_t c, int32_t s, int inverse, int64_t v[3]
     v[l] = abbe_shr_round(sn * vj + c * vl, Q30);
 }
 
-/* An axis' twist (five_eval_f32.c) for a lever L (2 nm units): d in 2^-8 nm,
- * w in 2^-36 rad. */
-static void twist_q(const abbe_rotary_model_t *ax, int32_t c, int32_t s, const int64_t L[3], int64_t d[3],
-                    int64_t w[3])
+#define MAC(acc, coef, v) acc = abbe_smlal(acc, (coef), (v))
+
+/* The error motions of an axis at its angle (c, s), Q30: m in 2^-8 nm (X, Y,
+ * Z) and 2^-36 rad (A, B, C); sum |coef| x 2^30 <= 2^62 (loader caps). The
+ * six-component case keeps its accumulators in registers. */
+ABBE_NOINLINE static void motions_q(const abbe_rotary_model_t *ax, int32_t c, int32_t s, int64_t m[ABBE_MOTIONS])
 {
-    int64_t acc[ABBE_MOTIONS] = {0, 0, 0, 0, 0, 0};
     const unsigned n = ax->n_comp;
     const uint8_t *row = ax->coef_q;
     int32_t sk = s, ck = c;
+    const int64_t half = (int64_t)1 << (Q30 - 1u); /* the final shift's rounding */
+    if (n == ABBE_MOTIONS) {
+        int64_t a0 = half, a1 = half, a2 = half, a3 = half, a4 = half, a5 = half;
+        for (unsigned k = 0; k < ax->harmonics; k++, row += 48u) {
+#define ROW(acc, i) MAC(acc, abbe_ld_i32(row + 4u * (i)), sk); MAC(acc, abbe_ld_i32(row + 24u + 4u * (i)), ck)
+            ROW(a0, 0u); ROW(a1, 1u); ROW(a2, 2u); ROW(a3, 3u); ROW(a4, 4u); ROW(a5, 5u);
+#undef ROW
+            const int32_t sn = (int32_t)abbe_shr_round((int64_t)sk * c + (int64_t)ck * s, Q30);
+            ck = (int32_t)abbe_shr_round((int64_t)ck * c - (int64_t)sk * s, Q30);
+            sk = sn;
+        }
+        m[0] = a0 >> Q30; m[1] = a1 >> Q30; m[2] = a2 >> Q30;
+        m[3] = a3 >> Q30; m[4] = a4 >> Q30; m[5] = a5 >> Q30;
+        return;
+    }
+    int64_t acc[ABBE_MOTIONS];
+    for (unsigned i = 0; i < ABBE_MOTIONS; i++) {
+        acc[i] = half;
+    }
     for (unsigned k = 0; k < ax->harmonics; k++) {
         for (unsigned col = 0; col < n; col++) {
-            /* sum |coef| x 2^30 <= 2^62 (loader cap) */
-            acc[col] += (int64_t)abbe_ld_i32(row + 4u * col) * sk + (int64_t)abbe_ld_i32(row + 4u * (n + col)) * ck;
+            MAC(acc[col], abbe_ld_i32(row + 4u * col), sk);
+            MAC(acc[col], abbe_ld_i32(row + 4u * (n + col)), ck);
         }
         row += 8u * n;
         const int32_t sn = (int32_t)abbe_shr_round((int64_t)sk * c + (int64_t)ck * s, Q30);
         ck = (int32_t)abbe_shr_round((int64_t)ck * c - (int64_t)sk * s, Q30);
         sk = sn;
     }
-    int64_t m[ABBE_MOTIONS];
     for (unsigned i = 0; i < ABBE_MOTIONS; i++) {
-        m[i] = ax->column[i] == 0xFFu ? 0 : abbe_shr_round(acc[ax->column[i]], Q30); /* q8 or q36 */
+        m[i] = ax->column[i] == 0xFFu ? 0 : acc[ax->column[i]] >> Q30;
     }
+}
+
+/* An axis' twist (five_eval_f32.c) for a lever L (2 nm units): d in 2^-8 nm,
+ * w in 2^-36 rad. */
+ABBE_NOINLINE static void twist_q(const abbe_rotary_model_t *ax, int32_t c, int32_t s, const int64_t L[3], int64_t d[3],
+                                  int64_t w[3])
+{
+    int64_t m[ABBE_MOTIONS];
+    motions_q(ax, c, s, m);
     int64_t phi[3] = {ax->phi_q36[0], ax->phi_q36[1], ax->phi_q36[2]};
     int64_t delta[3] = {ax->delta_q8[0], ax->delta_q8[1], ax->delta_q8[2]};
     rotate_q(ax->dir, c, s, 0, phi);
