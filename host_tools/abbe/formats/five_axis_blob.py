@@ -212,7 +212,7 @@ def read_five_blob(data: bytes, source: str = "<blob>") -> FiveAxisTable:
             errs.location[n] = v / _Q36_PER_URAD
         n_comp = bin(mask).count("1")
         mat = (np.frombuffer(data, "<i4", count, r[8]).astype(np.int64).reshape(2 * h, n_comp)
-               if count else np.zeros((0, 0), dtype=np.int64))
+               if count else np.zeros((2 * h, n_comp), dtype=np.int64))
         col = 0
         for i, c in enumerate(MOTION_COMPONENTS):
             if mask >> i & 1:
