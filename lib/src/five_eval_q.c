@@ -26,7 +26,7 @@ static void rotate_q(unsigned k, int32_t c, int32_t s, int inverse, int64_t v[3]
 /* The error motions of an axis at its angle (c, s), Q30: m in 2^-8 nm (X, Y,
  * Z) and 2^-36 rad (A, B, C); sum |coef| x 2^30 <= 2^62 (loader caps). The
  * six-component case keeps its accumulators in registers. */
-ABBE_NOINLINE static void motions_q(const abbe_rotary_model_t *ax, int32_t c, int32_t s, int64_t m[ABBE_MOTIONS])
+ABBE_NOINLINE static void motions_q(const abbe_rotary_model_t *ax, int32_t c, int32_t s, int64_t d[3], int64_t w[3])
 {
     const unsigned n = ax->n_comp;
     const uint8_t *row = ax->coef_q;
@@ -42,8 +42,8 @@ ABBE_NOINLINE static void motions_q(const abbe_rotary_model_t *ax, int32_t c, in
             ck = (int32_t)abbe_shr_round((int64_t)ck * c - (int64_t)sk * s, Q30);
             sk = sn;
         }
-        m[0] = a0 >> Q30; m[1] = a1 >> Q30; m[2] = a2 >> Q30;
-        m[3] = a3 >> Q30; m[4] = a4 >> Q30; m[5] = a5 >> Q30;
+        d[0] = a0 >> Q30; d[1] = a1 >> Q30; d[2] = a2 >> Q30;
+        w[0] = a3 >> Q30; w[1] = a4 >> Q30; w[2] = a5 >> Q30;
         return;
     }
     int64_t acc[ABBE_MOTIONS];
@@ -60,8 +60,9 @@ ABBE_NOINLINE static void motions_q(const abbe_rotary_model_t *ax, int32_t c, in
         ck = (int32_t)abbe_shr_round((int64_t)ck * c - (int64_t)sk * s, Q30);
         sk = sn;
     }
-    for (unsigned i = 0; i < ABBE_MOTIONS; i++) {
-        m[i] = ax->column[i] == 0xFFu ? 0 : acc[ax->column[i]] >> Q30;
+    for (unsigned i = 0; i < 3u; i++) {
+        d[i] = ax->column[i] == 0xFFu ? 0 : acc[ax->column[i]] >> Q30;
+        w[i] = ax->column[3u + i] == 0xFFu ? 0 : acc[ax->column[3u + i]] >> Q30;
     }
 }
 
@@ -70,21 +71,64 @@ ABBE_NOINLINE static void motions_q(const abbe_rotary_model_t *ax, int32_t c, in
 ABBE_NOINLINE static void twist_q(const abbe_rotary_model_t *ax, int32_t c, int32_t s, const int64_t L[3], int64_t d[3],
                                   int64_t w[3])
 {
-    int64_t m[ABBE_MOTIONS];
-    motions_q(ax, c, s, m);
+    motions_q(ax, c, s, d, w); /* d = m_trans, w = m_rot */
     int64_t phi[3] = {ax->phi_q36[0], ax->phi_q36[1], ax->phi_q36[2]};
     int64_t delta[3] = {ax->delta_q8[0], ax->delta_q8[1], ax->delta_q8[2]};
     rotate_q(ax->dir, c, s, 0, phi);
     rotate_q(ax->dir, c, s, 0, delta);
     for (unsigned i = 0; i < 3u; i++) {
-        w[i] = ax->phi_q36[i] - phi[i] + m[3u + i];
-        d[i] = ax->delta_q8[i] - delta[i] + m[i];
+        w[i] += ax->phi_q36[i] - phi[i];
+        d[i] += ax->delta_q8[i] - delta[i];
     }
     w[ax->dir] += ax->zero_q36;
     /* w x L: 2^-36 rad x 2 nm = 2^-35 nm, each product < 2^61.5; -> 2^-8 nm */
     d[0] += abbe_shr_round(w[1] * L[2] - w[2] * L[1], 27u);
     d[1] += abbe_shr_round(w[2] * L[0] - w[0] * L[2], 27u);
     d[2] += abbe_shr_round(w[0] * L[1] - w[1] * L[0], 27u);
+}
+
+/* pos (2^-4 nm) and rot (2^-36 rad) minus the rotary axes' twists, plus the
+ * five-axis squareness. Out of line: its frame and the linear evaluation's are
+ * never on the stack together. */
+ABBE_NOINLINE static void add_rotary_q(const abbe_five_model_t *m5, const int32_t pos_nm[3],
+                                       const int32_t angle_udeg[2], int64_t pos[3], int64_t rot[3])
+{
+    const abbe_rotary_model_t *tilt = &m5->rotary[0], *table = &m5->rotary[1];
+    int32_t st, ct, sc, cc;
+    abbe_sincos_q30(abbe_udeg_phase_q32(angle_udeg[0]), &st, &ct);
+    abbe_sincos_q30(abbe_udeg_phase_q32(angle_udeg[1]), &sc, &cc);
+    int64_t L[3], d[3], w[3];
+    /* the table axis C at the point before the tilt's rotation: lever R_t^T (q - P_t) + offset */
+    for (unsigned i = 0; i < 3u; i++) {
+        L[i] = (pos_nm[i] >> 1) - (m5->tilt_pivot_nm[i] >> 1);
+    }
+    rotate_q(tilt->dir, ct, st, 1, L);
+    for (unsigned i = 0; i < 3u; i++) {
+        L[i] += m5->offset_nm[i] >> 1;
+    }
+    twist_q(table, cc, sc, L, d, w);
+    for (unsigned i = 0; i < 3u; i++) {
+        d[i] = abbe_shr_round(d[i], 4u); /* 2^-4 nm: |d| < 2^31, the rotation's products < 2^61 */
+    }
+    rotate_q(tilt->dir, ct, st, 0, d);
+    rotate_q(tilt->dir, ct, st, 0, w);
+    for (unsigned i = 0; i < 3u; i++) {
+        pos[i] -= d[i];
+        rot[i] -= w[i];
+    }
+    /* the tilt axis: lever q - P_t */
+    for (unsigned i = 0; i < 3u; i++) {
+        L[i] = (pos_nm[i] >> 1) - (m5->tilt_pivot_nm[i] >> 1);
+    }
+    twist_q(tilt, ct, st, L, d, w);
+    for (unsigned i = 0; i < 3u; i++) {
+        pos[i] -= abbe_shr_round(d[i], 4u);
+        rot[i] -= w[i];
+    }
+    /* five-axis squareness, lever y, z from the C centre: 2 nm x 2^-36 rad -> 2^-4 nm */
+    const int64_t y = (pos_nm[1] >> 1) - (m5->rot_point_nm[1] >> 1), z = (pos_nm[2] >> 1) - (m5->rot_point_nm[2] >> 1);
+    pos[0] += abbe_shr_round(y * m5->squareness_q36[0] - z * m5->squareness_q36[1], 31u);
+    pos[1] -= abbe_shr_round(z * m5->squareness_q36[2], 31u);
 }
 
 uint32_t abbe_five_eval_q_core(const abbe_five_model_t *m5, const int32_t pos_nm[3], const int32_t angle_udeg[2],
@@ -99,36 +143,7 @@ uint32_t abbe_five_eval_q_core(const abbe_five_model_t *m5, const int32_t pos_nm
         pos[c] = (int64_t)error_nm[c] * 16;
     }
     if (m5->kind != ABBE_KIN_NONE) {
-        int64_t Lt[3], Lc[3], rel[3];
-        for (unsigned i = 0; i < 3u; i++) {
-            Lt[i] = (pos_nm[i] >> 1) - (m5->tilt_pivot_nm[i] >> 1);
-            rel[i] = (pos_nm[i] >> 1) - (m5->rot_point_nm[i] >> 1);
-        }
-        const abbe_rotary_model_t *tilt = &m5->rotary[0], *table = &m5->rotary[1];
-        int32_t st, ct, sc, cc;
-        abbe_sincos_q30(abbe_udeg_phase_q32(angle_udeg[0]), &st, &ct);
-        abbe_sincos_q30(abbe_udeg_phase_q32(angle_udeg[1]), &sc, &cc);
-        memcpy(Lc, Lt, sizeof Lc);
-        rotate_q(tilt->dir, ct, st, 1, Lc);
-        for (unsigned i = 0; i < 3u; i++) {
-            Lc[i] += m5->offset_nm[i] >> 1;
-        }
-        int64_t dc[3], wc[3], dt[3], wt[3];
-        twist_q(table, cc, sc, Lc, dc, wc);
-        twist_q(tilt, ct, st, Lt, dt, wt);
-        for (unsigned i = 0; i < 3u; i++) {
-            dc[i] = abbe_shr_round(dc[i], 4u); /* 2^-4 nm: |d| < 2^31, the rotation's products < 2^61 */
-        }
-        rotate_q(tilt->dir, ct, st, 0, dc);
-        rotate_q(tilt->dir, ct, st, 0, wc);
-        /* five-axis squareness, lever from the C centre: 2 nm x 2^-36 rad -> 2^-4 nm */
-        const int64_t sxy = m5->squareness_q36[0], sxz = m5->squareness_q36[1], syz = m5->squareness_q36[2];
-        pos[0] += abbe_shr_round(rel[1] * sxy - rel[2] * sxz, 31u);
-        pos[1] -= abbe_shr_round(rel[2] * syz, 31u);
-        for (unsigned i = 0; i < 3u; i++) {
-            pos[i] -= dc[i] + abbe_shr_round(dt[i], 4u);
-            rot[i] -= wc[i] + wt[i];
-        }
+        add_rotary_q(m5, pos_nm, angle_udeg, pos, rot);
     }
     for (unsigned i = 0; i < 3u; i++) {
         error_nm[i] = abbe_sat_i32(abbe_shr_round(pos[i], 4u), &flags);

@@ -44,7 +44,7 @@ def identify_into(machine_path: str | Path, staging: Path, report: bool = True):
     t_fit = time.perf_counter()
     doc = to_json(res, spec, plan)
     doc["provenance"] = {"machine_file": str(machine.path), "sha256": machine.sha256}
-    doc["table"] = write_table(res, spec, Path(staging))
+    doc["blob"] = write_table(res, spec, Path(staging))
     (Path(staging) / "five_axis.json").write_text(
         json.dumps(doc, indent=2, allow_nan=False) + "\n", encoding="utf-8")
     text = text_report(doc)

@@ -36,7 +36,7 @@ def fitted(tmp_path_factory) -> Path:
 def test_table_holds_the_identified_values(fitted: Path) -> None:
     doc = json.loads((fitted / "five_axis.json").read_text())
     blob = (fitted / "model_five.bin").read_bytes()
-    entry = doc["table"]
+    entry = doc["blob"]
     assert entry["file"] == "model_five.bin" and entry["format"] == "1.2" and entry["bytes"] == len(blob)
     assert entry["crc32"] == f"0x{zlib.crc32(blob[:-4]):08X}"
     table = read_five_blob(blob)
