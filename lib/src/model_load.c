@@ -747,7 +747,11 @@ static void build_rotary(abbe_rotary_model_t *ax, const uint8_t *b, const uint8_
     ax->harmonics = rec[RA_HARMONICS];
     uint8_t column = 0;
     for (unsigned c = 0; c < ABBE_MOTIONS; c++) {
-        ax->column[c] = ((ax->comp_mask >> c) & 1u) ? column++ : 0xFFu;
+        if (((unsigned)ax->comp_mask >> c) & 1u) {
+            ax->column[c] = column++;
+        } else {
+            ax->column[c] = 0xFFu;
+        }
     }
     if (abbe_ld_u32(rec + RA_COEF_COUNT) != 0u) {
         ax->coef_q = b + abbe_ld_u32(rec + RA_COEF_Q);
