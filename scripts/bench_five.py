@@ -19,7 +19,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_report import parse_map, qemu_trace_counts, stack_measured  # noqa: E402
+from bench_report import deepest, parse_callgraph, parse_map, qemu_trace_counts, short, stack_measured  # noqa: E402
 
 TARGETS = {"five_f32": 1500, "five_q": 3000, "flash": 8 * 1024, "stack": 320}
 #: bench/results.md's 3-axis figures this section must not regress (issue 23).
@@ -28,6 +28,20 @@ THREE_AXIS_BEFORE = {("Cortex-M4F", "f32"): 697, ("Cortex-M3", "q"): 1409,
                      ("Cortex-M3", "comp_q"): 6036}
 HEADING = "## Five-axis tables (format 1.2)"
 MACHINES = {"Cortex-M4F": "mps2-an386", "Cortex-M3": "mps2-an385"}
+
+
+_WRAPPER = {"five_f32": "run_f32", "five_q": "run_q", "comp5_f32": "run_comp_f32", "comp5_q": "run_comp_q"}
+
+
+def _wrapper_frames(build: Path) -> dict[str, int]:
+    """Frames of bench_five_target.c's wrappers (.su), taken out of the measured stack."""
+    out = {}
+    for su in build.glob("bench/CMakeFiles/bench_five_target.dir/*.su"):
+        for line in su.read_text().splitlines():
+            parts = line.split("\t")
+            if len(parts) >= 2:
+                out[parts[0].rsplit(":", 1)[-1]] = int(parts[1])
+    return out
 
 
 def _verdict(v: float, target: float) -> str:
@@ -44,8 +58,8 @@ def section(m4f: Path, m3: Path) -> list[str]:
            "linear axes; `bc_motions` B/C, 8 harmonics on both, no linear errors; `ac_location`",
            "location errors only with the 'full' 3-axis table's linear axes), 8 points each:",
            "instructions per call from QEMU's exec trace (min / median / max), and the stack the",
-           "call really used (painted stack).", "",
-           "| target | call | table | instructions (min / median / max) | stack (B) | target |",
+           "call really used (painted stack, the benchmark wrapper's own frame taken out).", "",
+           "| target | call | table | instructions (min / median / max) | stack measured (B) | target |",
            "|---|---|---|---:|---:|---|"]
     worst: dict[tuple[str, str], int] = {}
     stack_worst: dict[tuple[str, str], int] = {}
@@ -54,10 +68,11 @@ def section(m4f: Path, m3: Path) -> list[str]:
         image = build / "bench" / "bench_five_target.elf"
         counts, stdout = qemu_trace_counts(MACHINES[name], image, nm)
         stacks = stack_measured(stdout)
+        wrappers = _wrapper_frames(build)
         for key, v in counts.items():
             call, table = key.split("@")
             target = {"five_f32": f"<= {TARGETS['five_f32']}", "five_q": f"<= {TARGETS['five_q']}"}.get(call, "")
-            st = stacks.get(key, 0)
+            st = stacks.get(key, 0) - wrappers.get(_WRAPPER[call], 0)
             out.append(f"| {name} | {call} | {table} | {min(v)} / {int(statistics.median(v))} / {max(v)} | "
                        f"{st} | {target} |")
             worst[(name, call)] = max(worst.get((name, call), 0), max(v))
@@ -66,6 +81,19 @@ def section(m4f: Path, m3: Path) -> list[str]:
         for call in ("f32", "q", "comp_f32", "comp_q"):
             if call in c3:
                 three[(name, call)] = max(c3[call])
+    out += ["", "Static stack (call graph of -fstack-usage / -fcallgraph-info, as section 4):", "",
+            "| target | entry point | static (B) | deepest chain (frame bytes) |", "|---|---|---:|---|"]
+    static: dict[tuple[str, str], int] = {}
+    for name, build in (("Cortex-M4F", m4f), ("Cortex-M3", m3)):
+        frames, calls = parse_callgraph(sorted((build / "lib").rglob("*.ci")))
+        for fn in ("abbe_five_model_load", "abbe_five_error_eval_f32", "abbe_five_error_eval_q",
+                   "abbe_comp_step5_f32", "abbe_comp_step5_q", "abbe_comp_step_q"):
+            if fn not in frames:
+                continue
+            depth, chain = deepest(fn, frames, calls)
+            static[(name, fn)] = depth
+            out.append(f"| {name} | {fn} | {depth} | " + " > ".join(f"{short(c)} ({frames.get(c, 0)})" for c in chain)
+                       + " |")
     out += ["", "| target | use | library flash (B) | libgcc flash (B) | target |", "|---|---|---:|---:|---|"]
     flash: dict[tuple[str, str], int] = {}
     for name, build in (("Cortex-M4F", m4f), ("Cortex-M3", m3)):
@@ -91,9 +119,12 @@ def section(m4f: Path, m3: Path) -> list[str]:
         ("flash, five-axis load + eval + compensator, q (M4F)", flash.get(("Cortex-M4F", "five_q")),
          TARGETS["flash"]),
         ("flash, five-axis load + eval + compensator, q (M3)", flash.get(("Cortex-M3", "five_q")), TARGETS["flash"]),
-        ("stack, abbe_comp_step5_f32 (M4F)", stack_worst.get(("Cortex-M4F", "comp5_f32")), TARGETS["stack"]),
-        ("stack, abbe_comp_step5_q (M4F)", stack_worst.get(("Cortex-M4F", "comp5_q")), TARGETS["stack"]),
-        ("stack, abbe_comp_step5_q (M3)", stack_worst.get(("Cortex-M3", "comp5_q")), TARGETS["stack"]),
+        ("stack (static), abbe_comp_step5_f32 (M4F)", static.get(("Cortex-M4F", "abbe_comp_step5_f32")),
+         TARGETS["stack"]),
+        ("stack (static), abbe_comp_step5_q (M4F)", static.get(("Cortex-M4F", "abbe_comp_step5_q")), TARGETS["stack"]),
+        ("stack (static), abbe_comp_step5_q (M3)", static.get(("Cortex-M3", "abbe_comp_step5_q")), TARGETS["stack"]),
+        ("stack (measured), abbe_comp_step5_q (M3)", stack_worst.get(("Cortex-M3", "comp5_q")), TARGETS["stack"]),
+        ("3-axis: stack (static), abbe_comp_step_q (M3)", static.get(("Cortex-M3", "abbe_comp_step_q")), 236),
         ("3-axis: Cortex-M4F abbe_error_eval_f32 (paper table, worst)", three.get(("Cortex-M4F", "f32")),
          THREE_AXIS_BEFORE[("Cortex-M4F", "f32")]),
         ("3-axis: Cortex-M3 abbe_error_eval_q (paper table, worst)", three.get(("Cortex-M3", "q")),

@@ -109,6 +109,47 @@ ABBE_NOINLINE static void twist_f32(const abbe_rotary_model_t *ax, float c, floa
     d_um[2] = d[2] + (w_urad[0] * L_mm[1] - w_urad[1] * L_mm[0]) * 1.0e-3f + m[2];
 }
 
+/* out's position (um) and orientation (urad) minus the rotary axes' twists,
+ * plus the five-axis squareness, at positions p (nm) and angles udeg. Out of
+ * line: its frame and the linear evaluation's are never on the stack
+ * together. */
+ABBE_NOINLINE static void add_rotary_f32(const abbe_five_model_t *m5, const int32_t p[3], const int32_t udeg[2],
+                                         abbe_five_error_f32_t *out)
+{
+    const abbe_rotary_model_t *tilt = &m5->rotary[0], *table = &m5->rotary[1];
+    float st, ct, sc, cc;
+    abbe_sincos_f32(abbe_udeg_phase_q32(udeg[0]), &st, &ct);
+    abbe_sincos_f32(abbe_udeg_phase_q32(udeg[1]), &sc, &cc);
+    float L[3], d[3], w[3];
+    /* the table axis C at the point before the tilt's rotation: lever R_t^T (q - P_t) + offset,
+     * (p >> 1) - (P >> 1) an exact int32 difference of half positions */
+    for (unsigned i = 0; i < 3u; i++) {
+        L[i] = (float)((p[i] >> 1) - (m5->tilt_pivot_nm[i] >> 1)) * MM_PER_HALF_NM;
+    }
+    rotate_f32(tilt->dir, ct, st, 1, L);
+    for (unsigned i = 0; i < 3u; i++) {
+        L[i] += (float)m5->offset_nm[i] * 1.0e-6f;
+    }
+    twist_f32(table, cc, sc, L, d, w);
+    rotate_f32(tilt->dir, ct, st, 0, d);
+    rotate_f32(tilt->dir, ct, st, 0, w);
+    for (unsigned i = 0; i < 3u; i++) {
+        out->error_um[i] -= d[i];
+        out->orient_urad[i] -= w[i];
+        L[i] = (float)((p[i] >> 1) - (m5->tilt_pivot_nm[i] >> 1)) * MM_PER_HALF_NM; /* the tilt: q - P_t */
+    }
+    twist_f32(tilt, ct, st, L, d, w);
+    for (unsigned i = 0; i < 3u; i++) {
+        out->error_um[i] -= d[i];
+        out->orient_urad[i] -= w[i];
+    }
+    /* five-axis squareness, lever y, z from the C centre: mm x urad = nm */
+    const float y = (float)((p[1] >> 1) - (m5->rot_point_nm[1] >> 1)) * MM_PER_HALF_NM;
+    const float z = (float)((p[2] >> 1) - (m5->rot_point_nm[2] >> 1)) * MM_PER_HALF_NM;
+    out->error_um[0] += (y * (float)m5->squareness_q36[0] - z * (float)m5->squareness_q36[1]) * (URAD_PER_Q36 * 1.0e-3f);
+    out->error_um[1] -= z * (float)m5->squareness_q36[2] * (URAD_PER_Q36 * 1.0e-3f);
+}
+
 static void refuse(abbe_five_error_f32_t *out)
 {
     for (unsigned i = 0; i < 3u; i++) {
@@ -162,42 +203,12 @@ abbe_status_t abbe_five_error_eval_f32(const abbe_five_model_t *m5, const abbe_f
             rot[c] += sign * v[3u + c];
         }
     }
-    float pos[3] = {lin.error_um[0], lin.error_um[1], lin.error_um[2]};
-    if (m5->kind != ABBE_KIN_NONE) {
-        float Lt[3], Lc[3], rel[3];
-        for (unsigned i = 0; i < 3u; i++) {
-            /* (p >> 1) - (P >> 1): an exact int32 difference of half nm */
-            Lt[i] = (float)((p[i] >> 1) - (m5->tilt_pivot_nm[i] >> 1)) * MM_PER_HALF_NM;
-            rel[i] = (float)((p[i] >> 1) - (m5->rot_point_nm[i] >> 1)) * MM_PER_HALF_NM;
-        }
-        const abbe_rotary_model_t *tilt = &m5->rotary[0], *table = &m5->rotary[1];
-        float st, ct, sc, cc;
-        abbe_sincos_f32(abbe_udeg_phase_q32(udeg[0]), &st, &ct);
-        abbe_sincos_f32(abbe_udeg_phase_q32(udeg[1]), &sc, &cc);
-        memcpy(Lc, Lt, sizeof Lc);
-        rotate_f32(tilt->dir, ct, st, 1, Lc);
-        for (unsigned i = 0; i < 3u; i++) {
-            Lc[i] += (float)m5->offset_nm[i] * 1.0e-6f;
-        }
-        float dc[3], wc[3], dt[3], wt[3];
-        twist_f32(table, cc, sc, Lc, dc, wc);
-        twist_f32(tilt, ct, st, Lt, dt, wt);
-        rotate_f32(tilt->dir, ct, st, 0, dc);
-        rotate_f32(tilt->dir, ct, st, 0, wc);
-        /* five-axis squareness, lever from the C centre: mm x urad = nm */
-        const float sxy = (float)m5->squareness_q36[0] * URAD_PER_Q36;
-        const float sxz = (float)m5->squareness_q36[1] * URAD_PER_Q36;
-        const float syz = (float)m5->squareness_q36[2] * URAD_PER_Q36;
-        pos[0] += (rel[1] * sxy - rel[2] * sxz) * 1.0e-3f;
-        pos[1] -= rel[2] * syz * 1.0e-3f;
-        for (unsigned i = 0; i < 3u; i++) {
-            pos[i] -= dc[i] + dt[i];
-            rot[i] -= wc[i] + wt[i];
-        }
-    }
     for (unsigned i = 0; i < 3u; i++) {
-        out->error_um[i] = pos[i];
+        out->error_um[i] = lin.error_um[i];
         out->orient_urad[i] = rot[i];
+    }
+    if (m5->kind != ABBE_KIN_NONE) {
+        add_rotary_f32(m5, p, udeg, out);
     }
     out->flags = flags;
     return ABBE_OK;

@@ -72,14 +72,13 @@ ABBE_NOINLINE static void twist_q(const abbe_rotary_model_t *ax, int32_t c, int3
                                   int64_t w[3])
 {
     motions_q(ax, c, s, d, w); /* d = m_trans, w = m_rot */
-    int64_t phi[3] = {ax->phi_q36[0], ax->phi_q36[1], ax->phi_q36[2]};
-    int64_t delta[3] = {ax->delta_q8[0], ax->delta_q8[1], ax->delta_q8[2]};
-    rotate_q(ax->dir, c, s, 0, phi);
-    rotate_q(ax->dir, c, s, 0, delta);
-    for (unsigned i = 0; i < 3u; i++) {
-        w[i] += ax->phi_q36[i] - phi[i];
-        d[i] += ax->delta_q8[i] - delta[i];
-    }
+    /* + (I - R) phi, (I - R) delta, componentwise (no component along the axis k) */
+    const unsigned k = ax->dir, j = (k + 1u) % 3u, l = (k + 2u) % 3u;
+    const int64_t pj = ax->phi_q36[j], pl = ax->phi_q36[l], dj = ax->delta_q8[j], dl = ax->delta_q8[l];
+    w[j] += pj - abbe_shr_round(c * pj - s * pl, Q30);
+    w[l] += pl - abbe_shr_round(s * pj + c * pl, Q30);
+    d[j] += dj - abbe_shr_round(c * dj - s * dl, Q30);
+    d[l] += dl - abbe_shr_round(s * dj + c * dl, Q30);
     w[ax->dir] += ax->zero_q36;
     /* w x L: 2^-36 rad x 2 nm = 2^-35 nm, each product < 2^61.5; -> 2^-8 nm */
     d[0] += abbe_shr_round(w[1] * L[2] - w[2] * L[1], 27u);
