@@ -151,18 +151,20 @@ def section(m4f: Path, m3: Path) -> list[str]:
 
 #: Why the five-axis budgets are missed, and the arithmetic floor (issue 23 asks for it).
 FLOOR = """The arithmetic floor of `ac_full` (the budget's case: the paper machine's linear
-axes plus A and C with all six motions, 4 and 6 harmonics): the 3-axis evaluation
-(697 M4F f32 / 1409 M3 q), the linear axes' angular terms for the orientation
-(eps_Z - eps_X - eps_Y: 9 more term values, today a second pass over the linear
-axes' coefficients, about 450 f32 / 1000 q), the motions' 2 x 6 x (4 + 6) = 120
-multiply-adds with their 120 coefficient loads (about 260 f32, 500 q with SMLAL
-pairs), two sin/cos and the harmonics' rotations (about 120 / 300), and about 60
-multiplies for the levers, rotations and cross products. So about 1,600 (f32) and
-3,300 (q) is the floor of this arithmetic as organised now; the budgets (1,500 /
-3,000) need the orientation terms from the same pass as the position (the 3-axis
-kernels fold the terms into Eq. 3 and never expose them: a variant of those kernels
-that also returns the three angular sums would save the second pass) and
-fixed-shape motion kernels without the generic loops. Not done in this session.
+axes plus A and C with all six motions, 4 and 6 harmonics). The 3-axis evaluation
+is 697 (M4F f32) / 1409 (M3 q). On top: the motions' 2 x 6 x (4 + 6) = 120
+multiply-adds with their 120 coefficient loads (about 250 f32; about 500 q, one
+SMLAL pair each), two sin/cos and the harmonics' rotations (about 100 / 300), and
+about 60 multiplies for the levers, rotations and cross products (about 150 / 400
+with q's 64-bit products): about 1,200 f32 and 2,600 q, within the budgets. What the
+measured breakdown above adds to that: f32 evaluates the linear axes twice (the
+3-axis kernels fold the terms into Eq. 3 and never expose the angular sums the
+orientation needs, so `abbe_axis_terms_f32` runs a second pass: about 1,000 of
+fold6_f32's 1,788), and both variants run the motions and the rotary
+geometry through generic loops over vectors (twist, one_minus_rot, rotate: about
+700 f32 / 1,000 q above the floor). A kernel variant returning the angular sums
+with the folded position, and straight-line rotary code, are what the budgets need;
+not done in this session.
 Flash: the five-axis loader (five_load.c, about 3.4 KB: model_load.c's checks compiled
 a second time with the rotary ones, so the 3-axis image stays byte for byte what it
 was; sharing one copy cost the 3-axis image 88 B, measured) and the linear terms'
