@@ -330,6 +330,43 @@ static void test_comp_step5(void **state)
                      ABBE_E_ARG); /* the running slot */
 }
 
+/* A five-axis target beyond the error limit latches the fault: the output
+ * fades out from where it was, monotonically, and stays 0 until reset. */
+static void test_comp_step5_limit(void **state)
+{
+    (void)state;
+    static abbe_five_model_t m5;
+    load_five(1, &m5); /* bc_motions: errors of some 100 um */
+    abbe_comp_t comp;
+    abbe_comp_config_t cfg = config();
+    for (int k = 0; k < 3; k++) {
+        cfg.warn_nm[k] = 1000;
+        cfg.limit_nm[k] = 5000;
+    }
+    abbe_comp_init(&comp, &cfg, NULL);
+    abbe_comp_swap_five_model(&comp, &m5);
+    abbe_comp_enable(&comp);
+    const abbe_golden_five_point_t *p = &abbe_golden_five_points[abbe_golden_five_tables[1].first_point + 20u];
+    abbe_comp_input5_q_t in;
+    memset(&in, 0, sizeof in);
+    memcpy(in.lin.pos_nm, p->pos_nm, sizeof in.lin.pos_nm);
+    memcpy(in.angle_udeg, p->angle_udeg, sizeof in.angle_udeg);
+    in.lin.fresh = 1;
+    abbe_comp_output5_t out;
+    abbe_comp_step5_q(&comp, &in, &out);
+    assert_true(abs(out.lin.target_nm[0]) > 5000 || abs(out.lin.target_nm[1]) > 5000 ||
+                abs(out.lin.target_nm[2]) > 5000);
+    assert_true(out.lin.flags & ABBE_FLAG_LIMIT);
+    assert_int_equal(out.lin.state, ABBE_COMP_FAULT);
+    for (int cycle = 0; cycle < 50; cycle++) {
+        abbe_comp_step5_q(&comp, &in, &out);
+        assert_int_equal(out.lin.state, ABBE_COMP_FAULT);
+    }
+    for (int k = 0; k < 3; k++) {
+        assert_int_equal(out.lin.corr_nm[k], 0);
+    }
+}
+
 /* A 3-axis model under the five-axis step gives the 3-axis correction. */
 static void test_comp_step5_three_axis_model(void **state)
 {
@@ -368,6 +405,7 @@ int main(void)
         cmocka_unit_test(test_three_axis_tables),
         cmocka_unit_test(test_loader_refuses),
         cmocka_unit_test(test_comp_step5),
+        cmocka_unit_test(test_comp_step5_limit),
         cmocka_unit_test(test_comp_step5_three_axis_model),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
