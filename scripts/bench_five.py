@@ -161,7 +161,7 @@ measured breakdown above adds to that: f32 evaluates the linear axes twice (the
 3-axis kernels fold the terms into Eq. 3 and never expose the angular sums the
 orientation needs, so `abbe_axis_terms_f32` runs a second pass: about 1,000 of
 fold6_f32's 1,788), and both variants run the motions and the rotary
-geometry through generic loops over vectors (twist, one_minus_rot, rotate: about
+geometry through generic loops over vectors (motions, twist, rotate: about
 700 f32 / 1,000 q above the floor). A kernel variant returning the angular sums
 with the folded position, and straight-line rotary code, are what the budgets need;
 not done in this session.

@@ -35,16 +35,6 @@ static void rotate_f32(unsigned k, float c, float s, int inverse, float v[3])
     v[l] = sn * vj + c * vl;
 }
 
-/* (I - R) v, R a rotation by (c, s) about k (v has no k component). */
-static void one_minus_rot_f32(unsigned k, float c, float s, const float v[3], float out[3])
-{
-    float r[3] = {v[0], v[1], v[2]};
-    rotate_f32(k, c, s, 0, r);
-    for (unsigned i = 0; i < 3u; i++) {
-        out[i] = v[i] - r[i];
-    }
-}
-
 /* The error motions m (X, Y, Z um; A, B, C urad) of an axis at its angle
  * (c, s): sin k t and cos k t by rotation, k = 1 .. H. An axis with all six
  * components (the fitted case) keeps its accumulators in registers. */
@@ -92,14 +82,18 @@ ABBE_NOINLINE static void twist_f32(const abbe_rotary_model_t *ax, float c, floa
 {
     float m[ABBE_MOTIONS];
     motions_f32(ax, c, s, m);
-    float phi[3], delta[3], w[3], d[3];
-    for (unsigned i = 0; i < 3u; i++) {
-        phi[i] = (float)ax->phi_q36[i] * URAD_PER_Q36;
-        delta[i] = (float)ax->delta_q8[i] * UM_PER_Q8;
-    }
-    one_minus_rot_f32(ax->dir, c, s, phi, w);
-    one_minus_rot_f32(ax->dir, c, s, delta, d);
-    w[ax->dir] += (float)ax->zero_q36 * URAD_PER_Q36;
+    /* w = (I - R) phi + E0 k + m_rot, d = (I - R) delta + m_trans, componentwise
+     * (no component along the axis k) */
+    const unsigned k = ax->dir, j = (k + 1u) % 3u, l = (k + 2u) % 3u;
+    const float pj = (float)ax->phi_q36[j] * URAD_PER_Q36, pl = (float)ax->phi_q36[l] * URAD_PER_Q36;
+    const float dj = (float)ax->delta_q8[j] * UM_PER_Q8, dl = (float)ax->delta_q8[l] * UM_PER_Q8;
+    float w[3], d[3];
+    w[k] = (float)ax->zero_q36 * URAD_PER_Q36;
+    w[j] = pj - (c * pj - s * pl);
+    w[l] = pl - (s * pj + c * pl);
+    d[k] = 0.0f;
+    d[j] = dj - (c * dj - s * dl);
+    d[l] = dl - (s * dj + c * dl);
     for (unsigned i = 0; i < 3u; i++) {
         w_urad[i] = w[i] + m[3u + i];
     }
