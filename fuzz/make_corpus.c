@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "golden_data.h"
+#include "golden_five.h"
 
 int main(int argc, char **argv)
 {
@@ -16,6 +17,17 @@ int main(int argc, char **argv)
         const abbe_golden_table_t *t = &abbe_golden_tables[i];
         char path[4096];
         snprintf(path, sizeof path, "%s/%02u-%s.bin", argv[1], i, t->name);
+        FILE *f = fopen(path, "wb");
+        if (f == NULL || fwrite(t->blob, 1, t->blob_size, f) != t->blob_size || fclose(f) != 0) {
+            fprintf(stderr, "make_corpus: cannot write %s\n", path);
+            return 1;
+        }
+        written++;
+    }
+    for (unsigned i = 0; i < abbe_golden_five_table_count; i++) { /* format 1.2 (fuzz_five_load) */
+        const abbe_golden_five_table_t *t = &abbe_golden_five_tables[i];
+        char path[4096];
+        snprintf(path, sizeof path, "%s/five-%02u-%s.bin", argv[1], i, t->name);
         FILE *f = fopen(path, "wb");
         if (f == NULL || fwrite(t->blob, 1, t->blob_size, f) != t->blob_size || fclose(f) != 0) {
             fprintf(stderr, "make_corpus: cannot write %s\n", path);

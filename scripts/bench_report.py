@@ -1138,6 +1138,9 @@ def main() -> int:
         sw("")
     md[md.index("## 1. x86-64 instructions per call (callgrind)"):md.index("## 1. x86-64 instructions per call (callgrind)")] = summary
 
+    # five-axis tables (format 1.2): scripts/bench_five.py's section
+    from bench_five import section as five_section
+    md += [""] + five_section(args.m4f, args.m3)
     text = "\n".join(md) + "\n"
     if args.out:
         args.out.write_text(text)

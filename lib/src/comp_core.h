@@ -19,4 +19,10 @@ void abbe_comp_track_direction(abbe_comp_t *comp, const int32_t pos_nm[ABBE_AXES
 void abbe_comp_finish(abbe_comp_t *comp, int input_ok, const int32_t *error_nm, uint32_t flags,
                       uint8_t axis_fault_mask, abbe_comp_output_t *out);
 
+/* um -> nm, rounded, saturated (ABBE_FLAG_SATURATED): comp_f32.c. */
+int32_t abbe_comp_um_to_nm(float um, uint32_t *flags);
+
+/* The five-axis model the compensator runs, or NULL for a 3-axis one (comp_five.c). */
+const abbe_five_model_t *abbe_comp_five_model(const abbe_comp_t *comp);
+
 #endif /* ABBE_COMP_CORE_H */

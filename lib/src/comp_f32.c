@@ -6,8 +6,9 @@
 #error "this is the _f32 variant: compile it with ABBE_WITH_F32=1 (or leave it undefined), or leave the file out"
 #endif
 
-/* um -> nm, rounded and saturated (the error is bounded far below this anyway). */
-static int32_t um_to_nm(float um, uint32_t *flags)
+/* um -> nm, rounded and saturated (the error is bounded far below this anyway).
+ * Also used by the five-axis cycle (comp_five_f32.c). */
+int32_t abbe_comp_um_to_nm(float um, uint32_t *flags)
 {
     float nm = um * 1000.0f;
     if (nm >= 2147483520.0f) { /* largest float below 2^31 */
@@ -48,7 +49,7 @@ abbe_status_t abbe_comp_step_f32(abbe_comp_t *comp, const abbe_comp_input_f32_t 
         have_error = abbe_eval_f32_core(comp->model, &eval_in, &eval_out) == ABBE_OK;
         input_ok = have_error;
         for (unsigned j = 0; have_error && j < ABBE_AXES; j++) {
-            error_nm[j] = um_to_nm(eval_out.error_um[j], &flags);
+            error_nm[j] = abbe_comp_um_to_nm(eval_out.error_um[j], &flags);
         }
         if (have_error) {
             flags |= eval_out.flags;

@@ -325,6 +325,33 @@ abbe_status_t abbe_eval_f32_core_avx2(const abbe_model_t *m, const abbe_input_f3
  * a tail call. */
 abbe_status_t abbe_eval_f32_core(const abbe_model_t *m, const abbe_input_f32_t *in, abbe_error_f32_t *out);
 
+/* ---- five-axis tables (format 1.2, five_load.c) ---- */
+
+/* The rotary section (header + tilt and table axis records) follows the three
+ * linear axis records; coefficient arrays start after it. */
+#define ABBE_ROTARY_HEADER_OFFSET 256u
+#define ABBE_ROTARY_HEADER_SIZE 64u
+#define ABBE_ROTARY_RECORD_SIZE 64u
+#define ABBE_ROTARY_DATA_START (ABBE_ROTARY_HEADER_OFFSET + ABBE_ROTARY_HEADER_SIZE + 2u * ABBE_ROTARY_RECORD_SIZE)
+
+
+/* Phase (Q32 turn) of a rotary angle in micro-degrees: the angle modulo one
+ * turn (360 000 000 udeg, exact in integers, so a full turn is an exact
+ * period) times round(2^60 / 360e6) = 3202559735, >> 28 rounded (phase error
+ * below 2^-31 turn). */
+static inline uint32_t abbe_udeg_phase_q32(int32_t udeg)
+{
+    int32_t r = udeg % 360000000;
+    r += r < 0 ? 360000000 : 0;
+    return (uint32_t)(((uint64_t)(uint32_t)r * 3202559735u + (1u << 27)) >> 28);
+}
+
+/* Five-axis error, fixed point (five_eval_q.c), for the public call and the
+ * compensator: values (18) is working memory, as for abbe_eval_q_core. */
+uint32_t abbe_five_eval_q_core(const abbe_five_model_t *m5, const int32_t pos_nm[3], const int32_t angle_udeg[2],
+                               const int32_t dir_q30[3], const int32_t temp_mdegc[3],
+                               int32_t values[ABBE_AXES * ABBE_TERMS], int32_t error_nm[3], int32_t orient_nrad[3]);
+
 /* The *out of a refused input (cold path). */
 void abbe_f32_refuse(abbe_error_f32_t *out);
 

@@ -80,7 +80,9 @@ static uint32_t n_matrix_of(const uint8_t *rec)
     return n_basis_of(rec) * popcount6(rec[A_MASK]);
 }
 
-static abbe_status_t check_header(const uint8_t *b, size_t size, uint32_t *total_out)
+/* rotary: ABBE_FEATURE_ROTARY for the five-axis loader (minor 2 read; a table
+ * with the rotary section has room for it), else 0. */
+static abbe_status_t check_header(const uint8_t *b, size_t size, uint32_t *total_out, uint32_t rotary)
 {
     if (size < HEADER_SIZE) {
         return ABBE_E_TRUNCATED;
@@ -95,12 +97,13 @@ static abbe_status_t check_header(const uint8_t *b, size_t size, uint32_t *total
     if (abbe_ld_u16(b + H_MAJOR) != ABBE_TABLE_FORMAT_MAJOR) {
         return ABBE_E_VERSION_MAJOR;
     }
-    if (abbe_ld_u16(b + H_MINOR) > ABBE_TABLE_FORMAT_MINOR) {
+    if (abbe_ld_u16(b + H_MINOR) > (rotary != 0u ? 2u : ABBE_TABLE_FORMAT_MINOR)) {
         return ABBE_E_VERSION_MINOR;
     }
     if (abbe_ld_u32(b + H_HEADER_SIZE) != HEADER_SIZE ||
         abbe_ld_u32(b + H_AXIS_SIZE) != AXIS_RECORD_SIZE || total < MIN_TOTAL_SIZE ||
-        (total % 4u) != 0u) {
+        (total % 4u) != 0u ||
+        ((abbe_ld_u32(b + H_FEATURES) & rotary) != 0u && total < ABBE_ROTARY_DATA_START + 4u)) {
         return ABBE_E_SIZE;
     }
     if (abbe_crc32(0, b, total - 4u) != abbe_ld_u32(b + total - 4u)) {
@@ -122,16 +125,18 @@ ABBE_NOINLINE static int any_nonzero_i32(const uint8_t *p, unsigned count)
     return 0;
 }
 
-static abbe_status_t check_flags(const uint8_t *b)
+static abbe_status_t check_flags(const uint8_t *b, uint32_t rotary)
 {
     uint32_t features = abbe_ld_u32(b + H_FEATURES);
 #if defined(ABBE_NO_REVERSAL)
+    (void)rotary; /* such a library reads 1.0 only */
     if ((features & ~FEATURES_1_0) != 0u || abbe_ld_u32(b + H_RESERVED) != 0u) {
         return ABBE_E_FLAGS;
     }
 #else
     /* a 1.0 table knows no REVERSAL bit; REVERSAL uses BACKLASH's take-up and direction state */
     uint32_t known = ABBE_FEATURE_ALL >> (abbe_ld_u16(b + H_MINOR) == 0u); /* 1.0: FEATURES_1_0 */
+    known |= abbe_ld_u16(b + H_MINOR) >= 2u ? rotary : 0u;                 /* 1.2: ROTARY (five_load.c) */
     if ((features & ~known) != 0u || abbe_ld_u32(b + H_RESERVED) != 0u ||
         (features & (ABBE_FEATURE_REVERSAL | ABBE_FEATURE_BACKLASH)) == ABBE_FEATURE_REVERSAL) {
         return ABBE_E_FLAGS;
@@ -181,13 +186,13 @@ static abbe_status_t check_counts(const uint8_t *b)
     return ABBE_OK;
 }
 
-static int array_ok(uint32_t offset, uint32_t count, uint32_t total)
+static int array_ok(uint32_t offset, uint32_t count, uint32_t total, uint32_t data_start)
 {
     uint64_t end = (uint64_t)offset + 4u * (uint64_t)count;
-    return offset >= DATA_START && (offset % 4u) == 0u && end <= (uint64_t)total - 4u;
+    return offset >= data_start && (offset % 4u) == 0u && end <= (uint64_t)total - 4u;
 }
 
-static abbe_status_t check_offsets(const uint8_t *b, uint32_t total)
+static abbe_status_t check_offsets(const uint8_t *b, uint32_t total, uint32_t data_start)
 {
     for (unsigned j = 0; j < ABBE_AXES; j++) {
         const uint8_t *rec = b + HEADER_SIZE + j * AXIS_RECORD_SIZE;
@@ -198,7 +203,7 @@ static abbe_status_t check_offsets(const uint8_t *b, uint32_t total)
             if (off_q != 0u || off_f != 0u) {
                 return ABBE_E_OFFSET;
             }
-        } else if (!array_ok(off_q, count, total) || !array_ok(off_f, count, total)) {
+        } else if (!array_ok(off_q, count, total, data_start) || !array_ok(off_f, count, total, data_start)) {
             return ABBE_E_OFFSET;
         }
     }
@@ -501,34 +506,33 @@ static void build_assembly(abbe_model_t *m)
     m->square_const_q36[1] = (int64_t)m->reference_nm[2] * syz;
 }
 
-abbe_status_t abbe_model_load(abbe_model_t *model, const void *blob, size_t size)
-{
-    if (model == NULL || blob == NULL) {
-        return ABBE_E_ARG;
-    }
-    /* Coefficients are read in place with word loads (one vldr per float on a
-     * Cortex-M4F), so the table must start on a 4-byte boundary. */
-    if (((uintptr_t)blob & 3u) != 0u) {
-        return ABBE_E_ALIGN;
-    }
-    const uint8_t *b = (const uint8_t *)blob;
-    uint32_t total = 0;
-    abbe_status_t st = check_header(b, size, &total);
-    if (st == ABBE_OK) st = check_flags(b);
-    if (st == ABBE_OK) st = check_counts(b);
-    if (st == ABBE_OK) st = check_offsets(b, total);
-    if (st == ABBE_OK) st = check_finite(b);
-    if (st == ABBE_OK) st = check_twins(b);
-    if (st == ABBE_OK) st = check_periods(b);
-    if (st == ABBE_OK) st = check_travel(b);
-    if (st == ABBE_OK) st = check_ranges(b);
-    if (st != ABBE_OK) {
-        return st;
-    }
+/* The checks of docs/table-format.md in their order, over the header and the
+ * three linear axes, into st (total: the table's size). rotary: 0 for
+ * abbe_model_load (a 1.2 table is refused by its minor), ABBE_FEATURE_ROTARY
+ * for the five-axis loader (five_load.c), which then checks the rotary
+ * section itself; with ROTARY set the linear axes' arrays start after that
+ * section. A macro, not an inline function: GCC then compiles the 3-axis
+ * loader exactly as before format 1.2 (an inline wrapper cost 88 B there). */
+#define CHECK_TABLE(st, b, size, total, rotary)                                                                     \
+    do {                                                                                                           \
+        (st) = check_header((b), (size), &(total), (rotary));                                                      \
+        if ((st) == ABBE_OK) (st) = check_flags((b), (rotary));                                                    \
+        if ((st) == ABBE_OK) (st) = check_counts(b);                                                               \
+        if ((st) == ABBE_OK) {                                                                                     \
+            (st) = check_offsets((b), (total),                                                                     \
+                                 (abbe_ld_u32((b) + H_FEATURES) & (rotary)) != 0u ? ABBE_ROTARY_DATA_START        \
+                                                                                  : DATA_START);                  \
+        }                                                                                                          \
+        if ((st) == ABBE_OK) (st) = check_finite(b);                                                               \
+        if ((st) == ABBE_OK) (st) = check_twins(b);                                                                \
+        if ((st) == ABBE_OK) (st) = check_periods(b);                                                              \
+        if ((st) == ABBE_OK) (st) = check_travel(b);                                                               \
+        if ((st) == ABBE_OK) (st) = check_ranges(b);                                                               \
+    } while (0)
 
-    /* Every check above only read the blob: *model is written from here on,
-     * after the last possible failure, so a refused table leaves it untouched
-     * (and no second abbe_model_t is needed on the stack). */
+/* *model as a view of the validated table b. */
+static ABBE_ALWAYS_INLINE void build_model(abbe_model_t *model, const uint8_t *b, uint32_t total)
+{
     memset(model, 0, sizeof *model);
     model->blob = b;
     model->size = total;
@@ -548,6 +552,30 @@ abbe_status_t abbe_model_load(abbe_model_t *model, const void *blob, size_t size
 #if defined(ABBE_X86_V3)
     model->simd = abbe_simd_level();
 #endif
+}
+
+#if !defined(ABBE_MODEL_LOAD_FIVE) /* the 3-axis loader's translation unit */
+abbe_status_t abbe_model_load(abbe_model_t *model, const void *blob, size_t size)
+{
+    if (model == NULL || blob == NULL) {
+        return ABBE_E_ARG;
+    }
+    /* Coefficients are read in place with word loads (one vldr per float on a
+     * Cortex-M4F), so the table must start on a 4-byte boundary. */
+    if (((uintptr_t)blob & 3u) != 0u) {
+        return ABBE_E_ALIGN;
+    }
+    const uint8_t *b = (const uint8_t *)blob;
+    uint32_t total = 0;
+    abbe_status_t st;
+    CHECK_TABLE(st, b, size, total, 0u);
+    if (st != ABBE_OK) {
+        return st;
+    }
+    /* Every check above only read the blob: *model is written from here on,
+     * after the last possible failure, so a refused table leaves it untouched
+     * (and no second abbe_model_t is needed on the stack). */
+    build_model(model, b, total);
     return ABBE_OK;
 }
 
@@ -583,3 +611,207 @@ abbe_status_t abbe_model_axis_info(const abbe_model_t *model, unsigned axis, abb
     info->thermal_tref_mdegc = (model->features & ABBE_FEATURE_THERMAL) ? ax->thermal_tref_mdegc : 0;
     return ABBE_OK;
 }
+
+#else /* five_load.c: the five-axis loader, with its own copies of the checks */
+
+/* ---- the rotary section of a five-axis table (format 1.2; abbe/five_axis.h) ----
+ * Compiled only into five_load.c, which includes this file: the five-axis
+ * loader gets its own copies of the checks above (inlined with rotary =
+ * ABBE_FEATURE_ROTARY), and the 3-axis loader's translation unit is what it
+ * was before format 1.2, byte for byte in flash (bench/results.md). */
+
+#define RH_KIND 0u
+#define RH_ROT_POINT 4u
+#define RH_OFFSET 16u
+#define RH_SQUARENESS 28u
+#define RH_RESERVED 40u /* 24 bytes */
+#define RA_LOC_LIN 0u
+#define RA_LOC_ANG 8u
+#define RA_MASK 20u
+#define RA_HARMONICS 21u
+#define RA_RESERVED0 22u /* 2 bytes */
+#define RA_COEF_Q 24u
+#define RA_COEF_F32 28u
+#define RA_COEF_COUNT 32u
+#define RA_RESERVED 36u /* 28 bytes */
+#define GEOMETRY_CAP (((int32_t)1 << 30) - 1) /* |rot_point|, |offset| < 1073.7 mm: their sum fits an int32 */
+
+static const uint8_t *rotary_record(const uint8_t *b, unsigned r)
+{
+    return b + ABBE_ROTARY_HEADER_OFFSET + ABBE_ROTARY_HEADER_SIZE + r * ABBE_ROTARY_RECORD_SIZE;
+}
+
+static int any_nonzero_u8(const uint8_t *p, unsigned count)
+{
+    for (unsigned i = 0; i < count; i++) {
+        if (p[i] != 0u) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
+/* The rotary checks in the loader's category order (after every check of the
+ * header and the linear axes): FLAGS, COUNT, OFFSET, NONFINITE, MISMATCH, RANGE. */
+static abbe_status_t check_rotary(const uint8_t *b, uint32_t total)
+{
+    const uint8_t *h = b + ABBE_ROTARY_HEADER_OFFSET;
+    unsigned kind = h[RH_KIND];
+    /* the offset has no component along the tilt axis: AC (0, y, z), BC (x, 0, z) */
+    if ((kind != ABBE_KIN_XYZAC_TRT && kind != ABBE_KIN_XYZBC_TRT) || any_nonzero_u8(h + 1u, 3u) ||
+        any_nonzero_u8(h + RH_RESERVED, 24u) || abbe_ld_u32(h + RH_OFFSET + 4u * (kind - 1u)) != 0u) {
+        return ABBE_E_FLAGS;
+    }
+    for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {
+        const uint8_t *rec = rotary_record(b, r);
+        if (any_nonzero_u8(rec + RA_RESERVED0, 2u) || any_nonzero_u8(rec + RA_RESERVED, 28u)) {
+            return ABBE_E_FLAGS;
+        }
+    }
+    for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {
+        const uint8_t *rec = rotary_record(b, r);
+        if ((rec[RA_MASK] & 0xC0u) != 0u || rec[RA_HARMONICS] > ABBE_ROTARY_MAX_HARMONICS ||
+            abbe_ld_u32(rec + RA_COEF_COUNT) != 2u * rec[RA_HARMONICS] * popcount6(rec[RA_MASK])) {
+            return ABBE_E_COUNT;
+        }
+    }
+    for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {
+        const uint8_t *rec = rotary_record(b, r);
+        uint32_t count = abbe_ld_u32(rec + RA_COEF_COUNT);
+        uint32_t off_q = abbe_ld_u32(rec + RA_COEF_Q), off_f = abbe_ld_u32(rec + RA_COEF_F32);
+        if (count == 0u ? (off_q != 0u || off_f != 0u)
+                        : (!array_ok(off_q, count, total, ABBE_ROTARY_DATA_START) ||
+                           !array_ok(off_f, count, total, ABBE_ROTARY_DATA_START))) {
+            return ABBE_E_OFFSET;
+        }
+    }
+    for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {
+        const uint8_t *rec = rotary_record(b, r);
+        const uint8_t *f = b + abbe_ld_u32(rec + RA_COEF_F32);
+        for (uint32_t i = 0; i < abbe_ld_u32(rec + RA_COEF_COUNT); i++) {
+            if (abbe_f32_bits_nonfinite(abbe_ld_u32(f + 4u * i))) {
+                return ABBE_E_NONFINITE;
+            }
+        }
+    }
+    for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {
+        const uint8_t *rec = rotary_record(b, r);
+        const uint8_t *q = b + abbe_ld_u32(rec + RA_COEF_Q), *f = b + abbe_ld_u32(rec + RA_COEF_F32);
+        for (uint32_t i = 0; i < abbe_ld_u32(rec + RA_COEF_COUNT); i++) {
+            if (abbe_ld_u32(f + 4u * i) != i32_to_f32_bits(abbe_ld_i32(q + 4u * i))) {
+                return ABBE_E_MISMATCH;
+            }
+        }
+    }
+    for (unsigned k = 0; k < 3u; k++) {
+        if (abs_i32(abbe_ld_i32(h + RH_ROT_POINT + 4u * k)) > (uint64_t)GEOMETRY_CAP ||
+            abs_i32(abbe_ld_i32(h + RH_OFFSET + 4u * k)) > (uint64_t)GEOMETRY_CAP ||
+            abs_i32(abbe_ld_i32(h + RH_SQUARENESS + 4u * k)) > (uint64_t)SQUARENESS_CAP) {
+            return ABBE_E_RANGE;
+        }
+    }
+    for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {
+        const uint8_t *rec = rotary_record(b, r);
+        for (unsigned k = 0; k < 3u; k++) {
+            if (abs_i32(abbe_ld_i32(rec + RA_LOC_ANG + 4u * k)) > (uint64_t)SQUARENESS_CAP) {
+                return ABBE_E_RANGE;
+            }
+        }
+        unsigned mask = rec[RA_MASK], n_comp = popcount6(mask), rows = 2u * rec[RA_HARMONICS], column = 0;
+        const uint8_t *q = b + abbe_ld_u32(rec + RA_COEF_Q);
+        for (unsigned c = 0; c < ABBE_MOTIONS; c++) {
+            if (!((mask >> c) & 1u)) {
+                continue;
+            }
+            uint64_t l1 = 0;
+            for (unsigned row = 0; row < rows; row++) {
+                l1 += abs_i32(abbe_ld_i32(q + 4u * (row * n_comp + column)));
+            }
+            if (l1 > (c < 3u ? LIN_L1_CAP : ANG_L1_CAP)) {
+                return ABBE_E_RANGE;
+            }
+            column++;
+        }
+    }
+    return ABBE_OK;
+}
+
+/* The two machine axes other than dir, in increasing order: where an axis'
+ * two location positions and two tilts go (ISO 230-1: EX0C, EY0C for C). */
+static void others_of(unsigned dir, unsigned *i1, unsigned *i2)
+{
+    *i1 = dir == 0u ? 1u : 0u;
+    *i2 = dir == 2u ? 1u : 2u;
+}
+
+static void build_rotary(abbe_rotary_model_t *ax, const uint8_t *b, const uint8_t *rec, unsigned dir)
+{
+    memset(ax, 0, sizeof *ax);
+    unsigned i1, i2;
+    others_of(dir, &i1, &i2);
+    ax->dir = (uint8_t)dir;
+    ax->delta_q8[i1] = abbe_ld_i32(rec + RA_LOC_LIN);
+    ax->delta_q8[i2] = abbe_ld_i32(rec + RA_LOC_LIN + 4u);
+    ax->phi_q36[i1] = abbe_ld_i32(rec + RA_LOC_ANG);
+    ax->phi_q36[i2] = abbe_ld_i32(rec + RA_LOC_ANG + 4u);
+    ax->zero_q36 = abbe_ld_i32(rec + RA_LOC_ANG + 8u);
+    ax->comp_mask = rec[RA_MASK];
+    ax->n_comp = (uint8_t)popcount6(ax->comp_mask);
+    ax->harmonics = rec[RA_HARMONICS];
+    uint8_t column = 0;
+    for (unsigned c = 0; c < ABBE_MOTIONS; c++) {
+        if (((unsigned)ax->comp_mask >> c) & 1u) {
+            ax->column[c] = column++;
+        } else {
+            ax->column[c] = 0xFFu;
+        }
+    }
+    if (abbe_ld_u32(rec + RA_COEF_COUNT) != 0u) {
+        ax->coef_q = b + abbe_ld_u32(rec + RA_COEF_Q);
+        ax->coef_f32 = b + abbe_ld_u32(rec + RA_COEF_F32);
+    }
+}
+
+abbe_status_t abbe_five_model_load(abbe_five_model_t *model, const void *blob, size_t size)
+{
+    if (model == NULL || blob == NULL) {
+        return ABBE_E_ARG;
+    }
+    if (((uintptr_t)blob & 3u) != 0u) {
+        return ABBE_E_ALIGN;
+    }
+    const uint8_t *b = (const uint8_t *)blob;
+    uint32_t total = 0;
+    abbe_status_t st;
+    CHECK_TABLE(st, b, size, total, ABBE_FEATURE_ROTARY);
+    const int rotary = st == ABBE_OK && (abbe_ld_u32(b + H_FEATURES) & ABBE_FEATURE_ROTARY) != 0u;
+    if (rotary) {
+        st = check_rotary(b, total);
+    }
+    if (st != ABBE_OK) {
+        return st; /* *model untouched */
+    }
+    memset(model, 0, sizeof *model);
+    build_model(&model->linear, b, total);
+    model->linear.five_view = 1u; /* the compensator's five-axis step may read the whole model */
+    if (!rotary) {
+        return ABBE_OK; /* a 3-axis table: no rotary errors, kind NONE */
+    }
+    const uint8_t *h = b + ABBE_ROTARY_HEADER_OFFSET;
+    model->kind = h[RH_KIND];
+    for (unsigned k = 0; k < 3u; k++) {
+        model->rot_point_nm[k] = abbe_ld_i32(h + RH_ROT_POINT + 4u * k);
+        model->offset_nm[k] = abbe_ld_i32(h + RH_OFFSET + 4u * k);
+        model->tilt_pivot_nm[k] = model->rot_point_nm[k] + model->offset_nm[k]; /* |.| <= 2^31 - 2: fits */
+        model->squareness_q36[k] = abbe_ld_i32(h + RH_SQUARENESS + 4u * k);
+    }
+    build_rotary(&model->rotary[0], b, rotary_record(b, 0), model->kind == ABBE_KIN_XYZAC_TRT ? 0u : 1u);
+    build_rotary(&model->rotary[1], b, rotary_record(b, 1), 2u);
+    return ABBE_OK;
+}
+
+uint32_t abbe_five_model_kind(const abbe_five_model_t *model)
+{
+    return model != NULL ? model->kind : ABBE_KIN_NONE;
+}
+#endif /* ABBE_MODEL_LOAD_FIVE */

@@ -3,8 +3,10 @@
 Reads the plan's probing / R-test / indexer files, identifies the location
 errors (and the error motions the plan resolves, ``[rotary.fit] harmonics``)
 and writes OUT/five_axis.json (the identified table, observability,
-dispersion, held-out judgement), OUT/report.txt and OUT/report/ (HTML with
-polar plots), atomically (:class:`abbe.formats.output.Outputs`).
+dispersion, held-out judgement), OUT/model_five.bin (the identified model as a
+format 1.2 five-axis table for the C library, :mod:`abbe.formats.five_axis_blob`),
+OUT/report.txt and OUT/report/ (HTML with polar plots), atomically
+(:class:`abbe.formats.output.Outputs`).
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ def identify_into(machine_path: str | Path, staging: Path, report: bool = True):
     t_fit = time.perf_counter()
     doc = to_json(res, spec, plan)
     doc["provenance"] = {"machine_file": str(machine.path), "sha256": machine.sha256}
+    doc["blob"] = write_table(res, spec, Path(staging))
     (Path(staging) / "five_axis.json").write_text(
         json.dumps(doc, indent=2, allow_nan=False) + "\n", encoding="utf-8")
     text = text_report(doc)
@@ -49,6 +52,26 @@ def identify_into(machine_path: str | Path, staging: Path, report: bool = True):
     if report:
         write_html(res, doc, Path(staging) / "report")
     return spec, res, doc, text, {"read": t_read - t0, "fit": t_fit - t_read}
+
+
+def write_table(res, spec, staging: Path) -> dict:
+    """Write model_five.bin (format 1.2) into ``staging``: the identified errors; the
+    ones the plan cannot observe (NaN in the fit) are written as 0, i.e. not
+    compensated, and named. Returns the JSON entry describing the file."""
+    import zlib
+
+    import numpy as np
+
+    from abbe.analysis.five_axis.problem import errors_from
+    from abbe.formats.five_axis_blob import write_five_blob
+
+    finite = np.isfinite(res.x)
+    blob = write_five_blob(spec.geometry, errors_from(res.params, np.where(finite, res.x, 0.0), res.harmonics))
+    (staging / "model_five.bin").write_bytes(blob)
+    return {"file": "model_five.bin", "format": "1.2", "bytes": len(blob),
+            "crc32": f"0x{zlib.crc32(blob[:-4]) & 0xFFFFFFFF:08X}",
+            "written_as_zero_not_observable": [p.name for p, ok in zip(res.params, finite)
+                                               if not ok and p.kind != "setup"]}
 
 
 def run_five_axis(args: argparse.Namespace) -> int:

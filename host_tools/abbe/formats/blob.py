@@ -28,7 +28,7 @@ import math
 import struct
 import zlib
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -73,6 +73,12 @@ _UM_TO_Q8 = 1000.0 * (1 << LIN_FRAC_BITS)          # um -> 2^-8 nm
 _URAD_TO_Q36_NUM = float(1 << ANG_FRAC_BITS)       # urad * 2^36 / 1e6 -> 2^-36 rad
 _PPM_K_TO_Q50_NUM = float(1 << 50)                 # ppm/K * 2^50 / 1e9 -> 2^-50 per mK
 _UM_K_TO_Q16 = float(1 << 16)                      # um/K == nm/mK -> 2^-16 nm per mK
+#: Format 1.2: a five-axis table's rotary section (feature bit 5), read and written by
+#: :mod:`abbe.formats.five_axis_blob` only; :func:`read_blob` refuses it by its minor, as
+#: the C library's 3-axis loader does.
+ROTARY_MINOR = 2
+FEATURE_ROTARY = 0x20
+ROTARY_DATA_START = COEF_START + 64 + 2 * 64  # 448: header, tilt and table axis records
 _HEADER_FMT = "<4sHHIIII3i3i3iI"
 _AXIS_FMT = "<iiBBBB2i2iiiiiiIIII"
 assert struct.calcsize(_HEADER_FMT) == HEADER_SIZE
@@ -364,10 +370,19 @@ def write_blob(table: Table) -> bytes:
     cannot be represented. Same table -> same bytes.
     """
     ti = _encode(table)
-    minor = 1 if ti.features & FEATURE_REVERSAL else 0
-    counts = [ai.coef_q.size + ai.reversal_q8.size for ai in ti.axes]
+    return _write(ti, 1 if ti.features & FEATURE_REVERSAL else 0, COEF_START, None, [])
+
+
+def _write(ti: _TableInts, minor: int, data_start: int,
+           section: Callable[[list[tuple[int, int]]], bytes] | None,
+           extra: list[np.ndarray]) -> bytes:
+    """The blob of ``ti`` at ``minor``: the linear axes' arrays from ``data_start``,
+    then the ``extra`` int32 arrays, each followed by its float32 twin, and
+    ``section(offsets of the extra arrays)`` (a five-axis table's rotary section,
+    :mod:`abbe.formats.five_axis_blob`) at byte 256."""
+    counts = [ai.coef_q.size + ai.reversal_q8.size for ai in ti.axes] + [a.size for a in extra]
     offsets = []
-    pos = COEF_START
+    pos = data_start
     for n in counts:
         if n:
             offsets.append((pos, pos + 4 * n))
@@ -379,18 +394,25 @@ def write_blob(table: Table) -> bytes:
     struct.pack_into(_HEADER_FMT, out, 0, MAGIC, FORMAT_MAJOR, minor, total,
                      HEADER_SIZE, AXIS_RECORD_SIZE, ti.features, *ti.reference_nm,
                      *ti.tool_nm, *ti.squareness_q36, 0)
+    arrays = [np.concatenate([ai.coef_q.reshape(-1), ai.reversal_q8]) for ai in ti.axes] + extra
     for i, (ai, (qoff, foff), n) in enumerate(zip(ti.axes, offsets, counts)):
         struct.pack_into(_AXIS_FMT, out, HEADER_SIZE + i * AXIS_RECORD_SIZE,
                          ai.travel_nm[0], ai.travel_nm[1], ai.term_mask, ai.trend_degree,
                          ai.harmonics[0], ai.harmonics[1], *ai.period_nm, *ai.origin_nm,
                          ai.backlash_q8, ai.takeup_nm, ai.expansion_q50, ai.offset_q16,
                          ai.tref_mdegc, qoff, foff, n, ai.reversal_q8.size)
+    for q, (qoff, foff), n in zip(arrays, offsets, counts):
         if n:
             # row-major: c[row * n_terms + column], then the reversal block's rows
-            q = np.concatenate([ai.coef_q.reshape(-1), ai.reversal_q8])
-            out[qoff:qoff + 4 * n] = q.astype("<i4").tobytes()
+            out[qoff:qoff + 4 * n] = np.asarray(q, dtype=np.int64).astype("<i4").tobytes()
             # the float32 twin: each int32 converted, round to nearest even, same units
-            out[foff:foff + 4 * n] = q.astype(np.float32).astype("<f4").tobytes()
+            out[foff:foff + 4 * n] = np.asarray(q, dtype=np.int64).astype(np.float32).astype(
+                "<f4").tobytes()
+    if section is not None:
+        sec = section(offsets[len(ti.axes):])
+        if len(sec) != data_start - COEF_START:
+            raise ValueError("the rotary section must fill 256 .. data_start")
+        out[COEF_START:data_start] = sec
     struct.pack_into("<I", out, total - 4, zlib.crc32(bytes(out[:total - 4])) & 0xFFFFFFFF)
     return bytes(out)
 
@@ -418,7 +440,10 @@ def read_blob(data: bytes, source: str = "<blob>") -> Table:
     return _decode(_read_ints(data, source))
 
 
-def _read_ints(data: bytes, source: str) -> _TableInts:
+def _read_ints(data: bytes, source: str, rotary: bool = False) -> _TableInts:
+    """The checks of the header and the linear axes. rotary: the five-axis
+    reader's call (:mod:`abbe.formats.five_axis_blob`): format 1.2 and its ROTARY
+    bit are read, and with ROTARY the linear arrays start after the rotary section."""
     def err(status: str, msg: str, fld: str | None = None) -> TableError:
         return TableError(msg, status=status, file=source, field=fld)
 
@@ -438,7 +463,7 @@ def _read_ints(data: bytes, source: str) -> _TableInts:
     if major != FORMAT_MAJOR:
         raise err("ABBE_E_VERSION_MAJOR", f"table format {major}.{minor}, this reader reads "
                   f"{FORMAT_MAJOR}.x", "version_major")
-    if minor > FORMAT_MINOR:
+    if minor > (ROTARY_MINOR if rotary else FORMAT_MINOR):
         raise err("ABBE_E_VERSION_MINOR", f"table format {major}.{minor} is newer than "
                   f"{FORMAT_MAJOR}.{FORMAT_MINOR}", "version_minor")
     if hsize != HEADER_SIZE:
@@ -449,6 +474,9 @@ def _read_ints(data: bytes, source: str) -> _TableInts:
     if total < MIN_TOTAL_SIZE or total % 4:
         raise err("ABBE_E_SIZE", f"total_size {total} must be >= {MIN_TOTAL_SIZE} and a "
                   "multiple of 4", "total_size")
+    if rotary and features & FEATURE_ROTARY and total < ROTARY_DATA_START + 4:
+        raise err("ABBE_E_SIZE", f"total_size {total} < {ROTARY_DATA_START + 4}: no room for "
+                  "the rotary section", "total_size")
     crc_stored = struct.unpack_from("<I", data, total - 4)[0]
     crc = zlib.crc32(data[:total - 4]) & 0xFFFFFFFF
     if crc != crc_stored:
@@ -462,6 +490,8 @@ def _read_ints(data: bytes, source: str) -> _TableInts:
 
     # FLAGS
     known = FEATURES_1_0 if minor == 0 else FEATURE_ALL
+    if rotary and minor >= ROTARY_MINOR:
+        known |= FEATURE_ROTARY
     if features & ~known:
         raise err("ABBE_E_FLAGS", f"unknown feature bits 0x{features & ~known:X} for table "
                   f"format {major}.{minor}", "features")
@@ -489,6 +519,7 @@ def _read_ints(data: bytes, source: str) -> _TableInts:
         if not features & FEATURE_THERMAL and (r[EXP] or r[OFF] or r[TREF]):
             raise err("ABBE_E_FLAGS", "thermal field set but feature THERMAL off",
                       f"axes.{a}.thermal")
+    data_start = ROTARY_DATA_START if rotary and features & FEATURE_ROTARY else COEF_START
     # COUNT
     shapes = []
     for a, r in zip(AXES, recs):
@@ -522,9 +553,9 @@ def _read_ints(data: bytes, source: str) -> _TableInts:
                     raise err("ABBE_E_OFFSET", f"{name} {off} != 0 with coef_count 0",
                               f"axes.{a}.{name}")
                 continue
-            if off < COEF_START or off + 4 * cnt > total - 4 or off % 4:
+            if off < data_start or off + 4 * cnt > total - 4 or off % 4:
                 raise err("ABBE_E_OFFSET", f"{name} {off} (+{4 * cnt} bytes) not a 4-aligned "
-                          f"range inside [{COEF_START}, {total - 4})", f"axes.{a}.{name}")
+                          f"range inside [{data_start}, {total - 4})", f"axes.{a}.{name}")
     # NONFINITE
     for a, r in zip(AXES, recs):
         if r[COUNT]:

@@ -5,6 +5,7 @@
 
 #include "abbe/comp.h"
 #include "abbe/error.h"
+#include "abbe/five_axis.h"
 #include "abbe/model.h"
 #include "abbe/status.h"
 #include "abbe/version.h"

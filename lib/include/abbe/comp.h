@@ -21,6 +21,7 @@
 
 #include "abbe/error.h"
 #include "abbe/model.h"
+#include "abbe/five_axis.h"
 
 /* C linkage for C++ callers (firmware in C++ links the C library). */
 #ifdef __cplusplus
@@ -156,6 +157,38 @@ abbe_status_t abbe_comp_step_f32(abbe_comp_t *comp, const abbe_comp_input_f32_t 
                                  abbe_comp_output_t *out);
 abbe_status_t abbe_comp_step_q(abbe_comp_t *comp, const abbe_comp_input_q_t *in,
                                abbe_comp_output_t *out);
+
+/* ---- five-axis machines (abbe/five_axis.h) ----
+ * The same compensator (limits, rate, fade, watchdog, atomic swap) with the
+ * tool tip's position error as its target: it corrects X, Y, Z; the tool's
+ * orientation error, which X, Y, Z cannot correct, is reported beside.
+ * abbe_comp_step_f32/_q on a five-axis model evaluate its linear axes only:
+ * use abbe_comp_step5_* with a five-axis model. A 3-axis model under
+ * abbe_comp_step5_* is evaluated as a five-axis table without rotary errors. */
+typedef struct {
+    abbe_comp_input_f32_t lin; /* X, Y, Z as for abbe_comp_step_f32 */
+    float angle_deg[2];        /* tilt (A or B), C joint positions, degrees */
+} abbe_comp_input5_f32_t;
+
+typedef struct {
+    abbe_comp_input_q_t lin;
+    int32_t angle_udeg[2];     /* micro-degrees */
+} abbe_comp_input5_q_t;
+
+typedef struct {
+    abbe_comp_output_t lin;    /* corrections of X, Y, Z as for the 3-axis step */
+    int32_t orient_nrad[3];    /* the model's tool orientation error this cycle (not corrected), nrad; 0 without */
+} abbe_comp_output5_t;
+
+/* As abbe_comp_swap_model / abbe_comp_load_model, for a five-axis model. */
+abbe_status_t abbe_comp_swap_five_model(abbe_comp_t *comp, const abbe_five_model_t *model);
+abbe_status_t abbe_comp_load_five_model(abbe_comp_t *comp, abbe_five_model_t *slot, const void *blob,
+                                        size_t size);
+
+/* One cycle at joint positions (X, Y, Z, tilt, C); as abbe_comp_step_*. A
+ * NaN/Inf angle is a bad input like a NaN position. */
+abbe_status_t abbe_comp_step5_f32(abbe_comp_t *comp, const abbe_comp_input5_f32_t *in, abbe_comp_output5_t *out);
+abbe_status_t abbe_comp_step5_q(abbe_comp_t *comp, const abbe_comp_input5_q_t *in, abbe_comp_output5_t *out);
 
 /* sizeof(abbe_comp_t) as this library was built (for language bindings). */
 size_t abbe_comp_sizeof(void);

@@ -117,6 +117,7 @@ typedef struct {
 #endif
     uint8_t any_block1;               /* some axis uses Fourier block 1 */
     uint8_t simd;                     /* x86-64: 1 if this CPU runs the x86-64-v3 (AVX2, FMA) kernels */
+    uint8_t five_view;                /* 1: the `linear` member of an abbe_five_model_t (abbe/five_axis.h) */
     abbe_axis_model_t axis[ABBE_AXES];
 } abbe_model_t;
 

@@ -1,0 +1,62 @@
+/* abbe: compensator cycle with a five-axis model, single precision. The
+ * safety layer is comp.c's; the evaluation is abbe_five_error_eval_f32. */
+#include "comp_core.h"
+
+#if !ABBE_WITH_F32
+#error "this is the _f32 variant: compile it with ABBE_WITH_F32=1 (or leave it undefined), or leave the file out"
+#endif
+
+abbe_status_t abbe_comp_step5_f32(abbe_comp_t *comp, const abbe_comp_input5_f32_t *in, abbe_comp_output5_t *out)
+{
+    if (comp == NULL || in == NULL || out == NULL) {
+        return ABBE_E_ARG;
+    }
+    uint32_t flags = abbe_comp_begin(comp);
+    int input_ok = in->lin.fresh != 0u;
+    int32_t pos_nm[ABBE_AXES] = {0, 0, 0};
+    for (unsigned j = 0; input_ok && j < ABBE_AXES; j++) {
+        uint32_t ignored = 0; /* out-of-travel is reported by the evaluation below */
+        input_ok = abbe_mm_to_nm_f32(in->lin.pos_mm[j], &pos_nm[j], &ignored) == ABBE_OK;
+    }
+    int32_t *error_nm = &comp->scratch[ABBE_AXES * ABBE_TERMS];
+    int have_error = 0;
+    out->orient_nrad[0] = out->orient_nrad[1] = out->orient_nrad[2] = 0;
+    if (input_ok && comp->model != NULL) {
+        abbe_comp_track_direction(comp, pos_nm, in->lin.dir);
+        const abbe_five_model_t *five = abbe_comp_five_model(comp);
+        abbe_five_input_f32_t eval_in;
+        abbe_five_error_f32_t eval_out;
+        for (unsigned j = 0; j < ABBE_AXES; j++) {
+            eval_in.pos_mm[j] = in->lin.pos_mm[j];
+            eval_in.dir_state[j] = (float)comp->dir_state_q30[j] * 9.31322574615478515625e-10f; /* 2^-30 */
+            eval_in.temp_c[j] = in->lin.temp_c[j];
+        }
+        eval_in.angle_deg[0] = in->angle_deg[0];
+        eval_in.angle_deg[1] = in->angle_deg[1];
+        if (five != NULL) {
+            have_error = abbe_five_error_eval_f32(five, &eval_in, &eval_out) == ABBE_OK;
+        } else {
+            /* a 3-axis model: its linear error; the angles must still be finite */
+            abbe_input_f32_t lin_in;
+            abbe_error_f32_t lin;
+            memcpy(lin_in.pos_mm, eval_in.pos_mm, sizeof lin_in.pos_mm);
+            memcpy(lin_in.dir_state, eval_in.dir_state, sizeof lin_in.dir_state);
+            memcpy(lin_in.temp_c, eval_in.temp_c, sizeof lin_in.temp_c);
+            have_error = !abbe_f32_nonfinite(in->angle_deg[0]) && !abbe_f32_nonfinite(in->angle_deg[1]) &&
+                         abbe_eval_f32_core(comp->model, &lin_in, &lin) == ABBE_OK;
+            memcpy(eval_out.error_um, lin.error_um, sizeof lin.error_um);
+            memset(eval_out.orient_urad, 0, sizeof eval_out.orient_urad);
+            eval_out.flags = lin.flags;
+        }
+        input_ok = have_error;
+        for (unsigned j = 0; have_error && j < ABBE_AXES; j++) {
+            error_nm[j] = abbe_comp_um_to_nm(eval_out.error_um[j], &flags);
+            out->orient_nrad[j] = abbe_comp_um_to_nm(eval_out.orient_urad[j], &flags); /* x 1000: urad -> nrad */
+        }
+        if (have_error) {
+            flags |= eval_out.flags;
+        }
+    }
+    abbe_comp_finish(comp, input_ok, have_error ? error_nm : NULL, flags, in->lin.axis_fault_mask, &out->lin);
+    return ABBE_OK;
+}
