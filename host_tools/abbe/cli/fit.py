@@ -51,17 +51,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    outs = Outputs()
-    try:
+    # the with block turns a write error inside the staging (disk full, permission)
+    # into an input error naming OUT, and removes the staging on any failure
+    with Outputs() as outs:
         staging = outs.directory(args.out, option="--out")
         rc, done = _run(args, staging)
-    except BaseException:
-        outs.abort()
-        raise
-    if rc != 0:
-        outs.abort()
-        return rc
-    outs.commit()
+        if rc != 0:
+            outs.abort()
+            return rc
     _print_summary(args, *done)
     return 0
 
