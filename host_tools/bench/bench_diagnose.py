@@ -66,6 +66,17 @@ def draw_cases(n: int, seed: int, p_single: float = 0.45, p_pair: float = 0.3
     return out
 
 
+def gap_flags(res) -> dict:
+    """Per case: an effect id named in two entries (other than the per-plane or
+    per-axis-pair families, whose entries are different parameters), and a gap that grew."""
+    from collections import Counter as _C
+    per = _C(e.id for e in res.effects if e.id == "thermal_drift" or e.id == "tool_offset")
+    g = res.gap
+    grew = any(b is not None and a is not None and a.rms_um > b.rms_um * (1 + 1e-9)
+               for b, a in ((g["before"], g["after"]), (g["held_out_before"], g["held_out_after"])))
+    return {"named_twice": any(v > 1 for v in per.values()), "gap_grew": bool(grew)}
+
+
 def score_case(case, res) -> dict:
     """Per-case outcome: hits, misses, false names, value checks, shrink."""
     named = {e.key: e for e in res.effects}
@@ -166,6 +177,15 @@ def summarize(title: str, rows: list[dict], errors: int, times: list[float]) -> 
         print(f"held-out gap shrink (RMS before -> after): median {100 * np.median(shr_raw):.0f} %, "
               f">= 70 % in {ge}/{len(shr_raw)} cases; excess over the noise: median "
               f"{100 * np.median(shr_exc):.0f} %, >= 70 % in {ge_e}/{len(shr_exc)}  (target: median >= 70 %)")
+    twice = sum(1 for r in rows if r.get("named_twice"))
+    grew = sum(1 for r in rows if r.get("gap_grew"))
+    out["named_twice"], out["gap_grew"] = twice, grew
+    print(f"cases with an effect id named twice: {twice}; cases whose gap grew (used or held "
+          f"out): {grew}")
+    fits = [r["fit_rc"] for r in rows if r.get("fit_rc") is not None]
+    if fits:
+        out["fit_ok"] = [sum(1 for x in fits if x == 0), len(fits)]
+        print(f"abbe fit on the campaigns' laser lines: {out['fit_ok'][0]}/{len(fits)} produced a table")
     amb = sum(1 for r in rows if r["ambiguous"])
     print(f"cases with an ambiguity flag: {amb}/{len(rows)}; errors: {errors}")
     for sc in misses:
@@ -200,12 +220,33 @@ def run_hidden(args: argparse.Namespace) -> tuple[list[dict], int, list[float]]:
         dt = time.time() - t0
         times.append(dt)
         sc = score_case(case, res)
+        sc.update(gap_flags(res))
         sc.update({"seed": cs, "time_s": round(dt, 2), "case": "+".join(keys) or "clean"})
         rows.append(sc)
         flag = "" if not sc["misses"] and not sc["extra"] else "  <--"
         print(f"[{i + 1:3d}/{len(cases)}] {'+'.join(keys) or 'clean':40s} named "
               f"{','.join(sc['named']) or '-':40s} {dt:4.1f}s{flag}", flush=True)
     return rows, errors, times
+
+
+def _fit_campaign(b) -> int | None:
+    """``abbe fit`` on the case's machine file (its laser lines), as a user runs it: the
+    exit status (0 = a table), None if the campaign has no laser line to fit."""
+    import contextlib
+    import io
+
+    from abbe.cli.entry import main as cli_main
+    mf = b.machine_file
+    if mf is None or "[laser." not in mf.read_text(encoding="utf-8"):
+        return None
+    err = io.StringIO()
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+        rc = cli_main(["fit", str(mf), "-o", str(mf.parent / "fit-out"), "--no-report",
+                       "--no-clib-check", "-q"])
+    if rc != 0:
+        print(f"  abbe fit failed on {b.case.name} (exit {rc}): {err.getvalue().strip()[:300]}",
+              file=sys.stderr)
+    return rc
 
 
 def run_independent(args: argparse.Namespace) -> tuple[list[dict], int, list[float]]:
@@ -227,6 +268,8 @@ def run_independent(args: argparse.Namespace) -> tuple[list[dict], int, list[flo
                 print(f"case {c.name} seed {c.seed}: ERROR {exc!r}", file=sys.stderr)
                 continue
             sc = ind.score(b, res)
+            sc["fit_rc"] = _fit_campaign(b) if args.fit else None
+            sc.update(gap_flags(res))
         dt = time.time() - t0
         times.append(dt)
         sc["outliers_ok"] = sc["outliers_named"] == sc["outliers_expected"]
@@ -254,6 +297,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--step-deg", type=float, default=1.0, help="ballbar sample step, deg")
     ap.add_argument("--json", help="write per-case results here")
     ap.add_argument("--backend", default="auto", choices=("auto", "c", "reference"))
+    ap.add_argument("--no-fit", dest="fit", action="store_false",
+                    help="independent suite: do not run abbe fit on each campaign's laser lines")
     args = ap.parse_args(argv)
 
     from abbe.diagnose.evaluator import Evaluator

@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import json
+import sys
 from pathlib import Path
 
 from abbe.cli.conventions import examples
@@ -42,6 +45,40 @@ def _unstage(staging: Path, final: Path) -> None:
                 p.write_text(text.replace(old, new), encoding="utf-8")
 
 
+class _FinalPaths(io.TextIOBase):
+    """A stdout that names the final output folder where the demo's steps print the
+    staging folder they work in (the user finds OUT, never ``.OUT.abbe-tmp-...``)."""
+
+    def __init__(self, target: io.TextIOBase, staging: Path, final: str) -> None:
+        self._target = target
+        # the forms a step may print: as given, absolute, resolved
+        forms = {str(staging), str(staging.absolute()), str(staging.resolve())}
+        self._subs = sorted(((f, final) for f in forms), key=lambda fs: -len(fs[0]))
+        self._pending = ""
+
+    def writable(self) -> bool:
+        return True
+
+    def write(self, s: str) -> int:
+        # whole lines only, so that a path split over two write() calls is still found
+        self._pending += s
+        *lines, self._pending = self._pending.split("\n")
+        for ln in lines:
+            self._target.write(self._fix(ln) + "\n")
+        return len(s)
+
+    def _fix(self, text: str) -> str:
+        for old, new in self._subs:
+            text = text.replace(old, new)
+        return text
+
+    def flush(self) -> None:
+        if self._pending:
+            self._target.write(self._fix(self._pending))
+            self._pending = ""
+        self._target.flush()
+
+
 def run(args: argparse.Namespace) -> int:
     from abbe.cli.demo_pipeline import run_demo
     from abbe.formats.output import Outputs
@@ -52,7 +89,12 @@ def run(args: argparse.Namespace) -> int:
     with Outputs() as outs:
         staging = outs.directory(args.out, option="--out")
         js = outs.file(args.json, option="--json") if args.json else None
-        res = run_demo(example, staging, diagnose=not args.no_diagnose)
+        out = _FinalPaths(sys.stdout, staging, str(args.out))
+        try:
+            with contextlib.redirect_stdout(out):
+                res = run_demo(example, staging, diagnose=not args.no_diagnose)
+        finally:
+            out.flush()
         _unstage(staging, Path(args.out).resolve())
         if js is not None:
             js.write_text(json.dumps(res.summary, indent=2, default=str, allow_nan=False))

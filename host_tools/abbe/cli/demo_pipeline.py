@@ -237,9 +237,20 @@ def run_demo(example_dir: Path, out_dir: Path, *, diagnose: bool = True,
 def _td(v: Any, nd: int = 2) -> str:
     if v is None:
         return "<td>-</td>"
+    if isinstance(v, bool):
+        return f"<td>{_yes_no(v)}</td>"
     if isinstance(v, float):
         return f"<td>{v:.{nd}f}</td>"
     return f"<td>{html.escape(str(v))}</td>"
+
+
+def _yes_no(v: Any) -> str:
+    """A check's outcome in words (a report is read by people, not Python)."""
+    if v is None:
+        return "not checked"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    return html.escape(str(v))
 
 
 def _timings(timings_s: dict[str, float]) -> str:
@@ -266,7 +277,7 @@ def _gap_table(gap: dict[str, Any]) -> str:
 
 
 def _counters(c: dict[str, Any] | None) -> str:
-    return ", ".join(f"{html.escape(str(k).replace('_', ' '))} {v}" for k, v in (c or {}).items())
+    return ", ".join(f"{html.escape(str(k).replace('_', ' '))} {_yes_no(v)}" for k, v in (c or {}).items())
 
 
 def _report_html(res: DemoResult, table4: dict[str, Any], with_diag: bool) -> str:
@@ -310,8 +321,8 @@ in-sample). The chosen model has the lowest held-out emax on {table4['chosen_bes
 Full report: <a href="fit/report/index.html">fit/report/</a>.</p>
 <table><tr><th>term</th><th>chosen family</th><th>unit</th><th>emax chosen</th><th>emax Fourier-3</th><th>emax poly-7</th><th>R² chosen</th></tr>{t4}</table>
 <h2>2. Tables and build check</h2>
-<p>model.bin CRC {s['build_check']['model_crc']}; generated C compiles: {s['build_check']['generated_c_compiles']};
-header CRC matches: {s['build_check']['header_crc_matches']}; C library vs float64 reference:
+<p>model.bin CRC {s['build_check']['model_crc']}; generated C compiles: {_yes_no(s['build_check']['generated_c_compiles'])};
+header CRC matches: {_yes_no(s['build_check']['header_crc_matches'])}; C library vs float64 reference:
 {_clib_check(s['clib_check'])}.</p>
 <h2>3. Prediction with the laser-only model</h2>
 <p>Residual max {s['prediction_max_residual_laser_only_um']} um, RMS {s['prediction_rms_residual_laser_only_um']} um.</p>

@@ -54,17 +54,14 @@ def run(args: argparse.Namespace) -> int:
     from abbe.cli.fit_five_axis import is_five_axis, run_five_axis
     if is_five_axis(args.machine):  # a [rotary] machine: the five-axis identification
         return run_five_axis(args)
-    outs = Outputs()
-    try:
+    # the with block turns a write error inside the staging (disk full, permission)
+    # into an input error naming OUT, and removes the staging on any failure
+    with Outputs() as outs:
         staging = outs.directory(args.out, option="--out")
         rc, done = _run(args, staging)
-    except BaseException:
-        outs.abort()
-        raise
-    if rc != 0:
-        outs.abort()
-        return rc
-    outs.commit()
+        if rc != 0:
+            outs.abort()
+            return rc
     _print_summary(args, *done)
     return 0
 

@@ -30,6 +30,16 @@ class DiagnoseOptions:
     candidates: keys or families to consider (None = all); max_effects: safety stop;
     model_temp_c: temperature (deg C) at which the model was measured (thermal
     reference; None = the table's, else the lowest logged temperature).
+
+    Parsimony against the model's own doubt (issue 24, docs/effects.md §4):
+    min_heldout_gain_fraction: an effect must lower the held-out residual (RSS, noise
+    units) by at least this fraction of the held-out RSS without it;
+    min_contribution_noise: its fitted contribution (RMS, um) must be at least this
+    multiple of the pooled noise of the um-valued channels;
+    strong_heldout_fraction: the held-out gain fraction needed by an effect that
+    changes a parameter the machine file fixes (the declared tool offset) or that is
+    ambiguous with an error of the model itself; tool_offset_max_mm: the largest
+    physically plausible tool offset (norm of declared + found, mm).
     """
 
     alpha: float = 0.01
@@ -43,6 +53,10 @@ class DiagnoseOptions:
     max_period_mm: float = 60.0
     redundant_heldout_fraction: float = 0.5
     model_temp_c: float | None = None
+    min_heldout_gain_fraction: float = 0.15
+    min_contribution_noise: float = 0.5
+    strong_heldout_fraction: float = 0.5
+    tool_offset_max_mm: float = 300.0
 
 
 @dataclass

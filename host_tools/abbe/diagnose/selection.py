@@ -39,7 +39,7 @@ import numpy as np
 from scipy import stats
 
 from abbe.diagnose.candidates import Cand, Engine, Selected, apply_selection, selection_residual
-from abbe.diagnose.checks import DEFAULT_TAKEUP_MM, Check, LaserCheck, check_travel
+from abbe.diagnose.checks import DEFAULT_TAKEUP_MM, BallbarCheck, Check, LaserCheck, check_travel
 from abbe.diagnose.describe import describe_effects
 from abbe.diagnose.effects import PredParams, catalogue, copy_table, fold_reversal
 from abbe.diagnose.evaluator import Evaluator
@@ -197,6 +197,58 @@ def _qualifies(st: dict[str, Any], opts: DiagnoseOptions) -> tuple[bool, str]:
     if st["contrib_rms_um"] < opts.min_effect_um and st["contrib_rms_um"] > 0:
         return False, f"too small to matter (RMS {st['contrib_rms_um']:.3f} um)"
     return True, ""
+def _noise_um(noise_rep: dict[str, dict[str, Any]]) -> float:
+    """Pooled noise (um) of the um-valued channels (RMS of their sigmas)."""
+    um = [v["sigma"] for v in noise_rep.values() if v.get("unit") == "um"]
+    return math.sqrt(sum(x * x for x in um) / len(um)) if um else 0.0
+
+
+def _single_z_height(eng: Engine) -> bool:
+    """True if the ballbar circles lie at one Z height only (a tool offset is then
+    ambiguous with an error of the model's angular terms, describe.py)."""
+    zs = {round(float(c.center_mm[2]), 3) for c in eng.prob.checks if isinstance(c, BallbarCheck)}
+    return len(zs) <= 1
+
+
+def _parsimony(st: dict[str, Any], cand: Cand, sel: list[Selected], eng: Engine,
+               noise_um: float, opts: DiagnoseOptions) -> tuple[bool, str]:
+    """The rules that hold against the model's own doubt (docs/effects.md §4), after
+    :func:`_qualifies`: a held-out gain fraction, a contribution against the noise, one
+    entry per thermal drift, and strong evidence with a plausible value for a parameter
+    the machine file fixes (the tool offset)."""
+    ho = st["heldout"]
+    frac = ho["gain"] / max(ho.get("rss_without", 0.0), 1e-300)
+    if frac < opts.min_heldout_gain_fraction:
+        return False, (f"held-out gain {100 * frac:.1f} % of the held-out residual "
+                       f"(< {100 * opts.min_heldout_gain_fraction:.0f} %)")
+    if 0 < st["contrib_rms_um"] < opts.min_contribution_noise * noise_um:
+        return False, (f"contribution {st['contrib_rms_um']:.3f} um RMS below "
+                       f"{opts.min_contribution_noise:g} x the noise ({noise_um:.3f} um)")
+    spec = cand.spec
+    if spec.family == "thermal_drift":
+        named = [s.cand.spec.key for s in sel if s.cand.spec.family == "thermal_drift"]
+        if named:
+            # one drift, one entry: the machine warming shows on several axes through
+            # one entry; a second axis' component is not a second effect
+            return False, f"a thermal drift is already named ({named[0]}): one entry"
+    if spec.kind == "tool_offset":
+        declared = np.asarray(eng.table.tool_offset_mm, dtype=float)
+        t = declared.copy()
+        for i, v in zip(cand.param_idx, st["coef"]):
+            t[i] += float(v)
+        if float(np.linalg.norm(t)) > opts.tool_offset_max_mm:
+            return False, (f"implausible tool offset {float(np.linalg.norm(t)):.0f} mm "
+                           f"(> {opts.tool_offset_max_mm:g} mm; the machine file declares "
+                           f"{float(np.linalg.norm(declared)):.0f} mm)")
+        if frac < opts.strong_heldout_fraction:
+            why = "ambiguous with the model's angular terms (one Z height); " \
+                if _single_z_height(eng) else ""
+            return False, (f"{why}the machine file fixes the tool offset: a change needs a "
+                           f"held-out gain of {100 * opts.strong_heldout_fraction:.0f} % "
+                           f"(found {100 * frac:.1f} %)")
+    return True, ""
+
+
 def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None = None,
              pred_params: PredParams | None = None, evaluator: Evaluator | None = None,
              _outliers: list[OutlierRun] | None = None) -> DiagnoseResult:
@@ -293,6 +345,8 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
             st = _eval_candidate(eng, c, selected, W, Qb, rb, rss_base, dof_noise,
                                  len(remaining), table, rw)
             ok, why = _qualifies(st, opts)
+            if ok:
+                ok, why = _parsimony(st, c, selected, eng, _noise_um(noise_rep), opts)
             st["qualifies"], st["why_not"] = ok, why
             results.append((c, st))
             tested[c.spec.key] = _summ(st, c)
@@ -318,29 +372,25 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
     selected = _heldout_removal(eng, selected, W, notes)
     refine_scans(eng, selected, W)
 
-    # Final fit through the model (Gauss-Newton), values, intervals; an effect whose final
-    # contribution is below the size threshold is dropped and the rest refitted.
-    new_table, new_pp, values, cov, s2_final = _final_fit(eng, selected, W)
-    while len(selected) > 1:
-        small = [(i, _final_contribution(prob, s, v)) for i, (s, v) in enumerate(zip(selected, values))]
-        small = [(i, c) for i, c in small if c < opts.min_effect_um]
-        if not small:
-            break
-        i, c = min(small, key=lambda x: x[1])
-        notes.append(f"{selected[i].cand.spec.key} dropped: its contribution in the final fit "
-                     f"is {c:.3f} um RMS (< {opts.min_effect_um:g} um) once the others are in")
-        selected = selected[:i] + selected[i + 1:]
-        new_table, new_pp, values, cov, s2_final = _final_fit(eng, selected, W)
-    # the reversal found along the travel goes into the table's reversal blocks (format
-    # 1.1): model.bin carries it, the prediction below evaluates it through the library
-    new_table, new_pp = fold_reversal(new_table, new_pp, DEFAULT_TAKEUP_MM)
-    y_after = prob.predict(eng.ev, new_table, new_pp)
-    r_after = prob.y - y_after
-    clean_after = remove_nuisance(prob, r_after)
-    gap_after = gap_stats(prob, clean_after)
-
-    # Held-out gap through the model: fit on one fold, judge the other (and back).
-    ho_before, ho_after, ho_split = _heldout_gap(eng, selected, W, clean0)
+    fin = _finish(eng, selected, W, clean0, notes)
+    # The gap never grows: a combination whose residual, on the data used or held out,
+    # is larger than before is rejected; the effect whose removal shrinks the gap most
+    # goes first, until the gap no longer grows (at worst nothing is named).
+    while fin["selected"] and _gap_grew(gap_before, fin):
+        sel_now = fin["selected"]
+        tries = [_finish(eng, sel_now[:i] + sel_now[i + 1:], W, clean0, [])
+                 for i in range(len(sel_now))]
+        best = min(tries, key=lambda f: (_gap_grew(gap_before, f), _gap_key(f)))
+        gone = [x.cand.spec.key for x in sel_now if not any(x is y for y in best["selected"])]
+        notes.append("REJECTED: " + ", ".join(x.cand.spec.key for x in sel_now)
+                     + f" together made the gap larger ({_gap_text(gap_before, fin)}); "
+                     + ", ".join(gone) + " removed")
+        fin = _finish(eng, best["selected"], W, clean0, notes)
+    selected = fin["selected"]
+    new_table, new_pp, values, cov, s2_final = (fin["table"], fin["pp"], fin["values"],
+                                                fin["cov"], fin["s2"])
+    r_after, clean_after, gap_after = fin["r_after"], fin["clean_after"], fin["gap_after"]
+    ho_before, ho_after, ho_split = fin["ho_before"], fin["ho_after"], fin["ho_split"]
 
     effects = describe_effects(eng, selected, values, cov, s2_final, W, pool, new_table, new_pp)
     # a candidate the named effects mostly reproduce, not preferred as a pair on held-out
@@ -403,6 +453,59 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
         noise=noise_rep, tested=tested, not_observable=not_obs, notes=notes,
         backend=eng.ev.backend, drift_unit=eng.drift_unit, lack_of_fit=lof, tentative=tentative,
         heldout_split=ho_split)
+def _finish(eng: Engine, selected: list[Selected], W: np.ndarray, clean0: np.ndarray,
+            notes: list[str]) -> dict[str, Any]:
+    """Final fit of ``selected`` through the model (Gauss-Newton), values, intervals, and
+    the gap after it, on the data used and held out. An effect whose final contribution
+    is below the size threshold is dropped (noted) and the rest refitted."""
+    prob, opts = eng.prob, eng.opts
+    new_table, new_pp, values, cov, s2_final = _final_fit(eng, selected, W)
+    while len(selected) > 1:
+        small = [(i, _final_contribution(prob, s, v)) for i, (s, v) in enumerate(zip(selected, values))]
+        small = [(i, c) for i, c in small if c < opts.min_effect_um]
+        if not small:
+            break
+        i, c = min(small, key=lambda x: x[1])
+        notes.append(f"{selected[i].cand.spec.key} dropped: its contribution in the final fit "
+                     f"is {c:.3f} um RMS (< {opts.min_effect_um:g} um) once the others are in")
+        selected = selected[:i] + selected[i + 1:]
+        new_table, new_pp, values, cov, s2_final = _final_fit(eng, selected, W)
+    # the reversal found along the travel goes into the table's reversal blocks (format
+    # 1.1): model.bin carries it, the prediction below evaluates it through the library
+    new_table, new_pp = fold_reversal(new_table, new_pp, DEFAULT_TAKEUP_MM)
+    y_after = prob.predict(eng.ev, new_table, new_pp)
+    r_after = prob.y - y_after
+    clean_after = remove_nuisance(prob, r_after)
+    # Held-out gap through the model: fit on one fold, judge the other (and back).
+    ho_before, ho_after, ho_split = _heldout_gap(eng, selected, W, clean0)
+    return {"selected": selected, "table": new_table, "pp": new_pp, "values": values,
+            "cov": cov, "s2": s2_final, "r_after": r_after, "clean_after": clean_after,
+            "gap_after": gap_stats(prob, clean_after), "ho_before": ho_before,
+            "ho_after": ho_after, "ho_split": ho_split}
+
+
+def _gap_grew(before: GapStats | None, fin: dict[str, Any]) -> bool:
+    """True if the residual after the update is larger than before, on the data used
+    or on held-out data (RMS, um; a relative 1e-9 for rounding)."""
+    pairs = [(before, fin["gap_after"]), (fin["ho_before"], fin["ho_after"])]
+    return any(b is not None and a is not None and a.rms_um > b.rms_um * (1 + 1e-9)
+               for b, a in pairs)
+
+
+def _gap_key(fin: dict[str, Any]) -> float:
+    a = fin["ho_after"] or fin["gap_after"]
+    return a.rms_um if a is not None else math.inf
+
+
+def _gap_text(before: GapStats | None, fin: dict[str, Any]) -> str:
+    parts = []
+    for label, b, a in (("used", before, fin["gap_after"]),
+                        ("held out", fin["ho_before"], fin["ho_after"])):
+        if b is not None and a is not None:
+            parts.append(f"{label}: {b.rms_um:.3f} -> {a.rms_um:.3f} um RMS")
+    return "; ".join(parts)
+
+
 def _summ(st: dict[str, Any], c: Cand) -> dict[str, Any]:
     d = {"significant": bool(st.get("ok") and st["p_eff"] < st["alpha_step"]),
          "qualifies": bool(st.get("qualifies")), "why_not": st.get("why_not", "")}

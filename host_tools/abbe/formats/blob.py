@@ -71,6 +71,14 @@ INT32_MIN, INT32_MAX = -(1 << 31), (1 << 31) - 1
 # Unit factors: float value in table units -> integer units.
 _UM_TO_Q8 = 1000.0 * (1 << LIN_FRAC_BITS)          # um -> 2^-8 nm
 _URAD_TO_Q36_NUM = float(1 << ANG_FRAC_BITS)       # urad * 2^36 / 1e6 -> 2^-36 rad
+
+
+def coef_sum_cap(term: str) -> float:
+    """The table's cap on sum |coefficients| of ``term``, in its unit (um for linear
+    terms: 16777 um; urad for angular terms: 3906 urad)."""
+    if term in LINEAR_TERMS:
+        return LIN_SUM_CAP / _UM_TO_Q8
+    return ANG_SUM_CAP * 1e6 / _URAD_TO_Q36_NUM
 _PPM_K_TO_Q50_NUM = float(1 << 50)                 # ppm/K * 2^50 / 1e9 -> 2^-50 per mK
 _UM_K_TO_Q16 = float(1 << 16)                      # um/K == nm/mK -> 2^-16 nm per mK
 #: Format 1.2: a five-axis table's rotary section (feature bit 5), read and written by
@@ -229,8 +237,12 @@ def _encode_axis(ax: AxisTable, a: str) -> _AxisInts:
                              status="ABBE_E_RANGE", field=where)
         q = q.astype(np.int64)
         if int(np.abs(q).sum()) > cap:
-            lim = "16.7 mm" if t in LINEAR_TERMS else "3906 urad"
-            raise TableError(f"sum of |coefficients| exceeds the fixed-point cap ({lim})",
+            u = "um" if t in LINEAR_TERMS else "urad"
+            lim, tot = coef_sum_cap(t), float(np.abs(c).sum())
+            raise TableError(f"sum of |coefficients| {tot:.6g} {u} exceeds the fixed-point cap "
+                             f"({lim:.0f} {u}) by {tot - lim:.6g} {u}: the error of this term is "
+                             "larger than the table holds; check the channel's unit and sign "
+                             "mapping and the set-up, or correct this error mechanically first",
                              status="ABBE_E_RANGE", field=where)
         mask |= 1 << TERMS.index(t)
         cols.append(q)

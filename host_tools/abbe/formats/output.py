@@ -156,11 +156,22 @@ class Outputs:
             self._created.append(q)
         return parent
 
+    def _writable_folder(self, final: Path, option: str) -> None:
+        """An existing output folder the user made read-only is theirs to protect:
+        refuse it before the work (the new folder would carry its mode too)."""
+        if final.is_dir() and not os.access(final, os.W_OK | os.X_OK):
+            raise self._err(final, option, "the output folder is read-only (permission denied); "
+                                           "make it writable or choose another folder")
+
     @staticmethod
     def _resolve(path: str | Path) -> Path:
         p = Path(os.path.abspath(os.fspath(path)))
-        if p.is_symlink() and p.exists():
-            p = Path(os.path.realpath(p))  # write through the user's link, keep it
+        try:
+            if p.is_symlink() and p.exists():
+                p = Path(os.path.realpath(p))  # write through the user's link, keep it
+            p.exists()
+        except OSError as exc:   # a folder on the way that we may not enter
+            raise AbbeInputError(f"cannot use this path: {exc.strerror}", file=str(p)) from None
         return p
 
     def check_directory(self, path: str | Path, *, option: str = "--out") -> None:
@@ -168,6 +179,7 @@ class Outputs:
         final = self._resolve(path)
         if final.exists() and not final.is_dir():
             raise self._err(final, option, "exists and is not a folder")
+        self._writable_folder(final, option)
         self._parent(final, option, create=False)
 
     def check_file(self, path: str | Path, *, option: str) -> None:
@@ -184,6 +196,7 @@ class Outputs:
         final = self._resolve(path)
         if final.exists() and not final.is_dir():
             raise self._err(final, option, "exists and is not a folder")
+        self._writable_folder(final, option)
         parent = self._parent(final, option)
         try:
             staging = Path(tempfile.mkdtemp(prefix=f".{final.name}.abbe-tmp-", dir=parent))

@@ -157,8 +157,9 @@ def lost_motion_state(path_mm: np.ndarray, lm: LostMotion, s_start: float) -> np
 
 @dataclass
 class Thermal:
-    """Warm-up of one axis: T(t) = t0 + rate t (``linear``) or t0 + rise (1 - exp(-t / tau))
-    (``exp``); own term gains alpha dT (p - fixed_mm) 1e-3 + offset dT (um), dT = T - T(0).
+    """Warm-up of one axis: T(t) = t0 + rate t (``linear``), t0 + rise (1 - exp(-t / tau))
+    (``exp``) or t0 + rise (t / tau) exp(1 - t / tau) (``rise_fall``: warms, peaks at tau,
+    cools); own term gains alpha dT (p - fixed_mm) 1e-3 + offset dT (um), dT = T - T(0).
     record_temp: the instruments write temp_c (sensor noise sensor_k)."""
 
     axis: str
@@ -177,6 +178,9 @@ class Thermal:
         h = np.asarray(t_s, dtype=np.float64) / 3600.0
         if self.profile == "linear":
             return self.t0_c + self.rate_k_per_h * h
+        if self.profile == "rise_fall":   # warms, peaks at tau, cools again (a pause)
+            x = h / self.tau_h
+            return self.t0_c + self.rise_k * x * np.exp(1.0 - x)
         return self.t0_c + self.rise_k * -np.expm1(-h / self.tau_h)
 
 

@@ -37,11 +37,13 @@ from cases.independent.measure import (
 )
 from cases.independent.physics import (
     AXES,
+    TERM_NAMES,
     LostMotion,
     Machine,
     Servo,
     Thermal,
     random_machine,
+    random_term,
 )
 
 #: effect families of the machine cases (one per single case, cycled)
@@ -59,6 +61,16 @@ PAIRS: tuple[tuple[str, str], ...] = (
     ("squareness_xy", "servo_delay"), ("backlash_x", "squareness_xy"),
     ("thermal_lin", "scale_x"), ("tool_offset", "squareness_xy"), ("tool_offset", "scale_x"),
     ("cyclic_y", "straightness_yx"), ("backlash_z", "squareness_yz"),
+)
+#: issue 24's mechanisms (appended after the others so every earlier case keeps its
+#: seed): a drift that is not linear in time (it rises and falls), scale and drift
+#: together, backlash beside scale, and laser lines with tens of urad of roll on a short
+#: axis (its effect: a clean machine whose table must still be fitted and stored)
+EXTENDED_SINGLES: tuple[str, ...] = ("thermal_rise_fall", "thermal_rise_fall_time", "roll_short_z")
+EXTENDED_PAIRS: tuple[tuple[str, str], ...] = (
+    ("thermal_exp", "scale_y"), ("thermal_time", "scale_z"), ("thermal_rise_fall", "scale_x"),
+    ("backlash_x", "scale_y"), ("backlash_y", "scale_y"), ("backlash_x", "scale_x"),
+    ("roll_short_z", "backlash_z"), ("roll_short_z", "scale_z"),
 )
 POSITIONING: tuple[str, ...] = (
     "pos_backlash", "pos_backlash_drift", "pos_reversal", "pos_reversal_drift",
@@ -91,13 +103,19 @@ class Built:
     dat_file: Path | None = None
 
 
-def suite(seed: int = 14, n_clean: int = 12) -> list[CaseDef]:
-    """Every case of the suite, deterministic in ``seed``."""
+def suite(seed: int = 14, n_clean: int = 12, extended: bool = True) -> list[CaseDef]:
+    """Every case of the suite, deterministic in ``seed``; ``extended``: with issue 24's
+    cases (named ``x_...``) after the others."""
     rng = np.random.default_rng(seed)
     out = [CaseDef(s, int(rng.integers(1, 2**31 - 1)), (s,)) for s in SINGLES]
     out += [CaseDef("+".join(p), int(rng.integers(1, 2**31 - 1)), p) for p in PAIRS]
     out += [CaseDef(f"clean_{i}", int(rng.integers(1, 2**31 - 1)), ()) for i in range(n_clean)]
     out += [CaseDef(p, int(rng.integers(1, 2**31 - 1)), (p,), "positioning") for p in POSITIONING]
+    if extended:
+        out += [CaseDef(f"x_{s}", int(rng.integers(1, 2**31 - 1)), (s,)) for s in EXTENDED_SINGLES]
+        out += [CaseDef("x_" + "+".join(p), int(rng.integers(1, 2**31 - 1)), p)
+                for p in EXTENDED_PAIRS]
+        out += [CaseDef(f"x_clean_{i}", int(rng.integers(1, 2**31 - 1)), ()) for i in range(4)]
     return out
 
 
@@ -184,17 +202,35 @@ def _apply_part(part: str, rng: np.random.Generator, m: Machine, d: _Design,
         d.circles.append({"plane": "XY" if a in "XY" else "YZ"})
         if rng.uniform() < 0.5:
             d.lasers.append(a)
+    elif part == "roll_short_z":
+        # a short Z (120..200 mm) whose roll varies by tens of urad (about -10..20), lasered
+        lo_z = -float(rng.choice([120.0, 150.0, 200.0]))
+        m.travel["Z"] = (lo_z, 0.0)
+        ref = list(m.reference)
+        ref[2] = lo_z * float(rng.uniform(0.25, 0.75))
+        m.reference = tuple(ref)  # type: ignore[assignment]
+        for name in TERM_NAMES:     # the terms of Z again, on its new travel
+            lin = name[0] == "d"
+            m.terms[("Z", name)] = random_term(rng, m.travel["Z"], ref[2],
+                                               (3.0 if lin else 10.0) * rng.uniform(0.5, 1.5),
+                                               lin and name != "dz")
+        m.terms[("Z", "ez")] = random_term(rng, m.travel["Z"], ref[2], float(rng.uniform(15.0, 30.0)),
+                                           False)
+        d.lasers.append("Z")
     elif part.startswith("thermal"):
-        a = "Z" if part == "thermal_time" else str(rng.choice(["X", "Y", "Z"]))
+        a = "Z" if part in ("thermal_time", "thermal_rise_fall_time") else str(rng.choice(["X", "Y", "Z"]))
         lo, hi = m.travel[a]
         fixed = float(lo if rng.uniform() < 0.5 else hi)
         alpha = rng.uniform(5.0, 12.0)
         off = _sgn(rng) * rng.uniform(0.5, 3.0)
-        th = Thermal(axis=a, profile="linear" if part == "thermal_lin" else "exp",
+        profile = ("linear" if part == "thermal_lin" else
+                   "rise_fall" if part.startswith("thermal_rise_fall") else "exp")
+        th = Thermal(axis=a, profile=profile,
                      t0_c=float(rng.uniform(19.0, 24.0)), rate_k_per_h=float(rng.uniform(1.5, 4.0)),
                      rise_k=float(rng.uniform(2.0, 5.0)), tau_h=float(rng.uniform(0.4, 1.5)),
                      alpha_ppm_per_k=float(alpha), fixed_mm=fixed, offset_um_per_k=float(off),
-                     record_temp=part != "thermal_time", sensor_k=0.02)
+                     record_temp=part not in ("thermal_time", "thermal_rise_fall_time"),
+                     sensor_k=0.02)
         e.thermal = th
         j = AXES.index(a)
         exp[f"thermal_drift_{a.lower()}"] = (float(off + alpha * (m.reference[j] - fixed) * 1e-3)

@@ -161,3 +161,80 @@ def test_chosen_beats_both_paper_models_held_out_on_wave_errors(seed: int) -> No
     assert ho["chosen"] < ho["paper_fourier3"], ho
     assert ho["chosen"] < ho["paper_poly7"], ho
     assert af.model.period_mm == pytest.approx(period, rel=0.01)
+
+
+def _roll_short_axis(seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """A roll channel of a short axis spanning about -10..20 urad (issue 24): a smooth
+    random curve plus a wave, with noise; targets over 60..250 mm."""
+    rng = np.random.default_rng(seed)
+    span = rng.uniform(60, 250)
+    T = int(rng.integers(8, 26))
+    pos = np.linspace(-span, 0, T)
+    u = (pos + span / 2) / (span / 2)
+    k = rng.normal(size=5)
+    f = sum(k[i] * np.cos(i * np.arccos(np.clip(u, -1, 1))) for i in range(5)) \
+        + rng.uniform(0.5, 3) * np.sin(2 * np.pi * pos / rng.uniform(20, 3 * span) + rng.uniform(0, 6))
+    f = (f - f.min()) / np.ptp(f) * 30 - 10
+    return pos, f + rng.normal(0, rng.uniform(0.2, 2.0), T)
+
+
+def test_selection_only_considers_models_the_table_can_hold() -> None:
+    """Issue 24: seed 64 made the unguarded selection pick degree 3 + 5 harmonics of a
+    period near the span, whose coefficients cancel (sum |c| ~ 35000 urad for values of
+    30 urad, over the table's 3906 urad cap). With the guard every choice stays within
+    10 x the values and half the cap, and fits no worse than a constant."""
+    import abbe.analysis.fit.select as sel
+    from abbe.formats.blob import coef_sum_cap
+
+    cap = coef_sum_cap("ez")
+    assert abs(cap - 3906.25) < 1e-6
+    for seed in (64, 121, 249, *range(10)):
+        pos, y = _roll_short_axis(seed)
+        des = make_design(pos, FitOptions())
+        m = select_auto(des, pos, y[:, None], caps=[cap])
+        total = float(np.abs(m.coef[0]).sum())
+        assert total <= sel.CONDITION_GAIN * np.max(np.abs(y)) and total <= 0.5 * cap, (seed, total)
+        res = y - m.predict(pos)[:, 0]
+        assert np.sum(res ** 2) <= np.sum((y - y.mean()) ** 2), seed
+    # the case that motivated it really was over the cap without the guard
+    pos, y = _roll_short_axis(64)
+    des = make_design(pos, FitOptions())
+    old = sel.CONDITION_GAIN
+    try:
+        sel.CONDITION_GAIN = float("inf")
+        m = select_auto(des, pos, y[:, None], caps=None)
+    finally:
+        sel.CONDITION_GAIN = old
+    assert float(np.abs(m.coef[0]).sum()) > cap
+
+
+def test_a_term_larger_than_the_table_holds_names_term_amount_and_remedy(tmp_path) -> None:
+    """A roll growing by 12000 urad over the travel (a unit mix-up, say) cannot be stored: exit 2, and the
+    message names the term, by how much it is over and what to do."""
+    import contextlib
+    import csv
+    import io
+
+    from abbe.cli.entry import main
+    from cases.synthetic_laser import make_dataset
+
+    syn = make_dataset(tmp_path / "d", seed=1, axes=("Z",), n_targets={"Z": 16}, n_runs=3)
+    p = syn.laser["Z"]
+    rows = list(csv.reader(p.read_text().splitlines()))
+    hdr = next(i for i, r in enumerate(rows) if r and r[0] == "run")
+    ci, ti = rows[hdr].index("roll_urad"), rows[hdr].index("target_mm")
+    for r in rows[hdr + 1:]:
+        if r and not r[0].startswith("#"):
+            r[ci] = f"{float(r[ci]) + 40.0 * float(r[ti]):.3f}"   # 40 urad/mm
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerows(rows)
+    p.write_text(buf.getvalue())
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        rc = main(["fit", str(syn.machine), "-o", str(tmp_path / "out"), "--no-report",
+                   "--no-clib-check", "-q"])
+    msg = err.getvalue()
+    assert rc == 2, msg
+    assert "axes.Z.coef.ez" in msg and "exceeds the fixed-point cap (3906 urad) by" in msg, msg
+    assert "larger than the table holds" in msg and "unit" in msg, msg
+    assert not (tmp_path / "out").exists()

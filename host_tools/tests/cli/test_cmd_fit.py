@@ -335,3 +335,78 @@ def test_thermal_terms_fitted_from_temp_c(tmp_path: Path) -> None:
         assert ax.thermal_offset_um_per_k == pytest.approx(th["offset_um_per_k"], abs=1e-3)
         assert ax.thermal_tref_c == pytest.approx(th["tref_c"], abs=1e-3)
     assert fitted >= 2
+
+
+def test_read_only_out_is_bad_input_and_nothing_changes(tmp_path: Path) -> None:
+    """``-o OUT`` where OUT exists and is read-only: exit 2 naming OUT, OUT untouched
+    (issue 24: it was an internal error, exit 70). Run as an unprivileged user, since
+    root may write into a read-only folder."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+
+    import tempfile
+
+    if os.geteuid() == 0 and shutil.which("setpriv") is None:
+        pytest.skip("running as root without setpriv: cannot drop privileges")
+    # pytest's own temporary folders are private to root: a world-traversable one
+    tmp_path = Path(tempfile.mkdtemp(prefix="abbe-ro-", dir=tempfile.gettempdir()))
+    try:
+        _read_only_out(tmp_path)
+    finally:
+        for p in tmp_path.rglob("*"):
+            if p.is_dir():
+                p.chmod(0o755)
+        shutil.rmtree(tmp_path, ignore_errors=True)
+
+
+def _read_only_out(tmp_path: Path) -> None:
+    import os
+    import subprocess
+    import sys
+
+    syn = dataset(tmp_path, seed=5)
+    out = tmp_path / "OUT"
+    out.mkdir()
+    (out / "old.txt").write_text("kept\n")
+    for p in [tmp_path, *tmp_path.rglob("*")]:
+        if os.geteuid() == 0:
+            os.chown(p, 65534, 65534)
+    os.chmod(tmp_path, 0o777)
+    out.chmod(0o555)
+    cmd = [sys.executable, "-m", "abbe.cli", "fit", str(syn.machine), "-o", str(out),
+           "--no-report", "--no-clib-check", "-q"]
+    if os.geteuid() == 0:
+        cmd = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", *cmd]
+    env = dict(os.environ, HOME=str(tmp_path), MPLCONFIGDIR=str(tmp_path / ".mpl"),
+               PYTHONPATH=str(Path(__file__).resolve().parents[2]))
+    r = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=tmp_path, timeout=300)
+    out.chmod(0o755)
+    assert r.returncode == 2, (r.returncode, r.stderr)
+    assert str(out) in r.stderr and "read-only" in r.stderr, r.stderr
+    assert "internal error" not in r.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["old.txt"]
+    assert (out / "old.txt").read_text() == "kept\n"
+    assert not [p for p in tmp_path.iterdir() if ".abbe-" in p.name]
+
+
+def test_write_error_in_the_staging_names_out(tmp_path: Path, monkeypatch, capsys) -> None:
+    """A write that fails inside the staging folder (here: permission, simulated) is
+    bad input naming OUT, exit 2, and leaves nothing behind."""
+    import errno
+
+    import abbe.cli.fit as fit_cli
+
+    syn = dataset(tmp_path, seed=5)
+    out = tmp_path / "out"
+
+    def refuse(res, staging, **kw):
+        raise PermissionError(errno.EACCES, "Permission denied", str(staging / "model.bin"))
+
+    monkeypatch.setattr(fit_cli, "write_outputs", refuse)
+    assert fit(syn.machine, out, "--no-clib-check", "--no-report", "-q") == 2
+    err = capsys.readouterr().err
+    assert str(out) in err and "Permission denied" in err, err
+    assert not out.exists()
+    assert not [p for p in tmp_path.iterdir() if ".abbe-" in p.name]

@@ -3,6 +3,8 @@ paper's figures (the issue's targets), and writes its report and JSON."""
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 from pathlib import Path
 
@@ -21,10 +23,30 @@ KEYS = ("prediction_max_residual_um", "prediction_max_residual_laser_only_um", "
 def demo(tmp_path_factory) -> tuple[Path, dict]:
     out = tmp_path_factory.mktemp("demo")
     # as scripts/demo.sh runs it: the JSON inside the report folder
-    rc = cli_main(["demo", "-o", str(out / "report"), "--json", str(out / "report" / "summary.json")])
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        rc = cli_main(["demo", "-o", str(out / "report"), "--json", str(out / "report" / "summary.json")])
     assert rc == 0
     assert not [p for p in out.rglob("*") if ".abbe-" in p.name]   # no staging left
+    (out / "printed.txt").write_text(printed.getvalue())
     return out, json.loads((out / "report" / "summary.json").read_text())
+
+
+def test_demo_prints_the_final_paths(demo) -> None:
+    """Every path the demo prints is one the user finds: OUT, never its staging folder."""
+    out, _ = demo
+    text = (out / "printed.txt").read_text()
+    assert ".abbe-" not in text, text
+    assert f"{out / 'report' / 'diagnose' / 'model.bin'}" in text, text
+    assert "wrote " in text and f"{out / 'report' / 'fit'}" in text, text
+
+
+def test_demo_report_speaks_words_not_python(demo) -> None:
+    out, _ = demo
+    html = (out / "report" / "index.html").read_text()
+    assert "generated C compiles: yes" in html or "generated C compiles: not checked" in html
+    assert "header CRC matches: yes" in html
+    assert "True" not in html and "False" not in html
 
 
 def test_demo_writes_report_and_json(demo) -> None:

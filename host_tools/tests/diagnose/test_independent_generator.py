@@ -161,3 +161,36 @@ def test_generator_is_independent_of_the_simulator() -> None:
                 assert not n.startswith(("abbe.sim", "cases.hidden_effects", "cases.synthetic")), (f, n)
                 if n.startswith("abbe"):
                     assert n in allowed, (f.name, n)
+
+
+def test_issue_24_mechanisms(tmp_path) -> None:
+    """The extended cases (evaluation only): a drift that rises and falls in time, and a
+    short Z whose roll varies by tens of urad, lasered; ``abbe fit`` makes a table of
+    every such campaign (issue 24: the roll once made it refuse)."""
+    import contextlib
+    import io
+    import json
+    import tomllib
+
+    from abbe.cli.entry import main as cli_main
+    from cases.independent.physics import Thermal
+
+    th = Thermal(axis="X", profile="rise_fall", t0_c=20.0, rise_k=3.0, tau_h=1.0)
+    T = th.temperature(np.array([0.0, 1800.0, 3600.0, 7200.0, 14400.0]))
+    assert T[0] == 20.0 and abs(T[2] - 23.0) < 1e-12 and T[1] < T[2] and T[3] < T[2] and T[4] < T[3]
+    cases = [c for c in suite() if c.name.startswith("x_roll_short_z")]
+    assert len(cases) == 3
+    for c in cases:
+        b = build(c, tmp_path / c.name)
+        text = b.machine_file.read_text()
+        assert "[laser.Z]" in text
+        lo, hi = tomllib.loads(text)["axes"]["Z"]["travel_mm"]
+        assert hi - lo <= 200.0
+        err = io.StringIO()
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+            rc = cli_main(["fit", str(b.machine_file), "-o", str(tmp_path / c.name / "fit"),
+                           "--no-report", "--no-clib-check", "-q"])
+        assert rc == 0, (c.name, err.getvalue())
+        model = json.loads((tmp_path / c.name / "fit" / "model.json").read_text())
+        roll = model["axes"]["Z"]["terms"]["ez"]
+        assert roll is not None

@@ -47,7 +47,7 @@ from abbe.analysis.fit.prep import (
 from abbe.analysis.fit.select import AxisFit, fit_axis
 from abbe.analysis.iso230_2 import Iso230Result, evaluate
 from abbe.errors import AbbeInputError
-from abbe.formats.blob import quantization_error, read_blob, write_blob
+from abbe.formats.blob import coef_sum_cap, quantization_error, read_blob, write_blob
 from abbe.formats.deviations import PositioningData
 from abbe.formats.laser_csv import LaserData, to_terms
 from abbe.formats.laser_file import read_laser_line
@@ -236,7 +236,7 @@ def fit_line(machine: Machine, axis: str, opts: FitOptions) -> AxisResult:
         shift[t] = v
 
     Y = np.column_stack([average_runs(runs_pre[t]).mean for t in present])
-    af = fit_axis(p, Y, opts)
+    af = fit_axis(p, Y, opts, caps=[coef_sum_cap(t) for t in present])
     tab = af.model.table
     # Exact reference adaptation: shift so every stored term is 0 at the reference.
     bref = basis_matrix(tab, np.array([ref]))[0]

@@ -106,19 +106,64 @@ def fit_structure(design: AxisDesign, pos: np.ndarray, Y: np.ndarray,
         coef.append(c)
     return AxisModel(orders=list(orders), period_mm=period_mm if H > 0 else None, table=tab,
                      coef=coef)
+#: Conditioning guard: a term's selected coefficients may sum (in absolute value) to at
+#: most this many times the largest |value| it fits. A sum far above the values means
+#: columns that cancel (harmonics of a period near the span beside a cubic trend):
+#: the same curve with huge opposite coefficients, fragile and soon over the table's cap.
+CONDITION_GAIN = 10.0
+#: ... and to at most this fraction of the table's cap (the reference shift adds at
+#: most the same again; the rest is margin): sum |c| <= 0.5 cap.
+CAP_FRACTION = 0.5
+
+
+def well_conditioned(coef: np.ndarray, y: np.ndarray, cap: float | None) -> bool:
+    """True if ``coef`` (one term, the table's basis) passes the conditioning guard for
+    values ``y`` (um or urad) and the table's cap on sum |coefficients| (same unit)."""
+    total = float(np.abs(coef).sum())
+    scale = float(np.max(np.abs(y))) if np.size(y) else 0.0
+    if total > CONDITION_GAIN * scale + 1e-9:
+        return False
+    return cap is None or total <= CAP_FRACTION * cap
+
+
 def select_auto(design: AxisDesign, pos: np.ndarray, Y: np.ndarray,
-                one_se: bool = True) -> AxisModel:
-    """The automatic selection (module docstring) on targets pos (T,), values Y (T, m)."""
+                one_se: bool = True, caps: list[float] | None = None) -> AxisModel:
+    """The automatic selection (module docstring) on targets pos (T,), values Y (T, m).
+
+    Only models the table can hold are considered: a term whose choice fails the
+    conditioning guard (:func:`well_conditioned`; ``caps[j]`` the table's cap on
+    sum |c| of column j, um or urad) has that (degree, harmonics) struck out and
+    takes its next one-SE choice. The constant (0, 0) is never struck out, and a term
+    whose values themselves exceed half the cap is not held to it: the measured error
+    is larger than the table holds, and the table writer says so (never a constant in
+    place of an error too large to store)."""
     Y = np.asarray(Y, dtype=float).reshape(np.size(pos), -1)
-    f, J = search_period(design, pos, Y, one_se)
-    if f is None:
+    m_cols = Y.shape[1]
+    f0, J = search_period(design, pos, Y, one_se)
+    if f0 is None:
         s = scan(design, pos, Y, np.array([design.freqs[0] if design.freqs.size else 1.0]), hg=0)
     else:
-        s = scan(design, pos, Y, np.array([f]))
-    orders = [one_se_choice(s.cv[0, :, :, j], s.se[0, :, :, j], one_se) for j in range(Y.shape[1])]
-    if f is not None and any(h for _, h in orders):
-        f = refine_period(design, pos, Y, f, orders)
-    m = fit_structure(design, pos, Y, orders, None if f is None else 1.0 / f)
+        s = scan(design, pos, Y, np.array([f0]))
+    cv = np.array(s.cv[0], dtype=float)  # (D+1, H+1, m): struck-out models become inf
+    se = s.se[0]
+    cap = list(caps) if caps is not None else [None] * m_cols
+    for j in range(m_cols):
+        # values themselves beyond what the table holds: no model within the cap fits
+        # them, so none is forced on the term; the table writer reports it (term, amount)
+        if cap[j] is not None and float(np.max(np.abs(Y[:, j]))) > CAP_FRACTION * cap[j]:
+            cap[j] = None
+    while True:
+        orders = [one_se_choice(cv[:, :, j], se[:, :, j], one_se) for j in range(m_cols)]
+        f = f0
+        if f is not None and any(h for _, h in orders):
+            f = refine_period(design, pos, Y, f, orders)
+        m = fit_structure(design, pos, Y, orders, None if f is None else 1.0 / f)
+        bad = [j for j in range(m_cols) if orders[j] != (0, 0)
+               and not well_conditioned(m.coef[j], Y[:, j], cap[j])]
+        if not bad:
+            break
+        for j in bad:
+            cv[orders[j][0], orders[j][1], j] = np.inf
     m.score = J
     return m
 def select_paper_fourier3_axis(design: AxisDesign, pos: np.ndarray, Y: np.ndarray) -> AxisModel:
@@ -148,10 +193,12 @@ def paper_poly7(design: AxisDesign, pos: np.ndarray, Y: np.ndarray) -> list[Axis
     Y = np.asarray(Y, dtype=float).reshape(np.size(pos), -1)
     d = min(7, design.max_degree)
     return [fit_structure(design, pos, Y[:, [j]], [(d, 0)], None) for j in range(Y.shape[1])]
-def select(design: AxisDesign, pos: np.ndarray, Y: np.ndarray, opts: FitOptions) -> AxisModel:
-    """The stored model by ``opts.model``: auto, paper-fourier3 (shared period), paper-poly7."""
+def select(design: AxisDesign, pos: np.ndarray, Y: np.ndarray, opts: FitOptions,
+           caps: list[float] | None = None) -> AxisModel:
+    """The stored model by ``opts.model``: auto, paper-fourier3 (shared period), paper-poly7.
+    ``caps``: per column, the table's cap on sum |coefficients| (um or urad)."""
     if opts.model == "auto":
-        return select_auto(design, pos, Y, opts.one_se)
+        return select_auto(design, pos, Y, opts.one_se, caps)
     if opts.model == "paper-fourier3":
         return select_paper_fourier3_axis(design, pos, Y)
     if opts.model == "paper-poly7":
@@ -187,14 +234,16 @@ def _predict_or_nan(m: AxisModel | None, pos: np.ndarray) -> np.ndarray:
     if m is None:
         return np.full(np.size(pos), np.nan)
     return m.predict(pos)[:, 0]
-def fit_axis(pos: np.ndarray, Y: np.ndarray, opts: FitOptions) -> AxisFit:
+def fit_axis(pos: np.ndarray, Y: np.ndarray, opts: FitOptions,
+             caps: list[float] | None = None) -> AxisFit:
     """Select and fit the stored model of one axis (values Y (T, m) at targets pos),
-    fit the paper models per term, and run the outer K-fold for held-out metrics."""
+    fit the paper models per term, and run the outer K-fold for held-out metrics.
+    ``caps``: per column, the table's cap on sum |coefficients| (um or urad)."""
     pos = np.asarray(pos, dtype=float)
     Y = np.asarray(Y, dtype=float).reshape(pos.size, -1)
     T, m = Y.shape
     design = make_design(pos, opts)
-    model = select(design, pos, Y, opts)
+    model = select(design, pos, Y, opts, caps)
     f3 = paper_fourier3(design, pos, Y)
     p7 = paper_poly7(design, pos, Y)
     ins = {"chosen": model.predict(pos),
@@ -208,7 +257,7 @@ def fit_axis(pos: np.ndarray, Y: np.ndarray, opts: FitOptions) -> AxisFit:
         test = idx % K == k
         tr = ~test
         pt, Yt = pos[tr], Y[tr]
-        mk = select(design, pt, Yt, opts)
+        mk = select(design, pt, Yt, opts, caps)
         held["chosen"][test] = mk.predict(pos[test])
         for j, (f, p) in enumerate(zip(paper_fourier3(design, pt, Yt),
                                        paper_poly7(design, pt, Yt))):
