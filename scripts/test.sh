@@ -122,6 +122,10 @@ readme_demo() { # the README's other command, as a user runs it: fresh, then ove
     fi
 }
 
+lcnc_component() { # one LinuxCNC on a machine at a time: the same lock as every LinuxCNC run here
+    flock /tmp/abbe-linuxcnc.lock bash port/linuxcnc/tests/run.sh
+}
+
 lcnc_programs() { # as root, run.sh (step 9) created the unprivileged LinuxCNC user
     flock /tmp/abbe-linuxcnc.lock /usr/bin/python3 port/linuxcnc/tests/program_sim.py \
         --json build-linuxcnc/programs.json
@@ -135,7 +139,7 @@ step "libFuzzer run (build-fuzz)" fuzz
 step "Python import contracts (lint-imports)" import_contracts
 step "pytest host_tools/tests" pytest_all
 step "wheel: build, install outside the checkout, run abbe there" wheel_test
-step "LinuxCNC component: halrun and simulator tests" bash port/linuxcnc/tests/run.sh
+step "LinuxCNC component: halrun and simulator tests" lcnc_component
 step "clang Cortex-M4F and M3 builds and ctest under QEMU (build-m{4f,3}-clang)" cross_clang
 step "measurement programs in LinuxCNC's simulator" lcnc_programs
 step "grblHAL plugin in grblHAL's Simulator" bash port/grblhal/tests/run.sh
