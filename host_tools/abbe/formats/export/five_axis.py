@@ -154,7 +154,7 @@ def load_five_context(model: Path, machine, options: dict[str, Any]) -> FiveCont
                                  "three travels", file=str(machine.path), field=f"axes.{a}")
         travel[a] = tuple(float(v) for v in machine.axes[a].travel_mm)
     return FiveContext(geometry=g, errors=tab.errors, travel_mm=travel, options=options,
-                       model_source=name, machine_source=str(machine.path),
+                       model_source=name, machine_source=Path(machine.path).name,
                        not_observable=_not_observable(Path(model), data))
 
 

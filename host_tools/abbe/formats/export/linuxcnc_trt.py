@@ -21,6 +21,7 @@ squareness and the linear axes' errors are translations trt cannot hold.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 
@@ -127,7 +128,7 @@ def build(ctx: FiveContext) -> FiveExport:
                names[1]: g.offset_mm[2]}
     hal = [f"# abbe export linuxcnc-trt: identified geometry of {g.kind} (mm, machine "
            "coordinates; trtfuncs.c)",
-           f"# model: {ctx.model_source}; nominal from {ctx.machine_source}",
+           f"# model: {Path(ctx.model_source).name}; nominal from {Path(ctx.machine_source).name}",
            "# where a pin is linked to a signal (the sample config nets y-offset and z-offset "
            "to :y-offset, :z-offset), set the signal instead: sets :y-offset VALUE",
            "# keep tool-offset netted to motion.tooloffset.z"]
