@@ -488,6 +488,40 @@ def trt_joints(kind: str, pins: dict, work_mm, angles_deg):
     return out
 
 
+# --- grblHAL rtcp_ac (five-axis) ------------------------------------------------------------
+
+def read_grblhal_rtcp(out: Path):
+    """rtcp_ac.nc: ``$640=..`` .. ``$645=..`` (a_vector x y z, c_vector x y z, mm) as a
+    grblHAL sender sends them; ``;`` lines are comments. Returns (a, c) arrays."""
+    vals = {}
+    for line in (out / "rtcp_ac.nc").read_text().splitlines():
+        t = line.strip()
+        if not t or t.startswith(";"):
+            continue
+        m = re.fullmatch(r"\$(\d+)=(-?\d+\.\d{3})", t)
+        if not m or int(m[1]) in vals:
+            raise FormatError(f"not a setting line: {line!r}")
+        vals[int(m[1])] = _num(m[2])
+    if sorted(vals) != list(range(640, 646)):
+        raise FormatError(f"settings {sorted(vals)}")
+    return np.array([vals[640], vals[641], vals[642]]), np.array([vals[643], vals[644], vals[645]])
+
+
+def rtcp_joints(a, c, work_mm, angles_deg):
+    """rtcp_ac.c's rtcp_forward in float32 as the controller computes (its settings and
+    arithmetic are float): q = a + Rx(A) (c + Rz(C) p), p = w - (a + c) (the RTCP origin
+    at the C centre). angles (N, 2): A, C degrees."""
+    f = np.float32
+    a, c = np.asarray(a, f), np.asarray(c, f)
+    out = []
+    for p, (A, C) in zip(np.asarray(work_mm, f) - (a + c), np.radians(angles_deg).astype(f)):
+        ca, sa, cc, sc = np.cos(A), np.sin(A), np.cos(C), np.sin(C)
+        rz = np.array([[cc, -sc, 0], [sc, cc, 0], [0, 0, 1]], f)
+        rx = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]], f)
+        out.append(a + rx @ (c + rz @ p))
+    return np.array(out, dtype=float)
+
+
 READERS = {
     "linuxcnc-comp": lambda out: read_linuxcnc_comp(out)[0],
     "linuxcnc-matrixkins": read_matrixkins,

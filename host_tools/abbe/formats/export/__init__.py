@@ -33,6 +33,7 @@ TARGETS: dict[str, str] = {
 #: five-axis targets (rotary geometry of a format 1.2 table; :mod:`.five_axis`).
 FIVE_AXIS_TARGETS: dict[str, str] = {
     "linuxcnc-trt": "abbe.formats.export.linuxcnc_trt",
+    "grblhal-rtcp-ac": "abbe.formats.export.grblhal_rtcp",
 }
 
 RESIDUAL_FILE = "residual.json"

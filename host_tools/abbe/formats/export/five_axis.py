@@ -172,6 +172,33 @@ def _not_observable(model: Path, data: bytes) -> list[str]:
         return []
 
 
+# ----------------------------------------------------------------- the geometry
+
+
+def identified_lines(ctx: FiveContext) -> tuple[np.ndarray, np.ndarray]:
+    """(C axis centre, a point of the tilt axis line), mm, machine coordinates at zero
+    angles, with the location errors a translation holds: the C line at rot_point +
+    (EX0C, EY0C, 0), the tilt line at rot_point + offset + (0, EY0A, EZ0A) (B:
+    (EX0B, 0, EZ0B)). The model moves each line rigidly about its nominal pivot, so
+    these are the actual lines' points (their tilts aside)."""
+    g, loc = ctx.geometry, ctx.errors.location
+    c = np.asarray(g.rot_point_mm, dtype=np.float64) + 1e-3 * np.array(
+        [loc.get("EX0C", 0.0), loc.get("EY0C", 0.0), 0.0])
+    t = np.asarray(g.pivot(g.tilt), dtype=np.float64).copy()
+    n1, n2 = LOCATION_ERRORS[g.tilt][:2]
+    i1, i2 = [k for k in range(3) if k != "ABC".index(g.tilt)]
+    t[i1] += 1e-3 * loc.get(n1, 0.0)
+    t[i2] += 1e-3 * loc.get(n2, 0.0)
+    return c, t
+
+
+def zero_offsets_deg(ctx: FiveContext) -> dict[str, float]:
+    """The angular zero offsets (E{A,B}0{A,B}, EC0C) of the rotary axes, deg: the table
+    turns by joint + E0."""
+    g, loc = ctx.geometry, ctx.errors.location
+    return {a: float(np.degrees(loc.get(f"E{a}0{a}", 0.0) * 1e-6)) for a in g.rotaries}
+
+
 # ------------------------------------------------------------------------- poses
 
 

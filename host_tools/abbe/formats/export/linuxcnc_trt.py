@@ -20,12 +20,18 @@ squareness and the linear axes' errors are translations trt cannot hold.
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
 
-from abbe.formats.export.five_axis import POSE_OPTIONS, FiveContext, FiveExport, not_held
+from abbe.formats.export.five_axis import (
+    POSE_OPTIONS,
+    FiveContext,
+    FiveExport,
+    identified_lines,
+    not_held,
+    zero_offsets_deg,
+)
 from abbe.formats.export.target import Option, fmt
 
 NAME = "linuxcnc-trt"
@@ -96,27 +102,16 @@ def build(ctx: FiveContext) -> FiveExport:
     g, e, o = ctx.geometry, ctx.errors, ctx.options
     tilt = g.tilt
     loc = {k: float(v) for k, v in e.location.items()}
-    um = 1e-3
-    rp = np.asarray(g.rot_point_mm, dtype=np.float64) + um * np.array(
-        [loc.get("EX0C", 0.0), loc.get("EY0C", 0.0), 0.0])
-    off = np.asarray(g.offset_mm, dtype=np.float64).copy()
-    if tilt == "A":
-        off[1] += um * (loc.get("EY0A", 0.0) - loc.get("EY0C", 0.0))
-        off[2] += um * loc.get("EZ0A", 0.0)
-        names = ("y-offset", "z-offset")
-        vals = (off[1], off[2])
-    else:
-        off[0] += um * (loc.get("EX0B", 0.0) - loc.get("EX0C", 0.0))
-        off[2] += um * loc.get("EZ0B", 0.0)
-        names = ("x-offset", "z-offset")
-        vals = (off[0], off[2])
+    rp, pt = identified_lines(ctx)
+    off = pt - rp  # the component along the tilt axis is not used by trt
+    names = ("y-offset", "z-offset") if tilt == "A" else ("x-offset", "z-offset")
+    vals = (off["XYZ".index(names[0][0].upper())], off[2])
     comp = o["component"] or f"{g.kind}-kins"
     text = {"x-rot-point": fmt(rp[0], MM_DECIMALS), "y-rot-point": fmt(rp[1], MM_DECIMALS),
             "z-rot-point": fmt(rp[2], MM_DECIMALS),
             names[0]: fmt(vals[0], MM_DECIMALS), names[1]: fmt(vals[1], MM_DECIMALS)}
     pins = {k: float(v) for k, v in text.items()}
-    zero_deg = {tilt: math.degrees(loc.get(f"E{tilt}0{tilt}", 0.0) * 1e-6),
-                "C": math.degrees(loc.get("EC0C", 0.0) * 1e-6)}
+    zero_deg = zero_offsets_deg(ctx)
     home = {tilt: fmt(o["tilt_home_offset_deg"] + zero_deg[tilt], DEG_DECIMALS),
             "C": fmt(o["c_home_offset_deg"] + zero_deg["C"], DEG_DECIMALS)}
     shift = np.array([float(home[tilt]) - o["tilt_home_offset_deg"],
