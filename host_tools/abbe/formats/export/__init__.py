@@ -52,6 +52,9 @@ def run_five_export(model: Path, target: str, options: list[str] | None = None, 
 
     mod = target_module(target)
     opts = parse_options(target, mod.OPTIONS, list(options or []))
+    for k, o in mod.OPTIONS.items():  # X=..,Y=..,Z=.. values arrive as checked text
+        if o.kind == "axes" and o.item == "float":
+            opts[k] = {a: float(v) for a, v in opts[k].items()}
     ctx = load_five_context(model, machine, opts)
     exp = mod.build(ctx)
     report = evaluate(ctx, exp)

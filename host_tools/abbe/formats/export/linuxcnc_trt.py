@@ -32,6 +32,7 @@ from abbe.formats.export.five_axis import (
     not_held,
     zero_offsets_deg,
 )
+from abbe.errors import AbbeInputError
 from abbe.formats.export.target import Option, fmt
 
 NAME = "linuxcnc-trt"
@@ -101,6 +102,9 @@ def trt_inverse(kind: str, pins: dict[str, float], work_mm: np.ndarray,
 def build(ctx: FiveContext) -> FiveExport:
     g, e, o = ctx.geometry, ctx.errors, ctx.options
     tilt = g.tilt
+    if o["tilt_joint"] == o["c_joint"]:
+        raise AbbeInputError(f"the tilt and the C axis are both joint {o['c_joint']}",
+                             field="--set c_joint")
     loc = {k: float(v) for k, v in e.location.items()}
     rp, pt = identified_lines(ctx)
     off = pt - rp  # the component along the tilt axis is not used by trt

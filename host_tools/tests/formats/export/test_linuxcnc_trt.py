@@ -256,6 +256,7 @@ def test_bad_input_exits_2_and_writes_nothing(tmp_path, capsys) -> None:
              (MODEL, bc, (), "xyzac-trt"),
              (MODEL, MACHINE, ("tilt_joint=99",), "tilt_joint"),
              (MODEL, MACHINE, ("tcp_point=X=nan",), "tcp_point"),
+             (MODEL, MACHINE, ("c_joint=3",), "both joint 3"),
              (bad, MACHINE, (), "short.bin")]
     for i, (model, machine, opts, words) in enumerate(cases):
         out = tmp_path / f"out{i}"
