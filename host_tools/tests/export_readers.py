@@ -432,6 +432,96 @@ def read_isg(out: Path, tool=(0.0, 0.0, 0.0)):
     return corr
 
 
+# --- LinuxCNC trt-kins (five-axis) ---------------------------------------------------------
+
+def read_linuxcnc_trt(out: Path):
+    """trt-kins.hal (``setp COMP.PIN VALUE``) and trt-kins.ini (``[JOINT_n]`` /
+    ``HOME_OFFSET = deg``) as halcmd and the INI reader take them. Returns (component,
+    pins {pin: mm}, home {joint: deg}). Comment lines (#) and blank lines are skipped;
+    anything else is a FormatError."""
+    comp, pins = None, {}
+    for line in (out / "trt-kins.hal").read_text().splitlines():
+        if not line.strip() or line.lstrip().startswith("#"):
+            continue
+        m = re.fullmatch(r"setp ([A-Za-z0-9_-]+)\.([a-z-]+) (\S+)", line)
+        if not m:
+            raise FormatError(f"not a setp line: {line!r}")
+        if comp not in (None, m[1]):
+            raise FormatError("two components")
+        comp = m[1]
+        if m[2] in pins:
+            raise FormatError(f"{m[2]} set twice")
+        pins[m[2]] = _num(m[3])
+    home, joint = {}, None
+    for line in (out / "trt-kins.ini").read_text().splitlines():
+        t = line.strip()
+        if not t or t.startswith("#"):
+            continue
+        m = re.fullmatch(r"\[JOINT_(\d+)\]", t)
+        if m:
+            joint = int(m[1])
+            continue
+        k, eq, v = t.partition("=")
+        if joint is None or not eq or k.strip() != "HOME_OFFSET" or joint in home:
+            raise FormatError(f"unexpected INI line {line!r}")
+        home[joint] = _num(v.strip())
+    return comp, pins, home
+
+
+def trt_joints(kind: str, pins: dict, work_mm, angles_deg):
+    """trtfuncs.c's inverse kinematics (tool-offset 0): joints = r + o + R_tilt (Rz(c) (w - r)
+    - o), written with rotation matrices. angles (N, 2): tilt, C in degrees."""
+    w = np.asarray(work_mm, float).reshape(-1, 3)
+    ang = np.radians(np.asarray(angles_deg, float).reshape(-1, 2))
+    r = np.array([pins["x-rot-point"], pins["y-rot-point"], pins["z-rot-point"]])
+    if kind == "xyzac-trt":
+        o = np.array([0.0, pins["y-offset"], pins["z-offset"]])
+    else:
+        o = np.array([pins["x-offset"], 0.0, pins["z-offset"]])
+    out = np.empty_like(w)
+    for i, ((t, c), p) in enumerate(zip(ang, w)):
+        ct, st, cc, sc = np.cos(t), np.sin(t), np.cos(c), np.sin(c)
+        rz = np.array([[cc, -sc, 0.0], [sc, cc, 0.0], [0.0, 0.0, 1.0]])
+        tilt = (np.array([[1.0, 0.0, 0.0], [0.0, ct, -st], [0.0, st, ct]]) if kind == "xyzac-trt"
+                else np.array([[ct, 0.0, st], [0.0, 1.0, 0.0], [-st, 0.0, ct]]))
+        out[i] = r + o + tilt @ (rz @ (p - r) - o)
+    return out
+
+
+# --- grblHAL rtcp_ac (five-axis) ------------------------------------------------------------
+
+def read_grblhal_rtcp(out: Path):
+    """rtcp_ac.nc: ``$640=..`` .. ``$645=..`` (a_vector x y z, c_vector x y z, mm) as a
+    grblHAL sender sends them; ``;`` lines are comments. Returns (a, c) arrays."""
+    vals = {}
+    for line in (out / "rtcp_ac.nc").read_text().splitlines():
+        t = line.strip()
+        if not t or t.startswith(";"):
+            continue
+        m = re.fullmatch(r"\$(\d+)=(-?\d+\.\d{3})", t)
+        if not m or int(m[1]) in vals:
+            raise FormatError(f"not a setting line: {line!r}")
+        vals[int(m[1])] = _num(m[2])
+    if sorted(vals) != list(range(640, 646)):
+        raise FormatError(f"settings {sorted(vals)}")
+    return np.array([vals[640], vals[641], vals[642]]), np.array([vals[643], vals[644], vals[645]])
+
+
+def rtcp_joints(a, c, work_mm, angles_deg):
+    """rtcp_ac.c's rtcp_forward in float32 as the controller computes (its settings and
+    arithmetic are float): q = a + Rx(A) (c + Rz(C) p), p = w - (a + c) (the RTCP origin
+    at the C centre). angles (N, 2): A, C degrees."""
+    f = np.float32
+    a, c = np.asarray(a, f), np.asarray(c, f)
+    out = []
+    for p, (A, C) in zip(np.asarray(work_mm, f) - (a + c), np.radians(angles_deg).astype(f)):
+        ca, sa, cc, sc = np.cos(A), np.sin(A), np.cos(C), np.sin(C)
+        rz = np.array([[cc, -sc, 0], [sc, cc, 0], [0, 0, 1]], f)
+        rx = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]], f)
+        out.append(a + rx @ (c + rz @ p))
+    return np.array(out, dtype=float)
+
+
 READERS = {
     "linuxcnc-comp": lambda out: read_linuxcnc_comp(out)[0],
     "linuxcnc-matrixkins": read_matrixkins,

@@ -13,21 +13,27 @@ from abbe.cli.conventions import examples, list_option
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    from abbe.formats.export import TARGETS
+    from abbe.formats.export import FIVE_AXIS_TARGETS, TARGETS
+
+    names = list(TARGETS) + list(FIVE_AXIS_TARGETS)
 
     p = subparsers.add_parser(
         "export", help="write a model in a controller's compensation format, with its residual",
         description="Write the model (table blob, table JSON or a fit/import model.json) in a "
                     "controller's native compensation format and report what the target leaves "
                     "uncompensated over the work volume and the machine file's ballbar circles "
-                    "(OUT/residual.json). Targets: " + ", ".join(TARGETS) + ".",
+                    "(OUT/residual.json); a five-axis target (" + ", ".join(FIVE_AXIS_TARGETS)
+                    + ") writes the rotary geometry of abbe fit's model_five.bin and needs the "
+                    "machine file. Targets: " + ", ".join(names) + ".",
         epilog=examples("abbe export fit-out/model.bin --format linuxcnc-comp -o lcnc "
                         "--machine examples/vmc500/machine.toml",
                         "abbe export model.bin -f sinumerik-cec -o cec --set tables=8 points=200",
-                        "abbe export model.bin -f fanuc-pitch --list-options -o x"))
+                        "abbe export model.bin -f fanuc-pitch --list-options -o x",
+                        "abbe export fit5/model_five.bin -f linuxcnc-trt -o trt "
+                        "--machine examples/trunnion5ax/machine.toml"))
     p.add_argument("model", type=Path, help="model: model.bin, table JSON or model.json")
-    p.add_argument("--format", "-f", required=True, choices=list(TARGETS), metavar="F",
-                   help="target: " + ", ".join(TARGETS))
+    p.add_argument("--format", "-f", required=True, choices=names, metavar="F",
+                   help="target: " + ", ".join(names))
     p.add_argument("-o", "--out", type=Path, required=True, help="output directory")
     p.add_argument("--machine", type=Path,
                    help="machine file: its travel is the work volume, its ballbar circles are "
@@ -40,7 +46,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from abbe.formats.export import run_export, target_module, write_files
+    from abbe.formats.export import run_export, run_five_export, target_module, write_files
+    from abbe.formats.export.five_axis import summary as five_summary
     from abbe.formats.export.residual import summary
     from abbe.formats.machine import load_machine
     from abbe.formats.model_file import load_table
@@ -53,13 +60,17 @@ def run(args: argparse.Namespace) -> int:
         return 0
     with Outputs() as outs:
         staging = outs.directory(args.out, option="--out")  # checked before the work
-        table = load_table(args.model)
         machine = load_machine(args.machine) if args.machine else None
-        exp, report = run_export(table, args.format, args.set, machine, str(args.model))
+        if getattr(mod, "FIVE_AXIS", False):
+            exp, report = run_five_export(args.model, args.format, args.set, machine)
+        else:
+            exp, report = run_export(load_table(args.model), args.format, args.set, machine,
+                                     str(args.model))
         write_files(staging, exp, report)
         text = json.dumps(report, indent=2, allow_nan=False) + "\n" if args.json else None
     if text is not None:
         sys.stdout.write(text)
     else:
-        print(summary(report).replace("wrote ", f"wrote {args.out}/: ", 1))
+        show = five_summary if getattr(mod, "FIVE_AXIS", False) else summary
+        print(show(report).replace("wrote ", f"wrote {args.out}/: ", 1))
     return 0

@@ -5,6 +5,8 @@
 #   3. the LinuxCNC simulator running G-code with and without it (e2e_sim.py)
 #   4. a module with the table compiled in (build.sh --builtin), under halrun;
 #      then the ordinary module is installed again
+#   5. LinuxCNC's xyzac-trt-kins with abbe export linuxcnc-trt's values: M428,
+#      G0 A30 C90 moves the joints as the exported geometry says (trt_sim_check.py)
 # LinuxCNC's tools refuse to run as root: as root, this creates the
 # unprivileged user $ABBE_LCNC_USER (default abbe-lcnc) if needed and the tests
 # run halrun / linuxcnc as that user (runuser). Needs scripts/setup.sh first
@@ -43,8 +45,9 @@ builtin_test() {
 }
 builtin_test || failed=$((failed + 1))
 "$HERE/../build.sh" --install >/dev/null || failed=$((failed + 1))
+/usr/bin/python3 "$HERE/trt_sim_check.py" --json "$REPO/build-linuxcnc/trt.json" || failed=$((failed + 1))
 if ((failed)); then
-    echo "[lcnc] FAILED: $failed of 3 LinuxCNC tests"
+    echo "[lcnc] FAILED: $failed of 4 LinuxCNC tests"
     exit 1
 fi
-echo "[lcnc] OK: halrun, simulator and built-in table tests passed"
+echo "[lcnc] OK: halrun, simulator, built-in table and trt-kins tests passed"

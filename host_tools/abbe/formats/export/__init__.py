@@ -30,13 +30,36 @@ TARGETS: dict[str, str] = {
     "linuxcnc-comp": "abbe.formats.export.linuxcnc_comp",
     "linuxcnc-matrixkins": "abbe.formats.export.linuxcnc_matrixkins",
 }
+#: five-axis targets (rotary geometry of a format 1.2 table; :mod:`.five_axis`).
+FIVE_AXIS_TARGETS: dict[str, str] = {
+    "linuxcnc-trt": "abbe.formats.export.linuxcnc_trt",
+    "grblhal-rtcp-ac": "abbe.formats.export.grblhal_rtcp",
+}
 
 RESIDUAL_FILE = "residual.json"
 
 
 def target_module(name: str) -> ModuleType:
     """The module of target ``name`` (KeyError if unknown)."""
-    return importlib.import_module(TARGETS[name])
+    return importlib.import_module(TARGETS[name] if name in TARGETS else FIVE_AXIS_TARGETS[name])
+
+
+def run_five_export(model: Path, target: str, options: list[str] | None = None, machine=None
+                    ) -> tuple[Any, dict[str, Any]]:
+    """:func:`run_export` of a five-axis target: ``model`` a format 1.2 table file,
+    ``machine`` the parsed machine file with its ``[rotary]`` section."""
+    from abbe.formats.export.five_axis import evaluate, load_five_context
+
+    mod = target_module(target)
+    opts = parse_options(target, mod.OPTIONS, list(options or []))
+    for k, o in mod.OPTIONS.items():  # X=..,Y=..,Z=.. values arrive as checked text
+        if o.kind == "axes" and o.item == "float":
+            opts[k] = {a: float(v) for a, v in opts[k].items()}
+    ctx = load_five_context(model, machine, opts)
+    exp = mod.build(ctx)
+    report = evaluate(ctx, exp)
+    report["options"] = {k: v for k, v in opts.items()}
+    return exp, report
 
 
 def run_export(table, target: str, options: list[str] | None = None, machine=None,
