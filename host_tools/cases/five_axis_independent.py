@@ -85,6 +85,7 @@ class Campaign:
     n_tilt: int = 4
     n_c: int = 8
     seed: int = 0
+    fit_harmonics: int = 0  # > 0: the machine file asks the fit for error motions up to it
 
     @property
     def tilt(self) -> str:
@@ -190,6 +191,7 @@ class Campaign:
             f"tool_length_mm = {self.tool_mm:.3f}\n",
             f"[rotary.{self.tilt}]\ntravel_deg = [-120.0, 120.0]\n[rotary.C]\n"
             "travel_deg = [-360.0, 360.0]\n",
+            f"[rotary.fit]\nharmonics = {self.fit_harmonics}\n" if self.fit_harmonics else "",
             f'[probing.S1]\nfile = "probe.csv"\nsphere_mm = [{s[0]:.6f}, {s[1]:.6f}, {s[2]:.6f}]\n'
             f"sphere_radius_mm = {self.radius_mm}\nstylus_radius_mm = {self.stylus_mm}\n"]
         if self.rtest:
