@@ -94,7 +94,7 @@ def targets(ws: Workspace, out: Path, fit_model: Path | None = None) -> list[Tar
                hostile_numbers=True),
         Target("fit five-axis indexer", fit5, ws.five_axis_indexer, [o("fit5")],
                hostile_numbers=True),
-    ]  # abbe diagnose on this plan takes minutes: tests/cli/test_fuzz_five_axis.py mutates a smaller one
+    ]  # abbe diagnose on this plan takes minutes: tests/cli/test_fuzz_five_axis.py fuzzes it
     ref = ["163.626", "-212.772", "-290.704"]
 
     def export(fmt: str, model: str, *extra: str) -> list[str]:

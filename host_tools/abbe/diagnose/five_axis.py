@@ -141,7 +141,8 @@ class FiveAxisDiagnosis:
         out.append(f"Held-out shrink {self.shrink:.0%}")
         if self.noise_floor_um is not None:
             ex = self.excess_shrink
-            out.append(f"Sphere-centre noise floor (from the sphere fits) {self.noise_floor_um:.3f} um; "
+            out.append("Sphere-centre noise floor (from the sphere fits) "
+                       f"{self.noise_floor_um:.3f} um; "
                        + ("shrink of the gap above it " + f"{ex:.0%}" if ex is not None
                           else "the gap is at the floor"))
         return "\n".join(out) + "\n"
