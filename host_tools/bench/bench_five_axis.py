@@ -48,10 +48,17 @@ def main() -> int:
     ap.add_argument("--cases", type=int, default=32)
     ap.add_argument("--first-seed", type=int, default=0)
     ap.add_argument("--no-timing", action="store_true")
+    ap.add_argument("--harmonics", type=int, default=0,
+                    help="fit error motions up to this harmonic too and judge the resolved "
+                         "ones (0: location only)")
+    ap.add_argument("--motion-scale", type=float, default=1.0,
+                    help="scale the hidden error motions (every 4th campaign; 1: up to "
+                         "0.6 um / 3 urad, below the 1 um / 5 urad tolerance floor)")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory(prefix="abbe-5ax-bench-") as d:
         work = Path(d)
-        scores = run_suite(list(range(args.first_seed, args.first_seed + args.cases)), work)
+        scores = run_suite(list(range(args.first_seed, args.first_seed + args.cases)), work,
+                           args.harmonics, args.motion_scale)
         print(table(scores))
         print()
         for k, v in summary(scores).items():

@@ -85,6 +85,7 @@ class Campaign:
     n_tilt: int = 4
     n_c: int = 8
     seed: int = 0
+    fit_harmonics: int = 0  # > 0: the machine file asks the fit for error motions up to it
 
     @property
     def tilt(self) -> str:
@@ -190,6 +191,7 @@ class Campaign:
             f"tool_length_mm = {self.tool_mm:.3f}\n",
             f"[rotary.{self.tilt}]\ntravel_deg = [-120.0, 120.0]\n[rotary.C]\n"
             "travel_deg = [-360.0, 360.0]\n",
+            f"[rotary.fit]\nharmonics = {self.fit_harmonics}\n" if self.fit_harmonics else "",
             f'[probing.S1]\nfile = "probe.csv"\nsphere_mm = [{s[0]:.6f}, {s[1]:.6f}, {s[2]:.6f}]\n'
             f"sphere_radius_mm = {self.radius_mm}\nstylus_radius_mm = {self.stylus_mm}\n"]
         if self.rtest:
@@ -206,9 +208,11 @@ class Campaign:
         return out / "machine.toml"
 
 
-def make_campaign(seed: int, *, n_tilt: int = 4, n_c: int = 8) -> Campaign:
+def make_campaign(seed: int, *, n_tilt: int = 4, n_c: int = 8,
+                  motion_scale: float = 1.0) -> Campaign:
     """Campaign ``seed``: A/C on even seeds, B/C on odd; an R-test every third; hidden error
-    motions every fourth; noise, set-up errors and a pivot drift always."""
+    motions every fourth (amplitudes up to 0.6 um / 3 urad times ``motion_scale``); noise,
+    set-up errors and a pivot drift always."""
     rng = np.random.default_rng(seed)
     kind = "xyzac-trt" if seed % 2 == 0 else "xyzbc-trt"
     tilt = "A" if kind == "xyzac-trt" else "B"
@@ -222,7 +226,7 @@ def make_campaign(seed: int, *, n_tilt: int = 4, n_c: int = 8) -> Campaign:
             for c in "XYZABC":
                 own = {"C": "ZC", "A": "XA", "B": "YB"}[ax]
                 ks = (1, 2, 3) if c in own else (2, 3)
-                size = 0.6 if c in "XYZ" else 3.0
+                size = motion_scale * (0.6 if c in "XYZ" else 3.0)
                 motions[f"{ax}.{c}"] = Motion({k: float(rng.uniform(0, size)) for k in ks},
                                               {k: float(rng.uniform(0, 2 * math.pi)) for k in ks})
     off = np.array([0.0, rng.uniform(-40, 40), rng.uniform(-150, -40)]) if tilt == "A" else \

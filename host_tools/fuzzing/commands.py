@@ -82,6 +82,19 @@ def targets(ws: Workspace, out: Path, fit_model: Path | None = None) -> list[Tar
         Target("ballbar renishaw machine", ["ballbar", str(ws.renishaw_machine), "circle1",
                                             "--no-plot"], ws.renishaw_machine),
     ]
+    # Five-axis: the example trunnion's machine file (its [rotary] sections) and the probing,
+    # R-test and indexer files it names, each read by `abbe fit`.
+    f5 = str(ws.five_axis_machine)
+    fit5 = ["fit", f5, "-o", str(o("fit5")), "--no-report", "-q"]
+    t += [
+        Target("fit five-axis machine", fit5, ws.five_axis_machine, [o("fit5")]),
+        Target("fit five-axis probe", fit5, ws.five_axis_probe, [o("fit5")],
+               hostile_numbers=True),
+        Target("fit five-axis rtest", fit5, ws.five_axis_rtest, [o("fit5")],
+               hostile_numbers=True),
+        Target("fit five-axis indexer", fit5, ws.five_axis_indexer, [o("fit5")],
+               hostile_numbers=True),
+    ]  # abbe diagnose on this plan takes minutes: tests/cli/test_fuzz_five_axis.py fuzzes it
     ref = ["163.626", "-212.772", "-290.704"]
 
     def export(fmt: str, model: str, *extra: str) -> list[str]:

@@ -106,6 +106,10 @@ class Workspace:
     rtl: Path
     b5r: Path
     renishaw_machine: Path
+    five_axis_machine: Path
+    five_axis_probe: Path
+    five_axis_rtest: Path
+    five_axis_indexer: Path
 
 
 def _declared_export(laser_csv: Path, out: Path) -> None:
@@ -183,12 +187,18 @@ def make_workspace(root: Path) -> Workspace:
     etalon = root / "lasertracer.exc"
     _etalon(read_blob_file(blob)[1], etalon)
     rtl, b5r, rmach = _renishaw(camp)
+    five = root / "trunnion5ax"  # the five-axis example's campaign, its truth left out
+    five.mkdir()
+    for n in ("machine.toml", "probe.csv", "rtest.csv", "indexer_C.csv"):
+        shutil.copyfile(examples_dir() / "trunnion5ax" / n, five / n)
     return Workspace(root=root, machine=camp / "machine.toml", spec=spec,
                      laser=camp / "laser" / "x.csv", ballbar=camp / "ballbar" / "circle1.csv",
                      dat=dat, blob=blob, table_json=tjson, declared_machine=dm,
                      declared_laser=declared_laser, isg_csv=isg / "volcomp.csv",
                      isg_lis=isg / "volcomp.lis", etalon=etalon, rtl=rtl, b5r=b5r,
-                     renishaw_machine=rmach)
+                     renishaw_machine=rmach, five_axis_machine=five / "machine.toml",
+                     five_axis_probe=five / "probe.csv", five_axis_rtest=five / "rtest.csv",
+                     five_axis_indexer=five / "indexer_C.csv")
 
 
 def _renishaw(camp: Path) -> tuple[Path, Path, Path]:

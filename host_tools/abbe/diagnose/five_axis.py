@@ -92,16 +92,34 @@ class FiveAxisDiagnosis:
     named: list[Named] = field(default_factory=list)
     tried: list[dict[str, Any]] = field(default_factory=list)
 
+    #: expected RMS 3-D length of the sphere centres' noise (um), from the sphere fits'
+    #: residuals (:meth:`SphereCentres.centre_noise_um`); None without redundant points
+    noise_floor_um: float | None = None
+
     @property
     def shrink(self) -> float:
-        """Fraction of the held-out dispersion's excess over the final in-sample level that
-        the named effects removed: (before - after) / before on held-out RMS."""
+        """Raw held-out gap shrink: (before - after) / before of the held-out RMS of
+        prediction minus measured sphere centre (the location-only model before, with the
+        named effects after)."""
         b, a = self.base.heldout_after_um, self.final.heldout_after_um
         return (b - a) / b if b > 0 else 0.0
+
+    @property
+    def excess_shrink(self) -> float | None:
+        """Shrink of the held-out gap's excess over the centres' noise floor f, as the 3-axis
+        diagnose reports it (bench/bench_diagnose.py): 1 - sqrt(a^2 - f^2) / sqrt(b^2 - f^2)
+        (a below f counts as 0 excess). The part of the gap no model can remove is left out;
+        None without a floor or when the gap is already at it."""
+        f = self.noise_floor_um
+        b, a = self.base.heldout_after_um, self.final.heldout_after_um
+        if f is None or not b > f:
+            return None
+        return 1.0 - float(np.sqrt(max(a * a - f * f, 0.0) / (b * b - f * f)))
 
     def to_json(self) -> dict[str, Any]:
         return {"heldout_before_um": self.base.heldout_after_um,
                 "heldout_after_um": self.final.heldout_after_um, "shrink": self.shrink,
+                "noise_floor_um": self.noise_floor_um, "excess_shrink": self.excess_shrink,
                 "named": [{"effect": n.effect.key, "what": n.effect.what, "values": n.values,
                            "ci95": n.ci95, "amplitude": n.amplitude,
                            "amplitude_ci95": n.amplitude_ci95,
@@ -121,6 +139,12 @@ class FiveAxisDiagnosis:
                        f"{n.amplitude_ci95:.3f} ({vals}); held out {n.heldout_before_um:.3f} -> "
                        f"{n.heldout_after_um:.3f} um")
         out.append(f"Held-out shrink {self.shrink:.0%}")
+        if self.noise_floor_um is not None:
+            ex = self.excess_shrink
+            out.append("Sphere-centre noise floor (from the sphere fits) "
+                       f"{self.noise_floor_um:.3f} um; "
+                       + ("shrink of the gap above it " + f"{ex:.0%}" if ex is not None
+                          else "the gap is at the floor"))
         return "\n".join(out) + "\n"
 
 
@@ -157,7 +181,11 @@ def diagnose_five_axis(spec: FiveAxisSpec, blocks: list[Block]) -> FiveAxisDiagn
     n_c = max((len(np.unique(np.round(b.angles_deg[:, 1], 6))) for b in blocks
                if b.kind == "probe"), default=0)
     cands = catalogue(spec0, n_c)
-    diag = FiveAxisDiagnosis(base, base)
+    floors = [(b.noise_floor_um, len(b.obs)) for b in blocks
+              if b.kind == "probe" and b.noise_floor_um is not None]
+    floor = float(np.sqrt(sum(f * f * m for f, m in floors) / sum(m for _, m in floors))) \
+        if floors else None
+    diag = FiveAxisDiagnosis(base, base, noise_floor_um=floor)
     current, gap = params, base.heldout_after_um
     for _ in range(MAX_EFFECTS):
         best = None

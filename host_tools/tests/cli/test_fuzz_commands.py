@@ -40,7 +40,8 @@ EXAMPLES = {"table info": 100, "table eval": 60, "table from-json": 100, "table 
             "export fit-json": 12, "import isg-csv": 15, "import isg-lis": 15,
             "import etalon": 15, "import machine": 10, "iso230-2 rtl": 60, "fit rtl": 25,
             "ballbar b5r": 30, "ballbar renishaw machine": 20, "program positioning": 40,
-            "program ballbar": 30}
+            "program ballbar": 30, "fit five-axis machine": 6, "fit five-axis probe": 6,
+            "fit five-axis rtest": 4, "fit five-axis indexer": 4}
 
 
 @pytest.fixture(scope="module")
@@ -128,7 +129,8 @@ def test_option_values_are_range_checked(seed_ws, fuzz_env, name, capsys):
 
 
 HOSTILE = ["iso230-2 csv", "fit laser", "ballbar csv", "import isg-csv", "import etalon",
-           "iso230-2 rtl", "fit rtl", "ballbar b5r"]
+           "iso230-2 rtl", "fit rtl", "ballbar b5r", "fit five-axis probe", "fit five-axis rtest",
+           "fit five-axis indexer"]
 
 
 @pytest.mark.parametrize("name", HOSTILE)

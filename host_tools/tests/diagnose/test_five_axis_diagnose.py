@@ -20,13 +20,19 @@ def test_hidden_effect_is_named(tmp_path: Path, kind: str, seed: int) -> None:
     diag = diagnose_five_axis(spec, load_plan(spec).blocks)
     names = [n.effect.key for n in diag.named]
     assert names == ([expected] if expected else []), diag.tried
+    floor = diag.noise_floor_um
+    assert floor is not None and floor > 0 and diag.to_json()["noise_floor_um"] == floor
     if expected:
         n = diag.named[0]
         assert abs(n.amplitude - amp) <= max(n.amplitude_ci95, 0.1 * amp)
         assert diag.final.heldout_after_um < diag.base.heldout_after_um
         assert "Named:" in diag.text() and diag.to_json()["named"][0]["effect"] == expected
+        # the gap above the noise floor shrinks by more than the raw gap
+        assert diag.excess_shrink is not None and diag.excess_shrink > diag.shrink
     else:
         assert diag.shrink == 0.0 and "Nothing named" in diag.text()
+        # a clean machine's held-out gap is the sphere centres' noise, as the fits estimate it
+        assert 0.8 * floor <= diag.base.heldout_after_um <= 1.4 * floor
 
 
 @pytest.mark.parametrize("kind, seed", [("clean", 2), ("cyclic", 2)])

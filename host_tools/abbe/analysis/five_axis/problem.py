@@ -56,6 +56,8 @@ class Block:
     sigma: float | np.ndarray = 1.0  # per component (x, y, z) for probe and R-test blocks
     time_s: np.ndarray | None = None
     positions: np.ndarray | None = None  # probing position numbers (for reports)
+    #: probe blocks: expected RMS 3-D length of the centres' noise from the sphere fits (um)
+    noise_floor_um: float | None = None
 
     @property
     def key(self) -> str:

@@ -18,7 +18,10 @@ from abbe.formats.five_axis import ProbePoints
 @dataclass(frozen=True)
 class SphereCentres:
     """Per probing position: angles (M, 2) deg, time s (mean of its points), fitted
-    centre (M, 3) mm, radius (M,) mm, RMS of the fit (M,) um, radius check passed (M,)."""
+    centre (M, 3) mm, radius (M,) mm, RMS of the fit (M,) um, radius check passed (M,),
+    number of points (M,) and the centre's variance factor (M,): trace of the centre block
+    of (J^T J)^-1 of the geometric fit, so that the centre's 3-D variance is sigma^2 times
+    it for a point noise sigma (dimensionless)."""
 
     angles_deg: np.ndarray
     time_s: np.ndarray
@@ -27,6 +30,21 @@ class SphereCentres:
     rms_um: np.ndarray
     radius_ok: np.ndarray
     position: np.ndarray
+    n_points: np.ndarray
+    centre_factor: np.ndarray
+
+    def centre_noise_um(self, keep: np.ndarray | None = None) -> float | None:
+        """Expected RMS 3-D length of the fitted centres' noise (um): the point noise pooled
+        from the fits' residuals (sum of squares over their degrees of freedom, N - 4 each)
+        times each fit's variance factor. It holds every point-level error the radius fit
+        leaves, a direction-dependent pre-travel included, so it bounds the centre noise
+        from above. None when no fit has more points than unknowns."""
+        k = np.ones(self.rms_um.size, bool) if keep is None else keep
+        dof = float(np.sum(self.n_points[k] - 4))
+        if dof <= 0:
+            return None
+        s2 = float(np.sum(self.n_points[k] * self.rms_um[k] ** 2)) / dof
+        return float(np.sqrt(s2 * np.mean(self.centre_factor[k])))
 
 
 def fit_sphere(points_mm: np.ndarray) -> tuple[np.ndarray, float, float]:
@@ -52,12 +70,25 @@ def fit_sphere(points_mm: np.ndarray) -> tuple[np.ndarray, float, float]:
     return c + m, r, float(np.sqrt(np.mean(res ** 2)) * 1e3)
 
 
+def centre_factor(points_mm: np.ndarray, centre_mm: np.ndarray) -> float:
+    """Trace of the centre block of (J^T J)^-1 for the geometric sphere fit at its solution
+    (J: rows [-u_i, -1], u_i the unit direction from the centre to point i); inf when the
+    points do not fix a centre."""
+    v = np.asarray(points_mm, dtype=np.float64) - centre_mm
+    u = v / np.linalg.norm(v, axis=1)[:, None]
+    J = np.column_stack([-u, -np.ones(len(u))])
+    try:
+        return float(np.trace(np.linalg.inv(J.T @ J)[:3, :3]))
+    except np.linalg.LinAlgError:
+        return float("inf")
+
+
 def sphere_centres(pts: ProbePoints, nominal_radius_mm: float, tol_mm: float) -> SphereCentres:
     """Fit every position of a probing file; ``nominal_radius_mm`` = sphere + stylus radius."""
     ids = pts.position
     starts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1]])
     ends = np.r_[starts[1:], ids.size]
-    ang, t, c, r, rms, pos = [], [], [], [], [], []
+    ang, t, c, r, rms, pos, npt, fac = [], [], [], [], [], [], [], []
     for s, e in zip(starts, ends):
         ci, ri, q = fit_sphere(pts.points_mm[s:e])
         ang.append(pts.angles_deg[s])
@@ -66,6 +97,9 @@ def sphere_centres(pts: ProbePoints, nominal_radius_mm: float, tol_mm: float) ->
         r.append(ri)
         rms.append(q)
         pos.append(int(ids[s]))
+        npt.append(e - s)
+        fac.append(centre_factor(pts.points_mm[s:e], ci))
     r_arr = np.asarray(r)
     return SphereCentres(np.asarray(ang), np.asarray(t), np.asarray(c), r_arr, np.asarray(rms),
-                         np.abs(r_arr - nominal_radius_mm) <= tol_mm, np.asarray(pos))
+                         np.abs(r_arr - nominal_radius_mm) <= tol_mm, np.asarray(pos),
+                         np.asarray(npt), np.asarray(fac))
