@@ -38,8 +38,10 @@ mkdir -p "$BUILD"
     cat "$BUILD/build.log"
     exit 1
 }
-cd "$REPO/host_tools" &&
-    "$PY" "$HERE/sim_test.py" --sim "$BUILD/cmake/sim/grblHAL_sim" --stock "$BUILD/stock/grblHAL_sim" \
-        --table "$BUILD/fit/model.bin" --table2 "$BUILD/true_table.bin" \
-        --machine "$REPO/examples/vmc500/machine.toml" --json "$BUILD/e2e.json" &&
-    "$PY" "$HERE/program_sim.py" --stock "$BUILD/stock/grblHAL_sim" --json "$BUILD/programs.json"
+cd "$REPO/host_tools" || exit 1
+rc=0 # both checks run, each failure counts
+"$PY" "$HERE/sim_test.py" --sim "$BUILD/cmake/sim/grblHAL_sim" --stock "$BUILD/stock/grblHAL_sim" \
+    --table "$BUILD/fit/model.bin" --table2 "$BUILD/true_table.bin" \
+    --machine "$REPO/examples/vmc500/machine.toml" --json "$BUILD/e2e.json" || rc=1
+"$PY" "$HERE/program_sim.py" --stock "$BUILD/stock/grblHAL_sim" --json "$BUILD/programs.json" || rc=1
+exit $rc
