@@ -22,8 +22,9 @@
 #      closed loop through a Renishaw .rtl file (port/linuxcnc/tests/program_sim.py,
 #      under flock /tmp/abbe-linuxcnc.lock)
 #  12. grblHAL: the Simulator built with the abbe plugin from the snapshots in
-#      ../shared/vendor/grblhal, G-code checked against the Python reference
-#      (port/grblhal/tests/run.sh; skipped without the snapshots, a failure
+#      ../shared/vendor/grblhal, G-code checked against the Python reference;
+#      the measurement programs (abbe program, grblHAL dialect) in the unmodified
+#      Simulator (port/grblhal/tests/run.sh; skipped without the snapshots, a failure
 #      under CI=true)
 #  13. the README's demo command (scripts/demo.sh), run twice: into a new
 #      demo-out/ and over the old one

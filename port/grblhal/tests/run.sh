@@ -6,6 +6,8 @@
 #      table compiled in, and the unmodified Simulator (--stock)
 #   3. tests/sim_test.py: G-code through both, checked against the Python
 #      reference (see its docstring); figures in build-grblhal/e2e.json
+#   4. tests/program_sim.py: the measurement programs of `abbe program` (grblHAL
+#      dialect) in the unmodified Simulator (docs/programs.md); build-grblhal/programs.json
 # Needs the grblHAL snapshots: $ABBE_GRBLHAL_VENDOR, else ../shared/vendor/grblhal
 # beside the repository. Without them it skips with a message, except under
 # CI (CI=true), where that is a failure.
@@ -36,7 +38,10 @@ mkdir -p "$BUILD"
     cat "$BUILD/build.log"
     exit 1
 }
-cd "$REPO/host_tools" &&
-    "$PY" "$HERE/sim_test.py" --sim "$BUILD/cmake/sim/grblHAL_sim" --stock "$BUILD/stock/grblHAL_sim" \
-        --table "$BUILD/fit/model.bin" --table2 "$BUILD/true_table.bin" \
-        --machine "$REPO/examples/vmc500/machine.toml" --json "$BUILD/e2e.json"
+cd "$REPO/host_tools" || exit 1
+rc=0 # both checks run, each failure counts
+"$PY" "$HERE/sim_test.py" --sim "$BUILD/cmake/sim/grblHAL_sim" --stock "$BUILD/stock/grblHAL_sim" \
+    --table "$BUILD/fit/model.bin" --table2 "$BUILD/true_table.bin" \
+    --machine "$REPO/examples/vmc500/machine.toml" --json "$BUILD/e2e.json" || rc=1
+"$PY" "$HERE/program_sim.py" --stock "$BUILD/stock/grblHAL_sim" --json "$BUILD/programs.json" || rc=1
+exit $rc

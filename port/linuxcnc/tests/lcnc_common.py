@@ -247,6 +247,6 @@ def run_checked(cmd: list[str], timeout: float, **kw) -> subprocess.CompletedPro
 def main_wrapper(fn) -> None:
     try:
         fn()
-    except TestFailure as e:
+    except AssertionError as e:  # TestFailure, and the shared path checks' PathCheckFailed
         print(f"[lcnc] FAIL: {e}", file=sys.stderr, flush=True)
         sys.exit(1)
