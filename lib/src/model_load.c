@@ -759,7 +759,7 @@ static void build_rotary(abbe_rotary_model_t *ax, const uint8_t *b, const uint8_
     ax->n_comp = (uint8_t)popcount6(ax->comp_mask);
     /* no component, no coefficient arrays (NULL): the kernels' row pointer must
      * not be stepped through harmonics that have nothing to read */
-    ax->harmonics = ax->n_comp != 0u ? rec[RA_HARMONICS] : 0u;
+    ax->harmonics = ax->n_comp != 0u ? rec[RA_HARMONICS] : (uint8_t)0u;
     uint8_t column = 0;
     for (unsigned c = 0; c < ABBE_MOTIONS; c++) {
         if (((unsigned)ax->comp_mask >> c) & 1u) {
