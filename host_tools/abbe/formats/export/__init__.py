@@ -34,6 +34,7 @@ TARGETS: dict[str, str] = {
 FIVE_AXIS_TARGETS: dict[str, str] = {
     "linuxcnc-trt": "abbe.formats.export.linuxcnc_trt",
     "grblhal-rtcp-ac": "abbe.formats.export.grblhal_rtcp",
+    "sinumerik-carr": "abbe.formats.export.sinumerik_carr",
 }
 
 RESIDUAL_FILE = "residual.json"
