@@ -20,11 +20,18 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from export_readers import FormatError, carr_joints, read_sinumerik_carr
+from export_readers import (
+    FormatError,
+    carr_joints,
+    read_linuxcnc_trt,
+    read_sinumerik_carr,
+    trt_joints,
+)
 from golden_compare import compare_dir
 from test_linuxcnc_trt import (
     BC_MACHINE,
     GOLDEN,
+    HELD_ERRORS,
     MACHINE,
     MODEL,
     check_against_report,
@@ -143,6 +150,30 @@ def test_every_location_error_is_corrected(tmp_path, kind) -> None:
     # the part turns by axis - offset: the offset is -E0 in degrees
     assert vals[24] == pytest.approx(-np.degrees(e[f"E{tilt}0{tilt}"] * 1e-6), abs=1e-9)
     assert vals[25] == pytest.approx(-np.degrees(e["EC0C"] * 1e-6), abs=1e-9)
+
+
+@pytest.mark.parametrize("kind", sorted(HELD_ERRORS))
+def test_same_joints_as_linuxcnc_trt_where_both_hold_the_errors(tmp_path, kind) -> None:
+    """Without tilts both data sets describe the same machine: the type P chain (read from
+    the program) and trtfuncs.c (read from the HAL file; checked in LinuxCNC itself by
+    port/linuxcnc/tests/trt_sim_check.py) command the same joints."""
+    machine = MACHINE if kind == "xyzac-trt" else bc_machine(tmp_path)
+    geom = load_machine(machine).five_axis.geometry
+    (tmp_path / "m.bin").write_bytes(write_five_blob(
+        geom, FiveAxisErrors(location=dict(HELD_ERRORS[kind]))))
+    assert carr(tmp_path / "carr", tmp_path / "m.bin", machine) == 0
+    assert export(tmp_path / "trt", tmp_path / "m.bin", machine) == 0
+    _, vals = read_sinumerik_carr(tmp_path / "carr" / PROGRAM)
+    _, pins, home = read_linuxcnc_trt(tmp_path / "trt")
+    m = load_machine(machine)
+    (W, A), (Wp, Ap) = doc_poses(geom, {a: m.axes[a].travel_mm for a in "XYZ"}, n_lin=3)
+    for w, a in ((W, A), (Wp, Ap)):
+        q_carr, t_carr = carr_joints(vals, w, a)
+        q_trt = trt_joints(kind, pins, w, a)
+        assert np.max(np.abs(q_carr - q_trt)) < 2e-6          # the 6-decimal texts
+        # the table's angle: trt moves the joint scale (HOME_OFFSET), the data set the
+        # rotation (offset): the same axis positions relative to the table
+        assert np.max(np.abs((t_carr - a) - (-np.array([home[3], home[4]])))) < 2e-9
 
 
 def test_an_error_motion_is_named_with_its_size(tmp_path) -> None:
