@@ -614,6 +614,72 @@ def carr_joints(vals: dict, work_mm, angles_deg):
     return out, np.asarray(angles_deg, float).reshape(-1, 2) + off[None, :]
 
 
+# --- ISG / Beckhoff universal kinematics ID 91 (five-axis) --------------------------------
+
+def read_isg_kin91(path: Path):
+    """A channel parameter list fragment (TF5240, V3.00 syntax): ``# comments`` and lines
+    ``trafo[j].axis[k].type|orientation[i]|point[i] VALUE``, one transformation j.
+    Returns {k: {"type": int, "orientation": (3,), "point": (3,) mm}} (point read in
+    0.1 um)."""
+    axes: dict[int, dict] = {}
+    trafo = None
+    for line in path.read_text().splitlines():
+        t = line.strip()
+        if not t or t.startswith("#"):
+            continue
+        m = re.fullmatch(r"trafo\[(\d)\]\.axis\[(\d)\]\.(type|orientation|point)"
+                         r"(?:\[(\d)\])? +(-?\d+(?:\.\d+)?)", t)
+        if not m:
+            raise FormatError(f"not a universal kinematics axis entry: {line!r}")
+        if trafo not in (None, m[1]):
+            raise FormatError("two transformations")
+        trafo = m[1]
+        ax = axes.setdefault(int(m[2]), {})
+        key = m[3] if m[4] is None else f"{m[3]}[{m[4]}]"
+        if key in ax or (m[3] == "type") != (m[4] is None) or (m[4] is not None and int(m[4]) > 2):
+            raise FormatError(f"bad or repeated entry: {line!r}")
+        ax[key] = _num(m[5])
+    out = {}
+    for k, ax in axes.items():
+        want = {"type"} | {f"{n}[{i}]" for n in ("orientation", "point") for i in range(3)}
+        if set(ax) != want or ax["type"] != 2:
+            raise FormatError(f"axis[{k}]: a rotary axis needs type 2, orientation and point")
+        o = np.array([ax[f"orientation[{i}]"] for i in range(3)])
+        if not np.any(o):
+            raise FormatError(f"axis[{k}]: zero orientation vector")
+        out[k] = {"type": 2, "orientation": o / np.linalg.norm(o),
+                  "point": np.array([ax[f"point[{i}]"] for i in range(3)]) * 1e-4}
+    return out
+
+
+def _line_rotation(point, direction, angle_rad):
+    """4x4: rotation by angle (right-handed) about the line through point along direction."""
+    k = np.asarray(direction, float)
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    R = np.eye(3) + np.sin(angle_rad) * K + (1.0 - np.cos(angle_rad)) * (K @ K)
+    H = np.eye(4)
+    H[:3, :3] = R
+    H[:3, 3] = point - R @ point
+    return H
+
+
+def kin91_joints(axes: dict, chain: tuple[int, int], work_mm, angles_deg):
+    """The universal kinematics with RTCP: the chain runs from the workpiece over the
+    workpiece-side axes ``chain`` (C first, then the tilt: axis indices) to the linear axes
+    and the tool (zero position at the origin, linear axes along x, y, z). The tool tip's
+    position in the workpiece is H_C(c) H_tilt(a) q, each H a rotation about the axis'
+    point and orientation by its angle; the linear axes go to q = (H_C H_tilt)^-1 w.
+    angles (N, 2) = (tilt, C) deg, also the axis angles (RTCP)."""
+    c_axis, tilt_axis = (axes[k] for k in chain)
+    out = []
+    for w, (a, c) in zip(np.asarray(work_mm, float).reshape(-1, 3),
+                         np.radians(np.asarray(angles_deg, float).reshape(-1, 2))):
+        H = (_line_rotation(c_axis["point"], c_axis["orientation"], c)
+             @ _line_rotation(tilt_axis["point"], tilt_axis["orientation"], a))
+        out.append((np.linalg.inv(H) @ np.append(w, 1.0))[:3])
+    return np.array(out), np.asarray(angles_deg, float).reshape(-1, 2)
+
+
 READERS = {
     "linuxcnc-comp": lambda out: read_linuxcnc_comp(out)[0],
     "linuxcnc-matrixkins": read_matrixkins,
