@@ -192,6 +192,13 @@ def identified_lines(ctx: FiveContext) -> tuple[np.ndarray, np.ndarray]:
     return c, t
 
 
+def unobservable_notes(ctx: FiveContext, held: set[str]) -> list[str]:
+    """The note naming the held items the fit could not observe (written at nominal)."""
+    unobs = [n for n in ctx.not_observable if n in held]
+    return (["written at their nominal value (not observable by the fit): " + ", ".join(unobs)]
+            if unobs else [])
+
+
 def zero_offsets_deg(ctx: FiveContext) -> dict[str, float]:
     """The angular zero offsets (E{A,B}0{A,B}, EC0C) of the rotary axes, deg: the table
     turns by joint + E0."""

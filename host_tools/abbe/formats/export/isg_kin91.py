@@ -33,6 +33,7 @@ from abbe.formats.export.five_axis import (
     FiveExport,
     identified_lines,
     not_held,
+    unobservable_notes,
 )
 from abbe.formats.export.sinumerik_carr import axis_rotation, identified_direction
 from abbe.formats.export.target import Option, fmt
@@ -138,13 +139,10 @@ def build(ctx: FiveContext) -> FiveExport:
                   "from": f"nominal line moved by {', '.join(LOCATION_ERRORS[axis][:4])}"}
                  for key, axis, k in (("tilt", tilt, o["tilt_index"]), ("c", "C", o["c_index"]))]
     held = {n for a in (tilt, "C") for n in LOCATION_ERRORS[a][:4]}
-    unobs = [x for x in ctx.not_observable if x in held]
     notes = ["with RTCP the control computes the tool tip from the axis angles with these lines: "
              "the linear axes move so that the programmed point stays under the tool",
              "orientations are written as unit vectors (9 decimals)"]
-    if unobs:
-        notes.append("written at their nominal value (not observable by the fit): "
-                     + ", ".join(unobs))
+    notes += unobservable_notes(ctx, held)
     return FiveExport(
         target=NAME, files={"kin91_rotary.lis": ("\n".join(lines) + "\n").encode()},
         joints=joints, expressed=expressed, not_held=not_held(ctx, _cannot), notes=notes,

@@ -35,6 +35,7 @@ from abbe.formats.export.five_axis import (
     FiveExport,
     identified_lines,
     not_held,
+    unobservable_notes,
     zero_offsets_deg,
 )
 from abbe.formats.export.target import Option, fmt
@@ -197,7 +198,6 @@ def build(ctx: FiveContext) -> FiveExport:
                           "name": f"offset of rotary axis {axis}", "value": float(v),
                           "nominal": 0.0, "unit": "deg", "from": f"-E{axis}0{axis}"})
     held = set(LOCATION_ERRORS[tilt]) | set(LOCATION_ERRORS["C"])
-    unobs = [x for x in ctx.not_observable if x in held]
     notes = ["the control computes the tool tip from the axis positions with these values "
              "(CYCLE800 / TCARR frames): the linear axes move so that the programmed point "
              "stays under the tool as the table turns",
@@ -206,9 +206,7 @@ def build(ctx: FiveContext) -> FiveExport:
              "$TC_CARR1..3 (l1) are written 0: type P has no tool-side rotary axis; the other "
              "fields of the data set (name $TC_CARR34, Hirth 26..29, limits 30..33, user and "
              "retraction fields 35..40, fine offsets 41..65) are not touched"]
-    if unobs:
-        notes.append("written at their nominal value (not observable by the fit): "
-                     + ", ".join(unobs))
+    notes += unobservable_notes(ctx, held)
     return FiveExport(
         target=NAME,
         files={f"{o['program']}.MPF": ("\n".join(lines) + "\n").encode()},
