@@ -212,6 +212,8 @@ def build(ctx: FiveContext) -> FiveExport:
         files={f"{o['program']}.MPF": ("\n".join(lines) + "\n").encode()},
         joints=joints, expressed=expressed, not_held=not_held(ctx, _cannot), notes=notes,
         assumptions=[
+            "the control composes the data set as q = l2 + R(v1, a1) (l3 + R(v2, a2) (l4 + w)) "
+            "(abbe's reading of the Siemens pages: no reachable page prints the formula)",
             "abbe's machine coordinates are the MCS, the machine reference point of l2 at "
             "its zero; tool length 0 (the control adds the active tool's length)",
             f"rotary axis 1 is the tilt ({tilt_name}) carrying rotary axis 2 ({o['c_axis']}); "
