@@ -31,11 +31,12 @@ from abbe.formats.export.five_axis import (
     POSE_OPTIONS,
     FiveContext,
     FiveExport,
+    axis_rotation,
+    identified_direction,
     identified_lines,
     not_held,
     unobservable_notes,
 )
-from abbe.formats.export.sinumerik_carr import axis_rotation, identified_direction
 from abbe.formats.export.target import Option, fmt
 from abbe.model.five_axis import AXIS_DIRECTION, LOCATION_ERRORS
 

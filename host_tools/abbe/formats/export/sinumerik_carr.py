@@ -33,13 +33,15 @@ from abbe.formats.export.five_axis import (
     POSE_OPTIONS,
     FiveContext,
     FiveExport,
+    axis_rotation,
+    identified_direction,
     identified_lines,
     not_held,
     unobservable_notes,
     zero_offsets_deg,
 )
 from abbe.formats.export.target import Option, fmt
-from abbe.model.five_axis import AXIS_DIRECTION, LOCATION_ERRORS, small_rotation
+from abbe.model.five_axis import AXIS_DIRECTION, LOCATION_ERRORS
 
 NAME = "sinumerik-carr"
 SUMMARY = ("Siemens SINUMERIK toolholder data $TC_CARR (CYCLE800 swivel data record, "
@@ -85,27 +87,6 @@ def _cannot(label: str, kind: str) -> str | None:
     if kind == "squareness":
         return "linear-axis squareness: not part of the toolholder data"
     return "linear-axis errors: not part of the toolholder data (LEC / CEC, abbe's own)"
-
-
-def identified_direction(ctx: FiveContext, axis: str) -> np.ndarray:
-    """Unit direction of ``axis``' actual line at zero angles (machine coordinates): the
-    nominal direction turned by its two tilts (the model's Rx Ry Rz of the location
-    errors, :func:`abbe.model.five_axis.axis_transform`)."""
-    loc = ctx.errors.location
-    names = LOCATION_ERRORS[axis]
-    k = "XYZ".index({"A": "X", "B": "Y", "C": "Z"}[axis])
-    phi = np.zeros(3)
-    phi[[i for i in range(3) if i != k]] = [loc.get(names[2], 0.0), loc.get(names[3], 0.0)]
-    v = small_rotation(phi * 1e-6)[0] @ np.asarray(AXIS_DIRECTION[axis], dtype=np.float64)
-    return v / np.linalg.norm(v)
-
-
-def axis_rotation(v: np.ndarray, angles_deg: np.ndarray) -> np.ndarray:
-    """(N, 3, 3) right-handed rotations by ``angles_deg`` about the unit vector v."""
-    a = np.deg2rad(np.asarray(angles_deg, dtype=np.float64).reshape(-1))
-    K = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-    s, c = np.sin(a)[:, None, None], np.cos(a)[:, None, None]
-    return np.eye(3)[None] + s * K[None] + (1.0 - c) * (K @ K)[None]
 
 
 def carr_machine_position(vec: dict[str, np.ndarray], work_mm: np.ndarray,
