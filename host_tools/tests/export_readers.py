@@ -522,6 +522,164 @@ def rtcp_joints(a, c, work_mm, angles_deg):
     return np.array(out, dtype=float)
 
 
+# --- Siemens SINUMERIK toolholder data $TC_CARR (five-axis) -------------------------------
+
+#: REAL parameters of a data set the reader takes (W1: l1 1..3, l2 4..6, v1 7..9, v2 10..12,
+#: angles 13/14, l3 15..17, l4 18..20, offsets 24/25); 21/22 AXIS, 23 CHAR.
+CARR_REAL = set(range(1, 21)) | {24, 25}
+
+
+def read_sinumerik_carr(path: Path):
+    """A part program of $TC_CARR assignments as the control runs it: the header
+    ``%_N_NAME_MPF``, ``;`` comments, blocks ``N<k> $TC_CARR<i>[<m>]=<value>`` (with an
+    optional ``; comment``) and a last block ``M30``. One data set m. Parameters not
+    assigned keep their preset (W1: 0, type "T"). Returns (m, {i: value}) with REAL values
+    as float, 21/22 as axis names, 23 as the upper-case type letter."""
+    lines = path.read_text().splitlines()
+    if not lines or not re.fullmatch(r"%_N_[A-Z][A-Z0-9_]*_MPF", lines[0]):
+        raise FormatError(f"no program header: {lines[:1]}")
+    vals: dict[int, object] = {}
+    carrier, ended, last_n = None, False, 0
+    for line in lines[1:]:
+        t = line.split(";", 1)[0].strip()
+        if not t:
+            continue
+        if ended:
+            raise FormatError(f"block after M30: {line!r}")
+        m = re.fullmatch(r"N(\d+) (.*)", t)
+        if not m or int(m[1]) <= last_n:
+            raise FormatError(f"not an ascending block number: {line!r}")
+        last_n, body = int(m[1]), m[2]
+        if body == "M30":
+            ended = True
+            continue
+        m = re.fullmatch(r"\$TC_CARR(\d+)\[(\d+)\]=(\S+)", body)
+        if not m:
+            raise FormatError(f"not a $TC_CARR assignment: {line!r}")
+        i, k, v = int(m[1]), int(m[2]), m[3]
+        if carrier not in (None, k):
+            raise FormatError("two data sets")
+        carrier = k
+        if i in vals:
+            raise FormatError(f"$TC_CARR{i} assigned twice")
+        if i in CARR_REAL:
+            if not re.fullmatch(r"-?\d+(\.\d+)?", v):
+                raise FormatError(f"$TC_CARR{i}: not a REAL: {v!r}")
+            vals[i] = _num(v)
+        elif i in (21, 22):
+            if not re.fullmatch(r"[A-Z][A-Z0-9_]*", v):
+                raise FormatError(f"$TC_CARR{i}: not an axis name: {v!r}")
+            vals[i] = v
+        elif i == 23:
+            m = re.fullmatch(r'"([TPMtpm])"', v)
+            if not m:
+                raise FormatError(f"$TC_CARR23: kinematic type T, P or M expected: {v!r}")
+            vals[i] = m[1].upper()
+        else:
+            raise FormatError(f"$TC_CARR{i} is not a geometry parameter")
+    if not ended:
+        raise FormatError("no M30")
+    for i in CARR_REAL:
+        vals.setdefault(i, 0.0)
+    vals.setdefault(23, "T")
+    return carrier, vals
+
+
+def _turn(v, k, a):
+    """v turned right-handed by a (rad) about the unit vector k (Rodrigues' formula)."""
+    return v * np.cos(a) + np.cross(k, v) * np.sin(a) + k * np.dot(k, v) * (1.0 - np.cos(a))
+
+
+def carr_joints(vals: dict, work_mm, angles_deg):
+    """Kinematic type P (the part turns; rotary axis 2 is carried by rotary axis 1; the
+    offset vectors refer to the non-swivelled state): the machine position of a workpiece
+    point w is l2 + R1 (l3 + R2 (l4 + w)), R turning the part right-handed about the
+    (normalised) rotary axis vector by the axis position minus its offset ($TC_CARR24/25).
+    angles (N, 2): the part's rotations (deg) the program asks for; returns (positions mm,
+    axis positions deg) -- the axis goes to the rotation plus its offset."""
+    if vals[23] != "P":
+        raise FormatError(f"kinematic type {vals[23]}, not P")
+    vec = {name: np.array([vals[i] for i in (a, a + 1, a + 2)])
+           for name, a in (("l2", 4), ("v1", 7), ("v2", 10), ("l3", 15), ("l4", 18))}
+    for k in ("v1", "v2"):
+        n = np.linalg.norm(vec[k])
+        if n == 0.0:
+            raise FormatError(f"rotary axis vector {k} is 0")
+        vec[k] = vec[k] / n
+    off = np.array([vals[24], vals[25]])
+    rot = np.radians(np.asarray(angles_deg, float).reshape(-1, 2))
+    out = np.array([vec["l2"] + _turn(vec["l3"] + _turn(vec["l4"] + w, vec["v2"], a2),
+                                      vec["v1"], a1)
+                    for w, (a1, a2) in zip(np.asarray(work_mm, float).reshape(-1, 3), rot)])
+    return out, np.asarray(angles_deg, float).reshape(-1, 2) + off[None, :]
+
+
+# --- ISG / Beckhoff universal kinematics ID 91 (five-axis) --------------------------------
+
+def read_isg_kin91(path: Path):
+    """A channel parameter list fragment (TF5240, V3.00 syntax): ``# comments`` and lines
+    ``trafo[j].axis[k].type|orientation[i]|point[i] VALUE``, one transformation j.
+    Returns {k: {"type": int, "orientation": (3,), "point": (3,) mm}} (point read in
+    0.1 um)."""
+    axes: dict[int, dict] = {}
+    trafo = None
+    for line in path.read_text().splitlines():
+        t = line.strip()
+        if not t or t.startswith("#"):
+            continue
+        m = re.fullmatch(r"trafo\[(\d)\]\.axis\[(\d)\]\.(type|orientation|point)"
+                         r"(?:\[(\d)\])? +(-?\d+(?:\.\d+)?)", t)
+        if not m:
+            raise FormatError(f"not a universal kinematics axis entry: {line!r}")
+        if trafo not in (None, m[1]):
+            raise FormatError("two transformations")
+        trafo = m[1]
+        ax = axes.setdefault(int(m[2]), {})
+        key = m[3] if m[4] is None else f"{m[3]}[{m[4]}]"
+        if key in ax or (m[3] == "type") != (m[4] is None) or (m[4] is not None and int(m[4]) > 2):
+            raise FormatError(f"bad or repeated entry: {line!r}")
+        ax[key] = _num(m[5])
+    out = {}
+    for k, ax in axes.items():
+        want = {"type"} | {f"{n}[{i}]" for n in ("orientation", "point") for i in range(3)}
+        if set(ax) != want or ax["type"] != 2:
+            raise FormatError(f"axis[{k}]: a rotary axis needs type 2, orientation and point")
+        o = np.array([ax[f"orientation[{i}]"] for i in range(3)])
+        if not np.any(o):
+            raise FormatError(f"axis[{k}]: zero orientation vector")
+        out[k] = {"type": 2, "orientation": o / np.linalg.norm(o),
+                  "point": np.array([ax[f"point[{i}]"] for i in range(3)]) * 1e-4}
+    return out
+
+
+def _line_rotation(point, direction, angle_rad):
+    """4x4: rotation by angle (right-handed) about the line through point along direction."""
+    k = np.asarray(direction, float)
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    R = np.eye(3) + np.sin(angle_rad) * K + (1.0 - np.cos(angle_rad)) * (K @ K)
+    H = np.eye(4)
+    H[:3, :3] = R
+    H[:3, 3] = point - R @ point
+    return H
+
+
+def kin91_joints(axes: dict, chain: tuple[int, int], work_mm, angles_deg):
+    """The universal kinematics with RTCP: the chain runs from the workpiece over the
+    workpiece-side axes ``chain`` (C first, then the tilt: axis indices) to the linear axes
+    and the tool (zero position at the origin, linear axes along x, y, z). The tool tip's
+    position in the workpiece is H_C(c) H_tilt(a) q, each H a rotation about the axis'
+    point and orientation by its angle; the linear axes go to q = (H_C H_tilt)^-1 w.
+    angles (N, 2) = (tilt, C) deg, also the axis angles (RTCP)."""
+    c_axis, tilt_axis = (axes[k] for k in chain)
+    out = []
+    for w, (a, c) in zip(np.asarray(work_mm, float).reshape(-1, 3),
+                         np.radians(np.asarray(angles_deg, float).reshape(-1, 2))):
+        H = (_line_rotation(c_axis["point"], c_axis["orientation"], c)
+             @ _line_rotation(tilt_axis["point"], tilt_axis["orientation"], a))
+        out.append((np.linalg.inv(H) @ np.append(w, 1.0))[:3])
+    return np.array(out), np.asarray(angles_deg, float).reshape(-1, 2)
+
+
 READERS = {
     "linuxcnc-comp": lambda out: read_linuxcnc_comp(out)[0],
     "linuxcnc-matrixkins": read_matrixkins,

@@ -34,6 +34,8 @@ TARGETS: dict[str, str] = {
 FIVE_AXIS_TARGETS: dict[str, str] = {
     "linuxcnc-trt": "abbe.formats.export.linuxcnc_trt",
     "grblhal-rtcp-ac": "abbe.formats.export.grblhal_rtcp",
+    "sinumerik-carr": "abbe.formats.export.sinumerik_carr",
+    "isg-kin91": "abbe.formats.export.isg_kin91",
 }
 
 RESIDUAL_FILE = "residual.json"

@@ -42,6 +42,7 @@ import numpy as np
 from abbe.errors import AbbeInputError
 from abbe.formats.export.target import Option
 from abbe.model.five_axis import (
+    AXIS_DIRECTION,
     LOCATION_ERRORS,
     MOTION_COMPONENTS,
     FiveAxisErrors,
@@ -190,6 +191,34 @@ def identified_lines(ctx: FiveContext) -> tuple[np.ndarray, np.ndarray]:
     t[i1] += 1e-3 * loc.get(n1, 0.0)
     t[i2] += 1e-3 * loc.get(n2, 0.0)
     return c, t
+
+
+def identified_direction(ctx: FiveContext, axis: str) -> np.ndarray:
+    """Unit direction of ``axis``' actual line at zero angles (machine coordinates): the
+    nominal direction turned by its two tilts (the model's Rx Ry Rz of the location
+    errors, :func:`abbe.model.five_axis.axis_transform`)."""
+    loc = ctx.errors.location
+    names = LOCATION_ERRORS[axis]
+    k = "XYZ".index({"A": "X", "B": "Y", "C": "Z"}[axis])
+    phi = np.zeros(3)
+    phi[[i for i in range(3) if i != k]] = [loc.get(names[2], 0.0), loc.get(names[3], 0.0)]
+    v = small_rotation(phi * 1e-6)[0] @ np.asarray(AXIS_DIRECTION[axis], dtype=np.float64)
+    return v / np.linalg.norm(v)
+
+
+def axis_rotation(v: np.ndarray, angles_deg: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) right-handed rotations by ``angles_deg`` about the unit vector v."""
+    a = np.deg2rad(np.asarray(angles_deg, dtype=np.float64).reshape(-1))
+    K = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    s, c = np.sin(a)[:, None, None], np.cos(a)[:, None, None]
+    return np.eye(3)[None] + s * K[None] + (1.0 - c) * (K @ K)[None]
+
+
+def unobservable_notes(ctx: FiveContext, held: set[str]) -> list[str]:
+    """The note naming the held items the fit could not observe (written at nominal)."""
+    unobs = [n for n in ctx.not_observable if n in held]
+    return (["written at their nominal value (not observable by the fit): " + ", ".join(unobs)]
+            if unobs else [])
 
 
 def zero_offsets_deg(ctx: FiveContext) -> dict[str, float]:
