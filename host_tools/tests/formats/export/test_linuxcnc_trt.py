@@ -182,13 +182,18 @@ HELD_ERRORS = {"xyzac-trt": {"EX0C": 30.0, "EY0C": -20.0, "EY0A": 15.0, "EZ0A": 
                              "EB0B": -45.0, "EC0C": 70.0}}
 
 
+def machine_for(kind: str, tmp_path: Path) -> Path:
+    """The example's machine file (A/C) or BC_MACHINE written into tmp_path."""
+    if kind == "xyzac-trt":
+        return MACHINE
+    machine = tmp_path / "bc.toml"
+    machine.write_text(BC_MACHINE)
+    return machine
+
+
 @pytest.mark.parametrize("kind", sorted(HELD_ERRORS))
 def test_what_trt_holds_is_corrected_exactly(tmp_path, kind) -> None:
-    if kind == "xyzac-trt":
-        machine = MACHINE
-    else:
-        machine = tmp_path / "bc.toml"
-        machine.write_text(BC_MACHINE)
+    machine = machine_for(kind, tmp_path)
     geom = load_machine(machine).five_axis.geometry
     errs = FiveAxisErrors(location=dict(HELD_ERRORS[kind]))
     (tmp_path / "model_five.bin").write_bytes(write_five_blob(geom, errs))
@@ -278,11 +283,7 @@ def test_component_table_is_the_same_machine(tmp_path, kind) -> None:
     table transforms agree at every angle, and it holds none of what trt holds."""
     from abbe.formats.five_axis_blob import read_five_blob
 
-    if kind == "xyzac-trt":
-        machine = MACHINE
-    else:
-        machine = tmp_path / "bc.toml"
-        machine.write_text(BC_MACHINE)
+    machine = machine_for(kind, tmp_path)
     geom = load_machine(machine).five_axis.geometry
     tilt = geom.tilt
     rng = np.random.default_rng(23)
