@@ -35,7 +35,12 @@ joints with the exported pins). The joints follow axis.L.pos-cmd by two periods
     programmed point, against the deviation of tcp_off (trt alone) and of the
     nominal machine without abbe (computed from the same path);
   - the frame: the joints move by the component's joint-frame correction, in TCP
-    through workpiece-frame offsets (abbe.frame 1), in identity directly (frame 0).
+    through workpiece-frame offsets (abbe.frame 1), in identity directly (frame 0);
+  - the switch from trt to identity kinematics (M429 at A -20, C 45 with the
+    correction on) is measured: LinuxCNC 2.9.0~pre1 recomputes the world position
+    from the joints WITH the offset in them, so the joints step by the offset in
+    force (docs/linuxcnc.md: switch with the compensation off); checked to be no
+    more than that plus the rate limit.
 
 Every wait is bounded; LinuxCNC is stopped by the pid of its display.
 """
@@ -80,7 +85,7 @@ G1 C90
 G1 A15 C150
 G1 A-40 C60
 G1 X10 Y15 Z35 F900
-G1 X40 Y-25 Z20 A0 C0 F1200
+G1 X40 Y-25 Z20 A-20 C45 F1200
 M2
 """
 JOINT_PROGRAM = """(abbe five_sim: identity kinematics, joint moves with A and C)
@@ -354,6 +359,27 @@ def analyse(work: Path, pins: dict, home: dict) -> dict:
                   f"{name}: the joints do not carry the correction: {res['joints_minus_correction']}")
             check(res["deviation"]["max_um"] < BOUND_UM,
                   f"{name}: tool tip {res['deviation']} from the programmed point (bound {BOUND_UM} um)")
+        if name == "joints_on":
+            # M429 with the correction on, at A -20 C 45: LinuxCNC takes the joints (offset
+            # included) as the new world position and adds the offset again; the offsets
+            # then move to the identity frame at the rate limit (1 um per period)
+            k = r["kinstype"]
+            sw = int(np.argmax(k == 0.0))
+            check(k[0] == 1.0 and sw > 0, "joints_on: the switch to identity was not recorded")
+            still = np.all(np.abs(np.diff(r["world"], axis=0)) < 1e-9, axis=1) & \
+                np.all(np.abs(np.diff(r["world_ang"], axis=0)) < 1e-9, axis=1)
+            end = sw + int(np.argmin(still[sw:]))  # the first motion after the switch
+            step = np.abs(np.diff(r["motor"][:, :3], axis=0))[sw:end]
+            res["switch"] = {"periods_before_motion": int(end - sw),
+                             "joint_step_max_um": round(float(step.max(initial=0.0)) * 1e3, 4),
+                             "joint_change_um": round(float(np.linalg.norm(
+                                 r["motor"][end, :3] - r["motor"][sw, :3])) * 1e3, 4),
+                             "offset_at_switch_um": round(float(np.linalg.norm(
+                                 r["eoffset"][sw - 1])) * 1e3, 4)}
+            jump = float(np.max(np.abs(r["motor"][end, :3] - r["motor"][sw, :3]))) * 1e3
+            check(jump <= float(np.max(np.abs(r["eoffset"][sw - 1]))) * 1e3 + (end - sw) * 1.0 + 0.01,
+                  f"joints_on: the kinematics switch moved the joints more than the offset: "
+                  f"{res['switch']}")
         report[name] = res
     off, on = report["tcp_off"]["deviation"], report["tcp_on"]["deviation"]
     check(on["max_um"] * 10 < off["max_um"], f"abbe does not take off 90 %: {on} vs {off}")
