@@ -38,9 +38,9 @@ A module built with a compiled-in table (build.sh --builtin) uses it when no
 """;
 
 // ---- inputs, per axis (x, y, z) ------------------------------------------
-pin in float x.pos_mm "Commanded X position, machine coordinates, mm: axis.x.pos-cmd (excludes the external offset)";
-pin in float y.pos_mm "Commanded Y position, mm: axis.y.pos-cmd";
-pin in float z.pos_mm "Commanded Z position, mm: axis.z.pos-cmd";
+pin in float x.pos_mm "Commanded X position, machine coordinates, mm: axis.x.pos-cmd (excludes the external offset); five-axis: joint.0.pos-cmd";
+pin in float y.pos_mm "Commanded Y position, mm: axis.y.pos-cmd; five-axis: joint.1.pos-cmd";
+pin in float z.pos_mm "Commanded Z position, mm: axis.z.pos-cmd; five-axis: joint.2.pos-cmd";
 pin in float tilt.pos_deg "Five-axis: tilt joint position (A; B for xyzbc-trt), degrees: joint.3.pos-cmd";
 pin in float c.pos_deg "Five-axis: C joint position, degrees: joint.4.pos-cmd";
 pin in float kinstype "Five-axis: the kinematics in force (the signal driving motion.switchkins-type)";
@@ -65,7 +65,7 @@ pin out float z.corr_mm "Z correction, mm";
 pin out float x.target_mm "X correction the model asks for (unfaded), mm";
 pin out float y.target_mm "Y correction the model asks for, mm";
 pin out float z.target_mm "Z correction the model asks for, mm";
-pin out float x.offset_mm "X external offset LinuxCNC has been asked for (as axis.x.eoffset-request), mm";
+pin out float x.offset_mm "X external offset LinuxCNC has been asked for (as axis.x.eoffset-request), mm; five-axis: in the world frame (see frame), corr-mm and target-mm in the joint frame";
 pin out float y.offset_mm "Y external offset LinuxCNC has been asked for, mm";
 pin out float z.offset_mm "Z external offset LinuxCNC has been asked for, mm";
 pin out s32 x.counts "To axis.x.eoffset-counts (1 count = 1 nm)";
