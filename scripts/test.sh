@@ -13,7 +13,8 @@
 #   8. the wheel: built from host_tools/, installed with the lock into a fresh venv
 #      outside the checkout, abbe demo / fit / diagnose run there
 #   9. LinuxCNC: the HAL component built and installed, halrun and simulator
-#      tests (port/linuxcnc/tests/run.sh; halrun / linuxcnc run as an
+#      tests, the xyzac-trt simulator with the trt export and the component in
+#      five-axis mode (port/linuxcnc/tests/run.sh; halrun / linuxcnc run as an
 #      unprivileged user, created when run as root)
 #  10. clang/LLVM cross builds (build-m4f-clang/, build-m3-clang/: the same
 #      golden vectors, C++ consumer and symbol checks under QEMU as steps 3-4)

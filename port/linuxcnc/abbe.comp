@@ -19,14 +19,31 @@ the library's reason. The first runs; \\fBtable-select\\fR switches at a cycle
 boundary. A relative path is relative to the directory LinuxCNC was started in
 (the configuration's directory).
 \\fBvariant\\fR: q (default; integer evaluation from positions in nm) or f32.
+
+Five-axis mode (tables of format 1.2 with a rotary section, written by abbe
+fit on a five-axis machine file or by abbe export -f linuxcnc-trt as
+abbe-five.bin; all tables of one kinematics): the inputs are the JOINT
+positions (x/y/z.pos-mm from joint.0..2.pos-cmd, tilt.pos-deg and c.pos-deg
+from joint.3/4.pos-cmd); the tool tip error is corrected through X, Y, Z and
+the orientation error the linear axes cannot correct is reported on
+orient-x/y/z-urad. External offsets are added in LinuxCNC's world
+coordinates: under identity kinematics those are the joints and the offsets
+are the correction itself; under the trt kinematics (tool-centre-point) they
+are workpiece coordinates and the offsets are the correction turned back
+through the table's rotation (frame 1). \\fBkinstype\\fR (net it to the signal
+that drives motion.switchkins-type) says which is in force, by the values of
+kins-identity and kins-tcp.
 A module built with a compiled-in table (build.sh --builtin) uses it when no
 \\fBtable\\fR is given.
 """;
 
 // ---- inputs, per axis (x, y, z) ------------------------------------------
-pin in float x.pos_mm "Commanded X position, machine coordinates, mm: axis.x.pos-cmd (excludes the external offset)";
-pin in float y.pos_mm "Commanded Y position, mm: axis.y.pos-cmd";
-pin in float z.pos_mm "Commanded Z position, mm: axis.z.pos-cmd";
+pin in float x.pos_mm "Commanded X position, machine coordinates, mm: axis.x.pos-cmd (excludes the external offset); five-axis: joint.0.pos-cmd";
+pin in float y.pos_mm "Commanded Y position, mm: axis.y.pos-cmd; five-axis: joint.1.pos-cmd";
+pin in float z.pos_mm "Commanded Z position, mm: axis.z.pos-cmd; five-axis: joint.2.pos-cmd";
+pin in float tilt.pos_deg "Five-axis: tilt joint position (A; B for xyzbc-trt), degrees: joint.3.pos-cmd";
+pin in float c.pos_deg "Five-axis: C joint position, degrees: joint.4.pos-cmd";
+pin in float kinstype "Five-axis: the kinematics in force (the signal driving motion.switchkins-type)";
 pin in float x.temp_c = 20.0 "X axis temperature, deg C (used when the table has thermal terms)";
 pin in float y.temp_c = 20.0 "Y axis temperature, deg C";
 pin in float z.temp_c = 20.0 "Z axis temperature, deg C";
@@ -48,15 +65,20 @@ pin out float z.corr_mm "Z correction, mm";
 pin out float x.target_mm "X correction the model asks for (unfaded), mm";
 pin out float y.target_mm "Y correction the model asks for, mm";
 pin out float z.target_mm "Z correction the model asks for, mm";
-pin out float x.offset_mm "X external offset LinuxCNC has been asked for (as axis.x.eoffset-request), mm";
+pin out float x.offset_mm "X external offset LinuxCNC has been asked for (as axis.x.eoffset-request), mm; five-axis: in the world frame (see frame), corr-mm and target-mm in the joint frame";
 pin out float y.offset_mm "Y external offset LinuxCNC has been asked for, mm";
 pin out float z.offset_mm "Z external offset LinuxCNC has been asked for, mm";
 pin out s32 x.counts "To axis.x.eoffset-counts (1 count = 1 nm)";
 pin out s32 y.counts "To axis.y.eoffset-counts";
 pin out s32 z.counts "To axis.z.eoffset-counts";
+pin out float orient_x_urad "Five-axis: tool orientation error about X the linear axes cannot correct (rotation vector, machine frame), urad";
+pin out float orient_y_urad "Five-axis: orientation error about Y, urad";
+pin out float orient_z_urad "Five-axis: orientation error about Z, urad";
 
 // ---- outputs, state -----------------------------------------------------------
 pin out float eoffset_scale "To axis.L.eoffset-scale: 1 nm in machine units";
+pin out s32 kind "Kinematics of the tables: 0 3-axis, 1 xyzac-trt, 2 xyzbc-trt";
+pin out s32 frame "Frame of the offsets: 0 joints (3-axis, identity kinematics), 1 workpiece (trt kinematics), -1 unknown kinstype (fading out)";
 pin out s32 state "0 off (or fading out), 1 on, 2 fault (latched until reset)";
 pin out bit active "State on and not held: corrections are being applied";
 pin out bit warning "A correction target is above its warning limit";
@@ -91,6 +113,8 @@ param rw float stale_s "Invalid input for this long: fade out, s";
 param rw float dir_deadband_mm "Reverse motion that turns the backlash direction, mm";
 param rw float lead_periods "Evaluate the model this many servo periods ahead (LinuxCNC applies an offset 2 periods late)";
 param rw float machine_unit_mm "mm per machine length unit: 1 (mm) or 25.4 (inch); sets eoffset-scale";
+param rw s32 kins_identity "Five-axis: kinstype of identity kinematics (0 with sparm=identityfirst, as the trt sample configs)";
+param rw s32 kins_tcp "Five-axis: kinstype of the trt (tool-centre-point) kinematics (1 with sparm=identityfirst; != kins-identity)";
 
 option singleton yes;
 option extra_setup yes;
@@ -108,6 +132,16 @@ author "abbe contributors";
 #undef x_pos_mm
 #undef y_pos_mm
 #undef z_pos_mm
+#undef tilt_pos_deg
+#undef c_pos_deg
+#undef kinstype
+#undef orient_x_urad
+#undef orient_y_urad
+#undef orient_z_urad
+#undef kind
+#undef frame
+#undef kins_identity
+#undef kins_tcp
 #undef x_temp_c
 #undef y_temp_c
 #undef z_temp_c
@@ -203,6 +237,8 @@ static void read_params(struct __comp_state *__comp_inst, abbe_lcnc_params_t *p)
     p->dir_deadband_mm = PARAM(dir_deadband_mm);
     p->lead_periods = PARAM(lead_periods);
     p->machine_unit_mm = PARAM(machine_unit_mm);
+    p->kins_identity = PARAM(kins_identity);
+    p->kins_tcp = PARAM(kins_tcp);
 }
 
 FUNCTION(_) {
@@ -215,6 +251,9 @@ FUNCTION(_) {
     in.pos_mm[0] = PIN(x_pos_mm);
     in.pos_mm[1] = PIN(y_pos_mm);
     in.pos_mm[2] = PIN(z_pos_mm);
+    in.angle_deg[0] = PIN(tilt_pos_deg);
+    in.angle_deg[1] = PIN(c_pos_deg);
+    in.kinstype = PIN(kinstype);
     in.temp_c[0] = PIN(x_temp_c);
     in.temp_c[1] = PIN(y_temp_c);
     in.temp_c[2] = PIN(z_temp_c);
@@ -241,6 +280,11 @@ FUNCTION(_) {
     PIN(x_counts) = out.counts[0];
     PIN(y_counts) = out.counts[1];
     PIN(z_counts) = out.counts[2];
+    PIN(orient_x_urad) = out.orient_urad[0];
+    PIN(orient_y_urad) = out.orient_urad[1];
+    PIN(orient_z_urad) = out.orient_urad[2];
+    PIN(kind) = (rtapi_s32)abbe_lcnc_kind(&abbe_port);
+    PIN(frame) = out.frame;
     PIN(eoffset_scale) = out.eoffset_scale;
     PIN(state) = out.state;
     PIN(active) = out.state == ABBE_COMP_ON && (out.flags & ABBE_LCNC_FLAG_HOLD) == 0u;
@@ -303,6 +347,14 @@ EXTRA_SETUP() {
             rtapi_print_msg(RTAPI_MSG_ERR, "abbe: table %s: %s\n", table[i], why);
             return -EINVAL;
         }
+        if (i > 0 && abbe_lcnc_blob_kind(abbe_table_store[i], size) != abbe_lcnc_kind(&abbe_port)) {
+            rtapi_print_msg(RTAPI_MSG_ERR,
+                            "abbe: table %s: kinematics %u (0 3-axis, 1 xyzac-trt, 2 xyzbc-trt) differs "
+                            "from the first table's %u: one kind for all tables\n",
+                            table[i], (unsigned)abbe_lcnc_blob_kind(abbe_table_store[i], size),
+                            (unsigned)abbe_lcnc_kind(&abbe_port));
+            return -EINVAL;
+        }
         st = abbe_lcnc_add_table(&abbe_port, abbe_table_store[i], size);
         if (st != ABBE_OK) {
             rtapi_print_msg(RTAPI_MSG_ERR, "abbe: table %s refused: %s (status %d)\n", table[i],
@@ -332,5 +384,7 @@ EXTRA_SETUP() {
     PARAM(dir_deadband_mm) = p.dir_deadband_mm;
     PARAM(lead_periods) = p.lead_periods;
     PARAM(machine_unit_mm) = p.machine_unit_mm;
+    PARAM(kins_identity) = p.kins_identity;
+    PARAM(kins_tcp) = p.kins_tcp;
     return 0; /* pins do not exist yet here: FUNCTION writes every output */
 }

@@ -14,6 +14,12 @@ the cost; the maximum includes whatever the non-RT scheduler did to the
 thread and says nothing about an RT kernel.
 
   port/linuxcnc/bench/rt_cost.py [--seconds 60] [--variant q|f32|both] [--json OUT]
+                                 [--five TABLE]
+
+--five TABLE: a five-axis table (format 1.2, e.g. the golden trunnion5ax fit
+host_tools/tests/formats/export/golden/trunnion5ax-fit/model_five.bin) instead,
+the tilt joint on the circle's sine (+/-100 deg) and C on a triangle wave, identity
+kinematics (kinstype 0): the five-axis mode's cost per period.
 
 Needs the component installed (port/linuxcnc/build.sh --install); as root it
 runs halrun as $ABBE_LCNC_USER (port/linuxcnc/tests/run.sh creates it).
@@ -61,7 +67,7 @@ def tsc_mhz() -> float:
         return float(subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout)
 
 
-def run(work: Path, table: Path, variant: str, seconds: float) -> np.ndarray:
+def run(work: Path, table: Path, variant: str, seconds: float, five: bool = False) -> np.ndarray:
     n = int(seconds * 1000)
     script = work / f"bench_{variant}.hal"
     out = work / f"time_{variant}.txt"
@@ -81,6 +87,8 @@ def run(work: Path, table: Path, variant: str, seconds: float) -> np.ndarray:
         "net x sum2.0.out => abbe.x.pos-mm",
         "net y sum2.1.out => abbe.y.pos-mm",
         f"setp abbe.z.pos-mm {CENTRE[2]}",
+        *(["net sy => abbe.tilt.pos-deg", "net tri siggen.0.triangle => abbe.c.pos-deg",
+           "setp abbe.kinstype 0"] if five else []),
         "setp abbe.x.temp-c 23.5", "setp abbe.y.temp-c 21.0", "setp abbe.z.temp-c 18.5",
         "setp abbe.homed 1", "setp abbe.machine-on 1", "setp abbe.enable 1",
         "net t abbe.time => sampler.0.pin.0",
@@ -123,19 +131,26 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=60.0)
     ap.add_argument("--variant", choices=["q", "f32", "both"], default="both")
     ap.add_argument("--json", type=Path, default=REPO / "build-linuxcnc" / "rt_cost.json")
+    ap.add_argument("--five", type=Path, help="a five-axis table (format 1.2) instead")
     args = ap.parse_args()
     work = work_dir("abbe-rtcost-")
     try:
-        table = make_table(REPO / "examples/vmc500/truth/true_table.json", work / "vmc500.bin")
+        if args.five:
+            table = work / "five.bin"
+            table.write_bytes(args.five.read_bytes())
+            give(table)
+        else:
+            table = make_table(REPO / "examples/vmc500/truth/true_table.json", work / "vmc500.bin")
         mhz = tsc_mhz()
         lcnc = subprocess.run(["dpkg-query", "-W", "-f=${Version}", "linuxcnc-uspace"],
                               capture_output=True, text=True).stdout
         result = {"mode": "LinuxCNC uspace, POSIX non-realtime (no RT kernel)",
                   "cpu": cpu_model(), "kernel": platform.release(), "linuxcnc": lcnc,
                   "tsc_mhz": round(mhz, 3), "period_ns": 1000000, "seconds": args.seconds,
-                  "table": "examples/vmc500/truth/true_table.json (all features)", "variants": {}}
+                  "table": (str(args.five) if args.five else
+                            "examples/vmc500/truth/true_table.json (all features)"), "variants": {}}
         for v in (["q", "f32"] if args.variant == "both" else [args.variant]):
-            result["variants"][v] = summary(run(work, table, v, args.seconds), mhz)
+            result["variants"][v] = summary(run(work, table, v, args.seconds, bool(args.five)), mhz)
             s = result["variants"][v]
             log(f"{v}: median {s['median_ns']:.0f} ns, p99 {s['p99_ns']:.0f} ns, "
                 f"p99.9 {s['p99_9_ns']:.0f} ns, max {s['max_ns']:.0f} ns over {s['samples']} periods")

@@ -29,7 +29,20 @@
  *     requested offset equals the correction whatever the history of machine
  *     off / on, homing and enable;
  *   - up to ABBE_LCNC_MAX_TABLES tables validated at load time; table-select
- *     swaps between them at a cycle boundary (abbe_comp_swap_model).
+ *     swaps between them at a cycle boundary (abbe_comp_swap_model);
+ *   - five-axis mode (docs/linuxcnc.md, "Five-axis machines"), chosen by the
+ *     tables (format 1.2 with a rotary section; all tables of one kind): the
+ *     inputs are the JOINT positions X, Y, Z, tilt, C, the library's
+ *     abbe_comp_step5_* corrects the tool tip through X, Y, Z in the joint
+ *     (machine) frame, and the port turns that correction into the frame of
+ *     LinuxCNC's world coordinates, where external offsets are added before
+ *     the inverse kinematics: under identity kinematics world = joints (the
+ *     correction as it is); under the trt kinematics (tool-centre-point)
+ *     world = workpiece coordinates and a world offset e moves the joints by
+ *     R_tilt(t) Rz(c) e, so the port writes Rz(c)^T R_tilt(t)^T correction.
+ *     Which kinematics is in force comes from the kinstype input (the value
+ *     motion.switchkins-type gets); a value that is neither kins_identity nor
+ *     kins_tcp is an invalid input (hold, then fade out after stale_s).
  *
  * No heap, no I/O, no libm: abbe_lcnc_step() runs in bounded time (the
  * library's evaluation plus a few dozen operations).
@@ -52,6 +65,12 @@
 #define ABBE_LCNC_FLAG_TABLE_SELECT 0x00020000u /* table-select names no loaded table: the running one stays */
 #define ABBE_LCNC_FLAG_HOLD 0x00040000u         /* LinuxCNC takes no offset changes now (machine off or not homed) */
 #define ABBE_LCNC_FLAG_CATCHUP 0x00080000u      /* LinuxCNC's offset is still moving to the correction at the rate limit */
+#define ABBE_LCNC_FLAG_KINS 0x00100000u         /* five-axis: kinstype names neither kins_identity nor kins_tcp */
+
+/* Frame of the external offsets (output.frame). */
+#define ABBE_LCNC_FRAME_JOINTS 0     /* identity kinematics (and every 3-axis table): world = joints */
+#define ABBE_LCNC_FRAME_WORKPIECE 1  /* trt kinematics, tool-centre-point: world = workpiece coordinates */
+#define ABBE_LCNC_FRAME_UNKNOWN (-1) /* kinstype names no known kinematics: the correction fades out */
 
 typedef enum {
     ABBE_LCNC_VARIANT_Q = 0,  /* abbe_comp_step_q: positions as integer nm (default) */
@@ -69,11 +88,16 @@ typedef struct {
     double dir_deadband_mm;          /* motion that sets the backlash direction (>= 0) */
     double lead_periods;             /* evaluate this many periods ahead (0 .. 100), see below */
     double machine_unit_mm;          /* mm per LinuxCNC length unit: 1 (mm) or 25.4 (inch) */
+    int32_t kins_identity;           /* five-axis: kinstype of identity kinematics (world = joints) */
+    int32_t kins_tcp;                /* five-axis: kinstype of the trt kinematics (world = workpiece); != kins_identity */
 } abbe_lcnc_params_t;
 
 /* One servo period's inputs. */
 typedef struct {
-    double pos_mm[ABBE_AXES];   /* commanded axis position, machine coordinates, mm */
+    double pos_mm[ABBE_AXES];   /* 3-axis: commanded axis position (axis.L.pos-cmd); five-axis:
+                                   commanded joint position X, Y, Z (joint.N.pos-cmd); mm */
+    double angle_deg[ABBE_ROTARY_AXES]; /* five-axis: tilt (A or B) and C joint positions, degrees */
+    double kinstype;            /* five-axis: the kinematics in force (motion.switchkins-type) */
     double temp_c[ABBE_AXES];   /* axis temperature, deg C (used if the table has THERMAL) */
     uint8_t axis_fault[ABBE_AXES]; /* 1: this axis' correction fades out */
     uint8_t enable;             /* compensation wanted */
@@ -86,7 +110,11 @@ typedef struct {
 typedef struct {
     double corr_mm[ABBE_AXES];   /* correction (faded, rate limited), mm */
     double target_mm[ABBE_AXES]; /* what the model asks for (unfaded), mm */
-    double offset_mm[ABBE_AXES]; /* LinuxCNC's requested external offset as the port tracks it, mm */
+    double offset_mm[ABBE_AXES]; /* LinuxCNC's requested external offset as the port tracks it, mm
+                                    (world frame: see frame) */
+    double orient_urad[3];       /* five-axis: tool orientation error the linear axes cannot correct
+                                    (rotation vector, machine frame, as the model evaluates it), urad */
+    int32_t frame;               /* ABBE_LCNC_FRAME_*: frame of offset_mm / counts */
     int32_t counts[ABBE_AXES];   /* for axis.L.eoffset-counts (1 count = 1 nm) */
     double eoffset_scale;        /* for axis.L.eoffset-scale: 1 nm in machine units */
     uint32_t flags;              /* ABBE_FLAG_* | ABBE_LCNC_FLAG_* */
@@ -104,13 +132,18 @@ typedef struct {
  * fields are private. */
 typedef struct {
     abbe_comp_t comp;
-    abbe_model_t model[ABBE_LCNC_MAX_TABLES];
+    abbe_five_model_t model[ABBE_LCNC_MAX_TABLES]; /* a 3-axis table: its `linear` member only */
     unsigned n_tables;
+    uint32_t kind;           /* ABBE_KIN_* of every table (0: 3-axis) */
     int32_t active;          /* table running (or queued to run next cycle) */
     abbe_lcnc_variant_t variant;
     abbe_comp_config_t cfg;  /* configuration in force */
     int32_t deadband_nm;     /* backlash direction deadband in force */
     double eoffset_scale;    /* axis.L.eoffset-scale in force */
+    int32_t kins_identity;   /* kinstype values in force */
+    int32_t kins_tcp;
+    int32_t frame;           /* ABBE_LCNC_FRAME_* of the offsets (the last known one) */
+    double held_angle_deg[ABBE_ROTARY_AXES]; /* the last valid (lead) angles */
     abbe_lcnc_params_t params_seen;
     long period_seen_ns;
     uint8_t params_bad;      /* the parameters last seen did not convert */
@@ -125,6 +158,7 @@ typedef struct {
     uint8_t have_anchor;
     /* lead */
     int32_t last_pos_nm[ABBE_AXES];
+    double last_angle_deg[ABBE_ROTARY_AXES];
     uint8_t have_last;
     double lead_periods;     /* lead in force */
     /* LinuxCNC's external-offset register, mirrored */
@@ -134,7 +168,9 @@ typedef struct {
 } abbe_lcnc_t;
 
 /* Defaults: warn 0.05 mm, limit 0.1 mm, rate 1 mm/s, sign +1, fade 0.5 s,
- * stale 0.01 s, deadband 0.0005 mm, lead 2 periods, machine unit 1 mm. */
+ * stale 0.01 s, deadband 0.0005 mm, lead 2 periods, machine unit 1 mm,
+ * kins_identity 0, kins_tcp 1 (LinuxCNC's trt sample configurations, loaded
+ * with sparm=identityfirst; without it trt is 0 and identity 1). */
 void abbe_lcnc_default_params(abbe_lcnc_params_t *params);
 
 /* The compensator configuration for params at a thread period. Returns
@@ -149,11 +185,21 @@ abbe_status_t abbe_lcnc_params_to_config(const abbe_lcnc_params_t *params, long 
 abbe_status_t abbe_lcnc_init(abbe_lcnc_t *port, abbe_lcnc_variant_t variant,
                              const abbe_lcnc_params_t *params, long period_ns);
 
-/* Validate a table (abbe_model_load) into the next slot; the first one added
- * runs. blob must be 4-byte aligned and stay valid and unchanged while the port
- * lives. Returns ABBE_OK, the loader's status (nothing added), or ABBE_E_ARG
- * for NULL or no free slot. Call before the first step. */
+/* Validate a table into the next slot (a 3-axis table: abbe_model_load; a
+ * five-axis one: abbe_five_model_load, and the port runs in five-axis mode);
+ * the first one added runs. blob must be 4-byte aligned and stay valid and
+ * unchanged while the port lives. Returns ABBE_OK, the loader's status
+ * (nothing added), or ABBE_E_ARG for NULL, no free slot or a table whose
+ * kinematics (abbe_lcnc_blob_kind) differs from the first one's. Call before
+ * the first step. */
 abbe_status_t abbe_lcnc_add_table(abbe_lcnc_t *port, const void *blob, size_t size);
+
+/* ABBE_KIN_* of a valid table (0 for a 3-axis one), or 0xFFFFFFFF if it is
+ * not valid. */
+uint32_t abbe_lcnc_blob_kind(const void *blob, size_t size);
+
+/* ABBE_KIN_* of the tables added (0: 3-axis mode). */
+uint32_t abbe_lcnc_kind(const abbe_lcnc_t *port);
 
 /* Tables added. */
 unsigned abbe_lcnc_table_count(const abbe_lcnc_t *port);

@@ -86,6 +86,8 @@ void abbe_lcnc_default_params(abbe_lcnc_params_t *params)
     params->dir_deadband_mm = 0.0005;
     params->lead_periods = 2.0;
     params->machine_unit_mm = 1.0;
+    params->kins_identity = 0;
+    params->kins_tcp = 1;
 }
 
 abbe_status_t abbe_lcnc_params_to_config(const abbe_lcnc_params_t *params, long period_ns,
@@ -113,7 +115,7 @@ abbe_status_t abbe_lcnc_params_to_config(const abbe_lcnc_params_t *params, long 
         params->dir_deadband_mm > 1000.0 || !finite_d(params->lead_periods) ||
         params->lead_periods < 0.0 || params->lead_periods > 100.0 ||
         !finite_d(params->machine_unit_mm) ||
-        !(params->machine_unit_mm > 0.0)) {
+        !(params->machine_unit_mm > 0.0) || params->kins_identity == params->kins_tcp) {
         return ABBE_E_ARG;
     }
     *cfg = c;
@@ -140,9 +142,31 @@ abbe_status_t abbe_lcnc_init(abbe_lcnc_t *port, abbe_lcnc_variant_t variant,
     port->deadband_nm = (int32_t)round_i64(params->dir_deadband_mm * NM_PER_MM);
     port->lead_periods = params->lead_periods;
     port->eoffset_scale = 1.0 / (NM_PER_MM * params->machine_unit_mm);
+    port->kins_identity = params->kins_identity;
+    port->kins_tcp = params->kins_tcp;
     memcpy(&port->params_seen, params, sizeof port->params_seen);
     port->period_seen_ns = period_ns;
     return ABBE_OK;
+}
+
+/* Load blob into *slot: a five-axis table as one, a 3-axis table through
+ * abbe_model_load into its linear member (the 3-axis path stays exactly the
+ * 3-axis library's). *kind: ABBE_KIN_*. */
+static abbe_status_t load_table(abbe_five_model_t *slot, const void *blob, size_t size, uint32_t *kind)
+{
+    abbe_status_t st = abbe_five_model_load(slot, blob, size);
+    if (st != ABBE_OK) {
+        return st;
+    }
+    *kind = abbe_five_model_kind(slot);
+    return *kind == ABBE_KIN_NONE ? abbe_model_load(&slot->linear, blob, size) : ABBE_OK;
+}
+
+uint32_t abbe_lcnc_blob_kind(const void *blob, size_t size)
+{
+    abbe_five_model_t m;
+    uint32_t kind = 0;
+    return (blob != NULL && load_table(&m, blob, size, &kind) == ABBE_OK) ? kind : 0xFFFFFFFFu;
 }
 
 abbe_status_t abbe_lcnc_add_table(abbe_lcnc_t *port, const void *blob, size_t size)
@@ -150,16 +174,28 @@ abbe_status_t abbe_lcnc_add_table(abbe_lcnc_t *port, const void *blob, size_t si
     if (port == NULL || blob == NULL || port->n_tables >= ABBE_LCNC_MAX_TABLES) {
         return ABBE_E_ARG;
     }
-    abbe_status_t st = abbe_model_load(&port->model[port->n_tables], blob, size);
+    abbe_five_model_t m;
+    uint32_t kind = 0;
+    abbe_status_t st = load_table(&m, blob, size, &kind);
     if (st != ABBE_OK) {
         return st;
     }
+    if (port->n_tables > 0u && kind != port->kind) {
+        return ABBE_E_ARG; /* the pins mean axis or joint positions: one kind for all tables */
+    }
+    (void)load_table(&port->model[port->n_tables], blob, size, &kind); /* a view: valid as m was */
     if (port->n_tables == 0u) {
-        (void)abbe_comp_swap_model(&port->comp, &port->model[0]); /* runs from the first step */
+        port->kind = kind;
+        (void)abbe_comp_swap_model(&port->comp, &port->model[0].linear); /* runs from the first step */
         port->active = 0;
     }
     port->n_tables++;
     return ABBE_OK;
+}
+
+uint32_t abbe_lcnc_kind(const abbe_lcnc_t *port)
+{
+    return port != NULL ? port->kind : 0u;
 }
 
 unsigned abbe_lcnc_table_count(const abbe_lcnc_t *port)
@@ -169,7 +205,7 @@ unsigned abbe_lcnc_table_count(const abbe_lcnc_t *port)
 
 uint32_t abbe_lcnc_table_crc(const abbe_lcnc_t *port, unsigned i)
 {
-    return (port != NULL && i < port->n_tables) ? abbe_model_crc(&port->model[i]) : 0u;
+    return (port != NULL && i < port->n_tables) ? abbe_model_crc(&port->model[i].linear) : 0u;
 }
 
 /* Parameters or period changed: convert and apply without touching the state. */
@@ -188,6 +224,8 @@ static void follow_params(abbe_lcnc_t *port, const abbe_lcnc_params_t *params, l
         port->deadband_nm = (int32_t)round_i64(params->dir_deadband_mm * NM_PER_MM);
         port->lead_periods = params->lead_periods;
         port->eoffset_scale = 1.0 / (NM_PER_MM * params->machine_unit_mm);
+        port->kins_identity = params->kins_identity;
+        port->kins_tcp = params->kins_tcp;
         port->params_bad = 0;
     } else {
         port->params_bad = 1;
@@ -223,10 +261,18 @@ static void follow_direction(abbe_lcnc_t *port, const int32_t pos_nm[ABBE_AXES],
     }
 }
 
-/* Replace pos_nm by the position lead_periods ahead, from this period's
- * motion: p + round(lead * (p - p_previous)), clamped to int32. */
-static void lead(abbe_lcnc_t *port, int32_t pos_nm[ABBE_AXES])
+/* Replace pos_nm (and the angles) by the position lead_periods ahead, from
+ * this period's motion: p + round(lead * (p - p_previous)), clamped to int32;
+ * angles a + lead * (a - a_previous). */
+static void lead(abbe_lcnc_t *port, int32_t pos_nm[ABBE_AXES], double angle_deg[ABBE_ROTARY_AXES])
 {
+    for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {
+        double a = angle_deg[r];
+        if (port->have_last) {
+            angle_deg[r] = a + port->lead_periods * (a - port->last_angle_deg[r]);
+        }
+        port->last_angle_deg[r] = a;
+    }
     for (unsigned j = 0; j < ABBE_AXES; j++) {
         int32_t p = pos_nm[j];
         if (port->have_last) {
@@ -248,11 +294,87 @@ static int running_index(const abbe_lcnc_t *port)
 {
     const abbe_model_t *m = abbe_comp_model(&port->comp);
     for (unsigned i = 0; i < port->n_tables; i++) {
-        if (m == &port->model[i]) {
+        if (m == &port->model[i].linear) {
             return (int)i;
         }
     }
     return -1;
+}
+
+/* An angle in degrees reduced to [-180, 180] (the model is periodic in one
+ * turn; the q variant takes +/-2147 degrees). a must be finite. */
+static double reduce_deg(double a)
+{
+    double turns = a / 360.0;
+    if (turns > 9e15 || turns < -9e15) {
+        return 0.0; /* beyond double's integers: no fraction of a turn is left */
+    }
+    return a - 360.0 * (double)round_i64(turns);
+}
+
+/* sin and cos of an angle in [-180, 180] degrees, double precision, no libm:
+ * the nearest quarter turn q is taken out exactly (90 q is exact in double),
+ * the rest r in [-45, 45] degrees goes through Taylor series to x^17 / x^18
+ * (truncation below 1e-18 at pi/4). The library's sin/cos are float or Q30 of
+ * an integer phase: the offsets' rotation is done in the port's double. */
+static void sincos_deg(double deg, double *s_out, double *c_out)
+{
+    int64_t q = round_i64(deg / 90.0);
+    double x = (deg - 90.0 * (double)q) * 0.017453292519943295769; /* pi / 180 */
+    double z = x * x;
+    double s = 1.0, c = 1.0;
+    for (int k = 17; k >= 3; k -= 2) { /* 1 - z/(2*3) (1 - z/(4*5) (...)) */
+        s = 1.0 - z / (double)((k - 1) * k) * s;
+    }
+    for (int k = 18; k >= 2; k -= 2) {
+        c = 1.0 - z / (double)((k - 1) * k) * c;
+    }
+    s *= x;
+    switch ((int)(q & 3)) { /* two's complement: q & 3 is q mod 4 for negative q too */
+    case 1: *s_out = c; *c_out = -s; break;
+    case 2: *s_out = -s; *c_out = -c; break;
+    case 3: *s_out = -c; *c_out = s; break;
+    default: *s_out = s; *c_out = c; break;
+    }
+}
+
+/* The correction v (joint frame) as a world offset under the trt kinematics:
+ * Rz(c)^T R_tilt(t)^T v, R_tilt = Rx (xyzac) or Ry (xyzbc); trtfuncs.c's
+ * inverse kinematics moves the joints by R_tilt(t) Rz(c) e for a world change e. */
+static void joints_to_workpiece(uint32_t kind, const double angle_deg[ABBE_ROTARY_AXES], const double v[3],
+                                double w[3])
+{
+    double st, ct, sc, cc, u[3];
+    sincos_deg(angle_deg[0], &st, &ct);
+    sincos_deg(angle_deg[1], &sc, &cc);
+    if (kind == ABBE_KIN_XYZBC_TRT) { /* Ry(t)^T */
+        u[0] = ct * v[0] - st * v[2];
+        u[1] = v[1];
+        u[2] = st * v[0] + ct * v[2];
+    } else { /* Rx(t)^T */
+        u[0] = v[0];
+        u[1] = ct * v[1] + st * v[2];
+        u[2] = -st * v[1] + ct * v[2];
+    }
+    w[0] = cc * u[0] + sc * u[1]; /* Rz(c)^T */
+    w[1] = -sc * u[0] + cc * u[1];
+    w[2] = u[2];
+}
+
+/* ABBE_LCNC_FRAME_* of the kinematics in force. */
+static int32_t frame_of(const abbe_lcnc_t *port, double kinstype)
+{
+    if (port->kind == ABBE_KIN_NONE) {
+        return ABBE_LCNC_FRAME_JOINTS;
+    }
+    if (!finite_d(kinstype) || kinstype > 2e9 || kinstype < -2e9) {
+        return ABBE_LCNC_FRAME_UNKNOWN;
+    }
+    int64_t k = round_i64(kinstype); /* motion.switchkins-type is a float pin carrying an integer */
+    if (k == port->kins_tcp) {
+        return ABBE_LCNC_FRAME_WORKPIECE;
+    }
+    return k == port->kins_identity ? ABBE_LCNC_FRAME_JOINTS : ABBE_LCNC_FRAME_UNKNOWN;
 }
 
 static int32_t u32_to_i32(uint32_t u)
@@ -298,7 +420,7 @@ void abbe_lcnc_step(abbe_lcnc_t *port, const abbe_lcnc_params_t *params, long pe
     /* Table selection: a pointer swap at the start of the next library step. */
     if (in->table_select != port->active) {
         if (in->table_select >= 0 && (unsigned)in->table_select < port->n_tables) {
-            (void)abbe_comp_swap_model(&port->comp, &port->model[in->table_select]);
+            (void)abbe_comp_swap_model(&port->comp, &port->model[in->table_select].linear);
             port->active = in->table_select;
         } else {
             port_flags |= ABBE_LCNC_FLAG_TABLE_SELECT;
@@ -321,10 +443,13 @@ void abbe_lcnc_step(abbe_lcnc_t *port, const abbe_lcnc_params_t *params, long pe
         port->enabled = 0;
     }
 
-    /* Inputs. A NaN/Inf position (or temperature, where the table uses them)
+    /* Inputs. A NaN/Inf position (or temperature, where the table uses them;
+     * or angle, or a kinstype naming no known kinematics, in five-axis mode)
      * is a bad input: the compensator holds, then fades out after stale_s. */
+    const int five = port->kind != ABBE_KIN_NONE;
     int fresh = 1;
     int32_t pos_nm[ABBE_AXES];
+    double angle_deg[ABBE_ROTARY_AXES] = {0.0, 0.0};
     for (unsigned j = 0; j < ABBE_AXES; j++) {
         if (finite_d(in->pos_mm[j])) {
             pos_nm[j] = mm_to_nm(in->pos_mm[j]);
@@ -333,8 +458,22 @@ void abbe_lcnc_step(abbe_lcnc_t *port, const abbe_lcnc_params_t *params, long pe
             fresh = 0;
         }
     }
+    int32_t frame = frame_of(port, in->kinstype);
+    if (five) {
+        for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {
+            if (finite_d(in->angle_deg[r])) {
+                angle_deg[r] = in->angle_deg[r];
+            } else {
+                fresh = 0;
+            }
+        }
+        if (frame == ABBE_LCNC_FRAME_UNKNOWN) {
+            port_flags |= ABBE_LCNC_FLAG_KINS;
+            fresh = 0;
+        }
+    }
     int thermal = port->n_tables > 0u &&
-                  (abbe_model_features(&port->model[port->active]) & ABBE_FEATURE_THERMAL) != 0u;
+                  (abbe_model_features(&port->model[port->active].linear) & ABBE_FEATURE_THERMAL) != 0u;
     for (unsigned j = 0; thermal && j < ABBE_AXES; j++) {
         if (!finite_d(in->temp_c[j])) {
             fresh = 0;
@@ -345,38 +484,81 @@ void abbe_lcnc_step(abbe_lcnc_t *port, const abbe_lcnc_params_t *params, long pe
          * model sees, ahead. (A direction from the extrapolated positions
          * would take the overshoot of every stop for a reversal.) */
         follow_direction(port, pos_nm, port->deadband_nm);
-        lead(port, pos_nm);
+        lead(port, pos_nm, angle_deg);
+        for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {
+            angle_deg[r] = reduce_deg(angle_deg[r]);
+        }
     } else {
         port->have_last = 0; /* the lead restarts from the next valid position */
     }
 
-    abbe_comp_output_t co;
+    abbe_comp_output5_t co;
+    uint8_t fault_mask = 0;
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        fault_mask = (uint8_t)(fault_mask | (in->axis_fault[j] ? 1u << j : 0u));
+    }
     if (port->variant == ABBE_LCNC_VARIANT_F32) {
-        abbe_comp_input_f32_t ci;
+        abbe_comp_input5_f32_t ci;
         for (unsigned j = 0; j < ABBE_AXES; j++) {
-            ci.pos_mm[j] = fresh ? (float)((double)pos_nm[j] / NM_PER_MM) : (float)in->pos_mm[j];
-            ci.temp_c[j] = thermal ? (float)in->temp_c[j] : 0.0f;
-            ci.dir[j] = port->dir[j];
+            ci.lin.pos_mm[j] = fresh ? (float)((double)pos_nm[j] / NM_PER_MM) : (float)in->pos_mm[j];
+            ci.lin.temp_c[j] = thermal ? (float)in->temp_c[j] : 0.0f;
+            ci.lin.dir[j] = port->dir[j];
         }
-        ci.fresh = (uint8_t)fresh;
-        ci.axis_fault_mask = 0;
-        for (unsigned j = 0; j < ABBE_AXES; j++) {
-            ci.axis_fault_mask = (uint8_t)(ci.axis_fault_mask | (in->axis_fault[j] ? 1u << j : 0u));
+        ci.lin.fresh = (uint8_t)fresh;
+        ci.lin.axis_fault_mask = fault_mask;
+        if (five) {
+            ci.angle_deg[0] = (float)angle_deg[0];
+            ci.angle_deg[1] = (float)angle_deg[1];
+            (void)abbe_comp_step5_f32(&port->comp, &ci, &co);
+        } else {
+            (void)abbe_comp_step_f32(&port->comp, &ci.lin, &co.lin);
         }
-        (void)abbe_comp_step_f32(&port->comp, &ci, &co);
     } else {
-        abbe_comp_input_q_t ci;
+        abbe_comp_input5_q_t ci;
         for (unsigned j = 0; j < ABBE_AXES; j++) {
-            ci.pos_nm[j] = pos_nm[j];
-            ci.temp_mdegc[j] = (thermal && fresh) ? c_to_mdegc(in->temp_c[j]) : 0;
-            ci.dir[j] = port->dir[j];
+            ci.lin.pos_nm[j] = pos_nm[j];
+            ci.lin.temp_mdegc[j] = (thermal && fresh) ? c_to_mdegc(in->temp_c[j]) : 0;
+            ci.lin.dir[j] = port->dir[j];
         }
-        ci.fresh = (uint8_t)fresh;
-        ci.axis_fault_mask = 0;
+        ci.lin.fresh = (uint8_t)fresh;
+        ci.lin.axis_fault_mask = fault_mask;
+        if (five) {
+            for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) { /* |angle| <= 180: in range */
+                ci.angle_udeg[r] = (int32_t)round_i64(angle_deg[r] * 1e6);
+            }
+            (void)abbe_comp_step5_q(&port->comp, &ci, &co);
+        } else {
+            (void)abbe_comp_step_q(&port->comp, &ci.lin, &co.lin);
+        }
+    }
+    if (!five) {
+        co.orient_nrad[0] = co.orient_nrad[1] = co.orient_nrad[2] = 0;
+    }
+
+    /* The correction in the frame the offsets are added in (five-axis, trt
+     * kinematics: workpiece coordinates at this period's lead angles; an
+     * unknown frame keeps the last one: the correction is fading out anyway). */
+    if (frame != ABBE_LCNC_FRAME_UNKNOWN) {
+        port->frame = frame;
+    }
+    int64_t world_nm[ABBE_AXES];
+    if (five && port->frame == ABBE_LCNC_FRAME_WORKPIECE) {
+        double v[3], w[3];
         for (unsigned j = 0; j < ABBE_AXES; j++) {
-            ci.axis_fault_mask = (uint8_t)(ci.axis_fault_mask | (in->axis_fault[j] ? 1u << j : 0u));
+            v[j] = (double)co.lin.corr_nm[j];
         }
-        (void)abbe_comp_step_q(&port->comp, &ci, &co);
+        joints_to_workpiece(port->kind, fresh ? angle_deg : port->held_angle_deg, v, w);
+        for (unsigned j = 0; j < ABBE_AXES; j++) {
+            world_nm[j] = round_i64(w[j]);
+        }
+    } else {
+        for (unsigned j = 0; j < ABBE_AXES; j++) {
+            world_nm[j] = co.lin.corr_nm[j];
+        }
+    }
+    if (fresh) {
+        port->held_angle_deg[0] = angle_deg[0];
+        port->held_angle_deg[1] = angle_deg[1];
     }
 
     /* The counts: move LinuxCNC's register toward the correction, within the
@@ -385,7 +567,7 @@ void abbe_lcnc_step(abbe_lcnc_t *port, const abbe_lcnc_params_t *params, long pe
     for (unsigned j = 0; j < ABBE_AXES; j++) {
         int32_t delta = 0;
         if (accepting) {
-            int64_t want = (int64_t)co.corr_nm[j] - port->accepted_nm[j];
+            int64_t want = world_nm[j] - port->accepted_nm[j];
             int64_t rate = port->cfg.rate_nm_per_cycle[j];
             delta = (int32_t)(want > rate ? rate : (want < -rate ? -rate : want));
             if (want != delta) {
@@ -395,18 +577,21 @@ void abbe_lcnc_step(abbe_lcnc_t *port, const abbe_lcnc_params_t *params, long pe
         port->counts[j] += (uint32_t)delta; /* wraps like LinuxCNC's s32 difference */
         port->pending_nm[j] = delta;
         out->counts[j] = u32_to_i32(port->counts[j]);
-        out->corr_mm[j] = (double)co.corr_nm[j] / NM_PER_MM;
-        out->target_mm[j] = (double)co.target_nm[j] / NM_PER_MM;
+        out->corr_mm[j] = (double)co.lin.corr_nm[j] / NM_PER_MM;
+        out->target_mm[j] = (double)co.lin.target_nm[j] / NM_PER_MM;
         out->offset_mm[j] = (double)port->accepted_nm[j] / NM_PER_MM;
+        out->orient_urad[j] = (double)co.orient_nrad[j] / 1000.0;
     }
+    out->frame = five ? frame : ABBE_LCNC_FRAME_JOINTS;
+    abbe_comp_output_t *col = &co.lin;
     out->eoffset_scale = port->eoffset_scale;
-    out->flags = co.flags | port_flags;
-    out->state = (int32_t)co.state;
+    out->flags = col->flags | port_flags;
+    out->state = (int32_t)col->state;
     int idx = running_index(port);
     out->table_active = idx;
-    out->model_crc = idx >= 0 ? abbe_model_crc(&port->model[idx]) : 0u;
-    out->warning = (co.flags & ABBE_FLAG_WARN) != 0u;
-    out->fault = co.state == ABBE_COMP_FAULT;
+    out->model_crc = idx >= 0 ? abbe_model_crc(&port->model[idx].linear) : 0u;
+    out->warning = (col->flags & ABBE_FLAG_WARN) != 0u;
+    out->fault = col->state == ABBE_COMP_FAULT;
     out->config_error = port->params_bad;
     out->stats = abbe_comp_stats(&port->comp);
     out->config_errors = port->config_errors;

@@ -17,7 +17,7 @@ Checked against the model through the ``abbe`` CLI (the float64 reference):
   - the counts never change by more than the rate limit in a period;
   - the f32 variant agrees with the reference as well;
   - a missing, damaged or foreign table file refuses the load with the
-    library's status text.
+    library's status text; so do a 3-axis and a five-axis table together.
 
 Usage: halrun_test.py (the component installed: port/linuxcnc/build.sh --install)
 """
@@ -366,6 +366,21 @@ def test_bad_tables(work: Path, good: Path) -> None:
         check(f"abbe: table {path}" in text and expect in text,
               f"{name}: expected '{expect}' in:\n{text}")
         log(f"bad table {name}: refused ({expect})")
+    # a five-axis table after a 3-axis one: the pins would mean axis and joint positions
+    five = work / "five.bin"
+    five.write_bytes((REPO / "host_tools/tests/formats/export/golden/trunnion5ax-fit/"
+                      "model_five.bin").read_bytes())
+    give(five)
+    script = work / "bad.hal"
+    script.write_text(f"loadrt abbe table={good},{five}\n")
+    give(script)
+    hal_clean()
+    res = subprocess.run(as_user(["halrun", "-f", str(script)]), cwd=work, capture_output=True,
+                         text=True, stdin=subprocess.DEVNULL, timeout=60)
+    check(res.returncode != 0 and f"abbe: table {five}: kinematics 1" in res.stdout + res.stderr
+          and "one kind for all tables" in res.stdout + res.stderr,
+          f"a 3-axis and a five-axis table loaded together:\n{res.stdout}{res.stderr}")
+    log("3-axis + five-axis tables: refused (one kind for all tables)")
     script = work / "bad.hal"
     script.write_text("loadrt abbe\n")
     give(script)

@@ -21,6 +21,7 @@
 #include "abbe_lcnc.h"
 #include "abbe_lcnc_file.h"
 #include "golden_data.h"
+#include "golden_five.h"
 
 #define PERIOD_NS 1000000L
 
@@ -803,6 +804,188 @@ static void test_read_file(void **state)
     assert_string_equal(why, "empty file");
 }
 
+/* ---- five-axis mode --------------------------------------------------------------- */
+
+/* The golden five-axis table `name` in slot `slot`. */
+static const abbe_golden_five_table_t *golden_five(const char *name, unsigned slot, const void **blob)
+{
+    for (uint32_t i = 0; i < abbe_golden_five_table_count; i++) {
+        const abbe_golden_five_table_t *t = &abbe_golden_five_tables[i];
+        if (strcmp(t->name, name) == 0) {
+            assert_true(t->blob_size <= sizeof blob_store[slot]);
+            memcpy(blob_store[slot], t->blob, t->blob_size);
+            *blob = blob_store[slot];
+            return t;
+        }
+    }
+    fail_msg("golden five-axis table %s missing", name);
+    return NULL;
+}
+
+/* The joint-frame correction v as a world offset under trt kinematics, written
+ * here with libm: e = (R_tilt(t) Rz(c))^T v. */
+static void expect_workpiece(uint32_t kind, double t_deg, double c_deg, const double v[3], double e[3])
+{
+    const double pi = 3.14159265358979323846;
+    double t = t_deg * pi / 180.0, c = c_deg * pi / 180.0;
+    double rt[3][3], rz[3][3] = {{cos(c), -sin(c), 0.0}, {sin(c), cos(c), 0.0}, {0.0, 0.0, 1.0}};
+    if (kind == ABBE_KIN_XYZAC_TRT) {
+        double m[3][3] = {{1.0, 0.0, 0.0}, {0.0, cos(t), -sin(t)}, {0.0, sin(t), cos(t)}};
+        memcpy(rt, m, sizeof rt);
+    } else {
+        double m[3][3] = {{cos(t), 0.0, sin(t)}, {0.0, 1.0, 0.0}, {-sin(t), 0.0, cos(t)}};
+        memcpy(rt, m, sizeof rt);
+    }
+    for (unsigned i = 0; i < 3; i++) {
+        e[i] = 0.0;
+        for (unsigned j = 0; j < 3; j++) {
+            double r = 0.0; /* (rt rz)[j][i] */
+            for (unsigned k = 0; k < 3; k++) {
+                r += rt[j][k] * rz[k][i];
+            }
+            e[i] += r * v[j];
+        }
+    }
+}
+
+/* Five-axis tables: the correction is the model's (golden vectors), in the
+ * joint frame under identity kinematics and turned into workpiece coordinates
+ * under the trt kinematics; an unknown kinstype fades it out; disabled, the
+ * offsets end exactly at zero; a 3-axis table does not mix in. */
+static void five_axis_case(const char *name, abbe_lcnc_variant_t variant)
+{
+    abbe_lcnc_params_t p;
+    abbe_lcnc_default_params(&p);
+    p.lead_periods = 0.0;
+    p.fade_s = 0.001;
+    for (unsigned j = 0; j < 3; j++) {
+        p.warn_mm[j] = 1.0;
+        p.limit_mm[j] = 2.0;
+        p.rate_mm_per_s[j] = 100.0;
+    }
+    const void *blob;
+    const abbe_golden_five_table_t *t = golden_five(name, 0, &blob);
+    assert_int_equal(abbe_lcnc_init(&port, variant, &p, PERIOD_NS), ABBE_OK);
+    assert_int_equal(abbe_lcnc_blob_kind(blob, t->blob_size), t->kind);
+    assert_int_equal(abbe_lcnc_add_table(&port, blob, t->blob_size), ABBE_OK);
+    assert_int_equal(abbe_lcnc_kind(&port), t->kind);
+    const abbe_golden_table_t *three = golden("paper");
+    assert_int_equal(abbe_lcnc_blob_kind(aligned_blob(1, three), three->blob_size), ABBE_KIN_NONE);
+    assert_int_equal(abbe_lcnc_add_table(&port, blob_store[1], three->blob_size), ABBE_E_ARG);
+    assert_int_equal(abbe_lcnc_table_count(&port), 1);
+
+    double worst_pos = 0.0, worst_rot = 0.0, worst_frame = 0.0;
+    for (uint32_t i = t->first_point; i < t->first_point + 12u; i++) {
+        const abbe_golden_five_point_t *g = &abbe_golden_five_points[i];
+        abbe_lcnc_input_t in;
+        abbe_lcnc_output_t out;
+        memset(&in, 0, sizeof in);
+        for (unsigned j = 0; j < 3; j++) {
+            in.pos_mm[j] = (double)g->pos_nm[j] / 1e6;
+            in.temp_c[j] = 20.0;
+        }
+        in.angle_deg[0] = (double)g->angle_udeg[0] / 1e6;
+        in.angle_deg[1] = (double)g->angle_udeg[1] / 1e6;
+        in.enable = in.homed = in.machine_on = 1;
+        in.kinstype = (double)p.kins_identity;
+        for (unsigned k = 0; k < 40; k++) {
+            abbe_lcnc_step(&port, &p, PERIOD_NS, &in, &out);
+        }
+        assert_int_equal(out.frame, ABBE_LCNC_FRAME_JOINTS);
+        const int32_t *want_pm = variant == ABBE_LCNC_VARIANT_Q ? g->expect_q_pm : g->expect_f32_pm;
+        const int32_t *want_prad = variant == ABBE_LCNC_VARIANT_Q ? g->expect_q_prad : g->expect_f32_prad;
+        for (unsigned j = 0; j < 3; j++) {
+            /* correction = -error; the port rounds to 1 nm, the orientation to 1 nrad */
+            double d = fabs(out.target_mm[j] * 1e9 + (double)want_pm[j]);
+            worst_pos = d > worst_pos ? d : worst_pos;
+            assert_true(d <= ABBE_GOLDEN_FIVE_TOL_PM + 500.0 + (variant == ABBE_LCNC_VARIANT_F32 ? 4000.0 : 0.0));
+            double r = fabs(out.orient_urad[j] * 1e6 - (double)want_prad[j]);
+            worst_rot = r > worst_rot ? r : worst_rot;
+            assert_true(r <= ABBE_GOLDEN_FIVE_TOL_PRAD + 500.0 + (variant == ABBE_LCNC_VARIANT_F32 ? 2000.0 : 0.0));
+            assert_true(fabs(out.corr_mm[j] - out.target_mm[j]) < 1e-12);
+            assert_true(fabs(out.offset_mm[j] - out.corr_mm[j]) < 1e-12); /* identity: world = joints */
+        }
+        /* trt kinematics: the same correction as a workpiece-frame offset */
+        in.kinstype = (double)p.kins_tcp;
+        for (unsigned k = 0; k < 40; k++) {
+            abbe_lcnc_step(&port, &p, PERIOD_NS, &in, &out);
+        }
+        assert_int_equal(out.frame, ABBE_LCNC_FRAME_WORKPIECE);
+        double e[3];
+        expect_workpiece(t->kind, in.angle_deg[0], in.angle_deg[1], out.corr_mm, e);
+        for (unsigned j = 0; j < 3; j++) {
+            double d = fabs(out.offset_mm[j] - e[j]);
+            worst_frame = d > worst_frame ? d : worst_frame;
+            assert_true(d <= 1.0e-6); /* 1 nm: the port's rounding */
+        }
+    }
+    print_message("five-axis %s %s: |target + error| <= %.0f pm, orientation <= %.0f prad, "
+                  "workpiece frame <= %.2g mm\n", name, variant == ABBE_LCNC_VARIANT_Q ? "q" : "f32",
+                  worst_pos, worst_rot, worst_frame);
+
+    /* a kinstype naming neither kinematics: flagged, held, then faded out */
+    abbe_lcnc_input_t in;
+    abbe_lcnc_output_t out;
+    memset(&in, 0, sizeof in);
+    in.pos_mm[0] = 50.0;
+    in.angle_deg[0] = 30.0;
+    in.angle_deg[1] = 120.0;
+    in.enable = in.homed = in.machine_on = 1;
+    in.kinstype = (double)p.kins_tcp;
+    for (unsigned k = 0; k < 40; k++) {
+        abbe_lcnc_step(&port, &p, PERIOD_NS, &in, &out);
+    }
+    double norm = fabs(out.corr_mm[0]) + fabs(out.corr_mm[1]) + fabs(out.corr_mm[2]);
+    assert_true(norm > 1e-4); /* the golden tables' errors are tens of um */
+    in.kinstype = 7.0;
+    abbe_lcnc_step(&port, &p, PERIOD_NS, &in, &out);
+    assert_true(out.flags & ABBE_LCNC_FLAG_KINS);
+    assert_int_equal(out.frame, ABBE_LCNC_FRAME_UNKNOWN);
+    for (unsigned k = 0; k < 100; k++) {
+        abbe_lcnc_step(&port, &p, PERIOD_NS, &in, &out);
+    }
+    for (unsigned j = 0; j < 3; j++) {
+        assert_true(out.corr_mm[j] == 0.0 && out.offset_mm[j] == 0.0);
+    }
+    /* back to a known kinematics: the correction returns; then disabled: exactly zero */
+    in.kinstype = (double)p.kins_tcp;
+    for (unsigned k = 0; k < 100; k++) {
+        abbe_lcnc_step(&port, &p, PERIOD_NS, &in, &out);
+    }
+    norm = fabs(out.offset_mm[0]) + fabs(out.offset_mm[1]) + fabs(out.offset_mm[2]);
+    assert_true(norm > 1e-4);
+    in.enable = 0;
+    for (unsigned k = 0; k < 100; k++) {
+        abbe_lcnc_step(&port, &p, PERIOD_NS, &in, &out);
+    }
+    for (unsigned j = 0; j < 3; j++) {
+        assert_true(out.corr_mm[j] == 0.0 && out.offset_mm[j] == 0.0);
+    }
+    assert_int_equal(out.state, ABBE_COMP_OFF);
+    /* kins_identity == kins_tcp is a configuration error */
+    abbe_comp_config_t c;
+    p.kins_tcp = p.kins_identity;
+    assert_int_equal(abbe_lcnc_params_to_config(&p, PERIOD_NS, &c), ABBE_E_ARG);
+}
+
+static void test_five_axis_ac_q(void **state)
+{
+    (void)state;
+    five_axis_case("ac_full", ABBE_LCNC_VARIANT_Q);
+}
+
+static void test_five_axis_bc_q(void **state)
+{
+    (void)state;
+    five_axis_case("bc_motions", ABBE_LCNC_VARIANT_Q);
+}
+
+static void test_five_axis_ac_f32(void **state)
+{
+    (void)state;
+    five_axis_case("ac_location", ABBE_LCNC_VARIANT_F32);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -823,6 +1006,9 @@ int main(void)
         cmocka_unit_test(test_table_select),
         cmocka_unit_test(test_bad_tables),
         cmocka_unit_test(test_read_file),
+        cmocka_unit_test(test_five_axis_ac_q),
+        cmocka_unit_test(test_five_axis_bc_q),
+        cmocka_unit_test(test_five_axis_ac_f32),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

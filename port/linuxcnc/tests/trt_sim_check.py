@@ -94,6 +94,51 @@ def headless_ini(text: str, pins: dict[str, float], home: dict[int, float]) -> s
     return "\n".join(out) + "\n"
 
 
+def export_to_sample(work: Path, errors) -> tuple[dict[str, float], dict[int, float], Path]:
+    """The virtual machine (MACHINE with `errors`, a FiveAxisErrors) as work/model_five.bin,
+    `abbe export -f linuxcnc-trt` into work/trt, and a headless copy of the sample config
+    taking its values in work/config. Returns (pins, HOME_OFFSETs, the INI)."""
+    from export_readers import read_linuxcnc_trt
+    from lcnc_common import cli
+
+    from abbe.formats.five_axis_blob import write_five_blob
+    from abbe.formats.machine import load_machine
+    (work / "machine.toml").write_text(MACHINE)
+    geom = load_machine(work / "machine.toml").five_axis.geometry
+    (work / "model_five.bin").write_bytes(write_five_blob(geom, errors))
+    cli("export", str(work / "model_five.bin"), "-f", "linuxcnc-trt", "-o", str(work / "trt"),
+        "--machine", str(work / "machine.toml"))
+    _comp, pins, home = read_linuxcnc_trt(work / "trt")
+    cfg = work / "config"
+    shutil.copytree(SAMPLE, cfg)
+    ini = cfg / "xyzac-trt.ini"
+    ini.write_text(headless_ini(ini.read_text(), pins, home))
+    return pins, home, ini
+
+
+def run_drive(work: Path, script: Path, ini: Path, result: str, timeout: float) -> dict | None:
+    """Copy sim_drive.py and `script` into work, hand everything to the LinuxCNC user and
+    run `script --drive INI WORK` as that user (bounded). Returns work/result's JSON, or
+    None (the logs printed) when the run failed or its JSON says not ok."""
+    from lcnc_common import as_user, give, hal_clean
+    shutil.copy(HERE / "sim_drive.py", work / "sim_drive.py")
+    shutil.copy(script, work / script.name)
+    for p in [work, *work.rglob("*")]:
+        give(p)
+    hal_clean()
+    r = subprocess.run(as_user(["/usr/bin/python3", str(work / script.name), "--drive", str(ini),
+                                str(work)]), cwd=work, capture_output=True, text=True,
+                       timeout=timeout, stdin=subprocess.DEVNULL)
+    path = work / result
+    got = json.loads(path.read_text()) if path.exists() else {}
+    if r.returncode != 0 or not got.get("ok") or got.get("errors"):
+        lc = work / "linuxcnc.log"
+        print(r.stdout[-3000:], r.stderr[-3000:], lc.read_text()[-3000:] if lc.exists() else "",
+              got.get("errors"), sep="\n")
+        return None
+    return got
+
+
 def drive(ini: Path, out: Path) -> None:
     """As the LinuxCNC user: start, home, M428, the move; write joints.json."""
     sys.path.insert(0, str(out))
@@ -145,38 +190,16 @@ def main() -> int:
     sys.path.insert(0, str(HERE))
     sys.path.insert(0, str(HERE.parents[2] / "host_tools" / "tests"))
     import numpy as np
-    from export_readers import read_linuxcnc_trt, trt_joints
-    from lcnc_common import as_user, cleanup, cli, give, hal_clean, work_dir
+    from export_readers import trt_joints
+    from lcnc_common import cleanup, work_dir
 
     work = work_dir("abbe-trt-")
     try:
-        (work / "machine.toml").write_text(MACHINE)
         sys.path.insert(0, str(HERE.parents[2] / "host_tools"))
-        from abbe.formats.five_axis_blob import write_five_blob
-        from abbe.formats.machine import load_machine
         from abbe.model.five_axis import FiveAxisErrors
-        geom = load_machine(work / "machine.toml").five_axis.geometry
-        (work / "model_five.bin").write_bytes(write_five_blob(geom, FiveAxisErrors(location=ERRORS)))
-        cli("export", str(work / "model_five.bin"), "-f", "linuxcnc-trt", "-o", str(work / "trt"),
-            "--machine", str(work / "machine.toml"))
-        _comp, pins, home = read_linuxcnc_trt(work / "trt")
-        cfg = work / "config"
-        shutil.copytree(SAMPLE, cfg)
-        ini = cfg / "xyzac-trt.ini"
-        ini.write_text(headless_ini(ini.read_text(), pins, home))
-        shutil.copy(HERE / "sim_drive.py", work / "sim_drive.py")
-        shutil.copy(Path(__file__), work / "trt_sim_check.py")
-        for p in [work, *work.rglob("*")]:
-            give(p)
-        hal_clean()
-        r = subprocess.run(as_user(["/usr/bin/python3", str(work / "trt_sim_check.py"), "--drive",
-                                    str(ini), str(work)]), cwd=work, capture_output=True,
-                           text=True, timeout=300, stdin=subprocess.DEVNULL)
-        jpath = work / "joints.json"
-        got = json.loads(jpath.read_text()) if jpath.exists() else {}
-        if r.returncode != 0 or not got.get("ok"):
-            log_text = (work / "linuxcnc.log").read_text()[-3000:] if (work / "linuxcnc.log").exists() else ""
-            print(r.stdout[-3000:], r.stderr[-3000:], log_text, sep="\n")
+        pins, home, ini = export_to_sample(work, FiveAxisErrors(location=ERRORS))
+        got = run_drive(work, Path(__file__), ini, "joints.json", 300)
+        if got is None:
             return 1
         want = trt_joints("xyzac-trt", pins, np.array([PROGRAM_POINT]), np.array([PROGRAM_ANGLES]))[0]
         nominal = trt_joints("xyzac-trt", {"x-rot-point": 0.0, "y-rot-point": 0.0,

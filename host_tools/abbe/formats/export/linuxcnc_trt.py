@@ -16,6 +16,19 @@ joint + E0) go to the joints: HOME_OFFSET (the joint position given to the home
 point) grows by E0 in degrees, so the joint reads the true angle. The tilts of
 the lines (EB0A, EC0A, EA0C, EB0C; for B: EA0B, EC0B), the error motions, the
 squareness and the linear axes' errors are translations trt cannot hold.
+
+``abbe-five.bin``: the table for abbe's HAL component in five-axis mode, which
+corrects what trt cannot hold (docs/linuxcnc.md, "Five-axis machines"). It is the
+model with what trt now holds moved into its geometry: the C centre and the tilt
+offset are the written pins (the model moves each line rigidly about its nominal
+pivot, so a line through the written point with the same tilts is the same line; the
+tilt line's point slides along its own axis by the C centre's shift, EX0C for A, EY0C
+for B, which its tilts turn into |shift| x |tilt|, 0.06 um for 400 um and 150 urad),
+their translations and angular zeros are 0, and each error motion, a function of
+the old joint angle t = joint - E0, is re-phased to the joint that now reads the
+true angle. Everything else (tilts, error motions, squareness, the linear table) is
+the model's. Loading the fitted model_five.bin into the component instead would
+correct the held translations twice.
 """
 
 from __future__ import annotations
@@ -24,6 +37,8 @@ from pathlib import Path
 
 import numpy as np
 
+from abbe.formats.five_axis_blob import write_five_blob
+from abbe.model.five_axis import FiveAxisErrors, TrunnionGeometry
 from abbe.formats.export.five_axis import (
     POSE_OPTIONS,
     FiveContext,
@@ -159,14 +174,17 @@ def build(ctx: FiveContext) -> FiveExport:
     unobs = [n for n in ctx.not_observable if n in set(HELD[tilt]) | {"EX0C", "EY0C", "EC0C"}]
     notes = ["trt-kins computes the tool tip from the joints with these values: the linear joints "
              "move so that the programmed point stays under the tool as the table turns "
-             "(tool-centre-point control, M428 in the sample config)"]
+             "(tool-centre-point control, M428 in the sample config)",
+             "abbe-five.bin: the table for abbe's HAL component in five-axis mode, which corrects "
+             "what is not held here (geometry = these pins, held items 0; docs/linuxcnc.md)"]
     if unobs:
         notes.append("written at their nominal value (not observable by the fit): "
                      + ", ".join(unobs))
     return FiveExport(
         target=NAME,
         files={"trt-kins.hal": ("\n".join(hal) + "\n").encode(),
-               "trt-kins.ini": ("\n".join(ini) + "\n").encode()},
+               "trt-kins.ini": ("\n".join(ini) + "\n").encode(),
+               "abbe-five.bin": component_table(ctx, pins, zero_deg)},
         joints=joints, expressed=expressed, not_held=not_held(ctx, _cannot(tilt)), notes=notes,
         assumptions=[
             "abbe's machine coordinates are the kinematics' joint coordinates with tool-offset 0 "
@@ -178,6 +196,31 @@ def build(ctx: FiveContext) -> FiveExport:
             "the rotary joints home to a fixed switch or index: HOME_OFFSET moves the angle "
             "scale, not the table"],
         sources=SOURCES)
+
+
+def component_table(ctx: FiveContext, pins: dict[str, float], zero_deg: dict[str, float]) -> bytes:
+    """The five-axis table of what trt does not hold (module docstring): geometry from
+    the written pins (mm), the held location errors 0, error motions re-phased by the
+    angular zeros zero_deg (deg): a series in t = joint - E0 as a series in the joint."""
+    g, e = ctx.geometry, ctx.errors
+    tilt = g.tilt
+    rp = (pins["x-rot-point"], pins["y-rot-point"], pins["z-rot-point"])
+    off = [0.0, 0.0, pins["z-offset"]]
+    off["XYZ".index("Y" if tilt == "A" else "X")] = pins["y-offset" if tilt == "A" else "x-offset"]
+    geom = TrunnionGeometry(g.kind, rp, (off[0], off[1], off[2]), g.tool_length_mm,
+                            dict(g.travel_deg))
+    held = set(HELD[tilt]) | {"EX0C", "EY0C", "EC0C"}
+    location = {k: float(v) for k, v in e.location.items() if k not in held}
+    motions = {}
+    for (axis, comp), coef in e.motions.items():
+        c = np.asarray(coef, dtype=np.float64).reshape(-1, 2)  # rows k = 1..H: sin k t, cos k t
+        k = np.arange(1, len(c) + 1)
+        ph = np.deg2rad(zero_deg[axis]) * k  # sin k(j - E0) = sin kj cos kE0 - cos kj sin kE0
+        s_new = c[:, 0] * np.cos(ph) + c[:, 1] * np.sin(ph)
+        c_new = c[:, 1] * np.cos(ph) - c[:, 0] * np.sin(ph)
+        motions[(axis, comp)] = np.column_stack([s_new, c_new]).reshape(-1)
+    return write_five_blob(geom, FiveAxisErrors(location=location, motions=motions,
+                                                squareness=e.squareness, linear=e.linear))
 
 
 def _from(pin: str, tilt: str) -> str:

@@ -71,9 +71,30 @@ def compare_dir(got: Path, want: Path) -> list[str]:
         if rel.name == "residual.json":
             errs += compare_json(json.loads((got / rel).read_text()),
                                  json.loads((want / rel).read_text()), str(rel))
+        elif rel.suffix == ".bin":
+            errs += compare_five_blob(got / rel, want / rel, str(rel))
         else:
             errs += compare_text((got / rel).read_text(), (want / rel).read_text(), str(rel))
     return errs
+
+
+def compare_five_blob(got: Path, want: Path, name: str) -> list[str]:
+    """A five-axis table by its decoded values: geometry within 1 nm, errors within 1e-6 um
+    / urad (one count of the encoding is 4e-6 um; float64 kernels differ between CPUs)."""
+    import numpy as np
+    from abbe.formats.five_axis_blob import read_five_blob
+    g, w = read_five_blob(got.read_bytes(), str(got)), read_five_blob(want.read_bytes(), str(want))
+    if g.kind != w.kind or max(abs(a - b) for a, b in zip(g.rot_point_mm + g.offset_mm,
+                                                          w.rot_point_mm + w.offset_mm)) > 1e-6:
+        return [f"{name}: geometry {g.kind} {g.rot_point_mm} {g.offset_mm} != golden"]
+    ge, we = g.errors, w.errors
+    if set(ge.location) != set(we.location) or set(ge.motions) != set(we.motions):
+        return [f"{name}: error names differ from golden"]
+    d = [abs(ge.location[k] - we.location[k]) for k in we.location]
+    d += [float(np.max(np.abs(np.asarray(ge.motions[k]) - np.asarray(we.motions[k]))))
+          for k in we.motions if len(we.motions[k])]
+    d += [abs(a - b) for a, b in zip(ge.squareness, we.squareness)]
+    return [] if max(d, default=0.0) <= 1e-5 else [f"{name}: errors differ from golden by {max(d)}"]
 
 
 def write() -> None:

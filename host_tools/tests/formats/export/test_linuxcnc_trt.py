@@ -182,13 +182,18 @@ HELD_ERRORS = {"xyzac-trt": {"EX0C": 30.0, "EY0C": -20.0, "EY0A": 15.0, "EZ0A": 
                              "EB0B": -45.0, "EC0C": 70.0}}
 
 
+def machine_for(kind: str, tmp_path: Path) -> Path:
+    """The example's machine file (A/C) or BC_MACHINE written into tmp_path."""
+    if kind == "xyzac-trt":
+        return MACHINE
+    machine = tmp_path / "bc.toml"
+    machine.write_text(BC_MACHINE)
+    return machine
+
+
 @pytest.mark.parametrize("kind", sorted(HELD_ERRORS))
 def test_what_trt_holds_is_corrected_exactly(tmp_path, kind) -> None:
-    if kind == "xyzac-trt":
-        machine = MACHINE
-    else:
-        machine = tmp_path / "bc.toml"
-        machine.write_text(BC_MACHINE)
+    machine = machine_for(kind, tmp_path)
     geom = load_machine(machine).five_axis.geometry
     errs = FiveAxisErrors(location=dict(HELD_ERRORS[kind]))
     (tmp_path / "model_five.bin").write_bytes(write_five_blob(geom, errs))
@@ -269,3 +274,49 @@ def test_bad_input_exits_2_and_writes_nothing(tmp_path, capsys) -> None:
     (tmp_path / "bc.bin").write_bytes(write_five_blob(geom, FiveAxisErrors()))
     assert export(out, tmp_path / "bc.bin", bc, target="grblhal-rtcp-ac") == 2
     assert "A/C" in capsys.readouterr().err and not out.exists()
+
+
+@pytest.mark.parametrize("kind", sorted(HELD_ERRORS))
+def test_component_table_is_the_same_machine(tmp_path, kind) -> None:
+    """abbe-five.bin (the HAL component's table) with the written pins as its geometry and
+    the joints reading the true angle (joint = t + E0) describes the model's machine: the
+    table transforms agree at every angle, and it holds none of what trt holds."""
+    from abbe.formats.five_axis_blob import read_five_blob
+
+    machine = machine_for(kind, tmp_path)
+    geom = load_machine(machine).five_axis.geometry
+    tilt = geom.tilt
+    rng = np.random.default_rng(23)
+    loc = dict(HELD_ERRORS[kind])
+    loc.update({"EA0C": 80.0, "EB0C": -60.0, f"E{'B' if tilt == 'A' else 'A'}0{tilt}": 120.0,
+                f"EC0{tilt}": -90.0})
+    motions = {(a, c): np.concatenate([[0.0, 0.0] if c in "XY" and a == "C" else
+                                       rng.normal(0, 3, 2), rng.normal(0, 3, 2)])
+               for a in geom.rotaries for c in ("X", "Y", "Z", "A", "B", "C")}
+    for (a, c), v in motions.items():  # radial and tilt motions start at harmonic 2
+        if "XYZ"["ABC".index(a) if a != "C" else 2] != c and c in "XYZ" or (c in "ABC" and c != a):
+            v[:2] = 0.0
+    errs = FiveAxisErrors(location=loc, motions=motions)
+    (tmp_path / "model_five.bin").write_bytes(write_five_blob(geom, errs))
+    out = tmp_path / "trt"
+    assert export(out, tmp_path / "model_five.bin", machine) == 0
+    _comp, pins, home = read_linuxcnc_trt(out)
+    comp = read_five_blob((out / "abbe-five.bin").read_bytes())
+    held = {"EX0C", "EY0C", "EC0C", *{"A": ("EY0A", "EZ0A", "EA0A"),
+                                      "B": ("EX0B", "EZ0B", "EB0B")}[tilt]}
+    assert all(comp.errors.location.get(n, 0.0) == 0.0 for n in held)
+    assert comp.rot_point_mm == pytest.approx((pins["x-rot-point"], pins["y-rot-point"],
+                                               pins["z-rot-point"]), abs=1e-9)
+    cg = comp.geometry()
+    full = read_five_blob((tmp_path / "model_five.bin").read_bytes())
+    t_old = np.column_stack([rng.uniform(-90, 90, 200), rng.uniform(-360, 360, 200)])
+    t_new = t_old + np.array([home[3], home[4]])[None, :]
+    Tf = table_transform(full.geometry(), full.errors, t_old)
+    Tc = table_transform(cg, comp.errors, t_new)
+    p = rng.uniform(-200, 200, (200, 3))
+    d = (np.einsum("nij,nj->ni", Tf[:, :3, :3] - Tc[:, :3, :3], p) + Tf[:, :3, 3] - Tc[:, :3, 3])
+    # mm: the pins' and the table's 1 nm steps, and the tilt line's pivot sliding along its
+    # own axis by the C centre's shift (x for A, y for B), which its tilts turn into a lever
+    slide_mm = abs(loc["EX0C" if tilt == "A" else "EY0C"]) * 1e-3
+    tilts = [loc[n] for n in (("EB0A", "EC0A") if tilt == "A" else ("EA0B", "EC0B"))]
+    assert float(np.max(np.abs(d))) < 2e-6 + slide_mm * float(np.hypot(*tilts)) * 1e-6

@@ -1,0 +1,457 @@
+#!/usr/bin/python3
+"""abbe's HAL component in five-axis mode inside LinuxCNC's xyzac-trt simulator.
+
+  flock /tmp/abbe-linuxcnc.lock python3 port/linuxcnc/tests/five_sim.py [--json OUT]
+
+The virtual machine (TRUTH): the sample config's nominal geometry (rotation point 0,
+y-offset 20, z-offset 10 mm) with location errors trt can hold (EX0C, EY0C, EY0A,
+EZ0A, EA0A, EC0C), the tilts of both axis lines it cannot (EB0A, EC0A, EA0C, EB0C),
+error motions of both axes and the linear axes' squareness. Its table is written from
+the truth (write_five_blob), not fitted: this test is about the chain table ->
+component -> LinuxCNC -> joints; what the identification gets right is
+host_tools/tests/analysis/test_five_axis_*'s. `abbe export -f linuxcnc-trt` writes
+the trt pins, the HOME_OFFSETs and abbe-five.bin (what trt cannot hold); a headless
+copy of the sample xyzac-trt.ini (trt_sim_check.headless_ini) takes them, with
+port/linuxcnc/config/abbe-five.hal (the wiring docs/linuxcnc.md shows). Run as the
+LinuxCNC user, recorded every servo period (sampler, halsampler):
+
+  1. tcp_off: the component disabled; M428 (tool-centre-point kinematics), the tool
+     held on one workpiece point while A and C turn, then a short path;
+  2. tcp_on: abbe.enable 1, the same program;
+  3. joints_on: M429 (identity kinematics), a program of joint moves with A and C.
+
+The checks use an INDEPENDENT forward kinematics of the true machine, written here
+from the ISO 230-1 notation of docs/concepts.md ("Five-axis machines") and
+trtfuncs.c's geometry (not abbe's model code): the joints LinuxCNC commands
+(joint.N.motor-pos-cmd, the rotary motors turning the table by motor + E0) give
+the true tool tip in workpiece coordinates, compared with the programmed point
+(TCP: axis.L.pos-cmd; identity: trtfuncs.c's forward kinematics of the programmed
+joints with the exported pins). The joints follow axis.L.pos-cmd by two periods
+(checked in run 1).
+
+  - tcp_off: the external offsets are exactly 0.0 all along and the joints are
+    trtfuncs.c's inverse of the programmed point with the exported pins;
+  - tcp_on and joints_on: on the path, the tool tip is within BOUND_UM of the
+    programmed point, against the deviation of tcp_off (trt alone) and of the
+    nominal machine without abbe (computed from the same path);
+  - the frame: the joints move by the component's joint-frame correction, in TCP
+    through workpiece-frame offsets (abbe.frame 1), in identity directly (frame 0);
+  - the switch from trt to identity kinematics (M429 at A -20, C 45 with the
+    correction on) is measured: LinuxCNC 2.9.0~pre1 recomputes the world position
+    from the joints WITH the offset in them, so the joints step by the offset in
+    force (docs/linuxcnc.md: switch with the compensation off); checked to be no
+    more than that plus the rate limit.
+
+Every wait is bounded; LinuxCNC is stopped by the pid of its display.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+CONFIG = HERE.parent / "config"
+
+# ---- the virtual machine ----------------------------------------------------------
+NOMINAL = {"x-rot-point": 0.0, "y-rot-point": 0.0, "z-rot-point": 0.0,
+           "y-offset": 20.0, "z-offset": 10.0}
+#: location errors, um / urad (ISO 230-1)
+LOCATION = {"EX0C": 40.0, "EY0C": -30.0, "EY0A": 25.0, "EZ0A": -35.0, "EA0A": 300.0,
+            "EC0C": -400.0,
+            "EB0A": 400.0, "EC0A": -300.0, "EA0C": 250.0, "EB0C": -200.0}
+#: error motions (axis, component) -> [sin 1t, cos 1t, sin 2t, cos 2t], um / urad
+MOTIONS = {("A", "Y"): [0.0, 0.0, 2.0, 0.0], ("A", "Z"): [0.0, 0.0, 0.0, -1.5],
+           ("A", "A"): [8.0, 0.0, 0.0, 0.0], ("A", "B"): [0.0, 0.0, 5.0, 0.0],
+           ("C", "X"): [0.0, 0.0, 3.0, -2.0], ("C", "Y"): [0.0, 0.0, 0.0, 2.5],
+           ("C", "Z"): [2.0, 0.0, 0.0, 0.0], ("C", "C"): [15.0, -10.0, 0.0, 0.0],
+           ("C", "A"): [0.0, 0.0, 6.0, 0.0]}
+#: squareness of the linear axes (Eq. 3's S_xy, S_xz, S_yz), urad
+SQUARENESS = (80.0, -60.0, 50.0)
+
+# ---- the programs -------------------------------------------------------------------
+TCP_PROGRAM = """(abbe five_sim: tool-centre-point kinematics, the tool on one workpiece point)
+G21 G90 G94 G40 G49
+M428
+G0 X40 Y-25 Z20 A0 C0
+G1 A-30 F1200
+G1 C90
+G1 A15 C150
+G1 A-40 C60
+G1 X10 Y15 Z35 F900
+G1 X40 Y-25 Z20 A-20 C45 F1200
+M2
+"""
+JOINT_PROGRAM = """(abbe five_sim: identity kinematics, joint moves with A and C)
+G21 G90 G94 G40 G49
+M429
+G0 X30 Y-20 Z10 A0 C0
+G1 A-35 C100 F1200
+G1 X60 Y10 Z-15 A10 C200 F900
+G1 X0 Y5 Z0 A0 C0 F900
+M2
+"""
+#: the tool tip within this of the programmed point with abbe, on the path, um. What is
+#: left: LinuxCNC's offset planner following a correction that turns with the table
+#: (the lead extrapolates two periods), the first-order model (0.01 um here), the
+#: recording's 1 nm / 1e-6 deg steps.
+BOUND_UM = 0.5
+#: rotary motors vs the programmed angle two periods earlier, deg: LinuxCNC's cubic
+#: interpolation of the joints between trajectory points departs from the straight
+#: two-period delay where the acceleration changes (5e-5 deg measured)
+ROT_TOL_DEG = 1e-4
+#: joints vs the correction they should carry (run 2/3), um
+FRAME_UM = 0.5
+INI_ABBE = """
+[ABBE]
+TABLE = abbe-five.bin
+KINS_IDENTITY = 0
+KINS_TCP = 1
+WARN_MM = 0.2
+LIMIT_MM = 0.3
+RATE_MM_PER_S = 1.0
+FADE_S = 0.5
+ENABLE = 0
+"""
+
+# Recorded every servo period by two samplers (a HAL stream has at most 20 pins),
+# paired by abbe.cycles (sim_drive's recorder).
+RECORD = [
+    [("abbe.cycles", "u"),
+     ("axis.x.pos-cmd", "f"), ("axis.y.pos-cmd", "f"), ("axis.z.pos-cmd", "f"),
+     ("axis.a.pos-cmd", "f"), ("axis.c.pos-cmd", "f"),
+     ("joint.0.motor-pos-cmd", "f"), ("joint.1.motor-pos-cmd", "f"), ("joint.2.motor-pos-cmd", "f"),
+     ("joint.3.motor-pos-cmd", "f"), ("joint.4.motor-pos-cmd", "f"),
+     ("axis.x.eoffset", "f"), ("axis.y.eoffset", "f"), ("axis.z.eoffset", "f"),
+     ("motion.program-line", "s"), ("motion.switchkins-type", "f"),
+     ("motion.eoffset-limited", "b")],
+    [("abbe.cycles", "u"),
+     ("abbe.x.corr-mm", "f"), ("abbe.y.corr-mm", "f"), ("abbe.z.corr-mm", "f"),
+     ("abbe.x.offset-mm", "f"), ("abbe.y.offset-mm", "f"), ("abbe.z.offset-mm", "f"),
+     ("abbe.orient-x-urad", "f"), ("abbe.orient-y-urad", "f"), ("abbe.orient-z-urad", "f"),
+     ("abbe.state", "s"), ("abbe.frame", "s"), ("abbe.flags", "u"),
+     ("abbe.x.counts", "s"), ("abbe.y.counts", "s"), ("abbe.z.counts", "s")],
+]
+RUNS = (("tcp_off", "tcp.ngc"), ("tcp_on", "tcp.ngc"), ("joints_on", "joints.ngc"))
+
+
+# ---- the independent forward kinematics of the true machine ------------------------------
+
+def _rot(i: int, t: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) right-handed rotations by t (rad) about machine axis i (0 X, 1 Y, 2 Z):
+    Rodrigues, I + sin t K + (1 - cos t) K^2 with K the cross-product matrix of the axis."""
+    k = np.zeros(3)
+    k[i] = 1.0
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    t = np.asarray(t, dtype=float).reshape(-1, 1, 1)
+    return np.eye(3)[None] + np.sin(t) * K[None] + (1.0 - np.cos(t)) * (K @ K)[None]
+
+
+def _small(v: np.ndarray) -> np.ndarray:
+    """Rx(a) Ry(b) Rz(c) of small angles (N, 3) rad (docs/concepts.md)."""
+    return _rot(0, v[:, 0]) @ _rot(1, v[:, 1]) @ _rot(2, v[:, 2])
+
+
+def _motion(axis: str, t_deg: np.ndarray) -> np.ndarray:
+    """(N, 6) error motions X, Y, Z um, A, B, C urad: Fourier series, period one turn."""
+    t = np.radians(t_deg)
+    out = np.zeros((len(t), 6))
+    for j, comp in enumerate("XYZABC"):
+        c = MOTIONS.get((axis, comp))
+        if c:
+            for h in range(len(c) // 2):
+                out[:, j] += c[2 * h] * np.sin((h + 1) * t) + c[2 * h + 1] * np.cos((h + 1) * t)
+    return out
+
+
+def _axis(axis: str, t_deg: np.ndarray):
+    """(R (N,3,3), p (N,3)) of x -> R x + p, the carried frame of rotary `axis` at joint angle
+    t into its carrier: the line moved rigidly about its nominal pivot P by its location
+    errors, D = Tr(delta) Rot(phi), the error motion E(t) = Tr(m) Rot(r) at the pivot, the
+    turn by t + E0: Tr(P) D E(t) Rot(t + E0) D^-1 Tr(-P)."""
+    i = "XYZ".index({"A": "X", "C": "Z"}[axis])
+    others = [k for k in range(3) if k != i]
+    names = {"C": ("EX0C", "EY0C", "EA0C", "EB0C", "EC0C"),
+             "A": ("EY0A", "EZ0A", "EB0A", "EC0A", "EA0A")}[axis]
+    delta, phi = np.zeros(3), np.zeros(3)
+    delta[others] = [LOCATION.get(n, 0.0) * 1e-3 for n in names[:2]]
+    phi[others] = [LOCATION.get(n, 0.0) * 1e-6 for n in names[2:4]]
+    zero = LOCATION.get(names[4], 0.0) * 1e-6
+    P = (np.array([NOMINAL["x-rot-point"], NOMINAL["y-rot-point"], NOMINAL["z-rot-point"]])
+         + (np.array([0.0, NOMINAL["y-offset"], NOMINAL["z-offset"]]) if axis == "A" else 0.0))
+    n = len(t_deg)
+    Rphi = _small(phi[None, :])[0]
+    m = _motion(axis, t_deg)
+    Rm = _small(m[:, 3:] * 1e-6)
+    Rt = _rot(i, np.radians(t_deg) + zero)
+    R = Rphi @ Rm @ Rt @ Rphi.T                     # the rotation part of D E Rot D^-1
+    # point x: P + delta + Rphi (m + Rm Rt (Rphi^T (x - P - delta)))
+    p = (P + delta)[None, :] + np.einsum("ij,nj->ni", Rphi, m[:, :3] * 1e-3) \
+        - np.einsum("nij,j->ni", R, P + delta)
+    assert R.shape == (n, 3, 3)
+    return R, p
+
+
+def true_tool_in_workpiece(motor: np.ndarray, e0_deg: np.ndarray) -> np.ndarray:
+    """The true tool tip (N, 3) in workpiece coordinates for joint motor positions (N, 5):
+    linear motors carry the tool with the squareness of Eq. 3 (dX = y S_xy - z S_xz,
+    dY = -z S_yz, levers from the rotation point); the rotary motors turn the table by
+    motor + E0 (motor = the old joint angle, HOME_OFFSET 0)."""
+    q = motor[:, :3]
+    sxy, sxz, syz = (s * 1e-6 for s in SQUARENESS)
+    lev = q - np.array([NOMINAL["x-rot-point"], NOMINAL["y-rot-point"], NOMINAL["z-rot-point"]])
+    tool = q + np.column_stack([lev[:, 1] * sxy - lev[:, 2] * sxz, -lev[:, 2] * syz,
+                                np.zeros(len(q))])
+    del e0_deg  # E0 is in LOCATION: _axis turns by t + E0
+    Ra, pa = _axis("A", motor[:, 3])
+    Rc, pc = _axis("C", motor[:, 4])
+    R = Ra @ Rc                                       # workpiece -> machine
+    p = np.einsum("nij,nj->ni", Ra, pc) + pa
+    return np.einsum("nji,nj->ni", R, tool - p)       # R^T (tool - p)
+
+
+def trt_forward(pins: dict, joints: np.ndarray, angles_deg: np.ndarray) -> np.ndarray:
+    """trtfuncs.c's forward kinematics (xyzac, tool-offset 0): the workpiece point under the
+    tool at joints q, w = r + Rz(c)^T (Rx(a)^T (q - r - o) + o)."""
+    r = np.array([pins["x-rot-point"], pins["y-rot-point"], pins["z-rot-point"]])
+    o = np.array([0.0, pins["y-offset"], pins["z-offset"]])
+    a, c = np.radians(angles_deg[:, 0]), np.radians(angles_deg[:, 1])
+    u = np.einsum("nji,nj->ni", _rot(0, a), joints - r - o) + o
+    return np.einsum("nji,nj->ni", _rot(2, c), u) + r
+
+
+# ---- as the LinuxCNC user -------------------------------------------------------------------
+
+def drive(ini: Path, out: Path) -> None:
+    """Start, home, the three runs recorded; write drive.json."""
+    sys.path.insert(0, str(out))
+    import linuxcnc as lc
+    import sim_drive as sd
+
+    sd.RECORD = RECORD
+    sd.bounded(200)
+    proc, lc_log = sd.launch(ini, out)
+    res: dict = {"ok": False, "runs": {}}
+    try:
+        s, c, e = sd.connect(proc)
+        sd.add_recorder()
+        sd.power_on(c, s)
+        c.mode(lc.MODE_MANUAL)
+        c.wait_complete()
+        c.home(-1)
+        c.wait_complete()
+        sd.wait_for(lambda: (s.poll() or True) and all(s.homed[:5]), 60, "homing all joints")
+        for name, prog in RUNS:
+            if name == "tcp_on":
+                sd.halcmd("setp", "abbe.enable", "1")
+                sd.wait_for(lambda: sd.getp("abbe.state") == 1
+                            and int(sd.getp("abbe.flags")) & 0x0100 == 0, 10, "abbe faded in")
+            rec = sd.Recorder(out, name)
+            secs = sd.run_program(c, s, out / prog, 90)
+            res["runs"][name] = {"seconds": secs, "overruns": rec.stop()}
+            sd.log(f"{name}: {secs:.1f} s")
+        res["errors"] = sd.operator_errors(e)
+        res["ok"] = True
+    finally:
+        sd.shutdown(proc, lc_log, res)
+        (out / "drive.json").write_text(json.dumps(res, indent=2))
+
+
+# ---- as root: set up, run, check ----------------------------------------------------------
+
+def load(work: Path, name: str) -> dict:
+    from lcnc_common import check, read_samples
+    parts = []
+    for n, pins in enumerate(RECORD):
+        d = read_samples(work / f"{name}.{n}.txt", len(pins))
+        parts.append({pin: d[:, 1 + i] for i, (pin, _) in enumerate(pins)})
+    check(len(parts[0]["abbe.cycles"]) == len(parts[1]["abbe.cycles"])
+          and np.array_equal(parts[0]["abbe.cycles"], parts[1]["abbe.cycles"]),
+          f"{name}: the two samplers' periods do not pair up")
+    check(np.all(np.diff(parts[0]["abbe.cycles"]) == 1), f"{name}: periods missing")
+    r = parts[0] | parts[1]
+    col = lambda fmt, ax: np.column_stack([r[fmt.format(a)] for a in ax])  # noqa: E731
+    return {"world": col("axis.{}.pos-cmd", "xyz"), "world_ang": col("axis.{}.pos-cmd", "ac"),
+            "motor": col("joint.{}.motor-pos-cmd", "01234"), "eoffset": col("axis.{}.eoffset", "xyz"),
+            "line": r["motion.program-line"], "kinstype": r["motion.switchkins-type"],
+            "limited": r["motion.eoffset-limited"], "corr": col("abbe.{}.corr-mm", "xyz"),
+            "orient": col("abbe.orient-{}-urad", "xyz"), "state": r["abbe.state"],
+            "frame": r["abbe.frame"], "counts": col("abbe.{}.counts", "xyz")}
+
+
+def stats(d_mm: np.ndarray) -> dict:
+    n = np.linalg.norm(d_mm, axis=1) * 1e3
+    return {"max_um": round(float(n.max()), 4), "rms_um": round(float(np.sqrt(np.mean(n ** 2))), 4)}
+
+
+def path_lines(program: str) -> list[int]:
+    """Line numbers (1-based, as motion.program-line) of the program's G1 moves."""
+    return [i + 1 for i, ln in enumerate(program.splitlines()) if ln.startswith("G1")]
+
+
+def analyse(work: Path, pins: dict, home: dict) -> dict:
+    from export_readers import trt_joints
+    from lcnc_common import check
+    e0 = np.array([LOCATION["EA0A"], LOCATION["EC0C"]]) * 1e-6 * 180.0 / np.pi
+    hoff = np.array([home[3], home[4]])
+    report: dict = {}
+    for name, prog in RUNS:
+        r = load(work, name)
+        text = TCP_PROGRAM if prog == "tcp.ngc" else JOINT_PROGRAM
+        tcp = prog == "tcp.ngc"
+        lag = 2  # joints follow axis.L.pos-cmd by two servo periods
+        world, wang = r["world"][:-lag], r["world_ang"][:-lag]
+        motor, eoff = r["motor"][lag:], r["eoffset"][lag:]
+        on_path = np.isin(r["line"][lag:], path_lines(text))
+        check(on_path.sum() > 1000, f"{name}: only {on_path.sum()} periods on the path")
+        check(np.all(r["kinstype"][lag:][on_path] == (1.0 if tcp else 0.0)),
+              f"{name}: motion.switchkins-type is not {'1 (trt)' if tcp else '0 (identity)'}")
+        check(not r["limited"].any(), f"{name}: motion.eoffset-limited")
+        # the rotary motors: the joint angle minus HOME_OFFSET, in every run
+        d_rot = motor[:, 3:] - (wang - hoff)
+        check(float(np.max(np.abs(d_rot[on_path]))) < ROT_TOL_DEG,
+              f"{name}: rotary motors differ from the programmed angles by {np.max(np.abs(d_rot))}")
+        ang = wang  # the joint angles (true angles: HOME_OFFSET holds E0)
+        intended = world if tcp else trt_forward(pins, world, ang)
+        got = true_tool_in_workpiece(motor, e0)
+        dev = (got - intended)[on_path]
+        ideal = trt_joints("xyzac-trt", pins, intended, ang) if tcp else world
+        moved = (motor[:, :3] - ideal)                 # what the offsets did to the joints
+        res = {"periods_on_path": int(on_path.sum()), "deviation": stats(dev),
+               "orientation_urad_max": round(float(np.max(np.abs(r["orient"][lag:][on_path]))), 3)}
+        if name == "tcp_off":
+            check(np.all(r["eoffset"] == 0.0), "tcp_off: an external offset with abbe disabled")
+            check(np.all(r["state"] == 0) and np.all(r["counts"] == r["counts"][0]),
+                  "tcp_off: the component ran or its counts moved while disabled")
+            res["joints_vs_trt_inverse"] = stats(moved[on_path])
+            check(res["joints_vs_trt_inverse"]["max_um"] < 2.0,
+                  f"tcp_off: joints are not trtfuncs.c's inverse: {res['joints_vs_trt_inverse']}")
+            # the same path on the nominal machine, no abbe, no exported pins or HOME_OFFSET
+            q_nom = trt_joints("xyzac-trt", NOMINAL, intended, ang)
+            nominal_motor = np.column_stack([q_nom, ang])
+            res["nominal_no_abbe"] = stats((true_tool_in_workpiece(nominal_motor, e0)
+                                            - intended)[on_path])
+        else:
+            check(np.all(r["frame"][lag:][on_path] == (1 if tcp else 0)),
+                  f"{name}: abbe.frame is not {1 if tcp else 0}")
+            # the frame: the joints carry the component's joint-frame correction two periods on
+            corr = r["corr"][:-lag]
+            res["joints_minus_correction"] = stats((moved - corr)[on_path])
+            res["correction"] = stats(corr[on_path])
+            res["eoffset_minus_correction"] = stats((eoff - corr)[on_path])
+            # the same joints without the offsets (trt alone), and with the joint-frame
+            # correction written as world offsets unturned (the frame taken wrong)
+            base = np.column_stack([ideal, motor[:, 3:]])
+            res["without_offsets"] = stats((true_tool_in_workpiece(base, e0) - intended)[on_path])
+            a, c = np.radians(ang[:, 0]), np.radians(ang[:, 1])
+            turn = _rot(0, a) @ _rot(2, c)
+            wrong = np.einsum("nij,nj->ni", turn, corr) if tcp else \
+                np.einsum("nji,nj->ni", turn, corr)
+            res["deviation_if_frame_wrong"] = stats((true_tool_in_workpiece(
+                np.column_stack([ideal + wrong, motor[:, 3:]]), e0) - intended)[on_path])
+            check(res["joints_minus_correction"]["max_um"] < FRAME_UM,
+                  f"{name}: the joints do not carry the correction: {res['joints_minus_correction']}")
+            check(res["deviation"]["max_um"] < BOUND_UM,
+                  f"{name}: tool tip {res['deviation']} from the programmed point (bound {BOUND_UM} um)")
+        if name == "joints_on":
+            # M429 with the correction on, at A -20 C 45: LinuxCNC takes the joints (offset
+            # included) as the new world position and adds the offset again; the offsets
+            # then move to the identity frame at the rate limit (1 um per period)
+            k = r["kinstype"]
+            sw = int(np.argmax(k == 0.0))
+            check(k[0] == 1.0 and sw > 0, "joints_on: the switch to identity was not recorded")
+            still = np.all(np.abs(np.diff(r["world"], axis=0)) < 1e-9, axis=1) & \
+                np.all(np.abs(np.diff(r["world_ang"], axis=0)) < 1e-9, axis=1)
+            end = sw + int(np.argmin(still[sw:]))  # the first motion after the switch
+            step = np.abs(np.diff(r["motor"][:, :3], axis=0))[sw:end]
+            res["switch"] = {"periods_before_motion": int(end - sw),
+                             "joint_step_max_um": round(float(step.max(initial=0.0)) * 1e3, 4),
+                             "joint_change_um": round(float(np.linalg.norm(
+                                 r["motor"][end, :3] - r["motor"][sw, :3])) * 1e3, 4),
+                             "offset_at_switch_um": round(float(np.linalg.norm(
+                                 r["eoffset"][sw - 1])) * 1e3, 4)}
+            jump = float(np.max(np.abs(r["motor"][end, :3] - r["motor"][sw, :3]))) * 1e3
+            check(jump <= float(np.max(np.abs(r["eoffset"][sw - 1]))) * 1e3 + (end - sw) * 1.0 + 0.01,
+                  f"joints_on: the kinematics switch moved the joints more than the offset: "
+                  f"{res['switch']}")
+        report[name] = res
+    off, on = report["tcp_off"]["deviation"], report["tcp_on"]["deviation"]
+    check(on["max_um"] * 10 < off["max_um"], f"abbe does not take off 90 %: {on} vs {off}")
+    # in TCP the offsets are NOT the joint-frame correction (the table turned them)
+    check(report["tcp_on"]["eoffset_minus_correction"]["max_um"] > 5.0,
+          "tcp_on: the offsets equal the joint-frame correction: no frame change seen")
+    return report
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--drive", nargs=2, type=Path, metavar=("INI", "OUT"))
+    ap.add_argument("--json", type=Path)
+    ap.add_argument("--analyse", type=Path, metavar="WORK",
+                    help="check a kept work directory again (ABBE_LCNC_KEEP=1), no LinuxCNC")
+    args = ap.parse_args()
+    if args.drive:
+        drive(*args.drive)
+        return 0
+    t_start = time.monotonic()
+    sys.path.insert(0, str(HERE))
+    sys.path.insert(0, str(HERE.parents[2] / "host_tools" / "tests"))
+    sys.path.insert(0, str(HERE.parents[2] / "host_tools"))
+    from export_readers import read_linuxcnc_trt
+    from lcnc_common import TestFailure, cleanup, work_dir
+    if args.analyse:
+        _comp, pins, home = read_linuxcnc_trt(args.analyse / "trt")
+        print(json.dumps(analyse(args.analyse, pins, home), indent=2))
+        return 0
+    from trt_sim_check import export_to_sample, run_drive  # the sample machine and config
+
+    from abbe.model.five_axis import FiveAxisErrors
+
+    work = work_dir("abbe-five-")
+    try:
+        errs = FiveAxisErrors(location=dict(LOCATION),
+                              motions={k: np.array(v) for k, v in MOTIONS.items()},
+                              squareness=SQUARENESS)
+        pins, home, ini = export_to_sample(work, errs)
+        cfg = ini.parent
+        text = ini.read_text()
+        lines = []
+        for ln in text.splitlines():
+            lines.append(ln)
+            if ln.strip() in ("[AXIS_X]", "[AXIS_Y]", "[AXIS_Z]"):
+                lines.append("OFFSET_AV_RATIO = 0.2")  # the external offsets' share of vel/acc
+            if ln.strip().startswith("HALFILE") and "basic_sim.tcl" in ln:
+                lines.append("HALFILE = abbe-five.hal")
+        ini.write_text("\n".join(lines) + "\n" + INI_ABBE)
+        shutil.copy(CONFIG / "abbe-five.hal", cfg / "abbe-five.hal")
+        shutil.copy(work / "trt" / "abbe-five.bin", cfg / "abbe-five.bin")
+        (work / "tcp.ngc").write_text(TCP_PROGRAM)
+        (work / "joints.ngc").write_text(JOINT_PROGRAM)
+        drv = run_drive(work, Path(__file__), ini, "drive.json", 240)
+        if drv is None:
+            print("five_sim: FAIL (LinuxCNC run)")
+            return 1
+        try:
+            report = analyse(work, pins, home)
+        except TestFailure as e:
+            print(f"five_sim: FAIL: {e}")
+            return 1
+        report["runs"] = drv["runs"]
+        report["seconds_total"] = round(time.monotonic() - t_start, 1)
+        print(json.dumps(report, indent=2))
+        if args.json:
+            args.json.write_text(json.dumps(report, indent=2) + "\n")
+        print("five_sim: PASS")
+        return 0
+    finally:
+        cleanup(work)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
