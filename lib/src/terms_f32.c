@@ -67,31 +67,6 @@
 
 #define LD(k) abbe_ld_f32_aligned(row + 4u * (k))
 
-#if defined(ABBE_F32_SSE2)
-/* x86-64: the kernel of eval_f32_sse2.c, with each block's fundamental from
- * the scalar sin/cos (this path serves abbe_term_eval_f32). */
-static void terms6_f32(const abbe_axis_model_t *ax, uint32_t d, float value[ABBE_TERMS])
-{
-    __m128 h[ABBE_BLOCKS];
-    for (unsigned blk = 0; blk < ABBE_BLOCKS; blk++) {
-        float s1, c1;
-        abbe_sincos_f32_inline(abbe_arg_phase_q32(ax, blk, d), &s1, &c1);
-        h[blk] = _mm_setr_ps(s1, c1, s1, c1);
-    }
-    __m128 lo, hi;
-    const float u = (float)abbe_arg_cheb_q30(ax, d) * 9.31322574615478515625e-10f; /* 2^-30 */
-    abbe_axis6_sse2(abbe_x86_consts(), ax, _mm_set1_ps(u), h[0], h[1], &lo, &hi);
-    _mm_storeu_ps(value, lo);
-    abbe_st2(value + 4, hi);
-}
-
-#else /* !ABBE_F32_SSE2 */
-
-#if defined(__GNUC__) && defined(__thumb2__) && defined(__ARM_FP) && (__ARM_FP & 4) && defined(__ARMEL__) && \
-    !defined(ABBE_PORTABLE_C)
-#define ABBE_M4F_ASM 1
-#endif
-
 /* (e_x, e_y, e_z) + lin [d_x, d_y, d_z] + [e_x, e_y, e_z] x r of an axis'
  * six values (a0..a5 = d_x, d_y, d_z, eps_x, eps_y, eps_z): Eq. 3's share of
  * the axis, r its lever arm (eval_f32.c). Nine multiply-adds. */
@@ -108,28 +83,26 @@ static void terms6_f32(const abbe_axis_model_t *ax, uint32_t d, float value[ABBE
         (e).z -= (a4) * (r).x;                                                             \
     } while (0)
 
-/* A fitted axis: six columns, the accumulators in registers, folded into e
- * at once (the values never go through memory). */
-ABBE_NOINLINE static abbe_vec3f_t fold6_f32(const abbe_axis_model_t *ax, uint32_t d, float ex, float ey,
-                                            float ez, float rx, float ry, float rz, float lin)
-{
-    /* scalars, not the two aggregates: GCC stores an aggregate argument to
-     * the stack on entry, even where it then uses the registers */
-    abbe_vec3f_t e = {ex, ey, ez};
-    const abbe_vec3f_t r = {rx, ry, rz};
-    const uint8_t *row = ax->coef_f32;
+#if defined(__GNUC__) && defined(__thumb2__) && defined(__ARM_FP) && (__ARM_FP & 4) && defined(__ARMEL__) && \
+    !defined(ABBE_PORTABLE_C)
+#define ABBE_M4F_ASM 1
+#endif
+
 #if defined(ABBE_M4F_ASM)
-    /* Cortex-M4F: the accumulators in s16-s21, so that one VLDM loads the
-     * first row into them (GCC never combines VLDRs), and each further row is
-     * one VLDM into s24-s29 (callee-saved like the accumulators: one
-     * VPUSH saves them all, and s0-s15 stay free for the basis) and six fused multiply-adds: 7 instructions per
-     * row instead of 12. Rows are 4-byte aligned (ABBE_E_ALIGN). */
-    register float a0 __asm__("s16");
-    register float a1 __asm__("s17");
-    register float a2 __asm__("s18");
-    register float a3 __asm__("s19");
-    register float a4 __asm__("s20");
-    register float a5 __asm__("s21");
+/* Cortex-M4F: the accumulators in s16-s21, so that one VLDM loads the
+ * first row into them (GCC never combines VLDRs), and each further row is
+ * one VLDM into s24-s29 (callee-saved like the accumulators: one
+ * VPUSH saves them all, and s0-s15 stay free for the basis) and six fused multiply-adds: 7 instructions per
+ * row instead of 12. Rows are 4-byte aligned (ABBE_E_ALIGN).
+ * Macros: the six-term kernel and the rotary motions' one (below) declare
+ * their accumulators with ACC6_DECL() and stream rows through `row`. */
+#define ACC6_DECL()                                                                        \
+    register float a0 __asm__("s16");                                                      \
+    register float a1 __asm__("s17");                                                      \
+    register float a2 __asm__("s18");                                                      \
+    register float a3 __asm__("s19");                                                      \
+    register float a4 __asm__("s20");                                                      \
+    register float a5 __asm__("s21")
 #define ZERO6() do { a0 = 0.0f; a1 = 0.0f; a2 = 0.0f; a3 = 0.0f; a4 = 0.0f; a5 = 0.0f; } while (0)
 #define FIRST6()                                                                           \
     __asm__("vldmia %[p]!, {s16-s21}"                                                      \
@@ -191,7 +164,7 @@ ABBE_NOINLINE static abbe_vec3f_t fold6_f32(const abbe_axis_model_t *ax, uint32_
                 : "s24", "s25", "s26", "s27", "s28", "s29", "cc");                         \
     } while (0)
 #else
-    float a0, a1, a2, a3, a4, a5;
+#define ACC6_DECL() float a0, a1, a2, a3, a4, a5
 #define ZERO6() do { a0 = 0.0f; a1 = 0.0f; a2 = 0.0f; a3 = 0.0f; a4 = 0.0f; a5 = 0.0f; } while (0)
 #define FIRST6() \
     do { a0 = LD(0); a1 = LD(1); a2 = LD(2); a3 = LD(3); a4 = LD(4); a5 = LD(5); row += 24; } while (0)
@@ -206,14 +179,67 @@ ABBE_NOINLINE static abbe_vec3f_t fold6_f32(const abbe_axis_model_t *ax, uint32_
 #if !defined(ABBE_M4F_ASM)
 #define HARM6(s1v, c1v, hv) ABBE_HARMONICS_C(ROW6, s1v, c1v, hv)
 #endif
+
+#if defined(ABBE_F32_SSE2)
+/* x86-64: the kernel of eval_f32_sse2.c, with each block's fundamental from
+ * the scalar sin/cos (this path serves abbe_term_eval_f32). */
+static void terms6_f32(const abbe_axis_model_t *ax, uint32_t d, float value[ABBE_TERMS])
+{
+    __m128 h[ABBE_BLOCKS];
+    for (unsigned blk = 0; blk < ABBE_BLOCKS; blk++) {
+        float s1, c1;
+        abbe_sincos_f32_inline(abbe_arg_phase_q32(ax, blk, d), &s1, &c1);
+        h[blk] = _mm_setr_ps(s1, c1, s1, c1);
+    }
+    __m128 lo, hi;
+    const float u = (float)abbe_arg_cheb_q30(ax, d) * 9.31322574615478515625e-10f; /* 2^-30 */
+    abbe_axis6_sse2(abbe_x86_consts(), ax, _mm_set1_ps(u), h[0], h[1], &lo, &hi);
+    _mm_storeu_ps(value, lo);
+    abbe_st2(value + 4, hi);
+}
+
+#else /* !ABBE_F32_SSE2 */
+
+
+
+/* A fitted axis: six columns, the accumulators in registers, folded into e
+ * at once (the values never go through memory). w: NULL (a compile-time
+ * constant: the 3-axis kernel below), or the five-axis evaluation's sum of
+ * the axes' angles, which gets wsign x (eps_x, eps_y, eps_z) from the same
+ * accumulators (one pass of the basis for both). */
+static ABBE_ALWAYS_INLINE abbe_vec3f_t fold6_body(const abbe_axis_model_t *ax, uint32_t d, float ex, float ey,
+                                                  float ez, float rx, float ry, float rz, float lin, float *w,
+                                                  float wsign)
+{
+    /* scalars, not the two aggregates: GCC stores an aggregate argument to
+     * the stack on entry, even where it then uses the registers */
+    abbe_vec3f_t e = {ex, ey, ez};
+    const abbe_vec3f_t r = {rx, ry, rz};
+    const uint8_t *row = ax->coef_f32;
+    ACC6_DECL();
     ABBE_BASIS_F32(ax, d, ZERO6, FIRST6, ROW6, HARM6);
-#undef HARM6
-#undef ROW6_ASM
-#undef ZERO6
-#undef FIRST6
-#undef ROW6
     ABBE_FOLD6(e, r, lin, a0, a1, a2, a3, a4, a5);
+    if (w != NULL) {
+        w[0] += wsign * a3;
+        w[1] += wsign * a4;
+        w[2] += wsign * a5;
+    }
     return e;
+}
+
+/* The 3-axis evaluation's kernel (abbe_axis_fold_f32). */
+ABBE_NOINLINE static abbe_vec3f_t fold6_f32(const abbe_axis_model_t *ax, uint32_t d, float ex, float ey,
+                                            float ez, float rx, float ry, float rz, float lin)
+{
+    return fold6_body(ax, d, ex, ey, ez, rx, ry, rz, lin, NULL, 0.0f);
+}
+
+/* The five-axis evaluation's (abbe_axis_fold_rot_f32): also the angles. */
+ABBE_NOINLINE static abbe_vec3f_t fold6_rot_f32(const abbe_axis_model_t *ax, uint32_t d, float *w, float wsign,
+                                                float ex, float ey, float ez, float rx, float ry, float rz,
+                                                float lin)
+{
+    return fold6_body(ax, d, ex, ey, ez, rx, ry, rz, lin, w, wsign);
 }
 
 #endif /* ABBE_F32_SSE2 */
@@ -262,6 +288,62 @@ abbe_vec3f_t abbe_axis_fold_f32(const abbe_axis_model_t *ax, uint32_t d, float e
 }
 #endif
 
+/* An axis whose six values come as an array (a sparse axis; every axis on
+ * x86-64, whose kernels return values), folded as by the kernel above. Out
+ * of line: the values' array is not on the stack of the six-term path. */
+ABBE_NOINLINE static abbe_vec3f_t fold_values_rot_f32(const abbe_axis_model_t *ax, uint32_t d, float *w,
+                                                      float wsign, float ex, float ey, float ez, float rx,
+                                                      float ry, float rz, float lin)
+{
+    abbe_vec3f_t e = {ex, ey, ez};
+    const abbe_vec3f_t r = {rx, ry, rz};
+    float v[ABBE_TERMS];
+#if defined(ABBE_F32_SSE2)
+    abbe_axis_terms_f32(ax, d, v);
+#else
+    terms_sparse_f32(ax, d, v);
+#endif
+    ABBE_FOLD6(e, r, lin, v[0], v[1], v[2], v[3], v[4], v[5]);
+    w[0] += wsign * v[3];
+    w[1] += wsign * v[4];
+    w[2] += wsign * v[5];
+    return e;
+}
+
+abbe_vec3f_t abbe_axis_fold_rot_f32(const abbe_axis_model_t *ax, uint32_t d, float *w, float wsign, float ex,
+                                    float ey, float ez, float rx, float ry, float rz, float lin)
+{
+#if !defined(ABBE_F32_SSE2)
+    if (ax->n_terms == ABBE_TERMS) {
+        return fold6_rot_f32(ax, d, w, wsign, ex, ey, ez, rx, ry, rz, lin);
+    }
+#endif
+    return fold_values_rot_f32(ax, d, w, wsign, ex, ey, ez, rx, ry, rz, lin);
+}
+
+/* A rotary axis' six error motions (format 1.2, five_eval_f32.c): the sums
+ * over k = 1..h of the rows sin(k t), cos(k t), by the loop of a Fourier
+ * block above, the first three times lin, the others times ang; h >= 1,
+ * (s1, c1) = (sin t, cos t). */
+void abbe_rotary_motions6_f32(const uint8_t *row, unsigned h, float s1, float c1, float lin, float ang, float m[6])
+{
+    ACC6_DECL();
+    ZERO6();
+    HARM6(s1, c1, h);
+    m[0] = a0 * lin;
+    m[1] = a1 * lin;
+    m[2] = a2 * lin;
+    m[3] = a3 * ang;
+    m[4] = a4 * ang;
+    m[5] = a5 * ang;
+}
+
+#undef HARM6
+#undef ROW6_ASM
+#undef ZERO6
+#undef FIRST6
+#undef ROW6
+#undef ACC6_DECL
 #undef LD
 
 void abbe_axis_terms_f32(const abbe_axis_model_t *ax, uint32_t d, float value[ABBE_TERMS])
