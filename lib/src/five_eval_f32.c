@@ -46,13 +46,11 @@ ABBE_NOINLINE static void motions_sparse_f32(const abbe_rotary_model_t *ax, floa
     }
 }
 
-/* An axis' twist at its angle (c, s) for a point at lever L (mm): d (um), w
- * (urad); k the axis it turns about, (j, l) the other two in cyclic order.
- *   w = (I - R) phi + E0 k + m_rot,  d = (I - R) delta + w x L + m_trans
- * (phi and delta have no component along k). Inlined: the table axis (k = 2)
- * with constant indices, its vectors in registers. */
+/* An axis' twist at its angle (c, s) without the lever: w (urad) and
+ * v = (I - R) delta + m_trans (um); k the axis it turns about, (j, l) the
+ * other two in cyclic order (phi and delta have no component along k). */
 static ABBE_ALWAYS_INLINE void twist_f32(const abbe_rotary_model_t *ax, unsigned k, unsigned j, unsigned l, float c,
-                                         float s, const float L[3], float d[3], float w[3])
+                                         float s, float v[3], float w[3])
 {
     float m[ABBE_MOTIONS];
     if (ax->n_comp == ABBE_MOTIONS && ax->harmonics != 0u) { /* the fitted case: the Fourier blocks' kernel */
@@ -66,19 +64,18 @@ static ABBE_ALWAYS_INLINE void twist_f32(const abbe_rotary_model_t *ax, unsigned
     w[k] = (float)ax->zero_q36 * URAD_PER_Q36 + m[3u + k];
     w[j] = omc * pj + s * pl + m[3u + j];
     w[l] = omc * pl - s * pj + m[3u + l];
-    d[k] = m[k];
-    d[j] = omc * dj + s * dl + m[j];
-    d[l] = omc * dl - s * dj + m[l];
-    /* w x L: urad x mm = nm */
-    d[0] += (w[1] * L[2] - w[2] * L[1]) * 1.0e-3f;
-    d[1] += (w[2] * L[0] - w[0] * L[2]) * 1.0e-3f;
-    d[2] += (w[0] * L[1] - w[1] * L[0]) * 1.0e-3f;
+    v[k] = m[k];
+    v[j] = omc * dj + s * dl + m[j];
+    v[l] = omc * dl - s * dj + m[l];
 }
 
 /* out's position (um) and orientation (urad) minus the rotary axes' twists,
- * plus the five-axis squareness, at positions p (nm) and angles udeg:
- *   E -= R_t d_C + d_t,  W -= R_t w_C + w_t
- * R_t the tilt's rotation about its axis k (X or Y), (j, l) = (k+1, k+2) mod 3.
+ * plus the five-axis squareness, at positions p (nm) and angles udeg. With
+ * R_t the tilt's rotation (about its axis k, X or Y; (j, l) = (k+1, k+2) mod
+ * 3), Lt = q - P_t the tilt's lever and the C axis' Lc = R_t^T Lt + offset,
+ * R_t (w_C x Lc) = W_C x (Lt + R_t offset) with W_C = R_t w_C, so
+ *   E -= R_t v_C + v_t + (W_C + w_t) x Lt + W_C x R_t offset,
+ *   W -= W_C + w_t.
  * Out of line: its frame and the linear evaluation's are never on the stack
  * together. */
 ABBE_NOINLINE static void add_rotary_f32(const abbe_five_model_t *m5, const int32_t p[3], const int32_t udeg[2],
@@ -89,37 +86,39 @@ ABBE_NOINLINE static void add_rotary_f32(const abbe_five_model_t *m5, const int3
     float st, ct, sc, cc;
     abbe_sincos_f32(abbe_udeg_phase_q32(udeg[0]), &st, &ct);
     abbe_sincos_f32(abbe_udeg_phase_q32(udeg[1]), &sc, &cc);
+    float v[3], w[3], vt[3], wt[3], Ro[3];
+    twist_f32(table, 2u, 0u, 1u, cc, sc, v, w);
+    twist_f32(tilt, k, j, l, ct, st, vt, wt);
+    /* R_t of the table's v and w, and of the offset (no component along k: the loader), mm */
+    const float vj = v[j], wj = w[j];
+    v[j] = ct * vj - st * v[l];
+    v[l] = st * vj + ct * v[l];
+    w[j] = ct * wj - st * w[l];
+    w[l] = st * wj + ct * w[l];
+    const float oj = (float)m5->offset_nm[j] * 1.0e-6f, ol = (float)m5->offset_nm[l] * 1.0e-6f;
+    Ro[k] = 0.0f;
+    Ro[j] = ct * oj - st * ol;
+    Ro[l] = st * oj + ct * ol;
     /* the tilt's lever q - P_t, mm: (p >> 1) - (P >> 1) an exact int32 difference of half positions */
-    float Lt[3], Lc[3], d[3], w[3];
-    for (unsigned i = 0; i < 3u; i++) {
-        Lt[i] = (float)((p[i] >> 1) - (m5->tilt_pivot_nm[i] >> 1)) * MM_PER_HALF_NM;
-        Lc[i] = Lt[i] + (float)m5->offset_nm[i] * 1.0e-6f;
-    }
-    /* the table axis C at the point before the tilt's rotation: lever R_t^T (q - P_t) + offset */
-    Lc[j] = ct * Lt[j] + st * Lt[l] + (float)m5->offset_nm[j] * 1.0e-6f;
-    Lc[l] = ct * Lt[l] - st * Lt[j] + (float)m5->offset_nm[l] * 1.0e-6f;
-    twist_f32(table, 2u, 0u, 1u, cc, sc, Lc, d, w);
-    /* R_t d_C, R_t w_C */
-    const float dj = d[j], dl = d[l], wj = w[j], wl = w[l];
-    d[j] = ct * dj - st * dl;
-    d[l] = st * dj + ct * dl;
-    w[j] = ct * wj - st * wl;
-    w[l] = st * wj + ct * wl;
-    float e[3], o[3];
-    for (unsigned i = 0; i < 3u; i++) {
-        e[i] = out->error_um[i] - d[i];
-        o[i] = out->orient_urad[i] - w[i];
-    }
-    twist_f32(tilt, k, j, l, ct, st, Lt, d, w);
+    const float x = (float)((p[0] >> 1) - (m5->tilt_pivot_nm[0] >> 1)) * MM_PER_HALF_NM;
+    const float y = (float)((p[1] >> 1) - (m5->tilt_pivot_nm[1] >> 1)) * MM_PER_HALF_NM;
+    const float z = (float)((p[2] >> 1) - (m5->tilt_pivot_nm[2] >> 1)) * MM_PER_HALF_NM;
+    const float W0 = w[0] + wt[0], W1 = w[1] + wt[1], W2 = w[2] + wt[2];
+    /* urad x mm = nm */
+    const float c0 = (W1 * z - W2 * y + w[1] * Ro[2] - w[2] * Ro[1]) * 1.0e-3f;
+    const float c1 = (W2 * x - W0 * z + w[2] * Ro[0] - w[0] * Ro[2]) * 1.0e-3f;
+    const float c2 = (W0 * y - W1 * x + w[0] * Ro[1] - w[1] * Ro[0]) * 1.0e-3f;
     /* five-axis squareness, lever y, z from the C centre: mm x urad = nm */
-    const float y = (float)((p[1] >> 1) - (m5->rot_point_nm[1] >> 1)) * MM_PER_HALF_NM;
-    const float z = (float)((p[2] >> 1) - (m5->rot_point_nm[2] >> 1)) * MM_PER_HALF_NM;
-    e[0] += (y * (float)m5->squareness_q36[0] - z * (float)m5->squareness_q36[1]) * (URAD_PER_Q36 * 1.0e-3f);
-    e[1] -= z * (float)m5->squareness_q36[2] * (URAD_PER_Q36 * 1.0e-3f);
-    for (unsigned i = 0; i < 3u; i++) {
-        out->error_um[i] = e[i] - d[i];
-        out->orient_urad[i] = o[i] - w[i];
-    }
+    const float sy = (float)((p[1] >> 1) - (m5->rot_point_nm[1] >> 1)) * MM_PER_HALF_NM;
+    const float sz = (float)((p[2] >> 1) - (m5->rot_point_nm[2] >> 1)) * MM_PER_HALF_NM;
+    const float q = URAD_PER_Q36 * 1.0e-3f;
+    out->error_um[0] += (sy * (float)m5->squareness_q36[0] - sz * (float)m5->squareness_q36[1]) * q -
+                        (v[0] + vt[0] + c0);
+    out->error_um[1] -= sz * (float)m5->squareness_q36[2] * q + (v[1] + vt[1] + c1);
+    out->error_um[2] -= v[2] + vt[2] + c2;
+    out->orient_urad[0] -= W0;
+    out->orient_urad[1] -= W1;
+    out->orient_urad[2] -= W2;
 }
 
 static void refuse(abbe_five_error_f32_t *out)
