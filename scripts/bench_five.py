@@ -23,6 +23,10 @@ from bench_report import (deepest, parse_callgraph, parse_map, qemu_function_cou
                           qemu_trace_counts, short, stack_measured)
 
 TARGETS = {"five_f32": 1500, "five_q": 3000, "flash": 8 * 1024, "stack": 320}
+#: The tables the instruction budgets are judged on: the paper machine's linear axes (the
+#: 3-axis budgets' table) or none, with the rotary axes. ac_location carries the 'full'
+#: 3-axis table, whose linear evaluation alone is above the five-axis budgets.
+BUDGET_TABLES = ("ac_full", "bc_motions")
 #: bench/results.md's 3-axis figures this section must not regress (issue 23).
 THREE_AXIS_BEFORE = {("Cortex-M4F", "f32"): 697, ("Cortex-M3", "q"): 1409,
                      ("Cortex-M4F", "comp_f32"): 6048, ("Cortex-M4F", "comp_q"): 5926,
@@ -76,7 +80,10 @@ def section(m4f: Path, m3: Path) -> list[str]:
             st = stacks.get(key, 0) - wrappers.get(_WRAPPER[call], 0)
             out.append(f"| {name} | {call} | {table} | {min(v)} / {int(statistics.median(v))} / {max(v)} | "
                        f"{st} | {target} |")
-            worst[(name, call)] = max(worst.get((name, call), 0), max(v))
+            # the budget's tables: the paper machine's linear axes (or none) with the rotary axes;
+            # ac_location's linear axes are the 'full' 3-axis table (reported apart, below)
+            budget_key = (name, call) if table in BUDGET_TABLES else (name, call + "@" + table)
+            worst[budget_key] = max(worst.get(budget_key, 0), max(v))
             stack_worst[(name, call)] = max(stack_worst.get((name, call), 0), st)
         c3, _ = qemu_trace_counts(MACHINES[name], build / "bench" / "bench_target.elf", nm)
         for call in ("f32", "q", "comp_f32", "comp_q"):
@@ -113,8 +120,14 @@ def section(m4f: Path, m3: Path) -> list[str]:
     out += ["", "Budgets (issue 23) and the 3-axis figures (must not regress):", "",
             "| measurement | now | budget / before | |", "|---|---:|---:|---|"]
     rows = [
-        ("Cortex-M4F abbe_five_error_eval_f32, worst", worst.get(("Cortex-M4F", "five_f32")), TARGETS["five_f32"]),
-        ("Cortex-M3 abbe_five_error_eval_q, worst", worst.get(("Cortex-M3", "five_q")), TARGETS["five_q"]),
+        ("Cortex-M4F abbe_five_error_eval_f32, worst of ac_full, bc_motions", worst.get(("Cortex-M4F", "five_f32")),
+         TARGETS["five_f32"]),
+        ("Cortex-M3 abbe_five_error_eval_q, worst of ac_full, bc_motions", worst.get(("Cortex-M3", "five_q")),
+         TARGETS["five_q"]),
+        ("Cortex-M4F abbe_five_error_eval_f32, ac_location ('full' 3-axis table: see below)",
+         worst.get(("Cortex-M4F", "five_f32@ac_location")), TARGETS["five_f32"]),
+        ("Cortex-M3 abbe_five_error_eval_q, ac_location ('full' 3-axis table: see below)",
+         worst.get(("Cortex-M3", "five_q@ac_location")), TARGETS["five_q"]),
         ("flash, five-axis load + eval + compensator, f32 (M4F)", flash.get(("Cortex-M4F", "five_f32")),
          TARGETS["flash"]),
         ("flash, five-axis load + eval + compensator, q (M4F)", flash.get(("Cortex-M4F", "five_q")),
@@ -140,11 +153,13 @@ def section(m4f: Path, m3: Path) -> list[str]:
     for label, now, budget in rows:
         out.append(f"| {label} | {now if now is not None else 'n/a'} | {budget} | "
                    f"{_verdict(now, budget) if now is not None else 'not measured'} |")
-    out += ["", "Where the instructions go (ac_full, first point, instructions per function):", ""]
-    for name, build, plan in (("Cortex-M4F", m4f, "five_f32@ac_full"), ("Cortex-M3", m3, "five_q@ac_full")):
+    out += ["", "Where the instructions go (first point, instructions per function):", ""]
+    for name, build, plan in (("Cortex-M4F", m4f, "five_f32@ac_full"), ("Cortex-M3", m3, "five_q@ac_full"),
+                              ("Cortex-M4F", m4f, "five_f32@ac_location"), ("Cortex-M3", m3, "five_q@ac_location")):
         fc = qemu_function_counts(MACHINES[name], build / "bench" / "bench_five_target.elf", nm, plan)
-        out.append(f"- {name} `{plan.split('@')[0]}`: " + ", ".join(f"{short(k)} {v}" for k, v in fc.items()
-                                                                  if not k.startswith("run_")))
+        call, table = plan.split("@")
+        out.append(f"- {name} `{call}` on `{table}`: " + ", ".join(f"{short(k)} {v}" for k, v in fc.items()
+                                                                   if not k.startswith("run_")))
     out += ["", FLOOR, ""]
     return out
 

@@ -32,6 +32,10 @@
 ABBE_NOINLINE static void motions_sparse_f32(const abbe_rotary_model_t *ax, float c, float s, float m[ABBE_MOTIONS])
 {
     const unsigned n = ax->n_comp, h = ax->harmonics; /* h = 0 without components (the loader) */
+    if (h == 0u) { /* no error motions (location errors only) */
+        m[0] = m[1] = m[2] = m[3] = m[4] = m[5] = 0.0f;
+        return;
+    }
     for (unsigned i = 0; i < ABBE_MOTIONS; i++) {
         float acc = 0.0f, sk = s, ck = c;
         const uint8_t *row = ax->coef_f32 + 4u * ax->column[i];
@@ -46,27 +50,27 @@ ABBE_NOINLINE static void motions_sparse_f32(const abbe_rotary_model_t *ax, floa
     }
 }
 
-/* An axis' twist at its angle (c, s) without the lever: w (urad) and
- * v = (I - R) delta + m_trans (um); k the axis it turns about, (j, l) the
- * other two in cyclic order (phi and delta have no component along k). */
+/* An axis' twist at its angle (c, s) without the lever, vw = (v, w):
+ * v = (I - R) delta + m_trans (um), w = (I - R) phi + E0 k + m_rot (urad);
+ * k the axis it turns about, (j, l) the other two in cyclic order (phi and
+ * delta have no component along k). The motions are written straight into vw. */
 static ABBE_ALWAYS_INLINE void twist_f32(const abbe_rotary_model_t *ax, unsigned k, unsigned j, unsigned l, float c,
-                                         float s, float v[3], float w[3])
+                                         float s, float vw[2u * 3u])
 {
-    float m[ABBE_MOTIONS];
     if (ax->n_comp == ABBE_MOTIONS && ax->harmonics != 0u) { /* the fitted case: the Fourier blocks' kernel */
-        abbe_rotary_motions6_f32(ax->coef_f32, ax->harmonics, s, c, UM_PER_Q8, URAD_PER_Q36, m);
+        abbe_rotary_motions6_f32(ax->coef_f32, ax->harmonics, s, c, UM_PER_Q8, URAD_PER_Q36, vw);
     } else {
-        motions_sparse_f32(ax, c, s, m);
+        motions_sparse_f32(ax, c, s, vw);
     }
+    float *v = vw, *w = vw + 3;
     const float pj = (float)ax->phi_q36[j] * URAD_PER_Q36, pl = (float)ax->phi_q36[l] * URAD_PER_Q36;
     const float dj = (float)ax->delta_q8[j] * UM_PER_Q8, dl = (float)ax->delta_q8[l] * UM_PER_Q8;
     const float omc = 1.0f - c;
-    w[k] = (float)ax->zero_q36 * URAD_PER_Q36 + m[3u + k];
-    w[j] = omc * pj + s * pl + m[3u + j];
-    w[l] = omc * pl - s * pj + m[3u + l];
-    v[k] = m[k];
-    v[j] = omc * dj + s * dl + m[j];
-    v[l] = omc * dl - s * dj + m[l];
+    w[k] += (float)ax->zero_q36 * URAD_PER_Q36;
+    w[j] += omc * pj + s * pl;
+    w[l] += omc * pl - s * pj;
+    v[j] += omc * dj + s * dl;
+    v[l] += omc * dl - s * dj;
 }
 
 /* out's position (um) and orientation (urad) minus the rotary axes' twists,
@@ -86,9 +90,11 @@ ABBE_NOINLINE static void add_rotary_f32(const abbe_five_model_t *m5, const int3
     float st, ct, sc, cc;
     abbe_sincos_f32(abbe_udeg_phase_q32(udeg[0]), &st, &ct);
     abbe_sincos_f32(abbe_udeg_phase_q32(udeg[1]), &sc, &cc);
-    float v[3], w[3], vt[3], wt[3], Ro[3];
-    twist_f32(table, 2u, 0u, 1u, cc, sc, v, w);
-    twist_f32(tilt, k, j, l, ct, st, vt, wt);
+    float vw[6], vwt[6], Ro[3];
+    twist_f32(table, 2u, 0u, 1u, cc, sc, vw);
+    twist_f32(tilt, k, j, l, ct, st, vwt);
+    float *v = vw, *w = vw + 3;
+    const float *vt = vwt, *wt = vwt + 3;
     /* R_t of the table's v and w, and of the offset (no component along k: the loader), mm */
     const float vj = v[j], wj = w[j];
     v[j] = ct * vj - st * v[l];

@@ -38,6 +38,10 @@ ABBE_NOINLINE static void motions_q(const abbe_rotary_model_t *ax, int32_t c, in
                                     int32_t trans[3], int32_t rot[3])
 {
     const unsigned n = ax->n_comp, rows = 2u * ax->harmonics; /* 0 without components (the loader) */
+    if (rows == 0u) { /* no error motions (location errors only) */
+        trans[0] = trans[1] = trans[2] = rot[0] = rot[1] = rot[2] = 0;
+        return;
+    }
     const int32_t ns = -s;
     int32_t sk = s, ck = c;
     for (unsigned r = 0; r < rows; r += 2u) {
