@@ -7,9 +7,11 @@
  *
  * with each rotary axis' twist at its angle t and a lever L from its pivot:
  *   w = (I - R) phi + E0 k + m_rot(t),   d = (I - R) delta + w x L + m_trans(t)
- * (the C axis' lever is R_t^T (q - P_t) + offset, the tilt's q - P_t). The
- * linear axes' part is the 3-axis evaluation (eval_f32.c) plus the five-axis
- * squareness; their orientation error is eps_Z - eps_X - eps_Y.
+ * (the C axis' lever is R_t^T (q - P_t) + offset, the tilt's q - P_t;
+ * add_rotary_f32 rearranges it so that this lever is never formed). The
+ * linear axes' part is the 3-axis evaluation's source (eval_f32_linear.h),
+ * whose folds also sum their orientation error eps_Z - eps_X - eps_Y, plus
+ * the five-axis squareness.
  *
  * Angles become integer micro-degrees (abbe_mm_to_nm_inline's exact
  * conversion: the same 10^6 scale) and a phase in Q32 turns, reduced modulo
