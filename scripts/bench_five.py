@@ -225,7 +225,11 @@ need more. Measured trade-offs: one out-of-line twist instead of two inlined one
 148 B (f32) / 124 B (q) for +43 / +55 instructions per call (f32 then misses its
 1,500); -Os on five_load.c saves 5 B; -Os on five_eval_q.c saves 172 B (M3) for +492
 instructions. Meeting 8 KiB needs a smaller 3-axis core or loader (shared check
-helpers for the linear and rotary arrays), not done.
+helpers for the linear and rotary arrays), not done. The five-axis kernels are a
+translation unit of their own (terms_rot_f32.c) so that the 3-axis kernels compile as
+before: in one unit with the 3-axis kernel, GCC -Os outlined the phase reduction
+(section 5: +34 instructions, +30 B); apart, the five-axis image holds the f32 sin/cos
+table twice (96 B).
 
 Stack: `_q` meets 320 B (the harmonics' basis in the compensator's scratch, the
 motions written straight into the twist's vectors, the outputs rounded per component

@@ -242,6 +242,8 @@ void abbe_axis_terms_q(const abbe_axis_model_t *ax, uint32_t d, int32_t value[AB
 /* The same for an axis with fewer than six terms (terms_sparse_q.c). */
 void abbe_axis_terms_sparse_q(const abbe_axis_model_t *ax, uint32_t d, int32_t value[ABBE_TERMS]);
 void abbe_axis_terms_f32(const abbe_axis_model_t *ax, uint32_t d, float value[ABBE_TERMS]);
+/* The same for an axis with fewer than six terms (terms_f32.c). */
+void abbe_axis_terms_sparse_f32(const abbe_axis_model_t *ax, uint32_t d, float value[ABBE_TERMS]);
 
 /* Three floats: a homogeneous aggregate, returned in s0-s2 on a Cortex-M4F
  * (and e, r, lin go in s0-s6 as scalars: GCC stores an aggregate argument to
@@ -257,11 +259,12 @@ abbe_vec3f_t abbe_axis_fold_f32(const abbe_axis_model_t *ax, uint32_t d, float e
                                 float ry, float rz, float lin);
 /* A rotary axis' six error motions: the sums over k = 1..h (h >= 1) of its
  * rows (six sin(k t), six cos(k t) values), (s1, c1) = (sin t, cos t), the
- * three linear ones times lin, the angular ones times ang (terms_f32.c, the
- * Fourier blocks' loop). */
+ * three linear ones times lin, the angular ones times ang (terms_rot_f32.c,
+ * the Fourier blocks' loop). */
 void abbe_rotary_motions6_f32(const uint8_t *row, unsigned h, float s1, float c1, float lin, float ang, float m[6]);
 /* The same (every build, x86-64 included), also adding wsign x (eps_x,
- * eps_y, eps_z) to w: the five-axis evaluation's one pass over an axis. */
+ * eps_y, eps_z) to w: the five-axis evaluation's one pass over an axis
+ * (terms_rot_f32.c). */
 abbe_vec3f_t abbe_axis_fold_rot_f32(const abbe_axis_model_t *ax, uint32_t d, float *w, float wsign, float ex,
                                     float ey, float ez, float rx, float ry, float rz, float lin);
 
