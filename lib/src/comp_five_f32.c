@@ -20,34 +20,17 @@ abbe_status_t abbe_comp_step5_f32(abbe_comp_t *comp, const abbe_comp_input5_f32_
     }
     int32_t *error_nm = &comp->scratch[ABBE_AXES * ABBE_TERMS];
     int have_error = 0;
+    abbe_five_error_f32_t eval_out;
     out->orient_nrad[0] = out->orient_nrad[1] = out->orient_nrad[2] = 0;
     if (input_ok && comp->model != NULL) {
         abbe_comp_track_direction(comp, pos_nm, in->lin.dir);
-        const abbe_five_model_t *five = abbe_comp_five_model(comp);
-        abbe_five_input_f32_t eval_in;
-        abbe_five_error_f32_t eval_out;
+        float dir_state[ABBE_AXES];
         for (unsigned j = 0; j < ABBE_AXES; j++) {
-            eval_in.pos_mm[j] = in->lin.pos_mm[j];
-            eval_in.dir_state[j] = (float)comp->dir_state_q30[j] * 9.31322574615478515625e-10f; /* 2^-30 */
-            eval_in.temp_c[j] = in->lin.temp_c[j];
+            dir_state[j] = (float)comp->dir_state_q30[j] * 9.31322574615478515625e-10f; /* 2^-30 */
         }
-        eval_in.angle_deg[0] = in->angle_deg[0];
-        eval_in.angle_deg[1] = in->angle_deg[1];
-        if (five != NULL) {
-            have_error = abbe_five_error_eval_f32(five, &eval_in, &eval_out) == ABBE_OK;
-        } else {
-            /* a 3-axis model: its linear error; the angles must still be finite */
-            abbe_input_f32_t lin_in;
-            abbe_error_f32_t lin;
-            memcpy(lin_in.pos_mm, eval_in.pos_mm, sizeof lin_in.pos_mm);
-            memcpy(lin_in.dir_state, eval_in.dir_state, sizeof lin_in.dir_state);
-            memcpy(lin_in.temp_c, eval_in.temp_c, sizeof lin_in.temp_c);
-            have_error = !abbe_f32_nonfinite(in->angle_deg[0]) && !abbe_f32_nonfinite(in->angle_deg[1]) &&
-                         abbe_eval_f32_core(comp->model, &lin_in, &lin) == ABBE_OK;
-            memcpy(eval_out.error_um, lin.error_um, sizeof lin.error_um);
-            memset(eval_out.orient_urad, 0, sizeof eval_out.orient_urad);
-            eval_out.flags = lin.flags;
-        }
+        /* a 3-axis model: its linear error (orientation 0); the angles must still be finite */
+        have_error = abbe_five_eval_f32_core(comp->model, abbe_comp_five_model(comp), in->lin.pos_mm, in->angle_deg,
+                                             dir_state, in->lin.temp_c, &eval_out) == ABBE_OK;
         input_ok = have_error;
         for (unsigned j = 0; have_error && j < ABBE_AXES; j++) {
             error_nm[j] = abbe_comp_um_to_nm(eval_out.error_um[j], &flags);

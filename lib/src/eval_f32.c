@@ -7,14 +7,13 @@
  * six values are folded into (dX, dY, dZ) as soon as they are known, each by
  * one multiply-add: no term array, no per-term scaling.
  */
-#include "internal.h"
+#include "eval_f32_linear.h"
 
 #if !ABBE_WITH_F32
 #error "this is the _f32 variant: compile it with ABBE_WITH_F32=1 (or leave it undefined), or leave the file out"
 #endif
 
-#define UM_PER_LIN_LSB 3.90625e-6f                      /* 2^-8 nm in um */
-#define UM_PER_HALF_NM_X_ANG_LSB 2.9103830456733704e-14f /* 2 nm x 2^-36 rad in um: 2^-35 x 1e-3 */
+#define UM_PER_LIN_LSB ABBE_UM_PER_LIN_LSB
 #define BACKLASH_UM_PER_LSB 3.90625e-6f                 /* 2^-8 nm in um */
 #define EXPANSION_PER_K_PER_LSB 8.8817841970012523e-13f /* 2^-50 per mK, per K */
 #define OFFSET_UM_PER_K_PER_LSB 1.52587890625e-5f       /* 2^-16 nm per mK = um per K */
@@ -101,63 +100,10 @@ int abbe_f32_extras_nonfinite(uint32_t features, const float dir_state[ABBE_AXES
 #if !defined(ABBE_F32_SSE2) /* x86-64: eval_f32_sse2.c */
 abbe_status_t abbe_eval_f32_core(const abbe_model_t *m, const abbe_input_f32_t *in, abbe_error_f32_t *out)
 {
-    const float *pos_mm = in->pos_mm, *dir_state = in->dir_state, *temp_c = in->temp_c;
-    float *error_um = out->error_um;
-    const uint32_t features = m->features;
-    if ((features & (ABBE_FEATURE_BACKLASH | ABBE_FEATURE_THERMAL)) &&
-        abbe_f32_extras_nonfinite(features, dir_state, temp_c)) {
-        abbe_f32_refuse(out);
+    const uint32_t flags = eval_f32_linear(m, in->pos_mm, in->dir_state, in->temp_c, out->error_um, NULL, NULL);
+    if (flags == ABBE_FLAG_INPUT_INVALID) { /* never set by the evaluation itself */
+        out->flags = 0;
         return ABBE_E_INPUT;
-    }
-    /* Per axis, in one loop (one copy of the code, flash): the position in nm,
-     * its offset in the travel, and the lever arm p - ref as (p >> 1) - (ref >> 1)
-     * half nm (an exact int32 difference, where p - ref can need 33 bits; 1 nm
-     * of the arm at most), scaled so that arm x angle LSB is um. */
-    const float ka = UM_PER_HALF_NM_X_ANG_LSB, kl = UM_PER_LIN_LSB;
-    uint32_t flags = 0, bad = 0, d[ABBE_AXES];
-    float lev[ABBE_AXES];
-    for (unsigned j = 0; j < ABBE_AXES; j++) {
-        int32_t p;
-        bad |= abbe_mm_to_nm_inline(pos_mm[j], &p, &flags);
-        d[j] = abbe_arg_offset(&m->axis[j], p, &flags);
-        lev[j] = (float)((p >> 1) - m->ref_half_nm[j]) * ka;
-    }
-    if (bad) {
-        abbe_f32_refuse(out);
-        return ABBE_E_INPUT;
-    }
-    const float x = lev[0], y = lev[1], z = lev[2];
-    const float tx = m->tool_half_nm[0] * ka, ty = m->tool_half_nm[1] * ka, tz = m->tool_half_nm[2] * ka;
-    /* (dX, dY, dZ) = squareness + sum over the axes of their share (docs/
-     * table-format.md, Eq. 3 with the tool offset): -d_j (+d_z for Z) and the
-     * axis' angles crossed with its lever arm r_j (abbe_axis_fold_f32):
-     *   X: r = (x - tx, y - ty, -(z + tz)),  Y: r = (-tx, y - ty, -(z + tz)),
-     *   Z: r = (tx, ty, tz).
-     * squareness: + y S_xy - z S_xz in dX, - z S_yz in dY */
-    abbe_vec3f_t e;
-    e.x = y * m->squareness_f[0];
-    e.x -= z * m->squareness_f[1];
-    e.y = -z * m->squareness_f[2];
-    e.z = 0.0f;
-    const abbe_vec3f_t r_x = {x - tx, y - ty, -(z + tz)};
-    e = abbe_axis_fold_f32(&m->axis[0], d[0], e.x, e.y, e.z, r_x.x, r_x.y, r_x.z, -kl);
-    const abbe_vec3f_t r_y = {-tx, r_x.y, r_x.z};
-    e = abbe_axis_fold_f32(&m->axis[1], d[1], e.x, e.y, e.z, r_y.x, r_y.y, r_y.z, -kl);
-    const abbe_vec3f_t r_z = {tx, ty, tz};
-    e = abbe_axis_fold_f32(&m->axis[2], d[2], e.x, e.y, e.z, r_z.x, r_z.y, r_z.z, kl);
-    const float ex = e.x, ey = e.y, ez = e.z;
-
-    error_um[0] = ex;
-    error_um[1] = ey;
-    error_um[2] = ez;
-    if (features & (ABBE_FEATURE_BACKLASH | ABBE_FEATURE_THERMAL)) {
-        const float mm_per_scaled = 2.0e-6f / ka; /* scaled arm -> mm */
-        const float lev_mm[ABBE_AXES] = {x * mm_per_scaled, y * mm_per_scaled, z * mm_per_scaled};
-        abbe_f32_add_extras(m, lev_mm,
-#if !defined(ABBE_NO_REVERSAL)
-                            d,
-#endif
-                            dir_state, temp_c, error_um);
     }
     out->flags = flags;
     return ABBE_OK;

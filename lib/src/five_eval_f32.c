@@ -7,15 +7,18 @@
  *
  * with each rotary axis' twist at its angle t and a lever L from its pivot:
  *   w = (I - R) phi + E0 k + m_rot(t),   d = (I - R) delta + w x L + m_trans(t)
- * (the C axis' lever is R_t^T (q - P_t) + offset, the tilt's q - P_t). The
- * linear axes' part is the 3-axis evaluation (eval_f32.c) plus the five-axis
- * squareness; their orientation error is eps_Z - eps_X - eps_Y.
+ * (the C axis' lever is R_t^T (q - P_t) + offset, the tilt's q - P_t;
+ * add_rotary_f32 rearranges it so that this lever is never formed). The
+ * linear axes' part is the 3-axis evaluation's source (eval_f32_linear.h),
+ * whose folds also sum their orientation error eps_Z - eps_X - eps_Y, plus
+ * the five-axis squareness.
  *
  * Angles become integer micro-degrees (abbe_mm_to_nm_inline's exact
  * conversion: the same 10^6 scale) and a phase in Q32 turns, reduced modulo
  * one turn in integers first, so a full turn is an exact period.
  */
-#include "internal.h"
+#define ABBE_EVAL_F32_ROT 1 /* the folds also sum the linear axes' angles */
+#include "eval_f32_linear.h"
 
 #if !ABBE_WITH_F32
 #error "this is the _f32 variant: compile it with ABBE_WITH_F32=1 (or leave it undefined), or leave the file out"
@@ -25,123 +28,105 @@
 #define URAD_PER_Q36 1.4551915228366852e-5f   /* 2^-36 rad in urad */
 #define MM_PER_HALF_NM 2.0e-6f
 
-/* v -> R v (inverse: R^T v) for a rotation by (c, s) about machine axis k. */
-static void rotate_f32(unsigned k, float c, float s, int inverse, float v[3])
+/* The error motions m (X, Y, Z um; A, B, C urad) of an axis with fewer than
+ * six components (or none) at its angle (c, s): one column at a time, sin k t
+ * and cos k t by rotation, k = 1 .. H. */
+ABBE_NOINLINE static void motions_sparse_f32(const abbe_rotary_model_t *ax, float c, float s, float m[ABBE_MOTIONS])
 {
-    const unsigned j = (k + 1u) % 3u, l = (k + 2u) % 3u;
-    const float sn = inverse ? -s : s;
-    const float vj = v[j], vl = v[l];
-    v[j] = c * vj - sn * vl;
-    v[l] = sn * vj + c * vl;
-}
-
-/* The error motions m (X, Y, Z um; A, B, C urad) of an axis at its angle
- * (c, s): sin k t and cos k t by rotation, k = 1 .. H. An axis with all six
- * components (the fitted case) keeps its accumulators in registers. */
-ABBE_NOINLINE static void motions_f32(const abbe_rotary_model_t *ax, float c, float s, float m[ABBE_MOTIONS])
-{
-    const unsigned n = ax->n_comp;
-    const uint8_t *row = ax->coef_f32;
-    float sk = s, ck = c;
-    if (n == ABBE_MOTIONS) {
-        float a0 = 0.0f, a1 = 0.0f, a2 = 0.0f, a3 = 0.0f, a4 = 0.0f, a5 = 0.0f;
-        for (unsigned k = 0; k < ax->harmonics; k++, row += 48u) {
-#define MAC6(acc, i) acc += abbe_ld_f32_aligned(row + 4u * (i)) * sk + abbe_ld_f32_aligned(row + 24u + 4u * (i)) * ck
-            MAC6(a0, 0u); MAC6(a1, 1u); MAC6(a2, 2u); MAC6(a3, 3u); MAC6(a4, 4u); MAC6(a5, 5u);
-#undef MAC6
+    const unsigned n = ax->n_comp, h = ax->harmonics; /* h = 0 without components (the loader) */
+    if (h == 0u) { /* no error motions (location errors only) */
+        m[0] = m[1] = m[2] = m[3] = m[4] = m[5] = 0.0f;
+        return;
+    }
+    for (unsigned i = 0; i < ABBE_MOTIONS; i++) {
+        float acc = 0.0f, sk = s, ck = c;
+        const uint8_t *row = ax->coef_f32 + 4u * ax->column[i];
+        for (unsigned k = 0; ax->column[i] != 0xFFu && k < h; k++, row += 8u * n) {
+            acc += abbe_ld_f32_aligned(row) * sk;
+            acc += abbe_ld_f32_aligned(row + 4u * n) * ck;
             const float sn = sk * c + ck * s;
             ck = ck * c - sk * s;
             sk = sn;
         }
-        m[0] = a0 * UM_PER_Q8; m[1] = a1 * UM_PER_Q8; m[2] = a2 * UM_PER_Q8;
-        m[3] = a3 * URAD_PER_Q36; m[4] = a4 * URAD_PER_Q36; m[5] = a5 * URAD_PER_Q36;
-        return;
-    }
-    float acc[ABBE_MOTIONS];
-    for (unsigned i = 0; i < ABBE_MOTIONS; i++) {
-        acc[i] = 0.0f;
-    }
-    for (unsigned k = 0; k < ax->harmonics; k++) {
-        for (unsigned col = 0; col < n; col++) {
-            acc[col] += abbe_ld_f32_aligned(row + 4u * col) * sk + abbe_ld_f32_aligned(row + 4u * (n + col)) * ck;
-        }
-        row += 8u * n;
-        const float sn = sk * c + ck * s;
-        ck = ck * c - sk * s;
-        sk = sn;
-    }
-    for (unsigned i = 0; i < ABBE_MOTIONS; i++) {
-        m[i] = ax->column[i] == 0xFFu ? 0.0f : acc[ax->column[i]] * (i < 3u ? UM_PER_Q8 : URAD_PER_Q36);
+        m[i] = acc * (i < 3u ? UM_PER_Q8 : URAD_PER_Q36);
     }
 }
 
-/* An axis' twist at its angle (c, s) for a point at lever L (mm): d (um),
- * w (urad). */
-ABBE_NOINLINE static void twist_f32(const abbe_rotary_model_t *ax, float c, float s, const float L_mm[3], float d_um[3],
-                                    float w_urad[3])
+/* An axis' twist at its angle (c, s) without the lever, vw = (v, w):
+ * v = (I - R) delta + m_trans (um), w = (I - R) phi + E0 k + m_rot (urad);
+ * k the axis it turns about, (j, l) the other two in cyclic order (phi and
+ * delta have no component along k). The motions are written straight into vw. */
+static ABBE_ALWAYS_INLINE void twist_f32(const abbe_rotary_model_t *ax, unsigned k, unsigned j, unsigned l, float c,
+                                         float s, float vw[2u * 3u])
 {
-    float m[ABBE_MOTIONS];
-    motions_f32(ax, c, s, m);
-    /* w = (I - R) phi + E0 k + m_rot, d = (I - R) delta + m_trans, componentwise
-     * (no component along the axis k) */
-    const unsigned k = ax->dir, j = (k + 1u) % 3u, l = (k + 2u) % 3u;
+    if (ax->n_comp == ABBE_MOTIONS && ax->harmonics != 0u) { /* the fitted case: the Fourier blocks' kernel */
+        abbe_rotary_motions6_f32(ax->coef_f32, ax->harmonics, s, c, UM_PER_Q8, URAD_PER_Q36, vw);
+    } else {
+        motions_sparse_f32(ax, c, s, vw);
+    }
+    float *v = vw, *w = vw + 3;
     const float pj = (float)ax->phi_q36[j] * URAD_PER_Q36, pl = (float)ax->phi_q36[l] * URAD_PER_Q36;
     const float dj = (float)ax->delta_q8[j] * UM_PER_Q8, dl = (float)ax->delta_q8[l] * UM_PER_Q8;
-    float w[3], d[3];
-    w[k] = (float)ax->zero_q36 * URAD_PER_Q36;
-    w[j] = pj - (c * pj - s * pl);
-    w[l] = pl - (s * pj + c * pl);
-    d[k] = 0.0f;
-    d[j] = dj - (c * dj - s * dl);
-    d[l] = dl - (s * dj + c * dl);
-    for (unsigned i = 0; i < 3u; i++) {
-        w_urad[i] = w[i] + m[3u + i];
-    }
-    /* w x L: urad x mm = nm */
-    d_um[0] = d[0] + (w_urad[1] * L_mm[2] - w_urad[2] * L_mm[1]) * 1.0e-3f + m[0];
-    d_um[1] = d[1] + (w_urad[2] * L_mm[0] - w_urad[0] * L_mm[2]) * 1.0e-3f + m[1];
-    d_um[2] = d[2] + (w_urad[0] * L_mm[1] - w_urad[1] * L_mm[0]) * 1.0e-3f + m[2];
+    const float omc = 1.0f - c;
+    w[k] += (float)ax->zero_q36 * URAD_PER_Q36;
+    w[j] += omc * pj + s * pl;
+    w[l] += omc * pl - s * pj;
+    v[j] += omc * dj + s * dl;
+    v[l] += omc * dl - s * dj;
 }
 
 /* out's position (um) and orientation (urad) minus the rotary axes' twists,
- * plus the five-axis squareness, at positions p (nm) and angles udeg. Out of
- * line: its frame and the linear evaluation's are never on the stack
+ * plus the five-axis squareness, at positions p (nm) and angles udeg. With
+ * R_t the tilt's rotation (about its axis k, X or Y; (j, l) = (k+1, k+2) mod
+ * 3), Lt = q - P_t the tilt's lever and the C axis' Lc = R_t^T Lt + offset,
+ * R_t (w_C x Lc) = W_C x (Lt + R_t offset) with W_C = R_t w_C, so
+ *   E -= R_t v_C + v_t + (W_C + w_t) x Lt + W_C x R_t offset,
+ *   W -= W_C + w_t.
+ * Out of line: its frame and the linear evaluation's are never on the stack
  * together. */
 ABBE_NOINLINE static void add_rotary_f32(const abbe_five_model_t *m5, const int32_t p[3], const int32_t udeg[2],
                                          abbe_five_error_f32_t *out)
 {
     const abbe_rotary_model_t *tilt = &m5->rotary[0], *table = &m5->rotary[1];
+    const unsigned k = tilt->dir, j = k + 1u, l = k == 0u ? 2u : 0u; /* the tilt turns about X or Y */
     float st, ct, sc, cc;
     abbe_sincos_f32(abbe_udeg_phase_q32(udeg[0]), &st, &ct);
     abbe_sincos_f32(abbe_udeg_phase_q32(udeg[1]), &sc, &cc);
-    float L[3], d[3], w[3];
-    /* the table axis C at the point before the tilt's rotation: lever R_t^T (q - P_t) + offset,
-     * (p >> 1) - (P >> 1) an exact int32 difference of half positions */
-    for (unsigned i = 0; i < 3u; i++) {
-        L[i] = (float)((p[i] >> 1) - (m5->tilt_pivot_nm[i] >> 1)) * MM_PER_HALF_NM;
-    }
-    rotate_f32(tilt->dir, ct, st, 1, L);
-    for (unsigned i = 0; i < 3u; i++) {
-        L[i] += (float)m5->offset_nm[i] * 1.0e-6f;
-    }
-    twist_f32(table, cc, sc, L, d, w);
-    rotate_f32(tilt->dir, ct, st, 0, d);
-    rotate_f32(tilt->dir, ct, st, 0, w);
-    for (unsigned i = 0; i < 3u; i++) {
-        out->error_um[i] -= d[i];
-        out->orient_urad[i] -= w[i];
-        L[i] = (float)((p[i] >> 1) - (m5->tilt_pivot_nm[i] >> 1)) * MM_PER_HALF_NM; /* the tilt: q - P_t */
-    }
-    twist_f32(tilt, ct, st, L, d, w);
-    for (unsigned i = 0; i < 3u; i++) {
-        out->error_um[i] -= d[i];
-        out->orient_urad[i] -= w[i];
-    }
+    float vw[6], vwt[6], Ro[3];
+    twist_f32(table, 2u, 0u, 1u, cc, sc, vw);
+    twist_f32(tilt, k, j, l, ct, st, vwt);
+    float *v = vw, *w = vw + 3;
+    const float *vt = vwt, *wt = vwt + 3;
+    /* R_t of the table's v and w, and of the offset (no component along k: the loader), mm */
+    const float vj = v[j], wj = w[j];
+    v[j] = ct * vj - st * v[l];
+    v[l] = st * vj + ct * v[l];
+    w[j] = ct * wj - st * w[l];
+    w[l] = st * wj + ct * w[l];
+    const float oj = (float)m5->offset_nm[j] * 1.0e-6f, ol = (float)m5->offset_nm[l] * 1.0e-6f;
+    Ro[k] = 0.0f;
+    Ro[j] = ct * oj - st * ol;
+    Ro[l] = st * oj + ct * ol;
+    /* the tilt's lever q - P_t, mm: (p >> 1) - (P >> 1) an exact int32 difference of half positions */
+    const float x = (float)((p[0] >> 1) - (m5->tilt_pivot_nm[0] >> 1)) * MM_PER_HALF_NM;
+    const float y = (float)((p[1] >> 1) - (m5->tilt_pivot_nm[1] >> 1)) * MM_PER_HALF_NM;
+    const float z = (float)((p[2] >> 1) - (m5->tilt_pivot_nm[2] >> 1)) * MM_PER_HALF_NM;
+    const float W0 = w[0] + wt[0], W1 = w[1] + wt[1], W2 = w[2] + wt[2];
+    /* urad x mm = nm */
+    const float c0 = (W1 * z - W2 * y + w[1] * Ro[2] - w[2] * Ro[1]) * 1.0e-3f;
+    const float c1 = (W2 * x - W0 * z + w[2] * Ro[0] - w[0] * Ro[2]) * 1.0e-3f;
+    const float c2 = (W0 * y - W1 * x + w[0] * Ro[1] - w[1] * Ro[0]) * 1.0e-3f;
     /* five-axis squareness, lever y, z from the C centre: mm x urad = nm */
-    const float y = (float)((p[1] >> 1) - (m5->rot_point_nm[1] >> 1)) * MM_PER_HALF_NM;
-    const float z = (float)((p[2] >> 1) - (m5->rot_point_nm[2] >> 1)) * MM_PER_HALF_NM;
-    out->error_um[0] += (y * (float)m5->squareness_q36[0] - z * (float)m5->squareness_q36[1]) * (URAD_PER_Q36 * 1.0e-3f);
-    out->error_um[1] -= z * (float)m5->squareness_q36[2] * (URAD_PER_Q36 * 1.0e-3f);
+    const float sy = (float)((p[1] >> 1) - (m5->rot_point_nm[1] >> 1)) * MM_PER_HALF_NM;
+    const float sz = (float)((p[2] >> 1) - (m5->rot_point_nm[2] >> 1)) * MM_PER_HALF_NM;
+    const float q = URAD_PER_Q36 * 1.0e-3f;
+    out->error_um[0] += (sy * (float)m5->squareness_q36[0] - sz * (float)m5->squareness_q36[1]) * q -
+                        (v[0] + vt[0] + c0);
+    out->error_um[1] -= sz * (float)m5->squareness_q36[2] * q + (v[1] + vt[1] + c1);
+    out->error_um[2] -= v[2] + vt[2] + c2;
+    out->orient_urad[0] -= W0;
+    out->orient_urad[1] -= W1;
+    out->orient_urad[2] -= W2;
 }
 
 static void refuse(abbe_five_error_f32_t *out)
@@ -153,57 +138,40 @@ static void refuse(abbe_five_error_f32_t *out)
     out->flags = 0;
 }
 
+abbe_status_t abbe_five_eval_f32_core(const abbe_model_t *m, const abbe_five_model_t *m5, const float pos_mm[3],
+                                     const float angle_deg[2], const float dir_state[3], const float temp_c[3],
+                                     abbe_five_error_f32_t *out)
+{
+    int32_t p[3], udeg[2];
+    uint32_t flags = 0, bad = 0;
+    float *w = out->orient_urad; /* the linear axes' eps_Z - eps_X - eps_Y, summed by their folds */
+    w[0] = w[1] = w[2] = 0.0f;
+    flags = eval_f32_linear(m, pos_mm, dir_state, temp_c, out->error_um, p, w);
+    if (flags == ABBE_FLAG_INPUT_INVALID) { /* never set by the evaluation itself */
+        refuse(out);
+        return ABBE_E_INPUT;
+    }
+    for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {
+        bad |= abbe_mm_to_nm_inline(angle_deg[r], &udeg[r], &flags); /* the same 10^6 scale */
+    }
+    if (bad) {
+        refuse(out);
+        return ABBE_E_INPUT;
+    }
+    if (m5 == NULL) {
+        w[0] = w[1] = w[2] = 0.0f; /* a 3-axis model under the compensator: its position error only */
+    } else if (m5->kind != ABBE_KIN_NONE) {
+        add_rotary_f32(m5, p, udeg, out);
+    }
+    out->flags = flags;
+    return ABBE_OK;
+}
+
 abbe_status_t abbe_five_error_eval_f32(const abbe_five_model_t *m5, const abbe_five_input_f32_t *in,
                                        abbe_five_error_f32_t *out)
 {
     if (m5 == NULL || in == NULL || out == NULL) {
         return ABBE_E_ARG;
     }
-    const abbe_model_t *m = &m5->linear;
-    abbe_input_f32_t lin_in;
-    abbe_error_f32_t lin;
-    memcpy(lin_in.pos_mm, in->pos_mm, sizeof lin_in.pos_mm);
-    memcpy(lin_in.dir_state, in->dir_state, sizeof lin_in.dir_state);
-    memcpy(lin_in.temp_c, in->temp_c, sizeof lin_in.temp_c);
-    if (abbe_eval_f32_core(m, &lin_in, &lin) != ABBE_OK) {
-        refuse(out);
-        return ABBE_E_INPUT;
-    }
-    uint32_t flags = lin.flags, bad = 0;
-    int32_t p[3], udeg[2];
-    for (unsigned j = 0; j < 3u; j++) {
-        uint32_t ignored = 0; /* the 3-axis evaluation flagged these already */
-        (void)abbe_mm_to_nm_inline(in->pos_mm[j], &p[j], &ignored);
-    }
-    for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {
-        bad |= abbe_mm_to_nm_inline(in->angle_deg[r], &udeg[r], &flags); /* the same 10^6 scale */
-    }
-    if (bad) {
-        refuse(out);
-        return ABBE_E_INPUT;
-    }
-    /* the linear axes' orientation error eps_Z - eps_X - eps_Y (axes with angular terms only) */
-    float rot[3] = {0.0f, 0.0f, 0.0f};
-    for (unsigned j = 0; j < ABBE_AXES; j++) {
-        const abbe_axis_model_t *ax = &m->axis[j];
-        if ((ax->term_mask & 0x38u) == 0u) {
-            continue;
-        }
-        float v[ABBE_TERMS];
-        uint32_t ignored = 0;
-        abbe_axis_terms_f32(ax, abbe_arg_offset(ax, p[j], &ignored), v);
-        const float sign = j == 2u ? URAD_PER_Q36 : -URAD_PER_Q36;
-        for (unsigned c = 0; c < 3u; c++) {
-            rot[c] += sign * v[3u + c];
-        }
-    }
-    for (unsigned i = 0; i < 3u; i++) {
-        out->error_um[i] = lin.error_um[i];
-        out->orient_urad[i] = rot[i];
-    }
-    if (m5->kind != ABBE_KIN_NONE) {
-        add_rotary_f32(m5, p, udeg, out);
-    }
-    out->flags = flags;
-    return ABBE_OK;
+    return abbe_five_eval_f32_core(&m5->linear, m5, in->pos_mm, in->angle_deg, in->dir_state, in->temp_c, out);
 }

@@ -1,133 +1,167 @@
 /* abbe: five-axis tool tip error, fixed point (abbe/five_axis.h).
  *
- * The same first-order model as five_eval_f32.c, in integers:
- *   levers        2 nm (int64; an int32 difference of halved positions, exact to 1 nm)
+ * The same first-order model as five_eval_f32.c, in integers, rearranged so
+ * that every product is one 32 x 32 -> 64 multiply (SMULL / SMLAL on a
+ * Cortex-M): with R_t the tilt's rotation, q - P_t the tilt's lever Lt and
+ * the C axis' lever Lc = R_t^T Lt + offset,
+ *   R_t d_C = R_t v_C + W_C x (Lt + R_t offset),  W_C = R_t w_C,
+ *   v = (I - R) delta + m_trans   (rotations keep cross products), so
+ *   E -= R_t v_C + v_t + W_C x (Lt + R_t offset) + w_t x Lt,
+ *   W -= W_C + w_t.
+ * Units:
+ *   levers        2 nm, int32 (an int32 difference of halved positions, exact to 1 nm)
  *   rotations     Q30 sin/cos (abbe_sincos_q30), harmonics by rotation
- *   w (angles)    2^-36 rad, |w_i| <= 4 x 2^28 (the loader's caps)
- *   d (positions) 2^-8 nm, rotated by the tilt in 2^-4 nm (|d| < 2^35 q8)
+ *   w (angles)    2^-36 rad, |w_i| <= 2^30 per axis (the loader's caps: 2 |phi| + E0 + sum |m|)
+ *   v (positions) 2^-8 nm summed exactly, then 2^-4 nm (|v| < 2^29)
+ *   w x L         2^-35 nm, each component's two products of an axis < 2^62, -> 2^-4 nm
  * Bounds of every intermediate: docs/numerics.md, "Five-axis evaluation".
  */
 #include "internal.h"
 
 #define Q30 30u
 
-/* (c, s) rotation of v about machine axis k (inverse: by -s), Q30, rounded. */
-static void rotate_q(unsigned k, int32_t c, int32_t s, int inverse, int64_t v[3])
+/* (a b - c d) / 2^30, rounded: Q30 rotations of int32 values, |result| < 2^31
+ * by the callers' bounds; two SMLALs on a Cortex-M (c d is never -2^31 x -2^31:
+ * |sin|, |cos| <= 2^30). */
+static ABBE_ALWAYS_INLINE int64_t rot_q30(int32_t a, int32_t b, int32_t c, int32_t d)
 {
-    const unsigned j = (k + 1u) % 3u, l = (k + 2u) % 3u;
-    const int64_t sn = inverse ? -(int64_t)s : s;
-    const int64_t vj = v[j], vl = v[l];
-    v[j] = abbe_shr_round(c * vj - sn * vl, Q30);
-    v[l] = abbe_shr_round(sn * vj + c * vl, Q30);
+    return abbe_smlal(abbe_smlal((int64_t)1 << (Q30 - 1u), a, b), -c, d) >> Q30;
 }
 
-#define MAC(acc, coef, v) acc = abbe_smlal(acc, (coef), (v))
-
-/* The error motions of an axis at its angle (c, s), Q30: m in 2^-8 nm (X, Y,
- * Z) and 2^-36 rad (A, B, C); sum |coef| x 2^30 <= 2^62 (loader caps). The
- * six-component case keeps its accumulators in registers. */
-ABBE_NOINLINE static void motions_q(const abbe_rotary_model_t *ax, int32_t c, int32_t s, int64_t d[3], int64_t w[3])
+/* The error motions of an axis at its angle (c, s), rounded: m_trans (X, Y,
+ * Z) in 2^-4 nm (|.| <= 2^28: sum |coef| <= 2^32 of 2^-8 nm), m_rot (A, B, C)
+ * in 2^-36 rad, into trans and rot. The harmonics' sin k t, cos k t (Q30, by rotation) are made
+ * once, into basis (the caller's working memory: the compensator's scratch);
+ * then three components per pass over them (a fitted axis: two passes), the
+ * int64 sums in registers; sum |coef| x 2^30 <= 2^62 (loader caps). */
+ABBE_NOINLINE static void motions_q(const abbe_rotary_model_t *ax, int32_t c, int32_t s, int32_t *basis,
+                                    int32_t trans[3], int32_t rot[3])
 {
-    const unsigned n = ax->n_comp;
-    const uint8_t *row = ax->coef_q;
-    int32_t sk = s, ck = c;
-    const int64_t half = (int64_t)1 << (Q30 - 1u); /* the final shift's rounding */
-    if (n == ABBE_MOTIONS) {
-        int64_t a0 = half, a1 = half, a2 = half, a3 = half, a4 = half, a5 = half;
-        for (unsigned k = 0; k < ax->harmonics; k++, row += 48u) {
-#define ROW(acc, i) MAC(acc, abbe_ld_i32(row + 4u * (i)), sk); MAC(acc, abbe_ld_i32(row + 24u + 4u * (i)), ck)
-            ROW(a0, 0u); ROW(a1, 1u); ROW(a2, 2u); ROW(a3, 3u); ROW(a4, 4u); ROW(a5, 5u);
-#undef ROW
-            const int32_t sn = (int32_t)abbe_shr_round((int64_t)sk * c + (int64_t)ck * s, Q30);
-            ck = (int32_t)abbe_shr_round((int64_t)ck * c - (int64_t)sk * s, Q30);
-            sk = sn;
-        }
-        d[0] = a0 >> Q30; d[1] = a1 >> Q30; d[2] = a2 >> Q30;
-        w[0] = a3 >> Q30; w[1] = a4 >> Q30; w[2] = a5 >> Q30;
+    const unsigned n = ax->n_comp, rows = 2u * ax->harmonics; /* 0 without components (the loader) */
+    if (rows == 0u) { /* no error motions (location errors only) */
+        trans[0] = trans[1] = trans[2] = rot[0] = rot[1] = rot[2] = 0;
         return;
     }
-    int64_t acc[ABBE_MOTIONS];
-    for (unsigned i = 0; i < ABBE_MOTIONS; i++) {
-        acc[i] = half;
-    }
-    for (unsigned k = 0; k < ax->harmonics; k++) {
-        for (unsigned col = 0; col < n; col++) {
-            MAC(acc[col], abbe_ld_i32(row + 4u * col), sk);
-            MAC(acc[col], abbe_ld_i32(row + 4u * (n + col)), ck);
-        }
-        row += 8u * n;
-        const int32_t sn = (int32_t)abbe_shr_round((int64_t)sk * c + (int64_t)ck * s, Q30);
-        ck = (int32_t)abbe_shr_round((int64_t)ck * c - (int64_t)sk * s, Q30);
+    const int32_t ns = -s;
+    int32_t sk = s, ck = c;
+    for (unsigned r = 0; r < rows; r += 2u) {
+        basis[r] = sk;
+        basis[r + 1u] = ck;
+        /* next harmonic: rotate by the fundamental, rounded (one SMULL, one SMLAL each) */
+        const int64_t half30 = (int64_t)1 << (Q30 - 1u);
+        const int32_t sn = (int32_t)(abbe_smlal(abbe_smlal(half30, sk, c), ck, s) >> Q30);
+        ck = (int32_t)(abbe_smlal(abbe_smlal(half30, ck, c), sk, ns) >> Q30);
         sk = sn;
     }
-    for (unsigned i = 0; i < 3u; i++) {
-        d[i] = ax->column[i] == 0xFFu ? 0 : acc[ax->column[i]] >> Q30;
-        w[i] = ax->column[3u + i] == 0xFFu ? 0 : acc[ax->column[3u + i]] >> Q30;
+    if (n == ABBE_MOTIONS) {
+        /* components g .. g + 2, a harmonic's two rows (sin, cos) per pass; 2^-38 nm -> 2^-4 nm
+         * (shift 34), 2^-66 rad -> 2^-36 rad (30) */
+#define GROUP(m, g, shift)                                                                                    \
+    do {                                                                                                   \
+        const int64_t half_ = (int64_t)1 << ((shift) - 1u);                                                \
+        int64_t a0 = half_, a1 = half_, a2 = half_;                                                        \
+        const uint8_t *row = ax->coef_q + 4u * (g);                                                        \
+        for (unsigned r = 0; r < rows; r += 2u, row += 48u) {                                              \
+            const int32_t bs = basis[r], bc = basis[r + 1u];                                               \
+            a0 = abbe_smlal(a0, abbe_ld_i32(row), bs);                                                     \
+            a1 = abbe_smlal(a1, abbe_ld_i32(row + 4u), bs);                                                \
+            a2 = abbe_smlal(a2, abbe_ld_i32(row + 8u), bs);                                                \
+            a0 = abbe_smlal(a0, abbe_ld_i32(row + 24u), bc);                                               \
+            a1 = abbe_smlal(a1, abbe_ld_i32(row + 28u), bc);                                               \
+            a2 = abbe_smlal(a2, abbe_ld_i32(row + 32u), bc);                                               \
+        }                                                                                                  \
+        (m)[0] = (int32_t)(a0 >> (shift));                                                                 \
+        (m)[1] = (int32_t)(a1 >> (shift));                                                                 \
+        (m)[2] = (int32_t)(a2 >> (shift));                                                                 \
+    } while (0)
+        GROUP(trans, 0u, Q30 + 4u);
+        GROUP(rot, 3u, Q30);
+#undef GROUP
+        return;
+    }
+    for (unsigned i = 0; i < ABBE_MOTIONS; i++) {
+        const unsigned shift = i < 3u ? Q30 + 4u : Q30;
+        int64_t acc = (int64_t)1 << (shift - 1u);
+        const unsigned col = ax->column[i];
+        const uint8_t *row = ax->coef_q + 4u * col;
+        for (unsigned r = 0; col != 0xFFu && r < rows; r++, row += 4u * n) {
+            acc = abbe_smlal(acc, abbe_ld_i32(row), basis[r]);
+        }
+        (i < 3u ? trans : rot)[i % 3u] = col != 0xFFu ? (int32_t)(acc >> shift) : 0;
     }
 }
 
-/* An axis' twist (five_eval_f32.c) for a lever L (2 nm units): d in 2^-8 nm,
- * w in 2^-36 rad. */
-ABBE_NOINLINE static void twist_q(const abbe_rotary_model_t *ax, int32_t c, int32_t s, const int64_t L[3], int64_t d[3],
-                                  int64_t w[3])
+/* An axis' twist at its angle (c, s) without the lever: w (2^-36 rad) and
+ * v = (I - R) delta + m_trans (2^-4 nm); k the axis it turns about, (j, l)
+ * the other two in cyclic order (phi and delta have no component along k).
+ * scratch: working memory for the motions. */
+static ABBE_ALWAYS_INLINE void twist_q(const abbe_rotary_model_t *ax, unsigned k, unsigned j, unsigned l, int32_t c,
+                                       int32_t s, int32_t *scratch, int32_t v[3], int32_t w[3])
 {
-    motions_q(ax, c, s, d, w); /* d = m_trans, w = m_rot */
-    /* + (I - R) phi, (I - R) delta, componentwise (no component along the axis k) */
-    const unsigned k = ax->dir, j = (k + 1u) % 3u, l = (k + 2u) % 3u;
-    const int64_t pj = ax->phi_q36[j], pl = ax->phi_q36[l], dj = ax->delta_q8[j], dl = ax->delta_q8[l];
-    w[j] += pj - abbe_shr_round(c * pj - s * pl, Q30);
-    w[l] += pl - abbe_shr_round(s * pj + c * pl, Q30);
-    d[j] += dj - abbe_shr_round(c * dj - s * dl, Q30);
-    d[l] += dl - abbe_shr_round(s * dj + c * dl, Q30);
-    w[ax->dir] += ax->zero_q36;
-    /* w x L: 2^-36 rad x 2 nm = 2^-35 nm, each product < 2^61.5; -> 2^-8 nm */
-    d[0] += abbe_shr_round(w[1] * L[2] - w[2] * L[1], 27u);
-    d[1] += abbe_shr_round(w[2] * L[0] - w[0] * L[2], 27u);
-    d[2] += abbe_shr_round(w[0] * L[1] - w[1] * L[0], 27u);
+    motions_q(ax, c, s, scratch, v, w);
+    const int32_t pj = ax->phi_q36[j], pl = ax->phi_q36[l], dj = ax->delta_q8[j], dl = ax->delta_q8[l];
+    w[k] += ax->zero_q36;
+    w[j] += (int32_t)(pj - rot_q30(c, pj, s, pl));
+    w[l] += (int32_t)(pl - rot_q30(s, pj, -c, pl));
+    v[j] += (int32_t)abbe_shr_round(dj - rot_q30(c, dj, s, dl), 4u);
+    v[l] += (int32_t)abbe_shr_round(dl - rot_q30(s, dj, -c, dl), 4u);
 }
 
-/* pos (2^-4 nm) and rot (2^-36 rad) minus the rotary axes' twists, plus the
- * five-axis squareness. Out of line: its frame and the linear evaluation's are
- * never on the stack together. */
-ABBE_NOINLINE static void add_rotary_q(const abbe_five_model_t *m5, const int32_t pos_nm[3],
-                                       const int32_t angle_udeg[2], int64_t pos[3], int64_t rot[3])
+/* The rotary axes' share, added to the linear axes' error (error_nm, nm) and
+ * orientation (orient: 2^-36 rad in, |.| < 2^30), and the five-axis
+ * squareness; then the outputs rounded to nm and nrad (saturated, flagged).
+ * Positions in 2^-4 nm here (int64). scratch: 16 words of working memory
+ * (the linear term values, used up). Out of line: its frame and the linear
+ * evaluation's are never on the stack together. */
+ABBE_NOINLINE static uint32_t add_rotary_q(const abbe_five_model_t *m5, const int32_t pos_nm[3],
+                                           const int32_t angle_udeg[2], int32_t *scratch, int32_t error_nm[3],
+                                           int32_t orient[3], uint32_t flags)
 {
     const abbe_rotary_model_t *tilt = &m5->rotary[0], *table = &m5->rotary[1];
+    const unsigned k = tilt->dir, j = k + 1u, l = k == 0u ? 2u : 0u; /* the tilt turns about X or Y */
     int32_t st, ct, sc, cc;
     abbe_sincos_q30(abbe_udeg_phase_q32(angle_udeg[0]), &st, &ct);
     abbe_sincos_q30(abbe_udeg_phase_q32(angle_udeg[1]), &sc, &cc);
-    int64_t L[3], d[3], w[3];
-    /* the table axis C at the point before the tilt's rotation: lever R_t^T (q - P_t) + offset */
-    for (unsigned i = 0; i < 3u; i++) {
-        L[i] = (pos_nm[i] >> 1) - (m5->tilt_pivot_nm[i] >> 1);
-    }
-    rotate_q(tilt->dir, ct, st, 1, L);
-    for (unsigned i = 0; i < 3u; i++) {
-        L[i] += m5->offset_nm[i] >> 1;
-    }
-    twist_q(table, cc, sc, L, d, w);
-    for (unsigned i = 0; i < 3u; i++) {
-        d[i] = abbe_shr_round(d[i], 4u); /* 2^-4 nm: |d| < 2^31, the rotation's products < 2^61 */
-    }
-    rotate_q(tilt->dir, ct, st, 0, d);
-    rotate_q(tilt->dir, ct, st, 0, w);
-    for (unsigned i = 0; i < 3u; i++) {
-        pos[i] -= d[i];
-        rot[i] -= w[i];
-    }
-    /* the tilt axis: lever q - P_t */
-    for (unsigned i = 0; i < 3u; i++) {
-        L[i] = (pos_nm[i] >> 1) - (m5->tilt_pivot_nm[i] >> 1);
-    }
-    twist_q(tilt, ct, st, L, d, w);
-    for (unsigned i = 0; i < 3u; i++) {
-        pos[i] -= abbe_shr_round(d[i], 4u);
-        rot[i] -= w[i];
-    }
+    int32_t v[3], w[3], vt[3], wt[3], Ro[3];
+    /* the table axis C (about Z), then R_t of its v and w */
+    twist_q(table, 2u, 0u, 1u, cc, sc, scratch, v, w);
+    twist_q(tilt, k, j, l, ct, st, scratch, vt, wt);
+    const int32_t vj = v[j], wj = w[j];
+    v[j] = (int32_t)rot_q30(ct, vj, st, v[l]);
+    v[l] = (int32_t)rot_q30(st, vj, -ct, v[l]);
+    w[j] = (int32_t)rot_q30(ct, wj, st, w[l]);
+    w[l] = (int32_t)rot_q30(st, wj, -ct, w[l]);
+    /* R_t offset, 2 nm (no component along the tilt axis: the loader), |.| < 2^29.5 */
+    const int32_t oj = m5->offset_nm[j] >> 1, ol = m5->offset_nm[l] >> 1;
+    Ro[k] = 0;
+    Ro[j] = (int32_t)rot_q30(ct, oj, st, ol);
+    Ro[l] = (int32_t)rot_q30(st, oj, -ct, ol);
+    /* the tilt's lever Lt = q - P_t, 2 nm: an int32 difference of halved positions */
+    const int32_t L0 = (pos_nm[0] >> 1) - (m5->tilt_pivot_nm[0] >> 1);
+    const int32_t L1 = (pos_nm[1] >> 1) - (m5->tilt_pivot_nm[1] >> 1);
+    const int32_t L2 = (pos_nm[2] >> 1) - (m5->tilt_pivot_nm[2] >> 1);
     /* five-axis squareness, lever y, z from the C centre: 2 nm x 2^-36 rad -> 2^-4 nm */
-    const int64_t y = (pos_nm[1] >> 1) - (m5->rot_point_nm[1] >> 1), z = (pos_nm[2] >> 1) - (m5->rot_point_nm[2] >> 1);
-    pos[0] += abbe_shr_round(y * m5->squareness_q36[0] - z * m5->squareness_q36[1], 31u);
-    pos[1] -= abbe_shr_round(z * m5->squareness_q36[2], 31u);
+    const int32_t y = (pos_nm[1] >> 1) - (m5->rot_point_nm[1] >> 1), z = (pos_nm[2] >> 1) - (m5->rot_point_nm[2] >> 1);
+    const int64_t sq0 = abbe_smlal(abbe_smlal((int64_t)1 << 30, y, m5->squareness_q36[0]), -z, m5->squareness_q36[1]) >> 31;
+    const int64_t sq1 = abbe_smlal((int64_t)1 << 30, -z, m5->squareness_q36[2]) >> 31;
+    /* per component i (i1, i2 the next two cyclically): W_C x (Lt + R_t offset)
+     * (four products < 2^61.5, two < 2^60) and w_t x Lt, 2^-35 nm -> 2^-4 nm */
+#define TWIST_OUT(i, i1, i2, Li1, Li2, sq)                                                                   \
+    do {                                                                                                     \
+        int64_t c_table = abbe_smlal(abbe_smlal((int64_t)1 << 30, w[i1], Li2), -w[i2], Li1);                 \
+        c_table = abbe_smlal(abbe_smlal(c_table, w[i1], Ro[i2]), -w[i2], Ro[i1]) >> 31;                      \
+        const int64_t c_tilt = abbe_smlal(abbe_smlal((int64_t)1 << 30, wt[i1], Li2), -wt[i2], Li1) >> 31;   \
+        const int64_t pos = (int64_t)error_nm[i] * 16 + (sq) - ((int64_t)v[i] + vt[i] + c_table + c_tilt);  \
+        const int64_t rot = (int64_t)orient[i] - w[i] - wt[i];                                               \
+        error_nm[i] = abbe_sat_i32(abbe_shr_round(pos, 4u), &flags);                                         \
+        /* 2^-36 rad -> nrad: x 10^9 / 2^36 = x 1953125 / 2^27 (|rot| < 2^32: product < 2^53) */            \
+        orient[i] = abbe_sat_i32(abbe_shr_round(rot * 1953125, 27u), &flags);                                \
+    } while (0)
+    TWIST_OUT(0, 1, 2, L1, L2, sq0);
+    TWIST_OUT(1, 2, 0, L2, L0, sq1);
+    TWIST_OUT(2, 0, 1, L0, L1, 0);
+#undef TWIST_OUT
+    return flags;
 }
 
 uint32_t abbe_five_eval_q_core(const abbe_five_model_t *m5, const int32_t pos_nm[3], const int32_t angle_udeg[2],
@@ -135,19 +169,15 @@ uint32_t abbe_five_eval_q_core(const abbe_five_model_t *m5, const int32_t pos_nm
                                int32_t values[ABBE_AXES * ABBE_TERMS], int32_t error_nm[3], int32_t orient_nrad[3])
 {
     uint32_t flags = abbe_eval_q_core(&m5->linear, pos_nm, dir_q30, temp_mdegc, values, error_nm);
-    /* orientation, 2^-36 rad: eps_Z - eps_X - eps_Y (term values in 2^-35 rad) */
-    int64_t rot[3], pos[3]; /* pos: 2^-4 nm */
+    /* orientation, 2^-36 rad: eps_Z - eps_X - eps_Y (term values in 2^-35 rad, |.| <= 2^27: the sum fits) */
     for (unsigned c = 0; c < 3u; c++) {
-        rot[c] = 2 * ((int64_t)values[2 * ABBE_TERMS + 3 + c] - values[3 + c] - values[ABBE_TERMS + 3 + c]);
-        pos[c] = (int64_t)error_nm[c] * 16;
+        orient_nrad[c] = 2 * (values[2 * ABBE_TERMS + 3 + c] - values[3 + c] - values[ABBE_TERMS + 3 + c]);
     }
     if (m5->kind != ABBE_KIN_NONE) {
-        add_rotary_q(m5, pos_nm, angle_udeg, pos, rot);
+        return add_rotary_q(m5, pos_nm, angle_udeg, values, error_nm, orient_nrad, flags);
     }
     for (unsigned i = 0; i < 3u; i++) {
-        error_nm[i] = abbe_sat_i32(abbe_shr_round(pos[i], 4u), &flags);
-        /* 2^-36 rad -> nrad: x 10^9 / 2^36 = x 1953125 / 2^27 (|rot| < 2^33: product < 2^54) */
-        orient_nrad[i] = abbe_sat_i32(abbe_shr_round(rot[i] * 1953125, 27u), &flags);
+        orient_nrad[i] = abbe_sat_i32(abbe_shr_round((int64_t)orient_nrad[i] * 1953125, 27u), &flags);
     }
     return flags;
 }

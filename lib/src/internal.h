@@ -242,6 +242,8 @@ void abbe_axis_terms_q(const abbe_axis_model_t *ax, uint32_t d, int32_t value[AB
 /* The same for an axis with fewer than six terms (terms_sparse_q.c). */
 void abbe_axis_terms_sparse_q(const abbe_axis_model_t *ax, uint32_t d, int32_t value[ABBE_TERMS]);
 void abbe_axis_terms_f32(const abbe_axis_model_t *ax, uint32_t d, float value[ABBE_TERMS]);
+/* The same for an axis with fewer than six terms (terms_f32.c). */
+void abbe_axis_terms_sparse_f32(const abbe_axis_model_t *ax, uint32_t d, float value[ABBE_TERMS]);
 
 /* Three floats: a homogeneous aggregate, returned in s0-s2 on a Cortex-M4F
  * (and e, r, lin go in s0-s6 as scalars: GCC stores an aggregate argument to
@@ -255,6 +257,16 @@ typedef struct {
  * the coefficients' (terms_f32.c; the plain C build, not x86-64's kernels). */
 abbe_vec3f_t abbe_axis_fold_f32(const abbe_axis_model_t *ax, uint32_t d, float ex, float ey, float ez, float rx,
                                 float ry, float rz, float lin);
+/* A rotary axis' six error motions: the sums over k = 1..h (h >= 1) of its
+ * rows (six sin(k t), six cos(k t) values), (s1, c1) = (sin t, cos t), the
+ * three linear ones times lin, the angular ones times ang (terms_rot_f32.c,
+ * the Fourier blocks' loop). */
+void abbe_rotary_motions6_f32(const uint8_t *row, unsigned h, float s1, float c1, float lin, float ang, float m[6]);
+/* The same (every build, x86-64 included), also adding wsign x (eps_x,
+ * eps_y, eps_z) to w: the five-axis evaluation's one pass over an axis
+ * (terms_rot_f32.c). */
+abbe_vec3f_t abbe_axis_fold_rot_f32(const abbe_axis_model_t *ax, uint32_t d, float *w, float wsign, float ex,
+                                    float ey, float ez, float rx, float ry, float rz, float lin);
 
 
 /* Float mm -> integer nm, exact to 0.56 nm over +/-2147 mm (docs/numerics.md).
@@ -351,6 +363,14 @@ static inline uint32_t abbe_udeg_phase_q32(int32_t udeg)
 uint32_t abbe_five_eval_q_core(const abbe_five_model_t *m5, const int32_t pos_nm[3], const int32_t angle_udeg[2],
                                const int32_t dir_q30[3], const int32_t temp_mdegc[3],
                                int32_t values[ABBE_AXES * ABBE_TERMS], int32_t error_nm[3], int32_t orient_nrad[3]);
+
+/* Five-axis error, single precision (five_eval_f32.c), for the public call
+ * and the compensator (which passes its arrays without copying): m the
+ * linear axes, m5 the five-axis model or NULL (a 3-axis model: its position
+ * error, orientation 0). ABBE_OK, or ABBE_E_INPUT (NaN/Inf: *out zero). */
+abbe_status_t abbe_five_eval_f32_core(const abbe_model_t *m, const abbe_five_model_t *m5, const float pos_mm[3],
+                                     const float angle_deg[2], const float dir_state[3], const float temp_c[3],
+                                     abbe_five_error_f32_t *out);
 
 /* The *out of a refused input (cold path). */
 void abbe_f32_refuse(abbe_error_f32_t *out);
