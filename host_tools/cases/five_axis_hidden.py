@@ -3,9 +3,12 @@
 A virtual A/C or B/C trunnion with random location errors, set-up errors and noise
 (as the identification tests), probed at 4 tilt x 8 C angles, plus one hidden
 effect the location-only model lacks: ``clean`` (none), ``cyclic`` (an angular
-positioning error of C with k = 1..3 cycles per turn, 10-25 urad) or ``drift``
+positioning error of C with k = 1..3 cycles per turn, 10-25 urad), ``drift``
 (the tilt axis' line drifting 4-8 um/h in its second position coordinate while
-the campaign runs). ``expected`` is the catalogue key the diagnosis should name.
+the campaign runs) or ``wobble`` (a once-per-turn tilt error motion of C: a
+counter-rotating part of 10-25 urad, what the diagnosis can see, plus a
+co-rotating part of 0-25 urad it cannot). ``expected`` is the catalogue key the
+diagnosis should name.
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ import numpy as np
 from abbe.model.five_axis import LOCATION_ERRORS, TrunnionGeometry
 from abbe.sim.five_axis import VirtualFiveAxis, probing_positions, random_errors, write_campaign
 
-KINDS = ("clean", "cyclic", "drift")
+KINDS = ("clean", "cyclic", "drift", "wobble")
 
 
 def make_case(kind: str, seed: int, out: Path) -> tuple[Path, str | None, float]:
@@ -40,6 +43,16 @@ def make_case(kind: str, seed: int, out: Path) -> tuple[Path, str | None, float]
         c[2 * k - 2], c[2 * k - 1] = amp * np.cos(ph), amp * np.sin(ph)
         errs.motions[("C", "C")] = c
         expected = f"cyclic C {k}"
+    elif kind == "wobble":
+        # (EAC, EBC) as a complex number f e^{i(C + pf)} + b e^{-i(C + pb)}; the product's
+        # Fourier order [sin1, cos1]
+        amp, f = float(rng.uniform(10, 25)), float(rng.uniform(0, 25))
+        pf, pb = rng.uniform(0, 2 * np.pi, 2)
+        errs.motions[("C", "A")] = np.array([-f * np.sin(pf) - amp * np.sin(pb),
+                                             f * np.cos(pf) + amp * np.cos(pb)])
+        errs.motions[("C", "B")] = np.array([f * np.cos(pf) - amp * np.cos(pb),
+                                             f * np.sin(pf) - amp * np.sin(pb)])
+        expected = "wobble C"
     elif kind == "drift":
         amp = float(rng.uniform(4, 8))
         drift = {LOCATION_ERRORS[tilt][1]: amp}

@@ -243,8 +243,9 @@ def make_campaign(seed: int, *, n_tilt: int = 4, n_c: int = 8,
 
 def make_diagnose_campaign(kind: str, seed: int) -> tuple[Campaign, str | None, float]:
     """A campaign for the discrepancy workflow: ``clean`` (no error motion, no drift),
-    ``cyclic`` (an ECC(C) of k = 1..3 cycles per turn, 10-25 urad, with its own phase) or
-    ``drift`` (the tilt axis' line rising 4-8 um/h). Returns the campaign, the catalogue
+    ``cyclic`` (an ECC(C) of k = 1..3 cycles per turn, 10-25 urad, with its own phase),
+    ``drift`` (the tilt axis' line rising 4-8 um/h) or ``wobble`` (a once-per-turn tilt of
+    C, counter-rotating part 10-25 urad). Returns the campaign, the catalogue
     key a diagnosis should name (None for clean) and the true amplitude (urad, um/h)."""
     c = make_campaign(4 * seed + 1 if seed % 2 else 4 * seed)  # no hidden motions (seed % 4 != 3)
     c.motions, c.drift_um_per_h, c.rtest = {}, 0.0, False
@@ -254,7 +255,26 @@ def make_diagnose_campaign(kind: str, seed: int) -> tuple[Campaign, str | None, 
         amp = float(rng.uniform(10, 25))
         c.motions["C.C"] = Motion({k: amp}, {k: float(rng.uniform(0, 2 * math.pi))})
         return c, f"cyclic C {k}", amp
+    if kind == "wobble":
+        # A once-per-turn tilt of C: the tilt (EAC, EBC) as a complex number
+        # f e^{i(t + pf)} + b e^{-i(t + pb)}; one sphere sees the counter-rotating b only
+        # (the forward part is the table face's tilt), so b is the amplitude to name.
+        b, f = float(rng.uniform(10, 25)), float(rng.uniform(0, 25))
+        pf, pb = float(rng.uniform(0, 2 * math.pi)), float(rng.uniform(0, 2 * math.pi))
+        for comp, ph_f, ph_b in (("A", pf + math.pi / 2, pb + math.pi / 2), ("B", pf, pb + math.pi)):
+            z = f * complex(math.cos(ph_f), math.sin(ph_f)) + b * complex(math.cos(ph_b),
+                                                                          math.sin(ph_b))
+            c.motions[f"C.{comp}"] = Motion({1: abs(z)}, {1: math.atan2(z.imag, z.real)})
+        return c, "wobble C", backward_tilt(c.motions["C.A"], c.motions["C.B"])
     if kind == "drift":
         c.drift_um_per_h = float(rng.uniform(4, 8))
         return c, f"pivot drift {c.tilt}", c.drift_um_per_h
     return c, None, 0.0
+
+
+def backward_tilt(ea: Motion, eb: Motion, n: int = 720) -> float:
+    """Amplitude (urad) of the counter-rotating part of a tilt (EAC, EBC)(t): the mean of
+    (EAC + i EBC) e^{i t} over a turn (numerically)."""
+    t = np.arange(n) * 360.0 / n
+    z = np.array([ea.at(x) + 1j * eb.at(x) for x in t]) * np.exp(1j * np.deg2rad(t))
+    return float(abs(z.mean()))

@@ -161,7 +161,7 @@ def diagnose_cases(per_kind: int, work: Path) -> list[dict]:
 
     rows = []
     twin: dict[int, float] = {}  # seed -> the clean twin's held-out gap (same machine, same noise)
-    for kind in ("clean", "cyclic", "drift"):
+    for kind in ("clean", "cyclic", "drift", "wobble"):
         for seed in range(per_kind):
             camp, expected, amp = make_diagnose_campaign(kind, seed)
             mf = camp.write(work / f"diag_{kind}{seed}")
@@ -171,12 +171,15 @@ def diagnose_cases(per_kind: int, work: Path) -> list[dict]:
             n0 = diag.named[0] if diag.named else None
             rows.append({"kind": kind, "seed": seed, "kin": spec.geometry.kind,
                          "expected": expected, "named": names,
-                         "exact": names == ([expected] if expected else []), "amp_true": amp,
+                         "ambiguous": any(n.ambiguous_with for n in diag.named),
+                         "exact": names == ([expected] if expected else [])
+                         and not any(n.ambiguous_with for n in diag.named), "amp_true": amp,
                          "amp": n0.amplitude if n0 else None,
                          "amp_ci": n0.amplitude_ci95 if n0 else None,
                          "before": diag.base.heldout_after_um,
                          "after": diag.final.heldout_after_um, "shrink": diag.shrink,
                          "floor": diag.noise_floor_um, "excess": diag.excess_shrink,
+                         "gap_before": diag.gap_before_um, "gap_after": diag.gap_after_um,
                          "twin": twin.get(seed)})
             if kind == "clean":
                 twin[seed] = diag.base.heldout_after_um

@@ -2,7 +2,8 @@
 
 Runs the discrepancy workflow (:func:`abbe.diagnose.five_axis.diagnose_five_axis`): a
 location-only identification of the plan, then the catalogue effects (cyclic ECC,
-pivot drift) judged on held-out probing positions. Writes OUT/diagnose_five_axis.json
+pivot drift, C wobble) judged on held-out probing positions, and the gap above what a
+right model shows on the plan. Writes OUT/diagnose_five_axis.json
 and OUT/report.txt atomically (and ``--json FILE``). ``--model`` is not used: the
 model is identified from the same plan.
 """

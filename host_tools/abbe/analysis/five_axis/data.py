@@ -49,7 +49,8 @@ def load_plan(spec: FiveAxisSpec) -> PlanData:
                                  "needed", file=str(pl.file), field=f"probing.{name}")
         blocks.append(Block("probe", name, sc.angles_deg[ok], sc.centre_mm[ok],
                             np.asarray(pl.sphere_mm), time_s=sc.time_s[ok],
-                            positions=sc.position[ok], noise_floor_um=sc.centre_noise_um(ok)))
+                            positions=sc.position[ok], noise_floor_um=sc.centre_noise_um(ok),
+                            centre_cov_um2=sc.centre_cov_um2(ok)))
     for name, rt in spec.rtest.items():
         tr = read_rtest(rt.file, tilt)
         blocks.append(Block("rtest", name, tr.angles_deg, tr.displacement_um,

@@ -45,6 +45,8 @@ SEEN_BY = {
     "location": "probing at more angles of the other rotary axis or a second sphere height",
     "setup": "a sphere position measured in a known frame",
     "drift": "repeating one probing position at the start, middle and end of the campaign",
+    "wobble": "the table face's axial motion at two radii (ISO 230-7) or spheres at two "
+              "heights (tilt against radial + axial motion)",
 }
 
 
@@ -78,8 +80,18 @@ class FitResult:
     dispersion_after_um: float = float("nan")
     heldout_before_um: float = float("nan")
     heldout_after_um: float = float("nan")
+    #: the held-out dispersion this model would show if it were right: the centres' noise
+    #: (sphere fits) plus the scatter its fold estimates put into the predictions (um);
+    #: None without the centres' noise
+    heldout_floor_um: float | None = None
+    #: the held-out residuals (Q, 3) um of the probing positions, fold by fold (the same
+    #: positions in the same order for every model of a plan: a paired comparison)
+    heldout_residuals_um: np.ndarray | None = None
     rejected: list[int] = field(default_factory=list)
     nfev: int = 0
+    #: the solution as solved (the unobservable that were not fixed keep their arbitrary
+    #: values here; ``x`` hides them): what the residuals were computed with
+    x_solution: np.ndarray | None = None
 
     def ci95(self) -> np.ndarray:
         return 1.96 * self.sd
@@ -98,7 +110,7 @@ def _jacobian(fun, x: np.ndarray, scale: np.ndarray) -> np.ndarray:
     return J
 
 
-_FIX_ORDER = {"location": 1, "squareness": 0, "motion": 2, "drift": 2, "setup": 3}
+_FIX_ORDER = {"location": 1, "squareness": 0, "motion": 2, "wobble": 2, "drift": 2, "setup": 3}
 
 
 def observability(J: np.ndarray, params: list[Param]) -> Observability:
@@ -256,7 +268,7 @@ def identify(spec: FiveAxisSpec, blocks: list[Block], params: list[Param]) -> Fi
     hide = ~obs.observable
     xo[hide] = np.nan
     sd[hide] = np.nan
-    res = FitResult(params, xo, sd, corr, obs, blocks, h, nfev=nfev)
+    res = FitResult(params, xo, sd, corr, obs, blocks, h, nfev=nfev, x_solution=x.copy())
     _dispersion(pb, x, free, res)
     return res
 
@@ -286,6 +298,7 @@ def _dispersion(pb: _Problem, x: np.ndarray, free: list[int], res: FitResult) ->
     # Held-out: k folds over each probing's positions (interleaved, so every fold spans the travel).
     k = spec.fit.folds
     before, after = [], []
+    floor_ss, floor_n, sigma = 0.0, 0, _noise_covariance(pb)
     for fold in range(k):
         train = {b.key: np.flatnonzero(np.arange(len(b.obs)) % k != fold) for b in probes}
         test = {b.key: np.flatnonzero(np.arange(len(b.obs)) % k == fold) for b in probes}
@@ -297,6 +310,49 @@ def _dispersion(pb: _Problem, x: np.ndarray, free: list[int], res: FitResult) ->
         for b in probes:
             after.append(_centre_residuals(spec, params, b, xf, test[b.key]))
             before.append(_centre_residuals(spec, params, b, xb, test[b.key]))
+        if sigma is not None:
+            floor_ss += _expected_heldout_ss(pb, free, rows, pb.rows(
+                {b.key: test[b.key] for b in probes} | {b.key: np.zeros(0, int)
+                                                        for b in blocks if b.kind != "probe"}),
+                sigma)
+            floor_n += sum(t.size for t in test.values())
     if after:
         res.heldout_before_um = dispersion(np.vstack(before))
         res.heldout_after_um = dispersion(np.vstack(after))
+        res.heldout_residuals_um = np.vstack(after)
+        if sigma is not None and floor_n:
+            res.heldout_floor_um = float(np.sqrt(floor_ss / floor_n))
+
+
+def _noise_covariance(pb: _Problem) -> np.ndarray | None:
+    """The residual rows' noise covariance (dense, um^2 / urad^2): the sphere centres' from
+    their fits (3 x 3 per position), the other blocks' their fitted sigma squared; None when
+    a probing has no centre covariance."""
+    n = int(pb.offsets[-1])
+    S = np.zeros((n, n))
+    for k, b in enumerate(pb.blocks):
+        lo, hi = int(pb.offsets[k]), int(pb.offsets[k + 1])
+        if b.kind == "probe":
+            if b.centre_cov_um2 is None:
+                return None
+            for m, c in enumerate(b.centre_cov_um2):
+                S[lo + 3 * m:lo + 3 * m + 3, lo + 3 * m:lo + 3 * m + 3] = c
+        else:
+            sig = np.asarray(b.sigma, dtype=np.float64)
+            d = np.tile(sig, (hi - lo) // sig.size) if sig.size > 1 else np.full(hi - lo, sig)
+            S[lo:hi, lo:hi] = np.diag(d ** 2)
+    return S
+
+
+def _expected_heldout_ss(pb: _Problem, free: list[int], train: np.ndarray, test: np.ndarray,
+                         S: np.ndarray) -> float:
+    """Expected sum of squared held-out residuals (um^2) on rows ``test`` of a right model
+    fitted (weighted, linearised) on rows ``train`` under the noise covariance ``S``: the
+    test rows' own noise plus what the estimate's scatter puts into their prediction,
+    tr(S_test) + tr(J_test C J_test^T), C = K S_train K^T, K the weighted LSQ solution map."""
+    w = pb.weights()[train]
+    Jw = pb.J[train][:, free] * w[:, None]
+    K = np.linalg.pinv(Jw.T @ Jw) @ Jw.T * w[None, :]
+    C = K @ S[np.ix_(train, train)] @ K.T
+    Jt = pb.J[test][:, free]
+    return float(np.trace(S[np.ix_(test, test)]) + np.sum((Jt @ C) * Jt))

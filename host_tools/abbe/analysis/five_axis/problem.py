@@ -26,7 +26,7 @@ from abbe.model.five_axis import (LOCATION_ERRORS, MOTION_COMPONENTS, SQUARENESS
 @dataclass(frozen=True)
 class Param:
     """One unknown: ``name`` (ISO name, ``EXC(C) sin2`` or a set-up name), ``kind``
-    (location, squareness, motion, setup), ``unit`` (um / urad), ``scale``: its
+    (location, squareness, motion, wobble, drift, setup), ``unit`` (um / urad), ``scale``: its
     typical size (the solver's scaling)."""
 
     name: str
@@ -58,6 +58,8 @@ class Block:
     positions: np.ndarray | None = None  # probing position numbers (for reports)
     #: probe blocks: expected RMS 3-D length of the centres' noise from the sphere fits (um)
     noise_floor_um: float | None = None
+    #: probe blocks: each centre's noise covariance from its sphere fit (M, 3, 3) um^2
+    centre_cov_um2: np.ndarray | None = None
 
     @property
     def key(self) -> str:
@@ -100,7 +102,7 @@ def build_params(spec: FiveAxisSpec, blocks: list[Block]) -> list[Param]:
 
 def errors_from(params: list[Param], x: np.ndarray, harmonics: int) -> FiveAxisErrors:
     """The machine errors of a parameter vector (set-up and drift parameters left out)."""
-    harmonics = max([harmonics] + [p.harmonic for p in params if p.kind == "motion"])
+    harmonics = max([harmonics] + [p.harmonic for p in params if p.kind in ("motion", "wobble")])
     loc: dict[str, float] = {}
     mot: dict[tuple[str, str], np.ndarray] = {}
     sq = {s: 0.0 for s in SQUARENESS}
@@ -111,7 +113,19 @@ def errors_from(params: list[Param], x: np.ndarray, harmonics: int) -> FiveAxisE
             sq[p.name] = float(v)
         elif p.kind == "motion":
             c = mot.setdefault((p.axis, p.comp), np.zeros(2 * harmonics))
-            c[2 * (p.harmonic - 1) + (0 if p.trig == "sin" else 1)] = v
+            c[2 * (p.harmonic - 1) + (0 if p.trig == "sin" else 1)] += v
+        elif p.kind == "wobble":
+            # The counter-rotating once-per-turn tilt of a table axis (docs/effects.md, section
+            # 7): (EAC, EBC) = Rz(-C) (wx, wy), i.e. EAC = wx cos C + wy sin C and
+            # EBC = -wx sin C + wy cos C (Fourier order [sin1, cos1]).
+            ea = mot.setdefault((p.axis, "A"), np.zeros(2 * harmonics))
+            eb = mot.setdefault((p.axis, "B"), np.zeros(2 * harmonics))
+            if p.comp == "x":
+                ea[1] += v
+                eb[0] -= v
+            else:
+                ea[0] += v
+                eb[1] += v
     return FiveAxisErrors(loc, mot, (sq["sxy"], sq["sxz"], sq["syz"]))
 
 
@@ -177,5 +191,4 @@ def residuals(g: TrunnionGeometry, params: list[Param], x: np.ndarray, harmonics
         r = residual_block(g, params, x, harmonics, b, None if rows is None else rows.get(b.key))
         sig = np.asarray(b.sigma, dtype=np.float64)
         out.append((r.reshape(-1, sig.size) / sig).ravel() if sig.size > 1 else r / sig)
-    return np.concatenate(out)
     return np.concatenate(out)
