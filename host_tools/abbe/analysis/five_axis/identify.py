@@ -42,7 +42,8 @@ SEEN_BY = {
                   "ISO 230-4), fitted by `abbe fit` on a 3-axis file",
     "motion": "an R-test with spheres at two heights (tilt vs radial), the laser + rotary "
               "indexer for the angular motion, more rotary positions per revolution",
-    "location": "probing at more angles of the other rotary axis or a second sphere height",
+    "location": "probing at more angles of the other rotary axis or a second sphere height "
+                "(a ballbar: the other axis turning, or the table ball at a second height)",
     "setup": "a sphere position measured in a known frame",
     "drift": "repeating one probing position at the start, middle and end of the campaign",
 }
@@ -80,6 +81,9 @@ class FitResult:
     heldout_after_um: float = float("nan")
     rejected: list[int] = field(default_factory=list)
     nfev: int = 0
+    #: the solution with every parameter (unobservable ones at their convention): what the
+    #: residual plots use, never reported as values
+    x_solution: np.ndarray | None = None
 
     def ci95(self) -> np.ndarray:
         return 1.96 * self.sd
@@ -229,7 +233,7 @@ def identify(spec: FiveAxisSpec, blocks: list[Block], params: list[Param]) -> Fi
     # Weights: each block's standard deviation from its residuals, then refit.
     for b in blocks:
         r = residual_block(g, params, x, h, b)
-        if b.kind == "indexer":
+        if b.kind in ("indexer", "ballbar"):
             n_own = sum(1 for i in free if params[i].block == b.key) + 1
             b.sigma = max(float(np.sqrt(np.sum(r ** 2) / max(r.size - n_own, 1))), 1e-3)
         else:  # per machine axis: a sphere fit of a cap is worse along its axis
@@ -256,7 +260,7 @@ def identify(spec: FiveAxisSpec, blocks: list[Block], params: list[Param]) -> Fi
     hide = ~obs.observable
     xo[hide] = np.nan
     sd[hide] = np.nan
-    res = FitResult(params, xo, sd, corr, obs, blocks, h, nfev=nfev)
+    res = FitResult(params, xo, sd, corr, obs, blocks, h, nfev=nfev, x_solution=x)
     _dispersion(pb, x, free, res)
     return res
 
