@@ -159,21 +159,32 @@ def test_ballbar_only_plan_sees_the_orientations_and_names_the_rest(tmp_path: Pa
 
 @pytest.mark.parametrize("kind", ["xyzac-trt", "xyzbc-trt"])
 def test_probing_plus_ballbar_plan(tmp_path: Path, kind: str) -> None:
+    """Through `abbe fit` (its five_axis.json, report.txt and HTML report)."""
     mf, vm = _team_campaign(tmp_path / "c", kind, 7, probing=True)
-    ratio, unseen, r = _judge(mf, vm.errors.location)
-    assert len(ratio) >= 6 and BALLBAR_SEES[kind] <= set(ratio)
-    assert all(v <= 1.0 for v in ratio.values()), ratio
-    assert {"EC0C"} <= unseen
-    # the bar's readings are explained to their noise (0.3 um) by the identified model
-    for b in r["blocks"]:
-        if b.kind == "ballbar":
-            assert float(np.atleast_1d(b.sigma)[0]) < 0.6, (b.name, b.sigma)
-    # the report: ballbar section and polar plots
     out = tmp_path / "out"
     assert main(["fit", str(mf), "-o", str(out), "--quiet"]) == 0
     doc = json.loads((out / "five_axis.json").read_text())
-    bb = doc["rotary_ballbar"]["C_radial"]
-    assert bb["turning_axis"] == "C" and bb["left_pv_um"] < bb["measured_pv_um"] / 5
+    ratio, unseen = {}, set()
+    for r in doc["parameters"]:
+        if r["kind"] != "location":
+            continue
+        if r["observable"]:
+            tol = max(r["ci95"], 1.0 if r["unit"] == "um" else 5.0)
+            ratio[r["name"]] = abs(r["value"] - vm.errors.location[r["name"]]) / tol
+        else:
+            assert r["value"] is None and doc["table"]["location"][r["name"]] is None
+            unseen.add(r["name"])
+    assert len(ratio) >= 6 and BALLBAR_SEES[kind] <= set(ratio)
+    assert all(v <= 1.0 for v in ratio.values()), ratio
+    assert "EC0C" in unseen
+    bbs = doc["rotary_ballbar"]
+    assert len(bbs) == 9
+    for name, bb in bbs.items():
+        # the bar's readings are explained to their noise (0.3 um) by the identified model
+        assert doc["block_sigma"][f"ballbar.{name}"][0] < 0.6, name
+        assert bb["left_rms_um"] < 0.6 and len(bb["left_um"]) == bb["readings"]
+    assert bbs["C_radial"]["turning_axis"] == "C"
+    assert bbs["C_radial"]["left_pv_um"] < bbs["C_radial"]["measured_pv_um"] / 5
     assert (out / "report" / "ballbar_C_radial.png").stat().st_size > 5000
     assert "ballbar_C_radial.png" in (out / "report" / "index.html").read_text()
     assert "Rotary ballbar C_radial (C turning" in (out / "report.txt").read_text()

@@ -225,51 +225,47 @@ def text_report(doc: dict[str, Any]) -> str:
     return "\n".join(out) + "\n"
 
 
-def write_html(res: FitResult, doc: dict[str, Any], out: Path) -> None:
-    """report/index.html with one polar plot per rotary axis with identified error motions."""
-    import matplotlib
-    matplotlib.use("Agg")
+def _polar(out: Path, png: str, title: str, curves: list[tuple[np.ndarray, np.ndarray, str]],
+           size: float) -> str:
+    """One polar plot of deviations (um / urad) about a base circle twice their largest
+    magnitude: ``curves`` are (angle rad, value, label); writes ``out/png``."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
+    fig = Figure(figsize=(size, size))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(projection="polar")
+    scale = max(max(float(np.max(np.abs(v))) for _t, v, _l in curves), 1e-3)
+    for t, v, label in curves:
+        ax.plot(t, v + 2.0 * scale, ".-" if len(t) < 200 else "-", ms=2, label=label)
+    ax.plot(np.linspace(0, 2 * np.pi, 181), np.full(181, 2.0 * scale), "k:", lw=0.6)
+    ax.set_title(f"{title} (about a base circle of {2 * scale:.2g})", fontsize=8)
+    ax.set_yticklabels([])
+    ax.legend(fontsize=7, loc="lower left", bbox_to_anchor=(-0.15, -0.15))
+    fig.savefig(out / png, dpi=90)
+    return png
+
+
+def write_html(res: FitResult, doc: dict[str, Any], out: Path) -> None:
+    """report/index.html with one polar plot per rotary axis with identified error motions
+    and one per rotary ballbar test (measured and left by the model)."""
+    import matplotlib
+    matplotlib.use("Agg")
+
     out.mkdir(parents=True, exist_ok=True)
     imgs = []
+    t = np.deg2rad(np.linspace(0.0, 360.0, 361))
     for axis in ("A", "B", "C"):
         curves = motion_curves(res, axis)
-        if not curves:
-            continue
-        fig = Figure(figsize=(6, 6))
-        FigureCanvasAgg(fig)
-        ax = fig.add_subplot(projection="polar")
-        t = np.deg2rad(np.linspace(0.0, 360.0, 360, endpoint=False))
-        scale = max(float(np.max(np.abs(v))) for v in curves.values()) or 1.0
-        for name, v in curves.items():
-            ax.plot(np.r_[t, t[:1]], np.r_[v, v[:1]] + 2.0 * scale, label=name)
-        ax.set_title(f"Error motions of {axis} (um / urad about a base circle of "
-                     f"{2 * scale:.2g})", fontsize=9)
-        ax.set_yticklabels([])
-        ax.legend(fontsize=7, loc="lower left", bbox_to_anchor=(-0.15, -0.15))
-        png = f"motions_{axis}.png"
-        fig.savefig(out / png, dpi=90)
-        imgs.append(png)
-    bb_imgs = []
-    for name, raw in doc.get("rotary_ballbar", {}).items():  # one polar plot per test
-        c = {k: np.asarray(v) if isinstance(v, list) else v for k, v in raw.items()}
-        fig = Figure(figsize=(5, 5))
-        FigureCanvasAgg(fig)
-        ax = fig.add_subplot(projection="polar")
-        t = np.deg2rad(c["angle_deg"])
-        scale = max(float(np.max(np.abs(c["measured_um"]))), 1e-3)
-        ax.plot(t, c["measured_um"] + 2.0 * scale, ".-", ms=2, label="measured")
-        ax.plot(t, c["left_um"] + 2.0 * scale, ".-", ms=2, label="left by the model")
-        ax.plot(np.linspace(0, 2 * np.pi, 181), np.full(181, 2.0 * scale), "k:", lw=0.6)
-        ax.set_title(f"Rotary ballbar {name}: {c['turning_axis']} turning, length deviation (um "
-                     f"about a base circle of {2 * scale:.2g})", fontsize=8)
-        ax.set_yticklabels([])
-        ax.legend(fontsize=7, loc="lower left", bbox_to_anchor=(-0.15, -0.15))
-        png = f"ballbar_{name}.png"
-        fig.savefig(out / png, dpi=90)
-        bb_imgs.append(png)
+        if curves:
+            imgs.append(_polar(out, f"motions_{axis}.png", f"Error motions of {axis}, um / urad",
+                               [(t, np.r_[v, v[:1]], n) for n, v in curves.items()], 6.0))
+    bb_imgs = [_polar(out, f"ballbar_{name}.png", f"Rotary ballbar {name}: "
+                      f"{c['turning_axis']} turning, length deviation um",
+                      [(np.deg2rad(c["angle_deg"]), np.asarray(c["measured_um"]), "measured"),
+                       (np.deg2rad(c["angle_deg"]), np.asarray(c["left_um"]),
+                        "left by the model")], 5.0)
+               for name, c in doc.get("rotary_ballbar", {}).items()]
     rows = []
     for r in doc["parameters"]:
         if r["observable"]:
