@@ -40,7 +40,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--dialect", required=True, choices=DIALECTS)
     p.add_argument("-o", "--out", required=True, help="program file to write")
     p.add_argument("--feed", type=in_range(1.0, 100000.0, "mm/min"), default=1000.0,
-                   help="feed of the line tests, mm/min (default 1000)")
+                   help="feed of the line tests, mm/min; of the five-axis R-test's rotary "
+                        "moves, deg/min (default 1000)")
     p.add_argument("--dwell-s", type=in_range(0.0, 600.0, "s"), default=4.0,
                    help="dwell at each target for the capture, s (default 4)")
     p.add_argument("--overrun-mm", type=in_range(0.0, 100.0, "mm"), default=5.0,
@@ -62,6 +63,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="five-axis probing: C positions round its travel (8)")
     p.add_argument("--points", type=int_range(4, 25), default=5,
                    help="five-axis probing: points per sphere (the pole and a ring; 5)")
+    p.add_argument("--probe-feed", type=in_range(1.0, 5000.0, "mm/min"), default=100.0,
+                   help="five-axis probing: the G38.2 feed, mm/min (100)")
+    p.add_argument("--safe-z-mm", type=in_range(5.0, 500.0, "mm"), default=50.0,
+                   help="five-axis: the safe height above the highest place the sphere takes "
+                        "(probing) or above the ball (R-test), mm (50)")
     p.add_argument("--step-deg", type=in_range(0.5, 90.0, "deg"), default=10.0,
                    help="five-axis R-test: angle step of the path, deg (10)")
     p.set_defaults(func=run)

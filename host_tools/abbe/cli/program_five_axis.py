@@ -55,7 +55,9 @@ def run_five_axis(args: argparse.Namespace) -> int:
                 name, pl = _section(spec.probing, args.name, "probing", str(m.path))
                 pos = probing_positions(g, args.tilt_positions, args.c_positions)
                 prog = ProbingProgram(pl.sphere_mm, pl.sphere_radius_mm, pl.stylus_radius_mm,
-                                      pos, n_points=args.points, log_file=str(pl.file))
+                                      pos, n_points=args.points, probe_feed=args.probe_feed,
+                                      safe_z_mm=args.safe_z_mm,
+                                      log_file=str(pl.file))
                 text = probing_gcode(g, prog, travel, f"five-axis sphere probing {name} of "
                                      f"{m.name}, {g.kind}")
                 what = f"{len(pos)} positions x {args.points} points, log {pl.file}"
@@ -63,7 +65,8 @@ def run_five_axis(args: argparse.Namespace) -> int:
                 name, rt = _section(spec.rtest, args.name, "rtest", str(m.path))
                 path = rtest_path(g, args.step_deg)
                 text = rtest_gcode(g, rt.sphere_mm, path, travel,
-                                   f"five-axis R-test {name} of {m.name}, {g.kind}")
+                                   f"five-axis R-test {name} of {m.name}, {g.kind}",
+                                   feed_deg_min=args.feed, safe_z_mm=args.safe_z_mm)
                 what = f"{len(path)} path points"
         except AbbeInputError as exc:
             if exc.file is None and exc.field and not exc.field.startswith("--"):

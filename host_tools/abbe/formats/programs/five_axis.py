@@ -104,8 +104,14 @@ def probing_gcode(geom: TrunnionGeometry, p: ProbingProgram,
              "G43 (the probe is the current tool: its length to the stylus centre)",
              f"(LOGOPEN,{p.log_file})",
              f"(LOG,position,t_s,{tilt.lower()}_deg,c_deg,x_mm,y_mm,z_mm)"]
-    # One safe height above the highest place the sphere takes: the table turns under it.
-    top = float(np.max(centres[:, 2])) + reach + p.safe_z_mm
+    # One safe height above the highest place the sphere takes, on the way between the
+    # positions too (the joints move linearly: the sphere may pass higher than at either
+    # end): the table turns under it.
+    steps = np.linspace(0.0, 1.0, 65)[:, None, None]
+    sweep = (ang[:-1][None] * (1.0 - steps) + ang[1:][None] * steps).reshape(-1, 2)
+    swept = nominal_joints(geom, np.repeat(s[None, :], len(sweep), 0), sweep) if len(sweep) \
+        else centres
+    top = float(max(np.max(centres[:, 2]), np.max(swept[:, 2]))) + reach + p.safe_z_mm
     t = 0.0
     for m, (a, c) in enumerate(ang):
         ctr = centres[m]
@@ -114,14 +120,22 @@ def probing_gcode(geom: TrunnionGeometry, p: ProbingProgram,
         lines.append(f"G0 Z{_n(top)}")
         lines.append(f"G0 {tilt}{_n(a)} {table}{_n(c)}")
         t += 20.0
+        # Between points the probe goes round at `local`, just above the sphere's top:
+        # every start point is above the centre, so the vertical moves stay outside it.
+        local = ctr[2] + reach + p.clearance_mm
         for j, nv in enumerate(dirs_w):  # machine-frame normals: the probe reaches the top
             start = ctr + nv * (reach + p.clearance_mm)
             stop = ctr + nv * (reach - p.overtravel_mm)
-            above = np.array([start[0], start[1], top])
-            for q, what in ((above, "above the point"), (start, "approach"), (stop, "probe end")):
+            above = np.array([start[0], start[1], local])
+            for q, what in ((np.array([start[0], start[1], top]), "above the point"),
+                            (above, "over the point"), (start, "approach"),
+                            (stop, "probe end")):
                 _check(q, travel, f"position {m} point {j}: {what}")
-            lines.append(f"G0 Z{_n(top)}")
-            lines.append(f"G0 X{_n(above[0])} Y{_n(above[1])}")
+            if j == 0:  # from the safe height, where the table turned
+                lines.append(f"G0 X{_n(above[0])} Y{_n(above[1])}")
+            lines.append(f"G0 Z{_n(local)}")
+            if j > 0:
+                lines.append(f"G0 X{_n(above[0])} Y{_n(above[1])}")
             lines.append(f"G1 X{_n(start[0])} Y{_n(start[1])} Z{_n(start[2])} F{p.move_feed:.1f}")
             lines.append(f"G38.2 X{_n(stop[0])} Y{_n(stop[1])} Z{_n(stop[2])} "
                          f"F{p.probe_feed:.1f}")
