@@ -7,6 +7,7 @@ of the truth, the others named without a number."""
 from __future__ import annotations
 
 import csv
+import shutil
 import json
 import math
 import sys
@@ -209,3 +210,38 @@ def test_independent_generator_ballbar_plans(tmp_path: Path) -> None:
             within += sum(v <= 1.0 for v in ratio.values())
             total += len(ratio)
     assert within / total >= 0.95, (within, total)
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_mutated_ballbar_files_keep_the_promises(tmp_path_factory, seed: int) -> None:
+    """The project's fuzzing mutators on a ballbar-only plan's CSV and machine file: `abbe
+    fit` exits 0 or 2 with a one-line located message, never crashes, writes nothing on
+    failure (fuzzing.harness); a hostile number in the CSV is always refused."""
+    import random
+
+    from fuzzing.harness import run_case
+    from fuzzing.mutate import HOSTILE_NUMBERS, mutate
+
+    base = tmp_path_factory.getbasetemp() / "bb_fuzz_base"
+    if not base.exists():
+        _team_campaign(base, "xyzac-trt", 2, probing=False)
+    work = tmp_path_factory.mktemp(f"bbf{seed}")
+    shutil.copytree(base, work / "c")
+    rnd = random.Random(seed)
+    target = work / "c" / ("machine.toml" if seed % 3 == 2 else "ballbar_C_radial.csv")
+    data = target.read_bytes()
+    if seed % 3 == 1:  # a hostile number in a data cell: must be refused
+        lines = data.decode().splitlines()
+        i = rnd.randrange(1, len(lines))
+        cells = lines[i].split(",")
+        cells[rnd.randrange(len(cells))] = rnd.choice(HOSTILE_NUMBERS)
+        lines[i] = ",".join(cells)
+        target.write_text("\n".join(lines) + "\n")
+    else:
+        target.write_bytes(mutate(data, lambda n: rnd.randrange(n), 1 + seed % 3)[0])
+    out = work / "out"
+    o = run_case(["fit", str(work / "c" / "machine.toml"), "-o", str(out), "--no-report", "-q"],
+                 [out])
+    assert o.ok, (o.problems, o.stderr)
+    if seed % 3 == 1:
+        assert o.rc == 2 and str(target) in o.stderr, o.stderr
