@@ -99,10 +99,17 @@ def walk(blocks: list[dict], tilt: str) -> list[dict]:
 # ---------------------------------------------------------------- the checks
 
 
-def _program(tmp: Path, test: str, *opts: str) -> tuple[Path, dict, str]:
+def _bc(text: str) -> str:
+    """The example as a B/C trunnion (xyzbc-trt: the tilt axis B, its x offset)."""
+    return (text.replace('"xyzac-trt"', '"xyzbc-trt"').replace("y_offset_mm", "x_offset_mm")
+            .replace("[rotary.A]", "[rotary.B]"))
+
+
+def _program(tmp: Path, test: str, *opts: str, kind: str = "xyzac-trt") -> tuple[Path, dict, str]:
     mf = tmp / "machine.toml"
     if not mf.exists():
-        shutil.copy(EXAMPLE, mf)
+        text = EXAMPLE.read_text()
+        mf.write_text(text if kind == "xyzac-trt" else _bc(text))
     out = tmp / f"{test}.ngc"
     assert main(["program", str(mf), "--test", test, "--dialect", "linuxcnc", "-o", str(out),
                  *opts]) == 0
@@ -110,15 +117,17 @@ def _program(tmp: Path, test: str, *opts: str) -> tuple[Path, dict, str]:
     return out, tomllib.loads(mf.read_text()), out.read_text()
 
 
-def test_probing_program_moves(tmp_path: Path) -> None:
+@pytest.mark.parametrize("kind", ["xyzac-trt", "xyzbc-trt"])
+def test_probing_program_moves(tmp_path: Path, kind: str) -> None:
+    tilt = "A" if kind == "xyzac-trt" else "B"
     ngc, toml, text = _program(tmp_path, "five-axis-probing", "--tilt-positions", "3",
-                               "--c-positions", "6", "--points", "7")
+                               "--c-positions", "6", "--points", "7", kind=kind)
     pr = toml["probing"]["S1"]
     reach = pr["sphere_radius_mm"] + pr["stylus_radius_mm"]
     s = np.array(pr["sphere_mm"])
-    moves = walk(read_gcode(text), "A")
+    moves = walk(read_gcode(text), tilt)
     travel = {a: toml["axes"][a]["travel_mm"] for a in "XYZ"}
-    travel.update({a: toml["rotary"][a]["travel_deg"] for a in ("A", "C")})
+    travel.update({a: toml["rotary"][a]["travel_deg"] for a in (tilt, "C")})
     logs, probes, backoff = [], 0, None
     assert re.search(r"^M429", text, re.M) and "M428" not in text  # identity kins: machine coords
     assert "(LOGOPEN," + str(tmp_path / "probe.csv") + ")" in text  # where the plan reads
@@ -132,13 +141,13 @@ def test_probing_program_moves(tmp_path: Path) -> None:
         st = mv["start"]
         if None in st.values():
             continue  # the first moves from an unknown place go up, then to the plan
-        centre = trt(toml, s, e["A"], e["C"])
+        centre = trt(toml, s, e[tilt], e["C"])
         p0 = np.array([st[k] for k in "XYZ"])
         p1 = np.array([e[k] for k in "XYZ"])
-        if (st["A"], st["C"]) != (e["A"], e["C"]):
+        if (st[tilt], st["C"]) != (e[tilt], e["C"]):
             # the table turns (joints linearly) under a tool well above the sphere all the way
             for f in np.linspace(0.0, 1.0, 41):
-                on_way = trt(toml, s, st["A"] + f * (e["A"] - st["A"]),
+                on_way = trt(toml, s, st[tilt] + f * (e[tilt] - st[tilt]),
                              st["C"] + f * (e["C"] - st["C"]))
                 assert p0[2] >= on_way[2] + reach + 10.0, mv["line"]
             continue
@@ -159,11 +168,11 @@ def test_probing_program_moves(tmp_path: Path) -> None:
         else:
             assert seg_distance(p0, p1, centre) >= reach + 0.5, mv["line"]  # no collision
     assert probes == 3 * 6 * 7
-    assert logs[0][0] == "position,t_s,a_deg,c_deg,x_mm,y_mm,z_mm"
+    assert logs[0][0] == f"position,t_s,{tilt.lower()}_deg,c_deg,x_mm,y_mm,z_mm"
     rows = [ln.split(",") for ln, _e in logs[1:]]
     assert len(rows) == probes and all(r[4:] == ["#5061", "#5062", "#5063"] for r in rows)
     for (ln, e), r in zip(logs[1:], rows):
-        assert float(r[2]) == pytest.approx(e["A"], abs=1e-4)
+        assert float(r[2]) == pytest.approx(e[tilt], abs=1e-4)
         assert float(r[3]) == pytest.approx(e["C"], abs=1e-4)
     t = [float(r[1]) for r in rows]
     assert t == sorted(t) and len({r[0] for r in rows}) == 18
