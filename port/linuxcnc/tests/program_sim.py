@@ -24,8 +24,8 @@
    machine file with the xyzac-trt sample config's geometry and travel
    (trt_sim_check.MACHINE) run in a headless copy of that sample config (M428 / M429
    switchkins, LinuxCNC's own xyzac-trt-kins), with a simulated touch probe on the ball
-   (sphere_probe.py, a HAL userspace component on motion.probe-input, enabled for the
-   probing only). R-test: between the nest-fitting stop and the lifting stop
+   (sphere_probe.py: the turned sphere's centre, and a distance test in the servo thread
+   on motion.probe-input, enabled for the probing only). R-test: between the nest-fitting stop and the lifting stop
    (tool-centre-point control) every recorded sample holds X Y Z at the ball's nominal
    centre and the joints are where trtfuncs.c's inverse kinematics
    (export_readers.trt_joints) puts the ball for the recorded A and C; C turns a full
@@ -179,12 +179,15 @@ def five_axis(work: Path) -> dict:
     shutil.copytree(SAMPLE, cfg)
     shutil.copy(HERE / "sphere_probe.py", five / "sphere_probe.py")
     ini = cfg / "xyzac-trt.ini"
-    sim_probe = [  # the simulated probe on the ball (sphere_probe.py), on the joints (M429)
+    # the simulated probe on the ball (sphere_probe.py: the centre; the realtime distance test)
+    sys.path.insert(0, str(HERE))
+    from sphere_probe import PROBE_HAL
+    sim_probe = [
         f"HALCMD = loadusr -Wn sphereprobe /usr/bin/python3 {five / 'sphere_probe.py'} --ball "
-        + " ".join(map(str, BALL)) + f" --reach {BALL_RADIUS + STYLUS} --offset "
-        f"{SAMPLE_PINS['y-offset']} {SAMPLE_PINS['z-offset']}",
-        *(f"HALCMD = net J{j}:pos-fb sphereprobe.{n}" for j, n in enumerate("xyzac")),
-        "HALCMD = net :sim-probe sphereprobe.tripped motion.probe-input", ""]
+        + " ".join(map(str, BALL)) + f" --offset {SAMPLE_PINS['y-offset']} "
+        f"{SAMPLE_PINS['z-offset']}",
+        *(f"HALCMD = {ln}" for ln in PROBE_HAL.format(
+            reach2=repr((BALL_RADIUS + STYLUS) ** 2)).splitlines()), ""]
     ini.write_text(headless_ini(ini.read_text(), SAMPLE_PINS, {})
                    .replace("[HALUI]", "\n".join(sim_probe) + "\n[HALUI]", 1))
     for p in [five, *five.rglob("*")]:
@@ -192,7 +195,7 @@ def five_axis(work: Path) -> dict:
     hal_clean()
     res = subprocess.run(as_user(["/usr/bin/python3", str(work / "program_drive.py"), "--ini",
                                   str(ini), "--out", str(five), "--timeout", "400",
-                                  "--setp", f"{probe.name}:sphereprobe.enable=1", str(rtest),
+                                  "--setp", f"{probe.name}:sp_on.in1=1", str(rtest),
                                   str(probe)]),
                          cwd=five, stdin=subprocess.DEVNULL, capture_output=True, text=True,
                          timeout=460)
@@ -220,10 +223,11 @@ def five_axis(work: Path) -> dict:
            if r["kind"] == "location" and r["observable"]}
     check(len(loc) >= 4, f"only {len(loc)} observable location errors")
     worst = {n: abs(v) for n, (v, _c, _u) in loc.items()}
-    # The simulated probe trips late by up to ~1.2 ms (its 0.2 ms poll, the 1 ms servo
-    # thread) x 3.3 mm/s = 4 um along each approach: a direction-dependent pre-travel that
-    # shifts every centre by one constant, which the fit puts into EZ0A (docs/concepts.md,
-    # "Set-up errors the plan must handle"). So 4 um; angles 10 urad.
+    # The simulated probe trips up to two servo periods (1 ms each: the distance test, the
+    # probe input) late: 2 ms x 3.3 mm/s = 7 um along each approach, the same at every
+    # point: a pre-travel whose direction dependence shifts every centre by one constant,
+    # which the fit puts into EZ0A (docs/concepts.md, "Set-up errors the plan must
+    # handle"); the radius check absorbs the rest. So 4 um; angles 10 urad.
     bad = {n: v for n, (v, c, u) in loc.items() if abs(v) > max(c, 4.0 if u == "um" else 10.0)}
     check(not bad, f"a machine without errors identified with errors: {bad}")
     out["probing"] = {"seconds": rec["seconds"], "rows_logged": len(rows) - 1,
