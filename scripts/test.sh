@@ -20,7 +20,8 @@
 #      golden vectors, C++ consumer and symbol checks under QEMU as steps 3-4)
 #  11. measurement programs (abbe program, LinuxCNC dialect) run in LinuxCNC's
 #      simulator: targets, approach sides, dwells, travel, the ballbar arc, and the
-#      closed loop through a Renishaw .rtl file (port/linuxcnc/tests/program_sim.py,
+#      closed loop through a Renishaw .rtl file; the five-axis R-test (TCP) and
+#      sphere-probing programs in the xyzac-trt sample (port/linuxcnc/tests/program_sim.py,
 #      under flock /tmp/abbe-linuxcnc.lock)
 #  12. grblHAL: the Simulator built with the abbe plugin from the snapshots in
 #      ../shared/vendor/grblhal, G-code checked against the Python reference;

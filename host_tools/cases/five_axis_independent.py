@@ -12,7 +12,11 @@ sines with amplitudes and phases (not the product's sin/cos coefficients),
 applied as a small rigid motion at the axis' point after the rotation. The
 probe puts its trigger points straight on the sphere (actual centre + direction
 x (radius + stylus - pre-travel)), the R-test reads the centre's displacement
-through a misaligned sensor nest. It writes the documented files
+through a misaligned sensor nest, the rotary ballbar (ISO 10791-6: C turning with
+X/Y following, the tilt axis turning with the other two following; bar radial,
+tangential or axial) reads the distance between a table ball that moves with the
+table and a tool ball held at its nominal place, with both balls set up off their
+nominal places and the bar's length calibration off. It writes the documented files
 (docs/formats.md, "Five-axis machine file") with its own writers.
 
 Selection thresholds and defaults of the identification are never tuned on these
@@ -86,6 +90,8 @@ class Campaign:
     n_c: int = 8
     seed: int = 0
     fit_harmonics: int = 0  # > 0: the machine file asks the fit for error motions up to it
+    ballbar: bool = False  # add a rotary ballbar set-up (the tests of ballbar_tests())
+    probe: bool = True  # False: a ballbar-only plan
 
     @property
     def tilt(self) -> str:
@@ -171,6 +177,48 @@ class Campaign:
                 rows.append(f"{t:.1f},{a:.6f},{c:.6f},{r[0]:.5f},{r[1]:.5f},{r[2]:.5f}")
         return rows
 
+    def ballbar_tests(self) -> list[tuple[str, np.ndarray, np.ndarray, list[tuple[float, float]]]]:
+        """(name, table ball, tool ball, angle path) of the ballbar tests: one table ball 60 mm
+        above the table, 70..110 mm off C's line; C turning round and back at tilt 0 and at
+        tilt -45 deg, the tilt axis turning -72..72 deg and back at C = 0; a 100 mm bar."""
+        kc = np.array([0.0, 0.0, 1.0])
+        kt = np.eye(3)[0 if self.tilt == "A" else 1]
+        u = 0.7 + 0.1 * (self.seed % 5)
+        table = self.pivot_c + np.array([90.0 * math.cos(u), 90.0 * math.sin(u), 60.0])
+        out = []
+        cs = [float(c) for c in np.arange(0.0, 360.0 + 1e-9, 15.0)]
+        ts = [float(a) for a in np.linspace(-72.0, 72.0, 17)]
+        for axis, k, p in (("C", kc, self.pivot_c), (self.tilt, kt, self.pivot_c + self.offset)):
+            v = table - p
+            rad = v - k * float(v @ k)
+            rad /= np.linalg.norm(rad)
+            dirs = {"radial": rad, "tangential": np.cross(k, rad), "axial": k}
+            for d, n in dirs.items():
+                if axis == "C":
+                    for tilt in (0.0, -45.0):
+                        path = [(tilt, c) for c in cs + cs[-2::-1]]
+                        out.append((f"C{int(-tilt)}_{d}", table, table + 100.0 * n, path))
+                elif d != "tangential":
+                    path = [(a, 0.0) for a in ts + ts[-2::-1]]
+                    out.append((f"{axis}_{d}", table, table + 100.0 * n, path))
+        return out
+
+    def ballbar_rows(self, rng: np.random.Generator, t0: float, table: np.ndarray,
+                     tool: np.ndarray, path: list[tuple[float, float]]) -> tuple[list[str], float]:
+        rows = [f"t_s,{self.tilt.lower()}_deg,c_deg,radial_um"]
+        shift = self.sphere_shift_mm[::-1] * 0.8  # the table ball, placed by hand
+        cup = np.array([0.012, -0.02, 0.03])  # the tool ball off the spindle's line and length
+        calib_um = 1.5
+        length = float(np.linalg.norm(tool - table))
+        t = t0
+        for a, c in path:
+            t += 1.0
+            ball = self.actual(table + shift, a, c, t)
+            held = self.nominal(tool, a, c) + cup
+            r = 1e3 * (float(np.linalg.norm(held - ball)) - length) - calib_um
+            rows.append(f"{t:.1f},{a:.6f},{c:.6f},{r + rng.normal(0.0, 0.3):.5f}")
+        return rows, t
+
     # ------------------------------------------------------------------ files
 
     def write(self, out: Path) -> Path:
@@ -178,7 +226,8 @@ class Campaign:
         rng = np.random.default_rng(self.seed + 7919)
         out.mkdir(parents=True, exist_ok=True)
         rows, t_end = self.probe_rows(rng)
-        (out / "probe.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
+        if self.probe:
+            (out / "probe.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
         off = ("y_offset_mm", self.offset[1]) if self.tilt == "A" else ("x_offset_mm", self.offset[0])
         s = self.sphere_nominal
         toml = [
@@ -191,19 +240,28 @@ class Campaign:
             f"tool_length_mm = {self.tool_mm:.3f}\n",
             f"[rotary.{self.tilt}]\ntravel_deg = [-120.0, 120.0]\n[rotary.C]\n"
             "travel_deg = [-360.0, 360.0]\n",
-            f"[rotary.fit]\nharmonics = {self.fit_harmonics}\n" if self.fit_harmonics else "",
-            f'[probing.S1]\nfile = "probe.csv"\nsphere_mm = [{s[0]:.6f}, {s[1]:.6f}, {s[2]:.6f}]\n'
-            f"sphere_radius_mm = {self.radius_mm}\nstylus_radius_mm = {self.stylus_mm}\n"]
+            f"[rotary.fit]\nharmonics = {self.fit_harmonics}\n" if self.fit_harmonics else ""]
+        if self.probe:
+            toml.append(f'[probing.S1]\nfile = "probe.csv"\nsphere_mm = [{s[0]:.6f}, {s[1]:.6f}, '
+                        f"{s[2]:.6f}]\nsphere_radius_mm = {self.radius_mm}\n"
+                        f"stylus_radius_mm = {self.stylus_mm}\n")
         if self.rtest:
             (out / "rtest.csv").write_text("\n".join(self.rtest_rows(rng, t_end + 60.0)) + "\n",
                                            encoding="utf-8")
             toml.append(f'[rtest.R1]\nfile = "rtest.csv"\nsphere_mm = [{s[0]:.6f}, {s[1]:.6f}, '
                         f"{s[2]:.6f}]\n")
+        t = t_end + 600.0
+        for name, table, tool, path in (self.ballbar_tests() if self.ballbar else []):
+            rows, t = self.ballbar_rows(rng, t + 60.0, table, tool, path)
+            (out / f"bb_{name}.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
+            toml.append(f'[rotary_ballbar.{name}]\nfile = "bb_{name}.csv"\nsetup = "one_ball"\n'
+                        "table_ball_mm = [" + ", ".join(f"{v:.6f}" for v in table) + "]\n"
+                        "tool_ball_mm = [" + ", ".join(f"{v:.6f}" for v in tool) + "]\n")
         (out / "machine.toml").write_text("\n".join(toml), encoding="utf-8")
         truth = {"kind": self.kind, "location": self.loc, "always_unseen": sorted(
             ALWAYS_UNSEEN[self.tilt]), "motions": {k: {"amp": m.amp, "phase": m.phase}
                                                   for k, m in self.motions.items()},
-            "rtest": self.rtest, "seed": self.seed}
+            "rtest": self.rtest, "ballbar": self.ballbar, "probe": self.probe, "seed": self.seed}
         (out / "truth.json").write_text(json.dumps(truth, indent=1) + "\n", encoding="utf-8")
         return out / "machine.toml"
 

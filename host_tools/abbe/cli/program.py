@@ -11,6 +11,7 @@ from abbe.errors import AbbeInputError
 from abbe.formats.machine import load_machine
 from abbe.formats.output import Outputs
 from abbe.formats.programs.dialects import DIALECTS, render
+from abbe.formats.programs.five_axis import FIVE_AXIS_TESTS
 from abbe.formats.programs.plan import SEQUENCES, TESTS, ballbar_program, line_program
 from abbe.model.geometry import PLANES
 from abbe.model.table import AXES
@@ -30,15 +31,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "abbe program MACHINE.toml --test ballbar --plane XY --dialect fanuc "
                         "-o O0001.nc"))
     p.add_argument("machine", help="machine file (TOML)")
-    p.add_argument("--test", required=True, choices=TESTS)
+    p.add_argument("--test", required=True, choices=TESTS + FIVE_AXIS_TESTS)
     g = p.add_mutually_exclusive_group()
     g.add_argument("--axis", choices=AXES, help="the line's axis ([laser.A] of the machine file)")
     g.add_argument("--plane", choices=PLANES, help="the ballbar test's plane ([ballbar.*])")
-    p.add_argument("--name", help="the [ballbar.NAME] section when several share the plane")
+    p.add_argument("--name", help="the [ballbar.NAME] section when several share the plane; "
+                   "five-axis: the [probing.NAME] / [rtest.NAME] section")
     p.add_argument("--dialect", required=True, choices=DIALECTS)
     p.add_argument("-o", "--out", required=True, help="program file to write")
     p.add_argument("--feed", type=in_range(1.0, 100000.0, "mm/min"), default=1000.0,
-                   help="feed of the line tests, mm/min (default 1000)")
+                   help="feed of the line tests, mm/min; of the five-axis R-test's rotary "
+                        "moves, deg/min (default 1000)")
     p.add_argument("--dwell-s", type=in_range(0.0, 600.0, "s"), default=4.0,
                    help="dwell at each target for the capture, s (default 4)")
     p.add_argument("--overrun-mm", type=in_range(0.0, 100.0, "mm"), default=5.0,
@@ -54,10 +57,26 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="ballbar feed-in and feed-out arcs, deg (default 45)")
     p.add_argument("--pause-s", type=in_range(0.0, 600.0, "s"), default=2.0,
                    help="ballbar pause between the CCW and the CW run, s (default 2)")
+    p.add_argument("--tilt-positions", type=int_range(1, 50), default=4,
+                   help="five-axis probing: tilt positions, over 80 %% of its travel (4)")
+    p.add_argument("--c-positions", type=int_range(1, 72), default=8,
+                   help="five-axis probing: C positions round its travel (8)")
+    p.add_argument("--points", type=int_range(4, 25), default=5,
+                   help="five-axis probing: points per sphere (the pole and a ring; 5)")
+    p.add_argument("--probe-feed", type=in_range(1.0, 5000.0, "mm/min"), default=100.0,
+                   help="five-axis probing: the G38.2 feed, mm/min (100)")
+    p.add_argument("--safe-z-mm", type=in_range(5.0, 500.0, "mm"), default=50.0,
+                   help="five-axis: the safe height above the highest place the sphere takes "
+                        "(probing) or above the ball (R-test), mm (50)")
+    p.add_argument("--step-deg", type=in_range(0.5, 90.0, "deg"), default=10.0,
+                   help="five-axis R-test: angle step of the path, deg (10)")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.test in FIVE_AXIS_TESTS:
+        from abbe.cli.program_five_axis import run_five_axis
+        return run_five_axis(args)
     with Outputs() as outs:
         out = outs.file(args.out, option="--out")
         m = load_machine(args.machine)

@@ -9,7 +9,9 @@ Machine file sections (docs/formats.md, "Five-axis machine file"):
   settings ``[rotary.fit]``;
 * ``[probing.NAME]``: a touch-probe campaign on a calibration sphere;
 * ``[rtest.NAME]``: an R-test campaign;
-* ``[indexer.C]`` (or A / B): a laser with a rotary indexer (ISO 230-2 of a rotary axis).
+* ``[indexer.C]`` (or A / B): a laser with a rotary indexer (ISO 230-2 of a rotary axis);
+* ``[rotary_ballbar.NAME]``: a ballbar with a rotary axis turning under tool-centre-point
+  control (ISO 10791-6 style set-ups), its two balls' nominal places.
 
 Data files, strict CSV with fixed column names (units in the names):
 
@@ -17,12 +19,14 @@ Data files, strict CSV with fixed column names (units in the names):
   positions where the probe triggered, several points per position;
 * R-test: ``t_s,<tilt>_deg,c_deg,dx_um,dy_um,dz_um`` - the sphere centre's
   displacement (machine axes) under tool-centre-point control;
-* indexer: ``run,direction,target_deg,deviation_urad`` (direction ``+``/``-``).
+* indexer: ``run,direction,target_deg,deviation_urad`` (direction ``+``/``-``);
+* rotary ballbar: ``t_s,<tilt>_deg,c_deg,radial_um`` - measured minus nominal bar length
+  (the 3-axis ballbar CSV's ``radial_um``), whatever the bar's direction.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
@@ -30,6 +34,7 @@ import numpy as np
 
 from abbe.errors import AbbeInputError, check_number
 from abbe.errors.numbers import show_value
+from abbe.formats.ballbar_csv import MAX_RADIAL_UM
 from abbe.formats.delimited import DEFAULT_DIALECT, Column, Header, read_columns
 from abbe.formats.limits import FIVE_AXIS_CSV_MAX_BYTES, FIVE_AXIS_CSV_MAX_ROWS
 from abbe.formats.structured import unknown_key
@@ -46,6 +51,9 @@ DISPLACEMENT_LIMIT_UM = 10_000.0
 DEVIATION_LIMIT_URAD = 100_000.0
 TIME_LIMIT_S = 1e7
 HARMONICS_MAX = 8
+#: A rotary ballbar's nominal length (mm): the bars sold run from 50 to 600 mm; a tool and a
+#: table ball closer than 10 mm or further than 1000 mm are not a ballbar set-up.
+BAR_LENGTH_RANGE_MM = (10.0, 1000.0)
 
 _OFFSETS = {"xyzac-trt": ("y_offset_mm", "z_offset_mm"), "xyzbc-trt": ("x_offset_mm", "z_offset_mm")}
 
@@ -85,6 +93,24 @@ class IndexerPlan:
 
 
 @dataclass(frozen=True)
+class RotaryBallbarPlan:
+    """A ballbar with a rotary axis turning: ``file`` (resolved), the table ball's and the
+    tool ball's nominal centres in workpiece coordinates (mm; the tool ball is held there
+    under tool-centre-point control), the bar's nominal length (mm, their distance)."""
+
+    name: str
+    file: Path
+    table_ball_mm: tuple[float, float, float]
+    tool_ball_mm: tuple[float, float, float]
+    line: int | None = None
+    setup: str = ""  # sections sharing a set-up share the table ball and the tool cup
+
+    @property
+    def length_mm(self) -> float:
+        return float(np.linalg.norm(np.subtract(self.tool_ball_mm, self.table_ball_mm)))
+
+
+@dataclass(frozen=True)
 class FitPlan:
     """What the five-axis fit identifies: error motion harmonics (0 = location only),
     the squareness of the linear axes, folds of the held-out judgement."""
@@ -103,9 +129,10 @@ class FiveAxisSpec:
     rtest: dict[str, RTestPlan]
     indexer: dict[str, IndexerPlan]
     fit: FitPlan
+    ballbar: dict[str, RotaryBallbarPlan] = field(default_factory=dict)
 
 
-TOP_KEYS = ("rotary", "probing", "rtest", "indexer")
+TOP_KEYS = ("rotary", "probing", "rtest", "indexer", "rotary_ballbar")
 
 # ------------------------------------------------------------------ machine file
 
@@ -119,7 +146,7 @@ def parse_five_axis(data: dict[str, Any], err: Callable[[str, str], AbbeInputErr
     line, ``resolve(rel, field)`` makes a data path absolute.
     """
     if "rotary" not in data:
-        for k in ("probing", "rtest", "indexer"):
+        for k in ("probing", "rtest", "indexer", "rotary_ballbar"):
             if k in data:
                 raise err(k, f"[{k}] needs a [rotary] section (the five-axis kinematics)")
         return None
@@ -189,10 +216,34 @@ def parse_five_axis(data: dict[str, Any], err: Callable[[str, str], AbbeInputErr
         s = _keys(_table(sec, err, f), err, f, ("file",), ("file",))
         indexer[name] = IndexerPlan(name, resolve(_str(s["file"], err, f"{f}.file"), f"{f}.file"),
                                     line(f))
-    if not probing and not rtest and not indexer:
+    ballbar: dict[str, RotaryBallbarPlan] = {}
+    for name, sec in _table(data.get("rotary_ballbar", {}), err, "rotary_ballbar").items():
+        f = f"rotary_ballbar.{name}"
+        s = _keys(_table(sec, err, f), err, f, ("file", "table_ball_mm", "tool_ball_mm", "setup"),
+                  ("file", "table_ball_mm", "tool_ball_mm"))
+        su = s.get("setup", "")
+        if not isinstance(su, str) or not su.replace("_", "").replace("-", "").isalnum() \
+                and su != "":
+            raise err(f"{f}.setup", f"expected a set-up name (letters, digits, _ or -), got "
+                      f"{show_value(su)}")
+        bb = RotaryBallbarPlan(name, resolve(_str(s["file"], err, f"{f}.file"), f"{f}.file"),
+                               _vec3(s["table_ball_mm"], num, err, f"{f}.table_ball_mm"),
+                               _vec3(s["tool_ball_mm"], num, err, f"{f}.tool_ball_mm"), line(f),
+                               su)
+        same = [o for o in ballbar.values() if su and o.setup == su]
+        if same and same[0].table_ball_mm != bb.table_ball_mm:
+            raise err(f"{f}.table_ball_mm", f"set-up {su!r} shares one table ball: expected "
+                      f"{list(same[0].table_ball_mm)} as [rotary_ballbar.{same[0].name}], got "
+                      f"{list(bb.table_ball_mm)}")
+        lo, hi = BAR_LENGTH_RANGE_MM
+        if not lo <= bb.length_mm <= hi:
+            raise err(f"{f}.tool_ball_mm", f"expected the balls {lo:g} to {hi:g} mm apart (the "
+                      f"bar's length), got {bb.length_mm:.6g} mm")
+        ballbar[name] = bb
+    if not probing and not rtest and not indexer and not ballbar:
         raise err("rotary", "a five-axis machine file needs at least one [probing.NAME], "
-                  "[rtest.NAME] or [indexer.AXIS] section")
-    return FiveAxisSpec(geom, probing, rtest, indexer, fit)
+                  "[rtest.NAME], [indexer.AXIS] or [rotary_ballbar.NAME] section")
+    return FiveAxisSpec(geom, probing, rtest, indexer, fit, ballbar)
 
 
 def _fit_plan(v: Any, err: Callable[[str, str], AbbeInputError], line: Callable[[str], int | None],
@@ -289,6 +340,10 @@ def rtest_columns(tilt: str) -> tuple[str, ...]:
     return ("t_s", f"{tilt.lower()}_deg", "c_deg", "dx_um", "dy_um", "dz_um")
 
 
+def rotary_ballbar_columns(tilt: str) -> tuple[str, ...]:
+    return ("t_s", f"{tilt.lower()}_deg", "c_deg", "radial_um")
+
+
 INDEXER_COLUMNS = ("run", "direction", "target_deg", "deviation_urad")
 
 
@@ -362,6 +417,36 @@ def read_rtest(path: str | Path, tilt: str) -> RTestTrace:
                       np.column_stack([v[n] for n in names[3:]]), lines, f)
 
 
+@dataclass(frozen=True)
+class RotaryBallbarTrace:
+    """Rotary ballbar readings: time s, angles (N, 2) deg (tilt, C), measured minus nominal
+    bar length (N,) um, the file's line of every row."""
+
+    time_s: np.ndarray
+    angles_deg: np.ndarray
+    radial_um: np.ndarray
+    line_no: np.ndarray
+    file: str
+
+
+def read_rotary_ballbar(path: str | Path, tilt: str) -> RotaryBallbarTrace:
+    """Read a rotary ballbar CSV (strict header, finite numbers in range, |radial_um| <=
+    the 3-axis ballbar's limit, time not decreasing, at least 3 readings, a rotary axis
+    that turns)."""
+    names = rotary_ballbar_columns(tilt)
+    cols = {"t_s": _time(), names[1]: _angle(names[1]), "c_deg": _angle("c_deg"),
+            "radial_um": Column("radial_um", 0, "number", -MAX_RADIAL_UM, MAX_RADIAL_UM, "um")}
+    v, lines, f = _read(Path(path), names, cols, "rotary ballbar CSV")
+    _monotone_time(v["t_s"], lines, f)
+    if lines.size < 3:
+        raise AbbeInputError("a rotary ballbar test needs at least 3 readings", file=f)
+    ang = np.column_stack([v[names[1]], v["c_deg"]])
+    if np.ptp(ang, axis=0).max() < 1.0:
+        raise AbbeInputError("no rotary axis turns (by 1 deg or more) in this ballbar test",
+                             file=f, field=names[1])
+    return RotaryBallbarTrace(v["t_s"], ang, v["radial_um"], lines, f)
+
+
 def read_indexer(path: str | Path) -> IndexerRuns:
     """Read an indexer CSV: runs >= 1, direction ``+`` / ``-``, at least 2 targets."""
     cols = {"run": Column("run", 0, "int", 1, 100),
@@ -418,4 +503,14 @@ def indexer_csv(run: np.ndarray, direction: np.ndarray, target_deg: np.ndarray,
     for i in range(len(run)):
         rows.append(f"{int(run[i])},{'+' if direction[i] > 0 else '-'},{_fmt(target_deg[i])},"
                     f"{_fmt(dev_urad[i])}")
+    return "\n".join(rows) + "\n"
+
+
+def rotary_ballbar_csv(tilt: str, time_s: np.ndarray, angles_deg: np.ndarray,
+                       radial_um: np.ndarray) -> str:
+    """The text of a rotary ballbar CSV (:func:`read_rotary_ballbar` reads it)."""
+    rows = [",".join(rotary_ballbar_columns(tilt))]
+    for i in range(len(time_s)):
+        rows.append(",".join([_fmt(time_s[i]), _fmt(angles_deg[i, 0]), _fmt(angles_deg[i, 1]),
+                              _fmt(radial_um[i])]))
     return "\n".join(rows) + "\n"

@@ -322,7 +322,7 @@ _FIT: _Spec = {"max_trend_degree": (_int_range(0, 7), False, 7),
                "folds": (_int_range(2, 50), False, 5),
                "backlash_sigma": (_in(*BACKLASH_SIGMA_RANGE, ""), False, 3.0)}
 _TOP = ("machine", "axes", "reference", "tool", "laser", "ballbar", "fit", "rotary", "probing",
-        "rtest", "indexer")
+        "rtest", "indexer", "rotary_ballbar")
 
 
 def _table(v: Any, ctx: _Ctx, f: str) -> dict[str, Any]:

@@ -14,7 +14,11 @@ the set-up errors of the instruments:
 * R-test: the sphere off its nominal place; the three sensors' directions and
   gains off by ``rtest_mount`` (a small 3 x 3 mix); zeroed at the first reading; noise;
 * laser + rotary indexer: ``ECC`` relative to the first target, a reversal
-  ``rotary_backlash_urad``, noise.
+  ``rotary_backlash_urad``, noise;
+* ballbar with a rotary axis turning (ISO 10791-6 style): the table ball sits off its
+  nominal place (``ballbar_table_offset_mm``, workpiece frame), the tool ball off the
+  tool's nominal point (``ballbar_tool_offset_mm``, machine frame: its run-out and length
+  set-up), the bar's calibrated length is off by ``ballbar_length_error_um``; noise.
 
 Units: mm, um, urad, degrees (angles), seconds (time).
 """
@@ -27,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from abbe.formats.five_axis import indexer_csv, probe_csv, rtest_csv
+from abbe.formats.five_axis import indexer_csv, probe_csv, rotary_ballbar_csv, rtest_csv
 from abbe.model.five_axis import (LOCATION_ERRORS, MOTION_COMPONENTS, FiveAxisErrors,
                                   TrunnionGeometry, linear_axis_errors, lowest_harmonic,
                                   motion_values, nominal_joints, table_transform)
@@ -49,6 +53,10 @@ class VirtualFiveAxis:
     rtest_noise_um: float = 0.0
     indexer_noise_urad: float = 0.0
     rotary_backlash_urad: float = 0.0
+    ballbar_table_offset_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    ballbar_tool_offset_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    ballbar_length_error_um: float = 0.0
+    ballbar_noise_um: float = 0.0
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -63,9 +71,13 @@ class VirtualFiveAxis:
 
     def sphere_centre(self, sphere_mm: np.ndarray, angles_deg: np.ndarray, t_s: float) -> np.ndarray:
         """True machine position (mm) of the sphere's centre at ``angles_deg`` (tilt, C)."""
+        return self.table_point(np.asarray(sphere_mm, dtype=np.float64)
+                                + np.asarray(self.sphere_offset_mm), angles_deg, t_s)
+
+    def table_point(self, w_mm: np.ndarray, angles_deg: np.ndarray, t_s: float) -> np.ndarray:
+        """True machine position (mm) of the workpiece point ``w_mm`` at ``angles_deg``."""
         T = table_transform(self.geometry, self.errors_at(t_s), np.asarray(angles_deg)[None, :])[0]
-        s = np.asarray(sphere_mm, dtype=np.float64) + np.asarray(self.sphere_offset_mm)
-        return T[:3, :3] @ s + T[:3, 3]
+        return T[:3, :3] @ np.asarray(w_mm, dtype=np.float64) + T[:3, 3]
 
     # ---------------------------------------------------------------- instruments
 
@@ -134,6 +146,26 @@ class VirtualFiveAxis:
         read[0] = 0.0  # zeroed at the first reading
         return {"t_s": t, "angles_deg": ang, "displacement_um": read}
 
+    def ballbar(self, table_ball_mm: np.ndarray, tool_ball_mm: np.ndarray, angles_deg: np.ndarray,
+                t0_s: float = 0.0, s_per_reading: float = 1.0) -> dict[str, np.ndarray]:
+        """Rotary ballbar readings along a path of angle pairs (M, 2): the tool ball held
+        under tool-centre-point control at ``tool_ball_mm`` (workpiece coordinates), the
+        table ball at ``table_ball_mm``; measured minus nominal length (um)."""
+        g = self.geometry
+        ang = np.asarray(angles_deg, dtype=np.float64).reshape(-1, 2)
+        w_tool = np.asarray(tool_ball_mm, dtype=np.float64)
+        w_table = np.asarray(table_ball_mm, dtype=np.float64)
+        length = float(np.linalg.norm(w_tool - w_table))
+        q = nominal_joints(g, w_tool[None, :].repeat(len(ang), 0), ang)
+        e, _r = linear_axis_errors(g, self.errors, q)
+        tool = q + e * 1e-3 + np.asarray(self.ballbar_tool_offset_mm)
+        t = t0_s + s_per_reading * np.arange(len(ang))
+        w_true = w_table + np.asarray(self.ballbar_table_offset_mm)
+        table = np.array([self.table_point(w_true, ang[i], t[i]) for i in range(len(ang))])
+        dev = (np.linalg.norm(tool - table, axis=1) - length) * 1e3 - self.ballbar_length_error_um
+        return {"t_s": t, "angles_deg": ang,
+                "radial_um": dev + self.rng.normal(0.0, self.ballbar_noise_um, dev.shape)}
+
     def indexer(self, axis: str, targets_deg: np.ndarray, runs: int = 3) -> dict[str, np.ndarray]:
         """ISO 230-2 cycle of a rotary axis (linear cycle, each target from + and -)."""
         tg = np.asarray(targets_deg, dtype=np.float64)
@@ -163,6 +195,65 @@ def probing_positions(geom: TrunnionGeometry, n_tilt: int, n_c: int) -> np.ndarr
     tc = lo_c + np.arange(n_c) * span / n_c if span >= 360.0 else np.linspace(lo_c, hi_c, n_c)
     A, C = np.meshgrid(ta, tc, indexing="ij")
     return np.column_stack([A.ravel(), C.ravel()])
+
+
+#: The bar directions of the ISO 10791-6 style set-ups, relative to the turning axis.
+BALLBAR_DIRECTIONS = ("radial", "tangential", "axial")
+
+
+@dataclass(frozen=True)
+class BallbarSetup:
+    """One rotary ballbar test: its name, the balls' nominal centres (workpiece mm) and the
+    angle path (M, 2) deg (tilt, C) the axes follow under tool-centre-point control."""
+
+    name: str
+    turning: str
+    direction: str
+    table_ball_mm: tuple[float, float, float]
+    tool_ball_mm: tuple[float, float, float]
+    path_deg: np.ndarray
+    setup: str = ""  # the set-up (table ball and tool cup left in place) it shares
+
+
+def ballbar_setups(geom: TrunnionGeometry, table_ball_mm: tuple[float, float, float],
+                   length_mm: float = 100.0, step_deg: float = 10.0,
+                   directions: tuple[str, ...] = BALLBAR_DIRECTIONS,
+                   turning: tuple[str, ...] = ("C", "tilt"), tilt_for_c_deg: float = 0.0,
+                   setup: str = "", suffix: str = "") -> list[BallbarSetup]:
+    """ISO 10791-6 style set-ups with the table ball at ``table_ball_mm`` (workpiece, off C's
+    axis): C turns a full revolution there and back (tilt at ``tilt_for_c_deg``) with X/Y
+    interpolating, and the tilt axis turns over 80 % of its travel and back (C at 0) with
+    Y/Z (A) or X/Z (B) interpolating; the bar radial (from the turning axis' line to the
+    table ball, perpendicular to the axis), tangential or axial (along the axis), tool ball
+    on the side away from the table. ``setup``: the tests share one set-up (the table ball
+    and the tool cup stay; only the bar's direction changes); ``suffix`` ends their names."""
+    tilt, _c = geom.rotaries
+    w = np.asarray(table_ball_mm, dtype=np.float64)
+    out = []
+    for which in turning:
+        ax = "C" if which == "C" else tilt
+        k = np.asarray({"A": (1.0, 0.0, 0.0), "B": (0.0, 1.0, 0.0), "C": (0.0, 0.0, 1.0)}[ax])
+        r = w - geom.pivot(ax)
+        r = r - k * float(r @ k)
+        if np.linalg.norm(r) < 1.0:
+            raise ValueError(f"the table ball must sit off {ax}'s axis for a rotary ballbar test")
+        radial = r / np.linalg.norm(r)
+        tang = np.cross(k, radial)
+        axial = k if ax == "C" else k * (1.0 if w[0 if ax == "A" else 1] >= 0 else -1.0)
+        if ax == "C":
+            fwd = np.arange(0.0, 360.0 + 1e-9, step_deg)
+            path = np.column_stack([np.full(fwd.size, tilt_for_c_deg), fwd])
+        else:
+            lo, hi = geom.travel_deg[tilt]
+            lo, hi = max(lo, -90.0) * 0.8, min(hi, 90.0) * 0.8
+            fwd = np.linspace(lo, hi, int(np.ceil((hi - lo) / step_deg)) + 1)
+            path = np.column_stack([fwd, np.zeros(fwd.size)])
+        path = np.vstack([path, path[-2::-1]])  # there and back: the reversal shows
+        for d in directions:
+            u = {"radial": radial, "tangential": tang, "axial": axial}[d]
+            out.append(BallbarSetup(f"{ax}_{d}{suffix}", ax, d, tuple(w),
+                                    tuple(w + length_mm * u), path, setup))
+    return out
 
 
 def random_errors(geom: TrunnionGeometry, rng: np.random.Generator, loc_um: float = 20.0,
@@ -197,23 +288,33 @@ def truth_json(vm: VirtualFiveAxis) -> dict:
             "sphere_offset_mm": list(vm.sphere_offset_mm),
             "sphere_radius_error_mm": vm.sphere_radius_error_mm,
             "pretravel_um": vm.pretravel_um, "pretravel_lobe_um": vm.pretravel_lobe_um,
-            "probe_noise_um": vm.probe_noise_um, "rtest_noise_um": vm.rtest_noise_um}
+            "probe_noise_um": vm.probe_noise_um, "rtest_noise_um": vm.rtest_noise_um,
+            "ballbar_table_offset_mm": list(vm.ballbar_table_offset_mm),
+            "ballbar_tool_offset_mm": list(vm.ballbar_tool_offset_mm),
+            "ballbar_length_error_um": vm.ballbar_length_error_um,
+            "ballbar_noise_um": vm.ballbar_noise_um}
 
 
 def write_campaign(vm: VirtualFiveAxis, out: Path, *, positions: np.ndarray,
                    sphere_mm: tuple[float, float, float] = (0.0, 0.0, 0.0),
                    sphere_radius_mm: float = 12.5, stylus_radius_mm: float = 1.5,
                    rtest_path: np.ndarray | None = None, indexer_targets: np.ndarray | None = None,
-                   harmonics: int = 0, name: str = "virtual five-axis") -> Path:
+                   harmonics: int = 0, name: str = "virtual five-axis",
+                   ballbar: list[BallbarSetup] | None = None, probing: bool = True) -> Path:
     """Simulate a campaign into the folder ``out``: machine.toml, probe.csv (and rtest.csv,
-    indexer_C.csv), truth.json. Returns the machine file's path."""
+    indexer_C.csv, ballbar_<name>.csv), truth.json. ``probing`` False leaves the probing
+    out (a ballbar-only plan). Ballbar set-ups' ball positions are relative to the rotation
+    point, as ``sphere_mm``. Returns the machine file's path."""
     g = vm.geometry
     tilt, table = g.rotaries
     out.mkdir(parents=True, exist_ok=True)
     sphere = tuple(np.asarray(g.rot_point_mm) + np.asarray(sphere_mm))
-    p = vm.probe(sphere, sphere_radius_mm, stylus_radius_mm, positions)  # type: ignore[arg-type]
-    (out / "probe.csv").write_text(probe_csv(tilt, p["position"], p["t_s"], p["angles_deg"],
-                                             p["points_mm"]), encoding="utf-8")
+    t_end = 0.0
+    if probing:
+        p = vm.probe(sphere, sphere_radius_mm, stylus_radius_mm, positions)  # type: ignore[arg-type]
+        (out / "probe.csv").write_text(probe_csv(tilt, p["position"], p["t_s"], p["angles_deg"],
+                                                 p["points_mm"]), encoding="utf-8")
+        t_end = float(p["t_s"][-1])
     offs = ("y_offset_mm", "z_offset_mm") if tilt == "A" else ("x_offset_mm", "z_offset_mm")
     ov = (g.offset_mm[1], g.offset_mm[2]) if tilt == "A" else (g.offset_mm[0], g.offset_mm[2])
     lines = [f'[machine]\nname = "{name}"\n',
@@ -225,11 +326,13 @@ def write_campaign(vm: VirtualFiveAxis, out: Path, *, positions: np.ndarray,
              f"{offs[0]} = {ov[0]!r}\n{offs[1]} = {ov[1]!r}\ntool_length_mm = {g.tool_length_mm!r}\n",
              f"[rotary.{tilt}]\ntravel_deg = {list(g.travel_deg[tilt])!r}\n",
              f"[rotary.{table}]\ntravel_deg = {list(g.travel_deg[table])!r}\n",
-             f"[rotary.fit]\nharmonics = {harmonics}\n",
-             f'[probing.S1]\nfile = "probe.csv"\nsphere_mm = {[float(v) for v in sphere]!r}\n'
-             f"sphere_radius_mm = {sphere_radius_mm!r}\nstylus_radius_mm = {stylus_radius_mm!r}\n"]
+             f"[rotary.fit]\nharmonics = {harmonics}\n"]
+    if probing:
+        lines.append(f'[probing.S1]\nfile = "probe.csv"\nsphere_mm = {[float(v) for v in sphere]!r}\n'
+                     f"sphere_radius_mm = {sphere_radius_mm!r}\n"
+                     f"stylus_radius_mm = {stylus_radius_mm!r}\n")
     if rtest_path is not None:
-        r = vm.rtest(sphere, rtest_path, t0_s=float(p["t_s"][-1]) + 60.0)  # type: ignore[arg-type]
+        r = vm.rtest(sphere, rtest_path, t0_s=t_end + 60.0)  # type: ignore[arg-type]
         (out / "rtest.csv").write_text(rtest_csv(tilt, r["t_s"], r["angles_deg"],
                                                  r["displacement_um"]), encoding="utf-8")
         lines.append(f'[rtest.R1]\nfile = "rtest.csv"\nsphere_mm = {[float(v) for v in sphere]!r}\n')
@@ -239,6 +342,20 @@ def write_campaign(vm: VirtualFiveAxis, out: Path, *, positions: np.ndarray,
             indexer_csv(ix["run"], ix["direction"], ix["target_deg"], ix["deviation_urad"]),
             encoding="utf-8")
         lines.append(f'[indexer.{table}]\nfile = "indexer_{table}.csv"\n')
+    t = t_end
+    for bs in ballbar or []:
+        rp = np.asarray(g.rot_point_mm)
+        wt, wb = rp + np.asarray(bs.table_ball_mm), rp + np.asarray(bs.tool_ball_mm)
+        t += 120.0  # set the bar up
+        b = vm.ballbar(wt, wb, bs.path_deg, t0_s=t)
+        t = float(b["t_s"][-1])
+        fn = f"ballbar_{bs.name}.csv"
+        (out / fn).write_text(rotary_ballbar_csv(tilt, b["t_s"], b["angles_deg"], b["radial_um"]),
+                              encoding="utf-8")
+        lines.append(f'[rotary_ballbar.{bs.name}]\nfile = "{fn}"\n'
+                     f"table_ball_mm = {[float(v) for v in wt]!r}\n"
+                     f"tool_ball_mm = {[float(v) for v in wb]!r}\n"
+                     + (f'setup = "{bs.setup}"\n' if bs.setup else ""))
     (out / "machine.toml").write_text("\n".join(lines), encoding="utf-8")
     (out / "truth.json").write_text(json.dumps(truth_json(vm), indent=2) + "\n", encoding="utf-8")
     return out / "machine.toml"

@@ -2,11 +2,12 @@
 """Run measurement programs in the LinuxCNC simulator and record the commanded path
 (runs as the LinuxCNC user; program_sim.py copies it beside sim_drive.py and starts it).
 
-  program_drive.py --ini WORK/config/vmc500.ini --out WORK PROG1.ngc PROG2.ngc ...
+  program_drive.py --ini WORK/config/vmc500.ini --out WORK [--setp PROG:PIN=VALUE] PROG1.ngc ...
 
 Starts `linuxcnc INI` headless (linuxcncrsh), e-stop reset, machine on, home all, then
 runs each program, polling linuxcnc.stat every ~2 ms: time, the commanded position
-(stat.position, machine coordinates), the line being executed; a programmed stop (M0)
+(stat.position, machine coordinates: X Y Z and A B C; stat.joint_position, the joints), the
+line being executed; a programmed stop (M0)
 is answered with a resume, its time recorded. Writes NAME.path.json per program and
 drive.json. LinuxCNC start, wait and stop: sim_drive.py's helpers.
 """
@@ -21,8 +22,8 @@ from pathlib import Path
 
 import linuxcnc
 
-from sim_drive import (Abort, bounded, connect, home_all, launch, log, operator_errors, power_on,
-                       shutdown)
+from sim_drive import (Abort, bounded, connect, halcmd, home_all, launch, log, operator_errors,
+                       power_on, shutdown)
 
 
 def record(c, s, program: Path, timeout: float) -> dict:
@@ -30,17 +31,21 @@ def record(c, s, program: Path, timeout: float) -> dict:
     c.wait_complete()
     c.program_open(str(program))
     c.wait_complete()
-    t, pos, line, stops = [], [], [], []
+    t, pos, line, stops, rot, joints = [], [], [], [], [], []
     t0 = time.monotonic()
     c.auto(linuxcnc.AUTO_RUN, 0)
     started = False
     while True:
         now = time.monotonic() - t0
         if now > timeout:
-            raise RuntimeError(f"{program.name} did not finish within {timeout:.0f} s")
+            raise RuntimeError(f"{program.name} did not finish within {timeout:.0f} s (at line "
+                               f"{s.current_line}, position {list(s.position[:6])}, interp "
+                               f"{s.interp_state}, paused {s.task_paused})")
         s.poll()
         t.append(now)
         pos.append(list(s.position[:3]))
+        rot.append(list(s.position[3:6]))  # A, B, C (deg): the five-axis programs
+        joints.append(list(s.joint_position[:s.joints]))
         line.append(int(s.current_line))
         if s.interp_state != linuxcnc.INTERP_IDLE:
             started = True
@@ -57,7 +62,7 @@ def record(c, s, program: Path, timeout: float) -> dict:
             raise RuntimeError(f"{program.name} did not start")
         time.sleep(0.002)
     return {"program": program.name, "t_s": t, "pos_mm": pos, "line": line, "stops": stops,
-            "seconds": t[-1]}
+            "seconds": t[-1], "abc_deg": rot, "joints": joints}
 
 
 def main() -> int:
@@ -66,6 +71,8 @@ def main() -> int:
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--program-timeout", type=float, default=300.0)
     ap.add_argument("--timeout", type=int, default=900, help="for everything, s")
+    ap.add_argument("--setp", action="append", default=[], metavar="PROG:PIN=VALUE",
+                    help="halcmd setp PIN VALUE before running the program named PROG")
     ap.add_argument("programs", type=Path, nargs="+")
     args = ap.parse_args()
 
@@ -78,6 +85,10 @@ def main() -> int:
         power_on(c, s)
         home_all(c, s)
         for prog in args.programs:
+            for sp in args.setp:
+                name, _, assign = sp.partition(":")
+                if name == prog.name:
+                    halcmd("setp", *assign.split("=", 1))
             r = record(c, s, prog.resolve(), args.program_timeout)
             (out / f"{prog.stem}.path.json").write_text(json.dumps(r))
             result["programs"][prog.name] = {"seconds": r["seconds"], "samples": len(r["t_s"]),

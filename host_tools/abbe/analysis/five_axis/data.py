@@ -14,7 +14,8 @@ import numpy as np
 from abbe.analysis.five_axis.problem import Block
 from abbe.analysis.five_axis.spheres import SphereCentres, sphere_centres
 from abbe.errors import AbbeInputError
-from abbe.formats.five_axis import FiveAxisSpec, read_indexer, read_probe_points, read_rtest
+from abbe.formats.five_axis import (FiveAxisSpec, read_indexer, read_probe_points,
+                                   read_rotary_ballbar, read_rtest)
 
 
 @dataclass
@@ -61,4 +62,9 @@ def load_plan(spec: FiveAxisSpec) -> PlanData:
         ang = np.column_stack([np.zeros(runs.target_deg.size), runs.target_deg])
         blocks.append(Block("indexer", axis, ang, runs.deviation_urad,
                             direction=runs.direction.astype(np.float64), sigma=5.0))
+    for name, bb in spec.ballbar.items():
+        tr = read_rotary_ballbar(bb.file, tilt)
+        blocks.append(Block("ballbar", name, tr.angles_deg, tr.radial_um,
+                            np.asarray(bb.table_ball_mm), time_s=tr.time_s,
+                            tool_mm=np.asarray(bb.tool_ball_mm), setup=bb.setup))
     return PlanData(blocks, spheres, rejected, raw)

@@ -42,7 +42,8 @@ SEEN_BY = {
                   "ISO 230-4), fitted by `abbe fit` on a 3-axis file",
     "motion": "an R-test with spheres at two heights (tilt vs radial), the laser + rotary "
               "indexer for the angular motion, more rotary positions per revolution",
-    "location": "probing at more angles of the other rotary axis or a second sphere height",
+    "location": "probing at more angles of the other rotary axis or a second sphere height "
+                "(a ballbar: the other axis turning, or the table ball at a second height)",
     "setup": "a sphere position measured in a known frame",
     "drift": "repeating one probing position at the start, middle and end of the campaign",
     "wobble": "the table face's axial motion at two radii (ISO 230-7) or spheres at two "
@@ -241,7 +242,7 @@ def identify(spec: FiveAxisSpec, blocks: list[Block], params: list[Param]) -> Fi
     # Weights: each block's standard deviation from its residuals, then refit.
     for b in blocks:
         r = residual_block(g, params, x, h, b)
-        if b.kind == "indexer":
+        if b.kind in ("indexer", "ballbar"):
             n_own = sum(1 for i in free if params[i].block == b.key) + 1
             b.sigma = max(float(np.sqrt(np.sum(r ** 2) / max(r.size - n_own, 1))), 1e-3)
         else:  # per machine axis: a sphere fit of a cap is worse along its axis

@@ -42,10 +42,12 @@ class Param:
 
 @dataclass
 class Block:
-    """A data block: kind ``probe`` / ``rtest`` / ``indexer``, its name, angles (M, 2)
-    deg (indexer: the target angles in column 1), observations (M, 3) (probe: centre mm,
-    R-test: displacement um) or (M,) urad (indexer), direction (indexer), the sphere's
-    nominal centre (mm), its standard deviation (um or urad) and time (s)."""
+    """A data block: kind ``probe`` / ``rtest`` / ``indexer`` / ``ballbar``, its name,
+    angles (M, 2) deg (indexer: the target angles in column 1), observations (M, 3) (probe:
+    centre mm, R-test: displacement um) or (M,) (indexer urad, ballbar: measured minus
+    nominal length um), direction (indexer), the sphere's (ballbar: the table ball's)
+    nominal centre (mm), the tool ball's (ballbar, mm), its standard deviation (um or urad)
+    and time (s)."""
 
     kind: str
     name: str
@@ -60,6 +62,15 @@ class Block:
     noise_floor_um: float | None = None
     #: probe blocks: each centre's noise covariance from its sphere fit (M, 3, 3) um^2
     centre_cov_um2: np.ndarray | None = None
+    #: ballbar blocks: the tool ball's nominal centre, workpiece coordinates (mm)
+    tool_mm: np.ndarray | None = None
+    #: ballbar blocks: the set-up they share (same table ball and tool cup, not moved), or ""
+    setup: str = ""
+
+    @property
+    def balls_key(self) -> str:
+        """Whose ball set-up unknowns a ballbar block uses: its own or its shared set-up's."""
+        return f"ballbar_setup.{self.setup}" if self.setup else self.key
 
     @property
     def key(self) -> str:
@@ -83,6 +94,7 @@ def build_params(spec: FiveAxisSpec, blocks: list[Block]) -> list[Param]:
                     ps.append(Param(f"{motion_name(ax, comp)} {trig}{k}", "motion",
                                     "um" if j < 3 else "urad", 1.0 if j < 3 else 5.0,
                                     ax, comp, k, trig))
+    shared: set[str] = set()
     for b in blocks:
         if b.kind in ("probe", "rtest"):
             ps += [Param(f"{b.kind}.{b.name} sphere {c}", "setup", "um", 100.0, block=b.key)
@@ -94,6 +106,20 @@ def build_params(spec: FiveAxisSpec, blocks: list[Block]) -> list[Param]:
             ps += [Param(f"rtest.{b.name} mount {c}", "setup", "urad", 1000.0, block=b.key)
                    for c in ("a", "b", "c")]
             ps.append(Param(f"rtest.{b.name} mount gain", "setup", "ppm", 1000.0, block=b.key))
+        if b.kind == "ballbar":
+            # The balls' set-up: the table ball's place on the table (workpiece frame), the
+            # tool ball's off the tool's nominal point (machine frame: run-out, length set-up),
+            # the bar's length calibration.
+            if b.setup and b.balls_key in shared:
+                pass  # the set-up's balls are already unknowns
+            else:
+                who = f"set-up {b.setup}" if b.setup else f"ballbar.{b.name}"
+                shared.add(b.balls_key)
+                ps += [Param(f"{who} table ball {c}", "setup", "um", 100.0, block=b.balls_key)
+                       for c in "xyz"]
+                ps += [Param(f"{who} tool ball {c}", "setup", "um", 100.0, block=b.balls_key)
+                       for c in "xyz"]
+            ps.append(Param(f"ballbar.{b.name} length zero", "setup", "um", 10.0, block=b.key))
         if b.kind == "indexer":
             ps += [Param(f"indexer.{b.name} zero", "setup", "urad", 10.0, block=b.key),
                    Param(f"indexer.{b.name} reversal", "setup", "urad", 10.0, block=b.key)]
@@ -147,7 +173,8 @@ def predict_block(g: TrunnionGeometry, params: list[Param], x: np.ndarray, harmo
         zero, rev = _setup(params, x, b.key, "zero")[0], _setup(params, x, b.key, "reversal")[0]
         d = b.direction if rows is None else b.direction[rows]  # type: ignore[index]
         return ecc + zero + d * rev / 2.0
-    s = b.sphere_mm + _setup(params, x, b.key, "sphere") * 1e-3
+    s = b.sphere_mm + (_setup(params, x, b.balls_key, "table ball") if b.kind == "ballbar"
+                       else _setup(params, x, b.key, "sphere")) * 1e-3
     T = table_transform(g, errs, ang)
     centre = np.einsum("nij,j->ni", T[:, :3, :3], s) + T[:, :3, 3]
     drifts = [(p.comp, float(v)) for p, v in zip(params, x) if p.kind == "drift" and v != 0.0]
@@ -164,6 +191,16 @@ def predict_block(g: TrunnionGeometry, params: list[Param], x: np.ndarray, harmo
     if b.kind == "probe":
         e, _r = linear_axis_errors(g, errs, centre)
         return centre - e * 1e-3  # the probe reads machine positions: the tool error subtracts
+    if b.kind == "ballbar":
+        # The tool ball is held at the nominal place of its workpiece point (tool-centre-point
+        # control); the linear axes' errors and its set-up move it; the bar reads the distance.
+        Tn = table_transform(g, None, ang)
+        q = np.einsum("nij,j->ni", Tn[:, :3, :3], b.tool_mm) + Tn[:, :3, 3]
+        e, _r = linear_axis_errors(g, errs, q)
+        tool = q + (e + _setup(params, x, b.balls_key, "tool ball")) * 1e-3
+        length = float(np.linalg.norm(b.tool_mm - b.sphere_mm))  # type: ignore[operator]
+        return ((np.linalg.norm(tool - centre, axis=1) - length) * 1e3
+                + _setup(params, x, b.key, "length zero")[0])
     Tn = table_transform(g, None, ang)
     q = np.einsum("nij,j->ni", Tn[:, :3, :3], b.sphere_mm) + Tn[:, :3, 3]
     e, _r = linear_axis_errors(g, errs, q)

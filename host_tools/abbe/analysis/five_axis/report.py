@@ -6,8 +6,10 @@ test that would see it), the error motions (radial / axial / tilt / angular,
 Fourier coefficients and their peak-to-valley over a turn), the angular
 positioning of an indexed axis (ISO 230-2 statistics, urad), the sphere-centre
 dispersion before / after and held out, the observability table (rank,
-condition number, what the plan fixes by convention) and the strongest
-correlations. Units: um, urad, degrees.
+condition number, what the plan fixes by convention), the strongest
+correlations and the rotary ballbar tests (ISO 10791-6 style: the bar's length
+deviation over the turning axis' angle, measured and left by the identified
+model, as polar plots). Units: um, urad, degrees.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import numpy as np
 
 from abbe.analysis.five_axis.data import PlanData
 from abbe.analysis.five_axis.identify import SEEN_BY, FitResult
+from abbe.analysis.five_axis.problem import Block, residual_block
 from abbe.analysis.iso230_2 import evaluate
 from abbe.formats.deviations import PositioningData
 from abbe.formats.five_axis import FiveAxisSpec, IndexerRuns
@@ -108,6 +111,30 @@ def rotary_positioning(runs: IndexerRuns) -> dict[str, Any] | None:
             "E_urad": res.E_um, "A_urad": res.A_um, "M_urad": res.M_um}
 
 
+def turning_axis(b: Block, tilt: str) -> tuple[str, np.ndarray]:
+    """The axis that turns in a rotary ballbar test (the one with the larger range) and its
+    angles (deg)."""
+    k = int(np.argmax(np.ptp(b.angles_deg, axis=0)))
+    return (tilt if k == 0 else "C"), b.angles_deg[:, k]
+
+
+def ballbar_curves(res: FitResult, spec: FiveAxisSpec) -> dict[str, dict[str, Any]]:
+    """Per rotary ballbar test: the turning axis, its angles (deg), the measured length
+    deviation (um, less its mean: the bar's zero is a set-up unknown) and what the
+    identified model leaves of it (um)."""
+    out: dict[str, dict[str, Any]] = {}
+    x = res.x_solution if res.x_solution is not None else np.nan_to_num(res.x)
+    for b in res.blocks:
+        if b.kind != "ballbar":
+            continue
+        axis, ang = turning_axis(b, spec.geometry.tilt)
+        left = residual_block(spec.geometry, res.params, x, res.harmonics, b)
+        out[b.name] = {"axis": axis, "angle_deg": ang, "measured_um": b.obs - np.mean(b.obs),
+                       "left_um": left - np.mean(left),
+                       "length_mm": float(np.linalg.norm(b.tool_mm - b.sphere_mm))}  # type: ignore[operator]
+    return out
+
+
 def to_json(res: FitResult, spec: FiveAxisSpec, plan: PlanData) -> dict[str, Any]:
     """The identification as JSON (five_axis.json)."""
     g = spec.geometry
@@ -145,6 +172,15 @@ def to_json(res: FitResult, spec: FiveAxisSpec, plan: PlanData) -> dict[str, Any
         "rejected_positions": [{"probing": n, "position": p, "radius_mm": r, "expected_mm": e}
                                for n, p, r, e in plan.rejected],
         "rotary_positioning": {ax: rotary_positioning(r) for ax, r in plan.indexer_raw.items()},
+        "rotary_ballbar": {n: {"turning_axis": c["axis"], "length_mm": c["length_mm"],
+                               "readings": int(c["angle_deg"].size),
+                               "measured_pv_um": float(np.ptp(c["measured_um"])),
+                               "left_pv_um": float(np.ptp(c["left_um"])),
+                               "left_rms_um": float(np.sqrt(np.mean(c["left_um"] ** 2))),
+                               "angle_deg": [float(v) for v in c["angle_deg"]],
+                               "measured_um": [round(float(v), 4) for v in c["measured_um"]],
+                               "left_um": [round(float(v), 4) for v in c["left_um"]]}
+                           for n, c in ballbar_curves(res, spec).items()},
     }
 
 
@@ -178,39 +214,58 @@ def text_report(doc: dict[str, Any]) -> str:
             out.append(f"Angular positioning of {ax} (ISO 230-2, urad): A {rp['A_urad']:.2f}, "
                        f"E {rp['E_urad']:.2f}, R {rp['R_urad']:.2f}, B {rp['B_urad']:.2f}, "
                        f"M {rp['M_urad']:.2f}")
+    for n, bb in doc.get("rotary_ballbar", {}).items():
+        out.append(f"Rotary ballbar {n} ({bb['turning_axis']} turning, {bb['length_mm']:.1f} mm "
+                   f"bar, {bb['readings']} readings): deviation {bb['measured_pv_um']:.2f} um "
+                   f"peak-to-valley, {bb['left_pv_um']:.2f} um left by the identified model "
+                   f"(RMS {bb['left_rms_um']:.2f} um)")
     for rj in doc["rejected_positions"]:
         out.append(f"Rejected probing {rj['probing']} position {rj['position']}: radius "
                    f"{rj['radius_mm']:.4f} mm, expected {rj['expected_mm']:.4f} mm")
     return "\n".join(out) + "\n"
 
 
-def write_html(res: FitResult, doc: dict[str, Any], out: Path) -> None:
-    """report/index.html with one polar plot per rotary axis with identified error motions."""
-    import matplotlib
-    matplotlib.use("Agg")
+def _polar(out: Path, png: str, title: str, curves: list[tuple[np.ndarray, np.ndarray, str]],
+           size: float) -> str:
+    """One polar plot of deviations (um / urad) about a base circle twice their largest
+    magnitude: ``curves`` are (angle rad, value, label); writes ``out/png``."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
+    fig = Figure(figsize=(size, size))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(projection="polar")
+    scale = max(max(float(np.max(np.abs(v))) for _t, v, _l in curves), 1e-3)
+    for t, v, label in curves:
+        ax.plot(t, v + 2.0 * scale, ".-" if len(t) < 200 else "-", ms=2, label=label)
+    ax.plot(np.linspace(0, 2 * np.pi, 181), np.full(181, 2.0 * scale), "k:", lw=0.6)
+    ax.set_title(f"{title} (about a base circle of {2 * scale:.2g})", fontsize=8)
+    ax.set_yticklabels([])
+    ax.legend(fontsize=7, loc="lower left", bbox_to_anchor=(-0.15, -0.15))
+    fig.savefig(out / png, dpi=90)
+    return png
+
+
+def write_html(res: FitResult, doc: dict[str, Any], out: Path) -> None:
+    """report/index.html with one polar plot per rotary axis with identified error motions
+    and one per rotary ballbar test (measured and left by the model)."""
+    import matplotlib
+    matplotlib.use("Agg")
+
     out.mkdir(parents=True, exist_ok=True)
     imgs = []
+    t = np.deg2rad(np.linspace(0.0, 360.0, 361))
     for axis in ("A", "B", "C"):
         curves = motion_curves(res, axis)
-        if not curves:
-            continue
-        fig = Figure(figsize=(6, 6))
-        FigureCanvasAgg(fig)
-        ax = fig.add_subplot(projection="polar")
-        t = np.deg2rad(np.linspace(0.0, 360.0, 360, endpoint=False))
-        scale = max(float(np.max(np.abs(v))) for v in curves.values()) or 1.0
-        for name, v in curves.items():
-            ax.plot(np.r_[t, t[:1]], np.r_[v, v[:1]] + 2.0 * scale, label=name)
-        ax.set_title(f"Error motions of {axis} (um / urad about a base circle of "
-                     f"{2 * scale:.2g})", fontsize=9)
-        ax.set_yticklabels([])
-        ax.legend(fontsize=7, loc="lower left", bbox_to_anchor=(-0.15, -0.15))
-        png = f"motions_{axis}.png"
-        fig.savefig(out / png, dpi=90)
-        imgs.append(png)
+        if curves:
+            imgs.append(_polar(out, f"motions_{axis}.png", f"Error motions of {axis}, um / urad",
+                               [(t, np.r_[v, v[:1]], n) for n, v in curves.items()], 6.0))
+    bb_imgs = [_polar(out, f"ballbar_{name}.png", f"Rotary ballbar {name}: "
+                      f"{c['turning_axis']} turning, length deviation um",
+                      [(np.deg2rad(c["angle_deg"]), np.asarray(c["measured_um"]), "measured"),
+                       (np.deg2rad(c["angle_deg"]), np.asarray(c["left_um"]),
+                        "left by the model")], 5.0)
+               for name, c in doc.get("rotary_ballbar", {}).items()]
     rows = []
     for r in doc["parameters"]:
         if r["observable"]:
@@ -236,5 +291,8 @@ def write_html(res: FitResult, doc: dict[str, Any], out: Path) -> None:
             + ("".join(f"<img src='{p}' alt='{p}'>" for p in imgs) or
                "<p>No error motion identified by this plan ([rotary.fit] harmonics = 0 or "
                "not observable).</p>")
+            + ("<h2>Rotary ballbar (ISO 10791-6 style)</h2>"
+               + "".join(f"<img src='{p}' alt='{p}'>" for p in bb_imgs) if bb_imgs else "")
             + f"<h2>Text</h2><pre>{html.escape(text_report(doc))}</pre></body></html>\n")
     (out / "index.html").write_text(page, encoding="utf-8")
+
