@@ -74,6 +74,7 @@ static bool have_last_motor;
 /* Messages wait for the foreground (on_execute_realtime). */
 static char pending_msg[176];
 static volatile bool msg_pending;
+static bool msg_warning;
 static bool fault_reported;
 
 static on_report_options_ptr on_report_options;
@@ -83,8 +84,9 @@ static on_jog_cancel_ptr on_jog_cancel;
 static on_state_change_ptr on_state_change;
 static travel_limits_ptr check_travel_limits;
 
-static void queue_message(const char *text)
+static void queue_message(const char *text, bool warning)
 {
+    msg_warning = warning;
     strncpy(pending_msg, text, sizeof pending_msg - 1u);
     pending_msg[sizeof pending_msg - 1u] = '\0';
     msg_pending = true;
@@ -108,12 +110,12 @@ static coord_data_t *abbe_transform_from_cartesian(coord_data_t *target, coord_d
             target->values[idx] = motor[idx];
         if ((flags & ABBE_FLAG_LIMIT) && !fault_reported) {
             fault_reported = true;
-            queue_message("abbe: correction limit exceeded, compensation fades out ($ABBERESET clears)");
+            queue_message("abbe: correction limit exceeded, compensation fades out ($ABBERESET clears)", true);
         }
         if (flags & ABBE_FLAG_MODEL_SWAPPED) {
             char text[64];
             snprintf(text, sizeof text, "abbe: table %08lX in use", (unsigned long)abbe_model_crc(abbe_gh_model(&gh)));
-            queue_message(text);
+            queue_message(text, false);
         }
     }
     return target;
@@ -359,7 +361,7 @@ static void boot_table(const abbe_gh_params_t *p, bool try_stored)
                          (unsigned long)abbe_model_crc(abbe_gh_model(&gh)), (unsigned long)size);
                 char msg[sizeof pending_msg];
                 snprintf(msg, sizeof msg, "abbe: %s", boot_text);
-                queue_message(msg);
+                queue_message(msg, false);
                 return;
             }
         }
@@ -382,7 +384,7 @@ static void boot_table(const abbe_gh_params_t *p, bool try_stored)
             snprintf(boot_text, sizeof boot_text, "stored table refused (%s); no table", stored_why);
         char msg[sizeof pending_msg];
         snprintf(msg, sizeof msg, "abbe: %s", boot_text);
-        queue_message(msg);
+        queue_message(msg, true); /* a stored table was refused */
     } else if (m != NULL)
         snprintf(boot_text, sizeof boot_text, "compiled-in table %08lX in use", (unsigned long)abbe_model_crc(m));
     else
@@ -397,7 +399,7 @@ static void apply_settings(void)
     p.max_dev_um = cfg.max_dev_um;
     p.limit_um = cfg.limit_um;
     if (abbe_gh_set_params(&gh, &p) != ABBE_OK)
-        queue_message("abbe: settings out of range, the previous ones stay");
+        queue_message("abbe: settings out of range, the previous ones stay", true);
     if ((cfg.enable != 0) != (gh.enabled != 0))
         (void)abbe_gh_set_enabled(&gh, cfg.enable);
 }
@@ -705,7 +707,7 @@ static void abbe_execute_realtime(sys_state_t state)
 {
     if (msg_pending) {
         msg_pending = false;
-        report_message(pending_msg, abbe_gh_state(&gh) == ABBE_GH_FAULT ? Message_Warning : Message_Info);
+        report_message(pending_msg, msg_warning ? Message_Warning : Message_Info);
     }
     on_execute_realtime(state);
 }

@@ -8,11 +8,10 @@ in (port/grblhal/build_sim.sh) and checks, with E from ``abbe.model.reference``
 1. lines along each axis in both directions: the motor steps where the
    machine stops (each programmed end point) equal round((p - E(p)) x steps/mm)
    within one step, every sampled point (step.out, every 20 ms of simulated
-   time) lies within 1.5 steps (the stepper's interpolation between block ends
-   that the planner rounded to whole steps) plus the segment bound of the
-   model's motor path (projected onto it: the along-path timing is the
-   planner's), and the reported MPos equals the programmed point within one
-   step; the same figures with the plugin off are measured for comparison;
+   time) lies within the derived tolerance of the model's motor path (the
+   exact largest-axis distance to it; see evaluate() for the terms), and the
+   reported MPos equals the programmed point within one step; the same
+   figures with the plugin off are measured for comparison;
 2. a G2 and a G3 full circle at the ballbar's centre and radius (machine file),
    F2000: the same checks (plus grblHAL's chord error $12 on the samples); the
    largest deviation and the number of segments are reported;
@@ -24,8 +23,19 @@ in (port/grblhal/build_sim.sh) and checks, with E from ``abbe.model.reference``
    with a matching CRC, an incomplete upload, a chunk out of order: each is
    refused with its reason, the running table stays (status report CRC, and
    the steps still follow it); then a valid upload takes over at the next
-   segment and the steps follow the new table.
+   segment and the steps follow the new table; a valid table larger than the
+   table storage runs but is refused storage with its reason;
+6. the stored table: the Simulator restarted with the same EEPROM.DAT runs the
+   uploaded table (status report, $ABBE, the steps follow it); with a byte of
+   the stored blob flipped it runs the compiled-in table and says why;
+7. homing and limits: manual homing ($H) and a soft-limit violation with the
+   plugin on, off and in the unmodified Simulator: the same homed MPos, the
+   same alarm, MPos within one step everywhere.
 
+Steps the Simulator's stepper loses under load (its segment buffer running
+empty; see evaluate()) are measured against the planner ($ABBE STEPS) and
+reported, and the sender's cycle start ('~') resumes a cycle grblHAL left
+Idle then (Sim.send).
 block.out is not used: the Simulator prints only the newest planner block
 when its thread polls, so a burst of segments leaves blocks out of it.
 Positions mm, errors um, steps at $100..$102 (250 steps/mm, the Simulator's
