@@ -28,6 +28,7 @@ in (port/grblhal/build_sim.sh) and checks, with E from ``abbe.model.reference``
 6. the stored table: the Simulator restarted with the same EEPROM.DAT runs the
    uploaded table (status report, $ABBE, the steps follow it); with a byte of
    the stored blob flipped it runs the compiled-in table and says why;
+   $ABBEU=E erases the record (the next start-up is the compiled-in table);
 7. homing and limits: manual homing ($H) and a soft-limit violation with the
    plugin on, off and in the unmodified Simulator: the same homed MPos, the
    same alarm, MPos within one step everywhere.
@@ -728,6 +729,21 @@ def main() -> int:
                     f"{what}: the refusal is reported with its reason ({msgs})")
         C.check(f"ABBE:ON,{want_crc}" in st and d3 <= 1.0,
                 f"{what}: the steps follow table {want_crc} ({d3:.3f} steps; {st})")
+    # $ABBEU=E erases the stored record: the next start-up takes the compiled-in
+    # table without a refusal.
+    sim = Sim(args.sim, work, "upload")
+    r, seen = sim.send("$ABBEU=E")
+    sim.close()
+    sim = Sim(args.sim, work, "upload")
+    start_line = [x for x in sim.send("$ABBE")[1] if x.startswith("[ABBE:start-up")]
+    sim.close()
+    header = (work / "upload" / "EEPROM.DAT").read_bytes()[NVS_TABLE_AT:NVS_TABLE_AT + 16]
+    msgs = [x for x in sim.log if x.startswith("[MSG:") and "abbe:" in x]
+    C.check(r == "ok" and header == bytes(16) and bool(start_line)
+            and f"start-up: compiled-in table {crc1} in use" in start_line[0] and not msgs,
+            f"$ABBEU=E: the stored record is erased, the restart takes the compiled-in table quietly "
+            f"({start_line[0] if start_line else 'no start-up line'}; {msgs})")
+    restart["erased"] = {"start_up": start_line[0] if start_line else "", "messages": msgs}
     C.summary["restart"] = restart
 
     # ---- 7: homing and soft limits as without the plugin ------------------------------------
