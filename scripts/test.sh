@@ -24,7 +24,8 @@
 #      sphere-probing programs in the xyzac-trt sample (port/linuxcnc/tests/program_sim.py,
 #      under flock /tmp/abbe-linuxcnc.lock)
 #  12. grblHAL: the Simulator built with the abbe plugin from the snapshots in
-#      ../shared/vendor/grblhal, G-code checked against the Python reference;
+#      ../shared/vendor/grblhal, G-code checked against the Python reference,
+#      uploads, the stored table over a restart, homing and soft limits;
 #      the measurement programs (abbe program, grblHAL dialect) in the unmodified
 #      Simulator (port/grblhal/tests/run.sh; skipped without the snapshots, a failure
 #      under CI=true)

@@ -73,11 +73,12 @@ typedef struct {
 /* One table slot: a loaded model over its blob, and its derived segment length. */
 typedef struct {
     abbe_model_t model;
-    uint32_t blob[ABBE_GH_TABLE_MAX_BYTES / 4u]; /* uploaded tables; a compiled-in one stays in flash */
     float kappa_um_per_mm2;
     float takeup_mm[ABBE_AXES];
     float tref_c[ABBE_AXES];
     uint8_t loaded;
+    uint32_t blob[ABBE_GH_TABLE_MAX_BYTES / 4u]; /* uploaded / stored tables; a compiled-in one stays in
+                                                    flash. Last: abbe_gh_init keeps it (abbe_gh_boot_buffer) */
 } abbe_gh_slot_t;
 
 /* A line split into segments (abbe_gh_line_begin / abbe_gh_line_next). */
@@ -117,6 +118,19 @@ void abbe_gh_default_params(abbe_gh_params_t *params);
  * validate returns its status and leaves the plugin without a model (it then
  * passes lines through). */
 abbe_status_t abbe_gh_init(abbe_gh_t *gh, const abbe_gh_params_t *params, const void *blob, size_t size);
+
+/* Slot 0's RAM: read a stored table there, then abbe_gh_init(gh, params,
+ * abbe_gh_boot_buffer(gh), size) validates it in place (init keeps a blob
+ * that already lies in this buffer). ABBE_GH_TABLE_MAX_BYTES long. */
+uint8_t *abbe_gh_boot_buffer(abbe_gh_t *gh);
+
+/* The machine was homed (or its position set without motion): the correction
+ * restarts from zero where the motors stand, so the reported position is
+ * grblHAL's own there, and fades in again over fade_segments if enabled. The
+ * motors do not move, so nothing jumps. A queued table becomes the running
+ * one. A latched fault stays latched (the correction is already fading to
+ * zero). */
+abbe_status_t abbe_gh_rehome(abbe_gh_t *gh);
 
 /* Change the parameters of a running plugin (no jump: abbe_comp_set_config). */
 abbe_status_t abbe_gh_set_params(abbe_gh_t *gh, const abbe_gh_params_t *params);
@@ -181,6 +195,28 @@ abbe_status_t abbe_gh_upload_data(abbe_gh_t *gh, uint32_t offset, const uint8_t 
                                   const char **why);
 abbe_status_t abbe_gh_upload_commit(abbe_gh_t *gh, const char **why);
 void abbe_gh_upload_abort(abbe_gh_t *gh);
+
+/* A table kept in non-volatile storage (docs/grblhal.md): a 16-byte header
+ * then the blob. Header, little-endian: magic "ABT1", the blob's size, its
+ * CRC-32 (zlib), and the CRC-32 of those 12 bytes. A writer invalidates the
+ * header first (zeros), writes the blob, then the header, so an interrupted
+ * write leaves no valid record. */
+#define ABBE_GH_STORE_HEADER_BYTES 16u
+#define ABBE_GH_STORE_MAGIC 0x31544241u /* "ABT1" */
+
+typedef enum {
+    ABBE_GH_STORE_NONE = 0,    /* erased or invalidated: no table stored */
+    ABBE_GH_STORE_VALID = 1,   /* header valid: size and CRC of the blob to read */
+    ABBE_GH_STORE_CORRUPT = 2  /* a header that is neither: *why says what is wrong */
+} abbe_gh_store_t;
+
+void abbe_gh_store_header(uint8_t out[ABBE_GH_STORE_HEADER_BYTES], uint32_t size, uint32_t crc);
+
+/* Parse a header read from storage; capacity: the largest blob the storage
+ * holds (bytes). A valid header gives *size (16 .. min(capacity,
+ * ABBE_GH_TABLE_MAX_BYTES)) and *crc. */
+abbe_gh_store_t abbe_gh_store_parse(const uint8_t in[ABBE_GH_STORE_HEADER_BYTES], uint32_t capacity,
+                                    uint32_t *size, uint32_t *crc, const char **why);
 
 /* The model in use (NULL: none) and its CRC (0: none). */
 const abbe_model_t *abbe_gh_model(const abbe_gh_t *gh);

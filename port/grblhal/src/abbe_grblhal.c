@@ -45,10 +45,20 @@ typedef struct {
     float limit_um;
 } abbe_nvs_settings_t;
 
+/* Physical non-volatile storage the driver provides, bytes, when it does not
+ * say (hal.nvs.size_max == 0). Uploaded tables are kept above grblHAL's
+ * buffered area (docs/grblhal.md); 0: none, uploads last until a restart.
+ * The Simulator's EEPROM.DAT is 4096 bytes (its build sets this). */
+#ifndef ABBE_GRBLHAL_NVS_BYTES
+#define ABBE_GRBLHAL_NVS_BYTES 0
+#endif
+
 static abbe_gh_t gh;
 static abbe_nvs_settings_t cfg;
 static nvs_address_t nvs_address;
 static abbe_status_t boot_status = ABBE_OK;
+static char boot_text[144]; /* where the running table came from at start-up ($ABBE) */
+static bool booted;
 
 /* segment_line state: mc_line() keeps the pointer the first call returns and
  * hands it to the planner after every later call, so every segment is written
@@ -62,18 +72,21 @@ static float last_motor[3];
 static bool have_last_motor;
 
 /* Messages wait for the foreground (on_execute_realtime). */
-static char pending_msg[112];
+static char pending_msg[176];
 static volatile bool msg_pending;
+static bool msg_warning;
 static bool fault_reported;
 
 static on_report_options_ptr on_report_options;
 static on_realtime_report_ptr on_realtime_report;
 static on_execute_realtime_ptr on_execute_realtime;
 static on_jog_cancel_ptr on_jog_cancel;
+static on_state_change_ptr on_state_change;
 static travel_limits_ptr check_travel_limits;
 
-static void queue_message(const char *text)
+static void queue_message(const char *text, bool warning)
 {
+    msg_warning = warning;
     strncpy(pending_msg, text, sizeof pending_msg - 1u);
     pending_msg[sizeof pending_msg - 1u] = '\0';
     msg_pending = true;
@@ -97,12 +110,12 @@ static coord_data_t *abbe_transform_from_cartesian(coord_data_t *target, coord_d
             target->values[idx] = motor[idx];
         if ((flags & ABBE_FLAG_LIMIT) && !fault_reported) {
             fault_reported = true;
-            queue_message("abbe: correction limit exceeded, compensation fades out ($ABBERESET clears)");
+            queue_message("abbe: correction limit exceeded, compensation fades out ($ABBERESET clears)", true);
         }
         if (flags & ABBE_FLAG_MODEL_SWAPPED) {
             char text[64];
             snprintf(text, sizeof text, "abbe: table %08lX in use", (unsigned long)abbe_model_crc(abbe_gh_model(&gh)));
-            queue_message(text);
+            queue_message(text, false);
         }
     }
     return target;
@@ -191,10 +204,30 @@ static void abbe_limits_set_target_pos(uint_fast8_t idx)
     sys.position[idx] = 0;
 }
 
+/* Homing sets the motor positions: the correction restarts from zero there
+ * (MPos = grblHAL's own home position) and fades in with the next moves. */
+static void rehome(void)
+{
+    (void)abbe_gh_rehome(&gh);
+    have_last_motor = false; /* the next line starts at the planner's (homed) position */
+}
+
 static void abbe_limits_set_machine_positions(axes_signals_t cycle)
 {
     /* The pull-off is added after a homing cycle, not for manual homing. */
     limits_set_machine_positions(cycle, state_get() == STATE_HOMING);
+    rehome();
+}
+
+/* A homing cycle's moves are raw motor moves (transform_from_cartesian passes
+ * them through): from its start the correction is zero, so positions reported
+ * during and after it (also when it fails) are grblHAL's own. */
+static void abbe_state_change(sys_state_t state)
+{
+    if (state == STATE_HOMING)
+        rehome();
+    if (on_state_change)
+        on_state_change(state);
 }
 
 /* mc_line() checks the first segment_line() return, the Cartesian target. */
@@ -211,6 +244,153 @@ static void abbe_jog_cancel(sys_state_t state)
         on_jog_cancel(state);
 }
 
+/* ---- table storage ------------------------------------------------------------ */
+
+/* Uploaded tables are kept in the physical NVS above the area grblHAL buffers
+ * in RAM (NVS_SIZE, or up to NVS_SIZE_MAX when the driver reports a larger
+ * hal.nvs.size_max): grblHAL neither reads nor writes there, and a table does
+ * not fit in its settings area. Needs byte-addressable storage (EEPROM, FRAM:
+ * memcpy_to_nvs); a driver with flash-emulated NVS has none. */
+static nvs_io_t *store_io(void)
+{
+    nvs_io_t *io = nvs_buffer_get_physical();
+    return io != NULL && io->type != NVS_Flash && io->type != NVS_None && io->memcpy_to_nvs != NULL &&
+                   io->memcpy_from_nvs != NULL
+               ? io
+               : NULL;
+}
+
+static uint32_t store_address(void)
+{
+    uint32_t buffered = NVS_SIZE;
+    if (hal.nvs.size_max > NVS_SIZE)
+        buffered = hal.nvs.size_max < NVS_SIZE_MAX ? hal.nvs.size_max : NVS_SIZE_MAX;
+    return (buffered + 3u) & ~3u;
+}
+
+/* Largest blob the storage holds, bytes (0: no storage for tables). */
+static uint32_t store_capacity(void)
+{
+    uint32_t physical = hal.nvs.size_max ? hal.nvs.size_max : (uint32_t)(ABBE_GRBLHAL_NVS_BYTES);
+    uint32_t at = store_address() + ABBE_GH_STORE_HEADER_BYTES;
+    if (store_io() == NULL || physical <= at)
+        return 0u;
+    return physical - at;
+}
+
+/* CRC-32 of n bytes of storage from addr, read in small pieces. */
+static uint32_t store_crc(nvs_io_t *io, uint32_t addr, uint32_t n)
+{
+    uint8_t buf[64];
+    uint32_t crc = 0u;
+    while (n > 0u) {
+        uint32_t k = n < sizeof buf ? n : (uint32_t)sizeof buf;
+        (void)io->memcpy_from_nvs(buf, addr, k, false);
+        crc = abbe_crc32(crc, buf, k);
+        addr += k;
+        n -= k;
+    }
+    return crc;
+}
+
+/* Keep the blob just committed for the next start-up: invalidate the header,
+ * write the blob, write the header, read it all back. Returns false with *why. */
+static bool store_table(const uint8_t *blob, uint32_t size, uint32_t crc, const char **why)
+{
+    nvs_io_t *io = store_io();
+    uint32_t cap = store_capacity(), at = store_address();
+    uint8_t header[ABBE_GH_STORE_HEADER_BYTES];
+    static char text[96];
+    if (cap == 0u) {
+        *why = "this build has no non-volatile storage for tables (ABBE_GRBLHAL_NVS_BYTES)";
+        return false;
+    }
+    if (size > cap) {
+        snprintf(text, sizeof text, "%lu bytes, the table storage holds %lu", (unsigned long)size,
+                 (unsigned long)cap);
+        *why = text;
+        return false;
+    }
+    memset(header, 0, sizeof header);
+    (void)io->memcpy_to_nvs(at, header, sizeof header, false);
+    (void)io->memcpy_to_nvs(at + ABBE_GH_STORE_HEADER_BYTES, (uint8_t *)blob, size, false);
+    abbe_gh_store_header(header, size, crc);
+    (void)io->memcpy_to_nvs(at, header, sizeof header, false);
+    uint8_t back[ABBE_GH_STORE_HEADER_BYTES];
+    (void)io->memcpy_from_nvs(back, at, sizeof back, false);
+    if (memcmp(back, header, sizeof header) != 0 || store_crc(io, at + ABBE_GH_STORE_HEADER_BYTES, size) != crc) {
+        *why = "read-back differs from what was written";
+        return false;
+    }
+    return true;
+}
+
+static void store_erase(void)
+{
+    nvs_io_t *io = store_io();
+    uint8_t header[ABBE_GH_STORE_HEADER_BYTES];
+    if (store_capacity() == 0u)
+        return;
+    memset(header, 0, sizeof header);
+    (void)io->memcpy_to_nvs(store_address(), header, sizeof header, false);
+}
+
+/* The table to run from start-up: a stored one whose header, CRC-32 and
+ * library validation pass; else the compiled-in one; else none. Runs once,
+ * before any motion (settings load), so the choice causes no jump. */
+static void boot_table(const abbe_gh_params_t *p, bool try_stored)
+{
+    const char *why = "";
+    char stored_why[64] = "";
+    uint32_t size = 0, crc = 0;
+    if (try_stored && store_capacity() > 0u) {
+        nvs_io_t *io = store_io();
+        uint8_t header[ABBE_GH_STORE_HEADER_BYTES];
+        (void)io->memcpy_from_nvs(header, store_address(), sizeof header, false);
+        abbe_gh_store_t st = abbe_gh_store_parse(header, store_capacity(), &size, &crc, &why);
+        if (st == ABBE_GH_STORE_VALID) {
+            uint8_t *buf = abbe_gh_boot_buffer(&gh);
+            (void)io->memcpy_from_nvs(buf, store_address() + ABBE_GH_STORE_HEADER_BYTES, size, false);
+            abbe_status_t ls;
+            if (abbe_crc32(0u, buf, size) != crc)
+                why = "CRC-32 of the stored bytes differs from the header's";
+            else if ((ls = abbe_gh_init(&gh, p, buf, size)) != ABBE_OK)
+                why = abbe_strerror(ls);
+            else {
+                snprintf(boot_text, sizeof boot_text, "stored table %08lX (%lu bytes) in use",
+                         (unsigned long)abbe_model_crc(abbe_gh_model(&gh)), (unsigned long)size);
+                char msg[sizeof pending_msg];
+                snprintf(msg, sizeof msg, "abbe: %s", boot_text);
+                queue_message(msg, false);
+                return;
+            }
+        }
+        if (st != ABBE_GH_STORE_NONE)
+            snprintf(stored_why, sizeof stored_why, "%s", why);
+    }
+#ifdef ABBE_GRBLHAL_BUILTIN
+    boot_status = abbe_gh_init(&gh, p, abbe_model_blob, abbe_model_blob_size);
+    if (boot_status != ABBE_OK)
+        (void)abbe_gh_init(&gh, p, NULL, 0);
+#else
+    (void)abbe_gh_init(&gh, p, NULL, 0);
+#endif
+    const abbe_model_t *m = abbe_gh_model(&gh);
+    if (stored_why[0]) {
+        if (m != NULL)
+            snprintf(boot_text, sizeof boot_text, "stored table refused (%s); compiled-in table %08lX in use",
+                     stored_why, (unsigned long)abbe_model_crc(m));
+        else
+            snprintf(boot_text, sizeof boot_text, "stored table refused (%s); no table", stored_why);
+        char msg[sizeof pending_msg];
+        snprintf(msg, sizeof msg, "abbe: %s", boot_text);
+        queue_message(msg, true); /* a stored table was refused */
+    } else if (m != NULL)
+        snprintf(boot_text, sizeof boot_text, "compiled-in table %08lX in use", (unsigned long)abbe_model_crc(m));
+    else
+        snprintf(boot_text, sizeof boot_text, "no table");
+}
+
 /* ---- settings -------------------------------------------------------------- */
 
 static void apply_settings(void)
@@ -219,7 +399,7 @@ static void apply_settings(void)
     p.max_dev_um = cfg.max_dev_um;
     p.limit_um = cfg.limit_um;
     if (abbe_gh_set_params(&gh, &p) != ABBE_OK)
-        queue_message("abbe: settings out of range, the previous ones stay");
+        queue_message("abbe: settings out of range, the previous ones stay", true);
     if ((cfg.enable != 0) != (gh.enabled != 0))
         (void)abbe_gh_set_enabled(&gh, cfg.enable);
 }
@@ -298,6 +478,12 @@ static void abbe_settings_restore(void)
 
 static void abbe_settings_load(void)
 {
+    if (!booted) { /* grblHAL's settings are in RAM now: choose the table */
+        abbe_gh_params_t p;
+        abbe_gh_default_params(&p);
+        boot_table(&p, true);
+        booted = true;
+    }
     if (hal.nvs.memcpy_from_nvs((uint8_t *)&cfg, nvs_address, sizeof cfg, true) != NVS_TransferResult_OK)
         abbe_settings_restore();
     apply_settings();
@@ -346,18 +532,30 @@ static status_code_t cmd_info(sys_state_t state, char *args)
 {
     (void)state;
     (void)args;
-    char buf[160];
+    char buf[224];
     float kappa = gh.running != 0xFF ? gh.slot[gh.running].kappa_um_per_mm2 : 0.0f;
+    /* STEPS: the planner's target of the last segment end, steps (rounded as
+     * plan_buffer_line() does): where the motors stop, unless the stepper lost
+     * a step (a sender or a test compares it with the machine's counts). */
+    long steps[3];
+    uint_fast8_t idx;
+    for (idx = 0; idx < 3; idx++)
+        steps[idx] = have_last_motor ? lroundf(last_motor[idx] * settings.axis[idx].steps_per_mm)
+                                     : (long)sys.position[idx];
     snprintf(buf, sizeof buf,
-             "[ABBE:%s|TABLE:%08lX|CURV:%.4f um/mm2|SEG:%.3f mm|DEV:%.3f um|SEGMENTS:%lu|FLAGS:%04lX]" ASCII_EOL,
+             "[ABBE:%s|TABLE:%08lX|CURV:%.4f um/mm2|SEG:%.3f mm|DEV:%.3f um|SEGMENTS:%lu|FLAGS:%04lX|STEPS:%ld,%ld,%ld]"
+             ASCII_EOL,
              state_name(), (unsigned long)table_crc(), (double)kappa, (double)gh.seg_len_mm,
              (double)abbe_gh_deviation_um(gh.seg_len_mm, kappa), (unsigned long)gh.segments,
-             (unsigned long)gh.flags);
+             (unsigned long)gh.flags, steps[0], steps[1], steps[2]);
     hal.stream.write(buf);
     if (boot_status != ABBE_OK) {
         snprintf(buf, sizeof buf, "[ABBE:compiled-in table refused: %s]" ASCII_EOL, abbe_strerror(boot_status));
         hal.stream.write(buf);
     }
+    snprintf(buf, sizeof buf, "[ABBE:start-up: %s|STORE:%lu bytes]" ASCII_EOL, boot_text,
+             (unsigned long)store_capacity());
+    hal.stream.write(buf);
     return Status_OK;
 }
 
@@ -415,13 +613,13 @@ static status_code_t upload_fail(const char *why)
     return Status_InvalidStatement;
 }
 
-/* $ABBEU=B,<size>,<crc32 hex> | D,<offset>,<hex bytes> | C | A (docs/grblhal.md). */
+/* $ABBEU=B,<size>,<crc32 hex> | D,<offset>,<hex bytes> | C | A | E (docs/grblhal.md). */
 static status_code_t cmd_upload(sys_state_t state, char *args)
 {
     const char *why = "";
     uint32_t a, b;
     if (args == NULL || args[0] == '\0' || (args[1] != ',' && args[1] != '\0'))
-        return upload_fail("expected B,<size>,<crc32>  D,<offset>,<hex>  C  or A");
+        return upload_fail("expected B,<size>,<crc32>  D,<offset>,<hex>  C  A  or E");
     char op = args[0];
     char *p = args[1] == ',' ? args + 2 : args + 1;
     switch (op) {
@@ -466,13 +664,31 @@ static status_code_t cmd_upload(sys_state_t state, char *args)
         if (abbe_gh_upload_commit(&gh, &why) != ABBE_OK)
             return upload_fail(why);
         report_message("abbe upload: table valid, in use from the next segment", Message_Info);
+        {
+            /* the committed blob is in the staging slot (it is the queued one now) */
+            char text[160];
+            const uint8_t *blob = (const uint8_t *)gh.slot[gh.stage.slot].blob;
+            if (store_table(blob, gh.stage.size, gh.stage.crc, &why))
+                report_message("abbe upload: table stored, in use after a restart", Message_Info);
+            else {
+                snprintf(text, sizeof text, "abbe upload: table not stored (%s); it runs until a restart", why);
+                report_message(text, Message_Warning);
+            }
+        }
+        return Status_OK;
+    case 'E':
+    case 'e':
+        if (*p != '\0')
+            return upload_fail("E takes no arguments");
+        store_erase();
+        report_message("abbe: stored table erased, the compiled-in table runs after a restart", Message_Info);
         return Status_OK;
     case 'A':
     case 'a':
         abbe_gh_upload_abort(&gh);
         return Status_OK;
     default:
-        return upload_fail("unknown operation (B, D, C or A)");
+        return upload_fail("unknown operation (B, D, C, A or E)");
     }
 }
 
@@ -491,7 +707,7 @@ static void abbe_execute_realtime(sys_state_t state)
 {
     if (msg_pending) {
         msg_pending = false;
-        report_message(pending_msg, abbe_gh_state(&gh) == ABBE_GH_FAULT ? Message_Warning : Message_Info);
+        report_message(pending_msg, msg_warning ? Message_Warning : Message_Info);
     }
     on_execute_realtime(state);
 }
@@ -509,7 +725,7 @@ void abbe_grblhal_init(void)
 {
     static const sys_command_t command_list[] = {
         {"ABBE", cmd_info, {.noargs = On, .allow_blocking = On}, {.str = "abbe compensation state and table"}},
-        {"ABBEU", cmd_upload, {.allow_blocking = Off}, {.str = "abbe table upload: B,size,crc | D,offset,hex | C | A"}},
+        {"ABBEU", cmd_upload, {.allow_blocking = Off}, {.str = "abbe table upload: B,size,crc | D,offset,hex | C | A | E (erase stored)"}},
         {"ABBERESET", cmd_reset, {.noargs = On}, {.str = "abbe: clear a fault, fade in again if enabled"}},
     };
     static sys_commands_t commands = {
@@ -519,19 +735,18 @@ void abbe_grblhal_init(void)
 
     abbe_gh_params_t p;
     abbe_gh_default_params(&p);
-#ifdef ABBE_GRBLHAL_BUILTIN
-    boot_status = abbe_gh_init(&gh, &p, abbe_model_blob, abbe_model_blob_size);
-    if (boot_status != ABBE_OK)
-        (void)abbe_gh_init(&gh, &p, NULL, 0);
-#else
-    (void)abbe_gh_init(&gh, &p, NULL, 0);
-#endif
+    (void)abbe_gh_init(&gh, &p, NULL, 0); /* the table is chosen at settings load (boot_table) */
     cfg.enable = 1;
     cfg.max_dev_um = p.max_dev_um;
     cfg.limit_um = p.limit_um;
 
     if ((nvs_address = nvs_alloc(sizeof(abbe_nvs_settings_t))))
         settings_register(&setting_details);
+    else { /* no settings area: the compiled-in table, enabled with the defaults */
+        boot_table(&p, false);
+        booted = true;
+        (void)abbe_gh_set_enabled(&gh, 1);
+    }
 
     kinematics.limits_set_target_pos = abbe_limits_set_target_pos;
     kinematics.limits_get_axis_mask = abbe_limits_get_axis_mask;
@@ -547,6 +762,9 @@ void abbe_grblhal_init(void)
 
     on_jog_cancel = grbl.on_jog_cancel;
     grbl.on_jog_cancel = abbe_jog_cancel;
+
+    on_state_change = grbl.on_state_change;
+    grbl.on_state_change = abbe_state_change;
 
     on_realtime_report = grbl.on_realtime_report;
     grbl.on_realtime_report = abbe_realtime_report;

@@ -248,27 +248,72 @@ abbe_status_t abbe_gh_init(abbe_gh_t *gh, const abbe_gh_params_t *params, const 
     if (gh == NULL || params == NULL || !params_valid(params)) {
         return ABBE_E_ARG;
     }
-    memset(gh, 0, sizeof *gh);
+    if (blob != NULL && blob == (const void *)gh->slot[0].blob) {
+        /* a stored table read into slot 0's RAM: clear everything but the blobs */
+        memset(&gh->comp, 0, sizeof gh->comp);
+        for (unsigned k = 0; k < 2u; k++) {
+            memset(&gh->slot[k], 0, offsetof(abbe_gh_slot_t, blob));
+        }
+        memset(&gh->params, 0, sizeof *gh - offsetof(abbe_gh_t, params));
+    } else {
+        memset(gh, 0, sizeof *gh);
+    }
     gh->params = *params;
     gh->running = NO_SLOT;
     gh->pending = NO_SLOT;
     abbe_comp_config_t cfg;
     comp_config(params, &cfg);
-    abbe_status_t st = abbe_comp_init(&gh->comp, &cfg, NULL);
-    if (st == ABBE_OK && blob != NULL) {
+    abbe_status_t st = ABBE_OK;
+    if (blob != NULL) {
         st = abbe_model_load(&gh->slot[0].model, blob, size);
         if (st == ABBE_OK) {
             st = slot_prepare(&gh->slot[0]);
         }
-        if (st == ABBE_OK) {
-            st = abbe_comp_swap_model(&gh->comp, &gh->slot[0].model);
-        }
-        if (st == ABBE_OK) {
-            gh->running = 0u; /* before the first step: nothing ran with another model */
-        }
+    }
+    /* The table is the compensator's model from the start (nothing ran yet). */
+    abbe_status_t st_comp = abbe_comp_init(&gh->comp, &cfg, blob != NULL && st == ABBE_OK ? &gh->slot[0].model : NULL);
+    if (st == ABBE_OK) {
+        st = st_comp;
+    }
+    if (st == ABBE_OK && blob != NULL) {
+        gh->running = 0u;
+    } else if (st != ABBE_OK) {
+        gh->slot[0].loaded = 0u;
+        (void)abbe_comp_init(&gh->comp, &cfg, NULL);
     }
     update_seg_len(gh);
     return st;
+}
+
+uint8_t *abbe_gh_boot_buffer(abbe_gh_t *gh)
+{
+    return (uint8_t *)gh->slot[0].blob;
+}
+
+abbe_status_t abbe_gh_rehome(abbe_gh_t *gh)
+{
+    if (gh == NULL) {
+        return ABBE_E_ARG;
+    }
+    if (gh->comp_state == ABBE_COMP_FAULT) {
+        return ABBE_OK;
+    }
+    if (gh->pending != NO_SLOT) {
+        gh->running = gh->pending;
+        gh->pending = NO_SLOT;
+    }
+    abbe_comp_config_t cfg;
+    comp_config(&gh->params, &cfg);
+    /* A fresh compensator: output zero, gains zero, direction states zero. */
+    abbe_status_t st = abbe_comp_init(&gh->comp, &cfg, gh->running != NO_SLOT ? &gh->slot[gh->running].model : NULL);
+    if (st != ABBE_OK) {
+        return st;
+    }
+    memset(gh->last_corr_nm, 0, sizeof gh->last_corr_nm);
+    gh->flags = 0u;
+    gh->comp_state = ABBE_COMP_OFF;
+    update_seg_len(gh);
+    return gh->enabled ? abbe_comp_enable(&gh->comp) : ABBE_OK;
 }
 
 abbe_status_t abbe_gh_set_params(abbe_gh_t *gh, const abbe_gh_params_t *params)
@@ -475,6 +520,54 @@ void abbe_gh_set_position(abbe_gh_t *gh, const float cart[ABBE_AXES])
 {
     memcpy(gh->last_cart, cart, sizeof gh->last_cart);
     gh->have_last = 1u;
+}
+
+static void put_le32(uint8_t *p, uint32_t v)
+{
+    for (unsigned k = 0; k < 4u; k++) {
+        p[k] = (uint8_t)(v >> (8u * k));
+    }
+}
+
+static uint32_t get_le32(const uint8_t *p)
+{
+    return (uint32_t)p[0] | ((uint32_t)p[1] << 8) | ((uint32_t)p[2] << 16) | ((uint32_t)p[3] << 24);
+}
+
+void abbe_gh_store_header(uint8_t out[ABBE_GH_STORE_HEADER_BYTES], uint32_t size, uint32_t crc)
+{
+    put_le32(out, ABBE_GH_STORE_MAGIC);
+    put_le32(out + 4, size);
+    put_le32(out + 8, crc);
+    put_le32(out + 12, abbe_crc32(0u, out, 12u));
+}
+
+abbe_gh_store_t abbe_gh_store_parse(const uint8_t in[ABBE_GH_STORE_HEADER_BYTES], uint32_t capacity,
+                                    uint32_t *size, uint32_t *crc, const char **why)
+{
+    static const char *const none = "";
+    *why = none;
+    uint32_t magic = get_le32(in);
+    if (magic == 0u || magic == 0xFFFFFFFFu) {
+        return ABBE_GH_STORE_NONE; /* invalidated / erased */
+    }
+    if (magic != ABBE_GH_STORE_MAGIC) {
+        *why = "no abbe table header (magic)";
+        return ABBE_GH_STORE_CORRUPT;
+    }
+    if (get_le32(in + 12) != abbe_crc32(0u, in, 12u)) {
+        *why = "header CRC-32 mismatch";
+        return ABBE_GH_STORE_CORRUPT;
+    }
+    uint32_t n = get_le32(in + 4);
+    uint32_t max = capacity < ABBE_GH_TABLE_MAX_BYTES ? capacity : ABBE_GH_TABLE_MAX_BYTES;
+    if (n < 16u || n > max) {
+        *why = "stored size out of range";
+        return ABBE_GH_STORE_CORRUPT;
+    }
+    *size = n;
+    *crc = get_le32(in + 8);
+    return ABBE_GH_STORE_VALID;
 }
 
 const abbe_model_t *abbe_gh_model(const abbe_gh_t *gh)

@@ -5,7 +5,8 @@
 #   2. port/grblhal/build_sim.sh: the Simulator with the plugin and the fitted
 #      table compiled in, and the unmodified Simulator (--stock)
 #   3. tests/sim_test.py: G-code through both, checked against the Python
-#      reference (see its docstring); figures in build-grblhal/e2e.json
+#      reference; uploads, the stored table over a restart, homing and soft
+#      limits (see its docstring); figures in build-grblhal/e2e.json
 #   4. tests/program_sim.py: the measurement programs of `abbe program` (grblHAL
 #      dialect) in the unmodified Simulator (docs/programs.md); build-grblhal/programs.json
 # Needs the grblHAL snapshots: $ABBE_GRBLHAL_VENDOR, else ../shared/vendor/grblhal

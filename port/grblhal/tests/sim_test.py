@@ -8,11 +8,10 @@ in (port/grblhal/build_sim.sh) and checks, with E from ``abbe.model.reference``
 1. lines along each axis in both directions: the motor steps where the
    machine stops (each programmed end point) equal round((p - E(p)) x steps/mm)
    within one step, every sampled point (step.out, every 20 ms of simulated
-   time) lies within 1.5 steps (the stepper's interpolation between block ends
-   that the planner rounded to whole steps) plus the segment bound of the
-   model's motor path (projected onto it: the along-path timing is the
-   planner's), and the reported MPos equals the programmed point within one
-   step; the same figures with the plugin off are measured for comparison;
+   time) lies within the derived tolerance of the model's motor path (the
+   exact largest-axis distance to it; see evaluate() for the terms), and the
+   reported MPos equals the programmed point within one step; the same
+   figures with the plugin off are measured for comparison;
 2. a G2 and a G3 full circle at the ballbar's centre and radius (machine file),
    F2000: the same checks (plus grblHAL's chord error $12 on the samples); the
    largest deviation and the number of segments are reported;
@@ -24,8 +23,20 @@ in (port/grblhal/build_sim.sh) and checks, with E from ``abbe.model.reference``
    with a matching CRC, an incomplete upload, a chunk out of order: each is
    refused with its reason, the running table stays (status report CRC, and
    the steps still follow it); then a valid upload takes over at the next
-   segment and the steps follow the new table.
+   segment and the steps follow the new table; a valid table larger than the
+   table storage runs but is refused storage with its reason;
+6. the stored table: the Simulator restarted with the same EEPROM.DAT runs the
+   uploaded table (status report, $ABBE, the steps follow it); with a byte of
+   the stored blob flipped it runs the compiled-in table and says why;
+   $ABBEU=E erases the record (the next start-up is the compiled-in table);
+7. homing and limits: manual homing ($H) and a soft-limit violation with the
+   plugin on, off and in the unmodified Simulator: the same homed MPos, the
+   same alarm, MPos within one step everywhere.
 
+Steps the Simulator's stepper loses under load (its segment buffer running
+empty; see evaluate()) are measured against the planner ($ABBE STEPS) and
+reported, and the sender's cycle start ('~') resumes a cycle grblHAL left
+Idle then (Sim.send).
 block.out is not used: the Simulator prints only the newest planner block
 when its thread polls, so a burst of segments leaves blocks out of it.
 Positions mm, errors um, steps at $100..$102 (250 steps/mm, the Simulator's
@@ -62,12 +73,16 @@ TIMEOUT_S = 900
 # Simulated time runs at this multiple of wall time. "0" (as fast as possible)
 # lets the simulator thread starve grblHAL's own on a loaded machine.
 SPEEDUP = os.environ.get("ABBE_GRBLHAL_SPEEDUP", "20")
+# Where the plugin keeps an uploaded table in the Simulator's EEPROM.DAT: above
+# the 2048 bytes grblHAL buffers (NVS_SIZE), a 16-byte header then the blob.
+NVS_TABLE_AT = 2048
 
 
 class Sim:
     """grblHAL_sim under timeout -s KILL, driven line by line (wait for ok)."""
 
     running: list["Sim"] = []
+    cycle_restarts = 0
 
     def __init__(self, exe: Path, workdir: Path, name: str) -> None:
         self.dir = workdir / name
@@ -105,13 +120,31 @@ class Sim:
         return line
 
     def send(self, line: str) -> tuple[str, list[str]]:
-        """Send one line; return ('ok' | 'error:N', the lines before it)."""
+        """Send one line; return ('ok' | 'error:N', the lines before it).
+
+        When the Simulator's grblHAL thread falls behind its stepper (a loaded
+        machine), the segment buffer runs empty: the stepper flags the cycle
+        complete and grblHAL goes Idle with blocks still planned. Inside a
+        buffer sync (G4, $ commands) nothing starts them again and the reply
+        never comes. As a sender would, a cycle start ('~', a no-op while
+        moving or with nothing planned) is sent after 2 s without output;
+        the number sent is reported (cycle_restarts)."""
         assert self.proc.stdin is not None
         self.proc.stdin.write(line.encode() + b"\n")
         self.proc.stdin.flush()
         seen = []
+        waited = 0.0
         while True:
-            r = self._next()
+            try:
+                r = self._next(timeout=2.0)
+            except queue.Empty:
+                waited += 2.0
+                if waited > 300.0:
+                    raise
+                self.proc.stdin.write(b"~")
+                self.proc.stdin.flush()
+                Sim.cycle_restarts += 1
+                continue
             if r == "ok" or r.startswith("error"):
                 return r, seen
             seen.append(r)
@@ -133,16 +166,45 @@ class Sim:
             if r.startswith("<"):
                 return r
 
-    def segments(self) -> int:
-        """Segment ends the plugin computed so far ($ABBE; 0 without the plugin)."""
+    def until_alarm(self, line: str) -> str:
+        """Send a line that raises an alarm; return the first ALARM / ok / error reply."""
+        assert self.proc.stdin is not None
+        self.proc.stdin.write(line.encode() + b"\n")
+        self.proc.stdin.flush()
+        while True:
+            r = self._next(timeout=60.0)
+            if r.startswith("ALARM") or r == "ok" or r.startswith("error"):
+                return r
+
+    def report(self) -> str:
+        """The '?' report now (no G4 first: also in an alarm state)."""
+        assert self.proc.stdin is not None
+        time.sleep(0.5)  # let a stop settle (wall time; the simulated machine runs ahead)
+        self.proc.stdin.write(b"?")
+        self.proc.stdin.flush()
+        while True:
+            r = self._next()
+            if r.startswith("<"):
+                return r
+
+    def abbe(self) -> dict[str, str]:
+        """The plugin's $ABBE fields ({} without the plugin)."""
         r, seen = self.send("$ABBE")
         for ln in seen:
-            if ln.startswith("[ABBE:"):
-                return int(dict(x.split(":", 1) for x in ln.strip("[]").split("|"))["SEGMENTS"])
-        return 0
+            if ln.startswith("[ABBE:") and "|SEGMENTS:" in ln:
+                return dict(x.split(":", 1) for x in ln.strip("[]").split("|"))
+        return {}
 
-    def mpos(self) -> np.ndarray:
-        s = self.status()
+    def segments(self) -> int:
+        """Segment ends the plugin computed so far ($ABBE; 0 without the plugin)."""
+        return int(self.abbe().get("SEGMENTS", 0))
+
+    def planned_steps(self) -> np.ndarray:
+        """The planner's target of the last segment end, steps ($ABBE STEPS)."""
+        return np.array([int(v) for v in self.abbe()["STEPS"].split(",")], dtype=np.int64)
+
+    def mpos(self, wait: bool = True) -> np.ndarray:
+        s = self.status() if wait else self.report()
         field_ = [f for f in s.strip("<>").split("|") if f.startswith("MPos:")][0]
         return np.array([float(v) for v in field_[5:].split(",")[:3]])
 
@@ -234,10 +296,32 @@ def model_steps(table, p: np.ndarray, s: np.ndarray) -> np.ndarray:
     return (p - spatial_error(table, p[None, :], s[None, :])[0] * 1e-3) * STEPS_PER_MM
 
 
+def cheb_to_segments(q: np.ndarray, a: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Per row, the Chebyshev (largest-axis) distance from point q to the
+    segment a + t d, t in [0, 1]: the minimum over t of max_j |r_j - t d_j|
+    (r = q - a), a convex piecewise-linear function of t, so it is attained at
+    t = 0, 1, a zero of some r_j - t d_j or where two of them are equal or
+    opposite; every candidate is evaluated."""
+    r = q - a
+    cands = [np.zeros(len(q)), np.ones(len(q))]
+    n = q.shape[1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for j in range(n):
+            cands.append(r[:, j] / d[:, j])
+            for k in range(j + 1, n):
+                cands.append((r[:, j] - r[:, k]) / (d[:, j] - d[:, k]))
+                cands.append((r[:, j] + r[:, k]) / (d[:, j] + d[:, k]))
+    t = np.clip(np.nan_to_num(np.column_stack(cands), nan=0.0, posinf=0.0, neginf=0.0), 0.0, 1.0)
+    res = np.abs(r[:, None, :] - t[:, :, None] * d[:, None, :]).max(2)
+    return res.min(1)
+
+
 def path_deviation(points_steps: np.ndarray, motor: np.ndarray) -> np.ndarray:
-    """Per point (steps), the distance in steps (largest axis) from the model's
-    motor path (the dense polyline through p - E(p), mm): the point projected
-    onto the pieces around its nearest vertex."""
+    """Per point (steps), the Chebyshev distance in steps (largest axis, exact:
+    cheb_to_segments) from the model's motor path (the dense polyline through
+    p - E(p), mm), over the pieces around the point's nearest vertex. (A
+    Euclidean projection measured on its largest axis, used before, overstates
+    that distance by up to 21 % for a path at an angle to the axes.)"""
     from scipy.spatial import cKDTree
 
     q = points_steps.astype(float) / STEPS_PER_MM
@@ -249,10 +333,32 @@ def path_deviation(points_steps: np.ndarray, motor: np.ndarray) -> np.ndarray:
         ok = (j >= 0) & (j + 1 < len(motor))
         jj = np.clip(j, 0, max(len(motor) - 2, 0))
         a, d = motor[jj], motor[np.minimum(jj + 1, len(motor) - 1)] - motor[jj]
-        t = np.clip(((q - a) * d).sum(1) / np.maximum((d * d).sum(1), 1e-18), 0.0, 1.0)
-        r = np.abs(q - (a + t[:, None] * d)).max(1)
-        out = np.where(ok, np.minimum(out, r), out)
+        out = np.where(ok, np.minimum(out, cheb_to_segments(q, a, d)), out)
     return out * STEPS_PER_MM
+
+
+def big_table(out: Path) -> bytes:
+    """The vmc500 true table with the first Fourier block of each axis raised
+    to 8 harmonics (the extra ones zero): the same errors, a blob larger than
+    the Simulator's table storage."""
+    repo = Path(__file__).resolve().parents[3]
+    d = json.loads((repo / "examples/vmc500/truth/true_table.json").read_text())
+    for a in d["axes"].values():
+        if not a.get("blocks"):
+            continue
+        b0 = a["blocks"][0]
+        h0 = b0["harmonics"]
+        b0["harmonics"] = 8
+        at = a["rows"].index(f"cos{h0}(b0)") + 1
+        new_rows = [f"{f}{h}(b0)" for h in range(h0 + 1, 9) for f in ("sin", "cos")]
+        a["rows"][at:at] = new_rows
+        for k in a["terms"]:
+            a["terms"][k][at:at] = [0.0] * len(new_rows)
+    src = out.with_suffix(".json")
+    src.write_text(json.dumps(d))
+    subprocess.run([str(Path(sys.executable).parent / "abbe"), "table", "from-json", str(src), "-o", str(out)],
+                   check=True, stdout=subprocess.DEVNULL)
+    return out.read_bytes()
 
 
 class Checks:
@@ -276,6 +382,7 @@ class Session:
         self.regions: list[tuple[str, int, int]] = []           # (name, first dense index, last)
         self.mpos_dev: dict[str, float] = {}
         self.segments: dict[str, int] = {}
+        self.planned: list[np.ndarray] = []  # per group: the planner's target where it ends, steps
 
     def moves(self, region: str, moves: list, feed: float, center: np.ndarray | None = None) -> None:
         """Send moves (("line", end) / ("arc", end, center, cw)), wait, check MPos."""
@@ -296,7 +403,9 @@ class Session:
         mpos = self.sim.mpos()
         self.mpos_dev[region] = max(self.mpos_dev.get(region, 0.0), float(np.abs(mpos - self.path.cur).max()))
         self.regions.append((region, i0, self.path.count - 1))
-        self.segments[region] = self.segments.get(region, 0) + self.sim.segments() - seg0
+        info = self.sim.abbe()
+        self.planned.append(np.array([int(v) for v in info["STEPS"].split(",")], dtype=np.int64))
+        self.segments[region] = self.segments.get(region, 0) + int(info["SEGMENTS"]) - seg0
 
 
 def evaluate(sess: Session, table, dev_um: float, C: Checks, skip: tuple[str, ...] = ("fade-in",),
@@ -318,7 +427,18 @@ def evaluate(sess: Session, table, dev_um: float, C: Checks, skip: tuple[str, ..
     # revisits points with other backlash direction states.
     groups = []
     i_prev = -1
-    for name, a, b in sess.regions:
+    # Steps the Simulator's stepper lost against its planner: at each stop, the
+    # stepper's count minus the planner's target ($ABBE STEPS), exact integers
+    # that do not involve the plugin's model. Under load the Simulator's
+    # grblHAL thread can fall behind its stepper thread; the segment buffer
+    # runs empty, stepper.c sets exec_block = NULL and the next segment
+    # re-initialises the block's Bresenham counters where the axes stand: an
+    # axis may end that block a step off, for good. Samples are judged
+    # relative to the loss at their group's start; a loss within a group adds
+    # its size to that group's tolerance (from the restart on, the axis is off
+    # by up to that much).
+    lost_prev = np.zeros(3, dtype=np.int64)
+    for gi, (name, a, b) in enumerate(sess.regions):
         want = model_steps(table, p[b], s[b])
         # search the stop after the machine has left the group's start by 1 mm
         # (a full circle ends where it starts)
@@ -327,34 +447,52 @@ def evaluate(sess: Session, table, dev_um: float, C: Checks, skip: tuple[str, ..
         i_from = i_prev + 1 + (int(away[0]) if len(away) else 0)
         d = np.abs(samples[i_from:] - want).max(1)
         i_stop = i_from + int(np.argmin(d))
-        groups.append((name, a, b, i_prev + 1, i_stop, float(d.min())))
+        lost = samples[i_stop] - sess.planned[gi]
+        groups.append((name, a, b, i_prev + 1, i_stop, float(np.abs(samples[i_stop] - lost - want).max()),
+                       lost_prev, lost))
+        lost_prev = lost
         i_prev = i_stop
     out = {}
     for name in dict.fromkeys(r[0] for r in sess.regions):
         if name in skip:
             continue
-        # one step (the stepper's interpolation between two block ends) + half a
-        # step (each block end is rounded to whole steps by the planner) +
-        # grblHAL's chord error on arcs ($12) + the segment bound
-        tol = 1.5 + extra.get(name, 0.0) + dev_um * 1e-3 * STEPS_PER_MM
-        vd, sd = [], []
-        for n, a, b, i0, i1, dstop in groups:
+        # Per axis (the Chebyshev distance to the model path), from grblHAL's
+        # planner and stepper.c: half a step (each block end is rounded to
+        # whole steps, so the stepped chord lies within half a step of the
+        # exact one) + half a step (Bresenham: the counters start at half the
+        # step event count, each axis stays within half a step of that chord at
+        # the sampled count) + half a step (a restart of the Bresenham counters
+        # inside a block that loses no step, see above: it cannot be seen at
+        # the stop) + grblHAL's chord error on arcs ($12) + the segment bound
+        # (the model's deviation from each segment's chord).
+        tol = 0.5 + 0.5 + 0.5 + extra.get(name, 0.0) + dev_um * 1e-3 * STEPS_PER_MM
+        vd, sd, lost_in, lost_at, excess = [], [], 0, 0, -np.inf
+        for n, a, b, i0, i1, dstop, l0, l1 in groups:
             if n == name:
                 vd.append(dstop)
-                sd.append(path_deviation(samples[i0:i1 + 1], motor[a:b + 1]))
+                grown = int(np.abs(l1 - l0).max())
+                lost_in = max(lost_in, grown)
+                lost_at = max(lost_at, int(np.abs(l1).max()))
+                dev = path_deviation(samples[i0:i1 + 1] - l0, motor[a:b + 1])
+                sd.append(dev)
+                if len(dev):
+                    excess = max(excess, float(dev.max()) - (tol + grown))
         sdev = np.concatenate(sd)
         r = {"stops": len(vd), "stop_max_steps": max(vd), "samples": int(len(sdev)),
              "sample_max_steps": float(sdev.max()) if len(sdev) else float("nan"), "tolerance_steps": tol,
-             "mpos_max_um": 1e3 * sess.mpos_dev[name]}
+             "mpos_max_um": 1e3 * sess.mpos_dev[name], "steps_lost_in_region": lost_in,
+             "steps_lost_at_stops": lost_at}
         out[name] = r
         name = label + name
+        lost_note = f"; the Simulator's stepper lost {lost_at} step(s) by then" if lost_at else ""
         C.check(r["stop_max_steps"] <= 1.0, f"{name}: steps at {len(vd)} stop points (programmed end points) = "
-                f"round((p - E(p)) x 250) within 1 step (max {r['stop_max_steps']:.3f})")
+                f"round((p - E(p)) x 250) within 1 step (max {r['stop_max_steps']:.3f}{lost_note})")
         if check_samples:
-            C.check(len(sdev) > 0 and r["sample_max_steps"] <= tol, f"{name}: {r['samples']} sampled points on "
-                    f"the model path within {tol:.2f} steps (max {r['sample_max_steps']:.3f})")
-        C.check(r["mpos_max_um"] <= 1e3 * STEP_MM + 0.5, f"{name}: reported MPos = programmed point within one "
-                f"step (max {r['mpos_max_um']:.2f} um)")
+            grown_note = f" + {lost_in} lost within a group" if lost_in else ""
+            C.check(len(sdev) > 0 and excess <= 0.0, f"{name}: {r['samples']} sampled points on "
+                    f"the model path within {tol:.2f} steps{grown_note} (max {r['sample_max_steps']:.3f})")
+        C.check(r["mpos_max_um"] <= 1e3 * STEP_MM * (1 + lost_at) + 0.5, f"{name}: reported MPos = programmed "
+                f"point within one step (max {r['mpos_max_um']:.2f} um{lost_note})")
     return out
 
 
@@ -533,6 +671,14 @@ def main() -> int:
     C.check(r == "ok", f"a valid upload is accepted ({r} {' '.join(seen)})")
     q2 = q1 + np.array([-80.0, -60.0, -50.0])
     sess.moves("after the upload", [("line", q2)], 3000)
+    # A valid table larger than the Simulator's table storage (2,032 bytes):
+    # it is accepted and runs, but is not stored; the stored one stays.
+    big = big_table(args.table2.parent / "true_table_big.bin")
+    r, seen = upload(big)
+    not_stored = [x for x in seen if "table not stored" in x]
+    C.check(r == "ok" and bool(not_stored) and f"({len(big)} bytes" in not_stored[0],
+            f"a valid {len(big)}-byte upload runs but is not stored ({r} {' '.join(not_stored) or seen})")
+    C.summary["not_stored_message"] = not_stored[0] if not_stored else ""
     sim.close()
     samples = read_samples(sim.step)
     p_, s_, _ = sess.path.model(table)
@@ -547,6 +693,101 @@ def main() -> int:
     C.check(want in st and d_new <= 1.0, f"the uploaded table takes over at the next segment ({want} in the "
             f"status report; steps follow it: {d_new:.3f} steps)")
     C.summary["upload_refusals"] = refusals
+
+    # ---- 6: the uploaded table is kept in NVS (EEPROM.DAT) and runs after a restart ---------
+    crc1, crc2 = f"{blob_crc(blob):08X}", f"{blob_crc(blob2):08X}"
+    stored_msg = [x for x in sim.log if "abbe upload: table stored" in x]
+    C.check(bool(stored_msg), f"the valid upload is stored in NVS ({' '.join(stored_msg) or 'no message'})")
+    restart = {}
+    for what, want_crc, want_table, want_msg in (
+            ("restart", crc2, table2, f"stored table {crc2} (1700 bytes) in use"),
+            ("restart, stored bytes corrupted", crc1, table, f"compiled-in table {crc1} in use")):
+        if what.endswith("corrupted"):
+            eeprom = work / "upload" / "EEPROM.DAT"
+            raw = bytearray(eeprom.read_bytes())
+            raw[NVS_TABLE_AT + 16 + 200] ^= 0x40  # a byte inside the stored blob
+            eeprom.write_bytes(bytes(raw))
+        sess = Session(Sim(args.sim, work, "upload"))
+        sim = sess.sim
+        sim.ok("$X")
+        start_line = [x for x in sim.send("$ABBE")[1] if x.startswith("[ABBE:start-up")]
+        sess.moves("fade-in", [("line", fade_start)], 3000)
+        q3 = fade_start + np.array([40.0, -70.0, 30.0])
+        sess.moves("after the restart", [("line", q3)], 3000)
+        sim.close()
+        msgs = [x for x in sim.log if x.startswith("[MSG:") and "abbe:" in x]
+        st = [ln for ln in sim.log if ln.startswith("<")][-1]
+        samples = read_samples(sim.step)
+        p3, s3, _ = sess.path.model(want_table)
+        k3 = [k for n, k, _ in sess.vertices if n == "after the restart"][0]
+        d3 = float(np.abs(samples[-1] - model_steps(want_table, q3, s3[k3])).max())
+        restart[what] = {"start_up": start_line[0] if start_line else "", "messages": msgs, "steps_from_model": d3}
+        C.check(bool(start_line) and want_msg in start_line[0] and any(want_msg in m for m in msgs),
+                f"{what}: {want_msg} ({start_line[0] if start_line else 'no $ABBE start-up line'}; {msgs})")
+        if what.endswith("corrupted"):
+            C.check(any("stored table refused" in m and "CRC-32" in m for m in msgs),
+                    f"{what}: the refusal is reported with its reason ({msgs})")
+        C.check(f"ABBE:ON,{want_crc}" in st and d3 <= 1.0,
+                f"{what}: the steps follow table {want_crc} ({d3:.3f} steps; {st})")
+    # $ABBEU=E erases the stored record: the next start-up takes the compiled-in
+    # table without a refusal.
+    sim = Sim(args.sim, work, "upload")
+    r, seen = sim.send("$ABBEU=E")
+    sim.close()
+    sim = Sim(args.sim, work, "upload")
+    start_line = [x for x in sim.send("$ABBE")[1] if x.startswith("[ABBE:start-up")]
+    sim.close()
+    header = (work / "upload" / "EEPROM.DAT").read_bytes()[NVS_TABLE_AT:NVS_TABLE_AT + 16]
+    msgs = [x for x in sim.log if x.startswith("[MSG:") and "abbe:" in x]
+    C.check(r == "ok" and header == bytes(16) and bool(start_line)
+            and f"start-up: compiled-in table {crc1} in use" in start_line[0] and not msgs,
+            f"$ABBEU=E: the stored record is erased, the restart takes the compiled-in table quietly "
+            f"({start_line[0] if start_line else 'no start-up line'}; {msgs})")
+    restart["erased"] = {"start_up": start_line[0] if start_line else "", "messages": msgs}
+    C.summary["restart"] = restart
+
+    # ---- 7: homing and soft limits as without the plugin ------------------------------------
+    # The Simulator has no limit switches (its simulator.c leaves the limit pins
+    # a TODO): a homing cycle cannot find a switch, so homing is grblHAL's manual
+    # homing ($22 manual, no homing cycles: $H sets the home position), which
+    # goes through the same kinematics hooks. Soft limits ($20) on travel
+    # [-500, 0] x [-500, 0] x [-400, 0]: a target beyond it raises the same
+    # alarm and leaves the machine where it stood.
+    home_prog = ["$130=500", "$131=500", "$132=400", "$22=33", "$44=0", "$45=0", "$46=0", "$20=1",
+                 "G1 X-100 Y-50 Z-30 F3000", "?", "$H", "?", "G1 X-120 Y-80 Z-40 F3000", "?", "G1 X-600", "?"]
+    homing = {}
+    for name, exe, pre in (("plugin on", args.sim, []), ("plugin off", args.sim, ["$450=0"]),
+                           ("stock", args.stock, [])):
+        s_ = Sim(exe, work, "homing " + name)
+        for c in pre:
+            s_.ok(c)
+        reports, replies = [], []
+        for c in home_prog:
+            if c == "?":
+                reports.append(s_.mpos(wait=not replies or not replies[-1][0].endswith("X-600")))
+            elif c.endswith("X-600"):  # the alarm resets grblHAL: the line gets no ok
+                replies.append((c, s_.until_alarm(c), []))
+            else:
+                r, seen = s_.send(c)
+                replies.append((c, r, [x for x in seen if x.startswith("ALARM") or "Soft" in x]))
+        s_.close()
+        alarms = [x for x in s_.log if x.startswith("ALARM")]
+        homing[name] = {"mpos": [m.tolist() for m in reports], "alarms": alarms,
+                        "soft_limit_reply": replies[-1][1]}
+    C.summary["homing"] = homing
+    ref = homing["stock"]
+    for name in ("plugin on", "plugin off"):
+        h = homing[name]
+        d_home = float(np.abs(np.array(h["mpos"][1]) - np.array(ref["mpos"][1])).max())
+        C.check(d_home == 0.0 and ref["mpos"][1] == [0.0, 0.0, 0.0],
+                f"{name}: homed MPos {h['mpos'][1]} = the unmodified Simulator's {ref['mpos'][1]}")
+        d_all = float(np.abs(np.array(h["mpos"]) - np.array(ref["mpos"])).max())
+        C.check(d_all <= STEP_MM + 1e-9, f"{name}: MPos before homing, after it and after the soft-limit "
+                f"alarm within one step of the unmodified Simulator's (max {1e3 * d_all:.1f} um)")
+        C.check(h["alarms"] == ref["alarms"] and any(a.startswith("ALARM:2") for a in ref["alarms"]),
+                f"{name}: soft-limit violation raises the same alarm ({h['alarms']} vs {ref['alarms']})")
+    C.summary["cycle_restarts"] = Sim.cycle_restarts
+    print(f"[grblhal] cycle starts sent after 2 s without a reply: {Sim.cycle_restarts}")
     C.summary["duration_s"] = round(time.monotonic() - t0, 1)
 
     if args.json:

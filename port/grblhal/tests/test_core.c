@@ -303,6 +303,96 @@ static void test_fault_fades_out(void **state)
     assert_int_equal(abbe_gh_state(&gh), ABBE_GH_ON);
 }
 
+/* The stored-table header: a round trip, and every way a header read back
+ * from storage can be wrong (erased, invalidated, foreign, corrupted, a size
+ * the storage or the plugin cannot hold). */
+static void test_store_header(void **state)
+{
+    (void)state;
+    uint8_t h[ABBE_GH_STORE_HEADER_BYTES], bad[ABBE_GH_STORE_HEADER_BYTES];
+    uint32_t size = 0, crc = 0;
+    const char *why;
+    abbe_gh_store_header(h, 1412u, 0x64BE1F61u);
+    assert_int_equal(abbe_gh_store_parse(h, 2032u, &size, &crc, &why), ABBE_GH_STORE_VALID);
+    assert_int_equal(size, 1412u);
+    assert_int_equal(crc, 0x64BE1F61u);
+    assert_int_equal(h[0], 'A'); /* little-endian magic "ABT1" */
+    assert_int_equal(h[3], '1');
+    assert_int_equal(abbe_gh_store_parse(h, 1411u, &size, &crc, &why), ABBE_GH_STORE_CORRUPT);
+    assert_non_null(strstr(why, "size"));
+    memset(bad, 0xFF, sizeof bad);
+    assert_int_equal(abbe_gh_store_parse(bad, 2032u, &size, &crc, &why), ABBE_GH_STORE_NONE);
+    memset(bad, 0, sizeof bad);
+    assert_int_equal(abbe_gh_store_parse(bad, 2032u, &size, &crc, &why), ABBE_GH_STORE_NONE);
+    for (unsigned k = 0; k < sizeof h; k++) { /* any single flipped bit is caught */
+        memcpy(bad, h, sizeof h);
+        bad[k] ^= 0x10u;
+        assert_int_equal(abbe_gh_store_parse(bad, 2032u, &size, &crc, &why), ABBE_GH_STORE_CORRUPT);
+        assert_true(why[0] != '\0');
+    }
+    abbe_gh_store_header(h, ABBE_GH_TABLE_MAX_BYTES + 4u, 1u);
+    assert_int_equal(abbe_gh_store_parse(h, 0xFFFFFFFFu, &size, &crc, &why), ABBE_GH_STORE_CORRUPT);
+    abbe_gh_store_header(h, 8u, 1u);
+    assert_int_equal(abbe_gh_store_parse(h, 2032u, &size, &crc, &why), ABBE_GH_STORE_CORRUPT);
+}
+
+/* A table read into slot 0's RAM is validated in place; a corrupted one is
+ * refused and the caller starts again with another (or none). */
+static void test_boot_in_place(void **state)
+{
+    (void)state;
+    abbe_gh_params_t p;
+    abbe_gh_default_params(&p);
+    const abbe_golden_table_t *t = golden("paper");
+    abbe_model_t paper;
+    assert_int_equal(abbe_model_load(&paper, t->blob, t->blob_size), ABBE_OK);
+    start("backlash"); /* whatever ran before */
+    memcpy(abbe_gh_boot_buffer(&gh), t->blob, t->blob_size);
+    assert_int_equal(abbe_gh_init(&gh, &p, abbe_gh_boot_buffer(&gh), t->blob_size), ABBE_OK);
+    assert_int_equal(abbe_model_crc(abbe_gh_model(&gh)), abbe_model_crc(&paper));
+    assert_int_equal(gh.running, 0);
+    assert_true(gh.seg_len_mm > 0.0f && gh.seg_len_mm <= ABBE_GH_SEG_MAX_MM);
+    abbe_gh_boot_buffer(&gh)[200] ^= 0x40u;
+    assert_int_not_equal(abbe_gh_init(&gh, &p, abbe_gh_boot_buffer(&gh), t->blob_size), ABBE_OK);
+    assert_null(abbe_gh_model(&gh));
+    assert_int_equal(gh.running, 0xFF);
+}
+
+/* Homing: the correction restarts from zero where the motors stand (the
+ * inverse is the identity there), then fades in without a jump. */
+static void test_rehome(void **state)
+{
+    (void)state;
+    start("backlash");
+    assert_int_equal(abbe_gh_set_enabled(&gh, 1), ABBE_OK);
+    float p[3] = {100.0f, -100.0f, -100.0f}, m[3], q[3];
+    for (int k = 0; k < 40; k++) {
+        p[0] += 1.0f;
+        (void)abbe_gh_forward(&gh, p, m);
+    }
+    assert_int_equal(abbe_gh_state(&gh), ABBE_GH_ON);
+    assert_true(gh.last_corr_nm[0] != 0 || gh.last_corr_nm[1] != 0 || gh.last_corr_nm[2] != 0);
+    assert_int_equal(abbe_gh_rehome(&gh), ABBE_OK);
+    float home[3] = {0.0f, 0.0f, 0.0f};
+    abbe_gh_set_position(&gh, home);
+    (void)abbe_gh_inverse(&gh, home, q);
+    assert_memory_equal(q, home, sizeof home); /* MPos = grblHAL's own at home */
+    assert_int_equal(abbe_gh_state(&gh), ABBE_GH_FADING);
+    int32_t prev[3] = {0, 0, 0}, rate = (int32_t)(gh.params.rate_um_per_seg * 1000.0f) + 1;
+    memcpy(p, home, sizeof p);
+    for (int k = 0; k < 60; k++) {
+        p[0] += 1.0f;
+        p[1] -= 1.0f;
+        p[2] -= 1.0f;
+        (void)abbe_gh_forward(&gh, p, m);
+        for (unsigned j = 0; j < 3; j++) {
+            assert_true(abs(gh.last_corr_nm[j] - prev[j]) <= rate);
+            prev[j] = gh.last_corr_nm[j];
+        }
+    }
+    assert_int_equal(abbe_gh_state(&gh), ABBE_GH_ON);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -311,6 +401,9 @@ int main(void)
         cmocka_unit_test(test_forward_inverse_fade),
         cmocka_unit_test(test_upload),
         cmocka_unit_test(test_fault_fades_out),
+        cmocka_unit_test(test_store_header),
+        cmocka_unit_test(test_boot_in_place),
+        cmocka_unit_test(test_rehome),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
