@@ -247,6 +247,10 @@ def replace_section(results: Path, lines: list[str]) -> None:
     if HEADING in text:
         i = text.index(HEADING)
         j = next((k for k in range(i + 1, len(text)) if text[k].startswith("## ")), len(text))
+        # a section that follows may open with a marker line (section 10's
+        # "<!-- grblhal-plugin: ... -->" before its heading): it is not ours
+        while j > i + 1 and text[j - 1].startswith("<!--") and not text[j - 1].startswith("<!-- /"):
+            j -= 1
         text = text[:i] + lines + text[j:]
     else:
         text = text + [""] + lines
