@@ -667,7 +667,7 @@ enum { RC_FLAGS, RC_COUNT, RC_OFFSET, RC_NONFINITE, RC_MISMATCH, RC_RANGE, RC_CA
 
 /* Whether rotary record rec fails the checks of category cat. One function
  * for all categories, called per category and axis (check_rotary): the
- * loader is cold, and one copy of each check is ~400 B less flash than the
+ * loader is cold, and one copy of each check is 300 B less flash than the
  * loops unrolled per category (bench/results.md, section 11). */
 static ABBE_NOINLINE int rotary_record_bad(const uint8_t *b, const uint8_t *rec, uint32_t total, unsigned cat)
 {
