@@ -215,7 +215,9 @@ tables whose linear axes are the paper table's, as the 3-axis budgets are.
 Flash (missed, measured per source file above in section 3's way): the five-axis image
 is the 3-axis load + compensator image (6040 B f32, 6036 B q on the M3: its own 6 KiB
 budget) plus the rotary section's loader checks (the five-axis loader is model_load.c
-compiled with them: check_rotary alone is 960 B, the rotary header and build 410 B),
+compiled with them: the rotary checks 660 B on the M4F, one function per category and
+axis, rotary_record_bad 424 B, where the six loops unrolled per category were 960 B;
+the rotary header and build 410 B),
 the rotary evaluation (f32: add_rotary_f32 with both axes' twists 1,266 B, the
 motions' kernel 312 B, the sparse-motions path 196 B; q: add_rotary_q 1,832 B,
 motions_q 556 B) and the five-axis compensator cycle (360 / 200 B). 8 KiB leaves
@@ -223,9 +225,12 @@ motions_q 556 B) and the five-axis compensator cycle (360 / 200 B). 8 KiB leaves
 rotary evaluation's straight-line code (about 300 instructions, 2 to 4 B each) alone
 need more. Measured trade-offs: one out-of-line twist instead of two inlined ones saves
 148 B (f32) / 124 B (q) for +43 / +55 instructions per call (f32 then misses its
-1,500); -Os on five_load.c saves 5 B; -Os on five_eval_q.c saves 172 B (M3) for +492
-instructions. Meeting 8 KiB needs a smaller 3-axis core or loader (shared check
-helpers for the linear and rotary arrays), not done. The five-axis kernels are a
+1,500); -Os on five_load.c costs 110 B (GCC outlines its small helpers and keeps the
+linear checks as big), on rotary_record_bad alone 100 B; -Os on five_eval_q.c saves
+172 B (M3) for +492 instructions. Still over 8 KiB by 1,472 B (f32) / 1,500 B (q M4F) /
+1,566 B (q M3): more than the loader's whole rotary part (about 1,070 B), so meeting it
+needs a smaller 3-axis core or loader image as well (the 3-axis load + compensator is
+6,040 B of the 8,192), not done. The five-axis kernels are a
 translation unit of their own (terms_rot_f32.c) so that the 3-axis kernels compile as
 before: in one unit with the 3-axis kernel, GCC -Os outlined the phase reduction
 (section 5: +34 instructions, +30 B); apart, the five-axis image holds the f32 sin/cos
@@ -247,6 +252,10 @@ def replace_section(results: Path, lines: list[str]) -> None:
     if HEADING in text:
         i = text.index(HEADING)
         j = next((k for k in range(i + 1, len(text)) if text[k].startswith("## ")), len(text))
+        # a section that follows may open with a marker line (section 10's
+        # "<!-- grblhal-plugin: ... -->" before its heading): it is not ours
+        while j > i + 1 and text[j - 1].startswith("<!--") and not text[j - 1].startswith("<!-- /"):
+            j -= 1
         text = text[:i] + lines + text[j:]
     else:
         text = text + [""] + lines

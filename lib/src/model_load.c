@@ -651,10 +651,78 @@ static int any_nonzero_u8(const uint8_t *p, unsigned count)
     return 0;
 }
 
+/* Whether any of the count int32 at p has |v| > cap. */
+static int any_above(const uint8_t *p, unsigned count, uint32_t cap)
+{
+    for (unsigned i = 0; i < count; i++) {
+        if (mag_i32(abbe_ld_i32(p + 4u * i)) > cap) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
+/* The categories of the rotary records' checks, in the loader's order. */
+enum { RC_FLAGS, RC_COUNT, RC_OFFSET, RC_NONFINITE, RC_MISMATCH, RC_RANGE, RC_CATEGORIES };
+
+/* Whether rotary record rec fails the checks of category cat. One function
+ * for all categories, called per category and axis (check_rotary): the
+ * loader is cold, and one copy of each check is 300 B less flash than the
+ * loops unrolled per category (bench/results.md, section 11). */
+static ABBE_NOINLINE int rotary_record_bad(const uint8_t *b, const uint8_t *rec, uint32_t total, unsigned cat)
+{
+    unsigned mask = rec[RA_MASK], rows = 2u * rec[RA_HARMONICS], n_comp = popcount6(mask);
+    uint32_t count = abbe_ld_u32(rec + RA_COEF_COUNT);
+    uint32_t off_q = abbe_ld_u32(rec + RA_COEF_Q), off_f = abbe_ld_u32(rec + RA_COEF_F32);
+    switch (cat) {
+    case RC_FLAGS:
+        return any_nonzero_u8(rec + RA_RESERVED0, 2u) || any_nonzero_u8(rec + RA_RESERVED, 28u);
+    case RC_COUNT:
+        return (mask & 0xC0u) != 0u || rec[RA_HARMONICS] > ABBE_ROTARY_MAX_HARMONICS || count != rows * n_comp;
+    case RC_OFFSET:
+        return count == 0u ? (off_q | off_f) != 0u
+                           : (!array_ok(off_q, count, total, ABBE_ROTARY_DATA_START) ||
+                              !array_ok(off_f, count, total, ABBE_ROTARY_DATA_START));
+    case RC_NONFINITE:
+    case RC_MISMATCH:
+        for (uint32_t i = 0; i < count; i++) {
+            uint32_t bits = abbe_ld_u32(b + off_f + 4u * i);
+            if (cat == RC_NONFINITE ? abbe_f32_bits_nonfinite(bits)
+                                    : bits != i32_to_f32_bits(abbe_ld_i32(b + off_q + 4u * i))) {
+                return 1;
+            }
+        }
+        return 0;
+    default: { /* RC_RANGE */
+        if (any_above(rec + RA_LOC_ANG, 3u, (uint32_t)SQUARENESS_CAP)) {
+            return 1;
+        }
+        unsigned column = 0;
+        for (unsigned c = 0; c < ABBE_MOTIONS; c++) {
+            if (!((mask >> c) & 1u)) {
+                continue;
+            }
+            uint64_t l1 = 0;
+            for (unsigned row = 0; row < rows; row++) {
+                l1 += mag_i32(abbe_ld_i32(b + off_q + 4u * (row * n_comp + column)));
+            }
+            if (l1 > (c < 3u ? LIN_L1_CAP : ANG_L1_CAP)) {
+                return 1;
+            }
+            column++;
+        }
+        return 0;
+    }
+    }
+}
+
 /* The rotary checks in the loader's category order (after every check of the
- * header and the linear axes): FLAGS, COUNT, OFFSET, NONFINITE, MISMATCH, RANGE. */
+ * header and the linear axes): FLAGS, COUNT, OFFSET, NONFINITE, MISMATCH, RANGE,
+ * each over the rotary header (FLAGS, RANGE) and both rotary records. */
 static abbe_status_t check_rotary(const uint8_t *b, uint32_t total)
 {
+    static const abbe_status_t code[RC_CATEGORIES] = {ABBE_E_FLAGS,     ABBE_E_COUNT,    ABBE_E_OFFSET,
+                                                      ABBE_E_NONFINITE, ABBE_E_MISMATCH, ABBE_E_RANGE};
     const uint8_t *h = b + ABBE_ROTARY_HEADER_OFFSET;
     unsigned kind = h[RH_KIND];
     /* the offset has no component along the tilt axis: AC (0, y, z), BC (x, 0, z) */
@@ -662,75 +730,16 @@ static abbe_status_t check_rotary(const uint8_t *b, uint32_t total)
         any_nonzero_u8(h + RH_RESERVED, 24u) || abbe_ld_u32(h + RH_OFFSET + 4u * (kind - 1u)) != 0u) {
         return ABBE_E_FLAGS;
     }
-    for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {
-        const uint8_t *rec = rotary_record(b, r);
-        if (any_nonzero_u8(rec + RA_RESERVED0, 2u) || any_nonzero_u8(rec + RA_RESERVED, 28u)) {
-            return ABBE_E_FLAGS;
-        }
-    }
-    for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {
-        const uint8_t *rec = rotary_record(b, r);
-        if ((rec[RA_MASK] & 0xC0u) != 0u || rec[RA_HARMONICS] > ABBE_ROTARY_MAX_HARMONICS ||
-            abbe_ld_u32(rec + RA_COEF_COUNT) != 2u * rec[RA_HARMONICS] * popcount6(rec[RA_MASK])) {
-            return ABBE_E_COUNT;
-        }
-    }
-    for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {
-        const uint8_t *rec = rotary_record(b, r);
-        uint32_t count = abbe_ld_u32(rec + RA_COEF_COUNT);
-        uint32_t off_q = abbe_ld_u32(rec + RA_COEF_Q), off_f = abbe_ld_u32(rec + RA_COEF_F32);
-        if (count == 0u ? (off_q != 0u || off_f != 0u)
-                        : (!array_ok(off_q, count, total, ABBE_ROTARY_DATA_START) ||
-                           !array_ok(off_f, count, total, ABBE_ROTARY_DATA_START))) {
-            return ABBE_E_OFFSET;
-        }
-    }
-    for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {
-        const uint8_t *rec = rotary_record(b, r);
-        const uint8_t *f = b + abbe_ld_u32(rec + RA_COEF_F32);
-        for (uint32_t i = 0; i < abbe_ld_u32(rec + RA_COEF_COUNT); i++) {
-            if (abbe_f32_bits_nonfinite(abbe_ld_u32(f + 4u * i))) {
-                return ABBE_E_NONFINITE;
-            }
-        }
-    }
-    for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {
-        const uint8_t *rec = rotary_record(b, r);
-        const uint8_t *q = b + abbe_ld_u32(rec + RA_COEF_Q), *f = b + abbe_ld_u32(rec + RA_COEF_F32);
-        for (uint32_t i = 0; i < abbe_ld_u32(rec + RA_COEF_COUNT); i++) {
-            if (abbe_ld_u32(f + 4u * i) != i32_to_f32_bits(abbe_ld_i32(q + 4u * i))) {
-                return ABBE_E_MISMATCH;
-            }
-        }
-    }
-    for (unsigned k = 0; k < 3u; k++) {
-        if (abs_i32(abbe_ld_i32(h + RH_ROT_POINT + 4u * k)) > (uint64_t)GEOMETRY_CAP ||
-            abs_i32(abbe_ld_i32(h + RH_OFFSET + 4u * k)) > (uint64_t)GEOMETRY_CAP ||
-            abs_i32(abbe_ld_i32(h + RH_SQUARENESS + 4u * k)) > (uint64_t)SQUARENESS_CAP) {
+    for (unsigned cat = 0; cat < RC_CATEGORIES; cat++) {
+        /* the header's range: rot_point and offset (contiguous) then its squareness */
+        if (cat == RC_RANGE && (any_above(h + RH_ROT_POINT, 6u, (uint32_t)GEOMETRY_CAP) ||
+                                any_above(h + RH_SQUARENESS, 3u, (uint32_t)SQUARENESS_CAP))) {
             return ABBE_E_RANGE;
         }
-    }
-    for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {
-        const uint8_t *rec = rotary_record(b, r);
-        for (unsigned k = 0; k < 3u; k++) {
-            if (abs_i32(abbe_ld_i32(rec + RA_LOC_ANG + 4u * k)) > (uint64_t)SQUARENESS_CAP) {
-                return ABBE_E_RANGE;
+        for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {
+            if (rotary_record_bad(b, rotary_record(b, r), total, cat)) {
+                return code[cat];
             }
-        }
-        unsigned mask = rec[RA_MASK], n_comp = popcount6(mask), rows = 2u * rec[RA_HARMONICS], column = 0;
-        const uint8_t *q = b + abbe_ld_u32(rec + RA_COEF_Q);
-        for (unsigned c = 0; c < ABBE_MOTIONS; c++) {
-            if (!((mask >> c) & 1u)) {
-                continue;
-            }
-            uint64_t l1 = 0;
-            for (unsigned row = 0; row < rows; row++) {
-                l1 += abs_i32(abbe_ld_i32(q + 4u * (row * n_comp + column)));
-            }
-            if (l1 > (c < 3u ? LIN_L1_CAP : ANG_L1_CAP)) {
-                return ABBE_E_RANGE;
-            }
-            column++;
         }
     }
     return ABBE_OK;
