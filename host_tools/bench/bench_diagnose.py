@@ -78,8 +78,10 @@ def gap_flags(res) -> dict:
 
 
 def score_case(case, res) -> dict:
-    """Per-case outcome: hits, misses, false names, value checks, shrink."""
-    named = {e.key: e for e in res.effects}
+    """Per-case outcome: hits, misses, false names, value checks, shrink (every component
+    of a multi-component entry counts as a name)."""
+    from abbe.diagnose.results import named_by_key
+    named = named_by_key(res.effects)
     exp = case.expected
     hits = [k for k in exp if k in named]
     misses = [k for k in exp if k not in named]

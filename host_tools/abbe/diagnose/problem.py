@@ -110,6 +110,24 @@ class Problem:
         return slice(int(self.offsets[i]), int(self.offsets[i + 1]))
 
 
+def contribution_rms(prob: Problem, contrib: np.ndarray) -> float:
+    """Size of an effect's contribution (N,) to the predictions: its RMS (um) on the
+    um-valued channel (noise group: a circle's radial deviation, a laser line's linear
+    or straightness reading) where it shows most. An effect acts on the quantities that
+    see it (a drift of Z on the Z line's linear reading, not on its straightness nor on
+    an XY circle): an RMS over every sample would dilute it by the others and call a
+    drift of several um "too small to matter" because a long ballbar trace sits beside
+    its laser line."""
+    best = 0.0
+    for g, unit in enumerate(prob.group_units):
+        if unit != "um":
+            continue
+        v = contrib[prob.group == g]
+        if v.size:
+            best = max(best, float(np.sqrt(np.mean(v * v))))
+    return best
+
+
 def remove_nuisance(prob: Problem, r: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
     """Residual with each check's nuisance fitted (unweighted per noise group) and removed.
     ``rows``: only these rows take part (others returned as NaN)."""

@@ -74,6 +74,13 @@ def format_text(res: DiagnoseResult, model_path: str | None = None) -> str:
         for p in e.params:
             L.append(f"    {p['name']} = {p['value']:.4f} {p['unit']} "
                      f"[{p['ci95'][0]:.4f}, {p['ci95'][1]:.4f}]")
+        if len(e.components) > 1:
+            L.append(f"    {len(e.components)} components (one effect, one time constant):")
+            for c in e.components:
+                L.append(f"      {c['key']} [{c['axis']}]: {_fmt(c['value'])} {c['unit']}, 95 % "
+                         f"interval [{_fmt(c['ci95'][0])}, {_fmt(c['ci95'][1])}]; "
+                         + ", ".join(f"{p['name']} = {p['value']:.4f} {p['unit']}"
+                                     for p in c["parameters"]))
         if e.scan:
             for k, v in e.scan.items():
                 txt = "linear (no saturation)" if not math.isfinite(v) else f"{v:.4g}"

@@ -99,6 +99,19 @@ class EffectResult:
     #: derived shape statements (servo model, lost motion at each reversal, ...)
     shape: dict[str, Any] | None = None
     shape_notes: list[str] = field(default_factory=list)
+    #: the components of one effect seen on several axes (a thermal drift: one warm-up,
+    #: one time constant, an offset and scale per axis): one entry, each component with
+    #: its key, axis, value, unit, 95 % interval and parameters; the entry's own value is
+    #: its first (largest-evidence) component's
+    components: list[dict[str, Any]] = field(default_factory=list)
+
+    def named_parts(self) -> list[tuple[str, float, str, tuple[float, float]]]:
+        """(key, value, unit, 95 % interval) of each component (the entry itself when it
+        has none): what the entry names, for a reader or a score."""
+        if not self.components:
+            return [(self.key, self.value, self.unit, self.ci95)]
+        return [(c["key"], float(c["value"]), str(c["unit"]),
+                 (float(c["ci95"][0]), float(c["ci95"][1]))) for c in self.components]
 
     def to_json(self) -> dict[str, Any]:
         d: dict[str, Any] = {"id": self.id, "key": self.key, "value": round_to(self.value),
@@ -118,9 +131,31 @@ class EffectResult:
         d["evidence"] = self.evidence
         if self.shape:
             d["shape"] = self.shape
+        if self.components:
+            d["components"] = self.components
         d["ambiguous_with"] = self.ambiguous_with
         d["tentative"] = self.tentative
         return d
+
+
+def named_by_key(effects: list[EffectResult]) -> dict[str, Any]:
+    """Every name the effects state, by key: an entry under its key, and each component
+    of a multi-component entry (a thermal drift on several axes) under its own key, as
+    an EffectResult carrying the component's value, unit, interval and parameters (for
+    a score or a reader that compares names with a truth)."""
+    out: dict[str, Any] = {}
+    for e in effects:
+        if len(e.components) <= 1:
+            out[e.key] = e
+            continue
+        for c in e.components:
+            out[c["key"]] = EffectResult(
+                id=e.id, key=c["key"], value=float(c["value"]), unit=str(c["unit"]),
+                ci95=(float(c["ci95"][0]), float(c["ci95"][1])), params=c["parameters"],
+                compensable=e.compensable, where=e.where, physics=e.physics, remedy=e.remedy,
+                evidence={}, axis=c.get("axis"), scan=e.scan, scan_ci95=e.scan_ci95,
+                ambiguous_with=e.ambiguous_with, tentative=e.tentative)
+    return out
 
 
 def round_to(v: float, nd: int = 6) -> float:

@@ -39,14 +39,16 @@ import numpy as np
 from scipy import stats
 
 from abbe.diagnose.candidates import Cand, Engine, Selected, apply_selection, selection_residual
-from abbe.diagnose.checks import DEFAULT_TAKEUP_MM, BallbarCheck, Check, LaserCheck, check_travel
-from abbe.diagnose.describe import describe_effects
+from abbe.diagnose.caps import cap_violations
+from abbe.diagnose.checks import DEFAULT_TAKEUP_MM, Check, LaserCheck, check_travel
+from abbe.diagnose.describe import describe_effects, model_error_ambiguity
 from abbe.diagnose.effects import PredParams, catalogue, copy_table, fold_reversal
 from abbe.diagnose.evaluator import Evaluator
 from abbe.diagnose.shape import refine_scans
 from abbe.diagnose.outliers import OutlierRun, inconsistent_runs, screen
 from abbe.diagnose.problem import (
     Problem,
+    contribution_rms,
     estimate_noise,
     gap_stats,
     is_identifiable,
@@ -98,8 +100,7 @@ def _eval_candidate(eng: Engine, cand: Cand, sel: list[Selected], W: np.ndarray,
     contrib = cand.cols @ coef if k else np.zeros(N)
     if cand.offset is not None:
         contrib = contrib + cand.offset   # the change the grid value alone causes (a take-up)
-    um = prob.um_rows
-    contrib_rms = float(np.sqrt(np.mean(contrib[um] ** 2))) if np.any(um) else 0.0
+    contrib_rms = contribution_rms(prob, contrib)
     ho = _heldout(eng, sel, cand, W, s2)
     # redundancy: the share of this candidate's fitted signature that the effects already
     # named reproduce (nuisance projected out of both)
@@ -131,6 +132,11 @@ def _heldout(eng: Engine, sel: list[Selected], cand: Cand | None, W: np.ndarray,
     r_sel = selection_residual(eng, sel) * W
     Nw = prob.nuis * W[:, None]
     X_sel = [s.cand.cols for s in sel]
+    # the rows the candidate acts on (its support): its held-out gain is judged against
+    # the residual there, not diluted by checks it does not touch
+    support = np.ones(prob.N, dtype=bool) if cand is None else \
+        np.any(np.abs(cand.cols) > 1e-12 * max(float(np.max(np.abs(cand.cols), initial=0.0)), 1e-300),
+               axis=1) | (np.abs(cand.offset) > 0 if cand.offset is not None else False)
     for level in (0, 1):
         sp = prob.split(level)
         if sp is None:
@@ -144,7 +150,8 @@ def _heldout(eng: Engine, sel: list[Selected], cand: Cand | None, W: np.ndarray,
                 r = r_sel - cand.offset * W
             cols = X_sel + ([cand.cols] if (with_c and cand is not None) else [])
             X = np.hstack(cols) * W[:, None] if cols else np.zeros((prob.N, 0))
-            tot = 0.0
+            tot = tot_s = 0.0
+            n_s = 0
             for f in (0, 1):
                 A, B = lab == f, lab != f
                 if A.sum() == 0 or B.sum() == 0:
@@ -162,12 +169,17 @@ def _heldout(eng: Engine, sel: list[Selected], cand: Cand | None, W: np.ndarray,
                 nB = Nw[B][:, np.any(Nw[B] != 0, axis=0)]
                 eB = project_out(qr_basis(nB), eB[:, None])[:, 0]
                 tot += float(eB @ eB)
+                eS = eB[support[B]]
+                tot_s += float(eS @ eS)
+                n_s += int(eS.size)
             if not ok:
                 break
             res["with" if with_c else "without"] = tot / s2
+            res["support_with" if with_c else "support_without"] = tot_s / s2
         if ok:
             return {"split": name, "rss_without": res["without"], "rss_with": res["with"],
-                    "gain": res["without"] - res["with"]}
+                    "gain": res["without"] - res["with"],
+                    "rss_without_support": res["support_without"], "n_support": n_s}
     return {"split": None, "gain": float("nan")}
 def _qualifies(st: dict[str, Any], opts: DiagnoseOptions) -> tuple[bool, str]:
     if not st.get("ok"):
@@ -203,11 +215,29 @@ def _noise_um(noise_rep: dict[str, dict[str, Any]]) -> float:
     return math.sqrt(sum(x * x for x in um) / len(um)) if um else 0.0
 
 
-def _single_z_height(eng: Engine) -> bool:
-    """True if the ballbar circles lie at one Z height only (a tool offset is then
-    ambiguous with an error of the model's angular terms, describe.py)."""
-    zs = {round(float(c.center_mm[2]), 3) for c in eng.prob.checks if isinstance(c, BallbarCheck)}
-    return len(zs) <= 1
+#: effect kinds that write into a term's coefficients (the others: squareness, tool
+#: offset, backlash and thermal scalars, servo in the prediction model)
+_TERM_WRITERS = ("scale", "cyclic", "straightness", "reversal")
+
+
+def _named_drift_tau(sel: list[Selected]) -> float | None:
+    """The warm-up time constant of the thermal drift already named (drift-variable
+    units; inf = linear), or None: a further axis is a component of the same drift."""
+    for s in sel:
+        if s.cand.spec.kind == "thermal":
+            return math.inf if s.cand.scan_value is None else float(s.cand.scan_value)
+    return None
+
+
+def _heldout_gain_fraction(ho: dict[str, Any]) -> float:
+    """The held-out gain of a candidate as a fraction of what the model misses beyond the
+    noise on the rows the candidate acts on (its support): the held-out residual there
+    (RSS in noise units) less its expected noise part (1 per row). Relative to the excess,
+    not to the whole residual: a residual of N rows of pure noise is N noise units, and a
+    fraction of it would ask more of an effect the more samples a campaign has (and of one
+    check the longer the others are)."""
+    excess = ho.get("rss_without_support", ho.get("rss_without", 0.0)) - ho.get("n_support", 0)
+    return float(ho["gain"] / max(excess, 1e-300))
 
 
 def _parsimony(st: dict[str, Any], cand: Cand, sel: list[Selected], eng: Engine,
@@ -217,20 +247,21 @@ def _parsimony(st: dict[str, Any], cand: Cand, sel: list[Selected], eng: Engine,
     entry per thermal drift, and strong evidence with a plausible value for a parameter
     the machine file fixes (the tool offset)."""
     ho = st["heldout"]
-    frac = ho["gain"] / max(ho.get("rss_without", 0.0), 1e-300)
+    frac = _heldout_gain_fraction(ho)
     if frac < opts.min_heldout_gain_fraction:
-        return False, (f"held-out gain {100 * frac:.1f} % of the held-out residual "
-                       f"(< {100 * opts.min_heldout_gain_fraction:.0f} %)")
+        return False, (f"held-out gain {100 * frac:.1f} % of what the model misses beyond the "
+                       f"noise where it acts (< {100 * opts.min_heldout_gain_fraction:.0f} %)")
     if 0 < st["contrib_rms_um"] < opts.min_contribution_noise * noise_um:
         return False, (f"contribution {st['contrib_rms_um']:.3f} um RMS below "
                        f"{opts.min_contribution_noise:g} x the noise ({noise_um:.3f} um)")
     spec = cand.spec
-    if spec.family == "thermal_drift":
-        named = [s.cand.spec.key for s in sel if s.cand.spec.family == "thermal_drift"]
-        if named:
-            # one drift, one entry: the machine warming shows on several axes through
-            # one entry; a second axis' component is not a second effect
-            return False, f"a thermal drift is already named ({named[0]}): one entry"
+    me = model_error_ambiguity(eng, spec)
+    if me is not None and frac < opts.strong_heldout_fraction:
+        # ambiguous with an error of the model itself (any effect; the ambiguity with an
+        # effect already named is _qualifies' redundancy rule): a stated margin needed
+        return False, (f"ambiguous with {me['id']} ({me['separating_test']}): naming it needs a "
+                       f"held-out gain of {100 * opts.strong_heldout_fraction:.0f} % (found "
+                       f"{100 * frac:.1f} %)")
     if spec.kind == "tool_offset":
         declared = np.asarray(eng.table.tool_offset_mm, dtype=float)
         t = declared.copy()
@@ -241,9 +272,7 @@ def _parsimony(st: dict[str, Any], cand: Cand, sel: list[Selected], eng: Engine,
                            f"(> {opts.tool_offset_max_mm:g} mm; the machine file declares "
                            f"{float(np.linalg.norm(declared)):.0f} mm)")
         if frac < opts.strong_heldout_fraction:
-            why = "ambiguous with the model's angular terms (one Z height); " \
-                if _single_z_height(eng) else ""
-            return False, (f"{why}the machine file fixes the tool offset: a change needs a "
+            return False, ("the machine file fixes the tool offset: a change needs a "
                            f"held-out gain of {100 * opts.strong_heldout_fraction:.0f} % "
                            f"(found {100 * frac:.1f} %)")
     return True, ""
@@ -327,6 +356,13 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
         results = []
         for c in remaining:
             alts = eng._alts.get(c.spec.key)
+            tau = _named_drift_tau(selected) if c.spec.kind == "thermal" else None
+            if alts and tau is not None:
+                # a further component of the one thermal drift: the same warm-up, the
+                # same time constant (one effect, one entry: describe.merge_components)
+                alts = [a for a in alts if a.scan_value == tau] or alts[:0]
+                if not alts:
+                    continue
             if alts:
                 # nonlinear grid value / parameter subset: the alternative with the best BIC
                 best_c, best_b = None, math.inf
@@ -386,6 +422,23 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
                      + f" together made the gap larger ({_gap_text(gap_before, fin)}); "
                      + ", ".join(gone) + " removed")
         fin = _finish(eng, best["selected"], W, clean0, notes)
+    # The table's caps: a term the named effects take out of abbe fit's guard (the
+    # updated model.bin could not be written, or only with cancelling coefficients) is
+    # not changed: the effect that writes into it goes, and the report says which term.
+    while fin["selected"]:
+        bad = cap_violations(table, fin["table"])
+        if not bad:
+            break
+        axes = {a for a, _, _ in bad}
+        culprits = [x for x in fin["selected"] if x.cand.spec.axis in axes
+                    and x.cand.spec.kind in _TERM_WRITERS]
+        if not culprits:
+            break
+        gone = culprits[-1]
+        notes.append("REJECTED: " + gone.cand.spec.key + " would change the table beyond what "
+                     "it holds (" + "; ".join(f"{a}.{t}: {why}" for a, t, why in bad)
+                     + "); removed (the value, if real, needs a new abbe fit of the axis)")
+        fin = _finish(eng, [x for x in fin["selected"] if x is not gone], W, clean0, notes)
     selected = fin["selected"]
     new_table, new_pp, values, cov, s2_final = (fin["table"], fin["pp"], fin["values"],
                                                 fin["cov"], fin["s2"])
@@ -564,8 +617,7 @@ def _final_contribution(prob: Problem, s: Selected, v: np.ndarray) -> float:
     c = s.cand.cols @ v
     if s.cand.offset is not None:
         c = c + s.cand.offset
-    um = prob.um_rows
-    return float(np.sqrt(np.mean(c[um] ** 2))) if np.any(um) else math.inf
+    return contribution_rms(prob, c) if np.any(prob.um_rows) else math.inf
 
 
 def _heldout_removal(eng: Engine, sel: list[Selected], W: np.ndarray,

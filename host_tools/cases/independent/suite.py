@@ -480,8 +480,10 @@ def run(b: Built, backend: str = "auto") -> Any:
 
 
 def score(b: Built, res: Any) -> dict[str, Any]:
-    """Named exactly? false names, value checks, held-out shrink, outliers."""
-    named = {e.key: e for e in res.effects}
+    """Named exactly? false names, value checks, held-out shrink, outliers. Every
+    component of a multi-component entry counts as a name (a spurious one is an extra)."""
+    from abbe.diagnose.results import named_by_key
+    named = named_by_key(res.effects)
     exp = dict(b.expected)
     # an either-group counts as one answer: accept any one member
     for grp in b.either:
