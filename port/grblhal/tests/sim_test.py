@@ -155,9 +155,8 @@ class Sim:
             raise RuntimeError(f"{line!r} -> {r} {seen}")
         return seen
 
-    def status(self) -> str:
-        """Wait for the planner to drain (G4), then the '?' report."""
-        self.ok("G4 P0.01")
+    def _query(self) -> str:
+        """Send '?' and return the status report it answers with."""
         assert self.proc.stdin is not None
         self.proc.stdin.write(b"?")
         self.proc.stdin.flush()
@@ -165,6 +164,11 @@ class Sim:
             r = self._next()
             if r.startswith("<"):
                 return r
+
+    def status(self) -> str:
+        """Wait for the planner to drain (G4), then the '?' report."""
+        self.ok("G4 P0.01")
+        return self._query()
 
     def until_alarm(self, line: str) -> str:
         """Send a line that raises an alarm; return the first ALARM / ok / error reply."""
@@ -178,14 +182,8 @@ class Sim:
 
     def report(self) -> str:
         """The '?' report now (no G4 first: also in an alarm state)."""
-        assert self.proc.stdin is not None
         time.sleep(0.5)  # let a stop settle (wall time; the simulated machine runs ahead)
-        self.proc.stdin.write(b"?")
-        self.proc.stdin.flush()
-        while True:
-            r = self._next()
-            if r.startswith("<"):
-                return r
+        return self._query()
 
     def abbe(self) -> dict[str, str]:
         """The plugin's $ABBE fields ({} without the plugin)."""
