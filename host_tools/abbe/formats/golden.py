@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -442,24 +443,33 @@ def render() -> tuple[str, str]:
     return HEADER, "\n".join(c)
 
 
-def write(out_dir: Path) -> tuple[Path, Path]:
-    """Write golden_data.h and golden_data.c into ``out_dir``."""
-    h, c = render()
+def write_pair(out_dir: Path, stem: str, header: str, source: str) -> tuple[Path, Path]:
+    """Write ``stem``.h and ``stem``.c into ``out_dir`` together (both or neither)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    hp, cp = out_dir / "golden_data.h", out_dir / "golden_data.c"
-    atomic_write_many({hp: h.encode(), cp: c.encode()})
+    hp, cp = out_dir / f"{stem}.h", out_dir / f"{stem}.c"
+    atomic_write_many({hp: header.encode(), cp: source.encode()})
     return hp, cp
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m abbe.formats.golden",
-                                 description="write the golden vectors for the C tests")
+def write(out_dir: Path) -> tuple[Path, Path]:
+    """Write golden_data.h and golden_data.c into ``out_dir``."""
+    return write_pair(out_dir, "golden_data", *render())
+
+
+def writer_main(argv: list[str] | None, module: str, what: str,
+                write_fn: Callable[[Path], tuple[Path, Path]]) -> int:
+    """The command line of a golden-vector module: ``python -m MODULE OUTDIR``."""
+    ap = argparse.ArgumentParser(prog=f"python -m {module}", description=f"write {what}")
     ap.add_argument("out_dir", type=Path, help="output directory (tests/golden)")
     args = ap.parse_args(argv)
-    for p in write(args.out_dir):
+    for p in write_fn(args.out_dir):
         print(p)
     return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    return writer_main(argv, "abbe.formats.golden", "the golden vectors for the C tests", write)
 
 
 if __name__ == "__main__":

@@ -21,7 +21,6 @@ which the reference does not model).
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import sys
 from dataclasses import dataclass
@@ -30,8 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from abbe.formats.five_axis_blob import FiveAxisTable, five_reference, read_five_blob, write_five_blob
-from abbe.formats.golden import _fvec, _hexf, _ivec, full_table
-from abbe.formats.output import atomic_write_many
+from abbe.formats.golden import _fvec, _hexf, _ivec, full_table, write_pair, writer_main
 from abbe.model.examples import paper_table
 from abbe.model.five_axis import (
     LOCATION_ERRORS,
@@ -178,22 +176,12 @@ def render() -> tuple[str, str]:
 
 def write(out_dir: Path) -> tuple[Path, Path]:
     """Write golden_five.h and golden_five.c into ``out_dir``."""
-    h, c = render()
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    hp, cp = out_dir / "golden_five.h", out_dir / "golden_five.c"
-    atomic_write_many({hp: h.encode(), cp: c.encode()})
-    return hp, cp
+    return write_pair(out_dir, "golden_five", *render())
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m abbe.formats.golden_five",
-                                 description="write the five-axis golden vectors for the C tests")
-    ap.add_argument("out_dir", type=Path, help="output directory (tests/golden)")
-    args = ap.parse_args(argv)
-    for p in write(args.out_dir):
-        print(p)
-    return 0
+    return writer_main(argv, "abbe.formats.golden_five",
+                       "the five-axis golden vectors for the C tests", write)
 
 
 if __name__ == "__main__":
