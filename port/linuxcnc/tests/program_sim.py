@@ -192,20 +192,33 @@ def five_axis(work: Path) -> dict:
                    .replace("[HALUI]", "\n".join(sim_probe) + "\n[HALUI]", 1))
     for p in [five, *five.rglob("*")]:
         give(p)
-    hal_clean()
-    res = subprocess.run(as_user(["/usr/bin/python3", str(work / "program_drive.py"), "--ini",
-                                  str(ini), "--out", str(five), "--timeout", "400",
-                                  "--setp", f"{probe.name}:sp_on.in1=1", str(rtest),
-                                  str(probe)]),
-                         cwd=five, stdin=subprocess.DEVNULL, capture_output=True, text=True,
-                         timeout=460)
-    drive = json.loads((five / "drive.json").read_text()) if (five / "drive.json").exists() else {}
-    if res.returncode != 0 or not drive.get("ok"):
-        lc = (five / "linuxcnc.log").read_text() if (five / "linuxcnc.log").exists() else ""
-        raise TestFailure(f"the five-axis programs in LinuxCNC failed: {drive.get('errors')}\n"
-                          f"{res.stdout}\n{res.stderr}\n--- linuxcnc.log ---\n{lc[-3000:]}")
+    # LinuxCNC's task layer sometimes reports "Queue is not empty after probing" when the
+    # machine is loaded (seen once in CI, not reproduced): that one message gets one more run,
+    # recorded in the result; any other error, or the same one twice, fails.
+    retried = []
+    for _attempt in range(2):
+        hal_clean()
+        (five / "drive.json").unlink(missing_ok=True)
+        res = subprocess.run(as_user(["/usr/bin/python3", str(work / "program_drive.py"), "--ini",
+                                      str(ini), "--out", str(five), "--timeout", "400",
+                                      "--setp", f"{probe.name}:sp_on.in1=1", str(rtest),
+                                      str(probe)]),
+                             cwd=five, stdin=subprocess.DEVNULL, capture_output=True, text=True,
+                             timeout=460)
+        dj = five / "drive.json"
+        drive = json.loads(dj.read_text()) if dj.exists() else {}
+        if res.returncode != 0 or not drive.get("ok"):
+            lc = (five / "linuxcnc.log").read_text() if (five / "linuxcnc.log").exists() else ""
+            raise TestFailure(f"the five-axis programs in LinuxCNC failed: {drive.get('errors')}\n"
+                              f"{res.stdout}\n{res.stderr}\n--- linuxcnc.log ---\n{lc[-3000:]}")
+        ops = drive.get("operator_errors") or []
+        if not retried and ops and all("Queue is not empty after probing" in e for e in ops):
+            retried = ops
+            continue
+        break
     check(not drive.get("operator_errors"), f"LinuxCNC errors: {drive.get('operator_errors')}")
-    out = {"rtest": check_rtest(json.loads((five / "rtest5.path.json").read_text()), trt_joints)}
+    out = {"rtest": check_rtest(json.loads((five / "rtest5.path.json").read_text()), trt_joints),
+           "retried_after": retried}
     # The probing: LinuxCNC's G38.2 against the simulated sphere, its LOG lines wrote the
     # probing CSV the machine file names; abbe fit reads it (the machine has no errors).
     rec = json.loads((five / "probe5.path.json").read_text())
