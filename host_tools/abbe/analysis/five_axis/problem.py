@@ -181,12 +181,16 @@ def predict_block(g: TrunnionGeometry, params: list[Param], x: np.ndarray, harmo
     if drifts and b.time_s is not None:
         # A location error drifting linearly in time (per hour): its effect is linear to
         # 1e-4 relative, so one more transform per drifting error gives it at every row.
+        # Each drift's move is taken from the undrifted centre: measured from the centre
+        # another drift has already moved, a second drift would carry the first one's
+        # move times its own rate (a bilinear term as large as the drifts themselves).
         hours = (b.time_s if rows is None else b.time_s[rows]) / 3600.0
+        still = centre
         for name, rate in drifts:
             moved = FiveAxisErrors({**errs.location, name: errs.location.get(name, 0.0) + 1.0},
                                    errs.motions, errs.squareness)
             T1 = table_transform(g, moved, ang)
-            per = np.einsum("nij,j->ni", T1[:, :3, :3], s) + T1[:, :3, 3] - centre
+            per = np.einsum("nij,j->ni", T1[:, :3, :3], s) + T1[:, :3, 3] - still
             centre = centre + per * (rate * hours)[:, None]
     if b.kind == "probe":
         e, _r = linear_axis_errors(g, errs, centre)
