@@ -23,12 +23,12 @@ from abbe.formats.machine import load_machine  # noqa: E402
 from cases.five_axis_hidden import KINDS, make_case  # noqa: E402
 
 
-def run(per_kind: int, first_seed: int = 0) -> list[dict]:
+def run(per_kind: int, first_seed: int = 0, passes: int = 2) -> list[dict]:
     rows = []
     with tempfile.TemporaryDirectory(prefix="abbe-5ax-diag-") as d:
         for kind in KINDS:
             for seed in range(first_seed, first_seed + per_kind):
-                mf, expected, amp = make_case(kind, seed, Path(d) / f"{kind}{seed}")
+                mf, expected, amp = make_case(kind, seed, Path(d) / f"{kind}{seed}", passes)
                 spec = load_machine(mf).five_axis
                 diag = diagnose_five_axis(spec, load_plan(spec).blocks)
                 names = [n.effect.key for n in diag.named]
@@ -57,6 +57,8 @@ def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--per-kind", type=int, default=8)
     ap.add_argument("--first-seed", type=int, default=0)
+    ap.add_argument("--passes", type=int, default=2, choices=(1, 2),
+                    help="probing passes: 2 = the diagnosis plan (default), 1 = the grid once")
     ap.add_argument("--suite", choices=("hidden", "independent"), default="hidden",
                     help="hidden: cases.five_axis_hidden (abbe.sim); independent: "
                          "cases.five_axis_independent (its own kinematics and writers)")
@@ -64,9 +66,9 @@ def main() -> int:
     if a.suite == "independent":
         from cases.five_axis_suite import diagnose_cases
         with tempfile.TemporaryDirectory(prefix="abbe-5ax-diag-") as d:
-            rows = diagnose_cases(a.per_kind, Path(d))
+            rows = diagnose_cases(a.per_kind, Path(d), a.first_seed, a.passes)
     else:
-        rows = run(a.per_kind, a.first_seed)
+        rows = run(a.per_kind, a.first_seed, a.passes)
     print("| kind | seed | expected | named | amplitude true | named (95 %) | held-out before um "
           "| after um | raw shrink | centre noise um | gap before um | gap after um | gap shrink "
           "| clean twin um | twin excess shrink |")

@@ -1,7 +1,8 @@
 """Hidden-effect cases for the five-axis discrepancy workflow (abbe.sim.five_axis).
 
 A virtual A/C or B/C trunnion with random location errors, set-up errors and noise
-(as the identification tests), probed at 4 tilt x 8 C angles, plus one hidden
+(as the identification tests), probed with the diagnosis plan (4 tilt x 8 C angles, run
+twice: the second pass backwards with C half a step on, docs/programs.md), plus one hidden
 effect the location-only model lacks: ``clean`` (none), ``cyclic`` (an angular
 positioning error of C with k = 1..3 cycles per turn, 10-25 urad), ``drift``
 (the tilt axis' line drifting 4-8 um/h in its second position coordinate while
@@ -23,8 +24,9 @@ from abbe.sim.five_axis import VirtualFiveAxis, probing_positions, random_errors
 KINDS = ("clean", "cyclic", "drift", "wobble")
 
 
-def make_case(kind: str, seed: int, out: Path) -> tuple[Path, str | None, float]:
-    """Write the case; (machine file, expected effect key or None, its true amplitude)."""
+def make_case(kind: str, seed: int, out: Path, passes: int = 2) -> tuple[Path, str | None, float]:
+    """Write the case; (machine file, expected effect key or None, its true amplitude).
+    ``passes`` = 1: the identification plan's single pass instead."""
     rng = np.random.default_rng(seed)
     mk = "xyzac-trt" if seed % 2 == 0 else "xyzbc-trt"
     tilt = "A" if mk == "xyzac-trt" else "B"
@@ -63,6 +65,6 @@ def make_case(kind: str, seed: int, out: Path) -> tuple[Path, str | None, float]
                          probe_noise_um=float(rng.uniform(0.2, 0.5)), seed=seed)
     r = rng.uniform(40, 90)
     u = rng.uniform(0, 2 * np.pi)
-    mf = write_campaign(vm, out, positions=probing_positions(g, 4, 8),
+    mf = write_campaign(vm, out, positions=probing_positions(g, 4, 8, passes),
                         sphere_mm=(r * np.cos(u), r * np.sin(u), rng.uniform(20, 60)))
     return mf, expected, amp

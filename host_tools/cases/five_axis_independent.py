@@ -92,6 +92,7 @@ class Campaign:
     fit_harmonics: int = 0  # > 0: the machine file asks the fit for error motions up to it
     ballbar: bool = False  # add a rotary ballbar set-up (the tests of ballbar_tests())
     probe: bool = True  # False: a ballbar-only plan
+    passes: int = 1  # 2: the diagnosis plan (docs/programs.md), the grid again backwards
 
     @property
     def tilt(self) -> str:
@@ -138,9 +139,16 @@ class Campaign:
     # ------------------------------------------------------------------ instruments
 
     def positions(self) -> list[tuple[float, float]]:
-        tilts = np.linspace(-72.0, 72.0, self.n_tilt)
-        cs = np.arange(self.n_c) * 360.0 / self.n_c
-        return [(float(a), float(c)) for a in tilts for c in cs]
+        """The probing order. Pass 1: tilt by tilt upwards, C round from 0. Every later pass
+        (docs/programs.md, "--passes"): C moved on by step / passes, and every other pass
+        walked backwards (last tilt first, C downwards)."""
+        out: list[tuple[float, float]] = []
+        step = 360.0 / self.n_c
+        for k in range(self.passes):
+            order = [(float(a), float((j + k / self.passes) * step))
+                     for a in np.linspace(-72.0, 72.0, self.n_tilt) for j in range(self.n_c)]
+            out += order[::-1] if k % 2 else order
+        return out
 
     def probe_rows(self, rng: np.random.Generator) -> tuple[list[str], float]:
         rows = [f"position,t_s,{self.tilt.lower()}_deg,c_deg,x_mm,y_mm,z_mm"]
@@ -300,13 +308,14 @@ def make_campaign(seed: int, *, n_tilt: int = 4, n_c: int = 8,
 
 
 def make_diagnose_campaign(kind: str, seed: int) -> tuple[Campaign, str | None, float]:
-    """A campaign for the discrepancy workflow: ``clean`` (no error motion, no drift),
+    """A campaign for the discrepancy workflow, probed with the diagnosis plan (the grid
+    twice, docs/programs.md): ``clean`` (no error motion, no drift),
     ``cyclic`` (an ECC(C) of k = 1..3 cycles per turn, 10-25 urad, with its own phase),
     ``drift`` (the tilt axis' line rising 4-8 um/h) or ``wobble`` (a once-per-turn tilt of
     C, counter-rotating part 10-25 urad). Returns the campaign, the catalogue
     key a diagnosis should name (None for clean) and the true amplitude (urad, um/h)."""
     c = make_campaign(4 * seed + 1 if seed % 2 else 4 * seed)  # no hidden motions (seed % 4 != 3)
-    c.motions, c.drift_um_per_h, c.rtest = {}, 0.0, False
+    c.motions, c.drift_um_per_h, c.rtest, c.passes = {}, 0.0, False, 2
     rng = np.random.default_rng(10_000 + seed)
     if kind == "cyclic":
         k = int(rng.integers(1, 4))

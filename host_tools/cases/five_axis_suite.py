@@ -151,7 +151,7 @@ def table(scores: list[CaseScore]) -> str:
     return "\n".join(out)
 
 
-def diagnose_cases(per_kind: int, work: Path) -> list[dict]:
+def diagnose_cases(per_kind: int, work: Path, first_seed: int = 0, passes: int = 2) -> list[dict]:
     """The discrepancy workflow on the independent generator's hidden effects. An effect case
     and the clean case of the same seed share the machine, the plan and the noise draws, so
     the clean case's held-out gap (``twin``) is what a model with the effect could reach: the
@@ -162,8 +162,9 @@ def diagnose_cases(per_kind: int, work: Path) -> list[dict]:
     rows = []
     twin: dict[int, float] = {}  # seed -> the clean twin's held-out gap (same machine, same noise)
     for kind in ("clean", "cyclic", "drift", "wobble"):
-        for seed in range(per_kind):
+        for seed in range(first_seed, first_seed + per_kind):
             camp, expected, amp = make_diagnose_campaign(kind, seed)
+            camp.passes = passes
             mf = camp.write(work / f"diag_{kind}{seed}")
             spec = load_machine(mf).five_axis
             diag = diagnose_five_axis(spec, load_plan(spec).blocks)

@@ -61,6 +61,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="five-axis probing: tilt positions, over 80 %% of its travel (4)")
     p.add_argument("--c-positions", type=int_range(1, 72), default=8,
                    help="five-axis probing: C positions round its travel (8)")
+    p.add_argument("--passes", type=int_range(1, 4), default=1,
+                   help="five-axis probing: runs of the grid; 2 = the diagnosis plan (the grid "
+                        "again backwards, C half a step on: a drift is told from the geometry "
+                        "and C seen at twice the angles; `abbe diagnose`) (1)")
     p.add_argument("--points", type=int_range(4, 25), default=5,
                    help="five-axis probing: points per sphere (the pole and a ring; 5)")
     p.add_argument("--probe-feed", type=in_range(1.0, 5000.0, "mm/min"), default=100.0,

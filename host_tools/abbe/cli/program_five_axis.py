@@ -53,7 +53,7 @@ def run_five_axis(args: argparse.Namespace) -> int:
         try:
             if args.test == "five-axis-probing":
                 name, pl = _section(spec.probing, args.name, "probing", str(m.path))
-                pos = probing_positions(g, args.tilt_positions, args.c_positions)
+                pos = probing_positions(g, args.tilt_positions, args.c_positions, args.passes)
                 prog = ProbingProgram(pl.sphere_mm, pl.sphere_radius_mm, pl.stylus_radius_mm,
                                       pos, n_points=args.points, probe_feed=args.probe_feed,
                                       safe_z_mm=args.safe_z_mm,

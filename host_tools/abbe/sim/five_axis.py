@@ -185,16 +185,35 @@ class VirtualFiveAxis:
                 "target_deg": np.asarray(tout), "deviation_urad": np.asarray(dev)}
 
 
-def probing_positions(geom: TrunnionGeometry, n_tilt: int, n_c: int) -> np.ndarray:
-    """(n_tilt * n_c, 2) angle pairs: tilt from its travel's middle 80 %, C round its travel."""
+def probing_positions(geom: TrunnionGeometry, n_tilt: int, n_c: int, passes: int = 1) -> np.ndarray:
+    """(passes * n_tilt * n_c, 2) angle pairs (tilt, C) deg in the order they are probed:
+    tilt from its travel's middle 80 %, C round its travel, tilt by tilt.
+
+    ``passes`` > 1 is the diagnosis plan (docs/programs.md, "Five-axis programs"): the grid
+    is run again with the tilts and the C angles in the opposite order and, on a table
+    that turns a full revolution, C shifted by a ``1 / passes`` share of its step. Every
+    pose's neighbours are then probed at two times far apart, so a drift during the
+    campaign no longer moves with the pose (in one pass time and tilt go together and the
+    location errors take most of a drift), and C is seen at ``passes * n_c`` angles (cyclic
+    errors of higher order)."""
+    if passes < 1:
+        raise ValueError(f"passes must be >= 1, got {passes}")
     tilt, table = geom.rotaries
     lo, hi = geom.travel_deg[tilt]
     lo_c, hi_c = geom.travel_deg[table]
     span = min(hi_c - lo_c, 360.0)
     ta = np.linspace(max(lo, -90.0) * 0.8 if lo < 0 else lo, min(hi, 90.0) * 0.8, n_tilt)
-    tc = lo_c + np.arange(n_c) * span / n_c if span >= 360.0 else np.linspace(lo_c, hi_c, n_c)
-    A, C = np.meshgrid(ta, tc, indexing="ij")
-    return np.column_stack([A.ravel(), C.ravel()])
+    out = []
+    for p in range(passes):
+        if span >= 360.0:
+            tc = lo_c + (np.arange(n_c) + p / passes) * span / n_c
+        else:  # a partial turn: the same angles (its ends are its travel's)
+            tc = np.linspace(lo_c, hi_c, n_c)
+        ta_p = ta[::-1] if p % 2 else ta
+        tc = tc[::-1] if p % 2 else tc
+        A, C = np.meshgrid(ta_p, tc, indexing="ij")
+        out.append(np.column_stack([A.ravel(), C.ravel()]))
+    return np.vstack(out)
 
 
 #: The bar directions of the ISO 10791-6 style set-ups, relative to the turning axis.

@@ -261,3 +261,34 @@ def test_closed_loop_program_to_fit(tmp_path: Path) -> None:
             tol = max(r["ci95"], 1.0 if r["unit"] == "um" else 5.0)
             assert abs(r["value"] - vm.errors.location[r["name"]]) <= tol, r
     assert n >= 5
+
+
+def test_diagnosis_plan_runs_the_grid_twice(tmp_path: Path) -> None:
+    """``--passes 2`` (docs/programs.md): the grid, then again backwards with C half a step
+    on. Read back from the G-code's LOG lines; the independent generator's own reading of
+    the same docs (cases.five_axis_independent, Campaign.positions) gives the same order."""
+    from cases.five_axis_independent import make_campaign
+
+    _ngc, _toml, text = _program(tmp_path, "five-axis-probing", "--tilt-positions", "3",
+                                 "--c-positions", "6", "--points", "5", "--passes", "2")
+    rows = [ln.split(",") for ln, _e in
+            [(m["log"], m["end"]) for m in walk(read_gcode(text), "A") if m["g"] == "LOG"][1:]]
+    order: list[tuple[float, float]] = []
+    for r in rows:
+        if not order or int(r[0]) >= len(order):
+            order.append((float(r[2]), float(r[3]) % 360.0))
+    assert len(order) == 36 and len(rows) == 36 * 5
+    first, second = order[:18], order[18:]
+    assert [a for a, _c in first] == sorted(a for a, _c in first)  # tilt by tilt, upwards
+    assert [a for a, _c in second] == sorted((a for a, _c in second), reverse=True)
+    for a in {a for a, _c in order}:  # each tilt: 12 C angles 30 deg apart, 6 in each pass
+        cs = sorted(c for b, c in order if b == a)
+        assert np.allclose(np.diff(cs), 30.0) and len(cs) == 12
+        assert {round(c) % 60 for b, c in first if b == a} == {0}
+    t = [float(r[1]) for r in rows]
+    assert t == sorted(t)
+    camp = make_campaign(0)
+    camp.n_tilt, camp.n_c, camp.passes = 3, 6, 2
+    other = camp.positions()
+    assert np.allclose([a for a, _c in other], [a for a, _c in order])
+    assert np.allclose([c % 360.0 for _a, c in other], [c for _a, c in order])

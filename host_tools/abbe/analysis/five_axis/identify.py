@@ -45,7 +45,9 @@ SEEN_BY = {
     "location": "probing at more angles of the other rotary axis or a second sphere height "
                 "(a ballbar: the other axis turning, or the table ball at a second height)",
     "setup": "a sphere position measured in a known frame",
-    "drift": "repeating one probing position at the start, middle and end of the campaign",
+    "drift": "the diagnosis plan (`abbe program --passes 2`: the grid again backwards, so "
+             "campaign time no longer goes with the pose) or one position repeated at the "
+             "start, middle and end",
     "wobble": "the table face's axial motion at two radii (ISO 230-7) or spheres at two "
               "heights (tilt against radial + axial motion)",
 }
