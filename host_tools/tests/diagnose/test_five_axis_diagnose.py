@@ -75,33 +75,67 @@ def test_independent_generator_cases(tmp_path: Path, kind: str, seed: int) -> No
 
 
 def test_catalogue_signatures_are_distinct(tmp_path: Path) -> None:
-    """On a 4 x 8 one-sphere plan no candidate's signature (beyond the location errors) is
-    reproduced by another's to the ambiguity level, in any phase; a one-cycle ECC keeps half
-    of its signature, the others most of theirs except the drifts (campaign time follows the
-    tilt)."""
+    """On a 4 x 8 one-sphere plan, one pass or the diagnosis plan's two, no candidate's
+    signature (beyond the location errors) is reproduced by another's to the ambiguity
+    level, in any phase; a one-cycle ECC keeps half of its signature, the others most of
+    theirs except the drifts, whose share the second pass raises (in one pass campaign time
+    follows the tilt and the location errors take most of a drift)."""
     import dataclasses
 
     from abbe.analysis.five_axis.identify import identify
     from abbe.analysis.five_axis.problem import build_params
     from abbe.diagnose.five_axis import _Signatures, catalogue
 
-    mf, _e, _a = make_case("clean", 1, tmp_path)
-    spec = load_machine(mf).five_axis
-    spec = dataclasses.replace(spec, fit=dataclasses.replace(spec.fit, harmonics=0))
-    blocks = load_plan(spec).blocks
-    base = identify(spec, blocks, build_params(spec, blocks))
-    cands = catalogue(spec, 8, blocks)
-    assert {"cyclic C 1", "cyclic C 3", "pivot drift B", "wobble C"} <= {e.key for e in cands}
-    sig = _Signatures(spec, blocks, base, cands)
-    for eff in cands:
-        for ph in np.linspace(0.0, np.pi, 4, endpoint=False):
-            v = np.array([np.cos(ph), np.sin(ph)])
-            assert sig.ambiguity(eff, v, cands) == [], (eff.key, ph)
-            seen = sig.seen(eff, v)
-            if eff.key == "cyclic C 1":
-                assert 0.4 <= seen <= 0.6
-            elif eff.key.startswith(("cyclic", "wobble")):
-                assert seen > 0.9, (eff.key, seen)
+    drift_seen = {}
+    for passes in (1, 2):
+        mf, _e, _a = make_case("clean", 1, tmp_path / f"p{passes}", passes)
+        spec = load_machine(mf).five_axis
+        spec = dataclasses.replace(spec, fit=dataclasses.replace(spec.fit, harmonics=0))
+        blocks = load_plan(spec).blocks
+        base = identify(spec, blocks, build_params(spec, blocks))
+        cands = catalogue(spec, 8 * passes, blocks)
+        keys = {e.key for e in cands}
+        assert {"cyclic C 1", "cyclic C 3", "pivot drift B", "wobble C"} <= keys
+        assert ("cyclic C 4" in keys) == (passes == 2)  # 16 C angles resolve 4 per turn
+        sig = _Signatures(spec, blocks, base, cands)
+        for eff in cands:
+            for ph in np.linspace(0.0, np.pi, 4, endpoint=False):
+                v = np.array([np.cos(ph), np.sin(ph)])
+                assert sig.ambiguity(eff, v, cands) == [], (eff.key, ph)
+                seen = sig.seen(eff, v)
+                if eff.key == "cyclic C 1":
+                    assert 0.4 <= seen <= 0.6
+                elif eff.key.startswith(("cyclic", "wobble")):
+                    assert seen > 0.9, (eff.key, seen)
+                else:
+                    drift_seen.setdefault((passes, eff.key), []).append(seen)
+    for key in ("pivot drift B", "pivot drift C"):
+        one, two = np.mean(drift_seen[(1, key)]), np.mean(drift_seen[(2, key)])
+        assert two > 1.5 * one, (key, one, two)
+
+
+def test_heldout_beta_tells_a_confirmed_change_from_a_fitted_one() -> None:
+    """heldout_beta: 1 when the held-out residuals lose exactly the change the effect makes
+    to the predictions, about 0 when the change is unrelated to them (fitted to other
+    positions' noise), NaN without a change."""
+    from abbe.analysis.five_axis.identify import FitResult
+    from abbe.diagnose.five_axis import heldout_beta
+
+    rng = np.random.default_rng(5)
+    noise = rng.normal(0.0, 1.0, (400, 3))
+    signal = np.column_stack([np.sin(np.arange(400) / 7.0), np.cos(np.arange(400) / 5.0),
+                              np.zeros(400)])
+
+    def fit(r: np.ndarray) -> FitResult:
+        return FitResult([], np.zeros(0), np.zeros(0), np.zeros((0, 0)), None, [], 0,  # type: ignore[arg-type]
+                         heldout_residuals_um=r)
+
+    before = fit(signal + noise)
+    assert heldout_beta(before, fit(noise)) == pytest.approx(1.0, abs=0.1)
+    spurious = rng.normal(0.0, 0.5, (400, 3))
+    assert abs(heldout_beta(before, fit(signal + noise - spurious))) < 0.15
+    assert np.isnan(heldout_beta(before, before))
+    assert np.isnan(heldout_beta(before, fit(noise[:10])))  # not the same positions
 
 
 def test_two_drifts_add(tmp_path: Path) -> None:
