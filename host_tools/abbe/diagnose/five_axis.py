@@ -154,6 +154,9 @@ class FiveAxisDiagnosis:
     #: expected RMS 3-D length of the sphere centres' noise (um), from the sphere fits'
     #: residuals (:meth:`SphereCentres.centre_noise_um`); None without redundant points
     noise_floor_um: float | None = None
+    #: set when the probing ran its tilts one way only (one pass of the grid): campaign time
+    #: then follows the tilt and a drift is mostly taken by the location errors
+    one_way: bool = False
 
     @property
     def shrink(self) -> float:
@@ -188,7 +191,7 @@ class FiveAxisDiagnosis:
                 "heldout_floor_before_um": self.base.heldout_floor_um,
                 "heldout_floor_after_um": self.final.heldout_floor_um,
                 "gap_before_um": self.gap_before_um, "gap_after_um": self.gap_after_um,
-                "excess_shrink": self.excess_shrink,
+                "excess_shrink": self.excess_shrink, "tilt_one_way": self.one_way,
                 "named": [{"effect": n.effect.key, "what": n.effect.what, "values": n.values,
                            "ci95": n.ci95, "amplitude": n.amplitude,
                            "amplitude_ci95": n.amplitude_ci95,
@@ -225,6 +228,11 @@ class FiveAxisDiagnosis:
         if lim:
             out.append("Smallest amplitude this plan names (worst phase): " + ", ".join(
                 f"{k} {v}" for k, v in lim.items()))
+        if self.one_way:
+            out.append("Plan: the tilt went one way through the campaign, so campaign time "
+                       "follows the tilt and the location errors take most of a drift; the "
+                       "diagnosis plan (abbe program --passes 2: the grid again backwards) "
+                       "tells a drift from the geometry")
         out.append(f"Held-out shrink {self.shrink:.0%} (raw)")
         if self.noise_floor_um is not None:
             out.append(f"Sphere-centre noise (from the sphere fits) {self.noise_floor_um:.3f} um")
@@ -234,6 +242,20 @@ class FiveAxisDiagnosis:
                        f"{gb:.3f} -> {ga:.3f} um" + (f", shrink {ex:.0%}" if ex is not None
                                                      else " (at the floor)"))
         return "\n".join(out) + "\n"
+
+
+def _tilt_one_way(blocks: list[Block]) -> bool:
+    """Whether every probing block's tilt angle, in campaign time order, only rises or only
+    falls (a single pass of the grid)."""
+    probes = [b for b in blocks if b.kind == "probe" and b.time_s is not None]
+    if not probes:
+        return False
+    for b in probes:
+        tilt = b.angles_deg[np.argsort(b.time_s, kind="stable"), 0]
+        d = np.diff(tilt)
+        if np.any(d > 1e-9) and np.any(d < -1e-9):
+            return False
+    return True
 
 
 def _f(v: float) -> float | None:
@@ -380,7 +402,7 @@ def diagnose_five_axis(spec: FiveAxisSpec, blocks: list[Block]) -> FiveAxisDiagn
               if b.kind == "probe" and b.noise_floor_um is not None]
     floor = float(np.sqrt(sum(f * f * m for f, m in floors) / sum(m for _, m in floors))) \
         if floors else None
-    diag = FiveAxisDiagnosis(base, base, noise_floor_um=floor)
+    diag = FiveAxisDiagnosis(base, base, noise_floor_um=floor, one_way=_tilt_one_way(blocks))
     current, prev = params, base
     for _ in range(MAX_EFFECTS):
         best = None

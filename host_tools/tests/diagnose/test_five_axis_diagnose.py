@@ -86,12 +86,15 @@ def test_catalogue_signatures_are_distinct(tmp_path: Path) -> None:
     from abbe.analysis.five_axis.problem import build_params
     from abbe.diagnose.five_axis import _Signatures, catalogue
 
+    from abbe.diagnose.five_axis import _tilt_one_way
+
     drift_seen = {}
     for passes in (1, 2):
         mf, _e, _a = make_case("clean", 1, tmp_path / f"p{passes}", passes)
         spec = load_machine(mf).five_axis
         spec = dataclasses.replace(spec, fit=dataclasses.replace(spec.fit, harmonics=0))
         blocks = load_plan(spec).blocks
+        assert _tilt_one_way(blocks) == (passes == 1)  # the report's plan note
         base = identify(spec, blocks, build_params(spec, blocks))
         cands = catalogue(spec, 8 * passes, blocks)
         keys = {e.key for e in cands}
