@@ -17,13 +17,17 @@ component -> LinuxCNC -> joints; what the identification gets right is
 host_tools/tests/analysis/test_five_axis_*'s. `abbe export -f linuxcnc-trt` writes
 the trt pins, the HOME_OFFSETs and abbe-five.bin (what trt cannot hold); a headless
 copy of the sample INI (trt_sim_check.headless_ini) takes them, with
-port/linuxcnc/config/abbe-five.hal (the wiring docs/linuxcnc.md shows). Run as the
-LinuxCNC user, recorded every servo period (sampler, halsampler):
+port/linuxcnc/config/abbe-five.hal and abbe-five-hold.hal, and M428 / M429 remapped
+to config/remap_subs/abbe_428.ngc / abbe_429.ngc (the wiring docs/linuxcnc.md shows).
+Run as the LinuxCNC user, recorded every servo period (sampler, halsampler):
 
   1. tcp_off: the component disabled; M428 (tool-centre-point kinematics), the tool
      held on one workpiece point while the tilt (A or B) and C turn, then a short path;
-  2. tcp_on: abbe.enable 1, the same program;
-  3. joints_on: M429 (identity kinematics), a program of joint moves with the tilt and C.
+  2. tcp_on: abbe enabled (abbe-hold.in0 1), the same program;
+  3. joints_on: identity kinematics by the sample's own 429remap.ngc (no hold), a
+     program of joint moves with the tilt and C;
+  4. switch_on: M428 and M429 through abbe's remap (the correction held off across each
+     switch), the M429 where run 3 switched, a move after each.
 
 The checks use an INDEPENDENT forward kinematics of the true machine, written here
 from the ISO 230-1 notation of docs/concepts.md ("Five-axis machines") and
@@ -49,7 +53,12 @@ joints with the exported pins). The joints follow axis.L.pos-cmd by two periods
     correction on) is measured: LinuxCNC 2.9.0~pre1 recomputes the world position
     from the joints WITH the offset in them, so the joints step by the offset in
     force (docs/linuxcnc.md: switch with the compensation off); checked to be no
-    more than that plus the rate limit.
+    more than that plus the rate limit;
+  - switch_on: at abbe's M429 the external offsets are 0.0, and from the last move
+    before to the first after it the joints stay within FRAME_UM of trtfuncs.c's
+    inverse of the point plus the component's correction (switch_metrics; run 3's
+    switch measured the same way for comparison); on the moves after the switches
+    the tool tip is within BOUND_UM again.
 
 Every wait is bounded; LinuxCNC is stopped by the pid of its display.
 """
@@ -153,15 +162,28 @@ G1 X10 Y15 Z35 F900
 G1 X40 Y-25 Z20 {T}-20 C45 F1200
 M2
 """
+#: the switch to identity here is the sample config's own 429remap.ngc, called directly:
+#: without abbe's hold (the INI remaps M428 / M429 to abbe's subroutines)
 JOINT_PROGRAM = """(abbe five_sim: identity kinematics, joint moves with the tilt and C)
 G21 G90 G94 G40 G49
-M429
+o<429remap> call
 G0 X30 Y-20 Z10 {T}0 C0
 G1 {T}-35 C100 F1200
 G1 X60 Y10 Z-15 {T}10 C200 F900
 G1 X0 Y5 Z0 {T}0 C0 F900
 M2
 """
+#: M428 / M429 through abbe's remap (config/remap_subs/abbe_kins.ngc): the M429 at the
+#: point and angles where JOINT_PROGRAM switched without it
+SWITCH_PROGRAM = """(abbe five_sim: M428 / M429 with abbe's correction held off across the switch)
+G21 G90 G94 G40 G49
+M428
+G1 X40 Y-25 Z20 {T}-20 C45 F1200
+M429
+G1 X30 Y-20 Z10 {T}0 C0 F1200
+M2
+"""
+PROGRAMS = {"tcp.ngc": TCP_PROGRAM, "joints.ngc": JOINT_PROGRAM, "switch.ngc": SWITCH_PROGRAM}
 #: the tool tip within this of the programmed point with abbe, on the path, um. What is
 #: left: LinuxCNC's offset planner following a correction that turns with the table
 #: (the lead extrapolates two periods), the first-order model (0.01 um here), the
@@ -184,6 +206,9 @@ RATE_MM_PER_S = 1.0
 FADE_S = 0.5
 ENABLE = 0
 """
+#: the sample's M428 / M429 remaps replaced by abbe's (docs/linuxcnc.md, "Switching
+#: kinematics"), abbe-five-hold.hal after abbe-five.hal
+REMAPS = {"ngc=428remap": "ngc=abbe_428", "ngc=429remap": "ngc=abbe_429"}
 
 
 
@@ -205,11 +230,13 @@ def record(tilt: str) -> list[list[tuple[str, str]]]:
          ("abbe.x.offset-mm", "f"), ("abbe.y.offset-mm", "f"), ("abbe.z.offset-mm", "f"),
          ("abbe.orient-x-urad", "f"), ("abbe.orient-y-urad", "f"), ("abbe.orient-z-urad", "f"),
          ("abbe.state", "s"), ("abbe.frame", "s"), ("abbe.flags", "u"),
-         ("abbe.x.counts", "s"), ("abbe.y.counts", "s"), ("abbe.z.counts", "s")],
+         ("abbe.x.counts", "s"), ("abbe.y.counts", "s"), ("abbe.z.counts", "s"),
+         ("abbe.enable", "b"), ("motion.digital-out-00", "b")],
     ]
 
 
-RUNS = (("tcp_off", "tcp.ngc"), ("tcp_on", "tcp.ngc"), ("joints_on", "joints.ngc"))
+RUNS = (("tcp_off", "tcp.ngc"), ("tcp_on", "tcp.ngc"), ("joints_on", "joints.ngc"),
+        ("switch_on", "switch.ngc"))
 
 
 # ---- the independent forward kinematics of the true machine ------------------------------
@@ -330,7 +357,7 @@ def drive(ini: Path, out: Path) -> None:
         sd.wait_for(lambda: (s.poll() or True) and all(s.homed[:5]), 60, "homing all joints")
         for name, prog in RUNS:
             if name == "tcp_on":
-                sd.halcmd("setp", "abbe.enable", "1")
+                sd.halcmd("setp", "abbe-hold.in0", "1")  # abbe.enable AND NOT the hold
                 sd.wait_for(lambda: sd.getp("abbe.state") == 1
                             and int(sd.getp("abbe.flags")) & 0x0100 == 0, 10, "abbe faded in")
             rec = sd.Recorder(out, name)
@@ -364,7 +391,8 @@ def load(work: Path, name: str, tilt: str) -> dict:
             "line": r["motion.program-line"], "kinstype": r["motion.switchkins-type"],
             "limited": r["motion.eoffset-limited"], "corr": col("abbe.{}.corr-mm", "xyz"),
             "orient": col("abbe.orient-{}-urad", "xyz"), "state": r["abbe.state"],
-            "frame": r["abbe.frame"], "counts": col("abbe.{}.counts", "xyz")}
+            "frame": r["abbe.frame"], "counts": col("abbe.{}.counts", "xyz"),
+            "enable": r["abbe.enable"], "hold": r["motion.digital-out-00"]}
 
 
 def stats(d_mm: np.ndarray) -> dict:
@@ -377,14 +405,45 @@ def path_lines(program: str) -> list[int]:
     return [i + 1 for i, ln in enumerate(program.splitlines()) if ln.startswith("G1")]
 
 
+def switch_metrics(r: dict, case: Case, pins: dict) -> dict:
+    """The joints around a run's switch from trt to identity (M429), the machine standing:
+    from the last programmed motion before it to the first rotary motion after it, the
+    joints should stay at trtfuncs.c's inverse of the point where the machine stopped plus
+    the component's joint-frame correction (two periods late). joint_error: what the
+    switch did to them beyond that, um; joint_step: their largest change in one period,
+    um; held_s: how long abbe's hold (motion.digital-out-00) was on."""
+    from export_readers import trt_joints
+    from lcnc_common import check
+    k = r["kinstype"]
+    sw = np.flatnonzero((k[:-1] == 1.0) & (k[1:] == 0.0))
+    check(sw.size == 1, f"{sw.size} switches from trt to identity recorded, expected 1")
+    sw = int(sw[0]) + 1                               # the first period in identity
+    d, da = np.abs(np.diff(r["world"], axis=0)), np.abs(np.diff(r["world_ang"], axis=0))
+    moving = np.flatnonzero(np.any(d > 1e-9, axis=1) | np.any(da > 1e-9, axis=1))
+    start = int(moving[moving < sw - 1][-1]) + 1 if np.any(moving < sw - 1) else 0
+    turning = np.flatnonzero(np.any(da > 1e-9, axis=1))
+    check(np.any(turning >= sw), "no rotary motion after the switch")
+    end = int(turning[turning >= sw][0])              # the last period before it
+    lag = 2
+    ideal = trt_joints(case.kind, pins, r["world"][start:start + 1], r["world_ang"][start:start + 1])[0]
+    j = np.arange(start + lag, end + lag + 1)
+    err = r["motor"][j, :3] - ideal - r["corr"][j - lag]
+    step = np.abs(np.diff(r["motor"][start + lag:end + lag + 1, :3], axis=0))
+    return {"periods": int(len(j)), "standing_before_switch": int(sw - start),
+            "offset_at_switch_um": round(float(np.linalg.norm(r["eoffset"][sw - 1])) * 1e3, 4),
+            "joint_error_max_um": round(float(np.linalg.norm(err, axis=1).max()) * 1e3, 4),
+            "joint_step_max_um": round(float(step.max(initial=0.0)) * 1e3, 4),
+            "held_s": round(float(np.sum(r["hold"][start:end + 1])) * 1e-3, 3)}
+
+
 def analyse(work: Path, pins: dict, home: dict, case: Case) -> dict:
     from export_readers import trt_joints
     from lcnc_common import check
     hoff = np.array([home[3], home[4]])
     report: dict = {"kind": case.kind}
-    for name, prog in RUNS:
+    for name, prog in RUNS[:3]:
         r = load(work, name, case.tilt)
-        text = (TCP_PROGRAM if prog == "tcp.ngc" else JOINT_PROGRAM).format(T=case.tilt)
+        text = PROGRAMS[prog].format(T=case.tilt)
         tcp = prog == "tcp.ngc"
         lag = 2  # joints follow axis.L.pos-cmd by two servo periods
         world, wang = r["world"][:-lag], r["world_ang"][:-lag]
@@ -461,7 +520,32 @@ def analyse(work: Path, pins: dict, home: dict, case: Case) -> dict:
             check(jump <= float(np.max(np.abs(r["eoffset"][sw - 1]))) * 1e3 + (end - sw) * 1.0 + 0.01,
                   f"joints_on: the kinematics switch moved the joints more than the offset: "
                   f"{res['switch']}")
+            # the same switch measured as switch_on's, for the comparison
+            res["switch_without_hold"] = switch_metrics(r, case, pins)
         report[name] = res
+    # switch_on: M428 / M429 through abbe's remap (abbe_kins.ngc): at the M429 the
+    # offsets are zero, the joints stay where the correction puts them, and the
+    # correction is whole again on the moves after each switch
+    r = load(work, "switch_on", case.tilt)
+    sm = switch_metrics(r, case, pins)
+    lag = 2
+    world, wang, motor = r["world"][:-lag], r["world_ang"][:-lag], r["motor"][lag:]
+    kin = r["kinstype"][lag:]
+    on_path = np.isin(r["line"][lag:], path_lines(SWITCH_PROGRAM.format(T=case.tilt)))
+    check(on_path.sum() > 500, f"switch_on: only {on_path.sum()} periods on the path")
+    intended = np.where((kin == 1.0)[:, None], world, trt_forward(case, pins, world, wang))
+    sm["deviation_on_moves_after_switches"] = stats(
+        (true_tool_in_workpiece(case, motor) - intended)[on_path])
+    sm["held_total_s"] = round(float(np.sum(r["hold"])) * 1e-3, 3)
+    report["switch_on"] = sm
+    check(r["hold"][-1] == 0 and r["enable"][-1] == 1 and r["state"][-1] == 1
+          and r["frame"][-1] == 0, "switch_on: abbe not on again in identity after the remap")
+    check(sm["held_s"] > 0.0 and sm["offset_at_switch_um"] < 0.01,
+          f"switch_on: the hold did not bring the offsets to zero before the switch: {sm}")
+    check(sm["joint_error_max_um"] < FRAME_UM,
+          f"switch_on: the switch moved the joints beyond the correction: {sm}")
+    check(sm["deviation_on_moves_after_switches"]["max_um"] < BOUND_UM,
+          f"switch_on: tool tip {sm['deviation_on_moves_after_switches']} after the switches")
     off, on = report["tcp_off"]["deviation"], report["tcp_on"]["deviation"]
     check(on["max_um"] * 10 < off["max_um"], f"abbe does not take off 90 %: {on} vs {off}")
     # in TCP the offsets are NOT the joint-frame correction (the table turned them)
@@ -513,11 +597,18 @@ def main() -> int:
                 lines.append("OFFSET_AV_RATIO = 0.2")  # the external offsets' share of vel/acc
             if ln.strip().startswith("HALFILE") and "basic_sim.tcl" in ln:
                 lines.append("HALFILE = abbe-five.hal")
+                lines.append("HALFILE = abbe-five-hold.hal")
+            if ln.strip().startswith("REMAP"):
+                for old, new in REMAPS.items():
+                    lines[-1] = lines[-1].replace(old, new)
         ini.write_text("\n".join(lines) + "\n" + INI_ABBE)
-        shutil.copy(CONFIG / "abbe-five.hal", cfg / "abbe-five.hal")
+        for hal in ("abbe-five.hal", "abbe-five-hold.hal"):
+            shutil.copy(CONFIG / hal, cfg / hal)
+        for sub in sorted((CONFIG / "remap_subs").glob("abbe_*.ngc")):
+            shutil.copy(sub, cfg / "remap_subs" / sub.name)
         shutil.copy(work / "trt" / "abbe-five.bin", cfg / "abbe-five.bin")
-        (work / "tcp.ngc").write_text(TCP_PROGRAM.format(T=case.tilt))
-        (work / "joints.ngc").write_text(JOINT_PROGRAM.format(T=case.tilt))
+        for prog, text in PROGRAMS.items():
+            (work / prog).write_text(text.format(T=case.tilt))
         drv = run_drive(work, Path(__file__), ini, "drive.json", 240)
         if drv is None:
             print(f"five_sim {case.kind}: FAIL (LinuxCNC run)")

@@ -10,9 +10,10 @@
 #   6. abbe in five-axis mode in the same simulator: with the export's trt pins and
 #      abbe-five.bin, the true tool tip (an independent forward kinematics of a
 #      virtual machine) stays on the programmed point under M428 (tool-centre-point)
-#      and M429 (identity); disabled, no offset at all (five_sim.py, about 75 s)
+#      and M429 (identity); disabled, no offset at all; M428 / M429 through abbe's
+#      remap hold the correction off across the switch (five_sim.py, about 80 s)
 #   7. the same on the B/C sample config xyzbc-trt (five_sim.py --kind xyzbc-trt,
-#      about 75 s)
+#      about 80 s)
 # LinuxCNC's tools refuse to run as root: as root, this creates the
 # unprivileged user $ABBE_LCNC_USER (default abbe-lcnc) if needed and the tests
 # run halrun / linuxcnc as that user (runuser). Needs scripts/setup.sh first
