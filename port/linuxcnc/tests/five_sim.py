@@ -1,28 +1,41 @@
 #!/usr/bin/python3
-"""abbe's HAL component in five-axis mode inside LinuxCNC's xyzac-trt simulator.
+"""abbe's HAL component in five-axis mode inside LinuxCNC's trt simulators.
 
-  flock /tmp/abbe-linuxcnc.lock python3 port/linuxcnc/tests/five_sim.py [--json OUT]
+  flock /tmp/abbe-linuxcnc.lock python3 port/linuxcnc/tests/five_sim.py \
+      [--kind xyzac-trt|xyzbc-trt] [--json OUT]
 
-The virtual machine (TRUTH): the sample config's nominal geometry (rotation point 0,
-y-offset 20, z-offset 10 mm) with location errors trt can hold (EX0C, EY0C, EY0A,
-EZ0A, EA0A, EC0C), the tilts of both axis lines it cannot (EB0A, EC0A, EA0C, EB0C),
+One mechanism for both table-table kinds of LinuxCNC's trt kinematics (CASES): the
+sample configs sim/axis/vismach/5axis/table-rotary-tilting/xyzac-trt.ini (C on a
+trunnion A) and xyzbc-trt.ini (C on B). The virtual machine (TRUTH): the sample
+config's nominal geometry (rotation point 0; A/C: y-offset 20, z-offset 10 mm; B/C:
+x-offset -20, z-offset -15 mm) with location errors trt can hold (A/C: EX0C, EY0C,
+EY0A, EZ0A, EA0A, EC0C; B/C: EX0C, EY0C, EX0B, EZ0B, EB0B, EC0C), the tilts of both
+axis lines it cannot (A/C: EB0A, EC0A, EA0C, EB0C; B/C: EA0B, EC0B, EA0C, EB0C),
 error motions of both axes and the linear axes' squareness. Its table is written from
 the truth (write_five_blob), not fitted: this test is about the chain table ->
 component -> LinuxCNC -> joints; what the identification gets right is
 host_tools/tests/analysis/test_five_axis_*'s. `abbe export -f linuxcnc-trt` writes
 the trt pins, the HOME_OFFSETs and abbe-five.bin (what trt cannot hold); a headless
-copy of the sample xyzac-trt.ini (trt_sim_check.headless_ini) takes them, with
-port/linuxcnc/config/abbe-five.hal (the wiring docs/linuxcnc.md shows). Run as the
-LinuxCNC user, recorded every servo period (sampler, halsampler):
+copy of the sample INI (trt_sim_check.headless_ini) takes them, with
+port/linuxcnc/config/abbe-five.hal and abbe-five-hold.hal, and M428 / M429 remapped
+to config/remap_subs/abbe_428.ngc / abbe_429.ngc (the wiring docs/linuxcnc.md shows).
+Run as the LinuxCNC user, recorded every servo period (sampler, halsampler):
 
   1. tcp_off: the component disabled; M428 (tool-centre-point kinematics), the tool
-     held on one workpiece point while A and C turn, then a short path;
-  2. tcp_on: abbe.enable 1, the same program;
-  3. joints_on: M429 (identity kinematics), a program of joint moves with A and C.
+     held on one workpiece point while the tilt (A or B) and C turn, then a short path;
+  2. tcp_on: abbe enabled (abbe-hold.in0 1), the same program;
+  3. joints_on: identity kinematics by the sample's own 429remap.ngc (no hold), a
+     program of joint moves with the tilt and C;
+  4. switch_on: M428 and M429 through abbe's remap (the correction held off across each
+     switch), the M429 where run 3 switched, a move after each.
 
 The checks use an INDEPENDENT forward kinematics of the true machine, written here
 from the ISO 230-1 notation of docs/concepts.md ("Five-axis machines") and
-trtfuncs.c's geometry (not abbe's model code): the joints LinuxCNC commands
+trtfuncs.c's geometry (not abbe's model code; LinuxCNC commit f1270d6ed7, the Debian
+2.9.0~pre1 package's source: xyzacKinematicsForward lines 147-191, xyzbcKinematicsForward
+lines 251-295, whose world point is w = r + Rz(c)^T (R_tilt(t)^T (q - r - o) + o) with
+o = (0, y-offset, z-offset) for A, (x-offset, 0, z-offset) for B, lines 268-284; the
+inverse, lines 297-349, is export_readers.trt_joints): the joints LinuxCNC commands
 (joint.N.motor-pos-cmd, the rotary motors turning the table by motor + E0) give
 the true tool tip in workpiece coordinates, compared with the programmed point
 (TCP: axis.L.pos-cmd; identity: trtfuncs.c's forward kinematics of the programmed
@@ -36,11 +49,16 @@ joints with the exported pins). The joints follow axis.L.pos-cmd by two periods
     nominal machine without abbe (computed from the same path);
   - the frame: the joints move by the component's joint-frame correction, in TCP
     through workpiece-frame offsets (abbe.frame 1), in identity directly (frame 0);
-  - the switch from trt to identity kinematics (M429 at A -20, C 45 with the
+  - the switch from trt to identity kinematics (M429 at A (B) -20, C 45 with the
     correction on) is measured: LinuxCNC 2.9.0~pre1 recomputes the world position
     from the joints WITH the offset in them, so the joints step by the offset in
     force (docs/linuxcnc.md: switch with the compensation off); checked to be no
-    more than that plus the rate limit.
+    more than that plus the rate limit;
+  - switch_on: at abbe's M429 the external offsets are 0.0, and from the last move
+    before to the first after it the joints stay within FRAME_UM of trtfuncs.c's
+    inverse of the point plus the component's correction (switch_metrics; run 3's
+    switch measured the same way for comparison); on the moves after the switches
+    the tool tip is within BOUND_UM again.
 
 Every wait is bounded; LinuxCNC is stopped by the pid of its display.
 """
@@ -52,6 +70,7 @@ import json
 import shutil
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -59,44 +78,112 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 CONFIG = HERE.parent / "config"
 
-# ---- the virtual machine ----------------------------------------------------------
-NOMINAL = {"x-rot-point": 0.0, "y-rot-point": 0.0, "z-rot-point": 0.0,
-           "y-offset": 20.0, "z-offset": 10.0}
-#: location errors, um / urad (ISO 230-1)
-LOCATION = {"EX0C": 40.0, "EY0C": -30.0, "EY0A": 25.0, "EZ0A": -35.0, "EA0A": 300.0,
-            "EC0C": -400.0,
-            "EB0A": 400.0, "EC0A": -300.0, "EA0C": 250.0, "EB0C": -200.0}
-#: error motions (axis, component) -> [sin 1t, cos 1t, sin 2t, cos 2t], um / urad
-MOTIONS = {("A", "Y"): [0.0, 0.0, 2.0, 0.0], ("A", "Z"): [0.0, 0.0, 0.0, -1.5],
-           ("A", "A"): [8.0, 0.0, 0.0, 0.0], ("A", "B"): [0.0, 0.0, 5.0, 0.0],
-           ("C", "X"): [0.0, 0.0, 3.0, -2.0], ("C", "Y"): [0.0, 0.0, 0.0, 2.5],
-           ("C", "Z"): [2.0, 0.0, 0.0, 0.0], ("C", "C"): [15.0, -10.0, 0.0, 0.0],
-           ("C", "A"): [0.0, 0.0, 6.0, 0.0]}
-#: squareness of the linear axes (Eq. 3's S_xy, S_xz, S_yz), urad
-SQUARENESS = (80.0, -60.0, 50.0)
+# ---- the virtual machines -----------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Case:
+    """One trt kind: its sample config's nominal geometry and the virtual machine's errors."""
+
+    kind: str                    # xyzac-trt / xyzbc-trt (LinuxCNC's <kind>-kins, <kind>.ini)
+    tilt: str                    # the tilt axis: A (about X) or B (about Y); joint 3
+    nominal: dict[str, float]    # the sample config's trt pins, mm
+    location: dict[str, float]   # location errors, um / urad (ISO 230-1)
+    #: error motions (axis, component) -> [sin 1t, cos 1t, sin 2t, cos 2t], um / urad
+    motions: dict[tuple[str, str], list[float]]
+    squareness: tuple[float, float, float]  # Eq. 3's S_xy, S_xz, S_yz, urad
+
+
+CASES = {
+    "xyzac-trt": Case(
+        "xyzac-trt", "A",
+        {"x-rot-point": 0.0, "y-rot-point": 0.0, "z-rot-point": 0.0,
+         "y-offset": 20.0, "z-offset": 10.0},
+        {"EX0C": 40.0, "EY0C": -30.0, "EY0A": 25.0, "EZ0A": -35.0, "EA0A": 300.0,
+         "EC0C": -400.0,
+         "EB0A": 400.0, "EC0A": -300.0, "EA0C": 250.0, "EB0C": -200.0},
+        {("A", "Y"): [0.0, 0.0, 2.0, 0.0], ("A", "Z"): [0.0, 0.0, 0.0, -1.5],
+         ("A", "A"): [8.0, 0.0, 0.0, 0.0], ("A", "B"): [0.0, 0.0, 5.0, 0.0],
+         ("C", "X"): [0.0, 0.0, 3.0, -2.0], ("C", "Y"): [0.0, 0.0, 0.0, 2.5],
+         ("C", "Z"): [2.0, 0.0, 0.0, 0.0], ("C", "C"): [15.0, -10.0, 0.0, 0.0],
+         ("C", "A"): [0.0, 0.0, 6.0, 0.0]},
+        (80.0, -60.0, 50.0)),
+    # B/C: B's line through r + (x-offset, 0, z-offset) along Y; trt holds its X, Z
+    # position (EX0B, EZ0B) and zero (EB0B), not its tilts about X and Z (EA0B, EC0B).
+    # B's radial error motions are X and Z (from the 2nd harmonic), Y is axial.
+    "xyzbc-trt": Case(
+        "xyzbc-trt", "B",
+        {"x-rot-point": 0.0, "y-rot-point": 0.0, "z-rot-point": 0.0,
+         "x-offset": -20.0, "z-offset": -15.0},
+        {"EX0C": -35.0, "EY0C": 30.0, "EX0B": 30.0, "EZ0B": 40.0, "EB0B": -350.0,
+         "EC0C": 300.0,
+         "EA0B": -350.0, "EC0B": 250.0, "EA0C": -300.0, "EB0C": 200.0},
+        {("B", "X"): [0.0, 0.0, -2.5, 0.0], ("B", "Z"): [0.0, 0.0, 0.0, 2.0],
+         ("B", "Y"): [1.5, 0.0, 0.0, 0.0], ("B", "B"): [-9.0, 4.0, 0.0, 0.0],
+         ("B", "C"): [0.0, 0.0, 5.0, 0.0], ("B", "A"): [0.0, 0.0, 0.0, -4.0],
+         ("C", "X"): [0.0, 0.0, -2.0, 3.0], ("C", "Y"): [0.0, 0.0, 2.5, 0.0],
+         ("C", "Z"): [0.0, -2.0, 0.0, 0.0], ("C", "C"): [-12.0, 8.0, 0.0, 0.0],
+         ("C", "B"): [0.0, 0.0, -6.0, 0.0]},
+        (-70.0, 55.0, 40.0)),
+}
+#: the ISO 230-1 names of each rotary axis' location errors: the two positions across the
+#: axis and the two tilts (in the order of the other machine axes), then the zero
+LOCATION_NAMES = {"A": ("EY0A", "EZ0A", "EB0A", "EC0A", "EA0A"),
+                  "B": ("EX0B", "EZ0B", "EA0B", "EC0B", "EB0B"),
+                  "C": ("EX0C", "EY0C", "EA0C", "EB0C", "EC0C")}
+#: the machine axis each rotary axis turns about (0 X, 1 Y, 2 Z)
+AXIS_OF = {"A": 0, "B": 1, "C": 2}
+
+
+def tilt_offset(kind: str, pins: dict) -> np.ndarray:
+    """o, the tilt axis' point relative to the C centre (mm): trtfuncs.c's (0, y-offset,
+    z-offset) for xyzac, (x-offset, 0, z-offset) for xyzbc."""
+    if kind == "xyzac-trt":
+        return np.array([0.0, pins["y-offset"], pins["z-offset"]])
+    return np.array([pins["x-offset"], 0.0, pins["z-offset"]])
+
+
+def rot_point(pins: dict) -> np.ndarray:
+    return np.array([pins["x-rot-point"], pins["y-rot-point"], pins["z-rot-point"]])
+
 
 # ---- the programs -------------------------------------------------------------------
+#: the programs, {T} the tilt axis' letter (A or B: the same angles, both within the
+#: sample configs' joint 3 limits -100..50 deg)
 TCP_PROGRAM = """(abbe five_sim: tool-centre-point kinematics, the tool on one workpiece point)
 G21 G90 G94 G40 G49
 M428
-G0 X40 Y-25 Z20 A0 C0
-G1 A-30 F1200
+G0 X40 Y-25 Z20 {T}0 C0
+G1 {T}-30 F1200
 G1 C90
-G1 A15 C150
-G1 A-40 C60
+G1 {T}15 C150
+G1 {T}-40 C60
 G1 X10 Y15 Z35 F900
-G1 X40 Y-25 Z20 A-20 C45 F1200
+G1 X40 Y-25 Z20 {T}-20 C45 F1200
 M2
 """
-JOINT_PROGRAM = """(abbe five_sim: identity kinematics, joint moves with A and C)
+#: the switch to identity here is the sample config's own 429remap.ngc, called directly:
+#: without abbe's hold (the INI remaps M428 / M429 to abbe's subroutines)
+JOINT_PROGRAM = """(abbe five_sim: identity kinematics, joint moves with the tilt and C)
 G21 G90 G94 G40 G49
-M429
-G0 X30 Y-20 Z10 A0 C0
-G1 A-35 C100 F1200
-G1 X60 Y10 Z-15 A10 C200 F900
-G1 X0 Y5 Z0 A0 C0 F900
+o<429remap> call
+G0 X30 Y-20 Z10 {T}0 C0
+G1 {T}-35 C100 F1200
+G1 X60 Y10 Z-15 {T}10 C200 F900
+G1 X0 Y5 Z0 {T}0 C0 F900
 M2
 """
+#: M428 / M429 through abbe's remap (config/remap_subs/abbe_kins.ngc): the M429 at the
+#: point and angles where JOINT_PROGRAM switched without it
+SWITCH_PROGRAM = """(abbe five_sim: M428 / M429 with abbe's correction held off across the switch)
+G21 G90 G94 G40 G49
+M428
+G1 X40 Y-25 Z20 {T}-20 C45 F1200
+M429
+G1 X30 Y-20 Z10 {T}0 C0 F1200
+M2
+"""
+PROGRAMS = {"tcp.ngc": TCP_PROGRAM, "joints.ngc": JOINT_PROGRAM, "switch.ngc": SWITCH_PROGRAM}
 #: the tool tip within this of the programmed point with abbe, on the path, um. What is
 #: left: LinuxCNC's offset planner following a correction that turns with the table
 #: (the lead extrapolates two periods), the first-order model (0.01 um here), the
@@ -119,26 +206,37 @@ RATE_MM_PER_S = 1.0
 FADE_S = 0.5
 ENABLE = 0
 """
+#: the sample's M428 / M429 remaps replaced by abbe's (docs/linuxcnc.md, "Switching
+#: kinematics"), abbe-five-hold.hal after abbe-five.hal
+REMAPS = {"ngc=428remap": "ngc=abbe_428", "ngc=429remap": "ngc=abbe_429"}
 
-# Recorded every servo period by two samplers (a HAL stream has at most 20 pins),
-# paired by abbe.cycles (sim_drive's recorder).
-RECORD = [
-    [("abbe.cycles", "u"),
-     ("axis.x.pos-cmd", "f"), ("axis.y.pos-cmd", "f"), ("axis.z.pos-cmd", "f"),
-     ("axis.a.pos-cmd", "f"), ("axis.c.pos-cmd", "f"),
-     ("joint.0.motor-pos-cmd", "f"), ("joint.1.motor-pos-cmd", "f"), ("joint.2.motor-pos-cmd", "f"),
-     ("joint.3.motor-pos-cmd", "f"), ("joint.4.motor-pos-cmd", "f"),
-     ("axis.x.eoffset", "f"), ("axis.y.eoffset", "f"), ("axis.z.eoffset", "f"),
-     ("motion.program-line", "s"), ("motion.switchkins-type", "f"),
-     ("motion.eoffset-limited", "b")],
-    [("abbe.cycles", "u"),
-     ("abbe.x.corr-mm", "f"), ("abbe.y.corr-mm", "f"), ("abbe.z.corr-mm", "f"),
-     ("abbe.x.offset-mm", "f"), ("abbe.y.offset-mm", "f"), ("abbe.z.offset-mm", "f"),
-     ("abbe.orient-x-urad", "f"), ("abbe.orient-y-urad", "f"), ("abbe.orient-z-urad", "f"),
-     ("abbe.state", "s"), ("abbe.frame", "s"), ("abbe.flags", "u"),
-     ("abbe.x.counts", "s"), ("abbe.y.counts", "s"), ("abbe.z.counts", "s")],
-]
-RUNS = (("tcp_off", "tcp.ngc"), ("tcp_on", "tcp.ngc"), ("joints_on", "joints.ngc"))
+
+
+def record(tilt: str) -> list[list[tuple[str, str]]]:
+    """The pins recorded every servo period by two samplers (a HAL stream has at most 20
+    pins), paired by abbe.cycles (sim_drive's recorder)."""
+    t = tilt.lower()
+    return [
+        [("abbe.cycles", "u"),
+         ("axis.x.pos-cmd", "f"), ("axis.y.pos-cmd", "f"), ("axis.z.pos-cmd", "f"),
+         (f"axis.{t}.pos-cmd", "f"), ("axis.c.pos-cmd", "f"),
+         ("joint.0.motor-pos-cmd", "f"), ("joint.1.motor-pos-cmd", "f"), ("joint.2.motor-pos-cmd", "f"),
+         ("joint.3.motor-pos-cmd", "f"), ("joint.4.motor-pos-cmd", "f"),
+         ("axis.x.eoffset", "f"), ("axis.y.eoffset", "f"), ("axis.z.eoffset", "f"),
+         ("motion.program-line", "s"), ("motion.switchkins-type", "f"),
+         ("motion.eoffset-limited", "b")],
+        [("abbe.cycles", "u"),
+         ("abbe.x.corr-mm", "f"), ("abbe.y.corr-mm", "f"), ("abbe.z.corr-mm", "f"),
+         ("abbe.x.offset-mm", "f"), ("abbe.y.offset-mm", "f"), ("abbe.z.offset-mm", "f"),
+         ("abbe.orient-x-urad", "f"), ("abbe.orient-y-urad", "f"), ("abbe.orient-z-urad", "f"),
+         ("abbe.state", "s"), ("abbe.frame", "s"), ("abbe.flags", "u"),
+         ("abbe.x.counts", "s"), ("abbe.y.counts", "s"), ("abbe.z.counts", "s"),
+         ("abbe.enable", "b"), ("motion.digital-out-00", "b")],
+    ]
+
+
+RUNS = (("tcp_off", "tcp.ngc"), ("tcp_on", "tcp.ngc"), ("joints_on", "joints.ngc"),
+        ("switch_on", "switch.ngc"))
 
 
 # ---- the independent forward kinematics of the true machine ------------------------------
@@ -158,36 +256,36 @@ def _small(v: np.ndarray) -> np.ndarray:
     return _rot(0, v[:, 0]) @ _rot(1, v[:, 1]) @ _rot(2, v[:, 2])
 
 
-def _motion(axis: str, t_deg: np.ndarray) -> np.ndarray:
+def _motion(case: Case, axis: str, t_deg: np.ndarray) -> np.ndarray:
     """(N, 6) error motions X, Y, Z um, A, B, C urad: Fourier series, period one turn."""
     t = np.radians(t_deg)
     out = np.zeros((len(t), 6))
     for j, comp in enumerate("XYZABC"):
-        c = MOTIONS.get((axis, comp))
+        c = case.motions.get((axis, comp))
         if c:
             for h in range(len(c) // 2):
                 out[:, j] += c[2 * h] * np.sin((h + 1) * t) + c[2 * h + 1] * np.cos((h + 1) * t)
     return out
 
 
-def _axis(axis: str, t_deg: np.ndarray):
+def _axis(case: Case, axis: str, t_deg: np.ndarray):
     """(R (N,3,3), p (N,3)) of x -> R x + p, the carried frame of rotary `axis` at joint angle
     t into its carrier: the line moved rigidly about its nominal pivot P by its location
     errors, D = Tr(delta) Rot(phi), the error motion E(t) = Tr(m) Rot(r) at the pivot, the
-    turn by t + E0: Tr(P) D E(t) Rot(t + E0) D^-1 Tr(-P)."""
-    i = "XYZ".index({"A": "X", "C": "Z"}[axis])
+    turn by t + E0: Tr(P) D E(t) Rot(t + E0) D^-1 Tr(-P). P: the C centre r for C, r + o
+    for the tilt axis (tilt_offset)."""
+    i = AXIS_OF[axis]
     others = [k for k in range(3) if k != i]
-    names = {"C": ("EX0C", "EY0C", "EA0C", "EB0C", "EC0C"),
-             "A": ("EY0A", "EZ0A", "EB0A", "EC0A", "EA0A")}[axis]
+    names = LOCATION_NAMES[axis]
+    loc = case.location
     delta, phi = np.zeros(3), np.zeros(3)
-    delta[others] = [LOCATION.get(n, 0.0) * 1e-3 for n in names[:2]]
-    phi[others] = [LOCATION.get(n, 0.0) * 1e-6 for n in names[2:4]]
-    zero = LOCATION.get(names[4], 0.0) * 1e-6
-    P = (np.array([NOMINAL["x-rot-point"], NOMINAL["y-rot-point"], NOMINAL["z-rot-point"]])
-         + (np.array([0.0, NOMINAL["y-offset"], NOMINAL["z-offset"]]) if axis == "A" else 0.0))
+    delta[others] = [loc.get(n, 0.0) * 1e-3 for n in names[:2]]
+    phi[others] = [loc.get(n, 0.0) * 1e-6 for n in names[2:4]]
+    zero = loc.get(names[4], 0.0) * 1e-6
+    P = rot_point(case.nominal) + (tilt_offset(case.kind, case.nominal) if axis != "C" else 0.0)
     n = len(t_deg)
     Rphi = _small(phi[None, :])[0]
-    m = _motion(axis, t_deg)
+    m = _motion(case, axis, t_deg)
     Rm = _small(m[:, 3:] * 1e-6)
     Rt = _rot(i, np.radians(t_deg) + zero)
     R = Rphi @ Rm @ Rt @ Rphi.T                     # the rotation part of D E Rot D^-1
@@ -198,35 +296,45 @@ def _axis(axis: str, t_deg: np.ndarray):
     return R, p
 
 
-def true_tool_in_workpiece(motor: np.ndarray, e0_deg: np.ndarray) -> np.ndarray:
+def true_tool_in_workpiece(case: Case, motor: np.ndarray) -> np.ndarray:
     """The true tool tip (N, 3) in workpiece coordinates for joint motor positions (N, 5):
     linear motors carry the tool with the squareness of Eq. 3 (dX = y S_xy - z S_xz,
-    dY = -z S_yz, levers from the rotation point); the rotary motors turn the table by
-    motor + E0 (motor = the old joint angle, HOME_OFFSET 0)."""
+    dY = -z S_yz, levers from the rotation point); the rotary motors (joint 3 the tilt,
+    4 C) turn the table by motor + E0 (motor = the old joint angle, HOME_OFFSET 0; E0 is
+    in case.location: _axis turns by t + E0)."""
     q = motor[:, :3]
-    sxy, sxz, syz = (s * 1e-6 for s in SQUARENESS)
-    lev = q - np.array([NOMINAL["x-rot-point"], NOMINAL["y-rot-point"], NOMINAL["z-rot-point"]])
+    sxy, sxz, syz = (s * 1e-6 for s in case.squareness)
+    lev = q - rot_point(case.nominal)
     tool = q + np.column_stack([lev[:, 1] * sxy - lev[:, 2] * sxz, -lev[:, 2] * syz,
                                 np.zeros(len(q))])
-    del e0_deg  # E0 is in LOCATION: _axis turns by t + E0
-    Ra, pa = _axis("A", motor[:, 3])
-    Rc, pc = _axis("C", motor[:, 4])
-    R = Ra @ Rc                                       # workpiece -> machine
-    p = np.einsum("nij,nj->ni", Ra, pc) + pa
+    Rt, pt = _axis(case, case.tilt, motor[:, 3])
+    Rc, pc = _axis(case, "C", motor[:, 4])
+    R = Rt @ Rc                                       # workpiece -> machine
+    p = np.einsum("nij,nj->ni", Rt, pc) + pt
     return np.einsum("nji,nj->ni", R, tool - p)       # R^T (tool - p)
 
 
-def trt_forward(pins: dict, joints: np.ndarray, angles_deg: np.ndarray) -> np.ndarray:
-    """trtfuncs.c's forward kinematics (xyzac, tool-offset 0): the workpiece point under the
-    tool at joints q, w = r + Rz(c)^T (Rx(a)^T (q - r - o) + o)."""
-    r = np.array([pins["x-rot-point"], pins["y-rot-point"], pins["z-rot-point"]])
-    o = np.array([0.0, pins["y-offset"], pins["z-offset"]])
-    a, c = np.radians(angles_deg[:, 0]), np.radians(angles_deg[:, 1])
-    u = np.einsum("nji,nj->ni", _rot(0, a), joints - r - o) + o
+def trt_forward(case: Case, pins: dict, joints: np.ndarray, angles_deg: np.ndarray) -> np.ndarray:
+    """trtfuncs.c's forward kinematics (tool-offset 0; xyzacKinematicsForward,
+    xyzbcKinematicsForward): the workpiece point under the tool at joints q,
+    w = r + Rz(c)^T (R_tilt(t)^T (q - r - o) + o), R_tilt = Rx (A) or Ry (B)."""
+    r, o = rot_point(pins), tilt_offset(case.kind, pins)
+    t, c = np.radians(angles_deg[:, 0]), np.radians(angles_deg[:, 1])
+    u = np.einsum("nji,nj->ni", _rot(AXIS_OF[case.tilt], t), joints - r - o) + o
     return np.einsum("nji,nj->ni", _rot(2, c), u) + r
 
 
 # ---- as the LinuxCNC user -------------------------------------------------------------------
+
+def kind_of(ini: Path) -> str:
+    """The trt kind the INI's [KINS] KINEMATICS loads (xyzac-trt-kins / xyzbc-trt-kins)."""
+    for line in ini.read_text().splitlines():
+        key, _, value = line.partition("=")
+        words = value.split()
+        if key.strip() == "KINEMATICS" and words and words[0].removesuffix("-kins") in CASES:
+            return words[0].removesuffix("-kins")
+    raise ValueError(f"{ini}: KINEMATICS is none of {', '.join(k + '-kins' for k in CASES)}")
+
 
 def drive(ini: Path, out: Path) -> None:
     """Start, home, the three runs recorded; write drive.json."""
@@ -234,7 +342,7 @@ def drive(ini: Path, out: Path) -> None:
     import linuxcnc as lc
     import sim_drive as sd
 
-    sd.RECORD = RECORD
+    sd.RECORD = record(CASES[kind_of(ini)].tilt)
     sd.bounded(200)
     proc, lc_log = sd.launch(ini, out)
     res: dict = {"ok": False, "runs": {}}
@@ -249,7 +357,7 @@ def drive(ini: Path, out: Path) -> None:
         sd.wait_for(lambda: (s.poll() or True) and all(s.homed[:5]), 60, "homing all joints")
         for name, prog in RUNS:
             if name == "tcp_on":
-                sd.halcmd("setp", "abbe.enable", "1")
+                sd.halcmd("setp", "abbe-hold.in0", "1")  # abbe.enable AND NOT the hold
                 sd.wait_for(lambda: sd.getp("abbe.state") == 1
                             and int(sd.getp("abbe.flags")) & 0x0100 == 0, 10, "abbe faded in")
             rec = sd.Recorder(out, name)
@@ -265,10 +373,10 @@ def drive(ini: Path, out: Path) -> None:
 
 # ---- as root: set up, run, check ----------------------------------------------------------
 
-def load(work: Path, name: str) -> dict:
+def load(work: Path, name: str, tilt: str) -> dict:
     from lcnc_common import check, read_samples
     parts = []
-    for n, pins in enumerate(RECORD):
+    for n, pins in enumerate(record(tilt)):
         d = read_samples(work / f"{name}.{n}.txt", len(pins))
         parts.append({pin: d[:, 1 + i] for i, (pin, _) in enumerate(pins)})
     check(len(parts[0]["abbe.cycles"]) == len(parts[1]["abbe.cycles"])
@@ -277,12 +385,14 @@ def load(work: Path, name: str) -> dict:
     check(np.all(np.diff(parts[0]["abbe.cycles"]) == 1), f"{name}: periods missing")
     r = parts[0] | parts[1]
     col = lambda fmt, ax: np.column_stack([r[fmt.format(a)] for a in ax])  # noqa: E731
-    return {"world": col("axis.{}.pos-cmd", "xyz"), "world_ang": col("axis.{}.pos-cmd", "ac"),
+    return {"world": col("axis.{}.pos-cmd", "xyz"),
+            "world_ang": col("axis.{}.pos-cmd", tilt.lower() + "c"),
             "motor": col("joint.{}.motor-pos-cmd", "01234"), "eoffset": col("axis.{}.eoffset", "xyz"),
             "line": r["motion.program-line"], "kinstype": r["motion.switchkins-type"],
             "limited": r["motion.eoffset-limited"], "corr": col("abbe.{}.corr-mm", "xyz"),
             "orient": col("abbe.orient-{}-urad", "xyz"), "state": r["abbe.state"],
-            "frame": r["abbe.frame"], "counts": col("abbe.{}.counts", "xyz")}
+            "frame": r["abbe.frame"], "counts": col("abbe.{}.counts", "xyz"),
+            "enable": r["abbe.enable"], "hold": r["motion.digital-out-00"]}
 
 
 def stats(d_mm: np.ndarray) -> dict:
@@ -295,15 +405,45 @@ def path_lines(program: str) -> list[int]:
     return [i + 1 for i, ln in enumerate(program.splitlines()) if ln.startswith("G1")]
 
 
-def analyse(work: Path, pins: dict, home: dict) -> dict:
+def switch_metrics(r: dict, case: Case, pins: dict) -> dict:
+    """The joints around a run's switch from trt to identity (M429), the machine standing:
+    from the last programmed motion before it to the first rotary motion after it, the
+    joints should stay at trtfuncs.c's inverse of the point where the machine stopped plus
+    the component's joint-frame correction (two periods late). joint_error: what the
+    switch did to them beyond that, um; joint_step: their largest change in one period,
+    um; held_s: how long abbe's hold (motion.digital-out-00) was on."""
     from export_readers import trt_joints
     from lcnc_common import check
-    e0 = np.array([LOCATION["EA0A"], LOCATION["EC0C"]]) * 1e-6 * 180.0 / np.pi
+    k = r["kinstype"]
+    sw = np.flatnonzero((k[:-1] == 1.0) & (k[1:] == 0.0))
+    check(sw.size == 1, f"{sw.size} switches from trt to identity recorded, expected 1")
+    sw = int(sw[0]) + 1                               # the first period in identity
+    d, da = np.abs(np.diff(r["world"], axis=0)), np.abs(np.diff(r["world_ang"], axis=0))
+    moving = np.flatnonzero(np.any(d > 1e-9, axis=1) | np.any(da > 1e-9, axis=1))
+    start = int(moving[moving < sw - 1][-1]) + 1 if np.any(moving < sw - 1) else 0
+    turning = np.flatnonzero(np.any(da > 1e-9, axis=1))
+    check(np.any(turning >= sw), "no rotary motion after the switch")
+    end = int(turning[turning >= sw][0])              # the last period before it
+    lag = 2
+    ideal = trt_joints(case.kind, pins, r["world"][start:start + 1], r["world_ang"][start:start + 1])[0]
+    j = np.arange(start + lag, end + lag + 1)
+    err = r["motor"][j, :3] - ideal - r["corr"][j - lag]
+    step = np.abs(np.diff(r["motor"][start + lag:end + lag + 1, :3], axis=0))
+    return {"periods": int(len(j)), "standing_before_switch": int(sw - start),
+            "offset_at_switch_um": round(float(np.linalg.norm(r["eoffset"][sw - 1])) * 1e3, 4),
+            "joint_error_max_um": round(float(np.linalg.norm(err, axis=1).max()) * 1e3, 4),
+            "joint_step_max_um": round(float(step.max(initial=0.0)) * 1e3, 4),
+            "held_s": round(float(np.sum(r["hold"][start:end + 1])) * 1e-3, 3)}
+
+
+def analyse(work: Path, pins: dict, home: dict, case: Case) -> dict:
+    from export_readers import trt_joints
+    from lcnc_common import check
     hoff = np.array([home[3], home[4]])
-    report: dict = {}
-    for name, prog in RUNS:
-        r = load(work, name)
-        text = TCP_PROGRAM if prog == "tcp.ngc" else JOINT_PROGRAM
+    report: dict = {"kind": case.kind}
+    for name, prog in RUNS[:3]:
+        r = load(work, name, case.tilt)
+        text = PROGRAMS[prog].format(T=case.tilt)
         tcp = prog == "tcp.ngc"
         lag = 2  # joints follow axis.L.pos-cmd by two servo periods
         world, wang = r["world"][:-lag], r["world_ang"][:-lag]
@@ -318,10 +458,10 @@ def analyse(work: Path, pins: dict, home: dict) -> dict:
         check(float(np.max(np.abs(d_rot[on_path]))) < ROT_TOL_DEG,
               f"{name}: rotary motors differ from the programmed angles by {np.max(np.abs(d_rot))}")
         ang = wang  # the joint angles (true angles: HOME_OFFSET holds E0)
-        intended = world if tcp else trt_forward(pins, world, ang)
-        got = true_tool_in_workpiece(motor, e0)
+        intended = world if tcp else trt_forward(case, pins, world, ang)
+        got = true_tool_in_workpiece(case, motor)
         dev = (got - intended)[on_path]
-        ideal = trt_joints("xyzac-trt", pins, intended, ang) if tcp else world
+        ideal = trt_joints(case.kind, pins, intended, ang) if tcp else world
         moved = (motor[:, :3] - ideal)                 # what the offsets did to the joints
         res = {"periods_on_path": int(on_path.sum()), "deviation": stats(dev),
                "orientation_urad_max": round(float(np.max(np.abs(r["orient"][lag:][on_path]))), 3)}
@@ -333,9 +473,9 @@ def analyse(work: Path, pins: dict, home: dict) -> dict:
             check(res["joints_vs_trt_inverse"]["max_um"] < 2.0,
                   f"tcp_off: joints are not trtfuncs.c's inverse: {res['joints_vs_trt_inverse']}")
             # the same path on the nominal machine, no abbe, no exported pins or HOME_OFFSET
-            q_nom = trt_joints("xyzac-trt", NOMINAL, intended, ang)
+            q_nom = trt_joints(case.kind, case.nominal, intended, ang)
             nominal_motor = np.column_stack([q_nom, ang])
-            res["nominal_no_abbe"] = stats((true_tool_in_workpiece(nominal_motor, e0)
+            res["nominal_no_abbe"] = stats((true_tool_in_workpiece(case, nominal_motor)
                                             - intended)[on_path])
         else:
             check(np.all(r["frame"][lag:][on_path] == (1 if tcp else 0)),
@@ -348,19 +488,19 @@ def analyse(work: Path, pins: dict, home: dict) -> dict:
             # the same joints without the offsets (trt alone), and with the joint-frame
             # correction written as world offsets unturned (the frame taken wrong)
             base = np.column_stack([ideal, motor[:, 3:]])
-            res["without_offsets"] = stats((true_tool_in_workpiece(base, e0) - intended)[on_path])
-            a, c = np.radians(ang[:, 0]), np.radians(ang[:, 1])
-            turn = _rot(0, a) @ _rot(2, c)
+            res["without_offsets"] = stats((true_tool_in_workpiece(case, base) - intended)[on_path])
+            t, c = np.radians(ang[:, 0]), np.radians(ang[:, 1])
+            turn = _rot(AXIS_OF[case.tilt], t) @ _rot(2, c)
             wrong = np.einsum("nij,nj->ni", turn, corr) if tcp else \
                 np.einsum("nji,nj->ni", turn, corr)
             res["deviation_if_frame_wrong"] = stats((true_tool_in_workpiece(
-                np.column_stack([ideal + wrong, motor[:, 3:]]), e0) - intended)[on_path])
+                case, np.column_stack([ideal + wrong, motor[:, 3:]])) - intended)[on_path])
             check(res["joints_minus_correction"]["max_um"] < FRAME_UM,
                   f"{name}: the joints do not carry the correction: {res['joints_minus_correction']}")
             check(res["deviation"]["max_um"] < BOUND_UM,
                   f"{name}: tool tip {res['deviation']} from the programmed point (bound {BOUND_UM} um)")
         if name == "joints_on":
-            # M429 with the correction on, at A -20 C 45: LinuxCNC takes the joints (offset
+            # M429 with the correction on, at A (B) -20 C 45: LinuxCNC takes the joints (offset
             # included) as the new world position and adds the offset again; the offsets
             # then move to the identity frame at the rate limit (1 um per period)
             k = r["kinstype"]
@@ -380,7 +520,32 @@ def analyse(work: Path, pins: dict, home: dict) -> dict:
             check(jump <= float(np.max(np.abs(r["eoffset"][sw - 1]))) * 1e3 + (end - sw) * 1.0 + 0.01,
                   f"joints_on: the kinematics switch moved the joints more than the offset: "
                   f"{res['switch']}")
+            # the same switch measured as switch_on's, for the comparison
+            res["switch_without_hold"] = switch_metrics(r, case, pins)
         report[name] = res
+    # switch_on: M428 / M429 through abbe's remap (abbe_kins.ngc): at the M429 the
+    # offsets are zero, the joints stay where the correction puts them, and the
+    # correction is whole again on the moves after each switch
+    r = load(work, "switch_on", case.tilt)
+    sm = switch_metrics(r, case, pins)
+    lag = 2
+    world, wang, motor = r["world"][:-lag], r["world_ang"][:-lag], r["motor"][lag:]
+    kin = r["kinstype"][lag:]
+    on_path = np.isin(r["line"][lag:], path_lines(SWITCH_PROGRAM.format(T=case.tilt)))
+    check(on_path.sum() > 500, f"switch_on: only {on_path.sum()} periods on the path")
+    intended = np.where((kin == 1.0)[:, None], world, trt_forward(case, pins, world, wang))
+    sm["deviation_on_moves_after_switches"] = stats(
+        (true_tool_in_workpiece(case, motor) - intended)[on_path])
+    sm["held_total_s"] = round(float(np.sum(r["hold"])) * 1e-3, 3)
+    report["switch_on"] = sm
+    check(r["hold"][-1] == 0 and r["enable"][-1] == 1 and r["state"][-1] == 1
+          and r["frame"][-1] == 0, "switch_on: abbe not on again in identity after the remap")
+    check(sm["held_s"] > 0.0 and sm["offset_at_switch_um"] < 0.01,
+          f"switch_on: the hold did not bring the offsets to zero before the switch: {sm}")
+    check(sm["joint_error_max_um"] < FRAME_UM,
+          f"switch_on: the switch moved the joints beyond the correction: {sm}")
+    check(sm["deviation_on_moves_after_switches"]["max_um"] < BOUND_UM,
+          f"switch_on: tool tip {sm['deviation_on_moves_after_switches']} after the switches")
     off, on = report["tcp_off"]["deviation"], report["tcp_on"]["deviation"]
     check(on["max_um"] * 10 < off["max_um"], f"abbe does not take off 90 %: {on} vs {off}")
     # in TCP the offsets are NOT the joint-frame correction (the table turned them)
@@ -393,6 +558,8 @@ def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--drive", nargs=2, type=Path, metavar=("INI", "OUT"))
     ap.add_argument("--json", type=Path)
+    ap.add_argument("--kind", choices=sorted(CASES), default="xyzac-trt",
+                    help="the trt kind and its sample config (default xyzac-trt)")
     ap.add_argument("--analyse", type=Path, metavar="WORK",
                     help="check a kept work directory again (ABBE_LCNC_KEEP=1), no LinuxCNC")
     args = ap.parse_args()
@@ -406,19 +573,21 @@ def main() -> int:
     from export_readers import read_linuxcnc_trt
     from lcnc_common import TestFailure, cleanup, work_dir
     if args.analyse:
-        _comp, pins, home = read_linuxcnc_trt(args.analyse / "trt")
-        print(json.dumps(analyse(args.analyse, pins, home), indent=2))
+        comp, pins, home = read_linuxcnc_trt(args.analyse / "trt")
+        print(json.dumps(analyse(args.analyse, pins, home, CASES[comp.removesuffix("-kins")]),
+                         indent=2))
         return 0
     from trt_sim_check import export_to_sample, run_drive  # the sample machine and config
 
     from abbe.model.five_axis import FiveAxisErrors
 
+    case = CASES[args.kind]
     work = work_dir("abbe-five-")
     try:
-        errs = FiveAxisErrors(location=dict(LOCATION),
-                              motions={k: np.array(v) for k, v in MOTIONS.items()},
-                              squareness=SQUARENESS)
-        pins, home, ini = export_to_sample(work, errs)
+        errs = FiveAxisErrors(location=dict(case.location),
+                              motions={k: np.array(v) for k, v in case.motions.items()},
+                              squareness=case.squareness)
+        pins, home, ini = export_to_sample(work, errs, case.kind)
         cfg = ini.parent
         text = ini.read_text()
         lines = []
@@ -428,26 +597,33 @@ def main() -> int:
                 lines.append("OFFSET_AV_RATIO = 0.2")  # the external offsets' share of vel/acc
             if ln.strip().startswith("HALFILE") and "basic_sim.tcl" in ln:
                 lines.append("HALFILE = abbe-five.hal")
+                lines.append("HALFILE = abbe-five-hold.hal")
+            if ln.strip().startswith("REMAP"):
+                for old, new in REMAPS.items():
+                    lines[-1] = lines[-1].replace(old, new)
         ini.write_text("\n".join(lines) + "\n" + INI_ABBE)
-        shutil.copy(CONFIG / "abbe-five.hal", cfg / "abbe-five.hal")
+        for hal in ("abbe-five.hal", "abbe-five-hold.hal"):
+            shutil.copy(CONFIG / hal, cfg / hal)
+        for sub in sorted((CONFIG / "remap_subs").glob("abbe_*.ngc")):
+            shutil.copy(sub, cfg / "remap_subs" / sub.name)
         shutil.copy(work / "trt" / "abbe-five.bin", cfg / "abbe-five.bin")
-        (work / "tcp.ngc").write_text(TCP_PROGRAM)
-        (work / "joints.ngc").write_text(JOINT_PROGRAM)
+        for prog, text in PROGRAMS.items():
+            (work / prog).write_text(text.format(T=case.tilt))
         drv = run_drive(work, Path(__file__), ini, "drive.json", 240)
         if drv is None:
-            print("five_sim: FAIL (LinuxCNC run)")
+            print(f"five_sim {case.kind}: FAIL (LinuxCNC run)")
             return 1
         try:
-            report = analyse(work, pins, home)
+            report = analyse(work, pins, home, case)
         except TestFailure as e:
-            print(f"five_sim: FAIL: {e}")
+            print(f"five_sim {case.kind}: FAIL: {e}")
             return 1
         report["runs"] = drv["runs"]
         report["seconds_total"] = round(time.monotonic() - t_start, 1)
         print(json.dumps(report, indent=2))
         if args.json:
             args.json.write_text(json.dumps(report, indent=2) + "\n")
-        print("five_sim: PASS")
+        print(f"five_sim {case.kind}: PASS")
         return 0
     finally:
         cleanup(work)

@@ -10,7 +10,10 @@
 #   6. abbe in five-axis mode in the same simulator: with the export's trt pins and
 #      abbe-five.bin, the true tool tip (an independent forward kinematics of a
 #      virtual machine) stays on the programmed point under M428 (tool-centre-point)
-#      and M429 (identity); disabled, no offset at all (five_sim.py, about 90 s)
+#      and M429 (identity); disabled, no offset at all; M428 / M429 through abbe's
+#      remap hold the correction off across the switch (five_sim.py, about 80 s)
+#   7. the same on the B/C sample config xyzbc-trt (five_sim.py --kind xyzbc-trt,
+#      about 80 s)
 # LinuxCNC's tools refuse to run as root: as root, this creates the
 # unprivileged user $ABBE_LCNC_USER (default abbe-lcnc) if needed and the tests
 # run halrun / linuxcnc as that user (runuser). Needs scripts/setup.sh first
@@ -51,8 +54,10 @@ builtin_test || failed=$((failed + 1))
 "$HERE/../build.sh" --install >/dev/null || failed=$((failed + 1))
 /usr/bin/python3 "$HERE/trt_sim_check.py" --json "$REPO/build-linuxcnc/trt.json" || failed=$((failed + 1))
 /usr/bin/python3 "$HERE/five_sim.py" --json "$REPO/build-linuxcnc/five.json" || failed=$((failed + 1))
+/usr/bin/python3 "$HERE/five_sim.py" --kind xyzbc-trt --json "$REPO/build-linuxcnc/five-bc.json" ||
+    failed=$((failed + 1))
 if ((failed)); then
-    echo "[lcnc] FAILED: $failed of 6 LinuxCNC tests"
+    echo "[lcnc] FAILED: $failed of 7 LinuxCNC tests"
     exit 1
 fi
-echo "[lcnc] OK: halrun, simulator, built-in table, trt-kins and five-axis tests passed"
+echo "[lcnc] OK: halrun, simulator, built-in table, trt-kins and five-axis (A/C, B/C) tests passed"

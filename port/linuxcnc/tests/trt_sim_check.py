@@ -59,10 +59,18 @@ travel_deg = [-360.0, 360.0]
 [indexer.C]
 file = "indexer_C.csv"
 """
+#: the B/C sample config (xyzbc-trt.ini): x-offset -20, z-offset -15 mm, B joint -100..50 deg
+MACHINE_BC = (MACHINE.replace("xyzac-trt", "xyzbc-trt")
+              .replace("y_offset_mm = 20.0\nz_offset_mm = 10.0", "x_offset_mm = -20.0\nz_offset_mm = -15.0")
+              .replace("[rotary.A]", "[rotary.B]"))
+MACHINES = {"xyzac-trt": MACHINE, "xyzbc-trt": MACHINE_BC}
 
 
-def headless_ini(text: str, pins: dict[str, float], home: dict[int, float]) -> str:
-    """The sample INI without GUI lines, linuxcncrsh as display, our values."""
+def headless_ini(text: str, pins: dict[str, float], home: dict[int, float],
+                 kind: str = "xyzac-trt") -> str:
+    """The sample INI of `kind` (xyzac-trt / xyzbc-trt) without GUI lines, linuxcncrsh as
+    display, our values."""
+    offsets = ("y-offset", "z-offset") if kind == "xyzac-trt" else ("x-offset", "z-offset")
     out, section = [], ""
     for line in text.splitlines():
         s = line.strip()
@@ -70,40 +78,42 @@ def headless_ini(text: str, pins: dict[str, float], home: dict[int, float]) -> s
             section = s
         key = s.split("=")[0].strip()
         if key in ("PYVCP", "POSTGUI_HALFILE", "OPEN_FILE", "TKPKG", "NGCGUI_FONT",
-                   "NGCGUI_SUBFILE", "INTRO_GRAPHIC", "INTRO_TIME") or "xyzac-trt-gui" in s:
+                   "NGCGUI_SUBFILE", "INTRO_GRAPHIC", "INTRO_TIME") or f"{kind}-gui" in s:
             continue
         if key == "DISPLAY" and section == "[DISPLAY]":
             line = "DISPLAY = linuxcncrsh"
         if key == "PROGRAM_PREFIX":
             line = "PROGRAM_PREFIX = ."
-        if key == "HALCMD" and "sets :y-offset" in s:
-            line = f"HALCMD = sets :y-offset {pins['y-offset']!r}"
-        elif key == "HALCMD" and "sets :z-offset" in s:
-            line = f"HALCMD = sets :z-offset {pins['z-offset']!r}"
+        sets = [o for o in offsets if key == "HALCMD" and f"sets :{o}" in s]
+        if sets:
+            line = f"HALCMD = sets :{sets[0]} {pins[sets[0]]!r}"
         elif key == "HALCMD" and "-rot-point" in s:
             pin = s.split()[3].split(".")[1]
-            line = f"HALCMD = setp xyzac-trt-kins.{pin} {pins[pin]!r}"
+            line = f"HALCMD = setp {kind}-kins.{pin} {pins[pin]!r}"
         out.append(line)
         if key == "HALCMD" and s.endswith(":tool-offset  motion.tooloffset.z"):
-            out.append("HALCMD = net :tool-offset  xyzac-trt-kins.tool-offset")
-            out.append("HALCMD = net :y-offset  xyzac-trt-kins.y-offset")
-            out.append("HALCMD = net :z-offset  xyzac-trt-kins.z-offset")
+            # the dropped GUI lines netted the kinematics' pins to these signals
+            out.append(f"HALCMD = net :tool-offset  {kind}-kins.tool-offset")
+            for o in offsets:
+                out.append(f"HALCMD = net :{o}  {kind}-kins.{o}")
         m = section.startswith("[JOINT_") and int(section[7:-1])
         if s == section and m in home:
             out.append(f"HOME_OFFSET = {home[m]!r}")
     return "\n".join(out) + "\n"
 
 
-def export_to_sample(work: Path, errors) -> tuple[dict[str, float], dict[int, float], Path]:
-    """The virtual machine (MACHINE with `errors`, a FiveAxisErrors) as work/model_five.bin,
-    `abbe export -f linuxcnc-trt` into work/trt, and a headless copy of the sample config
-    taking its values in work/config. Returns (pins, HOME_OFFSETs, the INI)."""
+def export_to_sample(work: Path, errors, kind: str = "xyzac-trt") -> tuple[dict[str, float],
+                                                                          dict[int, float], Path]:
+    """The virtual machine (MACHINES[kind] with `errors`, a FiveAxisErrors) as
+    work/model_five.bin, `abbe export -f linuxcnc-trt` into work/trt, and a headless copy
+    of the sample config (SAMPLE/<kind>.ini) taking its values in work/config. Returns
+    (pins, HOME_OFFSETs, the INI)."""
     from export_readers import read_linuxcnc_trt
     from lcnc_common import cli
 
     from abbe.formats.five_axis_blob import write_five_blob
     from abbe.formats.machine import load_machine
-    (work / "machine.toml").write_text(MACHINE)
+    (work / "machine.toml").write_text(MACHINES[kind])
     geom = load_machine(work / "machine.toml").five_axis.geometry
     (work / "model_five.bin").write_bytes(write_five_blob(geom, errors))
     cli("export", str(work / "model_five.bin"), "-f", "linuxcnc-trt", "-o", str(work / "trt"),
@@ -111,8 +121,8 @@ def export_to_sample(work: Path, errors) -> tuple[dict[str, float], dict[int, fl
     _comp, pins, home = read_linuxcnc_trt(work / "trt")
     cfg = work / "config"
     shutil.copytree(SAMPLE, cfg)
-    ini = cfg / "xyzac-trt.ini"
-    ini.write_text(headless_ini(ini.read_text(), pins, home))
+    ini = cfg / f"{kind}.ini"
+    ini.write_text(headless_ini(ini.read_text(), pins, home, kind))
     return pins, home, ini
 
 
