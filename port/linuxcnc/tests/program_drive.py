@@ -36,12 +36,12 @@ def record(c, s, program: Path, timeout: float) -> dict:
     c.auto(linuxcnc.AUTO_RUN, 0)
     started = False
     while True:
-        now = time.monotonic() - t0
+        s.poll()
+        now = time.monotonic() - t0  # after the poll: the time of the state it read
         if now > timeout:
             raise RuntimeError(f"{program.name} did not finish within {timeout:.0f} s (at line "
                                f"{s.current_line}, position {list(s.position[:6])}, interp "
                                f"{s.interp_state}, paused {s.task_paused})")
-        s.poll()
         t.append(now)
         pos.append(list(s.position[:3]))
         rot.append(list(s.position[3:6]))  # A, B, C (deg): the five-axis programs

@@ -56,10 +56,13 @@ HERE = Path(__file__).resolve().parent
 CONFIG = HERE.parent / "config"
 MACHINE = REPO / "examples" / "vmc500" / "machine.toml"
 VENV_PY = REPO / ".venv" / "bin" / "python"
+#: The dwells are checked from linuxcnc.stat polled every ~2 ms by a userspace process; on
+#: a loaded 2-core machine that process can miss a whole 0.3 s dwell (CI once counted 49 of
+#: x_linear's 50 captures), so they are long enough that only a longer stall hides one.
 PROGRAMS = {
-    "x_linear": ["--test", "positioning", "--axis", "X", "--feed", "12000", "--dwell-s", "0.3"],
+    "x_linear": ["--test", "positioning", "--axis", "X", "--feed", "12000", "--dwell-s", "0.6"],
     "y_pendulum": ["--test", "positioning", "--axis", "Y", "--sequence", "pendulum",
-                   "--feed", "3000", "--dwell-s", "0.2"],
+                   "--feed", "3000", "--dwell-s", "0.5"],
     "ballbar_xy": ["--test", "ballbar", "--plane", "XY", "--pause-s", "1"],
 }
 
