@@ -286,8 +286,22 @@ def check_rtest(rec: dict, trt_joints) -> dict:
     held = float(np.max(np.abs(pos - np.array(BALL))))
     want = trt_joints("xyzac-trt", SAMPLE_PINS, np.repeat([BALL], len(joints), 0),
                       joints[:, [3, 4]])
-    dev = float(np.max(np.abs(joints[:, :3] - want)))
+    miss = np.max(np.abs(joints[:, :3] - want), axis=1)
     check(held < 1e-6, f"TCP: X Y Z left the ball by {held:.3g} mm")
+    # linuxcnc.stat is a userspace copy of motion's status, not taken atomically: under load
+    # one sample can hold joints of two servo periods (a torn copy; CI once saw 10 um). Such
+    # a sample stands alone, misses by no more than the joints move in one period, and is
+    # rare; anything else (two in a row, a larger miss, more than 0.2 %) fails.
+    bad = np.flatnonzero(miss >= 1e-4)
+    for k in bad:
+        alone = 0 < k < len(miss) - 1 and miss[k - 1] < 1e-4 and miss[k + 1] < 1e-4
+        # what the joints move between its neighbours' samples (its own may be the torn one)
+        span = float(np.max(np.abs(joints[k + 1, :3] - joints[k - 1, :3]))) if alone else 0.0
+        check(alone and miss[k] <= span + 1e-4,
+              f"the joints miss trt's inverse kinematics by {miss[k]:.3g} mm at sample {k}")
+    check(len(bad) <= 0.002 * len(miss), f"{len(bad)} of {len(miss)} samples miss trt's "
+          "inverse kinematics")
+    dev = float(np.max(np.delete(miss, bad)))
     check(dev < 1e-4, f"the joints miss trt's inverse kinematics by {dev:.3g} mm")
     # stat's axes and joints may be a servo period apart (150 deg/s here: 0.15 deg per ms)
     lag = float(np.max(np.abs(joints[:, [3, 4]] - abc[:, [0, 2]])))
@@ -299,7 +313,8 @@ def check_rtest(rec: dict, trt_joints) -> dict:
     check(bool(np.all((allj[:, :4] >= np.array(JOINT_LO) - 1e-6)
                       & (allj[:, :4] <= np.array(JOINT_HI) + 1e-6))), "a joint left its travel")
     return {"samples_tcp": int(tcp.sum()), "seconds": rec["seconds"], "xyz_held_mm": held,
-            "joints_vs_trt_mm": dev, "rotary_axes_vs_joints_deg": lag, "c_span_deg": c_span,
+            "joints_vs_trt_mm": dev, "torn_samples": int(len(bad)),
+            "rotary_axes_vs_joints_deg": lag, "c_span_deg": c_span,
             "a_span_deg": a_span,
             "linear_joint_travel_mm": float(np.max(np.ptp(joints[:, :3], axis=0)))}
 
