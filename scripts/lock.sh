@@ -18,6 +18,6 @@ trap 'rm -rf "$tmp"' EXIT
 "$tmp/venv/bin/python" -m pip install -q "pip-tools==$PIP_TOOLS_VERSION"
 cd "$REPO/host_tools"
 "$tmp/venv/bin/pip-compile" --quiet --generate-hashes --allow-unsafe --strip-extras \
-    --no-emit-index-url --no-emit-find-links --extra test --extra ports --extra history --build-deps-for wheel \
+    --no-emit-index-url --no-emit-find-links --extra test --extra ports --extra history --extra thermal --extra klipper --build-deps-for wheel \
     --output-file requirements.lock "$@" pyproject.toml
 echo "[lock] wrote host_tools/requirements.lock"

@@ -20,6 +20,7 @@ PACKAGES=(
     postgresql
     chromium fonts-dejavu-core
     lld
+    frama-c-base cppcheck clang-tidy-14
 )
 
 log() { printf '[setup] %s\n' "$*"; }

@@ -21,7 +21,7 @@ set -euo pipefail
 HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 REPO="$(cd "$HERE/../.." && pwd)"
 BUILD="$REPO/build-grblhal"
-VENDOR="${ABBE_GRBLHAL_VENDOR:-$REPO/../shared/vendor/grblhal}"
+VENDOR="${ABBE_GRBLHAL_VENDOR:-$REPO/third_party/grblhal}"
 TABLE=""
 FIXED=OFF
 STOCK=0

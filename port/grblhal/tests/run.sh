@@ -16,7 +16,7 @@ set -uo pipefail
 
 HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 REPO="$(cd "$HERE/../../.." && pwd)"
-VENDOR="${ABBE_GRBLHAL_VENDOR:-$REPO/../shared/vendor/grblhal}"
+VENDOR="${ABBE_GRBLHAL_VENDOR:-$REPO/third_party/grblhal}"
 BUILD="$REPO/build-grblhal"
 ABBE="$REPO/.venv/bin/abbe"
 PY="$REPO/.venv/bin/python"
