@@ -234,3 +234,72 @@ def tool_tip_error(model: ThermalModel, outputs_row: np.ndarray,
         else:
             d[0] += v * tool_z_mm * 1e-3
     return d
+
+
+#: ``thermal.json``'s format name and version (docs/thermal.md).
+JSON_FORMAT = "abbe-thermal-model"
+JSON_VERSION = 1
+
+
+def as_dict(model: ThermalModel) -> dict:
+    """The model as the plain data of ``thermal.json`` (units in the keys' docs)."""
+    return {
+        "format": JSON_FORMAT, "version": JSON_VERSION,
+        "max_gap_s": model.max_gap_s, "fade_s": model.fade_s,
+        "inputs": [{"name": i.name, "kind": i.kind, "reference": i.reference,
+                    "valid_min": i.valid_min, "valid_max": i.valid_max,
+                    "max_step": i.max_step} for i in model.inputs],
+        "channels": [{"name": c.name, "output": c.output, "limit": c.limit,
+                      "terms": [{"input": t.input, "tau_s": t.tau_s, "gain": t.gain,
+                                 "gain_u95": t.gain_u95, "tau_u95_s": t.tau_u95_s}
+                                for t in c.terms]} for c in model.channels],
+        "notes": list(model.notes),
+    }
+
+
+def _num(d: dict, key: str, where: str, *, optional: bool = False) -> float | None:
+    v = d.get(key)
+    if v is None and optional:
+        return None
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+        raise AbbeInputError(f"{key} = {v!r}: expected a finite number", field=f"{where}.{key}")
+    return float(v)
+
+
+def from_dict(d: object) -> ThermalModel:
+    """A :class:`ThermalModel` from ``thermal.json``'s data, validated (AbbeInputError
+    naming the field otherwise)."""
+    if not isinstance(d, dict) or d.get("format") != JSON_FORMAT:
+        raise AbbeInputError(f"expected an object with format = {JSON_FORMAT!r}", field="format")
+    if d.get("version") != JSON_VERSION:
+        raise AbbeInputError(f"version {d.get('version')!r}: expected {JSON_VERSION}",
+                             field="version")
+    try:
+        inputs = tuple(
+            ThermalInput(name=str(i["name"]), kind=str(i["kind"]),
+                         reference=_num(i, "reference", f"inputs[{k}]"),
+                         valid_min=_num(i, "valid_min", f"inputs[{k}]"),
+                         valid_max=_num(i, "valid_max", f"inputs[{k}]"),
+                         max_step=_num(i, "max_step", f"inputs[{k}]"))
+            for k, i in enumerate(d["inputs"]))
+        channels = tuple(
+            ThermalChannel(name=str(c["name"]), output=str(c["output"]),
+                           limit=_num(c, "limit", f"channels[{j}]"),
+                           terms=tuple(ThermalTerm(
+                               input=int(t["input"]),
+                               tau_s=_num(t, "tau_s", f"channels[{j}].terms[{n}]"),
+                               gain=_num(t, "gain", f"channels[{j}].terms[{n}]"),
+                               gain_u95=_num(t, "gain_u95", f"channels[{j}].terms[{n}]",
+                                             optional=True),
+                               tau_u95_s=_num(t, "tau_u95_s", f"channels[{j}].terms[{n}]",
+                                              optional=True))
+                               for n, t in enumerate(c["terms"])))
+            for j, c in enumerate(d["channels"]))
+        model = ThermalModel(inputs=inputs, channels=channels,
+                             max_gap_s=_num(d, "max_gap_s", "thermal"),
+                             fade_s=_num(d, "fade_s", "thermal"),
+                             notes=tuple(str(n) for n in d.get("notes", ())))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise AbbeInputError(f"a missing or malformed entry ({exc})", field="thermal") from exc
+    model.validate()
+    return model
