@@ -49,26 +49,27 @@ def diagnose_thermal(rec: ThermalRecord, spec: ThermalSpec) -> dict:
              f"{spec.validate_hours[1]:g}"]
     for k, name in enumerate(rec.channel_names):
         y = rec.disp_um[:, k] - rec.disp_um[0, k]
-        # today's term: the best single temperature, static, least squares on ident hours
+        # today's term: the best single temperature, static (and the sensor's zero), least
+        # squares on the identification hours
         best = None
         for i in range(n_temp):
-            u = cands[i].rise
-            g = float(u[ident] @ y[ident] / max(u[ident] @ u[ident], 1e-300))
-            r = _rms((y - g * u)[ident])
+            a = np.column_stack([np.ones(int(ident.sum())), cands[i].rise[ident]])
+            g = np.linalg.lstsq(a, y[ident], rcond=None)[0]
+            r = _rms(y[ident] - a @ g)
             if best is None or r < best[1]:
                 best = (i, r)
         base = [(best[0], 0.0)]
-        chosen, trace = select_terms(t, y, cands, cyc, max_terms=2, start=base, swaps=0,
+        chosen, trace = select_terms(t, y, cands, cyc, max_terms=2, start=base,
                                      min_gain=MIN_DROP, grid=TAU_GRID_S)
-        terms_b, _, _, _ = refine(t, y, cands, base, ident)
-        pred_b = terms_b[0].gain * cands[base[0][0]].rise
+        terms_b, _, _, _, off_b = refine(t, y, cands, base, ident)
+        pred_b = off_b + terms_b[0].gain * cands[base[0][0]].rise
         row = {"channel": name, "baseline_input": cands[base[0][0]].name,
                "baseline_gain": terms_b[0].gain,
                "gap_ident_um": _rms((y - pred_b)[ident]), "gap_heldout_um": _rms((y - pred_b)[valid]),
                "uncompensated_heldout_um": _rms(y[valid]), "named": None}
         if len(chosen) == 2:
-            terms, _, _, _ = refine(t, y, cands, chosen, ident)
-            pred = sum(tt.gain * lag_states(cands[tt.input].rise, t, tt.tau_s) for tt in terms)
+            terms, _, _, _, off = refine(t, y, cands, chosen, ident)
+            pred = off + sum(tt.gain * lag_states(cands[tt.input].rise, t, tt.tau_s) for tt in terms)
             add = terms[1]
             row["named"] = {"input": cands[add.input].name, "kind": cands[add.input].kind,
                             "tau_s": add.tau_s, "tau_u95_s": add.tau_u95_s, "gain": add.gain,

@@ -13,9 +13,10 @@ on the other cycles, RMS on the left-out cycle; the lag states run over the whol
 they use only inputs, never the held-out displacement). A candidate whose lagged state
 makes the regressor set collinear (a variance inflation factor above :data:`MAX_VIF`) is
 refused. Selection stops at :data:`MAX_TERMS` terms (the runtime's limit) or when a term
-improves the cross-validated RMS by less than :data:`MIN_GAIN_FRACTION`; then
-:data:`SWAP_PASSES` exchange passes try every other candidate in each place (kept if the
-cross-validated RMS drops).
+improves the cross-validated RMS by less than :data:`MIN_GAIN_FRACTION`. At each step the
+best three grid candidates are refined (their time constant and those already chosen, by
+nonlinear least squares) before the cross-validation decides: a grid that misses the true
+lag would otherwise make a second term of the same input look useful.
 
 Refinement: the selected time constants (log tau) are refined by nonlinear least squares
 (``scipy.optimize.least_squares``) on all identification hours, the gains solved linearly
@@ -47,9 +48,7 @@ MAX_VIF = 30.0
 #: Terms per channel (the runtime's limit).
 MAX_TERMS = MAX_TERMS_PER_CHANNEL
 #: A term must lower the cross-validated RMS by at least this fraction.
-MIN_GAIN_FRACTION = 0.05
-#: Exchange passes after the forward selection (each term tried against every candidate).
-SWAP_PASSES = 2
+MIN_GAIN_FRACTION = 0.10
 
 
 @dataclass(frozen=True)
@@ -76,6 +75,7 @@ class ChannelFit:
     rho: float = 0.0
     n_eff: float = 0.0
     fit_rms_um: float = 0.0
+    offset_um: float = 0.0  # the displacement sensor's zero (a nuisance, not in the model)
 
 
 def _vif_max(cols: np.ndarray) -> float:
@@ -97,6 +97,13 @@ def _lstsq(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.linalg.lstsq(a, b, rcond=None)[0]
 
 
+def _with_offset(cols: np.ndarray) -> np.ndarray:
+    """The columns after a column of ones: the displacement sensor's zero, a nuisance
+    parameter (the record's first sample carries the sensor's noise; without it that one
+    sample's noise would bias every gain). Not part of the runtime model."""
+    return np.column_stack([np.ones(cols.shape[0]), cols])
+
+
 def cycles_of(t_s: np.ndarray, mask: np.ndarray, cycle_s: float) -> np.ndarray:
     """Cycle number of every sample inside ``mask`` (-1 outside): consecutive blocks of
     ``cycle_s`` seconds from the first masked sample (one speed step on and off)."""
@@ -107,7 +114,9 @@ def cycles_of(t_s: np.ndarray, mask: np.ndarray, cycle_s: float) -> np.ndarray:
 
 
 def _cv_rms(cols: np.ndarray, y: np.ndarray, cyc: np.ndarray) -> float:
-    """Leave-one-cycle-out RMS (um) of a linear fit of y on cols (samples with cyc >= 0)."""
+    """Leave-one-cycle-out RMS (um) of a linear fit of y on cols and the sensor's zero
+    offset (samples with cyc >= 0)."""
+    cols = _with_offset(cols)
     sq, n = 0.0, 0
     for c in np.unique(cyc[cyc >= 0]):
         tr, te = (cyc >= 0) & (cyc != c), cyc == c
@@ -118,76 +127,104 @@ def _cv_rms(cols: np.ndarray, y: np.ndarray, cyc: np.ndarray) -> float:
     return float(np.sqrt(sq / n))
 
 
+def _refine_taus(t_s: np.ndarray, y: np.ndarray, cands: list[Candidate],
+                 chosen: list[tuple[int, float]], mask: np.ndarray,
+                 n_fixed: int = 0) -> list[tuple[int, float]]:
+    """The terms with their (non-static, not fixed) time constants refined by nonlinear
+    least squares on the masked samples, the gains solved linearly inside (variable
+    projection)."""
+    free = [j for j, (_, tau) in enumerate(chosen) if tau > 0 and j >= n_fixed]
+    if not free:
+        return list(chosen)
+    fixed_cols = {j: lag_states(cands[i].rise, t_s, tau) for j, (i, tau) in enumerate(chosen)
+                  if j not in free}
+
+    def cols(logtau: np.ndarray) -> np.ndarray:
+        out = []
+        for j, (i, _) in enumerate(chosen):
+            out.append(fixed_cols[j] if j in fixed_cols else
+                       lag_states(cands[i].rise, t_s, float(np.exp(logtau[free.index(j)]))))
+        return _with_offset(np.column_stack(out))[mask]
+
+    def resid(logtau: np.ndarray) -> np.ndarray:
+        s = cols(logtau)
+        return y[mask] - s @ _lstsq(s, y[mask])
+
+    lo, hi = np.log(TAU_BOUNDS_S)
+    x0 = np.clip(np.log([chosen[j][1] for j in free]), lo, hi)
+    sol = least_squares(resid, x0, bounds=(lo, hi), diff_step=1e-4)
+    out = list(chosen)
+    for j, lt in zip(free, sol.x):
+        out[j] = (chosen[j][0], float(np.exp(lt)))
+    return out
+
+
 def select_terms(t_s: np.ndarray, y: np.ndarray, cands: list[Candidate], cyc: np.ndarray,
                  *, max_terms: int = MAX_TERMS, max_vif: float = MAX_VIF,
                  min_gain: float = MIN_GAIN_FRACTION,
                  grid: tuple[float, ...] = TAU_GRID_S,
-                 swaps: int = SWAP_PASSES,
                  start: list[tuple[int, float]] | None = None
                  ) -> tuple[list[tuple[int, float]], list]:
-    """Forward selection (then ``swaps`` exchange passes): the (candidate index, tau) terms
-    and the trace. ``start``: terms taken as given (a diagnosis adds to a known model)."""
-    states = {(i, tau): lag_states(c.rise, t_s, tau) for i, c in enumerate(cands) for tau in grid}
-    for k in start or []:
-        states.setdefault(k, lag_states(cands[k[0]].rise, t_s, k[1]))
+    """Forward selection: the (candidate index, tau s) terms and the trace (added input,
+    its refined tau, CV RMS, max VIF). ``start``: terms taken as given (a diagnosis adds
+    to a known model). Each step scores every (input, grid tau) candidate beside the terms
+    so far, refines the time constants of the best one with the others (nonlinear least
+    squares on the identification samples), and keeps it if the refined set's
+    cross-validated RMS drops by ``min_gain`` and its largest VIF stays <= ``max_vif``."""
+    grid_states = {(i, tau): lag_states(c.rise, t_s, tau)
+                   for i, c in enumerate(cands) for tau in grid}
     fit_mask = cyc >= 0
+    n_fixed = len(start or [])
+
+    def st(k: tuple[int, float]) -> np.ndarray:
+        if k not in grid_states:
+            grid_states[k] = lag_states(cands[k[0]].rise, t_s, k[1])
+        return grid_states[k]
+
     chosen: list[tuple[int, float]] = list(start or [])
     trace: list[tuple[str, float, float, float]] = []
-    best_rms = (_cv_rms(np.column_stack([states[k] for k in chosen]), y, cyc) if chosen
-                else float(np.sqrt(np.mean(y[fit_mask] ** 2))))
+    best_rms = _cv_rms(np.column_stack([st(k) for k in chosen]) if chosen
+                       else np.empty((y.size, 0)), y, cyc)
     while len(chosen) < max_terms:
-        base = [states[k] for k in chosen]
-        best = None
-        for key, s in states.items():
-            if any(key[0] == k[0] and key[1] == k[1] for k in chosen):
+        base = [st(k) for k in chosen]
+        ranked = []
+        for key in [(i, tau) for i in range(len(cands)) for tau in grid]:
+            if key in chosen:
                 continue
-            cols = np.column_stack(base + [s])
+            cols = np.column_stack(base + [grid_states[key]])
+            if _vif_max(cols[fit_mask]) > max_vif:
+                continue
+            ranked.append((_cv_rms(cols, y, cyc), key))
+        ranked.sort()
+        accepted = False
+        for _, key in ranked[:3]:  # the best three on the grid, refined
+            trial = _refine_taus(t_s, y, cands, chosen + [key], fit_mask, n_fixed)
+            cols = np.column_stack([st(k) for k in trial])
             vif = _vif_max(cols[fit_mask])
-            if vif > max_vif:
-                continue
             rms = _cv_rms(cols, y, cyc)
-            if best is None or rms < best[1]:
-                best = (key, rms, vif)
-        if best is None or best[1] > best_rms * (1.0 - min_gain):
-            break
-        chosen.append(best[0])
-        best_rms = best[1]
-        trace.append((cands[best[0][0]].name, best[0][1], best[1], best[2]))
-    for _ in range(swaps):  # exchange passes: a greedy start can lock in an early term
-        improved = False
-        for pos in range(len(start or []), len(chosen)):
-            for key, s in states.items():
-                if key in chosen:
-                    continue
-                trial = chosen[:pos] + [key] + chosen[pos + 1:]
-                cols = np.column_stack([states[k] for k in trial])
-                vif = _vif_max(cols[fit_mask])
-                if vif > max_vif:
-                    continue
-                rms = _cv_rms(cols, y, cyc)
-                if rms < best_rms * (1.0 - 1e-3):
-                    old = chosen[pos]
-                    chosen, best_rms, improved = trial, rms, True
-                    trace.append((f"{cands[key[0]].name} (for {cands[old[0]].name} "
-                                  f"{old[1]:.0f} s)", key[1], rms, vif))
-        if not improved:
+            if vif <= max_vif and rms <= best_rms * (1.0 - min_gain):
+                chosen, best_rms, accepted = trial, rms, True
+                trace.append((cands[key[0]].name, trial[-1][1], rms, vif))
+                break
+        if not accepted:
             break
     return chosen, trace
 
 
 def refine(t_s: np.ndarray, y: np.ndarray, cands: list[Candidate],
-           chosen: list[tuple[int, float]], mask: np.ndarray) -> tuple[list[ThermalTerm], float, float, float]:
+           chosen: list[tuple[int, float]], mask: np.ndarray
+           ) -> tuple[list[ThermalTerm], float, float, float, float]:
     """Nonlinear least squares of taus and gains on the masked samples; 95 % intervals.
 
-    Returns (terms, fit RMS um, rho, n_eff)."""
+    Returns (terms, fit RMS um, rho, n_eff, the sensor's zero offset um)."""
     dyn = [j for j, (_, tau) in enumerate(chosen) if tau > 0]
 
     def states(logtau: np.ndarray) -> np.ndarray:
         taus = [tau for _, tau in chosen]
         for j, lt in zip(dyn, logtau):
             taus[j] = float(np.exp(lt))
-        return np.column_stack([lag_states(cands[i].rise, t_s, tau)
-                                for (i, _), tau in zip(chosen, taus)])
+        return _with_offset(np.column_stack([lag_states(cands[i].rise, t_s, tau)
+                                             for (i, _), tau in zip(chosen, taus)]))
 
     def resid_vp(logtau: np.ndarray) -> np.ndarray:
         s = states(logtau)[mask]
@@ -203,9 +240,11 @@ def refine(t_s: np.ndarray, y: np.ndarray, cands: list[Candidate],
     s_all = states(lt)
     gains = _lstsq(s_all[mask], y[mask])
 
-    # joint parameter vector (gains, log taus): residual and Jacobian at the optimum
+    # joint parameter vector (offset, gains, log taus): residual and Jacobian at the optimum
+    ng = len(chosen) + 1
+
     def resid_joint(p: np.ndarray) -> np.ndarray:
-        g, l_ = p[:len(chosen)], p[len(chosen):]
+        g, l_ = p[:ng], p[ng:]
         return y[mask] - states(l_)[mask] @ g
 
     p = np.concatenate([gains, lt])
@@ -227,18 +266,18 @@ def refine(t_s: np.ndarray, y: np.ndarray, cands: list[Candidate],
         half = np.full(p.size, np.inf)
     terms = []
     for j, (i, tau0) in enumerate(chosen):
-        g_u = float(half[j])
+        g_u = float(half[j + 1])
         if j in dyn:
-            k = len(chosen) + dyn.index(j)
+            k = ng + dyn.index(j)
             tau = float(np.exp(lt[dyn.index(j)]))
             # the interval of log tau mapped to tau: the larger half-width (asymmetric)
             t_u = (float(tau * np.expm1(half[k])) if np.isfinite(half[k]) and half[k] < 20.0
                    else None)  # None: the data do not bound this time constant
         else:
             tau, t_u = 0.0, 0.0
-        terms.append(ThermalTerm(input=i, tau_s=tau, gain=float(gains[j]),
+        terms.append(ThermalTerm(input=i, tau_s=tau, gain=float(gains[j + 1]),
                                  gain_u95=g_u if np.isfinite(g_u) else None, tau_u95_s=t_u))
-    return terms, float(np.sqrt(np.mean(r ** 2))), rho, float(n_eff)
+    return terms, float(np.sqrt(np.mean(r ** 2))), rho, float(n_eff), float(gains[0])
 
 
 def identify_channel(name: str, t_s: np.ndarray, y: np.ndarray, cands: list[Candidate],
@@ -247,19 +286,21 @@ def identify_channel(name: str, t_s: np.ndarray, y: np.ndarray, cands: list[Cand
     cyc = cycles_of(t_s, fit_mask, cycle_s)
     chosen, trace = select_terms(t_s, y, cands, cyc, **kw)
     if not chosen:
-        return ChannelFit(name, [], float(np.sqrt(np.mean(y[fit_mask] ** 2))), trace)
-    terms, fit_rms, rho, n_eff = refine(t_s, y, cands, chosen, fit_mask)
-    return ChannelFit(name, terms, trace[-1][2], trace, rho, n_eff, fit_rms)
+        off = float(np.mean(y[fit_mask]))
+        return ChannelFit(name, [], float(np.sqrt(np.mean((y[fit_mask] - off) ** 2))), trace,
+                          offset_um=off)
+    terms, fit_rms, rho, n_eff, offset = refine(t_s, y, cands, chosen, fit_mask)
+    return ChannelFit(name, terms, trace[-1][2], trace, rho, n_eff, fit_rms, offset)
 
 
 def candidates_of(temps_c: np.ndarray, temp_names: list[str], speed_rpm: np.ndarray | None,
                   speed_name: str = "spindle") -> list[Candidate]:
     """The selection's candidates: every temperature's rise from its first sample (K) and
-    the speed (krpm)."""
+    the speed (krpm, from 0 rpm)."""
     out = [Candidate(n, TEMPERATURE, temps_c[:, k] - temps_c[0, k])
            for k, n in enumerate(temp_names)]
     if speed_rpm is not None:
-        out.append(Candidate(speed_name, SPEED, speed_rpm / 1000.0 - speed_rpm[0] / 1000.0))
+        out.append(Candidate(speed_name, SPEED, speed_rpm / 1000.0))  # reference 0 rpm
     return out
 
 
@@ -269,7 +310,7 @@ def inputs_of(cands: list[Candidate], temps_c: np.ndarray, speed_rpm: np.ndarray
     out = []
     for k, c in enumerate(cands):
         if c.kind == SPEED:
-            out.append(ThermalInput(c.name, SPEED, reference=float(speed_rpm[0]),
+            out.append(ThermalInput(c.name, SPEED, reference=0.0,
                                     valid_min=-1.0, valid_max=60000.0, max_step=60000.0))
         else:
             out.append(ThermalInput(c.name, TEMPERATURE, reference=float(temps_c[0, k]),

@@ -83,7 +83,7 @@ def _signal(name: str, unit: str, y: np.ndarray, rec: ThermalRecord, cands, iden
             cycle_s: float, **kw) -> SignalResult:
     t = rec.time_s
     fit = identify_channel(name, t, y, cands, ident, cycle_s, **kw)
-    pred = np.zeros_like(y)
+    pred = np.full_like(y, fit.offset_um)  # the sensor's zero, then the model
     for term in fit.terms:
         pred += term.gain * lag_states(cands[term.input].rise, t, term.tau_s)
     mlr = mlr_baseline(rec.temps_c, y, ident)
@@ -149,5 +149,6 @@ def check_model(res: FitResult) -> float:
                                                 if res.record.speed_rpm is not None else []))
     out = evaluate(res.model, res.record.time_s, x)
     by = {s.name: s for s in res.outputs}
-    return float(max(np.max(np.abs(out[:, j] - by[c.name].predicted))
+    return float(max(np.max(np.abs(out[:, j] + by[c.name].fit.offset_um
+                                   - by[c.name].predicted))
                      for j, c in enumerate(res.model.channels)))
