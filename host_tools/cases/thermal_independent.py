@@ -63,7 +63,7 @@ def generate(seed: int = 1, dt_s: float = 15.0, on_s: float = 4 * 3600.0,
         temps = {"T1": t1, "T2": t2, "T3": t3, "T4": ta, "spindle": rpm / 1000.0}
         for j, (_, _, term) in enumerate(terms):
             u = temps[term.input] - (x0_in[term.input])
-            d[3 + j] = (u - x[3 + j]) / term.tau_s
+            d[3 + j] = (u - x[3 + j]) / term.tau_s if term.tau_s > 0 else 0.0
         return d
 
     x0 = np.array([room(0.0)] * 3 + [0.0] * len(terms))
@@ -89,12 +89,15 @@ def generate(seed: int = 1, dt_s: float = 15.0, on_s: float = 4 * 3600.0,
     rng = np.random.default_rng(seed)
     temps = np.column_stack([xs[:, 0], xs[:, 1], xs[:, 2], [room(t) for t in t_all]])
     temps = temps + rng.normal(0.0, noise_k, temps.shape)
+    sensed = {"T1": xs[:, 0], "T2": xs[:, 1], "T3": xs[:, 2],
+              "T4": np.array([room(t) for t in t_all]), "spindle": rpm_all / 1000.0}
     chans = {}
     for ch in truth:
         v = np.zeros(t_all.size)
         for j, (name, _, term) in enumerate(terms):
-            if name == ch:
-                v += term.gain * xs[:, 3 + j]
+            if name == ch:  # tau 0: a static term, the true (noise-free) input's rise
+                v += term.gain * (xs[:, 3 + j] if term.tau_s > 0
+                                  else sensed[term.input] - x0_in[term.input])
         chans[ch] = v + rng.normal(0.0, noise_um, v.size)
     head = ["time_s", "spindle_rpm"] + [f"{n}_c" for n in names] + [f"{c}_um" for c in chans]
     rows = [",".join(head)]
