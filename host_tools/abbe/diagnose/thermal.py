@@ -81,10 +81,10 @@ def diagnose_thermal(rec: ThermalRecord, spec: ThermalSpec) -> dict:
         if row["named"]:
             n = row["named"]
             unit = "um/krpm" if n["kind"] == "speed" else "um/K"
-            tau_u = f" +/- {n['tau_u95_s'] / 60:.0f}" if n["tau_u95_s"] is not None else ""
+            tau_u = f" +/- {n['tau_u95_s'] / 60:.1f}" if n["tau_u95_s"] is not None else ""
             lines.append(
                 f"  {name}: missing thermal effect: {n['input']} through a lag of "
-                f"{n['tau_s'] / 60:.0f}{tau_u} min, gain {n['gain']:.3f} +/- "
+                f"{n['tau_s'] / 60:.1f}{tau_u} min, gain {n['gain']:.3f} +/- "
                 f"{(n['gain_u95'] or float('nan')):.3f} {unit} (today's term: "
                 f"{row['baseline_input']} static); held-out gap {row['gap_heldout_um']:.2f} -> "
                 f"{row['after_heldout_um']:.2f} um (uncompensated "

@@ -1,9 +1,17 @@
 """The independent check: a lumped thermal network integrated by scipy's ODE solver
 (cases/thermal_independent.py, continuous-time lags, not abbe's backward Euler) with known
 gains and time constants; identification on its first 24 h recovers them within its 95 %
-intervals and predicts the next 24 h (other speeds) to the noise."""
+intervals and predicts the next 24 h (other speeds) to the noise.
+
+The backward-Euler lag's twin of a continuous lag tau: for a smooth input (a temperature)
+tau itself (the same delay at low frequency); for an input held over each sample interval
+(the speed: a sample shows the speed held since the previous one) the pole-matched
+tau_BE = dt / (exp(dt / tau) - 1) ~ tau - dt / 2 (7.5 s at 15 s samples): the held input
+acts half an interval before its sample (docs/thermal.md)."""
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -26,7 +34,9 @@ def test_identification_recovers_the_truth_within_intervals(synthetic):
             t = found.pop((true.input, true.tau_s > 0), None)
             assert t is not None, f"{ch}: {true.input} not selected: {fit.steps}"
             assert abs(t.gain - true.gain) <= t.gain_u95, (ch, true, t)
-            assert abs(t.tau_s - true.tau_s) <= t.tau_u95_s, (ch, true, t)
+            tau_be = (15.0 / math.expm1(15.0 / true.tau_s) if true.input == "spindle"
+                      else true.tau_s)
+            assert abs(t.tau_s - tau_be) <= (t.tau_u95_s or 0.0), (ch, true, t)
         for extra in found.values():  # anything else must be indistinguishable from zero
             assert abs(extra.gain) <= extra.gain_u95, (ch, extra)
         pred = fit.offset_um + sum(t.gain * lag_states(cands[t.input].rise, r.time_s, t.tau_s)
