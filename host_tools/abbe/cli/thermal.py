@@ -25,15 +25,27 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "abbe thermal diagnose examples/spindle_thermal/machine.toml -o diag"))
     sub = p.add_subparsers(dest="thermal_command", metavar="SUBCOMMAND")
     sub.required = True
-    e = sub.add_parser("evaluate", help="ISO 230-3 figures of the record")
+    e = sub.add_parser("evaluate", help="ISO 230-3 figures of the record",
+                       description="ISO 230-3 evaluation of the [thermal] section's record: "
+                                   "drift of every channel, tilts from sensor pairs, envelope.",
+                       epilog=examples("abbe thermal evaluate MACHINE.toml --json e.json"))
     e.add_argument("machine", help="machine file (TOML) with a [thermal] section")
     e.add_argument("--json", help="write the figures as JSON here")
     e.set_defaults(func=run_evaluate)
-    f = sub.add_parser("fit", help="identify the model, write thermal.json and the report")
+    f = sub.add_parser("fit", help="identify the model, write thermal.json and the report",
+                       description="Identify the dynamic thermal model on the identification "
+                                   "hours, score it on the held-out hours against the "
+                                   "uncompensated drift and a static regression on every "
+                                   "temperature; write thermal.json, fit.json, index.html.",
+                       epilog=examples("abbe thermal fit MACHINE.toml -o thermal-out"))
     f.add_argument("machine", help="machine file (TOML) with a [thermal] section")
     f.add_argument("-o", "--out", required=True, help="output folder")
     f.set_defaults(func=run_fit)
-    d = sub.add_parser("diagnose", help="name the thermal effect the static model misses")
+    d = sub.add_parser("diagnose", help="name the thermal effect the static model misses",
+                       description="Name, per channel, the lagged thermal effect (input, time "
+                                   "constant, gain with intervals) that today's one-sensor "
+                                   "static term misses; show the held-out gap before and after.",
+                       epilog=examples("abbe thermal diagnose MACHINE.toml -o diagnose-out"))
     d.add_argument("machine", help="machine file (TOML) with a [thermal] section")
     d.add_argument("-o", "--out", required=True, help="output folder")
     d.set_defaults(func=run_diagnose)

@@ -56,7 +56,7 @@ class SignalResult:
                 "terms": [{"input": input_names[t.input], "tau_s": t.tau_s, "gain": t.gain,
                            "gain_u95": t.gain_u95, "tau_u95_s": t.tau_u95_s}
                           for t in self.fit.terms],
-                "selection": [{"added": s[0], "tau_grid_s": s[1], "cv_rms": s[2],
+                "selection": [{"added": s[0], "tau_s": s[1], "cv_rms": s[2],
                                "max_vif": s[3]} for s in self.fit.steps]}
 
 

@@ -96,6 +96,16 @@ def plot_bars(res: FitResult, path: Path) -> None:
     fig.savefig(path)
 
 
+def _tau(tau: float, u95: float | None) -> str:
+    """A time constant and its interval; "not bounded" when the data do not pin it (an
+    interval wider than five times the value)."""
+    if tau == 0.0:
+        return "static"
+    if u95 is None or u95 > 5.0 * tau:
+        return f"{tau:.0f} (not bounded by the data)"
+    return f"{tau:.0f} &plusmn; {u95:.0f}"
+
+
 def _f(v: float | None, nd: int = 2) -> str:
     return "-" if v is None or not np.isfinite(v) else f"{v:.{nd}f}"
 
@@ -117,7 +127,7 @@ def write_report(res: FitResult, iso: dict, out: Path, diagnosis: dict | None = 
     for s in res.outputs + [c for c in res.channels if c not in res.outputs]:
         for t in s.fit.terms:
             terms.append(f"<tr><td>{_esc(s.name)}</td><td>{_esc(res.input_names[t.input])}</td>"
-                         f"<td>{_f(t.tau_s, 0)} &plusmn; {_f(t.tau_u95_s, 0)}</td>"
+                         f"<td>{_tau(t.tau_s, t.tau_u95_s)}</td>"
                          f"<td>{_f(t.gain, 3)} &plusmn; {_f(t.gain_u95, 3)}</td></tr>")
     sel = []
     for s in res.channels:
@@ -153,7 +163,7 @@ of uncompensated and below MLR.</p>
 <table><tr><th>signal</th><th>input</th><th>tau (s)</th><th>gain (um or urad per K / krpm)</th></tr>
 {''.join(terms)}</table>
 <h2>Selection (forward, leave-one-cycle-out CV inside the identification hours)</h2>
-<table><tr><th>channel</th><th>added</th><th>tau on the grid (s)</th><th>CV RMS (um)</th>
+<table><tr><th>channel</th><th>added</th><th>tau, refined (s)</th><th>CV RMS (um)</th>
 <th>max VIF</th></tr>{''.join(sel)}</table>
 {diag}
 <h2>ISO 230-3 evaluation of the whole record</h2>
