@@ -4,6 +4,7 @@ on hours 0-24, scored on hours 24-46 (never seen by identification or selection)
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from abbe.analysis.thermal.identify import candidates_of, identify_channel
 from abbe.analysis.thermal.pipeline import TARGET_RATIO, check_model
@@ -51,3 +52,22 @@ def test_identification_never_sees_the_held_out_displacements(real_record):
     a = identify_channel("ch5", r.time_s, y, cands, ident, 8 * 3600.0, max_terms=2)
     b = identify_channel("ch5", r.time_s, y2, cands, ident, 8 * 3600.0, max_terms=2)
     assert a.terms == b.terms and a.steps == b.steps
+
+
+def test_the_committed_example_model_is_a_fresh_fit(real_fit):
+    """examples/spindle_thermal/thermal.json (what the runtime's tables embed) is what the
+    identification gives today."""
+    import json
+
+    from thermal_helpers import ROOT
+    path = ROOT / "examples" / "spindle_thermal" / "thermal.json"
+    committed = from_dict(json.loads(path.read_text()))
+    fresh = real_fit.model
+    assert [c.name for c in committed.channels] == [c.name for c in fresh.channels]
+    assert [i.name for i in committed.inputs] == [i.name for i in fresh.inputs]
+    for a, b in zip(committed.channels, fresh.channels):
+        assert a.output == b.output and len(a.terms) == len(b.terms)
+        for ta, tb in zip(a.terms, b.terms):
+            assert ta.input == tb.input
+            assert ta.gain == pytest.approx(tb.gain, rel=1e-6, abs=1e-9)
+            assert ta.tau_s == pytest.approx(tb.tau_s, rel=1e-6, abs=1e-9)
