@@ -69,6 +69,12 @@ def _load(path: str):
             raise AbbeInputError(f"[{a:g}, {b:g}] h holds fewer than 10 samples of the record "
                                  f"({h[0]:g}-{h[-1]:g} h)", file=str(m.path),
                                  line=m.line_of(f"thermal.{key}"), field=f"thermal.{key}")
+    span = spec.identify_hours[1] - spec.identify_hours[0]
+    if span < 2 * spec.cycle_hours:
+        raise AbbeInputError(f"the identification hours hold {span / spec.cycle_hours:.2f} "
+                             f"cycles of {spec.cycle_hours:g} h: the leave-one-cycle-out "
+                             "selection needs at least 2", file=str(m.path),
+                             line=m.line_of("thermal.cycle_hours"), field="thermal.cycle_hours")
     return m, spec, rec
 
 

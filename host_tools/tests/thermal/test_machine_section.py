@@ -52,3 +52,30 @@ def test_no_thermal_section_is_exit_2(tmp_path, capsys):
     assert main(["thermal", "fit", str(p), "-o", str(tmp_path / "out")]) == 2
     assert "no [thermal] section" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+def test_too_few_cycles_is_exit_2(synthetic, tmp_path, capsys):
+    folder, _ = synthetic
+    m = tmp_path / "m.toml"
+    text = machine_text(str(folder / "record.csv"), {"chz": "z", "chx": "x"})
+    m.write_text(text.replace("cycle_hours = 8.0", "cycle_hours = 16.0"))
+    assert main(["thermal", "fit", str(m), "-o", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "cycle_hours" in err and "at least 2" in err and f"{m}:" in err
+
+
+def test_a_record_nothing_explains_is_exit_2(tmp_path, capsys):
+    """Displacements of pure noise: no term passes the selection, nothing is written."""
+    import numpy as np
+    rng = np.random.default_rng(0)
+    t = np.arange(0.0, 48 * 3600.0, 60.0)
+    temps = 20.0 + 0.01 * rng.normal(size=(t.size, 4))
+    rows = ["time_s," + ",".join(f"{s}_c" for s in ("T1", "T2", "T3", "T4")) + ",chz_um"]
+    for k in range(t.size):
+        rows.append(f"{t[k]:.0f}," + ",".join(f"{v:.4f}" for v in temps[k])
+                    + f",{rng.normal():.4f}")
+    (tmp_path / "r.csv").write_text("\n".join(rows) + "\n")
+    (tmp_path / "m.toml").write_text(machine_text("r.csv", {"chz": "z"}))
+    assert main(["thermal", "fit", str(tmp_path / "m.toml"), "-o", str(tmp_path / "o")]) == 2
+    assert "no input explains any channel" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()

@@ -131,6 +131,11 @@ def fit_record(rec: ThermalRecord, spec: ThermalSpec, **kw) -> FitResult:
              f"{spec.validate_hours[1]:g}"]
     if spec.note:
         notes.append(spec.note)
+    if not model_channels:
+        from abbe.errors import AbbeInputError
+        raise AbbeInputError("no input explains any channel on the identification hours "
+                             "(every candidate term lowered the cross-validated RMS by less "
+                             "than the threshold): no model to write", file=rec.file)
     model = ThermalModel(inputs=inputs_of(cands, rec.temps_c, rec.speed_rpm),
                          channels=tuple(model_channels), notes=tuple(notes))
     model.validate()
