@@ -89,8 +89,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
     print(f"abbe thermal evaluate: {rec.file}: {iso['samples']} samples, "
           f"{iso['duration_h']:.1f} h")
     for d in iso["channels"] + iso["tilts"]:
-        print(f"  {d['name']:<22} range {d['range_']:8.1f} {d['unit']:<4} "
-              f"max {d['max_']:7.1f} @ {d['max_h']:5.1f} h  min {d['min_']:7.1f} @ "
+        print(f"  {d['name']:<22} range {d['range']:8.1f} {d['unit']:<4} "
+              f"max {d['max']:7.1f} @ {d['max_h']:5.1f} h  min {d['min']:7.1f} @ "
               f"{d['min_h']:5.1f} h  end {d['final']:7.1f}")
     print(f"  envelope: {iso['envelope']['channel']} {iso['envelope']['range_um']:.1f} um")
     return 0

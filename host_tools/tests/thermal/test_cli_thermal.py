@@ -22,8 +22,8 @@ def test_evaluate_json(synthetic, tmp_path, capsys):
     names = [c["name"] for c in d["channels"]]
     assert names == ["chz", "chx"] and d["samples"] > 1000
     chz = d["channels"][0]
-    assert chz["range_"] == pytest.approx(chz["max_"] - chz["min_"])
-    assert d["envelope"]["range_um"] == max(c["range_"] for c in d["channels"])
+    assert chz["range"] == pytest.approx(chz["max"] - chz["min"])
+    assert d["envelope"]["range_um"] == max(c["range"] for c in d["channels"])
     assert "envelope" in capsys.readouterr().out
 
 

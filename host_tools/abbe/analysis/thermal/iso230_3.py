@@ -19,15 +19,16 @@ from abbe.formats.thermal_record import ThermalRecord
 
 @dataclass(frozen=True)
 class Drift:
-    """One signal's drift: ``range_`` (max - min), ``final``, extremes and their hours."""
+    """One signal's drift in ``unit`` (um, urad, K): ``range`` (max - min), ``final`` (at
+    the record's end), the extremes and their hours, all from the signal's start."""
 
     name: str
     unit: str
-    range_: float
+    range: float
     final: float
-    max_: float
+    max: float
     max_h: float
-    min_: float
+    min: float
     min_h: float
 
 
@@ -56,8 +57,8 @@ def evaluate_record(rec: ThermalRecord, pairs: list[TiltPair]) -> dict:
              for p in pairs]
     temps = [drift_of(n, "K", h, rec.temps_c[:, k] - rec.temps_c[0, k])
              for k, n in enumerate(rec.temp_names)]
-    env = max(drifts, key=lambda d: d.range_)
+    env = max(drifts, key=lambda d: d.range)
     return {"duration_h": float(h[-1] - h[0]), "samples": int(h.size),
             "channels": [d.__dict__ for d in drifts], "tilts": [d.__dict__ for d in tilts],
             "temperatures": [d.__dict__ for d in temps],
-            "envelope": {"channel": env.name, "range_um": env.range_}}
+            "envelope": {"channel": env.name, "range_um": env.range}}

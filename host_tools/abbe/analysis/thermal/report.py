@@ -134,9 +134,9 @@ def write_report(res: FitResult, iso: dict, out: Path, diagnosis: dict | None = 
         for st in s.fit.steps:
             sel.append(f"<tr><td>{_esc(s.name)}</td><td>{_esc(st[0])}</td><td>{st[1]:.0f}</td>"
                        f"<td>{st[2]:.2f}</td><td>{st[3]:.1f}</td></tr>")
-    drift = "".join(f"<tr><td>{_esc(d['name'])}</td><td>{d['unit']}</td><td>{d['range_']:.1f}</td>"
-                    f"<td>{d['max_']:.1f} @ {d['max_h']:.1f} h</td>"
-                    f"<td>{d['min_']:.1f} @ {d['min_h']:.1f} h</td><td>{d['final']:.1f}</td></tr>"
+    drift = "".join(f"<tr><td>{_esc(d['name'])}</td><td>{d['unit']}</td><td>{d['range']:.1f}</td>"
+                    f"<td>{d['max']:.1f} @ {d['max_h']:.1f} h</td>"
+                    f"<td>{d['min']:.1f} @ {d['min_h']:.1f} h</td><td>{d['final']:.1f}</td></tr>"
                     for d in iso["channels"] + iso["tilts"])
     diag = ""
     if diagnosis:
