@@ -139,11 +139,13 @@ def _none(v):  # json default: numpy scalars
 
 
 def run_diagnose(args: argparse.Namespace) -> int:
-    from abbe.diagnose.thermal import diagnose_thermal
+    from abbe.diagnose.thermal import diagnose_thermal, write_thermal_report
     with Outputs() as outs:
         out = outs.directory(args.out)
         _, spec, rec = _load(args.machine)
         diag = diagnose_thermal(rec, spec)
+        write_thermal_report(diag, rec, spec, out)
+        diag.pop("_series")
         (out / "diagnosis.json").write_text(json.dumps(diag, indent=1, allow_nan=False),
                                             encoding="utf-8")
         (out / "diagnosis.txt").write_text(diag["text"] + "\n", encoding="utf-8")

@@ -43,6 +43,7 @@ def diagnose_thermal(rec: ThermalRecord, spec: ThermalSpec) -> dict:
     cyc = cycles_of(t, ident, spec.cycle_hours * 3600.0)
     n_temp = len(rec.temp_names)
     out = []
+    series: dict[str, dict[str, np.ndarray]] = {}
     lines = [f"abbe thermal diagnose: {rec.file}", f"  today's term: one static gain on one "
              f"temperature per channel; identification hours {spec.identify_hours[0]:g}-"
              f"{spec.identify_hours[1]:g}, held-out hours {spec.validate_hours[0]:g}-"
@@ -63,6 +64,7 @@ def diagnose_thermal(rec: ThermalRecord, spec: ThermalSpec) -> dict:
                                      min_gain=MIN_DROP, grid=TAU_GRID_S)
         terms_b, _, _, _, off_b = refine(t, y, cands, base, ident)
         pred_b = off_b + terms_b[0].gain * cands[base[0][0]].rise
+        series[name] = {"measured": y, "before": y - pred_b}
         row = {"channel": name, "baseline_input": cands[base[0][0]].name,
                "baseline_gain": terms_b[0].gain,
                "gap_ident_um": _rms((y - pred_b)[ident]), "gap_heldout_um": _rms((y - pred_b)[valid]),
@@ -75,6 +77,7 @@ def diagnose_thermal(rec: ThermalRecord, spec: ThermalSpec) -> dict:
                             "tau_s": add.tau_s, "tau_u95_s": add.tau_u95_s, "gain": add.gain,
                             "gain_u95": add.gain_u95, "cv_rms_before_um": None,
                             "cv_rms_after_um": trace[-1][2]}
+            series[name]["after"] = y - pred
             row["after_ident_um"] = _rms((y - pred)[ident])
             row["after_heldout_um"] = _rms((y - pred)[valid])
         out.append(row)
@@ -95,4 +98,44 @@ def diagnose_thermal(rec: ThermalRecord, spec: ThermalSpec) -> dict:
                          f"(today's term on {row['baseline_input']})")
     return {"record": rec.file, "identify_hours": list(spec.identify_hours),
             "validate_hours": list(spec.validate_hours), "channels": out,
-            "text": "\n".join(lines)}
+            "text": "\n".join(lines), "_series": series}
+
+
+def write_thermal_report(diag: dict, rec: ThermalRecord, spec: ThermalSpec, out) -> None:
+    """``out/index.html`` (+ ``gaps.png``): per channel the gap today's term leaves and the
+    gap after the named effect, over the whole record (held-out hours shaded), then the
+    text."""
+    import html
+
+    import matplotlib
+    matplotlib.use("Agg")
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    series = diag["_series"]
+    h = rec.hours
+    fig = Figure(figsize=(11, 2.2 * len(series) + 0.6), dpi=100)
+    FigureCanvasAgg(fig)
+    for k, (name, s) in enumerate(series.items()):
+        ax = fig.add_subplot(len(series), 1, k + 1)
+        ax.axvspan(*spec.validate_hours, color="tab:orange", alpha=0.08)
+        ax.plot(h, s["measured"], color="0.6", lw=0.8, label="measured drift")
+        ax.plot(h, s["before"], color="tab:red", lw=1.0, label="gap: today's static term")
+        if "after" in s:
+            ax.plot(h, s["after"], color="tab:green", lw=1.0, label="gap: with the named effect")
+        ax.set_ylabel(f"{name} (um)")
+        ax.grid(alpha=0.3)
+    from matplotlib.lines import Line2D
+    fig.legend([Line2D([], [], color=c) for c in ("0.6", "tab:red", "tab:green")],
+               ["measured drift", "gap: today's static term", "gap: with the named effect"],
+               loc="upper center", ncol=3, fontsize=8)
+    ax.set_xlabel("time (h); orange: held-out hours")
+    fig.tight_layout(rect=(0, 0, 1, 0.97))
+    fig.savefig(out / "gaps.png")
+    page = ("<!doctype html><html><head><meta charset=\"utf-8\"><title>abbe thermal diagnose"
+            "</title></head><body style=\"font-family:sans-serif;max-width:1150px;margin:auto\">"
+            "<h1>The thermal effect the static model misses</h1>"
+            "<img src=\"gaps.png\" alt=\"gaps\" style=\"max-width:100%\">"
+            "<pre style=\"white-space:pre-wrap\">"
+            + html.escape(diag["text"]) + "</pre></body></html>")
+    (out / "index.html").write_text(page, encoding="utf-8")
