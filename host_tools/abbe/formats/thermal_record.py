@@ -20,6 +20,7 @@ times strictly increasing; values inside :data:`RANGES`.
 from __future__ import annotations
 
 import re
+from array import array
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -218,13 +219,15 @@ def read_thermal_xlsx(path: str | Path, sheet: str | None = None) -> ThermalReco
         while width and header[width - 1] is None:
             width -= 1
         spec = _classify_header(header[:width], f, hrow)
-        data: list[tuple] = []
-        rows: list[int] = []
+        # one pass, converted as read: 8 bytes a value (array 'd'), not a row of objects
+        cols = [array("d") for _ in range(width)]
+        rows = array("q")
+        checks = [(RANGES[kind], name, _col_letter(j)) for j, (kind, name) in enumerate(spec)]
         blank_at: int | None = None
-        for r, cells in enumerate(it, start=hrow + 1):
-            cells = tuple(cells[:width]) + (None,) * max(0, width - len(cells))
-            extra = [c for c in cells[width:] if c is not None] if len(cells) > width else []
-            if all(c is None for c in cells[:width]) and not extra:
+        for r, raw in enumerate(it, start=hrow + 1):
+            beyond = [j for j in range(width, len(raw)) if raw[j] is not None]
+            cells = tuple(raw[:width]) + (None,) * max(0, width - len(raw))
+            if all(c is None for c in cells) and not beyond:
                 if blank_at is None:
                     blank_at = r
                 continue
@@ -232,26 +235,29 @@ def read_thermal_xlsx(path: str | Path, sheet: str | None = None) -> ThermalReco
                 raise AbbeInputError(f"empty row {blank_at} between data rows: a record has no "
                                      "gaps (delete the row or split the record)", file=f,
                                      line=blank_at)
+            if beyond:
+                c = _col_letter(beyond[0])
+                raise AbbeInputError(f"cell {c}{r} lies beyond the header's {width} columns: "
+                                     "expected a header for every column", file=f, line=r,
+                                     field=c)
             if len(rows) >= MAX_ROWS:
                 raise AbbeInputError(f"more than {MAX_ROWS} data rows", file=f, line=r)
-            data.append(cells[:width])
+            for j, v in enumerate(cells):
+                (lo, hi, unit), name, col = checks[j]
+                if isinstance(v, str):
+                    v = parse_number(v.strip(), file=f, line=r, field=name, lo=lo, hi=hi,
+                                     unit=unit)
+                elif v is None:
+                    raise AbbeInputError(f"empty cell {col}{r}: expected a number in "
+                                         f"[{lo:g}, {hi:g}] {unit}", file=f, line=r, field=name)
+                else:
+                    v = check_number(v, file=f, line=r, field=name, lo=lo, hi=hi, unit=unit)
+                cols[j].append(v)
             rows.append(r)
     finally:
         wb.close()
-    vals = np.empty((len(rows), width))
-    for j, (kind, name) in enumerate(spec):
-        lo, hi, unit = RANGES[kind]
-        col = _col_letter(j)
-        for i, (cells, r) in enumerate(zip(data, rows)):
-            v = cells[j]
-            if isinstance(v, str):
-                v = parse_number(v.strip(), file=f, line=r, field=name, lo=lo, hi=hi, unit=unit)
-            elif v is None:
-                raise AbbeInputError(f"empty cell {col}{r}: expected a number in [{lo:g}, {hi:g}] "
-                                     f"{unit}", file=f, line=r, field=name)
-            else:
-                v = check_number(v, file=f, line=r, field=name, lo=lo, hi=hi, unit=unit)
-            vals[i, j] = v
+    vals = (np.column_stack([np.frombuffer(c, dtype=np.float64) for c in cols]) if len(rows)
+            else np.empty((0, width)))
     kinds = [k for k, _ in spec]
     temps = [j for j, k in enumerate(kinds) if k == "temperature"]
     disps = [j for j, k in enumerate(kinds) if k == "displacement"]

@@ -106,3 +106,11 @@ def test_not_a_workbook(tmp_path):
 
 def test_real_file_is_where_the_project_carries_it():
     assert REAL_XLSX.is_file()
+
+
+def test_xlsx_cell_beyond_the_header(tmp_path):
+    p = tmp_path / "wide.xlsx"
+    _xlsx(p, [HEAD, (0, 0, 0.1, 20.0), (15, 0, 0.2, 20.0, 99.0)])
+    with pytest.raises(AbbeInputError) as e:
+        read_thermal_xlsx(p)
+    assert e.value.line == 3 and e.value.field == "E" and "beyond the header" in str(e.value)
