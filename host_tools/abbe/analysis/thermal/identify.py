@@ -47,6 +47,9 @@ TAU_BOUNDS_S = (1.0, 14400.0)
 MAX_VIF = 30.0
 #: Terms per channel (the runtime's limit).
 MAX_TERMS = MAX_TERMS_PER_CHANNEL
+#: Inputs whose best grid CV RMS is within this fraction of the chosen one's are reported
+#: as rivals of the choice (the selection between them is not decided by the data).
+RIVAL_FRACTION = 0.10
 #: A term must lower the cross-validated RMS by at least this fraction.
 MIN_GAIN_FRACTION = 0.10
 
@@ -65,7 +68,8 @@ class ChannelFit:
     """The identified model of one channel and how it was chosen.
 
     ``terms``: (candidate index, tau s, gain, gain_u95, tau_u95_s) per term;
-    ``steps``: the selection's trace: (added term's name, tau s, CV RMS um, max VIF).
+    ``steps``: the selection's trace: (added term's name, tau s, CV RMS um, max VIF, rival
+    inputs within :data:`RIVAL_FRACTION` of it on the grid).
     """
 
     name: str
@@ -204,7 +208,15 @@ def select_terms(t_s: np.ndarray, y: np.ndarray, cands: list[Candidate], cyc: np
             rms = _cv_rms(cols, y, cyc)
             if vif <= max_vif and rms <= best_rms * (1.0 - min_gain):
                 chosen, best_rms, accepted = trial, rms, True
-                trace.append((cands[key[0]].name, trial[-1][1], rms, vif))
+                grid_rms = next(r for r, k in ranked if k == key)
+                rivals = []  # other inputs nearly as good on the grid: an ambiguous choice
+                for r, k in ranked:
+                    if r > grid_rms * (1.0 + RIVAL_FRACTION):
+                        break
+                    name = cands[k[0]].name
+                    if k[0] != key[0] and name not in rivals:
+                        rivals.append(name)
+                trace.append((cands[key[0]].name, trial[-1][1], rms, vif, tuple(rivals)))
                 break
         if not accepted:
             break

@@ -57,7 +57,8 @@ class SignalResult:
                            "gain_u95": t.gain_u95, "tau_u95_s": t.tau_u95_s}
                           for t in self.fit.terms],
                 "selection": [{"added": s[0], "tau_s": s[1], "cv_rms": s[2],
-                               "max_vif": s[3]} for s in self.fit.steps]}
+                               "max_vif": s[3], "rivals": list(s[4])}
+                              for s in self.fit.steps]}
 
 
 @dataclass

@@ -133,7 +133,8 @@ def write_report(res: FitResult, iso: dict, out: Path, diagnosis: dict | None = 
     for s in res.channels:
         for st in s.fit.steps:
             sel.append(f"<tr><td>{_esc(s.name)}</td><td>{_esc(st[0])}</td><td>{st[1]:.0f}</td>"
-                       f"<td>{st[2]:.2f}</td><td>{st[3]:.1f}</td></tr>")
+                       f"<td>{st[2]:.2f}</td><td>{st[3]:.1f}</td>"
+                       f"<td>{_esc(', '.join(st[4]) or '-')}</td></tr>")
     drift = "".join(f"<tr><td>{_esc(d['name'])}</td><td>{d['unit']}</td><td>{d['range']:.1f}</td>"
                     f"<td>{d['max']:.1f} @ {d['max_h']:.1f} h</td>"
                     f"<td>{d['min']:.1f} @ {d['min_h']:.1f} h</td><td>{d['final']:.1f}</td></tr>"
@@ -164,7 +165,8 @@ of uncompensated and below MLR.</p>
 {''.join(terms)}</table>
 <h2>Selection (forward, leave-one-cycle-out CV inside the identification hours)</h2>
 <table><tr><th>channel</th><th>added</th><th>tau, refined (s)</th><th>CV RMS (um)</th>
-<th>max VIF</th></tr>{''.join(sel)}</table>
+<th>max VIF</th><th>rivals within 10 % (not decided by the data)</th></tr>
+{''.join(sel)}</table>
 {diag}
 <h2>ISO 230-3 evaluation of the whole record</h2>
 <table><tr><th>signal</th><th>unit</th><th>range</th><th>max</th><th>min</th><th>end</th></tr>
