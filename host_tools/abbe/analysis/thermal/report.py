@@ -124,7 +124,7 @@ def write_report(res: FitResult, iso: dict, out: Path, diagnosis: dict | None = 
                     f"<td>{_f(s.rms_comp)} ({100 * s.ratio:.0f} %)</td>"
                     f"<td>{_f(s.rms_comp_ident)}</td><td>{ok}</td></tr>")
     terms = []
-    for s in res.outputs + [c for c in res.channels if c not in res.outputs]:
+    for s in res.channels + [o for o in res.outputs if o.unit == "urad"]:
         for t in s.fit.terms:
             terms.append(f"<tr><td>{_esc(s.name)}</td><td>{_esc(res.input_names[t.input])}</td>"
                          f"<td>{_tau(t.tau_s, t.tau_u95_s)}</td>"
