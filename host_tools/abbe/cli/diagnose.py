@@ -24,7 +24,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "compare, test the catalogue of missing effects (docs/effects.md) with "
                     "stepwise selection (F-test against the noise, BIC, held-out data), name "
                     "what is missing with values and 95 % intervals, write the updated table "
-                    "(blob, C, JSON) and show the residual before and after.",
+                    "(blob, C, JSON) and show the residual before and after. Thermal records "
+                    "(ISO 230-3): `abbe thermal diagnose` names the missing thermal effect "
+                    "(channel, input, lag; docs/thermal.md).",
         epilog=examples("abbe diagnose examples/vmc500/machine.toml --model fit-out/model.bin "
                         "--ballbar circle1 -o diagnose-out",
                         "abbe diagnose --iso230-2 x_iso230_2.dat --axis X -o diagnose-x"))

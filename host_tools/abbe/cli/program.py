@@ -13,6 +13,7 @@ from abbe.formats.output import Outputs
 from abbe.formats.programs.dialects import DIALECTS, render
 from abbe.formats.programs.five_axis import FIVE_AXIS_TESTS
 from abbe.formats.programs.plan import SEQUENCES, TESTS, ballbar_program, line_program
+from abbe.formats.programs.thermal import DEFAULT_SPEEDS_RPM, THERMAL_TESTS, spindle_program
 from abbe.model.geometry import PLANES
 from abbe.model.table import AXES
 
@@ -31,7 +32,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "abbe program MACHINE.toml --test ballbar --plane XY --dialect fanuc "
                         "-o O0001.nc"))
     p.add_argument("machine", help="machine file (TOML)")
-    p.add_argument("--test", required=True, choices=TESTS + FIVE_AXIS_TESTS)
+    p.add_argument("--test", required=True, choices=TESTS + FIVE_AXIS_TESTS + THERMAL_TESTS)
     g = p.add_mutually_exclusive_group()
     g.add_argument("--axis", choices=AXES, help="the line's axis ([laser.A] of the machine file)")
     g.add_argument("--plane", choices=PLANES, help="the ballbar test's plane ([ballbar.*])")
@@ -74,10 +75,30 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "(probing) or above the ball (R-test), mm (50)")
     p.add_argument("--step-deg", type=in_range(0.5, 90.0, "deg"), default=10.0,
                    help="five-axis R-test: angle step of the path, deg (10)")
+    p.add_argument("--speeds", type=_speeds, default=list(DEFAULT_SPEEDS_RPM),
+                   help="iso230-3-spindle: the speeds, rpm, comma-separated "
+                        "(default 1250,2500,3750,5000,3500)")
+    p.add_argument("--on-h", type=in_range(0.01, 100.0, "h"), default=4.0,
+                   help="iso230-3-spindle: hours at each speed (4)")
+    p.add_argument("--off-h", type=in_range(0.0, 100.0, "h"), default=4.0,
+                   help="iso230-3-spindle: hours stopped after each speed (4)")
+    p.add_argument("--reading-s", type=in_range(1.0, 3600.0, "s"), default=60.0,
+                   help="iso230-3-spindle: the reading interval, s (60)")
     p.set_defaults(func=run)
 
 
+def _speeds(text: str) -> list[float]:
+    """argparse type: comma-separated speeds, each in [1, 100000] rpm, at most 100."""
+    parts = text.split(",")
+    if len(parts) > 100:
+        raise argparse.ArgumentTypeError(f"{len(parts)} speeds: at most 100")
+    one = in_range(1.0, 100000.0, "rpm")
+    return [one(v) for v in parts]
+
+
 def run(args: argparse.Namespace) -> int:
+    if args.test in THERMAL_TESTS:
+        return _run_thermal(args)
     if args.test in FIVE_AXIS_TESTS:
         from abbe.cli.program_five_axis import run_five_axis
         return run_five_axis(args)
@@ -124,6 +145,19 @@ def run(args: argparse.Namespace) -> int:
             if exc.file is None and exc.field and not exc.field.startswith("--"):
                 exc.located(file=str(m.path), line=m.line_of(exc.field))
             raise
+        prog.params = {"machine": m.name, "dialect": args.dialect, **prog.params}
+        out.write_text(render(prog, args.dialect), encoding="utf-8")
+    print(f"abbe program: wrote {args.out} ({prog.title}, {args.dialect}, "
+          f"{len(prog.steps)} steps)")
+    return 0
+
+
+def _run_thermal(args: argparse.Namespace) -> int:
+    with Outputs() as outs:
+        out = outs.file(args.out, option="--out")
+        m = load_machine(args.machine)
+        prog = spindle_program(args.speeds, args.on_h * 3600.0, args.off_h * 3600.0,
+                               args.reading_s, m.reference_mm)
         prog.params = {"machine": m.name, "dialect": args.dialect, **prog.params}
         out.write_text(render(prog, args.dialect), encoding="utf-8")
     print(f"abbe program: wrote {args.out} ({prog.title}, {args.dialect}, "

@@ -9,6 +9,9 @@
 | sinumerik | ``G71 G90 G94 G17`` | ``G4 F<s>`` | ``; ...`` | ``M0`` | ``M30`` |
 | heidenhain | ``BEGIN PGM``, ``TOOL CALL 0 Z`` | ``CYCL DEF 9`` | ``; ...`` | ``STOP`` | ``END PGM`` |
 
+Spindle (ISO 230-3 tests): ``M3 S<rpm>`` / ``M5`` (Fanuc ``M03`` / ``M05``); Heidenhain
+``TOOL CALL 0 Z S<rpm>`` then ``L M3``, ``L M5`` (not checked on a TNC).
+
 Arcs: G2 / G3 with the centre as I, J, K relative to the arc's start (the default of
 all four G-code dialects); Heidenhain: ``CC`` (the centre) then ``C`` with ``DR+`` /
 ``DR-``. Every coordinate has a decimal point (a Fanuc ``X100`` is 100 increments).
@@ -16,7 +19,7 @@ all four G-code dialects); Heidenhain: ``CC`` (the centre) then ``C`` with ``DR+
 
 from __future__ import annotations
 
-from abbe.formats.programs.plan import Arc, Comment, Dwell, Move, Program, Stop
+from abbe.formats.programs.plan import Arc, Comment, Dwell, Move, Program, Spindle, Stop
 from abbe.model.geometry import PLANE_AXES
 from abbe.model.table import AXES
 
@@ -105,6 +108,9 @@ def _gcode(prog: Program, dialect: str) -> list[str]:
                                                                     f"G4 P{st.seconds:.3f}"))
         elif isinstance(st, Stop):
             lines.append(("M00 " if fanuc else "M0 ") + comment(st.text))
+        elif isinstance(st, Spindle):
+            lines.append(f"M03 S{st.rpm:.0f}" if fanuc else f"M3 S{st.rpm:.0f}") if st.rpm > 0 \
+                else lines.append("M05" if fanuc else "M5")
     lines.append("M30" if fanuc or sin else "M2")
     if fanuc:
         lines.append("%")
@@ -139,6 +145,9 @@ def _heidenhain(prog: Program) -> list[str]:
             body += ["CYCL DEF 9.0 DWELL TIME", f"CYCL DEF 9.1 DWELL {st.seconds:.3f}"]
         elif isinstance(st, Stop):
             body += [f"; {_clean(st.text)}", "STOP"]
+        elif isinstance(st, Spindle):
+            body += ([f"TOOL CALL 0 {TOOL_AXIS[prog.plane]} S{st.rpm:.0f}", "L M3"] if st.rpm > 0
+                     else ["L M5"])
     lines = ["BEGIN PGM ABBE MM"] + body + ["END PGM ABBE MM"]
     return [f"{i} {ln}" for i, ln in enumerate(lines)]
 

@@ -62,7 +62,14 @@ class Comment:
     text: str
 
 
-Step = Move | Arc | Dwell | Stop | Comment
+@dataclass(frozen=True)
+class Spindle:
+    """Spindle clockwise at ``rpm`` (0: stop)."""
+
+    rpm: float
+
+
+Step = Move | Arc | Dwell | Stop | Comment | Spindle
 
 
 @dataclass
