@@ -11,6 +11,8 @@
 #define ABBE_GOLDEN_THERMAL_TOL_F32_REL 2e-05f
 #define ABBE_GOLDEN_THERMAL_TOL_Q_ABS_NM 4
 #define ABBE_GOLDEN_THERMAL_TOL_Q_REL 1e-06f
+#define ABBE_GOLDEN_THERMAL_TOL_F32_REL_PPM 20 /* the relative parts in ppm (integer-only targets) */
+#define ABBE_GOLDEN_THERMAL_TOL_Q_REL_PPM 1
 typedef struct {
   float x[ABBE_GOLDEN_THERMAL_INPUTS];        /* f32 input: degC, rpm */
   int32_t x_milli[ABBE_GOLDEN_THERMAL_INPUTS]; /* q input: m degC, rpm */

@@ -89,6 +89,8 @@ HEADER = """/* golden_thermal.h: thermal golden vectors for the abbe C tests.
 #define ABBE_GOLDEN_THERMAL_TOL_F32_REL %(fr)sf
 #define ABBE_GOLDEN_THERMAL_TOL_Q_ABS_NM %(qa)d
 #define ABBE_GOLDEN_THERMAL_TOL_Q_REL %(qr)sf
+#define ABBE_GOLDEN_THERMAL_TOL_F32_REL_PPM %(frp)d /* the relative parts in ppm (integer-only targets) */
+#define ABBE_GOLDEN_THERMAL_TOL_Q_REL_PPM %(qrp)d
 typedef struct {
   float x[ABBE_GOLDEN_THERMAL_INPUTS];        /* f32 input: degC, rpm */
   int32_t x_milli[ABBE_GOLDEN_THERMAL_INPUTS]; /* q input: m degC, rpm */
@@ -151,7 +153,8 @@ def render() -> tuple[str, str]:
             _ivec(np.round(tipf * 1000)), _ivec(np.round(tipq * 1000))]) + "},")
     c += ["};", f"const uint32_t abbe_golden_thermal_sample_count = {len(dt)}u;", ""]
     h = HEADER % {"fa": TOL_F32_ABS_NM, "fr": repr(TOL_F32_REL), "qa": TOL_Q_ABS_NM,
-                  "qr": repr(TOL_Q_REL)}
+                  "qr": repr(TOL_Q_REL), "frp": round(TOL_F32_REL * 1e6),
+                  "qrp": round(TOL_Q_REL * 1e6)}
     return h, "\n".join(c)
 
 
