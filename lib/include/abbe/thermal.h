@@ -31,6 +31,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "abbe/comp.h"
 #include "abbe/model.h"
 #include "abbe/status.h"
 
@@ -176,6 +177,17 @@ uint32_t abbe_thermal_input_faults(const abbe_thermal_state_t *st);
 /* Inputs (n) and channels of a loaded thermal model (0 without a block). */
 unsigned abbe_thermal_n_inputs(const abbe_thermal_model_t *thermal);
 unsigned abbe_thermal_n_channels(const abbe_thermal_model_t *thermal);
+
+/* The compensator's cycle (abbe_comp_step_f32 / _q, abbe/comp.h) with the
+ * thermal error added to the model's before the safety layer (limits, rate,
+ * fades). thermal may be NULL (then exactly abbe_comp_step_*); its apply()
+ * runs every cycle, so thermal's period is the compensator's cycle. The
+ * plain steps stay as they were: a firmware without a thermal block pays
+ * nothing for this one. */
+abbe_status_t abbe_comp_step_thermal_f32(abbe_comp_t *comp, abbe_thermal_state_t *thermal,
+                                         const abbe_comp_input_f32_t *in, abbe_comp_output_t *out);
+abbe_status_t abbe_comp_step_thermal_q(abbe_comp_t *comp, abbe_thermal_state_t *thermal,
+                                       const abbe_comp_input_q_t *in, abbe_comp_output_t *out);
 
 size_t abbe_thermal_model_sizeof(void);
 size_t abbe_thermal_state_sizeof(void);
