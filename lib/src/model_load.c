@@ -144,11 +144,11 @@ static abbe_status_t check_flags(const uint8_t *b, uint32_t rotary)
 #if defined(ABBE_MODEL_LOAD_THERMAL)
     /* 1.3: THERMAL_DYN; the header's reserved word is then the thermal block's offset */
     known |= abbe_ld_u16(b + H_MINOR) >= 3u ? ABBE_FEATURE_THERMAL_DYN : 0u;
-    uint32_t reserved = (features & ABBE_FEATURE_THERMAL_DYN) != 0u ? 0u : abbe_ld_u32(b + H_RESERVED);
+#define H_RESERVED_WORD(b) ((abbe_ld_u32((b) + H_FEATURES) & ABBE_FEATURE_THERMAL_DYN) != 0u ? 0u : abbe_ld_u32((b) + H_RESERVED))
 #else
-    uint32_t reserved = abbe_ld_u32(b + H_RESERVED);
+#define H_RESERVED_WORD(b) abbe_ld_u32((b) + H_RESERVED)
 #endif
-    if ((features & ~known) != 0u || reserved != 0u ||
+    if ((features & ~known) != 0u || H_RESERVED_WORD(b) != 0u ||
         (features & (ABBE_FEATURE_REVERSAL | ABBE_FEATURE_BACKLASH)) == ABBE_FEATURE_REVERSAL) {
         return ABBE_E_FLAGS;
     }

@@ -117,23 +117,33 @@ abbe_status_t abbe_thermal_update_f32(abbe_thermal_state_t *st, const float x[],
     return ABBE_OK;
 }
 
-/* One fade step of every channel toward its target (1 running, else 0). */
+/* One fade step of every channel toward its target (1 running, else 0), the
+ * mix and the flags in the same pass (HOLD changes only at a sample). */
 static void th_fade_f32(abbe_thermal_state_t *st)
 {
     const abbe_thermal_model_t *th = st->model;
+    float out[3] = {0.0f, 0.0f, 0.0f};
+    unsigned fading = 0u;
     for (unsigned c = 0; c < th->n_channels; c++) {
         float w = st->w[c];
         if (st->ch_state[c] == TH_CH_RUN && !st->gap) {
             w += st->fade_step;
             w = w > 1.0f ? 1.0f : w;
+            fading |= w < 1.0f;
         } else {
             w -= st->fade_step;
             w = w < 0.0f ? 0.0f : w;
+            fading |= w > 0.0f;
         }
         st->w[c] = w;
+        out[st->tip_axis[c]] += w * st->tip[c];
     }
-    th_mix_f32(st);
-    st->flags = th_state_flags(st, st->flags & ~ABBE_THERMAL_F_FADING);
+    st->out[0] = out[0];
+    st->out[1] = out[1];
+    st->out[2] = out[2];
+    st->fading = (uint8_t)fading;
+    st->flags = (st->flags & ~(ABBE_THERMAL_F_FADING | ABBE_THERMAL_F_GAP)) | (fading ? ABBE_THERMAL_F_FADING : 0u) |
+                (st->gap ? ABBE_THERMAL_F_GAP : 0u);
 }
 
 void abbe_thermal_apply_f32(abbe_thermal_state_t *st, float err_um[3])

@@ -139,20 +139,31 @@ abbe_status_t abbe_thermal_update_q(abbe_thermal_state_t *st, const int32_t x_mi
     return ABBE_OK;
 }
 
+/* One fade step of every channel, the mix and the flags in one pass (HOLD
+ * changes only at a sample). */
 static void th_fade_q(abbe_thermal_state_t *st)
 {
     const abbe_thermal_model_t *th = st->model;
+    int64_t out[3] = {0, 0, 0};
+    unsigned fading = 0u;
     for (unsigned c = 0; c < th->n_channels; c++) {
         uint32_t w = st->wq24[c];
         if (st->ch_state[c] == TH_CH_RUN && !st->gap) {
             w = TH_FADE_ONE - w > st->fade_step_q24 ? w + st->fade_step_q24 : TH_FADE_ONE;
+            fading |= w < TH_FADE_ONE;
         } else {
             w = w > st->fade_step_q24 ? w - st->fade_step_q24 : 0u;
+            fading |= w > 0u;
         }
         st->wq24[c] = w;
+        out[st->tip_axis[c]] += (int64_t)w * st->tipq[c];
     }
-    th_mix_q(st);
-    st->flags = th_state_flags(st, st->flags & ~ABBE_THERMAL_F_FADING);
+    for (unsigned a = 0; a < 3u; a++) {
+        st->outq[a] = (int32_t)abbe_shr_round(out[a], 24u);
+    }
+    st->fading = (uint8_t)fading;
+    st->flags = (st->flags & ~(ABBE_THERMAL_F_FADING | ABBE_THERMAL_F_GAP)) | (fading ? ABBE_THERMAL_F_FADING : 0u) |
+                (st->gap ? ABBE_THERMAL_F_GAP : 0u);
 }
 
 void abbe_thermal_apply_q(abbe_thermal_state_t *st, int32_t err_nm[3])
