@@ -67,9 +67,13 @@ def section(m4f: Path, m3: Path) -> list[str]:
            "the paper table as in section 2. `apply` is what every evaluation period adds; `update` runs",
            "once per temperature sample (seconds apart).", "",
            "| target | call | instructions (min / median / max) | goal |", "|---|---|---:|---|"]
+    fading = {}
     for name, build in (("Cortex-M4F", m4f), ("Cortex-M3", m3)):
         counts, _ = qemu_trace_counts(MACHINES[name], build / "bench" / "bench_thermal_target.elf",
                                       "arm-none-eabi-nm")
+        v = "f32" if name == "Cortex-M4F" else "q"
+        fading[name] = (f"{max(counts[f'eq3_{v}'])} + {max(counts[f'apply_fading_{v}'])} = "
+                        f"{max(counts[f'eq3_{v}']) + max(counts[f'apply_fading_{v}'])}")
         for key, label in ROWS:
             if key not in counts:
                 continue
@@ -80,8 +84,9 @@ def section(m4f: Path, m3: Path) -> list[str]:
     out += ["", "Steady means no fade in progress (every channel at weight 0 or 1): then `apply` adds the",
             "three precomputed sums and checks the missing-sample watchdog. While a fade runs (the",
             "table's fade time after the first sample, a sensor fault or its recovery) it also steps",
-            "the five weights and re-mixes them: Eq. 3 + thermal is then 695 + 180 = 875 on the M4F",
-            "(over the 800 goal) and 1409 + 262 = 1671 on the M3 (over 1600) for those seconds.",
+            "the five weights and re-mixes them: Eq. 3 + thermal is then "
+            f"{fading['Cortex-M4F']} on the M4F and {fading['Cortex-M3']} on the M3 (goals 800 / 1600)",
+            "for those seconds.",
             "`update` runs at the temperature rate (seconds), not per period."]
     out += ["", "Flash of the library members (`.text` + `.data`, bytes, arm-none-eabi-size of libabbe.a,",
             "-O2 release builds). The thermal members are linked only by a firmware that calls",
