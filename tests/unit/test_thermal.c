@@ -145,6 +145,24 @@ static void test_every_status(void **state)
     copy_golden(&buf);
     buf.b[block_off(&buf) + 4u] ^= 1u;
     assert_int_equal(load(&buf), ABBE_E_CRC);
+    /* the geometric part's own checks, through the thermal loader (X record at 64) */
+    copy_golden(&buf);
+    put_u32(buf.b + 64 + 4, get_u32(buf.b + 64)); /* travel_max = travel_min */
+    fix_crc(buf.b);
+    assert_int_equal(load(&buf), ABBE_E_TRAVEL);
+    copy_golden(&buf);
+    assert_true(buf.b[64 + 10] > 0u); /* block 0 used: its period must be > 0 */
+    put_u32(buf.b + 64 + 12, 0u);
+    fix_crc(buf.b);
+    assert_int_equal(load(&buf), ABBE_E_PERIOD);
+    copy_golden(&buf);
+    put_u32(buf.b + get_u32(buf.b + 64 + 52), 0x7FC00000u); /* first float32 coefficient: NaN */
+    fix_crc(buf.b);
+    assert_int_equal(load(&buf), ABBE_E_NONFINITE);
+    copy_golden(&buf);
+    buf.b[get_u32(buf.b + 64 + 52)] ^= 1u; /* no longer its int32 twin */
+    fix_crc(buf.b);
+    assert_int_equal(load(&buf), ABBE_E_MISMATCH);
     /* a minor-2 table may not set THERMAL_DYN */
     copy_golden(&buf);
     buf.b[6] = 2;
@@ -436,6 +454,50 @@ static void test_args(void **state)
     assert_true(abbe_thermal_flags(&st) & ABBE_THERMAL_F_RANGE);
 }
 
+/* abbe_comp_step_thermal_*: with NULL it is exactly abbe_comp_step_*; with a
+ * running thermal state its target is the model's plus the thermal tip error. */
+static void test_comp_step_thermal(void **state)
+{
+    (void)state;
+    abbe_model_t m;
+    abbe_thermal_model_t th;
+    abbe_thermal_state_t ts;
+    assert_int_equal(abbe_thermal_load(&m, &th, abbe_golden_thermal_blob, abbe_golden_thermal_blob_size), ABBE_OK);
+    abbe_comp_config_t cfg;
+    memset(&cfg, 0, sizeof cfg);
+    for (unsigned j = 0; j < 3u; j++) {
+        cfg.warn_nm[j] = 5000000;
+        cfg.limit_nm[j] = 10000000;
+        cfg.rate_nm_per_cycle[j] = 10000000;
+        cfg.axis_sign[j] = 1;
+    }
+    cfg.fade_cycles = 1;
+    cfg.stale_cycles = 5;
+    abbe_comp_t a, b, c;
+    assert_int_equal(abbe_comp_init(&a, &cfg, &m), ABBE_OK);
+    assert_int_equal(abbe_comp_init(&b, &cfg, &m), ABBE_OK);
+    assert_int_equal(abbe_comp_init(&c, &cfg, &m), ABBE_OK);
+    abbe_comp_enable(&a);
+    abbe_comp_enable(&b);
+    abbe_comp_enable(&c);
+    assert_int_equal(abbe_thermal_init_q(&ts, &th, 30000000u), ABBE_OK); /* one call = a whole fade */
+    for (uint32_t n = 0; n < 20u; n++) {
+        assert_int_equal(abbe_thermal_update_q(&ts, S[n].x_milli, 0x1FFFFu, n ? S[n].dt_ms : 0u), ABBE_OK);
+        abbe_comp_input_q_t in = {{100000000 + 1000000 * (int32_t)n, -50000000, -20000000}, {20000, 20000, 20000},
+                                  {1, 0, 0}, 1, 0};
+        abbe_comp_output_t oa, ob, oc;
+        assert_int_equal(abbe_comp_step_q(&a, &in, &oa), ABBE_OK);
+        assert_int_equal(abbe_comp_step_thermal_q(&b, NULL, &in, &ob), ABBE_OK);
+        assert_int_equal(abbe_comp_step_thermal_q(&c, &ts, &in, &oc), ABBE_OK);
+        assert_memory_equal(&oa, &ob, sizeof oa);
+        for (unsigned j = 0; j < 3u; j++) { /* target = -(model error + thermal tip error) */
+            int64_t d = (int64_t)oa.target_nm[j] - oc.target_nm[j] - S[n].tip_q_nm[j];
+            assert_true(d <= 2 && d >= -2);
+        }
+    }
+    assert_int_equal(abbe_comp_step_thermal_q(NULL, &ts, NULL, NULL), ABBE_E_ARG);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -443,6 +505,7 @@ int main(void)
         cmocka_unit_test(test_golden_f32),  cmocka_unit_test(test_golden_q),
         cmocka_unit_test(test_faults_f32),  cmocka_unit_test(test_fade_rate_q),
         cmocka_unit_test(test_args),
+        cmocka_unit_test(test_comp_step_thermal),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
