@@ -39,8 +39,8 @@ static void th_mix_q(abbe_thermal_state_t *st)
         fading |= up ? (st->wq24[c] < TH_FADE_ONE) : (st->wq24[c] > 0u);
         out[st->tip_axis[c]] += (int64_t)st->wq24[c] * st->tipq[c];
     }
-    for (unsigned a = 0; a < 3u; a++) {
-        st->outq[a] = (int32_t)abbe_shr_round(out[a], 24u); /* |.| <= 5 x 2^30 x 2^24 / 2^24: fits after the sum of <= 2 channels per axis */
+    for (unsigned a = 0; a < 3u; a++) { /* two channels per axis at most, each within 2^31: clamp the sum */
+        st->outq[a] = (int32_t)abbe_clamp_i64(abbe_shr_round(out[a], 24u), -INT32_MAX, INT32_MAX);
     }
     st->fading = (uint8_t)fading;
 }
@@ -159,11 +159,26 @@ static void th_fade_q(abbe_thermal_state_t *st)
         out[st->tip_axis[c]] += (int64_t)w * st->tipq[c];
     }
     for (unsigned a = 0; a < 3u; a++) {
-        st->outq[a] = (int32_t)abbe_shr_round(out[a], 24u);
+        st->outq[a] = (int32_t)abbe_clamp_i64(abbe_shr_round(out[a], 24u), -INT32_MAX, INT32_MAX);
     }
     st->fading = (uint8_t)fading;
     st->flags = (st->flags & ~(ABBE_THERMAL_F_FADING | ABBE_THERMAL_F_GAP)) | (fading ? ABBE_THERMAL_F_FADING : 0u) |
                 (st->gap ? ABBE_THERMAL_F_GAP : 0u);
+}
+
+/* a + b saturated to int32 (the overflow flag where the compiler gives it: an
+ * add and a branch instead of a 64-bit sum and two compares on a Cortex-M3) */
+static inline int32_t th_sat_add(int32_t a, int32_t b)
+{
+#if defined(__GNUC__) || defined(__clang__)
+    int32_t r;
+    if (__builtin_add_overflow(a, b, &r)) {
+        return a < 0 ? INT32_MIN : INT32_MAX;
+    }
+    return r;
+#else
+    return (int32_t)abbe_clamp_i64((int64_t)a + b, INT32_MIN, INT32_MAX);
+#endif
 }
 
 void abbe_thermal_apply_q(abbe_thermal_state_t *st, int32_t err_nm[3])
@@ -179,9 +194,10 @@ void abbe_thermal_apply_q(abbe_thermal_state_t *st, int32_t err_nm[3])
     if (st->fading) {
         th_fade_q(st);
     }
-    err_nm[0] += st->outq[0];
-    err_nm[1] += st->outq[1];
-    err_nm[2] += st->outq[2];
+    /* saturating: the sum stays an int32 whatever the error it is added to */
+    err_nm[0] = th_sat_add(err_nm[0], st->outq[0]);
+    err_nm[1] = th_sat_add(err_nm[1], st->outq[1]);
+    err_nm[2] = th_sat_add(err_nm[2], st->outq[2]);
 }
 
 unsigned abbe_thermal_channels_q(const abbe_thermal_state_t *st, int32_t y[ABBE_THERMAL_MAX_CHANNELS])
