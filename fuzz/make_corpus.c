@@ -5,6 +5,7 @@
 
 #include "golden_data.h"
 #include "golden_five.h"
+#include "golden_thermal.h"
 
 int main(int argc, char **argv)
 {
@@ -30,6 +31,17 @@ int main(int argc, char **argv)
         snprintf(path, sizeof path, "%s/five-%02u-%s.bin", argv[1], i, t->name);
         FILE *f = fopen(path, "wb");
         if (f == NULL || fwrite(t->blob, 1, t->blob_size, f) != t->blob_size || fclose(f) != 0) {
+            fprintf(stderr, "make_corpus: cannot write %s\n", path);
+            return 1;
+        }
+        written++;
+    }
+    { /* format 1.3: the thermal golden table (fuzz_thermal_load) */
+        char path[4096];
+        snprintf(path, sizeof path, "%s/thermal-golden.bin", argv[1]);
+        FILE *f = fopen(path, "wb");
+        if (f == NULL || fwrite(abbe_golden_thermal_blob, 1, abbe_golden_thermal_blob_size, f) !=
+                             abbe_golden_thermal_blob_size || fclose(f) != 0) {
             fprintf(stderr, "make_corpus: cannot write %s\n", path);
             return 1;
         }

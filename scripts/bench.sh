@@ -48,6 +48,8 @@ python3 scripts/bench_report.py --repo . --host build-bench-host --m4f build-ben
     --host-1.0 build-bench-host-1.0 --m4f-1.0 build-bench-m4f-1.0 --m3-1.0 build-bench-m3-1.0 \
     --m4f-clang build-bench-m4f-clang --m3-clang build-bench-m3-clang \
     --m4f-clang-nounroll build-bench-m4f-clang-nounroll -o "$OUT"
+# Section 12 (the thermal block, format 1.3): appended to the file just written.
+python3 scripts/bench_thermal.py --m4f build-bench-m4f --m3 build-bench-m3 --results "$OUT"
 # Section 10 (the grblHAL plugin per segment) is written by its own script, into bench/results.md only.
 if [[ $OUT == bench/results.md ]]; then
     .venv/bin/python port/grblhal/bench/cost.py

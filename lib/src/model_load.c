@@ -97,7 +97,11 @@ static abbe_status_t check_header(const uint8_t *b, size_t size, uint32_t *total
     if (abbe_ld_u16(b + H_MAJOR) != ABBE_TABLE_FORMAT_MAJOR) {
         return ABBE_E_VERSION_MAJOR;
     }
+#if defined(ABBE_MODEL_LOAD_THERMAL) /* thermal_load.c: format 1.3 (thermal block) read, no rotary section */
+    if (abbe_ld_u16(b + H_MINOR) > ABBE_THERMAL_FORMAT_MINOR) {
+#else
     if (abbe_ld_u16(b + H_MINOR) > (rotary != 0u ? 2u : ABBE_TABLE_FORMAT_MINOR)) {
+#endif
         return ABBE_E_VERSION_MINOR;
     }
     if (abbe_ld_u32(b + H_HEADER_SIZE) != HEADER_SIZE ||
@@ -137,7 +141,14 @@ static abbe_status_t check_flags(const uint8_t *b, uint32_t rotary)
     /* a 1.0 table knows no REVERSAL bit; REVERSAL uses BACKLASH's take-up and direction state */
     uint32_t known = ABBE_FEATURE_ALL >> (abbe_ld_u16(b + H_MINOR) == 0u); /* 1.0: FEATURES_1_0 */
     known |= abbe_ld_u16(b + H_MINOR) >= 2u ? rotary : 0u;                 /* 1.2: ROTARY (five_load.c) */
-    if ((features & ~known) != 0u || abbe_ld_u32(b + H_RESERVED) != 0u ||
+#if defined(ABBE_MODEL_LOAD_THERMAL)
+    /* 1.3: THERMAL_DYN; the header's reserved word is then the thermal block's offset */
+    known |= abbe_ld_u16(b + H_MINOR) >= 3u ? ABBE_FEATURE_THERMAL_DYN : 0u;
+#define H_RESERVED_WORD(b) ((abbe_ld_u32((b) + H_FEATURES) & ABBE_FEATURE_THERMAL_DYN) != 0u ? 0u : abbe_ld_u32((b) + H_RESERVED))
+#else
+#define H_RESERVED_WORD(b) abbe_ld_u32((b) + H_RESERVED)
+#endif
+    if ((features & ~known) != 0u || H_RESERVED_WORD(b) != 0u ||
         (features & (ABBE_FEATURE_REVERSAL | ABBE_FEATURE_BACKLASH)) == ABBE_FEATURE_REVERSAL) {
         return ABBE_E_FLAGS;
     }
@@ -554,7 +565,9 @@ static ABBE_ALWAYS_INLINE void build_model(abbe_model_t *model, const uint8_t *b
 #endif
 }
 
-#if !defined(ABBE_MODEL_LOAD_FIVE) /* the 3-axis loader's translation unit */
+#if defined(ABBE_MODEL_LOAD_THERMAL)
+/* thermal_load.c: abbe_thermal_load follows the include */
+#elif !defined(ABBE_MODEL_LOAD_FIVE) /* the 3-axis loader's translation unit */
 abbe_status_t abbe_model_load(abbe_model_t *model, const void *blob, size_t size)
 {
     if (model == NULL || blob == NULL) {

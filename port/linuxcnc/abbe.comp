@@ -51,6 +51,14 @@ pin in bit x.axis_fault "TRUE: the X correction fades out";
 pin in bit y.axis_fault "TRUE: the Y correction fades out";
 pin in bit z.axis_fault "TRUE: the Z correction fades out";
 
+// ---- thermal block (tables of format 1.3; docs/linuxcnc.md, "Thermal block") ----
+pin in float th.in_##[17] "Thermal input NN of the table's thermal block: a temperature in deg C, or the spindle speed input in rpm (the table says which); sampled every thermal-sample-s";
+pin in bit th.fault_##[17] "TRUE: no reading of thermal input NN (open circuit): the channels that read it hold and fade out";
+pin out u32 th.flags "The thermal runtime's flags (ABBE_THERMAL_F_*: 1 open, 2 range, 4 step, 8 missing sample, 16 limit, 32 hold, 64 fading); 0 without a thermal block";
+pin out u32 th.input_faults "Bit k: thermal input k faulted at the last sample";
+pin out float th.channel_##[5] "Thermal channel NN (the table's order), um (urad for tilts), before its fade";
+pin out u32 th.samples "Thermal samples taken";
+
 // ---- inputs, machine state --------------------------------------------------
 pin in bit enable "Compensation wanted (fades in / out over fade-s)";
 pin in bit homed "Every joint homed: motion.is-all-homed";
@@ -114,6 +122,7 @@ param rw float dir_deadband_mm "Reverse motion that turns the backlash direction
 param rw float lead_periods "Evaluate the model this many servo periods ahead (LinuxCNC applies an offset 2 periods late)";
 param rw float machine_unit_mm "mm per machine length unit: 1 (mm) or 25.4 (inch); sets eoffset-scale";
 param rw s32 kins_identity "Five-axis: kinstype of identity kinematics (0 with sparm=identityfirst, as the trt sample configs)";
+param rw float thermal_sample_s "Thermal block: sample the th.in pins this often, s (0.001 .. 3600)";
 param rw s32 kins_tcp "Five-axis: kinstype of the trt (tool-centre-point) kinematics (1 with sparm=identityfirst; != kins-identity)";
 
 option singleton yes;
@@ -142,6 +151,13 @@ author "abbe contributors";
 #undef frame
 #undef kins_identity
 #undef kins_tcp
+#undef th_in
+#undef th_fault
+#undef th_flags
+#undef th_input_faults
+#undef th_channel
+#undef th_samples
+#undef thermal_sample_s
 #undef x_temp_c
 #undef y_temp_c
 #undef z_temp_c
@@ -239,6 +255,7 @@ static void read_params(struct __comp_state *__comp_inst, abbe_lcnc_params_t *p)
     p->machine_unit_mm = PARAM(machine_unit_mm);
     p->kins_identity = PARAM(kins_identity);
     p->kins_tcp = PARAM(kins_tcp);
+    p->thermal_sample_s = PARAM(thermal_sample_s);
 }
 
 FUNCTION(_) {
@@ -265,6 +282,10 @@ FUNCTION(_) {
     in.machine_on = PIN(machine_on);
     in.reset = PIN(reset);
     in.table_select = PIN(table_select);
+    for (unsigned k = 0; k < ABBE_LCNC_TH_INPUTS; k++) {
+        in.th_in[k] = *__comp_inst->th_in[k];
+        in.th_fault[k] = *__comp_inst->th_fault[k] ? 1u : 0u;
+    }
 
     abbe_lcnc_step(&abbe_port, &p, period, &in, &out);
 
@@ -283,6 +304,12 @@ FUNCTION(_) {
     PIN(orient_x_urad) = out.orient_urad[0];
     PIN(orient_y_urad) = out.orient_urad[1];
     PIN(orient_z_urad) = out.orient_urad[2];
+    PIN(th_flags) = out.th_flags;
+    PIN(th_input_faults) = out.th_input_faults;
+    PIN(th_samples) = out.th_samples;
+    for (unsigned c = 0; c < ABBE_LCNC_TH_CHANNELS; c++) {
+        *__comp_inst->th_channel[c] = out.th_channel[c];
+    }
     PIN(kind) = (rtapi_s32)abbe_lcnc_kind(&abbe_port);
     PIN(frame) = out.frame;
     PIN(eoffset_scale) = out.eoffset_scale;
@@ -386,5 +413,6 @@ EXTRA_SETUP() {
     PARAM(machine_unit_mm) = p.machine_unit_mm;
     PARAM(kins_identity) = p.kins_identity;
     PARAM(kins_tcp) = p.kins_tcp;
+    PARAM(thermal_sample_s) = p.thermal_sample_s;
     return 0; /* pins do not exist yet here: FUNCTION writes every output */
 }

@@ -6,7 +6,9 @@ Sub-commands:
 * ``eval MODEL.bin X Y Z [X Y Z ...]``: reference spatial error (um) at machine
   positions (mm); ``--clib`` adds the C library's f32 and q results;
 * ``cgen MODEL.bin -o DIR``: generated C (abbe_model.c / .h);
-* ``from-json MODEL.json -o MODEL.bin``; ``to-json MODEL.bin [-o MODEL.json]``.
+* ``from-json MODEL.json -o MODEL.bin``; ``to-json MODEL.bin [-o MODEL.json]``;
+* ``thermal MODEL.bin thermal.json -o OUT.bin``: the table with the dynamic thermal
+  model as its thermal block (format 1.3; ``--strip``: without it).
 """
 
 from __future__ import annotations
@@ -35,7 +37,16 @@ def _read_bin(path: Path) -> tuple[bytes, Table]:
 
 
 def _cmd_info(args: argparse.Namespace) -> int:
-    data, table = _read_bin(args.model)
+    from abbe.formats.limits import BLOB_MAX_BYTES
+    from abbe.formats.text import read_bytes
+    from abbe.formats.thermal_blob import read_thermal_blob
+
+    data = read_bytes(args.model, what="table blob", max_bytes=BLOB_MAX_BYTES)
+    if int.from_bytes(data[6:8], "little") == 3 and data[:4] == b"ABBE":
+        table, thermal = read_thermal_blob(data, source=str(args.model))  # format 1.3
+    else:
+        data, table = _read_bin(args.model)
+        thermal = None
     total = int.from_bytes(data[8:12], "little")
     minor = int.from_bytes(data[6:8], "little")
     out = [f"{args.model}: abbe table format 1.{minor}, {total} bytes, CRC-32 0x{blob_crc(data):08X}",
@@ -70,6 +81,12 @@ def _cmd_info(args: argparse.Namespace) -> int:
         if ax.thermal_expansion_ppm_per_k or ax.thermal_offset_um_per_k or ax.thermal_tref_c:
             out.append(f"  thermal {ax.thermal_expansion_ppm_per_k:.4f} ppm/K, offset "
                        f"{ax.thermal_offset_um_per_k:.4f} um/K, T_ref {ax.thermal_tref_c:.3f} C")
+    if thermal is not None:
+        out.append(f"thermal block (format 1.3): {len(thermal.inputs)} inputs, max_gap "
+                   f"{thermal.max_gap_s:g} s, fade {thermal.fade_s:g} s")
+        for c in thermal.channels:
+            out.append(f"  channel {c.output}: limit {c.limit:g}; " + "; ".join(
+                f"in{t.input} gain {t.gain:.5f} tau {t.tau_s:g} s" for t in c.terms))
     print("\n".join(out))
     return 0
 
@@ -169,6 +186,37 @@ def _cmd_to_json(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_thermal(args: argparse.Namespace) -> int:
+    from abbe.formats.limits import BLOB_MAX_BYTES
+    from abbe.formats.text import read_bytes
+    from abbe.formats.thermal_blob import read_thermal_blob, strip_thermal_blob, write_thermal_blob
+    from abbe.model.thermal import from_dict
+
+    if (args.thermal_json is None) == (not args.strip):
+        raise AbbeInputError("give a thermal.json, or --strip (not both)", field="thermal_json")
+    with Outputs() as outs:
+        out = outs.file(args.out, option="--out")
+        data = read_bytes(args.model, what="table blob", max_bytes=BLOB_MAX_BYTES)
+        read_thermal_blob(data, source=str(args.model))
+        if args.strip:
+            blob = strip_thermal_blob(data)
+        else:
+            src = str(args.thermal_json)
+            d, _ = load_json(args.thermal_json, what="thermal model JSON",
+                             max_bytes=TABLE_JSON_MAX_BYTES)
+            try:
+                model = from_dict(d)
+                blob = write_thermal_blob(data, model)
+            except AbbeInputError as exc:
+                raise exc.located(file=src) from None
+        out.write_bytes(blob)
+    _, th = read_thermal_blob(blob)
+    what = (f"thermal block of {len(th.inputs)} inputs, {len(th.channels)} channels"
+            if th is not None else "no thermal block")
+    print(f"{args.out}: {len(blob)} bytes, {what}, CRC-32 0x{blob_crc(blob):08X}")
+    return 0
+
+
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``abbe table`` and its sub-commands."""
     p = subparsers.add_parser("table", help="inspect, evaluate and convert error tables",
@@ -211,6 +259,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     q.add_argument("json", type=Path, help="table JSON (model.json)")
     q.add_argument("-o", "--out", type=Path, required=True, help="output blob (model.bin)")
     q.set_defaults(func=_cmd_from_json)
+
+    q = sub.add_parser("thermal", help="put a thermal model (thermal.json) into a table as its "
+                       "thermal block (format 1.3)",
+                       epilog=examples("abbe table thermal fit-out/model.bin thermal.json -o model_thermal.bin",
+                                       "abbe table thermal model_thermal.bin --strip -o model.bin"))
+    q.add_argument("model", type=Path, help="table blob (format 1.0, 1.1 or 1.3)")
+    q.add_argument("thermal_json", type=Path, nargs="?", help="thermal model (thermal.json)")
+    q.add_argument("--strip", action="store_true", help="write the table without its thermal block")
+    q.add_argument("-o", "--out", type=Path, required=True, help="output blob")
+    q.set_defaults(func=_cmd_thermal)
 
     q = sub.add_parser("to-json", help="convert a blob to JSON (stdout unless -o)",
                        epilog=examples("abbe table to-json fit-out/model.bin -o model.json"))

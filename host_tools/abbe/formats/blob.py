@@ -87,6 +87,11 @@ _UM_K_TO_Q16 = float(1 << 16)                      # um/K == nm/mK -> 2^-16 nm p
 ROTARY_MINOR = 2
 FEATURE_ROTARY = 0x20
 ROTARY_DATA_START = COEF_START + 64 + 2 * 64  # 448: header, tilt and table axis records
+#: Format 1.3: the thermal block (feature bit 6), read and written by
+#: :mod:`abbe.formats.thermal_blob` only; :func:`read_blob` refuses it by its minor, as
+#: the C library's abbe_model_load does (abbe_thermal_load reads it).
+THERMAL_MINOR = 3
+FEATURE_THERMAL_DYN = 0x40
 _HEADER_FMT = "<4sHHIIII3i3i3iI"
 _AXIS_FMT = "<iiBBBB2i2iiiiiiIIII"
 assert struct.calcsize(_HEADER_FMT) == HEADER_SIZE
@@ -452,10 +457,14 @@ def read_blob(data: bytes, source: str = "<blob>") -> Table:
     return _decode(_read_ints(data, source))
 
 
-def _read_ints(data: bytes, source: str, rotary: bool = False) -> _TableInts:
+def _read_ints(data: bytes, source: str, rotary: bool = False,
+               thermal: bool = False) -> _TableInts:
     """The checks of the header and the linear axes. rotary: the five-axis
     reader's call (:mod:`abbe.formats.five_axis_blob`): format 1.2 and its ROTARY
-    bit are read, and with ROTARY the linear arrays start after the rotary section."""
+    bit are read, and with ROTARY the linear arrays start after the rotary section.
+    thermal: the format 1.3 reader's call (:mod:`abbe.formats.thermal_blob`): minor 3
+    and its THERMAL_DYN bit are read, the header's reserved word is then the thermal
+    block's offset (checked by that reader)."""
     def err(status: str, msg: str, fld: str | None = None) -> TableError:
         return TableError(msg, status=status, file=source, field=fld)
 
@@ -475,7 +484,7 @@ def _read_ints(data: bytes, source: str, rotary: bool = False) -> _TableInts:
     if major != FORMAT_MAJOR:
         raise err("ABBE_E_VERSION_MAJOR", f"table format {major}.{minor}, this reader reads "
                   f"{FORMAT_MAJOR}.x", "version_major")
-    if minor > (ROTARY_MINOR if rotary else FORMAT_MINOR):
+    if minor > (THERMAL_MINOR if thermal else ROTARY_MINOR if rotary else FORMAT_MINOR):
         raise err("ABBE_E_VERSION_MINOR", f"table format {major}.{minor} is newer than "
                   f"{FORMAT_MAJOR}.{FORMAT_MINOR}", "version_minor")
     if hsize != HEADER_SIZE:
@@ -504,6 +513,10 @@ def _read_ints(data: bytes, source: str, rotary: bool = False) -> _TableInts:
     known = FEATURES_1_0 if minor == 0 else FEATURE_ALL
     if rotary and minor >= ROTARY_MINOR:
         known |= FEATURE_ROTARY
+    if thermal and minor >= THERMAL_MINOR:
+        known |= FEATURE_THERMAL_DYN
+        if features & FEATURE_THERMAL_DYN:
+            reserved = 0  # the thermal block's offset
     if features & ~known:
         raise err("ABBE_E_FLAGS", f"unknown feature bits 0x{features & ~known:X} for table "
                   f"format {major}.{minor}", "features")

@@ -50,9 +50,15 @@ REG: dict[str, int] = {
     "CT_LIMIT_Y": 0x020E, "CT_LIMIT_Z": 0x0210, "CT_RATE_X": 0x0212, "CT_RATE_Y": 0x0214,
     "CT_RATE_Z": 0x0216, "CT_SIGN_X": 0x0218, "CT_SIGN_Y": 0x0219, "CT_SIGN_Z": 0x021A,
     "STAGING": 0x1000,
+    # thermal inputs and state (tables of format 1.3 with a thermal block)
+    "TIN_BASE": 0x0140, "IN_TH_0": 0x0140, "IN_TH_RESERVED": 0x0151, "IN_TH_DT_MS": 0x0152,
+    "IN_TH_SAMPLE": 0x0154, "TOUT_BASE": 0x0160, "TH_FLAGS": 0x0160, "TH_SHAPE": 0x0161,
+    "TH_INPUT_FAULTS": 0x0162, "TH_EVENTS": 0x0164, "TH_CHANNEL_0": 0x0166, "TH_SAMPLES": 0x0170,
+    "TH_SAMPLE_ECHO": 0x0171,
 }
 # Block sizes (ABBE_MB_*_COUNT).
-COUNT: dict[str, int] = {"ID": 0x14, "ST": 0x1B, "UP": 0x0E, "IN": 0x0E, "OUT": 0x0F, "CT": 0x1B}
+COUNT: dict[str, int] = {"ID": 0x14, "ST": 0x1B, "UP": 0x0E, "IN": 0x0E, "OUT": 0x0F, "CT": 0x1B,
+                         "TIN": 0x15, "TOUT": 0x12}
 
 MAGIC = (0x4142, 0x4245)
 SELFTEST = 0x12345678

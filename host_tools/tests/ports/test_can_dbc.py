@@ -61,6 +61,8 @@ def test_frame_map_matches_the_daemon(db, config: Path) -> None:
            "ABBE_INFO": int(re.search(r"^info every \d+ cycles 0x([0-9A-F]+)", out, re.M).group(1), 16),
            "ABBE_COMMAND": int(re.search(r"^command on 0x([0-9A-F]+)", out, re.M).group(1), 16),
            "ABBE_TEMPERATURE": int(re.search(r"^temperature (?:on|off) 0x([0-9A-F]+)", out, re.M).group(1), 16)}
+    th = int(re.search(r"^thermal (?:on|off) 0x([0-9A-F]+)\.\.", out, re.M).group(1), 16)
+    ids.update({f"ABBE_THERMAL_{g}": th + g for g in range(5)})
     for m in re.finditer(r"^axis (\w) node \d+: TPDO 0x([0-9A-F]+) dlc (\d) .*-> RPDO 0x([0-9A-F]+) dlc (\d)",
                          out, re.M):
         ax = m.group(1)
@@ -73,6 +75,8 @@ def test_frame_map_matches_the_daemon(db, config: Path) -> None:
     assert db.get_message_by_name("ABBE_STATUS").length == 8
     assert db.get_message_by_name("ABBE_INFO").length == 8
     assert db.get_message_by_name("ABBE_TEMPERATURE").length == 6
+    for g in range(5):
+        assert db.get_message_by_name(f"ABBE_THERMAL_{g}").length == 8
 
 
 def _flag_defines() -> dict[str, int]:

@@ -8,6 +8,7 @@
 #include "abbe/five_axis.h"
 #include "abbe/model.h"
 #include "abbe/status.h"
+#include "abbe/thermal.h"
 #include "abbe/version.h"
 
 #endif /* ABBE_ABBE_H */

@@ -56,6 +56,8 @@
 #include "abbe/abbe.h"
 
 #define ABBE_LCNC_MAX_TABLES 4
+#define ABBE_LCNC_TH_INPUTS 17 /* thermal block inputs (format 1.3): 16 temperatures + spindle speed */
+#define ABBE_LCNC_TH_CHANNELS 5
 /* The largest valid table is about 6 KiB (40 rows x 6 terms x 3 axes, two
  * arrays); a file may carry padding up to this size. */
 #define ABBE_LCNC_TABLE_MAX_BYTES 65536u
@@ -90,6 +92,8 @@ typedef struct {
     double machine_unit_mm;          /* mm per LinuxCNC length unit: 1 (mm) or 25.4 (inch) */
     int32_t kins_identity;           /* five-axis: kinstype of identity kinematics (world = joints) */
     int32_t kins_tcp;                /* five-axis: kinstype of the trt kinematics (world = workpiece); != kins_identity */
+    double thermal_sample_s;         /* a table's thermal block (format 1.3): the th-in pins are sampled
+                                        this often, s (0.001 .. 3600; default 1) */
 } abbe_lcnc_params_t;
 
 /* One servo period's inputs. */
@@ -105,6 +109,8 @@ typedef struct {
     uint8_t machine_on;         /* motion enabled (motion.motion-enabled) */
     uint8_t reset;              /* rising edge clears a latched limit fault */
     int32_t table_select;       /* index of the table to run */
+    double th_in[ABBE_LCNC_TH_INPUTS]; /* thermal block inputs: deg C, the speed input rpm */
+    uint8_t th_fault[ABBE_LCNC_TH_INPUTS]; /* 1: no reading of that input (open circuit) */
 } abbe_lcnc_input_t;
 
 typedef struct {
@@ -126,6 +132,10 @@ typedef struct {
     uint8_t config_error;        /* parameters out of range (ABBE_LCNC_FLAG_CONFIG) */
     abbe_comp_stats_t stats;     /* the compensator's counters */
     uint32_t config_errors;      /* rejected parameter changes */
+    uint32_t th_flags;           /* the thermal runtime's flags (ABBE_THERMAL_F_*), 0 without a block */
+    uint32_t th_input_faults;    /* bit k: thermal input k faulted at the last sample */
+    double th_channel[ABBE_LCNC_TH_CHANNELS]; /* thermal channel values, um (urad for tilts), unfaded */
+    uint32_t th_samples;         /* thermal samples taken */
 } abbe_lcnc_output_t;
 
 /* Port state. Allocate it yourself (static storage in the HAL component); all
@@ -133,6 +143,11 @@ typedef struct {
 typedef struct {
     abbe_comp_t comp;
     abbe_five_model_t model[ABBE_LCNC_MAX_TABLES]; /* a 3-axis table: its `linear` member only */
+    abbe_thermal_model_t thermal[ABBE_LCNC_MAX_TABLES]; /* each table's thermal block (n_channels 0: none) */
+    abbe_thermal_state_t th;  /* the running table's thermal runtime */
+    int32_t th_table;         /* table th was started for, -1 none */
+    int64_t th_clock_ns;      /* time since the last thermal sample */
+    uint32_t th_samples;
     unsigned n_tables;
     uint32_t kind;           /* ABBE_KIN_* of every table (0: 3-axis) */
     int32_t active;          /* table running (or queued to run next cycle) */

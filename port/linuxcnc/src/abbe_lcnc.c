@@ -88,6 +88,7 @@ void abbe_lcnc_default_params(abbe_lcnc_params_t *params)
     params->machine_unit_mm = 1.0;
     params->kins_identity = 0;
     params->kins_tcp = 1;
+    params->thermal_sample_s = 1.0;
 }
 
 abbe_status_t abbe_lcnc_params_to_config(const abbe_lcnc_params_t *params, long period_ns,
@@ -115,7 +116,9 @@ abbe_status_t abbe_lcnc_params_to_config(const abbe_lcnc_params_t *params, long 
         params->dir_deadband_mm > 1000.0 || !finite_d(params->lead_periods) ||
         params->lead_periods < 0.0 || params->lead_periods > 100.0 ||
         !finite_d(params->machine_unit_mm) ||
-        !(params->machine_unit_mm > 0.0) || params->kins_identity == params->kins_tcp) {
+        !(params->machine_unit_mm > 0.0) || params->kins_identity == params->kins_tcp ||
+        !finite_d(params->thermal_sample_s) || params->thermal_sample_s < 0.001 ||
+        params->thermal_sample_s > 3600.0) {
         return ABBE_E_ARG;
     }
     *cfg = c;
@@ -146,17 +149,30 @@ abbe_status_t abbe_lcnc_init(abbe_lcnc_t *port, abbe_lcnc_variant_t variant,
     port->kins_tcp = params->kins_tcp;
     memcpy(&port->params_seen, params, sizeof port->params_seen);
     port->period_seen_ns = period_ns;
+    port->th_table = -1;
     return ABBE_OK;
 }
 
 /* Load blob into *slot: a five-axis table as one, a 3-axis table through
  * abbe_model_load into its linear member (the 3-axis path stays exactly the
  * 3-axis library's). *kind: ABBE_KIN_*. */
-static abbe_status_t load_table(abbe_five_model_t *slot, const void *blob, size_t size, uint32_t *kind)
+static abbe_status_t load_table(abbe_five_model_t *slot, abbe_thermal_model_t *th, const void *blob, size_t size,
+                                uint32_t *kind)
 {
     abbe_status_t st = abbe_five_model_load(slot, blob, size);
+    if (st == ABBE_E_VERSION_MINOR) {
+        /* format 1.3: a 3-axis table with a thermal block (abbe_thermal_load:
+         * every check of abbe_model_load, then the block's) */
+        abbe_thermal_model_t scratch;
+        memset(slot, 0, sizeof *slot);
+        *kind = ABBE_KIN_NONE;
+        return abbe_thermal_load(&slot->linear, th != NULL ? th : &scratch, blob, size);
+    }
     if (st != ABBE_OK) {
         return st;
+    }
+    if (th != NULL) {
+        memset(th, 0, sizeof *th); /* no thermal block */
     }
     *kind = abbe_five_model_kind(slot);
     return *kind == ABBE_KIN_NONE ? abbe_model_load(&slot->linear, blob, size) : ABBE_OK;
@@ -166,7 +182,7 @@ uint32_t abbe_lcnc_blob_kind(const void *blob, size_t size)
 {
     abbe_five_model_t m;
     uint32_t kind = 0;
-    return (blob != NULL && load_table(&m, blob, size, &kind) == ABBE_OK) ? kind : 0xFFFFFFFFu;
+    return (blob != NULL && load_table(&m, NULL, blob, size, &kind) == ABBE_OK) ? kind : 0xFFFFFFFFu;
 }
 
 abbe_status_t abbe_lcnc_add_table(abbe_lcnc_t *port, const void *blob, size_t size)
@@ -176,14 +192,15 @@ abbe_status_t abbe_lcnc_add_table(abbe_lcnc_t *port, const void *blob, size_t si
     }
     abbe_five_model_t m;
     uint32_t kind = 0;
-    abbe_status_t st = load_table(&m, blob, size, &kind);
+    abbe_status_t st = load_table(&m, NULL, blob, size, &kind);
     if (st != ABBE_OK) {
         return st;
     }
     if (port->n_tables > 0u && kind != port->kind) {
         return ABBE_E_ARG; /* the pins mean axis or joint positions: one kind for all tables */
     }
-    (void)load_table(&port->model[port->n_tables], blob, size, &kind); /* a view: valid as m was */
+    (void)load_table(&port->model[port->n_tables], &port->thermal[port->n_tables], blob, size,
+                     &kind); /* a view: valid as m was */
     if (port->n_tables == 0u) {
         port->kind = kind;
         (void)abbe_comp_swap_model(&port->comp, &port->model[0].linear); /* runs from the first step */
@@ -492,6 +509,55 @@ void abbe_lcnc_step(abbe_lcnc_t *port, const abbe_lcnc_params_t *params, long pe
         port->have_last = 0; /* the lead restarts from the next valid position */
     }
 
+    /* The table's thermal block (format 1.3, 3-axis): sample the th-in pins
+     * every thermal_sample_s into the runtime; every period adds its error. */
+    abbe_thermal_state_t *th = NULL;
+    if (!five && port->n_tables > 0u && port->thermal[port->active].n_channels != 0u) {
+        double period_s = (double)period_ns * 1e-9;
+        int64_t sample_ns = round_i64(params->thermal_sample_s * 1e9); /* counted in whole ns: no drift */
+        if (port->th_table != port->active) {
+            if (port->variant == ABBE_LCNC_VARIANT_F32) {
+                (void)abbe_thermal_init_f32(&port->th, &port->thermal[port->active], (float)period_s);
+            } else {
+                (void)abbe_thermal_init_q(&port->th, &port->thermal[port->active],
+                                          (uint32_t)(period_ns / 1000L > 0L ? period_ns / 1000L : 1L));
+            }
+            port->th_table = port->active;
+            port->th_clock_ns = sample_ns; /* the first sample now */
+        } else {
+            port->th_clock_ns += period_ns;
+        }
+        if (port->th_clock_ns >= sample_ns) {
+            uint32_t valid = 0;
+            const abbe_thermal_model_t *tm = &port->thermal[port->active];
+            double dt_s = (double)port->th_clock_ns * 1e-9;
+            if (port->variant == ABBE_LCNC_VARIANT_F32) {
+                float x[ABBE_LCNC_TH_INPUTS];
+                for (unsigned k = 0; k < ABBE_LCNC_TH_INPUTS; k++) {
+                    x[k] = (float)in->th_in[k]; /* NaN stays NaN: the runtime's RANGE fault */
+                    valid |= in->th_fault[k] ? 0u : 1u << k;
+                }
+                (void)abbe_thermal_update_f32(&port->th, x, valid, (float)dt_s);
+            } else {
+                int32_t x[ABBE_LCNC_TH_INPUTS];
+                for (unsigned k = 0; k < ABBE_LCNC_TH_INPUTS; k++) {
+                    double v = in->th_in[k] * (tm->kind[k] == ABBE_THERMAL_SPEED ? 1.0 : 1000.0);
+                    /* NaN/Inf and the absurd: a value no input accepts (RANGE) */
+                    x[k] = finite_d(v) && v > -2e9 && v < 2e9 ? (int32_t)round_i64(v) : INT32_MAX;
+                    valid |= in->th_fault[k] ? 0u : 1u << k;
+                }
+                double ms = dt_s * 1000.0;
+                (void)abbe_thermal_update_q(&port->th, x, valid,
+                                            (uint32_t)(ms < 1.0 ? 1.0 : (ms > 2e9 ? 2e9 : ms + 0.5)));
+            }
+            port->th_clock_ns = 0;
+            port->th_samples++;
+        }
+        th = &port->th;
+    } else {
+        port->th_table = -1;
+    }
+
     abbe_comp_output5_t co;
     uint8_t fault_mask = 0;
     for (unsigned j = 0; j < ABBE_AXES; j++) {
@@ -511,7 +577,7 @@ void abbe_lcnc_step(abbe_lcnc_t *port, const abbe_lcnc_params_t *params, long pe
             ci.angle_deg[1] = (float)angle_deg[1];
             (void)abbe_comp_step5_f32(&port->comp, &ci, &co);
         } else {
-            (void)abbe_comp_step_f32(&port->comp, &ci.lin, &co.lin);
+            (void)abbe_comp_step_thermal_f32(&port->comp, th, &ci.lin, &co.lin);
         }
     } else {
         abbe_comp_input5_q_t ci;
@@ -528,7 +594,7 @@ void abbe_lcnc_step(abbe_lcnc_t *port, const abbe_lcnc_params_t *params, long pe
             }
             (void)abbe_comp_step5_q(&port->comp, &ci, &co);
         } else {
-            (void)abbe_comp_step_q(&port->comp, &ci.lin, &co.lin);
+            (void)abbe_comp_step_thermal_q(&port->comp, th, &ci.lin, &co.lin);
         }
     }
     if (!five) {
@@ -595,4 +661,25 @@ void abbe_lcnc_step(abbe_lcnc_t *port, const abbe_lcnc_params_t *params, long pe
     out->config_error = port->params_bad;
     out->stats = abbe_comp_stats(&port->comp);
     out->config_errors = port->config_errors;
+    out->th_flags = th != NULL ? abbe_thermal_flags(th) : 0u;
+    out->th_input_faults = th != NULL ? abbe_thermal_input_faults(th) : 0u;
+    out->th_samples = port->th_samples;
+    for (unsigned c = 0; c < ABBE_LCNC_TH_CHANNELS; c++) {
+        out->th_channel[c] = 0.0;
+    }
+    if (th != NULL) {
+        if (port->variant == ABBE_LCNC_VARIANT_F32) {
+            float y[ABBE_THERMAL_MAX_CHANNELS];
+            unsigned n = abbe_thermal_channels_f32(th, y);
+            for (unsigned c = 0; c < n; c++) {
+                out->th_channel[c] = (double)y[c];
+            }
+        } else {
+            int32_t y[ABBE_THERMAL_MAX_CHANNELS];
+            unsigned n = abbe_thermal_channels_q(th, y);
+            for (unsigned c = 0; c < n; c++) {
+                out->th_channel[c] = (double)y[c] / 1000.0;
+            }
+        }
+    }
 }

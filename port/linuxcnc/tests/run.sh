@@ -37,6 +37,8 @@ fi
 
 failed=0
 /usr/bin/python3 "$HERE/halrun_test.py" || failed=$((failed + 1))
+# the thermal block pins (format 1.3 tables; needs the .venv: abbe.model.thermal is the reference)
+"$REPO/.venv/bin/python" "$HERE/halrun_thermal_test.py" || failed=$((failed + 1))
 /usr/bin/python3 "$HERE/e2e_sim.py" --json "$REPO/build-linuxcnc/e2e.json" || failed=$((failed + 1))
 
 # A module with the table compiled in (abbe table cgen -> build.sh --builtin),

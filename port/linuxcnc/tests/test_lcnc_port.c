@@ -22,6 +22,7 @@
 #include "abbe_lcnc_file.h"
 #include "golden_data.h"
 #include "golden_five.h"
+#include "golden_thermal.h"
 
 #define PERIOD_NS 1000000L
 
@@ -986,10 +987,128 @@ static void test_five_axis_ac_f32(void **state)
     five_axis_case("ac_location", ABBE_LCNC_VARIANT_F32);
 }
 
+/* ---- the thermal block (format 1.3) ------------------------------------------- */
+
+/* The golden thermal table, its 17 inputs on th_in (sampled every 0.1 s), a
+ * fixed position: every sample's channels equal a standalone runtime fed the
+ * same values; input 3 open for 1 s: flags, hold, fade out, back; the target
+ * never jumps. */
+static void thermal_case(abbe_lcnc_variant_t v)
+{
+    static uint32_t store[ABBE_LCNC_TABLE_MAX_BYTES / 4];
+    abbe_lcnc_params_t p;
+    quick_params(&p);
+    p.thermal_sample_s = 0.1;
+    p.fade_s = 0.5;
+    p.warn_mm[0] = p.warn_mm[1] = p.warn_mm[2] = 5.0;
+    p.limit_mm[0] = p.limit_mm[1] = p.limit_mm[2] = 10.0;
+    memcpy(store, abbe_golden_thermal_blob, abbe_golden_thermal_blob_size);
+    assert_int_equal(abbe_lcnc_init(&port, v, &p, PERIOD_NS), ABBE_OK);
+    assert_int_equal(abbe_lcnc_add_table(&port, store, abbe_golden_thermal_blob_size), ABBE_OK);
+    abbe_model_t m;
+    abbe_thermal_model_t tm;
+    abbe_thermal_state_t sh;
+    assert_int_equal(abbe_thermal_load(&m, &tm, abbe_golden_thermal_blob, abbe_golden_thermal_blob_size), ABBE_OK);
+    if (v == ABBE_LCNC_VARIANT_F32) {
+        assert_int_equal(abbe_thermal_init_f32(&sh, &tm, 0.001f), ABBE_OK);
+    } else {
+        assert_int_equal(abbe_thermal_init_q(&sh, &tm, 1000u), ABBE_OK);
+    }
+    abbe_lcnc_input_t in;
+    abbe_lcnc_output_t out;
+    double prev[3] = {0, 0, 0}, step_clean = 0.0, step_fault = 0.0, ymax = 0.0;
+    uint32_t n = 0;
+    const unsigned periods = 100u; /* 0.1 s at 1 ms */
+    for (unsigned k = 0; k < 90000u; k++) { /* the table's fade is 30 s: out, then in again */
+        memset(&in, 0, sizeof in);
+        in.pos_mm[0] = 250.0;
+        in.pos_mm[1] = -200.0;
+        in.pos_mm[2] = -150.0;
+        in.temp_c[0] = in.temp_c[1] = in.temp_c[2] = 20.0;
+        in.enable = in.homed = in.machine_on = 1;
+        const abbe_golden_thermal_sample_t *s = &abbe_golden_thermal_samples[k / periods < abbe_golden_thermal_sample_count ? k / periods : abbe_golden_thermal_sample_count - 1u]; /* no wrap: its jump would be a STEP fault */
+        int fault = k >= 20000u && k < 21000u;
+        uint32_t valid = 0;
+        for (unsigned i = 0; i < ABBE_LCNC_TH_INPUTS; i++) {
+            in.th_in[i] = i == 16u ? (double)s->x_milli[i] : (double)s->x_milli[i] / 1000.0;
+            in.th_fault[i] = (uint8_t)(fault && i == 3u);
+            valid |= in.th_fault[i] ? 0u : 1u << i;
+        }
+        if (k % periods == 0u) { /* the port samples now: so does the shadow */
+            if (v == ABBE_LCNC_VARIANT_F32) {
+                float x[17];
+                for (unsigned i = 0; i < 17u; i++) {
+                    x[i] = (float)in.th_in[i];
+                }
+                assert_int_equal(abbe_thermal_update_f32(&sh, x, valid, 0.1f), ABBE_OK);
+            } else {
+                assert_int_equal(abbe_thermal_update_q(&sh, s->x_milli, valid, 100u), ABBE_OK);
+            }
+            n++;
+        }
+        abbe_lcnc_step(&port, &p, PERIOD_NS, &in, &out);
+        if (v == ABBE_LCNC_VARIANT_F32) {
+            float e[3] = {0, 0, 0};
+            abbe_thermal_apply_f32(&sh, e);
+            float y[5];
+            abbe_thermal_channels_f32(&sh, y);
+            for (unsigned c = 0; c < 5u; c++) {
+                assert_true(fabs(out.th_channel[c] - (double)y[c]) <= 1e-9);
+                ymax = fabs(out.th_channel[c]) > ymax ? fabs(out.th_channel[c]) : ymax;
+            }
+        } else {
+            int32_t e[3] = {0, 0, 0};
+            abbe_thermal_apply_q(&sh, e);
+            int32_t y[5];
+            abbe_thermal_channels_q(&sh, y);
+            for (unsigned c = 0; c < 5u; c++) {
+                assert_true(fabs(out.th_channel[c] - (double)y[c] / 1000.0) <= 1e-9);
+                ymax = fabs(out.th_channel[c]) > ymax ? fabs(out.th_channel[c]) : ymax;
+            }
+        }
+        assert_int_equal(out.th_flags, abbe_thermal_flags(&sh));
+        assert_int_equal(out.th_samples, n);
+        if (fault) {
+            assert_true(out.th_flags & ABBE_THERMAL_F_OPEN);
+            assert_true(out.th_flags & ABBE_THERMAL_F_HOLD);
+            assert_int_equal(out.th_input_faults, 1u << 3);
+        }
+        for (unsigned j = 0; j < 3u; j++) {
+            double d = fabs(out.target_mm[j] - prev[j]) * 1e6; /* nm */
+            if (k > 1000u && k < 20000u) {
+                step_clean = d > step_clean ? d : step_clean;
+            } else if (k >= 20000u) {
+                step_fault = d > step_fault ? d : step_fault;
+            }
+            prev[j] = out.target_mm[j];
+        }
+    }
+    assert_int_equal(out.th_flags & (ABBE_THERMAL_F_FAULTS | ABBE_THERMAL_F_HOLD | ABBE_THERMAL_F_FADING), 0u);
+    /* a fade step moves a channel by |y| x 1 ms / 30 s (the table's fade time) */
+    double bound = step_clean + 5.0 * ymax * 1000.0 * 0.001 / 30.0 + 2.0;
+    print_message("LinuxCNC thermal (%s): largest target step per period %.0f nm clean, %.0f nm through the fault "
+                  "(bound %.0f)\n", v == ABBE_LCNC_VARIANT_F32 ? "f32" : "q", step_clean, step_fault, bound);
+    assert_true(step_fault <= bound);
+}
+
+static void test_thermal_q(void **state)
+{
+    (void)state;
+    thermal_case(ABBE_LCNC_VARIANT_Q);
+}
+
+static void test_thermal_f32(void **state)
+{
+    (void)state;
+    thermal_case(ABBE_LCNC_VARIANT_F32);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_params_convert),
+        cmocka_unit_test(test_thermal_q),
+        cmocka_unit_test(test_thermal_f32),
         cmocka_unit_test(test_params_rejected),
         cmocka_unit_test(test_runtime_bad_param),
         cmocka_unit_test(test_register_after_motion_q),

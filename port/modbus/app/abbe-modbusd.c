@@ -128,6 +128,7 @@ static void usage(FILE *f)
             "  --upload-timeout-ms MS drop an upload idle this long (default 10000, 0 never)\n"
             "  --word-order high|low  32-bit word order (default high: high word first)\n"
             "  --dir-from-position    derive the direction from position changes\n"
+            "  --cycle-us US          the controller's IN_CYCLE period, us (thermal block's clock; default 1000)\n"
             "  --enable               enable the compensator at start\n"
             "  --ready-fd N           write \"ready ...\\n\" to fd N when serving, then close it\n"
             "  -v                     log connections and uploads to stderr\n",
@@ -169,7 +170,7 @@ static int load_model(const char *path, size_t *size)
 int main(int argc, char **argv)
 {
     const char *tcp = NULL, *rtu = NULL, *model = NULL;
-    long unit = 1, max_clients = 4, idle_ms = 60000, upload_ms = 10000, ready_fd = -1;
+    long unit = 1, max_clients = 4, idle_ms = 60000, upload_ms = 10000, ready_fd = -1, cycle_us = 1000;
     int enable = 0, verbose = 0;
     abbe_mb_regs_config_t cfg;
     abbe_mb_regs_default_config(&cfg);
@@ -210,6 +211,8 @@ int main(int argc, char **argv)
             bad = parse_long(v, 0, INT32_MAX, &idle_ms);
         } else if (strcmp(a, "--upload-timeout-ms") == 0) {
             bad = parse_long(v, 0, INT32_MAX, &upload_ms);
+        } else if (strcmp(a, "--cycle-us") == 0) {
+            bad = parse_long(v, 1, 10000000, &cycle_us);
         } else if (strcmp(a, "--ready-fd") == 0) {
             bad = parse_long(v, 0, INT_MAX, &ready_fd);
         } else if (strcmp(a, "--word-order") == 0) {
@@ -238,6 +241,7 @@ int main(int argc, char **argv)
     }
     cfg.max_clients = (uint16_t)(tcp != NULL ? max_clients : 1);
     cfg.upload_timeout_ms = (uint32_t)upload_ms;
+    cfg.cycle_us = (uint32_t)cycle_us;
     abbe_status_t st = abbe_mb_regs_init(&regs, &cfg, model != NULL ? model_buf : NULL, size);
     if (st != ABBE_OK) {
         fprintf(stderr, "abbe-modbusd: %s: %s\n", model != NULL ? model : "config", abbe_strerror(st));

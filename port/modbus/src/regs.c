@@ -22,7 +22,7 @@ typedef char abbe_mb_bank_align_check[(offsetof(abbe_mb_regs_t, bank) % 4u == 0u
 #define MAX_READ 125u
 #define MAX_WRITE 123u
 
-enum { BLK_ID, BLK_ST, BLK_UP, BLK_IN, BLK_OUT, BLK_CT, BLK_STAGING, BLK_NONE };
+enum { BLK_ID, BLK_ST, BLK_UP, BLK_IN, BLK_OUT, BLK_CT, BLK_TIN, BLK_TOUT, BLK_STAGING, BLK_NONE };
 
 typedef struct {
     uint16_t base;
@@ -33,6 +33,7 @@ static const block_t blocks[BLK_STAGING] = {
     {ABBE_MB_REG_ID_BASE, ABBE_MB_ID_COUNT}, {ABBE_MB_REG_ST_BASE, ABBE_MB_ST_COUNT},
     {ABBE_MB_REG_UP_BASE, ABBE_MB_UP_COUNT}, {ABBE_MB_REG_IN_BASE, ABBE_MB_IN_COUNT},
     {ABBE_MB_REG_OUT_BASE, ABBE_MB_OUT_COUNT}, {ABBE_MB_REG_CT_BASE, ABBE_MB_CT_COUNT},
+    {ABBE_MB_REG_TIN_BASE, ABBE_MB_TIN_COUNT}, {ABBE_MB_REG_TOUT_BASE, ABBE_MB_TOUT_COUNT},
 };
 
 /* The largest block, for the render buffer. */
@@ -98,6 +99,9 @@ static int pair_second(uint16_t addr)
     }
     if (addr > ABBE_MB_REG_CT_WARN_X && addr <= ABBE_MB_REG_CT_RATE_Z + 1u) {
         return ((addr - ABBE_MB_REG_CT_WARN_X) & 1u) != 0u;
+    }
+    if (addr == ABBE_MB_REG_IN_TH_DT_MS + 1u) {
+        return 1;
     }
     return 0;
 }
@@ -220,7 +224,11 @@ static int upload_commit(abbe_mb_regs_t *r, uint32_t conn, uint32_t len, uint32_
         session_close(r, ABBE_MB_UP_CRC_MISMATCH);
         return ABBE_MB_EX_ILLEGAL_VALUE;
     }
-    abbe_status_t st = abbe_comp_load_model(&r->comp, &r->slot[s], r->bank[s], len);
+    /* abbe_thermal_load: every check of abbe_model_load, and format 1.3's thermal block */
+    abbe_status_t st = abbe_thermal_load(&r->slot[s], &r->thermal[s], r->bank[s], len);
+    if (st == ABBE_OK) {
+        st = abbe_comp_swap_model(&r->comp, &r->slot[s]);
+    }
     if (st != ABBE_OK) {
         session_close(r, (int16_t)st);
         return ABBE_MB_EX_ILLEGAL_VALUE;
@@ -276,6 +284,22 @@ static int write_staging(abbe_mb_regs_t *r, uint32_t conn, uint16_t addr, uint16
 
 /* ---- the cycle -------------------------------------------------------------------- */
 
+/* The thermal state of the table that runs next (started afresh for a new
+ * table: it fades in after its first good sample); NULL without a block. */
+static abbe_thermal_state_t *thermal_state(abbe_mb_regs_t *r)
+{
+    int8_t b = r->pending >= 0 ? r->pending : r->running;
+    if (b < 0 || r->thermal[b].n_channels == 0u) {
+        r->th_bank = -1;
+        return NULL;
+    }
+    if (b != r->th_bank) {
+        (void)abbe_thermal_init_q(&r->th, &r->thermal[b], r->cycle_us);
+        r->th_bank = b;
+    }
+    return &r->th;
+}
+
 static void run_cycle(abbe_mb_regs_t *r)
 {
     abbe_comp_input_q_t in;
@@ -296,7 +320,7 @@ static void run_cycle(abbe_mb_regs_t *r)
     }
     in.fresh = fresh;
     in.axis_fault_mask = (uint8_t)r->axis_fault;
-    (void)abbe_comp_step_q(&r->comp, &in, &r->out); /* only fails for NULL pointers */
+    (void)abbe_comp_step_thermal_q(&r->comp, thermal_state(r), &in, &r->out); /* only fails for NULL pointers */
     if (fresh) {
         memcpy(r->last_pos_nm, r->pos_nm, sizeof r->last_pos_nm);
         r->have_last_pos = 1;
@@ -366,6 +390,51 @@ static int write_inputs(abbe_mb_regs_t *r, uint16_t addr, uint16_t count, const 
     r->pos_written |= written;
     if (trigger) {
         run_cycle(r);
+    }
+    return 0;
+}
+
+/* IN_TH_*: every value is taken (the runtime judges the readings); the
+ * reserved register must be 0, IN_TH_DT_MS 1 .. 2^31. */
+static int write_thermal(abbe_mb_regs_t *r, uint16_t addr, uint16_t count, const uint16_t *v)
+{
+    int16_t in[ABBE_MB_TH_INPUTS];
+    uint32_t dt = r->th_dt_ms;
+    uint16_t echo = r->th_echo;
+    uint8_t trigger = 0;
+    memcpy(in, r->th_in, sizeof in);
+    for (uint16_t i = 0; i < count; i++) {
+        uint16_t a = (uint16_t)(addr + i);
+        if (a < ABBE_MB_REG_IN_TH_RESERVED) {
+            in[a - ABBE_MB_REG_IN_TH_0] = to_i16(v[i]);
+        } else if (a == ABBE_MB_REG_IN_TH_RESERVED) {
+            if (v[i] != 0u) {
+                return ABBE_MB_EX_ILLEGAL_VALUE;
+            }
+        } else if (a == ABBE_MB_REG_IN_TH_DT_MS) {
+            dt = get32(r, &v[i]);
+            if (dt < 1u || dt > 0x80000000u) {
+                return ABBE_MB_EX_ILLEGAL_VALUE;
+            }
+        } else if (a == ABBE_MB_REG_IN_TH_SAMPLE) {
+            echo = v[i];
+            trigger = 1;
+        }
+    }
+    memcpy(r->th_in, in, sizeof in);
+    r->th_dt_ms = dt;
+    r->th_echo = echo;
+    abbe_thermal_state_t *th = trigger ? thermal_state(r) : NULL;
+    if (th != NULL) {
+        const abbe_thermal_model_t *tm = &r->thermal[r->th_bank];
+        int32_t x[ABBE_MB_TH_INPUTS];
+        uint32_t valid = 0;
+        for (unsigned k = 0; k < ABBE_MB_TH_INPUTS; k++) {
+            x[k] = tm->kind[k] == ABBE_THERMAL_SPEED ? in[k] : 10 * (int32_t)in[k]; /* rpm; m degC */
+            valid |= in[k] != ABBE_MB_TEMP_NO_READING ? 1u << k : 0u;
+        }
+        (void)abbe_thermal_update_q(th, x, valid, dt);
+        r->th_samples++;
     }
     return 0;
 }
@@ -540,6 +609,29 @@ static void render(const abbe_mb_regs_t *r, int b, uint16_t *d)
         d[13] = (uint16_t)r->out.state;
         d[14] = r->out_cycle;
         break;
+    case BLK_TIN:
+        for (unsigned k = 0; k < ABBE_MB_TH_INPUTS; k++) {
+            d[k] = from_i16(r->th_in[k]);
+        }
+        d[17] = 0;
+        put32(r, &d[18], r->th_dt_ms);
+        d[20] = r->th_echo;
+        break;
+    case BLK_TOUT: {
+        const abbe_thermal_state_t *th = r->th_bank >= 0 ? &r->th : NULL;
+        int32_t y[ABBE_THERMAL_MAX_CHANNELS] = {0, 0, 0, 0, 0};
+        unsigned n = th != NULL ? abbe_thermal_channels_q(th, y) : 0u;
+        d[0] = (uint16_t)abbe_thermal_flags(th);
+        d[1] = th != NULL ? (uint16_t)((abbe_thermal_n_inputs(&r->thermal[r->th_bank]) << 8) | n) : 0u;
+        put32(r, &d[2], abbe_thermal_input_faults(th));
+        put32(r, &d[4], abbe_thermal_events(th));
+        for (unsigned c = 0; c < ABBE_THERMAL_MAX_CHANNELS; c++) {
+            put32(r, &d[6u + 2u * c], from_i32(y[c]));
+        }
+        d[16] = r->th_samples;
+        d[17] = r->th_echo;
+        break;
+    }
     default: /* BLK_CT */
         d[0] = r->enabled;
         d[1] = 0;
@@ -577,6 +669,7 @@ void abbe_mb_regs_default_config(abbe_mb_regs_config_t *cfg)
     cfg->dir_source = 0;
     cfg->max_clients = 1;
     cfg->upload_timeout_ms = 10000;
+    cfg->cycle_us = 1000;
 }
 
 abbe_status_t abbe_mb_regs_init(abbe_mb_regs_t *r, const abbe_mb_regs_config_t *cfg,
@@ -597,6 +690,12 @@ abbe_status_t abbe_mb_regs_init(abbe_mb_regs_t *r, const abbe_mb_regs_config_t *
     r->max_clients = cfg->max_clients;
     r->upload_timeout_ms = cfg->upload_timeout_ms;
     r->running = r->pending = r->staging = -1;
+    r->th_bank = -1;
+    r->cycle_us = cfg->cycle_us != 0u ? cfg->cycle_us : 1000u;
+    r->th_dt_ms = 1000u;
+    for (unsigned k = 0; k < ABBE_MB_TH_INPUTS; k++) {
+        r->th_in[k] = ABBE_MB_TEMP_NO_READING;
+    }
     for (unsigned j = 0; j < ABBE_AXES; j++) {
         r->temp_cdegc[j] = 2000; /* 20 degC, the ISO 1 reference, until the controller writes */
     }
@@ -606,7 +705,7 @@ abbe_status_t abbe_mb_regs_init(abbe_mb_regs_t *r, const abbe_mb_regs_config_t *
         return ABBE_OK;
     }
     memcpy(r->bank[0], blob, size);
-    abbe_status_t st = abbe_model_load(&r->slot[0], r->bank[0], size);
+    abbe_status_t st = abbe_thermal_load(&r->slot[0], &r->thermal[0], r->bank[0], size);
     if (st != ABBE_OK) {
         memset(r->bank[0], 0, sizeof r->bank[0]);
         return st;
@@ -671,7 +770,7 @@ int abbe_mb_regs_write(abbe_mb_regs_t *r, uint32_t conn, uint16_t addr, uint16_t
     if (b == BLK_STAGING) {
         return write_staging(r, conn, addr, count, values_be);
     }
-    if (b != BLK_UP && b != BLK_IN && b != BLK_CT) {
+    if (b != BLK_UP && b != BLK_IN && b != BLK_CT && b != BLK_TIN) {
         return ABBE_MB_EX_ILLEGAL_ADDRESS; /* unmapped or read only */
     }
     if (pair_second(addr) || pair_second((uint16_t)(addr + count))) {
@@ -689,6 +788,9 @@ int abbe_mb_regs_write(abbe_mb_regs_t *r, uint32_t conn, uint16_t addr, uint16_t
     }
     if (b == BLK_IN) {
         return write_inputs(r, addr, count, v);
+    }
+    if (b == BLK_TIN) {
+        return write_thermal(r, addr, count, v);
     }
     return write_control(r, addr, count, v);
 }

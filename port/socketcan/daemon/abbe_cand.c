@@ -251,6 +251,9 @@ static void print_map(const abbe_can_config_t *cfg)
            (unsigned long)cfg->command_cob_id);
     printf("temperature %s 0x%03lX stale after %u cycles\n", cfg->temp_enable ? "on" : "off",
            (unsigned long)cfg->temp_cob_id, (unsigned)cfg->temp_stale_cycles);
+    printf("thermal %s 0x%03lX..0x%03lX cycle %lu us\n", cfg->thermal_enable ? "on" : "off",
+           (unsigned long)cfg->thermal_cob_id, (unsigned long)(cfg->thermal_cob_id + ABBE_CAN_THERMAL_FRAMES - 1u),
+           (unsigned long)cfg->cycle_us);
     for (unsigned j = 0; j < ABBE_AXES; j++) {
         const abbe_can_axis_config_t *a = &cfg->axis[j];
         printf("axis %c node %u: TPDO 0x%03lX dlc %u position@%u statusword@%d -> RPDO 0x%03lX dlc %u offset@%u; "

@@ -100,6 +100,15 @@ uint32_t abbe_can_get_u32(const uint8_t *p);
 #define ABBE_CAN_TEMP_MIN_CDEGC (-5000)
 #define ABBE_CAN_TEMP_MAX_CDEGC 15000
 
+/* Thermal frames (docs/can.md, format 1.3 tables with a thermal block): DLC 8,
+ * frame g at thermal_cob_id + g carries inputs 4g .. 4g+3 of the model as
+ * INT16 LE: temperatures in 0.01 degC, the spindle speed in rpm;
+ * ABBE_CAN_TEMP_NO_READING = no reading (the runtime's open-circuit fault).
+ * The frame that carries the model's last input completes a sample. */
+#define ABBE_CAN_THERMAL_DLC 8u
+#define ABBE_CAN_THERMAL_FRAMES 5u  /* 17 inputs, 4 per frame */
+#define ABBE_CAN_THERMAL_PER_FRAME 4u
+
 /* CiA 402 statusword bit 3: Fault. A drive reporting it is an axis fault. */
 #define ABBE_CAN_STATUSWORD_FAULT 0x0008u
 
@@ -149,6 +158,9 @@ typedef struct {
     uint8_t temp_enable;                  /* read axis temperatures from the temperature frame */
     uint32_t temp_cob_id;                 /* 0: 0x300 + node_id (the compensator's RPDO2) */
     uint16_t temp_stale_cycles;           /* cycles without a reading before TEMP_STALE; 0: never */
+    uint8_t thermal_enable;               /* thermal frames for the table's thermal block (format 1.3) */
+    uint32_t thermal_cob_id;              /* first of the 5 thermal frames' COB-IDs (default 0x3F0) */
+    uint32_t cycle_us;                    /* SYNC period, us (the thermal runtime's time base), 100..1000000 */
     abbe_can_axis_config_t axis[ABBE_AXES];
 } abbe_can_config_t;
 
@@ -191,7 +203,8 @@ typedef enum {
     ABBE_CAN_RX_ERROR = 6,     /* error frame */
     ABBE_CAN_RX_BAD_COMMAND = 7, /* command frame with an unknown command byte */
     ABBE_CAN_RX_TEMPERATURE = 8, /* the temperature frame */
-    ABBE_CAN_RX_BAD_VALUE = 9    /* temperature frame with a value out of range */
+    ABBE_CAN_RX_BAD_VALUE = 9,   /* temperature frame with a value out of range */
+    ABBE_CAN_RX_THERMAL = 10     /* a thermal frame (docs/can.md) */
 } abbe_can_rx_kind_t;
 
 typedef struct {
@@ -207,6 +220,8 @@ typedef struct {
     uint32_t bad_value;       /* temperature frames with a value out of range */
     uint32_t malformed;       /* records that were not one CAN frame (driver level) */
     uint32_t temperatures;    /* temperature frames taken */
+    uint32_t thermal_frames;  /* thermal frames taken */
+    uint32_t thermal_samples; /* thermal samples handed to the runtime */
     uint32_t frames_tx;       /* frames produced */
     uint32_t tx_errors;       /* frames the driver could not send */
     uint32_t stale_cycles;    /* cycles in which some axis had no fresh position */
@@ -251,6 +266,14 @@ typedef struct {
     uint8_t temp_fresh;              /* bit j: a reading for axis j since the last SYNC; bit 3: a frame */
     uint8_t temp_frame_seen;         /* a temperature frame was ever taken */
     uint8_t temp_stale;              /* TEMP_STALE of the last cycle */
+    /* the thermal block (format 1.3): per slot, the running one's state */
+    abbe_thermal_model_t thermal[2];
+    abbe_thermal_state_t th_state;
+    int8_t th_slot;                  /* slot th_state was started for, -1: none */
+    int32_t th_x[ABBE_THERMAL_MAX_INPUTS]; /* this sample's readings, m degC / rpm */
+    uint32_t th_valid;               /* bit k: input k has a reading in this sample */
+    uint32_t th_cycles;              /* SYNC cycles since the last sample */
+    uint8_t th_sampled;              /* a sample was taken */
 } abbe_can_node_t;
 
 /* Check *cfg (abbe_can_config_check) and start the node without a model; the
@@ -318,6 +341,9 @@ uint32_t abbe_can_node_temp_age(const abbe_can_node_t *node, unsigned axis);
 /* 1 if the last cycle's status frame reported TEMP_STALE (docs/can.md). */
 int abbe_can_node_temp_stale(const abbe_can_node_t *node);
 int abbe_can_node_last_load_status(const abbe_can_node_t *node);     /* 0 or the last failure */
+/* The thermal runtime's state of the running model (abbe/thermal.h: flags,
+ * channels), NULL without a thermal block or without thermal frames. */
+const abbe_thermal_state_t *abbe_can_node_thermal(const abbe_can_node_t *node);
 
 /* ---- status and info frames (layout documented in docs/abbe.dbc) -------- */
 

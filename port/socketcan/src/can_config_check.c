@@ -20,6 +20,8 @@ void abbe_can_config_defaults(abbe_can_config_t *cfg)
     cfg->stale_cycles = 10;
     cfg->enable_on_start = 1;
     cfg->temp_stale_cycles = 1000;
+    cfg->thermal_cob_id = 0x3F0u;
+    cfg->cycle_us = 1000u;
     for (unsigned j = 0; j < ABBE_AXES; j++) {
         abbe_can_axis_config_t *ax = &cfg->axis[j];
         ax->sign = 1;
@@ -66,11 +68,12 @@ static int cob_ok(uint32_t id)
 }
 
 /* Roles in the frame map, for the collision check. */
-enum { R_SYNC, R_STATUS, R_INFO, R_COMMAND, R_TEMP, R_TPDO, R_RPDO };
+enum { R_SYNC, R_STATUS, R_INFO, R_COMMAND, R_TEMP, R_THERMAL, R_TPDO, R_RPDO };
 static const char *const role_msg[] = {
     "COB-ID already used by bus.sync_cob_id",     "COB-ID already used by status.cob_id",
     "COB-ID already used by status.info_cob_id",  "COB-ID already used by command.cob_id",
-    "COB-ID already used by temperature.cob_id",  "COB-ID already used by an axis' tpdo_cob_id",
+    "COB-ID already used by temperature.cob_id",
+    "COB-ID already used by the thermal frames (thermal.cob_id .. + 4)", "COB-ID already used by an axis' tpdo_cob_id",
     "COB-ID already used by an axis' rpdo_cob_id",
 };
 
@@ -212,6 +215,15 @@ int abbe_can_config_check(abbe_can_config_t *cfg, const char **field, const char
     if (cfg->temp_enable > 1u) {
         return fail(field, why, "temperature.enable", "must be true or false");
     }
+    if (cfg->thermal_enable > 1u) {
+        return fail(field, why, "thermal.enable", "must be true or false");
+    }
+    if (!cob_ok(cfg->thermal_cob_id) || cfg->thermal_cob_id + ABBE_CAN_THERMAL_FRAMES - 1u > ABBE_CAN_SFF_MASK) {
+        return fail(field, why, "thermal.cob_id", "must be an 11-bit COB-ID, 0x001..0x7FB (5 frames from it)");
+    }
+    if (cfg->cycle_us < 100u || cfg->cycle_us > 1000000u) {
+        return fail(field, why, "thermal.cycle_us", "must be the SYNC period, 100..1000000 us");
+    }
     if (cfg->fade_cycles < 1u) {
         return fail(field, why, "compensator.fade_cycles", "must be >= 1");
     }
@@ -234,7 +246,7 @@ int abbe_can_config_check(abbe_can_config_t *cfg, const char **field, const char
         }
     }
 
-    map_entry_t map[5 + 2 * ABBE_AXES];
+    map_entry_t map[5 + ABBE_CAN_THERMAL_FRAMES + 2 * ABBE_AXES];
     unsigned n = 0;
     map[n++] = (map_entry_t){cfg->sync_cob_id, R_SYNC, -1, "bus.sync_cob_id"};
     if (cfg->status_enable) {
@@ -248,6 +260,9 @@ int abbe_can_config_check(abbe_can_config_t *cfg, const char **field, const char
     }
     if (cfg->temp_enable) {
         map[n++] = (map_entry_t){cfg->temp_cob_id, R_TEMP, -1, "temperature.cob_id"};
+    }
+    for (unsigned g = 0; cfg->thermal_enable && g < ABBE_CAN_THERMAL_FRAMES; g++) {
+        map[n++] = (map_entry_t){cfg->thermal_cob_id + g, R_THERMAL, -1, "thermal.cob_id"};
     }
     for (int j = 0; j < (int)ABBE_AXES; j++) {
         map[n++] = (map_entry_t){cfg->axis[j].tpdo_cob_id, R_TPDO, j, axis_field[j][F_TPDO]};

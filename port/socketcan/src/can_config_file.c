@@ -51,6 +51,9 @@ static const field_t FIELDS[] = {
     {"temperature", "enable", V_BOOL, CFG(temp_enable), 0, 1, 0, 0, 0},
     {"temperature", "cob_id", V_U32, CFG(temp_cob_id), 1, 0x7FF, 0, 0, 0},
     {"temperature", "stale_cycles", V_U16, CFG(temp_stale_cycles), 0, 65535, 0, 0, 0},
+    {"thermal", "enable", V_BOOL, CFG(thermal_enable), 0, 1, 0, 0, 0},
+    {"thermal", "cob_id", V_U32, CFG(thermal_cob_id), 1, 0x7FB, 0, 0, 0},
+    {"thermal", "cycle_us", V_U32, CFG(cycle_us), 100, 1000000, 0, 0, 0},
     {"axis", "node_id", V_U8, AX(node_id), 1, 127, 0, 0, 1},
     {"axis", "increments_per_mm", V_DOUBLE, AX(increments_per_mm), 0, 0, 0, 0, 1},
     {"axis", "sign", V_I8, AX(sign), -1, 1, 0, 0, 0},
@@ -72,9 +75,9 @@ static const field_t FIELDS[] = {
 #define N_FIELDS (sizeof FIELDS / sizeof FIELDS[0])
 
 static const char *const SECTIONS[] = {"bus", "model", "status", "command", "compensator", "temperature",
-                                       "axis.X", "axis.Y", "axis.Z"};
+                                       "thermal", "axis.X", "axis.Y", "axis.Z"};
 #define N_SECTIONS (sizeof SECTIONS / sizeof SECTIONS[0])
-#define AXIS_SECTION0 6u /* index of axis.X */
+#define AXIS_SECTION0 7u /* index of axis.X */
 typedef char abbe_can_axis_sections_last[(N_SECTIONS == AXIS_SECTION0 + ABBE_AXES) ? 1 : -1];
 
 #define MAX_SEEN 160u
@@ -172,7 +175,7 @@ static int parse_header(parser_t *ps, const char *p, unsigned line)
         return ABBE_CAN_OK;
     }
     return error(ps, line, name,
-                 "unknown section (expected bus, model, status, command, compensator, temperature, axis.X, "
+                 "unknown section (expected bus, model, status, command, compensator, temperature, thermal, axis.X, "
                  "axis.Y, axis.Z)");
 }
 

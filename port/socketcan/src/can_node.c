@@ -71,6 +71,7 @@ int abbe_can_node_init(abbe_can_node_t *node, const abbe_can_config_t *cfg)
     }
     node->temp_frame_age = UINT32_MAX;
     node->temp_stale = c.temp_enable; /* no temperature frame yet */
+    node->th_slot = -1;
     if (c.enable_on_start) {
         (void)abbe_comp_enable(&node->comp);
     }
@@ -121,7 +122,12 @@ int abbe_can_node_commit_model(abbe_can_node_t *node, size_t size)
     } else if (size > ABBE_CAN_BLOB_MAX) {
         st = ABBE_CAN_E_TOO_BIG;
     } else {
-        st = abbe_comp_load_model(&node->comp, &node->model[s], node->blob[s], size);
+        /* abbe_thermal_load: every check of abbe_model_load, and tables of
+         * format 1.3 with their thermal block */
+        st = abbe_thermal_load(&node->model[s], &node->thermal[s], node->blob[s], size);
+        if (st == ABBE_OK) {
+            st = abbe_comp_swap_model(&node->comp, &node->model[s]);
+        }
     }
     if (st != ABBE_OK) {
         abbe_can_node_note_load_failure(node, st);
@@ -388,6 +394,26 @@ static void temperature_cycle(abbe_can_node_t *node)
     node->temp_fresh = 0;
 }
 
+/* The thermal state for the model that runs this cycle (a new one starts
+ * fresh: no channel running, it fades in after its first good sample);
+ * NULL without thermal frames or without a thermal block. */
+static abbe_thermal_state_t *thermal_for_cycle(abbe_can_node_t *node)
+{
+    int slot = node->pending_slot >= 0 ? node->pending_slot : running_slot(node);
+    if (!node->cfg.thermal_enable || slot < 0 || node->thermal[slot].n_channels == 0u) {
+        node->th_slot = -1;
+        return NULL;
+    }
+    if (slot != node->th_slot) {
+        (void)abbe_thermal_init_q(&node->th_state, &node->thermal[slot], node->cfg.cycle_us);
+        node->th_slot = (int8_t)slot;
+        node->th_valid = 0;
+        node->th_sampled = 0;
+        node->th_cycles = 0;
+    }
+    return &node->th_state;
+}
+
 static size_t run_cycle(abbe_can_node_t *node, abbe_can_frame_t tx[ABBE_CAN_MAX_TX])
 {
     const abbe_can_config_t *cfg = &node->cfg;
@@ -420,7 +446,16 @@ static size_t run_cycle(abbe_can_node_t *node, abbe_can_frame_t tx[ABBE_CAN_MAX_
     if (!in.fresh) {
         node->count.stale_cycles++;
     }
-    (void)abbe_comp_step_q(&node->comp, &in, &node->out); /* cannot fail: pointers valid */
+    abbe_thermal_state_t *th = thermal_for_cycle(node);
+    (void)abbe_comp_step_thermal_q(&node->comp, th, &in, &node->out); /* cannot fail: pointers valid */
+    if (th != NULL) {
+        node->th_cycles = node->th_cycles < UINT32_MAX ? node->th_cycles + 1u : UINT32_MAX;
+        /* a sensor fault, a missing sample or a held channel: the temperatures
+         * are not current (the status frame's TempStale bit) */
+        if (abbe_thermal_flags(th) & (ABBE_THERMAL_F_FAULTS | ABBE_THERMAL_F_HOLD)) {
+            node->temp_stale = 1;
+        }
+    }
     node->pending_slot = -1; /* a queued model took effect at the start of that step */
     node->fresh_mask = fresh_mask;
     size_t n = build_frames(node, tx);
@@ -481,6 +516,46 @@ static int rx_temperature(abbe_can_node_t *node, const abbe_can_frame_t *rx)
     }
     node->count.temperatures++;
     return ABBE_CAN_RX_TEMPERATURE;
+}
+
+/* A thermal frame: its four readings into the sample; the frame with the
+ * model's last input hands the sample to the runtime (inputs without a
+ * reading in it are invalid: the runtime holds and fades what reads them). */
+static int rx_thermal(abbe_can_node_t *node, const abbe_can_frame_t *rx, unsigned group)
+{
+    if (rx->dlc != ABBE_CAN_THERMAL_DLC) {
+        node->count.bad_dlc++;
+        return ABBE_CAN_RX_BAD_DLC;
+    }
+    node->count.thermal_frames++;
+    if (thermal_for_cycle(node) == NULL) {
+        return ABBE_CAN_RX_THERMAL; /* no thermal block (or a model queued without one): taken, not used */
+    }
+    const abbe_thermal_model_t *tm = &node->thermal[node->th_slot];
+    for (unsigned i = 0; i < ABBE_CAN_THERMAL_PER_FRAME; i++) {
+        unsigned k = group * ABBE_CAN_THERMAL_PER_FRAME + i;
+        if (k >= tm->n_inputs) {
+            break;
+        }
+        uint16_t u = abbe_can_get_u16(&rx->data[2u * i]);
+        int32_t v = u <= 0x7FFFu ? (int32_t)u : (int32_t)u - 65536;
+        if (v == ABBE_CAN_TEMP_NO_READING) {
+            node->th_valid &= ~(1u << k);
+            continue;
+        }
+        node->th_x[k] = tm->kind[k] == ABBE_THERMAL_SPEED ? v : 10 * v; /* rpm; 0.01 degC -> m degC */
+        node->th_valid |= 1u << k;
+    }
+    if ((tm->n_inputs - 1u) / ABBE_CAN_THERMAL_PER_FRAME == group) {
+        uint64_t dt_ms = (uint64_t)node->th_cycles * node->cfg.cycle_us / 1000u;
+        dt_ms = dt_ms < 1u ? 1u : (dt_ms > 0x7FFFFFFFu ? 0x7FFFFFFFu : dt_ms);
+        (void)abbe_thermal_update_q(&node->th_state, node->th_x, node->th_valid, (uint32_t)dt_ms);
+        node->th_valid = 0;
+        node->th_cycles = 0;
+        node->th_sampled = 1;
+        node->count.thermal_samples++;
+    }
+    return ABBE_CAN_RX_THERMAL;
 }
 
 static int rx_position(abbe_can_node_t *node, const abbe_can_frame_t *rx)
@@ -547,5 +622,14 @@ int abbe_can_node_rx(abbe_can_node_t *node, const abbe_can_frame_t *rx,
     if (cfg->temp_enable && rx->id == cfg->temp_cob_id) {
         return rx_temperature(node, rx);
     }
+    if (cfg->thermal_enable && rx->id >= cfg->thermal_cob_id &&
+        rx->id < cfg->thermal_cob_id + ABBE_CAN_THERMAL_FRAMES) {
+        return rx_thermal(node, rx, rx->id - cfg->thermal_cob_id);
+    }
     return rx_position(node, rx);
+}
+
+const abbe_thermal_state_t *abbe_can_node_thermal(const abbe_can_node_t *node)
+{
+    return node != NULL && node->th_slot >= 0 ? &node->th_state : NULL;
 }

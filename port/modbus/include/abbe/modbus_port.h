@@ -62,6 +62,7 @@ typedef struct {
     uint8_t dir_source;          /* 0 IN_DIR registers, 1 sign of the position change */
     uint16_t max_clients;        /* reported in ID_MAX_CLIENTS */
     uint32_t upload_timeout_ms;  /* idle upload sessions are dropped after this; 0 = never */
+    uint32_t cycle_us;           /* the controller's IN_CYCLE period, us: the thermal runtime's clock (default 1000) */
 } abbe_mb_regs_config_t;
 
 /* Register map state. Allocate it yourself (static); all fields are private. */
@@ -70,6 +71,13 @@ typedef struct {
     abbe_comp_config_t comp_cfg;
     abbe_comp_stats_t stats_base;       /* counters of compensators replaced by a limit change */
     abbe_model_t slot[ABBE_MB_BANKS];
+    abbe_thermal_model_t thermal[ABBE_MB_BANKS]; /* each bank's thermal block (n_channels 0: none) */
+    abbe_thermal_state_t th;            /* the running table's thermal state */
+    int8_t th_bank;                     /* bank th was started for, -1 none */
+    uint32_t cycle_us;
+    int16_t th_in[ABBE_MB_TH_INPUTS];   /* IN_TH_* as written */
+    uint32_t th_dt_ms;
+    uint16_t th_samples, th_echo;
     uint8_t bank[ABBE_MB_BANKS][ABBE_MB_STAGING_MAX];
     int8_t running;                     /* bank index in use, -1 none */
     int8_t pending;                     /* bank queued for the next cycle, -1 none */

@@ -122,6 +122,32 @@
 #define ABBE_MB_REG_OUT_CYCLE 0x012Eu         /* IN_CYCLE value of the cycle that produced these outputs */
 #define ABBE_MB_OUT_COUNT 0x000Fu
 
+/* ---- thermal inputs (read/write; tables of format 1.3 with a thermal block) ----
+ * IN_TH_k: input k of the table's thermal model, int16: a temperature in 0.01
+ * degC, the spindle speed input in rpm; ABBE_MB_TEMP_NO_READING (-32768) = no
+ * reading (the runtime's open-circuit fault). Every other value is taken: the
+ * runtime judges it (range, step). Writing IN_TH_SAMPLE hands one sample (the
+ * IN_TH registers as they are after the request) to the runtime, IN_TH_DT_MS
+ * after the previous one (docs/modbus-registers.md, "Thermal inputs"). */
+#define ABBE_MB_REG_TIN_BASE 0x0140u
+#define ABBE_MB_REG_IN_TH_0 0x0140u           /* 17 x int16: inputs 0 .. 16 */
+#define ABBE_MB_REG_IN_TH_RESERVED 0x0151u    /* 0 */
+#define ABBE_MB_REG_IN_TH_DT_MS 0x0152u       /* u32 ms since the previous sample, 1 .. 2^31 (default 1000) */
+#define ABBE_MB_REG_IN_TH_SAMPLE 0x0154u      /* any write here hands one sample to the runtime; echoed */
+#define ABBE_MB_TIN_COUNT 0x0015u
+#define ABBE_MB_TH_INPUTS 17u
+
+/* ---- thermal state (read only) ------------------------------------------------ */
+#define ABBE_MB_REG_TOUT_BASE 0x0160u
+#define ABBE_MB_REG_TH_FLAGS 0x0160u          /* ABBE_THERMAL_F_* now (abbe/thermal.h) */
+#define ABBE_MB_REG_TH_SHAPE 0x0161u          /* inputs << 8 | channels of the running table's block (0: none) */
+#define ABBE_MB_REG_TH_INPUT_FAULTS 0x0162u   /* u32 bit k: input k faulted at the last sample */
+#define ABBE_MB_REG_TH_EVENTS 0x0164u         /* u32 ABBE_THERMAL_F_* since the start (sticky) */
+#define ABBE_MB_REG_TH_CHANNEL_0 0x0166u      /* 5 x int32: channel values, nm (nrad for tilts), unfaded */
+#define ABBE_MB_REG_TH_SAMPLES 0x0170u        /* samples handed to the runtime, modulo 65536 */
+#define ABBE_MB_REG_TH_SAMPLE_ECHO 0x0171u    /* the IN_TH_SAMPLE value of the last sample */
+#define ABBE_MB_TOUT_COUNT 0x0012u
+
 /* ---- control ------------------------------------------------------------------ */
 #define ABBE_MB_REG_CT_BASE 0x0200u
 #define ABBE_MB_REG_CT_ENABLE 0x0200u         /* 1 enable (fade in), 0 disable (fade out) */

@@ -1,0 +1,220 @@
+/* abbe: abbe_thermal_load(), the loader of format 1.3 tables (abbe/thermal.h).
+ *
+ * model_load.c compiled a third time with ABBE_MODEL_LOAD_THERMAL: the checks
+ * of the header and the linear axes are the same source (minor 3 and the
+ * THERMAL_DYN bit read, the header's reserved word the block's offset), then
+ * the thermal block's checks (docs/table-format.md, "Thermal block", in that
+ * order). abbe_model_load's translation unit is untouched: a firmware that
+ * does not call abbe_thermal_load pays no flash for it, and abbe_model_load
+ * refuses a 1.3 table by its minor, as every older reader does. */
+#if !defined(ABBE_NO_REVERSAL)
+#include "abbe/thermal.h"
+#define ABBE_MODEL_LOAD_THERMAL 1
+#include "model_load.c"
+
+#define TH_HEADER_SIZE 16u
+#define TH_INPUT_SIZE 20u
+#define TH_CHANNEL_SIZE 56u
+#define TH_TERM_SIZE 12u
+#define TH_VALUE_CAP ((int32_t)1 << 20)      /* |reference|, |valid_min|, |valid_max|, milli-units */
+#define TH_STEP_CAP ((int32_t)1 << 21)       /* max_step */
+#define TH_LIMIT_CAP ((int32_t)1 << 30)      /* channel limit, nm / nrad */
+#define TH_GAIN_CAP ((int32_t)1 << 28)       /* |gain|, 2^-16 um per unit */
+#define TH_TIME_CAP ((uint32_t)1 << 31)      /* tau, max_gap, fade, ms */
+
+static const uint8_t *th_input(const uint8_t *t, unsigned k)
+{
+    return t + TH_HEADER_SIZE + TH_INPUT_SIZE * k;
+}
+
+static const uint8_t *th_channel(const uint8_t *t, unsigned n_inputs, unsigned c)
+{
+    return t + TH_HEADER_SIZE + TH_INPUT_SIZE * n_inputs + TH_CHANNEL_SIZE * c;
+}
+
+static int th_abs_over(int32_t v, int32_t cap)
+{
+    return v > cap || v < -cap;
+}
+
+/* The thermal block's checks, after every check of the table (order: OFFSET of
+ * its header, COUNT of inputs and channels, OFFSET of the whole block, FLAGS,
+ * COUNT of terms, RANGE). */
+static abbe_status_t check_thermal(const uint8_t *b, uint32_t total)
+{
+    uint32_t off = abbe_ld_u32(b + H_RESERVED);
+    if ((off & 3u) != 0u || off < DATA_START || off > total - 4u || total - 4u - off < TH_HEADER_SIZE) {
+        return ABBE_E_OFFSET;
+    }
+    const uint8_t *t = b + off;
+    unsigned n_in = t[0], n_ch = t[1];
+    if (n_in < 1u || n_in > ABBE_THERMAL_MAX_INPUTS || n_ch < 1u || n_ch > ABBE_THERMAL_MAX_CHANNELS) {
+        return ABBE_E_COUNT;
+    }
+    if (total - 4u - off < TH_HEADER_SIZE + TH_INPUT_SIZE * n_in + TH_CHANNEL_SIZE * n_ch) {
+        return ABBE_E_OFFSET;
+    }
+    /* FLAGS: reserved bytes, kinds, outputs (each at most once), unused term slots */
+    if (abbe_ld_u16(t + 2) != 0u || abbe_ld_u32(t + 12) != 0u) {
+        return ABBE_E_FLAGS;
+    }
+    for (unsigned k = 0; k < n_in; k++) {
+        const uint8_t *in = th_input(t, k);
+        if (in[0] > ABBE_THERMAL_SPEED || in[1] != 0u || in[2] != 0u || in[3] != 0u) {
+            return ABBE_E_FLAGS;
+        }
+    }
+    unsigned outputs = 0;
+    for (unsigned c = 0; c < n_ch; c++) {
+        const uint8_t *ch = th_channel(t, n_in, c);
+        if (ch[0] > ABBE_THERMAL_OUT_B || (outputs & (1u << ch[0])) != 0u || abbe_ld_u16(ch + 2) != 0u) {
+            return ABBE_E_FLAGS;
+        }
+        outputs |= 1u << ch[0];
+        for (unsigned k = 0; k < ABBE_THERMAL_MAX_TERMS; k++) {
+            const uint8_t *tm = ch + 8u + TH_TERM_SIZE * k;
+            uint32_t reserved = (uint32_t)tm[1] | (uint32_t)tm[2] | (uint32_t)tm[3];
+            if (reserved != 0u || (k >= ch[1] && (tm[0] != 0u || any_nonzero_i32(tm + 4, 2)))) {
+                return ABBE_E_FLAGS;
+            }
+        }
+    }
+    /* COUNT: terms per channel, the inputs they read */
+    for (unsigned c = 0; c < n_ch; c++) {
+        const uint8_t *ch = th_channel(t, n_in, c);
+        if (ch[1] < 1u || ch[1] > ABBE_THERMAL_MAX_TERMS) {
+            return ABBE_E_COUNT;
+        }
+        for (unsigned k = 0; k < ch[1]; k++) {
+            if (ch[8u + TH_TERM_SIZE * k] >= n_in) {
+                return ABBE_E_COUNT;
+            }
+        }
+    }
+    /* RANGE */
+    uint32_t gap = abbe_ld_u32(t + 4), fade = abbe_ld_u32(t + 8);
+    if (gap < 1u || gap > TH_TIME_CAP || fade < 1u || fade > TH_TIME_CAP) {
+        return ABBE_E_RANGE;
+    }
+    for (unsigned k = 0; k < n_in; k++) {
+        const uint8_t *in = th_input(t, k);
+        int32_t ref = abbe_ld_i32(in + 4), lo = abbe_ld_i32(in + 8), hi = abbe_ld_i32(in + 12);
+        int32_t step = abbe_ld_i32(in + 16);
+        if (th_abs_over(ref, TH_VALUE_CAP) || th_abs_over(lo, TH_VALUE_CAP) || th_abs_over(hi, TH_VALUE_CAP) ||
+            lo >= hi || step < 1 || step > TH_STEP_CAP) {
+            return ABBE_E_RANGE;
+        }
+    }
+    for (unsigned c = 0; c < n_ch; c++) {
+        const uint8_t *ch = th_channel(t, n_in, c);
+        int32_t limit = abbe_ld_i32(ch + 4);
+        if (limit < 1 || limit > TH_LIMIT_CAP) {
+            return ABBE_E_RANGE;
+        }
+        for (unsigned k = 0; k < ch[1]; k++) {
+            const uint8_t *tm = ch + 8u + TH_TERM_SIZE * k;
+            if (abbe_ld_u32(tm + 4) > TH_TIME_CAP || th_abs_over(abbe_ld_i32(tm + 8), TH_GAIN_CAP)) {
+                return ABBE_E_RANGE;
+            }
+        }
+    }
+    return ABBE_OK;
+}
+
+static void build_thermal(abbe_thermal_model_t *th, const uint8_t *b)
+{
+    memset(th, 0, sizeof *th);
+    uint32_t features = abbe_ld_u32(b + H_FEATURES);
+    th->tool_z_nm = (features & ABBE_FEATURE_TOOL_OFFSET) != 0u ? abbe_ld_i32(b + H_TOOL + 8u) : 0;
+    if ((features & ABBE_FEATURE_THERMAL_DYN) == 0u) {
+        return; /* no block: n_inputs = n_channels = 0 */
+    }
+    const uint8_t *t = b + abbe_ld_u32(b + H_RESERVED);
+    unsigned n_in = t[0], n_ch = t[1];
+    th->n_inputs = (uint8_t)n_in;
+    th->n_channels = (uint8_t)n_ch;
+    th->max_gap_ms = abbe_ld_u32(t + 4);
+    th->fade_ms = abbe_ld_u32(t + 8);
+    for (unsigned k = 0; k < n_in; k++) {
+        const uint8_t *in = th_input(t, k);
+        th->kind[k] = in[0];
+        th->ref_milli[k] = abbe_ld_i32(in + 4);
+        th->vmin_milli[k] = abbe_ld_i32(in + 8);
+        th->vmax_milli[k] = abbe_ld_i32(in + 12);
+        th->max_step_milli[k] = abbe_ld_i32(in + 16);
+    }
+    for (unsigned c = 0; c < n_ch; c++) {
+        const uint8_t *ch = th_channel(t, n_in, c);
+        th->output[c] = ch[0];
+        th->n_terms[c] = ch[1];
+        th->limit[c] = abbe_ld_i32(ch + 4);
+        for (unsigned k = 0; k < ch[1]; k++) {
+            const uint8_t *tm = ch + 8u + TH_TERM_SIZE * k;
+            th->term_input[c][k] = tm[0];
+            th->channel_inputs[c] |= 1u << tm[0];
+            th->tau_ms[c][k] = abbe_ld_u32(tm + 4);
+            th->gain_q16[c][k] = abbe_ld_i32(tm + 8);
+        }
+    }
+#if ABBE_WITH_F32
+    /* the float twins: temperatures in degC (milli / 1000), speed in rpm */
+    for (unsigned k = 0; k < n_in; k++) {
+        float unit = th->kind[k] == ABBE_THERMAL_SPEED ? 1.0f : 0.001f;
+        th->ref[k] = (float)th->ref_milli[k] * unit;
+        th->vmin[k] = (float)th->vmin_milli[k] * unit;
+        th->vmax[k] = (float)th->vmax_milli[k] * unit;
+        th->max_step[k] = (float)th->max_step_milli[k] * unit;
+        th->rise_scale[k] = th->kind[k] == ABBE_THERMAL_SPEED ? 0.001f : 1.0f;
+    }
+    for (unsigned c = 0; c < n_ch; c++) {
+        th->limit_f[c] = (float)th->limit[c] * 0.001f;
+        for (unsigned k = 0; k < th->n_terms[c]; k++) {
+            th->tau_s[c][k] = (float)th->tau_ms[c][k] * 0.001f;
+            th->gain[c][k] = (float)th->gain_q16[c][k] * (1.0f / 65536.0f);
+        }
+    }
+    th->max_gap_s = (float)th->max_gap_ms * 0.001f;
+    th->tool_z_mm = (float)th->tool_z_nm * 1e-6f;
+#endif
+}
+
+abbe_status_t abbe_thermal_load(abbe_model_t *model, abbe_thermal_model_t *thermal, const void *blob, size_t size)
+{
+    if (model == NULL || thermal == NULL || blob == NULL) {
+        return ABBE_E_ARG;
+    }
+    if (((uintptr_t)blob & 3u) != 0u) {
+        return ABBE_E_ALIGN;
+    }
+    const uint8_t *b = (const uint8_t *)blob;
+    uint32_t total = 0;
+    abbe_status_t st;
+    CHECK_TABLE(st, b, size, total, 0u);
+    if (st == ABBE_OK && (abbe_ld_u32(b + H_FEATURES) & ABBE_FEATURE_THERMAL_DYN) != 0u) {
+        st = check_thermal(b, total);
+    }
+    if (st != ABBE_OK) {
+        return st; /* both untouched */
+    }
+    build_model(model, b, total);
+    build_thermal(thermal, b);
+    return ABBE_OK;
+}
+
+unsigned abbe_thermal_n_inputs(const abbe_thermal_model_t *thermal)
+{
+    return thermal != NULL ? thermal->n_inputs : 0u;
+}
+
+unsigned abbe_thermal_n_channels(const abbe_thermal_model_t *thermal)
+{
+    return thermal != NULL ? thermal->n_channels : 0u;
+}
+
+size_t abbe_thermal_model_sizeof(void)
+{
+    return sizeof(abbe_thermal_model_t);
+}
+#else
+typedef int abbe_thermal_load_not_built; /* a format 1.0 library reads no 1.3 tables */
+#endif
