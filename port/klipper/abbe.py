@@ -155,35 +155,86 @@ class LoadedTable:
         return [[out[i].error_um[a] for a in range(AXES)] for i in range(n)]
 
     def curvature_um_per_mm2(self, lib):
-        """The largest second derivative of the error along the axes, um/mm^2:
-        second differences at a step of span/400 along lines parallel to each axis
-        through the corners and the centre of the other two, INSIDE the travel only
-        (outside it the table holds its end values: that kink is not curvature a
-        segment must follow). The error is a sum of one-axis terms times lever arms,
-        so its curvature along any line is bounded by these and the levers' slopes."""
+        """kappa, um/mm^2: a bound on the second derivative of the error along any
+        line, from the table, INSIDE the travel only (outside it the table holds its
+        end values: that kink is not curvature a segment must follow).
+
+        Two passes, both through the library: (1) second differences at a step of
+        span/400 along lines parallel to each axis through the corners and the
+        centre of the other two (the one-axis terms' curvature, finely); (2) on a
+        5 x 5 x 5 grid, the whole Hessian of dX, dY, dZ (mixed partials by the
+        four-point stencil) and its largest Gershgorin row sum, which bounds
+        u^T H u for every unit direction u (the lever-arm products' cross terms).
+        The larger of the two is kappa."""
         lo = [t[0] for t in self.travel]
         hi = [t[1] for t in self.travel]
         mid = [(lo[a] + hi[a]) / 2.0 for a in range(AXES)]
         kappa = 0.0
+        n = 401
         for a in range(AXES):
-            n = 401
             h = (hi[a] - lo[a]) / (n - 1)
-            others = [b for b in range(AXES) if b != a]
-            for u in (lo[others[0]], mid[others[0]], hi[others[0]]):
-                for v in (lo[others[1]], mid[others[1]], hi[others[1]]):
-                    pts = []
+            b, c = [k for k in range(AXES) if k != a]
+            pts = []
+            for u in (lo[b], mid[b], hi[b]):
+                for v in (lo[c], mid[c], hi[c]):
                     for i in range(n):
                         p = [0.0] * AXES
-                        p[a] = lo[a] + i * h
-                        p[others[0]] = u
-                        p[others[1]] = v
+                        p[a], p[b], p[c] = lo[a] + i * h, u, v
                         pts.append(p)
-                    err = self.errors_um(lib, pts)
-                    for i in range(1, n - 1):
-                        for c in range(AXES):
-                            d2 = abs(err[i + 1][c] - 2.0 * err[i][c] + err[i - 1][c]) / (h * h)
-                            if d2 > kappa:
-                                kappa = d2
+            err = self.errors_um(lib, pts)
+            for line in range(9):
+                e = err[line * n:(line + 1) * n]
+                for i in range(1, n - 1):
+                    for k in range(AXES):
+                        d2 = abs(e[i + 1][k] - 2.0 * e[i][k] + e[i - 1][k]) / (h * h)
+                        kappa = max(kappa, d2)
+        # (2) the whole Hessian at interior grid points
+        hs = [(hi[a] - lo[a]) / 400.0 for a in range(AXES)]
+        centres = []
+        for i in range(5):
+            for j in range(5):
+                for k in range(5):
+                    centres.append([lo[0] + (hi[0] - lo[0]) * (0.1 + 0.2 * i),
+                                    lo[1] + (hi[1] - lo[1]) * (0.1 + 0.2 * j),
+                                    lo[2] + (hi[2] - lo[2]) * (0.1 + 0.2 * k)])
+        offsets = [(0, 0, 0)]
+        for a in range(AXES):
+            for sa in (-1, 1):
+                o = [0, 0, 0]
+                o[a] = sa
+                offsets.append(tuple(o))
+        for a in range(AXES):
+            for b in range(a + 1, AXES):
+                for sa in (-1, 1):
+                    for sb in (-1, 1):
+                        o = [0, 0, 0]
+                        o[a], o[b] = sa, sb
+                        offsets.append(tuple(o))
+        pts = [[c[x] + o[x] * hs[x] for x in range(AXES)] for c in centres for o in offsets]
+        err = self.errors_um(lib, pts)
+        m = len(offsets)
+        index = {o: i for i, o in enumerate(offsets)}
+        for ci in range(len(centres)):
+            e = err[ci * m:(ci + 1) * m]
+            for comp in range(AXES):
+                hess = [[0.0] * AXES for _ in range(AXES)]
+                for a in range(AXES):
+                    plus = [0, 0, 0]
+                    plus[a] = 1
+                    minus = [0, 0, 0]
+                    minus[a] = -1
+                    hess[a][a] = (e[index[tuple(plus)]][comp] - 2.0 * e[0][comp]
+                                  + e[index[tuple(minus)]][comp]) / (hs[a] * hs[a])
+                for a in range(AXES):
+                    for b in range(a + 1, AXES):
+                        def at(sa, sb):
+                            o = [0, 0, 0]
+                            o[a], o[b] = sa, sb
+                            return e[index[tuple(o)]][comp]
+                        v = (at(1, 1) - at(1, -1) - at(-1, 1) + at(-1, -1)) / (4.0 * hs[a] * hs[b])
+                        hess[a][b] = hess[b][a] = v
+                for a in range(AXES):
+                    kappa = max(kappa, sum(abs(hess[a][b]) for b in range(AXES)))
         return kappa
 
 
@@ -217,9 +268,9 @@ class AbbeCompensation:
         try:
             self.lib = AbbeLibrary(config.get("library", None))
             self.table = self._load_table(self.table_path)
+            self._check_correction_size(self.table)
         except (AbbeLibraryError, OSError) as exc:
             raise config.error("[abbe] %s" % (exc,))
-        self._check_correction_size(self.table)
         self.split_mm = self._split_length(self.table)
         self.comp = _aligned_buffer(self.lib.comp_size)
         cfg = _CompConfig()
