@@ -36,6 +36,7 @@ COMMANDS: list[str] = [
     "abbe.cli.demo",
     "abbe.cli.modbus",
     "abbe.cli.history",
+    "abbe.cli.printer",
 ]
 
 

@@ -441,7 +441,7 @@ def main() -> int:
 
     # disabled = stock: the same command stream as without [abbe]
     moves = PROGRAMS["lines"]
-    stock, _ = run_klippy(tree, dict_path, "stock", printer_cfg(None), gcode_for(moves))
+    stock = WORK / "runs" / "lines_stock" / "mcu.serial"  # stock Klipper on this program, run above
     off, _ = run_klippy(tree, dict_path, "disabled", printer_cfg(abbe_section(table, enable=False)),
                         gcode_for(moves))
     a_lines = [ln for ln in decode(tree, dict_path, stock) if "step" in ln]
