@@ -29,7 +29,11 @@
 #      the measurement programs (abbe program, grblHAL dialect) in the unmodified
 #      Simulator (port/grblhal/tests/run.sh; skipped without the snapshots, a failure
 #      under CI=true)
-#  13. the README's demo command (scripts/demo.sh), run twice: into a new
+#  13. Klipper: the module port/klipper/abbe.py in Klipper's batch mode (the snapshot in
+#      third_party/klipper, an STM32F407 dictionary built with arm-none-eabi-gcc): move ends
+#      and paths from the decoded MCU stream against abbe table eval, disabled = stock,
+#      bad tables refused (port/klipper/tests/klipper_batch.py)
+#  14. the README's demo command (scripts/demo.sh), run twice: into a new
 #      demo-out/ and over the old one
 # Runs every step even after a failure; exits non-zero if any step failed.
 set -uo pipefail
@@ -126,6 +130,10 @@ readme_demo() { # the README's other command, as a user runs it: fresh, then ove
     fi
 }
 
+klipper_batch() { # Klipper from third_party/klipper, its host code on the project's venv (the lock has cffi, greenlet, jinja2)
+    "$REPO/.venv/bin/python" port/klipper/tests/klipper_batch.py --json build-klipper/klipper.json
+}
+
 lcnc_component() { # one LinuxCNC on a machine at a time: the same lock as every LinuxCNC run here
     flock /tmp/abbe-linuxcnc.lock bash port/linuxcnc/tests/run.sh
 }
@@ -147,6 +155,7 @@ step "LinuxCNC component: halrun and simulator tests" lcnc_component
 step "clang Cortex-M4F and M3 builds and ctest under QEMU (build-m{4f,3}-clang)" cross_clang
 step "measurement programs in LinuxCNC's simulator" lcnc_programs
 step "grblHAL plugin in grblHAL's Simulator" bash port/grblhal/tests/run.sh
+step "Klipper module in Klipper's batch mode" klipper_batch
 step "README's demo command (scripts/demo.sh), twice" readme_demo
 
 echo

@@ -126,6 +126,28 @@ def read_klipper(out: Path, profile: str = "abbe"):
     return corr
 
 
+def read_rrf_m556(out: Path):
+    """From RepRapFirmware's Move::AxisTransform and the M556 page: tanXY = X/S,
+    tanYZ = Y/S, tanXZ = Z/S; x += tanXY y + tanXZ z, y += tanYZ z (P0)."""
+    words = None
+    for line in (out / "rrf_m556.g").read_text().splitlines():
+        line = line.split(";")[0].strip()
+        if line.startswith("M556"):
+            if words is not None:
+                raise FormatError("two M556 lines")
+            words = {w[0]: _num(w[1:]) for w in line.split()[1:]}
+    if words is None or "S" not in words or words["S"] <= 0:
+        raise FormatError("no M556 with S > 0")
+    s = words["S"]
+    txy, tyz, txz = words.get("X", 0.0) / s, words.get("Y", 0.0) / s, words.get("Z", 0.0) / s
+
+    def corr(pos, state):
+        x, y, z = pos.T
+        moved = np.column_stack([x + txy * y + txz * z, y + tyz * z, z])
+        return (moved - pos) * 1e3
+    return corr
+
+
 def read_marlin(out: Path):
     xy = xz = yz = 0.0
     back = {"X": 0.0, "Y": 0.0, "Z": 0.0}
@@ -685,6 +707,7 @@ READERS = {
     "linuxcnc-matrixkins": read_matrixkins,
     "klipper-skew": read_klipper,
     "marlin": read_marlin,
+    "rrf-m556": read_rrf_m556,
     "sinumerik-lec": read_sinumerik_lec,
     "sinumerik-cec": lambda out: read_sinumerik_cec(out)[0],
     "heidenhain-com": read_heidenhain,

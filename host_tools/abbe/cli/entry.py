@@ -37,6 +37,7 @@ COMMANDS: list[str] = [
     "abbe.cli.modbus",
     "abbe.cli.history",
     "abbe.cli.thermal",
+    "abbe.cli.printer",
 ]
 
 

@@ -27,6 +27,7 @@ TARGETS: dict[str, str] = {
     "fanuc-pitch": "abbe.formats.export.fanuc_pitch",
     "klipper-skew": "abbe.formats.export.klipper_skew",
     "marlin": "abbe.formats.export.marlin",
+    "rrf-m556": "abbe.formats.export.rrf_m556",
     "linuxcnc-comp": "abbe.formats.export.linuxcnc_comp",
     "linuxcnc-matrixkins": "abbe.formats.export.linuxcnc_matrixkins",
 }
