@@ -41,6 +41,9 @@ MAX_POINTS = 100
 #: Largest height a printer map may hold, mm (Klipper refuses meshes beyond its fade range).
 MAX_HEIGHT_MM = 50.0
 MAX_COORD_MM = 10000.0
+#: What separates cells: spaces and tabs only (a no-break space or another Unicode space
+#: next to a number is refused by the number parser, as in every abbe reader).
+_WS = " \t"
 
 
 @dataclass
@@ -134,12 +137,12 @@ def _autosave_sections(path: str | Path) -> dict[str, dict[str, tuple[str, int]]
             key = m.group("key").lower()
             if key in cur:
                 raise AbbeInputError(f"option {key} twice", file=str(path), line=no, field=key)
-            cur[key] = (m.group("value").strip(), no)
+            cur[key] = (m.group("value").strip(_WS), no)
             continue
         m = _CONT.match(s)
         if m and key is not None:
             v, first = cur[key]
-            cur[key] = ((v + "\n" + m.group("value").strip()).strip(), first)
+            cur[key] = ((v + "\n" + m.group("value").strip(_WS)).strip(_WS + "\n"), first)
             continue
         raise AbbeInputError(f"cannot read {s!r}: expected '#*# key = value' or a mesh row",
                              file=str(path), line=no)
@@ -182,7 +185,7 @@ def read_klipper_meshes(path: str | Path) -> list[HeightMap]:
                                  file=str(path), line=first, field=f"{name}.points")
         z = np.empty((ny, nx))
         for j, r in enumerate(rows):
-            cells = [c.strip() for c in r.split(",") if c.strip() != ""]
+            cells = [c.strip(_WS) for c in r.split(",") if c.strip(_WS) != ""]
             if len(cells) != nx:
                 raise AbbeInputError(f"row {j + 1} has {len(cells)} values, x_count = {nx}",
                                      file=str(path), line=first + 1 + j, field=f"{name}.points")
@@ -209,9 +212,9 @@ def read_klipper_twist(path: str | Path) -> TwistTable | None:
         raise AbbeInputError("[axis_twist_compensation] has no z_compensations",
                              file=str(path), field="z_compensations")
     text, no = opts["z_compensations"]
-    vals = np.array([parse_number(c.strip(), file=str(path), line=no, field=f"{name}.z_compensations",
+    vals = np.array([parse_number(c.strip(_WS), file=str(path), line=no, field=f"{name}.z_compensations",
                                   lo=-MAX_HEIGHT_MM, hi=MAX_HEIGHT_MM)
-                     for c in text.replace("\n", ",").split(",") if c.strip()])
+                     for c in text.replace("\n", ",").split(",") if c.strip(_WS)])
     if vals.size < 2:
         raise AbbeInputError(f"{vals.size} z_compensations: expected at least 2",
                              file=str(path), line=no, field=f"{name}.z_compensations")
@@ -234,7 +237,7 @@ _RRF_HEADERS = {
 def read_rrf_heightmap(path: str | Path) -> HeightMap:
     """A RepRapFirmware ``heightmap.csv`` (module docstring)."""
     tf = read_text(path, what="RepRapFirmware height map", max_bytes=MAX_BYTES)
-    lines = [(no, ln.strip()) for no, ln in tf.lines()]
+    lines = [(no, ln.strip(_WS)) for no, ln in tf.lines()]
     lines = [(no, ln) for no, ln in lines if ln]
     p = str(path)
     if not lines or not lines[0][1].startswith("RepRapFirmware height map file"):
@@ -249,7 +252,7 @@ def read_rrf_heightmap(path: str | Path) -> HeightMap:
         raise AbbeInputError(f"header {head!r}: expected one of {list(_RRF_HEADERS)}",
                              file=p, line=hno, field="header")
     vno, vals_text = lines[2]
-    vals = [v.strip() for v in vals_text.split(",")]
+    vals = [v.strip(_WS) for v in vals_text.split(",")]
     want = 9 if kind == "v2-old" else 11
     if len(vals) != want:
         raise AbbeInputError(f"{len(vals)} values under the header: expected {want}",
@@ -275,7 +278,7 @@ def read_rrf_heightmap(path: str | Path) -> HeightMap:
     z = np.empty((n1, n0))
     unprobed = 0
     for j, (no, r) in enumerate(rows):
-        cells = [c.strip() for c in r.split(",")]
+        cells = [c.strip(_WS) for c in r.split(",")]
         if len(cells) != n0:
             raise AbbeInputError(f"{len(cells)} values: num0 = {n0}", file=p, line=no,
                                  field=f"row {j + 1}")
@@ -312,10 +315,10 @@ def read_skew_csv(path: str | Path) -> list[SkewArtefact]:
     out: list[SkewArtefact] = []
     header_seen = False
     for no, line in tf.lines():
-        s = line.split("#", 1)[0].strip()
+        s = line.split("#", 1)[0].strip(_WS)
         if not s:
             continue
-        cells = [c.strip() for c in s.split(",")]
+        cells = [c.strip(_WS) for c in s.split(",")]
         if not header_seen:
             if [c.lower() for c in cells] != ["plane", "ac_mm", "bd_mm", "ad_mm"]:
                 raise AbbeInputError(f"header {s!r}: expected plane,ac_mm,bd_mm,ad_mm",
