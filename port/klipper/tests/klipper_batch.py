@@ -439,6 +439,38 @@ def main() -> int:
     if arc_worst > 1:
         raise AssertionError(f"arcs: end {arc_worst} steps off")
 
+    # composition with [bed_mesh]: abbe outermost, the mesh below it takes the corrected
+    # point; a planar mesh (any interpolation holds a plane exactly) lifts Z by
+    # plane(x', y') at the corrected x', y'
+    plane = lambda x, y: 0.01 + 2e-4 * (x - 20.0) - 1e-4 * (y + 380.0)  # noqa: E731  mm
+    mx, my = [20.0, 250.0, 480.0], [-380.0, -200.0, -20.0]
+    rows = "\n".join("#*# \t" + ", ".join(f"{plane(x, y):.6f}" for x in mx) for y in my)
+    mesh_cfg = ("[probe]\npin: PC7\nz_offset: 0\n\n[bed_mesh]\nmesh_min: 20,-380\n"
+                "mesh_max: 480,-20\nprobe_count: 3,3\n\n"
+                "#*# <---------------------- SAVE_CONFIG ---------------------->\n"
+                "#*# DO NOT EDIT THIS BLOCK OR BELOW. The contents are auto-generated.\n#*#\n"
+                f"#*# [bed_mesh default]\n#*# version = 1\n#*# points =\n{rows}\n"
+                "#*# x_count = 3\n#*# y_count = 3\n#*# mesh_x_pps = 2\n#*# mesh_y_pps = 2\n"
+                "#*# algo = lagrange\n#*# tension = 0.2\n#*# min_x = 20.0\n#*# max_x = 480.0\n"
+                "#*# min_y = -380.0\n#*# max_y = -20.0\n")
+    mesh_moves = [("G1", [400, -50, -60]), ("G1", [60, -350, -200]), ("G1", [300, -120, -30]),
+                  ("G1", [450, -330, -250])]
+    out, _ = run_klippy(tree, dict_path, "bed_mesh", printer_cfg(abbe_section(table), mesh_cfg),
+                        gcode_for(mesh_moves, extra_before="BED_MESH_PROFILE LOAD=default"))
+    rows_m = rest_positions(step_events(decode(tree, dict_path, out)))
+    mpts, mdirs = expected_ends(table, mesh_moves)
+    merrs = table_eval(table, mpts, mdirs)
+    worst = 0
+    for i, (p, e) in enumerate(zip(mpts, merrs)):
+        q = [p[a] - e[a] * 1e-3 for a in range(3)]
+        q[2] += plane(q[0], q[1])
+        for a, ax in enumerate("xyz"):
+            worst = max(worst, abs(rows_m[i + 1][ax] - round(q[a] * STEPS_PER_MM[ax])))
+    results["with_bed_mesh"] = {"move_ends": len(mesh_moves), "worst_end_steps": worst}
+    log(f"with [bed_mesh]: {results['with_bed_mesh']}")
+    if worst > 1:
+        raise AssertionError(f"with [bed_mesh]: a move end {worst} steps from p - E(p) + mesh")
+
     # disabled = stock: the same command stream as without [abbe]
     moves = PROGRAMS["lines"]
     stock = WORK / "runs" / "lines_stock" / "mcu.serial"  # stock Klipper on this program, run above
