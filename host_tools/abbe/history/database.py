@@ -276,6 +276,13 @@ def classify(exc: BaseException, loc: Location, *, writing: bool = False) -> Exc
     if isinstance(exc, sa.exc.ProgrammingError) and not state:
         # psycopg: an invalid connection option (e.g. a port that is not a number)
         return AbbeInputError(f"cannot use the database URL: {text}", file=name, field="--db")
+    low = text.lower()
+    if any(k in low for k in ("does not exist", "authentication failed", "no password supplied",
+                              "permission denied", "pg_hba.conf")):
+        # the server answered: the database, the role or its password is wrong (no retry helps)
+        return AbbeInputError(f"the server refused: {text} (check the database name, the role "
+                              "and its password: ~/.pgpass or a service file)", file=name,
+                              field="--db")
     if state in ("40001", "40P01"):
         return DatabaseUnreachable(f"the history database {name} refused the transaction "
                                    f"({text});{stored} retry")
@@ -301,6 +308,12 @@ def _sqlite_tables(f: Path) -> set[str]:
         finally:
             con.close()
     except sqlite3.Error as exc:
+        if "readonly" in str(exc) and not os.access(f.parent, os.W_OK | os.X_OK):
+            raise AbbeInputError(
+                f"cannot read it: its write-ahead log needs {f.name}-shm beside it and this "
+                f"user cannot create files in {f.parent} (give the readers write permission on "
+                "the folder, the file itself may stay read-only)", file=str(f),
+                field="--db") from None
         raise AbbeInputError(f"cannot read it as an SQLite database: {exc}", file=str(f),
                              field="--db") from None
 
