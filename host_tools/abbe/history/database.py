@@ -31,6 +31,7 @@ from __future__ import annotations
 import os
 import re
 import sqlite3
+import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -412,7 +413,7 @@ def open_database(db: str | None, *, create: bool = False, migrate: bool = False
             upgrade(engine)
         if write and loc.sqlite_file is None:
             _check_pg_writable(sa, engine, loc)
-    except sa.exc.SQLAlchemyError as exc:
+    except (sa.exc.SQLAlchemyError, sqlite3.Error) as exc:
         engine.dispose()
         raise connect_error(exc, loc) from None
     except BaseException:
@@ -437,11 +438,28 @@ def _create(sa: Any, engine: Any, loc: Location) -> None:
                     raise bad
             command.upgrade(_alembic_config(conn), "head")
     if loc.sqlite_file is not None:  # abbe's own file now: write-ahead log, set once
+        _set_wal(engine)
+
+
+def _set_wal(engine: Any) -> None:
+    """Switch abbe's new SQLite file to WAL. The switch needs the file to itself and
+    SQLite does not wait for it (no busy handler): retried up to the busy timeout while
+    other first writers are at work."""
+    deadline = time.monotonic() + BUSY_TIMEOUT_S
+    while True:
         raw = engine.raw_connection()
         try:
-            raw.driver_connection.execute("PRAGMA journal_mode = WAL")
+            cur = raw.driver_connection
+            if str(cur.execute("PRAGMA journal_mode").fetchone()[0]).lower() == "wal":
+                return
+            cur.execute("PRAGMA journal_mode = WAL")
+            return
+        except sqlite3.OperationalError as exc:
+            if not any(b in str(exc) for b in _SQLITE_BUSY) or time.monotonic() > deadline:
+                raise
         finally:
             raw.close()
+        time.sleep(0.05)
 
 
 def _check_pg_writable(sa: Any, engine: Any, loc: Location) -> None:
