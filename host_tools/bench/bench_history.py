@@ -82,7 +82,7 @@ def main() -> int:
     times = []
     for i in range(args.n):
         argv = ["history", "--db", db, "add", *_variant(out, work / "v" / f"{i % 50}", i),
-                "--axis", "X", "--date", (t0 + dt.timedelta(days=7 * i)).strftime("%Y-%m-%dT%H:%M"),
+                "--axis", "X", "--date", (t0 + dt.timedelta(days=7 * i)).strftime("%Y-%m-%dT%H:%MZ"),
                 "--operator", "bench"]
         if i >= args.n - args.cli:
             s = time.perf_counter()

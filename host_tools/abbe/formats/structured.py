@@ -146,6 +146,44 @@ def _json_constant(name: str) -> Any:
     raise _JsonProblem(f"{name} is not a JSON number (strict JSON: no NaN or Infinity)")
 
 
+_JSON_TOKEN = re.compile(r'"(?:[^"\\]|\\.)*"|[{}\[\]:,]|\n|-?Infinity|NaN')
+
+
+def _json_problem_line(text: str, what: str) -> int | None:
+    """Line of the first bare NaN / Infinity (``what`` = "constant") or of the first key
+    repeated in one object (``what`` = "duplicate"), strings skipped."""
+    line = 1
+    keys: list[set[str] | None] = []  # per open container: its keys (None: a list)
+    last: str | None = None
+    for m in _JSON_TOKEN.finditer(text):
+        t = m.group(0)
+        if t == "\n":
+            line += 1
+        elif t[0] == '"':
+            last = t
+            line += t.count("\n")
+        elif t in ("NaN", "Infinity", "-Infinity"):
+            if what == "constant":
+                return line
+        elif t == "{":
+            keys.append(set())
+        elif t == "[":
+            keys.append(None)
+        elif t in "}]":
+            if keys:
+                keys.pop()
+        elif t == ":" and keys and keys[-1] is not None and last is not None:
+            try:
+                k = json.loads(last)
+            except ValueError:
+                k = last
+            if k in keys[-1] and what == "duplicate":
+                return line
+            keys[-1].add(k)
+            last = None
+    return None
+
+
 def parse_json_text(tf: TextFile) -> Any:
     """Strict JSON from a decoded text file (module docstring)."""
     deep = _depth_line(tf.text, toml=False)
@@ -159,8 +197,9 @@ def parse_json_text(tf: TextFile) -> Any:
                              line=exc.lineno) from None
     except _JsonProblem as exc:
         at = tf.text.find(exc.text) if exc.text else -1
-        raise AbbeInputError(f"invalid JSON: {exc}", file=tf.name,
-                             line=tf.text.count("\n", 0, at) + 1 if at >= 0 else None) from None
+        line = tf.text.count("\n", 0, at) + 1 if at >= 0 else _json_problem_line(
+            tf.text, "duplicate" if str(exc).startswith("duplicated key") else "constant")
+        raise AbbeInputError(f"invalid JSON: {exc}", file=tf.name, line=line) from None
     except RecursionError:
         raise AbbeInputError(f"nested too deeply (at most {MAX_NESTING} levels)",
                              file=tf.name) from None

@@ -8,9 +8,14 @@ fleet (docs/history.md).
 * :mod:`~abbe.history.deps`: the optional extra (SQLAlchemy, Alembic, psycopg),
   imported lazily with a clear message when missing.
 * :mod:`~abbe.history.schema`: the tables (SQLAlchemy Core) at the newest revision.
-* :mod:`~abbe.history.database`: where the database is, opening it, migrations.
+* :mod:`~abbe.history.database`: where the database is, opening it (foreign and
+  read-only databases refused before any write), migrations under a lock, the exit
+  status of every database condition, passwords masked.
+* :mod:`~abbe.history.readback`: every value read back checked (finite, typed, a date).
+* :mod:`~abbe.history.zones`: dates stored in UTC, given and shown in the site's zone.
 * :mod:`~abbe.history.ingest`: an output folder -> a :class:`Campaign` (no database).
-* :mod:`~abbe.history.store`: a campaign in, series out (one transaction each).
+* :mod:`~abbe.history.store`: a campaign in, series out (one transaction each);
+  remove / amend with the audit trail.
 * :mod:`~abbe.history.trends`: bands, trend lines and alerts (numpy).
 * :mod:`~abbe.history.limits`: tolerances and the alert settings (TOML).
 * :mod:`~abbe.history.report`, :mod:`~abbe.history.export`: what is written.

@@ -22,6 +22,8 @@ from typing import Any
 import sqlalchemy as sa
 
 from abbe.history import schema as S
+from abbe.history.readback import fetch
+from abbe.history.store import campaigns_of
 
 CSV_COLUMNS = ("machine", "campaign", "measured_at", "operator", "series", "source", "quantity",
                "axis", "direction", "plane", "feed_mm_min", "value", "unit", "ci_low", "ci_high")
@@ -32,21 +34,22 @@ def _iso(t: Any) -> str:
     return t.strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
-def collect(conn: Any, machine_ids: list[int]) -> dict[str, Any]:
-    """Everything stored about ``machine_ids`` as one JSON-ready document."""
+def collect(conn: Any, machine_ids: list[int], shown: str | None = None) -> dict[str, Any]:
+    """Everything stored about ``machine_ids`` (removed campaigns left out) as one
+    JSON-ready document, every value checked as read (:mod:`abbe.history.readback`)."""
     doc: dict[str, Any] = {"format": "abbe-history", "version": 1, "machines": []}
     for mid in machine_ids:
-        name = conn.execute(sa.select(S.machines.c.name).where(S.machines.c.id == mid)).scalar_one()
-        camps = conn.execute(sa.select(S.campaigns).where(S.campaigns.c.machine_id == mid)
-                             .order_by(S.campaigns.c.measured_at, S.campaigns.c.id)).mappings().all()
+        name = fetch(conn, S.machines, S.machines.c.id == mid, shown=shown)[0]["name"]
+        camps = campaigns_of(conn, mid, shown)
         ids = [c["id"] for c in camps]
         by: dict[int, dict[str, list]] = {i: {"instruments": [], "temperatures": [], "inputs": [],
                                               "tables": [], "results": []} for i in ids}
 
         def rows(table: sa.Table, cols: list[str]) -> Any:
-            q = sa.select(table).where(table.c.campaign_id.in_(ids)).order_by(table.c.id)
-            for r in conn.execute(q).mappings():
-                yield r["campaign_id"], {k: r[k] for k in cols}
+            for r in fetch(conn, table, table.c.campaign_id.in_(ids), shown=shown,
+                           columns=["campaign_id", *cols]):
+                if r["campaign_id"] in by:
+                    yield r["campaign_id"], {k: r[k] for k in cols}
 
         if ids:
             for cid, r in rows(S.instruments, ["name"]):
@@ -55,11 +58,8 @@ def collect(conn: Any, machine_ids: list[int]) -> dict[str, Any]:
                 by[cid]["temperatures"].append(r)
             for cid, r in rows(S.inputs, ["role", "file", "sha256"]):
                 by[cid]["inputs"].append(r)
-            q = (sa.select(S.tables.c.campaign_id, S.tables.c.source, S.tables.c.crc32,
-                           S.tables.c.size_bytes).where(S.tables.c.campaign_id.in_(ids))
-                 .order_by(S.tables.c.id))
-            for r in conn.execute(q).mappings():
-                by[r["campaign_id"]]["tables"].append(
+            for cid, r in rows(S.tables, ["source", "crc32", "size_bytes"]):
+                by[cid]["tables"].append(
                     {"source": r["source"], "crc32": f"0x{r['crc32']:08X}",
                      "size_bytes": r["size_bytes"]})
             for cid, r in rows(S.results, list(_RESULT_FIELDS)):

@@ -2,7 +2,7 @@
 
 OUT/index.html: the current alerts, the alert history (the campaign where each
 alert was first raised), one plot per quantity that matters (a series with a
-tolerance, or any series that raised an alert: values with their 95 % intervals,
+tolerance, or any series that raised an alert; from the first campaign on: values with their 95 % intervals,
 the band, the tolerance, the trend line carried over the horizon, the campaigns
 with an alert ringed), a table of every series and the list of campaigns.
 OUT/trend_NN.png: the plots. Written through :class:`abbe.formats.output.Outputs`
@@ -18,6 +18,7 @@ from typing import Any
 
 from abbe.history.limits import Settings
 from abbe.history.trends import Alert, Analysis
+from abbe.history.zones import show, to_site, zone_name
 
 #: At most this many plots (the quantities with an alert first, then those with a limit).
 MAX_PLOTS = 60
@@ -25,6 +26,10 @@ MAX_PLOTS = 60
 
 def _esc(x: Any) -> str:
     return html.escape(str(x))
+
+
+def _day(t: dt.datetime, zone: Any) -> str:
+    return to_site(t, zone).strftime("%Y-%m-%d")
 
 
 def _plot(an: Analysis, s: Settings, path: Path) -> None:
@@ -92,7 +97,7 @@ def _first_of_runs(alerts: list[Alert], order: dict[int, int]) -> list[tuple[Ale
 
 def render(out: Path, machine: str, campaigns: list[dict[str, Any]],
            analyses: list[Analysis], details: dict[int, dict[str, Any]], s: Settings,
-           db_shown: str) -> dict[str, Any]:
+           db_shown: str, zone: Any = None) -> dict[str, Any]:
     """Write index.html and the plots into the (staging) folder ``out``; a summary."""
     order = {c["id"]: i for i, c in enumerate(campaigns)}
     number = {c["id"]: i + 1 for i, c in enumerate(campaigns)}
@@ -100,9 +105,9 @@ def render(out: Path, machine: str, campaigns: list[dict[str, Any]],
     last_id = campaigns[-1]["id"] if campaigns else None
     current = [a for a in alerts if a.campaign_id == last_id]
     ranked = sorted(analyses, key=lambda an: (not an.alerts, an.limit is None, an.series.key))
-    # a trend needs two points: a series seen once is in the table only
-    plotted = [an for an in ranked if (an.alerts or an.limit is not None)
-               and len(an.series.points) >= 2][:MAX_PLOTS]
+    # every quantity that matters gets its plot, from the first campaign on (one point,
+    # its interval, the limit: no trend line before there are enough campaigns)
+    plotted = [an for an in ranked if an.alerts or an.limit is not None][:MAX_PLOTS]
     h: list[str] = [
         "<!DOCTYPE html>", "<html><head><meta charset='utf-8'>",
         f"<title>abbe history: {_esc(machine)}</title>",
@@ -113,15 +118,16 @@ def render(out: Path, machine: str, campaigns: list[dict[str, Any]],
         ".alert{color:#b00000;font-weight:bold}.ok{color:#006000}"
         "img{max-width:100%}</style></head><body>",
         f"<h1>abbe history: {_esc(machine)}</h1>",
-        f"<p>{len(campaigns)} campaigns from {campaigns[0]['measured_at']:%Y-%m-%d} to "
-        f"{campaigns[-1]['measured_at']:%Y-%m-%d}; database {_esc(db_shown)}. Band: the first "
+        f"<p>{len(campaigns)} campaigns from {_day(campaigns[0]['measured_at'], zone)} to "
+        f"{_day(campaigns[-1]['measured_at'], zone)} (dates in {_esc(zone_name(zone))}); "
+        f"database {_esc(db_shown)}. Band: the first "
         f"{s.baseline_campaigns} campaigns +- {s.band_sigma:g} s (never narrower than the "
         f"measurement's interval); trend: the last {s.trend_campaigns} campaigns, alert when it "
         f"reaches the limit within {s.horizon_days:g} days (docs/history.md).</p>",
     ]
     if current:
         h.append(f"<h2 class='alert'>Current alerts (campaign {number[last_id]}, "
-                 f"{campaigns[-1]['measured_at']:%Y-%m-%d}): {len(current)}</h2><ul>")
+                 f"{_day(campaigns[-1]['measured_at'], zone)}): {len(current)}</h2><ul>")
         h += [f"<li class='alert'>{_esc(a.series)} [{a.kind}]: {_esc(a.message)}</li>"
               for a in current]
         h.append("</ul>")
@@ -133,7 +139,8 @@ def render(out: Path, machine: str, campaigns: list[dict[str, Any]],
         h.append("<table><tr><th>campaign</th><th class='l'>date</th><th class='l'>series</th>"
                  "<th class='l'>kind</th><th>campaigns in a row</th><th class='l'>message</th></tr>")
         for a, n, last in runs:
-            h.append(f"<tr><td>{number[a.campaign_id]}</td><td class='l'>{a.measured_at:%Y-%m-%d}"
+            h.append(f"<tr><td>{number[a.campaign_id]}</td><td class='l'>"
+                     f"{_day(a.measured_at, zone)}"
                      f"</td><td class='l'>{_esc(a.series)}</td><td class='l'>{a.kind}</td>"
                      f"<td>{n} (to {last + 1})</td><td class='m'>{_esc(a.message)}</td></tr>")
         h.append("</table>")
@@ -168,14 +175,15 @@ def render(out: Path, machine: str, campaigns: list[dict[str, Any]],
                  f"<td>{trend}</td><td class='l'>{cross}</td>"
                  f"<td class='{'alert' if now else ''}'>{now or '-'}</td></tr>")
     h.append("</table><h2>Campaigns</h2><table><tr><th>#</th><th>id</th><th class='l'>date "
-             "(UTC)</th><th class='l'>operator</th><th class='l'>outputs</th>"
+             f"({_esc(zone_name(zone))})</th><th class='l'>operator</th><th class='l'>outputs</th>"
              "<th class='l'>instruments</th><th class='l'>temperatures (deg C)</th>"
              "<th class='l'>note</th></tr>")
     for c in campaigns:
         d = details.get(c["id"], {})
         temps = ", ".join(f"{v:.2f}" for _s, v in d.get("temperatures", []))
         h.append(f"<tr><td>{number[c['id']]}</td><td>{c['id']}</td><td class='l'>"
-                 f"{c['measured_at']:%Y-%m-%d %H:%M}</td><td class='l'>{_esc(c['operator'] or '')}"
+                 f"{_esc(show(c['measured_at'], zone))}</td><td class='l'>"
+                 f"{_esc(c['operator'] or '')}"
                  f"</td><td class='l'>{_esc(c['kinds'])}</td><td class='l'>"
                  f"{_esc(', '.join(d.get('instruments', [])))}</td><td class='l'>{temps}</td>"
                  f"<td class='m'>{_esc(c.get('note') or '')}</td></tr>")

@@ -17,6 +17,9 @@ column names or in ``unit``; times are UTC without a zone.
   apply, value, unit, 95 % interval when the producer gave one.
 * ``tables``: the table blobs (``model.bin`` of fit / diagnose) with their CRC-32.
 * ``exports``: every export and report written from the database (what, where, when).
+* ``audit`` (revision 0003): every correction of a campaign (``history amend``) and
+  every removal (``history remove``): who, when (UTC), why, the field and its old and
+  new value. A removed campaign stays, with ``removed_at`` set: nothing is deleted.
 """
 
 from __future__ import annotations
@@ -44,6 +47,7 @@ campaigns = sa.Table(
     sa.Column("content_sha256", sa.String(64), nullable=False, unique=True),
     sa.Column("abbe_version", sa.String(40), nullable=False),
     sa.Column("note", sa.Text),  # revision 0002
+    sa.Column("removed_at", sa.DateTime),  # revision 0003: removed (kept, hidden), UTC
 )
 
 instruments = sa.Table(
@@ -110,4 +114,18 @@ exports = sa.Table(
     sa.Column("kind", sa.String(20), nullable=False),
     sa.Column("path", sa.Text, nullable=False),
     sa.Column("n_campaigns", sa.Integer, nullable=False),
+)
+
+audit = sa.Table(
+    "audit", metadata,
+    sa.Column("id", sa.Integer, primary_key=True),
+    sa.Column("campaign_id", sa.Integer, sa.ForeignKey("campaigns.id"), nullable=False,
+              index=True),
+    sa.Column("at", sa.DateTime, nullable=False),
+    sa.Column("who", sa.String(200), nullable=False),
+    sa.Column("action", sa.String(20), nullable=False),
+    sa.Column("field", sa.String(40)),
+    sa.Column("old_value", sa.Text),
+    sa.Column("new_value", sa.Text),
+    sa.Column("reason", sa.Text, nullable=False),
 )

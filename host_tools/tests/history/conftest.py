@@ -136,3 +136,76 @@ def db(request, tmp_path) -> str:
                          autocommit=True) as conn:
         conn.execute(f"CREATE DATABASE {name}")
     return f"postgresql://abbe@/{name}?host={root}&port={port}"
+
+
+def new_pg_database(pg_server) -> str:
+    """A new, empty database on the session's server: its --db URL (user abbe)."""
+    root, port = pg_server
+    import psycopg
+    _counter[0] += 1
+    name = f"t{os.getpid()}_{_counter[0]}"
+    with psycopg.connect(host=str(root), port=port, user="abbe", dbname="postgres",
+                         autocommit=True) as conn:
+        conn.execute(f"CREATE DATABASE {name}")
+    return f"postgresql://abbe@/{name}?host={root}&port={port}"
+
+
+def pg_admin(url: str):
+    """A psycopg connection (autocommit, superuser abbe) to the database of ``url``."""
+    import psycopg
+    from urllib.parse import parse_qs, urlsplit
+    u = urlsplit(url)
+    q = parse_qs(u.query)
+    return psycopg.connect(host=q["host"][0], port=q["port"][0], user="abbe",
+                           dbname=u.path.lstrip("/"), autocommit=True)
+
+
+def raw_sqlite(path: str):
+    """A plain sqlite3 connection to a history file (no abbe, no SQLAlchemy)."""
+    import sqlite3
+    return sqlite3.connect(path, isolation_level=None)
+
+
+def run_forked(argv: list[str], out_dir: Path, as_nobody: bool = False,
+               env: dict | None = None, timeout_s: float = 300) -> tuple[int, str, str]:
+    """``abbe`` ARGV in a forked child (optionally as the user nobody, so that file
+    permissions apply although the tests run as root): (status, stdout, stderr)."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    os.chmod(out_dir, 0o777)
+    tag = os.urandom(4).hex()
+    fo, fe = out_dir / f"out_{tag}", out_dir / f"err_{tag}"
+    pid = os.fork()
+    if pid == 0:  # the child: never returns into pytest
+        rc = 70
+        try:
+            fdo = os.open(fo, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
+            fde = os.open(fe, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
+            os.dup2(fdo, 1)
+            os.dup2(fde, 2)
+            import sys
+            sys.stdout = os.fdopen(1, "w", closefd=False)
+            sys.stderr = os.fdopen(2, "w", closefd=False)
+            if as_nobody and os.geteuid() == 0:
+                os.setgroups([])
+                os.setgid(65534)
+                os.setuid(65534)
+                os.environ["HOME"] = str(out_dir)
+                os.environ["MPLCONFIGDIR"] = str(out_dir)
+                os.environ["ABBE_CRASH_DIR"] = str(out_dir / "crash")
+            os.environ.update(env or {})
+            rc = main(argv)
+            sys.stdout.flush()
+            sys.stderr.flush()
+        finally:
+            os._exit(rc)
+    deadline = time.monotonic() + timeout_s
+    while True:
+        done, status = os.waitpid(pid, os.WNOHANG)
+        if done:
+            break
+        if time.monotonic() > deadline:
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+            raise AssertionError(f"abbe {argv} did not finish within {timeout_s} s")
+        time.sleep(0.05)
+    return os.waitstatus_to_exitcode(status), fo.read_text(), fe.read_text()

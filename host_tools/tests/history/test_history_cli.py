@@ -234,7 +234,7 @@ def _writer_same(db: str, path: Path, q) -> None:
 def test_migration_from_the_first_schema(db, outputs, capsys):
     from abbe.history.database import _sqlite_engine, resolve, upgrade
     loc = resolve(db)
-    sa_engine = (_sqlite_engine(sa, loc) if loc.sqlite_file else sa.create_engine(loc.url))
+    sa_engine = (_sqlite_engine(sa, loc, "rwc") if loc.sqlite_file else sa.create_engine(loc.url))
     upgrade(sa_engine, "0001")
     with sa_engine.begin() as conn:  # a campaign stored by an abbe of the first schema
         conn.execute(sa.text("INSERT INTO machines (name, created_at) VALUES "
@@ -255,7 +255,7 @@ def test_migration_from_the_first_schema(db, outputs, capsys):
     assert main(["history", "--db", db, "show", "old"]) == 2
     assert "abbe history migrate" in capsys.readouterr().err
     assert main(["history", "--db", db, "migrate"]) == 0
-    assert "revision 0002" in capsys.readouterr().out
+    assert "revision 0003" in capsys.readouterr().out
     assert main(["history", "--db", db, "show", "old"]) == 0
     assert "12.5" in capsys.readouterr().out
     assert main(["history", "--db", db, "add", str(outputs / "ballbar.json"), "--machine", "old",
