@@ -85,6 +85,8 @@ class B5rTest:
     metadata: dict[str, str]
     features: dict[str, tuple[float, str]]
     lines: dict[str, int]
+    #: How the file spells the elements abbe reads under two names (RADIUS -> TEST_RADIUS).
+    names: dict[str, str] = field(default_factory=dict)
 
 
 def _parse_xml(text: str, fname: str) -> _El:
@@ -175,6 +177,12 @@ def _real_runs(els: dict[str, list[_El]], root: _El, fname: str, radius: float, 
                              "then one with CW", file=fname, line=runs[0].line,
                              field="RUN_DIRECTION")
 
+    for r in runs:
+        if not any(c.tag == "READINGS" for c in r.children):
+            raise AbbeInputError("this BALLBAR_RUN holds no <READINGS>: the file carries "
+                                 "Renishaw's results only, not the samples abbe evaluates",
+                                 file=fname, line=r.line, field="READINGS")
+
     def angle(tag: str) -> float:
         got = els.get(tag, [])
         if len(got) != 1:
@@ -193,11 +201,6 @@ def _real_runs(els: dict[str, list[_El]], root: _El, fname: str, radius: float, 
     t0 = 0.0
     fs_first = 0.0
     for run, d in zip(runs, ("ccw", "cw")):
-        rd = [c for c in run.children if c.tag == "READINGS"]
-        if not rd:
-            raise AbbeInputError("this BALLBAR_RUN holds no <READINGS>: the file carries "
-                                 "Renishaw's results only, not the samples abbe evaluates",
-                                 file=fname, line=run.line, field="READINGS")
         de = _child(run, "READINGS", fname)
         sr = _child(run, "SAMPLE_RATE", fname)
         fs = parse_number("".join(sr.text).strip(), file=fname, line=sr.line, field="SAMPLE_RATE",
@@ -230,8 +233,8 @@ def _real_runs(els: dict[str, list[_El]], root: _El, fname: str, radius: float, 
         i = np.arange(vals.size, dtype=np.float64)
         ang = start + (i - si) * step if d == "ccw" else start + arc - (i - si) * step
         if d == "ccw":
-            # Physical angles are defined modulo 360: the turn that puts the start of
-            # the data arc into [0, 360) (abbe evaluates [0, 360) of the commanded angle).
+            # Angles are defined modulo 360: the turn that puts the start of the data arc
+            # into [0, 360); the trace's data arc is [START_ANGLE, START_ANGLE + 360).
             shift = -360.0 * math.floor(start / 360.0)
         ang = ang + shift
         t = i / fs
@@ -247,7 +250,7 @@ def _real_runs(els: dict[str, list[_El]], root: _El, fname: str, radius: float, 
         t0 += t[-1] + 1.0 / fs
     tr = BallbarTrace(direction=np.concatenate(d_all), angle_deg=np.concatenate(a_all),
                       radial_um=np.concatenate(r_all), time_s=np.concatenate(t_all), file=fname,
-                      line_no=np.concatenate(l_all))
+                      line_no=np.concatenate(l_all), data_from_deg=start + shift)
     return tr, fs_first, over
 
 
@@ -380,8 +383,10 @@ def read_b5r(path: str | Path) -> B5rTest:
                 raise AbbeInputError(f"<{t}> {v:g} {unit} and <{got[0]}> {vals[0]:g} {unit} "
                                      "disagree", file=fname, line=lines[t], field=t)
         lines[tags[0]] = lines[got[0]]
+        names[tags[0]] = got[0]
         return vals[0]
 
+    names: dict[str, str] = {}
     length_mm = {"UT_LENGTH_MM": 1.0, "UT_LENGTH_M": 1e3}
     radius = spelled(("RADIUS", "TEST_RADIUS", "NOMINAL_LENGTH"), length_mm, 1.0, 2000.0, "mm")
     feed = spelled(("FEEDRATE", "PROGRAMMED_FEEDRATE"), {"UT_FEEDRATE": 1.0}, 1.0, 1e5, "mm/min")
@@ -419,7 +424,7 @@ def read_b5r(path: str | Path) -> B5rTest:
                               field=f"FEATURE {name}"), UNIT_TYPES[u])
         feats.setdefault(f"{where}{name}", value)
     return B5rTest(trace=tr, plane=plane, radius_mm=radius, feed_mm_min=feed, sample_rate_hz=fs,
-                   overrun_deg=over, metadata=meta, features=feats, lines=lines)
+                   overrun_deg=over, metadata=meta, features=feats, lines=lines, names=names)
 
 
 def check_against(test: B5rTest, bt: Any, machine_file: str) -> None:
@@ -429,6 +434,7 @@ def check_against(test: B5rTest, bt: Any, machine_file: str) -> None:
                                     ("feed_mm_min", bt.feed_mm_min, test.feed_mm_min, "FEEDRATE")):
         same = mine == theirs if isinstance(mine, str) else abs(mine - theirs) <= 1e-6 * abs(theirs)
         if not same:
+            spelt = test.names.get(tag, tag)
             raise AbbeInputError(f"{machine_file} says ballbar.{bt.name}.{what} = {mine!r}, the "
-                                 f"file's <{tag}> says {theirs!r}", file=test.trace.file,
-                                 line=test.lines.get(tag), field=tag)
+                                 f"file's <{spelt}> says {theirs!r}", file=test.trace.file,
+                                 line=test.lines.get(tag), field=spelt)
