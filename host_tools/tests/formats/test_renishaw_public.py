@@ -263,3 +263,60 @@ def test_b5r_real_files_match_renishaws_own_results():
             assert t.radius_mm + cf.radius_dev_um * 1e-3 == pytest.approx(
                 t.features[f"{D}/AF_BEST_RADIUS"][0], abs=6e-5)
     assert n_full >= 1
+
+
+# ------------------------------------------------------------------ property: code pages
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+_CODE_PAGES = ("utf-8", "cp1250", "cp1252", "gbk")
+_COMMON = "AZaz09 -_./(),;:#+*'\""
+_ALPHABET = {
+    "cp1250": _COMMON + "ŽžŠšČčŘřĚěŮůÁáÍíÓóÚúŁłŃńŚśŹźŻżŐőŰűÂâ–—„“”…°×",
+    "cp1252": _COMMON + "ÄäÖöÜüßÉéÈèÀàÇçÑñØøÆæÅå€–—„“”…°×",
+    "gbk": _COMMON + "加工中心机床张伟李测试激光轴线性误差",
+    "utf-8": _COMMON + "ŽžÄäß€加工Ωπ😀–",
+}
+
+
+@st.composite
+def _rtl_in_a_code_page(draw):
+    enc = draw(st.sampled_from(_CODE_PAGES))
+    # Letters and punctuation each code page can write (no line ends).
+    chars = st.sampled_from(_ALPHABET[enc])
+    user = {k: draw(st.text(chars, min_size=1, max_size=20)).strip(" \t") or "x"
+            for k in ("Machine", "By", "Location", "TITLE")}
+    n_t = draw(st.integers(2, 7))
+    t = np.round(np.cumsum(draw(st.lists(st.floats(0.5, 100.0), min_size=n_t, max_size=n_t))), 3)
+    cyc = draw(st.integers(2, 4))
+    vals = draw(st.lists(st.floats(-999.0, 999.0), min_size=2 * cyc * n_t, max_size=2 * cyc * n_t))
+    passes = [np.round(vals[i * n_t:(i + 1) * n_t], 4) for i in range(2 * cyc)]
+    where = draw(st.sampled_from([None, "USER-TEXT", "RUNS", "DEVIATIONS", "ENVIRONMENT"]))
+    nl = draw(st.sampled_from(["\r\n", "\n"]))
+    try:
+        raw = rtl_bytes(t, passes, user_text=user, encoding=enc, equipment_after=where,
+                        newline=nl, equipment_lines=("Laser : XL-80",))
+    except UnicodeEncodeError:
+        raw = None
+    return enc, user, t, passes, raw
+
+
+@settings(max_examples=int(os.environ.get("ABBE_FUZZ_EXAMPLES", "60")), derandomize=True,
+          database=None, deadline=None)
+@given(_rtl_in_a_code_page())
+def test_rtl_in_any_code_page_reads_back(case):
+    enc, user, t, passes, raw = case
+    if raw is None:
+        return
+    import tempfile
+    with tempfile.TemporaryDirectory() as d:
+        p = Path(d) / "x.rtl"
+        p.write_bytes(raw)
+        r = read_rtl(p, encoding=enc)
+        for k, v in user.items():
+            assert r.text[k] == v
+        np.testing.assert_array_equal(r.targets_mm, t)
+        np.testing.assert_allclose(r.passes, np.array(passes), atol=0)
+        auto = read_rtl(p)            # undeclared: the numbers never depend on the code page
+        np.testing.assert_array_equal(auto.passes, r.passes)
