@@ -1,24 +1,22 @@
-"""Reader of Renishaw ballbar files as Ballbar 20 saves them (``.b5r``, XML).
+"""Reader of Renishaw ballbar files as Ballbar 5 / Ballbar 20 save them (``.b5r``, XML).
 
-Renishaw does not publish the format. The public parsers (docs/formats.md, "Renishaw
-ballbar .b5r") read the test's metadata and Renishaw's own analysis: ``PLANE``
-(attribute ``TEST_PLANE``, children ``A_AXIS_NAME``, ``B_AXIS_NAME``), ``TEST_SPEC``
-(``NAME``), ``OPERATOR``, ``DATE_STARTED``, ``MACHINE_TESTED`` (``NAME``),
-``SERIAL_NUMBER``, ``LAST_CALIBRATED``, ``PART_NUMBER``, and ``FEATURE`` elements
-(``NAME``, unit type ``DT`` such as ``UT_LENGTH_UM``) inside ``ANALYSIS``. The raw
-data's layout is not in any public parser; abbe reads it as assumed below (every
-assumption in docs/formats.md, to be confirmed by a real file):
+Renishaw does not publish the format. abbe reads it as three real files published in
+RynShuster/WatchTower (testData/BallBar: Ballbar 20 and Ballbar 5 files) show it, and the
+element names of the public parsers (docs/formats.md, "Renishaw ballbar .b5r", B1..B9,
+with what was checked against Renishaw's own results in those files):
 
-* ``RADIUS`` (``DT="UT_LENGTH_MM"``), ``FEEDRATE`` (``UT_FEEDRATE``, mm/min),
-  ``SAMPLE_RATE`` (``UT_FREQUENCY``, Hz), ``OVERRUN_ARC`` (``UT_ANGLE``, deg: the
-  feed-in and feed-out arcs each side of the 360 deg data arc);
-* one ``RUN DIRECTION="CCW"`` then one ``RUN DIRECTION="CW"``, each holding a
-  ``DATA`` element (``UT_LENGTH_UM`` or ``UT_LENGTH_MM``): the bar's length minus the
-  nominal radius, whitespace-separated, one sample every 1 / SAMPLE_RATE s from the
-  start of the feed-in arc to the end of the feed-out arc at the constant feed:
-  floor((360 + 2 OVERRUN_ARC) / omega x SAMPLE_RATE) + 1 samples, omega = FEEDRATE / RADIUS;
-* angles: theta from the A axis toward the B axis (abbe's convention when (A, B) is
-  (X, Y), (Z, X) or (Y, Z)); a plane written the other way round is refused.
+* radius ``TEST_RADIUS`` or ``NOMINAL_LENGTH`` (mm without ``DT``), feed
+  ``PROGRAMMED_FEEDRATE`` (mm/min); the earlier assumed spellings ``RADIUS`` and
+  ``FEEDRATE`` (with ``DT``) are read too, and two spellings present must agree;
+* the runs ``RUN_RESULTS/BALLBAR_RUN`` with ``RUN_DIRECTION`` (CCW then CW), the run's
+  ``SAMPLE_RATE`` (Hz), ``START_INDEX`` / ``END_INDEX`` (the data arc's first and last
+  sample) and ``READINGS`` (mm, bar length minus the nominal length); the data arc from
+  ``START_ANGLE`` over (``END_ANGLE`` - ``START_ANGLE``) mod 360 deg (360 when equal),
+  angle from the A axis toward the B axis, the CW run over the same arc backwards; the
+  trace's data arc is [START_ANGLE, START_ANGLE + 360) (:attr:`BallbarTrace.data_from_deg`);
+* or, in the layout abbe assumed before real files were public, ``SAMPLE_RATE`` /
+  ``OVERRUN_ARC`` with unit types and ``RUN DIRECTION=`` with ``DATA``;
+* planes (A, B) = (X, Y), (Z, X), (Y, Z); a plane written the other way round is refused.
 
 Elements abbe does not use are ignored; in those it uses, anything it cannot
 interpret (a unit type, a direction, a plane, a count) is refused with what it found.
