@@ -219,6 +219,9 @@ def _renishaw(camp: Path) -> tuple[Path, Path, Path]:
     rtl = camp / "laser" / "x.rtl"
     env = dict(PUBLIC_ENV)
     env.pop("Date Time")  # text with digits: every number of the seed must be data
+    # Final Data takes one or two integers, not interpreted (R6): deleting one of them
+    # leaves a valid file, so it is no data number either (a long run found it, seed 34).
+    env.pop("Final Data")
     rtl.write_text(rtl_from_updown(d.targets_mm, v[:, 0, :], v[:, 1, :], env=env, plain=True),
                    newline="")
     b5r = camp / "ballbar" / "circle1.b5r"
