@@ -192,7 +192,8 @@ def _decode(raw: bytes, fname: str, encoding: str | None) -> tuple[TextFile, str
             how = "default"
         nul = text.find("\0")
         if nul >= 0:
-            line = text.count("\n", 0, nul) + 1
+            line = (text.count("\n", 0, nul) + text.count("\r", 0, nul)
+                    - text.count("\r\n", 0, nul) + 1)
             raise AbbeInputError("NUL byte: an .rtl file is text", file=fname, line=line)
         return (TextFile(name=fname, text=text, sha256=digest, size=len(raw)), enc, how)
     raise AssertionError("unreachable")
