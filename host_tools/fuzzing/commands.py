@@ -82,6 +82,19 @@ def targets(ws: Workspace, out: Path, fit_model: Path | None = None) -> list[Tar
         Target("ballbar renishaw machine", ["ballbar", str(ws.renishaw_machine), "circle1",
                                             "--no-plot"], ws.renishaw_machine),
     ]
+    if ws.rtl_windows is not None and ws.b5r_ballbar20 is not None:
+        # The independent writer's shapes: a cp1250 .rtl with an EQUIPMENT:: section, a
+        # Ballbar 20-layout .b5r (text numbers outside the data: no hostile-number rule).
+        t += [
+            Target("iso230-2 rtl cp1250", ["iso230-2", str(ws.rtl_windows), "--json"],
+                   ws.rtl_windows, json_stdout=True),
+            Target("iso230-2 rtl declared", ["iso230-2", str(ws.rtl_windows), "--encoding",
+                                             "cp1252", "--json"], ws.rtl_windows,
+                   json_stdout=True),
+            Target("ballbar b5r ballbar20", ["ballbar", str(ws.renishaw20_machine), "circle1",
+                                             "--no-plot", "--json"], ws.b5r_ballbar20,
+                   json_stdout=True),
+        ]
     # Five-axis: the example trunnion's machine file (its [rotary] sections) and the probing,
     # R-test and indexer files it names, each read by `abbe fit`.
     f5 = str(ws.five_axis_machine)

@@ -110,6 +110,12 @@ class Workspace:
     five_axis_probe: Path
     five_axis_rtest: Path
     five_axis_indexer: Path
+    #: Renishaw files from the independent writer (cases/renishaw_public.py): an .rtl in
+    #: cp1250 with Czech user text and an EQUIPMENT:: section, a Ballbar 20-layout .b5r,
+    #: and a machine file naming both.
+    rtl_windows: Path | None = None
+    b5r_ballbar20: Path | None = None
+    renishaw20_machine: Path | None = None
 
 
 def _declared_export(laser_csv: Path, out: Path) -> None:
@@ -187,6 +193,7 @@ def make_workspace(root: Path) -> Workspace:
     etalon = root / "lasertracer.exc"
     _etalon(read_blob_file(blob)[1], etalon)
     rtl, b5r, rmach = _renishaw(camp)
+    rtl_w, b5r_20, rmach_20 = _renishaw_public(camp)
     five = root / "trunnion5ax"  # the five-axis example's campaign, its truth left out
     five.mkdir()
     for n in ("machine.toml", "probe.csv", "rtest.csv", "indexer_C.csv"):
@@ -198,7 +205,8 @@ def make_workspace(root: Path) -> Workspace:
                      isg_lis=isg / "volcomp.lis", etalon=etalon, rtl=rtl, b5r=b5r,
                      renishaw_machine=rmach, five_axis_machine=five / "machine.toml",
                      five_axis_probe=five / "probe.csv", five_axis_rtest=five / "rtest.csv",
-                     five_axis_indexer=five / "indexer_C.csv")
+                     five_axis_indexer=five / "indexer_C.csv", rtl_windows=rtl_w,
+                     b5r_ballbar20=b5r_20, renishaw20_machine=rmach_20)
 
 
 def _renishaw(camp: Path) -> tuple[Path, Path, Path]:
@@ -211,6 +219,9 @@ def _renishaw(camp: Path) -> tuple[Path, Path, Path]:
     rtl = camp / "laser" / "x.rtl"
     env = dict(PUBLIC_ENV)
     env.pop("Date Time")  # text with digits: every number of the seed must be data
+    # Final Data takes one or two integers, not interpreted (R6): deleting one of them
+    # leaves a valid file, so it is no data number either (a long run found it, seed 34).
+    env.pop("Final Data")
     rtl.write_text(rtl_from_updown(d.targets_mm, v[:, 0, :], v[:, 1, :], env=env, plain=True),
                    newline="")
     b5r = camp / "ballbar" / "circle1.b5r"
@@ -221,5 +232,36 @@ def _renishaw(camp: Path) -> tuple[Path, Path, Path]:
     text = text.replace('file = "ballbar/circle1.csv"', 'file = "ballbar/circle1.b5r"')
     text = re.sub(r'^map = \{ linear = "\+dx".*$', 'map = { linear = "+dx" }', text, flags=re.M)
     rm = camp / "machine_renishaw.toml"
+    rm.write_text(text)
+    return rtl, b5r, rm
+
+
+def _renishaw_public(camp: Path) -> tuple[Path, Path, Path]:
+    """The campaign's X line as an .rtl file in cp1250 with non-ASCII user text and an
+    EQUIPMENT:: section, a Ballbar 20-layout .b5r of the campaign's circle (its plane,
+    radius and feed; readings of a known circle), and a machine file naming both: the
+    independent writer's shapes (cases/renishaw_public.py)."""
+    from abbe.formats.laser_csv import read_laser_csv
+    from abbe.formats.machine import load_machine
+    from cases.renishaw_public import b5r_ballbar20, rtl_bytes
+    d = read_laser_csv(camp / "laser" / "x.csv", channels=("linear",))
+    v = d.channels["linear"]
+    passes = []
+    for r in range(v.shape[0]):
+        passes += [v[r, 0, :], v[r, 1, :]]
+    rtl = camp / "laser" / "x_cp1250.rtl"
+    rtl.write_bytes(rtl_bytes(d.targets_mm, passes, encoding="cp1250",
+                              equipment_after="DEVIATIONS"))
+    bt = load_machine(camp / "machine.toml").ballbar["circle1"]
+    plane = {"XY": ("X", "Y"), "ZX": ("Z", "X"), "YZ": ("Y", "Z")}[bt.plane]
+    b5r = camp / "ballbar" / "circle1_bb20.b5r"
+    b5r.write_text(b5r_ballbar20(plane=plane, radius_mm=bt.radius_mm, feed_mm_min=bt.feed_mm_min,
+                                 sample_hz=20.0, start_deg=45.0, overshoot_deg=45.0)[0],
+                   encoding="utf-8")
+    text = (camp / "machine.toml").read_text()
+    text = text.replace('file = "laser/x.csv"', 'file = "laser/x_cp1250.rtl"')
+    text = text.replace('file = "ballbar/circle1.csv"', 'file = "ballbar/circle1_bb20.b5r"')
+    text = re.sub(r'^map = \{ linear = "\+dx".*$', 'map = { linear = "+dx" }', text, flags=re.M)
+    rm = camp / "machine_renishaw20.toml"
     rm.write_text(text)
     return rtl, b5r, rm

@@ -10,6 +10,7 @@ import sys
 from abbe.analysis.iso230_2 import evaluate
 from abbe.cli.conventions import examples
 from abbe.formats.positioning import load_positioning
+from abbe.formats.renishaw_rtl import RTL_ENCODINGS
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -22,17 +23,25 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         epilog=examples("abbe iso230-2 examples/vmc500/laser/x.csv --json",
                         "abbe iso230-2 x_axis.rtl"))
     p.add_argument("file", help="laser CSV, Renishaw .rtl or ecmc ISO 230-2 .dat file")
+    p.add_argument("--encoding", choices=RTL_ENCODINGS, default=None,
+                   help="a .rtl file's text encoding (default: UTF-8 when the file is valid "
+                        "UTF-8, else cp1250, the Windows code page the public parsers read)")
     p.add_argument("--json", action="store_true",
                    help="print JSON (B_um, R_um, E_um, A_um, M_um + per-target detail)")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    res = evaluate(load_positioning(args.file))
+    data = load_positioning(args.file, encoding=args.encoding)
+    res = evaluate(data)
     if args.json:
         d = {"file": args.file, **res.to_json()}
+        if data.notes:
+            d["input_notes"] = list(data.notes)
         json.dump(d, sys.stdout, indent=2)
         sys.stdout.write("\n")
     else:
         print(res.format_text())
+        for note in data.notes:
+            print(f"input: {note}")
     return 0

@@ -125,7 +125,8 @@ class BallbarCheck(Check):
                  radius_mm: float, feed_mm_min: float, direction: np.ndarray,
                  angle_deg: np.ndarray, radial_um: np.ndarray, time_s: np.ndarray,
                  reference_mm: tuple[float, float, float], source: str = "",
-                 temp_c: np.ndarray | None = None, drift_ref_c: float | None = None) -> None:
+                 temp_c: np.ndarray | None = None, drift_ref_c: float | None = None,
+                 data_from_deg: float = 0.0) -> None:
         self.plane = plane
         self.center_mm = np.asarray(center_mm, dtype=np.float64)
         self.radius_mm = float(radius_mm)
@@ -135,7 +136,8 @@ class BallbarCheck(Check):
         self.all_time = np.asarray(time_s, dtype=np.float64)
         self.all_temp = None if temp_c is None else np.asarray(temp_c, dtype=np.float64)
         self.reference_mm = np.asarray(reference_mm, dtype=np.float64)
-        m = (self.all_ang >= 0.0) & (self.all_ang < 360.0)
+        # The data arc: [0, 360) unless the file says otherwise (a Renishaw START_ANGLE).
+        m = (self.all_ang >= data_from_deg) & (self.all_ang < data_from_deg + 360.0)
         self.mask = m
         ang = self.all_ang[m]
         d = self.all_dir[m]
@@ -468,7 +470,7 @@ def ballbar_check(machine: Any, name: str, reference_mm: tuple[float, float, flo
     check_trace_timing(tr, from_machine(bt), str(machine.path))
     c = BallbarCheck(name, bt.plane, bt.center_mm, bt.radius_mm, bt.feed_mm_min, tr.direction,
                      tr.angle_deg, tr.radial_um, tr.time_s, reference_mm, source=str(bt.file),
-                     temp_c=tr.temp_c)
+                     temp_c=tr.temp_c, data_from_deg=tr.data_from_deg)
     c.meta.update(source_file=str(machine.path), source_line=bt.line,
                   source_field=f"ballbar.{name}.center_mm")
     return c

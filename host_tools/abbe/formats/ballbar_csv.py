@@ -41,7 +41,10 @@ class BallbarTrace:
     """A ballbar trace: per sample direction ('ccw'/'cw'), angle_deg, radial_um, time_s.
 
     line_no: source line of each sample (None for simulated traces); temp_c: the
-    machine temperature (deg C) of each sample, or None.
+    machine temperature (deg C) of each sample, or None. data_from_deg: the data arc is
+    [data_from_deg, data_from_deg + 360) deg of the commanded angle (0 for abbe's CSV and
+    simulations; a Renishaw file's START_ANGLE, so abbe evaluates the samples Renishaw's
+    software does); the rest are feed arcs.
     """
 
     direction: np.ndarray
@@ -51,10 +54,12 @@ class BallbarTrace:
     file: str | None = None
     line_no: np.ndarray | None = None
     temp_c: np.ndarray | None = None
+    data_from_deg: float = 0.0
 
     def data_mask(self, direction: str | None = None) -> np.ndarray:
-        """Samples inside [0, 360) (not feed arcs), optionally of one direction."""
-        m = (self.angle_deg >= 0.0) & (self.angle_deg < 360.0)
+        """Samples of the data arc (not feed arcs), optionally of one direction."""
+        a0 = self.data_from_deg
+        m = (self.angle_deg >= a0) & (self.angle_deg < a0 + 360.0)
         if direction is not None:
             m &= self.direction == direction
         return m
@@ -205,10 +210,11 @@ def validate_trace(tr: BallbarTrace, names: dict[str, str] | None = None) -> Non
             k = int(sel[np.argmax((a < -360.0) | (a >= 720.0))])
             raise AbbeInputError("angle out of range [-360, 720) deg (radians?)", file=f,
                                  line=int(lines[k]), field=col["angle"])
-        dm = (a >= 0.0) & (a < 360.0)
+        a0 = tr.data_from_deg
+        dm = (a >= a0) & (a < a0 + 360.0)
         if dm.sum() < 8:
-            raise AbbeInputError(f"the '{d}' run has no data arc in [0, 360) deg", file=f,
-                                 line=int(lines[sel[-1]]), field=col["angle"])
+            raise AbbeInputError(f"the '{d}' run has no data arc in [{a0:g}, {a0 + 360:g}) deg",
+                                 file=f, line=int(lines[sel[-1]]), field=col["angle"])
         ad = a[dm]
         idx = sel[dm]
         med = float(np.median(np.abs(np.diff(ad))))
@@ -220,11 +226,11 @@ def validate_trace(tr: BallbarTrace, names: dict[str, str] | None = None) -> Non
                                  f"{ad[gaps[0] + 1]:g} deg (samples every {med:g} deg)",
                                  file=f, line=int(lines[k]), field=col["angle"])
         lo, hi = float(ad.min()), float(ad.max())
-        if lo > tol or 360.0 - hi > tol:
-            k = int(idx[0] if lo > tol else idx[-1])
+        if lo - a0 > tol or a0 + 360.0 - hi > tol:
+            k = int(idx[0] if lo - a0 > tol else idx[-1])
             raise AbbeInputError(f"the '{d}' data arc covers [{lo:g}, {hi:g}] deg, not the "
-                                 "full circle [0, 360)", file=f, line=int(lines[k]),
-                                 field=col["angle"])
+                                 f"full circle [{a0:g}, {a0 + 360:g})", file=f,
+                                 line=int(lines[k]), field=col["angle"])
 
 
 def check_trace_timing(trace: BallbarTrace, test: Any, machine_file: str | None = None) -> None:

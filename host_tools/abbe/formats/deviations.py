@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -18,7 +18,8 @@ class PositioningData:
 
     targets_mm: (T,) ascending, mm. up_um, down_um: (n_runs, T) deviations
     (measured minus target) of the ``+`` and ``-`` approaches, um. normalisation:
-    what was done about 20 deg C (None: the file carries no temperature).
+    what was done about 20 deg C (None: the file carries no temperature). notes:
+    how the file was read, for the person (a Windows code page, sections skipped).
     """
 
     source: str
@@ -27,3 +28,4 @@ class PositioningData:
     down_um: np.ndarray
     sha256: str = ""
     normalisation: "Normalisation | None" = None
+    notes: list[str] = field(default_factory=list)

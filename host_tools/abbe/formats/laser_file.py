@@ -77,7 +77,8 @@ def _check_range(r: renishaw_rtl.RtlFile, lim: tuple[float, float] | None, what:
     bad = np.flatnonzero((r.targets_mm < lo - TARGET_TOL_MM) | (r.targets_mm > hi + TARGET_TOL_MM))
     if bad.size:
         raise AbbeInputError(f"target {r.targets_mm[bad[0]]:.6g} mm is outside {what} "
-                             f"[{lo:g}, {hi:g}] mm", file=r.file, field="Targets")
+                             f"[{lo:g}, {hi:g}] mm", file=r.file, line=r.key_lines.get("Targets"),
+                             field="Targets")
 
 
 def read_rtl_channels(files: dict[str, Path], *, travel_mm: tuple[float, float] | None = None,
@@ -94,7 +95,7 @@ def read_rtl_channels(files: dict[str, Path], *, travel_mm: tuple[float, float] 
         if CHANNEL_KIND[ch] != r.kind:
             raise AbbeInputError(f"measurement type {r.owner!r} cannot give channel {ch!r} "
                                  f"(it needs a {CHANNEL_KIND[ch]} measurement)", file=str(path),
-                                 field="Owner")
+                                 line=r.key_lines.get("Owner"), field="Owner")
         _check_range(r, travel_mm, "the axis travel")
         _check_range(r, span_mm, "the line's start..end")
         if first is None:
@@ -103,11 +104,11 @@ def read_rtl_channels(files: dict[str, Path], *, travel_mm: tuple[float, float] 
               or np.any(np.abs(r.targets_mm - first.targets_mm) > TARGET_TOL_MM)):
             raise AbbeInputError(f"other targets than {first.file}: every channel of a line "
                                  "must be measured at the same targets", file=str(path),
-                                 field="Targets")
+                                 line=r.key_lines.get("Targets"), field="Targets")
         elif r.n_runs != first.n_runs:
             raise AbbeInputError(f"{r.n_runs} runs, {first.file} has {first.n_runs}: every "
                                  "channel of a line needs the same runs", file=str(path),
-                                 field="Run-count")
+                                 line=r.key_lines.get("Run-count"), field="Run-count")
         targets, up, down, ln = r.by_direction()
         chans[ch] = np.stack([up, down], axis=1)
         if lines is None:
@@ -138,7 +139,7 @@ def read_laser_line(line: LaserLine, *, channels: tuple[str, ...],
             raise AbbeInputError(
                 f"one .rtl file holds one channel (this one: {r.owner!r}); name a file per "
                 f"channel with files = {{ linear = ..., pitch = ... }} in [laser.{line.axis}]",
-                file=str(line.file), field="Owner")
+                file=str(line.file), line=r.key_lines.get("Owner"), field="Owner")
         return read_rtl_channels({"linear": line.file}, travel_mm=travel_mm, span_mm=span_mm)
     d = read_laser_csv(line.file, channels=channels, travel_mm=travel_mm, span_mm=span_mm,
                        columns=line.columns)

@@ -4,8 +4,9 @@ The format is not published by Renishaw; this reader follows the public parsers
 (docs/formats.md, "Renishaw laser .rtl", lists each one and every assumption a real
 file must confirm). A file is a sequence of sections, each opened by a line
 ``NAME::``, in this order: ``HEADER::``, ``TARGET DATA::``, ``USER-TEXT::``
-(optional), ``RUNS::``, ``DEVIATIONS::``, ``ENVIRONMENT::`` (optional), ``EOF::``.
-Inside a section, ``Key : value`` lines (any spaces around the colon); the targets
+(optional), ``RUNS::``, ``DEVIATIONS::``, ``ENVIRONMENT::`` (optional), ``EOF::``;
+sections abbe does not use (``EQUIPMENT::`` in Renishaw's rotary exports, any other
+``NAME::``) are skipped and reported (:attr:`RtlFile.sections_not_used`). Inside a section, ``Key : value`` lines (any spaces around the colon); the targets
 (mm) as whitespace-separated numbers after ``Targets :``; the deviations as
 ``run target value`` rows after ``Run Target Data:``.
 
@@ -23,12 +24,18 @@ How the file is read (the assumptions, docs/formats.md):
   pressure (kPa), humidity (%), material temperatures 1..3 (deg C; -10 is an
   unconnected sensor), the environment factor, the expansion coefficient (ppm/K).
 
+* The text is in the Windows code page Renishaw's software writes (the public Java
+  parser reads WINDOWS-1250): UTF-8 when the bytes are valid UTF-8, else the declared
+  code page (default cp1250); the numbers and keys are ASCII in every one of them.
+  :attr:`RtlFile.encoding` says which was used.
+
 Every problem raises :class:`abbe.errors.AbbeInputError` naming the file, the line
 and the field (the key or section as the file spells it).
 """
 
 from __future__ import annotations
 
+import hashlib
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -37,7 +44,7 @@ import numpy as np
 
 from abbe.errors import AbbeInputError, parse_int, parse_number
 from abbe.formats.limits import RTL_MAX_BYTES, RTL_MAX_PASSES, RTL_MAX_TARGETS
-from abbe.formats.text import read_text
+from abbe.formats.text import TextFile, read_bytes
 
 #: Sections in the order a file holds them; (name, required).
 SECTIONS: tuple[tuple[str, bool], ...] = (
@@ -63,6 +70,11 @@ ENV_OTHER = ("Date Time", "Final Data")
 UNCONNECTED_C = -10.0
 MAX_POSITION_MM = 1e5
 MAX_READING = 1e5
+#: Encodings a .rtl file may be declared in: UTF-8 and the code pages of the public
+#: readers (cp1250: the Java parser; gbk: a public viewer's fallback; cp1252: Western).
+RTL_ENCODINGS: tuple[str, ...] = ("utf-8", "cp1250", "cp1252", "gbk")
+#: The code page taken when the bytes are not UTF-8 and none is declared (the Java parser's).
+DEFAULT_CODE_PAGE = "cp1250"
 
 _BLANK = re.compile(r"[ \t]+")
 
@@ -72,7 +84,7 @@ def _cells(s: str) -> list[str]:
     return [c for c in _BLANK.split(s.strip(" \t")) if c]
 
 
-_SECTION = re.compile(r"^([A-Z][A-Z -]*)::\s*$")
+_SECTION = re.compile(r"^([A-Z][A-Z0-9 _-]*)::\s*$")
 _KEYVAL = re.compile(r"^([A-Za-z][A-Za-z0-9 .\-]*?)\s*:\s*(.*)$")
 
 
@@ -98,6 +110,16 @@ class RtlFile:
     env_lines: dict[str, int] = field(default_factory=dict)
     text: dict[str, str] = field(default_factory=dict)
     sha256: str = ""
+    #: The text encoding the file was read in (``utf-8``, ``cp1250``, ...) and how it
+    #: was chosen (``detected``: valid UTF-8; ``default``: not UTF-8, the default code
+    #: page; ``declared``).
+    encoding: str = "utf-8"
+    encoding_source: str = "detected"
+    #: Sections abbe skipped (``EQUIPMENT``, ...): (name, line of its ``NAME::``).
+    sections_not_used: list[tuple[str, int]] = field(default_factory=list)
+    #: Source line of the keys abbe interprets (``Owner``, ``Run-count``, ``Targets``,
+    #: ``Target-count``, ``Flags``): refusals made after reading can name it.
+    key_lines: dict[str, int] = field(default_factory=dict)
 
     @property
     def n_runs(self) -> int:
@@ -114,6 +136,17 @@ class RtlFile:
             return self.targets_mm[order], odd, even, np.stack([lo, le], axis=1)
         return self.targets_mm[order], even, odd, np.stack([le, lo], axis=1)
 
+    def reading_notes(self) -> list[str]:
+        """What a person should know about how the file was read (encoding, skipped sections)."""
+        notes = []
+        if self.encoding != "utf-8" or self.encoding_source == "declared":
+            how = {"declared": "declared", "default": "not UTF-8; the default code page"}
+            notes.append(f"text read as {self.encoding} ({how.get(self.encoding_source, self.encoding_source)})")
+        if self.sections_not_used:
+            notes.append("sections not used: " + ", ".join(
+                f"{n}:: (line {ln})" for n, ln in self.sections_not_used))
+        return notes
+
     def material_temp_c(self) -> float | None:
         """Mean of the connected material sensors' start and end values (deg C), or None."""
         vals = [v for k in ("Mat temp 1", "Mat temp 2", "Mat temp 3") if k in self.environment
@@ -126,8 +159,51 @@ def looks_like_rtl(path: str | Path) -> bool:
     return Path(path).suffix.lower() == ".rtl"
 
 
-def read_rtl(path: str | Path) -> RtlFile:
+def _decode(raw: bytes, fname: str, encoding: str | None) -> tuple[TextFile, str, str]:
+    """The file's text: UTF-8 when valid (a UTF-8 byte-order mark is dropped), else the
+    declared code page or the default one; (text file, encoding, how chosen)."""
+    digest = hashlib.sha256(raw).hexdigest()
+    if encoding is not None:
+        enc = encoding.lower().replace("_", "-")
+        enc = {"windows-1250": "cp1250", "windows-1252": "cp1252", "utf8": "utf-8"}.get(enc, enc)
+        if enc not in RTL_ENCODINGS:
+            raise AbbeInputError(f"unknown encoding {encoding!r} for an .rtl file; expected one "
+                                 f"of {', '.join(RTL_ENCODINGS)}", file=fname, field="encoding")
+        candidates, how = [enc], "declared"
+    else:
+        candidates, how = ["utf-8", DEFAULT_CODE_PAGE], "detected"
+    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise AbbeInputError(".rtl file is UTF-16 text (a byte-order mark): save it as UTF-8 or "
+                             "in its Windows code page", file=fname, line=1)
+    for k, enc in enumerate(candidates):
+        body = raw[3:] if enc == "utf-8" and raw.startswith(b"\xef\xbb\xbf") else raw
+        try:
+            text = body.decode(enc)
+        except UnicodeDecodeError as exc:
+            if k + 1 < len(candidates):
+                continue
+            pre = body[:exc.start]
+            line = pre.count(b"\n") + pre.count(b"\r") - pre.count(b"\r\n") + 1
+            raise AbbeInputError(
+                f"byte 0x{body[exc.start]:02X} is not {enc} text"
+                + ("" if how == "declared" else f" (nor UTF-8): declare the file's encoding, one "
+                   f"of {', '.join(RTL_ENCODINGS)}"), file=fname, line=line) from None
+        if k > 0:
+            how = "default"
+        nul = text.find("\0")
+        if nul >= 0:
+            line = (text.count("\n", 0, nul) + text.count("\r", 0, nul)
+                    - text.count("\r\n", 0, nul) + 1)
+            raise AbbeInputError("NUL byte: an .rtl file is text", file=fname, line=line)
+        return (TextFile(name=fname, text=text, sha256=digest, size=len(raw)), enc, how)
+    raise AssertionError("unreachable")
+
+
+def read_rtl(path: str | Path, *, encoding: str | None = None) -> RtlFile:
     """Read and validate a Renishaw ``.rtl`` text export.
+
+    ``encoding``: the file's text encoding (one of :data:`RTL_ENCODINGS`); None
+    detects it: UTF-8 when the bytes are valid UTF-8, else :data:`DEFAULT_CODE_PAGE`.
 
     Refused (file, line, field): a line outside a section, an unknown, missing,
     duplicated or misplaced section, an unknown or duplicated key, an unknown
@@ -137,20 +213,34 @@ def read_rtl(path: str | Path) -> RtlFile:
     wrong order or missing one, any number that is not finite or outside its range.
     """
     fname = str(path)
-    tf = read_text(path, what=".rtl file", max_bytes=RTL_MAX_BYTES)
+    raw_bytes = read_bytes(path, what=".rtl file", max_bytes=RTL_MAX_BYTES)
+    tf, enc_used, enc_how = _decode(raw_bytes, fname, encoding)
     sections: dict[str, list[tuple[int, str]]] = {}
     sec_line: dict[str, int] = {}
     current: str | None = None
+    skipping = False
+    not_used: list[tuple[str, int]] = []
     order = [s for s, _ in SECTIONS]
     for no, raw in tf.lines():
         s = raw.strip(" \t")
         m = _SECTION.match(s)
         if m:
-            name = m.group(1).strip()
+            name = " ".join(m.group(1).split())
             if name not in order:
-                raise AbbeInputError(f"unknown section {name + '::'!r}; expected one of "
-                                     f"{', '.join(n + '::' for n in order)}", file=fname, line=no,
-                                     field=name)
+                # A section abbe does not use (EQUIPMENT:: in rotary exports): its lines
+                # are skipped, the section is reported; only after HEADER:: and before EOF::.
+                if current is None:
+                    raise AbbeInputError("an .rtl file starts with HEADER::", file=fname,
+                                         line=no, field=name)
+                if current == "EOF":
+                    raise AbbeInputError("text after EOF::", file=fname, line=no, field=name)
+                if len(not_used) >= 1000:
+                    raise AbbeInputError("more than 1000 sections abbe does not use",
+                                         file=fname, line=no, field=name)
+                not_used.append((name, no))
+                skipping = True
+                continue
+            skipping = False
             if name in sections:
                 raise AbbeInputError(f"section {name}:: appears twice (first at line "
                                      f"{sec_line[name]})", file=fname, line=no, field=name)
@@ -165,7 +255,7 @@ def read_rtl(path: str | Path) -> RtlFile:
             sections[name] = []
             sec_line[name] = no
             continue
-        if not s:
+        if not s or skipping:
             continue
         if current is None:
             raise AbbeInputError("text before the first section: an .rtl file starts with "
@@ -222,6 +312,7 @@ def read_rtl(path: str | Path) -> RtlFile:
                              f"expected {', '.join(MEASUREMENT_TYPES)}", file=fname, line=ol,
                              field="Owner")
     kind, unit = MEASUREMENT_TYPES[owner]
+    key_lines = {"Owner": ol}
 
     tgt, trows = keyvals("TARGET DATA", TARGET_KEYS, rows_after="Targets")
     cnt_text, cl = need(tgt, "Target-count", "TARGET DATA")
@@ -248,7 +339,9 @@ def read_rtl(path: str | Path) -> RtlFile:
         raise AbbeInputError(f"targets must be strictly monotonic: {tg[k]:g} mm follows "
                              f"{tg[k - 1]:g} mm", file=fname, line=t_lines[k],
                              field="Targets")
+    key_lines.update({"Target-count": cl, "Targets": t_lines[0]})
     flags_text, fgl = need(tgt, "Flags", "TARGET DATA")
+    key_lines["Flags"] = fgl
     flags = _cells(flags_text)
     if len(flags) != 4:
         raise AbbeInputError(f"expected four integers, got {flags_text!r}", file=fname,
@@ -264,6 +357,7 @@ def read_rtl(path: str | Path) -> RtlFile:
     runs, _ = keyvals("RUNS", RUNS_KEYS)
     rc_text, rcl = need(runs, "Run-count", "RUNS")
     n_p = parse_int(rc_text, file=fname, line=rcl, field="Run-count", lo=2, hi=RTL_MAX_PASSES)
+    key_lines["Run-count"] = rcl
     if n_p % 2:
         raise AbbeInputError(f"Run-count {n_p} is odd: a bidirectional test has two passes "
                              "(runs) per cycle", file=fname, line=rcl, field="Run-count")
@@ -333,4 +427,5 @@ def read_rtl(path: str | Path) -> RtlFile:
             texts[k] = envkv[k][0]
     return RtlFile(file=fname, owner=owner, kind=kind, unit=unit, targets_mm=tg, passes=vals,
                    line_no=lines, environment=env, env_lines=env_lines, text=texts,
-                   sha256=tf.sha256)
+                   sha256=tf.sha256, encoding=enc_used, encoding_source=enc_how,
+                   sections_not_used=not_used, key_lines=key_lines)

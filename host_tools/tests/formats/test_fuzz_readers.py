@@ -48,7 +48,10 @@ def _readers(ws):
 
     def renishaw(p):
         m = load_machine(p)
-        read_laser_line(m.laser["X"], channels=tuple(m.laser["X"].map))
+        if "X" in m.laser:  # a mutation may rename the sections: then there is nothing to read
+            read_laser_line(m.laser["X"], channels=tuple(m.laser["X"].map))
+        if "circle1" not in m.ballbar:
+            return m
         return read_ballbar_file(m.ballbar["circle1"], str(p))
 
     def declared(p):
@@ -74,12 +77,15 @@ def _readers(ws):
         "rtl": (ws.rtl, load_positioning),
         "b5r": (ws.b5r, lambda p: read_b5r(p)),
         "machine renishaw": (ws.renishaw_machine, renishaw),
+        "rtl cp1250": (ws.rtl_windows, load_positioning),
+        "b5r ballbar20": (ws.b5r_ballbar20, lambda p: read_b5r(p)),
+        "machine renishaw20": (ws.renishaw20_machine, renishaw),
     }
 
 
 READERS = ["laser", "laser_declared", "ballbar", "dat", "machine", "spec", "table_json", "blob",
            "model", "truth", "isg_csv", "isg_lis", "etalon", "model_file blob", "model_file json",
-           "rtl", "b5r", "machine renishaw"]
+           "rtl", "b5r", "machine renishaw", "rtl cp1250", "b5r ballbar20", "machine renishaw20"]
 
 
 class _Slow(BaseException):
@@ -120,7 +126,8 @@ def test_mutated_inputs_are_read_or_refused(seed_ws, name):
         with tempfile.TemporaryDirectory() as d:
             p = Path(d) / seed_path.name
             p.write_bytes(blob)
-            if name in ("machine", "laser_declared", "isg_lis", "machine renishaw"):  # keep the relative data paths
+            if name in ("machine", "laser_declared", "isg_lis", "machine renishaw",
+                        "machine renishaw20"):  # keep the relative data paths
                 p = seed_path.parent / f".fuzz-{seed_path.name}"
                 p.write_bytes(blob)
             try:

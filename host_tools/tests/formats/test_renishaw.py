@@ -126,7 +126,6 @@ def test_csv_temperature_and_coefficient_normalise_to_20c(tmp_path: Path) -> Non
     ("Run-count:10", "Run-count:9", 25, "Run-count", "odd"),
     ("Run-count:10", "Run-count:12", 138, "Run Target Data", "deviation rows"),
     ("1   2      ", "1   3      ", 30, "target", "expected run 1 target 2"),
-    ("USER-TEXT::", "USER TEXT::", 15, "USER TEXT", "unknown section"),
     ("Machine:  vmc500", "Machinist: me", 16, "Machinist", "unknown key"),
     ("Air temp   : 20.337280", "Air temp   : nan", None, "Air temp", "finite number"),
     ("Air humid  : 46.954897 46.893887", "Air humid  : 146.9 46.8", None, "Air humid", "100"),
