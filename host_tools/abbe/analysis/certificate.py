@@ -121,6 +121,11 @@ def _mc_block(unc: dict[str, Any]) -> list[str]:
             f"result. {_e(mc['method'])}.</p>"]
 
 
+def _instrument(unc: dict[str, Any]) -> str:
+    b = unc["budget_inputs"]
+    return f"{b['instrument']} (budget: {b['source']})"
+
+
 def iso230_2_html(d: dict[str, Any], date: str) -> str:
     """The report of one `abbe iso230-2 -o` run (``d``: its JSON document)."""
     unc = d["uncertainty"]
@@ -132,6 +137,7 @@ def iso230_2_html(d: dict[str, Any], date: str) -> str:
             ("Test", f"ISO 230-2 bidirectional positioning, {d['n_runs']} runs, "
                      f"{d['n_targets']} targets"),
             ("Date", date), ("File", os.path.basename(str(d["file"]))),
+            ("Instrument", _instrument(unc)),
             ("20 deg C", norm["status"] + ": " + norm["reason"] if norm else
              "the file carries no material temperature (results as measured)")]
     out = _head("ISO 230-2 positioning test", rows)
@@ -162,7 +168,8 @@ def ballbar_html(d: dict[str, Any], date: str, plot: str | None) -> str:
     rows = [("Machine", d.get("machine_name") or d.get("machine", "")),
             ("Test", f"ISO 230-4 circular test {d['name']}: plane {d['plane']}, "
                      f"R {d['radius_mm']:g} mm, F {d['feed_mm_min']:g} mm/min"),
-            ("Date", date), ("File", os.path.basename(str(d["file"])))]
+            ("Date", date), ("File", os.path.basename(str(d["file"]))),
+            ("Instrument", _instrument(unc))]
     out = _head("ISO 230-4 circular test (ballbar)", rows)
     out += _verdict_block(d.get("verdicts") or {})
     if plot:
