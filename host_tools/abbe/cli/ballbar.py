@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 
 from abbe.cli.conventions import examples
-from abbe.cli.options import int_range
+from abbe.cli.options import int_range, iso_date
 from abbe.errors import AbbeInputError
 from abbe.formats.machine import load_machine
 from abbe.formats.output import Outputs
@@ -40,7 +40,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--mc", type=int_range(0, 100_000), default=MC_DRAWS, metavar="N",
                    help=f"Monte Carlo draws of the independent check (default {MC_DRAWS}; "
                         "0: none)")
-    p.add_argument("--date", metavar="YYYY-MM-DD",
+    p.add_argument("--date", metavar="YYYY-MM-DD", type=iso_date,
                    help="test date for the report (default: the trace file's date)")
     p.add_argument("-o", "--out", metavar="DIR",
                    help="write DIR/ballbar.json (the --json document), DIR/report.html and "

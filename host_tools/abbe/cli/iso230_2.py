@@ -12,7 +12,7 @@ from typing import Any
 
 from abbe.analysis.iso230_2 import evaluate
 from abbe.cli.conventions import examples
-from abbe.cli.options import int_range
+from abbe.cli.options import int_range, iso_date
 from abbe.errors import AbbeInputError
 from abbe.formats import ess_dat
 from abbe.formats.positioning import load_positioning
@@ -50,7 +50,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--mc", type=int_range(0, 100_000), default=MC_DRAWS, metavar="N",
                    help=f"Monte Carlo draws of the independent check (default {MC_DRAWS}; "
                         "0: none)")
-    p.add_argument("--date", metavar="YYYY-MM-DD",
+    p.add_argument("--date", metavar="YYYY-MM-DD", type=iso_date,
                    help="test date for the report (default: the measurement file's date)")
     p.add_argument("-o", "--out", metavar="DIR",
                    help="write DIR/iso230_2.json (the --json document) and DIR/report.html")

@@ -142,3 +142,11 @@ def test_tolerances_per_axis_need_axis(machine: Path, capsys) -> None:
     x = str(machine.parent / "laser" / "x.csv")
     assert main(["iso230-2", x, "--machine", str(machine), "--mc", "0"]) == 2
     assert "--axis" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("date", ["2021-13-01", "21-05-10", "2021-02-30", "today"])
+def test_bad_date_is_a_usage_error(date: str, capsys) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(["iso230-2", str(EXAMPLE / "laser" / "x.csv"), "--date", date])
+    assert exc.value.code == 2
+    assert "--date" in capsys.readouterr().err
