@@ -150,3 +150,26 @@ def test_bad_date_is_a_usage_error(date: str, capsys) -> None:
         main(["iso230-2", str(EXAMPLE / "laser" / "x.csv"), "--date", date])
     assert exc.value.code == 2
     assert "--date" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(shutil.which("chromium") is None,
+                    reason="chromium not installed: the report is not rendered")
+def test_report_renders_verdict_first_in_chromium(machine: Path, tmp_path: Path) -> None:
+    """The ballbar report rendered by headless Chromium: the overall verdict's colour
+    (pass green) fills a band in the top quarter of the page, above the plot."""
+    import subprocess
+
+    import numpy as np
+    from PIL import Image
+    out = tmp_path / "bb"
+    assert main(["ballbar", str(machine), "circle1", "-o", str(out), "--mc", "0"]) == 0
+    png = tmp_path / "shot.png"
+    subprocess.run(["chromium", "--headless", "--no-sandbox", "--disable-gpu",
+                    f"--screenshot={png}", "--window-size=1200,1600",
+                    (out / "report.html").as_uri()], check=True, capture_output=True,
+                   timeout=120)
+    img = np.asarray(Image.open(png).convert("RGB")).astype(int)
+    green = np.all(np.abs(img - np.array([0xc8, 0xef, 0xc8])) <= 3, axis=2)
+    rows = np.flatnonzero(green.sum(axis=1) > 0.5 * img.shape[1])
+    assert rows.size > 10, "no full-width verdict band"
+    assert rows.max() < img.shape[0] / 4, rows.max()
