@@ -1,4 +1,6 @@
-"""``abbe ballbar MACHINE.toml NAME``: ISO 230-4 circular-test evaluation and polar plot."""
+"""``abbe ballbar MACHINE.toml NAME [--json] [-o DIR]``: ISO 230-4 circular-test evaluation,
+polar plot, every result's expanded uncertainty U (k = 2) and, with tolerances, the
+ISO 14253-1 verdicts (docs/uncertainty.md)."""
 
 from __future__ import annotations
 
@@ -8,9 +10,13 @@ import sys
 from pathlib import Path
 
 from abbe.cli.conventions import examples
+from abbe.cli.options import int_range, iso_date
 from abbe.errors import AbbeInputError
 from abbe.formats.machine import load_machine
 from abbe.formats.output import Outputs
+
+
+MC_DRAWS = 200
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -19,14 +25,26 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description="Evaluate the ballbar test NAME of a machine file: least-squares circle, "
                     "centre offset, radius deviation, circular deviation G per direction and "
                     "bidirectional, circular hysteresis H (um; feed-in/out arcs excluded), and "
-                    "a polar plot PNG.",
-        epilog=examples("abbe ballbar examples/vmc500/machine.toml circle1"))
+                    "a polar plot PNG; each result with its expanded uncertainty U (k = 2) "
+                    "from the machine file's [uncertainty.ballbar] budget (or the ballbar "
+                    "class defaults) and a Monte Carlo check; pass / fail / inconclusive "
+                    "against [tolerances.ballbar] (ISO 14253-1).",
+        epilog=examples("abbe ballbar examples/vmc500/machine.toml circle1",
+                        "abbe ballbar examples/vmc500/machine.toml circle1 -o out/circle1"))
     p.add_argument("machine", help="machine file (TOML) with a [ballbar.NAME] section")
     p.add_argument("name", help="ballbar test name")
     p.add_argument("--json", action="store_true", help="print JSON instead of text")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--plot", metavar="PNG", help="polar plot path (default ballbar_NAME.png)")
     g.add_argument("--no-plot", action="store_true", help="do not write the plot")
+    p.add_argument("--mc", type=int_range(0, 100_000), default=MC_DRAWS, metavar="N",
+                   help=f"Monte Carlo draws of the independent check (default {MC_DRAWS}; "
+                        "0: none)")
+    p.add_argument("--date", metavar="YYYY-MM-DD", type=iso_date,
+                   help="test date for the report (default: the trace file's date)")
+    p.add_argument("-o", "--out", metavar="DIR",
+                   help="write DIR/ballbar.json (the --json document), DIR/report.html and "
+                        "the polar plot DIR/ballbar_NAME.png (unless --plot / --no-plot)")
     p.set_defaults(func=run)
 
 
@@ -42,8 +60,16 @@ def _run(args: argparse.Namespace, outs: Outputs) -> int:
     from abbe.formats.ballbar_file import read_ballbar_file
     from abbe.model.geometry import check_test_in_travel, from_machine
 
-    plot = None if args.no_plot else Path(args.plot or f"ballbar_{args.name}.png")
-    staged = None if plot is None else outs.file(plot, option="--plot")
+    from abbe.analysis.uncertainty import agreement, ballbar_uncertainty, monte_carlo_ballbar
+    from abbe.formats.uncertainty_spec import default_budget
+
+    folder = outs.directory(args.out, option="--out") if args.out else None
+    if folder is not None and not args.no_plot and not args.plot:
+        plot: Path | None = Path(args.out) / f"ballbar_{args.name}.png"
+        staged = folder / plot.name
+    else:
+        plot = None if args.no_plot else Path(args.plot or f"ballbar_{args.name}.png")
+        staged = None if plot is None else outs.file(plot, option="--plot")
     m = load_machine(args.machine)
     if args.name not in m.ballbar:
         avail = ", ".join(sorted(m.ballbar)) or "none"
@@ -60,16 +86,46 @@ def _run(args: argparse.Namespace, outs: Outputs) -> int:
     trace = read_ballbar_file(bt, str(m.path))
     check_trace_timing(trace, test, str(m.path))
     res = evaluate_ballbar(trace, test)
+    spec = m.extra.get("uncertainty")
+    budget = spec.ballbar if spec is not None and spec.ballbar is not None else None
+    if budget is None:
+        budget = default_budget("ballbar")
+        budget.source = "class defaults (docs/uncertainty.md)"
+    limits = dict(spec.tolerances.get("ballbar", {})) if spec is not None else {}
+    unc = ballbar_uncertainty(trace, test, res, budget, limits)
+    if args.mc:
+        unc.monte_carlo = monte_carlo_ballbar(trace, test, budget, draws=args.mc)
+        unc.monte_carlo["agreement"] = agreement(unc.results, unc.monte_carlo)
     if staged is not None:
         plot_polar(res, str(staged), title=f"{m.name} ballbar {args.name}: {test.plane}, "
                    f"R {test.radius_mm:g} mm, F {test.feed_mm_min:g} mm/min")
+    d = {"machine": str(m.path), "machine_name": m.name, "file": str(bt.file), **res.to_json(),
+         "plot": None if plot is None else str(plot), "uncertainty": unc.to_json(),
+         "tolerances": limits or None, "verdicts": unc.verdicts()}
+    if folder is not None:
+        from abbe.analysis.certificate import ballbar_html, test_date
+        (folder / "ballbar.json").write_text(json.dumps(d, indent=2, allow_nan=False) + "\n",
+                                             encoding="utf-8")
+        rel = None
+        if plot is not None and staged is not None and Path(staged).parent == folder:
+            rel = plot.name
+        (folder / "report.html").write_text(
+            ballbar_html(d, args.date or test_date(str(bt.file)), rel), encoding="utf-8")
     if args.json:
-        d = {"machine": str(m.path), "file": str(bt.file), **res.to_json(),
-             "plot": None if plot is None else str(plot)}
         json.dump(d, sys.stdout, indent=2, allow_nan=False)
         sys.stdout.write("\n")
-    else:
+    elif folder is None:
         print(res.format_text())
+        for q, r in unc.results.items():
+            line = f"  {q:16s} {r.value_um:9.3f} um  U = {r.U_um:.3f} um (k = 2)"
+            if unc.monte_carlo is not None:
+                line += f"  Monte Carlo U = {unc.monte_carlo['results'][q]['U_um']:.3f} um"
+            print(line)
+        for key, v in unc.verdicts().items():
+            print(f"  {key[:-3]} {v['value_um']:.3f} +- {v['U_um']:.3f} um vs limit "
+                  f"{v['limit_um']:g} um: {v['verdict'].upper()}")
         if plot is not None:
             print(f"  polar plot: {plot}")
+    else:
+        print(f"wrote {args.out}/ballbar.json and {args.out}/report.html")
     return 0

@@ -41,3 +41,17 @@ def int_range(lo: int, hi: int) -> Callable[[str], int]:
             raise argparse.ArgumentTypeError(exc.message) from None
     convert.__name__ = "integer"
     return convert
+
+
+def iso_date(text: str) -> str:
+    """argparse type: a calendar date YYYY-MM-DD (a report's test date)."""
+    import datetime
+    import re
+    if not re.fullmatch(r"\d{4}-\d{2}-\d{2}", text):
+        raise argparse.ArgumentTypeError(f"expected a date YYYY-MM-DD, got {text!r}")
+    try:
+        datetime.date.fromisoformat(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a date YYYY-MM-DD, got {text!r} (no such "
+                                         "day)") from None
+    return text

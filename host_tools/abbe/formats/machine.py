@@ -25,6 +25,7 @@ from abbe.formats.columns import BALLBAR_ROLES, LASER_ROLES, Columns, parse_colu
 from abbe.formats.limits import MACHINE_FILE_MAX_BYTES
 from abbe.formats.structured import load_toml, unknown_key
 from abbe.formats.thermal_machine import parse_thermal
+from abbe.formats.uncertainty_spec import parse_uncertainty
 from abbe.model.geometry import PLANES
 from abbe.model.table import AXES, TERMS
 
@@ -323,7 +324,7 @@ _FIT: _Spec = {"max_trend_degree": (_int_range(0, 7), False, 7),
                "folds": (_int_range(2, 50), False, 5),
                "backlash_sigma": (_in(*BACKLASH_SIGMA_RANGE, ""), False, 3.0)}
 _TOP = ("machine", "axes", "reference", "tool", "laser", "ballbar", "fit", "rotary", "probing",
-        "rtest", "indexer", "rotary_ballbar", "thermal")
+        "rtest", "indexer", "rotary_ballbar", "thermal", "uncertainty", "tolerances")
 
 
 def _table(v: Any, ctx: _Ctx, f: str) -> dict[str, Any]:
@@ -430,6 +431,9 @@ def load_machine(path: str | Path) -> Machine:
 
     five = parse_five_axis(data, ctx.err, ctx.loc.line, str(path),
                            lambda rel, f: _resolve(base, rel, ctx, f))
+    if "uncertainty" in data or "tolerances" in data:
+        extra["uncertainty"] = parse_uncertainty(data, ctx.err, ctx.loc.line, str(path),
+                                                 tuple(axes))
 
     return Machine(path=path, name=mach["name"] or path.stem, axes=axes, reference_mm=ref,
                    tool_offset_mm=tool, laser=laser, ballbar=ballbar,
