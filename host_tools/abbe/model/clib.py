@@ -467,24 +467,23 @@ class FiveErrorF32(C.Structure):
     _fields_ = [("error_um", C.c_float * 3), ("orient_urad", C.c_float * 3), ("flags", C.c_uint32)]
 
 
-def _load_five(lib: C.CDLL) -> None:
-    """Type the five-axis entry points; LibraryNotFound when the library has none (a build
-    without format 1.1 / 1.2 reading, ABBE_WITH_REVERSAL=OFF)."""
-    if getattr(lib, "_abbe_five_typed", False):
-        return
+def _load_five(lib: C.CDLL) -> dict[str, Any]:
+    """The five-axis entry points, typed as function objects of their own (the shared
+    ``lib`` attributes stay untouched: other callers type them their way); LibraryNotFound
+    when the library has none (a build without format 1.1 / 1.2 reading,
+    ABBE_WITH_REVERSAL=OFF)."""
     P = C.POINTER
+    out: dict[str, Any] = {}
     for name, res, args in (
             ("abbe_five_model_load", C.c_int, [C.c_void_p, C.c_void_p, C.c_size_t]),
             ("abbe_five_model_sizeof", C.c_size_t, []),
             ("abbe_five_model_kind", C.c_uint32, [C.c_void_p]),
             ("abbe_five_error_eval_f32", C.c_int, [C.c_void_p, P(FiveInputF32), P(FiveErrorF32)])):
-        try:
-            fn = getattr(lib, name)
-        except AttributeError as exc:
+        if not hasattr(lib, name):
             raise LibraryNotFound(f"the C library does not export {name}: a build without "
-                                  "five-axis tables, or older than this checkout") from exc
-        fn.restype, fn.argtypes = res, args
-    lib._abbe_five_typed = True  # type: ignore[attr-defined]
+                                  "five-axis tables, or older than this checkout")
+        out[name] = C.CFUNCTYPE(res, *args)((name, lib))
+    return out
 
 
 class CFiveModel:
@@ -495,18 +494,17 @@ class CFiveModel:
     """
 
     def __init__(self, blob: bytes, source: str = "<blob>") -> None:
-        self._lib = load_library()
-        _load_five(self._lib)
+        self._fn = _load_five(load_library())
         self._buf = C.create_string_buffer(bytes(blob), len(blob))
-        n = int(self._lib.abbe_five_model_sizeof())
+        n = int(self._fn["abbe_five_model_sizeof"]())
         self._model = (C.c_uint64 * ((n + 7) // 8))()
-        _check(self._lib.abbe_five_model_load(self._model, self._buf, len(blob)),
+        _check(self._fn["abbe_five_model_load"](self._model, self._buf, len(blob)),
                "abbe_five_model_load", source)
 
     @property
     def kind(self) -> int:
         """ABBE_KIN_*: 0 none (a 3-axis table), 1 xyzac-trt, 2 xyzbc-trt."""
-        return int(self._lib.abbe_five_model_kind(self._model))
+        return int(self._fn["abbe_five_model_kind"](self._model))
 
     def tref_c(self) -> np.ndarray:
         """The linear axes' thermal reference temperatures, deg C (the default input)."""
@@ -529,7 +527,7 @@ class CFiveModel:
             raise ValueError("angles_deg / dir_state / temp_c must have the same rows as pos_mm")
         err, rot, flags = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n, dtype=np.uint32)
         inp, out = FiveInputF32(), FiveErrorF32()
-        fn = self._lib.abbe_five_error_eval_f32
+        fn = self._fn["abbe_five_error_eval_f32"]
         for i in range(n):
             inp.pos_mm[:] = pos[i].tolist()
             inp.angle_deg[:] = ang[i].tolist()
