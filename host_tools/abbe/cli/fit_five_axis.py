@@ -94,22 +94,26 @@ def table_solution(res) -> tuple:
     Returns (parameter vector, convention dict for five_axis.json)."""
     import numpy as np
 
-    x = np.array(res.x_solution if res.x_solution is not None else np.nan_to_num(res.x),
+    x = np.array(res.x_table if res.x_table is not None else np.nan_to_num(res.x),
                  dtype=np.float64)
-    fixed = set(res.obs.fixed)
-    x[list(fixed)] = 0.0
     machine = [i for i, p in enumerate(res.params) if p.kind != "setup"]
-    zero = [res.params[i].name for i in machine if i in fixed]
+    zero = [res.params[i].name for i in machine if x[i] == 0.0 and not res.obs.observable[i]]
     held = {res.params[i].name: float(x[i]) for i in machine
-            if not res.obs.observable[i] and i not in fixed}
+            if not res.obs.observable[i] and x[i] != 0.0}
+    smallest = [res.params[i].name for i in res.min_norm]
     return x, {
         "fixed_at_zero": zero,
         "determined_in_convention": held,
+        "smallest_of_undetermined": smallest,
         "statement": ("the errors this plan cannot observe alone are held in the fit's "
                       "convention: " + (", ".join(zero) or "nothing") + " fixed at 0, "
                       + (", ".join(held) or "nothing else") + " as the fit determined them "
                       "in that convention (only their combination with the fixed ones is "
-                      "seen); the table reproduces the campaign in this convention"),
+                      "seen); the table reproduces the campaign in this convention"
+                      + ("; of what the plan leaves undetermined even then (" + ", ".join(smallest)
+                         + "), the smallest errors consistent with the campaign are held: a "
+                         "richer plan (spheres at other radii and heights) would determine "
+                         "them" if smallest else "")),
         "workpiece_datum": ("what the plan cannot see is a rigid placement of the workpiece on "
                             "the table (its position and orientation): a workpiece datum, i.e. "
                             "probing the part after clamping it, absorbs it"),

@@ -58,7 +58,7 @@ def param_rows(res: FitResult) -> list[dict[str, Any]]:
         else:
             # value_in_convention: what the table holds (0 for the fixed ones): only its
             # combination with the fixed errors is seen (identify.py, cli/fit_five_axis.py)
-            conv = 0.0 if i in res.obs.fixed or res.x_solution is None else _f(res.x_solution[i])
+            conv = None if res.x_table is None else _f(res.x_table[i])
             row.update(observable=False, value=None, ci95=None,
                        value_in_convention=None if p.kind == "setup" else conv,
                        fixed_by_convention=i in res.obs.fixed,
