@@ -67,8 +67,27 @@ def write_table(res, spec, staging: Path, blocks=None) -> dict:
     from abbe.analysis.five_axis.table_check import repredict
     from abbe.formats.five_axis_blob import write_five_blob
 
+    from abbe.model.table import TableError
+
     x, convention = table_solution(res)
-    blob = write_five_blob(spec.geometry, errors_from(res.params, x, res.harmonics))
+    try:
+        blob = write_five_blob(spec.geometry, errors_from(res.params, x, res.harmonics))
+    except TableError as exc:
+        # a weak plan's convention can hold values beyond the table's encoding (an angle
+        # beyond 3906 urad): then only what the plan observes is written, as before issue 33
+        import numpy as np
+
+        x = np.where(np.isfinite(res.x), res.x, 0.0)
+        blob = write_five_blob(spec.geometry, errors_from(res.params, x, res.harmonics))
+        machine = [i for i, p in enumerate(res.params) if p.kind != "setup"]
+        convention = {
+            "fixed_at_zero": [res.params[i].name for i in machine if not res.obs.observable[i]],
+            "determined_in_convention": {}, "smallest_of_undetermined": [],
+            "statement": (f"the fit's convention holds values the table cannot encode ({exc}): "
+                          "only the errors this plan observes are written, every other one "
+                          "as 0 (not compensated); a richer plan (more spheres, heights, "
+                          "angles) determines them"),
+            "workpiece_datum": convention["workpiece_datum"]}
     (staging / "model_five.bin").write_bytes(blob)
     entry = {"file": "model_five.bin", "format": "1.2", "bytes": len(blob),
              "crc32": f"0x{zlib.crc32(blob[:-4]) & 0xFFFFFFFF:08X}",

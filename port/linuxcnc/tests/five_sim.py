@@ -2,7 +2,7 @@
 """abbe's HAL component in five-axis mode inside LinuxCNC's trt simulators.
 
   flock /tmp/abbe-linuxcnc.lock python3 port/linuxcnc/tests/five_sim.py \
-      [--kind xyzac-trt|xyzbc-trt] [--json OUT]
+      [--kind xyzac-trt|xyzbc-trt] [--fitted] [--json OUT]
 
 One mechanism for both table-table kinds of LinuxCNC's trt kinematics (CASES): the
 sample configs sim/axis/vismach/5axis/table-rotary-tilting/xyzac-trt.ini (C on a
@@ -59,6 +59,14 @@ joints with the exported pins). The joints follow axis.L.pos-cmd by two periods
     inverse of the point plus the component's correction (switch_metrics; run 3's
     switch measured the same way for comparison); on the moves after the switches
     the tool tip is within BOUND_UM again.
+
+--fitted (run.sh's A/C run): the table is not written from the truth but FITTED, by
+`abbe fit`, from a probing campaign of the virtual machine that this file simulates
+with its own kinematics (probing_campaign: three spheres, 7 tilts x 12 C angles, five
+touches each); the angular zeros the campaign cannot see (EA0A, EC0C) turn the
+workpiece, so the tool tip is judged with the best rigid placement of the workpiece
+taken out (one for the three compensated runs: a workpiece datum), within
+FITTED_BOUND_UM; the raw deviation is reported beside it.
 
 Every wait is bounded; LinuxCNC is stopped by the pid of its display.
 """

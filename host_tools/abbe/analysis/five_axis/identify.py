@@ -288,6 +288,12 @@ def identify(spec: FiveAxisSpec, blocks: list[Block], params: list[Param]) -> Fi
         x0[obs.fixed] = xt[obs.fixed]
         xt, n3 = pb.solve(free, x0)
         res.nfev += n3
+        # kept only if it reproduces the campaign as the fit does (a plan so weak that
+        # the choice moves far off the linear null space does not): else the convention's
+        # solution, which is the fit's own
+        r0, rt = pb.raw(x) * w, pb.raw(xt) * w
+        if not np.all(np.isfinite(rt)) or float(rt @ rt) > 1.01 * float(r0 @ r0) + 1e-9:
+            xt, res.min_norm = x.copy(), []
     res.x_table = xt
     _dispersion(pb, x, free, res)
     return res
