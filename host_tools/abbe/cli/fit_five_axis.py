@@ -83,6 +83,7 @@ def write_table(res, spec, staging: Path, blocks=None) -> dict:
         convention = {
             "fixed_at_zero": [res.params[i].name for i in machine if not res.obs.observable[i]],
             "determined_in_convention": {}, "smallest_of_undetermined": [],
+            "uncertain_in_convention": [],
             "statement": (f"the fit's convention holds values the table cannot encode ({exc}): "
                           "only the errors this plan observes are written, every other one "
                           "as 0 (not compensated); a richer plan (more spheres, heights, "
@@ -120,10 +121,17 @@ def table_solution(res) -> tuple:
     held = {res.params[i].name: float(x[i]) for i in machine
             if not res.obs.observable[i] and x[i] != 0.0}
     smallest = [res.params[i].name for i in res.min_norm]
+    # held values the campaign determines only to worse than their typical size, even in
+    # the convention (one sphere height with error motions): named, the plan to blame
+    sdc = res.sd_convention
+    uncertain = [res.params[i].name for i in machine if not res.obs.observable[i]
+                 and sdc is not None and np.isfinite(sdc[i])
+                 and 1.96 * sdc[i] > res.params[i].scale]
     return x, {
         "fixed_at_zero": zero,
         "determined_in_convention": held,
         "smallest_of_undetermined": smallest,
+        "uncertain_in_convention": uncertain,
         "statement": ("the errors this plan cannot observe alone are held in the fit's "
                       "convention: " + (", ".join(zero) or "nothing") + " fixed at 0, "
                       + (", ".join(held) or "nothing else") + " as the fit determined them "
@@ -132,7 +140,11 @@ def table_solution(res) -> tuple:
                       + ("; of what the plan leaves undetermined even then (" + ", ".join(smallest)
                          + "), the smallest errors consistent with the campaign are held: a "
                          "richer plan (spheres at other radii and heights) would determine "
-                         "them" if smallest else "")),
+                         "them" if smallest else "")
+                      + ("; UNCERTAIN: " + ", ".join(uncertain) + " are held with a 95 % "
+                         "interval wider than their typical size even in the convention: "
+                         "this table may compensate poorly away from the probed poses; "
+                         "probe spheres at several heights and radii" if uncertain else "")),
         "workpiece_datum": ("what the plan cannot see is a rigid placement of the workpiece on "
                             "the table (its position and orientation): a workpiece datum, i.e. "
                             "probing the part after clamping it, absorbs it"),

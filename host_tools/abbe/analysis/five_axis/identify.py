@@ -102,6 +102,9 @@ class FitResult:
     #: the indices of x_table set by that smallest-norm choice (the plan sees them only in
     #: combinations it cannot separate from errors it cannot see at all)
     min_norm: list[int] = field(default_factory=list)
+    #: the standard deviations of the free unknowns in the fit's convention (the
+    #: unobservable ones included: how well the campaign determines them there)
+    sd_convention: np.ndarray | None = None
 
     def ci95(self) -> np.ndarray:
         return 1.96 * self.sd
@@ -274,11 +277,13 @@ def identify(spec: FiveAxisSpec, blocks: list[Block], params: list[Param]) -> Fi
     with np.errstate(invalid="ignore", divide="ignore"):
         cz = cov_z / np.outer(sdz, sdz)
     corr[np.ix_(free, free)] = cz
+    sd_convention = sd.copy()  # the free unknowns' intervals in the fit's convention
     xo = x.copy()
     hide = ~obs.observable
     xo[hide] = np.nan
     sd[hide] = np.nan
     res = FitResult(params, xo, sd, corr, obs, blocks, h, nfev=nfev, x_solution=x.copy())
+    res.sd_convention = sd_convention
     xt, res.min_norm = table_solution(params, x, obs, pb.J * w[:, None], pb.scale)
     if any(xt[i] != 0.0 for i in obs.fixed):
         # the smallest-norm choice gave fixed unknowns a value: the free ones follow it
@@ -288,6 +293,9 @@ def identify(spec: FiveAxisSpec, blocks: list[Block], params: list[Param]) -> Fi
         x0[obs.fixed] = xt[obs.fixed]
         xt, n3 = pb.solve(free, x0)
         res.nfev += n3
+        # the observable errors are the fit's own numbers (the report's): the re-solve
+        # moves them by its tolerance only (2e-5 um on examples/trunnion5ax)
+        xt[obs.observable] = x[obs.observable]
         # kept only if it reproduces the campaign as the fit does (a plan so weak that
         # the choice moves far off the linear null space does not): else the convention's
         # solution, which is the fit's own

@@ -59,8 +59,11 @@ def param_rows(res: FitResult) -> list[dict[str, Any]]:
             # value_in_convention: what the table holds (0 for the fixed ones): only its
             # combination with the fixed errors is seen (identify.py, cli/fit_five_axis.py)
             conv = None if res.x_table is None else _f(res.x_table[i])
+            sdc = None if res.sd_convention is None or i in res.obs.fixed \
+                else _f(1.96 * res.sd_convention[i])
             row.update(observable=False, value=None, ci95=None,
                        value_in_convention=None if p.kind == "setup" else conv,
+                       ci95_in_convention=None if p.kind == "setup" else sdc,
                        fixed_by_convention=i in res.obs.fixed,
                        confounded_with=_group_of(res, p.name),
                        seen_by=SEEN_BY[_seen_key(p.name, p.kind)])
@@ -197,8 +200,10 @@ def text_report(doc: dict[str, Any]) -> str:
             out.append(f"  {r['name']:<26} {r['value']:>11.3f} {r['unit']:<4} +- {r['ci95']:.3f}")
         else:
             conv = r.get("value_in_convention")
-            how = ("fixed at 0 by convention" if r["fixed_by_convention"] else
-                   f"{conv:.3f} {r['unit']} in the convention" if conv is not None else "no number")
+            ci = r.get("ci95_in_convention")
+            how = (f"{conv:.3f} {r['unit']} in the convention"
+                   + (f" +- {ci:.3f}" if ci is not None else "") if conv else
+                   "fixed at 0 by convention" if r["fixed_by_convention"] else "no number")
             conf = ", ".join(r["confounded_with"]) or "-"
             out.append(f"  {r['name']:<26} NOT OBSERVABLE ({how}); confounded with {conf}; "
                        f"seen by: {r['seen_by']}")
