@@ -136,7 +136,10 @@ def table_solution(res) -> tuple:
                       "convention: " + (", ".join(zero) or "nothing") + " fixed at 0, "
                       + (", ".join(held) or "nothing else") + " as the fit determined them "
                       "in that convention (only their combination with the fixed ones is "
-                      "seen); the table reproduces the campaign in this convention"
+                      "seen), each with a prior of one typical size (10 um / 20 urad for a "
+                      "location error, 1 um / 5 urad for a motion coefficient) that holds the "
+                      "smallest values the campaign allows where it leaves them noise; the "
+                      "table reproduces the campaign in this convention"
                       + ("; of what the plan leaves undetermined even then (" + ", ".join(smallest)
                          + "), the smallest errors consistent with the campaign are held: a "
                          "richer plan (spheres at other radii and heights) would determine "

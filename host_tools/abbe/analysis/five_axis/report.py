@@ -55,6 +55,10 @@ def param_rows(res: FitResult) -> list[dict[str, Any]]:
         row: dict[str, Any] = {"name": p.name, "kind": p.kind, "unit": p.unit}
         if res.obs.observable[i]:
             row.update(observable=True, value=_f(res.x[i]), ci95=_f(1.96 * res.sd[i]))
+            if p.kind != "setup" and res.x_table is not None:
+                # what model_five.bin holds: the fit's value, moved (within its interval)
+                # by the prior on the errors the plan sees only in the convention
+                row["value_in_table"] = _f(res.x_table[i])
         else:
             # value_in_convention: what the table holds (0 for the fixed ones): only its
             # combination with the fixed errors is seen (identify.py, cli/fit_five_axis.py)
