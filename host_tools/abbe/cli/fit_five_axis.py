@@ -131,15 +131,17 @@ def table_solution(res) -> tuple:
         "fixed_at_zero": zero,
         "determined_in_convention": held,
         "smallest_of_undetermined": smallest,
+        "prior_one_typical_size": bool(res.prior),
         "uncertain_in_convention": uncertain,
         "statement": ("the errors this plan cannot observe alone are held in the fit's "
                       "convention: " + (", ".join(zero) or "nothing") + " fixed at 0, "
                       + (", ".join(held) or "nothing else") + " as the fit determined them "
                       "in that convention (only their combination with the fixed ones is "
-                      "seen), each with a prior of one typical size (10 um / 20 urad for a "
-                      "location error, 1 um / 5 urad for a motion coefficient) that holds the "
-                      "smallest values the campaign allows where it leaves them noise; the "
-                      "table reproduces the campaign in this convention"
+                      "seen)" + (", each with a prior of one typical size (10 um / 20 urad "
+                                 "for a location error, 1 um / 5 urad for a motion "
+                                 "coefficient) that holds the smallest values the campaign "
+                                 "allows where it leaves them noise" if res.prior else "")
+                      + "; the table reproduces the campaign in this convention"
                       + ("; of what the plan leaves undetermined even then (" + ", ".join(smallest)
                          + "), the smallest errors consistent with the campaign are held: a "
                          "richer plan (spheres at other radii and heights) would determine "

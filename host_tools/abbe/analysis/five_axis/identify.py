@@ -105,6 +105,9 @@ class FitResult:
     #: the standard deviations of the free unknowns in the fit's convention (the
     #: unobservable ones included: how well the campaign determines them there)
     sd_convention: np.ndarray | None = None
+    #: True when the table holds the prior's values (below), False when the campaign
+    #: contradicted the prior and the table holds the convention's solution alone
+    prior: bool = False
 
     def ci95(self) -> np.ndarray:
         return 1.96 * self.sd
@@ -323,8 +326,12 @@ def identify(spec: FiveAxisSpec, blocks: list[Block], params: list[Param]) -> Fi
         dz, *_ = np.linalg.lstsq(A, b, rcond=None)
         xp = xt.copy()
         xp[free] = (z0 + dz) * sc
-        if np.all(np.isfinite(pb.raw(xp))):
+        r_p = pb.raw(xp) * w
+        # kept while the table still reproduces the campaign (its weighted RMS within
+        # 1.2 x the fit's): a prior that the data contradict is not taken
+        if np.all(np.isfinite(r_p)) and float(r_p @ r_p) <= 1.44 * float(r_t @ r_t):
             xt = xp
+            res.prior = True
     res.x_table = xt
     _dispersion(pb, x, free, res)
     return res
