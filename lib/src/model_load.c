@@ -838,4 +838,9 @@ uint32_t abbe_five_model_kind(const abbe_five_model_t *model)
 {
     return model != NULL ? model->kind : ABBE_KIN_NONE;
 }
+
+size_t abbe_five_model_sizeof(void)
+{
+    return sizeof(abbe_five_model_t);
+}
 #endif /* ABBE_MODEL_LOAD_FIVE */

@@ -24,11 +24,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "compare, test the catalogue of missing effects (docs/effects.md) with "
                     "stepwise selection (F-test against the noise, BIC, held-out data), name "
                     "what is missing with values and 95 % intervals, write the updated table "
-                    "(blob, C, JSON) and show the residual before and after. Thermal records "
-                    "(ISO 230-3): `abbe thermal diagnose` names the missing thermal effect "
-                    "(channel, input, lag; docs/thermal.md).",
+                    "(blob, C, JSON) and show the residual before and after. On a five-axis "
+                    "table-table machine file (a [rotary] section) it runs the five-axis "
+                    "discrepancy workflow instead: a location-only identification of the "
+                    "plan, then the catalogue's five-axis effects (cyclic angular error of "
+                    "C, pivot drift, C wobble) judged on held-out probing positions, written "
+                    "to diagnose_five_axis.json and report.txt (--model is not used there: "
+                    "the model is identified from the same plan; docs/effects.md). Thermal "
+                    "records (ISO 230-3): `abbe thermal diagnose` names the missing thermal "
+                    "effect (channel, input, lag; docs/thermal.md).",
         epilog=examples("abbe diagnose examples/vmc500/machine.toml --model fit-out/model.bin "
                         "--ballbar circle1 -o diagnose-out",
+                        "abbe diagnose examples/trunnion5ax/machine.toml -o diagnose5  "
+                        "# five-axis",
                         "abbe diagnose --iso230-2 x_iso230_2.dat --axis X -o diagnose-x"))
     p.add_argument("machine", nargs="?", help="machine file (TOML) with the check tests")
     p.add_argument("--model", help="the current model: table blob (model.bin) or table JSON; "

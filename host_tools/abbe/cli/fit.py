@@ -26,10 +26,22 @@ from abbe.formats.output import Outputs
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
-        "fit", help="fit the geometric error table from 6D laser data",
+        "fit", help="fit the geometric error table from 6D laser data; on a five-axis "
+                    "machine file, the rotary axes' errors from probing / R-test / ballbar",
         description="Fit the 18 error terms from the machine file's laser lines and write "
-                    "the table (blob, generated C), model.json and an HTML/PNG report.",
-        epilog=examples("abbe fit examples/vmc500/machine.toml -o fit-out"))
+                    "the table (blob, generated C), model.json and an HTML/PNG report. "
+                    "On a five-axis table-table machine (a machine file with a [rotary] "
+                    "section: xyzac-trt or xyzbc-trt) it identifies the rotary axes' "
+                    "location errors (and error motions, [rotary.fit] harmonics) from the "
+                    "plan's sphere probing, R-test, indexer and rotary ballbar files, names "
+                    "what the plan cannot observe and the convention the table holds it in, "
+                    "and writes five_axis.json, model_five.bin (table format 1.2 for the C "
+                    "library; abbe table info / eval read it) and report.txt / report/ "
+                    "(docs/concepts.md, 'Five-axis machines'). --model, --folds, "
+                    "--max-degree, --max-harmonics and --no-clib-check are for laser fits; "
+                    "the five-axis fit takes its options from [rotary.fit].",
+        epilog=examples("abbe fit examples/vmc500/machine.toml -o fit-out",
+                        "abbe fit examples/trunnion5ax/machine.toml -o fit5  # five-axis"))
     p.add_argument("machine", help="machine file (TOML)")
     p.add_argument("-o", "--out", required=True, help="output directory")
     p.add_argument("--model", choices=MODELS, default=None,

@@ -4,7 +4,9 @@ Reads the plan's probing / R-test / indexer files, identifies the location
 errors (and the error motions the plan resolves, ``[rotary.fit] harmonics``)
 and writes OUT/five_axis.json (the identified table, observability,
 dispersion, held-out judgement), OUT/model_five.bin (the identified model as a
-format 1.2 five-axis table for the C library, :mod:`abbe.formats.five_axis_blob`),
+format 1.2 five-axis table for the C library, :mod:`abbe.formats.five_axis_blob`:
+the solution in the fit's convention, :func:`table_solution`; its dispersion on the
+probed centres is re-predicted through the C library and reported),
 OUT/report.txt and OUT/report/ (HTML with polar plots), atomically
 (:class:`abbe.formats.output.Outputs`).
 """
@@ -44,7 +46,7 @@ def identify_into(machine_path: str | Path, staging: Path, report: bool = True):
     t_fit = time.perf_counter()
     doc = to_json(res, spec, plan)
     doc["provenance"] = {"machine_file": str(machine.path), "sha256": machine.sha256}
-    doc["blob"] = write_table(res, spec, Path(staging))
+    doc["blob"] = write_table(res, spec, Path(staging), plan.blocks)
     (Path(staging) / "five_axis.json").write_text(
         json.dumps(doc, indent=2, allow_nan=False) + "\n", encoding="utf-8")
     text = text_report(doc)
@@ -54,24 +56,104 @@ def identify_into(machine_path: str | Path, staging: Path, report: bool = True):
     return spec, res, doc, text, {"read": t_read - t0, "fit": t_fit - t_read}
 
 
-def write_table(res, spec, staging: Path) -> dict:
-    """Write model_five.bin (format 1.2) into ``staging``: the identified errors; the
-    ones the plan cannot observe (NaN in the fit) are written as 0, i.e. not
-    compensated, and named. Returns the JSON entry describing the file."""
+def write_table(res, spec, staging: Path, blocks=None) -> dict:
+    """Write model_five.bin (format 1.2) into ``staging``: the solution in the fit's
+    convention (:func:`table_solution`). Returns the JSON entry describing the file, with
+    the convention and, given the plan's ``blocks``, the table's own dispersion on the
+    probed centres re-predicted through the C library (``repredicted``)."""
     import zlib
 
-    import numpy as np
-
     from abbe.analysis.five_axis.problem import errors_from
+    from abbe.analysis.five_axis.table_check import repredict
     from abbe.formats.five_axis_blob import write_five_blob
 
-    finite = np.isfinite(res.x)
-    blob = write_five_blob(spec.geometry, errors_from(res.params, np.where(finite, res.x, 0.0), res.harmonics))
+    from abbe.model.table import TableError
+
+    x, convention = table_solution(res)
+    try:
+        blob = write_five_blob(spec.geometry, errors_from(res.params, x, res.harmonics))
+    except TableError as exc:
+        # a weak plan's convention can hold values beyond the table's encoding (an angle
+        # beyond 3906 urad): then only what the plan observes is written, as before issue 33
+        import numpy as np
+
+        x = np.where(np.isfinite(res.x), res.x, 0.0)
+        blob = write_five_blob(spec.geometry, errors_from(res.params, x, res.harmonics))
+        machine = [i for i, p in enumerate(res.params) if p.kind != "setup"]
+        convention = {
+            "fixed_at_zero": [res.params[i].name for i in machine if not res.obs.observable[i]],
+            "determined_in_convention": {}, "smallest_of_undetermined": [],
+            "uncertain_in_convention": [],
+            "statement": (f"the fit's convention holds values the table cannot encode ({exc}): "
+                          "only the errors this plan observes are written, every other one "
+                          "as 0 (not compensated); a richer plan (more spheres, heights, "
+                          "angles) determines them"),
+            "workpiece_datum": convention["workpiece_datum"]}
     (staging / "model_five.bin").write_bytes(blob)
-    return {"file": "model_five.bin", "format": "1.2", "bytes": len(blob),
-            "crc32": f"0x{zlib.crc32(blob[:-4]) & 0xFFFFFFFF:08X}",
-            "written_as_zero_not_observable": [p.name for p, ok in zip(res.params, finite)
-                                               if not ok and p.kind != "setup"]}
+    entry = {"file": "model_five.bin", "format": "1.2", "bytes": len(blob),
+             "crc32": f"0x{zlib.crc32(blob[:-4]) & 0xFFFFFFFF:08X}",
+             "written_as_zero_not_observable": convention["fixed_at_zero"],
+             "convention": convention}
+    if blocks is not None:
+        entry["repredicted"] = repredict(spec.geometry, blocks, blob)
+    return entry
+
+
+def table_solution(res) -> tuple:
+    """The machine errors the table holds and the convention they hold them in.
+
+    The plan cannot see some combinations of errors (the angular zeros: EA0A / EB0B and
+    EC0C). The fit fixes a set of them at 0 (``res.obs.fixed``, its convention) and then
+    determines every other error *in that convention*: e.g. the C line's position and
+    tilt relative to the tilt axis (EY0C, EA0C on A/C; EX0C, EB0C on B/C), which alone
+    are not observable because a zero offset of the tilt axis moves them. The table holds
+    that solution whole: leaving those values out would leave half of the tool tip's
+    error uncompensated (issue 33). What the convention leaves out is a rigid placement of
+    the workpiece, which a workpiece datum (probing the part) absorbs.
+
+    Returns (parameter vector, convention dict for five_axis.json)."""
+    import numpy as np
+
+    x = np.array(res.x_table if res.x_table is not None else np.nan_to_num(res.x),
+                 dtype=np.float64)
+    machine = [i for i, p in enumerate(res.params) if p.kind != "setup"]
+    zero = [res.params[i].name for i in machine if x[i] == 0.0 and not res.obs.observable[i]]
+    held = {res.params[i].name: float(x[i]) for i in machine
+            if not res.obs.observable[i] and x[i] != 0.0}
+    smallest = [res.params[i].name for i in res.min_norm]
+    # held values the campaign determines only to worse than their typical size, even in
+    # the convention (one sphere height with error motions): named, the plan to blame
+    sdc = res.sd_convention
+    uncertain = [res.params[i].name for i in machine if not res.obs.observable[i]
+                 and sdc is not None and np.isfinite(sdc[i])
+                 and 1.96 * sdc[i] > res.params[i].scale]
+    return x, {
+        "fixed_at_zero": zero,
+        "determined_in_convention": held,
+        "smallest_of_undetermined": smallest,
+        "prior_one_typical_size": bool(res.prior),
+        "uncertain_in_convention": uncertain,
+        "statement": ("the errors this plan cannot observe alone are held in the fit's "
+                      "convention: " + (", ".join(zero) or "nothing") + " fixed at 0, "
+                      + (", ".join(held) or "nothing else") + " as the fit determined them "
+                      "in that convention (only their combination with the fixed ones is "
+                      "seen)" + (", each with a prior of one typical size (10 um / 20 urad "
+                                 "for a location error, 1 um / 5 urad for a motion "
+                                 "coefficient) that holds the smallest values the campaign "
+                                 "allows where it leaves them noise" if res.prior else "")
+                      + "; the table reproduces the campaign in this convention"
+                      + ("; of what the plan leaves undetermined even then (" + ", ".join(smallest)
+                         + "), the smallest errors consistent with the campaign are held: a "
+                         "richer plan (spheres at other radii and heights) would determine "
+                         "them" if smallest else "")
+                      + ("; UNCERTAIN: " + ", ".join(uncertain) + " are held with a 95 % "
+                         "interval wider than their typical size even in the convention: "
+                         "this table may compensate poorly away from the probed poses; "
+                         "probe spheres at several heights and radii" if uncertain else "")),
+        "workpiece_datum": ("what the plan cannot see is a rigid placement of the workpiece on "
+                            "the table (its position and orientation): a workpiece datum, i.e. "
+                            "probing the part after clamping it, absorbs it"),
+    }
 
 
 def run_five_axis(args: argparse.Namespace) -> int:

@@ -4,7 +4,10 @@ Sub-commands:
 
 * ``info MODEL.bin``: validate, print features, per-axis shape and CRC;
 * ``eval MODEL.bin X Y Z [X Y Z ...]``: reference spatial error (um) at machine
-  positions (mm); ``--clib`` adds the C library's f32 and q results;
+  positions (mm); ``--clib`` adds the C library's f32 and q results; a five-axis
+  table (format 1.2, ``abbe fit``'s model_five.bin) takes joint positions
+  X Y Z TILT C (mm, deg) and gives the tool tip's position (um) and orientation
+  (urad) error relative to the workpiece;
 * ``cgen MODEL.bin -o DIR``: generated C (abbe_model.c / .h);
 * ``from-json MODEL.json -o MODEL.bin``; ``to-json MODEL.bin [-o MODEL.json]``;
 * ``thermal MODEL.bin thermal.json -o OUT.bin``: the table with the dynamic thermal
@@ -36,21 +39,39 @@ def _read_bin(path: Path) -> tuple[bytes, Table]:
     return read_blob_file(path)
 
 
+def _read_any(path: Path):
+    """(bytes, 3-axis Table, FiveAxisTable or None): a format 1.2 five-axis table is read
+    with every check of ``abbe_five_model_load``; its linear axes are the Table."""
+    from abbe.formats.five_axis_blob import is_five_axis_blob, read_five_blob
+    from abbe.formats.limits import BLOB_MAX_BYTES
+    from abbe.formats.text import read_bytes
+
+    data = read_bytes(path, what="table blob", max_bytes=BLOB_MAX_BYTES)
+    if is_five_axis_blob(data):
+        five = read_five_blob(data, source=str(path))
+        return data, five.errors.linear, five
+    return data, read_blob_file(path)[1], None
+
+
 def _cmd_info(args: argparse.Namespace) -> int:
+    from abbe.formats.five_axis_blob import five_table_lines
     from abbe.formats.limits import BLOB_MAX_BYTES
     from abbe.formats.text import read_bytes
     from abbe.formats.thermal_blob import read_thermal_blob
 
-    data = read_bytes(args.model, what="table blob", max_bytes=BLOB_MAX_BYTES)
-    if int.from_bytes(data[6:8], "little") == 3 and data[:4] == b"ABBE":
+    raw = read_bytes(args.model, what="table blob", max_bytes=BLOB_MAX_BYTES)
+    if int.from_bytes(raw[6:8], "little") == 3 and raw[:4] == b"ABBE":
+        data = raw
         table, thermal = read_thermal_blob(data, source=str(args.model))  # format 1.3
+        five = None
     else:
-        data, table = _read_bin(args.model)
+        data, table, five = _read_any(args.model)
         thermal = None
     total = int.from_bytes(data[8:12], "little")
     minor = int.from_bytes(data[6:8], "little")
+    feats = feature_names(table.features()) + (["rotary (five-axis)"] if five else [])
     out = [f"{args.model}: abbe table format 1.{minor}, {total} bytes, CRC-32 0x{blob_crc(data):08X}",
-           "features: " + (", ".join(feature_names(table.features())) or "none"),
+           "features: " + (", ".join(feats) or "none"),
            "reference_mm: " + " ".join(f"{v:.6f}" for v in table.reference_mm)]
     if table.features() & 0x2:
         out.append("tool_offset_mm: " + " ".join(f"{v:.6f}" for v in table.tool_offset_mm))
@@ -87,13 +108,60 @@ def _cmd_info(args: argparse.Namespace) -> int:
         for c in thermal.channels:
             out.append(f"  channel {c.output}: limit {c.limit:g}; " + "; ".join(
                 f"in{t.input} gain {t.gain:.5f} tau {t.tau_s:g} s" for t in c.terms))
+    if five is not None:
+        out += five_table_lines(five)
     print("\n".join(out))
+    return 0
+
+
+def _cmd_eval_five(args: argparse.Namespace, data: bytes, five) -> int:
+    """``abbe table eval`` of a five-axis table: joint positions X Y Z TILT C."""
+    from abbe.formats.five_axis_blob import five_reference
+
+    if args.dir is not None or args.temp_c is not None:
+        raise AbbeInputError("--dir / --temp-c are for 3-axis tables; a five-axis table is "
+                             "evaluated at joint positions only", field="--dir/--temp-c")
+    if len(args.pos) % 5:
+        raise AbbeInputError(f"{len(args.pos)} numbers given; a five-axis table "
+                             f"({five.kind}) takes joint positions in X Y Z TILT C quintuples "
+                             "(mm, mm, mm, deg, deg)", field="pos")
+    j = np.array(args.pos, dtype=np.float64).reshape(-1, 5)
+    if np.any(np.abs(j[:, 3:]) > 2147.0):
+        raise AbbeInputError("angles must lie within +/-2147 deg (the C library's range)",
+                             field="pos")
+    pos, ang = j[:, :3], j[:, 3:]
+    ref, rot = five_reference(five, pos, ang)
+    cm = None
+    if args.clib:
+        from abbe.model import clib
+        try:
+            cm = clib.CFiveModel(data, source=str(args.model))
+        except clib.LibraryNotFound as exc:
+            raise AbbeInputError(str(exc), field="--clib") from None
+    tilt = five.kind[3].upper()
+    head = (f"joints X Y Z mm {tilt} C deg | ref tool tip dX dY dZ um | orientation "
+            "rX rY rZ urad")
+    if cm is not None:
+        head += " | f32 dX dY dZ um | f32 rX rY rZ urad | max |diff| nm, nrad"
+    print(head)
+    for i in range(len(j)):
+        line = (" ".join(f"{v:.4f}" for v in j[i]) + " | " + " ".join(f"{v:.4f}" for v in ref[i])
+                + " | " + " ".join(f"{v:.4f}" for v in rot[i]))
+        if cm is not None:
+            e, r, _f = cm.error_f32(pos[i:i + 1], ang[i:i + 1])
+            line += (" | " + " ".join(f"{v:.4f}" for v in e[0]) + " | "
+                     + " ".join(f"{v:.4f}" for v in r[0])
+                     + f" | {np.max(np.abs(e[0] - ref[i])) * 1e3:.3f} "
+                       f"{np.max(np.abs(r[0] - rot[i])) * 1e3:.3f}")
+        print(line)
     return 0
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
     from abbe.model.reference import out_of_travel, spatial_error
-    data, table = _read_bin(args.model)
+    data, table, five = _read_any(args.model)
+    if five is not None:
+        return _cmd_eval_five(args, data, five)
     if len(args.pos) % 3:
         raise AbbeInputError(f"{len(args.pos)} numbers given; positions come in X Y Z triples",
                              field="pos_mm")
@@ -142,7 +210,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
 
 def _cmd_cgen(args: argparse.Namespace) -> int:
     Outputs().check_directory(args.out, option="--out")
-    data, _ = _read_bin(args.model)
+    data, _, _ = _read_any(args.model)
     h, c = write_c(data, args.out, stem=args.stem, option="--out")
     print(h)
     print(c)
@@ -177,8 +245,15 @@ def _json_field(blob_field: str | None) -> str | None:
 
 
 def _cmd_to_json(args: argparse.Namespace) -> int:
-    _, table = _read_bin(args.model)
-    text = json.dumps(table_to_json(table), indent=2) + "\n"
+    from abbe.formats.five_axis_blob import five_table_to_json
+
+    _, table, five = _read_any(args.model)
+    doc = table_to_json(table)
+    if five is not None:
+        # the linear axes' table as for a 3-axis table, plus the rotary section (format
+        # 1.2); from-json reads 3-axis tables only (abbe fit writes the five-axis ones)
+        doc["rotary"] = five_table_to_json(five)
+    text = json.dumps(doc, indent=2, allow_nan=False) + "\n"
     if args.out is None:
         sys.stdout.write(text)
     else:
@@ -228,16 +303,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     q = sub.add_parser("info", help="validate a table and show its shape, features and CRC",
                        epilog=examples("abbe table info fit-out/model.bin"))
-    q.add_argument("model", type=Path, help="table blob (model.bin)")
+    q.add_argument("model", type=Path, help="table blob (model.bin, or model_five.bin: format 1.2)")
     q.set_defaults(func=_cmd_info)
 
-    q = sub.add_parser("eval", help="spatial error (um) at machine positions (mm)",
+    q = sub.add_parser("eval", help="spatial error (um) at machine positions (mm); five-axis "
+                       "tables: tool tip error at joints X Y Z TILT C",
                        epilog=examples("abbe table eval fit-out/model.bin 250 -200 -150 --clib",
                                        "abbe table eval fit-out/model.bin 0 0 0 500 -400 -300 "
-                                       "--dir 1 1 1"))
-    q.add_argument("model", type=Path, help="table blob (model.bin)")
-    q.add_argument("pos", nargs="+", type=in_range(-1e5, 1e5, "mm"), metavar="X Y Z",
-                   help="machine positions, mm, in X Y Z triples")
+                                       "--dir 1 1 1",
+                                       "abbe table eval fit5/model_five.bin 120 -40 -180 30 45 "
+                                       "--clib"))
+    q.add_argument("model", type=Path, help="table blob (model.bin or a five-axis model_five.bin)")
+    q.add_argument("pos", nargs="+", type=in_range(-1e5, 1e5, "mm / deg"), metavar="X Y Z",
+                   help="machine positions, mm, in X Y Z triples; a five-axis table (format "
+                        "1.2): joint positions X Y Z TILT C (mm, deg) in quintuples")
     q.add_argument("--dir", nargs=3, type=in_range(-1.0, 1.0), metavar=("SX", "SY", "SZ"),
                    help="backlash direction state per axis in [-1, 1] (default 0)")
     q.add_argument("--temp-c", nargs=3, type=in_range(-100.0, 200.0, "deg C"),

@@ -232,3 +232,64 @@ def five_reference(table: FiveAxisTable, pos_mm: Any, angles_deg: Any) -> tuple[
     (:func:`abbe.model.five_axis.tool_error_linear`) of the table's own (quantised)
     values: position um, orientation urad, (N, 3) each."""
     return tool_error_linear(table.geometry(), table.errors, pos_mm, angles_deg)
+
+
+def is_five_axis_blob(data: bytes) -> bool:
+    """True when ``data`` announces a rotary section (format 1.2 and feature bit ROTARY):
+    the readers that take any table (``abbe table``, generated C) then read it with
+    :func:`read_five_blob`. Anything shorter than a header is left to the 3-axis reader's
+    checks (which name what is wrong)."""
+    data = bytes(data[:24])
+    if len(data) < 24:
+        return False
+    minor = struct.unpack_from("<H", data, 6)[0]
+    features = struct.unpack_from("<I", data, 20)[0]
+    return minor >= _blob.ROTARY_MINOR and bool(features & _blob.FEATURE_ROTARY)
+
+
+def five_table_lines(table: FiveAxisTable) -> list[str]:
+    """Human-readable lines of the rotary section (``abbe table info``, generated C):
+    geometry, squareness, each axis' location errors and error motions (um, urad)."""
+    e = table.errors
+    lines = [f"kinematics: {table.kind} (tilt {KINEMATICS[table.kind][0]}, table "
+             f"{KINEMATICS[table.kind][1]})",
+             "rot_point_mm: " + ", ".join(f"{v:.6f}" for v in table.rot_point_mm),
+             "offset_mm: " + ", ".join(f"{v:.6f}" for v in table.offset_mm),
+             "five-axis squareness_urad: S_xy %.6f, S_xz %.6f, S_yz %.6f" % tuple(e.squareness)]
+    for axis in KINEMATICS[table.kind]:
+        names = LOCATION_ERRORS[axis]
+        lines.append(f"axis {axis} location: " + ", ".join(
+            f"{n} {e.location.get(n, 0.0):.6f} {'um' if i < 2 else 'urad'}"
+            for i, n in enumerate(names)))
+        mot = [(c, v) for c in MOTION_COMPONENTS if len(v := e.motions.get((axis, c), [])) > 0]
+        if not mot:
+            lines.append(f"axis {axis} error motions: none")
+        for c, v in mot:
+            unit = "um" if c in "XYZ" else "urad"
+            lines.append(f"axis {axis} motion E{c}{axis}({axis}) {unit}: " + ", ".join(
+                f"{'sin' if r % 2 == 0 else 'cos'}{r // 2 + 1} {float(x):.6f}"
+                for r, x in enumerate(v)))
+    return lines
+
+
+def five_table_to_json(table: FiveAxisTable) -> dict[str, Any]:
+    """The rotary section as plain data (``abbe table to-json`` of a format 1.2 table),
+    beside the linear axes' table JSON (:func:`abbe.formats.table_json.table_to_json`
+    of ``table.errors.linear``, the caller's). Units: mm, um, urad."""
+    e = table.errors
+    return {
+        "kinematics": table.kind,
+        "rot_point_mm": [float(v) for v in table.rot_point_mm],
+        "offset_mm": [float(v) for v in table.offset_mm],
+        "squareness_urad": dict(zip(("sxy", "sxz", "syz"), (float(v) for v in e.squareness))),
+        "axes": {axis: {
+            "location": {n: float(e.location.get(n, 0.0)) for n in LOCATION_ERRORS[axis]},
+            "location_units": {n: ("um" if i < 2 else "urad")
+                               for i, n in enumerate(LOCATION_ERRORS[axis])},
+            "motions": {f"E{c}{axis}({axis})": {
+                "unit": "um" if c in "XYZ" else "urad", "period_deg": 360.0,
+                "coef": {f"{'sin' if r % 2 == 0 else 'cos'}{r // 2 + 1}": float(x)
+                         for r, x in enumerate(e.motions[(axis, c)])}}
+                for c in MOTION_COMPONENTS if len(e.motions.get((axis, c), [])) > 0},
+        } for axis in KINEMATICS[table.kind]},
+    }

@@ -27,7 +27,7 @@ Errors (ISO 230-1 / 230-7 notation; linear errors um, angles urad):
 
 The error of the tool relative to the workpiece, in machine coordinates at the
 commanded point, is position ``p_tool,actual - T_act T_nom^-1 p_tool,nominal``
-(um) and orientation ``rotvec(R_tool R_act R_nom^T)`` (urad) - what a compensation
+(um) and orientation ``rotvec(R_tool R_nom R_act^T)`` (urad) - what a compensation
 must take away. :func:`tool_error_exact` evaluates it with homogeneous
 transforms (small rotations as ``Rx Ry Rz`` products); :func:`tool_error_linear`
 is its first-order form (the five-axis analogue of Eq. 3; checked symbolically

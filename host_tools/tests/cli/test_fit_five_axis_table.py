@@ -1,5 +1,6 @@
 """``abbe fit`` on a five-axis machine file writes model_five.bin (format 1.2) beside
-five_axis.json: the identified values (unobservable ones as 0, named), readable by the
+five_axis.json: the identified values and, of the ones the plan cannot observe alone, the
+fit's convention (the fixed set as 0, the others as determined in it, issue 33), readable by the
 Python reader and by the C library, which evaluates it as the Python reference does."""
 
 from __future__ import annotations
@@ -42,18 +43,28 @@ def test_table_holds_the_identified_values(fitted: Path) -> None:
     table = read_five_blob(blob)
     assert table.kind == doc["kinematics"]
     zero = set(entry["written_as_zero_not_observable"])
-    checked = 0
+    checked = in_convention = 0
     for p in doc["parameters"]:
         if p["kind"] != "location":
             continue
         got = table.errors.location[p["name"]]
         if p["observable"]:
-            # quantisation: 2^-8 nm / 2^-36 rad
-            assert got == pytest.approx(p["value"], abs=1e-5), p["name"]
+            # quantisation: 2^-8 nm / 2^-36 rad; the table's value is the fit's moved by the
+            # prior on what the plan sees only in the convention, within its interval
+            assert got == pytest.approx(p["value_in_table"], abs=1e-5), p["name"]
+            assert abs(p["value_in_table"] - p["value"]) <= p["ci95"], p["name"]
             checked += 1
-        else:
+        elif p["fixed_by_convention"]:
             assert p["name"] in zero and got == 0.0
+        else:  # determined in the convention: held, with its value stated in the JSON
+            assert p["name"] not in zero, p["name"]
+            assert entry["convention"]["determined_in_convention"][p["name"]] == pytest.approx(
+                p["value_in_convention"])
+            assert got == pytest.approx(p["value_in_convention"], abs=1e-5), p["name"]
+            in_convention += 1
     assert checked >= 4
+    # the example's A/C plan: EA0A and EC0C fixed, the C line's place relative to A held
+    assert {"EA0A", "EC0C"} <= zero and in_convention >= 1
 
 
 @pytest.mark.skipif(not clib.available(), reason="C library not built")

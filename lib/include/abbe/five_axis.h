@@ -106,4 +106,8 @@ abbe_status_t abbe_five_error_eval_q(const abbe_five_model_t *model, const abbe_
 /* Kinematics kind of a loaded model (ABBE_KIN_*). */
 uint32_t abbe_five_model_kind(const abbe_five_model_t *model);
 
+/* sizeof(abbe_five_model_t): for bindings that allocate the model themselves
+ * (abbe.model.clib), so they need not mirror its private layout. */
+size_t abbe_five_model_sizeof(void);
+
 #endif /* ABBE_FIVE_AXIS_H */

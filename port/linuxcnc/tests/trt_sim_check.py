@@ -104,8 +104,8 @@ def headless_ini(text: str, pins: dict[str, float], home: dict[int, float],
 
 def export_to_sample(work: Path, errors, kind: str = "xyzac-trt") -> tuple[dict[str, float],
                                                                           dict[int, float], Path]:
-    """The virtual machine (MACHINES[kind] with `errors`, a FiveAxisErrors) as
-    work/model_five.bin, `abbe export -f linuxcnc-trt` into work/trt, and a headless copy
+    """The virtual machine (MACHINES[kind] with `errors`, a FiveAxisErrors, or the bytes
+    of a fitted table) as work/model_five.bin, `abbe export -f linuxcnc-trt` into work/trt, and a headless copy
     of the sample config (SAMPLE/<kind>.ini) taking its values in work/config. Returns
     (pins, HOME_OFFSETs, the INI)."""
     from export_readers import read_linuxcnc_trt
@@ -115,7 +115,9 @@ def export_to_sample(work: Path, errors, kind: str = "xyzac-trt") -> tuple[dict[
     from abbe.formats.machine import load_machine
     (work / "machine.toml").write_text(MACHINES[kind])
     geom = load_machine(work / "machine.toml").five_axis.geometry
-    (work / "model_five.bin").write_bytes(write_five_blob(geom, errors))
+    # errors: a FiveAxisErrors written as the table, or a table's bytes (a fitted one)
+    blob = bytes(errors) if isinstance(errors, (bytes, bytearray)) else write_five_blob(geom, errors)
+    (work / "model_five.bin").write_bytes(blob)
     cli("export", str(work / "model_five.bin"), "-f", "linuxcnc-trt", "-o", str(work / "trt"),
         "--machine", str(work / "machine.toml"))
     _comp, pins, home = read_linuxcnc_trt(work / "trt")

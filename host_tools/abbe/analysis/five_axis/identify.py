@@ -95,6 +95,19 @@ class FitResult:
     #: the solution as solved (the unobservable that were not fixed keep their arbitrary
     #: values here; ``x`` hides them): what the residuals were computed with
     x_solution: np.ndarray | None = None
+    #: what the table holds (:func:`table_solution`): the solution with the angular zeros
+    #: the fit fixed at 0 and every other error as the campaign determines it in that
+    #: convention (the smallest, scaled, where the plan leaves more undetermined)
+    x_table: np.ndarray | None = None
+    #: the indices of x_table set by that smallest-norm choice (the plan sees them only in
+    #: combinations it cannot separate from errors it cannot see at all)
+    min_norm: list[int] = field(default_factory=list)
+    #: the standard deviations of the free unknowns in the fit's convention (the
+    #: unobservable ones included: how well the campaign determines them there)
+    sd_convention: np.ndarray | None = None
+    #: True when the table holds the prior's values (below), False when the campaign
+    #: contradicted the prior and the table holds the convention's solution alone
+    prior: bool = False
 
     def ci95(self) -> np.ndarray:
         return 1.96 * self.sd
@@ -267,13 +280,127 @@ def identify(spec: FiveAxisSpec, blocks: list[Block], params: list[Param]) -> Fi
     with np.errstate(invalid="ignore", divide="ignore"):
         cz = cov_z / np.outer(sdz, sdz)
     corr[np.ix_(free, free)] = cz
+    sd_convention = sd.copy()  # the free unknowns' intervals in the fit's convention
     xo = x.copy()
     hide = ~obs.observable
     xo[hide] = np.nan
     sd[hide] = np.nan
     res = FitResult(params, xo, sd, corr, obs, blocks, h, nfev=nfev, x_solution=x.copy())
+    res.sd_convention = sd_convention
+    xt, res.min_norm = table_solution(params, x, obs, pb.J * w[:, None], pb.scale)
+    if any(xt[i] != 0.0 for i in obs.fixed):
+        # the smallest-norm choice gave fixed unknowns a value: the free ones follow it
+        # through the model itself (one more solve), so the table reproduces the campaign
+        # as the fit does, not only to first order
+        x0 = x.copy()
+        x0[obs.fixed] = xt[obs.fixed]
+        xt, n3 = pb.solve(free, x0)
+        res.nfev += n3
+        # the observable errors are the fit's own numbers (the report's): the re-solve
+        # moves them by its tolerance only (2e-5 um on examples/trunnion5ax)
+        xt[obs.observable] = x[obs.observable]
+        # kept only if it reproduces the campaign as the fit does (a plan so weak that
+        # the choice moves far off the linear null space does not): else the convention's
+        # solution, which is the fit's own
+        r0, rt = pb.raw(x) * w, pb.raw(xt) * w
+        if not np.all(np.isfinite(rt)) or float(rt @ rt) > 1.01 * float(r0 @ r0) + 1e-9:
+            xt, res.min_norm = x.copy(), []
+    # A prior of one typical size (``scale``) on each error the plan sees only in the
+    # convention: where the campaign determines it well this moves nothing; where it
+    # leaves it noise (one sphere with error motions: EA0C 811 +- 911 urad on
+    # examples/trunnion5ax) it holds the smallest values the campaign allows (a MAP
+    # estimate, linear: the model is linear to 1e-4 relative here), the observed errors
+    # following to within their own intervals.
+    prior = [i for i in free if params[i].kind != "setup" and not obs.observable[i]]
+    if prior:
+        sc = pb.scale[free]
+        Jf = pb.J[:, free] * w[:, None]
+        r_t = pb.raw(xt) * w
+        z0 = xt[free] / sc
+        P = np.zeros((len(prior), len(free)))
+        for k, i in enumerate(prior):
+            P[k, free.index(i)] = 1.0
+        sq = np.sqrt(max(s2, 1e-12))
+        A = np.vstack([Jf / sq, P])
+        b = np.r_[-r_t / sq, -P @ z0]
+        dz, *_ = np.linalg.lstsq(A, b, rcond=None)
+        xp = xt.copy()
+        xp[free] = (z0 + dz) * sc
+        r_p = pb.raw(xp) * w
+        # kept while the table still reproduces the campaign (its weighted RMS within
+        # 1.2 x the fit's): a prior that the data contradict is not taken
+        if np.all(np.isfinite(r_p)) and float(r_p @ r_p) <= 1.44 * float(r_t @ r_t):
+            xt = xp
+            res.prior = True
+    res.x_table = xt
     _dispersion(pb, x, free, res)
     return res
+
+
+def is_angular_zero(p: Param) -> bool:
+    """EC0C, EA0A, EB0B: a location error about the axis' own direction."""
+    return p.kind == "location" and p.name[1] == p.name[3]
+
+
+def table_solution(params: list[Param], x: np.ndarray, obs: Observability, Jw: np.ndarray,
+                   scale: np.ndarray) -> tuple[np.ndarray, list[int]]:
+    """The machine errors a table should hold (issue 33) and which of them a smallest-norm
+    choice set.
+
+    Every solution of the plan is ``x + N z`` (N: the null space of the weighted Jacobian
+    ``Jw``, scaled columns). The angular zeros the fit fixed stay 0 (the convention: a
+    zero turns the workpiece, which a workpiece datum absorbs). What that convention
+    leaves free, a plan with a single sphere radius (for instance) cannot separate at all
+    (a shift of C's line against a first-harmonic angular motion with second-harmonic
+    radial ones): of those solutions the one with the smallest machine errors and the
+    smallest change of the set-up unknowns, each in its typical size (``scale``), is
+    taken. With a null space of the zeros alone (the
+    usual probing plan) this is exactly the fit's solution in its convention."""
+    xt = np.array(x, dtype=np.float64)
+    fixed = set(obs.fixed)
+    zeros = [i for i in obs.fixed if is_angular_zero(params[i])]
+    xt[list(fixed)] = 0.0
+    # the null space, one direction per fixed unknown: move it by one (scaled) unit and
+    # the free ones as the fit would follow it (least squares on the free columns, which
+    # have full rank); kept when that leaves the residuals unmoved (to NULL_TOL: the
+    # plan's second-order cross terms lift the directions slightly off zero)
+    free = [i for i in range(len(params)) if i not in fixed]
+    Jf, Jx = Jw[:, free], Jw[:, obs.fixed]
+    follow, *_ = np.linalg.lstsq(Jf, Jx, rcond=None)
+    left = np.linalg.norm(Jx - Jf @ follow, axis=0)
+    null_cols = [k for k in range(len(obs.fixed))
+                 if left[k] <= NULL_TOL * max(float(np.linalg.norm(Jx[:, k])), 1e-300)]
+    N = np.zeros((len(params), len(null_cols)))
+    for c, k in enumerate(null_cols):
+        N[obs.fixed[k], c] = 1.0
+        N[free, c] = -follow[:, k]
+    N *= scale[:, None]  # raw units (um / urad per scaled unit)
+    if N.shape[1] == 0:
+        return xt, []
+    # keep the zeros at 0: directions of the null space that do not move them
+    if zeros:
+        _u, s0, V0 = np.linalg.svd(N[zeros], full_matrices=True)
+        r0 = int(np.sum(s0 > 1e-9 * (s0[0] if s0.size else 1.0)))
+        B = N @ V0[r0:].T
+    else:
+        B = N
+    if B.shape[1] == 0:
+        return xt, []
+    # start from the fit's solution with the other fixed ones at 0, then along B the
+    # smallest machine errors and the smallest change of the set-up's unknowns from the
+    # fit's, each in its typical size (a direction that trades a little machine error
+    # for millimetres of set-up is no better: its second-order terms are not null)
+    machine = [i for i, p in enumerate(params) if p.kind != "setup"]
+    setup = [i for i, p in enumerate(params) if p.kind == "setup"]
+    A = np.vstack([B[machine] / scale[machine, None], B[setup] / scale[setup, None]])
+    b = np.r_[-xt[machine] / scale[machine], np.zeros(len(setup))]
+    y, *_ = np.linalg.lstsq(A, b, rcond=None)
+    move = B @ y
+    move[obs.observable] = 0.0  # the plan's own numbers stay (moved by 1e-6 at most here)
+    xt = xt + move
+    xt[zeros] = 0.0
+    moved = [i for i in machine if abs(move[i]) > 1e-3 * scale[i] and i not in zeros]
+    return xt, moved
 
 
 def _centre_residuals(spec: FiveAxisSpec, params: list[Param], b: Block, x: np.ndarray,

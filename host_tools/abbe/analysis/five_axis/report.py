@@ -55,8 +55,19 @@ def param_rows(res: FitResult) -> list[dict[str, Any]]:
         row: dict[str, Any] = {"name": p.name, "kind": p.kind, "unit": p.unit}
         if res.obs.observable[i]:
             row.update(observable=True, value=_f(res.x[i]), ci95=_f(1.96 * res.sd[i]))
+            if p.kind != "setup" and res.x_table is not None:
+                # what model_five.bin holds: the fit's value, moved (within its interval)
+                # by the prior on the errors the plan sees only in the convention
+                row["value_in_table"] = _f(res.x_table[i])
         else:
+            # value_in_convention: what the table holds (0 for the fixed ones): only its
+            # combination with the fixed errors is seen (identify.py, cli/fit_five_axis.py)
+            conv = None if res.x_table is None else _f(res.x_table[i])
+            sdc = None if res.sd_convention is None or i in res.obs.fixed \
+                else _f(1.96 * res.sd_convention[i])
             row.update(observable=False, value=None, ci95=None,
+                       value_in_convention=None if p.kind == "setup" else conv,
+                       ci95_in_convention=None if p.kind == "setup" else sdc,
                        fixed_by_convention=i in res.obs.fixed,
                        confounded_with=_group_of(res, p.name),
                        seen_by=SEEN_BY[_seen_key(p.name, p.kind)])
@@ -192,7 +203,11 @@ def text_report(doc: dict[str, Any]) -> str:
         if r["observable"]:
             out.append(f"  {r['name']:<26} {r['value']:>11.3f} {r['unit']:<4} +- {r['ci95']:.3f}")
         else:
-            how = "fixed at 0 by convention" if r["fixed_by_convention"] else "no number"
+            conv = r.get("value_in_convention")
+            ci = r.get("ci95_in_convention")
+            how = (f"{conv:.3f} {r['unit']} in the convention"
+                   + (f" +- {ci:.3f}" if ci is not None else "") if conv else
+                   "fixed at 0 by convention" if r["fixed_by_convention"] else "no number")
             conf = ", ".join(r["confounded_with"]) or "-"
             out.append(f"  {r['name']:<26} NOT OBSERVABLE ({how}); confounded with {conf}; "
                        f"seen by: {r['seen_by']}")
@@ -209,6 +224,17 @@ def text_report(doc: dict[str, Any]) -> str:
                 "({} folds): before {:.3f}, after {:.3f}".format(
                     d["before"], d["after"], d["folds"], d["heldout_before"] or float("nan"),
                     d["heldout_after"] or float("nan"))]
+    blob = doc.get("blob") or {}
+    if blob.get("convention"):
+        cv = blob["convention"]
+        out += ["", f"Table {blob['file']} (format {blob['format']}): {cv['statement']}.",
+                f"  Workpiece datum: {cv['workpiece_datum']}."]
+        rp = blob.get("repredicted")
+        if rp:
+            out.append(f"  The table re-predicts the probed centres ({rp['positions']} positions, "
+                       f"{rp['evaluated_by']}): dispersion before {rp['before']:.3f} um, after "
+                       f"{rp['after']:.3f} um (the fit's after: "
+                       f"{d['after'] if d['after'] is not None else float('nan'):.3f} um)")
     for ax, rp in doc["rotary_positioning"].items():
         if rp:
             out.append(f"Angular positioning of {ax} (ISO 230-2, urad): A {rp['A_urad']:.2f}, "
