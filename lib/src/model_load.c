@@ -210,14 +210,26 @@ static abbe_status_t check_offsets(const uint8_t *b, uint32_t total, uint32_t da
     return ABBE_OK;
 }
 
-static abbe_status_t check_finite(const uint8_t *b)
+/* Word i of the coefficient array at byte offset off of a table of total
+ * bytes. check_offsets() has placed every array inside [data start, total - 4)
+ * before any check reads one, so the bound never binds on a table that gets
+ * here; it makes each read's bound evident at the read, where the proof
+ * (docs/proofs.md) checks it without relating offsets and counts read from
+ * the table at different places. */
+static uint32_t coef_word(const uint8_t *b, uint32_t total, uint32_t off, uint32_t i)
+{
+    uint32_t at = off + 4u * i; /* mod 2^32; total >= MIN_TOTAL_SIZE */
+    return at <= total - 8u ? abbe_ld_u32(b + at) : 0u;
+}
+
+static abbe_status_t check_finite(const uint8_t *b, uint32_t total)
 {
     for (unsigned j = 0; j < ABBE_AXES; j++) {
         const uint8_t *rec = b + HEADER_SIZE + j * AXIS_RECORD_SIZE;
         uint32_t count = abbe_ld_u32(rec + A_COEF_COUNT);
-        const uint8_t *f = b + abbe_ld_u32(rec + A_COEF_F32);
+        uint32_t off_f = abbe_ld_u32(rec + A_COEF_F32);
         for (uint32_t i = 0; i < count; i++) {
-            if (abbe_f32_bits_nonfinite(abbe_ld_u32(f + 4u * i))) {
+            if (abbe_f32_bits_nonfinite(coef_word(b, total, off_f, i))) {
                 return ABBE_E_NONFINITE;
             }
         }
@@ -243,6 +255,7 @@ static unsigned bit_length(uint32_t v);
 
 static uint32_t i32_to_f32_bits(int32_t v)
 {
+    /*@ split v < 0; */ /* Eva: the two signs apart, so v != 0 below is an interval */
     if (v == 0) {
         return 0u;
     }
@@ -265,15 +278,15 @@ static uint32_t i32_to_f32_bits(int32_t v)
 
 /* The float32 array must be the int32 array converted: checked bit for bit, so
  * both variants evaluate the same table whatever wrote it. */
-static abbe_status_t check_twins(const uint8_t *b)
+static abbe_status_t check_twins(const uint8_t *b, uint32_t total)
 {
     for (unsigned j = 0; j < ABBE_AXES; j++) {
         const uint8_t *rec = b + HEADER_SIZE + j * AXIS_RECORD_SIZE;
         uint32_t count = abbe_ld_u32(rec + A_COEF_COUNT);
-        const uint8_t *q = b + abbe_ld_u32(rec + A_COEF_Q);
-        const uint8_t *f = b + abbe_ld_u32(rec + A_COEF_F32);
+        uint32_t off_q = abbe_ld_u32(rec + A_COEF_Q);
+        uint32_t off_f = abbe_ld_u32(rec + A_COEF_F32);
         for (uint32_t i = 0; i < count; i++) {
-            if (abbe_ld_u32(f + 4u * i) != i32_to_f32_bits(abbe_ld_i32(q + 4u * i))) {
+            if (coef_word(b, total, off_f, i) != i32_to_f32_bits(abbe_u32_to_i32(coef_word(b, total, off_q, i)))) {
                 return ABBE_E_MISMATCH;
             }
         }
@@ -321,7 +334,7 @@ static uint64_t abs_i32(int32_t v)
 }
 
 /* The caps keep every fixed-point intermediate below 2^63 (docs/numerics.md). */
-static abbe_status_t check_ranges(const uint8_t *b)
+static abbe_status_t check_ranges(const uint8_t *b, uint32_t total)
 {
     uint32_t features = abbe_ld_u32(b + H_FEATURES);
     for (unsigned k = 0; k < 3u; k++) {
@@ -342,7 +355,7 @@ static abbe_status_t check_ranges(const uint8_t *b)
         unsigned mask = rec[A_MASK];
         unsigned n_terms = popcount6(mask);
         uint32_t n_basis = n_basis_of(rec);
-        const uint8_t *q = b + abbe_ld_u32(rec + A_COEF_Q);
+        uint32_t off_q = abbe_ld_u32(rec + A_COEF_Q);
         unsigned column = 0;
         for (unsigned t = 0; t < ABBE_TERMS; t++) {
             if (!((mask >> t) & 1u)) {
@@ -350,7 +363,7 @@ static abbe_status_t check_ranges(const uint8_t *b)
             }
             uint64_t l1 = 0;
             for (uint32_t r = 0; r < n_basis; r++) {
-                l1 += abs_i32(abbe_ld_i32(q + 4u * (r * n_terms + column)));
+                l1 += abs_i32(abbe_u32_to_i32(coef_word(b, total, off_q, r * n_terms + column)));
             }
             if (l1 > (t < 3u ? LIN_L1_CAP : ANG_L1_CAP)) {
                 return ABBE_E_RANGE;
@@ -361,9 +374,8 @@ static abbe_status_t check_ranges(const uint8_t *b)
         /* the total reversal |B + R(p)| <= |B| + sum |r_k| <= 2^31 (keeps
          * s (B + R) below 2^62), counted down in 32 bits */
         uint32_t left = REVERSAL_L1_CAP - mag_i32(abbe_ld_i32(rec + A_BACKLASH));
-        const uint8_t *r = q + 4u * n_basis * n_terms;
         for (unsigned k = 0; k < REVERSAL_ROWS(rec); k++) {
-            uint32_t a = mag_i32(abbe_ld_i32(r + 4u * k));
+            uint32_t a = mag_i32(abbe_u32_to_i32(coef_word(b, total, off_q, n_basis * n_terms + k)));
             if (a > left) {
                 return ABBE_E_RANGE;
             }
@@ -427,6 +439,7 @@ static void build_axis(abbe_axis_model_t *ax, const uint8_t *b, const uint8_t *r
      * a power-of-two span, stored as 2^32 - 1 (exact all the same there:
      * d << shift <= 2^31, internal.h). */
     uint32_t span = (uint32_t)ax->travel_max_nm - (uint32_t)ax->travel_min_nm; /* < 2^32, > 0 */
+    span = span != 0u ? span : 1u; /* never binds (check_travel): the divisor's bound, stated for the proof */
     unsigned n = bit_length(span);
     uint64_t mul = (((uint64_t)1 << (31u + n)) + span / 2u) / span;
     ax->span_nm = span;
@@ -442,9 +455,10 @@ static void build_axis(abbe_axis_model_t *ax, const uint8_t *b, const uint8_t *r
         ax->phase_min[k] = from_origin * ax->freq[k];
     }
     ax->backlash_reversal_q8 = abbe_ld_i32(rec + A_BACKLASH);
-    ax->backlash_takeup_nm = abbe_ld_i32(rec + A_TAKEUP);
-    if (ax->backlash_takeup_nm > 0) {
-        uint64_t takeup = (uint64_t)ax->backlash_takeup_nm;
+    const int32_t takeup_nm = abbe_ld_i32(rec + A_TAKEUP); /* a local: the divisor's test is where it is read */
+    ax->backlash_takeup_nm = takeup_nm;
+    if (takeup_nm > 0) {
+        uint64_t takeup = (uint64_t)takeup_nm;
         ax->takeup_rate_q46 = (((uint64_t)1 << 46) + takeup / 2u) / takeup;
     }
     ax->thermal_expansion_q50 = abbe_ld_i32(rec + A_EXPANSION);
@@ -454,16 +468,6 @@ static void build_axis(abbe_axis_model_t *ax, const uint8_t *b, const uint8_t *r
     ax->reversal_rows = rec[A_REVERSAL_ROWS];
 #endif
 }
-
-#if ABBE_WITH_F32
-/* A float from its IEEE bits (no arithmetic: the fixed-point build has no FPU). */
-static float f32_from_bits(uint32_t bits)
-{
-    float f;
-    memcpy(&f, &bits, sizeof f);
-    return f;
-}
-#endif
 
 /* The constants of Eq. 3 that do not depend on the position (abbe_eval_*_core). */
 static void build_assembly(abbe_model_t *m)
@@ -487,18 +491,19 @@ static void build_assembly(abbe_model_t *m)
 #endif
 #endif
 #if ABBE_WITH_F32
-        /* t / 2 in float: the converted value with its exponent lowered by one
-         * (exact; |t| >= 1 is far from the subnormals) */
-        uint32_t t_bits = i32_to_f32_bits(m->tool_offset_nm[k]);
-        m->tool_half_nm[k] = f32_from_bits(t_bits == 0u ? 0u : t_bits - 0x00800000u);
-        m->squareness_f[k] = f32_from_bits(i32_to_f32_bits(m->squareness_q36[k]));
+        /* converted in the FPU (rounded to nearest even, the rounding of
+         * i32_to_f32_bits); t / 2 is exact (|t| >= 1 is far from the
+         * subnormals). Not through the bits: the proof (docs/proofs.md) sees
+         * a converted integer is finite, not that a bit pattern is. */
+        m->tool_half_nm[k] = (float)m->tool_offset_nm[k] * 0.5f;
+        m->squareness_f[k] = (float)m->squareness_q36[k];
 #endif
     }
 #if defined(ABBE_X86_LANES)
     /* negated before the conversion (sign-symmetric, so exact); |S| <= 2^28 */
     m->square_dx_dy[0] = m->squareness_f[0];
-    m->square_dx_dy[1] = f32_from_bits(i32_to_f32_bits(-m->squareness_q36[2]));
-    m->square_dx_f[0] = f32_from_bits(i32_to_f32_bits(-m->squareness_q36[1]));
+    m->square_dx_dy[1] = (float)-m->squareness_q36[2];
+    m->square_dx_f[0] = (float)-m->squareness_q36[1];
 #endif
     /* dX has y S_xy - z S_xz, dY has -z S_yz, with y = p_y - ref_y, z = p_z - ref_z:
      * the ref parts are constants (|ref * S| <= 2^59). */
@@ -523,11 +528,11 @@ static void build_assembly(abbe_model_t *m)
                                  (abbe_ld_u32((b) + H_FEATURES) & (rotary)) != 0u ? ABBE_ROTARY_DATA_START        \
                                                                                   : DATA_START);                  \
         }                                                                                                          \
-        if ((st) == ABBE_OK) (st) = check_finite(b);                                                               \
-        if ((st) == ABBE_OK) (st) = check_twins(b);                                                                \
+        if ((st) == ABBE_OK) (st) = check_finite((b), (total));                                                    \
+        if ((st) == ABBE_OK) (st) = check_twins((b), (total));                                                     \
         if ((st) == ABBE_OK) (st) = check_periods(b);                                                              \
         if ((st) == ABBE_OK) (st) = check_travel(b);                                                               \
-        if ((st) == ABBE_OK) (st) = check_ranges(b);                                                               \
+        if ((st) == ABBE_OK) (st) = check_ranges((b), (total));                                                    \
     } while (0)
 
 /* *model as a view of the validated table b. */
@@ -686,9 +691,9 @@ static ABBE_NOINLINE int rotary_record_bad(const uint8_t *b, const uint8_t *rec,
     case RC_NONFINITE:
     case RC_MISMATCH:
         for (uint32_t i = 0; i < count; i++) {
-            uint32_t bits = abbe_ld_u32(b + off_f + 4u * i);
+            uint32_t bits = coef_word(b, total, off_f, i);
             if (cat == RC_NONFINITE ? abbe_f32_bits_nonfinite(bits)
-                                    : bits != i32_to_f32_bits(abbe_ld_i32(b + off_q + 4u * i))) {
+                                    : bits != i32_to_f32_bits(abbe_u32_to_i32(coef_word(b, total, off_q, i)))) {
                 return 1;
             }
         }
@@ -704,7 +709,7 @@ static ABBE_NOINLINE int rotary_record_bad(const uint8_t *b, const uint8_t *rec,
             }
             uint64_t l1 = 0;
             for (unsigned row = 0; row < rows; row++) {
-                l1 += mag_i32(abbe_ld_i32(b + off_q + 4u * (row * n_comp + column)));
+                l1 += mag_i32(abbe_u32_to_i32(coef_word(b, total, off_q, row * n_comp + column)));
             }
             if (l1 > (c < 3u ? LIN_L1_CAP : ANG_L1_CAP)) {
                 return 1;
