@@ -31,13 +31,15 @@ CPP="-Ilib/include -Ilib/src -DABBE_PORTABLE_C -DABBE_WITH_F32=1 -include tests/
 # (//@ split in the harness), the status of check_header kept apart from its
 # failures, the loader's call chain analysed state by state.
 EVA=(-eva -eva-no-show-progress -eva-print-callstacks -eva-msg-key=-final-states -eva-no-results
-     -eva-split-limit 100000 -eva-warn-key builtins:missing-spec=abort)
+     -eva-split-limit 100000)
 LOADER_PRECISION="-eva-split-return-function check_header:0 -eva-slevel-function"
 
 # name | sources | bound macro | extra options
 HARNESSES=(
-    "load3|tests/proofs/load3.c lib/src/model_load.c lib/src/crc32.c|-DPROOF_MAX_SIZE=512|$LOADER_PRECISION abbe_model_load:10"
-    "load5|tests/proofs/load5.c lib/src/five_load.c lib/src/crc32.c|-DPROOF_MAX_SIZE=560|$LOADER_PRECISION abbe_five_model_load:10"
+    "load3|tests/proofs/load3.c lib/src/model_load.c lib/src/crc32.c|-DPROOF_MAX_SIZE=512|$LOADER_PRECISION abbe_model_load:100"
+    "load5|tests/proofs/load5.c lib/src/five_load.c lib/src/crc32.c|-DPROOF_MAX_SIZE=560|$LOADER_PRECISION abbe_five_model_load:100"
+    "grblhal|tests/proofs/grblhal.c port/grblhal/src/abbe_grblhal_core.c $(ls lib/src/*.c | tr '\n' ' ')|-Iport/grblhal/include -DPROOF_CHUNK=64|-eva-auto-loop-unroll 16"
+    "lcnc_file|tests/proofs/lcnc_file.c port/linuxcnc/src/abbe_lcnc_file.c $(frama-c -print-share-path)/libc/string.c|-Iport/linuxcnc/include -DPROOF_MAX_SIZE=256|"
 )
 
 run_one() { # name sources defines options

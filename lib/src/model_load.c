@@ -818,7 +818,8 @@ abbe_status_t abbe_five_model_load(abbe_five_model_t *model, const void *blob, s
     for (unsigned k = 0; k < 3u; k++) {
         model->rot_point_nm[k] = abbe_ld_i32(h + RH_ROT_POINT + 4u * k);
         model->offset_nm[k] = abbe_ld_i32(h + RH_OFFSET + 4u * k);
-        model->tilt_pivot_nm[k] = model->rot_point_nm[k] + model->offset_nm[k]; /* |.| <= 2^31 - 2: fits */
+        /* |.| <= 2^31 - 2 (GEOMETRY_CAP): fits, so the sum mod 2^32 is the sum */
+        model->tilt_pivot_nm[k] = abbe_u32_to_i32((uint32_t)model->rot_point_nm[k] + (uint32_t)model->offset_nm[k]);
         model->squareness_q36[k] = abbe_ld_i32(h + RH_SQUARENESS + 4u * k);
     }
     build_rotary(&model->rotary[0], b, rotary_record(b, 0), model->kind == ABBE_KIN_XYZAC_TRT ? 0u : 1u);
