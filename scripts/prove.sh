@@ -36,8 +36,8 @@ LOADER_PRECISION="-eva-split-return-function check_header:0 -eva-slevel-function
 
 # name | sources | bound macro | extra options
 HARNESSES=(
-    "load3|tests/proofs/load3.c lib/src/model_load.c lib/src/crc32.c|-DPROOF_MAX_SIZE=512|$LOADER_PRECISION abbe_model_load:100"
-    "load5|tests/proofs/load5.c lib/src/five_load.c lib/src/crc32.c|-DPROOF_MAX_SIZE=560|$LOADER_PRECISION abbe_five_model_load:100"
+    "load3|tests/proofs/load3.c lib/src/model_load.c lib/src/crc32.c|-DPROOF_MAX_SIZE=512|$LOADER_PRECISION abbe_model_load:10"
+    "load5|tests/proofs/load5.c lib/src/five_load.c lib/src/crc32.c|-DPROOF_MAX_SIZE=560|$LOADER_PRECISION abbe_five_model_load:10"
     "grblhal|tests/proofs/grblhal.c port/grblhal/src/abbe_grblhal_core.c $(ls lib/src/*.c | tr '\n' ' ')|-Iport/grblhal/include -DPROOF_CHUNK=64|-eva-auto-loop-unroll 16"
     "lcnc_file|tests/proofs/lcnc_file.c port/linuxcnc/src/abbe_lcnc_file.c $(frama-c -print-share-path)/libc/string.c|-Iport/linuxcnc/include -DPROOF_MAX_SIZE=256|"
 )

@@ -218,8 +218,8 @@ static abbe_status_t check_offsets(const uint8_t *b, uint32_t total, uint32_t da
  * the table at different places. */
 static uint32_t coef_word(const uint8_t *b, uint32_t total, uint32_t off, uint32_t i)
 {
-    uint32_t at = off + 4u * i; /* mod 2^32; total >= MIN_TOTAL_SIZE */
-    return at <= total - 8u ? abbe_ld_u32(b + at) : 0u;
+    uint32_t at = off + 4u * i; /* mod 2^32 */
+    return total >= 8u && at <= total - 8u ? abbe_ld_u32(b + at) : 0u; /* total >= MIN_TOTAL_SIZE */
 }
 
 static abbe_status_t check_finite(const uint8_t *b, uint32_t total)

@@ -4,10 +4,12 @@
  * int32 nm, in and beyond the travel; float mm over +/-PROOF_MM), every
  * direction state and every temperature (docs/proofs.md). */
 #include "__fc_builtin.h"
+#include <string.h>
+
 #include "abbe/comp.h"
 #include "abbe/error.h"
 
-#include PROOF_TABLE /* const unsigned char table_bin[]; unsigned int table_bin_len; */
+#include PROOF_TABLE /* unsigned char table_bin[]; unsigned int table_bin_len; (xxd -i) */
 
 #ifndef PROOF_MM
 #define PROOF_MM 3000.0f
