@@ -4,7 +4,9 @@
 # and every ACSL property it reaches proven; then cppcheck's MISRA C:2012
 # addon and clang-tidy-14 (scripts/prove_lint.sh) when given --lint.
 # Fails naming the harness, the function, the place and the alarm.
-#   ./scripts/prove.sh [--jobs N] [--only NAME] [--lint]
+#   ./scripts/prove.sh [--jobs N] [--only NAME] [--lint] [--open]
+# --open runs the harnesses that do not hold yet instead (docs/proofs.md, "Not
+# proven yet"): they report their alarms and are not part of the pass.
 set -uo pipefail
 
 REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -13,11 +15,13 @@ OUT="${ABBE_PROOF_OUT:-$REPO/build-proofs}"
 JOBS=2
 ONLY=""
 LINT=0
+OPEN=0
 while (($#)); do
     case "$1" in
         --jobs) JOBS="$2"; shift 2 ;;
         --only) ONLY="$2"; shift 2 ;;
         --lint) LINT=1; shift ;;
+        --open) OPEN=1; shift ;;
         *) echo "usage: $0 [--jobs N] [--only NAME] [--lint]" >&2; exit 2 ;;
     esac
 done
@@ -37,7 +41,7 @@ LOADER_PRECISION="-eva-split-return-function check_header:0 -eva-slevel-function
 # name | sources | bound macro | extra options
 HARNESSES=(
     "load3|tests/proofs/load3.c lib/src/model_load.c lib/src/crc32.c|-DPROOF_MAX_SIZE=512|$LOADER_PRECISION abbe_model_load:10"
-    "load5|tests/proofs/load5.c lib/src/five_load.c lib/src/crc32.c|-DPROOF_MAX_SIZE=560|$LOADER_PRECISION abbe_five_model_load:10"
+    "load5|tests/proofs/load5.c lib/src/five_load.c lib/src/crc32.c|-DPROOF_MAX_SIZE=512|$LOADER_PRECISION abbe_five_model_load:40"
     "grblhal|tests/proofs/grblhal.c port/grblhal/src/abbe_grblhal_core.c $(ls lib/src/*.c | tr '\n' ' ')|-Iport/grblhal/include -DPROOF_CHUNK=64|-eva-auto-loop-unroll 16"
     "lcnc_file|tests/proofs/lcnc_file.c port/linuxcnc/src/abbe_lcnc_file.c $(frama-c -print-share-path)/libc/string.c|-Iport/linuxcnc/include -DPROOF_MAX_SIZE=256|"
 )
@@ -57,13 +61,28 @@ run_one() { # name sources defines options
     if [[ $rc -ne 0 || -z "$alarms" || "$alarms" != 0 || "$unknown" != 0 ]] || grep -q '^\[kernel\].*[Ee]rror\|User Error\|Neither code nor specification' "$log"; then
         echo "[prove] FAIL $name (${secs} s, rc $rc, ${alarms:-?} alarms, $unknown properties not proven): see $log"
         # each alarm: where, what, in which function (the first frame of its call stack)
-        awk '/^\[eva:alarm\]/ {loc = $2; getline what; getline stack; sub(/^ *stack: /, "", stack); sub(/ ::.*/, "", stack);
-                               gsub(/^ +/, "", what); printf "[prove]   %s in %s: %s\n", loc, stack, what}' "$log"
+        awk '/^\[eva:alarm\]/ { loc = $2; what = ""; inside = 1; next }
+             inside && /^ *stack: / { fn = $2; if ((getline nxt) > 0 && nxt !~ /^\[/) { split(nxt, c, " "); if (c[2] == "::") fn = fn " (called from " c[1] ")" }
+                                      printf "[prove]   %s in %s: %s\n", loc, fn, what; inside = 0; next }
+             inside { line = $0; gsub(/^ +/, "", line); what = what (what == "" ? "" : " ") line }' "$log"
         grep -m5 'User Error\|Neither code nor specification\|^\[kernel\].*[Ee]rror' "$log" | sed 's/^/[prove]   /'
         return 1
     fi
     echo "[prove] ok   $name: 0 alarms, every property proven (${secs} s; $(grep -o '[0-9]* statements reached (out of [0-9]*): [0-9]*% coverage' "$log" | tail -1))"
 }
+
+# not proven yet: the evaluators on an accepted table (alarms left, docs/proofs.md)
+# and the format 1.3 thermal loader, where the tree has it
+OPEN_HARNESSES=(
+    "eval|tests/proofs/eval.c $(ls lib/src/*.c | grep -v five_load | tr '\n' ' ')|-DPROOF_TABLE=\"$OUT/table_paper.h\"|-eva-auto-loop-unroll 16"
+)
+if [[ -f lib/src/thermal_load.c ]]; then
+    OPEN_HARNESSES+=("load_thermal|tests/proofs/load_thermal.c lib/src/thermal_load.c lib/src/crc32.c|-DPROOF_MAX_SIZE=512|$LOADER_PRECISION abbe_thermal_load:40")
+fi
+if ((OPEN)); then
+    (cd examples/paper_table && xxd -i model.bin | sed 's/model_bin/table_bin/') >"$OUT/table_paper.h"
+    HARNESSES=("${OPEN_HARNESSES[@]}")
+fi
 
 pids=()
 names=()
