@@ -800,7 +800,11 @@ abbe_status_t abbe_five_model_load(abbe_five_model_t *model, const void *blob, s
     uint32_t total = 0;
     abbe_status_t st;
     CHECK_TABLE(st, b, size, total, ABBE_FEATURE_ROTARY);
-    const int rotary = st == ABBE_OK && (abbe_ld_u32(b + H_FEATURES) & ABBE_FEATURE_ROTARY) != 0u;
+    /* total >= ABBE_ROTARY_DATA_START + 4 follows from check_header for a
+     * ROTARY table; stated here, where the rotary records are read, for the
+     * proof (docs/proofs.md) */
+    const int rotary = st == ABBE_OK && (abbe_ld_u32(b + H_FEATURES) & ABBE_FEATURE_ROTARY) != 0u &&
+                       total >= ABBE_ROTARY_DATA_START + 4u;
     if (rotary) {
         st = check_rotary(b, total);
     }
