@@ -79,7 +79,7 @@ run_one() { # name sources defines options
 # not proven yet: the evaluators on an accepted table (alarms left, docs/proofs.md)
 # and the format 1.3 thermal loader, where the tree has it
 OPEN_HARNESSES=(
-    "eval|tests/proofs/eval.c $(ls lib/src/*.c | grep -v five_load | tr '\n' ' ')|-DPROOF_TABLE=\"$OUT/table_paper.h\"|-eva-auto-loop-unroll 16 $LOADER_PRECISION abbe_model_load:10"
+    "eval|tests/proofs/eval.c $(ls lib/src/*.c | grep -v five_load | tr '\n' ' ')|-I$OUT|-eva-auto-loop-unroll 16 $LOADER_PRECISION abbe_model_load:10"
 )
 if [[ -f lib/src/thermal_load.c ]]; then
     OPEN_HARNESSES+=("load_thermal|tests/proofs/load_thermal.c lib/src/thermal_load.c lib/src/crc32.c|-DPROOF_MAX_SIZE=512|$LOADER_PRECISION abbe_thermal_load:40")

@@ -1,5 +1,5 @@
 /* Eva harness: the evaluators and the compensator on a table the loader
- * accepted (PROOF_TABLE, a C array of its bytes that scripts/prove.sh
+ * accepted (table_paper.h, a C array of its bytes that scripts/prove.sh
  * generates from examples/paper_table/model.bin), at every position (all of
  * int32 nm, in and beyond the travel; float mm over +/-PROOF_MM), every
  * direction state and every temperature (docs/proofs.md). */
@@ -9,7 +9,7 @@
 #include "abbe/comp.h"
 #include "abbe/error.h"
 
-#include PROOF_TABLE /* unsigned char table_bin[]; unsigned int table_bin_len; (xxd -i) */
+#include "table_paper.h" /* unsigned char table_bin[]; unsigned int table_bin_len; (xxd -i, written by scripts/prove.sh --open into build-proofs/) */
 
 #ifndef PROOF_MM
 #define PROOF_MM 3000.0f
