@@ -148,6 +148,7 @@ step "host release build and ctest (build)" host_release
 step "Cortex-M4F build and ctest under QEMU (build-m4f)" cross m4f cortex-m4f
 step "Cortex-M3 build and ctest under QEMU (build-m3)" cross m3 cortex-m3
 step "libFuzzer run (build-fuzz)" fuzz
+step "proofs: Frama-C Eva, MISRA C:2012, clang-tidy (scripts/prove.sh, docs/proofs.md)" ./scripts/prove.sh --lint
 step "Python import contracts (lint-imports)" import_contracts
 step "pytest host_tools/tests" pytest_all
 step "wheel: build, install outside the checkout, run abbe there" wheel_test

@@ -8,7 +8,7 @@
  * 1.1 (ABBE_NO_REVERSAL) reads no five-axis tables. */
 #if !defined(ABBE_NO_REVERSAL)
 #define ABBE_MODEL_LOAD_FIVE 1
-#include "model_load.c"
+#include "model_load.c" /* NOLINT(bugprone-suspicious-include): the same source compiled twice, on purpose */
 #else
 typedef int abbe_five_load_not_built; /* ISO C: a translation unit is not empty */
 #endif

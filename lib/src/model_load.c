@@ -221,14 +221,26 @@ static abbe_status_t check_offsets(const uint8_t *b, uint32_t total, uint32_t da
     return ABBE_OK;
 }
 
-static abbe_status_t check_finite(const uint8_t *b)
+/* Word i of the coefficient array at byte offset off of a table of total
+ * bytes. check_offsets() has placed every array inside [data start, total - 4)
+ * before any check reads one, so the bound never binds on a table that gets
+ * here; it makes each read's bound evident at the read, where the proof
+ * (docs/proofs.md) checks it without relating offsets and counts read from
+ * the table at different places. */
+static uint32_t coef_word(const uint8_t *b, uint32_t total, uint32_t off, uint32_t i)
+{
+    uint32_t at = off + 4u * i; /* mod 2^32 */
+    return total >= 8u && at <= total - 8u ? abbe_ld_u32(b + at) : 0u; /* total >= MIN_TOTAL_SIZE */
+}
+
+static abbe_status_t check_finite(const uint8_t *b, uint32_t total)
 {
     for (unsigned j = 0; j < ABBE_AXES; j++) {
         const uint8_t *rec = b + HEADER_SIZE + j * AXIS_RECORD_SIZE;
         uint32_t count = abbe_ld_u32(rec + A_COEF_COUNT);
-        const uint8_t *f = b + abbe_ld_u32(rec + A_COEF_F32);
+        uint32_t off_f = abbe_ld_u32(rec + A_COEF_F32);
         for (uint32_t i = 0; i < count; i++) {
-            if (abbe_f32_bits_nonfinite(abbe_ld_u32(f + 4u * i))) {
+            if (abbe_f32_bits_nonfinite(coef_word(b, total, off_f, i))) {
                 return ABBE_E_NONFINITE;
             }
         }
@@ -254,6 +266,7 @@ static unsigned bit_length(uint32_t v);
 
 static uint32_t i32_to_f32_bits(int32_t v)
 {
+    /*@ split v < 0; */ /* Eva: the two signs apart, so v != 0 below is an interval */
     if (v == 0) {
         return 0u;
     }
@@ -276,15 +289,15 @@ static uint32_t i32_to_f32_bits(int32_t v)
 
 /* The float32 array must be the int32 array converted: checked bit for bit, so
  * both variants evaluate the same table whatever wrote it. */
-static abbe_status_t check_twins(const uint8_t *b)
+static abbe_status_t check_twins(const uint8_t *b, uint32_t total)
 {
     for (unsigned j = 0; j < ABBE_AXES; j++) {
         const uint8_t *rec = b + HEADER_SIZE + j * AXIS_RECORD_SIZE;
         uint32_t count = abbe_ld_u32(rec + A_COEF_COUNT);
-        const uint8_t *q = b + abbe_ld_u32(rec + A_COEF_Q);
-        const uint8_t *f = b + abbe_ld_u32(rec + A_COEF_F32);
+        uint32_t off_q = abbe_ld_u32(rec + A_COEF_Q);
+        uint32_t off_f = abbe_ld_u32(rec + A_COEF_F32);
         for (uint32_t i = 0; i < count; i++) {
-            if (abbe_ld_u32(f + 4u * i) != i32_to_f32_bits(abbe_ld_i32(q + 4u * i))) {
+            if (coef_word(b, total, off_f, i) != i32_to_f32_bits(abbe_u32_to_i32(coef_word(b, total, off_q, i)))) {
                 return ABBE_E_MISMATCH;
             }
         }
@@ -332,7 +345,7 @@ static uint64_t abs_i32(int32_t v)
 }
 
 /* The caps keep every fixed-point intermediate below 2^63 (docs/numerics.md). */
-static abbe_status_t check_ranges(const uint8_t *b)
+static abbe_status_t check_ranges(const uint8_t *b, uint32_t total)
 {
     uint32_t features = abbe_ld_u32(b + H_FEATURES);
     for (unsigned k = 0; k < 3u; k++) {
@@ -353,7 +366,7 @@ static abbe_status_t check_ranges(const uint8_t *b)
         unsigned mask = rec[A_MASK];
         unsigned n_terms = popcount6(mask);
         uint32_t n_basis = n_basis_of(rec);
-        const uint8_t *q = b + abbe_ld_u32(rec + A_COEF_Q);
+        uint32_t off_q = abbe_ld_u32(rec + A_COEF_Q);
         unsigned column = 0;
         for (unsigned t = 0; t < ABBE_TERMS; t++) {
             if (!((mask >> t) & 1u)) {
@@ -361,7 +374,7 @@ static abbe_status_t check_ranges(const uint8_t *b)
             }
             uint64_t l1 = 0;
             for (uint32_t r = 0; r < n_basis; r++) {
-                l1 += abs_i32(abbe_ld_i32(q + 4u * (r * n_terms + column)));
+                l1 += abs_i32(abbe_u32_to_i32(coef_word(b, total, off_q, r * n_terms + column)));
             }
             if (l1 > (t < 3u ? LIN_L1_CAP : ANG_L1_CAP)) {
                 return ABBE_E_RANGE;
@@ -372,9 +385,8 @@ static abbe_status_t check_ranges(const uint8_t *b)
         /* the total reversal |B + R(p)| <= |B| + sum |r_k| <= 2^31 (keeps
          * s (B + R) below 2^62), counted down in 32 bits */
         uint32_t left = REVERSAL_L1_CAP - mag_i32(abbe_ld_i32(rec + A_BACKLASH));
-        const uint8_t *r = q + 4u * n_basis * n_terms;
         for (unsigned k = 0; k < REVERSAL_ROWS(rec); k++) {
-            uint32_t a = mag_i32(abbe_ld_i32(r + 4u * k));
+            uint32_t a = mag_i32(abbe_u32_to_i32(coef_word(b, total, off_q, n_basis * n_terms + k)));
             if (a > left) {
                 return ABBE_E_RANGE;
             }
@@ -438,6 +450,7 @@ static void build_axis(abbe_axis_model_t *ax, const uint8_t *b, const uint8_t *r
      * a power-of-two span, stored as 2^32 - 1 (exact all the same there:
      * d << shift <= 2^31, internal.h). */
     uint32_t span = (uint32_t)ax->travel_max_nm - (uint32_t)ax->travel_min_nm; /* < 2^32, > 0 */
+    span = span != 0u ? span : 1u; /* never binds (check_travel): the divisor's bound, stated for the proof */
     unsigned n = bit_length(span);
     uint64_t mul = (((uint64_t)1 << (31u + n)) + span / 2u) / span;
     ax->span_nm = span;
@@ -453,9 +466,10 @@ static void build_axis(abbe_axis_model_t *ax, const uint8_t *b, const uint8_t *r
         ax->phase_min[k] = from_origin * ax->freq[k];
     }
     ax->backlash_reversal_q8 = abbe_ld_i32(rec + A_BACKLASH);
-    ax->backlash_takeup_nm = abbe_ld_i32(rec + A_TAKEUP);
-    if (ax->backlash_takeup_nm > 0) {
-        uint64_t takeup = (uint64_t)ax->backlash_takeup_nm;
+    const int32_t takeup_nm = abbe_ld_i32(rec + A_TAKEUP); /* a local: the divisor's test is where it is read */
+    ax->backlash_takeup_nm = takeup_nm;
+    if (takeup_nm > 0) {
+        uint64_t takeup = (uint64_t)takeup_nm;
         ax->takeup_rate_q46 = (((uint64_t)1 << 46) + takeup / 2u) / takeup;
     }
     ax->thermal_expansion_q50 = abbe_ld_i32(rec + A_EXPANSION);
@@ -465,16 +479,6 @@ static void build_axis(abbe_axis_model_t *ax, const uint8_t *b, const uint8_t *r
     ax->reversal_rows = rec[A_REVERSAL_ROWS];
 #endif
 }
-
-#if ABBE_WITH_F32
-/* A float from its IEEE bits (no arithmetic: the fixed-point build has no FPU). */
-static float f32_from_bits(uint32_t bits)
-{
-    float f;
-    memcpy(&f, &bits, sizeof f);
-    return f;
-}
-#endif
 
 /* The constants of Eq. 3 that do not depend on the position (abbe_eval_*_core). */
 static void build_assembly(abbe_model_t *m)
@@ -498,18 +502,19 @@ static void build_assembly(abbe_model_t *m)
 #endif
 #endif
 #if ABBE_WITH_F32
-        /* t / 2 in float: the converted value with its exponent lowered by one
-         * (exact; |t| >= 1 is far from the subnormals) */
-        uint32_t t_bits = i32_to_f32_bits(m->tool_offset_nm[k]);
-        m->tool_half_nm[k] = f32_from_bits(t_bits == 0u ? 0u : t_bits - 0x00800000u);
-        m->squareness_f[k] = f32_from_bits(i32_to_f32_bits(m->squareness_q36[k]));
+        /* converted in the FPU (rounded to nearest even, the rounding of
+         * i32_to_f32_bits); t / 2 is exact (|t| >= 1 is far from the
+         * subnormals). Not through the bits: the proof (docs/proofs.md) sees
+         * a converted integer is finite, not that a bit pattern is. */
+        m->tool_half_nm[k] = (float)m->tool_offset_nm[k] * 0.5f;
+        m->squareness_f[k] = (float)m->squareness_q36[k];
 #endif
     }
 #if defined(ABBE_X86_LANES)
     /* negated before the conversion (sign-symmetric, so exact); |S| <= 2^28 */
     m->square_dx_dy[0] = m->squareness_f[0];
-    m->square_dx_dy[1] = f32_from_bits(i32_to_f32_bits(-m->squareness_q36[2]));
-    m->square_dx_f[0] = f32_from_bits(i32_to_f32_bits(-m->squareness_q36[1]));
+    m->square_dx_dy[1] = (float)-m->squareness_q36[2];
+    m->square_dx_f[0] = (float)-m->squareness_q36[1];
 #endif
     /* dX has y S_xy - z S_xz, dY has -z S_yz, with y = p_y - ref_y, z = p_z - ref_z:
      * the ref parts are constants (|ref * S| <= 2^59). */
@@ -534,11 +539,11 @@ static void build_assembly(abbe_model_t *m)
                                  (abbe_ld_u32((b) + H_FEATURES) & (rotary)) != 0u ? ABBE_ROTARY_DATA_START        \
                                                                                   : DATA_START);                  \
         }                                                                                                          \
-        if ((st) == ABBE_OK) (st) = check_finite(b);                                                               \
-        if ((st) == ABBE_OK) (st) = check_twins(b);                                                                \
+        if ((st) == ABBE_OK) (st) = check_finite((b), (total));                                                    \
+        if ((st) == ABBE_OK) (st) = check_twins((b), (total));                                                     \
         if ((st) == ABBE_OK) (st) = check_periods(b);                                                              \
         if ((st) == ABBE_OK) (st) = check_travel(b);                                                               \
-        if ((st) == ABBE_OK) (st) = check_ranges(b);                                                               \
+        if ((st) == ABBE_OK) (st) = check_ranges((b), (total));                                                    \
     } while (0)
 
 /* *model as a view of the validated table b. */
@@ -699,9 +704,9 @@ static ABBE_NOINLINE int rotary_record_bad(const uint8_t *b, const uint8_t *rec,
     case RC_NONFINITE:
     case RC_MISMATCH:
         for (uint32_t i = 0; i < count; i++) {
-            uint32_t bits = abbe_ld_u32(b + off_f + 4u * i);
+            uint32_t bits = coef_word(b, total, off_f, i);
             if (cat == RC_NONFINITE ? abbe_f32_bits_nonfinite(bits)
-                                    : bits != i32_to_f32_bits(abbe_ld_i32(b + off_q + 4u * i))) {
+                                    : bits != i32_to_f32_bits(abbe_u32_to_i32(coef_word(b, total, off_q, i)))) {
                 return 1;
             }
         }
@@ -717,7 +722,7 @@ static ABBE_NOINLINE int rotary_record_bad(const uint8_t *b, const uint8_t *rec,
             }
             uint64_t l1 = 0;
             for (unsigned row = 0; row < rows; row++) {
-                l1 += mag_i32(abbe_ld_i32(b + off_q + 4u * (row * n_comp + column)));
+                l1 += mag_i32(abbe_u32_to_i32(coef_word(b, total, off_q, row * n_comp + column)));
             }
             if (l1 > (c < 3u ? LIN_L1_CAP : ANG_L1_CAP)) {
                 return 1;
@@ -808,7 +813,11 @@ abbe_status_t abbe_five_model_load(abbe_five_model_t *model, const void *blob, s
     uint32_t total = 0;
     abbe_status_t st;
     CHECK_TABLE(st, b, size, total, ABBE_FEATURE_ROTARY);
-    const int rotary = st == ABBE_OK && (abbe_ld_u32(b + H_FEATURES) & ABBE_FEATURE_ROTARY) != 0u;
+    /* total >= ABBE_ROTARY_DATA_START + 4 follows from check_header for a
+     * ROTARY table; stated here, where the rotary records are read, for the
+     * proof (docs/proofs.md) */
+    const int rotary = st == ABBE_OK && (abbe_ld_u32(b + H_FEATURES) & ABBE_FEATURE_ROTARY) != 0u &&
+                       total >= ABBE_ROTARY_DATA_START + 4u;
     if (rotary) {
         st = check_rotary(b, total);
     }
@@ -826,7 +835,8 @@ abbe_status_t abbe_five_model_load(abbe_five_model_t *model, const void *blob, s
     for (unsigned k = 0; k < 3u; k++) {
         model->rot_point_nm[k] = abbe_ld_i32(h + RH_ROT_POINT + 4u * k);
         model->offset_nm[k] = abbe_ld_i32(h + RH_OFFSET + 4u * k);
-        model->tilt_pivot_nm[k] = model->rot_point_nm[k] + model->offset_nm[k]; /* |.| <= 2^31 - 2: fits */
+        /* |.| <= 2^31 - 2 (GEOMETRY_CAP): fits, so the sum mod 2^32 is the sum */
+        model->tilt_pivot_nm[k] = abbe_u32_to_i32((uint32_t)model->rot_point_nm[k] + (uint32_t)model->offset_nm[k]);
         model->squareness_q36[k] = abbe_ld_i32(h + RH_SQUARENESS + 4u * k);
     }
     build_rotary(&model->rotary[0], b, rotary_record(b, 0), model->kind == ABBE_KIN_XYZAC_TRT ? 0u : 1u);

@@ -386,6 +386,7 @@ uint32_t abbe_gh_line_begin(const abbe_gh_t *gh, abbe_gh_line_t *line, const flo
         /* A reversal of an axis with a take-up: its direction state ramps
          * linearly over the take-up distance; a segment that ends where the
          * ramp ends keeps the chord on the model. */
+        /* NOLINTNEXTLINE(bugprone-narrowing-conversions): -1, 0 or 1 fit an int8_t */
         int8_t dir = d > 0.0f ? 1 : (d < 0.0f ? -1 : 0);
         if (s != NULL && dir != 0 && dir != gh->last_dir[j] && s->takeup_mm[j] > 0.0f) {
             float t = s->takeup_mm[j] / absf(d);
@@ -440,6 +441,7 @@ uint32_t abbe_gh_forward(abbe_gh_t *gh, const float cart[ABBE_AXES], float motor
     int8_t dir[ABBE_AXES];
     for (unsigned j = 0; j < ABBE_AXES; j++) {
         float d = gh->have_last ? cart[j] - gh->last_cart[j] : 0.0f;
+        /* NOLINTNEXTLINE(bugprone-narrowing-conversions): -1, 0 or 1 fit an int8_t */
         dir[j] = d > 0.0f ? 1 : (d < 0.0f ? -1 : 0);
     }
     const float *tref = gh->running != NO_SLOT ? gh->slot[gh->running].tref_c : gh->slot[0].tref_c;
@@ -608,11 +610,15 @@ abbe_status_t abbe_gh_upload_data(abbe_gh_t *gh, uint32_t offset, const uint8_t 
         *why = "chunk out of order (offset is not the number of bytes received)";
         return ABBE_E_ARG;
     }
-    if (n > gh->stage.size - gh->stage.received) {
+    /* the second test never binds (received <= size <= the slot's bytes): the
+     * slot's bound stated where the copy is, for the proof (docs/proofs.md) */
+    if (n > gh->stage.size - gh->stage.received || offset > ABBE_GH_TABLE_MAX_BYTES - n) {
         *why = "chunk runs past the announced size";
         return ABBE_E_ARG;
     }
-    memcpy((uint8_t *)gh->slot[gh->stage.slot].blob + offset, data, n);
+    if (n != 0u) { /* an empty chunk at the end would pass memcpy a pointer past the slot */
+        memcpy((uint8_t *)gh->slot[gh->stage.slot].blob + offset, data, n);
+    }
     gh->stage.received += n;
     return ABBE_OK;
 }

@@ -1,0 +1,61 @@
+#!/usr/bin/env bash
+# MISRA C:2012 (cppcheck's addon) and clang-tidy-14 (bugprone-*, cert-*,
+# clang-analyzer-*) on lib/ and the ports' portable cores (docs/misra.md).
+# A MISRA finding passes only if docs/misra.md's deviation table lists its
+# rule for its file (tests/proofs/misra_deviations.txt is that table, machine
+# readable); any clang-tidy finding fails. Prints each finding that fails.
+#   ./scripts/prove_lint.sh
+set -uo pipefail
+REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$REPO"
+OUT="${ABBE_PROOF_OUT:-$REPO/build-proofs}"
+mkdir -p "$OUT"
+
+LIB=(lib/src/*.c)
+# the ports' portable cores: what runs in a drive or controller, no OS calls
+PORTS=(port/modbus/src/regs.c port/socketcan/src/can_node.c port/socketcan/src/can_config_check.c
+       port/socketcan/src/can_frame.c port/socketcan/src/can_status.c port/grblhal/src/abbe_grblhal_core.c)
+INC=(-Ilib/include -Ilib/src -Iport/modbus/include -Iport/socketcan/include -Iport/socketcan/src
+     -Iport/grblhal/include)
+DEV="tests/proofs/misra_deviations.txt"
+fail=0
+
+t0=$SECONDS
+mkdir -p "$OUT/cppcheck"
+cppcheck --addon=misra --std=c99 -q -j2 --cppcheck-build-dir="$OUT/cppcheck" "${INC[@]}" -DABBE_PORTABLE_C --platform=unix64 \
+    --template='{file}:{line}: {id}: {message}' "${LIB[@]}" "${PORTS[@]}" 2>"$OUT/misra.txt"
+# a finding: file:line: id: message; its rule must be deviated for a glob matching its file
+awk -v dev="$DEV" '
+    BEGIN { while ((getline l < dev) > 0) { if (l ~ /^#/ || l ~ /^[ \t]*$/) continue; split(l, f, /[ \t]+/); n++; rule[n] = f[1]; glob[n] = f[2] } }
+    function covered(file, id,    i, g) {
+        for (i = 1; i <= n; i++) {
+            if (id != "misra-c2012-" rule[i] && id != rule[i]) continue
+            g = glob[i]; gsub(/\./, "\\.", g); gsub(/\*/, ".*", g)
+            if (file ~ ("^" g "$")) return 1
+        }
+        return 0
+    }
+    /^[^ ]+:[0-9]+: [A-Za-z0-9._-]+: / {
+        split($0, p, ": "); split(p[1], fl, ":"); id = p[2]
+        total++
+        if (covered(fl[1], id)) { deviated++; next }
+        bad++; print "[lint] MISRA/cppcheck: " $0
+    }
+    END { printf "[lint] cppcheck: %d findings, %d under a listed deviation, %d not\n", total, deviated, bad; exit bad > 0 }
+' "$OUT/misra.txt" || fail=1
+echo "[lint] cppcheck $(cppcheck --version | cut -d" " -f2): $((SECONDS - t0)) s"
+
+t0=$SECONDS
+# two bugprone checks are heuristics about style, not defects (docs/misra.md):
+# easily-swappable-parameters (API shape) and implicit-widening-of-multiplication-
+# result (uint32 byte offsets, in range: the Eva proofs bound them)
+clang-tidy-14 --quiet -checks='-*,bugprone-*,cert-*,clang-analyzer-*,-bugprone-easily-swappable-parameters,-bugprone-implicit-widening-of-multiplication-result' \
+    "${LIB[@]}" "${PORTS[@]}" \
+    -- -std=c99 "${INC[@]}" -DABBE_PORTABLE_C >"$OUT/clang-tidy.txt" 2>&1
+n=$(grep -c ': \(warning\|error\): ' "$OUT/clang-tidy.txt")
+if ((n)); then
+    grep ': \(warning\|error\): ' "$OUT/clang-tidy.txt" | sed 's/^/[lint] clang-tidy: /'
+    fail=1
+fi
+echo "[lint] clang-tidy-14: $n findings ($((SECONDS - t0)) s)"
+exit $fail
