@@ -3,8 +3,9 @@
 #include "abbe/thermal.h"
 #include "comp_core.h"
 
-abbe_status_t abbe_comp_step_thermal_f32(abbe_comp_t *comp, abbe_thermal_state_t *thermal,
-                                         const abbe_comp_input_f32_t *in, abbe_comp_output_t *out)
+static inline abbe_status_t comp_step_thermal_f32(abbe_comp_t *comp, abbe_thermal_state_t *thermal,
+                                                  const abbe_comp_input_f32_t *in, abbe_comp_output_t *out, int timed,
+                                                  uint32_t elapsed_ms)
 {
     if (comp == NULL || in == NULL || out == NULL) {
         return ABBE_E_ARG;
@@ -20,7 +21,11 @@ abbe_status_t abbe_comp_step_thermal_f32(abbe_comp_t *comp, abbe_thermal_state_t
     int have_error = 0;
     float th[ABBE_AXES] = {0.0f, 0.0f, 0.0f};
     if (thermal != NULL && thermal->model != NULL) {
-        abbe_thermal_apply_f32(thermal, th); /* every cycle: its fades and watchdog run on */
+        if (timed) {
+            abbe_thermal_apply_ms_f32(thermal, th, elapsed_ms);
+        } else {
+            abbe_thermal_apply_f32(thermal, th); /* every cycle: its fades and watchdog run on */
+        }
     }
     if (input_ok && comp->model != NULL) {
         abbe_comp_track_direction(comp, pos_nm, in->dir);
@@ -42,4 +47,16 @@ abbe_status_t abbe_comp_step_thermal_f32(abbe_comp_t *comp, abbe_thermal_state_t
     }
     abbe_comp_finish(comp, input_ok, have_error ? error_nm : NULL, flags, in->axis_fault_mask, out);
     return ABBE_OK;
+}
+
+abbe_status_t abbe_comp_step_thermal_f32(abbe_comp_t *comp, abbe_thermal_state_t *thermal,
+                                         const abbe_comp_input_f32_t *in, abbe_comp_output_t *out)
+{
+    return comp_step_thermal_f32(comp, thermal, in, out, 0, 0u);
+}
+
+abbe_status_t abbe_comp_step_thermal_ms_f32(abbe_comp_t *comp, abbe_thermal_state_t *thermal, uint32_t elapsed_ms,
+                                            const abbe_comp_input_f32_t *in, abbe_comp_output_t *out)
+{
+    return comp_step_thermal_f32(comp, thermal, in, out, 1, elapsed_ms);
 }

@@ -119,7 +119,7 @@ abbe_status_t abbe_thermal_update_f32(abbe_thermal_state_t *st, const float x[],
 
 /* One fade step of every channel toward its target (1 running, else 0), the
  * mix and the flags in the same pass (HOLD changes only at a sample). */
-static void th_fade_f32(abbe_thermal_state_t *st)
+static inline void th_fade_f32(abbe_thermal_state_t *st, float step)
 {
     const abbe_thermal_model_t *th = st->model;
     float out[3] = {0.0f, 0.0f, 0.0f};
@@ -127,11 +127,11 @@ static void th_fade_f32(abbe_thermal_state_t *st)
     for (unsigned c = 0; c < th->n_channels; c++) {
         float w = st->w[c];
         if (st->ch_state[c] == TH_CH_RUN && !st->gap) {
-            w += st->fade_step;
+            w += step;
             w = w > 1.0f ? 1.0f : w;
             fading |= w < 1.0f;
         } else {
-            w -= st->fade_step;
+            w -= step;
             w = w < 0.0f ? 0.0f : w;
             fading |= w > 0.0f;
         }
@@ -157,7 +157,27 @@ void abbe_thermal_apply_f32(abbe_thermal_state_t *st, float err_um[3])
         st->events |= ABBE_THERMAL_F_GAP;
     }
     if (st->fading) {
-        th_fade_f32(st);
+        th_fade_f32(st, st->fade_step);
+    }
+    err_um[0] += st->out[0];
+    err_um[1] += st->out[1];
+    err_um[2] += st->out[2];
+}
+
+void abbe_thermal_apply_ms_f32(abbe_thermal_state_t *st, float err_um[3], uint32_t elapsed_ms)
+{
+    const abbe_thermal_model_t *th = st->model;
+    /* since_update counts ms here (saturating just past max_gap) */
+    uint32_t cap = th->max_gap_ms + 1u;
+    st->since_update = elapsed_ms >= cap - st->since_update ? cap : st->since_update + elapsed_ms;
+    if (st->since_update > th->max_gap_ms && !st->gap && st->seen != 0u) {
+        st->gap = 1u;
+        st->fading = 1u;
+        st->events |= ABBE_THERMAL_F_GAP;
+    }
+    if (st->fading) {
+        float step = elapsed_ms >= th->fade_ms ? 1.0f : (float)elapsed_ms / (float)th->fade_ms;
+        th_fade_f32(st, step);
     }
     err_um[0] += st->out[0];
     err_um[1] += st->out[1];

@@ -141,7 +141,7 @@ abbe_status_t abbe_thermal_update_q(abbe_thermal_state_t *st, const int32_t x_mi
 
 /* One fade step of every channel, the mix and the flags in one pass (HOLD
  * changes only at a sample). */
-static void th_fade_q(abbe_thermal_state_t *st)
+static inline void th_fade_q(abbe_thermal_state_t *st, uint32_t step)
 {
     const abbe_thermal_model_t *th = st->model;
     int64_t out[3] = {0, 0, 0};
@@ -149,10 +149,10 @@ static void th_fade_q(abbe_thermal_state_t *st)
     for (unsigned c = 0; c < th->n_channels; c++) {
         uint32_t w = st->wq24[c];
         if (st->ch_state[c] == TH_CH_RUN && !st->gap) {
-            w = TH_FADE_ONE - w > st->fade_step_q24 ? w + st->fade_step_q24 : TH_FADE_ONE;
+            w = TH_FADE_ONE - w > step ? w + step : TH_FADE_ONE;
             fading |= w < TH_FADE_ONE;
         } else {
-            w = w > st->fade_step_q24 ? w - st->fade_step_q24 : 0u;
+            w = w > step ? w - step : 0u;
             fading |= w > 0u;
         }
         st->wq24[c] = w;
@@ -192,9 +192,32 @@ void abbe_thermal_apply_q(abbe_thermal_state_t *st, int32_t err_nm[3])
         st->events |= ABBE_THERMAL_F_GAP;
     }
     if (st->fading) {
-        th_fade_q(st);
+        th_fade_q(st, st->fade_step_q24);
     }
     /* saturating: the sum stays an int32 whatever the error it is added to */
+    err_nm[0] = th_sat_add(err_nm[0], st->outq[0]);
+    err_nm[1] = th_sat_add(err_nm[1], st->outq[1]);
+    err_nm[2] = th_sat_add(err_nm[2], st->outq[2]);
+}
+
+void abbe_thermal_apply_ms_q(abbe_thermal_state_t *st, int32_t err_nm[3], uint32_t elapsed_ms)
+{
+    const abbe_thermal_model_t *th = st->model;
+    /* since_update counts ms here (saturating just past max_gap) */
+    uint32_t cap = th->max_gap_ms + 1u;
+    st->since_update = elapsed_ms >= cap - st->since_update ? cap : st->since_update + elapsed_ms;
+    if (st->since_update > th->max_gap_ms && !st->gap && st->seen != 0u) {
+        st->gap = 1u;
+        st->fading = 1u;
+        st->events |= ABBE_THERMAL_F_GAP;
+    }
+    if (st->fading) {
+        /* weight change elapsed / fade (Q24); the 64-bit division only while fading */
+        uint32_t step = elapsed_ms >= th->fade_ms
+                            ? TH_FADE_ONE
+                            : (uint32_t)((((uint64_t)elapsed_ms << 24) + th->fade_ms / 2u) / th->fade_ms);
+        th_fade_q(st, step);
+    }
     err_nm[0] = th_sat_add(err_nm[0], st->outq[0]);
     err_nm[1] = th_sat_add(err_nm[1], st->outq[1]);
     err_nm[2] = th_sat_add(err_nm[2], st->outq[2]);

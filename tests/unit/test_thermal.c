@@ -498,6 +498,119 @@ static void test_comp_step_thermal(void **state)
     assert_int_equal(abbe_comp_step_thermal_q(NULL, &ts, NULL, NULL), ABBE_E_ARG);
 }
 
+/* apply_ms: the fades and the watchdog advanced by real time. With a whole
+ * period per call it equals apply() at that period (bit for bit in _q, the
+ * same Q24 fade step); with irregular gaps (0 ms too) the weights move by
+ * elapsed / fade_ms per call and a missing sample is flagged after max_gap_ms
+ * of elapsed time, not calls. */
+static void test_apply_ms(void **state)
+{
+    (void)state;
+    abbe_model_t m;
+    abbe_thermal_model_t th;
+    abbe_thermal_state_t per, tim, fl;
+    assert_int_equal(abbe_thermal_load(&m, &th, abbe_golden_thermal_blob, abbe_golden_thermal_blob_size), ABBE_OK);
+    assert_int_equal(abbe_thermal_init_q(&per, &th, 1000000u), ABBE_OK);
+    assert_int_equal(abbe_thermal_init_q(&tim, &th, 1u), ABBE_OK); /* period unused with apply_ms */
+    assert_int_equal(abbe_thermal_init_f32(&fl, &th, 1.0f), ABBE_OK);
+    int32_t ep[3], et[3];
+    float ef[3];
+    /* 1 s per call, a fault on input 16 from sample 20 to 24, then no sample for 200 s */
+    for (uint32_t n = 0; n < 30u; n++) {
+        uint32_t mask = (n >= 20u && n < 25u) ? 0x0FFFFu : 0x1FFFFu;
+        uint32_t dt = n ? S[n].dt_ms : 0u;
+        assert_int_equal(abbe_thermal_update_q(&per, S[n].x_milli, mask, dt), ABBE_OK);
+        assert_int_equal(abbe_thermal_update_q(&tim, S[n].x_milli, mask, dt), ABBE_OK);
+        for (uint32_t k = 0; k < 40u; k++) {
+            memset(ep, 0, sizeof ep);
+            memset(et, 0, sizeof et);
+            abbe_thermal_apply_q(&per, ep);
+            abbe_thermal_apply_ms_q(&tim, et, 1000u);
+            assert_memory_equal(ep, et, sizeof ep);
+            assert_int_equal(abbe_thermal_flags(&per), abbe_thermal_flags(&tim));
+        }
+    }
+    for (uint32_t k = 0; k < 200u; k++) {
+        memset(ep, 0, sizeof ep);
+        memset(et, 0, sizeof et);
+        abbe_thermal_apply_q(&per, ep);
+        abbe_thermal_apply_ms_q(&tim, et, 1000u);
+        assert_memory_equal(ep, et, sizeof ep);
+    }
+    assert_true(abbe_thermal_events(&tim) & ABBE_THERMAL_F_GAP);
+
+    /* irregular: steady first (f32 and q side by side) */
+    assert_int_equal(abbe_thermal_init_q(&tim, &th, 1u), ABBE_OK);
+    for (uint32_t n = 0; n < 20u; n++) {
+        uint32_t dt = n ? S[n].dt_ms : 0u;
+        assert_int_equal(abbe_thermal_update_q(&tim, S[n].x_milli, 0x1FFFFu, dt), ABBE_OK);
+        assert_int_equal(abbe_thermal_update_f32(&fl, S[n].x, 0x1FFFFu, (float)dt * 0.001f), ABBE_OK);
+        memset(et, 0, sizeof et);
+        memset(ef, 0, sizeof ef);
+        abbe_thermal_apply_ms_q(&tim, et, 40000u); /* > fade: a whole fade at once */
+        abbe_thermal_apply_ms_f32(&fl, ef, 40000u);
+    }
+    assert_int_equal(abbe_thermal_flags(&tim) & ABBE_THERMAL_F_FADING, 0u);
+    assert_int_equal(abbe_thermal_flags(&fl) & ABBE_THERMAL_F_FADING, 0u);
+    int32_t full[3];
+    memcpy(full, et, sizeof full);
+    for (unsigned a = 0; a < 3u; a++) {
+        assert_true(absdiff(et[a], (int32_t)(ef[a] * 1000.0f)) <= 2 + (full[a] < 0 ? -full[a] : full[a]) / 1000);
+    }
+    /* the speed input opens: fade out by elapsed time, 0 ms calls change nothing */
+    assert_int_equal(abbe_thermal_update_q(&tim, S[20].x_milli, 0x0FFFFu, S[20].dt_ms), ABBE_OK);
+    assert_int_equal(abbe_thermal_update_f32(&fl, S[20].x, 0x0FFFFu, (float)S[20].dt_ms * 0.001f), ABBE_OK);
+    static const uint32_t gaps[] = {0u, 7u, 0u, 1500u, 13u, 250u, 0u, 4000u, 999u, 2u, 10000u, 3333u, 9000u, 2000u};
+    uint32_t t = 0u;
+    int32_t prev[3];
+    memcpy(prev, full, sizeof prev);
+    for (unsigned i = 0; i < sizeof gaps / sizeof gaps[0]; i++) {
+        t += gaps[i];
+        memset(et, 0, sizeof et);
+        memset(ef, 0, sizeof ef);
+        abbe_thermal_apply_ms_q(&tim, et, gaps[i]);
+        abbe_thermal_apply_ms_f32(&fl, ef, gaps[i]);
+        for (unsigned a = 0; a < 3u; a++) {
+            int64_t left = t >= 30000u ? 0 : 30000 - (int64_t)t;
+            int64_t expect = (int64_t)full[a] * left / 30000;
+            int32_t tol = 2 + (full[a] < 0 ? -full[a] : full[a]) / 1000;
+            assert_true(absdiff(et[a], (int32_t)expect) <= tol);
+            assert_true(absdiff((int32_t)(ef[a] * 1000.0f), (int32_t)expect) <= tol);
+            /* no step larger than the fade rate allows for the time that passed */
+            int64_t allowed = ((int64_t)(full[a] < 0 ? -full[a] : full[a]) * gaps[i]) / 30000 + 2;
+            assert_true(absdiff(et[a], prev[a]) <= allowed);
+            if (gaps[i] == 0u) {
+                assert_int_equal(et[a], prev[a]);
+            }
+        }
+        memcpy(prev, et, sizeof prev);
+    }
+    assert_true(t >= 30000u);
+    assert_int_equal(et[0], 0);
+    assert_true(abbe_thermal_flags(&tim) & ABBE_THERMAL_F_HOLD);
+    /* the watchdog counts ms: max_gap is 120 s after the last update */
+    assert_int_equal(abbe_thermal_update_q(&tim, S[21].x_milli, 0x1FFFFu, S[21].dt_ms), ABBE_OK);
+    assert_int_equal(abbe_thermal_update_f32(&fl, S[21].x, 0x1FFFFu, (float)S[21].dt_ms * 0.001f), ABBE_OK);
+    abbe_thermal_clear_events(&tim);
+    abbe_thermal_clear_events(&fl);
+    for (uint32_t k = 0; k < 1199u; k++) { /* 119.9 s in 100 ms calls */
+        abbe_thermal_apply_ms_q(&tim, et, 100u);
+        abbe_thermal_apply_ms_f32(&fl, ef, 100u);
+    }
+    abbe_thermal_apply_ms_q(&tim, et, 100u); /* exactly 120 s: not yet late */
+    abbe_thermal_apply_ms_f32(&fl, ef, 100u);
+    assert_int_equal(abbe_thermal_events(&tim) & ABBE_THERMAL_F_GAP, 0u);
+    assert_int_equal(abbe_thermal_events(&fl) & ABBE_THERMAL_F_GAP, 0u);
+    abbe_thermal_apply_ms_q(&tim, et, 1u);
+    abbe_thermal_apply_ms_f32(&fl, ef, 1u);
+    assert_true(abbe_thermal_flags(&tim) & ABBE_THERMAL_F_GAP);
+    assert_true(abbe_thermal_flags(&fl) & ABBE_THERMAL_F_GAP);
+    /* a huge elapsed time saturates (no wrap back under max_gap) */
+    abbe_thermal_apply_ms_q(&tim, et, 0xFFFFFFFFu);
+    abbe_thermal_apply_ms_q(&tim, et, 0xFFFFFFFFu);
+    assert_true(abbe_thermal_flags(&tim) & ABBE_THERMAL_F_GAP);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -506,6 +619,7 @@ int main(void)
         cmocka_unit_test(test_faults_f32),  cmocka_unit_test(test_fade_rate_q),
         cmocka_unit_test(test_args),
         cmocka_unit_test(test_comp_step_thermal),
+        cmocka_unit_test(test_apply_ms),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

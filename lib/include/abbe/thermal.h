@@ -163,6 +163,17 @@ abbe_status_t abbe_thermal_update_q(abbe_thermal_state_t *st, const int32_t x_mi
 void abbe_thermal_apply_f32(abbe_thermal_state_t *st, float err_um[3]);
 void abbe_thermal_apply_q(abbe_thermal_state_t *st, int32_t err_nm[3]);
 
+/* The same with the fades and the missing-sample watchdog advanced by real
+ * time instead of one period: elapsed_ms since the previous apply (0 is
+ * fine: nothing advances), for a caller that evaluates at irregular
+ * instants (the grblHAL plugin: once per planner segment). The weights then
+ * move by at most elapsed_ms / fade_ms per call, and a missing sample is
+ * flagged once more than max_gap_ms have passed since the last update().
+ * A state is driven by apply() or by apply_ms(), never both (the period
+ * given to init is then unused). */
+void abbe_thermal_apply_ms_f32(abbe_thermal_state_t *st, float err_um[3], uint32_t elapsed_ms);
+void abbe_thermal_apply_ms_q(abbe_thermal_state_t *st, int32_t err_nm[3], uint32_t elapsed_ms);
+
 /* Channel values after their limits, unfaded (um / urad; _q nm / nrad), in the
  * table's channel order; returns the channel count. */
 unsigned abbe_thermal_channels_f32(const abbe_thermal_state_t *st, float y[ABBE_THERMAL_MAX_CHANNELS]);
@@ -188,6 +199,13 @@ abbe_status_t abbe_comp_step_thermal_f32(abbe_comp_t *comp, abbe_thermal_state_t
                                          const abbe_comp_input_f32_t *in, abbe_comp_output_t *out);
 abbe_status_t abbe_comp_step_thermal_q(abbe_comp_t *comp, abbe_thermal_state_t *thermal,
                                        const abbe_comp_input_q_t *in, abbe_comp_output_t *out);
+
+/* The compensator's cycle with the thermal part advanced by elapsed_ms
+ * (abbe_thermal_apply_ms_*) instead of one period. */
+abbe_status_t abbe_comp_step_thermal_ms_f32(abbe_comp_t *comp, abbe_thermal_state_t *thermal, uint32_t elapsed_ms,
+                                            const abbe_comp_input_f32_t *in, abbe_comp_output_t *out);
+abbe_status_t abbe_comp_step_thermal_ms_q(abbe_comp_t *comp, abbe_thermal_state_t *thermal, uint32_t elapsed_ms,
+                                          const abbe_comp_input_q_t *in, abbe_comp_output_t *out);
 
 size_t abbe_thermal_model_sizeof(void);
 size_t abbe_thermal_state_sizeof(void);

@@ -77,6 +77,7 @@ typedef struct {
     float takeup_mm[ABBE_AXES];
     float tref_c[ABBE_AXES];
     uint8_t loaded;
+    abbe_thermal_model_t thermal; /* the table's thermal block (format 1.3; n_channels 0: none) */
     uint32_t blob[ABBE_GH_TABLE_MAX_BYTES / 4u]; /* uploaded / stored tables; a compiled-in one stays in
                                                     flash. Last: abbe_gh_init keeps it (abbe_gh_boot_buffer) */
 } abbe_gh_slot_t;
@@ -107,6 +108,14 @@ typedef struct {
     uint32_t flags;           /* compensator flags of the last segment (ABBE_FLAG_*) */
     abbe_comp_state_t comp_state;
     uint32_t segments;        /* segment ends computed since init */
+    /* thermal block of the running table (abbe_gh_thermal_sample, docs/grblhal.md) */
+    abbe_thermal_state_t thermal;
+    uint32_t now_ms;          /* grblHAL's millisecond clock (abbe_gh_clock) */
+    uint32_t thermal_apply_ms; /* clock at the last segment end's thermal apply */
+    uint32_t thermal_sample_ms; /* clock at the last sample */
+    uint8_t thermal_on;       /* the running table has a thermal block */
+    uint8_t thermal_applied;  /* thermal_apply_ms is set */
+    uint8_t thermal_sampled;  /* thermal_sample_ms is set */
 } abbe_gh_t;
 
 /* Defaults: 1 um deviation, 200 um limit, 10 um per segment, fade over 32 segments. */
@@ -217,6 +226,28 @@ void abbe_gh_store_header(uint8_t out[ABBE_GH_STORE_HEADER_BYTES], uint32_t size
  * ABBE_GH_TABLE_MAX_BYTES)) and *crc. */
 abbe_gh_store_t abbe_gh_store_parse(const uint8_t in[ABBE_GH_STORE_HEADER_BYTES], uint32_t capacity,
                                     uint32_t *size, uint32_t *crc, const char **why);
+
+/* ---- thermal block (format 1.3 tables; docs/grblhal.md "Temperatures") ----
+ * The running table's thermal block is advanced by real time: the glue sets
+ * the clock (grblHAL's hal.get_elapsed_ticks(), ms) before every segment end
+ * and every sample; each segment end adds the thermal error with
+ * abbe_comp_step_thermal_ms_* (fades and the missing-sample watchdog by the
+ * ms since the previous segment end), before the compensator's safety layer
+ * (limit, rate per segment, fades). A table without a thermal block runs the
+ * plain abbe_comp_step_* as before. A new table restarts the thermal state
+ * (it fades in after its first sample). */
+void abbe_gh_clock(abbe_gh_t *gh, uint32_t now_ms);
+
+/* One temperature sample at the current clock: x[k] for every input of the
+ * running table's thermal block, in its order (deg C for temperatures, rpm
+ * for the spindle speed), valid_mask bit k = input k has a reading. dt is the
+ * clock's change since the previous sample. ABBE_E_ARG with *why: no thermal
+ * block, or a second sample in the same millisecond. Sensor faults are not
+ * errors: they show in the flags (abbe_gh_thermal). */
+abbe_status_t abbe_gh_thermal_sample(abbe_gh_t *gh, const float x[], uint32_t valid_mask, const char **why);
+
+/* The running thermal state (NULL: the running table has no thermal block). */
+const abbe_thermal_state_t *abbe_gh_thermal(const abbe_gh_t *gh);
 
 /* The model in use (NULL: none) and its CRC (0: none). */
 const abbe_model_t *abbe_gh_model(const abbe_gh_t *gh);

@@ -7,6 +7,7 @@
  * Everything that does not need grblHAL is in abbe_grblhal_core.c. */
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "grbl/hal.h"
@@ -105,6 +106,7 @@ static coord_data_t *abbe_transform_from_cartesian(coord_data_t *target, coord_d
 
     if (state_get() != STATE_HOMING && abbe_gh_active(&gh)) {
         float motor[3];
+        abbe_gh_clock(&gh, hal.get_elapsed_ticks()); /* the thermal block advances by real time */
         uint32_t flags = abbe_gh_forward(&gh, position->values, motor);
         for (idx = 0; idx < 3; idx++)
             target->values[idx] = motor[idx];
@@ -527,6 +529,100 @@ static uint32_t table_crc(void)
     return m != NULL ? abbe_model_crc(m) : 0u;
 }
 
+/* ---- temperatures ($ABBET, docs/grblhal.md "Temperatures") ---------------- */
+
+/* [ABBE:THERMAL:...]: the running table's thermal block. FLAGS current,
+ * EVENTS sticky since the last $ABBET=CLEAR (ABBE_THERMAL_F_*: 01 open,
+ * 02 range, 04 step, 08 missing samples, 10 limit, 20 hold, 40 fading),
+ * FAULTS the inputs faulted at the last sample (bit k = input k), OUT the
+ * thermal tip error in use (faded), um, AGE ms since the last sample,
+ * APPLIED the clock (hal.get_elapsed_ticks(), ms) at the segment end that
+ * last applied it. */
+static void thermal_info(char *buf, size_t size)
+{
+    const abbe_thermal_state_t *st = abbe_gh_thermal(&gh);
+    if (st == NULL) {
+        snprintf(buf, size, "[ABBE:THERMAL:NONE]" ASCII_EOL);
+        return;
+    }
+    float out[3] = {0.0f, 0.0f, 0.0f};
+#if ABBE_GH_FIXED_POINT
+    for (unsigned j = 0; j < 3u; j++)
+        out[j] = (float)st->outq[j] * 1e-3f;
+#else
+    for (unsigned j = 0; j < 3u; j++)
+        out[j] = st->out[j];
+#endif
+    long age = gh.thermal_sampled ? (long)(hal.get_elapsed_ticks() - gh.thermal_sample_ms) : -1L;
+    snprintf(buf, size,
+             "[ABBE:THERMAL:%u inputs,%u channels|FLAGS:%02lX|EVENTS:%02lX|FAULTS:%05lX|OUT:%.3f,%.3f,%.3f um|AGE:%ld ms"
+             "|APPLIED:%lu ms]"
+             ASCII_EOL,
+             abbe_thermal_n_inputs(st->model), abbe_thermal_n_channels(st->model),
+             (unsigned long)abbe_thermal_flags(st), (unsigned long)abbe_thermal_events(st),
+             (unsigned long)abbe_thermal_input_faults(st), (double)out[0], (double)out[1], (double)out[2], age,
+             (unsigned long)gh.thermal_apply_ms);
+}
+
+static status_code_t thermal_fail(const char *why)
+{
+    char text[112];
+    snprintf(text, sizeof text, "abbe temperatures refused: %s", why);
+    report_message(text, Message_Warning);
+    return Status_InvalidStatement;
+}
+
+/* $ABBET=v0,v1,...: one sample of every input of the table's thermal block,
+ * in its order: deg C for temperatures, rpm for the spindle speed; an empty
+ * field or '-' is an input without a reading (open circuit). $ABBET=CLEAR
+ * clears the sticky events. Sensor faults are answered ok (they are flags). */
+static status_code_t cmd_thermal(sys_state_t state, char *args)
+{
+    (void)state;
+    const char *why = "";
+    const abbe_thermal_state_t *st = abbe_gh_thermal(&gh);
+    if (st == NULL)
+        return thermal_fail("the running table has no thermal block");
+    if (args == NULL || args[0] == '\0')
+        return thermal_fail("expected $ABBET=<v0>,<v1>,... (deg C / rpm per input) or $ABBET=CLEAR");
+    if (strcmp(args, "CLEAR") == 0 || strcmp(args, "clear") == 0) {
+        abbe_thermal_clear_events((abbe_thermal_state_t *)st);
+        return Status_OK;
+    }
+    unsigned n = abbe_thermal_n_inputs(st->model), k = 0;
+    float x[ABBE_THERMAL_MAX_INPUTS];
+    uint32_t valid = 0u;
+    char *p = args;
+    for (;;) {
+        if (k >= n)
+            return thermal_fail("more values than the thermal block has inputs");
+        if (*p == ',' || *p == '\0' || (*p == '-' && (p[1] == ',' || p[1] == '\0'))) {
+            x[k] = 0.0f; /* no reading */
+            p += *p == '-' ? 1 : 0;
+        } else {
+            char *end;
+            x[k] = strtof(p, &end);
+            if (end == p || (*end != ',' && *end != '\0'))
+                return thermal_fail("a value is not a number (deg C or rpm, '-' or empty: no reading)");
+            valid |= 1u << k;
+            p = end;
+        }
+        k++;
+        if (*p == '\0')
+            break;
+        p++; /* ',' */
+    }
+    if (k != n) {
+        char text[80];
+        snprintf(text, sizeof text, "%u values, the thermal block has %u inputs", k, n);
+        return thermal_fail(text);
+    }
+    abbe_gh_clock(&gh, hal.get_elapsed_ticks());
+    if (abbe_gh_thermal_sample(&gh, x, valid, &why) != ABBE_OK)
+        return thermal_fail(why);
+    return Status_OK;
+}
+
 /* $ABBE: state, table, segmentation. */
 static status_code_t cmd_info(sys_state_t state, char *args)
 {
@@ -555,6 +651,8 @@ static status_code_t cmd_info(sys_state_t state, char *args)
     }
     snprintf(buf, sizeof buf, "[ABBE:start-up: %s|STORE:%lu bytes]" ASCII_EOL, boot_text,
              (unsigned long)store_capacity());
+    hal.stream.write(buf);
+    thermal_info(buf, sizeof buf);
     hal.stream.write(buf);
     return Status_OK;
 }
@@ -726,6 +824,7 @@ void abbe_grblhal_init(void)
     static const sys_command_t command_list[] = {
         {"ABBE", cmd_info, {.noargs = On, .allow_blocking = On}, {.str = "abbe compensation state and table"}},
         {"ABBEU", cmd_upload, {.allow_blocking = Off}, {.str = "abbe table upload: B,size,crc | D,offset,hex | C | A | E (erase stored)"}},
+        {"ABBET", cmd_thermal, {.allow_blocking = On}, {.str = "abbe temperatures: v0,v1,... (deg C, rpm; '-' no reading) | CLEAR"}},
         {"ABBERESET", cmd_reset, {.noargs = On}, {.str = "abbe: clear a fault, fade in again if enabled"}},
     };
     static sys_commands_t commands = {

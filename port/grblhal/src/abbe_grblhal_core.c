@@ -228,6 +228,75 @@ static abbe_status_t slot_prepare(abbe_gh_slot_t *s)
     return ABBE_OK;
 }
 
+/* The running table's thermal block starts from nothing: weights 0, it fades
+ * in after its first good sample. The period given to init is unused: the
+ * plugin advances it by elapsed ms (abbe_thermal_apply_ms_*). */
+static void thermal_start(abbe_gh_t *gh)
+{
+    const abbe_thermal_model_t *th = gh->running != NO_SLOT ? &gh->slot[gh->running].thermal : NULL;
+    gh->thermal_on = 0u;
+    gh->thermal_applied = 0u;
+    gh->thermal_sampled = 0u;
+    if (th == NULL || abbe_thermal_n_channels(th) == 0u) {
+        return;
+    }
+#if ABBE_GH_FIXED_POINT
+    gh->thermal_on = abbe_thermal_init_q(&gh->thermal, th, 1000u) == ABBE_OK;
+#else
+    gh->thermal_on = abbe_thermal_init_f32(&gh->thermal, th, 0.001f) == ABBE_OK;
+#endif
+}
+
+void abbe_gh_clock(abbe_gh_t *gh, uint32_t now_ms)
+{
+    gh->now_ms = now_ms;
+}
+
+const abbe_thermal_state_t *abbe_gh_thermal(const abbe_gh_t *gh)
+{
+    return gh != NULL && gh->thermal_on ? &gh->thermal : NULL;
+}
+
+abbe_status_t abbe_gh_thermal_sample(abbe_gh_t *gh, const float x[], uint32_t valid_mask, const char **why)
+{
+    static const char *const none = "";
+    *why = none;
+    if (gh == NULL || x == NULL || !gh->thermal_on) {
+        *why = "the running table has no thermal block";
+        return ABBE_E_ARG;
+    }
+    uint32_t dt_ms = gh->thermal_sampled ? gh->now_ms - gh->thermal_sample_ms : 0u;
+    if (gh->thermal_sampled && dt_ms == 0u) {
+        *why = "a second sample in the same millisecond";
+        return ABBE_E_ARG;
+    }
+    abbe_status_t st;
+#if ABBE_GH_FIXED_POINT
+    int32_t xm[ABBE_THERMAL_MAX_INPUTS];
+    unsigned n = abbe_thermal_n_inputs(gh->thermal.model);
+    for (unsigned k = 0; k < n; k++) {
+        /* _q takes m degC, and rpm as they are (rpm = milli-krpm) */
+        float v = gh->thermal.model->kind[k] == ABBE_THERMAL_SPEED ? x[k] : x[k] * 1000.0f;
+        /* out of the int32 range (or NaN): no reading the block accepts; its range check flags it */
+        if (!(v > -2.0e9f && v < 2.0e9f)) {
+            xm[k] = INT32_MAX;
+        } else {
+            xm[k] = (int32_t)(v + (v >= 0.0f ? 0.5f : -0.5f));
+        }
+    }
+    st = abbe_thermal_update_q(&gh->thermal, xm, valid_mask, dt_ms);
+#else
+    st = abbe_thermal_update_f32(&gh->thermal, x, valid_mask, (float)dt_ms * 0.001f);
+#endif
+    if (st != ABBE_OK) {
+        *why = abbe_strerror(st);
+        return st;
+    }
+    gh->thermal_sample_ms = gh->now_ms;
+    gh->thermal_sampled = 1u;
+    return ABBE_OK;
+}
+
 /* Segment length for the current parameters: the shorter of the running and
  * the queued table's while a swap is pending. */
 static void update_seg_len(abbe_gh_t *gh)
@@ -265,7 +334,7 @@ abbe_status_t abbe_gh_init(abbe_gh_t *gh, const abbe_gh_params_t *params, const 
     comp_config(params, &cfg);
     abbe_status_t st = ABBE_OK;
     if (blob != NULL) {
-        st = abbe_model_load(&gh->slot[0].model, blob, size);
+        st = abbe_thermal_load(&gh->slot[0].model, &gh->slot[0].thermal, blob, size);
         if (st == ABBE_OK) {
             st = slot_prepare(&gh->slot[0]);
         }
@@ -277,6 +346,7 @@ abbe_status_t abbe_gh_init(abbe_gh_t *gh, const abbe_gh_params_t *params, const 
     }
     if (st == ABBE_OK && blob != NULL) {
         gh->running = 0u;
+        thermal_start(gh);
     } else if (st != ABBE_OK) {
         gh->slot[0].loaded = 0u;
         (void)abbe_comp_init(&gh->comp, &cfg, NULL);
@@ -435,6 +505,15 @@ int abbe_gh_line_next(abbe_gh_line_t *line, float out[ABBE_AXES])
     return 1;
 }
 
+/* ms since the previous segment end's thermal apply (0 at the first). */
+static uint32_t thermal_elapsed(abbe_gh_t *gh)
+{
+    uint32_t dt = gh->thermal_applied ? gh->now_ms - gh->thermal_apply_ms : 0u;
+    gh->thermal_apply_ms = gh->now_ms;
+    gh->thermal_applied = 1u;
+    return dt;
+}
+
 uint32_t abbe_gh_forward(abbe_gh_t *gh, const float cart[ABBE_AXES], float motor[ABBE_AXES])
 {
     abbe_comp_output_t out;
@@ -454,7 +533,11 @@ uint32_t abbe_gh_forward(abbe_gh_t *gh, const float cart[ABBE_AXES], float motor
     }
     in.fresh = 1u;
     in.axis_fault_mask = 0u;
-    (void)abbe_comp_step_q(&gh->comp, &in, &out);
+    if (gh->thermal_on) {
+        (void)abbe_comp_step_thermal_ms_q(&gh->comp, &gh->thermal, thermal_elapsed(gh), &in, &out);
+    } else {
+        (void)abbe_comp_step_q(&gh->comp, &in, &out);
+    }
 #else
     abbe_comp_input_f32_t in;
     for (unsigned j = 0; j < ABBE_AXES; j++) {
@@ -464,12 +547,17 @@ uint32_t abbe_gh_forward(abbe_gh_t *gh, const float cart[ABBE_AXES], float motor
     }
     in.fresh = 1u;
     in.axis_fault_mask = 0u;
-    (void)abbe_comp_step_f32(&gh->comp, &in, &out);
+    if (gh->thermal_on) {
+        (void)abbe_comp_step_thermal_ms_f32(&gh->comp, &gh->thermal, thermal_elapsed(gh), &in, &out);
+    } else {
+        (void)abbe_comp_step_f32(&gh->comp, &in, &out);
+    }
 #endif
     if ((out.flags & ABBE_FLAG_MODEL_SWAPPED) && gh->pending != NO_SLOT) {
         gh->running = gh->pending;
         gh->pending = NO_SLOT;
         update_seg_len(gh);
+        thermal_start(gh); /* the new table's block (if any) starts from its first sample */
     }
     for (unsigned j = 0; j < ABBE_AXES; j++) {
         motor[j] = cart[j] + (float)out.corr_nm[j] * MM_PER_NM;
@@ -645,7 +733,7 @@ abbe_status_t abbe_gh_upload_commit(abbe_gh_t *gh, const char **why)
      * the segment length, then queue it: the compensator swaps at the start of
      * the next segment. The slot is not the running one; its model may be the
      * one that ran before, which nothing references any more. */
-    abbe_status_t st = abbe_model_load(&s->model, s->blob, gh->stage.size);
+    abbe_status_t st = abbe_thermal_load(&s->model, &s->thermal, s->blob, gh->stage.size);
     if (st == ABBE_OK) {
         st = slot_prepare(s);
     }

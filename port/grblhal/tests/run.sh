@@ -7,6 +7,8 @@
 #   3. tests/sim_test.py: G-code through both, checked against the Python
 #      reference; uploads, the stored table over a restart, homing and soft
 #      limits (see its docstring); figures in build-grblhal/e2e.json
+#   3b. tests/sim_thermal.py: a format 1.3 table (thermal block) uploaded and
+#      stored, temperatures by $ABBET, sensor faults; build-grblhal/thermal.json
 #   4. tests/program_sim.py: the measurement programs of `abbe program` (grblHAL
 #      dialect) in the unmodified Simulator (docs/programs.md); build-grblhal/programs.json
 # Needs the grblHAL snapshots: $ABBE_GRBLHAL_VENDOR, else ../shared/vendor/grblhal
@@ -44,5 +46,7 @@ rc=0 # both checks run, each failure counts
 "$PY" "$HERE/sim_test.py" --sim "$BUILD/cmake/sim/grblHAL_sim" --stock "$BUILD/stock/grblHAL_sim" \
     --table "$BUILD/fit/model.bin" --table2 "$BUILD/true_table.bin" \
     --machine "$REPO/examples/vmc500/machine.toml" --json "$BUILD/e2e.json" || rc=1
+"$PY" "$HERE/sim_thermal.py" --sim "$BUILD/cmake/sim/grblHAL_sim" --table "$BUILD/fit/model.bin" \
+    --json "$BUILD/thermal.json" || rc=1
 "$PY" "$HERE/program_sim.py" --stock "$BUILD/stock/grblHAL_sim" --json "$BUILD/programs.json" || rc=1
 exit $rc

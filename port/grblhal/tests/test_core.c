@@ -15,6 +15,7 @@
 
 #include "abbe_grblhal_core.h"
 #include "golden_data.h"
+#include "golden_thermal.h"
 
 static abbe_gh_t gh;
 
@@ -393,6 +394,144 @@ static void test_rehome(void **state)
     assert_int_equal(abbe_gh_state(&gh), ABBE_GH_ON);
 }
 
+/* The thermal block (format 1.3): samples at the clock's times, the thermal
+ * tip error (the Python reference's golden values) added at every segment end
+ * once faded in; a sensor fault (open input, out of range) and missing
+ * samples fade it out by elapsed time, one segment moving it by no more than
+ * |tip| x elapsed / fade_s; a table without a block refuses samples. */
+static abbe_gh_t ref_gh; /* the same table, never sampled: the geometric correction alone */
+
+static int32_t th_abs(int32_t v)
+{
+    return v < 0 ? -v : v;
+}
+
+/* Per axis: the sum of |tip error| of the channels that move it, nm (a fade
+ * moves each channel's part by elapsed / fade_s; they may cancel in the sum). */
+static void tip_parts(const abbe_thermal_state_t *st, int32_t parts[3])
+{
+    parts[0] = parts[1] = parts[2] = 0;
+    for (unsigned c = 0; c < abbe_thermal_n_channels(st->model); c++) {
+        int32_t v = ABBE_GH_FIXED_POINT ? st->tipq[c] : (int32_t)(st->tip[c] * 1000.0f);
+        parts[st->tip_axis[c]] += th_abs(v);
+    }
+}
+
+static void test_thermal(void **state)
+{
+    (void)state;
+    const abbe_golden_thermal_sample_t *S = abbe_golden_thermal_samples;
+    abbe_gh_params_t prm;
+    abbe_gh_default_params(&prm);
+    prm.rate_um_per_seg = 1000.0f; /* the thermal fade, not the rate limit, is under test */
+    assert_int_equal(abbe_gh_init(&gh, &prm, abbe_golden_thermal_blob, abbe_golden_thermal_blob_size), ABBE_OK);
+    assert_int_equal(abbe_gh_init(&ref_gh, &prm, abbe_golden_thermal_blob, abbe_golden_thermal_blob_size), ABBE_OK);
+    assert_non_null(abbe_gh_thermal(&gh));
+    assert_int_equal(abbe_gh_set_enabled(&gh, 1), ABBE_OK);
+    assert_int_equal(abbe_gh_set_enabled(&ref_gh, 1), ABBE_OK);
+    float lo[3], hi[3], p[3], m[3];
+    travel(lo, hi);
+    for (unsigned j = 0; j < 3; j++) {
+        p[j] = 0.5f * (lo[j] + hi[j]);
+    }
+    const char *why = "";
+    uint32_t t = 0u, seg_t = 0u;
+    int after_sample = 0; /* the first segment end after a sample also takes the sample's lag increment */
+    int32_t prev_d[3] = {0, 0, 0}, tip_max[3] = {0, 0, 0};
+    int32_t step_max_fault[3] = {0, 0, 0};
+    int saw_open = 0, saw_range = 0, saw_gap = 0;
+    const uint32_t n_samples = 120u;
+    for (uint32_t n = 0; n < n_samples; n++) {
+        /* samples 40..47: the speed input open; 60..63: temperature 3 at 500 degC;
+         * 80..91 never arrive (180 s: more than max_gap = 120 s) */
+        int missing = n >= 80u && n < 92u;
+        t += n ? S[n].dt_ms : 0u;
+        /* segment ends every 1000 ms up to this sample's time, two at the same ms */
+        while (seg_t + 1000u <= t) {
+            seg_t += 1000u;
+            int32_t parts[3];
+            tip_parts(abbe_gh_thermal(&gh), parts);
+            for (int twice = 0; twice < 2; twice++) {
+                abbe_gh_clock(&gh, seg_t);
+                (void)abbe_gh_forward(&gh, p, m);
+                (void)abbe_gh_forward(&ref_gh, p, m);
+                int32_t d[3];
+                for (unsigned j = 0; j < 3; j++) {
+                    d[j] = gh.last_corr_nm[j] - ref_gh.last_corr_nm[j];
+                    if (twice && n >= 5u) { /* 0 ms elapsed (the compensator faded in): nothing moves */
+                        assert_int_equal(d[j], prev_d[j]);
+                    }
+                    /* between samples only the fade moves it, by elapsed / fade_s of the tip */
+                    int32_t step = th_abs(d[j] - prev_d[j]);
+                    if (n >= 40u && !after_sample) {
+                        if (step > step_max_fault[j]) {
+                            step_max_fault[j] = step;
+                        }
+                        assert_true(step <= parts[j] * 1000 / 30000 + 3);
+                    }
+                    prev_d[j] = d[j];
+                }
+            }
+            after_sample = 0;
+        }
+        abbe_gh_clock(&gh, t);
+        if (!missing) {
+            after_sample = 1;
+            float x[ABBE_GOLDEN_THERMAL_INPUTS];
+            memcpy(x, S[n].x, sizeof x);
+            uint32_t mask = (n >= 40u && n < 48u) ? 0x0FFFFu : 0x1FFFFu;
+            if (n >= 60u && n < 64u) {
+                x[3] = 500.0f;
+            }
+            assert_int_equal(abbe_gh_thermal_sample(&gh, x, mask, &why), ABBE_OK);
+            assert_int_equal(abbe_gh_thermal_sample(&gh, x, mask, &why), ABBE_E_ARG); /* same ms */
+            uint32_t fl = abbe_thermal_flags(abbe_gh_thermal(&gh));
+            saw_open |= (fl & ABBE_THERMAL_F_OPEN) != 0u;
+            saw_range |= (fl & ABBE_THERMAL_F_RANGE) != 0u;
+            if (n == 40u) {
+                assert_true(fl & ABBE_THERMAL_F_HOLD);
+            }
+        }
+        saw_gap |= (abbe_thermal_events(abbe_gh_thermal(&gh)) & ABBE_THERMAL_F_GAP) != 0u;
+        /* faded in (30 s) and steady: the thermal part is the reference's tip error */
+        if ((n >= 10u && n < 40u) || n == 59u || n == 79u || n == 119u) {
+            for (unsigned j = 0; j < 3; j++) {
+                int32_t tip = ABBE_GH_FIXED_POINT ? S[n - 1u].tip_q_nm[j] : S[n - 1u].tip_f32_nm[j];
+                if (n < 40u && th_abs(tip) > tip_max[j]) {
+                    tip_max[j] = th_abs(tip);
+                }
+                /* correction = -(error): the difference is minus the tip error (sample n - 1 is the newest here) */
+                /* after the faults the held time was caught up in one backward Euler step: close, not equal */
+                int32_t tol = n < 40u ? 30 + th_abs(tip) / 2000 : 30 + th_abs(tip) / 100;
+                if (n >= 40u) {
+                    print_message("sample %u axis %u: thermal part %d nm, reference tip %d nm\n", n - 1u, j,
+                                  -prev_d[j], tip);
+                }
+                assert_true(th_abs(prev_d[j] + tip) <= tol);
+            }
+        }
+        if (n == 47u || n == 91u) { /* 30 s after the fault / more than 120 s without samples: faded out */
+            for (unsigned j = 0; j < 3; j++) {
+                assert_int_equal(prev_d[j], 0);
+            }
+        }
+    }
+    assert_true(saw_open);
+    assert_true(saw_range);
+    assert_true(saw_gap);
+    for (unsigned j = 0; j < 3; j++) {
+        print_message("axis %u: thermal tip up to %d nm; largest change per 1 s segment through the faults %d nm\n",
+                      j, tip_max[j], step_max_fault[j]);
+        assert_true(tip_max[j] > 0);
+    }
+    /* a table without a thermal block: no state, samples refused */
+    start("backlash");
+    assert_null(abbe_gh_thermal(&gh));
+    float x[ABBE_GOLDEN_THERMAL_INPUTS] = {0};
+    assert_int_equal(abbe_gh_thermal_sample(&gh, x, 0x1FFFFu, &why), ABBE_E_ARG);
+    assert_true(strlen(why) > 0u);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -404,6 +543,7 @@ int main(void)
         cmocka_unit_test(test_store_header),
         cmocka_unit_test(test_boot_in_place),
         cmocka_unit_test(test_rehome),
+        cmocka_unit_test(test_thermal),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
