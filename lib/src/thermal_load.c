@@ -10,7 +10,7 @@
 #if !defined(ABBE_NO_REVERSAL)
 #include "abbe/thermal.h"
 #define ABBE_MODEL_LOAD_THERMAL 1
-#include "model_load.c"
+#include "model_load.c" /* NOLINT(bugprone-suspicious-include): the same source compiled a third time, on purpose */
 
 #define TH_HEADER_SIZE 16u
 #define TH_INPUT_SIZE 20u
