@@ -597,6 +597,18 @@ def main() -> int:
                      circle_max_dev_steps=circle_max, segments_total=int(inf_end["SEGMENTS"]))
     print(f"[grblhal] circle r = {radius} mm at F2000: {g2} segments (planner blocks) for G2, {g3} for G3; "
           f"largest deviation from the model {circle_max:.3f} steps")
+    # The six 100 mm lines: ceil(100 / L) segments each, one more after a
+    # reversal with a backlash take-up (the take-up segment): the plugin
+    # splits lines as $ABBE's SEG says, no finer.
+    seg_mm = C.summary["segment_mm"]
+    per_line = math.ceil(100.0 / seg_mm - 1e-6)
+    n_lines = sess.segments["lines"]
+    C.summary.update(segments_per_region=dict(sess.segments), line_segments=n_lines,
+                     line_segments_expected=[6 * per_line, 6 * (per_line + 1)])
+    C.check(6 * per_line <= n_lines <= 6 * (per_line + 1),
+            f"six 100 mm lines: {n_lines} segments (planner blocks), {6 * per_line}..{6 * (per_line + 1)} "
+            f"expected for segments of {seg_mm} mm")
+    print(f"[grblhal] segments (planner blocks) per region: {dict(sess.segments)}")
 
     # ---- 4: disabled = grblHAL's own ------------------------------------------------------
     prog = ["G1 X50 Y-40 Z-30 F3000", "G1 X150", "G1 Y-140", "G1 Z-80", "G1 X60 Y-60 Z-20",
