@@ -557,7 +557,8 @@ def main() -> int:
     C.summary.update(table_crc=inf["TABLE"], curvature_um_per_mm2=float(inf["CURV"].split()[0]),
                      segment_mm=float(inf["SEG"].split()[0]), deviation_bound_um=dev_um)
     print(f"[grblhal] table {inf['TABLE']}: curvature {inf['CURV']}, segment {inf['SEG']}, bound {inf['DEV']}")
-    sess.moves("fade-in", [("line", fade_start)], 3000)  # >= 32 segments: the fade-in completes
+    # 40 lines (each >= 1 segment, whatever L): the fade-in's 32 segments complete
+    sess.moves("fade-in", [("line", fade_start * (k / 40.0)) for k in range(1, 41)], 3000)
     st = status_field(sim)
     C.check(st.startswith("ABBE:ON,"), f"status report field after the fade-in move: {st}")
     p = fade_start.copy()
