@@ -444,11 +444,12 @@ def evaluate(sess: Session, table, dev_um: float, C: Checks, skip: tuple[str, ..
                               > STEPS_PER_MM)
         i_from = i_prev + 1 + (int(away[0]) if len(away) else 0)
         d = np.abs(samples[i_from:] - want).max(1)
-        # The stop is where the machine stands (a sample equal to the next one): the
-        # nearest sample to the target could be one the next group's motion passes
-        # through, which would hide steps lost at the stop (seen once: a Z stop 6 steps
-        # off, the next move passing the target).
-        standing = np.r_[np.all(samples[i_from + 1:] == samples[i_from:-1], axis=1), False]
+        # The stop is where the machine stands (a sample equal to the next one, or the
+        # record's last: the session ends standing): the nearest sample to the target
+        # could be one the next group's motion passes through, which would hide steps
+        # lost at the stop (seen once: a Z stop 6 steps off, the next move passing the
+        # target).
+        standing = np.r_[np.all(samples[i_from + 1:] == samples[i_from:-1], axis=1), True]
         if standing.any():
             d = np.where(standing, d, np.inf)
         i_stop = i_from + int(np.argmin(d))
