@@ -24,18 +24,21 @@
 #      sphere-probing programs in the xyzac-trt sample (port/linuxcnc/tests/program_sim.py,
 #      under flock /tmp/abbe-linuxcnc.lock)
 #  12. grblHAL: the Simulator built with the abbe plugin from the snapshots in
-#      ../shared/vendor/grblhal, G-code checked against the Python reference,
+#      third_party/grblhal, G-code checked against the Python reference,
 #      uploads, the stored table over a restart, homing and soft limits;
 #      the measurement programs (abbe program, grblHAL dialect) in the unmodified
-#      Simulator (port/grblhal/tests/run.sh; skipped without the snapshots, a failure
-#      under CI=true)
+#      Simulator (port/grblhal/tests/run.sh; the snapshots are in third_party/grblhal;
+#      SKIPPED without them, a failure under CI=true)
 #  13. Klipper: the module port/klipper/abbe.py in Klipper's batch mode (the snapshot in
 #      third_party/klipper, an STM32F407 dictionary built with arm-none-eabi-gcc): move ends
 #      and paths from the decoded MCU stream against abbe table eval, disabled = stock,
-#      bad tables refused (port/klipper/tests/klipper_batch.py)
+#      bad tables refused (port/klipper/tests/klipper_batch.py; SKIPPED without the snapshot)
 #  14. the README's demo command (scripts/demo.sh), run twice: into a new
 #      demo-out/ and over the old one
-# Runs every step even after a failure; exits non-zero if any step failed.
+# Runs every step even after a failure; exits non-zero if any step failed. The
+# summary says PASS, SKIPPED (what is missing; a failure under CI=true) or FAIL
+# per step, and lists the tests skipped inside a passing step (protocol:
+# scripts/lib/steps.sh).
 set -uo pipefail
 
 REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -46,23 +49,9 @@ export CTEST_PARALLEL_LEVEL="$JOBS"
 
 bash scripts/setup.sh || { echo "[test] FAIL: set-up failed"; exit 1; }
 
-declare -a RESULTS=()
-failed=0
 t_all=$SECONDS
-
-step() {
-    local name="$1"
-    shift
-    local t0=$SECONDS
-    echo
-    echo "==== [test] $name ===="
-    if "$@"; then
-        RESULTS+=("PASS  $name ($((SECONDS - t0)) s)")
-    else
-        RESULTS+=("FAIL  $name ($((SECONDS - t0)) s)")
-        failed=$((failed + 1))
-    fi
-}
+# step, its outcomes (PASS / SKIPPED: exit 77 / FAIL) and the summary: scripts/lib/steps.sh
+source scripts/lib/steps.sh
 
 cmake_build() { # DIR [cmake args...]
     local dir="$1"
@@ -70,44 +59,61 @@ cmake_build() { # DIR [cmake args...]
     cmake -S . -B "$dir" "$@" && cmake --build "$dir" -j "$JOBS"
 }
 
+ctest_in() { # DIR [ctest args...]: ctest, its skipped tests as notes for the summary
+    local dir="$1" rc
+    shift
+    ctest --test-dir "$dir" --output-on-failure "$@" 2>&1 | tee "$dir/ctest.log"
+    rc=$?
+    ctest_skip_notes "$dir/ctest.log" "$dir"
+    return $rc
+}
+
 host_asan() {
     cmake_build build-asan -DCMAKE_BUILD_TYPE=Debug -DABBE_SANITIZE=ON -DABBE_BUILD_PORTS=ON -DABBE_PORTABLE_C=ON &&
-        ctest --test-dir build-asan --output-on-failure -j "$JOBS"
+        ctest_in build-asan -j "$JOBS"
 }
 
 host_release() {
     cmake_build build -DCMAKE_BUILD_TYPE=Release -DABBE_BUILD_PORTS=ON &&
-        ctest --test-dir build --output-on-failure -j "$JOBS"
+        ctest_in build -j "$JOBS"
 }
 
 cross() { # NAME TOOLCHAIN
     cmake_build "build-$1" -DCMAKE_TOOLCHAIN_FILE="cmake/toolchain-$2.cmake" -DCMAKE_BUILD_TYPE=Release &&
-        ctest --test-dir "build-$1" --output-on-failure -j "$JOBS"
+        ctest_in "build-$1" -j "$JOBS"
 }
 
 fuzz() {
     CC=clang cmake_build build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo \
         -DABBE_BUILD_FUZZ=ON -DABBE_BUILD_TESTS=OFF &&
-        ctest --test-dir build-fuzz --output-on-failure -L fuzz
+        ctest_in build-fuzz -L fuzz
 }
 
 import_contracts() {
     (cd host_tools && "$REPO/.venv/bin/lint-imports")
 }
 
-pytest_all() {
-    local rc
-    (cd host_tools && "$REPO/.venv/bin/python" -m pytest -q -p no:cacheprovider \
-        --ignore=tests/packaging tests)
+pytest_all() { # -rs: the skips with their reasons, summed per reason into the summary
+    local rc log="$REPO/build/pytest.log"
+    mkdir -p build
+    (cd host_tools && "$REPO/.venv/bin/python" -m pytest -q -rs -p no:cacheprovider \
+        --ignore=tests/packaging tests) 2>&1 | tee "$log"
     rc=$?
     if [[ $rc -eq 5 ]]; then
         echo "[test] pytest collected no tests: nothing ran"
     fi
+    pytest_skip_notes "$log"
     return $rc
 }
 
 wheel_test() {
-    (cd host_tools && "$REPO/.venv/bin/python" -m pytest -q -s -p no:cacheprovider tests/packaging)
+    local rc log="$REPO/build/pytest-packaging.log"
+    mkdir -p build
+    (cd host_tools && "$REPO/.venv/bin/python" -m pytest -q -rs -s -p no:cacheprovider tests/packaging) 2>&1 |
+        tee "$log"
+    rc=$?
+    pytest_skip_notes "$log"
+    return $rc
 }
 
 cross_clang() { # both targets, each even if the other failed
@@ -159,11 +165,4 @@ step "grblHAL plugin in grblHAL's Simulator" bash port/grblhal/tests/run.sh
 step "Klipper module in Klipper's batch mode" klipper_batch
 step "README's demo command (scripts/demo.sh), twice" readme_demo
 
-echo
-echo "==== [test] summary ===="
-printf '%s\n' "${RESULTS[@]}"
-if ((failed)); then
-    echo "[test] FAILED: $failed of ${#RESULTS[@]} steps failed ($((SECONDS - t_all)) s)"
-    exit 1
-fi
-echo "[test] OK: all ${#RESULTS[@]} steps passed ($((SECONDS - t_all)) s)"
+summary || exit 1

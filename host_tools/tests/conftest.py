@@ -37,3 +37,13 @@ def _crash_logs_in_tmp(tmp_path_factory):
         os.environ.pop("ABBE_CRASH_DIR", None)
     else:
         os.environ["ABBE_CRASH_DIR"] = old
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "real_data(path): reads real data not carried by the project "
+                            "(tests/real_data.py): SKIPPED without it, a failure under CI=true")
+
+
+def pytest_runtest_setup(item):
+    from real_data import check_real_data
+    check_real_data(item)

@@ -8,7 +8,7 @@ import numpy as np
 
 from cases.synthetic_laser import write_laser_csv
 
-ESS_DAT = Path("/work/shared/data/ess-target/x_iso230_2.dat")
+from real_data import ESS_DAT  # noqa: F401  (re-exported: the ESS record beside the checkout)
 
 
 def small_laser(path: Path, n_runs: int = 3, targets: np.ndarray | None = None,

@@ -6,12 +6,13 @@
 #
 #   --build-dir DIR  where everything goes (default build-grblhal/)
 #   --vendor DIR     the snapshots (default $ABBE_GRBLHAL_VENDOR, else
-#                    ../shared/vendor/grblhal beside the repo)
+#                    third_party/grblhal in the repository)
 #   --table BIN      compile this table in (abbe table cgen into DIR/table/)
 #   --fixed-point    the library's _q variant (as on an MCU without FPU)
 #   --stock          also build the unmodified Simulator (DIR/stock/grblHAL_sim)
 #
-# grblHAL is GPL-3.0: nothing of it is in this repository. The script extracts
+# grblHAL is GPL-3.0: its snapshots are carried unmodified in third_party/grblhal
+# (third_party/README.md), nothing of it is in abbe's sources. The script extracts
 # the snapshots into DIR/tree/, adds the two lines that call the plugin's init
 # to the copy of the Simulator's driver_init() there, and builds
 # port/grblhal/sim/CMakeLists.txt (the Simulator's own CMake project plus the
@@ -34,7 +35,7 @@ while (($#)); do
     --table) TABLE="$2"; shift ;;
     --fixed-point) FIXED=ON ;;
     --stock) STOCK=1 ;;
-    -h | --help) sed -n '2,18p' "$0"; exit 0 ;;
+    -h | --help) sed -n '2,19p' "$0"; exit 0 ;;
     *) echo "build_sim.sh: unknown option '$1' (see --help)" >&2; exit 2 ;;
     esac
     shift

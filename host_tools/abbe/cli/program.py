@@ -73,6 +73,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--safe-z-mm", type=in_range(5.0, 500.0, "mm"), default=50.0,
                    help="five-axis: the safe height above the highest place the sphere takes "
                         "(probing) or above the ball (R-test), mm (50)")
+    p.add_argument("--log-file", metavar="PATH",
+                   help="five-axis probing: the file LOGOPEN names, as given (LinuxCNC opens a "
+                        "relative path in its configuration folder, the INI file's); default: "
+                        "the [probing.NAME] file relative to the machine file's folder")
     p.add_argument("--step-deg", type=in_range(0.5, 90.0, "deg"), default=10.0,
                    help="five-axis R-test: angle step of the path, deg (10)")
     p.add_argument("--speeds", type=_speeds, default=list(DEFAULT_SPEEDS_RPM),

@@ -7,6 +7,7 @@ to (the file ``abbe fit`` then reads), ``[rtest.NAME]`` the sphere the R-test ho
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from abbe.errors import AbbeInputError
 from abbe.formats.machine import load_machine
@@ -32,6 +33,19 @@ def _section(sections: dict, name: str | None, kind: str, path: str):
     return next(iter(sections.items()))
 
 
+def _relative_log(file: Path, machine: Path) -> str:
+    """The probing file as the program names it: relative to the machine file's folder
+    (where ``abbe fit`` reads it), so the program carries no path of the computer that
+    wrote it; a file outside that folder keeps its absolute path (probing_gcode refuses a
+    name that cannot go into the comment)."""
+    base = Path(machine).resolve().parent
+    try:
+        text = Path(file).resolve().relative_to(base).as_posix()
+    except ValueError:
+        text = str(Path(file).resolve())
+    return text
+
+
 def run_five_axis(args: argparse.Namespace) -> int:
     if args.dialect != "linuxcnc":
         raise AbbeInputError("five-axis programs are written for LinuxCNC's trt kinematics "
@@ -54,13 +68,15 @@ def run_five_axis(args: argparse.Namespace) -> int:
             if args.test == "five-axis-probing":
                 name, pl = _section(spec.probing, args.name, "probing", str(m.path))
                 pos = probing_positions(g, args.tilt_positions, args.c_positions, args.passes)
+                log_file = args.log_file or _relative_log(pl.file, m.path)
                 prog = ProbingProgram(pl.sphere_mm, pl.sphere_radius_mm, pl.stylus_radius_mm,
                                       pos, n_points=args.points, probe_feed=args.probe_feed,
-                                      safe_z_mm=args.safe_z_mm,
-                                      log_file=str(pl.file))
+                                      safe_z_mm=args.safe_z_mm, log_file=log_file,
+                                      fit_reads=_relative_log(pl.file, m.path))
                 text = probing_gcode(g, prog, travel, f"five-axis sphere probing {name} of "
                                      f"{m.name}, {g.kind}")
-                what = f"{len(pos)} positions x {args.points} points, log {pl.file}"
+                what = (f"{len(pos)} positions x {args.points} points, LOGOPEN {log_file} "
+                        f"(abbe fit reads {pl.file})")
             else:
                 name, rt = _section(spec.rtest, args.name, "rtest", str(m.path))
                 path = rtest_path(g, args.step_deg)

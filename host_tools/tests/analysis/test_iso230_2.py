@@ -14,10 +14,11 @@ from abbe.formats.deviations import PositioningData
 from abbe.formats.positioning import load_positioning
 
 from fit_helpers import ESS_DAT, write_lines
+from real_data import needs_real_data
 
 NOTES = {"B_um": 33.6, "R_um": 55.2, "E_um": 122.8, "A_um": 135.3, "M_um": 93.7}
 
-needs_ess = pytest.mark.skipif(not ESS_DAT.is_file(), reason="shared ESS data not mounted")
+needs_ess = needs_real_data(ESS_DAT)
 
 
 @needs_ess

@@ -3,7 +3,7 @@
 With a position-only model (each target's mean deviation), `abbe diagnose --iso230-2`
 must name the reversal (backlash_x) and the run-to-run drift (thermal_drift), and the
 gap must shrink on the data used and on held-out runs. The data are read from
-../shared/data/ess-target/ (not copied into the repository).
+../shared/data/ess-target/ (not carried by the repository: tests/real_data.py).
 """
 
 from __future__ import annotations
@@ -16,11 +16,9 @@ import pytest
 
 from abbe.diagnose.run import diagnose_positioning
 
-DAT = Path(__file__).resolve().parents[4] / "shared" / "data" / "ess-target" / "x_iso230_2.dat"
-if not DAT.is_file():
-    DAT = Path("/work/shared/data/ess-target/x_iso230_2.dat")
+from real_data import ESS_DAT as DAT, needs_real_data
 
-pytestmark = pytest.mark.skipif(not DAT.is_file(), reason=f"ESS data not found at {DAT}")
+pytestmark = needs_real_data(DAT)
 
 
 @pytest.fixture(scope="module")

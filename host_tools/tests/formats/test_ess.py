@@ -11,6 +11,7 @@ from abbe.errors import AbbeInputError
 from abbe.formats.ess_dat import looks_like_dat, read_dat
 
 from fit_helpers import ESS_DAT, write_lines
+from real_data import needs_real_data
 
 
 def small_dat(positions: int = 3, cycles: int = 2) -> list[str]:
@@ -24,7 +25,7 @@ def small_dat(positions: int = 3, cycles: int = 2) -> list[str]:
     return rows
 
 
-@pytest.mark.skipif(not ESS_DAT.is_file(), reason="shared ESS data not mounted")
+@needs_real_data(ESS_DAT)
 def test_real_file() -> None:
     d = read_dat(ESS_DAT)
     assert d.targets_mm.tolist() == [-20, -15, -10, -5, 0, 5, 10, 15, 20]

@@ -130,7 +130,9 @@ def test_probing_program_moves(tmp_path: Path, kind: str) -> None:
     travel.update({a: toml["rotary"][a]["travel_deg"] for a in (tilt, "C")})
     logs, probes, backoff = [], 0, None
     assert re.search(r"^M429", text, re.M) and "M428" not in text  # identity kins: machine coords
-    assert "(LOGOPEN," + str(tmp_path / "probe.csv") + ")" in text  # where the plan reads
+    # relative to the machine file's folder, where abbe fit reads it: no path of this computer
+    assert "(LOGOPEN,probe.csv)" in text and str(tmp_path) not in text
+    assert "abbe fit reads probe.csv" in text and "configuration folder" in text
     for mv in moves:
         e = mv["end"]
         for a, (lo, hi) in travel.items():
@@ -292,3 +294,34 @@ def test_diagnosis_plan_runs_the_grid_twice(tmp_path: Path) -> None:
     other = camp.positions()
     assert np.allclose([a for a, _c in other], [a for a, _c in order])
     assert np.allclose([c % 360.0 for _a, c in other], [c for _a, c in order])
+
+
+def test_probing_log_path_relative_or_stated(tmp_path: Path) -> None:
+    """LOGOPEN names the probing file relative to the machine file (a sub-folder stays
+    relative); --log-file writes exactly what it is given; a file outside the machine
+    file's folder keeps its absolute path, said in the comment; a name that cannot go
+    into a G-code comment is refused (exit 2)."""
+    mf = tmp_path / "m" / "machine.toml"
+    mf.parent.mkdir()
+    base = EXAMPLE.read_text()
+    assert 'file = "probe.csv"' in base
+    for file_value, want in (('"logs/probe.csv"', "logs/probe.csv"),
+                             (f'"{(tmp_path / "elsewhere.csv").as_posix()}"',
+                              (tmp_path / "elsewhere.csv").as_posix())):
+        mf.write_text(base.replace('file = "probe.csv"', f"file = {file_value}", 1))
+        out = tmp_path / "p.ngc"
+        assert main(["program", str(mf), "--test", "five-axis-probing", "--dialect", "linuxcnc",
+                     "-o", str(out)]) == 0
+        text = out.read_text()
+        assert f"(LOGOPEN,{want})" in text, want
+        assert f"abbe fit reads {want}" in text
+    mf.write_text(base)
+    out = tmp_path / "q.ngc"
+    assert main(["program", str(mf), "--test", "five-axis-probing", "--dialect", "linuxcnc",
+                 "--log-file", "/home/cnc/probe.csv", "-o", str(out)]) == 0
+    text = out.read_text()
+    assert "(LOGOPEN,/home/cnc/probe.csv)" in text and "abbe fit reads probe.csv" in text
+    bad = tmp_path / "r.ngc"
+    assert main(["program", str(mf), "--test", "five-axis-probing", "--dialect", "linuxcnc",
+                 "--log-file", "probe(1).csv", "-o", str(bad)]) == 2
+    assert not bad.exists()

@@ -12,8 +12,10 @@
  * a bound: |c(a + t(b - a)) - chord| <= L^2 / 8 * kappa for a segment of length
  * L, kappa the largest second derivative of E along any direction over the
  * table's travel (sampled at load, abbe_gh_curvature). L = sqrt(8 dev / kappa).
- * A reversal of an axis with a backlash take-up gets a first segment that ends
- * where the take-up ends (the direction state ramps linearly over it).
+ * A reversal of an axis with a backlash take-up gets a segment end where the
+ * take-up ends (the direction state ramps linearly over it), and a line that
+ * crosses a face of the table's travel box one where it crosses (the library
+ * holds each term at its end value beyond: a kink).
  *
  * Variant: the _f32 evaluation where there is an FPU (or on a host), _q
  * (integer nm) otherwise; ABBE_GH_FIXED_POINT=1 forces _q.
@@ -68,6 +70,7 @@ typedef struct {
     uint32_t received;  /* bytes received so far */
     uint8_t slot;       /* slot being filled */
     uint8_t open;       /* 1 between begin and commit / abort */
+    char why[72];       /* a refusal that names numbers (the size and the limit) */
 } abbe_gh_stage_t;
 
 /* One table slot: a loaded model over its blob, and its derived segment length. */
@@ -76,20 +79,30 @@ typedef struct {
     float kappa_um_per_mm2;
     float takeup_mm[ABBE_AXES];
     float tref_c[ABBE_AXES];
+    float travel_lo_mm[ABBE_AXES]; /* the table's travel: beyond it the library holds each term */
+    float travel_hi_mm[ABBE_AXES];
     uint8_t loaded;
     abbe_thermal_model_t thermal; /* the table's thermal block (format 1.3; n_channels 0: none) */
     uint32_t blob[ABBE_GH_TABLE_MAX_BYTES / 4u]; /* uploaded / stored tables; a compiled-in one stays in
                                                     flash. Last: abbe_gh_init keeps it (abbe_gh_boot_buffer) */
 } abbe_gh_slot_t;
 
-/* A line split into segments (abbe_gh_line_begin / abbe_gh_line_next). */
+/* A line split into segments (abbe_gh_line_begin / abbe_gh_line_next): into
+ * pieces at the end of a backlash take-up and where the line crosses a face
+ * of the table's travel box (the model has a kink there: its curvature does
+ * not bound a chord across it), each piece into equal segments no longer
+ * than the segment length. */
+#define ABBE_GH_LINE_PIECES 10u /* per axis a take-up end and 2 faces, + the line's end */
 typedef struct {
     float start[ABBE_AXES];
     float end[ABBE_AXES];
-    float t_first;   /* line parameter of the first segment's end (take-up), 0: none */
-    uint32_t n;      /* uniform segments after the first one */
-    uint32_t i;      /* segments returned so far */
-    uint32_t total;  /* segments in all */
+    float t_end[ABBE_GH_LINE_PIECES]; /* line parameter where each piece ends (ascending; last: 1) */
+    uint32_t n[ABBE_GH_LINE_PIECES];  /* equal segments in each piece (>= 1) */
+    uint32_t pieces;                  /* pieces in all */
+    uint32_t piece;                   /* piece of the next segment */
+    uint32_t k;                       /* segments returned from that piece */
+    uint32_t i;                       /* segments returned so far */
+    uint32_t total;                   /* segments in all */
 } abbe_gh_line_t;
 
 typedef struct {
@@ -155,12 +168,15 @@ abbe_gh_state_t abbe_gh_state(const abbe_gh_t *gh);
 int abbe_gh_active(const abbe_gh_t *gh);
 
 /* The largest second derivative (um/mm^2) of the model's error along any
- * direction, sampled over the table's travel: per sample point the largest
+ * direction, sampled inside the table's travel: per sample point the largest
  * Gershgorin row sum of the three Hessians (one per error component), by
- * differences over h = min(travel / 256, 0.5 mm) at 255 points spaced
- * travel / 256 on lines along each axis through the corners of the travel box
- * of the other two (each term depends on one axis and enters with a lever arm
- * linear in the others, so the extremes lie on those lines). Costs 30,600
+ * differences over h = min(travel / 256, 0.5 mm, a quarter of the shortest
+ * travel) at 255 points from lo + h to hi - h on lines along each axis through
+ * the corners of the travel box of the other two, inset by h (each term
+ * depends on one axis and enters with a lever arm linear in the others, so the
+ * extremes lie on those lines). Every point of the stencil lies inside the
+ * travel: beyond it the library holds each term at its end value, a kink
+ * (the line segmentation ends a segment there), not a curvature. Costs 30,600
  * evaluations (ABBE_GH_CURV_SAMPLES = 256 points per line). */
 abbe_status_t abbe_gh_curvature(const abbe_model_t *model, float *kappa_um_per_mm2);
 

@@ -705,7 +705,7 @@ static bool parse_u32(char **s, unsigned base, uint32_t *out)
 
 static status_code_t upload_fail(const char *why)
 {
-    char text[112];
+    char text[160];
     snprintf(text, sizeof text, "abbe upload refused: %s; the running table stays", why);
     report_message(text, Message_Warning);
     return Status_InvalidStatement;

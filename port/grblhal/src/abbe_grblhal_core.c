@@ -145,23 +145,36 @@ abbe_status_t abbe_gh_curvature(const abbe_model_t *model, float *kappa_um_per_m
         hi[j] = (float)info.travel_max_nm * MM_PER_NM;
         tref[j] = (float)info.thermal_tref_mdegc * 1.0e-3f;
     }
+    float shortest = hi[0] - lo[0];
+    for (unsigned j = 1; j < ABBE_AXES; j++) {
+        shortest = hi[j] - lo[j] < shortest ? hi[j] - lo[j] : shortest;
+    }
     float kappa = 0.0f;
     for (unsigned a = 0; a < ABBE_AXES; a++) {
         unsigned b = (a + 1u) % ABBE_AXES, c = (a + 2u) % ABBE_AXES;
         float span = hi[a] - lo[a];
-        /* samples every span / ABBE_GH_CURV_SAMPLES; differences over h <= 0.5 mm */
+        /* differences over h = min(span / ABBE_GH_CURV_SAMPLES, 0.5 mm, a
+         * quarter of the shortest travel) */
         float step = span / (float)ABBE_GH_CURV_SAMPLES;
         float h = step < 0.5f ? step : 0.5f;
+        h = h < 0.25f * shortest ? h : 0.25f * shortest;
         if (!(h > 0.0f)) {
             continue;
         }
+        /* Every point of the stencil (p, p +- h e_i, p + h e_i + h e_j) inside
+         * the travel: each coordinate of p in [lo + h, hi - h]. Outside the
+         * travel the library holds each term at its end value: a stencil
+         * reaching there measures the kink at the end (the slope over h), not
+         * a curvature, and made the segments 3x shorter than the bound needs
+         * (vmc500: 0.495 against 0.053 um/mm^2). */
         uint32_t n = (uint32_t)ABBE_GH_CURV_SAMPLES - 1u;
+        float pitch = (span - 2.0f * h) / (float)(n - 1u);
         for (unsigned corner = 0; corner < 4u; corner++) {
             float p[ABBE_AXES];
-            p[b] = (corner & 1u) ? hi[b] - h : lo[b];
-            p[c] = (corner & 2u) ? hi[c] - h : lo[c];
+            p[b] = (corner & 1u) ? hi[b] - h : lo[b] + h;
+            p[c] = (corner & 2u) ? hi[c] - h : lo[c] + h;
             for (uint32_t k = 0; k < n; k++) {
-                p[a] = lo[a] + 0.5f * step + (float)k * step;
+                p[a] = lo[a] + h + (float)k * pitch;
                 /* E at p, p +- h e_i, p + h e_i + h e_j: the Hessian of each
                  * error component by central (diagonal) and forward (mixed)
                  * differences. */
@@ -223,6 +236,8 @@ static abbe_status_t slot_prepare(abbe_gh_slot_t *s)
         (void)abbe_model_axis_info(&s->model, j, &info);
         s->takeup_mm[j] = (float)info.backlash_takeup_nm * MM_PER_NM;
         s->tref_c[j] = (float)info.thermal_tref_mdegc * 1.0e-3f;
+        s->travel_lo_mm[j] = (float)info.travel_min_nm * MM_PER_NM;
+        s->travel_hi_mm[j] = (float)info.travel_max_nm * MM_PER_NM;
     }
     s->loaded = 1u;
     return ABBE_OK;
@@ -442,43 +457,84 @@ int abbe_gh_active(const abbe_gh_t *gh)
     return gh->enabled || any_correction(gh) || (gh->flags & ABBE_FLAG_FADING) != 0u;
 }
 
+/* Insert t into the ascending list ends[0..*n) unless it lies within 1e-6
+ * of an entry (the same break); the last place stays for the line's end (at
+ * most 3 x 3 breaks come: a take-up end and two faces per axis). */
+static void add_break(float ends[ABBE_GH_LINE_PIECES], uint32_t *n, float t)
+{
+    uint32_t k = 0u;
+    while (k < *n && ends[k] < t) {
+        k++;
+    }
+    if ((k < *n && ends[k] - t < 1.0e-6f) || (k > 0u && t - ends[k - 1u] < 1.0e-6f) ||
+        *n >= ABBE_GH_LINE_PIECES - 1u) {
+        return;
+    }
+    for (uint32_t m = *n; m > k; m--) {
+        ends[m] = ends[m - 1u];
+    }
+    ends[k] = t;
+    (*n)++;
+}
+
 uint32_t abbe_gh_line_begin(const abbe_gh_t *gh, abbe_gh_line_t *line, const float start[ABBE_AXES],
                             const float end[ABBE_AXES])
 {
     float len2 = 0.0f;
-    float t_first = 0.0f;
     const abbe_gh_slot_t *s = gh->running != NO_SLOT ? &gh->slot[gh->running] : NULL;
+    line->pieces = 0u;
     for (unsigned j = 0; j < ABBE_AXES; j++) {
         line->start[j] = start[j];
         line->end[j] = end[j];
         float d = end[j] - start[j];
         len2 += d * d;
+        /* NOLINTNEXTLINE(bugprone-narrowing-conversions): -1, 0 or 1 fit an int8_t */
+        int8_t dir = d > 0.0f ? 1 : (d < 0.0f ? -1 : 0);
+        if (s == NULL || dir == 0) {
+            continue;
+        }
         /* A reversal of an axis with a take-up: its direction state ramps
          * linearly over the take-up distance; a segment that ends where the
          * ramp ends keeps the chord on the model. */
-        /* NOLINTNEXTLINE(bugprone-narrowing-conversions): -1, 0 or 1 fit an int8_t */
-        int8_t dir = d > 0.0f ? 1 : (d < 0.0f ? -1 : 0);
-        if (s != NULL && dir != 0 && dir != gh->last_dir[j] && s->takeup_mm[j] > 0.0f) {
+        if (dir != gh->last_dir[j] && s->takeup_mm[j] > 0.0f) {
             float t = s->takeup_mm[j] / absf(d);
-            if (t < 1.0f && (t_first == 0.0f || t < t_first)) {
-                t_first = t;
+            if (t < 1.0f) {
+                add_break(line->t_end, &line->pieces, t);
+            }
+        }
+        /* The faces of the travel box the line crosses. */
+        float faces[2] = {s->travel_lo_mm[j], s->travel_hi_mm[j]};
+        for (unsigned f = 0; f < 2u; f++) {
+            float t = (faces[f] - start[j]) / d;
+            if (t > 1.0e-6f && t < 1.0f - 1.0e-6f) {
+                add_break(line->t_end, &line->pieces, t);
             }
         }
     }
-    float len = sqrt_pos(len2);
-    float rest = len * (1.0f - t_first);
-    uint32_t n = 1u;
-    if (gh->seg_len_mm > 0.0f && rest > gh->seg_len_mm) {
-        float f = rest / gh->seg_len_mm;
-        n = (uint32_t)f;
-        if ((float)n < f) {
-            n++;
-        }
+    if (line->pieces >= ABBE_GH_LINE_PIECES) { /* cannot happen: at most 3 x 3 breaks */
+        line->pieces = ABBE_GH_LINE_PIECES - 1u;
     }
-    line->t_first = t_first;
-    line->n = n;
+    line->t_end[line->pieces++] = 1.0f;
+    float len = sqrt_pos(len2);
+    float t0 = 0.0f;
+    line->total = 0u;
+    for (uint32_t k = 0; k < line->pieces; k++) {
+        float rest = len * (line->t_end[k] - t0);
+        uint32_t n = 1u;
+        if (gh->seg_len_mm > 0.0f && rest > gh->seg_len_mm) {
+            float f = rest / gh->seg_len_mm;
+            n = (uint32_t)f;
+            if ((float)n < f) {
+                n++;
+            }
+        }
+        line->n[k] = n;
+        line->total += n;
+        t0 = line->t_end[k];
+    }
+    line->piece = 0u;
+    line->k = 0u;
     line->i = 0u;
-    line->total = n + (t_first > 0.0f ? 1u : 0u);
     return line->total;
 }
 
@@ -492,12 +548,14 @@ int abbe_gh_line_next(abbe_gh_line_t *line, float out[ABBE_AXES])
         memcpy(out, line->end, sizeof line->end);
         return 1;
     }
-    float t;
-    if (line->t_first > 0.0f) {
-        t = line->i == 1u ? line->t_first
-                          : line->t_first + (1.0f - line->t_first) * (float)(line->i - 1u) / (float)line->n;
-    } else {
-        t = (float)line->i / (float)line->n;
+    uint32_t p = line->piece;
+    float t0 = p > 0u ? line->t_end[p - 1u] : 0.0f;
+    line->k++;
+    float t = t0 + (line->t_end[p] - t0) * (float)line->k / (float)line->n[p];
+    if (line->k >= line->n[p]) { /* the piece's end: exactly the break */
+        t = line->t_end[p];
+        line->piece++;
+        line->k = 0u;
     }
     for (unsigned j = 0; j < ABBE_AXES; j++) {
         out[j] = line->start[j] + t * (line->end[j] - line->start[j]);
@@ -665,6 +723,32 @@ const abbe_model_t *abbe_gh_model(const abbe_gh_t *gh)
     return abbe_comp_model(&gh->comp);
 }
 
+/* Append text / an unsigned decimal at w (the caller's buffer is long
+ * enough: abbe_gh_stage_t.why); return the new end (NUL-terminated). */
+static char *put_text(char *w, const char *text)
+{
+    while (*text != '\0') {
+        *w++ = *text++;
+    }
+    *w = '\0';
+    return w;
+}
+
+static char *put_u32(char *w, uint32_t v)
+{
+    char digits[10];
+    unsigned n = 0u;
+    do {
+        digits[n++] = (char)('0' + (char)(v % 10u));
+        v /= 10u;
+    } while (v != 0u);
+    while (n > 0u) {
+        *w++ = digits[--n];
+    }
+    *w = '\0';
+    return w;
+}
+
 abbe_status_t abbe_gh_upload_begin(abbe_gh_t *gh, uint32_t size, uint32_t crc, const char **why)
 {
     static const char *const none = "";
@@ -674,7 +758,14 @@ abbe_status_t abbe_gh_upload_begin(abbe_gh_t *gh, uint32_t size, uint32_t crc, c
         return ABBE_E_ARG;
     }
     if (size < 16u || size > ABBE_GH_TABLE_MAX_BYTES) {
-        *why = "size out of range (16 .. ABBE_GH_TABLE_MAX_BYTES bytes)";
+        /* "table of 9000 bytes: this build takes 16 to 8192 bytes" */
+        char *w = gh->stage.why;
+        w = put_text(w, "table of ");
+        w = put_u32(w, size);
+        w = put_text(w, " bytes: this build takes 16 to ");
+        w = put_u32(w, (uint32_t)ABBE_GH_TABLE_MAX_BYTES);
+        (void)put_text(w, " bytes");
+        *why = gh->stage.why;
         return ABBE_E_ARG;
     }
     gh->stage.slot = gh->running == 0u ? 1u : 0u;

@@ -444,6 +444,14 @@ def evaluate(sess: Session, table, dev_um: float, C: Checks, skip: tuple[str, ..
                               > STEPS_PER_MM)
         i_from = i_prev + 1 + (int(away[0]) if len(away) else 0)
         d = np.abs(samples[i_from:] - want).max(1)
+        # The stop is where the machine stands (a sample equal to the next one, or the
+        # record's last: the session ends standing): the nearest sample to the target
+        # could be one the next group's motion passes through, which would hide steps
+        # lost at the stop (seen once: a Z stop 6 steps off, the next move passing the
+        # target).
+        standing = np.r_[np.all(samples[i_from + 1:] == samples[i_from:-1], axis=1), True]
+        if standing.any():
+            d = np.where(standing, d, np.inf)
         i_stop = i_from + int(np.argmin(d))
         lost = samples[i_stop] - sess.planned[gi]
         groups.append((name, a, b, i_prev + 1, i_stop, float(np.abs(samples[i_stop] - lost - want).max()),
@@ -557,7 +565,8 @@ def main() -> int:
     C.summary.update(table_crc=inf["TABLE"], curvature_um_per_mm2=float(inf["CURV"].split()[0]),
                      segment_mm=float(inf["SEG"].split()[0]), deviation_bound_um=dev_um)
     print(f"[grblhal] table {inf['TABLE']}: curvature {inf['CURV']}, segment {inf['SEG']}, bound {inf['DEV']}")
-    sess.moves("fade-in", [("line", fade_start)], 3000)  # >= 32 segments: the fade-in completes
+    # 40 lines (each >= 1 segment, whatever L): the fade-in's 32 segments complete
+    sess.moves("fade-in", [("line", fade_start * (k / 40.0)) for k in range(1, 41)], 3000)
     st = status_field(sim)
     C.check(st.startswith("ABBE:ON,"), f"status report field after the fade-in move: {st}")
     p = fade_start.copy()
@@ -597,6 +606,18 @@ def main() -> int:
                      circle_max_dev_steps=circle_max, segments_total=int(inf_end["SEGMENTS"]))
     print(f"[grblhal] circle r = {radius} mm at F2000: {g2} segments (planner blocks) for G2, {g3} for G3; "
           f"largest deviation from the model {circle_max:.3f} steps")
+    # The six 100 mm lines: ceil(100 / L) segments each, one more after a
+    # reversal with a backlash take-up (the take-up segment): the plugin
+    # splits lines as $ABBE's SEG says, no finer.
+    seg_mm = C.summary["segment_mm"]
+    per_line = math.ceil(100.0 / seg_mm - 1e-6)
+    n_lines = sess.segments["lines"]
+    C.summary.update(segments_per_region=dict(sess.segments), line_segments=n_lines,
+                     line_segments_expected=[6 * per_line, 6 * (per_line + 1)])
+    C.check(6 * per_line <= n_lines <= 6 * (per_line + 1),
+            f"six 100 mm lines: {n_lines} segments (planner blocks), {6 * per_line}..{6 * (per_line + 1)} "
+            f"expected for segments of {seg_mm} mm")
+    print(f"[grblhal] segments (planner blocks) per region: {dict(sess.segments)}")
 
     # ---- 4: disabled = grblHAL's own ------------------------------------------------------
     prog = ["G1 X50 Y-40 Z-30 F3000", "G1 X150", "G1 Y-140", "G1 Z-80", "G1 X60 Y-60 Z-20",

@@ -8,6 +8,7 @@
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -109,11 +110,65 @@ static void test_deviation_bound(void **state)
     print_message("segment %.3f mm, bound %.3f um, worst deviation seen %.3f um\n", (double)len,
                   (double)gh.params.max_dev_um, (double)worst);
     assert_true(worst <= gh.params.max_dev_um * 1.02f);
-    /* a lower bound: shorter segments, quadratically */
+    /* a lower bound: shorter segments, quadratically (L = sqrt(8 dev / kappa),
+     * within [ABBE_GH_SEG_MIN_MM, ABBE_GH_SEG_MAX_MM]) */
+    float kappa = gh.slot[0].kappa_um_per_mm2;
+    float full = sqrtf(8.0f * gh.params.max_dev_um / kappa);
+    assert_float_equal(len, fminf(full, ABBE_GH_SEG_MAX_MM), len * 0.01f);
     abbe_gh_params_t p = gh.params;
     p.max_dev_um = 0.25f;
     assert_int_equal(abbe_gh_set_params(&gh, &p), ABBE_OK);
-    assert_float_equal(gh.seg_len_mm, len * 0.5f, len * 0.01f);
+    assert_float_equal(gh.seg_len_mm, fminf(full * 0.5f, ABBE_GH_SEG_MAX_MM), len * 0.01f);
+}
+
+/* The curvature is the model's inside the travel: not the kink where the
+ * library holds every term at its end value. kappa (a Gershgorin bound: at
+ * least every directional second derivative) is compared with the largest
+ * directional second difference found by this test at 20,000 random points
+ * and directions inside the travel (half of them on its edges), h = 2 mm:
+ * kappa >= 0.95 of it, and at most twice it (the stencil that reached 0.5 mm
+ * outside the travel gave 29 times it on these tables). The _q build's
+ * integer nm add rounding: up to 2 nm per second difference over h = 0.5 mm,
+ * summed over a row of three, 0.024 um/mm^2. */
+static void test_curvature_inside_travel(void **state)
+{
+    (void)state;
+    static const char *const tables[] = {"backlash", "paper", "negative"};
+    for (unsigned t = 0; t < sizeof tables / sizeof tables[0]; t++) {
+        start(tables[t]);
+        float lo[3], hi[3], h = 2.0f, seen = 0.0f;
+        travel(lo, hi);
+        for (int k = 0; k < 20000; k++) {
+            float p[3], d[3], n = 0.0f;
+            for (unsigned j = 0; j < 3; j++) {
+                p[j] = lo[j] + h + uniform() * (hi[j] - lo[j] - 2.0f * h);
+                if (k % 2) {
+                    p[j] = uniform() < 0.5f ? lo[j] + h : hi[j] - h;
+                }
+                d[j] = uniform() - 0.5f;
+                n += d[j] * d[j];
+            }
+            n = sqrtf(n);
+            float a[3], b[3], e0[3], ea[3], eb[3];
+            for (unsigned j = 0; j < 3; j++) {
+                a[j] = p[j] + h * d[j] / n;
+                b[j] = p[j] - h * d[j] / n;
+            }
+            error_um(p, e0);
+            error_um(a, ea);
+            error_um(b, eb);
+            for (unsigned j = 0; j < 3; j++) {
+                float s = fabsf(ea[j] - 2.0f * e0[j] + eb[j]) / (h * h);
+                seen = s > seen ? s : seen;
+            }
+        }
+        float kappa = gh.slot[0].kappa_um_per_mm2;
+        float noise = ABBE_GH_FIXED_POINT ? 0.024f : 0.0f;
+        print_message("%s: kappa %.4f um/mm^2, largest directional second difference seen %.4f\n", tables[t],
+                      (double)kappa, (double)seen);
+        assert_true(kappa >= 0.95f * seen);
+        assert_true(kappa <= 2.0f * seen + noise);
+    }
 }
 
 static void test_segments(void **state)
@@ -143,6 +198,65 @@ static void test_segments(void **state)
     float c[3] = {10.1f, -10.0f, -10.0f};
     gh.last_dir[0] = 1;
     assert_int_equal(abbe_gh_line_begin(&gh, &line, a, c), 1u);
+}
+
+/* Lines that leave the table's travel: beyond it the library holds each term
+ * at its end value, a kink the curvature does not bound. The line is split
+ * where it crosses a face of the travel box, so every segment still keeps the
+ * model within the bound of its chord (checked at 65 points on each segment of
+ * 200 random lines from inside the travel to up to 60 mm beyond it, with a
+ * bound of 0.05 um: segments of ~6 mm, where a chord across the kink would
+ * leave the model by ~slope x L / 4). */
+static void test_lines_leaving_the_travel(void **state)
+{
+    (void)state;
+    start("backlash");
+    abbe_gh_params_t prm = gh.params;
+    prm.max_dev_um = 0.05f;
+    assert_int_equal(abbe_gh_set_params(&gh, &prm), ABBE_OK);
+    float lo[3], hi[3], worst = 0.0f;
+    travel(lo, hi);
+    uint32_t on_face = 0u;
+    for (int k = 0; k < 200; k++) {
+        float a[3], b[3];
+        for (unsigned j = 0; j < 3; j++) {
+            a[j] = lo[j] + 1.0f + uniform() * (hi[j] - lo[j] - 2.0f);
+            b[j] = a[j] + (uniform() - 0.5f) * 60.0f;
+        }
+        unsigned out_axis = (unsigned)k % 3u;
+        b[out_axis] = (k / 3) % 2 ? hi[out_axis] + 1.0f + 59.0f * uniform() : lo[out_axis] - 1.0f - 59.0f * uniform();
+        for (unsigned j = 0; j < 3; j++) {
+            gh.last_dir[j] = b[j] > a[j] ? 1 : -1; /* no take-up: only the faces split */
+        }
+        abbe_gh_line_t line;
+        (void)abbe_gh_line_begin(&gh, &line, a, b);
+        float prev[3], p[3], ea[3], eb[3];
+        memcpy(prev, a, sizeof prev);
+        while (abbe_gh_line_next(&line, p)) {
+            for (unsigned j = 0; j < 3; j++) {
+                on_face += fabsf(p[j] - lo[j]) < 1e-3f || fabsf(p[j] - hi[j]) < 1e-3f;
+            }
+            error_um(prev, ea);
+            error_um(p, eb);
+            for (int i = 1; i < 64; i++) {
+                float t = (float)i / 64.0f, q[3], e[3];
+                for (unsigned j = 0; j < 3; j++) {
+                    q[j] = prev[j] + t * (p[j] - prev[j]);
+                }
+                error_um(q, e);
+                for (unsigned j = 0; j < 3; j++) {
+                    float dev = fabsf(e[j] - (ea[j] + t * (eb[j] - ea[j])));
+                    worst = dev > worst ? dev : worst;
+                }
+            }
+            memcpy(prev, p, sizeof prev);
+        }
+    }
+    print_message("lines leaving the travel: segment %.3f mm, bound %.3f um, worst deviation %.4f um, "
+                  "%u segment ends on a face\n", (double)gh.seg_len_mm, (double)prm.max_dev_um, (double)worst,
+                  (unsigned)on_face);
+    assert_true(on_face >= 200u); /* every line ends a segment where it leaves the travel */
+    assert_true(worst <= prm.max_dev_um * 1.05f);
 }
 
 /* Forward then inverse gives the point back; switching never jumps. */
@@ -241,6 +355,13 @@ static void test_upload(void **state)
     assert_int_not_equal(upload(t->blob, t->blob_size, crc, 0, 1), ABBE_OK);
     const char *why;
     assert_int_not_equal(abbe_gh_upload_begin(&gh, ABBE_GH_TABLE_MAX_BYTES + 4u, crc, &why), ABBE_OK);
+    /* the refusal a user reads: the size and the limit in bytes, no macro name */
+    char want[96];
+    snprintf(want, sizeof want, "table of %u bytes: this build takes 16 to %u bytes",
+             (unsigned)(ABBE_GH_TABLE_MAX_BYTES + 4u), (unsigned)ABBE_GH_TABLE_MAX_BYTES);
+    assert_string_equal(why, want);
+    assert_int_not_equal(abbe_gh_upload_begin(&gh, 15u, crc, &why), ABBE_OK);
+    assert_string_equal(why, "table of 15 bytes: this build takes 16 to 8192 bytes");
     p[0] += 1.0f;
     (void)abbe_gh_forward(&gh, p, m);
     assert_int_equal(abbe_model_crc(abbe_gh_model(&gh)), crc0); /* the running table stays */
@@ -536,7 +657,9 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_deviation_bound),
+        cmocka_unit_test(test_curvature_inside_travel),
         cmocka_unit_test(test_segments),
+        cmocka_unit_test(test_lines_leaving_the_travel),
         cmocka_unit_test(test_forward_inverse_fade),
         cmocka_unit_test(test_upload),
         cmocka_unit_test(test_fault_fades_out),

@@ -180,7 +180,7 @@ def five_axis(work: Path) -> dict:
         "--dialect", "linuxcnc", "-o", str(rtest))
     cli("program", str(mf), "--test", "five-axis-probing", "--tilt-positions", "2",
         "--c-positions", "2", "--points", "5", "--probe-feed", "200", "--safe-z-mm", "20",
-        "--dialect", "linuxcnc",
+        "--dialect", "linuxcnc", "--log-file", str(five / "probe.csv"),  # LinuxCNC runs in cfg/
         "-o", str(probe))
     cfg = five / "config"
     shutil.copytree(SAMPLE, cfg)

@@ -328,12 +328,45 @@ def _r(x: float, nd: int = 6) -> float | None:
     return float(f"{x:.{nd}g}") if nd else x
 
 
-def _metrics_json(m: dict[str, dict[str, dict[str, float]]], unit: str) -> dict[str, Any]:
+MODEL_LABELS = {"chosen": "the chosen model", "paper_fourier3": "the paper's 3rd-order Fourier",
+                "paper_poly7": "the paper's 7th-order polynomial"}
+
+
+def _unavailable_why(name: str, kind: str, y: np.ndarray, yhat: np.ndarray) -> str | None:
+    """Why a metric of ``name`` / ``kind`` is undefined (None: every one is defined).
+
+    A prediction is missing where the model cannot be fitted: the paper's Fourier needs a
+    period at which the targets (of the line, or of a held-out fold's other targets)
+    resolve 3 harmonics, 7 coefficients and the period; on an 11-target line a fold of 8
+    or 9 targets does not. R^2 is undefined for a term constant at the targets."""
+    miss = int(np.count_nonzero(~np.isfinite(yhat)))
+    what = MODEL_LABELS.get(name, name)
+    if miss and kind == "in_sample":
+        return (f"{what} could not be fitted on the line's {y.size} targets (no period at "
+                "which they resolve its harmonics)")
+    if miss:
+        return (f"{miss} of {y.size} targets have no held-out prediction: {what} could not be "
+                "fitted on the other targets of their fold (no period at which they resolve "
+                "its harmonics)")
+    if not float(np.sum((y - y.mean()) ** 2)) > 0.0:
+        return "R^2 is undefined: the term is constant at the targets (SST = 0)"
+    return None
+
+
+def _metrics_json(tr: TermResult, unit: str) -> dict[str, Any]:
+    """paper Eqs. 6-8 per model and kind; a metric that is undefined is null and its
+    block says why (docs/formats.md, model.json)."""
     out: dict[str, Any] = {}
-    for name, d in m.items():
-        out[name] = {kind: {f"emax_{unit}": _r(v["emax"]), "r2": _r(v["r2"]),
-                            f"sse_{unit}2": _r(v["sse"]), f"rmse_{unit}": _r(v["rmse"])}
-                     for kind, v in d.items()}
+    for name, d in tr.metrics.items():
+        out[name] = {}
+        for kind, v in d.items():
+            block: dict[str, Any] = {f"emax_{unit}": _r(v["emax"]), "r2": _r(v["r2"]),
+                                     f"sse_{unit}2": _r(v["sse"]), f"rmse_{unit}": _r(v["rmse"])}
+            if any(x is None for x in block.values()):
+                yhat = tr.predictions[name][kind] + tr.post_shift  # as fitted (before the shift)
+                block["why_null"] = _unavailable_why(name, kind, tr.stats.mean + tr.post_shift,
+                                                     yhat) or "not finite"
+            out[name][kind] = block
     return out
 
 
@@ -392,7 +425,7 @@ def model_json(res: FitResult) -> dict[str, Any]:
                 f"max_abs_reversal_{u}": _r(float(np.max(np.abs(tr.stats.reversal)))),
                 "paper_fourier3_period_mm": _r(tr.paper_f3_period_mm) if tr.paper_f3_period_mm
                 else None,
-                "metrics": _metrics_json(tr.metrics, u),
+                "metrics": _metrics_json(tr, u),
             }
         axes[a] = {
             "laser_file": _rel(ar.line.file, base),
@@ -452,7 +485,9 @@ def model_json(res: FitResult) -> dict[str, Any]:
                          "predicted by an outer K-fold (target i in fold i mod K) that repeats "
                          "the whole selection on the other targets. paper_fourier3: a_0 + 3 "
                          "harmonics, period fitted per term by least squares; paper_poly7: "
-                         "degree-7 polynomial."),
+                         "degree-7 polynomial. A metric that is undefined (the model cannot be "
+                         "fitted on the targets, or on a fold's; R^2 of a constant term) is null, "
+                         "and its block's why_null says why."),
         "table": {"crc32": f"0x{int.from_bytes(res.blob[-4:], 'little'):08X}",
                   "size_bytes": len(res.blob), **table_to_json(qt)},
         "axes": axes,

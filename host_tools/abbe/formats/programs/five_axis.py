@@ -47,7 +47,9 @@ class ProbingProgram:
     safe_z_mm: float = 50.0  # above the sphere's top at the position, mm
     probe_feed: float = 100.0
     move_feed: float = 2000.0
-    log_file: str = "probe.csv"
+    log_file: str = "probe.csv"  # as LOGOPEN names it: LinuxCNC opens a relative path in its
+    # configuration folder (the INI file's; its start script changes there)
+    fit_reads: str = ""  # where abbe fit reads the log (relative to the machine file), stated
 
 
 def _n(v: float) -> str:
@@ -95,6 +97,10 @@ def probing_gcode(geom: TrunnionGeometry, p: ProbingProgram,
     dirs_w = probe_directions(p.n_points)
     if ang.shape[0] == 0:
         raise AbbeInputError("a probing plan needs at least one position", field="positions")
+    for name, text in (("--log-file", p.log_file), ("file", p.fit_reads)):
+        if any(c in text for c in "()\r\n") or (name == "--log-file" and not text.strip()):
+            raise AbbeInputError(f"the log file {text!r} cannot go into a G-code comment "
+                                 "(LOGOPEN): no '(', ')' or line break, not empty", field=name)
     lines = [f"(abbe: {title})",
              f"(sphere {_n(s[0])} {_n(s[1])} {_n(s[2])} mm, radius {p.sphere_radius_mm} mm, "
              f"stylus {p.stylus_radius_mm} mm; {len(ang)} positions x {p.n_points} points)",
@@ -102,6 +108,9 @@ def probing_gcode(geom: TrunnionGeometry, p: ProbingProgram,
              "G21 G90 G94 G17 G40",
              "M429 (identity kinematics: the probe reads machine positions)",
              "G43 (the probe is the current tool: its length to the stylus centre)",
+             f"(the log: LinuxCNC opens a relative LOGOPEN path in its configuration folder, "
+             f"the INI file's; abbe fit reads {p.fit_reads or p.log_file}, the machine file's "
+             "probing file)",
              f"(LOGOPEN,{p.log_file})",
              f"(LOG,position,t_s,{tilt.lower()}_deg,c_deg,x_mm,y_mm,z_mm)"]
     # One safe height above the highest place the sphere takes, on the way between the

@@ -1,0 +1,170 @@
+"""scripts/test.sh's step protocol (scripts/lib/steps.sh) with fake steps.
+
+A step exits 0 (PASS), 77 (SKIPPED: names what is missing in $ABBE_TEST_NOTES)
+or anything else (FAIL); a skipped step never shows PASS and fails under
+CI=true; tests skipped inside a passing step are listed as SKIPPED lines.
+Also: the skip notes read from pytest's -rs and CTest's logs, the grblHAL
+step without snapshots, and the real-data marker (tests/real_data.py).
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[3]
+STEPS = REPO / "scripts" / "lib" / "steps.sh"
+TESTS = REPO / "host_tools" / "tests"
+
+
+def run_steps(body: str, ci: bool = False) -> subprocess.CompletedProcess:
+    """Source steps.sh, run body (bash), then the summary; its output and exit status."""
+    script = f"set -uo pipefail\nt_all=$SECONDS\nsource {STEPS}\n{body}\nsummary || exit 1\n"
+    env = {k: v for k, v in os.environ.items() if k not in ("CI", "ABBE_TEST_NOTES")}
+    if ci:
+        env["CI"] = "true"
+    return subprocess.run(["bash", "-c", script], capture_output=True, text=True, env=env, timeout=60)
+
+
+def summary_lines(out: str) -> list[str]:
+    return out.split("==== [test] summary ====\n", 1)[1].splitlines()
+
+
+FAKES = textwrap.dedent("""
+    ok() { echo fine; }
+    bad() { return 3; }
+    missing() { echo "the frobnicator is absent" >>"$ABBE_TEST_NOTES"; return 77; }
+    silent_skip() { return 77; }
+    partial() { step_note "pytest: 2 test(s): real data absent: /x"; return 0; }
+""")
+
+
+def test_pass_and_fail():
+    r = run_steps(FAKES + 'step "one" ok\nstep "two" bad\n')
+    lines = summary_lines(r.stdout)
+    assert r.returncode == 1
+    assert lines[0].startswith("PASS     one (")
+    assert lines[1].startswith("FAIL     two (")
+    assert lines[-1].startswith("[test] FAILED: 1 of 2 steps failed")
+
+
+def test_all_pass_keeps_the_plain_closing_line():
+    r = run_steps(FAKES + 'step "one" ok\nstep "two" ok\n')
+    assert r.returncode == 0
+    assert summary_lines(r.stdout)[-1].startswith("[test] OK: all 2 steps passed (")
+
+
+def test_skipped_step_is_never_pass_and_names_what_is_missing():
+    r = run_steps(FAKES + 'step "one" ok\nstep "gone" missing\nstep "quiet" silent_skip\n')
+    lines = summary_lines(r.stdout)
+    assert r.returncode == 0  # outside CI a skip is not a failure, but it shows
+    gone = [ln for ln in lines if " gone " in ln]
+    assert len(gone) == 1 and gone[0].startswith("SKIPPED  gone (")
+    assert gone[0].endswith(": the frobnicator is absent")
+    assert not any(ln.startswith("PASS") and ("gone" in ln or "quiet" in ln) for ln in lines)
+    assert any(ln.startswith("SKIPPED  quiet (") and "the step named no reason" in ln for ln in lines)
+    assert lines[-1].startswith("[test] OK: 1 of 3 steps passed, 2 SKIPPED")
+
+
+def test_skipped_step_fails_under_ci():
+    r = run_steps(FAKES + 'step "one" ok\nstep "gone" missing\n', ci=True)
+    lines = summary_lines(r.stdout)
+    assert r.returncode == 1
+    assert any(ln.startswith("SKIPPED  gone (") and ln.endswith("(a failure under CI=true)") for ln in lines)
+    assert lines[-1].startswith("[test] FAILED: 1 of 2 steps failed")
+
+
+def test_skips_inside_a_passing_step_are_listed():
+    r = run_steps(FAKES + 'step "py" partial\n')
+    lines = summary_lines(r.stdout)
+    assert r.returncode == 0
+    assert lines[0].startswith("PASS     py (")
+    assert lines[1].strip() == "SKIPPED inside it: pytest: 2 test(s): real data absent: /x"
+    assert lines[-1].startswith("[test] OK: all 1 steps passed")  # one step; the indented line is not a step
+
+
+def test_pytest_skip_notes_sum_per_reason(tmp_path):
+    log = tmp_path / "pytest.log"
+    log.write_text(textwrap.dedent("""\
+        ....s..
+        =========================== short test summary info ============================
+        SKIPPED [2] tests/formats/test_ess.py:27: real data absent: /w/shared/data/ess-target (licence)
+        SKIPPED [3] tests/analysis/test_iso230_2.py:22: real data absent: /w/shared/data/ess-target (licence)
+        SKIPPED [1] tests/ports/test_can_docs.py: abbe-cand not built: /b/abbe-cand missing
+        12 passed, 6 skipped in 3.21s
+        """))
+    r = run_steps(f'pyskips() {{ pytest_skip_notes {log}; }}\nstep "py" pyskips\n')
+    lines = summary_lines(r.stdout)
+    inside = sorted(ln.strip() for ln in lines if "SKIPPED inside it" in ln)
+    assert inside == [
+        "SKIPPED inside it: pytest: 1 test(s): abbe-cand not built: /b/abbe-cand missing",
+        "SKIPPED inside it: pytest: 5 test(s): real data absent: /w/shared/data/ess-target (licence)",
+    ]
+
+
+def test_ctest_skip_notes(tmp_path):
+    log = tmp_path / "ctest.log"
+    log.write_text(textwrap.dedent("""\
+        100% tests passed, 0 tests failed out of 40
+
+        The following tests did not run:
+        \t 12 - test_can_socket (Skipped)
+        """))
+    r = run_steps(f'cskips() {{ ctest_skip_notes {log} build; }}\nstep "c" cskips\n')
+    lines = summary_lines(r.stdout)
+    assert lines[1].strip() == "SKIPPED inside it: build: CTest skipped 1 test(s): test_can_socket"
+
+
+def test_grblhal_step_without_snapshots_skips_with_77(tmp_path):
+    notes = tmp_path / "notes"
+    notes.touch()
+    env = dict(os.environ, ABBE_GRBLHAL_VENDOR=str(tmp_path / "none"), ABBE_TEST_NOTES=str(notes))
+    r = subprocess.run(["bash", str(REPO / "port" / "grblhal" / "tests" / "run.sh")], capture_output=True,
+                       text=True, env=env, timeout=60)
+    assert r.returncode == 77, r.stdout + r.stderr
+    assert "[grblhal] SKIPPED: no grblHAL snapshots" in r.stdout
+    assert str(tmp_path / "none") in notes.read_text()
+
+
+def test_carried_grblhal_snapshots_are_where_run_sh_looks():
+    vendor = REPO / "third_party" / "grblhal"
+    assert list(vendor.glob("grblhal-core-*.tar.gz")) and list(vendor.glob("grblhal-simulator-*.tar.gz"))
+
+
+@pytest.mark.parametrize("ci", [False, True])
+def test_real_data_marker_skips_visibly_or_fails_under_ci(tmp_path, ci):
+    (tmp_path / "conftest.py").write_text(textwrap.dedent("""\
+        from real_data import check_real_data
+        def pytest_configure(config):
+            config.addinivalue_line("markers", "real_data(path): test")
+        def pytest_runtest_setup(item):
+            check_real_data(item)
+        """))
+    (tmp_path / "test_fake.py").write_text(textwrap.dedent(f"""\
+        from pathlib import Path
+        from real_data import needs_real_data
+        @needs_real_data(Path({str(tmp_path / 'absent' / 'x.dat')!r}))
+        def test_reads():
+            assert False, "must not run without the file"
+        @needs_real_data(Path({str(tmp_path / 'conftest.py')!r}))
+        def test_present():
+            pass
+        """))
+    env = {k: v for k, v in os.environ.items() if k != "CI"}
+    env["PYTHONPATH"] = str(TESTS)
+    if ci:
+        env["CI"] = "true"
+    r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-rs", "-p", "no:cacheprovider", str(tmp_path)],
+                       capture_output=True, text=True, env=env, cwd=tmp_path, timeout=120)
+    if ci:
+        assert r.returncode == 1, r.stdout
+        assert "real data missing under CI=true" in r.stdout and "1 passed, 1 error" in r.stdout  # fails at set-up
+    else:
+        assert r.returncode == 0, r.stdout
+        assert "SKIPPED [1]" in r.stdout and "real data absent:" in r.stdout
+        assert "1 passed, 1 skipped" in r.stdout
