@@ -292,7 +292,7 @@ static int write_staging(abbe_mb_regs_t *r, uint32_t conn, uint16_t addr, uint16
  * table: it fades in after its first good sample); NULL without a block. */
 static abbe_thermal_state_t *thermal_state(abbe_mb_regs_t *r)
 {
-    int8_t b = r->pending >= 0 ? r->pending : r->running;
+    int8_t b = (int8_t)(r->pending >= 0 ? r->pending : r->running);
     if (b < 0 || r->thermal[b].n_channels == 0u) {
         r->th_bank = -1;
         return NULL;
