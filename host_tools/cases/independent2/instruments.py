@@ -6,8 +6,10 @@ choices, not the team's: the axis follows its command through a first-order
 position loop integrated at 1 kHz; lost motion is the play operator (the
 carriage stands until the command has crossed the play); the ballbar is sampled
 in time at a fixed rate (angle steps of 1.5-2.5 deg at a random phase), its
-angles written wrapped to [0, 360) in half of the files, its noise AR(1) with
-the instrument's 0.1 um resolution; laser noise white per channel with a beam
+angles written wrapped to [0, 360) in half of the files, its noise AR(1) in time
+(correlation time 20-150 ms; first written as a per-sample correlation of
+0.3-0.85, which at 1.5-2.5 deg steps is a wander over 10-40 deg: see
+docs/effects.md) with the instrument's 0.1 um resolution; laser noise white per channel with a beam
 tilt on the straightness channels and an arbitrary zero per channel.
 
 Sign conventions: an effect is stated on the model term (d_j of the axis, um)
@@ -134,7 +136,10 @@ def ballbar_rows(rng: np.random.Generator, m: Machine, eff: Effects, c: Circle,
         E = m.error_um(q) * 1e-3
         tip = q + E
         radial = (np.linalg.norm(tip - c.center - noise["setup_mm"], axis=1) - c.radius) * 1e3
-        radial = radial + noise["bar_um"] + ar1(rng, len(ts), noise["ballbar_um"], noise["rho"])
+        # correlated in time (vibration, the bar's own dynamics): a correlation time of
+        # 20-150 ms, so the correlation between samples depends on the feed and sampling
+        rho = float(np.exp(-dt_sample / noise["corr_s"]))
+        radial = radial + noise["bar_um"] + ar1(rng, len(ts), noise["ballbar_um"], rho)
         radial = np.round(radial, 1)                  # 0.1 um resolution
         angles = th0 + sgn * np.degrees(v * ts / c.radius)
         if wrap:

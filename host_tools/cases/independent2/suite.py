@@ -139,7 +139,7 @@ def build(case: Case, out_dir: str | Path) -> BuiltCase:
         m.tool_mm = np.array([0.0, 0.0, tool_change])
     noise = {"laser_um": float(rng.uniform(0.05, 0.2)), "straight_um": float(rng.uniform(0.1, 0.3)),
              "angle_urad": float(rng.uniform(0.2, 0.5)), "ballbar_um": float(rng.uniform(0.08, 0.25)),
-             "rho": float(rng.uniform(0.3, 0.85))}
+             "corr_s": float(rng.uniform(0.02, 0.15))}
     # --- commissioning: laser lines, abbe fit
     signs = {a: {ch: float(rng.choice([-1.0, 1.0])) for ch in ("linear", "straight_h", "straight_v",
                                                                "pitch", "yaw", "roll")} for a in AXES}
