@@ -532,6 +532,10 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
                                      "r2": v["redundancy"], "reverse": True,
                                      "separating_test": "not preferred as a pair on held-out "
                                      f"data: {k} alone is mostly reproduced by {e.key}"})
+    for e in effects:
+        if e.undecided:
+            notes.append("UNDECIDED: " + e.undecided["statement"] + " (values: " + ", ".join(
+                f"{a['key']} {a['value']} {a['unit']}" for a in e.undecided["alternatives"]) + ")")
     lof = _lack_of_fit(eng, r_after)
     tentative = lof > LACK_OF_FIT_LIMIT
     if not effects and not tentative:
