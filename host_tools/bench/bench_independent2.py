@@ -49,12 +49,14 @@ def main() -> int:
     ap.add_argument("--clean", type=int, default=20)
     ap.add_argument("--per-limit", type=int, default=1)
     ap.add_argument("--json", default=None)
+    ap.add_argument("--kinds", default=None, help="comma list of single,pair,clean,limit")
     a = ap.parse_args()
     seed = a.seed if a.seed is not None else secrets.randbelow(2**31)
     print(f"seed {seed}", flush=True)
     t = time.time()
     rows = run_suite(seed, per_single=a.per_single, per_pair=a.per_pair, n_clean=a.clean,
-                     per_limit=a.per_limit)
+                     per_limit=a.per_limit,
+                     kinds=tuple(a.kinds.split(",")) if a.kinds else None)
     s = summarise(rows)
     s["seed"] = seed
     s["seconds"] = round(time.time() - t, 1)

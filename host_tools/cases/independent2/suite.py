@@ -268,8 +268,11 @@ def score(b: BuiltCase, res: Any) -> dict[str, Any]:
 
 
 def run_suite(seed: int, work: str | Path | None = None, limit: int | None = None,
-              progress: bool = True, **kw: Any) -> list[dict[str, Any]]:
+              progress: bool = True, kinds: tuple[str, ...] | None = None,
+              **kw: Any) -> list[dict[str, Any]]:
     cases = suite(seed, **kw)
+    if kinds:
+        cases = [c for c in cases if c.kind in kinds]
     if limit:
         cases = cases[:limit]
     tmp = Path(work) if work else Path(tempfile.mkdtemp(prefix="ind2_"))
