@@ -132,6 +132,9 @@ def build(case: Case, out_dir: str | Path) -> BuiltCase:
         tr, dt = _apply(e, rng, eff, sq, case.kind == "limit")
         truth[e] = tr
         tool_change += dt
+    if "servo_mismatch_xy" in truth:
+        # Y's lag differs from Z's too: the YZ circle sees a mismatch of its own
+        truth["servo_mismatch_yz"] = {"value": eff.lag_ms["Z"] - eff.lag_ms["Y"]}
     declared = tool_len
     if tool_change:
         # the machine file declares no tool; the checks ran with one of tool_change mm
@@ -240,8 +243,7 @@ def score(b: BuiltCase, res: Any) -> dict[str, Any]:
         alts = {k for k in (e.get("undecided_between") or [])}
         if alts:
             undecided_ok |= alts | {key}
-    truth = set(b.case.effects)
-    expected = {t.replace("thermal_drift_x", "thermal_drift_x") for t in truth}
+    expected = set(b.truth)
 
     def canon(k: str) -> str:
         return "thermal_drift_x" if k.startswith("thermal_drift") else k
