@@ -71,6 +71,7 @@ def describe_effects(eng: Engine, sel: list[Selected], values: list[np.ndarray],
         me = model_error_ambiguity(eng, spec)
         if me is not None:
             amb.append(me)
+        undecided = _undecided(spec.key, value, unit, amb, eng.opts.undecided_r2)
         scan = scan_ci = None
         if s.cand.scan_value is not None and spec.scan:
             name = spec.scan if spec.kind != "thermal" else f"tau_{eng.drift_unit or 'h'}"
@@ -98,7 +99,7 @@ def describe_effects(eng: Engine, sel: list[Selected], values: list[np.ndarray],
             id=spec.family, key=spec.key, value=value, unit=unit, ci95=ci, params=params,
             compensable=where == "table", where=where, physics=spec.physics, remedy=remedy,
             evidence=ev, axis=spec.axis, plane=spec.plane, scan=scan, scan_ci95=scan_ci,
-            ambiguous_with=amb,
+            ambiguous_with=amb, undecided=undecided,
             shape=shape, shape_notes=shape_notes,
             stage_before=[rb_[prob.slice(k)] for k in range(len(prob.checks))],
             stage_after=[ra_[prob.slice(k)] for k in range(len(prob.checks))]))
@@ -294,6 +295,30 @@ def _headline(spec: EffectSpec, idx: list[int], v: np.ndarray, C: np.ndarray, tq
         return float(v[jj]), _unit("um", spec, eng), (float(v[jj] - tq * sd), float(v[jj] + tq * sd))
     sd = math.sqrt(max(C[0, 0], 0.0))
     return float(v[0]), spec.params[idx[0]].unit, (float(v[0] - tq * sd), float(v[0] + tq * sd))
+
+
+def _undecided(key: str, value: float, unit: str, amb: list[dict[str, Any]],
+               r2_min: float) -> dict[str, Any] | None:
+    """Undecided is an answer (issue 36): the candidates that reproduce this effect's
+    signature on every check to ``r2_min`` (the ambiguity already computed) are other
+    explanations the data cannot tell from it. The result states both with their values
+    and the test that separates them; what the checks constrain is what every
+    alternative reproduces (the fitted signature, which the table's update holds)."""
+    alts = [a for a in amb if a.get("r2") is not None and a["r2"] >= r2_min]
+    if not alts:
+        return None
+    entries = [{"key": key, "value": round(float(value), 6), "unit": unit}]
+    for a in alts:
+        v = a.get("value") or [None]
+        u = a.get("unit") or [None]
+        entries.append({"key": a["key"], "value": v[0] if len(v) == 1 else v,
+                        "unit": u[0] if len(u) == 1 else u, "r2": a["r2"]})
+    tests = [a["separating_test"] for a in alts]
+    return {"alternatives": entries, "separating_test": tests[0] if len(tests) == 1 else tests,
+            "statement": " or ".join(e["key"] for e in entries) +
+            ", indistinguishable on these checks; to separate them run: " + "; ".join(tests),
+            "constrained": "the combination the checks see (the fitted signature): every "
+                           "alternative reproduces it; the table holds it as " + key}
 
 
 def _per_check_contrib(eng: Engine, s: Selected, v: np.ndarray) -> dict[str, float]:

@@ -109,6 +109,11 @@ def format_text(res: DiagnoseResult, model_path: str | None = None) -> str:
         L.append(f"    BIC change {ev['delta_bic']:.1f}, F = {ev['F']:.2f}, p = {ev['p_value']:.3g}; "
                  f"held-out ({ev['heldout_split']}): RSS change {ev['heldout_change_percent']:.1f} %")
         L.append(f"    compensated by: {e.where}; remedy: {e.remedy}")
+        if e.undecided:
+            L.append("    UNDECIDED: " + e.undecided["statement"])
+            for alt in e.undecided["alternatives"]:
+                L.append(f"      {alt['key']}: {alt['value']} {alt['unit']}")
+            L.append("      constrained by the checks: " + e.undecided["constrained"])
         for a in e.ambiguous_with:
             how = (f"reproduces {100 * a['r2']:.0f} % of the signature" if a.get("r2") is not None
                    else "same signature at one height")

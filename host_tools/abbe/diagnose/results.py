@@ -40,6 +40,17 @@ class DiagnoseOptions:
     changes a parameter the machine file fixes (the declared tool offset) or that is
     ambiguous with an error of the model itself; tool_offset_max_mm: the largest
     physically plausible tool offset (norm of declared + found, mm).
+
+    Priors for what the user declared (issue 36, docs/effects.md "Declared
+    quantities"): declared_tool_sigma_mm: the 1-sigma uncertainty of a declared
+    (non-zero) tool offset (a presetter: 0.01 mm); declared_blunder_prob: the prior
+    probability that a declared value is a blunder (wrong tool, typo), then anywhere
+    within +/- tool_offset_max_mm; model_angle_sigma_urad: the uncertainty of the
+    model's angular terms (a 6D laser fit: 0.5 urad), which a change of the tool
+    offset is indistinguishable from to the extent of lever x this; evidence_log_min:
+    the log evidence ratio needed to overrule a declared value (log 20 = "strong").
+    undecided_r2: two explanations that reproduce each other to this R^2 on every
+    check are reported undecided ("A or B"), not one named.
     """
 
     alpha: float = 0.01
@@ -57,6 +68,11 @@ class DiagnoseOptions:
     min_contribution_noise: float = 0.5
     strong_heldout_fraction: float = 0.5
     tool_offset_max_mm: float = 300.0
+    declared_tool_sigma_mm: float = 0.01
+    declared_blunder_prob: float = 0.01
+    model_angle_sigma_urad: float = 0.5
+    evidence_log_min: float = 3.0
+    undecided_r2: float = 0.98
 
 
 @dataclass
@@ -104,6 +120,10 @@ class EffectResult:
     #: its key, axis, value, unit, 95 % interval and parameters; the entry's own value is
     #: its first (largest-evidence) component's
     components: list[dict[str, Any]] = field(default_factory=list)
+    #: undecided (issue 36): the explanations that reproduce each other on every check
+    #: (this one first), each with its value, and the test that separates them; None =
+    #: decided
+    undecided: dict[str, Any] | None = None
 
     def named_parts(self) -> list[tuple[str, float, str, tuple[float, float]]]:
         """(key, value, unit, 95 % interval) of each component (the entry itself when it
@@ -135,6 +155,10 @@ class EffectResult:
             d["components"] = self.components
         d["ambiguous_with"] = self.ambiguous_with
         d["tentative"] = self.tentative
+        d["state"] = "undecided" if self.undecided else "named"
+        if self.undecided:
+            d["undecided"] = self.undecided
+            d["undecided_between"] = [a["key"] for a in self.undecided["alternatives"]]
         return d
 
 
@@ -202,6 +226,8 @@ class DiagnoseResult:
     def to_json(self, model_path: str | None = None) -> dict[str, Any]:
         return {
             "effects": [e.to_json() for e in self.effects],
+            "state": ("nothing missing" if not self.effects else
+                      "undecided" if any(e.undecided for e in self.effects) else "named"),
             "gap": {**{k: (None if v is None else v.to_json()) for k, v in self.gap.items()},
                     "held_out_split": self.heldout_split},
             "model": model_path,

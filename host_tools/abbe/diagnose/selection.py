@@ -40,7 +40,7 @@ from scipy import stats
 
 from abbe.diagnose.candidates import Cand, Engine, Selected, apply_selection, selection_residual
 from abbe.diagnose.caps import cap_violations
-from abbe.diagnose.checks import DEFAULT_TAKEUP_MM, Check, LaserCheck, check_travel
+from abbe.diagnose.checks import DEFAULT_TAKEUP_MM, BallbarCheck, Check, LaserCheck, check_travel
 from abbe.diagnose.describe import describe_effects, model_error_ambiguity
 from abbe.diagnose.effects import PredParams, catalogue, copy_table, fold_reversal
 from abbe.diagnose.evaluator import Evaluator
@@ -255,6 +255,12 @@ def _parsimony(st: dict[str, Any], cand: Cand, sel: list[Selected], eng: Engine,
         return False, (f"contribution {st['contrib_rms_um']:.3f} um RMS below "
                        f"{opts.min_contribution_noise:g} x the noise ({noise_um:.3f} um)")
     spec = cand.spec
+    declared_tool = spec.kind == "tool_offset" and \
+        float(np.linalg.norm(np.asarray(eng.table.tool_offset_mm, dtype=float))) > 0
+    if declared_tool:
+        # a declared value is a measurement with a prior: judged by its evidence ratio
+        # (issue 36), not by the relative held-out rules below
+        return _declared_tool_evidence(st, cand, eng, opts)
     me = model_error_ambiguity(eng, spec)
     if me is not None and frac < opts.strong_heldout_fraction:
         # ambiguous with an error of the model itself (any effect; the ambiguity with an
@@ -275,6 +281,74 @@ def _parsimony(st: dict[str, Any], cand: Cand, sel: list[Selected], eng: Engine,
             return False, ("the machine file fixes the tool offset: a change needs a "
                            f"held-out gain of {100 * opts.strong_heldout_fraction:.0f} % "
                            f"(found {100 * frac:.1f} %)")
+    return True, ""
+
+
+def declared_tool_log_evidence(drss: float, coef: np.ndarray, contrib_um: float,
+                               declared_mm: np.ndarray, lever_mm: float,
+                               opts: DiagnoseOptions) -> dict[str, float]:
+    """Log evidence ratio (natural log) of "the declared tool offset is wrong by ``coef``"
+    against "it is right within its uncertainty" (docs/effects.md, "Declared quantities").
+
+    The declared value is a measurement: right within ``declared_tool_sigma_mm`` with
+    probability 1 - p, a blunder anywhere within +/- ``tool_offset_max_mm`` with p =
+    ``declared_blunder_prob``. The data's evidence for the change is the likelihood
+    ratio of its signature, amplitude c (``contrib_um``, RMS um) seen with the noise
+    (``drss`` = c^2 / sigma_w^2 in noise units) *and* the model's own uncertainty: an
+    error of the model's angular terms of ``model_angle_sigma_urad`` times the lever
+    (``lever_mm``: the tool length plus the circles' height from the reference) gives
+    the same signature with an RMS of sigma_m = lever x sigma_angle, so the amplitude's
+    variance is sigma_w^2 + sigma_m^2 and log LR = c^2 / (2 (sigma_w^2 + sigma_m^2)).
+    Laplace's approximation then gives log K = log LR + sum_i log(sqrt(2 pi) s_i /
+    (2 T)) + log(p / (1 - p)), s_i the components' standard deviations (inflated like
+    the amplitude's). A change inside 3 declared sigmas is no change (-inf)."""
+    coef = np.asarray(coef, dtype=float)
+    if float(np.max(np.abs(coef))) <= 3.0 * opts.declared_tool_sigma_mm or drss <= 0 or contrib_um <= 0:
+        return {"log_evidence": -math.inf, "sigma_model_um": float("nan"), "log_lr": 0.0}
+    sig_w2 = contrib_um ** 2 / drss
+    sig_m = lever_mm * opts.model_angle_sigma_urad * 1e-3
+    infl = math.sqrt((sig_w2 + sig_m ** 2) / sig_w2)
+    log_lr = contrib_um ** 2 / (2.0 * (sig_w2 + sig_m ** 2))
+    T = opts.tool_offset_max_mm
+    s_i = np.abs(coef) / math.sqrt(drss) * infl
+    log_occam = float(np.sum(np.log(np.sqrt(2 * math.pi) * np.maximum(s_i, 1e-12) / (2 * T))))
+    p = opts.declared_blunder_prob
+    logk = log_lr + log_occam + math.log(p / (1 - p))
+    return {"log_evidence": float(logk), "sigma_model_um": float(sig_m), "log_lr": float(log_lr)}
+
+
+def _tool_lever_mm(eng: Engine) -> float:
+    """Lever (mm) of the model's angular terms on the circles: the declared tool length
+    plus the circles' height from the reference point (RMS over the ballbar checks)."""
+    t = np.asarray(eng.table.tool_offset_mm, dtype=float)
+    zr = float(getattr(eng.table, "reference_mm", (0.0, 0.0, 0.0))[2])
+    zs = [float(c.center_mm[2]) - zr for c in eng.prob.checks if isinstance(c, BallbarCheck)]
+    if not zs:
+        return float(np.linalg.norm(t))
+    return float(math.sqrt(np.mean([(z + t[2]) ** 2 for z in zs])))
+
+
+def _declared_tool_evidence(st: dict[str, Any], cand: Cand, eng: Engine,
+                            opts: DiagnoseOptions) -> tuple[bool, str]:
+    declared = np.asarray(eng.table.tool_offset_mm, dtype=float)
+    t = declared.copy()
+    for i, v in zip(cand.param_idx, st["coef"]):
+        t[i] += float(v)
+    if float(np.linalg.norm(t)) > opts.tool_offset_max_mm:
+        return False, (f"implausible tool offset {float(np.linalg.norm(t)):.0f} mm "
+                       f"(> {opts.tool_offset_max_mm:g} mm; the machine file declares "
+                       f"{float(np.linalg.norm(declared)):.0f} mm)")
+    ev = declared_tool_log_evidence(st["drss"], np.asarray(st["coef"]), st["contrib_rms_um"],
+                                    declared, _tool_lever_mm(eng), opts)
+    st["declared_log_evidence"] = ev["log_evidence"]
+    if ev["log_evidence"] < opts.evidence_log_min:
+        return False, (f"the machine file declares the tool offset ({float(np.linalg.norm(declared)):.2f} mm, "
+                       f"+/- {opts.declared_tool_sigma_mm:g} mm): the change found "
+                       f"({float(np.linalg.norm(np.asarray(st['coef']))):.2f} mm, "
+                       f"{st['contrib_rms_um']:.3f} um RMS against a model uncertainty of "
+                       f"{ev['sigma_model_um']:.3f} um) has a log evidence ratio of "
+                       f"{ev['log_evidence']:.1f} < {opts.evidence_log_min:g}: left as lack of fit "
+                       "/ model error")
     return True, ""
 
 
@@ -458,6 +532,10 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
                                      "r2": v["redundancy"], "reverse": True,
                                      "separating_test": "not preferred as a pair on held-out "
                                      f"data: {k} alone is mostly reproduced by {e.key}"})
+    for e in effects:
+        if e.undecided:
+            notes.append("UNDECIDED: " + e.undecided["statement"] + " (values: " + ", ".join(
+                f"{a['key']} {a['value']} {a['unit']}" for a in e.undecided["alternatives"]) + ")")
     lof = _lack_of_fit(eng, r_after)
     tentative = lof > LACK_OF_FIT_LIMIT
     if not effects and not tentative:

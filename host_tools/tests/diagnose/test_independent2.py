@@ -1,0 +1,72 @@
+"""The second independent generator (cases/independent2, issue 36): written from the
+docs only -- it imports neither the simulator nor the other generators -- its exact
+transforms reduce to Eq. 3 of docs/table-format.md to first order, and a fixed-seed
+case is diagnosed through the documented files (the full suite: bench/bench_independent2.py)."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from cases.independent2 import machine as m2
+
+PKG = Path(__file__).resolve().parents[2] / "cases" / "independent2"
+
+
+def test_written_without_the_other_generators() -> None:
+    for f in PKG.glob("*.py"):
+        src = "\n".join(ln for ln in f.read_text().splitlines()
+                        if ln.lstrip().startswith(("import ", "from ")))
+        for banned in ("abbe.sim", "cases.hidden_effects", "cases.independent ", "cases.independent.",
+                       "from cases.independent import", "abbe.diagnose"):
+            if banned == "abbe.diagnose" and f.name == "suite.py":
+                continue        # the suite runs the diagnosis it scores
+            assert banned not in src, f"{f.name} uses {banned}"
+        assert not re.search(r"import cases\.independent\b(?!2)", src)
+
+
+def _eq3(mach: m2.Machine, q: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Eq. 3 of docs/table-format.md (plus the Abbe terms), written from the page."""
+    x, y, z = q - mach.ref
+    e = {a: {k: float(mach.motions[a][k](np.array([q[j]]))[0]) for k in m2.TERMS}
+         for j, a in enumerate(m2.AXES)}
+    S = mach.squareness_urad
+    u = 1e-3   # urad x mm -> um
+    dX = (-e["X"]["dx"] - e["Y"]["dx"] + e["Z"]["dx"]
+          + u * (-y * (e["X"]["ez"] + e["Y"]["ez"]) - z * (e["X"]["ey"] + e["Y"]["ey"])
+                 + y * S["xy"] - z * S["xz"]
+                 + t[1] * (e["X"]["ez"] + e["Y"]["ez"] - e["Z"]["ez"])
+                 + t[2] * (e["Z"]["ey"] - e["X"]["ey"] - e["Y"]["ey"])))
+    dY = (-e["X"]["dy"] - e["Y"]["dy"] + e["Z"]["dy"]
+          + u * (x * e["X"]["ez"] + z * (e["X"]["ex"] + e["Y"]["ex"]) - z * S["yz"]
+                 + t[0] * (e["Z"]["ez"] - e["X"]["ez"] - e["Y"]["ez"])
+                 + t[2] * (e["X"]["ex"] + e["Y"]["ex"] - e["Z"]["ex"])))
+    dZ = (-e["X"]["dz"] - e["Y"]["dz"] + e["Z"]["dz"]
+          + u * (-x * e["X"]["ey"] + y * (e["X"]["ex"] + e["Y"]["ex"])
+                 + t[0] * (e["X"]["ey"] + e["Y"]["ey"] - e["Z"]["ey"])
+                 + t[1] * (e["Z"]["ex"] - e["X"]["ex"] - e["Y"]["ex"])))
+    return np.array([dX, dY, dZ])
+
+
+def test_exact_transforms_reduce_to_eq3() -> None:
+    rng = np.random.default_rng(3)
+    t = np.array([5.0, -8.0, 120.0])
+    mach, _ = m2.random_machine(rng, t)
+    mach.squareness_urad = {"xy": 30.0, "xz": -20.0, "yz": 15.0}
+    worst = 0.0
+    for _ in range(20):
+        q = np.array([rng.uniform(lo, hi) for lo, hi in mach.travel.values()])
+        worst = max(worst, float(np.max(np.abs(mach.error_um(q[None, :])[0] - _eq3(mach, q, t)))))
+    # second order only: tens of urad over hundreds of mm -> well below 0.01 um
+    assert worst < 0.01
+
+
+def test_a_fixed_seed_case_through_the_files(tmp_path) -> None:
+    from cases.independent2.suite import Case, build, run, score
+    b = build(Case("squareness_xy_fixed", "single", ("squareness_xy",), 20261204), tmp_path)
+    s = score(b, run(b))
+    assert s["exact"], s
+    assert not s["tool_changed_where_right"]
+    assert all(v[3] for v in s["values"]), s["values"]
