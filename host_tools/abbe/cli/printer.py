@@ -22,7 +22,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         epilog=examples("abbe printer fit printer.cfg --skew skew.csv -o printer-fit",
                         "abbe printer fit heightmap.csv --z-travel 0 250 -o printer-fit"))
     sub = p.add_subparsers(dest="printer_cmd", required=True)
-    f = sub.add_parser("fit", help="fit a height map (and skew artefacts) into a table")
+    f = sub.add_parser("fit", help="fit a height map (and skew artefacts) into a table",
+                       description="Fit a Klipper bed mesh or RepRapFirmware height map (and skew "
+                                   "artefacts) into a table, with 95 % intervals and the held-out "
+                                   "comparison with the firmware's mesh (docs/klipper.md).",
+                       formatter_class=argparse.RawDescriptionHelpFormatter,
+                       epilog=examples("abbe printer fit printer.cfg --skew skew.csv -o printer-fit",
+                                       "abbe printer fit heightmap.csv --z-travel 0 250 -o printer-fit"))
     f.add_argument("map", help="Klipper printer.cfg (its #*# [bed_mesh NAME]) or RepRapFirmware "
                                "heightmap.csv")
     f.add_argument("--profile", help="the Klipper mesh profile (default: the only one, or 'default')")

@@ -56,7 +56,7 @@ def test_a_crash_inside_a_command_through_main(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("ABBE_CRASH_DIR", str(tmp_path))
     import abbe.formats.positioning as pos
 
-    def broken(path):
+    def broken(path, **kwargs):
         raise RuntimeError("injected")
     monkeypatch.setattr(pos, "load_positioning", broken)
     import abbe.cli.iso230_2 as cmd
