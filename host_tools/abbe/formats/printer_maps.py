@@ -8,9 +8,10 @@ values, RepRapFirmware's height map, skew artefact diagonals.
   ``#*# [axis_twist_compensation]`` (``z_compensations``, ``compensation_start_x``,
   ``compensation_end_x``).
 * RepRapFirmware ``heightmap.csv`` (Grid.cpp ``HeightMap::SaveToFile``): a first
-  line ``RepRapFirmware height map file v2 ...``; a header line, either
-  ``xmin,xmax,ymin,ymax,radius,xspacing,yspacing,xnum,ynum`` (RRF 2 / 3.0-3.2) or
-  ``axis0,axis1,min0,max0,min1,max1,radius,spacing0,spacing1,num0,num1`` (3.3+);
+  line ``RepRapFirmware height map file v2 ...``; a label line, one of Grid.cpp's
+  ``HeightMapLabelLines``: ``xmin,xmax,ymin,ymax,radius,spacing,xnum,ynum`` (the oldest,
+  one spacing), ``xmin,xmax,ymin,ymax,radius,xspacing,yspacing,xnum,ynum`` (until 3.3-beta1)
+  or ``axis0,axis1,min0,max0,min1,max1,radius,spacing0,spacing1,num0,num1`` (3.3-beta2 on);
   the values of that header; then one line per row of the second axis (from its
   minimum), num0 values each, mm. A point that was not probed is written as a bare
   ``0`` (no decimal point): it is kept as "not measured", never as a height of 0.
@@ -229,6 +230,7 @@ def read_klipper_twist(path: str | Path) -> TwistTable | None:
 # -- RepRapFirmware ----------------------------------------------------------------------
 
 _RRF_HEADERS = {
+    "xmin,xmax,ymin,ymax,radius,spacing,xnum,ynum": "v1",
     "xmin,xmax,ymin,ymax,radius,xspacing,yspacing,xnum,ynum": "v2-old",
     "axis0,axis1,min0,max0,min1,max1,radius,spacing0,spacing1,num0,num1": "v2-axes",
 }
@@ -253,7 +255,7 @@ def read_rrf_heightmap(path: str | Path) -> HeightMap:
                              file=p, line=hno, field="header")
     vno, vals_text = lines[2]
     vals = [v.strip(_WS) for v in vals_text.split(",")]
-    want = 9 if kind == "v2-old" else 11
+    want = {"v1": 8, "v2-old": 9, "v2-axes": 11}[kind]
     if len(vals) != want:
         raise AbbeInputError(f"{len(vals)} values under the header: expected {want}",
                              file=p, line=vno, field="header values")
@@ -262,6 +264,8 @@ def read_rrf_heightmap(path: str | Path) -> HeightMap:
             raise AbbeInputError(f"axes {vals[0]},{vals[1]}: only X,Y maps are read",
                                  file=p, line=vno, field="axis0,axis1")
         vals = vals[2:]
+    if kind == "v1":  # one spacing for both axes (RRF's oldest label line)
+        vals = vals[:5] + [vals[5]] + vals[5:]
     names = ["min0", "max0", "min1", "max1", "radius", "spacing0", "spacing1"]
     f = {n: parse_number(v, file=p, line=vno, field=n, lo=-MAX_COORD_MM, hi=MAX_COORD_MM)
          for n, v in zip(names, vals[:7])}

@@ -118,6 +118,22 @@ def test_rrf_heightmap_both_headers_and_unprobed(tmp_path, grid):
         assert fit_height_map(hm).fit_rms_um < 3.0
 
 
+def test_rrf_oldest_label_line(tmp_path, grid):
+    """RRF's oldest label line has one spacing for both axes (Grid.cpp HeightMapLabelLines[0])."""
+    x = np.linspace(10.0, 190.0, 7)
+    y = np.linspace(10.0, 130.0, 5)
+    X, Y = np.meshgrid(x, y)
+    z = bed(X, Y)
+    text = rrf_csv(x, y, z, new_header=False).splitlines()
+    text[1] = "xmin,xmax,ymin,ymax,radius,spacing,xnum,ynum"
+    text[2] = f"{x[0]:.2f},{x[-1]:.2f},{y[0]:.2f},{y[-1]:.2f},-1.00,30.00,{len(x)},{len(y)}"
+    p = tmp_path / "hm.csv"
+    p.write_text("\n".join(text) + "\n")
+    hm = read_rrf_heightmap(p)
+    assert np.allclose(hm.x_mm, x) and np.allclose(hm.y_mm, y)
+    assert np.allclose(hm.z_mm, np.round(z, 3))
+
+
 def test_a_probed_zero_is_a_height(tmp_path, grid):
     x, y, z = grid
     z = z.copy()
