@@ -126,6 +126,22 @@ def read_klipper(out: Path, profile: str = "abbe"):
     return corr
 
 
+def read_klipper_twist(out: Path):
+    """Klipper's [axis_twist_compensation] corrects probe readings, never the motion: the
+    motion correction is zero. The values are parsed strictly here all the same (Klipper's
+    config parser: z_compensations a comma list of floats, start < end)."""
+    vals = {}
+    for line in (out / "axis_twist_compensation.cfg").read_text().splitlines():
+        line = line.split("#")[0].strip()
+        if ":" in line and not line.startswith("["):
+            k, v = line.split(":", 1)
+            vals[k.strip()] = v.strip()
+    comp = [_num(c) for c in vals["z_compensations"].split(",")]
+    if len(comp) < 2 or not _num(vals["compensation_start_x"]) < _num(vals["compensation_end_x"]):
+        raise FormatError("axis_twist_compensation: fewer than 2 values or start >= end")
+    return lambda pos, state: np.zeros_like(np.asarray(pos, dtype=float))
+
+
 def read_rrf_m556(out: Path):
     """From RepRapFirmware's Move::AxisTransform and the M556 page: tanXY = X/S,
     tanYZ = Y/S, tanXZ = Z/S; x += tanXY y + tanXZ z, y += tanYZ z (P0)."""
@@ -708,6 +724,7 @@ READERS = {
     "klipper-skew": read_klipper,
     "marlin": read_marlin,
     "rrf-m556": read_rrf_m556,
+    "klipper-twist": read_klipper_twist,
     "sinumerik-lec": read_sinumerik_lec,
     "sinumerik-cec": lambda out: read_sinumerik_cec(out)[0],
     "heidenhain-com": read_heidenhain,

@@ -26,6 +26,7 @@ TARGETS: dict[str, str] = {
     "heidenhain-com": "abbe.formats.export.heidenhain_com",
     "fanuc-pitch": "abbe.formats.export.fanuc_pitch",
     "klipper-skew": "abbe.formats.export.klipper_skew",
+    "klipper-twist": "abbe.formats.export.klipper_twist",
     "marlin": "abbe.formats.export.marlin",
     "rrf-m556": "abbe.formats.export.rrf_m556",
     "linuxcnc-comp": "abbe.formats.export.linuxcnc_comp",
