@@ -30,53 +30,16 @@ def _module():
     return mod
 
 
-class _Config:
-    """The few config calls the module makes, with defaults."""
-
-    def __init__(self, printer, values):
-        self.printer, self.values = printer, values
-
-    def get_printer(self):
-        return self.printer
-
-    def get(self, key, default=None):
-        return self.values.get(key, default)
-
-    def getboolean(self, key, default=None):
-        return bool(self.values.get(key, default))
-
-    def getfloat(self, key, default=None, **_):
-        return float(self.values.get(key, default))
-
-    def getint(self, key, default=None, **_):
-        return int(self.values.get(key, default))
-
-    def error(self, msg):
-        return RuntimeError(msg)
-
-
-class _Gcode:
-    def register_command(self, *a, **k):
-        pass
-
-    def respond_info(self, *a):
-        pass
-
-
-class _Printer:
-    command_error = RuntimeError
-
-    def __init__(self):
-        self.gcode = _Gcode()
-
-    def lookup_object(self, name, default=None):
-        return self.gcode if name == "gcode" else default
-
-    def register_event_handler(self, *a):
-        pass
+def _stubs():
+    spec = importlib.util.spec_from_file_location("abbe_klipper_stubs", HERE / "stubs.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
 
 
 class _Counter:
+    """The next transform, counting only (no list kept: the figure is abbe's cost)."""
+
     def __init__(self):
         self.n = 0
         self.pos = [0.0, 0.0, 0.0, 0.0]
@@ -96,7 +59,9 @@ def main() -> int:
     ap.add_argument("--seed", type=int, default=1)
     args = ap.parse_args()
     mod = _module()
-    comp = mod.AbbeCompensation(_Config(_Printer(), {"table": str(args.table), "library": args.lib}))
+    stubs = _stubs()
+    comp = mod.AbbeCompensation(stubs.Config(stubs.Printer(), {"table": str(args.table),
+                                                               "library": args.lib}))
     comp.next_transform = _Counter()
     comp._enable()
     travel = comp.table.travel

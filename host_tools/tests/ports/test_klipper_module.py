@@ -29,61 +29,15 @@ def _module():
     return mod
 
 
-class ConfigError(Exception):
-    pass
+def _stubs():
+    spec = importlib.util.spec_from_file_location("abbe_klipper_stubs", MODULE.with_name("stubs.py"))
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
 
 
-class CommandError(Exception):
-    pass
-
-
-class FakeConfig:
-    def __init__(self, printer, values):
-        self.printer, self.values = printer, values
-
-    def get_printer(self):
-        return self.printer
-
-    def get(self, key, default=None):
-        return self.values.get(key, default)
-
-    def getboolean(self, key, default=None):
-        return bool(self.values.get(key, default))
-
-    def getfloat(self, key, default=None, **_):
-        return float(self.values.get(key, default))
-
-    def getint(self, key, default=None, **_):
-        return int(self.values.get(key, default))
-
-    def error(self, msg):
-        return ConfigError(msg)
-
-
-class FakeGcode:
-    def __init__(self):
-        self.commands = {}
-        self.said = []
-
-    def register_command(self, name, fn, desc=None):
-        self.commands[name] = fn
-
-    def respond_info(self, msg):
-        self.said.append(msg)
-
-
-class FakeGcmd:
-    def __init__(self, params, gcode):
-        self.params, self.gcode = params, gcode
-
-    def get(self, key, default=None):
-        return self.params.get(key, default)
-
-    def respond_info(self, msg):
-        self.gcode.said.append(msg)
-
-    def error(self, msg):
-        return CommandError(msg)
+STUBS = _stubs()
+ConfigError, CommandError, FakeGcmd = STUBS.ConfigError, STUBS.CommandError, STUBS.Gcmd
 
 
 class FakeSkew:
@@ -91,45 +45,13 @@ class FakeSkew:
         self.xy_factor, self.xz_factor, self.yz_factor = xy, 0.0, 0.0
 
 
-class FakePrinter:
-    command_error = CommandError
-
-    def __init__(self, skew=None):
-        self.gcode = FakeGcode()
-        self.objects = {"gcode": self.gcode}
-        if skew is not None:
-            self.objects["skew_correction"] = skew
-        self.handlers = {}
-
-    def lookup_object(self, name, default=None):
-        return self.objects.get(name, default)
-
-    def register_event_handler(self, event, fn):
-        self.handlers[event] = fn
-
-
-class Recorder:
-    """The next transform: records what abbe hands on."""
-
-    def __init__(self):
-        self.moves = []
-        self.pos = [0.0, 0.0, 0.0, 0.0]
-
-    def move(self, pos, speed):
-        self.moves.append(list(pos))
-        self.pos = list(pos)
-
-    def get_position(self):
-        return list(self.pos)
-
-
 def make(table: Path, *, enable=True, skew=None, **extra):
     mod = _module()
-    printer = FakePrinter(skew)
+    printer = STUBS.Printer(**({"skew_correction": skew} if skew is not None else {}))
     values = {"table": str(table), "library": str(paths.library_path()), "enable": enable,
               "fade_segments": 1, "max_change_per_segment": 1000.0, **extra}
-    comp = mod.AbbeCompensation(FakeConfig(printer, values))
-    comp.next_transform = Recorder()
+    comp = mod.AbbeCompensation(STUBS.Config(printer, values))
+    comp.next_transform = STUBS.Recorder()
     if enable:
         comp._enable()
     return mod, printer, comp
