@@ -723,27 +723,32 @@ const abbe_model_t *abbe_gh_model(const abbe_gh_t *gh)
     return abbe_comp_model(&gh->comp);
 }
 
-/* Append text / an unsigned decimal at w (the caller's buffer is long
- * enough: abbe_gh_stage_t.why); return the new end (NUL-terminated). */
-static char *put_text(char *w, const char *text)
+/* Append text / an unsigned decimal at w, never past end (the buffer's end: the
+ * text is cut there); return the new end, NUL-terminated. w < end. */
+static char *put_text(char *w, const char *end, const char *text)
 {
-    while (*text != '\0') {
-        *w++ = *text++;
+    while (*text != '\0' && w + 1 < end) {
+        *w = *text;
+        w++;
+        text++;
     }
     *w = '\0';
     return w;
 }
 
-static char *put_u32(char *w, uint32_t v)
+static char *put_u32(char *w, const char *end, uint32_t v)
 {
-    char digits[10];
+    char digits[10] = {0}; /* 4294967295: ten digits */
     unsigned n = 0u;
     do {
-        digits[n++] = (char)('0' + (char)(v % 10u));
+        digits[n] = (char)('0' + (char)(v % 10u));
+        n++;
         v /= 10u;
-    } while (v != 0u);
-    while (n > 0u) {
-        *w++ = digits[--n];
+    } while (v != 0u && n < 10u);
+    while (n > 0u && w + 1 < end) {
+        n--;
+        *w = digits[n];
+        w++;
     }
     *w = '\0';
     return w;
@@ -760,11 +765,12 @@ abbe_status_t abbe_gh_upload_begin(abbe_gh_t *gh, uint32_t size, uint32_t crc, c
     if (size < 16u || size > ABBE_GH_TABLE_MAX_BYTES) {
         /* "table of 9000 bytes: this build takes 16 to 8192 bytes" */
         char *w = gh->stage.why;
-        w = put_text(w, "table of ");
-        w = put_u32(w, size);
-        w = put_text(w, " bytes: this build takes 16 to ");
-        w = put_u32(w, (uint32_t)ABBE_GH_TABLE_MAX_BYTES);
-        (void)put_text(w, " bytes");
+        const char *end = gh->stage.why + sizeof gh->stage.why;
+        w = put_text(w, end, "table of ");
+        w = put_u32(w, end, size);
+        w = put_text(w, end, " bytes: this build takes 16 to ");
+        w = put_u32(w, end, (uint32_t)ABBE_GH_TABLE_MAX_BYTES);
+        (void)put_text(w, end, " bytes");
         *why = gh->stage.why;
         return ABBE_E_ARG;
     }
