@@ -387,10 +387,15 @@ def open_database(db: str | None, *, create: bool = False, migrate: bool = False
         engine = sa.create_engine(loc.url, connect_args={"connect_timeout": CONNECT_TIMEOUT_S})
     try:
         with engine.connect() as conn:
+            # The tables first, then the revision: each statement sees what is committed
+            # when it runs (READ COMMITTED), and a first writer commits its tables and its
+            # revision together, so tables seen before mean a revision seen after; in the
+            # other order a writer committing in between looked like a foreign database.
+            tables = (set(sa.inspect(conn).get_table_names()) if loc.sqlite_file is None
+                      else set())
             rev = current_revision(conn)
             if rev is None and loc.sqlite_file is None:
-                bad = _foreign(set(sa.inspect(conn).get_table_names()) & set(ABBE_TABLES),
-                               loc.shown)
+                bad = _foreign(tables & set(ABBE_TABLES), loc.shown)
                 if bad is not None:
                     raise bad
             conn.rollback()
