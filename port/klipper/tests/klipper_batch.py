@@ -188,12 +188,9 @@ def step_events(lines: list[str]) -> dict[str, list[tuple[int, int]]]:
         cmd = parts[0]
         args = dict(kv.findall(parts[1])) if len(parts) > 1 else {}
         if cmd == "config_stepper":
-            pin = args["step_pin"]
-            pin = pin if not pin.isdigit() else pin
             oid = int(args["oid"])
-            for p, a in pin_axis.items():
-                if args["step_pin"] in (p, str(p)):
-                    oid_axis[oid] = a
+            if args["step_pin"] in pin_axis:
+                oid_axis[oid] = pin_axis[args["step_pin"]]
             state[oid] = {"clock": 0, "dir": 0, "pos": 0}
         elif cmd == "reset_step_clock" and int(args["oid"]) in state:
             state[int(args["oid"])]["clock"] = int(args["clock"])
