@@ -19,6 +19,7 @@ from abbe.formats.positioning import load_positioning
 from abbe.formats.uncertainty_spec import Budget, CLASSES, default_budget
 
 from fit_helpers import ESS_DAT
+from real_data import needs_real_data
 
 EXAMPLES = Path(__file__).resolve().parents[3] / "examples" / "vmc500" / "laser"
 
@@ -120,9 +121,7 @@ def test_monte_carlo_agrees_with_analytic_examples(axis: str) -> None:
     _check_mc(EXAMPLES / f"{axis}.csv", "laser_interferometer")
 
 
-@pytest.mark.skipif(not ESS_DAT.is_file(),
-                    reason=f"shared real ESS data absent ({ESS_DAT}): MC check on real data "
-                           "not run")
+@needs_real_data(ESS_DAT)
 def test_monte_carlo_agrees_with_analytic_ess() -> None:
     _check_mc(ESS_DAT, "laser_triangulation")
 
