@@ -18,14 +18,11 @@ typedef struct {
     float eighth[16];
 } abbe_sincos_f32_table_t;
 
-#define ABBE_R2_F32 0.70710678118654752f
-static const abbe_sincos_f32_table_t abbe_sincos_f32_table = {
-    {0.002474437700584531f, -0.08074352145195007f, 0.7853981256484985f, -0.00032427161931991577f,
-     0.01585409604012966f, -0.3084251284599304f, 1.0f, 0.0f},
-    {0.0f, 1.0f, ABBE_R2_F32, ABBE_R2_F32, 1.0f, 0.0f, ABBE_R2_F32, -ABBE_R2_F32, 0.0f, -1.0f, -ABBE_R2_F32,
-     -ABBE_R2_F32, -1.0f, 0.0f, -ABBE_R2_F32, ABBE_R2_F32},
-};
-#undef ABBE_R2_F32
+/* One table for the whole library (sincos_f32.c): the kernels that inline
+ * the sin/cos (terms_f32.c, terms_rot_f32.c, sincos_f32.c) read the same 96 B
+ * (a static copy per translation unit cost a five-axis image 192 B of flash,
+ * bench/results.md section 11; the address is one literal either way). */
+extern const abbe_sincos_f32_table_t abbe_sincos_f32_table;
 
 /* The phase is reduced to the nearest eighth of a turn k (exact, integer),
  * leaving r in [-1/16, 1/16) turn, u = r / 2^29 in [-1/2, 1/2) and the angle
