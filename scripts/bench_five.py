@@ -31,7 +31,7 @@ BUDGET_TABLES = ("ac_full", "bc_motions")
 THREE_AXIS_BEFORE = {("Cortex-M4F", "f32"): 697, ("Cortex-M3", "q"): 1409,
                      ("Cortex-M4F", "comp_f32"): 6048, ("Cortex-M4F", "comp_q"): 5926,
                      ("Cortex-M3", "comp_q"): 6036}
-HEADING = "## 11. Five-axis tables (format 1.2, issue 23)"
+HEADING = "## 11. Five-axis tables (format 1.2, issues 23 and 39)"
 MACHINES = {"Cortex-M4F": "mps2-an386", "Cortex-M3": "mps2-an385"}
 
 
@@ -212,38 +212,63 @@ six of the eight sin/cos) instructions, above the five-axis budgets by itself; i
 rotary part (location errors only) is about 450 / 700. The budgets are judged on the
 tables whose linear axes are the paper table's, as the 3-axis budgets are.
 
-Flash (missed, measured per source file above in section 3's way): the five-axis image
-is the 3-axis load + compensator image (6040 B f32, 6036 B q on the M3: its own 6 KiB
-budget) plus the rotary section's loader checks (the five-axis loader is model_load.c
-compiled with them: the rotary checks 660 B on the M4F, one function per category and
-axis, rotary_record_bad 424 B, where the six loops unrolled per category were 960 B;
-the rotary header and build 410 B),
-the rotary evaluation (f32: add_rotary_f32 with both axes' twists 1,266 B, the
-motions' kernel 312 B, the sparse-motions path 196 B; q: add_rotary_q 1,832 B,
-motions_q 556 B) and the five-axis compensator cycle (360 / 200 B). 8 KiB leaves
-2,150 B over the 3-axis image for all of that: the loader's rotary checks and the
-rotary evaluation's straight-line code (about 300 instructions, 2 to 4 B each) alone
-need more. Measured trade-offs: one out-of-line twist instead of two inlined ones saves
-148 B (f32) / 124 B (q) for +43 / +55 instructions per call (f32 then misses its
-1,500); -Os on five_load.c costs 110 B (GCC outlines its small helpers and keeps the
-linear checks as big), on rotary_record_bad alone 100 B; -Os on five_eval_q.c saves
-172 B (M3) for +492 instructions. Still over 8 KiB by 1,472 B (f32) / 1,500 B (q M4F) /
-1,566 B (q M3): more than the loader's whole rotary part (about 1,070 B), so meeting it
-needs a smaller 3-axis core or loader image as well (the 3-axis load + compensator is
-6,040 B of the 8,192), not done. The five-axis kernels are a
-translation unit of their own (terms_rot_f32.c) so that the 3-axis kernels compile as
-before: in one unit with the 3-axis kernel, GCC -Os outlined the phase reduction
-(section 5: +34 instructions, +30 B); apart, the five-axis image holds the f32 sin/cos
-table twice (96 B). The 3-axis figures: -O2 (the targets' build) 2 instructions and 8 B
-less; the -Os build of section 5: abbe_error_eval_f32 2 instructions less, the
-compensator cycle 12 instructions and 12 B more, 8 B less stack (the shared linear
-source returns its flags instead of writing them).
+Flash (missed, issue 39: what stands in the way, per byte; M4F f32 image 9,600 B, q
+9,820 B, M3 q 9,942 B against 8,192). The image is the 3-axis load + compensator image
+(6,104 B f32 / 5,990 B q M4F / 6,100 B q M3, measured at the same commit) plus:
 
-Stack: `_q` meets 320 B (the harmonics' basis in the compensator's scratch, the
-motions written straight into the twist's vectors, the outputs rounded per component
-inside the rotary part, no int64 vectors). `_f32` (chain in the table above) misses:
-the 3-axis `abbe_comp_step_f32` alone needs 496 B static (section 4: its cycle, the
-core and the kernel that saves 14 FPU registers); the five-axis chain is 504 B."""
+- the loader's rotary part, +1,114 B (five_load.c 3,154 B against model_load.c's
+  2,040 B; M3 3,254 against 2,140): abbe_five_model_load's own growth 400 B (the
+  header's fields, the feature test, the two build calls), rotary_record_bad 532 B (one
+  copy of the six check categories), build_rotary 174 B, recip64 / any_nonzero /
+  n_basis_of 132 B;
+- the evaluation, f32 +2,262 B over the 3-axis eval_f32.c + terms_f32.c (2,584 B):
+  add_rotary_f32 1,266 B (both twists inlined, the tilt's rotation of v_C, w_C and the
+  offset, two cross products, the squareness), abbe_five_eval_f32_core 756 B (the
+  linear core's source inlined once more, with the angle conversion), the rotary
+  motions' kernel 312 B, the sparse-motions path 196 B, abbe_sincos_f32 with its table
+  196 B; the linear folds with angles (fold6_rot_f32 660 B, fold_values_rot_f32 164 B)
+  replace the 3-axis fold6_f32 (604 B) in this image; q: add_rotary_q 1,832 B,
+  motions_q 556 B;
+- the five-axis compensator cycle, +120 B (comp_five_f32.c 360 B, comp_five.c 20 B,
+  comp_f32.c's abbe_comp_um_to_nm 116 B, against the 3-axis comp_f32.c 392 B).
+
+8 KiB leaves 2,088 B (f32) over the 3-axis image: the rotary evaluation alone (1,970
+B f32: add_rotary_f32, both motion paths, sin/cos) plus the loader's rotary part (1,114
+B) is 3,084 B. Without ANY rotary check in the loader the f32 image would still be
+8,486 B (294 B over); meeting 8 KiB needs the shared 3-axis core (loader 2,040 B,
+linear evaluation, comp.c 1,044 B) smaller as well, not done. Done here (issue 39):
+the f32 sin/cos table is one `const` object of sincos_f32.c instead of a static copy
+in each kernel unit that inlines the sin/cos (three copies of 96 B in the f32 image:
+-192 B; the 3-axis images held one and are unchanged). Measured and not kept: the
+linear part out of line (`linear_f32`, so that its frame and the rotary part's are
+not summed): +96 B and a deeper static stack (536 B: the linear chain through the
+sparse terms kernel is then the deepest). Earlier trade-offs (issue 23): one
+out-of-line twist instead of two inlined ones saves 148 B (f32) / 124 B (q) for +43 /
++55 instructions per call (f32 then misses its 1,500); -Os on five_load.c costs 110 B,
+on rotary_record_bad alone 100 B; -Os on five_eval_q.c saves 172 B (M3) for +492
+instructions. The five-axis kernels are a translation unit of their own
+(terms_rot_f32.c) so that the 3-axis kernels compile as before.
+
+The 3-axis flash rows above say MISSES against issue 23's figures (6,040 / 5,926 /
+6,036 B): model_load.c is 64 B larger since the proof work (issue 38: coefficient
+reads bounded where the analysis joins a failed header, commits cbab152, a545721);
+measured 6,104 / 5,990 / 6,100 B at 271b02c, before issue 39's changes, which leave
+them unchanged. Section 3 above still shows the older figures (not regenerated here).
+
+Stack (missed for `_f32`, per byte): `_q` meets 320 B (the harmonics' basis in the
+compensator's scratch, the motions written straight into the twist's vectors, the
+outputs rounded per component inside the rotary part, no int64 vectors). `_f32`:
+abbe_comp_step5_f32's frame 120 B (nine saved registers 36 B, the evaluation's output
+28 B, positions in nm 12 B, direction states 12 B, the rest arguments and padding) +
+abbe_five_eval_f32_core 176 B (nine saved registers 36 B, d8-d12 40 B, the inlined
+linear core's locals and spills 100 B) + add_rotary_f32 160 B (36 B + d8-d10 24 B +
+its vectors and spills 100 B) + abbe_rotary_motions6_f32 48 B (the FPU registers it
+saves) = 504 B. The linear path alone is 448 B (the core 176 B + abbe_axis_fold_rot_f32
+32 B + fold6_rot_f32 120 B, which saves d8-d14; 120 B with the step's frame) or 472 B
+through the sparse terms kernel (fold_values_rot_f32 96 B + abbe_axis_terms_sparse_f32
+48 B): above 320 B by itself, as the 3-axis abbe_comp_step_f32 is (496 B, section 4).
+Meeting 320 B needs the linear core's and the fold kernels' frames smaller
+(lib/src/eval_f32_linear.h, shared with the 3-axis core), not done."""
 
 
 def replace_section(results: Path, lines: list[str]) -> None:
