@@ -221,7 +221,7 @@ Flash (missed, issue 39: what stands in the way, per byte; M4F f32 image 9,600 B
   header's fields, the feature test, the two build calls), rotary_record_bad 532 B (one
   copy of the six check categories), build_rotary 174 B, recip64 / any_nonzero /
   n_basis_of 132 B;
-- the evaluation, f32 +2,262 B over the 3-axis eval_f32.c + terms_f32.c (2,584 B):
+- the evaluation, f32 +2,142 B over the 3-axis eval_f32.c + terms_f32.c (2,584 B):
   add_rotary_f32 1,266 B (both twists inlined, the tilt's rotation of v_C, w_C and the
   offset, two cross products, the squareness), abbe_five_eval_f32_core 756 B (the
   linear core's source inlined once more, with the angle conversion), the rotary
@@ -229,17 +229,20 @@ Flash (missed, issue 39: what stands in the way, per byte; M4F f32 image 9,600 B
   196 B; the linear folds with angles (fold6_rot_f32 660 B, fold_values_rot_f32 164 B)
   replace the 3-axis fold6_f32 (604 B) in this image; q: add_rotary_q 1,832 B,
   motions_q 556 B;
-- the five-axis compensator cycle, +120 B (comp_five_f32.c 360 B, comp_five.c 20 B,
-  comp_f32.c's abbe_comp_um_to_nm 116 B, against the 3-axis comp_f32.c 392 B).
+- the five-axis compensator cycle, +176 B (comp_five_f32.c 416 B with the inline
+  mm-to-nm conversion, comp_five.c 20 B, comp_f32.c's abbe_comp_um_to_nm 116 B, comp.c
+  +16 B, against the 3-axis comp_f32.c 392 B).
 
 8 KiB leaves 2,088 B (f32) over the 3-axis image: the rotary evaluation alone (1,970
 B f32: add_rotary_f32, both motion paths, sin/cos) plus the loader's rotary part (1,114
 B) is 3,084 B. Without ANY rotary check in the loader the f32 image would still be
-8,486 B (294 B over); meeting 8 KiB needs the shared 3-axis core (loader 2,040 B,
+8,422 B (230 B over); meeting 8 KiB needs the shared 3-axis core (loader 2,040 B,
 linear evaluation, comp.c 1,044 B) smaller as well, not done. Done here (issue 39):
 the f32 sin/cos table is one `const` object of sincos_f32.c instead of a static copy
 in each kernel unit that inlines the sin/cos (three copies of 96 B in the f32 image:
--192 B; the 3-axis images held one and are unchanged). Measured and not kept: the
+-192 B; the 3-axis images held one and are unchanged); abbe_comp_step5_f32 converts
+the positions to nm with the inline conversion, so the image holds no out-of-line
+abbe_mm_to_nm_f32 (-64 B, and 8 B less stack). Measured and not kept: the
 linear part out of line (`linear_f32`, so that its frame and the rotary part's are
 not summed): +96 B and a deeper static stack (536 B: the linear chain through the
 sparse terms kernel is then the deepest). Earlier trade-offs (issue 23): one
@@ -258,14 +261,14 @@ them unchanged. Section 3 above still shows the older figures (not regenerated h
 Stack (missed for `_f32`, per byte): `_q` meets 320 B (the harmonics' basis in the
 compensator's scratch, the motions written straight into the twist's vectors, the
 outputs rounded per component inside the rotary part, no int64 vectors). `_f32`:
-abbe_comp_step5_f32's frame 120 B (nine saved registers 36 B, the evaluation's output
+abbe_comp_step5_f32's frame 112 B (nine saved registers 36 B, the evaluation's output
 28 B, positions in nm 12 B, direction states 12 B, the rest arguments and padding) +
 abbe_five_eval_f32_core 176 B (nine saved registers 36 B, d8-d12 40 B, the inlined
 linear core's locals and spills 100 B) + add_rotary_f32 160 B (36 B + d8-d10 24 B +
 its vectors and spills 100 B) + abbe_rotary_motions6_f32 48 B (the FPU registers it
-saves) = 504 B. The linear path alone is 448 B (the core 176 B + abbe_axis_fold_rot_f32
-32 B + fold6_rot_f32 120 B, which saves d8-d14; 120 B with the step's frame) or 472 B
-through the sparse terms kernel (fold_values_rot_f32 96 B + abbe_axis_terms_sparse_f32
+saves) = 496 B (504 B before issue 39). The linear path alone is 440 B (the step 112 B
++ the core 176 B + abbe_axis_fold_rot_f32 32 B + fold6_rot_f32 120 B, which saves
+d8-d14) or 464 B through the sparse terms kernel (fold_values_rot_f32 96 B + abbe_axis_terms_sparse_f32
 48 B): above 320 B by itself, as the 3-axis abbe_comp_step_f32 is (496 B, section 4).
 Meeting 320 B needs the linear core's and the fold kernels' frames smaller
 (lib/src/eval_f32_linear.h, shared with the 3-axis core), not done."""

@@ -16,7 +16,9 @@ abbe_status_t abbe_comp_step5_f32(abbe_comp_t *comp, const abbe_comp_input5_f32_
     int32_t pos_nm[ABBE_AXES] = {0, 0, 0};
     for (unsigned j = 0; input_ok && j < ABBE_AXES; j++) {
         uint32_t ignored = 0; /* out-of-travel is reported by the evaluation below */
-        input_ok = abbe_mm_to_nm_f32(in->lin.pos_mm[j], &pos_nm[j], &ignored) == ABBE_OK;
+        /* inline: the five-axis image then holds no out-of-line copy (64 B less flash,
+         * 8 B less stack: bench/results.md, section 11) */
+        input_ok = abbe_mm_to_nm_inline(in->lin.pos_mm[j], &pos_nm[j], &ignored) == 0u;
     }
     int32_t *error_nm = &comp->scratch[ABBE_AXES * ABBE_TERMS];
     int have_error = 0;
