@@ -212,8 +212,8 @@ six of the eight sin/cos) instructions, above the five-axis budgets by itself; i
 rotary part (location errors only) is about 450 / 700. The budgets are judged on the
 tables whose linear axes are the paper table's, as the 3-axis budgets are.
 
-Flash (missed, issue 39: what stands in the way, per byte; M4F f32 image 9,600 B, q
-9,820 B, M3 q 9,942 B against 8,192). The image is the 3-axis load + compensator image
+Flash (missed, issue 39: what stands in the way, per byte; M4F f32 image 9,536 B, q
+9,536 B, M3 q 9,626 B against 8,192). The image is the 3-axis load + compensator image
 (6,104 B f32 / 5,990 B q M4F / 6,100 B q M3, measured at the same commit) plus:
 
 - the loader's rotary part, +1,114 B (five_load.c 3,154 B against model_load.c's
@@ -227,8 +227,8 @@ Flash (missed, issue 39: what stands in the way, per byte; M4F f32 image 9,600 B
   linear core's source inlined once more, with the angle conversion), the rotary
   motions' kernel 312 B, the sparse-motions path 196 B, abbe_sincos_f32 with its table
   196 B; the linear folds with angles (fold6_rot_f32 660 B, fold_values_rot_f32 164 B)
-  replace the 3-axis fold6_f32 (604 B) in this image; q: add_rotary_q 1,832 B,
-  motions_q 556 B;
+  replace the 3-axis fold6_f32 (604 B) in this image; q: add_rotary_q 1,532 B (M4F;
+  1,516 B M3), motions_q 556 B;
 - the five-axis compensator cycle, +176 B (comp_five_f32.c 416 B with the inline
   mm-to-nm conversion, comp_five.c 20 B, comp_f32.c's abbe_comp_um_to_nm 116 B, comp.c
   +16 B, against the 3-axis comp_f32.c 392 B).
@@ -236,13 +236,19 @@ Flash (missed, issue 39: what stands in the way, per byte; M4F f32 image 9,600 B
 8 KiB leaves 2,088 B (f32) over the 3-axis image: the rotary evaluation alone (1,970
 B f32: add_rotary_f32, both motion paths, sin/cos) plus the loader's rotary part (1,114
 B) is 3,084 B. Without ANY rotary check in the loader the f32 image would still be
-8,422 B (230 B over); meeting 8 KiB needs the shared 3-axis core (loader 2,040 B,
+8,422 B (230 B over; the q images 8,422 B M4F, 8,512 B M3); meeting 8 KiB needs the
+shared 3-axis core (loader 2,040 B,
 linear evaluation, comp.c 1,044 B) smaller as well, not done. Done here (issue 39):
 the f32 sin/cos table is one `const` object of sincos_f32.c instead of a static copy
 in each kernel unit that inlines the sin/cos (three copies of 96 B in the f32 image:
 -192 B; the 3-axis images held one and are unchanged); abbe_comp_step5_f32 converts
 the positions to nm with the inline conversion, so the image holds no out-of-line
-abbe_mm_to_nm_f32 (-64 B, and 8 B less stack). Measured and not kept: the
+abbe_mm_to_nm_f32 (-64 B, and 8 B less stack); `_q`'s rotary part writes its three
+output components in one loop instead of three copies of the code (-284 B M4F, -316 B
+M3, for +96 instructions: M3 `five_q` on ac_full 2,784 -> 2,880 of its 3,000; the
+squareness formed inside the loop and the orientations rounded in a second loop keep
+fewer values live, so the static stack of abbe_comp_step5_q stays 320 B on the M3 and
+falls to 312 B on the M4F). Measured and not kept: the
 linear part out of line (`linear_f32`, so that its frame and the rotary part's are
 not summed): +96 B and a deeper static stack (536 B: the linear chain through the
 sparse terms kernel is then the deepest). Earlier trade-offs (issue 23): one

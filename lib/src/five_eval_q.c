@@ -136,31 +136,35 @@ ABBE_NOINLINE static uint32_t add_rotary_q(const abbe_five_model_t *m5, const in
     Ro[k] = 0;
     Ro[j] = (int32_t)rot_q30(ct, oj, st, ol);
     Ro[l] = (int32_t)rot_q30(st, oj, -ct, ol);
-    /* the tilt's lever Lt = q - P_t, 2 nm: an int32 difference of halved positions */
-    const int32_t L0 = (pos_nm[0] >> 1) - (m5->tilt_pivot_nm[0] >> 1);
-    const int32_t L1 = (pos_nm[1] >> 1) - (m5->tilt_pivot_nm[1] >> 1);
-    const int32_t L2 = (pos_nm[2] >> 1) - (m5->tilt_pivot_nm[2] >> 1);
-    /* five-axis squareness, lever y, z from the C centre: 2 nm x 2^-36 rad -> 2^-4 nm */
-    const int32_t y = (pos_nm[1] >> 1) - (m5->rot_point_nm[1] >> 1), z = (pos_nm[2] >> 1) - (m5->rot_point_nm[2] >> 1);
-    const int64_t sq0 = abbe_smlal(abbe_smlal((int64_t)1 << 30, y, m5->squareness_q36[0]), -z, m5->squareness_q36[1]) >> 31;
-    const int64_t sq1 = abbe_smlal((int64_t)1 << 30, -z, m5->squareness_q36[2]) >> 31;
-    /* per component i (i1, i2 the next two cyclically): W_C x (Lt + R_t offset)
-     * (four products < 2^61.5, two < 2^60) and w_t x Lt, 2^-35 nm -> 2^-4 nm */
-#define TWIST_OUT(i, i1, i2, Li1, Li2, sq)                                                                   \
-    do {                                                                                                     \
-        int64_t c_table = abbe_smlal(abbe_smlal((int64_t)1 << 30, w[i1], Li2), -w[i2], Li1);                 \
-        c_table = abbe_smlal(abbe_smlal(c_table, w[i1], Ro[i2]), -w[i2], Ro[i1]) >> 31;                      \
-        const int64_t c_tilt = abbe_smlal(abbe_smlal((int64_t)1 << 30, wt[i1], Li2), -wt[i2], Li1) >> 31;   \
-        const int64_t pos = (int64_t)error_nm[i] * 16 + (sq) - ((int64_t)v[i] + vt[i] + c_table + c_tilt);  \
-        const int64_t rot = (int64_t)orient[i] - w[i] - wt[i];                                               \
-        error_nm[i] = abbe_sat_i32(abbe_shr_round(pos, 4u), &flags);                                         \
-        /* 2^-36 rad -> nrad: x 10^9 / 2^36 = x 1953125 / 2^27 (|rot| < 2^32: product < 2^53) */            \
-        orient[i] = abbe_sat_i32(abbe_shr_round(rot * 1953125, 27u), &flags);                                \
-    } while (0)
-    TWIST_OUT(0, 1, 2, L1, L2, sq0);
-    TWIST_OUT(1, 2, 0, L2, L0, sq1);
-    TWIST_OUT(2, 0, 1, L0, L1, 0);
-#undef TWIST_OUT
+    /* per component i (i1, i2 the next two cyclically), one copy of the code (flash,
+     * bench/results.md section 11): the tilt's lever Lt = q - P_t in 2 nm (an int32
+     * difference of halved positions), W_C x (Lt + R_t offset) (four products < 2^61.5,
+     * two < 2^60) and w_t x Lt, 2^-35 nm -> 2^-4 nm */
+    for (unsigned i = 0; i < 3u; i++) {
+        const unsigned i1 = i == 2u ? 0u : i + 1u, i2 = i == 0u ? 2u : i - 1u;
+        const int32_t Li1 = (pos_nm[i1] >> 1) - (m5->tilt_pivot_nm[i1] >> 1);
+        const int32_t Li2 = (pos_nm[i2] >> 1) - (m5->tilt_pivot_nm[i2] >> 1);
+        /* five-axis squareness, lever y, z from the C centre: 2 nm x 2^-36 rad -> 2^-4 nm
+         * (dX: y S_xy - z S_xz, dY: -z S_yz; formed here, where it is added: fewer values
+         * live across the loop, the stack of bench/results.md section 11) */
+        int64_t sq = 0;
+        if (i < 2u) {
+            const int32_t z = (pos_nm[2] >> 1) - (m5->rot_point_nm[2] >> 1);
+            const int32_t y = i == 0u ? (pos_nm[1] >> 1) - (m5->rot_point_nm[1] >> 1) : 0;
+            sq = abbe_smlal(abbe_smlal((int64_t)1 << 30, y, m5->squareness_q36[0]), -z,
+                            m5->squareness_q36[i == 0u ? 1u : 2u]) >> 31;
+        }
+        int64_t c_table = abbe_smlal(abbe_smlal((int64_t)1 << 30, w[i1], Li2), -w[i2], Li1);
+        c_table = abbe_smlal(abbe_smlal(c_table, w[i1], Ro[i2]), -w[i2], Ro[i1]) >> 31;
+        const int64_t c_tilt = abbe_smlal(abbe_smlal((int64_t)1 << 30, wt[i1], Li2), -wt[i2], Li1) >> 31;
+        const int64_t pos = (int64_t)error_nm[i] * 16 + sq - ((int64_t)v[i] + vt[i] + c_table + c_tilt);
+        error_nm[i] = abbe_sat_i32(abbe_shr_round(pos, 4u), &flags);
+    }
+    for (unsigned i = 0; i < 3u; i++) { /* apart: fewer values live in the loop above (stack) */
+        const int64_t rot = (int64_t)orient[i] - w[i] - wt[i];
+        /* 2^-36 rad -> nrad: x 10^9 / 2^36 = x 1953125 / 2^27 (|rot| < 2^32: product < 2^53) */
+        orient[i] = abbe_sat_i32(abbe_shr_round(rot * 1953125, 27u), &flags);
+    }
     return flags;
 }
 
