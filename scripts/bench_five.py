@@ -237,8 +237,8 @@ Flash (missed, issue 39: what stands in the way, per byte; M4F f32 image 9,536 B
 B f32: add_rotary_f32, both motion paths, sin/cos) plus the loader's rotary part (1,114
 B) is 3,084 B. Without ANY rotary check in the loader the f32 image would still be
 8,422 B (230 B over; the q images 8,422 B M4F, 8,512 B M3); meeting 8 KiB needs the
-shared 3-axis core (loader 2,040 B,
-linear evaluation, comp.c 1,044 B) smaller as well, not done. Done here (issue 39):
+shared 3-axis core (loader 2,040 B, linear evaluation, comp.c 1,044 B) smaller as
+well, not done. Done here (issue 39):
 the f32 sin/cos table is one `const` object of sincos_f32.c instead of a static copy
 in each kernel unit that inlines the sin/cos (three copies of 96 B in the f32 image:
 -192 B; the 3-axis images held one and are unchanged); abbe_comp_step5_f32 converts
