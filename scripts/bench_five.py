@@ -248,7 +248,9 @@ output components in one loop instead of three copies of the code (-284 B M4F, -
 M3, for +96 instructions: M3 `five_q` on ac_full 2,784 -> 2,880 of its 3,000; the
 squareness formed inside the loop and the orientations rounded in a second loop keep
 fewer values live, so the static stack of abbe_comp_step5_q stays 320 B on the M3 and
-falls to 312 B on the M4F). Measured and not kept: the
+falls to 312 B on the M4F). Measured and not kept: `_q`'s twist out of line on top of
+that (-180 B M4F, -112 B M3, +34 / +41 instructions, but a static stack of 376 / 392 B:
+its frame is nested between the rotary part's and the motions'); the
 linear part out of line (`linear_f32`, so that its frame and the rotary part's are
 not summed): +96 B and a deeper static stack (536 B: the linear chain through the
 sparse terms kernel is then the deepest). Earlier trade-offs (issue 23): one
