@@ -47,7 +47,7 @@ import numpy as np
 from abbe.analysis.fit.prep import detrend_line, relative_to_reference
 from abbe.analysis.fit.select import columns, fit_structure, select_auto
 from abbe.analysis.fit.scan import make_design
-from abbe.analysis.uncertainty import _delta_density, _max_moments, scale_inputs
+from abbe.analysis.uncertainty import _delta_density, scale_inputs
 from abbe.formats.uncertainty_spec import Budget, default_budget
 from abbe.model.reference import combine_eq3, spatial_error
 from abbe.model.table import AXES, LINEAR_TERMS, OWN_TERM, AxisTable, Table, basis_matrix
@@ -156,6 +156,9 @@ def term_uncertainty(ar: "AxisResult", term: str, budget: Budget) -> TermUncerta
     return TermUncertainty(ar.axis, term, tr.unit, cov, parts,
                            {"u_repeatability": u_rep, "u_lack_of_fit": u_fit, "u_per_target": u_y,
                             "u_instrument": u_inst, "scale_u_ppm": u_ppm, "dof": float(dof),
+                            "linearity_half_width": f["linearity_um"] if linear_channel else 0.0,
+                            "u_resolution": f["resolution_um"] / math.sqrt(12.0)
+                            if linear_channel else 0.0,
                             "n_runs": float(n)})
 
 
@@ -206,11 +209,12 @@ def compensated_residual(res: "FitResult", fu: FitUncertainty) -> dict[str, Any]
     """The compensated machine at the targets, per axis and term: residual r_i = measured
     mean - the stored table, the machine's error after the table is applied. The table is
     known exactly once written, so r is uncertain by the measurement of the means only:
-    independent per target (repeatability, instrument linearity and resolution) plus, for
-    the own positioning term, the scale error delta x (p_i - 0) shared by every target.
-    max |r| and RMS: their distribution given delta (the max by the targets competing for it,
-    the moments of a max of independent normals as for ISO 230-2's E; the RMS by the moments
-    of a sum of squares), then over delta's distribution (law of total variance)."""
+    independent per target (normal repeatability and resolution, the instrument's
+    rectangular linearity) plus, for the own positioning term, the scale error delta x p_i
+    shared by every target. Per target u(r_i); max |r| from its exact distribution given
+    delta (the product of the targets' CDFs: they compete for the max), RMS from the first
+    four moments of the sum of squares given delta; then over delta's distribution (law of
+    total variance)."""
     out: dict[str, Any] = {}
     for a, ar in res.axes.items():
         p = ar.targets_mm
@@ -219,21 +223,46 @@ def compensated_residual(res: "FitResult", fu: FitUncertainty) -> dict[str, Any]
             tu = fu.terms[a][t]
             r = tr.stats.mean - basis_matrix(ar.table, p) @ tr.coef
             scales = scale_inputs(fu.budget, ar.data.normalisation) if t == OWN_TERM[a] else []
-            out[a][t] = residual_summary(r, _residual_u(tu), scales, p * 1e-3)
+            rep = tu.inputs["u_repeatability"]
+            rep = rep if np.isfinite(rep) else tu.inputs["u_per_target"]
+            s = math.sqrt(rep ** 2 + tu.inputs["u_resolution"] ** 2)
+            out[a][t] = residual_summary(r, s, tu.inputs["linearity_half_width"], scales,
+                                         p * 1e-3)
     return out
 
 
-def _residual_u(tu: TermUncertainty) -> float:
-    """Per target, independent: repeatability of the mean and the instrument's terms."""
-    rep = tu.inputs["u_repeatability"]
-    rep = rep if np.isfinite(rep) else tu.inputs["u_per_target"]
-    return math.sqrt(rep ** 2 + tu.inputs["u_instrument"] ** 2)
+def _cdf_normal_plus_rect(x: np.ndarray, s: float, L: float) -> np.ndarray:
+    """CDF of N(0, s^2) + U(-L, L) at x."""
+    from scipy.special import ndtr
+    if L <= 0:
+        return ndtr(x / s)
+    if s <= 0:
+        return np.clip((x + L) / (2 * L), 0.0, 1.0)
+
+    def G(z: np.ndarray) -> np.ndarray:  # the integral of Phi(z / s) dz
+        return z * ndtr(z / s) + s * np.exp(-0.5 * (z / s) ** 2) / math.sqrt(2 * math.pi)
+    return (G(x + L) - G(x - L)) / (2 * L)
 
 
-def residual_summary(r: np.ndarray, u: float, scales: list[Any] | None = None,
+def _max_abs_moments(m: np.ndarray, s: float, L: float) -> tuple[float, float]:
+    """Mean and variance of max_i |m_i + e_i|, e_i independent N(0, s^2) + U(-L, L):
+    P(max <= y) = prod_i P(|m_i + e_i| <= y), integrated on a grid."""
+    s = max(s, 1e-9)
+    hi = float(np.max(np.abs(m))) + L + 9 * s
+    y = np.linspace(0.0, hi, 2001)
+    H = np.ones_like(y)
+    for mi in m:
+        H *= np.clip(_cdf_normal_plus_rect(y - mi, s, L) - _cdf_normal_plus_rect(-y - mi, s, L),
+                     0.0, 1.0)
+    mean = float(np.trapezoid(1.0 - H, y))
+    second = float(np.trapezoid(2.0 * y * (1.0 - H), y))
+    return mean, max(second - mean * mean, 0.0)
+
+
+def residual_summary(r: np.ndarray, s: float, L: float = 0.0, scales: list[Any] | None = None,
                      v: np.ndarray | None = None) -> dict[str, float]:
-    """max |r| and RMS of residuals r (T,) with independent standard uncertainty u per
-    target and a shared scale error delta (ppm, from ``scales``) acting as delta x v."""
+    """max |r| and RMS of residuals r (T,): independent per target N(0, s^2) + U(-L, L),
+    and a shared scale error delta (ppm, from ``scales``) acting as delta x v (um)."""
     r = np.asarray(r, dtype=float)
     if scales:
         d, w = _delta_density(scales)
@@ -241,16 +270,17 @@ def residual_summary(r: np.ndarray, u: float, scales: list[Any] | None = None,
     else:
         d, w = np.zeros(1), np.ones(1)
     vv = np.zeros_like(r) if v is None else np.asarray(v, dtype=float)
-    sig = np.full(r.size, max(u, 1e-12))
-    mx_m, mx_v, rm_m, rm_v = [], [], [], []
+    var_e = s * s + L * L / 3.0
+    mu4 = 3 * s ** 4 + 2 * s * s * L * L + L ** 4 / 5.0  # E e^4 of N + U
     T = r.size
+    mx_m, mx_v, rm_m, rm_v = [], [], [], []
     for dk in d:
         m = r + dk * vv
-        mm, mv = _max_moments(np.concatenate([m, -m]), np.concatenate([sig, sig]))
+        mm, mv = _max_abs_moments(m, s, L)
         mx_m.append(mm)
         mx_v.append(mv)
-        q_mean = float(m @ m) / T + u * u
-        q_var = (2.0 * T * u ** 4 + 4.0 * u * u * float(m @ m)) / T ** 2
+        q_mean = float(m @ m) / T + var_e
+        q_var = (4.0 * var_e * float(m @ m) + T * (mu4 - var_e ** 2)) / T ** 2
         rm_m.append(math.sqrt(q_mean))
         rm_v.append(q_var / (4.0 * q_mean))
 
@@ -259,11 +289,11 @@ def residual_summary(r: np.ndarray, u: float, scales: list[Any] | None = None,
         mean = float(np.sum(w * mu))
         return math.sqrt(float(np.sum(w * (va + (mu - mean) ** 2))))
 
-    mu_max, mu_rms = total(mx_m, mx_v), total(rm_m, rm_v)
-    rms = float(np.sqrt(np.mean(r ** 2)))
-    return {"max_abs": float(np.max(np.abs(r))), "max_abs_u": mu_max, "max_abs_U": K * mu_max,
-            "rms": rms, "rms_u": mu_rms, "rms_U": K * mu_rms,
-            "u_per_target": float(u), "U_per_target": K * float(u)}
+    u_max, u_rms = total(mx_m, mx_v), total(rm_m, rm_v)
+    u_t = math.sqrt(var_e)
+    return {"max_abs": float(np.max(np.abs(r))), "max_abs_u": u_max, "max_abs_U": K * u_max,
+            "rms": float(np.sqrt(np.mean(r ** 2))), "rms_u": u_rms, "rms_U": K * u_rms,
+            "u_per_target": u_t, "U_per_target": K * u_t}
 
 
 # --------------------------------------------------------------------------- Monte Carlo
