@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from abbe.analysis.fit.uncertainty import K, point_u, terms_from_json
-from abbe.cli.conventions import examples
+from abbe.cli.conventions import examples, list_option
 from abbe.cli.options import in_range
 from abbe.errors import AbbeInputError
 from abbe.formats.limits import TABLE_JSON_MAX_BYTES
@@ -107,7 +107,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     q.add_argument("model", type=Path, help="the model.json of `abbe fit` (or its output folder)")
     q.add_argument("pos", nargs="*", type=in_range(-1e5, 1e5, "mm"), metavar="X Y Z",
                    help="machine positions, mm, in X Y Z triples")
-    q.add_argument("--along", nargs="+", choices=AXES, metavar="AXIS",
+    list_option(q, "--along", choices=AXES, metavar="AXIS",
                    help="tabulate every fitted term of AXIS and its U along the travel")
     q.add_argument("--points", type=int, default=11, choices=range(2, 1001), metavar="N",
                    help="positions along each axis for --along (2..1000, default 11)")
