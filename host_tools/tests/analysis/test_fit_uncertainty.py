@@ -14,9 +14,9 @@ import pytest
 from abbe.analysis.fit import uncertainty as fu_mod
 from abbe.analysis.fit.pipeline import fit_machine, options_from_machine
 from abbe.formats.machine import load_machine
-from abbe.formats.positioning import load_positioning
 from abbe.model.table import OWN_TERM, AxisTable, basis_matrix
 
+from cases.ess_case import write_ess_case
 from real_data import ESS_DAT, needs_real_data
 
 REPO = Path(__file__).resolve().parents[3]
@@ -39,38 +39,6 @@ def vmc():
 @pytest.fixture(scope="module")
 def vmc_mc(vmc):
     return fu_mod.monte_carlo(vmc, vmc.uncertainty, draws=800, seed=3, points_mm=POINTS)
-
-
-def write_ess_case(dat: Path, d: Path) -> Path:
-    """A machine file with one laser line holding the ESS X record (the linear channel only:
-    its triangulation sensor's budget)."""
-    pd = load_positioning(dat)
-    rows = ["run,direction,target_mm,linear_um"]
-    for r in range(pd.up_um.shape[0]):
-        rows += [f"{r + 1},+,{t:.4f},{v:.4f}" for t, v in zip(pd.targets_mm, pd.up_um[r])]
-        rows += [f"{r + 1},-,{t:.4f},{v:.4f}"
-                 for t, v in zip(pd.targets_mm[::-1], pd.down_um[r][::-1])]
-    (d / "x.csv").write_text("\n".join(rows) + "\n")
-    lo, hi = float(pd.targets_mm[0]), float(pd.targets_mm[-1])
-    (d / "machine.toml").write_text(f"""[machine]
-name = "ess-target-x"
-[axes.X]
-travel_mm = [{lo}, {hi}]
-[axes.Y]
-travel_mm = [0.0, 1.0]
-[axes.Z]
-travel_mm = [0.0, 1.0]
-[reference]
-point_mm = [0.0, 0.0, 0.0]
-[laser.X]
-file = "x.csv"
-start_mm = [{lo}, 0.0, 0.0]
-end_mm = [{hi}, 0.0, 0.0]
-map = {{ linear = "+dx" }}
-[uncertainty.laser]
-instrument = "laser_triangulation"
-""")
-    return d / "machine.toml"
 
 
 def test_operator_reproduces_the_stored_coefficients(vmc) -> None:
