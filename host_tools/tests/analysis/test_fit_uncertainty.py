@@ -145,3 +145,10 @@ def test_monte_carlo_agrees_on_ess(tmp_path: Path) -> None:
     # the triangulation sensor's linearity is in the budget: U well above repeatability alone
     tu = res.uncertainty.terms["X"]["dx"]
     assert tu.inputs["u_instrument"] > 5 * tu.inputs["u_repeatability"]
+
+
+def test_residual_summary_of_a_perfect_noiseless_fit_is_zero() -> None:
+    """One run fitted exactly (no spread, no residual): every figure 0, nothing divided by 0
+    (the hostile corpus' one-run campaign crashed here once)."""
+    got = fu_mod.residual_summary(np.zeros(6), 0.0)
+    assert got["rms_U"] == 0.0 and got["max_abs"] == 0.0 and got["max_abs_U"] < 1e-8

@@ -282,7 +282,8 @@ def residual_summary(r: np.ndarray, s: float, L: float = 0.0, scales: list[Any] 
         q_mean = float(m @ m) / T + var_e
         q_var = (4.0 * var_e * float(m @ m) + T * (mu4 - var_e ** 2)) / T ** 2
         rm_m.append(math.sqrt(q_mean))
-        rm_v.append(q_var / (4.0 * q_mean))
+        # no noise and no residual: the RMS is exactly 0 (no spread to divide by)
+        rm_v.append(q_var / (4.0 * q_mean) if q_mean > 0 else 0.0)
 
     def total(means: list[float], variances: list[float]) -> float:
         mu, va = np.asarray(means), np.asarray(variances)
