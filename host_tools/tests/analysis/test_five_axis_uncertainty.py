@@ -49,6 +49,10 @@ def test_monte_carlo_agrees_on_the_location_errors(solved) -> None:
     for n in ("EY0A", "EZ0A", "EB0A", "EC0A"):
         v = loc[n]
         assert abs(v["U_mc"] / v["U"] - 1.0) < 0.10, (n, v)
+    # EX0C (U 37 um: weakly seen, the R-test mount's bilinear terms beside it) is where the
+    # first order fails: the Monte Carlo's U is 23 % larger (400 draws). Kept visible.
+    ex = loc["EX0C"]
+    assert ex["U_mc"] / ex["U"] - 1.0 > 0.10, ex
     # the draws move the parameters: U_mc is a measured spread, not a copy of U
     assert all(v["U_mc"] > 0 for v in loc.values())
     assert np.isfinite([v["U_mc"] for v in mc["parameters"].values()]).all()
