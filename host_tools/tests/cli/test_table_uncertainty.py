@@ -90,3 +90,11 @@ def test_bad_points_exit_2(fitted, capsys) -> None:
     assert "X Y Z triples" in capsys.readouterr().err
     assert main(["table", "uncertainty", str(fitted)]) == 2
     assert "--along" in capsys.readouterr().err
+
+
+def test_fit_report_has_the_compact_uncertainty_table(fitted) -> None:
+    html = (fitted / "report" / "index.html").read_text()
+    md = json.loads((fitted / "model.json").read_text())
+    assert html.count("compensated max |r|") == len(md["axes"])
+    dy = md["uncertainty"]["axes"]["Y"]["terms"]["dy"]
+    assert f"<td>{dy['U_max_um']:.3g}</td>" in html
