@@ -249,7 +249,7 @@ def _max_abs_moments(m: np.ndarray, s: float, L: float) -> tuple[float, float]:
     P(max <= y) = prod_i P(|m_i + e_i| <= y), integrated on a grid."""
     s = max(s, 1e-9)
     hi = float(np.max(np.abs(m))) + L + 9 * s
-    y = np.linspace(0.0, hi, 2001)
+    y = np.linspace(0.0, hi, 801)
     H = np.ones_like(y)
     for mi in m:
         H *= np.clip(_cdf_normal_plus_rect(y - mi, s, L) - _cdf_normal_plus_rect(-y - mi, s, L),
@@ -265,7 +265,7 @@ def residual_summary(r: np.ndarray, s: float, L: float = 0.0, scales: list[Any] 
     and a shared scale error delta (ppm, from ``scales``) acting as delta x v (um)."""
     r = np.asarray(r, dtype=float)
     if scales:
-        d, w = _delta_density(scales)
+        d, w = _delta_density(scales, points=21)
         d = d - float(np.sum(w * d))  # centred: u(delta) as in the covariance
     else:
         d, w = np.zeros(1), np.ones(1)
