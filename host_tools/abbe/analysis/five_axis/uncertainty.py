@@ -22,7 +22,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from abbe.analysis.five_axis.identify import FitResult, _Problem
-from abbe.analysis.five_axis.problem import Block, Param
+from abbe.analysis.five_axis.problem import Block, Param, residual_block
 from abbe.formats.five_axis import FiveAxisSpec
 
 K = 2.0
@@ -60,7 +60,8 @@ def monte_carlo(spec: FiveAxisSpec, blocks: list[Block], params: list[Param], re
     pb = _Problem.__new__(_Problem)  # without its Jacobian at zero: taken at the solution
     pb.spec, pb.params, pb.blocks = spec, params, blocks
     pb.scale = np.array([p.scale for p in params])
-    sizes = [b_r.size for b_r in (pb_raw_block(spec, params, res.x_solution, b) for b in blocks)]
+    sizes = [residual_block(spec.geometry, params, res.x_solution, spec.fit.harmonics, b).size
+             for b in blocks]
     pb.offsets = np.r_[0, np.cumsum(sizes)]
     x0 = np.asarray(res.x_solution, dtype=float)
     pb.J = pb.jacobian(x0)
@@ -93,8 +94,3 @@ def monte_carlo(spec: FiveAxisSpec, blocks: list[Block], params: list[Param], re
                            "U": K * float(res.sd[i]), "U_mc": float(U_mc[i])}
     return {"draws": draws, "seed": seed, "parameters": out}
 
-
-def pb_raw_block(spec: FiveAxisSpec, params: list[Param], x: np.ndarray, b: Block) -> np.ndarray:
-    """One block's residuals (um / urad) at x."""
-    from abbe.analysis.five_axis.problem import residual_block
-    return residual_block(spec.geometry, params, x, spec.fit.harmonics, b)
