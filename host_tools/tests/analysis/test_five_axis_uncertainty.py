@@ -56,3 +56,29 @@ def test_monte_carlo_agrees_on_the_location_errors(solved) -> None:
     # the draws move the parameters: U_mc is a measured spread, not a copy of U
     assert all(v["U_mc"] > 0 for v in loc.values())
     assert np.isfinite([v["U_mc"] for v in mc["parameters"].values()]).all()
+
+
+def test_a_second_sphere_height_identifies_ex0c_and_eb0c(tmp_path: Path) -> None:
+    """Issue 37 item 5, measured: the example's plan plus a second sphere height
+    (cases/five_axis_second_sphere.py) sees EX0C within a few um (37 um without) and EB0C;
+    what stays unseen needs a datum, and the confounded group says so."""
+    import json
+
+    from cases.five_axis_second_sphere import generate
+    mf = generate(tmp_path)
+    spec = load_machine(mf).five_axis
+    plan = load_plan(spec)
+    params = build_params(spec, plan.blocks)
+    res = identify(spec, plan.blocks, params)
+    truth = json.loads((tmp_path / "truth.json").read_text())["location"]
+    names = [p.name for p in params]
+    for n in ("EX0C", "EB0C", "EY0A", "EB0A"):
+        i = names.index(n)
+        assert res.obs.observable[i], n
+        assert abs(res.x[i] - truth[n]) <= 2.0 * res.sd[i] + 0.3, (n, res.x[i], truth[n])
+    assert 2.0 * res.sd[names.index("EX0C")] < 5.0
+    unseen = {n for i, n in enumerate(names) if params[i].kind == "location"
+              and not res.obs.observable[i]}
+    assert unseen == {"EA0A", "EY0C", "EA0C", "EC0C"}
+    group = next(g for g in res.obs.groups if "EA0A" in g)
+    assert "probe.S2 sphere y" in group  # the spheres' positions: a datum would fix them
