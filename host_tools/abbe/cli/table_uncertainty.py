@@ -31,7 +31,9 @@ def _load(path: Path) -> tuple[Any, dict[str, Any], str]:
     p = path / "model.json" if path.is_dir() else path
     d, tf = load_json(p, what="fit model.json", max_bytes=4 * TABLE_JSON_MAX_BYTES)
     if not isinstance(d, dict) or d.get("format") != "abbe-fit":
-        raise AbbeInputError("expected the model.json of `abbe fit` (format \"abbe-fit\")",
+        raise AbbeInputError("expected the model.json of a three-axis `abbe fit` (format "
+                             "\"abbe-fit\"); a five-axis fit's five_axis.json states each "
+                             "parameter's U itself",
                              file=tf.name, field="format")
     if "uncertainty" not in d:
         raise AbbeInputError("this model.json has no uncertainty block (an older abbe "
