@@ -354,3 +354,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     q.add_argument("model", type=Path, help="table blob (model.bin)")
     q.add_argument("-o", "--out", type=Path, help="output JSON file")
     q.set_defaults(func=_cmd_to_json)
+
+    from abbe.cli import table_uncertainty  # the fit's U at any point (issue 37)
+    table_uncertainty.register(sub)

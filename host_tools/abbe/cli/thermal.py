@@ -125,6 +125,8 @@ def run_fit(args: argparse.Namespace) -> int:
                    "signals": [s.row(res.input_names) for s in
                                res.channels + [s for s in res.outputs if s.unit == "urad"]],
                    "iso230_3": iso}
+        from abbe.analysis.thermal.uncertainty import thermal_uncertainty
+        summary["uncertainty"] = thermal_uncertainty(res, draws=200)  # issue 37: U (k = 2)
         (out / "fit.json").write_text(json.dumps(summary, indent=1, allow_nan=False,
                                                  default=_none), encoding="utf-8")
         write_report(res, iso, out)

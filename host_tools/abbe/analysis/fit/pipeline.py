@@ -45,6 +45,8 @@ from abbe.analysis.fit.prep import (
     relative_to_reference,
 )
 from abbe.analysis.fit.select import AxisFit, fit_axis
+from abbe.analysis.fit.uncertainty import fit_uncertainty
+from abbe.analysis.fit.uncertainty import to_json as uncertainty_json
 from abbe.analysis.iso230_2 import Iso230Result, evaluate
 from abbe.errors import AbbeInputError
 from abbe.formats.blob import coef_sum_cap, quantization_error, read_blob, write_blob
@@ -120,6 +122,7 @@ class AxisResult:
     table: AxisTable
     n_measured: int = 0  # targets in the file (targets_mm holds the bins of a dense line)
     thermal: dict[str, Any] = field(default_factory=dict)
+    ref_mm: float = 0.0  # the reference point's coordinate on this axis (every term 0 there)
 
 
 @dataclass
@@ -132,6 +135,9 @@ class FitResult:
     blob: bytes
     axes: dict[str, AxisResult]
     model_json: dict[str, Any] = field(default_factory=dict)
+    #: every fitted term's covariance and the compensated residual
+    #: (:class:`abbe.analysis.fit.uncertainty.FitUncertainty`)
+    uncertainty: Any = None
 
 
 def options_from_machine(machine: Machine, **overrides: Any) -> FitOptions:
@@ -290,7 +296,7 @@ def fit_line(machine: Machine, axis: str, opts: FitOptions) -> AxisResult:
         axt.thermal_tref_c = thermal["tref_c"]
     return AxisResult(axis=axis, line=line, data=data, targets_mm=p, fit=af, terms=results,
                       backlash=bl, iso=iso, table=axt, n_measured=n_measured,
-                      thermal=thermal)
+                      thermal=thermal, ref_mm=float(ref))
 
 
 def fit_machine(machine: Machine, opts: FitOptions) -> FitResult:
@@ -316,6 +322,7 @@ def fit_machine(machine: Machine, opts: FitOptions) -> FitResult:
     for (a, t), e in qerr.items():
         axes[a].terms[t].quant_error = float(e)
     res = FitResult(machine=machine, options=opts, table=table, blob=blob, axes=axes)
+    res.uncertainty = fit_uncertainty(res)
     res.model_json = model_json(res)
     return res
 
@@ -491,4 +498,6 @@ def model_json(res: FitResult) -> dict[str, Any]:
         "table": {"crc32": f"0x{int.from_bytes(res.blob[-4:], 'little'):08X}",
                   "size_bytes": len(res.blob), **table_to_json(qt)},
         "axes": axes,
+        **({"uncertainty": uncertainty_json(res, res.uncertainty)}
+           if res.uncertainty is not None else {}),
     }

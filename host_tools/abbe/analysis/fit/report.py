@@ -199,6 +199,7 @@ def index_html(res: "FitResult") -> str:
             out.append("<p>ISO 230-2 (own positioning term): " + ", ".join(
                 f"{k[0]} = {iso[k]:.2f} um" for k in ("B_um", "R_um", "E_um", "A_um", "M_um"))
                 + "</p>")
+        out += _uncertainty_table(mj, a)
         n20 = aj.get("normalisation_20c")
         if n20:
             nde = n20["nominal_differential_expansion_um"]
@@ -236,6 +237,29 @@ def index_html(res: "FitResult") -> str:
                        f"alt='{a} {t}'></a></p>")
     out.append("</body></html>")
     return "\n".join(out) + "\n"
+
+
+def _uncertainty_table(mj: dict[str, Any], a: str) -> list[str]:
+    """One compact table per axis: each term's largest U (k = 2) along the travel and the
+    compensated residual at the targets with its U (model.json's uncertainty block)."""
+    unc = mj.get("uncertainty")
+    if not unc or a not in unc["axes"]:
+        return []
+    b = unc["budget_inputs"]
+    rows = [f"<p><b>Uncertainty</b> (k = 2; budget: {html.escape(b['instrument'])}, "
+            f"{html.escape(b['source'])}; docs/uncertainty.md). The table's U is 0 at the "
+            "reference point, where every term is 0 by definition; the compensated residual "
+            "is the measured mean minus the stored table at the targets.</p>",
+            "<table><tr><th class='l'>term</th><th>U max along the travel</th>"
+            "<th>compensated max |r| &plusmn; U</th><th>compensated RMS &plusmn; U</th></tr>"]
+    for t, d in unc["axes"][a]["terms"].items():
+        u = d["unit"]
+        c = d[f"compensated_residual_{u}"]
+        rows.append(f"<tr><td class='l'>{t} ({u})</td><td>{_fmt(d[f'U_max_{u}'], 3)}</td>"
+                    f"<td>{_fmt(c['max_abs'], 3)} &plusmn; {_fmt(c['max_abs_U'], 3)}</td>"
+                    f"<td>{_fmt(c['rms'], 3)} &plusmn; {_fmt(c['rms_U'], 3)}</td></tr>")
+    rows.append("</table>")
+    return rows
 
 
 SHORT = {"chosen": "chosen", "paper_fourier3": "paper Fourier 3", "paper_poly7": "paper poly 7"}

@@ -23,6 +23,7 @@ import numpy as np
 from abbe.analysis.five_axis.data import PlanData
 from abbe.analysis.five_axis.identify import SEEN_BY, FitResult
 from abbe.analysis.five_axis.problem import Block, residual_block
+from abbe.analysis.five_axis.uncertainty import budget as uncertainty_budget
 from abbe.analysis.iso230_2 import evaluate
 from abbe.formats.deviations import PositioningData
 from abbe.formats.five_axis import FiveAxisSpec, IndexerRuns
@@ -54,7 +55,9 @@ def param_rows(res: FitResult) -> list[dict[str, Any]]:
     for i, p in enumerate(res.params):
         row: dict[str, Any] = {"name": p.name, "kind": p.kind, "unit": p.unit}
         if res.obs.observable[i]:
-            row.update(observable=True, value=_f(res.x[i]), ci95=_f(1.96 * res.sd[i]))
+            # U (k = 2) is the certificate's figure (docs/uncertainty.md); ci95 (1.96 u) kept
+            row.update(observable=True, value=_f(res.x[i]), ci95=_f(1.96 * res.sd[i]),
+                       u=_f(res.sd[i]), U=_f(2.0 * res.sd[i]))
             if p.kind != "setup" and res.x_table is not None:
                 # what model_five.bin holds: the fit's value, moved (within its interval)
                 # by the prior on the errors the plan sees only in the convention
@@ -65,9 +68,11 @@ def param_rows(res: FitResult) -> list[dict[str, Any]]:
             conv = None if res.x_table is None else _f(res.x_table[i])
             sdc = None if res.sd_convention is None or i in res.obs.fixed \
                 else _f(1.96 * res.sd_convention[i])
-            row.update(observable=False, value=None, ci95=None,
+            row.update(observable=False, value=None, ci95=None, u=None, U=None,
                        value_in_convention=None if p.kind == "setup" else conv,
                        ci95_in_convention=None if p.kind == "setup" else sdc,
+                       U_in_convention=None if p.kind == "setup" or sdc is None
+                       else _f(2.0 * res.sd_convention[i]),
                        fixed_by_convention=i in res.obs.fixed,
                        confounded_with=_group_of(res, p.name),
                        seen_by=SEEN_BY[_seen_key(p.name, p.kind)])
@@ -180,6 +185,7 @@ def to_json(res: FitResult, spec: FiveAxisSpec, plan: PlanData) -> dict[str, Any
                           "heldout_before": _f(res.heldout_before_um),
                           "heldout_after": _f(res.heldout_after_um), "folds": spec.fit.folds},
         "block_sigma": {b.key: np.atleast_1d(b.sigma).astype(float).tolist() for b in res.blocks},
+        "uncertainty": uncertainty_budget(res),
         "rejected_positions": [{"probing": n, "position": p, "radius_mm": r, "expected_mm": e}
                                for n, p, r, e in plan.rejected],
         "rotary_positioning": {ax: rotary_positioning(r) for ax, r in plan.indexer_raw.items()},
@@ -198,13 +204,14 @@ def to_json(res: FitResult, spec: FiveAxisSpec, plan: PlanData) -> dict[str, Any
 def text_report(doc: dict[str, Any]) -> str:
     """The text report of a five_axis.json document."""
     out = [f"Five-axis identification ({doc['kinematics']}), ISO 230-7 notation",
-           "", "Location errors and parameters (95 % intervals):"]
+           "", "Location errors and parameters (value +- U, k = 2; the budget: each data "
+           "block's standard deviation, block_sigma):"]
     for r in doc["parameters"]:
         if r["observable"]:
-            out.append(f"  {r['name']:<26} {r['value']:>11.3f} {r['unit']:<4} +- {r['ci95']:.3f}")
+            out.append(f"  {r['name']:<26} {r['value']:>11.3f} {r['unit']:<4} +- {r['U']:.3f}")
         else:
             conv = r.get("value_in_convention")
-            ci = r.get("ci95_in_convention")
+            ci = r.get("U_in_convention")
             how = (f"{conv:.3f} {r['unit']} in the convention"
                    + (f" +- {ci:.3f}" if ci is not None else "") if conv else
                    "fixed at 0 by convention" if r["fixed_by_convention"] else "no number")
@@ -295,7 +302,7 @@ def write_html(res: FitResult, doc: dict[str, Any], out: Path) -> None:
     rows = []
     for r in doc["parameters"]:
         if r["observable"]:
-            cell = f"{r['value']:.3f} &plusmn; {r['ci95']:.3f} {r['unit']}"
+            cell = f"{r['value']:.3f} &plusmn; {r['U']:.3f} {r['unit']} (U, k = 2)"
         else:
             cell = ("not observable" + (" (fixed at 0 by convention)" if r["fixed_by_convention"]
                                         else "") + f"; confounded with "

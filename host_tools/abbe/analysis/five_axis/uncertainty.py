@@ -1,0 +1,96 @@
+"""Five-axis identification results with their expanded uncertainty U (k = 2) and the
+budget they come from; the Monte Carlo check (GUM Supplement 1) of the analytic U.
+
+The identification's covariance is s^2 (J^T W J)^-1 (``identify``, step 3): a Type A
+evaluation whose inputs are each data block's standard deviation (``block_sigma``: a
+probing's sphere centres per machine axis, an R-test's displacements, an indexer's
+readings, a rotary ballbar's lengths; each estimated from the block's own residuals) and
+the weighted residual variance s^2. U = 2 u (k = 2), u the parameter's standard
+deviation; the 95 % interval the report gave (1.96 u) is the same figure with k = 1.96.
+
+The check draws new observations (each residual row: normal with its block's standard
+deviation x s), solves the exact nonlinear model again (``least_squares`` on the model's
+own residuals from the solution; the Jacobian only steers the iterations) and takes
+2 x the standard deviation of each parameter over the draws. Units: um, urad (as each
+parameter's ``unit``)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from abbe.analysis.five_axis.identify import FitResult, _Problem
+from abbe.analysis.five_axis.problem import Block, Param, residual_block
+from abbe.formats.five_axis import FiveAxisSpec
+
+K = 2.0
+METHOD = ("ISO/TR 230-9 / GUM, Type A: covariance s^2 (J^T W J)^-1 of the identification, "
+          "W from each block's standard deviation (its own residuals); U = k u, k = 2")
+
+
+def _dof_s2(pb: _Problem, x: np.ndarray, free: list[int]) -> tuple[int, float]:
+    r = pb.raw(x) * pb.weights()
+    dof = max(r.size - len(free), 1)
+    return dof, float(r @ r) / dof
+
+
+def budget(res: FitResult) -> dict[str, Any]:
+    """The inputs of the five-axis U: each block's standard deviation and what it is."""
+    what = {"probe": "sphere centres from the probing (x, y, z), um",
+            "rtest": "R-test displacements (x, y, z), um",
+            "indexer": "rotary indexer readings, urad",
+            "ballbar": "rotary ballbar lengths, um"}
+    return {"method": METHOD, "k": K,
+            "inputs": [{"block": b.key, "what": what.get(b.kind, b.kind),
+                        "u": [float(v) for v in np.atleast_1d(b.sigma)],
+                        "evaluation": "Type A: the block's residuals after the fit"}
+                       for b in res.blocks],
+            "not_included": ("the probe's and the instruments' calibration (their Type B "
+                             "figures: not declared for five-axis plans), the kinematic "
+                             "model's own adequacy beyond its residuals")}
+
+
+def monte_carlo(spec: FiveAxisSpec, blocks: list[Block], params: list[Param], res: FitResult,
+                draws: int = 100, seed: int = 1) -> dict[str, Any]:
+    """GUM S1 check of the observable parameters' U (module docstring). Returns
+    name -> {value, U, U_mc}."""
+    rng = np.random.default_rng(seed)
+    pb = _Problem.__new__(_Problem)  # without its Jacobian at zero: taken at the solution
+    pb.spec, pb.params, pb.blocks = spec, params, blocks
+    pb.scale = np.array([p.scale for p in params])
+    sizes = [residual_block(spec.geometry, params, res.x_solution, spec.fit.harmonics, b).size
+             for b in blocks]
+    pb.offsets = np.r_[0, np.cumsum(sizes)]
+    x0 = np.asarray(res.x_solution, dtype=float)
+    pb.J = pb.jacobian(x0)
+    P = len(params)
+    free = [i for i in range(P) if i not in res.obs.fixed]
+    w = pb.weights()
+    _, s2 = _dof_s2(pb, x0, free)
+    sd_row = np.sqrt(s2) / w
+    sc = pb.scale[free]
+    Jw = pb.J[:, free] * w[:, None]
+    method = "lm" if Jw.shape[0] >= Jw.shape[1] else "trf"
+    xs = np.zeros((draws, P))
+    for k in range(draws):
+        e = rng.normal(0.0, sd_row)
+
+        def fun(z: np.ndarray) -> np.ndarray:
+            x = x0.copy()
+            x[free] = z * sc
+            return (pb.raw(x) + e) * w
+
+        sol = least_squares(fun, x0[free] / sc, jac=lambda z: Jw, method=method,
+                            xtol=1e-10, ftol=1e-10)
+        xs[k] = x0
+        xs[k, free] = sol.x * sc
+    U_mc = K * xs.std(axis=0, ddof=1)
+    out = {}
+    for i, p in enumerate(params):
+        if res.obs.observable[i]:
+            out[p.name] = {"kind": p.kind, "unit": p.unit, "value": float(res.x[i]),
+                           "U": K * float(res.sd[i]), "U_mc": float(U_mc[i])}
+    return {"draws": draws, "seed": seed, "parameters": out}
+

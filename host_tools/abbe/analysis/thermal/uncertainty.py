@@ -1,0 +1,174 @@
+"""Thermal results with their expanded uncertainty U (k = 2): each term's gain and time
+constant, the model's predicted drift and the held-out channel RMS; the Monte Carlo check.
+
+The identification's covariance (``identify.refine``: the Jacobian of the joint parameters
+offset, gains, log taus at the optimum, the residual variance inflated for the serial
+correlation, n / n_eff) is recomputed here from the fitted terms and kept whole, so it can
+be carried to the predicted drift d(t) = sum_k g_k lag(u_k, tau_k)(t): u(d)^2 = j C j^T,
+j = dd/dp (first order). The held-out RMS of the compensated residual r = y - prediction on
+the validation hours carries the same parameters (first order, -r.j / (n rms)).
+
+The check (GUM S1) draws the parameters from N(p, C) and evaluates the model with the
+runtime's discretisation (:func:`abbe.model.thermal.lag_states`) unchanged; U_MC = 2 x the
+standard deviation over the draws. It tests the first-order propagation, not the covariance
+(a poorly determined time constant, whose interval spans decades, is where the two part).
+Units: um (um per K, um per krpm for gains; urad for tilts), s, h.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from abbe.analysis.thermal.identify import ChannelFit, candidates_of
+from abbe.model.thermal import lag_states
+
+K = 2.0
+
+
+def _states(t_s: np.ndarray, cands: list[Any], fit: ChannelFit, logtau: np.ndarray) -> np.ndarray:
+    dyn = [j for j, t in enumerate(fit.terms) if t.tau_s > 0]
+    taus = [t.tau_s for t in fit.terms]
+    for j, lt in zip(dyn, logtau):
+        taus[j] = float(np.exp(lt))
+    cols = [np.ones(t_s.size)] + [lag_states(cands[t.input].rise, t_s, tau)
+                                  for t, tau in zip(fit.terms, taus)]
+    return np.column_stack(cols)
+
+
+def params_of(fit: ChannelFit) -> np.ndarray:
+    """(offset, gains, log taus of the dynamic terms), as ``refine`` solves them."""
+    lt = [np.log(t.tau_s) for t in fit.terms if t.tau_s > 0]
+    return np.array([fit.offset_um, *[t.gain for t in fit.terms], *lt], dtype=float)
+
+
+def prediction(t_s: np.ndarray, cands: list[Any], fit: ChannelFit, p: np.ndarray,
+               with_offset: bool = True) -> np.ndarray:
+    """The model's prediction at every sample for parameters ``p`` (um / urad)."""
+    ng = len(fit.terms) + 1
+    S = _states(t_s, cands, fit, p[ng:])
+    g = p[:ng].copy()
+    if not with_offset:
+        g[0] = 0.0
+    return S @ g
+
+
+def covariance(t_s: np.ndarray, y: np.ndarray, cands: list[Any], fit: ChannelFit,
+               mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(p, C): the joint parameters and their covariance on the identification samples
+    (``refine``'s, recomputed: forward differences, s^2 inflated by n / n_eff)."""
+    p = params_of(fit)
+    r0 = y[mask] - prediction(t_s, cands, fit, p)[mask]
+    J = np.empty((r0.size, p.size))
+    for k in range(p.size):
+        h = 1e-6 * max(1.0, abs(p[k]))
+        dp = p.copy()
+        dp[k] += h
+        J[:, k] = (y[mask] - prediction(t_s, cands, fit, dp)[mask] - r0) / h
+    n = r0.size
+    rho = float(np.clip(np.corrcoef(r0[:-1], r0[1:])[0, 1], 0.0, 0.999)) if n > 2 else 0.0
+    n_eff = max(n * (1 - rho) / (1 + rho), p.size + 1.0)
+    s2 = float(r0 @ r0) / max(n - p.size, 1) * (n / n_eff)
+    return p, s2 * np.linalg.pinv(J.T @ J)
+
+
+def _jac(fn, p: np.ndarray) -> np.ndarray:
+    f0 = fn(p)
+    J = np.empty((np.size(f0), p.size))
+    for k in range(p.size):
+        h = 1e-6 * max(1.0, abs(p[k]))
+        dp = p.copy()
+        dp[k] += h
+        J[:, k] = (fn(dp) - f0) / h
+    return J
+
+
+def signal_uncertainty(res: Any, sig: Any, draws: int = 0, seed: int = 1) -> dict[str, Any]:
+    """One signal's terms, its largest predicted drift on the validation hours and its
+    held-out RMS, each with U (k = 2); with ``draws`` the Monte Carlo beside each."""
+    rec = res.record
+    t = rec.time_s
+    cands = candidates_of(rec.temps_c, list(rec.temp_names), rec.speed_rpm)
+    fit = sig.fit
+    if not fit.terms:
+        return {"name": sig.name, "terms": [], "note": "no term: nothing predicted"}
+    y = sig.measured
+    p, C = covariance(t, y, cands, fit, res.ident_mask)
+    sd = np.sqrt(np.maximum(np.diag(C), 0.0))
+    valid = res.valid_mask
+    d = prediction(t, cands, fit, p, with_offset=False)
+    iv = np.flatnonzero(valid)
+    i_max = int(iv[np.argmax(np.abs(d[iv]))])
+
+    def drift_at(q: np.ndarray) -> np.ndarray:
+        return np.array([prediction(t, cands, fit, q, with_offset=False)[i_max]])
+
+    def rms_valid(q: np.ndarray) -> np.ndarray:
+        r = (y - prediction(t, cands, fit, q))[valid]
+        return np.array([np.sqrt(np.mean(r ** 2))])
+
+    jd = _jac(drift_at, p)[0]
+    jr = _jac(rms_valid, p)[0]
+    ng = len(fit.terms) + 1
+    dyn = [j for j, tt in enumerate(fit.terms) if tt.tau_s > 0]
+    terms = []
+    for j, tt in enumerate(fit.terms):
+        row = {"input": res.input_names[tt.input], "gain": tt.gain, "gain_U": K * sd[j + 1],
+               "tau_s": tt.tau_s, "tau_U_s": None}
+        if j in dyn:
+            s_lt = sd[ng + dyn.index(j)]
+            # log tau's interval mapped to tau: the larger half-width (as identify's)
+            row["tau_U_s"] = float(tt.tau_s * np.expm1(K * s_lt)) if K * s_lt < 20 else None
+        terms.append(row)
+    out: dict[str, Any] = {
+        "name": sig.name, "unit": sig.unit, "terms": terms,
+        "drift": {"hours": float(rec.hours[i_max]), "value": float(d[i_max]),
+                  "U": K * float(np.sqrt(max(jd @ C @ jd, 0.0)))},
+        "heldout_rms": {"value": float(rms_valid(p)[0]),
+                        "U": K * float(np.sqrt(max(jr @ C @ jr, 0.0)))},
+        "n_eff": float(fit.n_eff)}
+    if draws:
+        rng = np.random.default_rng(seed)
+        L = np.linalg.cholesky(C + 1e-12 * np.eye(C.shape[0]) * max(float(np.max(np.diag(C))), 1e-30))
+        dv, rv = np.empty(draws), np.empty(draws)
+        for k in range(draws):
+            q = p + L @ rng.standard_normal(p.size)
+            dv[k] = drift_at(q)[0]
+            rv[k] = rms_valid(q)[0]
+        out["drift"]["U_mc"] = K * float(dv.std(ddof=1))
+        out["heldout_rms"]["U_mc"] = K * float(rv.std(ddof=1))
+        out["monte_carlo"] = {"draws": draws, "seed": seed}
+        for key in ("drift", "heldout_rms"):
+            _state(out[key])
+    else:
+        for key in ("drift", "heldout_rms"):
+            out[key]["U_stated"] = out[key]["U"]
+            out[key]["U_from"] = "first order (no Monte Carlo run)"
+    return out
+
+
+#: First order and Monte Carlo further apart than this: the first order is not adequate
+#: (GUM S1 validation) and the Monte Carlo's U is the one stated.
+AGREEMENT = 0.10
+
+
+def _state(d: dict[str, Any]) -> None:
+    """The U a certificate states: the first order's when the Monte Carlo confirms it within
+    AGREEMENT, else the Monte Carlo's (the model is not linear enough over the interval)."""
+    ok = d["U"] > 0 and abs(d["U_mc"] / d["U"] - 1.0) <= AGREEMENT
+    d["U_stated"] = d["U"] if ok else d["U_mc"]
+    d["U_from"] = ("first order (the Monte Carlo agrees within 10 %)" if ok else
+                   "Monte Carlo (the first order is more than 10 % off: a parameter's "
+                   "interval is too wide for the model to be linear over it)")
+
+
+def thermal_uncertainty(res: Any, draws: int = 0, seed: int = 1) -> dict[str, Any]:
+    """Every modelled output's figures with U (k = 2) (module docstring)."""
+    return {"method": ("GUM first order on the identification's covariance (offset, gains, "
+                       "log taus; s^2 inflated for serial correlation); U = k u, k = 2"),
+            "k": K,
+            "budget": ("Type A only: the residuals on the identification hours; the "
+                       "displacement and temperature sensors' calibration is not declared "
+                       "for thermal records and not included"),
+            "signals": [signal_uncertainty(res, s, draws, seed) for s in res.outputs]}
