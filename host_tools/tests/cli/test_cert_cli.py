@@ -46,7 +46,7 @@ def machine(tmp_path: Path) -> Path:
 def test_iso230_2_json_has_u_budget_and_verdicts(machine: Path, capsys) -> None:
     x = str(machine.parent / "laser" / "x.csv")
     assert main(["iso230-2", x, "--machine", str(machine), "--axis", "X", "--json",
-                 "--mc", "300"]) == 0
+                 "-", "--mc", "300"]) == 0
     d = json.loads(capsys.readouterr().out)
     unc = d["uncertainty"]
     assert d["machine"] == "vmc500" and d["axis"] == "X"
@@ -82,7 +82,7 @@ def test_iso230_2_out_folder_is_what_history_reads(machine: Path, tmp_path: Path
     assert main(args + ["-o", str(out), "--date", "2021-05-10"]) == 0
     assert sorted(p.name for p in out.iterdir()) == ["iso230_2.json", "report.html"]
     capsys.readouterr()
-    assert main(args + ["--json"]) == 0
+    assert main(args + ["--json", "-"]) == 0
     assert json.loads((out / "iso230_2.json").read_text()) == json.loads(
         capsys.readouterr().out)
     c = read_campaign([str(out)], {"": "X"}, "vmc500")

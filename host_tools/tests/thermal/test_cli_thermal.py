@@ -37,8 +37,10 @@ def test_fit_writes_model_and_report(synthetic, tmp_path, capsys):
     names = [i.name for i in model.inputs]
     assert {names[t.input] for t in by["chx"].terms} >= {"T1"}
     html = (out / "index.html").read_text()
-    # plots first, numbers after
-    assert html.index("signals.png") < html.index("<table>")
+    # verdict first (the band with the held-out table), then the headline plot, the
+    # per-signal plots and the terms folded after
+    assert html.index("id='verdict'") < html.index("rms.png") < html.index("signals.png")
+    assert html.index("signals.png") < html.index("Terms (95 %")
     for f in ("signals.png", "rms.png", "inputs.png", "fit.json"):
         assert (out / f).stat().st_size > 1000
     text = capsys.readouterr().out
