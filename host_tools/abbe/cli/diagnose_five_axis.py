@@ -29,7 +29,8 @@ def run_five_axis_diagnose(args: argparse.Namespace) -> int:
         machine = load_machine(args.machine)
         spec = machine.five_axis
         diag = diagnose_five_axis(spec, load_plan(spec).blocks)
-        doc = {"format": "abbe-five-axis-diagnose 1.0", "kinematics": spec.geometry.kind,
+        doc = {"format": "abbe-five-axis-diagnose 1.0", "machine": machine.name,
+               "kinematics": spec.geometry.kind,
                **diag.to_json(),
                "provenance": {"machine_file": str(machine.path), "sha256": machine.sha256}}
         text = json.dumps(doc, indent=2, allow_nan=False) + "\n"

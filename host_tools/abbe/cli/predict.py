@@ -42,7 +42,8 @@ def run(args: argparse.Namespace) -> int:
         if out is not None:
             for p in results:
                 plot_prediction(p, out / f"predict_{p.name}.png")
-        doc = {"model": str(args.model), "predictions": [p.to_json() for p in results]}
+        doc = {"format": "abbe-predict 1.0", "machine": machine.name, "model": str(args.model),
+               "predictions": [p.to_json() for p in results]}
         if out is not None:
             (out / "predict.json").write_text(json.dumps(doc, indent=2, allow_nan=False) + "\n",
                                               encoding="utf-8")

@@ -74,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
         fit.squareness_urad, fit.squareness_u95_urad = sq, u95
     table = table_of(fit, (lo, hi), fit.squareness_urad)
     blob = write_blob(table)
-    doc = fit.to_json()
+    doc = {"format": "abbe-printer-fit 1.0", **fit.to_json()}
     with Outputs() as outs:
         out = outs.directory(args.out, option="--out")
         js = outs.file(json_file(args), option="--json") if json_file(args) else None
