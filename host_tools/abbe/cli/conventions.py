@@ -53,6 +53,11 @@ def list_option(parser: argparse.ArgumentParser, *flags: str, **kwargs: Any) -> 
 class HelpFormatter(argparse.HelpFormatter):
     """Wraps descriptions; prints the examples epilog line by line as written."""
 
+    def _format_args(self, action: argparse.Action, default_metavar: str) -> str:
+        if isinstance(action, _JsonAction):  # the bare form is deprecated: not advertised
+            return "FILE"
+        return super()._format_args(action, default_metavar)
+
     def _fill_text(self, text: str, width: int, indent: str) -> str:
         if text.startswith(("example:\n", "examples:\n")):
             return "".join(indent + line for line in text.splitlines(keepends=True))

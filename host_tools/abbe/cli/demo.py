@@ -19,7 +19,8 @@ def _default_example() -> Path:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
-        "demo", help="run fit -> tables -> predict -> diagnose -> compensate on the example machine",
+        "demo", help="run fit -> tables -> predict -> diagnose -> compensate on the three-axis "
+                     "example (--five-axis: identify the trunnion example)",
         description="The demo pipeline on a bundled example machine (default: the vmc500 example "
                     "shipped with abbe): fit, tables, build check, ballbar prediction, diagnosis, "
                     "compensation in the loop, and an HTML report in OUT/index.html.",

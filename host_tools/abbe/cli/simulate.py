@@ -10,8 +10,9 @@ from abbe.cli.conventions import examples, json_file, json_option, json_to_stdou
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
-        "simulate", help="simulate a machine and its measurement campaign from a spec",
-        description="Simulate a virtual 3-axis machine (exact nonlinear kinematics, 21 "
+        "simulate", help="simulate a three-axis machine and its measurement campaign from a "
+                         "spec",
+        description="Simulate a virtual three-axis machine (exact nonlinear kinematics, 21 "
                     "geometric errors, optional effects) and write a complete campaign: "
                     "DIR/machine.toml, the 6D laser CSVs, the ballbar CSVs and the ground "
                     "truth DIR/truth/truth.json (+ DIR/truth/true_table.json). "
