@@ -94,3 +94,34 @@ def test_spindle_program_bad_speed(tmp_path, capsys):
     assert e.value.code == 2
     assert "argument --speeds: expected a number" in capsys.readouterr().err
     assert not (tmp_path / "p.ngc").exists()
+
+
+def test_record_report_reads_verdict_first_in_chromium(tmp_path):
+    """`abbe thermal evaluate -o` on the real 46 h record: the band (envelope and each
+    channel's range, no tolerance: "info") at the top, the drift plot after it."""
+    from report_shots import assert_band_before, assert_verdict_first, needs_chromium, screenshot
+    out = tmp_path / "ev"
+    assert main(["thermal", "evaluate", str(REAL_MACHINE), "-o", str(out)]) == 0
+    d = json.loads((out / "iso230_3.json").read_text())
+    page = (out / "report.html").read_text()
+    assert_band_before(page, "drift.png", "Drift per channel")
+    assert f"envelope {d['envelope']['range_um']:.1f} um" in page
+    if needs_chromium.args[0]:
+        pytest.skip("chromium not installed: the report is not rendered")
+    img = screenshot(out / "report.html", tmp_path / "shot.png", "thermal_record")
+    assert assert_verdict_first(img) == "info"
+
+
+def test_fit_report_reads_verdict_first_in_chromium(synthetic, tmp_path):
+    """`abbe thermal fit`: the band says whether the model meets its target on every
+    held-out signal (green) or which it misses (red), in the top quarter."""
+    from report_shots import assert_verdict_first, needs_chromium, screenshot
+    folder, _ = synthetic
+    out = tmp_path / "fit"
+    assert main(["thermal", "fit", str(folder / "machine.toml"), "-o", str(out)]) == 0
+    f = json.loads((out / "fit.json").read_text())
+    if needs_chromium.args[0]:
+        pytest.skip("chromium not installed: the report is not rendered")
+    img = screenshot(out / "index.html", tmp_path / "shot.png", "thermal_fit")
+    expect = "pass" if all(s["meets_target"] for s in f["signals"]) else "fail"
+    assert assert_verdict_first(img) == expect
