@@ -86,6 +86,15 @@ def run(args: argparse.Namespace) -> int:
 
     if args.five_axis:
         return _run_five_axis(args)
+    from abbe.model import clib
+    try:  # said once, before any step: the demo predicts and compensates through the library
+        clib.load_library()
+    except clib.LibraryNotFound as exc:
+        print(f"abbe demo: error: the demo runs the C library (prediction, compensation in "
+              f"the loop): {exc.what}; build it with 'cmake -S . -B build && cmake --build "
+              "build' in the repository root, or point ABBE_LIB at libabbe.so",
+              file=sys.stderr)
+        return 3
     example = args.example or _default_example()
     with Outputs() as outs:
         staging = outs.directory(args.out, option="--out")
