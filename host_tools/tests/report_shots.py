@@ -60,3 +60,12 @@ def assert_band_before(html: str, *later: str) -> None:
     at = html.index("id='verdict'")
     for s in later:
         assert s in html and html.index(s) > at, s
+
+
+def pdf_pages(html: Path, pdf: Path) -> int:
+    """Pages of ``html`` printed to PDF by headless Chromium (the browser's print)."""
+    import re
+    subprocess.run(["chromium", "--headless", "--no-sandbox", "--disable-gpu",
+                    f"--print-to-pdf={pdf}", html.as_uri()], check=True, capture_output=True,
+                   timeout=180)
+    return len(re.findall(rb"/Type\s*/Page[^s]", pdf.read_bytes()))

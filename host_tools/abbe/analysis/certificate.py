@@ -34,7 +34,8 @@ background:transparent;white-space:nowrap}
 .plots img{max-width:48%;vertical-align:top} .plots img.wide{max-width:100%}
 .head td{border:none;text-align:left;padding:.1em .8em .1em 0} .small{font-size:.85em;color:#555}
 details{margin:.5em 0} summary{cursor:pointer;font-weight:bold}
-@media print{details{display:block} summary{display:none} body{max-width:none;margin:0}
+@media print{details{display:block} summary{display:none}
+details::details-content{content-visibility:visible;display:block} body{max-width:none;margin:0}
 a{color:inherit;text-decoration:none} h2{break-after:avoid} img,table{break-inside:avoid}}
 """
 

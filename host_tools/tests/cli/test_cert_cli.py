@@ -203,3 +203,7 @@ def test_ess_iso230_2_report_reads_verdict_first_in_chromium(tmp_path: Path) -> 
         pytest.skip("chromium not installed: the report is not rendered")
     img = screenshot(out / "report.html", tmp_path / "shot.png", "iso230_2_ess")
     assert assert_verdict_first(img) == "info"
+    # printed, the folded budget and per-target tables unfold: more than the one page the
+    # screen shows with them folded
+    from report_shots import pdf_pages
+    assert pdf_pages(out / "report.html", tmp_path / "r.pdf") >= 3
