@@ -10,7 +10,7 @@
 * ``--json FILE`` writes the command's JSON document to FILE (atomically, beside any
   text the command prints); ``--json -`` prints it on stdout instead of the text, so
   stdout holds one JSON document (:func:`json_option`). The bare ``--json`` of
-  abbe 0.x (print JSON) still works for one release and says on stderr that it is
+  abbe 0.1.0 (print JSON) still works for one release and says on stderr that it is
   deprecated. A FILE that exists and does not end in ``.json`` is refused: a bare
   ``--json`` written before a positional argument (``abbe iso230-2 --json x.csv``)
   would otherwise take the measurement file as the output (docs/cli.md).
@@ -33,8 +33,6 @@ def examples(*lines: str) -> str:
 #: ``--json -``: the JSON document goes to stdout.
 STDOUT = "-"
 _BARE = object()  # the deprecated bare ``--json``
-JSON_HELP = ("write the JSON document to FILE ('-': print it on stdout instead of the text; "
-             "docs/cli.md)")
 
 
 def json_option(parser: argparse.ArgumentParser, what: str = "") -> argparse.Action:
