@@ -30,7 +30,7 @@ text-align:right} th{background:#eee} td.l,th.l{text-align:left}
 .band{padding:.5em .8em;margin:.6em 0;font-size:1.1em;-webkit-print-color-adjust:exact;
 print-color-adjust:exact} .band p{margin:.2em 0}
 .band table{font-size:.8em} .band table td,.band table th{border-color:#889;
-background:transparent;white-space:nowrap}
+background:transparent} .band table td{white-space:nowrap}
 .plots img{max-width:48%;vertical-align:top} .plots img.wide{max-width:100%}
 .head td{border:none;text-align:left;padding:.1em .8em .1em 0} .small{font-size:.85em;color:#555}
 details{margin:.5em 0} summary{cursor:pointer;font-weight:bold}

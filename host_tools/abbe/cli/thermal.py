@@ -162,7 +162,7 @@ def run_diagnose(args: argparse.Namespace) -> int:
         out = outs.directory(args.out)
         m, spec, rec = _load(args.machine)
         diag = diagnose_thermal(rec, spec)
-        write_thermal_report(diag, rec, spec, out)
+        write_thermal_report(diag, rec, spec, out, machine=m.name)
         diag.pop("_series")
         diag = {"format": "abbe-thermal-diagnose 1.0", "machine": m.name, **diag}
         (out / "diagnosis.json").write_text(json.dumps(diag, indent=1, allow_nan=False),

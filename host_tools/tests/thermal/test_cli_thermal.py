@@ -66,7 +66,11 @@ def test_diagnose_names_the_speed_lag(tmp_path, capsys):
     tau_be = 15.0 / math.expm1(15.0 / 1200.0)   # the continuous lag's backward-Euler twin
     assert abs(n["tau_s"] - tau_be) <= n["tau_u95_s"] and abs(n["gain"] + 3.0) <= n["gain_u95"]
     assert d["after_heldout_um"] < 0.5 * d["gap_heldout_um"]
-    assert (out / "gaps.png").stat().st_size > 1000 and "spindle" in (out / "index.html").read_text()
+    page = (out / "index.html").read_text()
+    assert (out / "gaps.png").stat().st_size > 1000 and "spindle" in page
+    # verdict first: the band (one row per channel) before the gap plot and the folded text
+    assert page.index("id='verdict'") < page.index("gaps.png") < page.index("<details>")
+    assert "spindle through a lag" in page[:page.index("gaps.png")]
     assert "spindle through a lag" in capsys.readouterr().out
 
 
