@@ -44,9 +44,9 @@ def _outputs(work: Path) -> Path:
     run("diagnose", m, "--model", str(out / "fit" / "model.bin"), "--ballbar", "circle1",
         "-o", str(out / "diagnose"), "--no-plots", stdout=subprocess.DEVNULL)
     with open(out / "ballbar.json", "w") as fh:
-        run("ballbar", m, "circle1", "--json", "--no-plot", stdout=fh)
+        run("ballbar", m, "circle1", "--json", "-", "--no-plot", stdout=fh)
     with open(out / "iso_x.json", "w") as fh:
-        run("iso230-2", str(EXAMPLE / "laser" / "x.csv"), "--json", stdout=fh)
+        run("iso230-2", str(EXAMPLE / "laser" / "x.csv"), "--json", "-", stdout=fh)
     (out / "done").write_text("")
     return out
 

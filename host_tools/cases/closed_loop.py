@@ -56,7 +56,7 @@ def main(argv: list[str] | None = None) -> int:
         dev = (p[0] - targets[c["target"]]) * 1000.0 + v
         (up if c["dir"] > 0 else down)[c["run"] - 1, c["target"]] = dev
     a.out.write_text(rtl_from_updown(targets, up, down), newline="")
-    res = subprocess.run([a.abbe, "iso230-2", str(a.out), "--json"], capture_output=True,
+    res = subprocess.run([a.abbe, "iso230-2", str(a.out), "--json", "-"], capture_output=True,
                          text=True)
     if res.returncode != 0:
         print(res.stderr, file=sys.stderr)

@@ -2,7 +2,13 @@
 machine, test, date, the verdicts, then the results with U, the budget (folded) and the
 Monte Carlo check. Built from the JSON document the command writes beside it, so the
 two cannot disagree. Printable through the browser (no scripts, no external files
-other than the polar plot beside it)."""
+other than the plots beside it).
+
+The page frame every abbe report shares (:func:`page_head`, :func:`band`, :data:`CSS`):
+a title, the machine / test / date rows, then one full-width band coloured by the
+verdict (pass, fail, inconclusive; "info" where no tolerance applies) that carries the
+headline figures. Long explanations go below, folded in ``<details>`` (unfolded in
+print)."""
 
 from __future__ import annotations
 
@@ -20,10 +26,41 @@ h1{font-size:1.4em;margin-bottom:.2em} h2{font-size:1.1em;margin-top:1.4em}
 table{border-collapse:collapse;margin:.4em 0} td,th{border:1px solid #bbb;padding:.25em .6em;
 text-align:right} th{background:#eee} td.l,th.l{text-align:left}
 .pass{background:#c8efc8} .fail{background:#f6c3c3} .inconclusive{background:#fbe7a6}
+.info{background:#d6e6f5}
+.band{padding:.5em .8em;margin:.6em 0;font-size:1.1em;-webkit-print-color-adjust:exact;
+print-color-adjust:exact} .band p{margin:.2em 0}
+.band table{font-size:.8em} .band table td,.band table th{border-color:#889;
+background:transparent} .band table td{white-space:nowrap}
+.plots img{max-width:48%;vertical-align:top} .plots img.wide{max-width:100%}
 .head td{border:none;text-align:left;padding:.1em .8em .1em 0} .small{font-size:.85em;color:#555}
 details{margin:.5em 0} summary{cursor:pointer;font-weight:bold}
-@media print{details{display:block} summary{display:none}}
+@media print{details{display:block} summary{display:none}
+details::details-content{content-visibility:visible;display:block} body{max-width:none;margin:0}
+a{color:inherit;text-decoration:none} h2{break-after:avoid} img,table{break-inside:avoid}}
 """
+
+#: The band colours (RGB) a report's verdict band may have (tests look for them).
+BAND_RGB = {"pass": (0xc8, 0xef, 0xc8), "fail": (0xf6, 0xc3, 0xc3),
+            "inconclusive": (0xfb, 0xe7, 0xa6), "info": (0xd6, 0xe6, 0xf5)}
+CSS = _CSS
+
+
+def page_head(title: str, rows: list[tuple[str, str]]) -> list[str]:
+    """The top of a report: title, then machine / test / date rows (plain text, escaped)."""
+    return _head(title, rows)
+
+
+def band(status: str, headline: str, body: str = "") -> str:
+    """The verdict band: ``status`` pass | fail | inconclusive | info; ``headline`` and
+    ``body`` are HTML (the caller escapes)."""
+    assert status in BAND_RGB, status
+    return (f"<div class='band {status}' id='verdict'><p><b>{headline}</b></p>{body}</div>")
+
+
+def overall(verdicts: list[str]) -> str:
+    """The overall verdict of several (fail beats inconclusive beats pass)."""
+    return ("fail" if "fail" in verdicts else "inconclusive" if "inconclusive" in verdicts
+            else "pass")
 
 
 def test_date(path: str) -> str:
@@ -52,17 +89,22 @@ def _head(title: str, rows: list[tuple[str, str]]) -> list[str]:
     return out
 
 
-def _verdict_block(verdicts: dict[str, Any]) -> list[str]:
+def _verdict_block(verdicts: dict[str, Any], unc: dict[str, Any] | None = None,
+                   names: dict[str, str] | None = None) -> list[str]:
     out = ["<h2>Verdicts</h2>"]
     if not verdicts:
-        out.append("<p>No tolerances stated (add a <code>[tolerances]</code> section to the "
-                   "machine file): no verdict.</p>")
+        figures = ""
+        if unc:
+            figures = ", ".join(
+                f"{_e((names or {}).get(q, q).split(' ')[0] if q in 'EABRM' else q)} "
+                f"{_f(r['value_um'])} &plusmn; {_f(r['U_um'])}"
+                for q, r in unc["results"].items()) + " um (U, k = 2)"
+        out.append(band("info", "No tolerances stated: no verdict", f"<p>{figures}</p>"
+                        "<p class='small'>Add a <code>[tolerances]</code> section to the "
+                        "machine file for pass / fail / inconclusive.</p>"))
         return out
-    overall = ("fail" if any(v["verdict"] == "fail" for v in verdicts.values()) else
-               "inconclusive" if any(v["verdict"] == "inconclusive" for v in verdicts.values())
-               else "pass")
-    out.append(f"<p class='{overall}' style='padding:.4em;font-size:1.2em'><b>Overall: "
-               f"{overall.upper()}</b></p>")
+    ov = overall([v["verdict"] for v in verdicts.values()])
+    out.append(band(ov, f"Overall: {ov.upper()}"))
     out.append("<table><tr><th class='l'>result</th><th>value (um)</th><th>U, k = 2 (um)</th>"
                "<th>limit (um)</th><th class='l'>verdict</th></tr>")
     for key, v in verdicts.items():
@@ -141,7 +183,7 @@ def iso230_2_html(d: dict[str, Any], date: str) -> str:
             ("20 deg C", norm["status"] + ": " + norm["reason"] if norm else
              "the file carries no material temperature (results as measured)")]
     out = _head("ISO 230-2 positioning test", rows)
-    out += _verdict_block(d.get("verdicts") or {})
+    out += _verdict_block(d.get("verdicts") or {}, unc, names)
     out.append("<h2>Results with their expanded uncertainty</h2>")
     out += _results_table(unc, names)
     out += _mc_block(unc)
@@ -171,7 +213,7 @@ def ballbar_html(d: dict[str, Any], date: str, plot: str | None) -> str:
             ("Date", date), ("File", os.path.basename(str(d["file"]))),
             ("Instrument", _instrument(unc))]
     out = _head("ISO 230-4 circular test (ballbar)", rows)
-    out += _verdict_block(d.get("verdicts") or {})
+    out += _verdict_block(d.get("verdicts") or {}, unc, names)
     if plot:
         out.append(f"<p><img src='{_e(plot)}' alt='polar plot' style='max-width:26em'></p>")
     out.append("<h2>Results with their expanded uncertainty</h2>")

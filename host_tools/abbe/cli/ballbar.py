@@ -1,4 +1,4 @@
-"""``abbe ballbar MACHINE.toml NAME [--json] [-o DIR]``: ISO 230-4 circular-test evaluation,
+"""``abbe ballbar MACHINE.toml NAME [--json FILE|-] [-o DIR]``: ISO 230-4 circular-test evaluation,
 polar plot, every result's expanded uncertainty U (k = 2) and, with tolerances, the
 ISO 14253-1 verdicts (docs/uncertainty.md)."""
 
@@ -6,10 +6,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
-from abbe.cli.conventions import examples
+from abbe.cli.conventions import examples, json_file, json_option, json_to_stdout, print_json
 from abbe.cli.options import int_range, iso_date
 from abbe.errors import AbbeInputError
 from abbe.formats.machine import load_machine
@@ -33,7 +32,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "abbe ballbar examples/vmc500/machine.toml circle1 -o out/circle1"))
     p.add_argument("machine", help="machine file (TOML) with a [ballbar.NAME] section")
     p.add_argument("name", help="ballbar test name")
-    p.add_argument("--json", action="store_true", help="print JSON instead of text")
+    json_option(p, "the JSON (G, H, centre, radius with U and verdicts)")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--plot", metavar="PNG", help="polar plot path (default ballbar_NAME.png)")
     g.add_argument("--no-plot", action="store_true", help="do not write the plot")
@@ -64,6 +63,7 @@ def _run(args: argparse.Namespace, outs: Outputs) -> int:
     from abbe.formats.uncertainty_spec import default_budget
 
     folder = outs.directory(args.out, option="--out") if args.out else None
+    js = outs.file(json_file(args), option="--json") if json_file(args) else None
     if folder is not None and not args.no_plot and not args.plot:
         plot: Path | None = Path(args.out) / f"ballbar_{args.name}.png"
         staged = folder / plot.name
@@ -111,9 +111,10 @@ def _run(args: argparse.Namespace, outs: Outputs) -> int:
             rel = plot.name
         (folder / "report.html").write_text(
             ballbar_html(d, args.date or test_date(str(bt.file)), rel), encoding="utf-8")
-    if args.json:
-        json.dump(d, sys.stdout, indent=2, allow_nan=False)
-        sys.stdout.write("\n")
+    if js is not None:
+        js.write_text(json.dumps(d, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    if json_to_stdout(args):
+        print_json(d)
     elif folder is None:
         print(res.format_text())
         for q, r in unc.results.items():

@@ -7,6 +7,15 @@
   "the last one wins" (a user who repeats an option expects both to count).
 * ``abbe COMMAND --help`` ends with example lines (:func:`examples`), printed as
   written; descriptions are wrapped.
+* ``--json FILE`` writes the command's JSON document to FILE (atomically, beside any
+  text the command prints); ``--json -`` prints it on stdout instead of the text, so
+  stdout holds one JSON document (:func:`json_option`). The bare ``--json`` of
+  abbe 0.1.0 (print JSON) still works for one release and says on stderr that it is
+  deprecated. A FILE that exists and does not end in ``.json`` is refused: a bare
+  ``--json`` written before a positional argument (``abbe iso230-2 --json x.csv``)
+  would otherwise take the measurement file as the output (docs/cli.md).
+* Every command that evaluates writes an output folder ``-o DIR`` that
+  ``abbe history add`` reads.
 """
 
 from __future__ import annotations
@@ -21,6 +30,19 @@ def examples(*lines: str) -> str:
         "  " + line for line in lines)
 
 
+#: ``--json -``: the JSON document goes to stdout.
+STDOUT = "-"
+_BARE = object()  # the deprecated bare ``--json``
+
+
+def json_option(parser: argparse.ArgumentParser, what: str = "") -> argparse.Action:
+    """Add ``--json FILE`` (``-`` for stdout); ``what`` names the document in the help."""
+    return parser.add_argument("--json", metavar="FILE", nargs="?", const=_BARE,
+                               action=_JsonAction,
+                               help=f"write {what or 'the JSON document'} to FILE ('-': print "
+                                    "it on stdout instead of the text; docs/cli.md)")
+
+
 def list_option(parser: argparse.ArgumentParser, *flags: str, **kwargs: Any) -> argparse.Action:
     """Add a list option that accepts ``--opt a b`` and ``--opt a --opt b``."""
     return parser.add_argument(*flags, nargs="+", action="extend", **kwargs)
@@ -28,6 +50,11 @@ def list_option(parser: argparse.ArgumentParser, *flags: str, **kwargs: Any) -> 
 
 class HelpFormatter(argparse.HelpFormatter):
     """Wraps descriptions; prints the examples epilog line by line as written."""
+
+    def _format_args(self, action: argparse.Action, default_metavar: str) -> str:
+        if isinstance(action, _JsonAction):  # the bare form is deprecated: not advertised
+            return "FILE"
+        return super()._format_args(action, default_metavar)
 
     def _fill_text(self, text: str, width: int, indent: str) -> str:
         if text.startswith(("example:\n", "examples:\n")):
@@ -46,6 +73,45 @@ class _StoreOnce(argparse._StoreAction):
                          "(it takes one value)")
         seen.add(self.dest)
         super().__call__(parser, namespace, values, option_string)
+
+
+class _JsonAction(_StoreOnce):
+    """``--json FILE`` / ``--json -``; the bare ``--json`` (deprecated) means ``-``."""
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
+                 values: Any, option_string: str | None = None) -> None:
+        if values is _BARE:
+            namespace.__dict__.setdefault("_abbe_deprecations", []).append(
+                "--json without a FILE is deprecated and goes in the next release: write "
+                "'--json -' to print the JSON on stdout, or '--json FILE' (docs/cli.md)")
+            values = STDOUT
+        elif values != STDOUT:
+            from pathlib import Path
+            p = Path(values)
+            if p.suffix.lower() != ".json" and p.is_file():
+                parser.error(f"--json {values}: that file "
+                             "exists and is not a .json file; --json takes the FILE to write "
+                             "(or '-' for stdout): put a bare --json last, or write --json -")
+        super().__call__(parser, namespace, values, option_string)
+
+
+def json_to_stdout(args: argparse.Namespace) -> bool:
+    """True when the JSON document replaces the text on stdout (``--json -``)."""
+    return getattr(args, "json", None) == STDOUT
+
+
+def json_file(args: argparse.Namespace) -> str | None:
+    """The FILE of ``--json FILE`` (None for stdout or no --json)."""
+    v = getattr(args, "json", None)
+    return None if v in (None, STDOUT) else str(v)
+
+
+def print_json(doc: Any) -> None:
+    """The JSON document on stdout (``--json -``): finite numbers only."""
+    import json
+    import sys
+    json.dump(doc, sys.stdout, indent=2, allow_nan=False)
+    sys.stdout.write("\n")
 
 
 def walk(parser: argparse.ArgumentParser, path: tuple[str, ...] = ()
@@ -68,7 +134,13 @@ def apply(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     return parser
 
 
-def clean(args: argparse.Namespace) -> argparse.Namespace:
-    """Drop the bookkeeping attribute :class:`_StoreOnce` leaves on the namespace."""
+def clean(args: argparse.Namespace, prog: str = "abbe") -> argparse.Namespace:
+    """Drop the bookkeeping attributes the actions leave on the namespace; say the
+    deprecated forms used on stderr (once each)."""
+    import sys
     args.__dict__.pop("_abbe_options_seen", None)
+    if getattr(args, "command", None):
+        prog = f"{prog} {args.command}"
+    for msg in dict.fromkeys(args.__dict__.pop("_abbe_deprecations", [])):
+        print(f"{prog}: warning: {msg}", file=sys.stderr)
     return args

@@ -9,7 +9,7 @@ import json
 import sys
 from pathlib import Path
 
-from abbe.cli.conventions import examples
+from abbe.cli.conventions import examples, json_file, json_option, json_to_stdout, print_json
 
 
 def _default_example() -> Path:
@@ -19,7 +19,8 @@ def _default_example() -> Path:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
-        "demo", help="run fit -> tables -> predict -> diagnose -> compensate on the example machine",
+        "demo", help="run fit -> tables -> predict -> diagnose -> compensate on the three-axis "
+                     "example (--five-axis: identify the trunnion example)",
         description="The demo pipeline on a bundled example machine (default: the vmc500 example "
                     "shipped with abbe): fit, tables, build check, ballbar prediction, diagnosis, "
                     "compensation in the loop, and an HTML report in OUT/index.html.",
@@ -27,7 +28,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--example", type=Path, default=None, help="example machine directory")
     p.add_argument("-o", "--out", type=Path, default=Path("abbe-demo"),
                    help="output directory (default: ./abbe-demo)")
-    p.add_argument("--json", type=Path, help="write the summary figures to this JSON file")
+    json_option(p, "the summary figures")
     p.add_argument("--no-diagnose", action="store_true", help="skip the diagnose step")
     p.add_argument("--five-axis", action="store_true",
                    help="the five-axis demo instead: identify the trunnion5ax example (A/C "
@@ -85,11 +86,22 @@ def run(args: argparse.Namespace) -> int:
 
     if args.five_axis:
         return _run_five_axis(args)
+    from abbe.model import clib
+    try:  # said once, before any step: the demo predicts and compensates through the library
+        clib.load_library()
+    except clib.LibraryNotFound as exc:
+        print(f"abbe demo: error: the demo runs the C library (prediction, compensation in "
+              f"the loop): {exc.what}; build it with 'cmake -S . -B build && cmake --build "
+              "build' in the repository root, or point ABBE_LIB at libabbe.so",
+              file=sys.stderr)
+        return 3
     example = args.example or _default_example()
     with Outputs() as outs:
         staging = outs.directory(args.out, option="--out")
-        js = outs.file(args.json, option="--json") if args.json else None
-        out = _FinalPaths(sys.stdout, staging, str(args.out))
+        js = outs.file(json_file(args), option="--json") if json_file(args) else None
+        # with --json - the steps' progress goes to stderr: stdout holds the JSON alone
+        out = _FinalPaths(sys.stderr if json_to_stdout(args) else sys.stdout, staging,
+                          str(args.out))
         try:
             with contextlib.redirect_stdout(out):
                 res = run_demo(example, staging, diagnose=not args.no_diagnose)
@@ -99,6 +111,9 @@ def run(args: argparse.Namespace) -> int:
         if js is not None:
             js.write_text(json.dumps(res.summary, indent=2, default=str, allow_nan=False))
     s = res.summary
+    if json_to_stdout(args):
+        print(json.dumps(s, indent=2, default=str, allow_nan=False))
+        return 0
     print(f"abbe demo ({s['machine']}, {s['ballbar']}): prediction max residual "
           f"{s['prediction_max_residual_laser_only_um']} um (laser-only) -> {s['prediction_max_residual_um']} um; "
           f"roundness {s['roundness_before_um']} -> {s['roundness_after_um']} um "
@@ -114,11 +129,15 @@ def _run_five_axis(args: argparse.Namespace) -> int:
     example = args.example or examples_dir() / "trunnion5ax"
     with Outputs() as outs:
         staging = outs.directory(args.out, option="--out")
-        js = outs.file(args.json, option="--json") if args.json else None
-        s = demo_five_axis(Path(example), staging)
+        js = outs.file(json_file(args), option="--json") if json_file(args) else None
+        with contextlib.redirect_stdout(sys.stderr if json_to_stdout(args) else sys.stdout):
+            s = demo_five_axis(Path(example), staging)
         _unstage(staging, Path(args.out).resolve())
         if js is not None:
             js.write_text(json.dumps(s, indent=2, allow_nan=False))
+    if json_to_stdout(args):
+        print_json(s)
+        return 0
     print(f"abbe demo --five-axis ({s['machine']}, {s['kinematics']}): "
           f"{s['within_interval_or_1um_5urad']} of {s['observable_location_errors']} observable "
           f"location errors within their interval of the truth; not observable (named): "

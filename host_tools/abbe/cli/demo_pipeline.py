@@ -280,7 +280,40 @@ def _counters(c: dict[str, Any] | None) -> str:
     return ", ".join(f"{html.escape(str(k).replace('_', ' '))} {_yes_no(v)}" for k, v in (c or {}).items())
 
 
+def _demo_status(s: dict[str, Any]) -> tuple[str, list[str]]:
+    """The band's verdict: every check passed (pass) or which failed (fail)."""
+    failed = []
+    b, c = s.get("build_check") or {}, s.get("clib_check")
+    if b.get("generated_c_compiles") is False:
+        failed.append("the generated C does not compile")
+    if b.get("header_crc_matches") is False:
+        failed.append("the generated header's CRC differs from model.bin's")
+    if c and max(c["max_diff_f32_nm"], c["max_diff_q_nm"]) > c["bound_nm"]:
+        failed.append("the C library and the reference disagree beyond the bound")
+    if s["roundness_after_um"] >= s["roundness_before_um"]:
+        failed.append("the compensation did not improve the roundness")
+    return ("fail" if failed else "pass"), failed
+
+
+def residual_sentence(s: dict[str, Any]) -> str:
+    """Why the table's prediction residual and the diagnosed model's differ (one sentence)."""
+    servo = [e for e in (s.get("effects") or []) if e["id"] == "servo_mismatch"]
+    with_fx = s.get("prediction_max_residual_with_prediction_effects_um")
+    if with_fx is None:
+        return ""
+    what = (f"the servo mismatch of {servo[0]['plane']} ({servo[0]['value']:.2f} ms lag)"
+            if servo else "the prediction-only effects")
+    return (f"The table's prediction leaves {s['prediction_max_residual_um']:.2f} um (max) of the "
+            f"measured circle, the diagnosed model {with_fx:.2f} um: the model also holds {what}, "
+            "a dynamic error that depends on feed and direction, which a position table cannot "
+            "hold.")
+
+
 def _report_html(res: DemoResult, table4: dict[str, Any], with_diag: bool) -> str:
+    import datetime as dt
+
+    from abbe import __version__
+    from abbe.analysis.certificate import band, page_head
     s = res.summary
     p = PAPER
     y = table4["y_positioning"] or {}
@@ -289,59 +322,105 @@ def _report_html(res: DemoResult, table4: dict[str, Any], with_diag: bool) -> st
         + _td(r["chosen_emax"], 3) + _td(r["paper_fourier3_emax"], 3)
         + _td(r["paper_poly7_emax"], 3) + _td(r["chosen_r2"], 4) + "</tr>"
         for r in table4["rows"])
-    eff = ""
+    status, failed = _demo_status(s)
+    why = residual_sentence(s)
+    c = s.get("clib_check")
+    checks = ("C library = float64 reference within "
+              f"{max(c['max_diff_f32_nm'], c['max_diff_q_nm']):.3g} nm (bound {c['bound_nm']:g} nm)"
+              if c else "C library check not run")
+    checks += (f"; generated C compiles: {_yes_no(s['build_check'].get('generated_c_compiles'))}"
+               f"; header CRC matches: {_yes_no(s['build_check']['header_crc_matches'])}")
+    headline = (f"{'All checks pass' if status == 'pass' else 'FAILED: ' + html.escape('; '.join(failed))}"
+                f" &mdash; compensated roundness G {s['roundness_before_um']:.2f} &rarr; "
+                f"{s['roundness_after_um']:.2f} um ({s['improvement_pct']:.1f} % better, "
+                f"{s['achieved_of_ideal_pct']} % of what the model could ideally give)")
+    with_fx = s.get("prediction_max_residual_with_prediction_effects_um")
+    body = ("<table><tr><th class='l'>figure</th><th>max (um)</th><th>RMS (um)</th></tr>"
+            f"<tr><td class='l'>measured circle, not compensated: roundness G</td>"
+            f"<td>{s['roundness_before_um']:.2f}</td><td>&ndash;</td></tr>"
+            f"<tr><td class='l'>compensated in the loop by the C library: roundness G</td>"
+            f"<td>{s['roundness_after_um']:.2f}</td><td>&ndash;</td></tr>"
+            f"<tr><td class='l'>prediction residual, table (what a controller applies)</td>"
+            f"<td>{s['prediction_max_residual_um']:.2f}</td>"
+            f"<td>{s['prediction_rms_residual_um']:.2f}</td></tr>"
+            + (f"<tr><td class='l'>prediction residual, diagnosed model (table + servo)</td>"
+               f"<td>{with_fx:.2f}</td><td>{(s['diagnose_gap'] or {}).get('after', {}).get('rms_um', float('nan')):.2f}</td></tr>"
+               if with_fx is not None else "")
+            + "</table>"
+            + (f"<p>{html.escape(why)}</p>" if why else "")
+            + f"<p class='small'>{html.escape(checks)}.</p>")
+    rows = [("Machine", f"{s['machine']} (three-axis, simulated: the paper's geometry)"),
+            ("Test", f"6D laser lines X, Y, Z (fit); ballbar {s['ballbar']} (check and "
+                     "compensation in the loop)"),
+            ("Date", dt.datetime.now(dt.timezone.utc).strftime("%Y-%m-%d")),
+            ("Software", f"abbe {__version__}; tables in model.bin (CRC "
+                         f"{s['build_check']['model_crc']})")]
+    out = page_head(f"abbe demo: {s['machine']}, error model and compensation", rows)
+    out.append(band(status, headline, body))
+    out.append("<div class='plots'><img src='ballbar_before.png' alt='ballbar before'>"
+               "<img src='ballbar_after.png' alt='ballbar after'></div>")
+    notes = "".join(f"<li>{html.escape(n)}</li>" for n in res.notes)
+    if notes:
+        out.append(f"<ul>{notes}</ul>")
+    out.append("<h2>Details</h2>")
     if with_diag:
         eff_rows = "".join(
-            f"<tr><td>{html.escape(e['id'])}</td><td>{e['value']:.4g} {html.escape(e['unit'])}</td>"
-            f"<td>[{e['ci95'][0]:.4g}, {e['ci95'][1]:.4g}]</td></tr>" for e in (s["effects"] or []))
+            f"<tr><td class='l'>{html.escape(e['id'])}</td><td>{e['value']:.4g} {html.escape(e['unit'])}</td>"
+            f"<td>[{e['ci95'][0]:.4g}, {e['ci95'][1]:.4g}]</td>"
+            f"<td class='l'>{html.escape(e.get('compensated_by', ''))}</td></tr>"
+            for e in (s["effects"] or []))
         gap = s["diagnose_gap"] or {}
-        eff = (f"<h2>4. Diagnose: what the laser-only model misses</h2>"
-               f"<table><tr><th>effect</th><th>value</th><th>95 % interval</th></tr>"
-               f"{eff_rows or '<tr><td colspan=3>nothing significant is missing</td></tr>'}</table>"
-               f"<p>The gap between measurement and prediction, before and after the "
-               f"named effects were added to the model:</p>{_gap_table(gap)}"
-               f"<p>Details: <a href='diagnose/'>diagnose/</a>.</p>"
-               f"<img src='predict_updated.png' width='900'>")
+        out.append(
+            "<h2>What the laser-only model misses (diagnose)</h2>"
+            "<table><tr><th class='l'>effect</th><th>value</th><th>95 % interval</th>"
+            "<th class='l'>compensated by</th></tr>"
+            f"{eff_rows or '<tr><td colspan=4>nothing significant is missing</td></tr>'}</table>"
+            "<details><summary>Gap before / after, prediction plot</summary>"
+            f"<p>The gap between measurement and prediction, before and after the named effects "
+            f"were added to the model:</p>{_gap_table(gap)}"
+            f"<p>Details: <a href='diagnose/'>diagnose/</a>.</p>"
+            f"<img src='predict_updated.png' class='wide' alt='prediction, updated'></details>")
+    out.append(
+        "<h2>Prediction with the laser-only model</h2>"
+        f"<p>Residual max {s['prediction_max_residual_laser_only_um']} um, RMS "
+        f"{s['prediction_rms_residual_laser_only_um']} um.</p>"
+        "<details><summary>Prediction plot</summary>"
+        "<img src='predict_laser_only.png' class='wide' alt='prediction, laser only'></details>")
+    out.append(
+        "<h2>Fit (held-out metrics, the paper's Table 4 layout)</h2>"
+        f"<p>Y positioning error d_y(y), the paper's example: chosen model emax "
+        f"{y.get('chosen_emax') or float('nan'):.3f} um, 3rd-order Fourier "
+        f"{y.get('paper_fourier3_emax') or float('nan'):.3f} um, 7th-order polynomial "
+        f"{y.get('paper_poly7_emax') or float('nan'):.3f} um (paper: "
+        f"{p['table4']['fourier3']['emax_um']} / {p['table4']['poly7']['emax_um']} um in-sample). "
+        f"The chosen model has the lowest held-out emax on {table4['chosen_best_count']} of "
+        f"{table4['n_terms']} terms. Full report: <a href='fit/report/index.html'>fit/report/</a>.</p>"
+        "<details><summary>Every term (18 rows)</summary>"
+        "<table><tr><th class='l'>term</th><th>chosen family</th><th>unit</th><th>emax chosen</th>"
+        f"<th>emax Fourier-3</th><th>emax poly-7</th><th>R&sup2; chosen</th></tr>{t4}</table>"
+        "</details>")
     b, a = s["before"], s["after"]
-    notes = "".join(f"<li>{html.escape(n)}</li>" for n in res.notes)
-    return f"""<!doctype html><html><head><meta charset="utf-8"><title>abbe demo: {html.escape(s['machine'])}</title>
-<style>body{{font-family:sans-serif;max-width:1000px;margin:2em auto}}table{{border-collapse:collapse;margin:1em 0}}
-td,th{{border:1px solid #bbb;padding:3px 8px;text-align:right}}th{{background:#eee}}td:first-child{{text-align:left}}</style>
-</head><body>
-<h1>abbe demo: {html.escape(s['machine'])}</h1>
-<p>Fit from 6D laser lines, tables for the C library, prediction of the ballbar test
-<b>{html.escape(s['ballbar'])}</b>, diagnosis of what the model misses, and compensation in the loop on the
-virtual machine with the C compensator. Units: um, urad, mm. Timings: {_timings(res.timings_s)}.</p>
-<ul>{notes}</ul>
-<h2>1. Fit (paper Table 4, held-out metrics)</h2>
-<p>Y positioning error d_y(y), the paper's example: chosen model emax {y.get('chosen_emax') or float('nan'):.3f} um,
-3rd-order Fourier {y.get('paper_fourier3_emax') or float('nan'):.3f} um, 7th-order polynomial
-{y.get('paper_poly7_emax') or float('nan'):.3f} um (paper: {p['table4']['fourier3']['emax_um']} / {p['table4']['poly7']['emax_um']} um
-in-sample). The chosen model has the lowest held-out emax on {table4['chosen_best_count']} of {table4['n_terms']} terms.
-Full report: <a href="fit/report/index.html">fit/report/</a>.</p>
-<table><tr><th>term</th><th>chosen family</th><th>unit</th><th>emax chosen</th><th>emax Fourier-3</th><th>emax poly-7</th><th>R² chosen</th></tr>{t4}</table>
-<h2>2. Tables and build check</h2>
-<p>model.bin CRC {s['build_check']['model_crc']}; generated C compiles: {_yes_no(s['build_check']['generated_c_compiles'])};
-header CRC matches: {_yes_no(s['build_check']['header_crc_matches'])}; C library vs float64 reference:
-{_clib_check(s['clib_check'])}.</p>
-<h2>3. Prediction with the laser-only model</h2>
-<p>Residual max {s['prediction_max_residual_laser_only_um']} um, RMS {s['prediction_rms_residual_laser_only_um']} um.</p>
-<img src="predict_laser_only.png" width="900">
-{eff}
-<h2>5. Compensation in the loop (paper §4)</h2>
-<table><tr><th></th><th>abbe</th><th>paper</th></tr>
-<tr><td>prediction max residual, table through the C library (um)</td>{_td(s['prediction_max_residual_um'])}{_td(p['prediction_max_residual_um'])}</tr>
-<tr><td>... with the prediction-only effects (servo lag) too (um)</td>{_td(s['prediction_max_residual_with_prediction_effects_um'])}<td>-</td></tr>
-<tr><td>roundness before (um)</td>{_td(s['roundness_before_um'])}{_td(p['roundness_before_um'])}</tr>
-<tr><td>ideal compensated roundness (um)</td>{_td(s['ideal_roundness_um'])}{_td(p['ideal_roundness_um'])}</tr>
-<tr><td>ideal improvement (%)</td>{_td(s['ideal_improvement_pct'])}{_td(p['ideal_improvement_pct'])}</tr>
-<tr><td>roundness after (um)</td>{_td(s['roundness_after_um'])}{_td(p['roundness_after_um'])}</tr>
-<tr><td>improvement (%)</td>{_td(s['improvement_pct'])}{_td(p['improvement_pct'])}</tr>
-<tr><td>achieved / ideal improvement (%)</td>{_td(s['achieved_of_ideal_pct'], 1)}<td>91.4</td></tr>
-</table>
-<table><tr><th></th><th>G both</th><th>G CCW</th><th>G CW</th><th>centre X</th><th>centre Y</th><th>H</th></tr>
-<tr><td>before</td>{''.join(_td(v) for v in b.values())}</tr><tr><td>after</td>{''.join(_td(v) for v in a.values())}</tr></table>
-<p>Compensator counters: {_counters(s['compensator'])}.</p>
-<img src="ballbar_before.png" width="480"><img src="ballbar_after.png" width="480">
-</body></html>
-"""
+    out.append(
+        "<h2>Against the paper (Zhang &amp; Chen 2021, &sect;4)</h2>"
+        "<details><summary>abbe's figures beside the paper's, ballbar parameters, compensator "
+        "counters, timings</summary>"
+        "<table><tr><th></th><th>abbe</th><th>paper</th></tr>"
+        f"<tr><td>prediction max residual, table through the C library (um)</td>{_td(s['prediction_max_residual_um'])}{_td(p['prediction_max_residual_um'])}</tr>"
+        f"<tr><td>... with the prediction-only effects (servo lag) too (um)</td>{_td(with_fx)}<td>-</td></tr>"
+        f"<tr><td>roundness before (um)</td>{_td(s['roundness_before_um'])}{_td(p['roundness_before_um'])}</tr>"
+        f"<tr><td>ideal compensated roundness (um)</td>{_td(s['ideal_roundness_um'])}{_td(p['ideal_roundness_um'])}</tr>"
+        f"<tr><td>ideal improvement (%)</td>{_td(s['ideal_improvement_pct'])}{_td(p['ideal_improvement_pct'])}</tr>"
+        f"<tr><td>roundness after (um)</td>{_td(s['roundness_after_um'])}{_td(p['roundness_after_um'])}</tr>"
+        f"<tr><td>improvement (%)</td>{_td(s['improvement_pct'])}{_td(p['improvement_pct'])}</tr>"
+        f"<tr><td>achieved / ideal improvement (%)</td>{_td(s['achieved_of_ideal_pct'], 1)}<td>91.4</td></tr>"
+        "</table>"
+        "<table><tr><th></th><th>G both</th><th>G CCW</th><th>G CW</th><th>centre X</th>"
+        "<th>centre Y</th><th>H</th></tr>"
+        f"<tr><td>before</td>{''.join(_td(v) for v in b.values())}</tr><tr><td>after</td>"
+        f"{''.join(_td(v) for v in a.values())}</tr></table>"
+        f"<p>Compensator counters: {_counters(s['compensator'])}.</p>"
+        f"<p>Timings: {_timings(res.timings_s)}. Units: um, urad, mm.</p></details>")
+    out.append("<p class='small'>abbe demo: fit from 6D laser lines, tables for the C library, "
+               "prediction of the ballbar test, diagnosis of what the model misses, compensation "
+               "in the loop on the virtual machine with the C compensator.</p></body></html>")
+    return "\n".join(out) + "\n"

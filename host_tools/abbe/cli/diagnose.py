@@ -1,7 +1,7 @@
 """``abbe diagnose``: name what the model is missing, add it to the table, show the gap shrink.
 
     abbe diagnose MACHINE.toml --model OUT/model.bin [--ballbar NAME ...] [--laser AXIS ...]
-                  [--json FILE] -o OUT2/
+                  [--json FILE|-] -o OUT2/
     abbe diagnose --iso230-2 FILE --axis X [--model M.bin] [--json FILE] -o OUT2/
 
 See docs/effects.md (the catalogue and the method) and docs/formats.md ("diagnose JSON").
@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
-from abbe.cli.conventions import examples, list_option
+from abbe.cli.conventions import examples, json_file, json_option, json_to_stdout, list_option
 from abbe.cli.options import in_range
 
 
@@ -46,7 +47,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--iso230-2", dest="iso", metavar="FILE",
                    help="repeated positioning runs: ESS ecmc .dat or laser CSV")
     p.add_argument("--axis", help="axis of --iso230-2 data (X, Y or Z)")
-    p.add_argument("--json", metavar="FILE", help="also write the diagnose JSON here")
+    json_option(p, "the diagnose JSON (OUT/diagnose.json)")
     p.add_argument("-o", "--out", required=True, metavar="DIR", help="output directory")
     p.add_argument("--alpha", type=in_range(0.0, 0.5, lo_open=True, hi_open=True), default=0.01,
                    help="significance level per step, (0, 0.5) (default 0.01, Bonferroni over "
@@ -88,8 +89,8 @@ def run(args: argparse.Namespace) -> int:
                                  field="candidates")
     from abbe.formats.output import Outputs
     Outputs().check_directory(args.out, option="--out")  # before the work; written at the end
-    if args.json:
-        Outputs().check_file(args.json, option="--json")
+    if json_file(args):
+        Outputs().check_file(json_file(args), option="--json")
     opts = DiagnoseOptions(alpha=args.alpha, min_effect_um=args.min_effect_um,
                            candidates=args.candidates, backend=args.backend,
                            model_temp_c=args.model_temp_c)
@@ -115,7 +116,12 @@ def run(args: argparse.Namespace) -> int:
                                rezeroed=args.rezeroed)
         extra = {"input": {"machine": args.machine, "model": args.model,
                            "ballbar": args.ballbar, "laser": args.laser}}
-    written = write_outputs(res, args.out, args.json, plots=not args.no_plots, extra_json=extra)
+    written = write_outputs(res, args.out, json_file(args), plots=not args.no_plots,
+                            extra_json=extra)
+    if json_to_stdout(args):
+        sys.stdout.write(Path(written["diagnose.json"]).read_text(encoding="utf-8"))
+        return 0
     sys.stdout.write(format_text(res, str(written["model.bin"])))
-    print(f"wrote {len(written)} files to {args.out}" + (f" and {args.json}" if args.json else ""))
+    print(f"wrote {len(written)} files to {args.out}"
+          + (f" and {args.json}" if json_file(args) else ""))
     return 0

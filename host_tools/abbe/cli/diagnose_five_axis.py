@@ -14,6 +14,7 @@ import argparse
 import json
 from pathlib import Path
 
+from abbe.cli.conventions import json_file, json_to_stdout
 from abbe.formats.output import Outputs
 
 
@@ -24,11 +25,12 @@ def run_five_axis_diagnose(args: argparse.Namespace) -> int:
 
     with Outputs() as outs:
         staging = outs.directory(args.out, option="--out")
-        js = outs.file(args.json, option="--json") if args.json else None
+        js = outs.file(json_file(args), option="--json") if json_file(args) else None
         machine = load_machine(args.machine)
         spec = machine.five_axis
         diag = diagnose_five_axis(spec, load_plan(spec).blocks)
-        doc = {"format": "abbe-five-axis-diagnose 1.0", "kinematics": spec.geometry.kind,
+        doc = {"format": "abbe-five-axis-diagnose 1.0", "machine": machine.name,
+               "kinematics": spec.geometry.kind,
                **diag.to_json(),
                "provenance": {"machine_file": str(machine.path), "sha256": machine.sha256}}
         text = json.dumps(doc, indent=2, allow_nan=False) + "\n"
@@ -36,5 +38,8 @@ def run_five_axis_diagnose(args: argparse.Namespace) -> int:
         (Path(staging) / "report.txt").write_text(diag.text(), encoding="utf-8")
         if js is not None:
             js.write_text(text, encoding="utf-8")
+    if json_to_stdout(args):
+        print(text, end="")
+        return 0
     print(diag.text(), end="")
     return 0

@@ -43,12 +43,22 @@ COMMANDS: list[str] = [
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="abbe", description="abbe: measure, model and compensate the geometric errors of "
-        "3-axis CNC machine tools. Exit status: 0 success, 1 a device or server refused, "
+        prog="abbe", description="abbe: measure, model and compensate the geometric and "
+        "thermal errors of machine tools -- three-axis machines, five-axis trunnions "
+        "(table-table A/C, B/C), printers and routers -- from laser, ballbar, probing, "
+        "R-test and thermal records (ISO 230-2/-3/-4/-7), with each result's uncertainty, "
+        "and write the tables a C library applies in the controller (LinuxCNC, grblHAL, "
+        "Klipper, CAN and Modbus drives) or a controller's own compensation format. "
+        "Every command that evaluates writes an output folder (-o DIR) that abbe history "
+        "add reads; --json FILE writes its JSON document, --json - prints it (docs/cli.md). "
+        "Exit status: 0 success, 1 a device or server refused, "
         "2 bad input, 3 C library missing, 4 C library and reference disagree, "
         "70 internal error (a bug: the message names a log file) "
         "(docs/formats.md, \"Exit status\").",
-        epilog=examples("abbe demo -o abbe-demo", "abbe fit MACHINE.toml -o fit-out",
+        epilog=examples("abbe demo -o abbe-demo", "abbe demo --five-axis -o abbe-demo5",
+                        "abbe fit MACHINE.toml -o fit-out",
+                        "abbe iso230-2 x.csv --machine MACHINE.toml --axis X -o iso-x",
+                        "abbe thermal fit MACHINE.toml -o thermal-out",
                         "abbe COMMAND --help"))
     parser.add_argument("--version", action="version", version=f"abbe {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")

@@ -9,7 +9,7 @@ import json
 import sys
 from pathlib import Path
 
-from abbe.cli.conventions import examples, list_option
+from abbe.cli.conventions import examples, json_file, json_option, json_to_stdout, list_option
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -41,7 +41,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     list_option(p, "--set", default=[], metavar="NAME=VALUE",
                 help="target options (repeatable); --list-options shows them")
     p.add_argument("--list-options", action="store_true", help="print the target's options")
-    p.add_argument("--json", action="store_true", help="print the residual report as JSON")
+    json_option(p, "the residual report (OUT/residual.json)")
     p.set_defaults(func=run)
 
 
@@ -60,6 +60,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     with Outputs() as outs:
         staging = outs.directory(args.out, option="--out")  # checked before the work
+        js = outs.file(json_file(args), option="--json") if json_file(args) else None
         machine = load_machine(args.machine) if args.machine else None
         if getattr(mod, "FIVE_AXIS", False):
             exp, report = run_five_export(args.model, args.format, args.set, machine)
@@ -67,7 +68,10 @@ def run(args: argparse.Namespace) -> int:
             exp, report = run_export(load_table(args.model), args.format, args.set, machine,
                                      str(args.model))
         write_files(staging, exp, report)
-        text = json.dumps(report, indent=2, allow_nan=False) + "\n" if args.json else None
+        doc = json.dumps(report, indent=2, allow_nan=False) + "\n"
+        if js is not None:
+            js.write_text(doc, encoding="utf-8")
+        text = doc if json_to_stdout(args) else None
     if text is not None:
         sys.stdout.write(text)
     else:

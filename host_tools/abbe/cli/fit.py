@@ -26,8 +26,8 @@ from abbe.formats.output import Outputs
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
-        "fit", help="fit the geometric error table from 6D laser data; on a five-axis "
-                    "machine file, the rotary axes' errors from probing / R-test / ballbar",
+        "fit", help="fit the error table: a three-axis machine from 6D laser lines, a "
+                    "five-axis trunnion from probing / R-test / indexer / ballbar",
         description="Fit the 18 error terms from the machine file's laser lines and write "
                     "the table (blob, generated C), model.json and an HTML/PNG report. "
                     "On a five-axis table-table machine (a machine file with a [rotary] "

@@ -45,6 +45,7 @@ def identify_into(machine_path: str | Path, staging: Path, report: bool = True):
     res = identify(spec, plan.blocks, params)
     t_fit = time.perf_counter()
     doc = to_json(res, spec, plan)
+    doc["machine"] = machine.name
     doc["provenance"] = {"machine_file": str(machine.path), "sha256": machine.sha256}
     doc["blob"] = write_table(res, spec, Path(staging), plan.blocks)
     (Path(staging) / "five_axis.json").write_text(

@@ -1,4 +1,4 @@
-"""``abbe iso230-2 FILE [--json] [-o DIR]``: ISO 230-2 positioning evaluation of one axis
+"""``abbe iso230-2 FILE [--json FILE|-] [-o DIR]``: ISO 230-2 positioning evaluation of one axis
 (laser CSV, Renishaw ``.rtl`` or ESS ``.dat``), with what was done about 20 deg C, every
 result's expanded uncertainty U (k = 2) and, with tolerances, the ISO 14253-1 verdicts."""
 
@@ -6,12 +6,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
 from abbe.analysis.iso230_2 import evaluate
-from abbe.cli.conventions import examples
+from abbe.cli.conventions import examples, json_file, json_option, json_to_stdout, print_json
 from abbe.cli.options import int_range, iso_date
 from abbe.errors import AbbeInputError
 from abbe.formats import ess_dat
@@ -33,16 +32,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "result's expanded uncertainty U (k = 2, ISO/TR 230-9) with its budget and "
                     "a Monte Carlo check, and, when the machine file states tolerances, "
                     "pass / fail / inconclusive (ISO 14253-1; docs/uncertainty.md).",
-        epilog=examples("abbe iso230-2 examples/vmc500/laser/x.csv --json",
+        epilog=examples("abbe iso230-2 examples/vmc500/laser/x.csv --json -",
                         "abbe iso230-2 x.csv --machine machine.toml --axis X -o out/iso_x",
                         "abbe iso230-2 x_axis.rtl"))
     p.add_argument("file", help="laser CSV, Renishaw .rtl or ecmc ISO 230-2 .dat file")
     p.add_argument("--encoding", choices=RTL_ENCODINGS, default=None,
                    help="a .rtl file's text encoding (default: UTF-8 when the file is valid "
                         "UTF-8, else cp1250, the Windows code page the public parsers read)")
-    p.add_argument("--json", action="store_true",
-                   help="print JSON (B_um, R_um, E_um, A_um, M_um + per-target detail, "
-                        "uncertainty, verdicts)")
+    json_option(p, "the JSON (B_um, R_um, E_um, A_um, M_um + per-target detail, "
+                   "uncertainty, verdicts)")
     p.add_argument("--machine", metavar="TOML",
                    help="machine file whose [uncertainty.laser] budget and [tolerances.AXIS] "
                         "limits apply")
@@ -118,16 +116,18 @@ def run(args: argparse.Namespace) -> int:
     from abbe.formats.output import Outputs
     with Outputs() as outs:
         staging = outs.directory(args.out, option="--out") if args.out else None
+        js = outs.file(json_file(args), option="--json") if json_file(args) else None
         d, res, unc, notes = document(args)
+        if js is not None:
+            js.write_text(json.dumps(d, indent=2, allow_nan=False) + "\n", encoding="utf-8")
         if staging is not None:
             from abbe.analysis.certificate import iso230_2_html, test_date
             text = json.dumps(d, indent=2, allow_nan=False) + "\n"
             (staging / "iso230_2.json").write_text(text, encoding="utf-8")
             date = args.date or test_date(args.file)
             (staging / "report.html").write_text(iso230_2_html(d, date), encoding="utf-8")
-        if args.json:
-            json.dump(d, sys.stdout, indent=2, allow_nan=False)
-            sys.stdout.write("\n")
+        if json_to_stdout(args):
+            print_json(d)
         elif staging is None:
             print(res.format_text())
             for note in notes:

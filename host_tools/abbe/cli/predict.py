@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from abbe.cli.conventions import examples, list_option
+from abbe.cli.conventions import examples, json_file, json_option, json_to_stdout, list_option, print_json
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -24,7 +24,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     list_option(p, "--ballbar", required=True, metavar="NAME",
                    help="ballbar test of the machine file (repeatable)")
     p.add_argument("-o", "--out", help="directory for the overlay plots (PNG)")
-    p.add_argument("--json", action="store_true", help="print JSON instead of text")
+    json_option(p, "the predictions")
     p.set_defaults(func=run)
 
 
@@ -36,14 +36,21 @@ def run(args: argparse.Namespace) -> int:
 
     with Outputs() as outs:
         out = outs.directory(args.out, option="--out") if args.out else None
+        js = outs.file(json_file(args), option="--json") if json_file(args) else None
         machine = load_machine(args.machine)
         results = [predict(machine, args.model, name) for name in args.ballbar]  # all or nothing
         if out is not None:
             for p in results:
                 plot_prediction(p, out / f"predict_{p.name}.png")
-    if args.json:
-        print(json.dumps({"model": str(args.model), "predictions": [p.to_json() for p in results]},
-                         indent=2, allow_nan=False))
+        doc = {"format": "abbe-predict 1.0", "machine": machine.name, "model": str(args.model),
+               "predictions": [p.to_json() for p in results]}
+        if out is not None:
+            (out / "predict.json").write_text(json.dumps(doc, indent=2, allow_nan=False) + "\n",
+                                              encoding="utf-8")
+        if js is not None:
+            js.write_text(json.dumps(doc, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    if json_to_stdout(args):
+        print_json(doc)
         return 0
     for p in results:
         print(f"ballbar {p.name}: measured roundness G = {p.roundness_before_um:.2f} um (bidirectional)")

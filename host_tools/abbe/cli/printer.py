@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from abbe.cli.conventions import examples
+from abbe.cli.conventions import examples, json_file, json_option, json_to_stdout, print_json
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -38,7 +38,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     f.add_argument("--z-travel", type=float, nargs=2, default=(0.0, 250.0), metavar=("LO", "HI"),
                    help="the Z travel the table states, mm (default 0 250)")
     f.add_argument("-o", "--out", required=True, help="output directory (model.bin, printer_fit.json)")
-    f.add_argument("--json", action="store_true", help="print the result as JSON")
+    json_option(f, "the result (printer_fit.json)")
     f.set_defaults(func=run)
 
 
@@ -74,13 +74,16 @@ def run(args: argparse.Namespace) -> int:
         fit.squareness_urad, fit.squareness_u95_urad = sq, u95
     table = table_of(fit, (lo, hi), fit.squareness_urad)
     blob = write_blob(table)
-    doc = fit.to_json()
+    doc = {"format": "abbe-printer-fit 1.0", **fit.to_json()}
     with Outputs() as outs:
         out = outs.directory(args.out, option="--out")
+        js = outs.file(json_file(args), option="--json") if json_file(args) else None
         (out / "model.bin").write_bytes(blob)
         (out / "printer_fit.json").write_text(json.dumps(doc, indent=2, allow_nan=False) + "\n")
-    if args.json:
-        print(json.dumps(doc, indent=2, allow_nan=False))
+        if js is not None:
+            js.write_text(json.dumps(doc, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    if json_to_stdout(args):
+        print_json(doc)
         return 0
     print(f"abbe printer fit: {fit.source}: {fit.points} points; d_z of X degree {fit.x.degree} "
           f"(95 % +/- {fit.x.u95_um:.1f} um), of Y degree {fit.y.degree} "

@@ -20,7 +20,8 @@ from abbe.model.table import AXES
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
-        "program", help="write the part program of a measurement (ISO 230-2, lines, ballbar)",
+        "program", help="write the part program of a measurement (ISO 230-2, lines, ballbar; "
+                        "five-axis sphere probing and R-test)",
         description="Write the part program for a test of the machine file: ISO 230-2 "
                     "positioning of an axis (targets per ISO 230-2, not evenly spaced; "
                     "overrun; a dwell at each target; bidirectional runs; linear or pendulum "

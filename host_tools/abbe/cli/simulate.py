@@ -4,15 +4,15 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 
-from abbe.cli.conventions import examples
+from abbe.cli.conventions import examples, json_file, json_option, json_to_stdout, print_json
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
-        "simulate", help="simulate a machine and its measurement campaign from a spec",
-        description="Simulate a virtual 3-axis machine (exact nonlinear kinematics, 21 "
+        "simulate", help="simulate a three-axis machine and its measurement campaign from a "
+                         "spec",
+        description="Simulate a virtual three-axis machine (exact nonlinear kinematics, 21 "
                     "geometric errors, optional effects) and write a complete campaign: "
                     "DIR/machine.toml, the 6D laser CSVs, the ballbar CSVs and the ground "
                     "truth DIR/truth/truth.json (+ DIR/truth/true_table.json). "
@@ -20,7 +20,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         epilog=examples("abbe simulate examples/vmc500/spec.toml -o sim-out"))
     p.add_argument("spec", help="simulation spec (TOML)")
     p.add_argument("-o", "--out", required=True, help="output directory (created if needed)")
-    p.add_argument("--json", action="store_true", help="print a JSON summary")
+    json_option(p, "a summary (the files written, the linearisation check)")
     p.set_defaults(func=run)
 
 
@@ -55,14 +55,16 @@ def run(args: argparse.Namespace) -> int:
 
     with Outputs() as outs:
         outs.directory(args.out, option="--out")  # checked before the work
+        js = outs.file(json_file(args), option="--json") if json_file(args) else None
         spec = load_spec(args.spec)
         files = simulate_campaign(spec)
         written = write_campaign(files, args.out, outs)
-    lin = linearisation_check(spec)
-    if args.json:
-        json.dump({"out": args.out, "files": sorted(files), "linearisation_max_um": lin},
-                  sys.stdout, indent=2)
-        sys.stdout.write("\n")
+        lin = linearisation_check(spec)
+        doc = {"out": args.out, "files": sorted(files), "linearisation_max_um": lin}
+        if js is not None:
+            js.write_text(json.dumps(doc, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    if json_to_stdout(args):
+        print_json(doc)
     else:
         print(f"abbe simulate: {spec.name} (seed {spec.seed}): wrote {len(written)} files to "
               f"{args.out}")

@@ -294,7 +294,8 @@ def _cmd_thermal(args: argparse.Namespace) -> int:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``abbe table`` and its sub-commands."""
-    p = subparsers.add_parser("table", help="inspect, evaluate and convert error tables",
+    p = subparsers.add_parser("table", help="inspect, evaluate and convert error tables "
+                                            "(three-axis, five-axis 1.2, thermal 1.3)",
                               description=__doc__.splitlines()[0],
                               epilog=examples("abbe table info fit-out/model.bin",
                                               "abbe table eval fit-out/model.bin 250 -200 -150"))

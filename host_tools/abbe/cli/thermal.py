@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from abbe.cli.conventions import examples
+from abbe.cli.conventions import examples, json_file, json_option, json_to_stdout, print_json
 from abbe.errors import AbbeInputError
 from abbe.formats.machine import load_machine
 from abbe.formats.output import Outputs
@@ -20,17 +20,22 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "envelope), identify the dynamic model the C runtime runs (thermal.json) "
                     "and score it on held-out hours, or diagnose the thermal effect a static "
                     "model misses.",
-        epilog=examples("abbe thermal evaluate examples/spindle_thermal/machine.toml --json e.json",
+        epilog=examples("abbe thermal evaluate examples/spindle_thermal/machine.toml -o evaluate",
                         "abbe thermal fit examples/spindle_thermal/machine.toml -o thermal-out",
                         "abbe thermal diagnose examples/spindle_thermal/machine.toml -o diag"))
     sub = p.add_subparsers(dest="thermal_command", metavar="SUBCOMMAND")
     sub.required = True
     e = sub.add_parser("evaluate", help="ISO 230-3 figures of the record",
                        description="ISO 230-3 evaluation of the [thermal] section's record: "
-                                   "drift of every channel, tilts from sensor pairs, envelope.",
-                       epilog=examples("abbe thermal evaluate MACHINE.toml --json e.json"))
+                                   "drift of every channel, tilts from sensor pairs, envelope; "
+                                   "-o DIR writes DIR/iso230_3.json (what abbe history add "
+                                   "reads) and DIR/report.html with the drift plot.",
+                       epilog=examples("abbe thermal evaluate MACHINE.toml -o evaluate",
+                                       "abbe thermal evaluate MACHINE.toml --json -"))
     e.add_argument("machine", help="machine file (TOML) with a [thermal] section")
-    e.add_argument("--json", help="write the figures as JSON here")
+    e.add_argument("-o", "--out", metavar="DIR",
+                   help="output folder: iso230_3.json, report.html, drift.png")
+    json_option(e, "the figures")
     e.set_defaults(func=run_evaluate)
     f = sub.add_parser("fit", help="identify the model, write thermal.json and the report",
                        description="Identify the dynamic thermal model on the identification "
@@ -80,12 +85,22 @@ def _load(path: str):
 
 def run_evaluate(args: argparse.Namespace) -> int:
     from abbe.analysis.thermal.iso230_3 import evaluate_record
+    from abbe.analysis.thermal.report import write_record_report
     with Outputs() as outs:
-        out = outs.file(args.json, option="--json") if args.json else None
-        _, spec, rec = _load(args.machine)
+        folder = outs.directory(args.out) if args.out else None
+        out = outs.file(json_file(args), option="--json") if json_file(args) else None
+        m, spec, rec = _load(args.machine)
         iso = evaluate_record(rec, spec.tilt_pairs())
+        doc = {"format": "abbe-iso230-3 1.0", "machine": m.name, "record": rec.file, **iso}
+        text = json.dumps(doc, indent=1, allow_nan=False) + "\n"
         if out is not None:
-            out.write_text(json.dumps(iso, indent=1, allow_nan=False), encoding="utf-8")
+            out.write_text(text, encoding="utf-8")
+        if folder is not None:
+            (folder / "iso230_3.json").write_text(text, encoding="utf-8")
+            write_record_report(doc, rec, folder)
+    if json_to_stdout(args):
+        print_json(doc)
+        return 0
     print(f"abbe thermal evaluate: {rec.file}: {iso['samples']} samples, "
           f"{iso['duration_h']:.1f} h")
     for d in iso["channels"] + iso["tilts"]:
@@ -93,6 +108,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
               f"max {d['max']:7.1f} @ {d['max_h']:5.1f} h  min {d['min']:7.1f} @ "
               f"{d['min_h']:5.1f} h  end {d['final']:7.1f}")
     print(f"  envelope: {iso['envelope']['channel']} {iso['envelope']['range_um']:.1f} um")
+    if folder is not None:
+        print(f"abbe thermal evaluate: wrote {args.out}/iso230_3.json and report.html")
     return 0
 
 
@@ -112,7 +129,7 @@ def run_fit(args: argparse.Namespace) -> int:
     from abbe.model.thermal import as_dict
     with Outputs() as outs:
         out = outs.directory(args.out)
-        _, spec, rec = _load(args.machine)
+        m, spec, rec = _load(args.machine)
         res = fit_record(rec, spec)
         gap = check_model(res)
         if gap > 1e-9:
@@ -120,7 +137,8 @@ def run_fit(args: argparse.Namespace) -> int:
         iso = evaluate_record(rec, spec.tilt_pairs())
         (out / "thermal.json").write_text(json.dumps(as_dict(res.model), indent=1,
                                                      allow_nan=False), encoding="utf-8")
-        summary = {"record": rec.file, "identify_hours": list(spec.identify_hours),
+        summary = {"format": "abbe-thermal-fit 1.0", "machine": m.name,
+                   "record": rec.file, "identify_hours": list(spec.identify_hours),
                    "validate_hours": list(spec.validate_hours),
                    "signals": [s.row(res.input_names) for s in
                                res.channels + [s for s in res.outputs if s.unit == "urad"]],
@@ -129,7 +147,7 @@ def run_fit(args: argparse.Namespace) -> int:
         summary["uncertainty"] = thermal_uncertainty(res, draws=200)  # issue 37: U (k = 2)
         (out / "fit.json").write_text(json.dumps(summary, indent=1, allow_nan=False,
                                                  default=_none), encoding="utf-8")
-        write_report(res, iso, out)
+        write_report(res, iso, out, machine=m.name)
     print(f"abbe thermal fit: wrote {args.out}/thermal.json, fit.json, index.html")
     print(f"  held-out hours {spec.validate_hours[0]:g}-{spec.validate_hours[1]:g}, RMS:")
     print("\n".join(_table_text(res)))
@@ -144,10 +162,11 @@ def run_diagnose(args: argparse.Namespace) -> int:
     from abbe.diagnose.thermal import diagnose_thermal, write_thermal_report
     with Outputs() as outs:
         out = outs.directory(args.out)
-        _, spec, rec = _load(args.machine)
+        m, spec, rec = _load(args.machine)
         diag = diagnose_thermal(rec, spec)
-        write_thermal_report(diag, rec, spec, out)
+        write_thermal_report(diag, rec, spec, out, machine=m.name)
         diag.pop("_series")
+        diag = {"format": "abbe-thermal-diagnose 1.0", "machine": m.name, **diag}
         (out / "diagnosis.json").write_text(json.dumps(diag, indent=1, allow_nan=False),
                                             encoding="utf-8")
         (out / "diagnosis.txt").write_text(diag["text"] + "\n", encoding="utf-8")

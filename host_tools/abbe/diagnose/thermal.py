@@ -101,10 +101,11 @@ def diagnose_thermal(rec: ThermalRecord, spec: ThermalSpec) -> dict:
             "text": "\n".join(lines), "_series": series}
 
 
-def write_thermal_report(diag: dict, rec: ThermalRecord, spec: ThermalSpec, out) -> None:
-    """``out/index.html`` (+ ``gaps.png``): per channel the gap today's term leaves and the
-    gap after the named effect, over the whole record (held-out hours shaded), then the
-    text."""
+def write_thermal_report(diag: dict, rec: ThermalRecord, spec: ThermalSpec, out,
+                         machine: str | None = None) -> None:
+    """``out/index.html`` (+ ``gaps.png``), verdict first: machine, record, date, then a
+    band with one row per channel (today's term, the named effect, the held-out gap before
+    and after), the gap plot, the full text folded."""
     import html
 
     import matplotlib
@@ -132,10 +133,38 @@ def write_thermal_report(diag: dict, rec: ThermalRecord, spec: ThermalSpec, out)
     ax.set_xlabel("time (h); orange: held-out hours")
     fig.tight_layout(rect=(0, 0, 1, 0.97))
     fig.savefig(out / "gaps.png")
-    page = ("<!doctype html><html><head><meta charset=\"utf-8\"><title>abbe thermal diagnose"
-            "</title></head><body style=\"font-family:sans-serif;max-width:1150px;margin:auto\">"
-            "<h1>The thermal effect the static model misses</h1>"
-            "<img src=\"gaps.png\" alt=\"gaps\" style=\"max-width:100%\">"
-            "<pre style=\"white-space:pre-wrap\">"
-            + html.escape(diag["text"]) + "</pre></body></html>")
+    from pathlib import Path
+
+    from abbe.analysis.certificate import band, page_head, test_date
+    e = html.escape
+    rows = []
+    for ch in diag["channels"]:
+        n = ch.get("named")
+        what = ("nothing named" if not n else
+                f"{e(str(n['input']))} through a lag of {n['tau_s'] / 60:.0f} "
+                f"&plusmn; {(n.get('tau_u95_s') or float('nan')) / 60:.0f} min")
+        after = ch.get("after_heldout_um")
+        rows.append(f"<tr><td class='l'>{e(ch['channel'])}</td>"
+                    f"<td class='l'>{e(str(ch['baseline_input']))} static</td>"
+                    f"<td class='l'>{what}</td><td>{ch['gap_heldout_um']:.2f}</td>"
+                    f"<td>{'&ndash;' if after is None else f'{after:.2f}'}</td>"
+                    f"<td>{ch['uncompensated_heldout_um']:.2f}</td></tr>")
+    named = sum(1 for ch in diag["channels"] if ch.get("named"))
+    head = page_head(f"Thermal diagnosis: {Path(rec.file).name}", [
+        ("Machine", machine or "not named"),
+        ("Test", f"ISO 230-3 thermal record, identified on {spec.identify_hours[0]:g}-"
+                 f"{spec.identify_hours[1]:g} h, judged on {spec.validate_hours[0]:g}-"
+                 f"{spec.validate_hours[1]:g} h"),
+        ("Date", test_date(rec.file))])
+    body = ("<table><tr><th class='l'>channel</th><th class='l'>today's term</th>"
+            "<th class='l'>missing effect named</th><th>held-out gap before (um)</th>"
+            "<th>after (um)</th><th>uncompensated (um)</th></tr>" + "".join(rows)
+            + "</table>")
+    page = ("\n".join(head)
+            + band("info", f"A missing thermal effect named on {named} of "
+                   f"{len(diag['channels'])} channels", body)
+            + "<div class='plots'><img class='wide' src='gaps.png' alt='gaps'></div>"
+            "<details><summary>The diagnosis in words (intervals, what was tried)</summary>"
+            "<pre style='white-space:pre-wrap'>" + e(diag["text"]) + "</pre></details>"
+            "</body></html>")
     (out / "index.html").write_text(page, encoding="utf-8")

@@ -13,6 +13,21 @@ Recognised by content, never by name alone (docs/history.md, "What `add` reads")
   offset and radius deviation, per plane and feed.
 * ``abbe iso230-2 FILE --json > F.json``: B, R, E, A, M bidirectional and E, R, A
   per direction; the axis is not in that JSON and comes from ``--axis``.
+  (``abbe ballbar / iso230-2 -o DIR`` write the same documents into DIR.)
+* ``abbe fit -o OUT`` on a five-axis file, ``abbe demo --five-axis``: ``five_axis.json``
+  -> every identified location error with its 95 % interval, the sphere-centre
+  dispersion before / after (fitted and held out).
+* ``abbe diagnose -o OUT`` on a five-axis file: ``diagnose_five_axis.json`` -> the
+  held-out dispersion before / after, every named effect's amplitude with its interval.
+* ``abbe thermal evaluate -o OUT``: ``iso230_3.json`` -> the range of every channel
+  and tilt, the envelope; ``abbe thermal fit -o OUT``: ``fit.json`` -> per signal the
+  held-out RMS uncompensated, by the model and by the static regression;
+  ``abbe thermal diagnose -o OUT``: ``diagnosis.json`` -> per channel the held-out gap
+  before / after.
+* ``abbe printer fit -o OUT``: ``printer_fit.json`` -> the held-out RMS (abbe, the
+  firmware's mesh, uncorrected), the warp, the squareness with its interval.
+* ``abbe predict -o OUT``: ``predict.json`` -> per ballbar test the prediction
+  residual (max, RMS) and the ideal compensated roundness.
 
 A folder is searched at its top and one level down; files it holds that are not
 abbe outputs (plots, C sources, notes) are passed over, but a recognised file
@@ -140,7 +155,17 @@ def _kind_of(data: Any) -> str | None:
         return "iso230-2"
     if {"plane", "bidirectional", "H_um", "feed_mm_min"} <= set(data):
         return "ballbar"
+    fmt = data.get("format")
+    if isinstance(fmt, str):
+        return FORMATS.get(fmt.rsplit(" ", 1)[0])
     return None
+
+
+#: The "format" tag of an output (without its version) -> its kind.
+FORMATS = {"abbe-five-axis": "five-axis", "abbe-five-axis-diagnose": "five-axis diagnose",
+           "abbe-iso230-3": "thermal evaluate", "abbe-thermal-fit": "thermal fit",
+           "abbe-thermal-diagnose": "thermal diagnose", "abbe-printer-fit": "printer fit",
+           "abbe-predict": "predict"}
 
 
 # --------------------------------------------------------------------------- readers
@@ -302,6 +327,9 @@ def read_ballbar(c: Campaign, doc: _Doc) -> None:
     c.kinds.append("ballbar")
     c.parts.append(("ballbar", doc.sha256))
     c.inputs.append(("ballbar:json", str(doc.path), doc.sha256))
+    name = doc.get("machine_name", str, optional=True)  # abbe ballbar writes it (not "machine")
+    if name:
+        _set_machine(c, name, doc, "machine_name")
     plane = doc.get("plane", str)
     if plane not in ("XY", "ZX", "YZ", "XZ"):
         raise doc.err("plane", f"expected XY, ZX or YZ, got {plane!r}")
@@ -331,6 +359,9 @@ def read_iso230_2(c: Campaign, doc: _Doc, axis: str) -> None:
     c.kinds.append("iso230-2")
     c.parts.append((f"iso230-2 {axis}", doc.sha256))
     c.inputs.append((f"iso230-2:json {axis}", str(doc.path), doc.sha256))
+    name = doc.get("machine", str, optional=True)  # with --machine: the machine file's name
+    if name:
+        _set_machine(c, name, doc, "machine")
     for q in ("B", "R", "E", "A", "M"):
         c.results.append(Result(f"iso230-2 {q} {axis} bi", "iso230-2", f"iso230-2 {q}",
                                 doc.num(f"{q}_um"), "um", axis=axis, direction="bi"))
@@ -342,6 +373,178 @@ def read_iso230_2(c: Campaign, doc: _Doc, axis: str) -> None:
                                         doc.num(f"unidirectional.{d}.{q}_um"), "um", axis=axis,
                                         direction=d))
     _hash_named_file(c, doc.data.get("file"), f"measurement:iso230-2 {axis}", doc.path)
+
+
+def _begin(c: Campaign, doc: _Doc, kind: str) -> None:
+    c.kinds.append(kind)
+    c.parts.append((kind, doc.sha256))
+    c.inputs.append((f"{kind}:{doc.path.name}", str(doc.path), doc.sha256))
+    name = doc.get("machine", str, optional=True)
+    if name:
+        _set_machine(c, name, doc, "machine")
+
+
+def _list(doc: _Doc, key: str) -> list[Any]:
+    v = doc.get(key, list)
+    if len(v) > 10_000:
+        raise doc.err(key, f"{len(v)} entries: more than an abbe output writes")
+    return v
+
+
+def _entry_num(doc: _Doc, entry: Any, key: str, where: str, lo: float = -VALUE_LIMIT,
+               optional: bool = False) -> float | None:
+    if not isinstance(entry, dict):
+        raise doc.err(where, "expected an object")
+    v = entry.get(key)
+    if v is None and optional:
+        return None
+    if v is None:
+        raise doc.err(f"{where}.{key}", "missing (expected a number)")
+    try:
+        return check_number(v, file=str(doc.path), field=f"{where}.{key}", lo=lo,
+                            hi=VALUE_LIMIT)
+    except AbbeInputError as exc:
+        raise doc.err(f"{where}.{key}", exc.message) from None
+
+
+def _entry_str(doc: _Doc, entry: Any, key: str, where: str) -> str:
+    v = entry.get(key) if isinstance(entry, dict) else None
+    if not isinstance(v, str) or not v or len(v) > 100:
+        raise doc.err(f"{where}.{key}", "expected a name (1-100 characters)")
+    return v
+
+
+def _unit(doc: _Doc, u: Any, where: str) -> str:
+    if u not in ("um", "urad", "ppm", "mm", "deg", "K"):
+        raise doc.err(where, f"unknown unit {u!r}")
+    return str(u)
+
+
+def read_five_axis(c: Campaign, doc: _Doc) -> None:
+    """``five_axis.json`` of ``abbe fit`` on a five-axis file: the identified location
+    errors (value, 95 % interval) and the sphere-centre dispersion."""
+    _begin(c, doc, "five-axis")
+    for i, p in enumerate(_list(doc, "parameters")):
+        where = f"parameters[{i}]"
+        if not isinstance(p, dict) or p.get("kind") != "location" or p.get("observable") is not True:
+            continue
+        name = _entry_str(doc, p, "name", where)
+        v = _entry_num(doc, p, "value", where)
+        ci = _entry_num(doc, p, "ci95", where, lo=0)
+        assert v is not None and ci is not None
+        c.results.append(Result(f"five-axis {name}", "five-axis", "location error", v,
+                                _unit(doc, p.get("unit"), f"{where}.unit"), axis=name[-1],
+                                ci_low=v - ci, ci_high=v + ci))
+    for key in ("before", "after", "heldout_before", "heldout_after"):
+        v = doc.num(f"dispersion_um.{key}", optional=True, lo=0)
+        if v is not None:
+            c.results.append(Result(f"five-axis dispersion {key.replace('_', ' ')}", "five-axis",
+                                    "sphere-centre dispersion RMS", v, "um"))
+
+
+def read_five_axis_diagnose(c: Campaign, doc: _Doc) -> None:
+    """``diagnose_five_axis.json``: held-out dispersion before / after, named effects."""
+    _begin(c, doc, "five-axis diagnose")
+    for key in ("heldout_before_um", "heldout_after_um"):
+        v = doc.num(key, lo=0)
+        assert v is not None
+        c.results.append(Result(f"five-axis diagnose {key[:-3].replace('_', ' ')}",
+                                "five-axis diagnose", "held-out dispersion RMS", v, "um"))
+    for i, n in enumerate(_list(doc, "named")):
+        where = f"named[{i}]"
+        eff = _entry_str(doc, n, "effect", where)
+        v = _entry_num(doc, n, "amplitude", where)
+        ci = _entry_num(doc, n, "amplitude_ci95", where, lo=0, optional=True)
+        assert v is not None
+        c.results.append(Result(f"five-axis diagnose {eff} amplitude", "five-axis diagnose",
+                                "effect amplitude", v, "um",
+                                ci_low=None if ci is None else v - ci,
+                                ci_high=None if ci is None else v + ci))
+
+
+def read_thermal_evaluate(c: Campaign, doc: _Doc) -> None:
+    """``iso230_3.json`` of ``abbe thermal evaluate -o``: range per channel and tilt."""
+    _begin(c, doc, "thermal evaluate")
+    for key, unit in (("channels", "um"), ("tilts", "urad")):
+        for i, d in enumerate(_list(doc, key)):
+            where = f"{key}[{i}]"
+            name = _entry_str(doc, d, "name", where)
+            v = _entry_num(doc, d, "range", where, lo=0)
+            assert v is not None
+            c.results.append(Result(f"iso230-3 range {name}", "thermal evaluate",
+                                    "thermal drift range", v, unit))
+    v = doc.num("envelope.range_um", lo=0)
+    assert v is not None
+    c.results.append(Result("iso230-3 envelope", "thermal evaluate", "thermal drift envelope",
+                            v, "um"))
+
+
+def read_thermal_fit(c: Campaign, doc: _Doc) -> None:
+    """``fit.json`` of ``abbe thermal fit``: held-out RMS per signal."""
+    _begin(c, doc, "thermal fit")
+    for i, s in enumerate(_list(doc, "signals")):
+        where = f"signals[{i}]"
+        name = _entry_str(doc, s, "name", where)
+        unit = _unit(doc, s.get("unit"), f"{where}.unit")
+        for key, q in (("rms_uncompensated", "uncompensated"), ("rms_model", "model"),
+                       ("rms_mlr", "static regression")):
+            v = _entry_num(doc, s, key, where, lo=0)
+            assert v is not None
+            c.results.append(Result(f"thermal fit {name} held-out rms {q}", "thermal fit",
+                                    f"held-out RMS, {q}", v, unit))
+
+
+def read_thermal_diagnose(c: Campaign, doc: _Doc) -> None:
+    """``diagnosis.json`` of ``abbe thermal diagnose``: the held-out gap per channel."""
+    _begin(c, doc, "thermal diagnose")
+    for i, ch in enumerate(_list(doc, "channels")):
+        where = f"channels[{i}]"
+        name = _entry_str(doc, ch, "channel", where)
+        for key, q in (("gap_heldout_um", "before"), ("after_heldout_um", "after")):
+            v = _entry_num(doc, ch, key, where, lo=0, optional=True)
+            if v is not None:
+                c.results.append(Result(f"thermal diagnose {name} held-out gap {q}",
+                                        "thermal diagnose", f"held-out gap, {q}", v, "um"))
+
+
+def read_printer_fit(c: Campaign, doc: _Doc) -> None:
+    """``printer_fit.json`` of ``abbe printer fit``."""
+    _begin(c, doc, "printer fit")
+    for key, q in (("heldout.abbe_rms_um", "held-out RMS, abbe"),
+                   ("heldout.firmware_mesh_rms_um", "held-out RMS, firmware mesh"),
+                   ("heldout.uncorrected_rms_um", "held-out RMS, uncorrected"),
+                   ("nonseparable_rms_um", "warp RMS (not held by axis terms)")):
+        v = doc.num(key, optional=True, lo=0)
+        if v is not None:
+            c.results.append(Result(f"printer {q}", "printer fit", q, v, "um"))
+    sq = doc.get("squareness_urad", dict, optional=True) or {}
+    for plane in sorted(sq):
+        v = doc.num(f"squareness_urad.{plane}")
+        u = doc.num(f"squareness_u95_urad.{plane}", optional=True, lo=0)
+        assert v is not None
+        c.results.append(Result(f"printer squareness {plane}", "printer fit", "squareness", v,
+                                "urad", plane=plane[:8], ci_low=None if u is None else v - u,
+                                ci_high=None if u is None else v + u))
+
+
+def read_predict(c: Campaign, doc: _Doc) -> None:
+    """``predict.json`` of ``abbe predict -o``: residual per ballbar test."""
+    _begin(c, doc, "predict")
+    for i, p in enumerate(_list(doc, "predictions")):
+        where = f"predictions[{i}]"
+        name = _entry_str(doc, p, "ballbar", where)
+        for key, q in (("residual_max_um", "prediction residual max"),
+                       ("residual_rms_um", "prediction residual RMS"),
+                       ("ideal_roundness_um", "ideal compensated roundness")):
+            v = _entry_num(doc, p, key, where, lo=0)
+            assert v is not None
+            c.results.append(Result(f"predict {name} {q}", "predict", q, v, "um"))
+
+
+READERS = {"five-axis": read_five_axis, "five-axis diagnose": read_five_axis_diagnose,
+           "thermal evaluate": read_thermal_evaluate, "thermal fit": read_thermal_fit,
+           "thermal diagnose": read_thermal_diagnose, "printer fit": read_printer_fit,
+           "predict": read_predict}
 
 
 def _hash_named_file(c: Campaign, name: Any, role: str, beside: Path) -> None:
@@ -395,7 +598,9 @@ def read_campaign(paths: list[str], axes: dict[str, str], machine: str | None) -
             if kind is None:
                 raise AbbeInputError("not an output abbe history reads (expected the JSON of "
                                      "abbe ballbar --json, abbe iso230-2 --json, a fit's "
-                                     "model.json or a diagnose.json)", file=text)
+                                     "model.json or five_axis.json, a diagnose.json or an "
+                                     "output of abbe thermal, printer fit or predict)",
+                                     file=text)
             docs.append((kind, doc, True))
             continue
         found = 0
@@ -408,9 +613,10 @@ def read_campaign(paths: list[str], axes: dict[str, str], machine: str | None) -
                 docs.append((kind, doc, False))
                 found += 1
         if not found:
-            raise AbbeInputError("no abbe output here: expected the folder of abbe fit, "
-                                 "diagnose or demo (model.json, diagnose.json) or the JSON of "
-                                 "abbe ballbar / iso230-2", file=text)
+            raise AbbeInputError("no abbe output here: expected the -o folder of an abbe "
+                                 "command that evaluates (fit, diagnose, demo, ballbar, "
+                                 "iso230-2, thermal, printer fit, predict) or its JSON",
+                                 file=text)
     seen: dict[tuple[str, str], tuple[_Doc, bool]] = {}
     for kind, doc, _explicit in docs:
         has_bin = (doc.path.parent / "model.bin").is_file()
@@ -428,6 +634,8 @@ def read_campaign(paths: list[str], axes: dict[str, str], machine: str | None) -
             read_diagnose(c, doc, with_table=has_bin)
         elif kind == "ballbar":
             read_ballbar(c, doc)
+        elif kind in READERS:
+            READERS[kind](c, doc)
     used = set()
     for doc in iso_docs:
         axis = axes.get(doc.path.name) or axes.get(str(doc.path))

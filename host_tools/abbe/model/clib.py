@@ -45,7 +45,14 @@ DIR_Q30_ONE = 1 << 30
 
 
 class LibraryNotFound(RuntimeError):
-    """The shared library is not built or not where expected."""
+    """The shared library is not built or not where expected.
+
+    ``what`` is the finding alone (no advice), for a caller that gives its own advice
+    (``abbe fit``: the build command or ``--no-clib-check``) and must say it once."""
+
+    def __init__(self, what: str, advice: str = "") -> None:
+        super().__init__(what + (f": {advice}" if advice else ""))
+        self.what = what
 
 
 # --------------------------------------------------------------------------- structs
@@ -211,8 +218,8 @@ def load_library() -> C.CDLL:
     path = library_path()
     if not path.is_file():
         raise LibraryNotFound(
-            f"abbe C library not found at {path}: build it with "
-            "'cmake -S . -B build && cmake --build build' or set ABBE_LIB")
+            f"abbe C library not found at {path}",
+            "build it with 'cmake -S . -B build && cmake --build build' or set ABBE_LIB")
     try:
         lib = C.CDLL(str(path))
     except OSError as exc:

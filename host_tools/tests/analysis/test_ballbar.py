@@ -298,7 +298,7 @@ def test_compensation_correction_is_applied_to_the_commanded_position():
 def test_cli_ballbar_on_the_example(tmp_path, capsys):
     png = tmp_path / "bb.png"
     assert main(["ballbar", str(EXAMPLE / "machine.toml"), "circle1", "--json",
-                 "--plot", str(png)]) == 0
+                 "-", "--plot", str(png)]) == 0
     d = json.loads(capsys.readouterr().out)
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     g = d["bidirectional"]["G_um"]

@@ -31,7 +31,7 @@ def test_ess_file_matches_notes_within_0p1_um() -> None:
 
 @needs_ess
 def test_cli_json_top_level_keys(capsys) -> None:
-    assert main(["iso230-2", str(ESS_DAT), "--json"]) == 0
+    assert main(["iso230-2", str(ESS_DAT), "--json", "-"]) == 0
     d = json.loads(capsys.readouterr().out)
     for k, v in NOTES.items():
         assert abs(d[k] - v) <= 0.1
@@ -75,7 +75,7 @@ def test_csv_linear_data(tmp_path: Path, capsys) -> None:
     r = evaluate(d)
     assert r.B_um == pytest.approx(2.0)          # (2 - 1) and (4 - 2): max 2
     assert r.R_um == pytest.approx(2 + 2 + 2.0)  # s = 1 in both directions
-    assert main(["iso230-2", str(p), "--json"]) == 0
+    assert main(["iso230-2", str(p), "--json", "-"]) == 0
     assert json.loads(capsys.readouterr().out)["B_um"] == pytest.approx(2.0)
 
 

@@ -62,7 +62,7 @@ def test_prediction_sees_the_servo_mismatch_direction(true_model: Path) -> None:
 
 def test_predict_cli_json_and_plot(true_model: Path, tmp_path: Path, capsys) -> None:
     rc = cli_main(["predict", str(VMC / "machine.toml"), "--model", str(true_model), "--ballbar", "circle1",
-                   "--json", "-o", str(tmp_path)])
+                   "--json", "-", "-o", str(tmp_path)])
     assert rc == 0
     d = json.loads(capsys.readouterr().out)
     (pred,) = d["predictions"]

@@ -46,7 +46,7 @@ def machine(tmp_path: Path) -> Path:
 def test_iso230_2_json_has_u_budget_and_verdicts(machine: Path, capsys) -> None:
     x = str(machine.parent / "laser" / "x.csv")
     assert main(["iso230-2", x, "--machine", str(machine), "--axis", "X", "--json",
-                 "--mc", "300"]) == 0
+                 "-", "--mc", "300"]) == 0
     d = json.loads(capsys.readouterr().out)
     unc = d["uncertainty"]
     assert d["machine"] == "vmc500" and d["axis"] == "X"
@@ -82,7 +82,7 @@ def test_iso230_2_out_folder_is_what_history_reads(machine: Path, tmp_path: Path
     assert main(args + ["-o", str(out), "--date", "2021-05-10"]) == 0
     assert sorted(p.name for p in out.iterdir()) == ["iso230_2.json", "report.html"]
     capsys.readouterr()
-    assert main(args + ["--json"]) == 0
+    assert main(args + ["--json", "-"]) == 0
     assert json.loads((out / "iso230_2.json").read_text()) == json.loads(
         capsys.readouterr().out)
     c = read_campaign([str(out)], {"": "X"}, "vmc500")
@@ -173,3 +173,37 @@ def test_report_renders_verdict_first_in_chromium(machine: Path, tmp_path: Path)
     rows = np.flatnonzero(green.sum(axis=1) > 0.5 * img.shape[1])
     assert rows.size > 10, "no full-width verdict band"
     assert rows.max() < img.shape[0] / 4, rows.max()
+
+
+def _ess_dat() -> Path:
+    from fit_helpers import ESS_DAT
+    return ESS_DAT
+
+
+def _needs_ess():
+    from real_data import needs_real_data
+    return needs_real_data(_ess_dat())
+
+
+@_needs_ess()
+def test_ess_iso230_2_report_reads_verdict_first_in_chromium(tmp_path: Path) -> None:
+    """The shared ESS file (real data): without tolerances the band is the "info" colour
+    and carries E, M, A, B, R with their U; in the top quarter of the first screen."""
+    from report_shots import assert_band_before, assert_verdict_first, needs_chromium, screenshot
+    out = tmp_path / "ess"
+    assert main(["iso230-2", str(_ess_dat()), "--mc", "200", "-o", str(out)]) == 0
+    d = json.loads((out / "iso230_2.json").read_text())
+    page = (out / "report.html").read_text()
+    assert_band_before(page, "Results with their expanded uncertainty", "<details>")
+    band = page[page.index("id='verdict'"):page.index("</div>", page.index("id='verdict'"))]
+    for q in ("E", "A", "B", "R", "M"):
+        r = d["uncertainty"]["results"][q]
+        assert f"{q} {r['value_um']:.2f} &plusmn; {r['U_um']:.2f}" in band
+    if needs_chromium.args[0]:
+        pytest.skip("chromium not installed: the report is not rendered")
+    img = screenshot(out / "report.html", tmp_path / "shot.png", "iso230_2_ess")
+    assert assert_verdict_first(img) == "info"
+    # printed, the folded budget and per-target tables unfold: more than the one page the
+    # screen shows with them folded
+    from report_shots import pdf_pages
+    assert pdf_pages(out / "report.html", tmp_path / "r.pdf") >= 3

@@ -107,3 +107,21 @@ def test_demo_diagnoses_the_squareness_and_the_gap_shrinks(demo) -> None:
     from abbe.formats.blob import read_blob
     model = read_blob((out / "report" / s["model"]).read_bytes())
     assert abs(model.squareness_urad[0] - sq["value"]) < 0.01
+
+
+def test_demo_report_reads_verdict_first_in_chromium(demo, tmp_path) -> None:
+    """The three-axis demo report: machine, test, date, then the band (all checks and the
+    compensated roundness) in the top quarter of the first screen, the ballbar plots
+    right after it, the details folded below; one sentence says why the table's
+    residual and the diagnosed model's differ."""
+    from report_shots import assert_band_before, assert_verdict_first, needs_chromium, screenshot
+    out, s = demo
+    page = (out / "report" / "index.html").read_text()
+    assert_band_before(page, "ballbar_before.png", "<details>", "Fit (held-out")
+    assert "which a position table cannot hold" in page
+    assert f"{s['prediction_max_residual_um']:.2f} um (max)" in page
+    assert "@media print" in page
+    if needs_chromium.args[0]:
+        pytest.skip("chromium not installed: the report is not rendered")
+    img = screenshot(out / "report" / "index.html", tmp_path / "shot.png", "demo_three_axis")
+    assert assert_verdict_first(img) == "pass"

@@ -32,3 +32,39 @@ def test_diagnose_cli_on_a_five_axis_file(tmp_path: Path, capsys) -> None:
     assert doc["heldout_after_um"] < doc["heldout_before_um"]
     assert (out / "report.txt").read_text().startswith("Five-axis discrepancy")
     assert "Named:" in capsys.readouterr().out
+
+
+def test_five_axis_report_reads_verdict_first_in_chromium(tmp_path: Path) -> None:
+    """The five-axis demo report: the location errors identified (value, interval) in the
+    band at the top, the error-motion plots, then one short table of what the plan could
+    not see with the measurement that would see it (one row per measurement, not one
+    per parameter); every parameter folded below."""
+    import re
+
+    import pytest
+
+    from abbe.analysis.five_axis.report import ONE_MEASUREMENT
+    from report_shots import assert_band_before, assert_verdict_first, needs_chromium, screenshot
+    out = tmp_path / "demo"
+    assert main(["demo", "--five-axis", "-o", str(out)]) == 0
+    doc = json.loads((out / "five_axis.json").read_text())
+    page = (out / "report" / "index.html").read_text()
+    machine_unseen = [p for p in doc["parameters"] if not p["observable"] and p["kind"] != "setup"]
+    assert_band_before(page, "motions_", "Every parameter")
+    band = page[page.index("id='verdict'"):page.index("</div>", page.index("id='verdict'"))]
+    for p in doc["parameters"]:
+        if p["kind"] == "location" and p["observable"]:
+            assert f"<td class='l'>{p['name']}</td><td>{p['value']:.3f}</td>" in band
+    if machine_unseen:  # one row per measurement that would see them, not per parameter
+        assert_band_before(page, "What this plan could not see")
+        unseen = page[page.index("What this plan could not see"):page.index("<h2>Details")]
+        n_rows = len(re.findall("<tr>", unseen)) - 1
+        assert 0 < n_rows <= len(ONE_MEASUREMENT) and n_rows < len(machine_unseen)
+        for p in machine_unseen:
+            assert p["name"].split(" ")[0] in unseen
+    else:
+        assert "The plan sees every error it models" in page
+    if needs_chromium.args[0]:
+        pytest.skip("chromium not installed: the report is not rendered")
+    img = screenshot(out / "report" / "index.html", tmp_path / "shot.png", "demo_five_axis")
+    assert assert_verdict_first(img) in ("pass", "inconclusive")

@@ -45,7 +45,7 @@ def _set_cell(csv: Path, row: int, col: str, value: str) -> int:
 def test_cr_only_line_ends_are_read(ws, tmp_path):
     for f in (ws.laser, ws.ballbar):
         f.write_bytes(f.read_bytes().replace(b"\n", b"\r"))
-    expect(["iso230-2", ws.laser, "--json"], rc=0, json_stdout=True)
+    expect(["iso230-2", ws.laser, "--json", "-"], rc=0, json_stdout=True)
     expect(["ballbar", ws.machine, "circle1", "--no-plot"], rc=0)
 
 

@@ -366,6 +366,6 @@ def test_a_failed_run_leaves_the_old_result_intact(ws, tmp_path):
 
 def test_export_json_on_stdout_is_strict(ws, tmp_path):
     out = tmp_path / "e"
-    o = expect(["export", ws.blob, "-f", "fanuc-pitch", "-o", out, "--json"], [out], rc=0,
+    o = expect(["export", ws.blob, "-f", "fanuc-pitch", "-o", out, "--json", "-"], [out], rc=0,
                 json_stdout=True)
     assert json.loads(o.stdout)["target"] == "fanuc-pitch"

@@ -107,7 +107,7 @@ def test_csv_temperature_and_coefficient_normalise_to_20c(tmp_path: Path) -> Non
     np.testing.assert_allclose(d.down_um[2], -1.0 - corr)
     assert d.normalisation.status == thermal20.APPLIED
     assert d.normalisation.nominal_differential_expansion_um == pytest.approx(11.5 * 2 * 0.4)
-    out = subprocess.run(ABBE + ["iso230-2", str(tmp_path / "c.csv"), "--json"],
+    out = subprocess.run(ABBE + ["iso230-2", str(tmp_path / "c.csv"), "--json", "-"],
                          capture_output=True, text=True, check=True)
     assert json.loads(out.stdout)["normalisation_20c"]["status"] == "applied by abbe"
     bad = rows[:2] + [rows[2].replace(",11.5", ",12")] + rows[3:]

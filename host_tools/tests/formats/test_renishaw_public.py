@@ -102,9 +102,9 @@ def test_rtl_cli_reports_encoding_and_sections(tmp_path):
     r = _abbe("iso230-2", str(p))
     assert r.returncode == 0, r.stderr
     assert "input: text read as cp1250" in r.stdout and "EQUIPMENT::" in r.stdout
-    j = json.loads(_abbe("iso230-2", str(p), "--json").stdout)
+    j = json.loads(_abbe("iso230-2", str(p), "--json", "-").stdout)
     assert any("EQUIPMENT" in n for n in j["input_notes"])
-    r = _abbe("iso230-2", str(p), "--encoding", "cp1252", "--json")
+    r = _abbe("iso230-2", str(p), "--encoding", "cp1252", "--json", "-")
     assert r.returncode == 0 and "declared" in json.loads(r.stdout)["input_notes"][0]
 
 
@@ -195,7 +195,7 @@ def test_b5r_ballbar20_in_a_machine_file(tmp_path):
                             start_deg=0.0, overshoot_deg=45.0)
     (tmp_path / "m" / "ballbar" / "c.b5r").write_text(text, encoding="utf-8")
     mf.write_text(mf.read_text().replace("ballbar/circle1.csv", "ballbar/c.b5r"))
-    r = _abbe("ballbar", str(mf), "circle1", "--no-plot", "--json")
+    r = _abbe("ballbar", str(mf), "circle1", "--no-plot", "--json", "-")
     assert r.returncode == 0, r.stderr
     mf.write_text(mf.read_text().replace("radius_mm = 100.0", "radius_mm = 90.0"))
     r = _abbe("ballbar", str(mf), "circle1", "--no-plot")

@@ -37,8 +37,10 @@ def test_fit_writes_model_and_report(synthetic, tmp_path, capsys):
     names = [i.name for i in model.inputs]
     assert {names[t.input] for t in by["chx"].terms} >= {"T1"}
     html = (out / "index.html").read_text()
-    # plots first, numbers after
-    assert html.index("signals.png") < html.index("<table>")
+    # verdict first (the band with the held-out table), then the headline plot, the
+    # per-signal plots and the terms folded after
+    assert html.index("id='verdict'") < html.index("rms.png") < html.index("signals.png")
+    assert html.index("signals.png") < html.index("Terms (95 %")
     for f in ("signals.png", "rms.png", "inputs.png", "fit.json"):
         assert (out / f).stat().st_size > 1000
     text = capsys.readouterr().out
@@ -64,7 +66,11 @@ def test_diagnose_names_the_speed_lag(tmp_path, capsys):
     tau_be = 15.0 / math.expm1(15.0 / 1200.0)   # the continuous lag's backward-Euler twin
     assert abs(n["tau_s"] - tau_be) <= n["tau_u95_s"] and abs(n["gain"] + 3.0) <= n["gain_u95"]
     assert d["after_heldout_um"] < 0.5 * d["gap_heldout_um"]
-    assert (out / "gaps.png").stat().st_size > 1000 and "spindle" in (out / "index.html").read_text()
+    page = (out / "index.html").read_text()
+    assert (out / "gaps.png").stat().st_size > 1000 and "spindle" in page
+    # verdict first: the band (one row per channel) before the gap plot and the folded text
+    assert page.index("id='verdict'") < page.index("gaps.png") < page.index("<details>")
+    assert "spindle through a lag" in page[:page.index("gaps.png")]
     assert "spindle through a lag" in capsys.readouterr().out
 
 
@@ -92,3 +98,34 @@ def test_spindle_program_bad_speed(tmp_path, capsys):
     assert e.value.code == 2
     assert "argument --speeds: expected a number" in capsys.readouterr().err
     assert not (tmp_path / "p.ngc").exists()
+
+
+def test_record_report_reads_verdict_first_in_chromium(tmp_path):
+    """`abbe thermal evaluate -o` on the real 46 h record: the band (envelope and each
+    channel's range, no tolerance: "info") at the top, the drift plot after it."""
+    from report_shots import assert_band_before, assert_verdict_first, needs_chromium, screenshot
+    out = tmp_path / "ev"
+    assert main(["thermal", "evaluate", str(REAL_MACHINE), "-o", str(out)]) == 0
+    d = json.loads((out / "iso230_3.json").read_text())
+    page = (out / "report.html").read_text()
+    assert_band_before(page, "drift.png", "Drift per channel")
+    assert f"envelope {d['envelope']['range_um']:.1f} um" in page
+    if needs_chromium.args[0]:
+        pytest.skip("chromium not installed: the report is not rendered")
+    img = screenshot(out / "report.html", tmp_path / "shot.png", "thermal_record")
+    assert assert_verdict_first(img) == "info"
+
+
+def test_fit_report_reads_verdict_first_in_chromium(synthetic, tmp_path):
+    """`abbe thermal fit`: the band says whether the model meets its target on every
+    held-out signal (green) or which it misses (red), in the top quarter."""
+    from report_shots import assert_verdict_first, needs_chromium, screenshot
+    folder, _ = synthetic
+    out = tmp_path / "fit"
+    assert main(["thermal", "fit", str(folder / "machine.toml"), "-o", str(out)]) == 0
+    f = json.loads((out / "fit.json").read_text())
+    if needs_chromium.args[0]:
+        pytest.skip("chromium not installed: the report is not rendered")
+    img = screenshot(out / "index.html", tmp_path / "shot.png", "thermal_fit")
+    expect = "pass" if all(s["meets_target"] for s in f["signals"]) else "fail"
+    assert assert_verdict_first(img) == expect

@@ -52,7 +52,7 @@ def require_clib() -> None:
     try:
         clib.load_library()
     except clib.LibraryNotFound as exc:
-        raise ClibMissing(f"the C library is needed to check the written table: {exc}; "
+        raise ClibMissing(f"the C library is needed to check the written table: {exc.what}; "
                           f"{BUILD_HINT}") from None
 
 

@@ -279,11 +279,84 @@ def _polar(out: Path, png: str, title: str, curves: list[tuple[np.ndarray, np.nd
     return png
 
 
+#: The one measurement that would see an error of each SEEN_BY kind (the report's short
+#: table; the full alternatives are SEEN_BY's, in the folded parameter table).
+ONE_MEASUREMENT = {
+    "zero": "probe a datum feature at a known angle on the table (a workpiece datum)",
+    "location": "probe the sphere at a second height on the table",
+    "motion": "an R-test with spheres at two heights",
+    "squareness": "a laser diagonal or ballbar circles of the linear axes (abbe fit)",
+    "setup": "the sphere's position measured in a known frame",
+}
+
+
+def _seen_kind(r: dict[str, Any]) -> str:
+    return _seen_key(r["name"], r["kind"]) if r["kind"] in ("location", "motion",
+                                                            "squareness") else r["kind"]
+
+
+def _motion_terms(names: list[str]) -> str:
+    """'EXC(C) sin2', 'EXC(C) cos2', 'EZC(C) sin1' -> 'EXC(C) 2nd harmonic, EZC(C) 1st'."""
+    by: dict[str, set[int]] = {}
+    for n in names:
+        base, _, term = n.partition(" ")
+        digits = "".join(ch for ch in term if ch.isdigit())
+        by.setdefault(base, set()).add(int(digits or 0))
+    nth = {1: "1st", 2: "2nd", 3: "3rd"}
+    return ", ".join(f"{b} {'/'.join(nth.get(h, f'{h}th') for h in sorted(hs))} harmonic"
+                     for b, hs in by.items())
+
+
+def unseen_rows(doc: dict[str, Any]) -> list[dict[str, Any]]:
+    """What the plan could not see, one row per measurement that would see it: the
+    machine errors (set-up unknowns apart), how model_five.bin holds them, the one
+    measurement."""
+    rows: dict[str, dict[str, Any]] = {}
+    for r in doc["parameters"]:
+        if r["observable"] or r["kind"] == "setup":
+            continue
+        k = _seen_kind(r)
+        row = rows.setdefault(k, {"kind": k, "names": [], "fixed": [], "convention": [],
+                                  "measurement": ONE_MEASUREMENT.get(k, r["seen_by"]),
+                                  "alternatives": r["seen_by"]})
+        row["names"].append(r["name"])
+        (row["fixed"] if r["fixed_by_convention"] else row["convention"]).append(r["name"])
+    return list(rows.values())
+
+
+def _what(row: dict[str, Any]) -> str:
+    names = row["names"]
+    return (_motion_terms(names) if row["kind"] == "motion" else ", ".join(names))
+
+
+def _held(row: dict[str, Any]) -> str:
+    parts = []
+    if row["fixed"]:
+        parts.append(("0 by convention: " if row["convention"] else "0 by convention")
+                     + (", ".join(row["fixed"]) if row["convention"] else ""))
+    if row["convention"]:
+        parts.append("their combination with the fixed ones" if row["fixed"] else
+                     "their combination with the errors fixed by convention")
+    return "; ".join(parts)
+
+
+def _plan_text(doc: dict[str, Any]) -> str:
+    kinds = {"probe": "sphere probing", "rtest": "R-test", "indexer": "rotary indexer",
+             "ballbar": "rotary ballbar"}
+    names = [k.split(".", 1) for k in doc.get("block_sigma", {})]
+    return ", ".join(f"{kinds.get(a, a)} {b}" for a, b in names) or "-"
+
+
 def write_html(res: FitResult, doc: dict[str, Any], out: Path) -> None:
-    """report/index.html with one polar plot per rotary axis with identified error motions
-    and one per rotary ballbar test (measured and left by the model)."""
+    """report/index.html, verdict first: machine, plan, date; a band with the location
+    errors identified (value and 95 % interval) and the sphere-centre dispersion; the
+    error-motion polar plots; one short table of what the plan could not see with the
+    one measurement that would see it; every parameter, the observability and the text
+    report folded below."""
     import matplotlib
     matplotlib.use("Agg")
+
+    from abbe.analysis.certificate import band, page_head, test_date
 
     out.mkdir(parents=True, exist_ok=True)
     imgs = []
@@ -299,33 +372,66 @@ def write_html(res: FitResult, doc: dict[str, Any], out: Path) -> None:
                        (np.deg2rad(c["angle_deg"]), np.asarray(c["left_um"]),
                         "left by the model")], 5.0)
                for name, c in doc.get("rotary_ballbar", {}).items()]
-    rows = []
-    for r in doc["parameters"]:
-        if r["observable"]:
-            cell = f"{r['value']:.3f} &plusmn; {r['U']:.3f} {r['unit']} (U, k = 2)"
-        else:
-            cell = ("not observable" + (" (fixed at 0 by convention)" if r["fixed_by_convention"]
-                                        else "") + f"; confounded with "
-                    f"{html.escape(', '.join(r['confounded_with']) or '-')}; seen by: "
-                    f"{html.escape(r['seen_by'])}")
-        rows.append(f"<tr><td>{html.escape(r['name'])}</td><td>{cell}</td></tr>")
+    e = html.escape
+    loc = [r for r in doc["parameters"] if r["kind"] == "location"]
+    seen = [r for r in loc if r["observable"]]
+    unseen = unseen_rows(doc)
+    n_unseen_loc = len(loc) - len(seen)
+    status = "pass" if n_unseen_loc == 0 else "inconclusive"
+    headline = (f"All {len(loc)} location errors identified" if n_unseen_loc == 0 else
+                f"{len(seen)} of {len(loc)} location errors identified; {n_unseen_loc} not "
+                "seen by this plan (the table below names the measurement that would see them)")
+    lrows = "".join(
+        f"<tr><td class='l'>{e(r['name'])}</td><td>{r['value']:.3f}</td>"
+        f"<td>&plusmn; {r['U']:.3f}</td><td class='l'>{e(r['unit'])}</td></tr>" for r in seen)
     o, d = doc["observability"], doc["dispersion_um"]
     disp = "" if d["before"] is None else (
-        f"<p>Sphere-centre dispersion (RMS, um): before {d['before']:.3f}, after {d['after']:.3f};"
-        f" held out: before {d['heldout_before']:.3f}, after {d['heldout_after']:.3f}</p>")
-    page = ("<!doctype html><html><head><meta charset='utf-8'><title>abbe five-axis report"
-            "</title></head><body>"
-            f"<h1>Five-axis identification ({html.escape(doc['kinematics'])})</h1>"
-            f"<h2>Observability</h2><p>rank {o['rank']} of {o['n_params']}, condition number "
-            f"{o['condition_number']:.3g}; fixed by convention: "
-            f"{html.escape(', '.join(o['fixed_by_convention']) or 'none')}</p>{disp}"
-            "<h2>Parameters</h2><table border='1'><tr><th>error</th><th>value (95 %)</th></tr>"
-            + "".join(rows) + "</table><h2>Error motions</h2>"
-            + ("".join(f"<img src='{p}' alt='{p}'>" for p in imgs) or
-               "<p>No error motion identified by this plan ([rotary.fit] harmonics = 0 or "
-               "not observable).</p>")
-            + ("<h2>Rotary ballbar (ISO 10791-6 style)</h2>"
-               + "".join(f"<img src='{p}' alt='{p}'>" for p in bb_imgs) if bb_imgs else "")
-            + f"<h2>Text</h2><pre>{html.escape(text_report(doc))}</pre></body></html>\n")
+        f"<p>Sphere-centre dispersion (RMS): {d['before']:.2f} &rarr; {d['after']:.2f} um "
+        f"fitted, {d['heldout_before']:.2f} &rarr; {d['heldout_after']:.2f} um held out "
+        f"({d['folds']} folds).</p>")
+    body = ("<table><tr><th class='l'>location error</th><th>value</th>"
+            "<th>U (k = 2)</th><th class='l'>unit</th></tr>" + lrows + "</table>" + disp)
+    prov = doc.get("provenance") or {}
+    head = page_head(f"Five-axis identification: {doc.get('machine') or doc['kinematics']}", [
+        ("Machine", f"{doc.get('machine') or 'not named'} ({doc['kinematics']}, "
+                    "table-table five-axis)"),
+        ("Test", f"{_plan_text(doc)} (ISO 230-7 / ISO 10791-6 notation)"),
+        ("Date", test_date(prov["machine_file"]) if prov.get("machine_file") else "unknown"),
+        ("Table", f"model_five.bin" + (f" (CRC {doc['blob']['crc32']})"
+                                       if doc.get("blob") and doc["blob"].get("crc32") else ""))])
+    urows = "".join(
+        f"<tr><td class='l'>{e(_what(r))}</td><td class='l'>{e(_held(r))}</td>"
+        f"<td class='l'><b>{e(r['measurement'])}</b></td></tr>" for r in unseen)
+    unseen_html = ("<h2>What this plan could not see</h2><table><tr><th class='l'>errors not "
+                   "seen</th><th class='l'>held in model_five.bin as</th><th class='l'>the "
+                   "measurement that would see them</th></tr>" + urows + "</table>"
+                   "<p class='small'>Set-up unknowns the plan cannot place (sphere positions "
+                   "across the axis) are not machine errors: they are in the folded table."
+                   "</p>") if unseen else "<p>The plan sees every error it models.</p>"
+    prow = []
+    for r in doc["parameters"]:
+        if r["observable"]:
+            cell = f"{r['value']:.3f} &plusmn; {r['U']:.3f} {e(r['unit'])} (U, k = 2)"
+            why = ""
+        else:
+            cell = "not observable" + (" (0 by convention)" if r["fixed_by_convention"] else "")
+            why = (f"confounded with {e(', '.join(r['confounded_with']) or '-')}; seen by: "
+                   f"{e(r['seen_by'])}")
+        prow.append(f"<tr><td class='l'>{e(r['name'])}</td><td class='l'>{e(r['kind'])}</td>"
+                    f"<td class='l'>{cell}</td><td class='l small'>{why}</td></tr>")
+    page = "\n".join(head) + "\n" + band(status, headline, body) + (
+        "<div class='plots'>" + "".join(f"<img src='{p}' alt='{p}'>" for p in imgs + bb_imgs)
+        + "</div>" if imgs or bb_imgs else
+        "<p>No error motion identified by this plan ([rotary.fit] harmonics = 0 or "
+        "not observable).</p>") + unseen_html + (
+        "<h2>Details</h2>"
+        f"<details><summary>Every parameter ({len(doc['parameters'])}), with what it is "
+        "confounded with</summary><table><tr><th class='l'>parameter</th><th class='l'>kind"
+        "</th><th class='l'>value value (95 %)plusmn; U (k = 2)</th><th class='l'>why no number</th></tr>"
+        + "".join(prow) + "</table></details>"
+        f"<details><summary>Observability</summary><p>rank {o['rank']} of {o['n_params']}, "
+        f"condition number {o['condition_number']:.3g}; fixed by convention: "
+        f"{e(', '.join(o['fixed_by_convention']) or 'none')}</p></details>"
+        f"<details><summary>Text report</summary><pre>{e(text_report(doc))}</pre></details>"
+        "</body></html>\n")
     (out / "index.html").write_text(page, encoding="utf-8")
-

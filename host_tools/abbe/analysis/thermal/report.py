@@ -110,68 +110,158 @@ def _f(v: float | None, nd: int = 2) -> str:
     return "-" if v is None or not np.isfinite(v) else f"{v:.{nd}f}"
 
 
-def write_report(res: FitResult, iso: dict, out: Path, diagnosis: dict | None = None) -> None:
-    """``out/index.html`` and its figures."""
+def _record_date(path: str) -> str:
+    from abbe.analysis.certificate import test_date
+    return test_date(path)
+
+
+def write_report(res: FitResult, iso: dict, out: Path, diagnosis: dict | None = None,
+                 machine: str | None = None) -> None:
+    """``out/index.html`` and its figures: machine, test, date and the verdict band (does
+    the model meet its target on every held-out signal) first, with the bar chart; the
+    signals, terms, selection and ISO 230-3 figures after, folded."""
+    from abbe.analysis.certificate import band, page_head
     plot_signals(res, out / "signals.png")
     plot_bars(res, out / "rms.png")
     plot_inputs(res, out / "inputs.png")
     rec = res.record
+    sigs = res.channels + [s for s in res.outputs if s.unit == "urad"]
     rows = []
-    for s in res.channels + [s for s in res.outputs if s.unit == "urad"]:
+    for s in sigs:
         ok = "yes" if s.meets else "no"
-        rows.append(f"<tr><td>{_esc(s.name)}</td><td>{s.unit}</td><td>{_f(s.rms_uncomp)}</td>"
+        rows.append(f"<tr><td class='l'>{_esc(s.name)}</td><td>{s.unit}</td><td>{_f(s.rms_uncomp)}</td>"
                     f"<td>{_f(s.rms_mlr)} ({100 * s.rms_mlr / s.rms_uncomp:.0f} %)</td>"
                     f"<td>{_f(s.rms_comp)} ({100 * s.ratio:.0f} %)</td>"
-                    f"<td>{_f(s.rms_comp_ident)}</td><td>{ok}</td></tr>")
+                    f"<td>{_f(s.rms_comp_ident)}</td><td class='l {'pass' if s.meets else 'fail'}'>"
+                    f"{ok}</td></tr>")
     terms = []
-    for s in res.channels + [o for o in res.outputs if o.unit == "urad"]:
+    for s in sigs:
         for t in s.fit.terms:
-            terms.append(f"<tr><td>{_esc(s.name)}</td><td>{_esc(res.input_names[t.input])}</td>"
+            terms.append(f"<tr><td class='l'>{_esc(s.name)}</td><td class='l'>{_esc(res.input_names[t.input])}</td>"
                          f"<td>{_tau(t.tau_s, t.tau_u95_s)}</td>"
                          f"<td>{_f(t.gain, 3)} &plusmn; {_f(t.gain_u95, 3)}</td></tr>")
     sel = []
     for s in res.channels:
         for st in s.fit.steps:
-            sel.append(f"<tr><td>{_esc(s.name)}</td><td>{_esc(st[0])}</td><td>{st[1]:.0f}</td>"
+            sel.append(f"<tr><td class='l'>{_esc(s.name)}</td><td class='l'>{_esc(st[0])}</td><td>{st[1]:.0f}</td>"
                        f"<td>{st[2]:.2f}</td><td>{st[3]:.1f}</td>"
-                       f"<td>{_esc(', '.join(st[4]) or '-')}</td></tr>")
-    drift = "".join(f"<tr><td>{_esc(d['name'])}</td><td>{d['unit']}</td><td>{d['range']:.1f}</td>"
-                    f"<td>{d['max']:.1f} @ {d['max_h']:.1f} h</td>"
-                    f"<td>{d['min']:.1f} @ {d['min_h']:.1f} h</td><td>{d['final']:.1f}</td></tr>"
-                    for d in iso["channels"] + iso["tilts"])
+                       f"<td class='l'>{_esc(', '.join(st[4]) or '-')}</td></tr>")
+    drift = _drift_rows(iso)
     diag = ""
     if diagnosis:
         diag = ("<h2>Diagnosis: the thermal effect the static model misses</h2><pre>"
                 + _esc(diagnosis.get("text", "")) + "</pre>")
     notes = "".join(f"<li>{_esc(n)}</li>" for n in res.notes)
-    page = f"""<!doctype html><html><head><meta charset="utf-8"><title>abbe thermal</title>
-<style>body{{font-family:sans-serif;max-width:1150px;margin:1em auto}}
-table{{border-collapse:collapse;font-size:13px}}td,th{{border:1px solid #ccc;padding:2px 6px;
-text-align:right}}td:first-child{{text-align:left}}img{{max-width:100%}}</style></head><body>
-<h1>Thermal model of {_esc(Path(rec.file).name)}</h1>
+    missed = [s.name for s in sigs if not s.meets]
+    status = "fail" if missed else "pass"
+    va, vb = res.spec.validate_hours
+    headline = (f"The model meets its target on all {len(sigs)} signals of the held-out hours "
+                f"{va:g}-{vb:g} h" if not missed else
+                f"The model misses its target on {', '.join(_esc(m) for m in missed)} "
+                f"({len(sigs) - len(missed)} of {len(sigs)} signals met, held-out hours "
+                f"{va:g}-{vb:g} h)")
+    body = ("<table><tr><th class='l'>signal</th><th>unit</th><th>uncompensated</th>"
+            "<th>MLR</th><th>model</th><th>model, identification hours</th>"
+            f"<th class='l'>meets target</th></tr>{''.join(rows)}</table>"
+            f"<p class='small'>RMS of the displacement from its start (uncompensated), of what "
+            f"is left after the static multi-linear regression on all {len(rec.temp_names)} "
+            f"temperatures (MLR, trained on the same identification hours) and after the "
+            f"dynamic model. Target: model &le; {100 * TARGET_RATIO:.0f} % of uncompensated "
+            f"and below MLR.</p>")
+    head = page_head(f"Thermal model: {Path(rec.file).name}", [
+        ("Machine", machine or "not named"),
+        ("Test", f"ISO 230-3 thermal record, {iso['duration_h']:.1f} h, {iso['samples']} "
+                 f"samples, {len(rec.temp_names)} temperatures, {len(rec.channel_names)} "
+                 "displacement channels"),
+        ("Date", _record_date(rec.file)),
+        ("Model", f"dynamic (first-order lags), identified on {res.spec.identify_hours[0]:g}-"
+                  f"{res.spec.identify_hours[1]:g} h, judged on {va:g}-{vb:g} h")])
+    page = "\n".join(head) + f"""
+{band(status, headline, body)}
+<div class="plots"><img src="rms.png" alt="rms"></div>
 <ul>{notes}</ul>
-<h2>Measured, model and compensated (held-out hours in orange)</h2>
-<img src="signals.png" alt="signals">
-<h2>RMS on the held-out hours</h2><img src="rms.png" alt="rms">
-<h2>Numbers: held-out hours {res.spec.validate_hours[0]:g}-{res.spec.validate_hours[1]:g}</h2>
-<p>RMS of the displacement from its start (uncompensated), of what is left after the static
-multi-linear regression on all {len(rec.temp_names)} temperatures (MLR, trained on the same
-identification hours) and after the dynamic model. Target: model &le; {100 * TARGET_RATIO:.0f} %
-of uncompensated and below MLR.</p>
-<table><tr><th>signal</th><th>unit</th><th>uncompensated</th><th>MLR</th><th>model</th>
-<th>model, identification hours</th><th>meets target</th></tr>{''.join(rows)}</table>
-<h2>Terms (95 % intervals from the Jacobian, serial correlation accounted)</h2>
-<table><tr><th>signal</th><th>input</th><th>tau (s)</th><th>gain (um or urad per K / krpm)</th></tr>
-{''.join(terms)}</table>
-<h2>Selection (forward, leave-one-cycle-out CV inside the identification hours)</h2>
-<table><tr><th>channel</th><th>added</th><th>tau, refined (s)</th><th>CV RMS (um)</th>
-<th>max VIF</th><th>rivals within 10 % (not decided by the data)</th></tr>
-{''.join(sel)}</table>
+<h2>Details</h2>
+<details><summary>Measured, model and compensated per signal (held-out hours in orange)</summary>
+<img class="wide" src="signals.png" alt="signals"></details>
+<details><summary>Terms (95 % intervals from the Jacobian, serial correlation accounted)</summary>
+<table><tr><th class='l'>signal</th><th class='l'>input</th><th>tau (s)</th><th>gain (um or urad per K / krpm)</th></tr>
+{''.join(terms)}</table></details>
+<details><summary>Selection (forward, leave-one-cycle-out CV inside the identification hours)</summary>
+<table><tr><th class='l'>channel</th><th class='l'>added</th><th>tau, refined (s)</th><th>CV RMS (um)</th>
+<th>max VIF</th><th class='l'>rivals within 10 % (not decided by the data)</th></tr>
+{''.join(sel)}</table></details>
 {diag}
-<h2>ISO 230-3 evaluation of the whole record</h2>
-<table><tr><th>signal</th><th>unit</th><th>range</th><th>max</th><th>min</th><th>end</th></tr>
+<details><summary>ISO 230-3 evaluation of the whole record</summary>
+<table><tr><th class='l'>signal</th><th>unit</th><th>range</th><th>max</th><th>min</th><th>end</th></tr>
 {drift}</table>
-<p>Envelope: {_esc(iso['envelope']['channel'])}, {iso['envelope']['range_um']:.1f} um.</p>
-<h2>Inputs</h2><img src="inputs.png" alt="inputs">
+<p>Envelope: {_esc(iso['envelope']['channel'])}, {iso['envelope']['range_um']:.1f} um.</p></details>
+<details><summary>Inputs (spindle speed, temperature rises)</summary>
+<img class="wide" src="inputs.png" alt="inputs"></details>
 </body></html>"""
     (out / "index.html").write_text(page, encoding="utf-8")
+
+
+def _drift_rows(iso: dict) -> str:
+    return "".join(f"<tr><td class='l'>{_esc(d['name'])}</td><td>{d['unit']}</td><td>{d['range']:.1f}</td>"
+                   f"<td>{d['max']:.1f} @ {d['max_h']:.1f} h</td>"
+                   f"<td>{d['min']:.1f} @ {d['min_h']:.1f} h</td><td>{d['final']:.1f}</td></tr>"
+                   for d in iso["channels"] + iso["tilts"])
+
+
+def plot_record(rec, path: Path) -> None:
+    """The record at a glance: displacement channels from their start (um) over time, the
+    spindle speed above."""
+    h = rec.hours
+    fig = _fig(11, 4.6)
+    ax0 = fig.add_subplot(3, 1, 1)
+    if rec.speed_rpm is not None:
+        ax0.plot(h, rec.speed_rpm, color="k", lw=1)
+    ax0.set_ylabel("spindle (rpm)")
+    ax0.grid(alpha=0.3)
+    ax = fig.add_subplot(3, 1, (2, 3), sharex=ax0)
+    for k, n in enumerate(rec.channel_names):
+        ax.plot(h, rec.disp_um[:, k] - rec.disp_um[0, k], lw=1.0, label=n)
+    ax.set_ylabel("displacement from start (um)")
+    ax.set_xlabel("time (h)")
+    ax.legend(fontsize=7, ncol=8, loc="upper left")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path)
+
+
+def write_record_report(doc: dict, rec, out: Path) -> None:
+    """``out/report.html`` (+ ``drift.png``) of ``abbe thermal evaluate -o``: machine, test,
+    date, the headline figures (envelope, largest drift and tilt) in the band, the record
+    plot, then the ISO 230-3 table. No tolerance applies (the band says so)."""
+    from abbe.analysis.certificate import band, page_head
+    plot_record(rec, out / "drift.png")
+    env = doc["envelope"]
+    tilts = sorted(doc["tilts"], key=lambda d: -d["range"])
+    headline = (f"Thermal drift envelope {env['range_um']:.1f} um ({_esc(env['channel'])}) over "
+                f"{doc['duration_h']:.1f} h")
+    body = ("<p>" + ", ".join(f"{_esc(d['name'])} {d['range']:.1f} {d['unit']}"
+                              for d in doc["channels"])
+            + (f"; largest tilt {_esc(tilts[0]['name'])} {tilts[0]['range']:.1f} urad" if tilts
+               else "") + "</p><p class='small'>Range of each channel from its start (ISO 230-3). "
+            "No tolerance stated: no verdict.</p>")
+    head = page_head(f"ISO 230-3 thermal test: {Path(rec.file).name}", [
+        ("Machine", doc.get("machine") or "not named"),
+        ("Test", f"ISO 230-3 thermal drift record, {doc['duration_h']:.1f} h, {doc['samples']} "
+                 f"samples, {len(rec.temp_names)} temperatures, {len(rec.channel_names)} "
+                 "displacement channels"),
+        ("Date", _record_date(rec.file)), ("File", Path(rec.file).name)])
+    temps = "".join(f"<tr><td class='l'>{_esc(d['name'])}</td><td>{d['range']:.2f}</td>"
+                    f"<td>{d['max']:.2f} @ {d['max_h']:.1f} h</td><td>{d['final']:.2f}</td></tr>"
+                    for d in doc["temperatures"])
+    page = "\n".join(head) + f"""
+{band("info", headline, body)}
+<div class="plots"><img class="wide" src="drift.png" alt="drift"></div>
+<h2>Drift per channel and tilt</h2>
+<table><tr><th class='l'>signal</th><th>unit</th><th>range</th><th>max</th><th>min</th><th>end</th></tr>
+{_drift_rows(doc)}</table>
+<details><summary>Temperature rises (K)</summary>
+<table><tr><th class='l'>sensor</th><th>range</th><th>max</th><th>end</th></tr>{temps}</table>
+</details>
+<p class='small'>abbe thermal evaluate; docs/thermal.md.</p>
+</body></html>"""
+    (out / "report.html").write_text(page, encoding="utf-8")
