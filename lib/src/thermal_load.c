@@ -168,7 +168,7 @@ static void build_thermal(abbe_thermal_model_t *th, const uint8_t *b)
         th->vmin[k] = (float)th->vmin_milli[k] * unit;
         th->vmax[k] = (float)th->vmax_milli[k] * unit;
         th->max_step[k] = (float)th->max_step_milli[k] * unit;
-        th->stuck_s[k] = (float)(th->stuck_ms[k] / 60000u) * 60.0f; /* whole minutes: exact, as the _q path */
+        th->stuck_s[k] = (float)th_input(t, k)[1] * 60.0f; /* whole minutes: exact, as the _q path */
         th->stuck_res[k] = (float)th->stuck_res_milli[k] * unit;
         th->rise_scale[k] = th->kind[k] == ABBE_THERMAL_SPEED ? 0.001f : 1.0f;
     }
