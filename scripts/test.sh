@@ -22,7 +22,8 @@
 #      simulator: targets, approach sides, dwells, travel, the ballbar arc, and the
 #      closed loop through a Renishaw .rtl file; the five-axis R-test (TCP) and
 #      sphere-probing programs in the xyzac-trt sample (port/linuxcnc/tests/program_sim.py,
-#      under flock /tmp/abbe-linuxcnc.lock)
+#      under flock /tmp/abbe-linuxcnc.lock); the ISO 230-3 spindle program's speeds and
+#      phase times (port/linuxcnc/tests/spindle_sim.py)
 #  12. grblHAL: the Simulator built with the abbe plugin from the snapshots in
 #      third_party/grblhal, G-code checked against the Python reference,
 #      uploads, the stored table over a restart, homing and soft limits;
@@ -147,6 +148,9 @@ lcnc_component() { # one LinuxCNC on a machine at a time: the same lock as every
 lcnc_programs() { # as root, run.sh (step 9) created the unprivileged LinuxCNC user
     flock /tmp/abbe-linuxcnc.lock /usr/bin/python3 port/linuxcnc/tests/program_sim.py \
         --json build-linuxcnc/programs.json
+    # the ISO 230-3 spindle program (2 speeds, 36 s phases: ~3 min)
+    flock /tmp/abbe-linuxcnc.lock /usr/bin/python3 port/linuxcnc/tests/spindle_sim.py \
+        --json build-linuxcnc/spindle.json
 }
 
 step "host ASan+UBSan build and ctest (build-asan)" host_asan

@@ -67,6 +67,17 @@ abbe_status_t abbe_thermal_update_f32(abbe_thermal_state_t *st, const float x[],
             if ((st->seen & bit) != 0u && th_absf(v - st->x_prev[k]) > th->max_step[k]) {
                 fault = ABBE_THERMAL_F_STEP;
             }
+            if (th->stuck_ms[k] != 0u) { /* still near the anchor: the time adds up */
+                if ((st->seen & bit) != 0u && th_absf(v - st->x_anchor[k]) <= th->stuck_res[k]) {
+                    st->still_s[k] += dt_s;
+                } else {
+                    st->x_anchor[k] = v;
+                    st->still_s[k] = 0.0f;
+                }
+                if (fault == 0u && st->still_s[k] >= th->stuck_s[k]) {
+                    fault = ABBE_THERMAL_F_STUCK;
+                }
+            }
             st->x_prev[k] = v; /* a credible reading: the next step is measured from it */
             st->seen |= bit;
         }

@@ -60,7 +60,9 @@ static abbe_status_t check_thermal(const uint8_t *b, uint32_t total)
     }
     for (unsigned k = 0; k < n_in; k++) {
         const uint8_t *in = th_input(t, k);
-        if (in[0] > ABBE_THERMAL_SPEED || in[1] != 0u || in[2] != 0u || in[3] != 0u) {
+        /* in[1]: stuck time in minutes (0: no stuck check), in[2..3]: stuck
+         * resolution in milli-units, 0 without a stuck time */
+        if (in[0] > ABBE_THERMAL_SPEED || (in[1] == 0u && abbe_ld_u16(in + 2) != 0u)) {
             return ABBE_E_FLAGS;
         }
     }
@@ -142,6 +144,8 @@ static void build_thermal(abbe_thermal_model_t *th, const uint8_t *b)
         th->vmin_milli[k] = abbe_ld_i32(in + 8);
         th->vmax_milli[k] = abbe_ld_i32(in + 12);
         th->max_step_milli[k] = abbe_ld_i32(in + 16);
+        th->stuck_ms[k] = (uint32_t)in[1] * 60000u;
+        th->stuck_res_milli[k] = (int32_t)abbe_ld_u16(in + 2);
     }
     for (unsigned c = 0; c < n_ch; c++) {
         const uint8_t *ch = th_channel(t, n_in, c);
@@ -164,6 +168,8 @@ static void build_thermal(abbe_thermal_model_t *th, const uint8_t *b)
         th->vmin[k] = (float)th->vmin_milli[k] * unit;
         th->vmax[k] = (float)th->vmax_milli[k] * unit;
         th->max_step[k] = (float)th->max_step_milli[k] * unit;
+        th->stuck_s[k] = (float)th_input(t, k)[1] * 60.0f; /* whole minutes: exact, as the _q path */
+        th->stuck_res[k] = (float)th->stuck_res_milli[k] * unit;
         th->rise_scale[k] = th->kind[k] == ABBE_THERMAL_SPEED ? 0.001f : 1.0f;
     }
     for (unsigned c = 0; c < n_ch; c++) {

@@ -80,6 +80,19 @@ abbe_status_t abbe_thermal_update_q(abbe_thermal_state_t *st, const int32_t x_mi
             if ((st->seen & bit) != 0u && (d > th->max_step_milli[k] || d < -th->max_step_milli[k])) {
                 fault = ABBE_THERMAL_F_STEP;
             }
+            if (th->stuck_ms[k] != 0u) { /* still near the anchor: the time adds up (saturating) */
+                int32_t da = v - st->xq_anchor[k]; /* both within +/-2^20 */
+                if ((st->seen & bit) != 0u && da <= th->stuck_res_milli[k] && da >= -th->stuck_res_milli[k]) {
+                    uint32_t still = st->still_ms[k] + dt_ms;
+                    st->still_ms[k] = still < st->still_ms[k] ? 0xFFFFFFFFu : still;
+                } else {
+                    st->xq_anchor[k] = v;
+                    st->still_ms[k] = 0u;
+                }
+                if (fault == 0u && st->still_ms[k] >= th->stuck_ms[k]) {
+                    fault = ABBE_THERMAL_F_STUCK;
+                }
+            }
             st->xq_prev[k] = v;
             st->seen |= bit;
         }

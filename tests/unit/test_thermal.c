@@ -106,6 +106,7 @@ static const mutation_t MUTATIONS[] = {
     {"header reserved", 1, 12, 4, 1, ABBE_E_FLAGS},
     {"kind 2", 1, IN(3, 0), 1, 2, ABBE_E_FLAGS},
     {"input reserved", 1, IN(3, 2), 1, 1, ABBE_E_FLAGS},
+    {"stuck resolution without a stuck time", 1, IN(3, 2), 2, 20, ABBE_E_FLAGS},
     {"output 5", 1, CH(2, 0), 1, 5, ABBE_E_FLAGS},
     {"output twice", 1, CH(2, 0), 1, 0, ABBE_E_FLAGS},
     {"term reserved", 1, CH(1, 8 + 1), 1, 1, ABBE_E_FLAGS},
@@ -340,7 +341,8 @@ static void test_faults_f32(void **state)
     (void)state;
     run_result_t clean = run_f32(0), faulty = run_f32(1);
     assert_int_equal(clean.events & (ABBE_THERMAL_F_FAULTS | ABBE_THERMAL_F_HOLD), 0u);
-    assert_int_equal(faulty.events & ABBE_THERMAL_F_FAULTS, ABBE_THERMAL_F_FAULTS);
+    /* every fault but stuck (the golden block has no stuck check: test_stuck) */
+    assert_int_equal(faulty.events & ABBE_THERMAL_F_FAULTS, ABBE_THERMAL_F_FAULTS & ~ABBE_THERMAL_F_STUCK);
     assert_true(faulty.hold_seen);
     /* Nothing jumps: the largest change per evaluation with faults is at most the
      * clean run's (a sample's own lag increment) plus one fade step of the
@@ -611,6 +613,92 @@ static void test_apply_ms(void **state)
     assert_true(abbe_thermal_flags(&tim) & ABBE_THERMAL_F_GAP);
 }
 
+/* ---- stuck: an input whose readings stay within the resolution for the stuck time ---- */
+#define STUCK_MIN 2u
+#define STUCK_RES_MILLI 20u /* 0.02 K */
+
+/* The input FAULT_INPUT over 40 samples 10 s apart: a ramp of 0.1 K per sample
+ * (n < 10), then held at the ramp's last value with a +/-0.01 K dither (within
+ * the resolution; n 10..29), then the ramp again (n >= 30). */
+static float stuck_value(float v0, uint32_t n)
+{
+    if (n < 10u) return v0 + 0.1f * (float)n;
+    if (n < 30u) return v0 + 0.9f + ((n & 1u) ? 0.01f : -0.01f);
+    return v0 + 0.9f + 0.1f * (float)(n - 29u);
+}
+
+static void run_stuck(int with_check, int use_q)
+{
+    blob_buf_t buf;
+    abbe_model_t m;
+    abbe_thermal_model_t th;
+    abbe_thermal_state_t st;
+    copy_golden(&buf);
+    if (with_check) {
+        uint8_t *in = buf.b + block_off(&buf) + IN(FAULT_INPUT, 0);
+        in[1] = (uint8_t)STUCK_MIN;
+        in[2] = (uint8_t)STUCK_RES_MILLI;
+        in[3] = 0u;
+        fix_crc(buf.b);
+    }
+    assert_int_equal(load(&buf), ABBE_OK);
+    assert_int_equal(abbe_thermal_load(&m, &th, buf.b, abbe_golden_thermal_blob_size), ABBE_OK);
+    if (use_q) {
+        assert_int_equal(abbe_thermal_init_q(&st, &th, 1000000u), ABBE_OK);
+    } else {
+        assert_int_equal(abbe_thermal_init_f32(&st, &th, 1.0f), ABBE_OK);
+    }
+    uint32_t first_stuck = 0u, last_stuck = 0u;
+    for (uint32_t n = 0; n < 40u; n++) {
+        float x[17];
+        memcpy(x, S[0].x, sizeof x);
+        x[FAULT_INPUT] = stuck_value(S[0].x[FAULT_INPUT], n);
+        if (use_q) {
+            int32_t xm[17];
+            for (unsigned k = 0; k < 17u; k++) {
+                float v = k < 16u ? x[k] * 1000.0f : x[k]; /* m degC; rpm */
+                xm[k] = (int32_t)(v < 0.0f ? v - 0.5f : v + 0.5f);
+            }
+            assert_int_equal(abbe_thermal_update_q(&st, xm, 0x1FFFFu, n ? 10000u : 0u), ABBE_OK);
+        } else {
+            assert_int_equal(abbe_thermal_update_f32(&st, x, 0x1FFFFu, n ? 10.0f : 0.0f), ABBE_OK);
+        }
+        uint32_t f = abbe_thermal_flags(&st);
+        assert_int_equal(f & (ABBE_THERMAL_F_FAULTS & ~ABBE_THERMAL_F_STUCK), 0u);
+        if (f & ABBE_THERMAL_F_STUCK) {
+            assert_int_equal(abbe_thermal_input_faults(&st), 1u << FAULT_INPUT);
+            assert_true(f & ABBE_THERMAL_F_HOLD);
+            first_stuck = first_stuck ? first_stuck : n;
+            last_stuck = n;
+        }
+        for (uint32_t k = 0; k < 10u; k++) {
+            float err_f[3];
+            int32_t err_q[3];
+            if (use_q) abbe_thermal_apply_q(&st, err_q); else abbe_thermal_apply_f32(&st, err_f);
+        }
+    }
+    if (!with_check) {
+        assert_int_equal(first_stuck, 0u);
+        assert_int_equal(abbe_thermal_events(&st) & ABBE_THERMAL_F_STUCK, 0u);
+        return;
+    }
+    /* anchored at n = 9 (the last ramp value): 120 s still at n = 21, until the ramp
+     * moves it again at n = 30 */
+    print_message("stuck (%s): flagged from sample %u to %u\n", use_q ? "q" : "f32", first_stuck, last_stuck);
+    assert_int_equal(first_stuck, 9u + STUCK_MIN * 6u);
+    assert_int_equal(last_stuck, 29u);
+    assert_true(abbe_thermal_events(&st) & ABBE_THERMAL_F_STUCK);
+}
+
+static void test_stuck(void **state)
+{
+    (void)state;
+    run_stuck(1, 0);
+    run_stuck(1, 1);
+    run_stuck(0, 0);
+    run_stuck(0, 1);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -620,6 +708,7 @@ int main(void)
         cmocka_unit_test(test_args),
         cmocka_unit_test(test_comp_step_thermal),
         cmocka_unit_test(test_apply_ms),
+        cmocka_unit_test(test_stuck),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -140,6 +140,11 @@ def format_text(res: DiagnoseResult, model_path: str | None = None) -> str:
         L.append("notes:")
         for n in res.notes:
             L.append(f"  - {n}")
+    if res.drift_ties:
+        L.append("")
+        L.append("drift and the campaign's temperature (docs/thermal.md):")
+        for t in res.drift_ties:
+            L.append(f"  - {t.sentence()}")
     if res.not_observable:
         L.append("")
         L.append("not observable with these checks:")

@@ -219,6 +219,16 @@ class DiagnoseResult:
     outliers: list[Any] = field(default_factory=list)
 
     @property
+    def drift_ties(self) -> list[Any]:
+        """The drift of every laser check that carries a time and a temperature per
+        reading, tied to that temperature (expansion coefficient, lag; computed once:
+        abbe.diagnose.drift_temperature)."""
+        if not hasattr(self, "_drift_ties"):
+            from abbe.diagnose.drift_temperature import ties_of
+            self._drift_ties = ties_of(self.checks, self.residual_before)
+        return self._drift_ties
+
+    @property
     def nothing_missing(self) -> bool:
         """No effect named and the model explains the checks down to the noise."""
         return not self.effects and not self.tentative
@@ -241,6 +251,7 @@ class DiagnoseResult:
             "not_observable": self.not_observable,
             "candidates": self.tested,
             "notes": self.notes,
+            "drift_temperature": [t.to_json() for t in self.drift_ties],
         }
 
 

@@ -72,7 +72,12 @@ def encode_block(model: ThermalModel) -> bytes:
         if any(abs(v) > VALUE_CAP for v in vals[:3]) or vals[1] >= vals[2] or not 1 <= vals[3] <= STEP_CAP:
             raise err(f"reference / valid range / max_step {vals} (milli-units) outside the block's "
                       f"ranges (|v| <= 2^20, min < max, 1 <= step <= 2^21)", f"thermal.inputs[{k}]")
-        out += struct.pack("<B3xiiii", KINDS.index(inp.kind), *vals)
+        stuck_min = int(round(inp.stuck_s / 60.0))
+        stuck_res = _milli(inp.kind, inp.stuck_resolution) if stuck_min else 0
+        if not (0 <= stuck_min <= 255 and 0 <= stuck_res <= 0xFFFF):
+            raise err(f"stuck {stuck_min} min / resolution {stuck_res} milli-units: expected "
+                      "0..255, 0..65535", f"thermal.inputs[{k}]")
+        out += struct.pack("<BBHiiii", KINDS.index(inp.kind), stuck_min, stuck_res, *vals)
     for j, ch in enumerate(model.channels):
         limit = int(round(ch.limit * 1000))
         if not 1 <= limit <= LIMIT_CAP:
@@ -163,7 +168,8 @@ def _read_block(data: bytes, source: str) -> ThermalModel:
     if end - off < block_size(n_in, n_ch):
         raise err("ABBE_E_OFFSET", f"thermal block of {block_size(n_in, n_ch)} bytes at {off} "
                   f"overruns the table ({total} bytes)", "thermal.offset")
-    inputs = [struct.unpack_from("<B3Biiii", data, off + HEADER_SIZE + INPUT_SIZE * k)
+    # (kind, stuck minutes, stuck resolution milli-units, ref, min, max, step)
+    inputs = [struct.unpack_from("<BBHiiii", data, off + HEADER_SIZE + INPUT_SIZE * k)
               for k in range(n_in)]
     ch_off = [off + HEADER_SIZE + INPUT_SIZE * n_in + CHANNEL_SIZE * j for j in range(n_ch)]
     chans = [struct.unpack_from("<BBHi", data, o) for o in ch_off]
@@ -172,10 +178,10 @@ def _read_block(data: bytes, source: str) -> ThermalModel:
     # FLAGS
     if res0 or res1:
         raise err("ABBE_E_FLAGS", "reserved thermal header field is not 0", "thermal.reserved")
-    for k, (kind, r1, r2, r3, *_v) in enumerate(inputs):
-        if kind > 1 or r1 or r2 or r3:
-            raise err("ABBE_E_FLAGS", f"kind {kind} (expected 0 temperature, 1 speed) or reserved "
-                      "bytes set", f"thermal.inputs[{k}]")
+    for k, (kind, stuck_min, stuck_res, *_v) in enumerate(inputs):
+        if kind > 1 or (stuck_min == 0 and stuck_res != 0):
+            raise err("ABBE_E_FLAGS", f"kind {kind} (expected 0 temperature, 1 speed), or a stuck "
+                      f"resolution ({stuck_res}) without a stuck time", f"thermal.inputs[{k}]")
     seen: set[int] = set()
     for j, ((out, n_t, res, _lim), tl) in enumerate(zip(chans, terms)):
         if out > 4 or out in seen or res:
@@ -199,7 +205,7 @@ def _read_block(data: bytes, source: str) -> ThermalModel:
     if not (1 <= gap <= TIME_CAP and 1 <= fade <= TIME_CAP):
         raise err("ABBE_E_RANGE", f"max_gap {gap} ms / fade {fade} ms: expected 1 .. 2^31",
                   "thermal.times")
-    for k, (_kind, _a, _b, _c, ref, lo, hi, step) in enumerate(inputs):
+    for k, (_kind, _m, _s, ref, lo, hi, step) in enumerate(inputs):
         if (abs(ref) > VALUE_CAP or abs(lo) > VALUE_CAP or abs(hi) > VALUE_CAP or lo >= hi
                 or not 1 <= step <= STEP_CAP):
             raise err("ABBE_E_RANGE", "reference / valid range / max_step outside |v| <= 2^20, "
@@ -218,8 +224,9 @@ def _read_block(data: bytes, source: str) -> ThermalModel:
     model_inputs = tuple(
         ThermalInput(name=f"in{k}", kind=KINDS[kind], reference=natural(kind, ref),
                      valid_min=natural(kind, lo), valid_max=natural(kind, hi),
-                     max_step=natural(kind, step))
-        for k, (kind, _a, _b, _c, ref, lo, hi, step) in enumerate(inputs))
+                     max_step=natural(kind, step), stuck_s=60.0 * stuck_min,
+                     stuck_resolution=natural(kind, stuck_res))
+        for k, (kind, stuck_min, stuck_res, ref, lo, hi, step) in enumerate(inputs))
     channels = tuple(
         ThermalChannel(name=OUTPUTS[out], output=OUTPUTS[out], limit=lim / 1000.0,
                        terms=tuple(ThermalTerm(input=tl[k][0], tau_s=tl[k][4] / 1000.0,
@@ -236,7 +243,9 @@ def quantize_thermal(model: ThermalModel) -> ThermalModel:
     return ThermalModel(
         inputs=tuple(ThermalInput(name=o.name, kind=i.kind, reference=i.reference,
                                   valid_min=i.valid_min, valid_max=i.valid_max,
-                                  max_step=i.max_step) for o, i in zip(model.inputs, q.inputs)),
+                                  max_step=i.max_step, stuck_s=i.stuck_s,
+                                  stuck_resolution=i.stuck_resolution)
+                      for o, i in zip(model.inputs, q.inputs)),
         channels=tuple(ThermalChannel(name=o.name, output=c.output, terms=c.terms, limit=c.limit)
                        for o, c in zip(model.channels, q.channels)),
         max_gap_s=q.max_gap_s, fade_s=q.fade_s, notes=model.notes)

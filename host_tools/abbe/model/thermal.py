@@ -49,6 +49,9 @@ OUTPUTS = ("x", "y", "z", "a", "b")
 #: Limits the runtime's block holds (the C library's arrays are sized by them).
 MAX_INPUTS = 16 + 1
 MAX_CHANNELS = 5
+#: The stuck check's limits in the table (one byte of minutes, 16 bits of milli-units).
+STUCK_MAX_MIN = 255
+STUCK_RESOLUTION_CAP_MILLI = 65535
 MAX_TERMS_PER_CHANNEL = 4
 
 #: Speed inputs enter in krpm (a gain is um per krpm).
@@ -66,6 +69,10 @@ class ThermalInput:
     short): deg C or rpm.
     ``max_step``: the largest credible change between two samples (deg C or rpm per
     sample); a larger one is a fault.
+    ``stuck_s``: a sensor whose readings stay within ``stuck_resolution`` (deg C or rpm)
+    of one value for this long (s, whole minutes, at most 255 min) is stuck (a frozen
+    converter repeats a value a live sensor's noise would not); 0: no stuck check (the
+    spindle speed legitimately holds a value for hours).
     """
 
     name: str
@@ -74,6 +81,8 @@ class ThermalInput:
     valid_min: float = -20.0
     valid_max: float = 120.0
     max_step: float = 5.0
+    stuck_s: float = 0.0
+    stuck_resolution: float = 0.0
 
     def rise(self, value: np.ndarray | float) -> np.ndarray:
         """The input's rise u = x - ref, in the model's units (K, or krpm for speed)."""
@@ -147,6 +156,16 @@ class ThermalModel:
             if not inp.valid_min < inp.valid_max or inp.max_step <= 0:
                 raise AbbeInputError("expected valid_min < valid_max and max_step > 0",
                                      field=where)
+            st, res = inp.stuck_s, inp.stuck_resolution
+            res_cap = STUCK_RESOLUTION_CAP_MILLI / (1.0 if inp.kind == SPEED else 1000.0)
+            if not (np.isfinite(st) and np.isfinite(res)) or not (
+                    (st == 0.0 and res == 0.0)
+                    or (st % 60.0 == 0.0 and 60.0 <= st <= STUCK_MAX_MIN * 60.0
+                        and 0.0 <= res <= res_cap)):
+                raise AbbeInputError(
+                    f"stuck_s {st}, stuck_resolution {res}: expected both 0 (no stuck check) "
+                    f"or stuck_s whole minutes in 60..{STUCK_MAX_MIN * 60} s and "
+                    f"0 <= stuck_resolution <= {res_cap:g}", field=where)
         outs = [c.output for c in self.channels]
         if len(set(outs)) != len(outs):
             raise AbbeInputError(f"two channels drive the same output: {outs}",
@@ -241,14 +260,20 @@ JSON_FORMAT = "abbe-thermal-model"
 JSON_VERSION = 1
 
 
+def _input_dict(i: ThermalInput) -> dict:
+    d = {"name": i.name, "kind": i.kind, "reference": i.reference, "valid_min": i.valid_min,
+         "valid_max": i.valid_max, "max_step": i.max_step}
+    if i.stuck_s:  # written only when set: files without a stuck check stay as they were
+        d.update(stuck_s=i.stuck_s, stuck_resolution=i.stuck_resolution)
+    return d
+
+
 def as_dict(model: ThermalModel) -> dict:
     """The model as the plain data of ``thermal.json`` (units in the keys' docs)."""
     return {
         "format": JSON_FORMAT, "version": JSON_VERSION,
         "max_gap_s": model.max_gap_s, "fade_s": model.fade_s,
-        "inputs": [{"name": i.name, "kind": i.kind, "reference": i.reference,
-                    "valid_min": i.valid_min, "valid_max": i.valid_max,
-                    "max_step": i.max_step} for i in model.inputs],
+        "inputs": [_input_dict(i) for i in model.inputs],
         "channels": [{"name": c.name, "output": c.output, "limit": c.limit,
                       "terms": [{"input": t.input, "tau_s": t.tau_s, "gain": t.gain,
                                  "gain_u95": t.gain_u95, "tau_u95_s": t.tau_u95_s}
@@ -280,7 +305,10 @@ def from_dict(d: object) -> ThermalModel:
                          reference=_num(i, "reference", f"inputs[{k}]"),
                          valid_min=_num(i, "valid_min", f"inputs[{k}]"),
                          valid_max=_num(i, "valid_max", f"inputs[{k}]"),
-                         max_step=_num(i, "max_step", f"inputs[{k}]"))
+                         max_step=_num(i, "max_step", f"inputs[{k}]"),
+                         stuck_s=_num(i, "stuck_s", f"inputs[{k}]", optional=True) or 0.0,
+                         stuck_resolution=_num(i, "stuck_resolution", f"inputs[{k}]",
+                                               optional=True) or 0.0)
             for k, i in enumerate(d["inputs"]))
         channels = tuple(
             ThermalChannel(name=str(c["name"]), output=str(c["output"]),

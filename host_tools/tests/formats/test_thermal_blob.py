@@ -71,6 +71,36 @@ def test_value_out_of_the_block_range_is_refused() -> None:
     assert e.value.status == "ABBE_E_RANGE"
 
 
+def test_stuck_check_round_trip_and_refusals() -> None:
+    """The stuck check (minutes, resolution) goes through the block and thermal.json; a
+    block without it is byte for byte what it was; bad values are refused by field."""
+    from abbe.errors import AbbeInputError
+    from abbe.model.thermal import as_dict, from_dict
+    m = _model()
+    base = write_blob(golden.backlash_table())
+    plain = write_thermal_blob(base, m)
+    stuck = ThermalModel(inputs=(ThermalInput("t1", reference=20.5, stuck_s=600.0,
+                                              stuck_resolution=0.02),) + m.inputs[1:],
+                         channels=m.channels, max_gap_s=m.max_gap_s, fade_s=m.fade_s)
+    blob = write_thermal_blob(base, stuck)
+    off = struct.unpack_from("<I", blob, 60)[0] + 16
+    assert blob[off + 1] == 10 and struct.unpack_from("<H", blob, off + 2)[0] == 20
+    assert blob[:off] == plain[:off] and blob[off + 4:-4] == plain[off + 4:-4]
+    _, back = read_thermal_blob(blob)
+    assert back.inputs[0].stuck_s == 600.0 and back.inputs[0].stuck_resolution == 0.02
+    assert back.inputs[1].stuck_s == 0.0 and back.inputs[1].stuck_resolution == 0.0
+    assert quantize_thermal(stuck).inputs[0].stuck_s == 600.0
+    assert from_dict(as_dict(stuck)) == stuck
+    assert "stuck_s" not in as_dict(m)["inputs"][0]  # files without the check unchanged
+    for bad in ((90.0, 0.02), (0.0, 0.02), (600.0, 66.0), (256 * 60.0, 0.0),
+                (600.0, -0.01), (float("nan"), 0.0)):
+        with pytest.raises(AbbeInputError) as e:
+            ThermalModel(inputs=(ThermalInput("t1", stuck_s=bad[0], stuck_resolution=bad[1]),),
+                         channels=(ThermalChannel("c", "x", (ThermalTerm(0, 0.0, 1.0),)),)
+                         ).validate()
+        assert e.value.field == "thermal.inputs[0] (t1)", bad
+
+
 def test_golden_files_are_current(tmp_path: Path) -> None:
     golden_thermal.write(tmp_path)
     for name in ("golden_thermal.h", "golden_thermal.c"):
@@ -84,7 +114,7 @@ _OFF = struct.unpack_from("<I", _SEED_BLOB, 60)[0]
 # every channel's record
 _FIELDS = [(6, 2), (20, 4), (60, 4)] + [(_OFF + o, s) for o, s in (
     (0, 1), (1, 1), (2, 2), (4, 4), (8, 4), (12, 4))] + [
-    (_OFF + 16 + 20 * k + o, s) for k in (0, 5, 16) for o, s in ((0, 1), (1, 1), (4, 4), (8, 4), (12, 4), (16, 4))
+    (_OFF + 16 + 20 * k + o, s) for k in (0, 5, 16) for o, s in ((0, 1), (1, 1), (2, 2), (4, 4), (8, 4), (12, 4), (16, 4))
 ] + [(_OFF + 16 + 340 + 56 * c + o, s) for c in range(5) for o, s in (
     (0, 1), (1, 1), (2, 2), (4, 4), (8, 1), (9, 1), (12, 4), (16, 4), (44, 1), (48, 4), (52, 4))]
 

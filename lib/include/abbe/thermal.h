@@ -17,7 +17,10 @@
  *
  * Faults (per input, every sample): the port's valid bit clear (open circuit,
  * no reading), a value outside [valid_min, valid_max] or NaN, a step larger
- * than max_step from the previous reading; and a missing sample (no update for
+ * than max_step from the previous reading, a stuck sensor (an input with a
+ * stuck time in the block whose credible readings stayed within its stuck
+ * resolution of one value for that long: a frozen converter repeats a value
+ * a live sensor's noise would not); and a missing sample (no update for
  * max_gap: apply() notices it, update() sees dt > max_gap). A channel with a
  * faulty input holds its states and fades its part out over fade_s; when its
  * inputs are good again and the fade-out has reached 0, its states catch up
@@ -59,7 +62,8 @@ enum { ABBE_THERMAL_OUT_X = 0, ABBE_THERMAL_OUT_Y = 1, ABBE_THERMAL_OUT_Z = 2,
 #define ABBE_THERMAL_F_LIMIT 0x10u   /* a channel was clamped to its limit */
 #define ABBE_THERMAL_F_HOLD 0x20u    /* some channel holds its states (faulted, or waiting to fade back in) */
 #define ABBE_THERMAL_F_FADING 0x40u  /* some channel's weight is between its ends */
-#define ABBE_THERMAL_F_FAULTS 0x0Fu
+#define ABBE_THERMAL_F_STUCK 0x80u   /* an input stayed within its stuck resolution for its stuck time */
+#define ABBE_THERMAL_F_FAULTS 0x8Fu
 
 /* The thermal block of a loaded table, copied out of the blob by
  * abbe_thermal_load() (the blob need not stay). All fields private. Integer
@@ -77,6 +81,8 @@ typedef struct {
     int32_t vmin_milli[ABBE_THERMAL_MAX_INPUTS];
     int32_t vmax_milli[ABBE_THERMAL_MAX_INPUTS];
     int32_t max_step_milli[ABBE_THERMAL_MAX_INPUTS];
+    uint32_t stuck_ms[ABBE_THERMAL_MAX_INPUTS];        /* 0: no stuck check */
+    int32_t stuck_res_milli[ABBE_THERMAL_MAX_INPUTS];  /* still = within this of the anchor */
     uint32_t tau_ms[ABBE_THERMAL_MAX_CHANNELS][ABBE_THERMAL_MAX_TERMS];
     int32_t gain_q16[ABBE_THERMAL_MAX_CHANNELS][ABBE_THERMAL_MAX_TERMS];
     int32_t limit[ABBE_THERMAL_MAX_CHANNELS]; /* nm, or nrad for tilts */
@@ -88,6 +94,8 @@ typedef struct {
     float vmin[ABBE_THERMAL_MAX_INPUTS];
     float vmax[ABBE_THERMAL_MAX_INPUTS];
     float max_step[ABBE_THERMAL_MAX_INPUTS];
+    float stuck_s[ABBE_THERMAL_MAX_INPUTS];
+    float stuck_res[ABBE_THERMAL_MAX_INPUTS];
     float rise_scale[ABBE_THERMAL_MAX_INPUTS]; /* 1 (K), 0.001 (rpm -> krpm) */
     float tau_s[ABBE_THERMAL_MAX_CHANNELS][ABBE_THERMAL_MAX_TERMS];
     float gain[ABBE_THERMAL_MAX_CHANNELS][ABBE_THERMAL_MAX_TERMS];
@@ -103,6 +111,8 @@ typedef struct {
     /* _f32 */
     float s[ABBE_THERMAL_MAX_CHANNELS][ABBE_THERMAL_MAX_TERMS]; /* lag states, K / krpm */
     float x_prev[ABBE_THERMAL_MAX_INPUTS];   /* previous reading (degC, rpm) */
+    float x_anchor[ABBE_THERMAL_MAX_INPUTS]; /* the value the input has stayed near (stuck check) */
+    float still_s[ABBE_THERMAL_MAX_INPUTS];  /* for how long */
     float age_s[ABBE_THERMAL_MAX_CHANNELS];  /* time since the channel's last state update */
     float y[ABBE_THERMAL_MAX_CHANNELS];      /* channel value after its limit (um, urad) */
     float tip[ABBE_THERMAL_MAX_CHANNELS];    /* its part of the tool tip error, um (axis tip_axis) */
@@ -114,6 +124,8 @@ typedef struct {
     uint32_t wq28[ABBE_THERMAL_MAX_CHANNELS][ABBE_THERMAL_MAX_TERMS]; /* cached dt/(tau+dt), Q28 */
     uint32_t wq_dt_ms[ABBE_THERMAL_MAX_CHANNELS];                     /* the dt that cache is for */
     int32_t xq_prev[ABBE_THERMAL_MAX_INPUTS];
+    int32_t xq_anchor[ABBE_THERMAL_MAX_INPUTS];
+    uint32_t still_ms[ABBE_THERMAL_MAX_INPUTS];
     uint32_t age_ms[ABBE_THERMAL_MAX_CHANNELS];
     int32_t yq[ABBE_THERMAL_MAX_CHANNELS];   /* nm / nrad */
     int32_t tipq[ABBE_THERMAL_MAX_CHANNELS]; /* nm */

@@ -31,7 +31,7 @@ def record(c, s, program: Path, timeout: float) -> dict:
     c.wait_complete()
     c.program_open(str(program))
     c.wait_complete()
-    t, pos, line, stops, rot, joints = [], [], [], [], [], []
+    t, pos, line, stops, rot, joints, spindle = [], [], [], [], [], [], []
     t0 = time.monotonic()
     c.auto(linuxcnc.AUTO_RUN, 0)
     started = False
@@ -47,6 +47,8 @@ def record(c, s, program: Path, timeout: float) -> dict:
         rot.append(list(s.position[3:6]))  # A, B, C (deg): the five-axis programs
         joints.append(list(s.joint_position[:s.joints]))
         line.append(int(s.current_line))
+        sp = s.spindle[0] if s.spindles else {}
+        spindle.append([float(sp.get("speed", 0.0)), int(sp.get("direction", 0))])
         if s.interp_state != linuxcnc.INTERP_IDLE:
             started = True
         if s.task_paused or s.interp_state == linuxcnc.INTERP_PAUSED:
@@ -62,7 +64,8 @@ def record(c, s, program: Path, timeout: float) -> dict:
             raise RuntimeError(f"{program.name} did not start")
         time.sleep(0.002)
     return {"program": program.name, "t_s": t, "pos_mm": pos, "line": line, "stops": stops,
-            "seconds": t[-1], "abc_deg": rot, "joints": joints}
+            "seconds": t[-1], "abc_deg": rot, "joints": joints,
+            "spindle": spindle}  # commanded speed (rpm) and direction (1 M3, 0 stopped)
 
 
 def main() -> int:

@@ -80,6 +80,7 @@ class ChannelFit:
     n_eff: float = 0.0
     fit_rms_um: float = 0.0
     offset_um: float = 0.0  # the displacement sensor's zero (a nuisance, not in the model)
+    dropped: list[str] = field(default_factory=list)  # selected, then pruned: not decided
 
 
 def _vif_max(cols: np.ndarray) -> float:
@@ -163,22 +164,83 @@ def _refine_taus(t_s: np.ndarray, y: np.ndarray, cands: list[Candidate],
     return out
 
 
+def spindle_coupling(t_s: np.ndarray, cands: list[Candidate], mask: np.ndarray,
+                     grid: tuple[float, ...] = TAU_GRID_S) -> list[float]:
+    """How much of each input's rise on the masked samples the spindle's heat input
+    explains: R^2 of the rise regressed (with an offset) on the speed through the best lag
+    of ``grid``; 1 for the speed itself, 0 for every input without a speed candidate.
+
+    The physical support of an input when the data cannot decide between inputs: a sensor
+    the spindle heats follows the test's varying condition (the speed) into hours never
+    seen, a sensor that follows the room does not (and on one day of identification the
+    room's swing and an increasing speed schedule can look alike)."""
+    speed = [i for i, c in enumerate(cands) if c.kind == SPEED]
+    if not speed:
+        return [0.0] * len(cands)
+    lags = [lag_states(cands[speed[0]].rise, t_s, tau)[mask] for tau in grid]
+    out = []
+    for i, c in enumerate(cands):
+        if c.kind == SPEED:
+            out.append(1.0)
+            continue
+        u = c.rise[mask] - c.rise[mask].mean()
+        ss = float(u @ u)
+        best = 0.0
+        for s in lags:
+            a = _with_offset(s[:, None])
+            r = u - a @ _lstsq(a, u)
+            best = max(best, 1.0 - float(r @ r) / ss if ss > 0 else 0.0)
+        out.append(best)
+    return out
+
+
+def bounded(term: ThermalTerm, max_tau_s: float = TAU_BOUNDS_S[1]) -> bool:
+    """Whether the data decide a term (:data:`BOUND_RULE`): its gain's 95 % interval
+    excludes 0, and a lag's time constant is known within a factor of two (the upper
+    95 % half-width at most the value: the lag is told apart from a static term and from
+    twice itself) and not held at the time-constant cap (the data asked for a longer lag
+    than the record can identify)."""
+    if term.gain_u95 is None or not np.isfinite(term.gain_u95) or \
+            term.gain_u95 >= abs(term.gain):
+        return False
+    if term.tau_s == 0.0:
+        return True
+    return (term.tau_u95_s is not None and term.tau_u95_s <= term.tau_s
+            and term.tau_s < 0.99 * max_tau_s)
+
+
+#: What a term of an identified model must satisfy (:func:`bounded`, :func:`prune`).
+BOUND_RULE = "gain interval excludes 0; tau within a factor of 2 at 95 %, below the cap"
+#: Candidates tried (in preference order) at each selection step before it stops.
+MAX_TRIALS = 8
+
+
 def select_terms(t_s: np.ndarray, y: np.ndarray, cands: list[Candidate], cyc: np.ndarray,
                  *, max_terms: int = MAX_TERMS, max_vif: float = MAX_VIF,
                  min_gain: float = MIN_GAIN_FRACTION,
                  grid: tuple[float, ...] = TAU_GRID_S,
-                 start: list[tuple[int, float]] | None = None
+                 start: list[tuple[int, float]] | None = None,
+                 physical_tiebreak: bool = False
                  ) -> tuple[list[tuple[int, float]], list]:
     """Forward selection: the (candidate index, tau s) terms and the trace (added input,
-    its refined tau, CV RMS, max VIF). ``start``: terms taken as given (a diagnosis adds
-    to a known model). Each step scores every (input, grid tau) candidate beside the terms
-    so far, refines the time constants of the best one with the others (nonlinear least
-    squares on the identification samples), and keeps it if the refined set's
-    cross-validated RMS drops by ``min_gain`` and its largest VIF stays <= ``max_vif``."""
+    its refined tau, CV RMS, max VIF, rivals). ``start``: terms taken as given (a diagnosis
+    adds to a known model).
+
+    Each step scores every (input, grid tau) candidate beside the terms so far by
+    leave-one-cycle-out CV. Inputs whose best grid score is within :data:`RIVAL_FRACTION`
+    of the best are *undecided* by the data (reported as rivals). By default the best
+    three grid candidates are tried by score. With ``physical_tiebreak`` the undecided
+    inputs are tried first, the one the spindle's heat input explains best
+    (:func:`spindle_coupling`; the speed itself first) leading, then the remaining
+    candidates by score, at most :data:`MAX_TRIALS`. A trial's time
+    constants are refined with the others' (nonlinear least squares on the identification
+    samples); it is kept if the refined set's CV RMS drops by ``min_gain`` and its largest
+    VIF stays <= ``max_vif``."""
     grid_states = {(i, tau): lag_states(c.rise, t_s, tau)
                    for i, c in enumerate(cands) for tau in grid}
     fit_mask = cyc >= 0
     n_fixed = len(start or [])
+    coupling = spindle_coupling(t_s, cands, fit_mask, grid) if physical_tiebreak else None
 
     def st(k: tuple[int, float]) -> np.ndarray:
         if k not in grid_states:
@@ -200,24 +262,42 @@ def select_terms(t_s: np.ndarray, y: np.ndarray, cands: list[Candidate], cyc: np
                 continue
             ranked.append((_cv_rms(cols, y, cyc), key))
         ranked.sort()
+        if not ranked:
+            break
+        # each input's best grid key; the undecided ones (within RIVAL_FRACTION of the
+        # best) ordered by their physical support, then every other key by score
+        best_key: dict[int, tuple[float, tuple[int, float]]] = {}
+        for r, k in ranked:
+            best_key.setdefault(k[0], (r, k))
+        top = ranked[0][0]
+        if coupling is not None:
+            undecided = sorted((v for v in best_key.values()
+                                if v[0] <= top * (1 + RIVAL_FRACTION)),
+                               key=lambda v: (-coupling[v[1][0]], v[0]))
+            order = [k for _, k in undecided]
+            order += [k for _, k in ranked if k not in order]
+            order = order[:MAX_TRIALS]
+        else:
+            order = [k for _, k in ranked[:3]]  # the best three on the grid, refined
         accepted = False
-        for _, key in ranked[:3]:  # the best three on the grid, refined
+        for key in order:
             trial = _refine_taus(t_s, y, cands, chosen + [key], fit_mask, n_fixed)
             cols = np.column_stack([st(k) for k in trial])
             vif = _vif_max(cols[fit_mask])
             rms = _cv_rms(cols, y, cyc)
-            if vif <= max_vif and rms <= best_rms * (1.0 - min_gain):
-                chosen, best_rms, accepted = trial, rms, True
-                grid_rms = next(r for r, k in ranked if k == key)
-                rivals = []  # other inputs nearly as good on the grid: an ambiguous choice
-                for r, k in ranked:
-                    if r > grid_rms * (1.0 + RIVAL_FRACTION):
-                        break
-                    name = cands[k[0]].name
-                    if k[0] != key[0] and name not in rivals:
-                        rivals.append(name)
-                trace.append((cands[key[0]].name, trial[-1][1], rms, vif, tuple(rivals)))
-                break
+            if not (vif <= max_vif and rms <= best_rms * (1.0 - min_gain)):
+                continue
+            chosen, best_rms, accepted = trial, rms, True
+            grid_rms = next(r for r, k in ranked if k == key)
+            rivals = []  # other inputs nearly as good on the grid: an ambiguous choice
+            for r, k in ranked:
+                if r > grid_rms * (1.0 + RIVAL_FRACTION):
+                    break
+                name = cands[k[0]].name
+                if k[0] != key[0] and name not in rivals:
+                    rivals.append(name)
+            trace.append((cands[key[0]].name, trial[-1][1], rms, vif, tuple(rivals)))
+            break
         if not accepted:
             break
     return chosen, trace
@@ -292,17 +372,52 @@ def refine(t_s: np.ndarray, y: np.ndarray, cands: list[Candidate],
     return terms, float(np.sqrt(np.mean(r ** 2))), rho, float(n_eff), float(gains[0])
 
 
+def prune(t_s: np.ndarray, y: np.ndarray, cands: list[Candidate],
+          chosen: list[tuple[int, float]], mask: np.ndarray, n_fixed: int = 0
+          ) -> tuple[list[tuple[int, float]], list[str]]:
+    """The terms the data do not decide, dropped in one step: every term (after the first
+    ``n_fixed``, taken as given) that fails :func:`bounded` on the joint refinement of the
+    whole selected set, where the intervals are least inflated by missing structure. Not
+    repeated on the smaller set: with terms missing, the residuals' serial correlation
+    inflates every interval and an iterated elimination removes everything. Returns the
+    kept (candidate index, tau s) terms and the dropped terms' descriptions."""
+    if len(chosen) <= n_fixed:
+        return list(chosen), []
+    terms = refine(t_s, y, cands, chosen, mask)[0]
+    keep, dropped = [], []
+    for j, tt in enumerate(terms):
+        if j < n_fixed or bounded(tt):
+            keep.append((tt.input, tt.tau_s))
+            continue
+        g_u = tt.gain_u95 if tt.gain_u95 is not None else float("inf")
+        t_u = tt.tau_u95_s if tt.tau_u95_s is not None else float("inf")
+        dropped.append(f"{cands[tt.input].name} tau {tt.tau_s:.0f} s (gain {tt.gain:.3g} "
+                       f"+/- {g_u:.2g}, tau +/- {t_u:.3g} s)")
+    return keep, dropped
+
+
 def identify_channel(name: str, t_s: np.ndarray, y: np.ndarray, cands: list[Candidate],
-                     fit_mask: np.ndarray, cycle_s: float, **kw) -> ChannelFit:
-    """Select and refine one channel's terms on the samples of ``fit_mask``."""
+                     fit_mask: np.ndarray, cycle_s: float, *, decided_only: bool = False,
+                     **kw) -> ChannelFit:
+    """Select and refine one channel's terms on the samples of ``fit_mask``.
+
+    ``decided_only`` (the "decided" method, docs/thermal.md): undecided choices go to the
+    input with physical support (``physical_tiebreak``) and the terms the data do not
+    decide are dropped (:func:`prune`). Off by default: the committed example model and
+    the runtime's end-to-end check use the forward selection alone."""
     cyc = cycles_of(t_s, fit_mask, cycle_s)
-    chosen, trace = select_terms(t_s, y, cands, cyc, **kw)
+    chosen, trace = select_terms(t_s, y, cands, cyc, physical_tiebreak=decided_only, **kw)
+    dropped: list[str] = []
+    if decided_only:
+        chosen, dropped = prune(t_s, y, cands, chosen, fit_mask)
     if not chosen:
         off = float(np.mean(y[fit_mask]))
         return ChannelFit(name, [], float(np.sqrt(np.mean((y[fit_mask] - off) ** 2))), trace,
-                          offset_um=off)
+                          offset_um=off, dropped=dropped)
     terms, fit_rms, rho, n_eff, offset = refine(t_s, y, cands, chosen, fit_mask)
-    return ChannelFit(name, terms, trace[-1][2], trace, rho, n_eff, fit_rms, offset)
+    cv = (_cv_rms(np.column_stack([lag_states(cands[t.input].rise, t_s, t.tau_s)
+                                   for t in terms]), y, cyc) if decided_only else trace[-1][2])
+    return ChannelFit(name, terms, cv, trace, rho, n_eff, fit_rms, offset, dropped)
 
 
 def candidates_of(temps_c: np.ndarray, temp_names: list[str], speed_rpm: np.ndarray | None,
