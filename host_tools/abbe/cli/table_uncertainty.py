@@ -6,14 +6,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from abbe.analysis.fit.uncertainty import K, point_u, terms_from_json
-from abbe.cli.conventions import examples, list_option
+from abbe.cli.conventions import examples, json_file, json_option, json_to_stdout, list_option, print_json
 from abbe.cli.options import in_range
 from abbe.errors import AbbeInputError
 from abbe.formats.limits import TABLE_JSON_MAX_BYTES
@@ -89,13 +88,14 @@ def _cmd(args: argparse.Namespace) -> int:
         out["along"][a] = block
     if not args.pos and not args.along:
         raise AbbeInputError("give machine points (X Y Z ...) or --along AXIS", field="pos_mm")
-    if args.json == "-":
-        json.dump(out, sys.stdout, indent=1)
-        sys.stdout.write("\n")
+    if json_to_stdout(args):
+        print_json(out)
     else:
         print("\n".join(lines))
-        if args.json:
-            atomic_write(Path(args.json), (json.dumps(out, indent=1) + "\n").encode(), option="--json")
+        if json_file(args):
+            atomic_write(Path(str(json_file(args))),
+                         (json.dumps(out, indent=1, allow_nan=False) + "\n").encode(),
+                         option="--json")
     return 0
 
 
@@ -113,6 +113,5 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="tabulate every fitted term of AXIS and its U along the travel")
     q.add_argument("--points", type=int, default=11, choices=range(2, 1001), metavar="N",
                    help="positions along each axis for --along (2..1000, default 11)")
-    q.add_argument("--json", metavar="FILE", help="also write the results as JSON to FILE "
-                   "('-': JSON to stdout instead of the text)")
+    json_option(q, "the results")
     q.set_defaults(func=_cmd)

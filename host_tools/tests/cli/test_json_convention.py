@@ -87,9 +87,10 @@ def test_every_json_option_is_the_one_convention() -> None:
                 seen.append(" ".join(path))
                 assert isinstance(a, conventions._JsonAction), path
                 assert a.metavar == "FILE" and "docs/cli.md" in (a.help or ""), path
-    # the nine commands of docs/cli.md (demo has it once for both of its pipelines)
+    # the commands of docs/cli.md (demo has it once for both of its pipelines)
     assert sorted(seen) == sorted(["iso230-2", "ballbar", "predict", "simulate", "export",
-                                   "printer fit", "demo", "diagnose", "thermal evaluate"])
+                                   "printer fit", "demo", "diagnose", "thermal evaluate",
+                                   "table uncertainty"])
 
 
 @pytest.mark.parametrize("name", ["iso230-2", "ballbar", "simulate", "export", "printer fit",
