@@ -5,7 +5,7 @@ Each ``read_<target>(out_dir)`` parses the files as the controller would and ret
 ``corr(pos_mm (N, 3), state (N, 3)) -> (N, 3) um``: what the controller adds to the
 commanded position (state: +1 after moving +, -1 after moving -). Eq. 3 for the ISG
 reader is written out here from docs/table-format.md. Nothing is imported from
-abbe.formats.export.
+abbe.exports.
 """
 
 from __future__ import annotations

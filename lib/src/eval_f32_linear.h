@@ -3,7 +3,9 @@
  * which also needs the linear axes' angles summed (the tool's orientation
  * error) and the positions in nm (the rotary levers). Inlined into each, so
  * the 3-axis core compiles to what it was (bench/results.md, section 11) and
- * the five-axis one evaluates each axis once. Not installed.
+ * the five-axis one evaluates each axis once. Not installed. The extras it
+ * calls (abbe_f32_extras_nonfinite, abbe_f32_add_extras: internal.h) are
+ * defined in eval_f32_extras.h, which includes nothing of this file's users.
  *
  * Include with ABBE_EVAL_F32_ROT defined for the five-axis variant: its folds
  * are abbe_axis_fold_rot_f32, which add the angles into w. */

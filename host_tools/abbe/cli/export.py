@@ -13,7 +13,7 @@ from abbe.cli.conventions import examples, json_file, json_option, json_to_stdou
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    from abbe.formats.export import FIVE_AXIS_TARGETS, TARGETS
+    from abbe.exports import FIVE_AXIS_TARGETS, TARGETS
 
     names = list(TARGETS) + list(FIVE_AXIS_TARGETS)
 
@@ -46,9 +46,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from abbe.formats.export import run_export, run_five_export, target_module, write_files
-    from abbe.formats.export.five_axis import summary as five_summary
-    from abbe.formats.export.residual import summary
+    from abbe.exports import run_export, run_five_export, target_module, write_files
+    from abbe.exports.five_axis import summary as five_summary
+    from abbe.exports.residual import summary
     from abbe.formats.machine import load_machine
     from abbe.formats.model_file import load_table
     from abbe.formats.output import Outputs

@@ -10,10 +10,10 @@ from abbe.cli.options import in_range, int_range
 from abbe.errors import AbbeInputError
 from abbe.formats.machine import load_machine
 from abbe.formats.output import Outputs
-from abbe.formats.programs.dialects import DIALECTS, render
-from abbe.formats.programs.five_axis import FIVE_AXIS_TESTS
-from abbe.formats.programs.plan import SEQUENCES, TESTS, ballbar_program, line_program
-from abbe.formats.programs.thermal import DEFAULT_SPEEDS_RPM, THERMAL_TESTS, spindle_program
+from abbe.programs.dialects import DIALECTS, render
+from abbe.programs.five_axis import FIVE_AXIS_TESTS
+from abbe.programs.plan import SEQUENCES, TESTS, ballbar_program, line_program
+from abbe.programs.thermal import DEFAULT_SPEEDS_RPM, THERMAL_TESTS, spindle_program
 from abbe.model.geometry import PLANES
 from abbe.model.table import AXES
 

@@ -12,7 +12,7 @@ from pathlib import Path
 from abbe.errors import AbbeInputError
 from abbe.formats.machine import load_machine
 from abbe.formats.output import Outputs
-from abbe.formats.programs.five_axis import (ProbingProgram, probing_gcode, rtest_gcode,
+from abbe.programs.five_axis import (ProbingProgram, probing_gcode, rtest_gcode,
                                              rtest_path)
 from abbe.model.table import AXES
 from abbe.sim.five_axis import probing_positions

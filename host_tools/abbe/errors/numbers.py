@@ -41,7 +41,7 @@ _NOT_DECIMAL = {".": re.compile(r"[^0-9.eE+\-\n]"), ",": re.compile(r"[^0-9,eE+\
 
 
 def _err(msg: str, file: str | None, line: int | None, field: str | None) -> Exception:
-    from abbe.errors import AbbeInputError
+    from abbe.errors.input_error import AbbeInputError
     return AbbeInputError(msg, file=file, line=line, field=field)
 
 

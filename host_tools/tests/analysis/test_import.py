@@ -19,7 +19,7 @@ from abbe.model.reference import spatial_error, term_values
 from abbe.model.table import AXES
 
 REPO = Path(__file__).resolve().parents[3]
-GOLDEN = REPO / "host_tools" / "tests" / "formats" / "export" / "golden"
+GOLDEN = REPO / "host_tools" / "tests" / "exports" / "golden"
 MACHINE = REPO / "examples" / "vmc500" / "machine.toml"
 ISO = {"dx": "X", "dy": "Y", "dz": "Z", "ex": "A", "ey": "B", "ez": "C"}
 

@@ -9,7 +9,7 @@ import re
 import pytest
 
 from abbe.cli.entry import main
-from abbe.formats.programs.dialects import DIALECTS
+from abbe.programs.dialects import DIALECTS
 from abbe.model.thermal import from_dict
 from thermal_helpers import REAL_MACHINE
 

@@ -4,7 +4,7 @@
 Builds port/grblhal/bench/bench_grblhal.c for both (build-bench-grblhal-m4f/,
 -m3/, the project's toolchain files) with the vmc500 table (abbe fit of
 examples/vmc500, abbe table cgen), runs it under QEMU with an exec trace and
-counts the instructions of each call exactly (scripts/bench_report.py's
+counts the instructions of each call exactly (bench/report/measure.py's
 qemu_trace_counts: one trace line per executed instruction, minus an empty
 pair of marks); flash: the plugin core's object (all of it), and from the
 link map the library members it pulls in and libgcc's soft-float helpers. Writes
@@ -29,8 +29,9 @@ import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[3]
-sys.path.insert(0, str(REPO / "scripts"))
-from bench_report import parse_map, qemu_trace_counts  # noqa: E402
+sys.path.insert(0, str(REPO / "bench"))
+from report.maps import parse_map  # noqa: E402
+from report.measure import qemu_trace_counts  # noqa: E402
 
 TARGETS = {"m4f": ("Cortex-M4F", "cortex-m4f", "mps2-an386", "_f32"),
            "m3": ("Cortex-M3", "cortex-m3", "mps2-an385", "_q")}

@@ -17,7 +17,7 @@ thread and says nothing about an RT kernel.
                                  [--five TABLE]
 
 --five TABLE: a five-axis table (format 1.2, e.g. the golden trunnion5ax fit
-host_tools/tests/formats/export/golden/trunnion5ax-fit/model_five.bin) instead,
+host_tools/tests/exports/golden/trunnion5ax-fit/model_five.bin) instead,
 the tilt joint on the circle's sine (+/-100 deg) and C on a triangle wave, identity
 kinematics (kinstype 0): the five-axis mode's cost per period.
 

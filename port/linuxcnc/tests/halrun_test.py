@@ -368,7 +368,7 @@ def test_bad_tables(work: Path, good: Path) -> None:
         log(f"bad table {name}: refused ({expect})")
     # a five-axis table after a 3-axis one: the pins would mean axis and joint positions
     five = work / "five.bin"
-    five.write_bytes((REPO / "host_tools/tests/formats/export/golden/trunnion5ax-fit/"
+    five.write_bytes((REPO / "host_tools/tests/exports/golden/trunnion5ax-fit/"
                       "model_five.bin").read_bytes())
     give(five)
     script = work / "bad.hal"
