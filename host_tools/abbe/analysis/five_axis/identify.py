@@ -238,8 +238,9 @@ def identify(spec: FiveAxisSpec, blocks: list[Block], params: list[Param]) -> Fi
     """The whole identification (module docstring)."""
     g, h = spec.geometry, spec.fit.harmonics
     P = len(params)
-    for b in blocks:  # start weights: a first solve estimates them
-        b.sigma = 5.0 if b.kind == "indexer" else 1.0
+    for b in blocks:  # start weights: a first solve estimates them (a datum's is declared)
+        if b.kind != "datum":
+            b.sigma = 5.0 if b.kind == "indexer" else 1.0
     pb = _Problem(spec, params, blocks)
     x, nfev = np.zeros(P), 0
     bilinear = [i for i, p in enumerate(params) if "mount" in p.name]
@@ -256,6 +257,8 @@ def identify(spec: FiveAxisSpec, blocks: list[Block], params: list[Param]) -> Fi
     nfev += n1
     # Weights: each block's standard deviation from its residuals, then refit.
     for b in blocks:
+        if b.kind == "datum":
+            continue  # a declared (Type B) uncertainty, not estimated from its residuals
         r = residual_block(g, params, x, h, b)
         if b.kind in ("indexer", "ballbar"):
             n_own = sum(1 for i in free if params[i].block == b.key) + 1
