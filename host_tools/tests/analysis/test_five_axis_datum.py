@@ -77,3 +77,16 @@ def test_a_tighter_datum_narrows_the_zeros(tmp_path: Path) -> None:
         assert tight.sd[names[n]] < ratio * loose.sd[names[n]], n
     # what the datum does not bound stays as the probing determines it
     assert np.isclose(tight.sd[names["EY0A"]], loose.sd[names["EY0A"]], rtol=0.2)
+
+
+def test_the_datum_probing_has_a_program(tmp_path: Path) -> None:
+    """The plan's program writer covers the datum sphere like any probing (``--name D1``)
+    and says in its header that the sphere is a datum."""
+    from abbe.cli.entry import main
+
+    out = tmp_path / "d1.ngc"
+    assert main(["program", "--test", "five-axis-probing", "--name", "D1", "--dialect",
+                 "linuxcnc", "-o", str(out), str(EXAMPLE / "machine.toml")]) == 0
+    text = out.read_text()
+    assert "a datum sphere: its place declared to 1 um" in text.splitlines()[0]
+    assert "(sphere -90.0000 120.0000 -250.0000 mm" in text and "LOGOPEN,probe_D1.csv" in text

@@ -36,15 +36,19 @@ RANK_TOL = 1e-7
 NULL_TOL = 1e-3
 #: Which test would see an unobservable error (docs/concepts.md).
 SEEN_BY = {
-    "zero": "probing a second feature at a known angular position on the table (a workpiece "
-            "datum), or referencing the axis' home with a laser + rotary indexer",
+    "zero": "a datum sphere off the axis at a calibrated place on the table ([probing.NAME] "
+            "datum_u_um; examples/trunnion5ax_complete), or referencing the axis' home with a "
+            "laser + rotary indexer",
     "squareness": "a laser diagonal test or ballbar circles of the linear axes (ISO 230-1 / "
                   "ISO 230-4), fitted by `abbe fit` on a 3-axis file",
     "motion": "an R-test with spheres at two heights (tilt vs radial), the laser + rotary "
               "indexer for the angular motion, more rotary positions per revolution",
     "location": "probing at more angles of the other rotary axis or a second sphere height "
-                "(a ballbar: the other axis turning, or the table ball at a second height)",
-    "setup": "a sphere position measured in a known frame",
+                "(a ballbar: the other axis turning, or the table ball at a second height); "
+                "what stays confounded with the spheres' places: a datum sphere "
+                "([probing.NAME] datum_u_um)",
+    "setup": "a sphere position measured in a known frame (a datum: [probing.NAME] "
+             "datum_u_um)",
     "drift": "the diagnosis plan (`abbe program --passes 2`: the grid again backwards, so "
              "campaign time no longer goes with the pose) or one position repeated at the "
              "start, middle and end",
