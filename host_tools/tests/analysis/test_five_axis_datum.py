@@ -90,3 +90,18 @@ def test_the_datum_probing_has_a_program(tmp_path: Path) -> None:
     text = out.read_text()
     assert "a datum sphere: its place declared to 1 um" in text.splitlines()[0]
     assert "(sphere -90.0000 120.0000 -250.0000 mm" in text and "LOGOPEN,probe_D1.csv" in text
+
+
+def test_monte_carlo_agrees_with_the_datum_plans_U() -> None:
+    """The declared datum uncertainty propagates as the analytic U says: new observations
+    of every block (the datum's drawn with its declared u) solved again, 300 draws, agree
+    with U within 10 % for all ten location errors (measured: 0.93 to 1.04)."""
+    from abbe.analysis.five_axis import uncertainty as fx
+
+    spec = load_machine(EXAMPLE / "machine.toml").five_axis
+    plan = load_plan(spec)
+    params = build_params(spec, plan.blocks)
+    res = identify(spec, plan.blocks, params)
+    mc = fx.monte_carlo(spec, plan.blocks, params, res, draws=300, seed=7)["parameters"]
+    for n in LOCATION:
+        assert abs(mc[n]["U_mc"] / mc[n]["U"] - 1.0) < 0.10, (n, mc[n])
