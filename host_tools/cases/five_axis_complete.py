@@ -16,7 +16,7 @@ differs from the declared one by ``DATUM_ERROR_MM`` (within its uncertainty).
 from __future__ import annotations
 
 import dataclasses
-import shutil
+import json
 import sys
 from pathlib import Path
 
@@ -61,8 +61,14 @@ def generate(out: Path, seed: int = 2026) -> Path:
     mf.write_text(mf.read_text() + f'\n[probing.D1]\nfile = "probe_D1.csv"\n'
                   f"sphere_mm = {list(datum)!r}\nsphere_radius_mm = 12.5\n"
                   f"stylus_radius_mm = 1.5\ndatum_u_um = {DATUM_U_UM!r}\n", encoding="utf-8")
+    truth = json.loads((out / "truth.json").read_text(encoding="utf-8"))
+    # the datum's true place against its declaration (the other spheres': sphere_offset_mm)
+    truth["datum"] = {"D1": {"declared_mm": list(datum), "true_offset_mm": list(DATUM_ERROR_MM),
+                             "declared_u_um": DATUM_U_UM}}
     (out / "truth").mkdir(exist_ok=True)
-    shutil.move(str(out / "truth.json"), str(out / "truth" / "truth.json"))
+    (out / "truth" / "truth.json").write_text(json.dumps(truth, indent=2) + "\n",
+                                              encoding="utf-8")
+    (out / "truth.json").unlink()
     return mf
 
 

@@ -55,6 +55,12 @@ def test_the_datum_makes_every_location_error_observable(truth) -> None:
                                                                       truth[n])
     datum = next(b for b in res.blocks if b.kind == "datum")
     assert datum.key == "datum.D1" and float(datum.sigma) == 1.0  # declared, not re-estimated
+    # the datum sphere's place, 1.4 um off its declaration in the virtual machine, is found
+    # within its U (the declaration pulls it to 0 with weight 1 / u^2, the probing the rest)
+    true = json.loads((EXAMPLE / "truth" / "truth.json").read_text())["datum"]["D1"]
+    for c, off_mm in zip("xyz", true["true_offset_mm"]):
+        i = names[f"probe.D1 sphere {c}"]
+        assert abs(res.x[i] - off_mm * 1e3) <= 2.0 * res.sd[i], (c, res.x[i], res.sd[i])
 
 
 def test_without_the_declaration_the_zeros_stay_confounded(tmp_path: Path) -> None:
@@ -105,3 +111,15 @@ def test_monte_carlo_agrees_with_the_datum_plans_U() -> None:
     mc = fx.monte_carlo(spec, plan.blocks, params, res, draws=300, seed=7)["parameters"]
     for n in LOCATION:
         assert abs(mc[n]["U_mc"] / mc[n]["U"] - 1.0) < 0.10, (n, mc[n])
+
+
+def test_the_example_is_what_its_generator_writes(tmp_path: Path) -> None:
+    """examples/trunnion5ax_complete is cases/five_axis_complete.py's output, byte for byte
+    (the truth kept apart, the datum's true place in it)."""
+    from cases.five_axis_complete import generate
+
+    generate(tmp_path)
+    for f in ("machine.toml", "probe.csv", "probe_D1.csv", "rtest.csv", "indexer_C.csv",
+              "truth/truth.json"):
+        assert (tmp_path / f).read_bytes() == (EXAMPLE / f).read_bytes(), f
+    assert not (tmp_path / "truth.json").exists()
