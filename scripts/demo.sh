@@ -4,7 +4,8 @@
 # geometry): fit the 6D laser lines -> tables (blob, C, JSON) -> build check ->
 # predict the ballbar circle through the C library -> diagnose what the model
 # misses -> compensate in the loop with the C compensator. Writes the HTML
-# report to demo-out/index.html and the figures to demo-out/summary.json.
+# report to demo-out/index.html and the figures to demo-out/summary.json; then the
+# five-axis demo into demo-out/five-axis/ (figures: demo-out/five-axis.json).
 #   ./scripts/demo.sh
 set -euo pipefail
 
@@ -19,3 +20,7 @@ export ABBE_LIB="$REPO/build/lib/libabbe.so"
 
 "$REPO/.venv/bin/abbe" demo -o demo-out --json demo-out/summary.json
 echo "report: $REPO/demo-out/index.html"
+# The five-axis part: the trunnion5ax_complete plan (probing, R-test, indexer, a datum
+# sphere at a second height) identified whole and compared with its truth.
+"$REPO/.venv/bin/abbe" demo --five-axis -o demo-out/five-axis --json demo-out/five-axis.json
+echo "five-axis report: $REPO/demo-out/five-axis/report/index.html"

@@ -3,8 +3,9 @@ plus a second probing on a sphere 60 mm higher and 80 mm nearer the C axis (issu
 5: "what the report says is needed"). Measured with it: EX0C goes from 20.6 +- 37.1 um
 (U, k = 2) to -6.84 +- 1.23 um (truth -5.84) and EB0C becomes observable (-13.40 +- 2.87
 urad, truth -13.38); EA0A, EY0C, EA0C, EC0C stay confounded with the spheres' y and z
-positions: only a datum (a sphere position known in the workpiece frame) separates them,
-and abbe's plans have no such block yet. Writes into ``out``; returns the machine file."""
+positions: only a datum (a sphere position known in the workpiece frame) separates them
+(``[probing.NAME] datum_u_um``: cases/five_axis_complete.py, the demo's plan). Writes into
+``out``; returns the machine file."""
 
 from __future__ import annotations
 

@@ -31,8 +31,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     json_option(p, "the summary figures")
     p.add_argument("--no-diagnose", action="store_true", help="skip the diagnose step")
     p.add_argument("--five-axis", action="store_true",
-                   help="the five-axis demo instead: identify the trunnion5ax example (A/C "
-                        "trunnion, probing + R-test + indexer) and compare with its truth")
+                   help="the five-axis demo instead: identify the trunnion5ax_complete example "
+                        "(A/C trunnion, probing + R-test + indexer + a datum sphere at a second "
+                        "height) and compare with its truth")
     p.set_defaults(func=run)
 
 
@@ -126,7 +127,7 @@ def _run_five_axis(args: argparse.Namespace) -> int:
     from abbe.formats.output import Outputs
     from abbe.paths import examples_dir
 
-    example = args.example or examples_dir() / "trunnion5ax"
+    example = args.example or examples_dir() / "trunnion5ax_complete"
     with Outputs() as outs:
         staging = outs.directory(args.out, option="--out")
         js = outs.file(json_file(args), option="--json") if json_file(args) else None
@@ -141,7 +142,7 @@ def _run_five_axis(args: argparse.Namespace) -> int:
     print(f"abbe demo --five-axis ({s['machine']}, {s['kinematics']}): "
           f"{s['within_interval_or_1um_5urad']} of {s['observable_location_errors']} observable "
           f"location errors within their interval of the truth; not observable (named): "
-          f"{', '.join(s['unobservable'])}; sphere-centre dispersion {s['dispersion_before_um']:.2f}"
+          f"{', '.join(s['unobservable']) or 'none'}; sphere-centre dispersion {s['dispersion_before_um']:.2f}"
           f" -> {s['dispersion_after_um']:.2f} um (held out {s['heldout_before_um']:.2f} -> "
           f"{s['heldout_after_um']:.2f} um); report in {args.out}/report/index.html")
     return 0

@@ -128,13 +128,17 @@ def table_solution(res) -> tuple:
     uncertain = [res.params[i].name for i in machine if not res.obs.observable[i]
                  and sdc is not None and np.isfinite(sdc[i])
                  and 1.96 * sdc[i] > res.params[i].scale]
+    # a plan with a datum that leaves nothing unobserved has no convention to state
+    complete = bool(res.obs.observable.all()) and any(b.kind == "datum" for b in res.blocks)
     return x, {
         "fixed_at_zero": zero,
         "determined_in_convention": held,
         "smallest_of_undetermined": smallest,
         "prior_one_typical_size": bool(res.prior),
         "uncertain_in_convention": uncertain,
-        "statement": ("the errors this plan cannot observe alone are held in the fit's "
+        "statement": ("the plan observes every error it fits: the table holds the fit's "
+                      "values, no convention" if complete else
+                      "the errors this plan cannot observe alone are held in the fit's "
                       "convention: " + (", ".join(zero) or "nothing") + " fixed at 0, "
                       + (", ".join(held) or "nothing else") + " as the fit determined them "
                       "in that convention (only their combination with the fixed ones is "
@@ -151,9 +155,14 @@ def table_solution(res) -> tuple:
                          "interval wider than their typical size even in the convention: "
                          "this table may compensate poorly away from the probed poses; "
                          "probe spheres at several heights and radii" if uncertain else "")),
-        "workpiece_datum": ("what the plan cannot see is a rigid placement of the workpiece on "
-                            "the table (its position and orientation): a workpiece datum, i.e. "
-                            "probing the part after clamping it, absorbs it"),
+        "workpiece_datum": (
+            "the plan observes every error: the table frame is its datum's ("
+            + ", ".join(f"{b.key}, declared to {float(b.sigma):g} um" for b in res.blocks
+                        if b.kind == "datum") + "); a workpiece is placed in that frame by "
+            "probing it after clamping" if complete else
+            "what the plan cannot see is a rigid placement of the workpiece on the table (its "
+            "position and orientation): a workpiece datum, i.e. probing the part after "
+            "clamping it, absorbs it"),
     }
 
 

@@ -73,8 +73,10 @@ def run_five_axis(args: argparse.Namespace) -> int:
                                       pos, n_points=args.points, probe_feed=args.probe_feed,
                                       safe_z_mm=args.safe_z_mm, log_file=log_file,
                                       fit_reads=_relative_log(pl.file, m.path))
+                datum = ("" if pl.datum_u_um is None else
+                         f", a datum sphere: its place declared to {pl.datum_u_um:g} um")
                 text = probing_gcode(g, prog, travel, f"five-axis sphere probing {name} of "
-                                     f"{m.name}, {g.kind}")
+                                     f"{m.name}, {g.kind}{datum}")
                 what = (f"{len(pos)} positions x {args.points} points, LOGOPEN {log_file} "
                         f"(abbe fit reads {pl.file})")
             else:

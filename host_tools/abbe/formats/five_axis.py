@@ -7,7 +7,8 @@ Machine file sections (docs/formats.md, "Five-axis machine file"):
   ``y_offset_mm``, ``z_offset_mm`` for A or ``x_offset_mm``, ``z_offset_mm`` for
   B; ``tool_length_mm``), ``[rotary.A|B|C] travel_deg``, and the plan's fit
   settings ``[rotary.fit]``;
-* ``[probing.NAME]``: a touch-probe campaign on a calibration sphere;
+* ``[probing.NAME]``: a touch-probe campaign on a calibration sphere (``datum_u_um``: the
+  sphere is a datum, its centre known at ``sphere_mm`` to that standard uncertainty);
 * ``[rtest.NAME]``: an R-test campaign;
 * ``[indexer.C]`` (or A / B): a laser with a rotary indexer (ISO 230-2 of a rotary axis);
 * ``[rotary_ballbar.NAME]``: a ballbar with a rotary axis turning under tool-centre-point
@@ -51,6 +52,9 @@ DISPLACEMENT_LIMIT_UM = 10_000.0
 DEVIATION_LIMIT_URAD = 100_000.0
 TIME_LIMIT_S = 1e7
 HARMONICS_MAX = 8
+#: A datum sphere's declared standard uncertainty (um): below 0.01 um no calibration of a
+#: location on a table is; above 1 mm it is no datum.
+DATUM_U_RANGE_UM = (0.01, 1000.0)
 #: A rotary ballbar's nominal length (mm): the bars sold run from 50 to 600 mm; a tool and a
 #: table ball closer than 10 mm or further than 1000 mm are not a ballbar set-up.
 BAR_LENGTH_RANGE_MM = (10.0, 1000.0)
@@ -71,6 +75,10 @@ class ProbingPlan:
     stylus_radius_mm: float
     radius_tolerance_mm: float
     line: int | None = None
+    #: a datum: the sphere's centre is known at ``sphere_mm`` in the workpiece frame (a
+    #: calibrated location on the table) to this standard uncertainty (um, k = 1); None: its
+    #: place is a set-up unknown like any sphere's
+    datum_u_um: float | None = None
 
 
 @dataclass(frozen=True)
@@ -193,7 +201,8 @@ def parse_five_axis(data: dict[str, Any], err: Callable[[str, str], AbbeInputErr
     for name, sec in _table(data.get("probing", {}), err, "probing").items():
         f = f"probing.{name}"
         s = _keys(_table(sec, err, f), err, f, ("file", "sphere_mm", "sphere_radius_mm",
-                                                "stylus_radius_mm", "radius_tolerance_mm"),
+                                                "stylus_radius_mm", "radius_tolerance_mm",
+                                                "datum_u_um"),
                   ("file", "sphere_mm", "sphere_radius_mm"))
         probing[name] = ProbingPlan(
             name, resolve(_str(s["file"], err, f"{f}.file"), f"{f}.file"),
@@ -201,7 +210,9 @@ def parse_five_axis(data: dict[str, Any], err: Callable[[str, str], AbbeInputErr
             num(s["sphere_radius_mm"], f"{f}.sphere_radius_mm", *SPHERE_RADIUS_RANGE_MM, "mm"),
             num(s.get("stylus_radius_mm", 0.0), f"{f}.stylus_radius_mm", *STYLUS_RADIUS_RANGE_MM, "mm"),
             num(s.get("radius_tolerance_mm", 0.02), f"{f}.radius_tolerance_mm",
-                *RADIUS_TOL_RANGE_MM, "mm"), line(f))
+                *RADIUS_TOL_RANGE_MM, "mm"), line(f),
+            None if "datum_u_um" not in s
+            else num(s["datum_u_um"], f"{f}.datum_u_um", *DATUM_U_RANGE_UM, "um"))
     rtest: dict[str, RTestPlan] = {}
     for name, sec in _table(data.get("rtest", {}), err, "rtest").items():
         f = f"rtest.{name}"

@@ -9,16 +9,39 @@ from abbe.cli.entry import main
 
 
 def test_demo_five_axis(tmp_path: Path) -> None:
+    """The flagship plan (trunnion5ax_complete: a datum sphere at a second height) ends in a
+    complete calibration: all ten location errors observed, each within its interval of
+    the truth, nothing named as unseen, nothing fixed by convention."""
     out, js = tmp_path / "demo", tmp_path / "s.json"
     assert main(["demo", "--five-axis", "-o", str(out), "--json", str(js)]) == 0
     s = json.loads(js.read_text())
-    assert s["kinematics"] == "xyzac-trt"
-    assert s["within_interval_or_1um_5urad"] == s["observable_location_errors"] >= 4
-    assert {"EA0A", "EC0C"} <= set(s["unobservable"])
+    assert s["machine"] == "trunnion5ax_complete" and s["kinematics"] == "xyzac-trt"
+    assert s["within_interval_or_1um_5urad"] == s["observable_location_errors"] == 10
+    assert s["unobservable"] == []
     assert s["heldout_after_um"] < s["heldout_before_um"] / 5
     assert (out / "report" / "index.html").is_file() and (out / "truth_comparison.txt").is_file()
     doc = json.loads((out / "five_axis.json").read_text())
     assert doc["rotary_positioning"]["C"]["A_urad"] > 0
+    assert doc["observability"]["fixed_by_convention"] == []
+    assert doc["observability"]["confounded_groups"] == []
+    loc = {r["name"]: r for r in doc["parameters"] if r["kind"] == "location"}
+    assert all(r["observable"] and r["U"] > 0 for r in loc.values()) and len(loc) == 10
+    assert "datum.D1" in doc["block_sigma"] and doc["block_sigma"]["datum.D1"] == [1.0]
+    comparison = (out / "truth_comparison.txt").read_text()
+    assert "not observable" not in comparison and " NO" not in comparison
+
+
+def test_demo_five_axis_without_the_datum(tmp_path: Path) -> None:
+    """The plan without the datum and second height (examples/trunnion5ax) still names what
+    it cannot see: the angular zeros and the C line's y and tilt stay confounded."""
+    from abbe.paths import examples_dir
+
+    out, js = tmp_path / "demo", tmp_path / "s.json"
+    assert main(["demo", "--five-axis", "--example", str(examples_dir() / "trunnion5ax"),
+                 "-o", str(out), "--json", str(js)]) == 0
+    s = json.loads(js.read_text())
+    assert s["within_interval_or_1um_5urad"] == s["observable_location_errors"] >= 4
+    assert {"EA0A", "EY0C", "EA0C", "EC0C"} <= set(s["unobservable"])
 
 
 def test_diagnose_cli_on_a_five_axis_file(tmp_path: Path, capsys) -> None:

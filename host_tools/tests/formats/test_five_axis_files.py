@@ -62,6 +62,9 @@ def test_trunnion_machine_file_is_read(tmp_path: Path) -> None:
     assert fa.geometry.travel_deg == {"A": (-110.0, 110.0), "C": (-360.0, 360.0)}
     assert fa.probing["S1"].file == (tmp_path / "probe.csv").resolve()
     assert fa.probing["S1"].radius_tolerance_mm == 0.02
+    assert fa.probing["S1"].datum_u_um is None  # a set-up unknown unless declared a datum
+    datum = ROTARY_AC.replace("stylus_radius_mm = 1.5", "stylus_radius_mm = 1.5\ndatum_u_um = 1.5")
+    assert load_machine(_machine(tmp_path, datum)).five_axis.probing["S1"].datum_u_um == 1.5
     assert fa.fit.harmonics == 0
     bc = ROTARY_AC.replace("xyzac", "xyzbc").replace("y_offset_mm", "x_offset_mm") \
         .replace("rotary.A]", "rotary.B]")
@@ -81,6 +84,12 @@ def test_trunnion_machine_file_is_read(tmp_path: Path) -> None:
     (("[rotary.C]\ntravel_deg = [-360.0, 360.0]\n", ""), "rotary", "missing [rotary.C]"),
     (("sphere_mm = [60.0, 20.0, -270.0]", "sphere_mm = [60.0, 20.0]"), "probing.S1.sphere_mm",
      "array of 3"),
+    (("stylus_radius_mm = 1.5", "stylus_radius_mm = 1.5\ndatum_u_um = 0.0"),
+     "probing.S1.datum_u_um", "in [0.01"),
+    (("stylus_radius_mm = 1.5", "stylus_radius_mm = 1.5\ndatum_u_um = nan"),
+     "probing.S1.datum_u_um", "finite"),
+    (("stylus_radius_mm = 1.5", 'stylus_radius_mm = 1.5\ndatum_u_um = "1"'),
+     "probing.S1.datum_u_um", "expected"),
 ])
 def test_bad_five_axis_sections_are_located(tmp_path: Path, edit, field, words) -> None:
     text = ROTARY_AC.replace(*edit)

@@ -52,6 +52,12 @@ def load_plan(spec: FiveAxisSpec) -> PlanData:
                             np.asarray(pl.sphere_mm), time_s=sc.time_s[ok],
                             positions=sc.position[ok], noise_floor_um=sc.centre_noise_um(ok),
                             centre_cov_um2=sc.centre_cov_um2(ok)))
+        if pl.datum_u_um is not None:
+            # the sphere's declared place: its three set-up unknowns measured at 0 um with
+            # the declared uncertainty (what fixes the frame the angular zeros turn)
+            blocks.append(Block("datum", name, np.zeros((1, 2)), np.zeros((1, 3)),
+                                np.asarray(pl.sphere_mm), sigma=float(pl.datum_u_um),
+                                of=f"probe.{name}"))
     for name, rt in spec.rtest.items():
         tr = read_rtest(rt.file, tilt)
         blocks.append(Block("rtest", name, tr.angles_deg, tr.displacement_um,

@@ -36,15 +36,19 @@ RANK_TOL = 1e-7
 NULL_TOL = 1e-3
 #: Which test would see an unobservable error (docs/concepts.md).
 SEEN_BY = {
-    "zero": "probing a second feature at a known angular position on the table (a workpiece "
-            "datum), or referencing the axis' home with a laser + rotary indexer",
+    "zero": "a datum sphere off the axis at a calibrated place on the table ([probing.NAME] "
+            "datum_u_um; examples/trunnion5ax_complete), or referencing the axis' home with a "
+            "laser + rotary indexer",
     "squareness": "a laser diagonal test or ballbar circles of the linear axes (ISO 230-1 / "
                   "ISO 230-4), fitted by `abbe fit` on a 3-axis file",
     "motion": "an R-test with spheres at two heights (tilt vs radial), the laser + rotary "
               "indexer for the angular motion, more rotary positions per revolution",
     "location": "probing at more angles of the other rotary axis or a second sphere height "
-                "(a ballbar: the other axis turning, or the table ball at a second height)",
-    "setup": "a sphere position measured in a known frame",
+                "(a ballbar: the other axis turning, or the table ball at a second height); "
+                "what stays confounded with the spheres' places: a datum sphere "
+                "([probing.NAME] datum_u_um)",
+    "setup": "a sphere position measured in a known frame (a datum: [probing.NAME] "
+             "datum_u_um)",
     "drift": "the diagnosis plan (`abbe program --passes 2`: the grid again backwards, so "
              "campaign time no longer goes with the pose) or one position repeated at the "
              "start, middle and end",
@@ -238,8 +242,9 @@ def identify(spec: FiveAxisSpec, blocks: list[Block], params: list[Param]) -> Fi
     """The whole identification (module docstring)."""
     g, h = spec.geometry, spec.fit.harmonics
     P = len(params)
-    for b in blocks:  # start weights: a first solve estimates them
-        b.sigma = 5.0 if b.kind == "indexer" else 1.0
+    for b in blocks:  # start weights: a first solve estimates them (a datum's is declared)
+        if b.kind != "datum":
+            b.sigma = 5.0 if b.kind == "indexer" else 1.0
     pb = _Problem(spec, params, blocks)
     x, nfev = np.zeros(P), 0
     bilinear = [i for i, p in enumerate(params) if "mount" in p.name]
@@ -256,6 +261,8 @@ def identify(spec: FiveAxisSpec, blocks: list[Block], params: list[Param]) -> Fi
     nfev += n1
     # Weights: each block's standard deviation from its residuals, then refit.
     for b in blocks:
+        if b.kind == "datum":
+            continue  # a declared (Type B) uncertainty, not estimated from its residuals
         r = residual_block(g, params, x, h, b)
         if b.kind in ("indexer", "ballbar"):
             n_own = sum(1 for i in free if params[i].block == b.key) + 1

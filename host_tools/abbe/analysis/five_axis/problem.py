@@ -42,7 +42,9 @@ class Param:
 
 @dataclass
 class Block:
-    """A data block: kind ``probe`` / ``rtest`` / ``indexer`` / ``ballbar``, its name,
+    """A data block: kind ``probe`` / ``rtest`` / ``indexer`` / ``ballbar`` / ``datum`` (a
+    probing sphere's declared place: obs (1, 3) um, the sphere unknowns' known values, its
+    sigma the declared uncertainty, fixed), its name,
     angles (M, 2) deg (indexer: the target angles in column 1), observations (M, 3) (probe:
     centre mm, R-test: displacement um) or (M,) (indexer urad, ballbar: measured minus
     nominal length um), direction (indexer), the sphere's (ballbar: the table ball's)
@@ -66,6 +68,8 @@ class Block:
     tool_mm: np.ndarray | None = None
     #: ballbar blocks: the set-up they share (same table ball and tool cup, not moved), or ""
     setup: str = ""
+    #: datum blocks: the probing whose sphere it declares (``probe.NAME``)
+    of: str = ""
 
     @property
     def balls_key(self) -> str:
@@ -163,6 +167,10 @@ def _setup(params: list[Param], x: np.ndarray, name: str, what: str) -> np.ndarr
 def predict_block(g: TrunnionGeometry, params: list[Param], x: np.ndarray, harmonics: int,
                   b: Block, rows: np.ndarray | None = None) -> np.ndarray:
     """What block ``b`` should read for the parameters ``x`` (rows: a subset)."""
+    if b.kind == "datum":
+        # A measurement of the set-up unknowns themselves (a prior with the declared
+        # uncertainty): the sphere's offset from its declared place, um.
+        return _setup(params, x, b.of, "sphere")[None, :]
     errs = errors_from(params, x, harmonics)
     ang = b.angles_deg if rows is None else b.angles_deg[rows]
     if b.kind == "indexer":

@@ -41,11 +41,13 @@ def budget(res: FitResult) -> dict[str, Any]:
     what = {"probe": "sphere centres from the probing (x, y, z), um",
             "rtest": "R-test displacements (x, y, z), um",
             "indexer": "rotary indexer readings, urad",
-            "ballbar": "rotary ballbar lengths, um"}
+            "ballbar": "rotary ballbar lengths, um",
+            "datum": "a datum sphere's declared place (x, y, z), um"}
     return {"method": METHOD, "k": K,
             "inputs": [{"block": b.key, "what": what.get(b.kind, b.kind),
                         "u": [float(v) for v in np.atleast_1d(b.sigma)],
-                        "evaluation": "Type A: the block's residuals after the fit"}
+                        "evaluation": "Type B: declared in the machine file (datum_u_um)"
+                        if b.kind == "datum" else "Type A: the block's residuals after the fit"}
                        for b in res.blocks],
             "not_included": ("the probe's and the instruments' calibration (their Type B "
                              "figures: not declared for five-axis plans), the kinematic "
