@@ -1,0 +1,102 @@
+"""The virtual five-axis machine of any kinematic chain (head-head, head-table, dual-rotary
+table, trunnion) and its sphere instruments.
+
+A :class:`VirtualChainMachine` holds a :class:`abbe.model.chain.KinematicChain`, hidden
+errors (:class:`abbe.model.five_axis.FiveAxisErrors`), the calibration sphere's set-up
+error (its true place on the table off its nominal one) and instrument noise:
+
+* touch probe: the sphere's centre as the controller finds it - the machine position
+  at which the stylus tip, carried by the tool-side rotary axes, sits on the true
+  sphere centre, turned into the tool tip's nominal position ``q + T_T,nom tip``
+  (the sphere fit's result; the radius and the stylus radius cancel in the centre),
+  plus noise per axis;
+* R-test: under tool-centre-point control the nest (three sensors on the spindle at
+  ``tip_mm``, turned by the tool-side rotary axes with the spindle) reads the true
+  sphere centre minus the true nest position in the nest's own frame (um), zeroed at
+  the first reading, plus noise.
+
+Units: mm, um, urad, degrees.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from abbe.model.chain import (KinematicChain, nominal_joints, tool_tip, tool_transform,
+                              workpiece_transform)
+from abbe.model.five_axis import LOCATION_ERRORS, FiveAxisErrors
+
+
+@dataclass
+class VirtualChainMachine:
+    """A five-axis machine of any chain with hidden errors (see module)."""
+
+    chain: KinematicChain
+    errors: FiveAxisErrors
+    sphere_offset_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    probe_noise_um: float = 0.0
+    rtest_noise_um: float = 0.0
+    seed: int = 0
+    rng: np.random.Generator = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self.rng = np.random.default_rng(self.seed)
+
+    def true_centre(self, sphere_mm: np.ndarray, angles_deg: np.ndarray) -> np.ndarray:
+        """(M, 3) true machine position (mm) of the sphere's centre at each angle pair."""
+        ang = np.asarray(angles_deg, dtype=np.float64).reshape(-1, 2)
+        s = np.asarray(sphere_mm, dtype=np.float64) + np.asarray(self.sphere_offset_mm)
+        T = workpiece_transform(self.chain, self.errors, ang)
+        return np.einsum("nij,j->ni", T[:, :3, :3], s) + T[:, :3, 3]
+
+    def probe_centres(self, sphere_mm: tuple[float, float, float], angles_deg: np.ndarray,
+                      tip_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> np.ndarray:
+        """(M, 3) sphere centres (machine mm) the controller finds at each angle pair."""
+        ang = np.asarray(angles_deg, dtype=np.float64).reshape(-1, 2)
+        target = self.true_centre(np.asarray(sphere_mm), ang)
+        q = nominal_joints(self.chain, np.asarray(sphere_mm)[None, :].repeat(len(ang), 0), ang,
+                           tip_mm)
+        for _ in range(4):  # the linear axes' error depends (weakly) on where q is
+            q = q + (target - tool_tip(self.chain, self.errors, q, ang, tip_mm))
+        c = tool_tip(self.chain, None, q, ang, tip_mm)
+        return c + self.rng.normal(0.0, self.probe_noise_um * 1e-3, c.shape)
+
+    def rtest(self, sphere_mm: tuple[float, float, float], angles_deg: np.ndarray,
+              tip_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> np.ndarray:
+        """(M, 3) R-test readings (um, the nest's frame) along an angle path under TCP."""
+        ang = np.asarray(angles_deg, dtype=np.float64).reshape(-1, 2)
+        s = np.asarray(sphere_mm, dtype=np.float64)
+        q = nominal_joints(self.chain, s[None, :].repeat(len(ang), 0), ang, tip_mm)
+        nest = tool_tip(self.chain, self.errors, q, ang, tip_mm)
+        d = (self.true_centre(s, ang) - nest) * 1e3
+        R = tool_transform(self.chain, None, ang)[:, :3, :3]
+        read = np.einsum("nji,nj->ni", R, d)
+        read = read - read[0] + self.rng.normal(0.0, self.rtest_noise_um, read.shape)
+        read[0] = 0.0
+        return read
+
+
+def random_location_errors(chain: KinematicChain, rng: np.random.Generator,
+                           loc_um: float = 20.0, loc_urad: float = 50.0) -> FiveAxisErrors:
+    """Location errors N(0, loc_um) for positions and N(0, loc_urad) for tilts and zeros."""
+    loc = {n: float(rng.normal(0.0, loc_um if i < 2 else loc_urad))
+           for ax in chain.rotaries for i, n in enumerate(LOCATION_ERRORS[ax])}
+    return FiveAxisErrors(loc)
+
+
+def sphere_plan(chain: KinematicChain, n_first: int = 5, n_second: int = 6) -> np.ndarray:
+    """(n_first * n_second, 2) angle pairs (alphabetical axis order) over 80 % of the
+    travel of each rotary axis (a full turn: equally spaced), the probing grid."""
+    cols = []
+    for ax, n in zip(chain.rotaries, (n_first, n_second)):
+        lo, hi = chain.travel_deg[ax]
+        if hi - lo >= 360.0:
+            cols.append(np.arange(n) * 360.0 / n)
+        else:
+            lo, hi = max(lo, -90.0), min(hi, 90.0)
+            mid, half = (lo + hi) / 2.0, (hi - lo) / 2.0 * 0.8
+            cols.append(np.linspace(mid - half, mid + half, n))
+    A, B = np.meshgrid(cols[0], cols[1], indexing="ij")
+    return np.column_stack([A.ravel(), B.ravel()])
