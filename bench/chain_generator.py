@@ -17,7 +17,7 @@ builds every axis as a rotation about its *actual axis average line*:
   from the linear axes to the tool; the tool-side pivots travel with the linear axes.
 
 Instruments (the same meaning as abbe's, coded here again): a touch probe reports the
-nominal tool tip position where the actual tip is on the actual sphere centre; an
+machine position (the linear axes) where the actual tip is on the actual sphere centre; an
 R-test nest under tool-centre-point control reads the actual sphere centre minus the
 actual nest, in the nest's nominal frame (um), zeroed at its first reading.
 
@@ -141,12 +141,11 @@ def _pt(M: np.ndarray, p: np.ndarray) -> np.ndarray:
 def probe_centres(ch: GenChain, loc: dict[str, float], sphere: np.ndarray, offset_mm: np.ndarray,
                   tip: np.ndarray, angles: np.ndarray, noise_um: float,
                   rng: np.random.Generator) -> np.ndarray:
-    """(M, 3) centres (machine mm) a touch probe reports."""
+    """(M, 3) machine positions (mm) at which the stylus tip is on the sphere's centre."""
     out = []
     for pair in angles:
         centre = _pt(work_matrix(ch, pair, loc), sphere + offset_mm)
-        q = centre - _pt(tool_matrix(ch, pair, loc), tip)  # actual tip on the centre
-        out.append(q + _pt(tool_matrix(ch, pair, None), tip))  # read through nominal kinematics
+        out.append(centre - _pt(tool_matrix(ch, pair, loc), tip))  # actual tip on the centre
     c = np.array(out)
     return c + rng.normal(0.0, noise_um * 1e-3, c.shape)
 

@@ -5,11 +5,11 @@ A :class:`VirtualChainMachine` holds a :class:`abbe.model.chain.KinematicChain`,
 errors (:class:`abbe.model.five_axis.FiveAxisErrors`), the calibration sphere's set-up
 error (its true place on the table off its nominal one) and instrument noise:
 
-* touch probe: the sphere's centre as the controller finds it - the machine position
-  at which the stylus tip, carried by the tool-side rotary axes, sits on the true
-  sphere centre, turned into the tool tip's nominal position ``q + T_T,nom tip``
-  (the sphere fit's result; the radius and the stylus radius cancel in the centre),
-  plus noise per axis;
+* touch probe: the sphere's centre as the probing finds it - the machine position q
+  (the linear axes' positions, as the trunnions' probe files hold them) at which the
+  stylus tip, carried by the tool-side rotary axes, sits on the true sphere centre (the
+  sphere fit's result: the radius and the stylus radius cancel in the centre), plus
+  noise per axis;
 * R-test: under tool-centre-point control the nest (three sensors on the spindle at
   ``tip_mm``, turned by the tool-side rotary axes with the spindle) reads the true
   sphere centre minus the true nest position in the nest's own frame (um), zeroed at
@@ -53,15 +53,14 @@ class VirtualChainMachine:
 
     def probe_centres(self, sphere_mm: tuple[float, float, float], angles_deg: np.ndarray,
                       tip_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> np.ndarray:
-        """(M, 3) sphere centres (machine mm) the controller finds at each angle pair."""
+        """(M, 3) machine positions q (mm) that put the stylus tip on the sphere's centre."""
         ang = np.asarray(angles_deg, dtype=np.float64).reshape(-1, 2)
         target = self.true_centre(np.asarray(sphere_mm), ang)
         q = nominal_joints(self.chain, np.asarray(sphere_mm)[None, :].repeat(len(ang), 0), ang,
                            tip_mm)
         for _ in range(4):  # the linear axes' error depends (weakly) on where q is
             q = q + (target - tool_tip(self.chain, self.errors, q, ang, tip_mm))
-        c = tool_tip(self.chain, None, q, ang, tip_mm)
-        return c + self.rng.normal(0.0, self.probe_noise_um * 1e-3, c.shape)
+        return q + self.rng.normal(0.0, self.probe_noise_um * 1e-3, q.shape)
 
     def rtest(self, sphere_mm: tuple[float, float, float], angles_deg: np.ndarray,
               tip_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> np.ndarray:

@@ -37,7 +37,8 @@ RANK_TOL = 1e-7
 
 @dataclass
 class ChainSetup:
-    """One measurement set-up: ``kind`` ``probe`` (centres, machine mm) or ``rtest``
+    """One measurement set-up: ``kind`` ``probe`` (the machine positions q that put the
+    stylus tip on the sphere's centre, mm) or ``rtest``
     (readings, nest frame um), the sphere's nominal centre (workpiece mm), the tool tip
     (stylus or nest) relative to the controlled point at zero angles (mm), the angle
     pairs (M, 2) deg (alphabetical axes), observations (M, 3), sigma per axis (um)."""
@@ -105,7 +106,7 @@ def _unknowns(chain: KinematicChain, setups: list[ChainSetup]) -> list[tuple[str
 
 def predict(chain: KinematicChain, setups: list[ChainSetup], x: np.ndarray) -> list[np.ndarray]:
     """Predicted observations of every set-up for the unknowns ``x`` (in :func:`_unknowns`
-    order, um / urad): probe centres (mm), R-test readings (um)."""
+    order, um / urad): probe machine positions (mm), R-test readings (um)."""
     names = [u[0] for u in _unknowns(chain, setups)]
     errs = FiveAxisErrors({n: float(v) for n, v in zip(names[:10], x[:10])})
     out, k = [], 10
@@ -116,11 +117,10 @@ def predict(chain: KinematicChain, setups: list[ChainSetup], x: np.ndarray) -> l
         T = workpiece_transform(chain, errs, ang)
         centre = np.einsum("nij,j->ni", T[:, :3, :3], w) + T[:, :3, 3]
         if s.kind == "probe":
-            # the position where the true tip is on the centre, read through nominal kinematics
+            # the machine position at which the true tip is on the centre
             Ta = tool_transform(chain, errs, ang)
             tip = np.asarray(s.tip_mm, dtype=np.float64)
-            q = centre - (np.einsum("nij,j->ni", Ta[:, :3, :3], tip) + Ta[:, :3, 3])
-            out.append(tool_tip(chain, None, q, ang, s.tip_mm))
+            out.append(centre - (np.einsum("nij,j->ni", Ta[:, :3, :3], tip) + Ta[:, :3, 3]))
         else:
             s_nom = np.asarray(s.sphere_mm, dtype=np.float64)
             q = nominal_joints(chain, s_nom[None, :].repeat(len(ang), 0), ang, s.tip_mm)
