@@ -171,9 +171,9 @@ def trunnion_chain(geom: TrunnionGeometry) -> KinematicChain:
         geom.kind,
         (ChainAxis(table, 1, p_c, geom.travel_deg[table]),  # type: ignore[arg-type]
          ChainAxis(tilt, 1, p_t, geom.travel_deg[tilt]),  # type: ignore[arg-type]
-         ChainAxis("X", 1, (0.0, 0.0, 0.0), (-500.0, 500.0)),
-         ChainAxis("Y", 1, (0.0, 0.0, 0.0), (-500.0, 500.0)),
-         ChainAxis("Z", 1, (0.0, 0.0, 0.0), (-600.0, 200.0))),
+         ChainAxis("X", 1, (0.0, 0.0, 0.0), (0.0, 0.0)),  # linear travel: [axes.*]
+         ChainAxis("Y", 1, (0.0, 0.0, 0.0), (0.0, 0.0)),
+         ChainAxis("Z", 1, (0.0, 0.0, 0.0), (0.0, 0.0))),
         geom.tool_length_mm, tuple(float(v) for v in geom.rot_point_mm))  # type: ignore[arg-type]
 
 
