@@ -21,10 +21,14 @@ what was expected (exit 2 from the CLI).
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Callable
 
 from abbe.errors import AbbeInputError, check_number
 from abbe.errors.numbers import show_value
+from abbe.formats.five_axis import (RADIUS_TOL_RANGE_MM, SPHERE_RADIUS_RANGE_MM,
+                                    STYLUS_RADIUS_RANGE_MM)
 from abbe.formats.structured import unknown_key
 from abbe.model.chain import (LINEAR_AXES, ROTARY_MACHINE_AXIS, ChainAxis, KinematicChain,
                               chain_problem)
@@ -129,3 +133,100 @@ def chain_toml(chain: KinematicChain) -> str:
                   f"pivot_mm = {[float(v) for v in a.pivot_mm]!r}",
                   f"travel_deg = {[float(v) for v in a.travel]!r}"]
     return "\n".join(lines) + "\n"
+
+
+# ------------------------------------------------------------- measurement sections
+
+
+@dataclass(frozen=True)
+class ChainProbing:
+    """``[probing.N]`` of a ``[chain]`` machine: the probing CSV (resolved; angle columns
+    the chain's rotary axes in alphabetical order), the sphere's nominal centre
+    (workpiece coordinates, mm), its radius and the stylus radius (mm), the radius check
+    tolerance (mm), the stylus tip relative to the controlled point at zero angles (mm)."""
+
+    name: str
+    file: Path
+    sphere_mm: tuple[float, float, float]
+    sphere_radius_mm: float
+    stylus_radius_mm: float
+    radius_tolerance_mm: float
+    tip_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    line: int | None = None
+
+
+@dataclass(frozen=True)
+class ChainRTest:
+    """``[rtest.N]`` of a ``[chain]`` machine: the R-test CSV (resolved), the sphere's
+    nominal centre (mm), the nest relative to the controlled point at zero angles (mm)."""
+
+    name: str
+    file: Path
+    sphere_mm: tuple[float, float, float]
+    tip_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    line: int | None = None
+
+
+@dataclass(frozen=True)
+class ChainPlans:
+    probing: dict[str, ChainProbing] = field(default_factory=dict)
+    rtest: dict[str, ChainRTest] = field(default_factory=dict)
+
+
+_PROBING_KEYS = ("file", "sphere_mm", "sphere_radius_mm", "stylus_radius_mm",
+                 "radius_tolerance_mm", "tip_mm")
+_RTEST_KEYS = ("file", "sphere_mm", "tip_mm")
+
+
+def parse_chain_plans(data: dict[str, Any], err: Callable[[str, str], AbbeInputError],
+                      line: Callable[[str], int | None], file: str,
+                      resolve: Callable[[str, str], Path]) -> ChainPlans:
+    """The ``[probing.N]`` and ``[rtest.N]`` sections of a ``[chain]`` machine file
+    (``[indexer]`` and ``[rotary_ballbar]`` are the trunnions' only, for now)."""
+    def num(v: Any, f: str, lo: float, hi: float, unit: str) -> float:
+        return check_number(v, file=file, line=line(f), field=f, lo=lo, hi=hi, unit=unit)
+
+    for k in ("indexer", "rotary_ballbar"):
+        if k in data:
+            raise err(k, f"[{k}] is read for a [rotary] trunnion only; a [chain] machine takes "
+                         "[probing.NAME] and [rtest.NAME]")
+
+    def sections(top: str, keys: tuple[str, ...], required: tuple[str, ...]
+                 ) -> dict[str, tuple[str, dict[str, Any]]]:
+        t = data.get(top, {})
+        if not isinstance(t, dict):
+            raise err(top, f"expected a table [{top}.NAME], got {show_value(t)}")
+        out = {}
+        for name, sec in t.items():
+            f = f"{top}.{name}"
+            if not isinstance(sec, dict):
+                raise err(f, f"expected a table [{f}], got {show_value(sec)}")
+            for k in sec:
+                if k not in keys:
+                    raise err(f"{f}.{k}", unknown_key(k, keys))
+            for k in required:
+                if k not in sec:
+                    raise err(f, f"missing required key {k!r}")
+            if not isinstance(sec["file"], str) or not sec["file"].strip():
+                raise err(f"{f}.file", f"expected a file name, got {show_value(sec['file'])}")
+            out[name] = (f, sec)
+        return out
+
+    probing = {}
+    for name, (f, sec) in sections("probing", _PROBING_KEYS,
+                                   ("file", "sphere_mm", "sphere_radius_mm")).items():
+        probing[name] = ChainProbing(
+            name, resolve(sec["file"], f"{f}.file"), _vec3(sec["sphere_mm"], f"{f}.sphere_mm", num, err),
+            num(sec["sphere_radius_mm"], f"{f}.sphere_radius_mm", *SPHERE_RADIUS_RANGE_MM, "mm"),
+            num(sec.get("stylus_radius_mm", 0.0), f"{f}.stylus_radius_mm",
+                *STYLUS_RADIUS_RANGE_MM, "mm"),
+            num(sec.get("radius_tolerance_mm", 0.02), f"{f}.radius_tolerance_mm",
+                *RADIUS_TOL_RANGE_MM, "mm"),
+            _vec3(sec.get("tip_mm", [0.0, 0.0, 0.0]), f"{f}.tip_mm", num, err), line(f))
+    rtest = {}
+    for name, (f, sec) in sections("rtest", _RTEST_KEYS, ("file", "sphere_mm")).items():
+        rtest[name] = ChainRTest(name, resolve(sec["file"], f"{f}.file"),
+                                 _vec3(sec["sphere_mm"], f"{f}.sphere_mm", num, err),
+                                 _vec3(sec.get("tip_mm", [0.0, 0.0, 0.0]), f"{f}.tip_mm", num, err),
+                                 line(f))
+    return ChainPlans(probing, rtest)

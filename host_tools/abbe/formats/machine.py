@@ -20,7 +20,7 @@ from typing import Any, Callable
 
 from abbe.errors import AbbeInputError, check_number
 from abbe.errors.numbers import show_value
-from abbe.formats.chain import parse_chain
+from abbe.formats.chain import parse_chain, parse_chain_plans
 from abbe.formats.columns import BALLBAR_ROLES, LASER_ROLES, Columns, parse_columns
 from abbe.formats.five_axis import parse_five_axis
 from abbe.formats.limits import MACHINE_FILE_MAX_BYTES
@@ -437,6 +437,9 @@ def load_machine(path: str | Path) -> Machine:
     if chain is not None and five is not None:
         raise ctx.err("chain", "a machine file describes its kinematics once: [chain] or "
                                "[rotary] (kinematics = xyzac-trt / xyzbc-trt), not both")
+    if chain is not None and five is None:
+        extra["chain_plans"] = parse_chain_plans(data, ctx.err, ctx.loc.line, str(path),
+                                                 lambda rel, f: _resolve(base, rel, ctx, f))
     if chain is None and five is not None:  # a trunnion is one instance of the chain
         chain = trunnion_chain(five.geometry)
     if chain is not None:

@@ -21,6 +21,7 @@ Units: mm, um, urad, degrees.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -52,14 +53,18 @@ class VirtualChainMachine:
         return np.einsum("nij,j->ni", T[:, :3, :3], s) + T[:, :3, 3]
 
     def probe_centres(self, sphere_mm: tuple[float, float, float], angles_deg: np.ndarray,
-                      tip_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> np.ndarray:
-        """(M, 3) machine positions q (mm) that put the stylus tip on the sphere's centre."""
+                      tip_mm: tuple[float, float, float] = (0.0, 0.0, 0.0),
+                      noise: bool = True) -> np.ndarray:
+        """(M, 3) machine positions q (mm) that put the stylus tip on the sphere's centre
+        (``noise``: plus the probe noise per axis, a sphere fit's centre noise)."""
         ang = np.asarray(angles_deg, dtype=np.float64).reshape(-1, 2)
         target = self.true_centre(np.asarray(sphere_mm), ang)
         q = nominal_joints(self.chain, np.asarray(sphere_mm)[None, :].repeat(len(ang), 0), ang,
                            tip_mm)
         for _ in range(4):  # the linear axes' error depends (weakly) on where q is
             q = q + (target - tool_tip(self.chain, self.errors, q, ang, tip_mm))
+        if not noise:
+            return q
         return q + self.rng.normal(0.0, self.probe_noise_um * 1e-3, q.shape)
 
     def rtest(self, sphere_mm: tuple[float, float, float], angles_deg: np.ndarray,
@@ -99,3 +104,73 @@ def sphere_plan(chain: KinematicChain, n_first: int = 5, n_second: int = 6) -> n
             cols.append(np.linspace(mid - half, mid + half, n))
     A, B = np.meshgrid(cols[0], cols[1], indexing="ij")
     return np.column_stack([A.ravel(), B.ravel()])
+
+
+#: Probe directions (machine frame): the pole and six points at 20 degrees latitude.
+_LAT = np.deg2rad(20.0)
+_PHI = np.arange(6) * np.pi / 3.0
+PROBE_DIRECTIONS = np.vstack([[0.0, 0.0, 1.0],
+                              np.column_stack([np.cos(_LAT) * np.cos(_PHI),
+                                               np.cos(_LAT) * np.sin(_PHI),
+                                               np.full(6, np.sin(_LAT))])])
+
+
+def write_chain_campaign(vm: VirtualChainMachine, out: Path, angles_deg: np.ndarray,
+                         sphere_mm: tuple[float, float, float] = (50.0, 20.0, 30.0),
+                         sphere_radius_mm: float = 12.5, stylus_radius_mm: float = 1.5,
+                         tips_mm: tuple[tuple[float, float, float], ...] = ((0.0, 0.0, 0.0),),
+                         heights_mm: tuple[float, ...] = (0.0,), rtest: bool = True,
+                         name: str = "virtual chain machine") -> Path:
+    """Simulate a campaign into ``out``: machine.toml ([chain], [probing.S<i>] per sphere
+    height and stylus, [rtest.R1]), probe_<i>.csv (trigger points: the machine positions
+    at which the stylus, carried by the tool-side axes, touches the sphere along
+    :data:`PROBE_DIRECTIONS`; noise per point), rtest.csv, truth.json. Returns the
+    machine file's path."""
+    import json
+
+    from abbe.formats.chain import chain_toml
+    from abbe.formats.five_axis import probe_csv, rtest_csv
+
+    r1, r2 = vm.chain.rotaries
+    out.mkdir(parents=True, exist_ok=True)
+    ang = np.asarray(angles_deg, dtype=np.float64).reshape(-1, 2)
+    lines = [f'[machine]\nname = "{name}"\n',
+             "[axes.X]\ntravel_mm = [-500.0, 500.0]\n[axes.Y]\ntravel_mm = [-500.0, 500.0]\n"
+             "[axes.Z]\ntravel_mm = [-600.0, 200.0]\n", "[reference]\npoint_mm = [0.0, 0.0, 0.0]\n",
+             chain_toml(vm.chain)]
+    reach = sphere_radius_mm + stylus_radius_mm
+    k, t = 0, 0.0
+    for h in heights_mm:
+        s = (sphere_mm[0], sphere_mm[1], sphere_mm[2] + h)
+        for tip in tips_mm:
+            k += 1
+            centres = vm.probe_centres(s, ang, tip, noise=False)
+            pos, ts, aa, pts = [], [], [], []
+            for m in range(len(ang)):
+                for n in PROBE_DIRECTIONS:
+                    t += 4.0
+                    pos.append(m)
+                    ts.append(t)
+                    aa.append(ang[m])
+                    pts.append(centres[m] + n * reach
+                               + vm.rng.normal(0.0, vm.probe_noise_um * 1e-3, 3))
+            fn = f"probe_{k}.csv"
+            (out / fn).write_text(probe_csv(r1, np.asarray(pos), np.asarray(ts), np.asarray(aa),
+                                            np.asarray(pts), r2), encoding="utf-8")
+            lines.append(f'[probing.S{k}]\nfile = "{fn}"\nsphere_mm = {list(map(float, s))!r}\n'
+                         f"sphere_radius_mm = {sphere_radius_mm!r}\n"
+                         f"stylus_radius_mm = {stylus_radius_mm!r}\n"
+                         f"tip_mm = {list(map(float, tip))!r}\n")
+    if rtest:
+        r = vm.rtest(sphere_mm, ang)
+        (out / "rtest.csv").write_text(rtest_csv(r1, t + 60.0 + np.arange(len(ang)), ang, r, r2),
+                                       encoding="utf-8")
+        lines.append(f'[rtest.R1]\nfile = "rtest.csv"\nsphere_mm = {list(map(float, sphere_mm))!r}\n')
+    (out / "machine.toml").write_text("\n".join(lines), encoding="utf-8")
+    truth = {"chain": vm.chain.name, "kind": vm.chain.kind,
+             "location": {n: float(v) for n, v in vm.errors.location.items()},
+             "sphere_offset_mm": list(vm.sphere_offset_mm),
+             "probe_noise_um": vm.probe_noise_um, "rtest_noise_um": vm.rtest_noise_um}
+    (out / "truth.json").write_text(json.dumps(truth, indent=2) + "\n", encoding="utf-8")
+    return out / "machine.toml"
+

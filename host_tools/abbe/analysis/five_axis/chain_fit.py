@@ -291,3 +291,64 @@ def report_rows(fit: ChainFit) -> list[str]:
     out.append("error motions (not fitted here): " + ", ".join(
         motion_name(ax, c) for ax in fit.chain.rotaries for c in "XYZABC"))
     return out
+
+
+def setups_from_machine(machine) -> list[ChainSetup]:  # noqa: ANN001 (abbe.formats.machine.Machine)
+    """The set-ups of a ``[chain]`` machine file: each probing file's positions fitted as
+    spheres (the centres are machine positions: the stylus' radius and the sphere's cancel),
+    each R-test file's readings. Sigma per set-up: probing from the sphere fits' point noise
+    and centre factor, R-test 1 um until :func:`identify_chain` re-estimates it."""
+    from abbe.analysis.five_axis.spheres import sphere_centres
+    from abbe.errors import AbbeInputError
+    from abbe.formats.five_axis import read_probe_points, read_rtest
+
+    chain = machine.extra["chain"]
+    plans = machine.extra["chain_plans"]
+    r1, r2 = chain.rotaries
+    out = []
+    for p in plans.probing.values():
+        pts = read_probe_points(p.file, r1, r2)
+        sc = sphere_centres(pts, p.sphere_radius_mm + p.stylus_radius_mm, p.radius_tolerance_mm)
+        if not bool(np.all(sc.radius_ok)):
+            i = int(np.flatnonzero(~sc.radius_ok)[0])
+            raise AbbeInputError(
+                f"position {int(sc.position[i])}: fitted radius {sc.radius_mm[i]:.4f} mm, "
+                f"expected {p.sphere_radius_mm + p.stylus_radius_mm:.4f} +- "
+                f"{p.radius_tolerance_mm} mm (sphere + stylus radius)", file=str(p.file),
+                field="position")
+        noise = sc.point_noise_um() or 1.0
+        sigma = max(noise * float(np.sqrt(np.mean(sc.centre_factor) / 3.0)), 0.05)
+        out.append(ChainSetup("probe", p.name, p.sphere_mm, sc.angles_deg, sc.centre_mm,
+                              p.tip_mm, sigma))
+    for r in plans.rtest.values():
+        tr = read_rtest(r.file, r1, r2)
+        out.append(ChainSetup("rtest", r.name, r.sphere_mm, tr.angles_deg, tr.displacement_um,
+                              r.tip_mm, 1.0))
+    return out
+
+
+def reweight(chain: KinematicChain, setups: list[ChainSetup], fit: ChainFit) -> list[ChainSetup]:
+    """The set-ups with each sigma replaced by its RMS residual (um, at least 0.05) after
+    ``fit``: blocks of unknown noise weighted by what they show."""
+    unk = _unknowns(chain, setups)
+    x = np.array([fit.values.get(u[0], fit.setup.get(u[0], 0.0)) for u in unk])
+    pred = predict(chain, setups, x)
+    out = []
+    for s, p in zip(setups, pred):
+        raw = (np.asarray(s.obs) - p) * (1e3 if s.kind == "probe" else 1.0)
+        out.append(ChainSetup(s.kind, s.name, s.sphere_mm, s.angles_deg, s.obs, s.tip_mm,
+                              max(float(np.sqrt(np.mean(raw ** 2))), 0.05)))
+    return out
+
+
+def fit_to_json(fit: ChainFit, setups: list[ChainSetup]) -> dict:
+    """The fit as JSON (units in the keys and rows)."""
+    c = fit.chain
+    return {"chain": c.name, "kind": c.kind, "workpiece_side": list(c.workpiece_side),
+            "tool_side": list(c.tool_side), "rank": fit.rank, "unknowns": fit.n_unknowns,
+            "condition": fit.condition, "rms_weighted": fit.rms_weighted,
+            "sigma_um": {s.name: s.sigma_um for s in setups},
+            "location": [{"name": r.name, "value": r.value, "u95": r.u95, "unit": r.unit,
+                          "status": r.status, "confounded_with": list(r.confounded_with),
+                          "seen_by": r.seen_by} for r in fit.rows],
+            "setup_um": fit.setup}
