@@ -1,12 +1,10 @@
 """Identification of any kinematic chain: the three new kinds identified back from abbe's
-virtual machine and from the independent generator (bench/chain_generator.py), what each
+virtual machine and from the independent generator (cases/chain_generator.py), what each
 plan cannot see named with the measurement that would see it, a wrong chain refused by
 its residual."""
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,12 +15,11 @@ from abbe.model.chain import KinematicChain
 from abbe.model.five_axis import FiveAxisErrors
 from abbe.sim.chain import VirtualChainMachine, random_location_errors, sphere_plan
 
-BENCH = Path(__file__).resolve().parents[3] / "bench"
-sys.path.insert(0, str(BENCH))
-import chain_campaign  # noqa: E402
+from cases import chain_suite
+from cases.chain_suite import CHAINS
 
 FILES = {f.stem.split("-")[0] + "-" + f.stem.split("-")[1]: f
-         for f in sorted((BENCH / "five_axis_chains").glob("*.toml"))}
+         for f in sorted(CHAINS.glob("*.toml"))}
 SPHERE = (50.0, 20.0, 30.0)
 HIGH = (50.0, 20.0, 130.0)
 LONG = (0.0, 0.0, -100.0)
@@ -105,8 +102,8 @@ def test_a_wrong_chain_does_not_fit() -> None:
 def test_independent_campaigns_meet_the_criterion(kind: str) -> None:
     """Hidden random location errors from the independent generator: observable ones
     within max(95 % interval, 1 um / 5 urad) in >= 97 % of the comparisons (6 cases here;
-    bench/chain_campaign.py runs 100 per kind)."""
-    r = chain_campaign.campaign(FILES[kind], cases=6, seed=390)
+    bench/bench_chain.py runs 100 per kind)."""
+    r = chain_suite.campaign(FILES[kind], cases=6, seed=390)
     assert set(r["unobservable"]) == UNSEEN[kind]
     assert r["compared"] == 6 * (10 - len(UNSEEN[kind]))
     assert r["share_within"] >= 0.97, r

@@ -14,7 +14,7 @@ from abbe.formats.machine import load_machine
 from abbe.sim.chain import (VirtualChainMachine, random_location_errors, sphere_plan,
                             write_chain_campaign)
 
-CHAINS = Path(__file__).resolve().parents[3] / "bench" / "five_axis_chains"
+from cases.chain_suite import CHAINS
 
 
 def _campaign(tmp_path: Path, file: str, seed: int) -> tuple[Path, dict[str, float]]:

@@ -122,13 +122,14 @@ def test_cli_refuses_a_bad_chain_with_exit_2(tmp_path: Path, capsys) -> None:
 @pytest.mark.parametrize("kind, offset", [("xyzac-trt", (0.0, 20.0, -80.0)),
                                           ("xyzbc-trt", (15.0, 0.0, -60.0))])
 def test_a_trunnion_written_as_a_chain_is_the_trunnion(kind: str, offset) -> None:
-    """bench/five_axis_chains/trunnions/: the [chain] form reads to the chain the [rotary]
+    """cases/five_axis_chains/trunnions/: the [chain] form reads to the chain the [rotary]
     form stands for."""
     from abbe.model.chain import trunnion_chain
     from abbe.model.five_axis import TrunnionGeometry
 
-    f = Path(__file__).resolve().parents[3] / "bench" / "five_axis_chains" / "trunnions" / \
-        f"{kind}.toml"
+    from cases.chain_suite import CHAINS
+
+    f = CHAINS / "trunnions" / f"{kind}.toml"
     tilt = "A" if kind == "xyzac-trt" else "B"
     g = TrunnionGeometry(kind, (100.0, 50.0, -300.0), offset, 0.0,
                          {tilt: (-110.0, 110.0), "C": (-360.0, 360.0)})

@@ -1,12 +1,10 @@
 """The kinematic chain model: the trunnions are two instances of it with the same bits,
 every kind's linearisation is second-order close to its exact form, a tool-side rotary
 axis moves the tool tip (hand-computed cases), the direction sign, and the model against
-the independent generator (bench/chain_generator.py, written without abbe's code)."""
+the independent generator (cases/chain_generator.py, written without abbe's code)."""
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,11 +17,10 @@ from abbe.model.five_axis import FiveAxisErrors, TrunnionGeometry, linear_axis_e
 from abbe.sim.chain import VirtualChainMachine, random_location_errors
 from abbe.sim.five_axis import random_errors
 
-BENCH = Path(__file__).resolve().parents[3] / "bench"
-sys.path.insert(0, str(BENCH))
-import chain_generator as gen  # noqa: E402
+from cases import chain_generator as gen
+from cases.chain_suite import CHAINS
 
-CHAIN_FILES = sorted((BENCH / "five_axis_chains").glob("*.toml"))
+CHAIN_FILES = sorted(CHAINS.glob("*.toml"))
 TRUNNIONS = [TrunnionGeometry("xyzac-trt", (100.0, 50.0, -300.0), (0.0, 20.0, -80.0), 120.0,
                               {"A": (-110.0, 110.0), "C": (-360.0, 360.0)}),
              TrunnionGeometry("xyzbc-trt", (-40.0, 10.0, -250.0), (15.0, 0.0, -60.0), 90.0,

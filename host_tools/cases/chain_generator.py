@@ -21,7 +21,7 @@ machine position (the linear axes) where the actual tip is on the actual sphere 
 R-test nest under tool-centre-point control reads the actual sphere centre minus the
 actual nest, in the nest's nominal frame (um), zeroed at its first reading.
 
-Usage: imported by bench/chain_campaign.py and by the tests.
+Usage: imported by cases/chain_suite.py (bench/bench_chain.py) and by the tests.
 """
 
 from __future__ import annotations

@@ -1,30 +1,19 @@
-"""Synthetic campaigns for every kinematic chain: the independent generator
-(bench/chain_generator.py) hides random location errors, abbe reads the machine file
-(its strict ``[chain]`` reader) and identifies them back (abbe.analysis.five_axis.chain_fit).
-
-Criterion (issue 39): each observable location error within max(its 95 % interval,
-1 um / 5 urad) of the truth in >= 97 % of the cases; the unobservable ones named.
-
-Usage: python bench/chain_campaign.py [--cases N] [--seed S] [--json OUT] [machine.toml ...]
-(default: every file in bench/five_axis_chains/). Prints one table row per kind.
-"""
+"""Scoring of the chain campaigns (bench/bench_chain.py, tests/analysis/test_chain_fit.py):
+data from the independent generator (cases/chain_generator.py, which imports nothing of
+abbe), identification by abbe (its machine-file reader and abbe.analysis.five_axis.chain_fit)."""
 
 from __future__ import annotations
 
-import argparse
-import json
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import chain_generator as gen  # noqa: E402  (the independent generator, beside this file)
+from abbe.analysis.five_axis.chain_fit import ChainSetup, identify_chain
+from abbe.formats.machine import load_machine
+from cases import chain_generator as gen
 
-from abbe.analysis.five_axis.chain_fit import ChainSetup, identify_chain  # noqa: E402
-from abbe.formats.machine import load_machine  # noqa: E402
-
+CHAINS = Path(__file__).resolve().parent / "five_axis_chains"
 SPHERE_MM = np.array([50.0, 20.0, 30.0])
 PROBE_NOISE_UM = 0.5
 RTEST_NOISE_UM = 0.3
@@ -42,7 +31,7 @@ def plan(tool_side: bool) -> list[tuple[str, str, np.ndarray, np.ndarray]]:
     return out
 
 
-def run_case(path: Path, chain, gch: gen.GenChain, rng: np.random.Generator) -> dict:
+def run_case(path: Path, chain, gch: gen.GenChain, rng: np.random.Generator) -> dict:  # noqa: ANN001
     truth = gen.random_location(gch, rng)
     angles = gen.grid(gch)
     setups = []
@@ -92,29 +81,3 @@ def campaign(path: Path, cases: int, seed: int) -> dict:
             "worst_error": worst, "seconds": dt}
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("files", nargs="*", type=Path)
-    ap.add_argument("--cases", type=int, default=100)
-    ap.add_argument("--seed", type=int, default=39)
-    ap.add_argument("--json", type=Path)
-    a = ap.parse_args(argv)
-    files = a.files or sorted((Path(__file__).parent / "five_axis_chains").glob("*.toml"))
-    out = []
-    print("| kind | chain | cases | observable within | share | cases all within | "
-          "within the 95 % interval alone | unobservable | s |")
-    print("|---|---|---|---|---|---|---|---|---|")
-    for f in files:
-        r = campaign(f, a.cases, a.seed)
-        out.append(r)
-        print(f"| {r['kind']} | {r['chain']} | {r['cases']} | {r['within']}/{r['compared']} | "
-              f"{100 * r['share_within']:.1f} % | {r['cases_all_within']}/{r['cases']} | "
-              f"{100 * r['within_interval_only'] / max(r['compared'], 1):.1f} % | "
-              f"{', '.join(r['unobservable'])} | {r['seconds']:.0f} |")
-    if a.json:
-        a.json.write_text(json.dumps(out, indent=2) + "\n", encoding="utf-8")
-    return 0 if all(r["share_within"] >= 0.97 for r in out) else 1
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
