@@ -165,3 +165,42 @@ def test_model_agrees_with_the_independent_generator(i: int) -> None:
         rb = gen.rtest_readings(gch, truth, s, off, np.array(tip), ang, 0.0, rng)
         assert float(np.abs(ra).max()) > 5.0
         assert float(np.abs(ra - rb).max()) < 0.002
+
+
+def test_5axiskins_forward_kinematics_is_its_chain() -> None:
+    """LinuxCNC 5axiskins (its source): tip = joints + (0, 0, L) + L (sin B cos C,
+    sin B sin C, -cos B), L = pivot-length: the head-head chain file's nominal tip."""
+    from abbe.model.chain import tool_tip
+
+    ch = load_machine(CHAINS / "head-head-5axiskins.toml").extra["chain"]
+    L = ch.axis("B").pivot_mm[2]
+    rng = np.random.default_rng(4)
+    q = rng.uniform(-200, 200, (30, 3))
+    b, c = rng.uniform(-120, 120, 30), rng.uniform(-360, 360, 30)
+    br, cr = np.deg2rad(b), np.deg2rad(c)
+    lcnc = q + np.column_stack([L * np.sin(br) * np.cos(cr), L * np.sin(br) * np.sin(cr),
+                                L - L * np.cos(br)])
+    assert np.allclose(tool_tip(ch, None, q, np.column_stack([b, c])), lcnc, atol=1e-9)
+
+
+def test_maxkins_forward_kinematics_is_its_chain() -> None:
+    """LinuxCNC maxkins (its source): world = Rz(C) (jx, jy) + (L sin B, 0, L - L cos B)
+    with jz added to z: the head-table chain file's workpiece point, where maxkins is
+    exact (C = 0 with any B; any C with L sin B = 0, the max5 sample's pivot-length 0)."""
+    from abbe.model.chain import tool_tip
+
+    ch = load_machine(CHAINS / "head-table-maxkins.toml").extra["chain"]
+    L = ch.axis("B").pivot_mm[2]
+    rng = np.random.default_rng(5)
+    q = rng.uniform(-200, 200, (30, 3))
+    for b, c in ((rng.uniform(-90, 90, 30), np.zeros(30)), (np.zeros(30), rng.uniform(-360, 360, 30))):
+        br, cr = np.deg2rad(b), np.deg2rad(c)
+        xy = np.column_stack([np.cos(cr) * q[:, 0] - np.sin(cr) * q[:, 1],
+                              np.sin(cr) * q[:, 0] + np.cos(cr) * q[:, 1]])
+        world = np.column_stack([xy[:, 0] + L * np.sin(br), xy[:, 1],
+                                 q[:, 2] - L * np.cos(br) + L])
+        ang = np.column_stack([b, c])
+        tip = tool_tip(ch, None, q, ang)
+        T = workpiece_transform(ch, None, ang)
+        w = np.einsum("nji,nj->ni", T[:, :3, :3], tip - T[:, :3, 3])
+        assert np.allclose(w, world, atol=1e-9)
