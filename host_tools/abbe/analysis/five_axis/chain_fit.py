@@ -24,11 +24,13 @@ import numpy as np
 
 from abbe.model.chain import (KinematicChain, nominal_joints, tool_tip, tool_transform,
                               workpiece_transform)
-from abbe.model.five_axis import LOCATION_ERRORS, FiveAxisErrors, motion_name
+from abbe.model.five_axis import (LOCATION_ERRORS, MOTION_COMPONENTS, FiveAxisErrors,
+                                  lowest_harmonic, motion_name)
 
 #: Typical sizes of the unknowns (the solver's column scaling): um for positions, urad
-#: for tilts and zeros, um for the set-up unknowns.
+#: for tilts and zeros, um for the set-up unknowns, um / urad for error motion coefficients.
 SCALE_UM, SCALE_URAD, SCALE_SETUP_UM = 10.0, 50.0, 100.0
+SCALE_MOTION_UM, SCALE_MOTION_URAD = 1.0, 5.0
 #: Singular values below this share of the largest count as zero (the forward
 #: differences carry ~1e-10 of relative rounding; a real plan's weakest seen direction
 #: sits above 1e-4).
@@ -80,6 +82,8 @@ class ChainFit:
     condition: float
     rms_weighted: float
     setup: dict[str, float] = field(default_factory=dict)
+    #: error motion coefficients (with ``harmonics`` > 0), rows as the location errors'
+    motion_rows: list[ChainFitRow] = field(default_factory=list)
 
     @property
     def observable(self) -> tuple[str, ...]:
@@ -90,11 +94,22 @@ class ChainFit:
         return tuple(r.name for r in self.rows if r.status != "identified")
 
 
-def _unknowns(chain: KinematicChain, setups: list[ChainSetup]) -> list[tuple[str, float, str]]:
+def _unknowns(chain: KinematicChain, setups: list[ChainSetup], harmonics: int = 0
+              ) -> list[tuple[str, float, str]]:
+    """(name, scale, unit) of every unknown: the ten location errors, the error motions'
+    Fourier coefficients up to ``harmonics`` (``EXC(C) sin2``; from
+    :func:`abbe.model.five_axis.lowest_harmonic`), the set-ups' unknowns."""
     out = []
     for ax in chain.rotaries:
         for i, n in enumerate(LOCATION_ERRORS[ax]):
             out.append((n, SCALE_UM if i < 2 else SCALE_URAD, "um" if i < 2 else "urad"))
+    for ax in chain.rotaries:
+        for j, comp in enumerate(MOTION_COMPONENTS):
+            for k in range(lowest_harmonic(ax, comp), harmonics + 1):
+                for trig in ("sin", "cos"):
+                    out.append((f"{motion_name(ax, comp)} {trig}{k}",
+                                SCALE_MOTION_UM if j < 3 else SCALE_MOTION_URAD,
+                                "um" if j < 3 else "urad"))
     for s in setups:
         for c in "xyz":
             out.append((f"{s.name}.sphere_{c}", SCALE_SETUP_UM, "um"))
@@ -104,12 +119,29 @@ def _unknowns(chain: KinematicChain, setups: list[ChainSetup]) -> list[tuple[str
     return out
 
 
-def predict(chain: KinematicChain, setups: list[ChainSetup], x: np.ndarray) -> list[np.ndarray]:
+def _errors(chain: KinematicChain, names: list[str], x: np.ndarray, harmonics: int
+            ) -> tuple[FiveAxisErrors, int]:
+    """The errors the unknowns ``x`` hold, and the index of the first set-up unknown."""
+    mot: dict[tuple[str, str], np.ndarray] = {}
+    k = 10
+    for ax in chain.rotaries:
+        for comp in MOTION_COMPONENTS:
+            c = np.zeros(2 * harmonics)
+            for h in range(lowest_harmonic(ax, comp), harmonics + 1):
+                c[2 * (h - 1):2 * h] = x[k:k + 2]
+                k += 2
+            if harmonics:
+                mot[(ax, comp)] = c
+    return FiveAxisErrors({n: float(v) for n, v in zip(names[:10], x[:10])}, mot), k
+
+
+def predict(chain: KinematicChain, setups: list[ChainSetup], x: np.ndarray,
+            harmonics: int = 0) -> list[np.ndarray]:
     """Predicted observations of every set-up for the unknowns ``x`` (in :func:`_unknowns`
     order, um / urad): probe machine positions (mm), R-test readings (um)."""
-    names = [u[0] for u in _unknowns(chain, setups)]
-    errs = FiveAxisErrors({n: float(v) for n, v in zip(names[:10], x[:10])})
-    out, k = [], 10
+    names = [u[0] for u in _unknowns(chain, setups, harmonics)]
+    errs, k = _errors(chain, names, x, harmonics)
+    out = []
     for s in setups:
         ang = np.asarray(s.angles_deg, dtype=np.float64).reshape(-1, 2)
         w = np.asarray(s.sphere_mm, dtype=np.float64) + x[k:k + 3] * 1e-3
@@ -132,8 +164,9 @@ def predict(chain: KinematicChain, setups: list[ChainSetup], x: np.ndarray) -> l
     return out
 
 
-def _residual(chain: KinematicChain, setups: list[ChainSetup], x: np.ndarray) -> np.ndarray:
-    pred = predict(chain, setups, x)
+def _residual(chain: KinematicChain, setups: list[ChainSetup], x: np.ndarray,
+              harmonics: int = 0) -> np.ndarray:
+    pred = predict(chain, setups, x, harmonics)
     r = []
     for s, p in zip(setups, pred):
         diff = (np.asarray(s.obs) - p) * (1e3 if s.kind == "probe" else 1.0)
@@ -142,19 +175,20 @@ def _residual(chain: KinematicChain, setups: list[ChainSetup], x: np.ndarray) ->
 
 
 def _jacobian(chain: KinematicChain, setups: list[ChainSetup], x: np.ndarray,
-              scale: np.ndarray, central: bool = False) -> np.ndarray:
+              scale: np.ndarray, central: bool = False, harmonics: int = 0) -> np.ndarray:
     """d(prediction)/d(unknown / scale), weighted. ``central``: central differences (no
     second-order part: what the rank needs, where a direction the model sees only to
     second order must count as unseen); forward differences for the iterations."""
-    r0 = _residual(chain, setups, x)
+    r0 = _residual(chain, setups, x, harmonics)
     J = np.empty((r0.size, x.size))
     for j in range(x.size):
         h = np.zeros(x.size)
         h[j] = scale[j]  # one typical size: the model is linear to 1e-3 um there
         if central:
-            J[:, j] = -(_residual(chain, setups, x + h) - _residual(chain, setups, x - h)) / 2.0
+            J[:, j] = -(_residual(chain, setups, x + h, harmonics)
+                        - _residual(chain, setups, x - h, harmonics)) / 2.0
         else:
-            J[:, j] = -(_residual(chain, setups, x + h) - r0) / h[j] * scale[j]
+            J[:, j] = -(_residual(chain, setups, x + h, harmonics) - r0) / h[j] * scale[j]
     return J
 
 
@@ -169,6 +203,8 @@ def _fix_order(names: list[str]) -> list[int]:
     def key(i: int) -> tuple[int, int]:
         n = names[i]
         if "." in n:
+            return (4, i)
+        if "(" in n:  # an error motion's coefficient
             return (3, i)
         if n[1] == n[3]:  # EC0C: the zero of the axis itself
             return (0, i)
@@ -176,12 +212,12 @@ def _fix_order(names: list[str]) -> list[int]:
     return sorted(range(len(names)), key=key)
 
 
-def observability(chain: KinematicChain, setups: list[ChainSetup]
+def observability(chain: KinematicChain, setups: list[ChainSetup], harmonics: int = 0
                   ) -> tuple[list[int], list[int], np.ndarray, int]:
     """(unobservable indices, fixed indices, null space (n, k) scaled, rank) of a plan."""
-    unk = _unknowns(chain, setups)
+    unk = _unknowns(chain, setups, harmonics)
     scale = np.array([u[1] for u in unk])
-    J = _jacobian(chain, setups, np.zeros(len(unk)), scale, central=True)
+    J = _jacobian(chain, setups, np.zeros(len(unk)), scale, central=True, harmonics=harmonics)
     _u, s, vt = np.linalg.svd(J, full_matrices=True)
     rank = int(np.sum(s > s[0] * RANK_TOL))
     null = vt[rank:].T
@@ -216,12 +252,13 @@ def _extra_setups(label: str, s: ChainSetup) -> list[ChainSetup]:
     return []
 
 
-def _seen_by(chain: KinematicChain, setups: list[ChainSetup], j: int) -> str:
+def _seen_by(chain: KinematicChain, setups: list[ChainSetup], j: int, harmonics: int = 0) -> str:
     for label in EXTRA_MEASUREMENTS:
         if label.startswith("the sphere's place"):
-            unk = _unknowns(chain, setups)
+            unk = _unknowns(chain, setups, harmonics)
             scale = np.array([u[1] for u in unk])
-            J = _jacobian(chain, setups, np.zeros(len(unk)), scale, central=True)
+            J = _jacobian(chain, setups, np.zeros(len(unk)), scale, central=True,
+                          harmonics=harmonics)
             keep = [i for i in range(len(unk)) if "sphere_" not in unk[i][0]]
             J = J[:, keep]
             _u, s, vt = np.linalg.svd(J)
@@ -230,28 +267,29 @@ def _seen_by(chain: KinematicChain, setups: list[ChainSetup], j: int) -> str:
                 return label
             continue
         more = setups + _extra_setups(label, setups[0])
-        unobs, _f, _n, _r = observability(chain, more)
+        unobs, _f, _n, _r = observability(chain, more, harmonics)
         if j not in unobs:
             return label
     return "none of " + "; ".join(EXTRA_MEASUREMENTS)
 
 
 def identify_chain(chain: KinematicChain, setups: list[ChainSetup],
-                   iterations: int = 3, explain: bool = True) -> ChainFit:
-    """Fit the location errors of ``chain`` to the set-ups (see module)."""
-    unk = _unknowns(chain, setups)
+                   iterations: int = 3, explain: bool = True, harmonics: int = 0) -> ChainFit:
+    """Fit the location errors of ``chain`` (and, with ``harmonics`` > 0, its error
+    motions' Fourier coefficients up to that harmonic) to the set-ups (see module)."""
+    unk = _unknowns(chain, setups, harmonics)
     names = [u[0] for u in unk]
     scale = np.array([u[1] for u in unk])
-    unobs, fixed, null, rank = observability(chain, setups)
+    unobs, fixed, null, rank = observability(chain, setups, harmonics)
     free = [j for j in range(len(unk)) if j not in fixed]
     x = np.zeros(len(unk))
     for _ in range(iterations):
-        J = _jacobian(chain, setups, x, scale)[:, free]
-        r = _residual(chain, setups, x)
+        J = _jacobian(chain, setups, x, scale, harmonics=harmonics)[:, free]
+        r = _residual(chain, setups, x, harmonics)
         step, *_ = np.linalg.lstsq(J, r, rcond=None)
         x[free] += step * scale[free]
-    J = _jacobian(chain, setups, x, scale)[:, free]
-    r = _residual(chain, setups, x)
+    J = _jacobian(chain, setups, x, scale, harmonics=harmonics)[:, free]
+    r = _residual(chain, setups, x, harmonics)
     dof = max(r.size - len(free), 1)
     s2 = max(float(r @ r) / dof, 1.0)
     cov = np.linalg.pinv(J.T @ J) * s2
@@ -265,14 +303,23 @@ def identify_chain(chain: KinematicChain, setups: list[ChainSetup],
                          and abs(float(null[i] @ null[j])) > 1e-6)
             rows.append(ChainFitRow(n, None, None, unit,
                                     "fixed at 0" if j in fixed else "convention", conf,
-                                    _seen_by(chain, setups, j) if explain else ""))
+                                    _seen_by(chain, setups, j, harmonics) if explain else ""))
         else:
             rows.append(ChainFitRow(n, float(x[j]), float(1.96 * sig[free.index(j)]), unit,
                                     "identified"))
+    n_mot = sum(1 for u in unk if "(" in u[0])
+    motions = []
+    for j in range(10, 10 + n_mot):
+        if j in unobs:
+            motions.append(ChainFitRow(names[j], None, None, unk[j][2],
+                                       "fixed at 0" if j in fixed else "convention"))
+        else:
+            motions.append(ChainFitRow(names[j], float(x[j]), float(1.96 * sig[free.index(j)]),
+                                       unk[j][2], "identified"))
     return ChainFit(chain, rows, {names[j]: float(x[j]) for j in range(10)}, rank, len(unk),
                     float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf"),
                     float(np.sqrt(np.mean(r ** 2))),
-                    {names[j]: float(x[j]) for j in range(10, len(unk))})
+                    {names[j]: float(x[j]) for j in range(10 + n_mot, len(unk))}, motions)
 
 
 def report_rows(fit: ChainFit) -> list[str]:
@@ -288,8 +335,14 @@ def report_rows(fit: ChainFit) -> list[str]:
                        f"with {', '.join(r.confounded_with) or '-'}; seen by {r.seen_by or '?'}")
         else:
             out.append(f"{r.name:8s} {r.value:10.3f} {r.u95:8.3f} {r.unit:5s} {r.status}")
-    out.append("error motions (not fitted here): " + ", ".join(
-        motion_name(ax, c) for ax in fit.chain.rotaries for c in "XYZABC"))
+    if fit.motion_rows:
+        for r in fit.motion_rows:
+            out.append(f"{r.name:14s} " + (f"{r.value:10.3f} {r.u95:8.3f} {r.unit:5s} {r.status}"
+                                            if r.value is not None else
+                                            f"{'-':>10s} {'-':>8s} {r.unit:5s} {r.status}"))
+    else:
+        out.append("error motions (not fitted: harmonics = 0): " + ", ".join(
+            motion_name(ax, c) for ax in fit.chain.rotaries for c in "XYZABC"))
     return out
 
 
@@ -327,12 +380,14 @@ def setups_from_machine(machine) -> list[ChainSetup]:  # noqa: ANN001 (abbe.form
     return out
 
 
-def reweight(chain: KinematicChain, setups: list[ChainSetup], fit: ChainFit) -> list[ChainSetup]:
+def reweight(chain: KinematicChain, setups: list[ChainSetup], fit: ChainFit,
+             harmonics: int = 0) -> list[ChainSetup]:
     """The set-ups with each sigma replaced by its RMS residual (um, at least 0.05) after
     ``fit``: blocks of unknown noise weighted by what they show."""
-    unk = _unknowns(chain, setups)
-    x = np.array([fit.values.get(u[0], fit.setup.get(u[0], 0.0)) for u in unk])
-    pred = predict(chain, setups, x)
+    unk = _unknowns(chain, setups, harmonics)
+    mot = {r.name: r.value or 0.0 for r in fit.motion_rows}
+    x = np.array([fit.values.get(u[0], mot.get(u[0], fit.setup.get(u[0], 0.0))) for u in unk])
+    pred = predict(chain, setups, x, harmonics)
     out = []
     for s, p in zip(setups, pred):
         raw = (np.asarray(s.obs) - p) * (1e3 if s.kind == "probe" else 1.0)
@@ -351,4 +406,6 @@ def fit_to_json(fit: ChainFit, setups: list[ChainSetup]) -> dict:
             "location": [{"name": r.name, "value": r.value, "u95": r.u95, "unit": r.unit,
                           "status": r.status, "confounded_with": list(r.confounded_with),
                           "seen_by": r.seen_by} for r in fit.rows],
+            "motions": [{"name": r.name, "value": r.value, "u95": r.u95, "unit": r.unit,
+                         "status": r.status} for r in fit.motion_rows],
             "setup_um": fit.setup}
