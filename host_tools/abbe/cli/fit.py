@@ -63,7 +63,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from abbe.cli.fit_chain import is_chain_machine, run_chain
     from abbe.cli.fit_five_axis import is_five_axis, run_five_axis
+    if is_chain_machine(args.machine):  # a [chain] machine: any five-axis kind
+        return run_chain(args)
     if is_five_axis(args.machine):  # a [rotary] machine: the five-axis identification
         return run_five_axis(args)
     # the with block turns a write error inside the staging (disk full, permission)

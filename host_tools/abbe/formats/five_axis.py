@@ -146,6 +146,8 @@ def parse_five_axis(data: dict[str, Any], err: Callable[[str, str], AbbeInputErr
     line, ``resolve(rel, field)`` makes a data path absolute.
     """
     if "rotary" not in data:
+        if "chain" in data:  # a [chain] machine: abbe.formats.chain reads its sections
+            return None
         for k in ("probing", "rtest", "indexer", "rotary_ballbar"):
             if k in data:
                 raise err(k, f"[{k}] needs a [rotary] section (the five-axis kinematics)")
@@ -332,12 +334,16 @@ class IndexerRuns:
     file: str
 
 
-def probe_columns(tilt: str) -> tuple[str, ...]:
-    return ("position", "t_s", f"{tilt.lower()}_deg", "c_deg", "x_mm", "y_mm", "z_mm")
+def probe_columns(tilt: str, second: str = "C") -> tuple[str, ...]:
+    """Probing CSV header; ``tilt``, ``second``: the angle columns' axes (a chain's two
+    rotary axes in alphabetical order; the trunnions' tilt axis and C)."""
+    return ("position", "t_s", f"{tilt.lower()}_deg", f"{second.lower()}_deg", "x_mm", "y_mm",
+            "z_mm")
 
 
-def rtest_columns(tilt: str) -> tuple[str, ...]:
-    return ("t_s", f"{tilt.lower()}_deg", "c_deg", "dx_um", "dy_um", "dz_um")
+def rtest_columns(tilt: str, second: str = "C") -> tuple[str, ...]:
+    """R-test CSV header (angle columns as :func:`probe_columns`)."""
+    return ("t_s", f"{tilt.lower()}_deg", f"{second.lower()}_deg", "dx_um", "dy_um", "dz_um")
 
 
 def rotary_ballbar_columns(tilt: str) -> tuple[str, ...]:
@@ -375,16 +381,16 @@ def _time() -> Column:
     return Column("t_s", 0, "number", 0.0, TIME_LIMIT_S, "s")
 
 
-def read_probe_points(path: str | Path, tilt: str) -> ProbePoints:
+def read_probe_points(path: str | Path, tilt: str, second: str = "C") -> ProbePoints:
     """Read a probing CSV (strict header, finite numbers in range, time not decreasing,
     at least 4 points per position, positions' rows contiguous and at one angle pair)."""
-    names = probe_columns(tilt)
+    names = probe_columns(tilt, second)
     cols = {"position": Column("position", 0, "int", 0, 100_000), "t_s": _time(),
-            names[2]: _angle(names[2]), "c_deg": _angle("c_deg"),
+            names[2]: _angle(names[2]), names[3]: _angle(names[3]),
             **{n: Column(n, 0, "number", -2147.0, 2147.0, "mm") for n in names[4:]}}
     v, lines, f = _read(Path(path), names, cols, "probing CSV")
     pos = v["position"]
-    ang = np.column_stack([v[names[2]], v["c_deg"]])
+    ang = np.column_stack([v[names[2]], v[names[3]]])
     _monotone_time(v["t_s"], lines, f)
     starts = np.flatnonzero(np.r_[True, pos[1:] != pos[:-1]])
     if len(np.unique(pos)) != len(starts):
@@ -403,17 +409,17 @@ def read_probe_points(path: str | Path, tilt: str) -> ProbePoints:
     return ProbePoints(pos, v["t_s"], ang, np.column_stack([v[n] for n in names[4:]]), lines, f)
 
 
-def read_rtest(path: str | Path, tilt: str) -> RTestTrace:
+def read_rtest(path: str | Path, tilt: str, second: str = "C") -> RTestTrace:
     """Read an R-test CSV (strict header, finite numbers in range, time not decreasing)."""
-    names = rtest_columns(tilt)
-    cols = {"t_s": _time(), names[1]: _angle(names[1]), "c_deg": _angle("c_deg"),
+    names = rtest_columns(tilt, second)
+    cols = {"t_s": _time(), names[1]: _angle(names[1]), names[2]: _angle(names[2]),
             **{n: Column(n, 0, "number", -DISPLACEMENT_LIMIT_UM, DISPLACEMENT_LIMIT_UM, "um")
                for n in names[3:]}}
     v, lines, f = _read(Path(path), names, cols, "R-test CSV")
     _monotone_time(v["t_s"], lines, f)
     if lines.size < 3:
         raise AbbeInputError("an R-test needs at least 3 readings", file=f)
-    return RTestTrace(v["t_s"], np.column_stack([v[names[1]], v["c_deg"]]),
+    return RTestTrace(v["t_s"], np.column_stack([v[names[1]], v[names[2]]]),
                       np.column_stack([v[n] for n in names[3:]]), lines, f)
 
 
@@ -478,18 +484,19 @@ def _fmt(v: float) -> str:
 
 
 def probe_csv(tilt: str, position: np.ndarray, time_s: np.ndarray, angles_deg: np.ndarray,
-              points_mm: np.ndarray) -> str:
+              points_mm: np.ndarray, second: str = "C") -> str:
     """The text of a probing CSV (:func:`read_probe_points` reads it)."""
-    rows = [",".join(probe_columns(tilt))]
+    rows = [",".join(probe_columns(tilt, second))]
     for i in range(len(position)):
         rows.append(",".join([str(int(position[i])), _fmt(time_s[i]), _fmt(angles_deg[i, 0]),
                               _fmt(angles_deg[i, 1])] + [_fmt(x) for x in points_mm[i]]))
     return "\n".join(rows) + "\n"
 
 
-def rtest_csv(tilt: str, time_s: np.ndarray, angles_deg: np.ndarray, disp_um: np.ndarray) -> str:
+def rtest_csv(tilt: str, time_s: np.ndarray, angles_deg: np.ndarray, disp_um: np.ndarray,
+              second: str = "C") -> str:
     """The text of an R-test CSV (:func:`read_rtest` reads it)."""
-    rows = [",".join(rtest_columns(tilt))]
+    rows = [",".join(rtest_columns(tilt, second))]
     for i in range(len(time_s)):
         rows.append(",".join([_fmt(time_s[i]), _fmt(angles_deg[i, 0]), _fmt(angles_deg[i, 1])]
                              + [_fmt(x) for x in disp_um[i]]))

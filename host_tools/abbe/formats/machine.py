@@ -20,12 +20,14 @@ from typing import Any, Callable
 
 from abbe.errors import AbbeInputError, check_number
 from abbe.errors.numbers import show_value
-from abbe.formats.five_axis import parse_five_axis
+from abbe.formats.chain import parse_chain, parse_chain_plans
 from abbe.formats.columns import BALLBAR_ROLES, LASER_ROLES, Columns, parse_columns
+from abbe.formats.five_axis import parse_five_axis
 from abbe.formats.limits import MACHINE_FILE_MAX_BYTES
 from abbe.formats.structured import load_toml, unknown_key
 from abbe.formats.thermal_machine import parse_thermal
 from abbe.formats.uncertainty_spec import parse_uncertainty
+from abbe.model.chain import trunnion_chain
 from abbe.model.geometry import PLANES
 from abbe.model.table import AXES, TERMS
 
@@ -324,7 +326,7 @@ _FIT: _Spec = {"max_trend_degree": (_int_range(0, 7), False, 7),
                "folds": (_int_range(2, 50), False, 5),
                "backlash_sigma": (_in(*BACKLASH_SIGMA_RANGE, ""), False, 3.0)}
 _TOP = ("machine", "axes", "reference", "tool", "laser", "ballbar", "fit", "rotary", "probing",
-        "rtest", "indexer", "rotary_ballbar", "thermal", "uncertainty", "tolerances")
+        "rtest", "indexer", "rotary_ballbar", "thermal", "uncertainty", "tolerances", "chain")
 
 
 def _table(v: Any, ctx: _Ctx, f: str) -> dict[str, Any]:
@@ -431,6 +433,17 @@ def load_machine(path: str | Path) -> Machine:
 
     five = parse_five_axis(data, ctx.err, ctx.loc.line, str(path),
                            lambda rel, f: _resolve(base, rel, ctx, f))
+    chain = parse_chain(data, ctx.err, ctx.loc.line, str(path))
+    if chain is not None and five is not None:
+        raise ctx.err("chain", "a machine file describes its kinematics once: [chain] or "
+                               "[rotary] (kinematics = xyzac-trt / xyzbc-trt), not both")
+    if chain is not None and five is None:
+        extra["chain_plans"] = parse_chain_plans(data, ctx.err, ctx.loc.line, str(path),
+                                                 lambda rel, f: _resolve(base, rel, ctx, f))
+    if chain is None and five is not None:  # a trunnion is one instance of the chain
+        chain = trunnion_chain(five.geometry)
+    if chain is not None:
+        extra["chain"] = chain
     if "uncertainty" in data or "tolerances" in data:
         extra["uncertainty"] = parse_uncertainty(data, ctx.err, ctx.loc.line, str(path),
                                                  tuple(axes))

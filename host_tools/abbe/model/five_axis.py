@@ -235,10 +235,11 @@ def axis_transform(geom: TrunnionGeometry, errs: FiveAxisErrors | None, axis: st
 def table_transform(geom: TrunnionGeometry, errs: FiveAxisErrors | None,
                     angles_deg: np.ndarray) -> np.ndarray:
     """(N, 4, 4) workpiece -> machine transform at angles (N, 2) = (tilt, C) degrees."""
-    ang = np.asarray(angles_deg, dtype=np.float64).reshape(-1, 2)
-    tilt, table = geom.rotaries
-    return (axis_transform(geom, errs, tilt, ang[:, 0])
-            @ axis_transform(geom, errs, table, ang[:, 1]))
+    from abbe.model.chain import trunnion_chain, workpiece_transform  # chain imports this module
+
+    # The trunnion is one instance of the kinematic chain (C on the tilt axis, then X Y Z):
+    # the chain's arithmetic is this model's, operation for operation (the same bits).
+    return workpiece_transform(trunnion_chain(geom), errs, angles_deg)
 
 
 def linear_axis_errors(geom: TrunnionGeometry, errs: FiveAxisErrors,
@@ -270,9 +271,9 @@ def linear_axis_errors(geom: TrunnionGeometry, errs: FiveAxisErrors,
 
 def nominal_joints(geom: TrunnionGeometry, work_mm: np.ndarray, angles_deg: np.ndarray) -> np.ndarray:
     """(N, 3) machine positions (mm) of workpiece points under tool-centre-point control."""
-    w = np.asarray(work_mm, dtype=np.float64).reshape(-1, 3)
-    T = table_transform(geom, None, angles_deg)
-    return np.einsum("nij,nj->ni", T[:, :3, :3], w) + T[:, :3, 3]
+    from abbe.model.chain import nominal_joints as chain_joints, trunnion_chain
+
+    return chain_joints(trunnion_chain(geom), work_mm, angles_deg)
 
 
 def rotvec(R: np.ndarray) -> np.ndarray:
@@ -289,16 +290,9 @@ def tool_error_exact(geom: TrunnionGeometry, errs: FiveAxisErrors, pos_mm: np.nd
                      angles_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Exact error of the tool relative to the workpiece at machine positions (N, 3) mm
     and angles (N, 2) deg: position (N, 3) um, orientation (N, 3) urad, machine frame."""
-    q = np.asarray(pos_mm, dtype=np.float64).reshape(-1, 3)
-    Ta = table_transform(geom, errs, angles_deg)
-    Tn = table_transform(geom, None, angles_deg)
-    M = Ta @ np.linalg.inv(Tn)
-    dl, rl = linear_axis_errors(geom, errs, q)
-    moved = np.einsum("nij,nj->ni", M[:, :3, :3], q) + M[:, :3, 3]
-    tool = q + dl * 1e-3
-    Rtool = small_rotation(rl * 1e-6)
-    Rrel = Rtool @ np.transpose(M[:, :3, :3], (0, 2, 1))
-    return (tool - moved) * 1e3, rotvec(Rrel) * 1e6
+    from abbe.model.chain import tool_error_exact as chain_exact, trunnion_chain
+
+    return chain_exact(trunnion_chain(geom), errs, pos_mm, angles_deg)
 
 
 # ------------------------------------------------------------------- linearised

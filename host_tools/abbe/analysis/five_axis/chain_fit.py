@@ -1,0 +1,354 @@
+"""Location errors of any kinematic chain from sphere probing and R-test data, with what
+the plan cannot see (docs/concepts.md, "Five-axis machines: the kinematic chain").
+
+Unknowns: the ten location errors of the two rotary axes (ISO 230-7 names), and per
+set-up the sphere's place on the table (3, um) and, for an R-test, its zero (3, um).
+Residuals: measured minus predicted through the exact chain model, each block divided
+by its standard deviation; Gauss-Newton on a forward-difference Jacobian (the model is
+linear in the location errors to 0.1 um at 100 um / 100 urad).
+
+Observability: the weighted Jacobian, columns scaled by each unknown's typical size,
+has a null space; an unknown is *observable* when no null direction moves it. A
+maximal set of the others is fixed at 0 by convention (angular zeros first, then
+positions, tilts, the set-up last); each unobservable location error is named with the
+unknowns it is confounded with and the first of a list of added measurements that
+would make it observable (:data:`EXTRA_MEASUREMENTS`). Intervals: 1.96 sigma from
+``s^2 (J^T J)^-1`` (s^2 the weighted residual variance, at least 1).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from abbe.model.chain import (KinematicChain, nominal_joints, tool_tip, tool_transform,
+                              workpiece_transform)
+from abbe.model.five_axis import LOCATION_ERRORS, FiveAxisErrors, motion_name
+
+#: Typical sizes of the unknowns (the solver's column scaling): um for positions, urad
+#: for tilts and zeros, um for the set-up unknowns.
+SCALE_UM, SCALE_URAD, SCALE_SETUP_UM = 10.0, 50.0, 100.0
+#: Singular values below this share of the largest count as zero (the forward
+#: differences carry ~1e-10 of relative rounding; a real plan's weakest seen direction
+#: sits above 1e-4).
+RANK_TOL = 1e-7
+
+
+@dataclass
+class ChainSetup:
+    """One measurement set-up: ``kind`` ``probe`` (the machine positions q that put the
+    stylus tip on the sphere's centre, mm) or ``rtest``
+    (readings, nest frame um), the sphere's nominal centre (workpiece mm), the tool tip
+    (stylus or nest) relative to the controlled point at zero angles (mm), the angle
+    pairs (M, 2) deg (alphabetical axes), observations (M, 3), sigma per axis (um)."""
+
+    kind: str
+    name: str
+    sphere_mm: tuple[float, float, float]
+    angles_deg: np.ndarray
+    obs: np.ndarray
+    tip_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    sigma_um: float = 1.0
+
+
+@dataclass
+class ChainFitRow:
+    """One row of the ISO 230-7 report: name, value (um / urad, None when the plan cannot
+    see it), 95 % half-width, unit, status (``identified``, ``fixed at 0``, ``convention``),
+    what it is confounded with and what would see it."""
+
+    name: str
+    value: float | None
+    u95: float | None
+    unit: str
+    status: str
+    confounded_with: tuple[str, ...] = ()
+    seen_by: str = ""
+
+
+@dataclass
+class ChainFit:
+    """Result: rows per location error, the values (fixed ones 0), rank, condition
+    number, weighted RMS residual, the set-up unknowns (um)."""
+
+    chain: KinematicChain
+    rows: list[ChainFitRow]
+    values: dict[str, float]
+    rank: int
+    n_unknowns: int
+    condition: float
+    rms_weighted: float
+    setup: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def observable(self) -> tuple[str, ...]:
+        return tuple(r.name for r in self.rows if r.status == "identified")
+
+    @property
+    def unobservable(self) -> tuple[str, ...]:
+        return tuple(r.name for r in self.rows if r.status != "identified")
+
+
+def _unknowns(chain: KinematicChain, setups: list[ChainSetup]) -> list[tuple[str, float, str]]:
+    out = []
+    for ax in chain.rotaries:
+        for i, n in enumerate(LOCATION_ERRORS[ax]):
+            out.append((n, SCALE_UM if i < 2 else SCALE_URAD, "um" if i < 2 else "urad"))
+    for s in setups:
+        for c in "xyz":
+            out.append((f"{s.name}.sphere_{c}", SCALE_SETUP_UM, "um"))
+        if s.kind == "rtest":
+            for c in "xyz":
+                out.append((f"{s.name}.zero_{c}", SCALE_SETUP_UM, "um"))
+    return out
+
+
+def predict(chain: KinematicChain, setups: list[ChainSetup], x: np.ndarray) -> list[np.ndarray]:
+    """Predicted observations of every set-up for the unknowns ``x`` (in :func:`_unknowns`
+    order, um / urad): probe machine positions (mm), R-test readings (um)."""
+    names = [u[0] for u in _unknowns(chain, setups)]
+    errs = FiveAxisErrors({n: float(v) for n, v in zip(names[:10], x[:10])})
+    out, k = [], 10
+    for s in setups:
+        ang = np.asarray(s.angles_deg, dtype=np.float64).reshape(-1, 2)
+        w = np.asarray(s.sphere_mm, dtype=np.float64) + x[k:k + 3] * 1e-3
+        k += 3
+        T = workpiece_transform(chain, errs, ang)
+        centre = np.einsum("nij,j->ni", T[:, :3, :3], w) + T[:, :3, 3]
+        if s.kind == "probe":
+            # the machine position at which the true tip is on the centre
+            Ta = tool_transform(chain, errs, ang)
+            tip = np.asarray(s.tip_mm, dtype=np.float64)
+            out.append(centre - (np.einsum("nij,j->ni", Ta[:, :3, :3], tip) + Ta[:, :3, 3]))
+        else:
+            s_nom = np.asarray(s.sphere_mm, dtype=np.float64)
+            q = nominal_joints(chain, s_nom[None, :].repeat(len(ang), 0), ang, s.tip_mm)
+            nest = tool_tip(chain, errs, q, ang, s.tip_mm)
+            R = tool_transform(chain, None, ang)[:, :3, :3]
+            d = np.einsum("nji,nj->ni", R, (centre - nest) * 1e3)
+            out.append(d + x[k:k + 3][None, :])
+            k += 3
+    return out
+
+
+def _residual(chain: KinematicChain, setups: list[ChainSetup], x: np.ndarray) -> np.ndarray:
+    pred = predict(chain, setups, x)
+    r = []
+    for s, p in zip(setups, pred):
+        diff = (np.asarray(s.obs) - p) * (1e3 if s.kind == "probe" else 1.0)
+        r.append((diff / s.sigma_um).ravel())
+    return np.concatenate(r)
+
+
+def _jacobian(chain: KinematicChain, setups: list[ChainSetup], x: np.ndarray,
+              scale: np.ndarray, central: bool = False) -> np.ndarray:
+    """d(prediction)/d(unknown / scale), weighted. ``central``: central differences (no
+    second-order part: what the rank needs, where a direction the model sees only to
+    second order must count as unseen); forward differences for the iterations."""
+    r0 = _residual(chain, setups, x)
+    J = np.empty((r0.size, x.size))
+    for j in range(x.size):
+        h = np.zeros(x.size)
+        h[j] = scale[j]  # one typical size: the model is linear to 1e-3 um there
+        if central:
+            J[:, j] = -(_residual(chain, setups, x + h) - _residual(chain, setups, x - h)) / 2.0
+        else:
+            J[:, j] = -(_residual(chain, setups, x + h) - r0) / h[j] * scale[j]
+    return J
+
+
+def _rank(J: np.ndarray) -> int:
+    s = np.linalg.svd(J, compute_uv=False)
+    return int(np.sum(s > s[0] * RANK_TOL)) if s.size and s[0] > 0 else 0
+
+
+def _fix_order(names: list[str]) -> list[int]:
+    """Unknowns in the order the convention fixes them: angular zeros, positions, tilts,
+    the set-up's last."""
+    def key(i: int) -> tuple[int, int]:
+        n = names[i]
+        if "." in n:
+            return (3, i)
+        if n[1] == n[3]:  # EC0C: the zero of the axis itself
+            return (0, i)
+        return (1 if n[1] in "XYZ" else 2, i)
+    return sorted(range(len(names)), key=key)
+
+
+def observability(chain: KinematicChain, setups: list[ChainSetup]
+                  ) -> tuple[list[int], list[int], np.ndarray, int]:
+    """(unobservable indices, fixed indices, null space (n, k) scaled, rank) of a plan."""
+    unk = _unknowns(chain, setups)
+    scale = np.array([u[1] for u in unk])
+    J = _jacobian(chain, setups, np.zeros(len(unk)), scale, central=True)
+    _u, s, vt = np.linalg.svd(J, full_matrices=True)
+    rank = int(np.sum(s > s[0] * RANK_TOL))
+    null = vt[rank:].T
+    unobs = [j for j in range(len(unk)) if np.linalg.norm(null[j]) > 1e-6]
+    fixed: list[int] = []
+    for j in _fix_order([u[0] for u in unk]):
+        if j not in unobs or len(fixed) == len(unk) - rank:
+            continue
+        keep = [i for i in range(len(unk)) if i not in fixed and i != j]
+        if _rank(J[:, keep]) == rank:
+            fixed.append(j)
+    return unobs, fixed, null, rank
+
+
+#: Measurements a plan may add to see what it cannot: (label, how to build its set-ups
+#: from the plan's first set-up).
+EXTRA_MEASUREMENTS: tuple[str, ...] = (
+    "a second sphere 100 mm higher on the table",
+    "a second stylus (or R-test nest) 100 mm longer",
+    "the sphere's place on the table known (probed at zero angles against a reference)",
+)
+
+
+def _extra_setups(label: str, s: ChainSetup) -> list[ChainSetup]:
+    if label.startswith("a second sphere"):
+        w = (s.sphere_mm[0], s.sphere_mm[1], s.sphere_mm[2] + 100.0)
+        return [ChainSetup(s.kind, s.name + "_high", w, s.angles_deg, s.obs, s.tip_mm, s.sigma_um)]
+    if label.startswith("a second stylus"):
+        tip = (s.tip_mm[0], s.tip_mm[1], s.tip_mm[2] - 100.0)
+        return [ChainSetup(s.kind, s.name + "_long", s.sphere_mm, s.angles_deg, s.obs, tip,
+                           s.sigma_um)]
+    return []
+
+
+def _seen_by(chain: KinematicChain, setups: list[ChainSetup], j: int) -> str:
+    for label in EXTRA_MEASUREMENTS:
+        if label.startswith("the sphere's place"):
+            unk = _unknowns(chain, setups)
+            scale = np.array([u[1] for u in unk])
+            J = _jacobian(chain, setups, np.zeros(len(unk)), scale, central=True)
+            keep = [i for i in range(len(unk)) if "sphere_" not in unk[i][0]]
+            J = J[:, keep]
+            _u, s, vt = np.linalg.svd(J)
+            rank = int(np.sum(s > s[0] * RANK_TOL))
+            if np.linalg.norm(vt[rank:].T[keep.index(j)]) <= 1e-6:
+                return label
+            continue
+        more = setups + _extra_setups(label, setups[0])
+        unobs, _f, _n, _r = observability(chain, more)
+        if j not in unobs:
+            return label
+    return "none of " + "; ".join(EXTRA_MEASUREMENTS)
+
+
+def identify_chain(chain: KinematicChain, setups: list[ChainSetup],
+                   iterations: int = 3, explain: bool = True) -> ChainFit:
+    """Fit the location errors of ``chain`` to the set-ups (see module)."""
+    unk = _unknowns(chain, setups)
+    names = [u[0] for u in unk]
+    scale = np.array([u[1] for u in unk])
+    unobs, fixed, null, rank = observability(chain, setups)
+    free = [j for j in range(len(unk)) if j not in fixed]
+    x = np.zeros(len(unk))
+    for _ in range(iterations):
+        J = _jacobian(chain, setups, x, scale)[:, free]
+        r = _residual(chain, setups, x)
+        step, *_ = np.linalg.lstsq(J, r, rcond=None)
+        x[free] += step * scale[free]
+    J = _jacobian(chain, setups, x, scale)[:, free]
+    r = _residual(chain, setups, x)
+    dof = max(r.size - len(free), 1)
+    s2 = max(float(r @ r) / dof, 1.0)
+    cov = np.linalg.pinv(J.T @ J) * s2
+    sig = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * scale[free]
+    sv = np.linalg.svd(J, compute_uv=False)
+    rows = []
+    for j in range(10):
+        n, unit = names[j], unk[j][2]
+        if j in unobs:
+            conf = tuple(names[i] for i in range(len(unk)) if i != j
+                         and abs(float(null[i] @ null[j])) > 1e-6)
+            rows.append(ChainFitRow(n, None, None, unit,
+                                    "fixed at 0" if j in fixed else "convention", conf,
+                                    _seen_by(chain, setups, j) if explain else ""))
+        else:
+            rows.append(ChainFitRow(n, float(x[j]), float(1.96 * sig[free.index(j)]), unit,
+                                    "identified"))
+    return ChainFit(chain, rows, {names[j]: float(x[j]) for j in range(10)}, rank, len(unk),
+                    float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf"),
+                    float(np.sqrt(np.mean(r ** 2))),
+                    {names[j]: float(x[j]) for j in range(10, len(unk))})
+
+
+def report_rows(fit: ChainFit) -> list[str]:
+    """The ISO 230-7 table of a fit as text lines (name, value, 95 %, status, notes)."""
+    out = [f"{fit.chain.name} ({fit.chain.kind}; workpiece side "
+           f"{', '.join(fit.chain.workpiece_side) or '-'}, tool side "
+           f"{', '.join(fit.chain.tool_side) or '-'}): rank {fit.rank} of {fit.n_unknowns}, "
+           f"condition {fit.condition:.3g}",
+           f"{'error':8s} {'value':>10s} {'+-95%':>8s} unit  status"]
+    for r in fit.rows:
+        if r.value is None:
+            out.append(f"{r.name:8s} {'-':>10s} {'-':>8s} {r.unit:5s} {r.status}: confounded "
+                       f"with {', '.join(r.confounded_with) or '-'}; seen by {r.seen_by or '?'}")
+        else:
+            out.append(f"{r.name:8s} {r.value:10.3f} {r.u95:8.3f} {r.unit:5s} {r.status}")
+    out.append("error motions (not fitted here): " + ", ".join(
+        motion_name(ax, c) for ax in fit.chain.rotaries for c in "XYZABC"))
+    return out
+
+
+def setups_from_machine(machine) -> list[ChainSetup]:  # noqa: ANN001 (abbe.formats.machine.Machine)
+    """The set-ups of a ``[chain]`` machine file: each probing file's positions fitted as
+    spheres (the centres are machine positions: the stylus' radius and the sphere's cancel),
+    each R-test file's readings. Sigma per set-up: probing from the sphere fits' point noise
+    and centre factor, R-test 1 um until :func:`identify_chain` re-estimates it."""
+    from abbe.analysis.five_axis.spheres import sphere_centres
+    from abbe.errors import AbbeInputError
+    from abbe.formats.five_axis import read_probe_points, read_rtest
+
+    chain = machine.extra["chain"]
+    plans = machine.extra["chain_plans"]
+    r1, r2 = chain.rotaries
+    out = []
+    for p in plans.probing.values():
+        pts = read_probe_points(p.file, r1, r2)
+        sc = sphere_centres(pts, p.sphere_radius_mm + p.stylus_radius_mm, p.radius_tolerance_mm)
+        if not bool(np.all(sc.radius_ok)):
+            i = int(np.flatnonzero(~sc.radius_ok)[0])
+            raise AbbeInputError(
+                f"position {int(sc.position[i])}: fitted radius {sc.radius_mm[i]:.4f} mm, "
+                f"expected {p.sphere_radius_mm + p.stylus_radius_mm:.4f} +- "
+                f"{p.radius_tolerance_mm} mm (sphere + stylus radius)", file=str(p.file),
+                field="position")
+        noise = sc.point_noise_um() or 1.0
+        sigma = max(noise * float(np.sqrt(np.mean(sc.centre_factor) / 3.0)), 0.05)
+        out.append(ChainSetup("probe", p.name, p.sphere_mm, sc.angles_deg, sc.centre_mm,
+                              p.tip_mm, sigma))
+    for r in plans.rtest.values():
+        tr = read_rtest(r.file, r1, r2)
+        out.append(ChainSetup("rtest", r.name, r.sphere_mm, tr.angles_deg, tr.displacement_um,
+                              r.tip_mm, 1.0))
+    return out
+
+
+def reweight(chain: KinematicChain, setups: list[ChainSetup], fit: ChainFit) -> list[ChainSetup]:
+    """The set-ups with each sigma replaced by its RMS residual (um, at least 0.05) after
+    ``fit``: blocks of unknown noise weighted by what they show."""
+    unk = _unknowns(chain, setups)
+    x = np.array([fit.values.get(u[0], fit.setup.get(u[0], 0.0)) for u in unk])
+    pred = predict(chain, setups, x)
+    out = []
+    for s, p in zip(setups, pred):
+        raw = (np.asarray(s.obs) - p) * (1e3 if s.kind == "probe" else 1.0)
+        out.append(ChainSetup(s.kind, s.name, s.sphere_mm, s.angles_deg, s.obs, s.tip_mm,
+                              max(float(np.sqrt(np.mean(raw ** 2))), 0.05)))
+    return out
+
+
+def fit_to_json(fit: ChainFit, setups: list[ChainSetup]) -> dict:
+    """The fit as JSON (units in the keys and rows)."""
+    c = fit.chain
+    return {"chain": c.name, "kind": c.kind, "workpiece_side": list(c.workpiece_side),
+            "tool_side": list(c.tool_side), "rank": fit.rank, "unknowns": fit.n_unknowns,
+            "condition": fit.condition, "rms_weighted": fit.rms_weighted,
+            "sigma_um": {s.name: s.sigma_um for s in setups},
+            "location": [{"name": r.name, "value": r.value, "u95": r.u95, "unit": r.unit,
+                          "status": r.status, "confounded_with": list(r.confounded_with),
+                          "seen_by": r.seen_by} for r in fit.rows],
+            "setup_um": fit.setup}

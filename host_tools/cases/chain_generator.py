@@ -1,0 +1,191 @@
+"""Independent generator of five-axis sphere measurements for any kinematic chain.
+
+Written from the chain description in ISO 230-1 terms, NOT from abbe's model code (it
+imports nothing from abbe): it reads the machine file's ``[chain]`` with tomllib and
+builds every axis as a rotation about its *actual axis average line*:
+
+* the nominal line of a rotary axis passes through its pivot P along the unit vector
+  k of its machine axis (A: X, B: Y, C: Z); the actual line is shifted by the
+  position location errors (ISO 230-7: for C, EX0C and EY0C along X and Y) and tilted
+  by the orientation location errors (for C, EA0C about X and EB0C about Y): its
+  direction is k + (tilt vector) x k, normalised;
+* the axis turns by ``s * t + E0`` (s the nominal direction's sign, E0 the zero
+  location error, e.g. EC0C, about the positive machine axis) about that actual line:
+  Rodrigues' formula in a 4 x 4 matrix ``[R, p - R p; 0, 1]`` with p a point of the
+  actual line;
+* workpiece-side axes are composed from the base to the workpiece, tool-side axes
+  from the linear axes to the tool; the tool-side pivots travel with the linear axes.
+
+Instruments (the same meaning as abbe's, coded here again): a touch probe reports the
+machine position (the linear axes) where the actual tip is on the actual sphere centre; an
+R-test nest under tool-centre-point control reads the actual sphere centre minus the
+actual nest, in the nest's nominal frame (um), zeroed at its first reading.
+
+Usage: imported by cases/chain_suite.py (bench/bench_chain.py) and by the tests.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+_AXIS = {"A": 0, "B": 1, "C": 2}
+_XYZ = "XYZ"
+
+
+@dataclass(frozen=True)
+class GenAxis:
+    name: str
+    sign: float
+    pivot: np.ndarray
+    travel: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class GenChain:
+    """Rotary axes next to the workpiece first (``work``), next to the linear axes first
+    (``tool``), all rotary axes in alphabetical order (the angle columns)."""
+
+    work: tuple[GenAxis, ...]
+    tool: tuple[GenAxis, ...]
+    names: tuple[str, str]
+
+    def axis(self, n: str) -> GenAxis:
+        return next(a for a in self.work + self.tool if a.name == n)
+
+
+def read_chain(path: Path) -> GenChain:
+    """The ``[chain]`` of a machine file (no validation beyond what the generator needs)."""
+    data = tomllib.loads(Path(path).read_text(encoding="utf-8"))["chain"]
+    order = data["order"]
+    first_lin = min(i for i, n in enumerate(order) if n in _XYZ)
+    axes = {}
+    for n in order:
+        if n in _AXIS:
+            a = data[n]
+            axes[n] = GenAxis(n, 1.0 if a["direction"].startswith("+") else -1.0,
+                              np.array(a["pivot_mm"], dtype=float), tuple(a["travel_deg"]))
+    work = tuple(axes[n] for n in order[:first_lin])
+    tool = tuple(axes[n] for n in order[first_lin + 3:])
+    names = tuple(sorted(axes))
+    return GenChain(work, tool, (names[0], names[1]))
+
+
+def location_names(axis: str) -> tuple[str, str, str, str, str]:
+    """ISO 230-7 location errors of ``axis``: the two positions across it, the two tilts
+    across it, its zero - e.g. C: EX0C, EY0C, EA0C, EB0C, EC0C."""
+    i = _AXIS[axis]
+    across = [j for j in range(3) if j != i]
+    return (f"E{_XYZ[across[0]]}0{axis}", f"E{_XYZ[across[1]]}0{axis}",
+            f"E{'ABC'[across[0]]}0{axis}", f"E{'ABC'[across[1]]}0{axis}", f"E{axis}0{axis}")
+
+
+def _rodrigues(k: np.ndarray, angle: float) -> np.ndarray:
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * K @ K
+
+
+def axis_matrix(ax: GenAxis, angle_deg: float, loc: dict[str, float] | None) -> np.ndarray:
+    """4 x 4 motion of ``ax`` at ``angle_deg``: rotation about its actual line."""
+    i = _AXIS[ax.name]
+    k = np.zeros(3)
+    k[i] = 1.0
+    p = ax.pivot.astype(float).copy()
+    zero = 0.0
+    if loc:
+        n = location_names(ax.name)
+        across = [j for j in range(3) if j != i]
+        tilt = np.zeros(3)
+        for m, j in enumerate(across):
+            p[j] += loc.get(n[m], 0.0) * 1e-3
+            tilt[j] = loc.get(n[2 + m], 0.0) * 1e-6
+        k = k + np.cross(tilt, k)
+        k = k / np.linalg.norm(k)
+        zero = loc.get(n[4], 0.0) * 1e-6
+    R = _rodrigues(k, ax.sign * np.deg2rad(angle_deg) + zero)
+    M = np.eye(4)
+    M[:3, :3] = R
+    M[:3, 3] = p - R @ p
+    return M
+
+
+def _angles(ch: GenChain, pair: np.ndarray) -> dict[str, float]:
+    return {ch.names[0]: float(pair[0]), ch.names[1]: float(pair[1])}
+
+
+def work_matrix(ch: GenChain, pair: np.ndarray, loc: dict[str, float] | None) -> np.ndarray:
+    """Workpiece -> machine: the outermost axis' matrix on the left."""
+    a = _angles(ch, pair)
+    M = np.eye(4)
+    for ax in reversed(ch.work):  # outermost first
+        M = M @ axis_matrix(ax, a[ax.name], loc)
+    return M
+
+
+def tool_matrix(ch: GenChain, pair: np.ndarray, loc: dict[str, float] | None) -> np.ndarray:
+    """Tool -> linear axes' frame, relative to the controlled point."""
+    a = _angles(ch, pair)
+    M = np.eye(4)
+    for ax in ch.tool:
+        M = M @ axis_matrix(ax, a[ax.name], loc)
+    return M
+
+
+def _pt(M: np.ndarray, p: np.ndarray) -> np.ndarray:
+    return M[:3, :3] @ p + M[:3, 3]
+
+
+def probe_centres(ch: GenChain, loc: dict[str, float], sphere: np.ndarray, offset_mm: np.ndarray,
+                  tip: np.ndarray, angles: np.ndarray, noise_um: float,
+                  rng: np.random.Generator) -> np.ndarray:
+    """(M, 3) machine positions (mm) at which the stylus tip is on the sphere's centre."""
+    out = []
+    for pair in angles:
+        centre = _pt(work_matrix(ch, pair, loc), sphere + offset_mm)
+        out.append(centre - _pt(tool_matrix(ch, pair, loc), tip))  # actual tip on the centre
+    c = np.array(out)
+    return c + rng.normal(0.0, noise_um * 1e-3, c.shape)
+
+
+def rtest_readings(ch: GenChain, loc: dict[str, float], sphere: np.ndarray, offset_mm: np.ndarray,
+                   tip: np.ndarray, angles: np.ndarray, noise_um: float,
+                   rng: np.random.Generator) -> np.ndarray:
+    """(M, 3) R-test readings (um, nest frame) under tool-centre-point control."""
+    out = []
+    for pair in angles:
+        q = _pt(work_matrix(ch, pair, None), sphere) - _pt(tool_matrix(ch, pair, None), tip)
+        nest = q + _pt(tool_matrix(ch, pair, loc), tip)
+        centre = _pt(work_matrix(ch, pair, loc), sphere + offset_mm)
+        out.append(tool_matrix(ch, pair, None)[:3, :3].T @ (centre - nest) * 1e3)
+    r = np.array(out)
+    r = r - r[0] + rng.normal(0.0, noise_um, r.shape)
+    r[0] = 0.0
+    return r
+
+
+def random_location(ch: GenChain, rng: np.random.Generator, um: float = 20.0,
+                    urad: float = 50.0) -> dict[str, float]:
+    """Random location errors: positions N(0, um), tilts and zeros N(0, urad)."""
+    out = {}
+    for n in ch.names:
+        for i, e in enumerate(location_names(n)):
+            out[e] = float(rng.normal(0.0, um if i < 2 else urad))
+    return out
+
+
+def grid(ch: GenChain, n_first: int = 5, n_second: int = 6) -> np.ndarray:
+    """Angle pairs: a full turn equally spaced, or 80 % of the travel (within +-90 deg)."""
+    cols = []
+    for n, k in zip(ch.names, (n_first, n_second)):
+        lo, hi = ch.axis(n).travel
+        if hi - lo >= 360.0:
+            cols.append(np.arange(k) * 360.0 / k + 15.0)
+        else:
+            lo, hi = max(lo, -90.0), min(hi, 90.0)
+            mid, half = (lo + hi) / 2.0, (hi - lo) / 2.0 * 0.8
+            cols.append(np.linspace(mid - half, mid + half, k))
+    A, B = np.meshgrid(cols[0], cols[1], indexing="ij")
+    return np.column_stack([A.ravel(), B.ravel()])

@@ -1,0 +1,69 @@
+"""``abbe fit`` on [chain] machine files: a simulated head-head and dual-rotary campaign
+(probing trigger points, R-test) identified from the files; bad files refused with exit 2."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from abbe.cli.entry import main
+from abbe.formats.machine import load_machine
+from abbe.sim.chain import (VirtualChainMachine, random_location_errors, sphere_plan,
+                            write_chain_campaign)
+
+from cases.chain_suite import CHAINS
+
+
+def _campaign(tmp_path: Path, file: str, seed: int) -> tuple[Path, dict[str, float]]:
+    ch = load_machine(CHAINS / file).extra["chain"]
+    vm = VirtualChainMachine(ch, random_location_errors(ch, np.random.default_rng(seed)),
+                             (0.04, -0.02, 0.03), probe_noise_um=0.5, rtest_noise_um=0.3,
+                             seed=seed)
+    tips = ((0.0, 0.0, 0.0), (0.0, 0.0, -100.0)) if ch.tool_side else ((0.0, 0.0, 0.0),)
+    m = write_chain_campaign(vm, tmp_path / "c", sphere_plan(ch), tips_mm=tips,
+                             heights_mm=(0.0, 100.0))
+    return m, vm.errors.location
+
+
+@pytest.mark.parametrize("file, unseen", [("head-head-5axiskins.toml", {"EC0B", "EC0C"}),
+                                          ("table-dual-rotary-xyzab.toml",
+                                           {"EA0A", "EB0A", "EB0B"})])
+def test_fit_a_chain_campaign_from_files(tmp_path: Path, file: str, unseen: set[str],
+                                         capsys) -> None:
+    m, truth = _campaign(tmp_path, file, 8)
+    assert main(["fit", str(m), "-o", str(tmp_path / "o"), "-q"]) == 0
+    doc = json.loads((tmp_path / "o" / "chain_fit.json").read_text())
+    assert {r["name"] for r in doc["location"] if r["value"] is None} == unseen
+    for r in doc["location"]:
+        if r["value"] is None:
+            assert r["seen_by"] and r["status"] in ("fixed at 0", "convention")
+            continue
+        floor = 1.0 if r["unit"] == "um" else 5.0
+        assert abs(r["value"] - truth[r["name"]]) <= max(r["u95"], floor), r
+    assert "observable" in capsys.readouterr().out
+    assert (tmp_path / "o" / "report.txt").read_text().count("identified") == 10 - len(unseen)
+
+
+def test_bad_chain_campaign_files_exit_2(tmp_path: Path, capsys) -> None:
+    m, _t = _campaign(tmp_path, "head-table-maxkins.toml", 3)
+    p = m.parent / "probe_1.csv"
+    lines = p.read_text().splitlines()
+    lines[5] = lines[5].replace(",", ",nan", 1)
+    p.write_text("\n".join(lines) + "\n")
+    assert main(["fit", str(m), "-o", str(tmp_path / "o"), "-q"]) == 2
+    assert "probe_1.csv:6" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+    # the angle columns are the chain's rotary axes: b_deg, c_deg here
+    p.write_text(p.read_text().replace("b_deg", "a_deg", 1))
+    assert main(["fit", str(m), "-o", str(tmp_path / "o"), "-q"]) == 2
+    assert "expected the header position,t_s,b_deg,c_deg" in capsys.readouterr().err
+    text = m.read_text()
+    m.write_text(text + '[indexer.C]\nfile = "x.csv"\n')
+    assert main(["fit", str(m), "-o", str(tmp_path / "o"), "-q"]) == 2
+    assert "indexer" in capsys.readouterr().err
+    m.write_text(text.replace('[probing.S1]\nfile = "probe_1.csv"', '[probing.S1]\nfile = 3'))
+    assert main(["fit", str(m), "-o", str(tmp_path / "o"), "-q"]) == 2
+    assert "probing.S1.file" in capsys.readouterr().err
