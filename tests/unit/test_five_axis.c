@@ -45,6 +45,8 @@ static void test_golden_f32(void **state)
         abbe_five_model_t m;
         load_five(t, &m);
         const abbe_golden_five_table_t *g = &abbe_golden_five_tables[t];
+        const int64_t before_pos = worst_pos, before_rot = worst_rot;
+        worst_pos = worst_rot = 0; /* per table, printed below, then the overall worst */
         for (uint32_t i = g->first_point; i < g->first_point + g->n_points; i++) {
             const abbe_golden_five_point_t *p = &abbe_golden_five_points[i];
             abbe_five_input_f32_t in;
@@ -65,6 +67,10 @@ static void test_golden_f32(void **state)
                 }
             }
         }
+        printf("five-axis f32 %s (kind %u): worst |C - reference| position %lld pm, orientation %lld prad\n", g->name,
+               (unsigned)g->kind, (long long)worst_pos, (long long)worst_rot);
+        worst_pos = worst_pos > before_pos ? worst_pos : before_pos;
+        worst_rot = worst_rot > before_rot ? worst_rot : before_rot;
     }
     printf("five-axis f32: worst |C - reference| position %lld pm, orientation %lld prad\n", (long long)worst_pos,
            (long long)worst_rot);
@@ -78,6 +84,8 @@ static void test_golden_q(void **state)
         abbe_five_model_t m;
         load_five(t, &m);
         const abbe_golden_five_table_t *g = &abbe_golden_five_tables[t];
+        const int64_t before_pos = worst_pos, before_rot = worst_rot;
+        worst_pos = worst_rot = 0; /* per table, printed below, then the overall worst */
         for (uint32_t i = g->first_point; i < g->first_point + g->n_points; i++) {
             const abbe_golden_five_point_t *p = &abbe_golden_five_points[i];
             abbe_five_input_q_t in;
@@ -98,6 +106,10 @@ static void test_golden_q(void **state)
                 }
             }
         }
+        printf("five-axis q %s (kind %u): worst |C - reference| position %lld pm, orientation %lld prad\n", g->name,
+               (unsigned)g->kind, (long long)worst_pos, (long long)worst_rot);
+        worst_pos = worst_pos > before_pos ? worst_pos : before_pos;
+        worst_rot = worst_rot > before_rot ? worst_rot : before_rot;
     }
     printf("five-axis q: worst |C - reference| position %lld pm, orientation %lld prad\n", (long long)worst_pos,
            (long long)worst_rot);
