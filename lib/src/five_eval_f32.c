@@ -132,8 +132,9 @@ ABBE_NOINLINE static void add_rotary_f32(const abbe_five_model_t *m5, const int3
 }
 
 #if !defined(ABBE_NO_FIVE_KINDS)
-/* out = Rot_k(t) in, (c, s) = (cos t, sin t) */
-static void rotate_f32(unsigned k, float c, float s, const float in[3], float out[3])
+/* out = Rot_k(t) in, (c, s) = (cos t, sin t). Out of line, as the helpers below: the
+ * other kinds' code is called rarely enough per image that flash wins (bench/results.md). */
+ABBE_NOINLINE static void rotate_f32(unsigned k, float c, float s, const float in[3], float out[3])
 {
     const unsigned j = k == 2u ? 0u : k + 1u, l = k == 0u ? 2u : k - 1u;
     const float a = in[j], b = in[l];
@@ -143,7 +144,7 @@ static void rotate_f32(unsigned k, float c, float s, const float in[3], float ou
 }
 
 /* a x b added to acc times f */
-static void cross_add_f32(const float a[3], const float b[3], float f, float acc[3])
+ABBE_NOINLINE static void cross_add_f32(const float a[3], const float b[3], float f, float acc[3])
 {
     acc[0] += (a[1] * b[2] - a[2] * b[1]) * f;
     acc[1] += (a[2] * b[0] - a[0] * b[2]) * f;
@@ -162,6 +163,13 @@ static void cross_add_f32(const float a[3], const float b[3], float f, float acc
  * L = R0 (P1 - R1 P1 - P0) in the head (pivots relative to the controlled
  * point; the tool error gets +d, +w). Kind 4: the head's B alone (lever
  * -R_B P_B, +) and the table's C alone (lever q - P_C, -). */
+/* A record's twist (twist_f32) about its own machine axis: one copy for both records. */
+ABBE_NOINLINE static void twist_chain_f32(const abbe_rotary_model_t *ax, float c, float s, float sr, float vw[6])
+{
+    const unsigned k = ax->dir;
+    twist_f32(ax, k, k == 2u ? 0u : k + 1u, k == 0u ? 2u : k - 1u, c, s, sr, vw);
+}
+
 ABBE_NOINLINE static void add_chain_f32(const abbe_five_model_t *m5, const int32_t p[3], const int32_t udeg[2],
                                         abbe_five_error_f32_t *out)
 {
@@ -172,8 +180,8 @@ ABBE_NOINLINE static void add_chain_f32(const abbe_five_model_t *m5, const int32
     abbe_sincos_f32(abbe_udeg_phase_q32(udeg[m5->slot[1]]), &s1, &c1);
     const float s0r = (float)m5->sign[0] * s0, s1r = (float)m5->sign[1] * s1;
     float vw0[6], vw1[6], P0[3], P1[3], q[3], L0[3], L1[3], t[3], d[3] = {0.0f, 0.0f, 0.0f};
-    twist_f32(r0, k0, k0 == 2u ? 0u : k0 + 1u, k0 == 0u ? 2u : k0 - 1u, c0, s0, s0r, vw0);
-    twist_f32(r1, k1, k1 == 2u ? 0u : k1 + 1u, k1 == 0u ? 2u : k1 - 1u, c1, s1, s1r, vw1);
+    twist_chain_f32(r0, c0, s0, s0r, vw0);
+    twist_chain_f32(r1, c1, s1, s1r, vw1);
     const int32_t *pv0 = kind == ABBE_KIN_XYZBC_HT ? m5->offset_nm : m5->rot_point_nm;
     const int32_t *pv1 = kind == ABBE_KIN_XYZBC_HT ? m5->rot_point_nm : m5->tilt_pivot_nm;
     for (unsigned i = 0; i < 3u; i++) {

@@ -170,8 +170,8 @@ ABBE_NOINLINE static uint32_t add_rotary_q(const abbe_five_model_t *m5, const in
 }
 
 #if !defined(ABBE_NO_FIVE_KINDS)
-/* out = Rot_k(t) in, Q30 (c, s), rounded */
-static void rotate_q(unsigned k, int32_t c, int32_t s, const int32_t in[3], int32_t out[3])
+/* out = Rot_k(t) in, Q30 (c, s), rounded. Out of line, as the helpers below (flash). */
+ABBE_NOINLINE static void rotate_q(unsigned k, int32_t c, int32_t s, const int32_t in[3], int32_t out[3])
 {
     const unsigned j = k == 2u ? 0u : k + 1u, l = k == 0u ? 2u : k - 1u;
     const int32_t a = in[j], b = in[l];
@@ -181,7 +181,7 @@ static void rotate_q(unsigned k, int32_t c, int32_t s, const int32_t in[3], int3
 }
 
 /* (w x L)_i, w in 2^-36 rad (|.| <= 2^30), L in 2 nm (|.| < 2^31.6): 2^-35 nm -> 2^-4 nm, rounded */
-static int64_t cross_q(const int32_t w[3], const int64_t L[3], unsigned i)
+ABBE_NOINLINE static int64_t cross_q(const int32_t w[3], const int64_t L[3], unsigned i)
 {
     const unsigned i1 = i == 2u ? 0u : i + 1u, i2 = i == 0u ? 2u : i - 1u;
     return ((int64_t)w[i1] * L[i2] - (int64_t)w[i2] * L[i1] + ((int64_t)1 << 30)) >> 31;
@@ -189,6 +189,14 @@ static int64_t cross_q(const int32_t w[3], const int64_t L[3], unsigned i)
 
 /* Kinds 3-5 (format 1.4): five_eval_f32.c's add_chain_f32 in integers (the same
  * formulas; levers in 2 nm, w in 2^-36 rad, v and d in 2^-4 nm). */
+/* A record's twist (twist_q) about its own machine axis: one copy for both records. */
+ABBE_NOINLINE static void twist_chain_q(const abbe_rotary_model_t *ax, int32_t c, int32_t s, int32_t sr,
+                                        int32_t *scratch, int32_t v[3], int32_t w[3])
+{
+    const unsigned k = ax->dir;
+    twist_q(ax, k, k == 2u ? 0u : k + 1u, k == 0u ? 2u : k - 1u, c, s, sr, scratch, v, w);
+}
+
 ABBE_NOINLINE static uint32_t add_chain_q(const abbe_five_model_t *m5, const int32_t pos_nm[3],
                                           const int32_t angle_udeg[2], int32_t *scratch, int32_t error_nm[3],
                                           int32_t orient[3], uint32_t flags)
@@ -201,8 +209,8 @@ ABBE_NOINLINE static uint32_t add_chain_q(const abbe_five_model_t *m5, const int
     const int32_t s0r = m5->sign[0] < 0 ? -s0 : s0, s1r = m5->sign[1] < 0 ? -s1 : s1;
     int32_t v0[3], w0[3], v1[3], w1[3], H0[3], H1[3], a[3], b[3];
     int64_t L0[3], L1[3], tip[3] = {0, 0, 0};
-    twist_q(r0, k0, k0 == 2u ? 0u : k0 + 1u, k0 == 0u ? 2u : k0 - 1u, c0, s0, s0r, scratch, v0, w0);
-    twist_q(r1, k1, k1 == 2u ? 0u : k1 + 1u, k1 == 0u ? 2u : k1 - 1u, c1, s1, s1r, scratch, v1, w1);
+    twist_chain_q(r0, c0, s0, s0r, scratch, v0, w0);
+    twist_chain_q(r1, c1, s1, s1r, scratch, v1, w1);
     const int32_t *pv0 = kind == ABBE_KIN_XYZBC_HT ? m5->offset_nm : m5->rot_point_nm;
     const int32_t *pv1 = kind == ABBE_KIN_XYZBC_HT ? m5->rot_point_nm : m5->tilt_pivot_nm;
     for (unsigned i = 0; i < 3u; i++) {
@@ -227,9 +235,9 @@ ABBE_NOINLINE static uint32_t add_chain_q(const abbe_five_model_t *m5, const int
     } else {
         /* R0 of the inner axis' twist, R0 g with g = P0 - P1 = -offset */
         rotate_q(k0, c0, s0r, v1, a);
-        v1[0] = a[0], v1[1] = a[1], v1[2] = a[2];
+        memcpy(v1, a, sizeof a);
         rotate_q(k0, c0, s0r, w1, a);
-        w1[0] = a[0], w1[1] = a[1], w1[2] = a[2];
+        memcpy(w1, a, sizeof a);
         for (unsigned i = 0; i < 3u; i++) {
             b[i] = H0[i] - H1[i];
         }

@@ -701,9 +701,13 @@ static ABBE_NOINLINE int rotary_record_bad(const uint8_t *b, const uint8_t *rec,
     uint32_t count = abbe_ld_u32(rec + RA_COEF_COUNT);
     uint32_t off_q = abbe_ld_u32(rec + RA_COEF_Q), off_f = abbe_ld_u32(rec + RA_COEF_F32);
     switch (cat) {
-    case RC_FLAGS: /* kinds 3-5: the direction byte 0 or 1 */
+    case RC_FLAGS:
+#if defined(ABBE_NO_FIVE_KINDS)
+        return any_nonzero_u8(rec + RA_RESERVED0, 2u) || any_nonzero_u8(rec + RA_RESERVED, 28u);
+#else /* kinds 3-5: the direction byte 0 or 1 */
         return rec[RA_RESERVED0] > (KIND_CHAIN(b[ABBE_ROTARY_HEADER_OFFSET + RH_KIND]) ? 1u : 0u) ||
                rec[RA_RESERVED0 + 1u] != 0u || any_nonzero_u8(rec + RA_RESERVED, 28u);
+#endif
     case RC_COUNT:
         return (mask & 0xC0u) != 0u || rec[RA_HARMONICS] > ABBE_ROTARY_MAX_HARMONICS || count != rows * n_comp;
     case RC_OFFSET:
@@ -768,7 +772,7 @@ static abbe_status_t check_rotary(const uint8_t *b, uint32_t total)
         /* the header's range: rot_point and offset (contiguous) then its squareness */
         if (cat == RC_RANGE && (any_above(h + RH_ROT_POINT, 6u, (uint32_t)GEOMETRY_CAP) ||
                                 any_above(h + RH_SQUARENESS, 3u, (uint32_t)SQUARENESS_CAP) ||
-                                any_above(h + RH_SQUARE_REF, 3u, (uint32_t)GEOMETRY_CAP))) {
+                                (chain && any_above(h + RH_SQUARE_REF, 3u, (uint32_t)GEOMETRY_CAP)))) {
             return ABBE_E_RANGE;
         }
         for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {
