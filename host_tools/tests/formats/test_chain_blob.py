@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from abbe.formats.chain_blob import chain_kind, read_chain_blob, write_chain_blob
+from abbe.formats.five_axis_blob import read_five_blob
 from abbe.formats.machine import load_machine
 from abbe.model.chain import tool_error_linear
 from abbe.model.clib import CFiveModel
@@ -62,6 +63,7 @@ def test_c_evaluation_matches_chain_model(stem: str) -> None:
     assert np.abs(orig_p - ref_p).max() < 1e-3
     m = CFiveModel(b)
     assert m.kind == SAMPLES[stem]
+    assert read_five_blob(b).kind == {3: "xyzbc-hh", 4: "xyzbc-ht", 5: "xyzab-tdr"}[SAMPLES[stem]]
     got_p, got_w, flags = m.error_f32(pos, ang)
     assert np.abs(ref_p).max() > 20.0  # the errors are not negligible
     assert np.abs(got_p - ref_p).max() < 2e-3  # um (docs/numerics.md's five-axis bound)
@@ -74,8 +76,12 @@ def _blob(stem: str = "head-table-maxkins") -> bytearray:
 
 
 def _status(b: bytes) -> str:
+    """The C loader's status, checked to be the Python reader's too."""
     with pytest.raises(TableError) as ex:
         CFiveModel(b)
+    with pytest.raises(TableError) as py:
+        read_five_blob(b)
+    assert py.value.status == ex.value.status
     return str(ex.value.status)
 
 
