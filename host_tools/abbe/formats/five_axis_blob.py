@@ -256,16 +256,27 @@ def is_five_axis_blob(data: bytes) -> bool:
     return minor >= _blob.ROTARY_MINOR and bool(features & _blob.FEATURE_ROTARY)
 
 
+def record_axes(kind: str) -> tuple[str, str]:
+    """The rotary axes of records 0 and 1 of a table of kinematics ``kind`` (a trunnion:
+    tilt, C; format 1.4's kinds: CHAIN_KIND_AXES)."""
+    for name, axes in CHAIN_KIND_AXES.values():
+        if name == kind:
+            return axes
+    return KINEMATICS[kind]
+
+
 def five_table_lines(table: FiveAxisTable) -> list[str]:
     """Human-readable lines of the rotary section (``abbe table info``, generated C):
     geometry, squareness, each axis' location errors and error motions (um, urad)."""
     e = table.errors
-    lines = [f"kinematics: {table.kind} (tilt {KINEMATICS[table.kind][0]}, table "
-             f"{KINEMATICS[table.kind][1]})",
+    a0, a1 = record_axes(table.kind)
+    lines = [f"kinematics: {table.kind} (tilt {a0}, table {a1})" if table.kind in KIND_CODES
+             else f"kinematics: {table.kind} (record 0 {a0}, record 1 {a1}; rot_point and offset as "
+                  "docs/table-format.md 'Other kinematic kinds' defines them for this kind)",
              "rot_point_mm: " + ", ".join(f"{v:.6f}" for v in table.rot_point_mm),
              "offset_mm: " + ", ".join(f"{v:.6f}" for v in table.offset_mm),
              "five-axis squareness_urad: S_xy %.6f, S_xz %.6f, S_yz %.6f" % tuple(e.squareness)]
-    for axis in KINEMATICS[table.kind]:
+    for axis in record_axes(table.kind):
         names = LOCATION_ERRORS[axis]
         lines.append(f"axis {axis} location: " + ", ".join(
             f"{n} {e.location.get(n, 0.0):.6f} {'um' if i < 2 else 'urad'}"
@@ -300,5 +311,5 @@ def five_table_to_json(table: FiveAxisTable) -> dict[str, Any]:
                 "coef": {f"{'sin' if r % 2 == 0 else 'cos'}{r // 2 + 1}": float(x)
                          for r, x in enumerate(e.motions[(axis, c)])}}
                 for c in MOTION_COMPONENTS if len(e.motions.get((axis, c), [])) > 0},
-        } for axis in KINEMATICS[table.kind]},
+        } for axis in record_axes(table.kind)},
     }
