@@ -62,6 +62,15 @@ int main(void)
         const abbe_golden_five_table_t *g = &abbe_golden_five_tables[t];
         abbe_five_model_t m;
         abbe_status_t st = abbe_five_model_load(&m, g->blob, g->blob_size);
+#if defined(ABBE_NO_FIVE_KINDS) /* a trunnion-only library: format 1.4's kinds refused by their minor */
+        if (g->kind >= ABBE_KIN_XYZBC_HH) {
+            if (st != ABBE_E_VERSION_MINOR) {
+                failures++;
+            }
+            n += g->n_points;
+            continue;
+        }
+#endif
         if (st != ABBE_OK || abbe_five_model_kind(&m) != g->kind) {
             sh_puts("FAIL load ");
             sh_puts(g->name);
