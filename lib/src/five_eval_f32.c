@@ -57,7 +57,7 @@ ABBE_NOINLINE static void motions_sparse_f32(const abbe_rotary_model_t *ax, floa
  * k the axis it turns about, (j, l) the other two in cyclic order (phi and
  * delta have no component along k). The motions are written straight into vw. */
 static ABBE_ALWAYS_INLINE void twist_f32(const abbe_rotary_model_t *ax, unsigned k, unsigned j, unsigned l, float c,
-                                         float s, float vw[2u * 3u])
+                                         float s, float sr, float vw[2u * 3u])
 {
     if (ax->n_comp == ABBE_MOTIONS && ax->harmonics != 0u) { /* the fitted case: the Fourier blocks' kernel */
         abbe_rotary_motions6_f32(ax->coef_f32, ax->harmonics, s, c, UM_PER_Q8, URAD_PER_Q36, vw);
@@ -69,10 +69,12 @@ static ABBE_ALWAYS_INLINE void twist_f32(const abbe_rotary_model_t *ax, unsigned
     const float dj = (float)ax->delta_q8[j] * UM_PER_Q8, dl = (float)ax->delta_q8[l] * UM_PER_Q8;
     const float omc = 1.0f - c;
     w[k] += (float)ax->zero_q36 * URAD_PER_Q36;
-    w[j] += omc * pj + s * pl;
-    w[l] += omc * pl - s * pj;
-    v[j] += omc * dj + s * dl;
-    v[l] += omc * dl - s * dj;
+    /* sr: the rotation's sine (s, or -s for an axis turning about minus its machine axis);
+     * the error motions are functions of the joint angle, s */
+    w[j] += omc * pj + sr * pl;
+    w[l] += omc * pl - sr * pj;
+    v[j] += omc * dj + sr * dl;
+    v[l] += omc * dl - sr * dj;
 }
 
 /* out's position (um) and orientation (urad) minus the rotary axes' twists,
@@ -93,8 +95,8 @@ ABBE_NOINLINE static void add_rotary_f32(const abbe_five_model_t *m5, const int3
     abbe_sincos_f32(abbe_udeg_phase_q32(udeg[0]), &st, &ct);
     abbe_sincos_f32(abbe_udeg_phase_q32(udeg[1]), &sc, &cc);
     float vw[6], vwt[6], Ro[3];
-    twist_f32(table, 2u, 0u, 1u, cc, sc, vw);
-    twist_f32(tilt, k, j, l, ct, st, vwt);
+    twist_f32(table, 2u, 0u, 1u, cc, sc, sc, vw);
+    twist_f32(tilt, k, j, l, ct, st, st, vwt);
     float *v = vw, *w = vw + 3;
     const float *vt = vwt, *wt = vwt + 3;
     /* R_t of the table's v and w, and of the offset (no component along k: the loader), mm */
@@ -129,6 +131,134 @@ ABBE_NOINLINE static void add_rotary_f32(const abbe_five_model_t *m5, const int3
     out->orient_urad[2] -= W2;
 }
 
+#if !defined(ABBE_NO_FIVE_KINDS)
+/* out = Rot_k(t) in, (c, s) = (cos t, sin t). Out of line, as the helpers below: the
+ * other kinds' code is called rarely enough per image that flash wins (bench/results.md). */
+ABBE_NOINLINE static void rotate_f32(unsigned k, float c, float s, const float in[3], float out[3])
+{
+    const unsigned j = k == 2u ? 0u : k + 1u, l = k == 0u ? 2u : k - 1u;
+    const float a = in[j], b = in[l];
+    out[k] = in[k];
+    out[j] = c * a - s * b;
+    out[l] = s * a + c * b;
+}
+
+/* a x b added to acc times f */
+ABBE_NOINLINE static void cross_add_f32(const float a[3], const float b[3], float f, float acc[3])
+{
+    acc[0] += (a[1] * b[2] - a[2] * b[1]) * f;
+    acc[1] += (a[2] * b[0] - a[0] * b[2]) * f;
+    acc[2] += (a[0] * b[1] - a[1] * b[0]) * f;
+}
+
+/* Kinds 3-5 (format 1.4, docs/table-format.md "Other kinematic kinds"): the
+ * linearised chain model of abbe.model.chain.tool_error_linear with the tool
+ * tip at the controlled point. Record 0 is the outer axis (next to the linear
+ * axes), record 1 the inner; each axis' twist (v, w) at its lever L from its
+ * pivot is d = v + w x L. Nested pairs (kind 3 in the head, kind 5 under the
+ * workpiece), with R0 record 0's rotation, L the outer axis' lever and
+ * g = P0 - P1:
+ *   d = v0 + R0 v1 + (w0 + R0 w1) x L + R0 w1 x R0 g,   w = w0 + R0 w1,
+ * L = q - P0 under the workpiece (the tool error gets -d, -w), and
+ * L = R0 (P1 - R1 P1 - P0) in the head (pivots relative to the controlled
+ * point; the tool error gets +d, +w). Kind 4: the head's B alone (lever
+ * -R_B P_B, +) and the table's C alone (lever q - P_C, -). */
+/* A record's twist (twist_f32) about its own machine axis: one copy for both records. */
+ABBE_NOINLINE static void twist_chain_f32(const abbe_rotary_model_t *ax, float c, float s, float sr, float vw[6])
+{
+    const unsigned k = ax->dir;
+    twist_f32(ax, k, k == 2u ? 0u : k + 1u, k == 0u ? 2u : k - 1u, c, s, sr, vw);
+}
+
+ABBE_NOINLINE static void add_chain_f32(const abbe_five_model_t *m5, const int32_t p[3], const int32_t udeg[2],
+                                        abbe_five_error_f32_t *out)
+{
+    const abbe_rotary_model_t *r0 = &m5->rotary[0], *r1 = &m5->rotary[1];
+    const unsigned k0 = r0->dir, k1 = r1->dir, kind = m5->kind;
+    float s0, c0, s1, c1;
+    abbe_sincos_f32(abbe_udeg_phase_q32(udeg[m5->slot[0]]), &s0, &c0);
+    abbe_sincos_f32(abbe_udeg_phase_q32(udeg[m5->slot[1]]), &s1, &c1);
+    const float s0r = (float)m5->sign[0] * s0, s1r = (float)m5->sign[1] * s1;
+    float vw0[6], vw1[6], P0[3], P1[3], q[3], L0[3], L1[3], t[3], d[3] = {0.0f, 0.0f, 0.0f};
+    twist_chain_f32(r0, c0, s0, s0r, vw0);
+    twist_chain_f32(r1, c1, s1, s1r, vw1);
+    const int32_t *pv0 = kind == ABBE_KIN_XYZBC_HT ? m5->offset_nm : m5->rot_point_nm;
+    const int32_t *pv1 = kind == ABBE_KIN_XYZBC_HT ? m5->rot_point_nm : m5->tilt_pivot_nm;
+    for (unsigned i = 0; i < 3u; i++) {
+        P0[i] = (float)pv0[i] * 1.0e-6f;
+        P1[i] = (float)pv1[i] * 1.0e-6f;
+        q[i] = (float)((p[i] >> 1) - (pv0[i] >> 1)) * MM_PER_HALF_NM; /* q - P0, exact halves */
+    }
+    float *v0 = vw0, *w0 = vw0 + 3, *v1 = vw1, *w1 = vw1 + 3;
+    float sign = -1.0f; /* under the workpiece */
+    if (kind == ABBE_KIN_XYZBC_HT) {
+        /* head B: lever -R_B P_B; table C: lever q - P_C */
+        rotate_f32(k0, c0, s0r, P0, L0);
+        for (unsigned i = 0; i < 3u; i++) {
+            L0[i] = -L0[i];
+            /* the table's lever from the tool tip, q + T_B 0 = q + P_B - R_B P_B */
+            L1[i] = (float)((p[i] >> 1) - (pv1[i] >> 1)) * MM_PER_HALF_NM + (P0[i] + L0[i]);
+            d[i] = v0[i] - v1[i];
+        }
+        cross_add_f32(w0, L0, 1.0e-3f, d);
+        cross_add_f32(w1, L1, -1.0e-3f, d);
+        for (unsigned i = 0; i < 3u; i++) {
+            w0[i] -= w1[i];
+        }
+        sign = 1.0f;
+    } else {
+        /* R0 of the inner axis' twist; g = P0 - P1 = -offset */
+        rotate_f32(k0, c0, s0r, v1, t);
+        for (unsigned i = 0; i < 3u; i++) {
+            v1[i] = t[i];
+            L1[i] = (float)-m5->offset_nm[i] * 1.0e-6f;
+        }
+        rotate_f32(k0, c0, s0r, w1, t);
+        w1[0] = t[0];
+        w1[1] = t[1];
+        w1[2] = t[2];
+        rotate_f32(k0, c0, s0r, L1, t); /* R0 g */
+        if (kind == ABBE_KIN_XYZBC_HH) {
+            /* L = R0 (P1 - R1 P1 - P0) */
+            rotate_f32(k1, c1, s1r, P1, L0);
+            for (unsigned i = 0; i < 3u; i++) {
+                L1[i] = P1[i] - L0[i] - P0[i];
+            }
+            rotate_f32(k0, c0, s0r, L1, L0);
+            sign = 1.0f;
+        } else {
+            L0[0] = q[0];
+            L0[1] = q[1];
+            L0[2] = q[2];
+        }
+        for (unsigned i = 0; i < 3u; i++) {
+            d[i] = v0[i] + v1[i];
+            w0[i] += w1[i];
+        }
+        cross_add_f32(w0, L0, 1.0e-3f, d);
+        cross_add_f32(w1, t, 1.0e-3f, d);
+    }
+    /* the linear axes' orientation error turns the head about q: W_lin x (tip - q), the tip
+     * at T_T 0 = P0 + L0 from q in the head (kinds 3, 4) */
+    if (kind != ABBE_KIN_XYZAB_TDR) {
+        for (unsigned i = 0; i < 3u; i++) {
+            t[i] = P0[i] + L0[i];
+        }
+        cross_add_f32(out->orient_urad, t, 1.0e-3f, out->error_um);
+    }
+    /* five-axis squareness, lever from its reference point: mm x urad = nm */
+    const float sy = (float)((p[1] >> 1) - (m5->square_ref_nm[1] >> 1)) * MM_PER_HALF_NM;
+    const float sz = (float)((p[2] >> 1) - (m5->square_ref_nm[2] >> 1)) * MM_PER_HALF_NM;
+    const float qs = URAD_PER_Q36 * 1.0e-3f;
+    out->error_um[0] += (sy * (float)m5->squareness_q36[0] - sz * (float)m5->squareness_q36[1]) * qs;
+    out->error_um[1] -= sz * (float)m5->squareness_q36[2] * qs;
+    for (unsigned i = 0; i < 3u; i++) {
+        out->error_um[i] += sign * d[i];
+        out->orient_urad[i] += sign * w0[i];
+    }
+}
+#endif
+
 static void refuse(abbe_five_error_f32_t *out)
 {
     for (unsigned i = 0; i < 3u; i++) {
@@ -160,6 +290,10 @@ abbe_status_t abbe_five_eval_f32_core(const abbe_model_t *m, const abbe_five_mod
     }
     if (m5 == NULL) {
         w[0] = w[1] = w[2] = 0.0f; /* a 3-axis model under the compensator: its position error only */
+#if !defined(ABBE_NO_FIVE_KINDS)
+    } else if (m5->kind >= ABBE_KIN_XYZBC_HH) {
+        add_chain_f32(m5, p, udeg, out);
+#endif
     } else if (m5->kind != ABBE_KIN_NONE) {
         add_rotary_f32(m5, p, udeg, out);
     }

@@ -96,9 +96,10 @@ ABBE_NOINLINE static void motions_q(const abbe_rotary_model_t *ax, int32_t c, in
  * the other two in cyclic order (phi and delta have no component along k).
  * scratch: working memory for the motions. */
 static ABBE_ALWAYS_INLINE void twist_q(const abbe_rotary_model_t *ax, unsigned k, unsigned j, unsigned l, int32_t c,
-                                       int32_t s, int32_t *scratch, int32_t v[3], int32_t w[3])
+                                       int32_t s, int32_t sr, int32_t *scratch, int32_t v[3], int32_t w[3])
 {
-    motions_q(ax, c, s, scratch, v, w);
+    motions_q(ax, c, s, scratch, v, w); /* the motions: functions of the joint angle; sr: the rotation's sine */
+    s = sr;
     const int32_t pj = ax->phi_q36[j], pl = ax->phi_q36[l], dj = ax->delta_q8[j], dl = ax->delta_q8[l];
     w[k] += ax->zero_q36;
     w[j] += (int32_t)(pj - rot_q30(c, pj, s, pl));
@@ -124,8 +125,8 @@ ABBE_NOINLINE static uint32_t add_rotary_q(const abbe_five_model_t *m5, const in
     abbe_sincos_q30(abbe_udeg_phase_q32(angle_udeg[1]), &sc, &cc);
     int32_t v[3], w[3], vt[3], wt[3], Ro[3];
     /* the table axis C (about Z), then R_t of its v and w */
-    twist_q(table, 2u, 0u, 1u, cc, sc, scratch, v, w);
-    twist_q(tilt, k, j, l, ct, st, scratch, vt, wt);
+    twist_q(table, 2u, 0u, 1u, cc, sc, sc, scratch, v, w);
+    twist_q(tilt, k, j, l, ct, st, st, scratch, vt, wt);
     const int32_t vj = v[j], wj = w[j];
     v[j] = (int32_t)rot_q30(ct, vj, st, v[l]);
     v[l] = (int32_t)rot_q30(st, vj, -ct, v[l]);
@@ -168,6 +169,127 @@ ABBE_NOINLINE static uint32_t add_rotary_q(const abbe_five_model_t *m5, const in
     return flags;
 }
 
+#if !defined(ABBE_NO_FIVE_KINDS)
+/* out = Rot_k(t) in, Q30 (c, s), rounded. Out of line, as the helpers below (flash). */
+ABBE_NOINLINE static void rotate_q(unsigned k, int32_t c, int32_t s, const int32_t in[3], int32_t out[3])
+{
+    const unsigned j = k == 2u ? 0u : k + 1u, l = k == 0u ? 2u : k - 1u;
+    const int32_t a = in[j], b = in[l];
+    out[k] = in[k];
+    out[j] = (int32_t)rot_q30(c, a, s, b);
+    out[l] = (int32_t)rot_q30(s, a, -c, b);
+}
+
+/* (w x L)_i, w in 2^-36 rad (|.| <= 2^30), L in 2 nm (|.| < 2^31.6): 2^-35 nm -> 2^-4 nm, rounded */
+ABBE_NOINLINE static int64_t cross_q(const int32_t w[3], const int64_t L[3], unsigned i)
+{
+    const unsigned i1 = i == 2u ? 0u : i + 1u, i2 = i == 0u ? 2u : i - 1u;
+    return ((int64_t)w[i1] * L[i2] - (int64_t)w[i2] * L[i1] + ((int64_t)1 << 30)) >> 31;
+}
+
+/* Kinds 3-5 (format 1.4): five_eval_f32.c's add_chain_f32 in integers (the same
+ * formulas; levers in 2 nm, w in 2^-36 rad, v and d in 2^-4 nm). */
+/* A record's twist (twist_q) about its own machine axis: one copy for both records. */
+ABBE_NOINLINE static void twist_chain_q(const abbe_rotary_model_t *ax, int32_t c, int32_t s, int32_t sr,
+                                        int32_t *scratch, int32_t v[3], int32_t w[3])
+{
+    const unsigned k = ax->dir;
+    twist_q(ax, k, k == 2u ? 0u : k + 1u, k == 0u ? 2u : k - 1u, c, s, sr, scratch, v, w);
+}
+
+ABBE_NOINLINE static uint32_t add_chain_q(const abbe_five_model_t *m5, const int32_t pos_nm[3],
+                                          const int32_t angle_udeg[2], int32_t *scratch, int32_t error_nm[3],
+                                          int32_t orient[3], uint32_t flags)
+{
+    const abbe_rotary_model_t *r0 = &m5->rotary[0], *r1 = &m5->rotary[1];
+    const unsigned k0 = r0->dir, k1 = r1->dir, kind = m5->kind;
+    int32_t s0, c0, s1, c1;
+    abbe_sincos_q30(abbe_udeg_phase_q32(angle_udeg[m5->slot[0]]), &s0, &c0);
+    abbe_sincos_q30(abbe_udeg_phase_q32(angle_udeg[m5->slot[1]]), &s1, &c1);
+    const int32_t s0r = m5->sign[0] < 0 ? -s0 : s0, s1r = m5->sign[1] < 0 ? -s1 : s1;
+    int32_t v0[3], w0[3], v1[3], w1[3], H0[3], H1[3], a[3], b[3];
+    int64_t L0[3], L1[3], tip[3] = {0, 0, 0};
+    twist_chain_q(r0, c0, s0, s0r, scratch, v0, w0);
+    twist_chain_q(r1, c1, s1, s1r, scratch, v1, w1);
+    const int32_t *pv0 = kind == ABBE_KIN_XYZBC_HT ? m5->offset_nm : m5->rot_point_nm;
+    const int32_t *pv1 = kind == ABBE_KIN_XYZBC_HT ? m5->rot_point_nm : m5->tilt_pivot_nm;
+    for (unsigned i = 0; i < 3u; i++) {
+        H0[i] = pv0[i] >> 1; /* 2 nm */
+        H1[i] = pv1[i] >> 1;
+    }
+    int64_t d[3], W[3];
+    int sign = -1; /* under the workpiece */
+    if (kind == ABBE_KIN_XYZBC_HT) {
+        /* head B: lever -R_B P_B; table C: lever q + T_B 0 - P_C, T_B 0 = P_B - R_B P_B */
+        rotate_q(k0, c0, s0r, H0, a);
+        for (unsigned i = 0; i < 3u; i++) {
+            L0[i] = -(int64_t)a[i];
+            tip[i] = (int64_t)H0[i] - a[i];
+            L1[i] = (int64_t)((pos_nm[i] >> 1) - H1[i]) + tip[i];
+        }
+        for (unsigned i = 0; i < 3u; i++) {
+            d[i] = (int64_t)v0[i] - v1[i] + cross_q(w0, L0, i) - cross_q(w1, L1, i);
+            W[i] = (int64_t)w0[i] - w1[i];
+        }
+        sign = 1;
+    } else {
+        /* R0 of the inner axis' twist, R0 g with g = P0 - P1 = -offset */
+        rotate_q(k0, c0, s0r, v1, a);
+        memcpy(v1, a, sizeof a);
+        rotate_q(k0, c0, s0r, w1, a);
+        memcpy(w1, a, sizeof a);
+        for (unsigned i = 0; i < 3u; i++) {
+            b[i] = H0[i] - H1[i];
+        }
+        int32_t Rg[3];
+        rotate_q(k0, c0, s0r, b, Rg);
+        if (kind == ABBE_KIN_XYZBC_HH) {
+            /* L = R0 (P1 - R1 P1 - P0), the tip T_T 0 = P0 + L */
+            rotate_q(k1, c1, s1r, H1, a);
+            for (unsigned i = 0; i < 3u; i++) {
+                b[i] = H1[i] - a[i] - H0[i];
+            }
+            rotate_q(k0, c0, s0r, b, a);
+            for (unsigned i = 0; i < 3u; i++) {
+                L0[i] = a[i];
+                tip[i] = (int64_t)H0[i] + a[i];
+            }
+            sign = 1;
+        } else {
+            for (unsigned i = 0; i < 3u; i++) {
+                L0[i] = (pos_nm[i] >> 1) - H0[i];
+            }
+        }
+        for (unsigned i = 0; i < 3u; i++) {
+            L1[i] = L0[i] + Rg[i];
+        }
+        for (unsigned i = 0; i < 3u; i++) {
+            d[i] = (int64_t)v0[i] + v1[i] + cross_q(w0, L0, i) + cross_q(w1, L1, i);
+            W[i] = (int64_t)w0[i] + w1[i];
+        }
+    }
+    for (unsigned i = 0; i < 3u; i++) {
+        /* five-axis squareness, lever y, z from its reference point: 2 nm x 2^-36 rad -> 2^-4 nm */
+        int64_t sq = 0;
+        if (i < 2u) {
+            const int32_t z = (pos_nm[2] >> 1) - (m5->square_ref_nm[2] >> 1);
+            const int32_t y = i == 0u ? (pos_nm[1] >> 1) - (m5->square_ref_nm[1] >> 1) : 0;
+            sq = abbe_smlal(abbe_smlal((int64_t)1 << 30, y, m5->squareness_q36[0]), -z,
+                            m5->squareness_q36[i == 0u ? 1u : 2u]) >> 31;
+        }
+        /* the linear axes' orientation error turns the head about q: W_lin x tip */
+        const int64_t lin = cross_q(orient, tip, i);
+        const int64_t pos = (int64_t)error_nm[i] * 16 + sq + lin + (sign > 0 ? d[i] : -d[i]);
+        error_nm[i] = abbe_sat_i32(abbe_shr_round(pos, 4u), &flags);
+    }
+    for (unsigned i = 0; i < 3u; i++) {
+        const int64_t rot = (int64_t)orient[i] + (sign > 0 ? W[i] : -W[i]);
+        orient[i] = abbe_sat_i32(abbe_shr_round(rot * 1953125, 27u), &flags);
+    }
+    return flags;
+}
+#endif
+
 uint32_t abbe_five_eval_q_core(const abbe_five_model_t *m5, const int32_t pos_nm[3], const int32_t angle_udeg[2],
                                const int32_t dir_q30[3], const int32_t temp_mdegc[3],
                                int32_t values[ABBE_AXES * ABBE_TERMS], int32_t error_nm[3], int32_t orient_nrad[3])
@@ -177,6 +299,11 @@ uint32_t abbe_five_eval_q_core(const abbe_five_model_t *m5, const int32_t pos_nm
     for (unsigned c = 0; c < 3u; c++) {
         orient_nrad[c] = 2 * (values[2 * ABBE_TERMS + 3 + c] - values[3 + c] - values[ABBE_TERMS + 3 + c]);
     }
+#if !defined(ABBE_NO_FIVE_KINDS)
+    if (m5->kind >= ABBE_KIN_XYZBC_HH) {
+        return add_chain_q(m5, pos_nm, angle_udeg, values, error_nm, orient_nrad, flags);
+    }
+#endif
     if (m5->kind != ABBE_KIN_NONE) {
         return add_rotary_q(m5, pos_nm, angle_udeg, values, error_nm, orient_nrad, flags);
     }

@@ -341,6 +341,13 @@ abbe_status_t abbe_eval_f32_core(const abbe_model_t *m, const abbe_input_f32_t *
 
 /* The rotary section (header + tilt and table axis records) follows the three
  * linear axis records; coefficient arrays start after it. */
+/* The newest minor the five-axis loader reads: 1.4 (kinds 3-5) unless built
+ * without them (ABBE_NO_FIVE_KINDS: 1.2, a trunnion-only image). */
+#if defined(ABBE_NO_FIVE_KINDS)
+#define ABBE_FIVE_FORMAT_MINOR 2u
+#else
+#define ABBE_FIVE_FORMAT_MINOR 4u
+#endif
 #define ABBE_ROTARY_HEADER_OFFSET 256u
 #define ABBE_ROTARY_HEADER_SIZE 64u
 #define ABBE_ROTARY_RECORD_SIZE 64u

@@ -100,7 +100,12 @@ static abbe_status_t check_header(const uint8_t *b, size_t size, uint32_t *total
 #if defined(ABBE_MODEL_LOAD_THERMAL) /* thermal_load.c: format 1.3 (thermal block) read, no rotary section */
     if (abbe_ld_u16(b + H_MINOR) > ABBE_THERMAL_FORMAT_MINOR) {
 #else
-    if (abbe_ld_u16(b + H_MINOR) > (rotary != 0u ? 2u : ABBE_TABLE_FORMAT_MINOR)) {
+#if defined(ABBE_NO_FIVE_KINDS)
+    if (abbe_ld_u16(b + H_MINOR) > (rotary != 0u ? ABBE_FIVE_FORMAT_MINOR : ABBE_TABLE_FORMAT_MINOR)) {
+#else /* 1.3 is the thermal block's (a 3-axis table's): refused here, 1.4 read */
+    if (abbe_ld_u16(b + H_MINOR) > (rotary != 0u ? ABBE_FIVE_FORMAT_MINOR : ABBE_TABLE_FORMAT_MINOR) ||
+        (rotary != 0u && abbe_ld_u16(b + H_MINOR) == 3u)) {
+#endif
 #endif
         return ABBE_E_VERSION_MINOR;
     }
@@ -653,6 +658,9 @@ abbe_status_t abbe_model_axis_info(const abbe_model_t *model, unsigned axis, abb
 #define RA_COEF_COUNT 32u
 #define RA_RESERVED 36u /* 28 bytes */
 #define GEOMETRY_CAP (((int32_t)1 << 30) - 1) /* |rot_point|, |offset| < 1073.7 mm: their sum fits an int32 */
+#define RH_SQUARE_REF 40u /* 1.4, kinds 3-5: i32[3], then 12 reserved bytes */
+#define RA_SIGN 22u       /* 1.4, kinds 3-5: 0 (+1) or 1 (-1), then 1 reserved byte */
+#define KIND_CHAIN(kind) ((kind) >= ABBE_KIN_XYZBC_HH)
 
 static const uint8_t *rotary_record(const uint8_t *b, unsigned r)
 {
@@ -694,7 +702,12 @@ static ABBE_NOINLINE int rotary_record_bad(const uint8_t *b, const uint8_t *rec,
     uint32_t off_q = abbe_ld_u32(rec + RA_COEF_Q), off_f = abbe_ld_u32(rec + RA_COEF_F32);
     switch (cat) {
     case RC_FLAGS:
+#if defined(ABBE_NO_FIVE_KINDS)
         return any_nonzero_u8(rec + RA_RESERVED0, 2u) || any_nonzero_u8(rec + RA_RESERVED, 28u);
+#else /* kinds 3-5: the direction byte 0 or 1 */
+        return rec[RA_RESERVED0] > (KIND_CHAIN(b[ABBE_ROTARY_HEADER_OFFSET + RH_KIND]) ? 1u : 0u) ||
+               rec[RA_RESERVED0 + 1u] != 0u || any_nonzero_u8(rec + RA_RESERVED, 28u);
+#endif
     case RC_COUNT:
         return (mask & 0xC0u) != 0u || rec[RA_HARMONICS] > ABBE_ROTARY_MAX_HARMONICS || count != rows * n_comp;
     case RC_OFFSET:
@@ -743,15 +756,23 @@ static abbe_status_t check_rotary(const uint8_t *b, uint32_t total)
                                                       ABBE_E_NONFINITE, ABBE_E_MISMATCH, ABBE_E_RANGE};
     const uint8_t *h = b + ABBE_ROTARY_HEADER_OFFSET;
     unsigned kind = h[RH_KIND];
-    /* the offset has no component along the tilt axis: AC (0, y, z), BC (x, 0, z) */
-    if ((kind != ABBE_KIN_XYZAC_TRT && kind != ABBE_KIN_XYZBC_TRT) || any_nonzero_u8(h + 1u, 3u) ||
-        any_nonzero_u8(h + RH_RESERVED, 24u) || abbe_ld_u32(h + RH_OFFSET + 4u * (kind - 1u)) != 0u) {
+    /* the offset has no component along the tilt axis: AC (0, y, z), BC (x, 0, z); kinds 3-5
+     * (format 1.4) carry the squareness' reference point in the first 12 reserved bytes */
+#if defined(ABBE_NO_FIVE_KINDS)
+    const unsigned chain = 0u;
+#else
+    const unsigned chain = KIND_CHAIN(kind) && kind <= ABBE_KIN_XYZAB_TDR && abbe_ld_u16(b + H_MINOR) >= 4u;
+#endif
+    if ((kind != ABBE_KIN_XYZAC_TRT && kind != ABBE_KIN_XYZBC_TRT && !chain) || any_nonzero_u8(h + 1u, 3u) ||
+        any_nonzero_u8(h + RH_RESERVED + 12u * chain, 24u - 12u * chain) ||
+        (!chain && abbe_ld_u32(h + RH_OFFSET + 4u * (kind - 1u)) != 0u)) {
         return ABBE_E_FLAGS;
     }
     for (unsigned cat = 0; cat < RC_CATEGORIES; cat++) {
         /* the header's range: rot_point and offset (contiguous) then its squareness */
         if (cat == RC_RANGE && (any_above(h + RH_ROT_POINT, 6u, (uint32_t)GEOMETRY_CAP) ||
-                                any_above(h + RH_SQUARENESS, 3u, (uint32_t)SQUARENESS_CAP))) {
+                                any_above(h + RH_SQUARENESS, 3u, (uint32_t)SQUARENESS_CAP) ||
+                                (chain && any_above(h + RH_SQUARE_REF, 3u, (uint32_t)GEOMETRY_CAP)))) {
             return ABBE_E_RANGE;
         }
         for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {
@@ -839,6 +860,23 @@ abbe_status_t abbe_five_model_load(abbe_five_model_t *model, const void *blob, s
         model->tilt_pivot_nm[k] = abbe_u32_to_i32((uint32_t)model->rot_point_nm[k] + (uint32_t)model->offset_nm[k]);
         model->squareness_q36[k] = abbe_ld_i32(h + RH_SQUARENESS + 4u * k);
     }
+#if !defined(ABBE_NO_FIVE_KINDS)
+    if (KIND_CHAIN(model->kind)) {
+        /* record 0's and record 1's machine axes and angle slots (A, B, C in alphabetical order):
+         * 3 C, B; 4 B, C; 5 B, A */
+        static const uint8_t dirs[3][2] = {{2u, 1u}, {1u, 2u}, {1u, 0u}};
+        const unsigned i = model->kind - ABBE_KIN_XYZBC_HH;
+        for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {
+            build_rotary(&model->rotary[r], b, rotary_record(b, r), dirs[i][r]);
+            model->sign[r] = rotary_record(b, r)[RA_SIGN] != 0u ? (int8_t)-1 : (int8_t)1;
+            model->slot[r] = (uint8_t)(i == 1u ? r : 1u - r);
+        }
+        for (unsigned k = 0; k < 3u; k++) {
+            model->square_ref_nm[k] = abbe_ld_i32(h + RH_SQUARE_REF + 4u * k);
+        }
+        return ABBE_OK;
+    }
+#endif
     build_rotary(&model->rotary[0], b, rotary_record(b, 0), model->kind == ABBE_KIN_XYZAC_TRT ? 0u : 1u);
     build_rotary(&model->rotary[1], b, rotary_record(b, 1), 2u);
     return ABBE_OK;

@@ -41,8 +41,8 @@ A module built with a compiled-in table (build.sh --builtin) uses it when no
 pin in float x.pos_mm "Commanded X position, machine coordinates, mm: axis.x.pos-cmd (excludes the external offset); five-axis: joint.0.pos-cmd";
 pin in float y.pos_mm "Commanded Y position, mm: axis.y.pos-cmd; five-axis: joint.1.pos-cmd";
 pin in float z.pos_mm "Commanded Z position, mm: axis.z.pos-cmd; five-axis: joint.2.pos-cmd";
-pin in float tilt.pos_deg "Five-axis: tilt joint position (A; B for xyzbc-trt), degrees: joint.3.pos-cmd";
-pin in float c.pos_deg "Five-axis: C joint position, degrees: joint.4.pos-cmd";
+pin in float tilt.pos_deg "Five-axis: tilt joint position (A; B for xyzbc-trt), degrees: joint.3.pos-cmd; format 1.4 kinds: the first rotary joint alphabetically (B for 5axiskins / maxkins, A for xyzab-tdr)";
+pin in float c.pos_deg "Five-axis: C joint position, degrees: joint.4.pos-cmd; format 1.4 kinds: the second rotary joint alphabetically (C; B for xyzab-tdr)";
 pin in float kinstype "Five-axis: the kinematics in force (the signal driving motion.switchkins-type)";
 pin in float x.temp_c = 20.0 "X axis temperature, deg C (used when the table has thermal terms)";
 pin in float y.temp_c = 20.0 "Y axis temperature, deg C";
@@ -85,7 +85,7 @@ pin out float orient_z_urad "Five-axis: orientation error about Z, urad";
 
 // ---- outputs, state -----------------------------------------------------------
 pin out float eoffset_scale "To axis.L.eoffset-scale: 1 nm in machine units";
-pin out s32 kind "Kinematics of the tables: 0 3-axis, 1 xyzac-trt, 2 xyzbc-trt";
+pin out s32 kind "Kinematics of the tables: 0 3-axis, 1 xyzac-trt, 2 xyzbc-trt, 3 xyzbc-hh (5axiskins), 4 xyzbc-ht (maxkins), 5 xyzab-tdr";
 pin out s32 frame "Frame of the offsets: 0 joints (3-axis, identity kinematics), 1 workpiece (trt kinematics), -1 unknown kinstype (fading out)";
 pin out s32 state "0 off (or fading out), 1 on, 2 fault (latched until reset)";
 pin out bit active "State on and not held: corrections are being applied";

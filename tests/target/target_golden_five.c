@@ -62,6 +62,15 @@ int main(void)
         const abbe_golden_five_table_t *g = &abbe_golden_five_tables[t];
         abbe_five_model_t m;
         abbe_status_t st = abbe_five_model_load(&m, g->blob, g->blob_size);
+#if defined(ABBE_NO_FIVE_KINDS) /* a trunnion-only library: format 1.4's kinds refused by their minor */
+        if (g->kind >= ABBE_KIN_XYZBC_HH) {
+            if (st != ABBE_E_VERSION_MINOR) {
+                failures++;
+            }
+            n += g->n_points;
+            continue;
+        }
+#endif
         if (st != ABBE_OK || abbe_five_model_kind(&m) != g->kind) {
             sh_puts("FAIL load ");
             sh_puts(g->name);
@@ -69,6 +78,7 @@ int main(void)
             failures++;
             continue;
         }
+        int64_t table_pos = 0, table_rot = 0; /* this table's worst, printed per table */
         for (uint32_t i = g->first_point; i < g->first_point + g->n_points; i++) {
             const abbe_golden_five_point_t *p = &abbe_golden_five_points[i];
             int64_t pos[3], rot[3];
@@ -78,8 +88,8 @@ int main(void)
             }
             for (unsigned k = 0u; k < 3u; k++) {
                 int64_t dp = abs64(pos[k] - EXPECT_POS(p, k)), dr = abs64(rot[k] - EXPECT_ROT(p, k));
-                worst_pos = dp > worst_pos ? dp : worst_pos;
-                worst_rot = dr > worst_rot ? dr : worst_rot;
+                table_pos = dp > table_pos ? dp : table_pos;
+                table_rot = dr > table_rot ? dr : table_rot;
                 if (dp > ABBE_GOLDEN_FIVE_TOL_PM || dr > ABBE_GOLDEN_FIVE_TOL_PRAD) {
                     if (failures < 20u) {
                         sh_puts("FAIL point #");
@@ -99,6 +109,14 @@ int main(void)
             }
             n++;
         }
+        sh_puts(g->name);
+        sh_puts(": worst position ");
+        sh_put_i64(table_pos);
+        sh_puts(" pm, orientation ");
+        sh_put_i64(table_rot);
+        sh_puts(" prad\n");
+        worst_pos = table_pos > worst_pos ? table_pos : worst_pos;
+        worst_rot = table_rot > worst_rot ? table_rot : worst_rot;
     }
     sh_puts("points ");
     sh_put_u32(n);

@@ -91,6 +91,9 @@ ROTARY_DATA_START = COEF_START + 64 + 2 * 64  # 448: header, tilt and table axis
 #: :mod:`abbe.formats.thermal_blob` only; :func:`read_blob` refuses it by its minor, as
 #: the C library's abbe_model_load does (abbe_thermal_load reads it).
 THERMAL_MINOR = 3
+#: Five-axis tables of the kinds 3-5 (:mod:`abbe.formats.chain_blob`): the five-axis
+#: reader's newest minor (it refuses 1.3).
+CHAIN_MINOR = 4
 FEATURE_THERMAL_DYN = 0x40
 _HEADER_FMT = "<4sHHIIII3i3i3iI"
 _AXIS_FMT = "<iiBBBB2i2iiiiiiIIII"
@@ -484,7 +487,9 @@ def _read_ints(data: bytes, source: str, rotary: bool = False,
     if major != FORMAT_MAJOR:
         raise err("ABBE_E_VERSION_MAJOR", f"table format {major}.{minor}, this reader reads "
                   f"{FORMAT_MAJOR}.x", "version_major")
-    if minor > (THERMAL_MINOR if thermal else ROTARY_MINOR if rotary else FORMAT_MINOR):
+    # the five-axis reader reads 1.4 (kinds 3-5) but not 1.3 (the 3-axis thermal block)
+    if minor > (THERMAL_MINOR if thermal else CHAIN_MINOR if rotary else FORMAT_MINOR) or \
+            (rotary and not thermal and minor == THERMAL_MINOR):
         raise err("ABBE_E_VERSION_MINOR", f"table format {major}.{minor} is newer than "
                   f"{FORMAT_MAJOR}.{FORMAT_MINOR}", "version_minor")
     if hsize != HEADER_SIZE:

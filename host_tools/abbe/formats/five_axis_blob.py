@@ -33,6 +33,11 @@ from abbe.model.table import AXES, AxisTable, Table, TableError
 
 #: The rotary header's kind byte.
 KIND_CODES: dict[str, int] = {"xyzac-trt": 1, "xyzbc-trt": 2}
+#: Format 1.4's other kinds (abbe.formats.chain_blob writes them): kind byte -> (name,
+#: the axes of records 0 and 1). read_five_blob checks and decodes them; their geometry
+#: is the chain's (abbe.formats.chain_blob.read_chain_blob), not a TrunnionGeometry.
+CHAIN_KIND_AXES: dict[int, tuple[str, tuple[str, str]]] = {
+    3: ("xyzbc-hh", ("C", "B")), 4: ("xyzbc-ht", ("B", "C")), 5: ("xyzab-tdr", ("B", "A"))}
 MAX_HARMONICS = 8
 #: Largest |rot_point| and |offset| component, nm (their sum stays an int32).
 GEOMETRY_CAP_NM = (1 << 30) - 1
@@ -142,7 +147,7 @@ def write_five_blob(geom: TrunnionGeometry, errs: FiveAxisErrors) -> bytes:
 
 
 def read_five_blob(data: bytes, source: str = "<blob>") -> FiveAxisTable:
-    """Validate a format 1.2 five-axis table (every check of ``abbe_five_model_load``,
+    """Validate a format 1.2 or 1.4 five-axis table (every check of ``abbe_five_model_load``,
     in its order) and decode it. TableError with the C status name otherwise; a 3-axis
     table is refused here (ABBE_E_FLAGS: no rotary section)."""
     ti = _blob._read_ints(data, source, rotary=True)
@@ -160,18 +165,20 @@ def read_five_blob(data: bytes, source: str = "<blob>") -> FiveAxisTable:
     recs = [struct.unpack_from(_RA_FMT, data, _blob.COEF_START + 64 + 64 * r) for r in range(2)]
     # FLAGS
     codes = {v: k for k, v in KIND_CODES.items()}
-    if kind not in codes:
-        raise err("ABBE_E_FLAGS", f"kinematics kind {kind} is not 1 (xyzac-trt) or 2 (xyzbc-trt)",
-                  "rotary.kind")
-    if any(res0) or any(res1):
+    minor = struct.unpack_from("<H", data, 6)[0]
+    chain = kind in CHAIN_KIND_AXES and minor >= _blob.CHAIN_MINOR
+    if kind not in codes and not chain:
+        raise err("ABBE_E_FLAGS", f"kinematics kind {kind} is not 1 (xyzac-trt) or 2 (xyzbc-trt)"
+                  + (", or 3-5 (format 1.4)" if minor >= _blob.CHAIN_MINOR else ""), "rotary.kind")
+    if any(res0) or any(res1[12 if chain else 0:]):
         raise err("ABBE_E_FLAGS", "reserved rotary header bytes are not 0", "rotary.reserved")
-    if off[kind - 1] != 0:
+    if not chain and off[kind - 1] != 0:
         raise err("ABBE_E_FLAGS", "the offset has a component along the tilt axis", "rotary.offset_nm")
-    kname = codes[kind]
-    axes = KINEMATICS[kname]
+    kname, axes = CHAIN_KIND_AXES[kind] if chain else (codes[kind], KINEMATICS[codes[kind]])
     for axis, r in zip(axes, recs):
-        if any(r[7]) or any(r[11]):
-            raise err("ABBE_E_FLAGS", "reserved rotary axis bytes are not 0", f"rotary.{axis}.reserved")
+        if r[7][0] > (1 if chain else 0) or r[7][1] or any(r[11]):
+            raise err("ABBE_E_FLAGS", "reserved rotary axis bytes are not 0 (kinds 3-5: the direction "
+                      "byte 0 or 1)", f"rotary.{axis}.reserved")
     # COUNT
     for axis, r in zip(axes, recs):
         mask, h, count = r[5], r[6], r[10]
@@ -197,7 +204,9 @@ def read_five_blob(data: bytes, source: str = "<blob>") -> FiveAxisTable:
                 raise err("ABBE_E_MISMATCH", "a float32 coefficient is not its int32 value converted",
                           f"rotary.{axis}.coef_f32")
     # RANGE
-    if max(abs(v) for v in (*rp, *off)) > GEOMETRY_CAP_NM or max(abs(v) for v in sq) > _blob.SQUARENESS_CAP:
+    ref = struct.unpack_from("<3i", res1, 0)
+    if max(abs(v) for v in (*rp, *off)) > GEOMETRY_CAP_NM or max(abs(v) for v in sq) > _blob.SQUARENESS_CAP \
+            or (chain and max(abs(v) for v in ref) > GEOMETRY_CAP_NM):
         raise err("ABBE_E_RANGE", "rotation point / offset beyond 2^30 - 1 nm or squareness beyond 2^28",
                   "rotary.geometry")
     errs = FiveAxisErrors(squareness=tuple(v / _Q36_PER_URAD for v in sq))  # type: ignore[arg-type]
@@ -247,16 +256,27 @@ def is_five_axis_blob(data: bytes) -> bool:
     return minor >= _blob.ROTARY_MINOR and bool(features & _blob.FEATURE_ROTARY)
 
 
+def record_axes(kind: str) -> tuple[str, str]:
+    """The rotary axes of records 0 and 1 of a table of kinematics ``kind`` (a trunnion:
+    tilt, C; format 1.4's kinds: CHAIN_KIND_AXES)."""
+    for name, axes in CHAIN_KIND_AXES.values():
+        if name == kind:
+            return axes
+    return KINEMATICS[kind]
+
+
 def five_table_lines(table: FiveAxisTable) -> list[str]:
     """Human-readable lines of the rotary section (``abbe table info``, generated C):
     geometry, squareness, each axis' location errors and error motions (um, urad)."""
     e = table.errors
-    lines = [f"kinematics: {table.kind} (tilt {KINEMATICS[table.kind][0]}, table "
-             f"{KINEMATICS[table.kind][1]})",
+    a0, a1 = record_axes(table.kind)
+    lines = [f"kinematics: {table.kind} (tilt {a0}, table {a1})" if table.kind in KIND_CODES
+             else f"kinematics: {table.kind} (record 0 {a0}, record 1 {a1}; rot_point and offset as "
+                  "docs/table-format.md 'Other kinematic kinds' defines them for this kind)",
              "rot_point_mm: " + ", ".join(f"{v:.6f}" for v in table.rot_point_mm),
              "offset_mm: " + ", ".join(f"{v:.6f}" for v in table.offset_mm),
              "five-axis squareness_urad: S_xy %.6f, S_xz %.6f, S_yz %.6f" % tuple(e.squareness)]
-    for axis in KINEMATICS[table.kind]:
+    for axis in record_axes(table.kind):
         names = LOCATION_ERRORS[axis]
         lines.append(f"axis {axis} location: " + ", ".join(
             f"{n} {e.location.get(n, 0.0):.6f} {'um' if i < 2 else 'urad'}"
@@ -291,5 +311,5 @@ def five_table_to_json(table: FiveAxisTable) -> dict[str, Any]:
                 "coef": {f"{'sin' if r % 2 == 0 else 'cos'}{r // 2 + 1}": float(x)
                          for r, x in enumerate(e.motions[(axis, c)])}}
                 for c in MOTION_COMPONENTS if len(e.motions.get((axis, c), [])) > 0},
-        } for axis in KINEMATICS[table.kind]},
+        } for axis in record_axes(table.kind)},
     }

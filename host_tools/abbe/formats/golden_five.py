@@ -28,8 +28,11 @@ from pathlib import Path
 
 import numpy as np
 
+from abbe.formats.chain_blob import chain_kind, read_chain_blob, write_chain_blob
 from abbe.formats.five_axis_blob import FiveAxisTable, five_reference, read_five_blob, write_five_blob
 from abbe.formats.golden import _fvec, _hexf, _ivec, full_table, write_pair, writer_main
+from abbe.model.chain import ChainAxis, KinematicChain
+from abbe.model.chain import tool_error_linear as chain_tool_error_linear
 from abbe.model.examples import paper_table
 from abbe.model.five_axis import (
     LOCATION_ERRORS,
@@ -132,6 +135,69 @@ def _points(rng: np.random.Generator, gf: GoldenFive, n: int) -> tuple[np.ndarra
     return pos, ang
 
 
+#: The format 1.4 kinds' tables (abbe.formats.chain_blob), after the trunnions' with a
+#: generator of their own (the trunnions' bytes do not move): the LinuxCNC samples'
+#: chains of host_tools/cases/five_axis_chains with random errors.
+CHAIN_SEED = 3905
+
+
+@dataclass
+class GoldenChain:
+    name: str
+    kind: int
+    chain: KinematicChain
+    blob: bytes
+    decoded: tuple[KinematicChain, FiveAxisErrors]
+
+
+def chain_golden_tables() -> list[GoldenChain]:
+    rng = np.random.default_rng(CHAIN_SEED)
+    d = lambda n, s=1, p=(0.0, 0.0, 0.0), t=(-360.0, 360.0): ChainAxis(n, s, p, t)  # noqa: E731
+    lin = (d("X", 1, t=(0.0, 0.0)), d("Y", 1, t=(0.0, 0.0)), d("Z", 1, t=(0.0, 0.0)))
+    chains = [
+        ("hh_5axiskins", KinematicChain("5axiskins", lin + (d("C", 1, (0.0, 0.0, 250.0)),
+                                                          d("B", -1, (0.0, 0.0, 250.0), (-120.0, 120.0))),
+                                        0.0, (0.0, 0.0, 0.0))),
+        ("ht_maxkins", KinematicChain("maxkins", (d("C", -1, (0.0, 0.0, -100.0), (-3600.0, 3600.0)),) + lin
+                                      + (d("B", -1, (0.0, 0.0, 150.0), (-90.0, 90.0)),),
+                                      0.0, (10.0, -20.0, 30.0))),
+        ("tdr_xyzab", KinematicChain("xyzab-tdr", (d("A", 1, (0.0, 30.0, -150.0), (-3600.0, 3600.0)),
+                                                   d("B", 1, (0.0, 0.0, -120.0), (-180.0, 180.0))) + lin,
+                                     0.0, (0.0, 0.0, 0.0))),
+    ]
+    full = full_table(np.random.default_rng(CHAIN_SEED + 7))
+    full = dataclasses.replace(full, axes={
+        a: dataclasses.replace(ax, backlash_um=0.0, backlash_takeup_mm=0.0, thermal_expansion_ppm_per_k=0.0,
+                               thermal_offset_um_per_k=0.0, thermal_tref_c=0.0)
+        for a, ax in full.axes.items()})
+    out = []
+    for (name, ch), linear, harm in zip(chains, (paper_table(), full, None), (4, 8, 3)):
+        e = FiveAxisErrors()
+        for axis in ch.rotaries:
+            for n in LOCATION_ERRORS[axis]:
+                e.location[n] = float(rng.normal(0.0, 40.0))
+            for c in MOTION_COMPONENTS:
+                v = rng.normal(0.0, 3.0, 2 * harm)
+                v[:2 * (lowest_harmonic(axis, c) - 1)] = 0.0
+                e.motions[(axis, c)] = v
+        e.squareness = tuple(float(v) for v in rng.normal(0.0, 10.0, 3))  # type: ignore[assignment]
+        e.linear = linear
+        b = write_chain_blob(ch, e)
+        out.append(GoldenChain(name, chain_kind(ch), ch, b, read_chain_blob(b)))
+    return out
+
+
+def _chain_points(rng: np.random.Generator, gc: GoldenChain, n: int) -> tuple[np.ndarray, np.ndarray]:
+    r = gc.chain.rotaries
+    pos = rng.uniform(-600.0, 600.0, (n, 3))
+    # within the C input's +/-2147 degrees (maxkins' C travels +/-3600)
+    ang = np.column_stack([rng.uniform(*np.clip(gc.chain.travel_deg[a], -2100.0, 2100.0), n) for a in r])
+    special = np.array([[0.0, 0.0], [90.0, 180.0], [-90.0, -180.0], [45.0, 360.0], [30.0, 720.0],
+                        [0.000001, 359.999999], [2147.0, -2147.0]])
+    ang[:len(special)] = special
+    return pos, ang
+
+
 def render() -> tuple[str, str]:
     rng = np.random.default_rng(SEED + 1)
     c = ["/* golden_five.c: five-axis golden vectors for the abbe C tests.",
@@ -167,8 +233,33 @@ def render() -> tuple[str, str]:
                 _ivec(np.round(ef_p[i] * 1e6)), _ivec(np.round(ef_r[i] * 1e6)),
                 _ivec(np.round(eq_p[i] * 1e6)), _ivec(np.round(eq_r[i] * 1e6))]) + "},")
         first += len(pos)
+    crng = np.random.default_rng(CHAIN_SEED + 1)
+    gcs = chain_golden_tables()
+    for gc in gcs:
+        pos, ang = _chain_points(crng, gc, 48)
+        pf = pos.astype(np.float32)
+        af = ang.astype(np.float32)
+        pn = np.round(pos * 1e6).astype(np.int64)
+        au = np.round(ang * 1e6).astype(np.int64)
+        ch, errs = gc.decoded
+        ef_p, ef_r = chain_tool_error_linear(ch, errs, pf.astype(np.float64), af.astype(np.float64))
+        eq_p, eq_r = chain_tool_error_linear(ch, errs, pn * 1e-6, au * 1e-6)
+        sym = f"golden_five_{gc.name}"
+        c.append(f"/* table '{gc.name}': kind {gc.kind} ({gc.chain.name}), {len(gc.blob)} bytes */")
+        c.append(f"static const uint8_t {sym}[{len(gc.blob)}] ABBE_GOLDEN_ALIGNED = {{")
+        for i in range(0, len(gc.blob), 16):
+            c.append("    " + ", ".join(f"0x{x:02X}" for x in gc.blob[i:i + 16]) + ",")
+        c += ["};", ""]
+        tables.append(f'    {{{sym}, {len(gc.blob)}u, "{gc.name}", {gc.kind}u, {first}u, {len(pos)}u}},')
+        points.append(f"    /* table '{gc.name}' */")
+        for i in range(len(pos)):
+            points.append("    {" + ", ".join([
+                _fvec(pf[i]), _fvec(af[i]), _ivec(pn[i]), _ivec(au[i]),
+                _ivec(np.round(ef_p[i] * 1e6)), _ivec(np.round(ef_r[i] * 1e6)),
+                _ivec(np.round(eq_p[i] * 1e6)), _ivec(np.round(eq_r[i] * 1e6))]) + "},")
+        first += len(pos)
     c += ["const abbe_golden_five_table_t abbe_golden_five_tables[] = {", *tables, "};",
-          f"const uint32_t abbe_golden_five_table_count = {len(gts)}u;", "",
+          f"const uint32_t abbe_golden_five_table_count = {len(gts) + len(gcs)}u;", "",
           "const abbe_golden_five_point_t abbe_golden_five_points[] = {", *points, "};",
           f"const uint32_t abbe_golden_five_point_count = {first}u;", ""]
     return HEADER, "\n".join(c)

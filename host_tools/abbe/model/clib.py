@@ -510,7 +510,8 @@ class CFiveModel:
 
     @property
     def kind(self) -> int:
-        """ABBE_KIN_*: 0 none (a 3-axis table), 1 xyzac-trt, 2 xyzbc-trt."""
+        """ABBE_KIN_*: 0 none (a 3-axis table), 1 xyzac-trt, 2 xyzbc-trt; format 1.4: 3 xyzbc-hh,
+        4 xyzbc-ht, 5 xyzab-tdr."""
         return int(self._fn["abbe_five_model_kind"](self._model))
 
     def tref_c(self) -> np.ndarray:

@@ -36,6 +36,11 @@
 #define ABBE_KIN_NONE 0u       /* a 3-axis table */
 #define ABBE_KIN_XYZAC_TRT 1u  /* A (about X) carries C (about Z) */
 #define ABBE_KIN_XYZBC_TRT 2u  /* B (about Y) carries C */
+/* Format 1.4 (docs/table-format.md, "Other kinematic kinds"); a library built
+ * with ABBE_NO_FIVE_KINDS (CMake ABBE_WITH_FIVE_KINDS=OFF) refuses them. */
+#define ABBE_KIN_XYZBC_HH 3u   /* head-head: C (about Z) in the head carries B (about Y), 5axiskins */
+#define ABBE_KIN_XYZBC_HT 4u   /* head-table: B (about Y) in the head, C (about Z) the table, maxkins */
+#define ABBE_KIN_XYZAB_TDR 5u  /* dual rotary table: B (about Y) carries A (about X), xyzab-tdr */
 
 /* One rotary axis: a validated view; fields private. */
 typedef struct {
@@ -61,17 +66,20 @@ typedef struct {
     int32_t offset_nm[3];            /* tilt axis point relative to the C centre, nm */
     int32_t tilt_pivot_nm[3];        /* rot_point + offset */
     int32_t squareness_q36[3];       /* five-axis S_xy, S_xz, S_yz, lever from rot_point, 2^-36 rad */
-    abbe_rotary_model_t rotary[ABBE_ROTARY_AXES]; /* tilt, table */
+    abbe_rotary_model_t rotary[ABBE_ROTARY_AXES]; /* tilt, table (kinds 3-5: record 0, record 1) */
+    int32_t square_ref_nm[3];        /* kinds 3-5: the point the squareness' lever starts at, nm */
+    int8_t sign[ABBE_ROTARY_AXES];   /* kinds 3-5: record r turns about +1 / -1 times its machine axis */
+    uint8_t slot[ABBE_ROTARY_AXES];  /* kinds 3-5: which angle (alphabetical order) drives record r */
 } abbe_five_model_t;
 
-/* Validate a format 1.0 .. 1.2 table and make *model a view of it (rules of
+/* Validate a format 1.0 .. 1.2 or 1.4 table and make *model a view of it (rules of
  * abbe_model_load() plus the rotary section's). On failure *model is left
  * untouched. */
 abbe_status_t abbe_five_model_load(abbe_five_model_t *model, const void *blob, size_t size);
 
 typedef struct {
     float pos_mm[3];        /* X, Y, Z joint positions, machine coordinates, mm */
-    float angle_deg[2];     /* tilt (A or B), C joint positions, degrees */
+    float angle_deg[2];     /* the two rotary joints in alphabetical order (A/B then C; kind 5: A, B), degrees */
     float dir_state[3];     /* linear axes' backlash direction states (abbe_input_f32_t) */
     float temp_c[3];        /* linear axes' temperatures, deg C */
 } abbe_five_input_f32_t;

@@ -355,7 +355,8 @@ static void sincos_deg(double deg, double *s_out, double *c_out)
     }
 }
 
-/* The correction v (joint frame) as a world offset under the trt kinematics:
+/* The correction v (joint frame) as a world offset under the tool-centre-point
+ * kinematics (format 1.4's kinds: 5axiskins, maxkins, xyzab_tdr_kins below; trt:
  * Rz(c)^T R_tilt(t)^T v, R_tilt = Rx (xyzac) or Ry (xyzbc); trtfuncs.c's
  * inverse kinematics moves the joints by R_tilt(t) Rz(c) e for a world change e. */
 static void joints_to_workpiece(uint32_t kind, const double angle_deg[ABBE_ROTARY_AXES], const double v[3],
@@ -364,6 +365,27 @@ static void joints_to_workpiece(uint32_t kind, const double angle_deg[ABBE_ROTAR
     double st, ct, sc, cc, u[3];
     sincos_deg(angle_deg[0], &st, &ct);
     sincos_deg(angle_deg[1], &sc, &cc);
+    if (kind == ABBE_KIN_XYZBC_HH) { /* 5axiskins: world = joints + f(B, C), the offsets are the joints' */
+        w[0] = v[0];
+        w[1] = v[1];
+        w[2] = v[2];
+        return;
+    }
+    if (kind == ABBE_KIN_XYZBC_HT) { /* maxkins: j = Rz(-C) P - h(B), so P moves by Rz(C) v (C: angle 1) */
+        w[0] = cc * v[0] - sc * v[1];
+        w[1] = sc * v[0] + cc * v[1];
+        w[2] = v[2];
+        return;
+    }
+    if (kind == ABBE_KIN_XYZAB_TDR) { /* xyzab_tdr_kins: j = Ry(B)^T Rx(A)^T p + ..., so Rx(A) Ry(B) v */
+        u[0] = sc * v[2] + cc * v[0]; /* Ry(B), B: angle 1 */
+        u[1] = v[1];
+        u[2] = cc * v[2] - sc * v[0];
+        w[0] = u[0]; /* Rx(A), A: angle 0 */
+        w[1] = ct * u[1] - st * u[2];
+        w[2] = st * u[1] + ct * u[2];
+        return;
+    }
     if (kind == ABBE_KIN_XYZBC_TRT) { /* Ry(t)^T */
         u[0] = ct * v[0] - st * v[2];
         u[1] = v[1];

@@ -20,8 +20,9 @@
 #   8. the other three five-axis samples (bridgemill 5axiskins head-head, max5 maxkins
 #      head-table, table-dual-rotary xyzab_tdr_kins), TCP on and off, a true machine with
 #      location errors: LinuxCNC's joints are the module source's, and the tool tip minus
-#      programmed point WITHOUT abbe (kinds_sim.py, about 210 s; abbe does not evaluate
-#      these kinds yet)
+#      programmed point WITHOUT abbe (kinds_sim.py, about 210 s)
+#   9. the same three samples WITH abbe (kinds_abbe_sim.py: format 1.4 tables written
+#      from the chain model, the component's offsets; about 210 s)
 # LinuxCNC's tools refuse to run as root: as root, this creates the
 # unprivileged user $ABBE_LCNC_USER (default abbe-lcnc) if needed and the tests
 # run halrun / linuxcnc as that user (runuser). Needs scripts/setup.sh first
@@ -67,8 +68,9 @@ builtin_test || failed=$((failed + 1))
 /usr/bin/python3 "$HERE/five_sim.py" --kind xyzbc-trt --json "$REPO/build-linuxcnc/five-bc.json" ||
     failed=$((failed + 1))
 /usr/bin/python3 "$HERE/kinds_sim.py" --json "$REPO/build-linuxcnc/kinds.json" || failed=$((failed + 1))
+/usr/bin/python3 "$HERE/kinds_abbe_sim.py" --json "$REPO/build-linuxcnc/kinds-abbe.json" || failed=$((failed + 1))
 if ((failed)); then
-    echo "[lcnc] FAILED: $failed of 8 LinuxCNC tests"
+    echo "[lcnc] FAILED: $failed of 9 LinuxCNC tests"
     exit 1
 fi
 echo "[lcnc] OK: halrun, simulator, built-in table, trt-kins and five-axis (A/C, B/C) tests passed"

@@ -830,6 +830,30 @@ static void expect_workpiece(uint32_t kind, double t_deg, double c_deg, const do
     const double pi = 3.14159265358979323846;
     double t = t_deg * pi / 180.0, c = c_deg * pi / 180.0;
     double rt[3][3], rz[3][3] = {{cos(c), -sin(c), 0.0}, {sin(c), cos(c), 0.0}, {0.0, 0.0, 1.0}};
+    if (kind >= ABBE_KIN_XYZBC_HH) {
+        /* format 1.4's kinds, from the modules' inverse kinematics (kinds_sim.py's reading):
+         * 5axiskins world = joints + f(B, C): e = v; maxkins j = Rz(-C) P - h(B): e = Rz(C) v;
+         * xyzab_tdr_kins j = Ry(B)^T Rx(A)^T p + ...: e = Rx(A) Ry(B) v (A = t, B = c here) */
+        double m[3][3] = {{1.0, 0.0, 0.0}, {0.0, 1.0, 0.0}, {0.0, 0.0, 1.0}};
+        if (kind == ABBE_KIN_XYZBC_HT) {
+            memcpy(m, rz, sizeof m);
+        } else if (kind == ABBE_KIN_XYZAB_TDR) {
+            double rx[3][3] = {{1.0, 0.0, 0.0}, {0.0, cos(t), -sin(t)}, {0.0, sin(t), cos(t)}};
+            double ry[3][3] = {{cos(c), 0.0, sin(c)}, {0.0, 1.0, 0.0}, {-sin(c), 0.0, cos(c)}};
+            for (unsigned i = 0; i < 3; i++) {
+                for (unsigned j = 0; j < 3; j++) {
+                    m[i][j] = 0.0;
+                    for (unsigned k = 0; k < 3; k++) {
+                        m[i][j] += rx[i][k] * ry[k][j];
+                    }
+                }
+            }
+        }
+        for (unsigned i = 0; i < 3; i++) {
+            e[i] = m[i][0] * v[0] + m[i][1] * v[1] + m[i][2] * v[2];
+        }
+        return;
+    }
     if (kind == ABBE_KIN_XYZAC_TRT) {
         double m[3][3] = {{1.0, 0.0, 0.0}, {0.0, cos(t), -sin(t)}, {0.0, sin(t), cos(t)}};
         memcpy(rt, m, sizeof rt);
@@ -987,6 +1011,29 @@ static void test_five_axis_ac_f32(void **state)
     five_axis_case("ac_location", ABBE_LCNC_VARIANT_F32);
 }
 
+/* format 1.4's kinds (issue 39): the same checks, each module's world frame */
+static void test_five_axis_kinds_q(void **state)
+{
+    (void)state;
+#if defined(ABBE_NO_FIVE_KINDS)
+    skip(); /* a trunnion-only library */
+#endif
+    five_axis_case("hh_5axiskins", ABBE_LCNC_VARIANT_Q);
+    five_axis_case("ht_maxkins", ABBE_LCNC_VARIANT_Q);
+    five_axis_case("tdr_xyzab", ABBE_LCNC_VARIANT_Q);
+}
+
+static void test_five_axis_kinds_f32(void **state)
+{
+    (void)state;
+#if defined(ABBE_NO_FIVE_KINDS)
+    skip(); /* a trunnion-only library */
+#endif
+    five_axis_case("hh_5axiskins", ABBE_LCNC_VARIANT_F32);
+    five_axis_case("ht_maxkins", ABBE_LCNC_VARIANT_F32);
+    five_axis_case("tdr_xyzab", ABBE_LCNC_VARIANT_F32);
+}
+
 /* ---- the thermal block (format 1.3) ------------------------------------------- */
 
 /* The golden thermal table, its 17 inputs on th_in (sampled every 0.1 s), a
@@ -1128,6 +1175,8 @@ int main(void)
         cmocka_unit_test(test_five_axis_ac_q),
         cmocka_unit_test(test_five_axis_bc_q),
         cmocka_unit_test(test_five_axis_ac_f32),
+        cmocka_unit_test(test_five_axis_kinds_q),
+        cmocka_unit_test(test_five_axis_kinds_f32),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
