@@ -282,6 +282,17 @@ abbe_status_t abbe_mm_to_nm_f32(float mm, int32_t *nm, uint32_t *flags);
  * 1.5 * 2^23 then rounds that product to the nearest integer (ties to even)
  * in the float unit itself, |f * 1e6| < 2^22 being far inside the range
  * where this is exact. */
+/* The bits of a float clamped to +/-2147.0f (NaN and Inf to 2147.0f with
+ * their sign): the bits of a finite float in [-2147, 2147] for every one of
+ * the 2^32 inputs. tests/proofs/hypotheses.c checks them all (the Eva proofs
+ * use it as the hypothesis 'mm_clamped': an interval analysis does not follow
+ * a float through its bits). */
+static ABBE_ALWAYS_INLINE uint32_t abbe_mm_clamp_bits(uint32_t bits)
+{
+    /* |mm| > 2147.0f, NaN and Inf included */
+    return (bits & 0x7FFFFFFFu) > 0x45063000u ? ((bits & 0x80000000u) | 0x45063000u) : bits;
+}
+
 static ABBE_ALWAYS_INLINE uint32_t abbe_mm_to_nm_inline(float mm, int32_t *nm, uint32_t *flags)
 {
     uint32_t bits;
@@ -289,8 +300,9 @@ static ABBE_ALWAYS_INLINE uint32_t abbe_mm_to_nm_inline(float mm, int32_t *nm, u
     const uint32_t mag = bits & 0x7FFFFFFFu;
     const uint32_t over = (uint32_t)(mag > 0x45063000u); /* |mm| > 2147.0f, NaN and Inf included */
     *flags |= over * ABBE_FLAG_OUT_OF_TRAVEL;
-    bits = over ? ((bits & 0x80000000u) | 0x45063000u) : bits;
+    bits = abbe_mm_clamp_bits(bits);
     memcpy(&mm, &bits, sizeof mm);
+    /*@ assert mm_clamped: \is_finite(mm) && -2147.0f <= mm <= 2147.0f; */
     const int32_t whole = (int32_t)mm;
     const float rounded = (mm - (float)whole) * 1.0e6f + 12582912.0f;
     uint32_t rounded_bits;
