@@ -18,17 +18,6 @@ static ABBE_ALWAYS_INLINE int32_t dot2_q30(int32_t a, int32_t b, int32_t c, int3
     return (int32_t)(((int64_t)a * b + (int64_t)c * d + ((int64_t)1 << 29)) >> 30);
 }
 
-/* sin or cos of a phase as abbe_sincos_q30_pair packs it: its bits as an
- * int32. |value| <= 2^30 for every phase: tests/proofs/sincos_range.c checks
- * all 2^32 phases (the Eva proofs use it as a hypothesis, docs/proofs.md: an
- * interval analysis cannot follow the value through the packing). */
-static ABBE_ALWAYS_INLINE int32_t abbe_q30_of_bits(uint32_t bits)
-{
-    const int32_t v = abbe_u32_to_i32(bits);
-    /*@ assert sincos_range: -1073741824 <= v <= 1073741824; */
-    return v;
-}
-
 /* The basis rows of one axis, in table order, each handed to ROW(b) (Q30) as
  * it is produced: T_0 = 1, T_1 = u, T_k by recurrence; then per Fourier block
  * sin/cos of harmonic 1 (abbe_sincos_q30_pair, sincos_q.c) and the higher

@@ -229,6 +229,17 @@ void abbe_sincos_q30(uint32_t phase_q32, int32_t *sin_q30, int32_t *cos_q30);
 uint64_t abbe_sincos_q30_pair(uint32_t phase_q32);
 void abbe_sincos_f32(uint32_t phase_q32, float *sin_out, float *cos_out);
 
+/* sin or cos of a phase as abbe_sincos_q30_pair packs it: its bits as an
+ * int32 (the kernels' basis_q.h, abbe_sincos_q30). |value| <= 2^30 for every
+ * phase: tests/proofs/hypotheses.c checks all 2^32 phases (the Eva proofs use it as a hypothesis, docs/proofs.md: an
+ * interval analysis cannot follow the value through the packing). */
+static ABBE_ALWAYS_INLINE int32_t abbe_q30_of_bits(uint32_t bits)
+{
+    const int32_t v = abbe_u32_to_i32(bits);
+    /*@ assert sincos_range: -1073741824 <= v <= 1073741824; */
+    return v;
+}
+
 /* ---- per-axis fitted term values (terms_q.c / terms_f32.c) ----
  *
  * From the offset d of abbe_arg_offset(); absent terms are 0.

@@ -68,6 +68,6 @@ uint64_t abbe_sincos_q30_pair(uint32_t phase_q32)
 void abbe_sincos_q30(uint32_t phase_q32, int32_t *sin_q30, int32_t *cos_q30)
 {
     const uint64_t pair = abbe_sincos_q30_pair(phase_q32);
-    *sin_q30 = abbe_u32_to_i32((uint32_t)pair);
-    *cos_q30 = abbe_u32_to_i32((uint32_t)(pair >> 32));
+    *sin_q30 = abbe_q30_of_bits((uint32_t)pair);
+    *cos_q30 = abbe_q30_of_bits((uint32_t)(pair >> 32));
 }

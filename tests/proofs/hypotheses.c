@@ -7,7 +7,7 @@
  * involved free of undefined behaviour (harness 'sincos'; the clamp is
  * unsigned arithmetic and memcpy only).
  *   hypotheses sincos_range: abbe_sincos_q30_pair gives |sin|, |cos| <= 2^30
- *       for every phase (basis_q.h, abbe_q30_of_bits);
+ *       for every phase (internal.h, abbe_q30_of_bits);
  *   hypotheses mm_clamped: abbe_mm_clamp_bits gives a finite float in
  *       [-2147, 2147] for every float, NaN and infinities included
  *       (internal.h, abbe_mm_to_nm_inline), and abbe_mm_to_nm_inline, which
