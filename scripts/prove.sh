@@ -59,7 +59,7 @@ HARNESSES=(
 # configuration does not blur the accepted one.
 EVAL_TABLES="paper full sparse negative backlash reversal reversal_sparse"
 EVAL_SRCS="tests/proofs/eval_q.c $(ls lib/src/*.c | grep -v -e five_load -e thermal_load | tr '\n' ' ')"
-EVAL_OPTS="-eva-auto-loop-unroll 64 -eva-split-return-function check_header:0,abbe_model_load:0,abbe_comp_init:0,config_ok:0 -eva-slevel-function abbe_model_load:10,main:10,abbe_comp_init:10"
+EVAL_OPTS="-eva-auto-loop-unroll 64 -eva-split-return-function check_header:0,abbe_model_load:0,abbe_comp_init:0,config_ok:0 -eva-slevel-function abbe_model_load:10,main:10,abbe_comp_init:10,abbe_comp_step_f32:20"
 golden_table() { # name: tests/golden's blob as the harness' table_bin, in $OUT/table_NAME.h
     sed -n "/^static const uint8_t golden_blob_$1\[/,/^};/p" tests/golden/golden_data.c |
         sed '1s/.*/static const unsigned char table_bin[] = {/' >"$OUT/table_$1.h"

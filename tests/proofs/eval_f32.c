@@ -9,6 +9,7 @@
 #include "__fc_builtin.h"
 #include <string.h>
 
+#include "abbe/comp.h"
 #include "abbe/error.h"
 
 #define PROOF_STR2(x) #x
@@ -17,6 +18,7 @@
 
 static uint32_t blob[(sizeof table_bin + 3u) / 4u];
 static abbe_model_t model;
+static abbe_comp_t comp;
 
 #if defined(PROOF_NONFINITE)
 /* any float32, NaN and the infinities included: any 32 bits */
@@ -56,5 +58,36 @@ int main(void)
 #endif
     }
     (void)abbe_error_eval_f32(&model, &in, &out);
+#if !defined(PROOF_NONFINITE)
+    /* the compensator's float cycle: any configuration, any number of cycles
+     * of any input (positions and temperatures as above) */
+    abbe_comp_config_t cfg;
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        cfg.warn_nm[j] = Frama_C_int_interval(INT32_MIN, INT32_MAX);
+        cfg.limit_nm[j] = Frama_C_int_interval(INT32_MIN, INT32_MAX);
+        cfg.rate_nm_per_cycle[j] = Frama_C_int_interval(INT32_MIN, INT32_MAX);
+        cfg.axis_sign[j] = (int8_t)Frama_C_interval(INT8_MIN, INT8_MAX);
+    }
+    cfg.fade_cycles = (uint16_t)Frama_C_interval(0, 65535);
+    cfg.stale_cycles = (uint16_t)Frama_C_interval(0, 65535);
+    if (abbe_comp_init(&comp, &cfg, &model) != ABBE_OK || abbe_comp_enable(&comp) != ABBE_OK) {
+        return 1;
+    }
+    while (Frama_C_nondet(0, 1)) {
+        abbe_comp_input_f32_t cin;
+        abbe_comp_output_t cout;
+        for (unsigned j = 0; j < ABBE_AXES; j++) {
+            cin.pos_mm[j] = any_f32();
+            cin.temp_c[j] = Frama_C_float_interval(-1.0e6f, 1.0e6f);
+            cin.dir[j] = (int8_t)Frama_C_interval(INT8_MIN, INT8_MAX);
+        }
+        cin.fresh = (uint8_t)Frama_C_interval(0, 255);
+        cin.axis_fault_mask = (uint8_t)Frama_C_interval(0, 255);
+        (void)abbe_comp_step_f32(&comp, &cin, &cout);
+        if (Frama_C_nondet(0, 1)) {
+            (void)abbe_comp_reset(&comp);
+        }
+    }
+#endif
     return 0;
 }
