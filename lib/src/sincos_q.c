@@ -34,7 +34,7 @@ static ABBE_ALWAYS_INLINE int32_t abbe_horner_step(int32_t c, int32_t p, int32_t
 
 uint64_t abbe_sincos_q30_pair(uint32_t phase_q32)
 {
-    uint32_t quarter = ((phase_q32 + (1u << 29)) >> 30) & 3u;
+    uint32_t quarter = ((phase_q32 + 0x20000000u) >> 30) & 3u;
     /* r = phase - quarter turns in [-2^29, 2^29); u = r / 2^29 in Q31 = 4 r,
      * shifted as uint32 (the same bits as the int32 product, which cannot
      * overflow, but without a product a proof must bound) */
