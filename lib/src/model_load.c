@@ -549,18 +549,18 @@ static void build_assembly(abbe_model_t *m)
 #define CHECK_TABLE(st, b, size, total, rotary)                                                                     \
     do {                                                                                                           \
         (st) = check_header((b), (size), &(total), (rotary));                                                      \
-        if ((st) == ABBE_OK) (st) = check_flags((b), (rotary));                                                    \
-        if ((st) == ABBE_OK) (st) = check_counts(b);                                                               \
+        if ((st) == ABBE_OK) { (st) = check_flags((b), (rotary)); }                                                \
+        if ((st) == ABBE_OK) { (st) = check_counts(b); }                                                           \
         if ((st) == ABBE_OK) {                                                                                     \
             (st) = check_offsets((b), (total),                                                                     \
                                  (abbe_ld_u32((b) + H_FEATURES) & (rotary)) != 0u ? ABBE_ROTARY_DATA_START        \
                                                                                   : DATA_START);                  \
         }                                                                                                          \
-        if ((st) == ABBE_OK) (st) = check_finite((b), (total));                                                    \
-        if ((st) == ABBE_OK) (st) = check_twins((b), (total));                                                     \
-        if ((st) == ABBE_OK) (st) = check_periods(b);                                                              \
-        if ((st) == ABBE_OK) (st) = check_travel(b);                                                               \
-        if ((st) == ABBE_OK) (st) = check_ranges((b), (total));                                                    \
+        if ((st) == ABBE_OK) { (st) = check_finite((b), (total)); }                                                \
+        if ((st) == ABBE_OK) { (st) = check_twins((b), (total)); }                                                 \
+        if ((st) == ABBE_OK) { (st) = check_periods(b); }                                                          \
+        if ((st) == ABBE_OK) { (st) = check_travel(b); }                                                           \
+        if ((st) == ABBE_OK) { (st) = check_ranges((b), (total)); }                                                \
     } while (0)
 
 /* *model as a view of the validated table b. */
