@@ -1,8 +1,11 @@
 #!/usr/bin/env bash
 # The proofs of docs/proofs.md: Frama-C Eva analyses of every reader of
-# untrusted bytes (tests/proofs/*.c), each of which must end with zero alarms
-# and every ACSL property it reaches proven; then cppcheck's MISRA C:2012
-# addon and clang-tidy-14 (scripts/prove_lint.sh) when given --lint.
+# untrusted bytes and of the evaluators and the compensator on each golden
+# table (tests/proofs/*.c), each of which must end with zero alarms and every
+# ACSL property it reaches proven (but the hypotheses, which
+# tests/proofs/hypotheses.c checks on all their inputs, here); WP's proof of
+# the loader contracts (Why3 + Z3); then cppcheck's MISRA C:2012 addon and
+# clang-tidy-14 (scripts/prove_lint.sh) when given --lint.
 # Fails naming the harness, the function, the place and the alarm.
 #   ./scripts/prove.sh [--jobs N] [--only NAME] [--lint] [--open]
 # --open runs the harnesses that do not hold yet instead (docs/proofs.md, "Not
@@ -22,7 +25,7 @@ while (($#)); do
         --only) ONLY="$2"; shift 2 ;;
         --lint) LINT=1; shift ;;
         --open) OPEN=1; shift ;;
-        *) echo "usage: $0 [--jobs N] [--only NAME] [--lint]" >&2; exit 2 ;;
+        *) echo "usage: $0 [--jobs N] [--only NAME] [--lint] [--open]" >&2; exit 2 ;;
     esac
 done
 mkdir -p "$OUT"
@@ -44,7 +47,65 @@ HARNESSES=(
     "load5|tests/proofs/load5.c lib/src/five_load.c lib/src/crc32.c|-DPROOF_MAX_SIZE=512|$LOADER_PRECISION abbe_five_model_load:40"
     "grblhal|tests/proofs/grblhal.c port/grblhal/src/abbe_grblhal_core.c $(ls lib/src/*.c | tr '\n' ' ')|-Iport/grblhal/include -DPROOF_CHUNK=64|-eva-auto-loop-unroll 16"
     "lcnc_file|tests/proofs/lcnc_file.c port/linuxcnc/src/abbe_lcnc_file.c $(frama-c -print-share-path)/libc/string.c|-Iport/linuxcnc/include -DPROOF_MAX_SIZE=256|"
+    "sincos|tests/proofs/sincos.c lib/src/sincos_q.c||"
 )
+
+# The fixed-point evaluation and the compensator's cycle (eval_q.c) on each
+# golden table (tests/golden/golden_data.c: every kind the 3-axis loader
+# accepts: six-term and sparse axes, backlash, reversal blocks, thermal,
+# negative travels), at every input. The loader runs on the concrete bytes, so
+# the model is exact (__builtin_clz as code, PROOF_CLZ_AS_CODE); the states of
+# the loader's and the init's results are kept apart so a refused table or
+# configuration does not blur the accepted one.
+EVAL_TABLES="paper full sparse negative backlash reversal reversal_sparse"
+EVAL_SRCS="tests/proofs/eval_q.c $(ls lib/src/*.c | grep -v -e five_load -e thermal_load | tr '\n' ' ')"
+EVAL_OPTS="-eva-auto-loop-unroll 64 -eva-split-return-function check_header:0,abbe_model_load:0,abbe_comp_init:0,config_ok:0 -eva-slevel-function abbe_model_load:10,main:10,abbe_comp_init:10,abbe_comp_step_f32:20"
+golden_table() { # name: tests/golden's blob as the harness' table_bin, in $OUT/table_NAME.h
+    sed -n "/^static const uint8_t golden_blob_$1\[/,/^};/p" tests/golden/golden_data.c |
+        sed '1s/.*/static const unsigned char table_bin[] = {/' >"$OUT/table_$1.h"
+    [[ -s "$OUT/table_$1.h" ]] || { echo "[prove] no golden table $1 in tests/golden/golden_data.c" >&2; exit 1; }
+}
+for t in $EVAL_TABLES; do
+    golden_table "$t"
+    HARNESSES+=("eval_q_$t|$EVAL_SRCS|-DPROOF_CLZ_AS_CODE -I$OUT -DPROOF_TABLE=table_$t.h|$EVAL_OPTS")
+    HARNESSES+=("eval_f32_$t|${EVAL_SRCS/eval_q.c/eval_f32.c}|-DPROOF_CLZ_AS_CODE -I$OUT -DPROOF_TABLE=table_$t.h|$EVAL_OPTS")
+done
+# the five-axis fixed-point evaluation on each five-axis golden table
+# (tests/golden/golden_five.c: A/C with every motion, B/C motions, A/C
+# location errors), at every joint position
+five_table() { # name: as golden_table, from golden_five.c
+    sed -n "/^static const uint8_t golden_five_$1\[/,/^};/p" tests/golden/golden_five.c |
+        sed '1s/.*/static const unsigned char table_bin[] = {/' >"$OUT/table_five_$1.h"
+    [[ -s "$OUT/table_five_$1.h" ]] || { echo "[prove] no golden table $1 in tests/golden/golden_five.c" >&2; exit 1; }
+}
+FIVE_SRCS="tests/proofs/eval_five_q.c $(ls lib/src/*.c | grep -v thermal_load | tr '\n' ' ')"
+FIVE_OPTS="-eva-auto-loop-unroll 64 -eva-split-return-function check_header:0,abbe_five_model_load:0 -eva-slevel-function abbe_five_model_load:40,main:10"
+for t in ac_full bc_motions ac_location; do
+    five_table "$t"
+    HARNESSES+=("eval_five_q_$t|$FIVE_SRCS|-DPROOF_CLZ_AS_CODE -I$OUT -DPROOF_TABLE=table_five_$t.h|$FIVE_OPTS")
+done
+# the float evaluation given any bits, NaN and infinities included: the one
+# harness with -warn-special-float none (a non-finite input is not an alarm
+# by itself; every other kind of alarm still counts); the finite harnesses
+# above prove that finite inputs give nothing non-finite
+HARNESSES+=("eval_f32_nonfinite|${EVAL_SRCS/eval_q.c/eval_f32.c}|-DPROOF_CLZ_AS_CODE -I$OUT -DPROOF_TABLE=table_paper.h -DPROOF_NONFINITE|$EVAL_OPTS -warn-special-float none")
+
+# Hypotheses: ACSL assertions in lib/src that Eva cannot decide (a value
+# followed through its bits), each checked on all of its 2^32 inputs by
+# tests/proofs/hypotheses.c, which this script runs (and fails on); sound
+# because the code they run is proven free of undefined behaviour (docs/proofs.md).
+# 'sincos_range' (basis_q.h): |sin|, |cos| <= 2^30 from abbe_sincos_q30_pair;
+# 'mm_clamped' (internal.h): abbe_mm_clamp_bits gives a finite float in
+# [-2147, 2147] for every float.
+HYPOTHESES="sincos_range mm_clamped"
+check_hypothesis() { # name
+    local t0=$SECONDS msg
+    if ! msg=$("$OUT/hypotheses" "$1"); then
+        echo "[prove] FAIL hypothesis $msg"
+        return 1
+    fi
+    echo "[prove] ok   hypothesis $msg ($((SECONDS - t0)) s)"
+}
 
 run_one() { # name sources defines options
     local name="$1" srcs="$2" defs="$3" opts="$4" log="$OUT/$1.log"
@@ -61,6 +122,12 @@ run_one() { # name sources defines options
     local alarms unknown
     alarms=$(sed -n 's/^ *\([0-9]\+\) alarms\? generated by the analysis.*/\1/p' "$log" | tail -1)
     unknown=$(awk '/^ *(Assertions|Preconditions|Postconditions|Loop invariants|Termination|Function contracts|Behaviors)/ {u += $4; i += $6} END {print u + i + 0}' "$log")
+    # the hypotheses' assertions (checked on their own, above) may stay unknown
+    local hyp h
+    for h in $HYPOTHESES; do
+        hyp=$(grep -c "assertion '$h' got status unknown" "$log")
+        unknown=$((unknown - hyp))
+    done
     local coverage
     coverage=$(sed -n 's/.*functions analyzed (out of [0-9]*): *\([0-9]*%\).*/\1/p' "$log" | tail -1)
     if [[ $rc -ne 0 || -z "$alarms" || "$alarms" != 0 || "$unknown" != 0 ]] || grep -q '^\[kernel\].*[Ee]rror\|User Error\|Neither code nor specification' "$log"; then
@@ -79,19 +146,53 @@ run_one() { # name sources defines options
 # not proven yet: the evaluators on an accepted table (alarms left, docs/proofs.md)
 # and the format 1.3 thermal loader, where the tree has it
 OPEN_HARNESSES=(
-    "eval|tests/proofs/eval.c $(ls lib/src/*.c | grep -v five_load | tr '\n' ' ')|-I$OUT|-eva-auto-loop-unroll 16 $LOADER_PRECISION abbe_model_load:10"
+    "modbus|tests/proofs/modbus.c port/modbus/src/regs.c $(ls lib/src/*.c | grep -v five_load | tr '\n' ' ')|-Iport/modbus/include|-eva-auto-loop-unroll 16"
+    "can_config|tests/proofs/can_config.c port/socketcan/src/can_config_file.c port/socketcan/src/can_config_check.c $(frama-c -print-share-path)/libc/string.c $(frama-c -print-share-path)/libc/stdlib.c|-Iport/socketcan/include -Iport/socketcan/src -DPROOF_MAX_SIZE=64|-eva-auto-loop-unroll 16"
 )
 if [[ -f lib/src/thermal_load.c ]]; then
     OPEN_HARNESSES+=("load_thermal|tests/proofs/load_thermal.c lib/src/thermal_load.c lib/src/crc32.c|-DPROOF_MAX_SIZE=512|$LOADER_PRECISION abbe_thermal_load:40")
 fi
 if ((OPEN)); then
-    (cd examples/paper_table && xxd -i model.bin | sed 's/model_bin/table_bin/') >"$OUT/table_paper.h"
     HARNESSES=("${OPEN_HARNESSES[@]}")
 fi
+
+# WP: the loader contracts of model_load.c (check_header, array_ok), proven
+# by Z3 through Why3 (Debian 12: why3 1.5.1, z3 4.8.12; Alt-Ergo is not
+# packaged). Why3's prover list is written into $OUT, not the home directory.
+WP_CONTRACTS="accepted_total,inside"
+prove_wp() {
+    local t0=$SECONDS log="$OUT/wp.log"
+    command -v why3 >/dev/null && command -v z3 >/dev/null ||
+        { echo "[prove] FAIL wp: why3 or z3 missing (scripts/setup.sh installs them)"; return 1; }
+    export WHY3CONFIG="$OUT/why3.conf"
+    [[ -s "$WHY3CONFIG" ]] || why3 config detect >/dev/null 2>&1
+    frama-c -cpp-extra-args="$CPP" lib/src/model_load.c -wp -wp-fct check_header,array_ok \
+        -wp-prop "$WP_CONTRACTS" -wp-prover z3 -wp-timeout 30 >"$log" 2>&1
+    local proved
+    proved=$(sed -n 's/.*Proved goals: *\([0-9]*\) \/ \([0-9]*\).*/\1 \2/p' "$log" | tail -1)
+    if [[ -z "$proved" || "${proved% *}" != "${proved#* }" || "${proved% *}" == 0 ]]; then
+        echo "[prove] FAIL wp: ${proved:-no} goals proven (of the contracts $WP_CONTRACTS): see $log"
+        grep 'Goal.*\(Failed\|Unknown\|Timeout\)' "$log" | sed 's/^/[prove]   /'
+        return 1
+    fi
+    echo "[prove] ok   wp: ${proved% *} of ${proved#* } goals proven ($WP_CONTRACTS; $((SECONDS - t0)) s)"
+}
 
 pids=()
 names=()
 fail=0
+if ((!OPEN)) && [[ -z "$ONLY" || "$ONLY" == wp ]]; then
+    prove_wp &
+fi
+if ((!OPEN)); then
+    cc -std=c99 -O2 -Ilib/include -Ilib/src -DABBE_PORTABLE_C tests/proofs/hypotheses.c lib/src/sincos_q.c \
+        -o "$OUT/hypotheses" || { echo "[prove] FAIL tests/proofs/hypotheses.c does not compile"; exit 1; }
+    for h in $HYPOTHESES; do
+        [[ -n "$ONLY" && "$ONLY" != "$h" ]] && continue
+        while (($(jobs -rp | wc -l) >= JOBS)); do wait -n || fail=1; done
+        check_hypothesis "$h" &
+    done
+fi
 for h in "${HARNESSES[@]}"; do
     IFS='|' read -r name srcs defs opts <<<"$h"
     [[ -n "$ONLY" && "$ONLY" != "$name" ]] && continue

@@ -47,8 +47,8 @@ static ABBE_ALWAYS_INLINE int32_t dot2_q30(int32_t a, int32_t b, int32_t c, int3
                 continue;                                                                  \
             }                                                                              \
             const uint64_t sc_ = abbe_sincos_q30_pair(abbe_arg_phase_q32((ax), blk_, (d)));  \
-            const int32_t s1_ = abbe_u32_to_i32((uint32_t)sc_);                            \
-            const int32_t c1_ = abbe_u32_to_i32((uint32_t)(sc_ >> 32));                    \
+            const int32_t s1_ = abbe_q30_of_bits((uint32_t)sc_);                           \
+            const int32_t c1_ = abbe_q30_of_bits((uint32_t)(sc_ >> 32));                   \
             const int32_t ns1_ = -s1_;                                                     \
             int32_t s_ = s1_, c_ = c1_;                                                    \
             for (unsigned n_ = 1;; n_++) {                                                 \

@@ -27,6 +27,7 @@ static ABBE_ALWAYS_INLINE float reversal_block_f32(const abbe_axis_model_t *ax, 
     const float two_u = u + u;
     float t_prev = 1.0f, t = u;
     float r = abbe_ld_f32_aligned(row);
+    /*@ loop unroll ABBE_MAX_REVERSAL_ROWS; */
     for (unsigned k = 1; k < ax->reversal_rows; k++) {
         r += abbe_ld_f32_aligned(row + 4u * k) * t;
         float t_next = two_u * t - t_prev; /* T_k = 2u T_(k-1) - T_(k-2) */
@@ -90,7 +91,7 @@ int abbe_f32_extras_nonfinite(uint32_t features, const float dir_state[ABBE_AXES
     int bad = 0;
     for (unsigned j = 0; j < ABBE_AXES; j++) {
         bad |= ((features & ABBE_FEATURE_BACKLASH) && abbe_f32_nonfinite(dir_state[j])) ||
-               ((features & ABBE_FEATURE_THERMAL) && abbe_f32_nonfinite(temp_c[j]));
+               ((features & ABBE_FEATURE_THERMAL) && abbe_f32_temp_invalid(temp_c[j]));
     }
     return bad;
 }

@@ -136,6 +136,17 @@ static inline int abbe_f32_nonfinite(float f)
     return abbe_f32_bits_nonfinite(u);
 }
 
+/* True for NaN, +/-Inf and |t| > 10^6 degC, by the magnitude's bit pattern
+ * (IEEE magnitudes order as their bits; 0x49742400 is 10^6 exactly): a
+ * temperature no sensor reports, refused like NaN so that alpha * dT stays
+ * finite (the _q variant clamps dT to 2^30 mK). */
+static inline int abbe_f32_temp_invalid(float t)
+{
+    uint32_t u;
+    memcpy(&u, &t, sizeof u);
+    return (u & 0x7FFFFFFFu) > 0x49742400u;
+}
+
 /* acc + a * b, 64-bit: one SMLAL on a Cortex-M3/M4. GCC keeps the plain C
  * form as one SMLAL in the dot products, but not where acc is made of
  * constants (the Horner steps of sincos_q.c), which it rebuilds as a 64 x 64
@@ -229,6 +240,17 @@ void abbe_sincos_q30(uint32_t phase_q32, int32_t *sin_q30, int32_t *cos_q30);
 uint64_t abbe_sincos_q30_pair(uint32_t phase_q32);
 void abbe_sincos_f32(uint32_t phase_q32, float *sin_out, float *cos_out);
 
+/* sin or cos of a phase as abbe_sincos_q30_pair packs it: its bits as an
+ * int32 (the kernels' basis_q.h, abbe_sincos_q30). |value| <= 2^30 for every
+ * phase: tests/proofs/hypotheses.c checks all 2^32 phases (the Eva proofs use it as a hypothesis, docs/proofs.md: an
+ * interval analysis cannot follow the value through the packing). */
+static ABBE_ALWAYS_INLINE int32_t abbe_q30_of_bits(uint32_t bits)
+{
+    const int32_t v = abbe_u32_to_i32(bits);
+    /*@ assert sincos_range: -1073741824 <= v <= 1073741824; */
+    return v;
+}
+
 /* ---- per-axis fitted term values (terms_q.c / terms_f32.c) ----
  *
  * From the offset d of abbe_arg_offset(); absent terms are 0.
@@ -282,6 +304,17 @@ abbe_status_t abbe_mm_to_nm_f32(float mm, int32_t *nm, uint32_t *flags);
  * 1.5 * 2^23 then rounds that product to the nearest integer (ties to even)
  * in the float unit itself, |f * 1e6| < 2^22 being far inside the range
  * where this is exact. */
+/* The bits of a float clamped to +/-2147.0f (NaN and Inf to 2147.0f with
+ * their sign): the bits of a finite float in [-2147, 2147] for every one of
+ * the 2^32 inputs. tests/proofs/hypotheses.c checks them all (the Eva proofs
+ * use it as the hypothesis 'mm_clamped': an interval analysis does not follow
+ * a float through its bits). */
+static ABBE_ALWAYS_INLINE uint32_t abbe_mm_clamp_bits(uint32_t bits)
+{
+    /* |mm| > 2147.0f, NaN and Inf included */
+    return (bits & 0x7FFFFFFFu) > 0x45063000u ? ((bits & 0x80000000u) | 0x45063000u) : bits;
+}
+
 static ABBE_ALWAYS_INLINE uint32_t abbe_mm_to_nm_inline(float mm, int32_t *nm, uint32_t *flags)
 {
     uint32_t bits;
@@ -289,8 +322,9 @@ static ABBE_ALWAYS_INLINE uint32_t abbe_mm_to_nm_inline(float mm, int32_t *nm, u
     const uint32_t mag = bits & 0x7FFFFFFFu;
     const uint32_t over = (uint32_t)(mag > 0x45063000u); /* |mm| > 2147.0f, NaN and Inf included */
     *flags |= over * ABBE_FLAG_OUT_OF_TRAVEL;
-    bits = over ? ((bits & 0x80000000u) | 0x45063000u) : bits;
+    bits = abbe_mm_clamp_bits(bits);
     memcpy(&mm, &bits, sizeof mm);
+    /*@ assert mm_clamped: \is_finite(mm) && -2147.0f <= mm <= 2147.0f; */
     const int32_t whole = (int32_t)mm;
     const float rounded = (mm - (float)whole) * 1.0e6f + 12582912.0f;
     uint32_t rounded_bits;

@@ -82,6 +82,16 @@ static uint32_t n_matrix_of(const uint8_t *rec)
 
 /* rotary: ABBE_FEATURE_ROTARY for the five-axis loader (minor 2 read; a table
  * with the rotary section has room for it), else 0. */
+/* Contract proven by WP (scripts/prove.sh --wp, docs/proofs.md): an accepted
+ * header gives a total size the buffer holds, a multiple of 4, at least the
+ * header, the three axis records and the CRC word. */
+/*@ requires valid_header: size >= HEADER_SIZE ==> \valid_read(b + (0 .. HEADER_SIZE - 1));
+    requires valid_table: \valid_read(b + (0 .. size - 1));
+    requires out: \valid(total_out);
+    assigns *total_out;
+    ensures accepted_total: \result == ABBE_OK ==>
+        MIN_TOTAL_SIZE <= *total_out <= size && *total_out % 4 == 0;
+ */
 static abbe_status_t check_header(const uint8_t *b, size_t size, uint32_t *total_out, uint32_t rotary)
 {
     if (size < HEADER_SIZE) {
@@ -202,6 +212,13 @@ static abbe_status_t check_counts(const uint8_t *b)
     return ABBE_OK;
 }
 
+/* Contract proven by WP (docs/proofs.md): an accepted array of count words
+ * at offset lies in [data_start, total - 4), 4-byte aligned. */
+/*@ requires total_has_crc: total >= 4;
+    assigns \nothing;
+    ensures inside: \result != 0 ==>
+        data_start <= offset && offset % 4 == 0 && offset + 4 * count <= total - 4;
+ */
 static int array_ok(uint32_t offset, uint32_t count, uint32_t total, uint32_t data_start)
 {
     uint64_t end = (uint64_t)offset + 4u * (uint64_t)count;
@@ -537,18 +554,18 @@ static void build_assembly(abbe_model_t *m)
 #define CHECK_TABLE(st, b, size, total, rotary)                                                                     \
     do {                                                                                                           \
         (st) = check_header((b), (size), &(total), (rotary));                                                      \
-        if ((st) == ABBE_OK) (st) = check_flags((b), (rotary));                                                    \
-        if ((st) == ABBE_OK) (st) = check_counts(b);                                                               \
+        if ((st) == ABBE_OK) { (st) = check_flags((b), (rotary)); }                                                \
+        if ((st) == ABBE_OK) { (st) = check_counts(b); }                                                           \
         if ((st) == ABBE_OK) {                                                                                     \
             (st) = check_offsets((b), (total),                                                                     \
                                  (abbe_ld_u32((b) + H_FEATURES) & (rotary)) != 0u ? ABBE_ROTARY_DATA_START        \
                                                                                   : DATA_START);                  \
         }                                                                                                          \
-        if ((st) == ABBE_OK) (st) = check_finite((b), (total));                                                    \
-        if ((st) == ABBE_OK) (st) = check_twins((b), (total));                                                     \
-        if ((st) == ABBE_OK) (st) = check_periods(b);                                                              \
-        if ((st) == ABBE_OK) (st) = check_travel(b);                                                               \
-        if ((st) == ABBE_OK) (st) = check_ranges((b), (total));                                                    \
+        if ((st) == ABBE_OK) { (st) = check_finite((b), (total)); }                                                \
+        if ((st) == ABBE_OK) { (st) = check_twins((b), (total)); }                                                 \
+        if ((st) == ABBE_OK) { (st) = check_periods(b); }                                                          \
+        if ((st) == ABBE_OK) { (st) = check_travel(b); }                                                           \
+        if ((st) == ABBE_OK) { (st) = check_ranges((b), (total)); }                                                \
     } while (0)
 
 /* *model as a view of the validated table b. */

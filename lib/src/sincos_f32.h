@@ -33,7 +33,7 @@ extern const abbe_sincos_f32_table_t abbe_sincos_f32_table;
  * negations chosen by the quarter. No branch either way. */
 static ABBE_ALWAYS_INLINE void abbe_sincos_f32_inline(uint32_t phase_q32, float *sin_out, float *cos_out)
 {
-    const uint32_t eighth = (phase_q32 + (1u << 28)) >> 29;           /* 0..7 (wraps) */
+    const uint32_t eighth = (phase_q32 + 0x10000000u) >> 29;           /* 0..7 (wraps) */
     const int32_t r = abbe_u32_to_i32(phase_q32 - (eighth << 29));    /* [-2^28, 2^28) */
     const abbe_sincos_f32_table_t *k = &abbe_sincos_f32_table;
 #if defined(__GNUC__) && defined(__thumb2__) && defined(__ARM_FP) && defined(__ARMEL__) && !defined(ABBE_PORTABLE_C)

@@ -34,9 +34,11 @@ static ABBE_ALWAYS_INLINE int32_t abbe_horner_step(int32_t c, int32_t p, int32_t
 
 uint64_t abbe_sincos_q30_pair(uint32_t phase_q32)
 {
-    uint32_t quarter = ((phase_q32 + (1u << 29)) >> 30) & 3u;
-    int32_t r = abbe_u32_to_i32(phase_q32 - (quarter << 30)); /* [-2^29, 2^29) */
-    int32_t u_q31 = r * 4;                                    /* u = r / 2^29 in Q31 */
+    uint32_t quarter = ((phase_q32 + 0x20000000u) >> 30) & 3u;
+    /* r = phase - quarter turns in [-2^29, 2^29); u = r / 2^29 in Q31 = 4 r,
+     * shifted as uint32 (the same bits as the int32 product, which cannot
+     * overflow, but without a product a proof must bound) */
+    int32_t u_q31 = abbe_u32_to_i32((phase_q32 - (quarter << 30)) << 2);
     int32_t z_q30 = abbe_horner_step(0, u_q31, u_q31);        /* u^2: Q62 -> Q30, <= 2^30 */
 
     int32_t ps = -4930933;                        /* S3, Q37 */
@@ -66,6 +68,6 @@ uint64_t abbe_sincos_q30_pair(uint32_t phase_q32)
 void abbe_sincos_q30(uint32_t phase_q32, int32_t *sin_q30, int32_t *cos_q30)
 {
     const uint64_t pair = abbe_sincos_q30_pair(phase_q32);
-    *sin_q30 = abbe_u32_to_i32((uint32_t)pair);
-    *cos_q30 = abbe_u32_to_i32((uint32_t)(pair >> 32));
+    *sin_q30 = abbe_q30_of_bits((uint32_t)pair);
+    *cos_q30 = abbe_q30_of_bits((uint32_t)(pair >> 32));
 }

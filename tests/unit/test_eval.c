@@ -514,6 +514,16 @@ static void test_bad_inputs(void **state)
     in_f.pos_mm[1] = 2.0f;
     in_f.temp_c[2] = NAN; /* used: the table has thermal terms */
     assert_int_equal(abbe_error_eval_f32(&m, &in_f, &ef), ABBE_E_INPUT);
+    /* a finite but absurd temperature: refused like NaN (it made alpha * dT
+     * infinite with ABBE_OK, found by the Eva proof of the f32 evaluator) */
+    in_f.temp_c[2] = -3e38f;
+    assert_int_equal(abbe_error_eval_f32(&m, &in_f, &ef), ABBE_E_INPUT);
+    assert_true(ef.error_um[2] == 0.0f);
+    in_f.temp_c[2] = 1.0000001e6f;
+    assert_int_equal(abbe_error_eval_f32(&m, &in_f, &ef), ABBE_E_INPUT);
+    in_f.temp_c[2] = 1.0e6f; /* the last accepted */
+    assert_int_equal(abbe_error_eval_f32(&m, &in_f, &ef), ABBE_OK);
+    assert_true(isfinite(ef.error_um[0]) && isfinite(ef.error_um[1]) && isfinite(ef.error_um[2]));
     in_f.temp_c[2] = 20.0f;
     in_f.dir_state[0] = NAN; /* ignored: no backlash in this table */
     assert_int_equal(abbe_error_eval_f32(&m, &in_f, &ef), ABBE_OK);

@@ -58,7 +58,8 @@ typedef struct {
 /* Spatial error at one machine position, single precision.
  * Returns ABBE_OK; ABBE_E_ARG for NULL pointers; ABBE_E_INPUT if a position
  * (or, where the table uses them, a temperature or direction state) is NaN or
- * infinite, in which case *out holds zeros. Positions beyond +/-2147 mm are
+ * infinite, or a temperature is beyond +/-10^6 deg C (no sensor reports it;
+ * alpha * dT would overflow), in which case *out holds zeros. Positions beyond +/-2147 mm are
  * clamped to it (and flagged out of travel). */
 abbe_status_t abbe_error_eval_f32(const abbe_model_t *model, const abbe_input_f32_t *in,
                                   abbe_error_f32_t *out);
