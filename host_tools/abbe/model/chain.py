@@ -43,7 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from abbe.model.five_axis import (AXIS_DIRECTION, LOCATION_ERRORS, FiveAxisErrors,
+from abbe.model.five_axis_base import (AXIS_DIRECTION, LOCATION_ERRORS, FiveAxisErrors,
                                   TrunnionGeometry, _homog, _loc, _trans, linear_axis_errors,
                                   motion_values, rotvec, small_rotation)
 

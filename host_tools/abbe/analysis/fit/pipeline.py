@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import os
 import platform
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -44,100 +43,22 @@ from abbe.analysis.fit.prep import (
     detrend_line,
     relative_to_reference,
 )
-from abbe.analysis.fit.select import AxisFit, fit_axis
+from abbe.analysis.fit.select import fit_axis
 from abbe.analysis.fit.uncertainty import fit_uncertainty
 from abbe.analysis.fit.uncertainty import to_json as uncertainty_json
-from abbe.analysis.iso230_2 import Iso230Result, evaluate
+from abbe.analysis.iso230_2 import evaluate
 from abbe.errors import AbbeInputError
 from abbe.formats.blob import coef_sum_cap, quantization_error, read_blob, write_blob
 from abbe.formats.deviations import PositioningData
-from abbe.formats.laser_csv import LaserData, to_terms
+from abbe.formats.laser_csv import to_terms
 from abbe.formats.laser_file import read_laser_line
 from abbe.formats.limits import FIT_MAX_TARGETS
-from abbe.formats.machine import LaserLine, Machine
+from abbe.formats.machine import Machine
 from abbe.formats.table_json import table_to_json
 from abbe.model.table import AXES, LINEAR_TERMS, OWN_TERM, TERMS, AxisTable, Table, basis_matrix
 
-TERM_NAMES = {"dx": "d_x", "dy": "d_y", "dz": "d_z", "ex": "eps_x", "ey": "eps_y",
-              "ez": "eps_z"}
-JSON_FORMAT = "abbe-fit"
-
-
-def unit_of(term: str) -> str:
-    """um for linear terms, urad for angular terms."""
-    return "um" if term in LINEAR_TERMS else "urad"
-
-
-def role_of(axis: str, term: str) -> str:
-    """positioning / straightness / angular (roll, pitch or yaw by axis)."""
-    if term == OWN_TERM[axis]:
-        return "positioning"
-    if term in LINEAR_TERMS:
-        return "straightness"
-    about = term[1]
-    return "roll" if about == axis.lower() else "angular"
-
-
-@dataclass
-class TermResult:
-    """One fitted term. Arrays over the T targets; runs (n_runs, 2, T).
-
-    All values are after detrending and relative to the reference point (the
-    stored model is 0 there). ``ref_shift`` is the total value subtracted.
-    """
-
-    axis: str
-    term: str
-    channel: str
-    sign: int
-    runs: np.ndarray
-    stats: RunStats
-    detrend: dict[str, float] | None
-    ref_shift: float
-    order: tuple[int, int]
-    coef: np.ndarray
-    predictions: dict[str, dict[str, np.ndarray]]
-    metrics: dict[str, dict[str, dict[str, float]]]
-    paper_f3_period_mm: float | None
-    post_shift: float = 0.0  # the part of ref_shift applied after the fit (exact zero at ref)
-    quant_error: float = float("nan")
-
-    @property
-    def unit(self) -> str:
-        return unit_of(self.term)
-
-
-@dataclass
-class AxisResult:
-    """Fit of one measured axis."""
-
-    axis: str
-    line: LaserLine
-    data: LaserData
-    targets_mm: np.ndarray
-    fit: AxisFit
-    terms: dict[str, TermResult]
-    backlash: dict[str, Any]
-    iso: Iso230Result | None
-    table: AxisTable
-    n_measured: int = 0  # targets in the file (targets_mm holds the bins of a dense line)
-    thermal: dict[str, Any] = field(default_factory=dict)
-    ref_mm: float = 0.0  # the reference point's coordinate on this axis (every term 0 there)
-
-
-@dataclass
-class FitResult:
-    """Everything ``abbe fit`` writes."""
-
-    machine: Machine
-    options: FitOptions
-    table: Table
-    blob: bytes
-    axes: dict[str, AxisResult]
-    model_json: dict[str, Any] = field(default_factory=dict)
-    #: every fitted term's covariance and the compensated residual
-    #: (:class:`abbe.analysis.fit.uncertainty.FitUncertainty`)
-    uncertainty: Any = None
+from abbe.analysis.fit.results import (  # noqa: E402,F401  (re-exported)
+    JSON_FORMAT, TERM_NAMES, AxisResult, FitResult, TermResult, role_of, unit_of)
 
 
 def options_from_machine(machine: Machine, **overrides: Any) -> FitOptions:

@@ -20,7 +20,7 @@ import numpy as np
 from abbe.analysis.fit.options import COMPARED
 
 if TYPE_CHECKING:
-    from abbe.analysis.fit.pipeline import AxisResult, FitResult, TermResult
+    from abbe.analysis.fit.results import AxisResult, FitResult, TermResult
 
 LABELS = {"chosen": "chosen (auto)", "paper_fourier3": "paper 3rd-order Fourier",
           "paper_poly7": "paper 7th-order polynomial"}
@@ -97,7 +97,7 @@ class _Plotter:
 
 def plot_data(res: "FitResult", ar: "AxisResult", tr: "TermResult") -> dict[str, Any]:
     """Everything one term's PNG shows, as arrays (um / urad over mm)."""
-    from abbe.analysis.fit.pipeline import role_of
+    from abbe.analysis.fit.results import role_of
     from abbe.model.reference import term_values
 
     p = ar.targets_mm

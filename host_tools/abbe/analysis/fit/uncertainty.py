@@ -53,7 +53,7 @@ from abbe.model.reference import combine_eq3, spatial_error
 from abbe.model.table import AXES, LINEAR_TERMS, OWN_TERM, AxisTable, Table, basis_matrix
 
 if TYPE_CHECKING:  # pragma: no cover
-    from abbe.analysis.fit.pipeline import AxisResult, FitResult
+    from abbe.analysis.fit.results import AxisResult, FitResult
 
 K = 2.0
 #: Positions along each axis where the JSON states the predicted term and its U.
