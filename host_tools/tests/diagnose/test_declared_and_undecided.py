@@ -13,49 +13,60 @@ from abbe.diagnose.candidates import Cand
 from abbe.diagnose.describe import _undecided
 from abbe.diagnose.effects import by_key
 from abbe.diagnose.results import DiagnoseOptions, EffectResult
-from abbe.diagnose.selection import _parsimony, declared_tool_log_evidence
+from abbe.diagnose.evidence import declared_tool_log_evidence
+from abbe.diagnose.selection import _evidence, _judge
 
 OPTS = DiagnoseOptions()
 
 
-def _eng(tool_mm, z_heights=(0.0, -100.0)):
+def _eng(tool_mm, z_heights=(0.0, -100.0), opts=OPTS):
     from abbe.diagnose.checks import BallbarCheck
     checks = [BallbarCheck.__new__(BallbarCheck) for _ in z_heights]
     for c, z in zip(checks, z_heights):
         c.center_mm = (0.0, 0.0, z)
     return SimpleNamespace(table=SimpleNamespace(tool_offset_mm=tool_mm, reference_mm=(0.0, 0.0, 0.0)),
-                           prob=SimpleNamespace(checks=checks))
+                           prob=SimpleNamespace(checks=checks), opts=opts)
 
 
-def _st(gain, without, contrib, coef, drss):
-    return {"heldout": {"gain": gain, "rss_without": without, "split": "x"},
-            "contrib_rms_um": contrib, "coef": np.asarray(coef, dtype=float), "drss": drss}
-
-
-def _cand(key, idx=(0,)):
-    return Cand(spec=by_key()[key], cols=np.zeros((1, len(idx))), param_idx=list(idx))
+def _judged(gain, contrib, coef, drss, eng):
+    c = Cand(spec=by_key()["tool_offset"], cols=np.zeros((1, 1)), param_idx=[2])
+    coef = np.asarray(coef, dtype=float)
+    Z = np.diag(np.sqrt(drss) / np.abs(coef))
+    ev = _evidence(eng, c, coef, Z, drss, 1.0, contrib)
+    st = {"ok": True, "coef": coef, "contrib_rms_um": contrib, "drss": drss, "k_eff": 1,
+          "heldout": {"gain": gain, "split": "x"}, "evidence": ev, "log_evidence": ev["log_evidence"]}
+    return _judge(st, eng.opts)
 
 
 def test_a_near_noise_change_of_a_declared_tool_offset_is_lack_of_fit() -> None:
     # issue 36's case: 15.7 mm on a declared tool, 0.16 um RMS, a held-out gain of 60 %
     # of the excess (which the old 50 % rule passed): the model's own angular
     # uncertainty (0.5 urad x ~120 mm = 0.06 um) explains as much -> not named
-    c = _cand("tool_offset", idx=(2,))
-    ok, why = _parsimony(_st(60.0, 100.0, 0.16, (15.7,), 200.0), c, [], _eng((0.0, 0.0, 100.0)),
-                         0.12, OPTS)
+    ok, why = _judged(60.0, 0.16, (15.7,), 200.0, _eng((0.0, 0.0, 100.0)))
     assert not ok and "log evidence ratio" in why and "lack of fit" in why
+    assert "declares" in why
 
 
 def test_a_blunder_on_a_declared_tool_offset_is_named() -> None:
-    c = _cand("tool_offset", idx=(2,))
-    ok, why = _parsimony(_st(90.0, 100.0, 1.5, (120.0,), 5000.0), c, [], _eng((0.0, 0.0, 100.0)),
-                         0.12, OPTS)
+    ok, why = _judged(900.0, 1.5, (120.0,), 5000.0, _eng((0.0, 0.0, 100.0)))
     assert ok, why
+
+
+def test_the_declared_uncertainty_decides_how_much_a_change_must_show() -> None:
+    """The same 2 mm change, well measured (RSS decrease 1e5): against a presetter's
+    0.01 mm it is a blunder worth naming; a machine file that states 5 mm (a tool
+    measured by hand) keeps its value."""
+    presetter = _eng((0.0, 0.0, 100.0))
+    by_hand = _eng((0.0, 0.0, 100.0), opts=DiagnoseOptions(declared_tool_sigma_mm=5.0))
+    ok, why = _judged(9e4, 3.0, (2.0,), 1e5, presetter)
+    assert ok, why
+    ok, why = _judged(9e4, 3.0, (2.0,), 1e5, by_hand)
+    assert not ok and "+/- 5 mm" in why
 
 
 def test_a_change_within_the_presetter_uncertainty_is_no_change() -> None:
     ev = declared_tool_log_evidence(1e6, np.array([0.02]), 1.0, np.array([0, 0, 100.0]), 100.0, OPTS)
-    assert ev["log_evidence"] == -math.inf
+    assert ev["log_evidence"] < OPTS.evidence_log_min
 
 
 def test_evidence_grows_with_the_signature_and_falls_with_model_uncertainty() -> None:
