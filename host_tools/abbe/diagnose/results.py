@@ -212,6 +212,9 @@ class DiagnoseResult:
     heldout_split: str | None = None
     #: excluded (or flagged) runs: abbe.diagnose.outliers.OutlierRun
     outliers: list[Any] = field(default_factory=list)
+    #: what the machine file declares and the prior it is judged with (the tool offset, mm;
+    #: its 1-sigma uncertainty and where that comes from), or None (no machine file)
+    declared: dict[str, Any] | None = None
 
     @property
     def nothing_missing(self) -> bool:
@@ -235,6 +238,7 @@ class DiagnoseResult:
             "outliers": [o.to_json() for o in self.outliers],
             "not_observable": self.not_observable,
             "candidates": self.tested,
+            "declared": self.declared,
             "notes": self.notes,
         }
 

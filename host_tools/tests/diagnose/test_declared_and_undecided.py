@@ -94,3 +94,31 @@ def test_two_explanations_that_reproduce_each_other_are_undecided() -> None:
     assert d["state"] == "undecided" and d["undecided_between"] == ["scale_x", "scale_y"]
     # an ambiguity below the threshold (0.93) leaves the name decided
     assert _undecided("squareness_xy", 20.0, "urad", amb[1:], OPTS.undecided_r2) is None
+
+
+def test_the_machine_file_states_the_declared_uncertainty(monkeypatch) -> None:
+    """``[tool] offset_sigma_mm`` reaches the selection as the declared quantity's prior, and
+    the JSON says which uncertainty was used and where it came from."""
+    import abbe.diagnose.checks as checks
+    import abbe.diagnose.run as run
+    from abbe.model.table import Table
+    seen = {}
+
+    def fake_diagnose(table, chks, opts):
+        seen["sigma"] = opts.declared_tool_sigma_mm
+        return SimpleNamespace()
+    table = Table.__new__(Table)
+    table.tool_offset_mm = (0.0, 0.0, 120.0)
+    table.reference_mm = (0.0, 0.0, 0.0)
+    monkeypatch.setattr(run, "diagnose", fake_diagnose)
+    monkeypatch.setattr(run, "check_model_matches", lambda *a, **k: None)
+    monkeypatch.setattr(checks, "laser_check", lambda *a, **k: "a check")
+    for sigma, want, source in ((None, OPTS.declared_tool_sigma_mm, "default"),
+                                (0.5, 0.5, "machine file")):
+        m = SimpleNamespace(ballbar={}, laser={"X": None}, tool_offset_sigma_mm=sigma,
+                            reference_mm=(0.0, 0.0, 0.0))
+        res = run.diagnose_machine(m, table)
+        assert seen["sigma"] == want
+        assert res.declared["tool_offset_sigma_mm"] == want
+        assert res.declared["tool_offset_sigma_source"].startswith(source)
+        assert res.declared["tool_offset_mm"] == [0.0, 0.0, 120.0]
