@@ -114,6 +114,11 @@ def format_text(res: DiagnoseResult, model_path: str | None = None) -> str:
             for alt in e.undecided["alternatives"]:
                 L.append(f"      {alt['key']}: {alt['value']} {alt['unit']}")
             L.append("      constrained by the checks: " + e.undecided["constrained"])
+            if e.undecided.get("table_holds"):
+                L.append("      the table holds: " + ", ".join(
+                    f"{k} {v}" for k, v in e.undecided["table_holds"].items()))
+            if e.undecided.get("unknown"):
+                L.append("      unknown: " + e.undecided["unknown"])
         for a in e.ambiguous_with:
             how = (f"reproduces {100 * a['r2']:.0f} % of the signature" if a.get("r2") is not None
                    else "same signature at one height")

@@ -44,6 +44,7 @@ from abbe.diagnose.checks import DEFAULT_TAKEUP_MM, BallbarCheck, Check, LaserCh
 from abbe.diagnose.describe import describe_effects
 from abbe.diagnose.evidence import candidate_prior, log_evidence
 from abbe.diagnose.heldout import heldout_gap, heldout_removal, heldout_rss
+from abbe.diagnose.undecided import share_undecided
 from abbe.diagnose.effects import PredParams, catalogue, copy_table, fold_reversal
 from abbe.diagnose.evaluator import Evaluator
 from abbe.diagnose.shape import refine_scans
@@ -390,6 +391,13 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
     ho_before, ho_after, ho_split = fin["ho_before"], fin["ho_after"], fin["ho_split"]
 
     effects = describe_effects(eng, selected, values, cov, s2_final, W, pool, new_table, new_pp)
+    # undecided: the table holds the equal share of the explanations (what they agree on)
+    shared = share_undecided(eng, selected, values, effects, pool)
+    if shared is not None:
+        new_table, new_pp = shared
+        r_after = prob.y - prob.predict(eng.ev, new_table, new_pp)
+        clean_after = remove_nuisance(prob, r_after)
+        gap_after = gap_stats(prob, clean_after)
     # a candidate the named effects mostly reproduce, not preferred as a pair on held-out
     # data: reported as the alternative explanation of the effect that reproduces it
     by_key_e = {e.key: e for e in effects}

@@ -122,3 +122,36 @@ def test_the_machine_file_states_the_declared_uncertainty(monkeypatch) -> None:
         assert res.declared["tool_offset_sigma_mm"] == want
         assert res.declared["tool_offset_sigma_source"].startswith(source)
         assert res.declared["tool_offset_mm"] == [0.0, 0.0, 120.0]
+
+
+def test_an_undecided_scale_puts_the_equal_share_into_the_table() -> None:
+    """One XY circle sees only kx - ky: a scale of X is "scale_x or scale_y". The table
+    holds what both explanations agree on, half of each (not all of the first name), the
+    checks are still reproduced, and the JSON says what stays unknown."""
+    import sys
+    from pathlib import Path
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+    from abbe.diagnose.checks import BallbarCheck
+    from abbe.diagnose.selection import diagnose
+    from cases.hidden_effects import hidden_case
+    case = hidden_case(101, ("scale_x",), step_deg=3.0)
+    circles = [c for c in case.checks if isinstance(c, BallbarCheck)]
+    res = diagnose(case.model, circles,
+                   DiagnoseOptions(candidates=["scale_x", "scale_y", "squareness_xy", "backlash_x"]))
+    (e,) = res.effects
+    true = case.expected["scale_x"]
+    assert e.undecided is not None and {a["key"] for a in e.undecided["alternatives"]} == \
+        {"scale_x", "scale_y"}
+    held = e.undecided["table_holds"]
+    assert abs(held["scale_x"] - true / 2) <= 0.1 * abs(true / 2)
+    assert abs(held["scale_y"] + true / 2) <= 0.1 * abs(true / 2)
+    assert "scale_x and scale_y" in e.undecided["unknown"]
+    # the table's own terms: half of the slope on X, the opposite half on Y (T1 coefficient,
+    # um = ppm x half travel / 1000)
+    for axis, term, share in (("X", "dx", held["scale_x"]), ("Y", "dy", held["scale_y"])):
+        lo, hi = res.base_table.axes[axis].travel_mm
+        d = res.table.axes[axis].coef[term][1] - res.base_table.axes[axis].coef[term][1]
+        assert abs(d - share * (hi - lo) / 2 * 1e-3) < 0.02 * abs(d), (axis, d, share)
+    assert res.gap["after"].rms_um < 0.5 * res.gap["before"].rms_um
+    j = res.to_json()
+    assert j["state"] == "undecided" and j["effects"][0]["undecided"]["table_holds"] == held
