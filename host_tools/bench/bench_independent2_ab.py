@@ -40,10 +40,26 @@ def built(case, d: Path) -> BuiltCase:
     return b
 
 
+def compare(before: Path, after: Path) -> dict:
+    """Figures of two runs on the cases both finished (bench_independent2.summarise), and
+    the cases whose names differ."""
+    from bench_independent2 import summarise
+    rb = {r["case"]: r for r in map(json.loads, before.read_text().splitlines()) if r}
+    ra = {r["case"]: r for r in map(json.loads, after.read_text().splitlines()) if r}
+    both = [c for c in rb if c in ra]
+    out = {"cases": len(both), "case_names": both,
+           "before": summarise([rb[c] for c in both]), "after": summarise([ra[c] for c in both]),
+           "changed": [f"{c}: truth {rb[c]['truth']} before {rb[c]['named']} after {ra[c]['named']}"
+                       for c in both if rb[c]["named"] != ra[c]["named"]]}
+    return out
+
+
 def main() -> int:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--work", required=True)
-    ap.add_argument("--out", required=True)
+    ap.add_argument("--compare", nargs=2, metavar=("BEFORE.jsonl", "AFTER.jsonl"),
+                    help="print the figures of two runs on the cases both finished")
+    ap.add_argument("--work")
+    ap.add_argument("--out")
     ap.add_argument("--seed", type=int, default=None)
     ap.add_argument("--per-single", type=int, default=1)
     ap.add_argument("--per-pair", type=int, default=1)
@@ -54,6 +70,12 @@ def main() -> int:
                     help="interleave: one case of each kind in turn, so a stopped run is "
                          "still a stratified subset")
     a = ap.parse_args()
+    if a.compare:
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        print(json.dumps(compare(Path(a.compare[0]), Path(a.compare[1])), indent=1))
+        return 0
+    if not (a.work and a.out):
+        ap.error("--work and --out are needed (or --compare)")
     seed = a.seed if a.seed is not None else secrets.randbelow(2**31)
     print(f"seed {seed}", flush=True)
     cases = suite(seed, per_single=a.per_single, per_pair=a.per_pair, n_clean=a.clean,

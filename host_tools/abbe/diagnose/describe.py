@@ -336,8 +336,8 @@ def _per_check_contrib(eng: Engine, s: Selected, v: np.ndarray) -> dict[str, flo
 
 def model_error_ambiguity(eng: Engine, spec: EffectSpec) -> dict[str, Any] | None:
     """The ambiguity of an effect with an error of the model itself on these checks, or
-    None: the flag the report carries and the reason the selection asks the held-out
-    data for a stated margin before naming it (selection._parsimony, every effect).
+    None: the flag the report carries (the selection counts the model's uncertainty in
+    the effect's evidence ratio: abbe.diagnose.evidence.candidate_prior).
     Known today: a tool offset seen at one Z height only (it multiplies the model's
     angular terms, so a scaled angular fit error gives the same signature)."""
     if spec.kind == "tool_offset":

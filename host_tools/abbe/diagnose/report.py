@@ -106,7 +106,8 @@ def format_text(res: DiagnoseResult, model_path: str | None = None) -> str:
             L.append(f"    residual RMS {ev['residual_before']['rms_um']:.3f} -> "
                      f"{ev['residual_after']['rms_um']:.3f} um, max "
                      f"{ev['residual_before']['max_um']:.3f} -> {ev['residual_after']['max_um']:.3f} um")
-        L.append(f"    BIC change {ev['delta_bic']:.1f}, F = {ev['F']:.2f}, p = {ev['p_value']:.3g}; "
+        L.append(f"    log evidence ratio {ev.get('log_evidence', float('nan')):.1f} (BIC change "
+                 f"{ev['delta_bic']:.1f}, F = {ev['F']:.2f}, p = {ev['p_value']:.3g}); "
                  f"held-out ({ev['heldout_split']}): RSS change {ev['heldout_change_percent']:.1f} %")
         L.append(f"    compensated by: {e.where}; remedy: {e.remedy}")
         if e.undecided:

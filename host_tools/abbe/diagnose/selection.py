@@ -14,11 +14,13 @@ Steps (docs/effects.md):
    searched on a grid.
 4. **Decide**: forward stepwise selection on the whitened residual (weights =
    the noise of each channel, estimated from repeated runs / the scatter about
-   a saturated smooth fit). A candidate is accepted only if it passes an F-test
-   against the noise (Bonferroni over the candidates of the step and, for grid
-   searches, over the independent grid points), lowers the BIC by at least
-   ``bic_min``, and lowers the residual on held-out data (fit on one fold, e.g.
-   CCW or early runs, judge on the other, and back). Selection stops when no
+   a saturated smooth fit). A candidate is accepted by one rule
+   (:mod:`abbe.diagnose.evidence`): its evidence ratio against the model without
+   it, from that noise, the catalogue's prior ranges (and a declared quantity's
+   prior), the model's own uncertainty along its signature and the look-elsewhere
+   of a searched shape, must reach (1 - alpha) / alpha; the held-out data are the
+   arbiter (:mod:`abbe.diagnose.heldout`: fit on one fold, e.g. angle sectors or
+   early runs, judge on the other, and back). Selection stops when no
    candidate qualifies. Candidates whose signature on the given checks is
    (almost) reproduced by another's are reported as ambiguous, with the test
    that would separate them.
