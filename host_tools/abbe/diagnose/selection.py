@@ -142,7 +142,7 @@ def _judge(st: dict[str, Any], opts: DiagnoseOptions) -> tuple[bool, str]:
         if ev.get("reason"):
             return False, f"{ev['reason']} (prior range: {ev['range']})"
         what = ("the machine file declares it (+/- "
-                f"{opts.declared_tool_sigma_mm:g} mm): the change found " if ev.get("declared")
+                f"{opts.declared_tool_sigma_mm:g} mm): the change found has a " if ev.get("declared")
                 else "")
         model = (f" against a model uncertainty of {ev['sigma_model_um']:.3f} um"
                  if ev["sigma_model_um"] > 0 else "")
