@@ -49,9 +49,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--axis", help="axis of --iso230-2 data (X, Y or Z)")
     json_option(p, "the diagnose JSON (OUT/diagnose.json)")
     p.add_argument("-o", "--out", required=True, metavar="DIR", help="output directory")
-    p.add_argument("--alpha", type=in_range(0.0, 0.5, lo_open=True, hi_open=True), default=0.01,
-                   help="significance level per step, (0, 0.5) (default 0.01, Bonferroni over "
-                        "candidates)")
+    p.add_argument("--alpha", type=in_range(0.0, 0.5, lo_open=True, hi_open=True), default=0.05,
+                   help="largest posterior probability that a named effect is absent, (0, 0.5) "
+                        "(default 0.05: an evidence ratio of 19; docs/effects.md section 3)")
     p.add_argument("--min-effect-um", type=in_range(0.0, 1000.0, "um"), default=0.15,
                    help="smallest effect (RMS on the checks, um) worth naming, [0, 1000] "
                         "(default 0.15)")

@@ -52,6 +52,7 @@ def describe_effects(eng: Engine, sel: list[Selected], values: list[np.ndarray],
             "delta_bic": round(st["dbic"], 2),
             "F": round(st["F"], 3),
             "p_value": float(f"{st['p_eff']:.3g}"),
+            "log_evidence": round(float(st["log_evidence"]), 2),
             "heldout_split": ho["split"],
             "heldout_rss_before": round(ho.get("rss_without", float("nan")), 2),
             "heldout_rss_after": round(ho.get("rss_with", float("nan")), 2),
@@ -335,8 +336,8 @@ def _per_check_contrib(eng: Engine, s: Selected, v: np.ndarray) -> dict[str, flo
 
 def model_error_ambiguity(eng: Engine, spec: EffectSpec) -> dict[str, Any] | None:
     """The ambiguity of an effect with an error of the model itself on these checks, or
-    None: the flag the report carries and the reason the selection asks the held-out
-    data for a stated margin before naming it (selection._parsimony, every effect).
+    None: the flag the report carries (the selection counts the model's uncertainty in
+    the effect's evidence ratio: abbe.diagnose.evidence.candidate_prior).
     Known today: a tool offset seen at one Z height only (it multiplies the model's
     angular terms, so a scaled angular fit error gives the same signature)."""
     if spec.kind == "tool_offset":

@@ -106,7 +106,8 @@ def format_text(res: DiagnoseResult, model_path: str | None = None) -> str:
             L.append(f"    residual RMS {ev['residual_before']['rms_um']:.3f} -> "
                      f"{ev['residual_after']['rms_um']:.3f} um, max "
                      f"{ev['residual_before']['max_um']:.3f} -> {ev['residual_after']['max_um']:.3f} um")
-        L.append(f"    BIC change {ev['delta_bic']:.1f}, F = {ev['F']:.2f}, p = {ev['p_value']:.3g}; "
+        L.append(f"    log evidence ratio {ev.get('log_evidence', float('nan')):.1f} (BIC change "
+                 f"{ev['delta_bic']:.1f}, F = {ev['F']:.2f}, p = {ev['p_value']:.3g}); "
                  f"held-out ({ev['heldout_split']}): RSS change {ev['heldout_change_percent']:.1f} %")
         L.append(f"    compensated by: {e.where}; remedy: {e.remedy}")
         if e.undecided:
@@ -114,6 +115,11 @@ def format_text(res: DiagnoseResult, model_path: str | None = None) -> str:
             for alt in e.undecided["alternatives"]:
                 L.append(f"      {alt['key']}: {alt['value']} {alt['unit']}")
             L.append("      constrained by the checks: " + e.undecided["constrained"])
+            if e.undecided.get("table_holds"):
+                L.append("      the table holds: " + ", ".join(
+                    f"{k} {v}" for k, v in e.undecided["table_holds"].items()))
+            if e.undecided.get("unknown"):
+                L.append("      unknown: " + e.undecided["unknown"])
         for a in e.ambiguous_with:
             how = (f"reproduces {100 * a['r2']:.0f} % of the signature" if a.get("r2") is not None
                    else "same signature at one height")

@@ -5,6 +5,7 @@ Units: positions mm, linear values um, angles urad; see each field.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -17,44 +18,36 @@ from abbe.model.table import Table
 
 @dataclass
 class DiagnoseOptions:
-    """Settings of the decision (defaults are the documented ones).
+    """Settings of the decision (defaults are the documented ones, docs/effects.md §3).
 
-    alpha: significance level of a step (Bonferroni-divided by the candidates tested);
-    bic_min: minimal BIC decrease; heldout_fraction: the held-out residual decrease must
-    be at least this fraction of the in-sample decrease (and at least 2 per parameter,
-    in noise units); ambiguity_r2: a candidate reproducing this fraction of a named
-    effect's signature makes it ambiguous (and a candidate whose signature the named
-    effects reproduce to this fraction must keep ``redundant_heldout_fraction`` of its
-    in-sample gain on held-out data); min_effect_um: an effect whose fitted
-    contribution has a smaller RMS (um, on um-valued samples) is not named;
-    candidates: keys or families to consider (None = all); max_effects: safety stop;
-    model_temp_c: temperature (deg C) at which the model was measured (thermal
-    reference; None = the table's, else the lowest logged temperature).
+    The selection is one model comparison (:mod:`abbe.diagnose.evidence`): an effect is
+    named when the posterior probability that it is absent is below ``alpha`` (prior odds
+    ``prior_log_odds``, 0 = even), i.e. when its evidence ratio reaches (1 - alpha) /
+    alpha (``evidence_log_min``; alpha 0.05: 19, "strong" on Jeffreys' scale), and the
+    held-out data agree (arbiter): the held-out residual decrease must be at least
+    ``heldout_fraction`` of the in-sample decrease and at least 2 per parameter (noise
+    units); ``redundant_heldout_fraction`` when the effects already named reproduce
+    ``ambiguity_r2`` of its signature (the held-out data must prefer the pair).
+    ambiguity_r2: a candidate reproducing this fraction of a named effect's signature
+    makes it ambiguous; undecided_r2: two explanations that reproduce each other to
+    this R^2 on every check are reported undecided ("A or B"), not one named;
+    min_effect_um: an effect whose fitted contribution has a smaller RMS (um, on its
+    channel) is not named (relevance, not statistics); candidates: keys or families to
+    consider (None = all); max_effects: safety stop; model_temp_c: temperature (deg C)
+    at which the model was measured (thermal reference; None = the table's, else the
+    lowest logged temperature).
 
-    Parsimony against the model's own doubt (issue 24, docs/effects.md §4):
-    min_heldout_gain_fraction: an effect must lower the held-out residual (RSS, noise
-    units) by at least this fraction of the held-out RSS without it;
-    min_contribution_noise: its fitted contribution (RMS, um) must be at least this
-    multiple of the pooled noise of the um-valued channels;
-    strong_heldout_fraction: the held-out gain fraction needed by an effect that
-    changes a parameter the machine file fixes (the declared tool offset) or that is
-    ambiguous with an error of the model itself; tool_offset_max_mm: the largest
-    physically plausible tool offset (norm of declared + found, mm).
-
-    Priors for what the user declared (issue 36, docs/effects.md "Declared
-    quantities"): declared_tool_sigma_mm: the 1-sigma uncertainty of a declared
-    (non-zero) tool offset (a presetter: 0.01 mm); declared_blunder_prob: the prior
-    probability that a declared value is a blunder (wrong tool, typo), then anywhere
-    within +/- tool_offset_max_mm; model_angle_sigma_urad: the uncertainty of the
-    model's angular terms (a 6D laser fit: 0.5 urad), which a change of the tool
-    offset is indistinguishable from to the extent of lever x this; evidence_log_min:
-    the log evidence ratio needed to overrule a declared value (log 20 = "strong").
-    undecided_r2: two explanations that reproduce each other to this R^2 on every
-    check are reported undecided ("A or B"), not one named.
+    Priors: each parameter uniform within the catalogue's plausible range; the tool
+    offset within tool_offset_max_mm (norm of declared + found, mm). A declared
+    quantity (the tool offset in the machine file) is a measurement: right within
+    declared_tool_sigma_mm (1 sigma; a presetter 0.01 mm, or the machine file's
+    ``[tool] offset_sigma_mm``), a blunder (wrong tool, typo) with probability
+    declared_blunder_prob, then anywhere in the range. model_angle_sigma_urad: the
+    uncertainty of the model's angular terms (a 6D laser fit: 0.5 urad), which a tool
+    offset's signature cannot be told from beyond lever x this.
     """
 
-    alpha: float = 0.01
-    bic_min: float = 10.0
+    alpha: float = 0.05
     heldout_fraction: float = 0.1
     ambiguity_r2: float = 0.9
     min_effect_um: float = 0.15
@@ -64,15 +57,17 @@ class DiagnoseOptions:
     max_period_mm: float = 60.0
     redundant_heldout_fraction: float = 0.5
     model_temp_c: float | None = None
-    min_heldout_gain_fraction: float = 0.15
-    min_contribution_noise: float = 0.5
-    strong_heldout_fraction: float = 0.5
     tool_offset_max_mm: float = 300.0
     declared_tool_sigma_mm: float = 0.01
     declared_blunder_prob: float = 0.01
     model_angle_sigma_urad: float = 0.5
-    evidence_log_min: float = 3.0
+    prior_log_odds: float = 0.0
     undecided_r2: float = 0.98
+
+    @property
+    def evidence_log_min(self) -> float:
+        """The log evidence ratio an effect needs: log((1 - alpha) / alpha)."""
+        return math.log((1.0 - self.alpha) / self.alpha)
 
 
 @dataclass
@@ -217,6 +212,9 @@ class DiagnoseResult:
     heldout_split: str | None = None
     #: excluded (or flagged) runs: abbe.diagnose.outliers.OutlierRun
     outliers: list[Any] = field(default_factory=list)
+    #: what the machine file declares and the prior it is judged with (the tool offset, mm;
+    #: its 1-sigma uncertainty and where that comes from), or None (no machine file)
+    declared: dict[str, Any] | None = None
 
     @property
     def drift_ties(self) -> list[Any]:
@@ -250,6 +248,7 @@ class DiagnoseResult:
             "outliers": [o.to_json() for o in self.outliers],
             "not_observable": self.not_observable,
             "candidates": self.tested,
+            "declared": self.declared,
             "notes": self.notes,
             "drift_temperature": [t.to_json() for t in self.drift_ties],
         }

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import numpy as np
@@ -72,7 +73,17 @@ def diagnose_machine(machine: Any, model: Any, ballbar: list[str] | None = None,
     if not checks:
         raise AbbeInputError("the machine file has no [ballbar.*] or [laser.*] test to check "
                              "the model with", file=str(m.path), field="ballbar")
-    return diagnose(table, checks, options)
+    opts = options or DiagnoseOptions()
+    sigma = getattr(m, "tool_offset_sigma_mm", None)
+    if sigma is not None:
+        # the machine file states how well it knows its tool: the declared quantity's prior
+        opts = dataclasses.replace(opts, declared_tool_sigma_mm=float(sigma))
+    res = diagnose(table, checks, opts)
+    res.declared = {"tool_offset_mm": [float(x) for x in table.tool_offset_mm],
+                    "tool_offset_sigma_mm": opts.declared_tool_sigma_mm,
+                    "tool_offset_sigma_source": ("machine file [tool] offset_sigma_mm"
+                                                 if sigma is not None else "default (a presetter)")}
+    return res
 
 
 def diagnose_positioning(path: Any, axis: str, model: Any = None,

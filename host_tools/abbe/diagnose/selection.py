@@ -14,11 +14,13 @@ Steps (docs/effects.md):
    searched on a grid.
 4. **Decide**: forward stepwise selection on the whitened residual (weights =
    the noise of each channel, estimated from repeated runs / the scatter about
-   a saturated smooth fit). A candidate is accepted only if it passes an F-test
-   against the noise (Bonferroni over the candidates of the step and, for grid
-   searches, over the independent grid points), lowers the BIC by at least
-   ``bic_min``, and lowers the residual on held-out data (fit on one fold, e.g.
-   CCW or early runs, judge on the other, and back). Selection stops when no
+   a saturated smooth fit). A candidate is accepted by one rule
+   (:mod:`abbe.diagnose.evidence`): its evidence ratio against the model without
+   it, from that noise, the catalogue's prior ranges (and a declared quantity's
+   prior), the model's own uncertainty along its signature and the look-elsewhere
+   of a searched shape, must reach (1 - alpha) / alpha; the held-out data are the
+   arbiter (:mod:`abbe.diagnose.heldout`: fit on one fold, e.g. angle sectors or
+   early runs, judge on the other, and back). Selection stops when no
    candidate qualifies. Candidates whose signature on the given checks is
    (almost) reproduced by another's are reported as ambiguous, with the test
    that would separate them.
@@ -41,7 +43,10 @@ from scipy import stats
 from abbe.diagnose.candidates import Cand, Engine, Selected, apply_selection, selection_residual
 from abbe.diagnose.caps import cap_violations
 from abbe.diagnose.checks import DEFAULT_TAKEUP_MM, BallbarCheck, Check, LaserCheck, check_travel
-from abbe.diagnose.describe import describe_effects, model_error_ambiguity
+from abbe.diagnose.describe import describe_effects
+from abbe.diagnose.evidence import candidate_prior, log_evidence
+from abbe.diagnose.heldout import heldout_gap, heldout_removal, heldout_rss
+from abbe.diagnose.undecided import share_undecided
 from abbe.diagnose.effects import PredParams, catalogue, copy_table, fold_reversal
 from abbe.diagnose.evaluator import Evaluator
 from abbe.diagnose.shape import refine_scans
@@ -101,7 +106,7 @@ def _eval_candidate(eng: Engine, cand: Cand, sel: list[Selected], W: np.ndarray,
     if cand.offset is not None:
         contrib = contrib + cand.offset   # the change the grid value alone causes (a take-up)
     contrib_rms = contribution_rms(prob, contrib)
-    ho = _heldout(eng, sel, cand, W, s2)
+    ho = heldout_rss(eng, sel, cand, W, s2)
     # redundancy: the share of this candidate's fitted signature that the effects already
     # named reproduce (nuisance projected out of both)
     redundancy, red_with = 0.0, None
@@ -118,78 +123,34 @@ def _eval_candidate(eng: Engine, cand: Cand, sel: list[Selected], W: np.ndarray,
                 _, d_o = lstsq_rss(Zo, sig_n)
                 if d_o / nn > best:
                     best, red_with = d_o / nn, o.cand.spec.key
-    implausible = [cand.spec.params[i].name for i, v in zip(cand.param_idx, coef)
-                   if abs(v) > cand.spec.params[i].limit]
-    return {"ok": True, "implausible": implausible, "F": F, "p": p, "p_eff": p_eff, "dbic": dbic, "drss": dr / s2,
+    ev = _evidence(eng, cand, coef, Z, dr / s2, s2, contrib_rms)
+    # F and BIC are reported beside the evidence ratio (the JSON's fields); the decision is
+    # the evidence ratio's (_judge)
+    return {"ok": True, "F": F, "p": p, "p_eff": p_eff, "dbic": dbic, "drss": dr / s2,
             "k": k, "k_eff": k_eff, "coef": coef, "contrib_rms_um": contrib_rms,
-            "heldout": ho, "s2": s2, "alpha_step": eng.opts.alpha / max(n_tested, 1),
+            "heldout": ho, "s2": s2, "evidence": ev, "log_evidence": ev["log_evidence"],
             "redundancy": redundancy, "redundant_with": red_with}
-def _heldout(eng: Engine, sel: list[Selected], cand: Cand | None, W: np.ndarray,
-             s2: float) -> dict[str, Any]:
-    """Held-out RSS (whitened, / s2) without and with ``cand``: fit the effects (and the
-    nuisance) on one fold, judge the other (nuisance refitted there), and back."""
-    prob = eng.prob
-    r_sel = selection_residual(eng, sel) * W
-    Nw = prob.nuis * W[:, None]
-    X_sel = [s.cand.cols for s in sel]
-    # the rows the candidate acts on (its support): its held-out gain is judged against
-    # the residual there, not diluted by checks it does not touch
-    support = np.ones(prob.N, dtype=bool) if cand is None else \
-        np.any(np.abs(cand.cols) > 1e-12 * max(float(np.max(np.abs(cand.cols), initial=0.0)), 1e-300),
-               axis=1) | (np.abs(cand.offset) > 0 if cand.offset is not None else False)
-    for level in (0, 1):
-        sp = prob.split(level)
-        if sp is None:
-            continue
-        lab, name = sp
-        res = {}
-        ok = True
-        for with_c in (False, True):
-            r = r_sel
-            if with_c and cand is not None and cand.offset is not None:
-                r = r_sel - cand.offset * W
-            cols = X_sel + ([cand.cols] if (with_c and cand is not None) else [])
-            X = np.hstack(cols) * W[:, None] if cols else np.zeros((prob.N, 0))
-            tot = tot_s = 0.0
-            n_s = 0
-            for f in (0, 1):
-                A, B = lab == f, lab != f
-                if A.sum() == 0 or B.sum() == 0:
-                    ok = False
-                    break
-                nA = Nw[A][:, np.any(Nw[A] != 0, axis=0)]
-                QA = qr_basis(nA)
-                XA = project_out(QA, X[A])
-                if not is_identifiable(XA):
-                    ok = False
-                    break
-                beta, *_ = np.linalg.lstsq(XA, project_out(QA, r[A][:, None])[:, 0], rcond=None) \
-                    if X.shape[1] else (np.zeros(0),)
-                eB = r[B] - (X[B] @ beta if X.shape[1] else 0.0)
-                nB = Nw[B][:, np.any(Nw[B] != 0, axis=0)]
-                eB = project_out(qr_basis(nB), eB[:, None])[:, 0]
-                tot += float(eB @ eB)
-                eS = eB[support[B]]
-                tot_s += float(eS @ eS)
-                n_s += int(eS.size)
-            if not ok:
-                break
-            res["with" if with_c else "without"] = tot / s2
-            res["support_with" if with_c else "support_without"] = tot_s / s2
-        if ok:
-            return {"split": name, "rss_without": res["without"], "rss_with": res["with"],
-                    "gain": res["without"] - res["with"],
-                    "rss_without_support": res["support_without"], "n_support": n_s}
-    return {"split": None, "gain": float("nan")}
-def _qualifies(st: dict[str, Any], opts: DiagnoseOptions) -> tuple[bool, str]:
+def _judge(st: dict[str, Any], opts: DiagnoseOptions) -> tuple[bool, str]:
+    """The one selection rule (docs/effects.md §3): the evidence ratio of the model with the
+    effect against the model without it, from the estimated noise, the catalogue's prior
+    and the model's own uncertainty (:mod:`abbe.diagnose.evidence`), then the held-out
+    data as the arbiter, then the user's size of a relevant effect."""
     if not st.get("ok"):
         return False, st.get("reason", "")
-    if st["p_eff"] >= st["alpha_step"]:
-        return False, f"not significant (p = {st['p_eff']:.2g} >= {st['alpha_step']:.2g})"
-    if st["dbic"] > -opts.bic_min:
-        return False, f"BIC decrease {-st['dbic']:.1f} < {opts.bic_min:g}"
-    if st.get("implausible"):
-        return False, "implausible value of " + ", ".join(st["implausible"])
+    ev = st["evidence"]
+    if not ev["log_evidence"] >= opts.evidence_log_min:
+        if ev.get("reason"):
+            return False, f"{ev['reason']} (prior range: {ev['range']})"
+        what = ("the machine file declares it (+/- "
+                f"{opts.declared_tool_sigma_mm:g} mm): the change found has a " if ev.get("declared")
+                else "")
+        model = (f" against a model uncertainty of {ev['sigma_model_um']:.3f} um"
+                 if ev["sigma_model_um"] > 0 else "")
+        tail = ": left as lack of fit / model error" if ev["sigma_model_um"] > 0 or \
+            ev.get("declared") else ""
+        return False, (f"{what}log evidence ratio {ev['log_evidence']:.1f} < "
+                       f"{opts.evidence_log_min:g} ({st['contrib_rms_um']:.3f} um RMS{model})"
+                       + tail)
     ho = st["heldout"]
     if ho["split"] is None:
         return False, "cannot be validated on held-out data (not identifiable in a fold)"
@@ -209,10 +170,34 @@ def _qualifies(st: dict[str, Any], opts: DiagnoseOptions) -> tuple[bool, str]:
     if st["contrib_rms_um"] < opts.min_effect_um and st["contrib_rms_um"] > 0:
         return False, f"too small to matter (RMS {st['contrib_rms_um']:.3f} um)"
     return True, ""
-def _noise_um(noise_rep: dict[str, dict[str, Any]]) -> float:
-    """Pooled noise (um) of the um-valued channels (RMS of their sigmas)."""
-    um = [v["sigma"] for v in noise_rep.values() if v.get("unit") == "um"]
-    return math.sqrt(sum(x * x for x in um) / len(um)) if um else 0.0
+
+
+def _evidence(eng: Engine, cand: Cand, coef: np.ndarray, Z: np.ndarray, drss: float, s2: float,
+              contrib_um: float) -> dict[str, Any]:
+    """The candidate's log evidence ratio with its prior (evidence.candidate_prior); a tool
+    offset's prior range is on the resulting tool (declared + change)."""
+    spec = cand.spec
+    declared = np.asarray(eng.table.tool_offset_mm, dtype=float)
+    pr = candidate_prior(spec, cand.param_idx, declared, _tool_lever_mm(eng), eng.opts)
+    rng = ", ".join(f"{spec.params[i].name} +/- {L:g}" for i, L in zip(cand.param_idx,
+                                                                       pr["half_width"]))
+    if spec.kind == "tool_offset":
+        t = declared.copy()
+        for i, v in zip(cand.param_idx, coef):
+            t[i] += float(v)
+        if float(np.linalg.norm(t)) > eng.opts.tool_offset_max_mm:
+            return {"log_evidence": -math.inf, "sigma_model_um": 0.0, "declared": pr["declared"],
+                    "range": f"|tool| <= {eng.opts.tool_offset_max_mm:g} mm",
+                    "reason": f"implausible tool offset {float(np.linalg.norm(t)):.0f} mm "
+                              f"(the machine file declares {float(np.linalg.norm(declared)):.0f} mm)"}
+    cov_w = s2 * np.linalg.pinv(Z.T @ Z) if Z.shape[1] else np.zeros((0, 0))
+    ev = log_evidence(coef, cov_w, drss, contrib_um, pr["half_width"], pr["sigma_model_um"],
+                      pr["prior_log_odds"], pr["declared_cov"], max(cand.n_scan, 1))
+    ev["declared"] = pr["declared"]
+    ev["range"] = rng
+    if ev.get("reason"):
+        ev["reason"] = "implausible value: " + str(ev["reason"])
+    return ev
 
 
 #: effect kinds that write into a term's coefficients (the others: squareness, tool
@@ -229,93 +214,6 @@ def _named_drift_tau(sel: list[Selected]) -> float | None:
     return None
 
 
-def _heldout_gain_fraction(ho: dict[str, Any]) -> float:
-    """The held-out gain of a candidate as a fraction of what the model misses beyond the
-    noise on the rows the candidate acts on (its support): the held-out residual there
-    (RSS in noise units) less its expected noise part (1 per row). Relative to the excess,
-    not to the whole residual: a residual of N rows of pure noise is N noise units, and a
-    fraction of it would ask more of an effect the more samples a campaign has (and of one
-    check the longer the others are)."""
-    excess = ho.get("rss_without_support", ho.get("rss_without", 0.0)) - ho.get("n_support", 0)
-    return float(ho["gain"] / max(excess, 1e-300))
-
-
-def _parsimony(st: dict[str, Any], cand: Cand, sel: list[Selected], eng: Engine,
-               noise_um: float, opts: DiagnoseOptions) -> tuple[bool, str]:
-    """The rules that hold against the model's own doubt (docs/effects.md §4), after
-    :func:`_qualifies`: a held-out gain fraction, a contribution against the noise, one
-    entry per thermal drift, and strong evidence with a plausible value for a parameter
-    the machine file fixes (the tool offset)."""
-    ho = st["heldout"]
-    frac = _heldout_gain_fraction(ho)
-    if frac < opts.min_heldout_gain_fraction:
-        return False, (f"held-out gain {100 * frac:.1f} % of what the model misses beyond the "
-                       f"noise where it acts (< {100 * opts.min_heldout_gain_fraction:.0f} %)")
-    if 0 < st["contrib_rms_um"] < opts.min_contribution_noise * noise_um:
-        return False, (f"contribution {st['contrib_rms_um']:.3f} um RMS below "
-                       f"{opts.min_contribution_noise:g} x the noise ({noise_um:.3f} um)")
-    spec = cand.spec
-    declared_tool = spec.kind == "tool_offset" and \
-        float(np.linalg.norm(np.asarray(eng.table.tool_offset_mm, dtype=float))) > 0
-    if declared_tool:
-        # a declared value is a measurement with a prior: judged by its evidence ratio
-        # (issue 36), not by the relative held-out rules below
-        return _declared_tool_evidence(st, cand, eng, opts)
-    me = model_error_ambiguity(eng, spec)
-    if me is not None and frac < opts.strong_heldout_fraction:
-        # ambiguous with an error of the model itself (any effect; the ambiguity with an
-        # effect already named is _qualifies' redundancy rule): a stated margin needed
-        return False, (f"ambiguous with {me['id']} ({me['separating_test']}): naming it needs a "
-                       f"held-out gain of {100 * opts.strong_heldout_fraction:.0f} % (found "
-                       f"{100 * frac:.1f} %)")
-    if spec.kind == "tool_offset":
-        declared = np.asarray(eng.table.tool_offset_mm, dtype=float)
-        t = declared.copy()
-        for i, v in zip(cand.param_idx, st["coef"]):
-            t[i] += float(v)
-        if float(np.linalg.norm(t)) > opts.tool_offset_max_mm:
-            return False, (f"implausible tool offset {float(np.linalg.norm(t)):.0f} mm "
-                           f"(> {opts.tool_offset_max_mm:g} mm; the machine file declares "
-                           f"{float(np.linalg.norm(declared)):.0f} mm)")
-        if frac < opts.strong_heldout_fraction:
-            return False, ("the machine file fixes the tool offset: a change needs a "
-                           f"held-out gain of {100 * opts.strong_heldout_fraction:.0f} % "
-                           f"(found {100 * frac:.1f} %)")
-    return True, ""
-
-
-def declared_tool_log_evidence(drss: float, coef: np.ndarray, contrib_um: float,
-                               declared_mm: np.ndarray, lever_mm: float,
-                               opts: DiagnoseOptions) -> dict[str, float]:
-    """Log evidence ratio (natural log) of "the declared tool offset is wrong by ``coef``"
-    against "it is right within its uncertainty" (docs/effects.md, "Declared quantities").
-
-    The declared value is a measurement: right within ``declared_tool_sigma_mm`` with
-    probability 1 - p, a blunder anywhere within +/- ``tool_offset_max_mm`` with p =
-    ``declared_blunder_prob``. The data's evidence for the change is the likelihood
-    ratio of its signature, amplitude c (``contrib_um``, RMS um) seen with the noise
-    (``drss`` = c^2 / sigma_w^2 in noise units) *and* the model's own uncertainty: an
-    error of the model's angular terms of ``model_angle_sigma_urad`` times the lever
-    (``lever_mm``: the tool length plus the circles' height from the reference) gives
-    the same signature with an RMS of sigma_m = lever x sigma_angle, so the amplitude's
-    variance is sigma_w^2 + sigma_m^2 and log LR = c^2 / (2 (sigma_w^2 + sigma_m^2)).
-    Laplace's approximation then gives log K = log LR + sum_i log(sqrt(2 pi) s_i /
-    (2 T)) + log(p / (1 - p)), s_i the components' standard deviations (inflated like
-    the amplitude's). A change inside 3 declared sigmas is no change (-inf)."""
-    coef = np.asarray(coef, dtype=float)
-    if float(np.max(np.abs(coef))) <= 3.0 * opts.declared_tool_sigma_mm or drss <= 0 or contrib_um <= 0:
-        return {"log_evidence": -math.inf, "sigma_model_um": float("nan"), "log_lr": 0.0}
-    sig_w2 = contrib_um ** 2 / drss
-    sig_m = lever_mm * opts.model_angle_sigma_urad * 1e-3
-    infl = math.sqrt((sig_w2 + sig_m ** 2) / sig_w2)
-    log_lr = contrib_um ** 2 / (2.0 * (sig_w2 + sig_m ** 2))
-    T = opts.tool_offset_max_mm
-    s_i = np.abs(coef) / math.sqrt(drss) * infl
-    log_occam = float(np.sum(np.log(np.sqrt(2 * math.pi) * np.maximum(s_i, 1e-12) / (2 * T))))
-    p = opts.declared_blunder_prob
-    logk = log_lr + log_occam + math.log(p / (1 - p))
-    return {"log_evidence": float(logk), "sigma_model_um": float(sig_m), "log_lr": float(log_lr)}
-
 
 def _tool_lever_mm(eng: Engine) -> float:
     """Lever (mm) of the model's angular terms on the circles: the declared tool length
@@ -327,29 +225,6 @@ def _tool_lever_mm(eng: Engine) -> float:
         return float(np.linalg.norm(t))
     return float(math.sqrt(np.mean([(z + t[2]) ** 2 for z in zs])))
 
-
-def _declared_tool_evidence(st: dict[str, Any], cand: Cand, eng: Engine,
-                            opts: DiagnoseOptions) -> tuple[bool, str]:
-    declared = np.asarray(eng.table.tool_offset_mm, dtype=float)
-    t = declared.copy()
-    for i, v in zip(cand.param_idx, st["coef"]):
-        t[i] += float(v)
-    if float(np.linalg.norm(t)) > opts.tool_offset_max_mm:
-        return False, (f"implausible tool offset {float(np.linalg.norm(t)):.0f} mm "
-                       f"(> {opts.tool_offset_max_mm:g} mm; the machine file declares "
-                       f"{float(np.linalg.norm(declared)):.0f} mm)")
-    ev = declared_tool_log_evidence(st["drss"], np.asarray(st["coef"]), st["contrib_rms_um"],
-                                    declared, _tool_lever_mm(eng), opts)
-    st["declared_log_evidence"] = ev["log_evidence"]
-    if ev["log_evidence"] < opts.evidence_log_min:
-        return False, (f"the machine file declares the tool offset ({float(np.linalg.norm(declared)):.2f} mm, "
-                       f"+/- {opts.declared_tool_sigma_mm:g} mm): the change found "
-                       f"({float(np.linalg.norm(np.asarray(st['coef']))):.2f} mm, "
-                       f"{st['contrib_rms_um']:.3f} um RMS against a model uncertainty of "
-                       f"{ev['sigma_model_um']:.3f} um) has a log evidence ratio of "
-                       f"{ev['log_evidence']:.1f} < {opts.evidence_log_min:g}: left as lack of fit "
-                       "/ model error")
-    return True, ""
 
 
 def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None = None,
@@ -454,12 +329,10 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
                     c.offset = best_c.offset
             st = _eval_candidate(eng, c, selected, W, Qb, rb, rss_base, dof_noise,
                                  len(remaining), table, rw)
-            ok, why = _qualifies(st, opts)
-            if ok:
-                ok, why = _parsimony(st, c, selected, eng, _noise_um(noise_rep), opts)
+            ok, why = _judge(st, opts)
             st["qualifies"], st["why_not"] = ok, why
             results.append((c, st))
-            tested[c.spec.key] = _summ(st, c)
+            tested[c.spec.key] = _summ(st, c, opts.evidence_log_min)
         good = [(c, st) for c, st in results if st["qualifies"]]
         if not good:
             break
@@ -478,8 +351,8 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
     # the backward passes (an effect may only have absorbed a shape on the grid) and again
     # after them.
     refine_scans(eng, selected, W)
-    selected = _backward(eng, selected, W, dof_noise, notes)
-    selected = _heldout_removal(eng, selected, W, notes)
+    selected = _backward(eng, selected, W, notes)
+    selected = heldout_removal(eng, selected, W, notes)
     refine_scans(eng, selected, W)
 
     fin = _finish(eng, selected, W, clean0, notes)
@@ -520,6 +393,13 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
     ho_before, ho_after, ho_split = fin["ho_before"], fin["ho_after"], fin["ho_split"]
 
     effects = describe_effects(eng, selected, values, cov, s2_final, W, pool, new_table, new_pp)
+    # undecided: the table holds the equal share of the explanations (what they agree on)
+    shared = share_undecided(eng, selected, values, effects, pool)
+    if shared is not None:
+        new_table, new_pp = shared
+        r_after = prob.y - prob.predict(eng.ev, new_table, new_pp)
+        clean_after = remove_nuisance(prob, r_after)
+        gap_after = gap_stats(prob, clean_after)
     # a candidate the named effects mostly reproduce, not preferred as a pair on held-out
     # data: reported as the alternative explanation of the effect that reproduces it
     by_key_e = {e.key: e for e in effects}
@@ -608,7 +488,7 @@ def _finish(eng: Engine, selected: list[Selected], W: np.ndarray, clean0: np.nda
     r_after = prob.y - y_after
     clean_after = remove_nuisance(prob, r_after)
     # Held-out gap through the model: fit on one fold, judge the other (and back).
-    ho_before, ho_after, ho_split = _heldout_gap(eng, selected, W, clean0)
+    ho_before, ho_after, ho_split = heldout_gap(eng, selected, W, clean0)
     return {"selected": selected, "table": new_table, "pp": new_pp, "values": values,
             "cov": cov, "s2": s2_final, "r_after": r_after, "clean_after": clean_after,
             "gap_after": gap_stats(prob, clean_after), "ho_before": ho_before,
@@ -637,14 +517,16 @@ def _gap_text(before: GapStats | None, fin: dict[str, Any]) -> str:
     return "; ".join(parts)
 
 
-def _summ(st: dict[str, Any], c: Cand) -> dict[str, Any]:
-    d = {"significant": bool(st.get("ok") and st["p_eff"] < st["alpha_step"]),
+def _summ(st: dict[str, Any], c: Cand, eng_opts_evidence_min: float) -> dict[str, Any]:
+    d = {"significant": bool(st.get("ok") and st["log_evidence"] >= eng_opts_evidence_min),
          "qualifies": bool(st.get("qualifies")), "why_not": st.get("why_not", "")}
     if st.get("ok"):
         d.update({"p_value": float(f"{st['p_eff']:.3g}"), "delta_bic": round(st["dbic"], 2),
                   "F": round(st["F"], 3), "heldout_gain": (None if not np.isfinite(st["heldout"]["gain"])
                                                             else round(st["heldout"]["gain"], 2)),
-                  "contribution_rms_um": round(st["contrib_rms_um"], 4)})
+                  "contribution_rms_um": round(st["contrib_rms_um"], 4),
+                  "log_evidence": (None if not np.isfinite(st["log_evidence"])
+                                   else round(st["log_evidence"], 2))})
         if c.scan_value is not None:
             d["scan"] = {c.spec.scan or "scan": round(float(c.scan_value), 4)}
         if st.get("redundant_with"):
@@ -663,7 +545,7 @@ def _linear_fit(prob: Problem, r: np.ndarray, sel: list[Selected], W: np.ndarray
         out.append(coef[k:k + n])
         k += n
     return out
-def _backward(eng: Engine, sel: list[Selected], W: np.ndarray, dof_noise: float,
+def _backward(eng: Engine, sel: list[Selected], W: np.ndarray,
               notes: list[str]) -> list[Selected]:
     prob = eng.prob
     changed = True
@@ -676,16 +558,18 @@ def _backward(eng: Engine, sel: list[Selected], W: np.ndarray, dof_noise: float,
             rb = project_out(Qb, (selection_residual(eng, others) * W)[:, None])[:, 0]
             rb_s = project_out(Qb, (selection_residual(eng, sel) * W)[:, None])[:, 0]
             Z = project_out(Qb, s.cand.cols * W[:, None])
-            _, fit = lstsq_rss(Z, rb_s)
+            coef, fit = lstsq_rss(Z, rb_s)
             dr = float(rb @ rb) - (float(rb_s @ rb_s) - fit)
             k = Z.shape[1]
             dof_res = prob.N - Qb.shape[1] - k
             s2 = max(1.0, (float(rb_s @ rb_s) - fit) / max(dof_res, 1))
-            F = dr / max(k, 1) / s2
-            p = float(stats.f.sf(F, max(k, 1), max(dof_noise, 1)))
-            if p > eng.opts.alpha or (-dr / s2 + k * math.log(prob.N)) > -eng.opts.bic_min:
+            contrib = s.cand.cols @ coef + (0.0 if s.cand.offset is None else s.cand.offset)
+            ev = _evidence(eng, s.cand, coef, Z, dr / s2, s2, contribution_rms(prob, contrib))
+            # the same rule as the forward step: the evidence ratio with the others in
+            if not ev["log_evidence"] >= eng.opts.evidence_log_min:
                 notes.append(f"{s.cand.spec.key} dropped: no longer significant once "
-                             + ", ".join(o.cand.spec.key for o in others) + " are in the model")
+                             + ", ".join(o.cand.spec.key for o in others) + " are in the model"
+                             f" (log evidence ratio {ev['log_evidence']:.1f})")
                 sel = others
                 changed = True
                 break
@@ -696,30 +580,6 @@ def _final_contribution(prob: Problem, s: Selected, v: np.ndarray) -> float:
     if s.cand.offset is not None:
         c = c + s.cand.offset
     return contribution_rms(prob, c) if np.any(prob.um_rows) else math.inf
-
-
-def _heldout_removal(eng: Engine, sel: list[Selected], W: np.ndarray,
-                     notes: list[str]) -> list[Selected]:
-    """Drop, one at a time, a named effect whose removal leaves the held-out residual
-    unchanged (held-out RSS gain of keeping it < 2 per parameter, noise units)."""
-    while len(sel) > 1:
-        weakest, w_gain = None, math.inf
-        for i, s in enumerate(sel):
-            others = sel[:i] + sel[i + 1:]
-            ho = _heldout(eng, others, s.cand, W, 1.0)
-            if ho["split"] is None:
-                continue
-            need = 2.0 * s.stats.get("k_eff", s.cand.cols.shape[1])
-            if ho["gain"] < need and ho["gain"] - need < w_gain:
-                weakest, w_gain = i, ho["gain"] - need
-        if weakest is None:
-            break
-        s = sel[weakest]
-        notes.append(f"{s.cand.spec.key} dropped: removing it leaves the held-out residual "
-                     "unchanged once " + ", ".join(o.cand.spec.key for o in sel if o is not s)
-                     + " are in the model")
-        sel = sel[:weakest] + sel[weakest + 1:]
-    return sel
 
 
 def _final_fit(eng: Engine, sel: list[Selected], W: np.ndarray
@@ -763,52 +623,6 @@ def _final_fit(eng: Engine, sel: list[Selected], W: np.ndarray
     s2 = max(1.0, float(re @ re) / dof)
     cov = s2 * np.linalg.pinv(Xe.T @ Xe)
     return t, p, values, cov, s2
-def _heldout_gap(eng: Engine, sel: list[Selected], W: np.ndarray, clean0: np.ndarray
-                 ) -> tuple[GapStats | None, GapStats | None, str | None]:
-    """Gap on held-out data: effect parameters fitted on one fold (linearised, with the
-    fold's nuisance), the updated model predicted through the library on the other fold
-    (nuisance refitted there); both ways, pooled."""
-    prob = eng.prob
-    for level in (0, 1):
-        sp = prob.split(level)
-        if sp is None:
-            continue
-        lab, name = sp
-        before = np.full(prob.N, np.nan)
-        after = np.full(prob.N, np.nan)
-        ok = True
-        for f in (0, 1):
-            A, B = lab == f, lab != f
-            if A.sum() == 0 or B.sum() == 0:
-                ok = False
-                break
-            before_B = remove_nuisance(prob, eng.r0, B)
-            before[B] = before_B[B]
-            if not sel:
-                after[B] = before_B[B]
-                continue
-            X = np.hstack([s.cand.cols for s in sel]) * W[:, None]
-            nA = (prob.nuis * W[:, None])[A]
-            nA = nA[:, np.any(nA != 0, axis=0)]
-            QA = qr_basis(nA)
-            XA = project_out(QA, X[A])
-            if not is_identifiable(XA):
-                ok = False
-                break
-            beta, *_ = np.linalg.lstsq(XA, project_out(QA, (selection_residual(eng, sel) * W)[A][:, None])[:, 0],
-                                       rcond=None)
-            vals, k = [], 0
-            for s in sel:
-                n = s.cand.cols.shape[1]
-                vals.append(beta[k:k + n])
-                k += n
-            t, p = apply_selection(eng, sel, vals)
-            r = prob.y - prob.predict(eng.ev, t, p)
-            after_B = remove_nuisance(prob, r, B)
-            after[B] = after_B[B]
-        if ok:
-            return gap_stats(prob, before), gap_stats(prob, after), name
-    return None, None, None
 def _lack_of_fit(eng: Engine, r_after: np.ndarray) -> float:
     """RMS of the residual after the update in units of the noise (with the
     autocorrelation inflation), about 1 when the updated model explains the checks."""

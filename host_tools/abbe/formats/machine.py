@@ -149,6 +149,9 @@ class Machine:
     description: str = ""
     text: str = field(default="", repr=False, compare=False)
     five_axis: Any = None  # abbe.formats.five_axis.FiveAxisSpec of a [rotary] machine, else None
+    #: ``[tool] offset_sigma_mm``: the declared tool offset's 1-sigma uncertainty (mm), or
+    #: None (not stated: abbe diagnose assumes a presetter's 0.01 mm)
+    tool_offset_sigma_mm: float | None = None
 
     def line_of(self, dotted: str) -> int | None:
         """Line (1-based) of a dotted key in the machine file, best effort."""
@@ -291,7 +294,10 @@ _AXIS: _Spec = {"travel_mm": (_travel, True, None),
                 "backlash_takeup_mm": (_in(*TAKEUP_RANGE_MM, "mm", lo_open=True), False,
                                        DEFAULT_BACKLASH_TAKEUP_MM)}
 _REFERENCE: _Spec = {"point_mm": (_vec(3), True, None)}
-_TOOL: _Spec = {"offset_mm": (_vec(3), False, (0.0, 0.0, 0.0))}
+_TOOL: _Spec = {"offset_mm": (_vec(3), False, (0.0, 0.0, 0.0)),
+                # 1-sigma uncertainty of the declared offset (a presetter: 0.01 mm); the
+                # prior abbe diagnose judges a change of it against (docs/effects.md)
+                "offset_sigma_mm": (_in(0.0, 100.0, "mm", lo_open=True), False, None)}
 def _columns(roles: dict, dirs: tuple[str, str]) -> _Check:
     def check(v: Any, ctx: _Ctx, f: str) -> Columns:
         return parse_columns(v, roles, f, ctx.err, dirs)
@@ -389,7 +395,8 @@ def load_machine(path: str | Path) -> Machine:
         raise AbbeInputError("missing [reference] section (point_mm = [x, y, z])",
                              file=str(path), field="reference")
     ref = _section(data["reference"], _REFERENCE, ctx, "reference")["point_mm"]
-    tool = _section(data.get("tool", {}), _TOOL, ctx, "tool")["offset_mm"]
+    tool_sec = _section(data.get("tool", {}), _TOOL, ctx, "tool")
+    tool = tool_sec["offset_mm"]
 
     laser: dict[str, LaserLine] = {}
     for name, sec in _table(data.get("laser", {}), ctx, "laser").items():
@@ -451,7 +458,7 @@ def load_machine(path: str | Path) -> Machine:
     return Machine(path=path, name=mach["name"] or path.stem, axes=axes, reference_mm=ref,
                    tool_offset_mm=tool, laser=laser, ballbar=ballbar,
                    sha256=tf.sha256, extra=extra, description=mach["description"], text=text,
-                   five_axis=five)
+                   five_axis=five, tool_offset_sigma_mm=tool_sec["offset_sigma_mm"])
 
 
 def _resolve(base: Path, rel: str, ctx: _Ctx, f: str) -> Path:

@@ -70,3 +70,36 @@ def test_a_fixed_seed_case_through_the_files(tmp_path) -> None:
     assert s["exact"], s
     assert not s["tool_changed_where_right"]
     assert all(v[3] for v in s["values"]), s["values"]
+
+
+def test_issue36_squareness_only_keeps_the_declared_tool(tmp_path) -> None:
+    """Issue 36's first case, on this generator (a right tool declared, the model fitted
+    by abbe fit with its own angular error, circles at one Z height only, where a tool
+    offset and the model's angular error look alike): the squareness is found and the
+    declared tool length is not changed."""
+    from abbe.diagnose.run import diagnose_machine
+    from cases.independent2.suite import Case, build
+    b = build(Case("sq_only", "single", ("squareness_xy",), 3601), tmp_path)
+    assert b.declared_tool_mm > 0
+    res = diagnose_machine(b.machine, b.model, ballbar=["xy_slow", "xy_fast"], laser=[])
+    keys = {e.key for e in res.effects}
+    assert "tool_offset" not in keys, keys
+    assert "squareness_xy" in keys, keys
+
+
+def test_issue36_a_scale_of_x_is_never_called_y_alone(tmp_path) -> None:
+    """Issue 36's second case: a thermal drift with a scale error of X, seen on circles (which
+    see only kx - ky): the answer names scale_x or is undecided with scale_x among the
+    explanations, never scale_y alone; the declared tool stays."""
+    from abbe.diagnose.run import diagnose_machine
+    from cases.independent2.suite import Case, build
+    b = build(Case("drift_scale", "pair", ("thermal_drift_x", "scale_x"), 3602), tmp_path)
+    res = diagnose_machine(b.machine, b.model, ballbar=["xy_slow", "xy_fast", "xy_high"],
+                           laser=[])
+    said = set()
+    for e in res.effects:
+        said |= {e.key} | {a["key"] for a in (e.undecided or {}).get("alternatives", [])}
+        assert e.key != "tool_offset"
+    named_y_alone = any(e.key == "scale_y" and not e.undecided for e in res.effects)
+    assert not named_y_alone, [e.key for e in res.effects]
+    assert "scale_x" in said, said          # named, or among the undecided explanations

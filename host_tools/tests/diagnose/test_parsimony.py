@@ -1,9 +1,9 @@
-"""The decision rules of issue 24 one by one (abbe.diagnose.selection): the held-out gain
-fraction (of what the model misses beyond the noise where the effect acts), the
-contribution against the noise (on the channel where it shows), one thermal drift entry
-with its components, the ambiguity with the model's own error for every effect, a
-declared tool offset changed only with strong evidence and a plausible value, the gap
-that may never grow, and the table's caps on what diagnose adds. End to end, the independent suite (test_diagnose_independent.py and
+"""The decision rule one piece at a time (abbe.diagnose.selection, issue 36): one evidence
+ratio from the estimated noise, the catalogue's prior and the model's own uncertainty,
+with the look-elsewhere of a searched shape; the held-out data as the arbiter; one
+thermal drift entry with its components; the contribution on the channel where it
+shows; a tool offset against the model's angular uncertainty and within its range; the
+gap that may never grow, and the table's caps on what diagnose adds. End to end, the independent suite (test_diagnose_independent.py and
 bench/bench_diagnose.py) measures them."""
 
 from __future__ import annotations
@@ -16,56 +16,84 @@ from abbe.diagnose.candidates import Cand, Selected
 from abbe.diagnose.effects import by_key
 from abbe.diagnose.describe import merge_components
 from abbe.diagnose.results import DiagnoseOptions, EffectResult, GapStats, named_by_key
-from abbe.diagnose.selection import (
-    _gap_grew,
-    _heldout_gain_fraction,
-    _named_drift_tau,
-    _parsimony,
-)
+from abbe.diagnose.selection import _evidence, _gap_grew, _judge, _named_drift_tau
 
 OPTS = DiagnoseOptions()
 
 
-def _eng(tool_mm=(0.0, 0.0, 0.0), z_heights=(0.0,)):
+def _eng(tool_mm=(0.0, 0.0, 0.0), z_heights=(0.0,), opts=OPTS):
     from abbe.diagnose.checks import BallbarCheck
     checks = [BallbarCheck.__new__(BallbarCheck) for _ in z_heights]
     for c, z in zip(checks, z_heights):
         c.center_mm = (0.0, 0.0, z)
-    return SimpleNamespace(table=SimpleNamespace(tool_offset_mm=tool_mm),
-                           prob=SimpleNamespace(checks=checks))
+    return SimpleNamespace(table=SimpleNamespace(tool_offset_mm=tool_mm, reference_mm=(0.0, 0.0, 0.0)),
+                           prob=SimpleNamespace(checks=checks), opts=opts)
 
 
-def _st(gain: float, without: float, contrib: float = 1.0, coef=(0.0,)) -> dict:
-    return {"heldout": {"gain": gain, "rss_without": without, "split": "x"},
-            "contrib_rms_um": contrib, "coef": np.asarray(coef, dtype=float)}
+def _cand(key: str, idx=(0,), n_scan: int = 1) -> Cand:
+    c = Cand(spec=by_key()[key], cols=np.zeros((1, len(idx))), param_idx=list(idx))
+    c.n_scan = n_scan
+    return c
 
 
-def _cand(key: str, idx=(0,)) -> Cand:
-    return Cand(spec=by_key()[key], cols=np.zeros((1, len(idx))), param_idx=list(idx))
+def judged(cand: Cand, coef, drss: float, contrib: float, gain: float, eng=None,
+           opts=OPTS) -> tuple[bool, str, dict]:
+    """The selection's rule on a candidate whose fit gives ``coef`` with an RSS decrease
+    ``drss`` (noise units, white noise of unit variance) and a held-out gain ``gain``."""
+    eng = eng or _eng(opts=opts)
+    coef = np.asarray(coef, dtype=float)
+    Z = np.diag(np.sqrt(drss / coef.size) / np.abs(coef))      # Z'Z so that coef'Z'Z coef = drss
+    ev = _evidence(eng, cand, coef, Z, drss, 1.0, contrib)
+    st = {"ok": True, "coef": coef, "contrib_rms_um": contrib, "drss": drss, "k_eff": coef.size,
+          "heldout": {"gain": gain, "split": "x"}, "evidence": ev,
+          "log_evidence": ev["log_evidence"]}
+    ok, why = _judge(st, opts)
+    return ok, why, ev
 
 
-def test_held_out_gain_below_the_fraction_is_not_named() -> None:
+def test_one_rule_the_evidence_ratio_from_the_noise_and_the_prior() -> None:
+    """A squareness (prior: uniform within +/- 1000 urad) fitted at 3 urad: with an RSS
+    decrease of 20 noise units its evidence ratio is below 19, at 60 it is far above. The
+    threshold follows alpha: log((1 - alpha) / alpha)."""
+    c = _cand("squareness_xy")
+    ok, why, ev = judged(c, (3.0,), 20.0, 0.5, 50.0)
+    assert not ok and "log evidence ratio" in why and ev["log_evidence"] < OPTS.evidence_log_min
+    ok, why, ev = judged(c, (3.0,), 60.0, 0.5, 50.0)
+    assert ok, why
+    # by hand: D / 2 + log(sqrt(2 pi) s / 2000), s = 3 / sqrt(60)
+    s = 3.0 / np.sqrt(60.0)
+    assert abs(ev["log_evidence"] - (30.0 + np.log(np.sqrt(2 * np.pi) * s / 2000.0))) < 1e-9
+    assert abs(OPTS.evidence_log_min - np.log(19.0)) < 1e-12
+    assert not judged(c, (3.0,), 60.0, 0.5, 50.0, opts=DiagnoseOptions(alpha=1e-12))[0]
+
+
+def test_a_searched_shape_pays_for_its_grid() -> None:
+    """Look-elsewhere: the same fit found on a grid of 1e6 independent points is weaker
+    by log(1e6)."""
+    one = judged(_cand("cyclic_x", (0, 1)), (1.0, 0.5), 50.0, 0.5, 50.0)[2]["log_evidence"]
+    grid = judged(_cand("cyclic_x", (0, 1), n_scan=10 ** 6), (1.0, 0.5), 50.0, 0.5, 50.0)
+    assert abs(one - grid[2]["log_evidence"] - np.log(1e6)) < 1e-9
+    assert not grid[0]
+
+
+def test_held_out_data_are_the_arbiter() -> None:
     c = _cand("servo_mismatch_xy")
-    ok, why = _parsimony(_st(12.0, 100.0), c, [], _eng(), 0.1, OPTS)   # 12 %: issue 24
-    assert not ok and "held-out gain 12.0 %" in why
-    ok, _ = _parsimony(_st(40.0, 100.0), c, [], _eng(), 0.1, OPTS)
-    assert ok
+    ok, why, ev = judged(c, (1.0,), 400.0, 0.5, 12.0)        # strong in sample, 3 % held out
+    assert ev["log_evidence"] > 100 and not ok and "held-out" in why
+    assert judged(c, (1.0,), 400.0, 0.5, 60.0)[0]
 
 
-def test_contribution_below_half_the_noise_is_not_named() -> None:
-    c = _cand("backlash_y")
-    ok, why = _parsimony(_st(50.0, 100.0, contrib=0.2), c, [], _eng(), 0.6, OPTS)
-    assert not ok and "below 0.5 x the noise" in why
-    ok, _ = _parsimony(_st(50.0, 100.0, contrib=0.35), c, [], _eng(), 0.6, OPTS)
-    assert ok
+def test_a_value_outside_the_plausible_range_has_no_prior() -> None:
+    ok, why, _ = judged(_cand("squareness_xy"), (1500.0,), 1e6, 50.0, 1e5)
+    assert not ok and "plausible" in why
 
 
 def test_a_second_drift_axis_is_a_component_of_the_one_drift() -> None:
-    """A drift on a second axis passes the same rules (it is no longer refused) but only
+    """A drift on a second axis passes the same rule (it is no longer refused) but only
     with the named drift's time constant, and the report merges it into one entry."""
     first = Selected(_cand("thermal_drift_x"), {})
     first.cand.scan_value = 2.5
-    ok, _ = _parsimony(_st(80.0, 100.0), _cand("thermal_drift_y"), [first], _eng(), 0.1, OPTS)
+    ok, _, _ = judged(_cand("thermal_drift_y"), (2.0,), 200.0, 0.5, 80.0)
     assert ok
     assert _named_drift_tau([first]) == 2.5
     assert _named_drift_tau([Selected(_cand("scale_x"), {})]) is None
@@ -93,20 +121,6 @@ def _effect(key: str, axis: str, value: float) -> EffectResult:
                         evidence={"contribution_rms_um": 0.3}, axis=axis)
 
 
-def test_held_out_fraction_of_the_excess_where_the_effect_acts() -> None:
-    """The fraction is of the residual beyond the noise on the rows the effect acts on:
-    400 support rows with a held-out RSS of 460 noise units leave 60 to explain; a gain of
-    12 is 20 % of it (2.6 % of the whole residual)."""
-    ho = {"gain": 12.0, "rss_without": 460.0, "rss_without_support": 460.0, "n_support": 400}
-    assert abs(_heldout_gain_fraction(ho) - 0.2) < 1e-12
-    st = {"heldout": {**ho, "split": "x"}, "contrib_rms_um": 1.0, "coef": np.zeros(1)}
-    ok, _ = _parsimony(st, _cand("thermal_drift_z"), [], _eng(), 0.1, OPTS)
-    assert ok
-    st["heldout"]["n_support"] = 0        # the same gain against the whole residual: 2.6 %
-    ok, why = _parsimony(st, _cand("thermal_drift_z"), [], _eng(), 0.1, OPTS)
-    assert not ok and "2.6 %" in why
-
-
 def test_contribution_on_the_channel_where_it_shows() -> None:
     """A drift of 1 um RMS on a laser line's linear channel (100 rows) beside a 900-row
     circle is 1 um, not the 0.32 um of an RMS over every sample."""
@@ -117,20 +131,6 @@ def test_contribution_on_the_channel_where_it_shows() -> None:
     c[900:1000] = 1.0
     c[1000:] = 50.0                     # an angular channel is not a size in um
     assert abs(contribution_rms(prob, c) - 1.0) < 1e-12
-
-
-def test_ambiguity_with_model_error_applies_to_every_effect(monkeypatch) -> None:
-    """The rule keys on the ambiguity, not on the effect: any effect flagged ambiguous
-    with the model's own error needs the strong held-out margin."""
-    import abbe.diagnose.selection as sel
-    flag = {"key": "model_angular_error", "id": "model error", "r2": None,
-            "separating_test": "another test"}
-    monkeypatch.setattr(sel, "model_error_ambiguity", lambda eng, spec: flag)
-    c = _cand("squareness_xy")
-    ok, why = sel._parsimony(_st(30.0, 100.0), c, [], _eng(), 0.1, OPTS)
-    assert not ok and "model error" in why and "50 %" in why
-    ok, _ = sel._parsimony(_st(60.0, 100.0), c, [], _eng(), 0.1, OPTS)
-    assert ok
 
 
 def test_drift_and_scale_separating_test_is_in_time() -> None:
@@ -163,26 +163,21 @@ def test_terms_diagnose_adds_stay_within_the_caps() -> None:
     assert half and half[0][:2] == ("X", "dx") and "conditioning" in half[0][2]   # > cap / 2
 
 
-def test_declared_tool_offset_needs_strong_evidence_and_a_plausible_value() -> None:
+def test_a_tool_offset_is_judged_against_the_model_angular_uncertainty() -> None:
+    """A tool offset multiplies the model's angular terms (0.5 urad x the lever): a
+    contribution near lever x 0.5 urad is lack of fit whatever the RSS decrease; a large
+    one is named; the resulting tool is within 300 mm (the prior's range)."""
     c = _cand("tool_offset", idx=(2,))
-    # 15.7 mm with a 4 % held-out gain beside a squareness (issue 24): not named
-    ok, why = _parsimony(_st(4.0, 100.0, coef=(15.7,)), c, [], _eng(), 0.1, OPTS)
-    assert not ok
-    # strong gain but one Z height: ambiguous with the model's angular terms, still needs
-    # the strong margin, and says why
-    ok, why = _parsimony(_st(30.0, 100.0, coef=(120.0,)), c, [], _eng(), 0.1, OPTS)
-    assert not ok and "model error" in why and "Z height" in why and "50 %" in why
-    # 306 mm: implausible whatever the evidence
-    ok, why = _parsimony(_st(95.0, 100.0, coef=(306.0,)), c, [], _eng(z_heights=(0.0, -100.0)),
-                         0.1, OPTS)
+    one_z = _eng(z_heights=(100.0,))                     # lever 100 mm: 0.05 um
+    ok, why, ev = judged(c, (15.7,), 5000.0, 0.08, 4000.0, eng=one_z)
+    assert not ok and "lack of fit" in why and abs(ev["sigma_model_um"] - 0.05) < 1e-12
+    ok, why, _ = judged(c, (120.0,), 5000.0, 1.5, 4000.0, eng=one_z)
+    assert ok, why
+    ok, why, _ = judged(c, (306.0,), 5000.0, 3.0, 4000.0, eng=_eng(z_heights=(0.0, -100.0)))
     assert not ok and "implausible tool offset 306 mm" in why
-    # declared 150 mm + found 200 mm = 350 mm: implausible; declared 0 + 120 mm, strong: named
-    ok, _ = _parsimony(_st(95.0, 100.0, coef=(200.0,)), c, [], _eng((0.0, 0.0, 150.0)), 0.1, OPTS)
-    assert not ok
-    ok, _ = _parsimony(_st(90.0, 100.0, coef=(120.0,)), c, [], _eng(z_heights=(0.0, -100.0)),
-                       0.1, OPTS)
-    assert ok
-
+    # declared 150 mm + found 200 mm = 350 mm: outside the range
+    ok, why, _ = judged(c, (200.0,), 5000.0, 3.0, 4000.0, eng=_eng((0.0, 0.0, 150.0)))
+    assert not ok and "350 mm" in why
 
 def test_the_gap_never_grows() -> None:
     b = GapStats(3.21, 9.0, 100)

@@ -102,7 +102,24 @@ BAD = [
     ("radius_mm = 100.0", "radius_mm = 0", 28, "ballbar.circle1.radius_mm", "in [1, 2000] mm"),
     ("feed_mm_min = 200.0", "feed_mm_min = true", 29, "ballbar.circle1.feed_mm_min", "number"),
     ("folds = 4", "folds = 1", 32, "fit.folds", "integer in"),
+    # the declared tool offset's uncertainty (issue 36): positive, finite, at most 100 mm
+    ("offset_mm = [0.0, 0.0, 100.0]", "offset_mm = [0.0, 0.0, 100.0]\noffset_sigma_mm = 0", 17,
+     "tool.offset_sigma_mm", "in (0, 100] mm"),
+    ("offset_mm = [0.0, 0.0, 100.0]", "offset_mm = [0.0, 0.0, 100.0]\noffset_sigma_mm = nan", 17,
+     "tool.offset_sigma_mm", "finite"),
+    ("offset_mm = [0.0, 0.0, 100.0]", "offset_mm = [0.0, 0.0, 100.0]\noffset_sigma_mm = \"0.01\"",
+     17, "tool.offset_sigma_mm", "number"),
+    ("offset_mm = [0.0, 0.0, 100.0]", "offset_mm = [0.0, 0.0, 100.0]\noffset_sigmas_mm = 0.01", 17,
+     "tool.offset_sigmas_mm", "unknown key"),
 ]
+
+
+def test_declared_tool_uncertainty(tmp_path: Path) -> None:
+    m = load_machine(write(tmp_path, GOOD))
+    assert m.tool_offset_sigma_mm is None          # not stated: diagnose's default applies
+    m = load_machine(write(tmp_path, GOOD.replace("offset_mm = [0.0, 0.0, 100.0]",
+                                                  "offset_mm = [0.0, 0.0, 100.0]\noffset_sigma_mm = 0.5")))
+    assert m.tool_offset_sigma_mm == 0.5
 
 
 @pytest.mark.parametrize("old,new,line,field,frag", BAD)

@@ -1,0 +1,82 @@
+"""What the table holds when the data cannot decide between explanations (issue 36).
+
+An undecided effect (describe._undecided: another candidate reproduces its signature on
+every check to ``undecided_r2``) has several explanations that predict the same on the
+checked paths: scale_x = +k or scale_y = -k on one XY circle. Any mixture w A + (1 - w) B
+reproduces the checks too (the signatures are linear in the values). The table gets the
+**equal share**, (A + B) / n: the combination the checks constrain, with no weight on
+what they cannot see; whichever explanation is true, the table's error off the checked
+paths is at most half of it, not all of it as with the first name alone. The report says
+what stays unknown (which explanation, i.e. the share between them) and the test that
+decides it. When an alternative cannot go where the named effect goes (one into the
+table, the other only into the prediction model, or a cyclic one whose period was
+searched for the ambiguity only), the named effect keeps the whole and the report says so.
+
+Units: those of each effect (see docs/effects.md §2).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from abbe.diagnose.candidates import Cand, Engine, Selected, apply_selection
+from abbe.diagnose.effects import PredParams
+from abbe.diagnose.results import EffectResult, round_to
+from abbe.model.table import Table
+
+
+def _in_table(eng: Engine, c: Cand) -> bool:
+    spec = c.spec
+    return bool(spec.compensable) and not (spec.kind == "thermal" and not eng.drift_on_table)
+
+
+def share_undecided(eng: Engine, sel: list[Selected], values: list[np.ndarray],
+                    effects: list[EffectResult], pool: list[Cand]
+                    ) -> tuple[Table, PredParams] | None:
+    """The updated table and prediction parameters with every undecided effect replaced by
+    the equal share of its explanations, or None when no effect is undecided (or none can
+    be shared). Each undecided entry gets ``table_holds`` (key -> value written) and
+    ``unknown`` (what the checks leave open)."""
+    by_key = {c.spec.key: c for c in pool}
+    plan: list[tuple[Cand, np.ndarray]] = []
+    shared = False
+    for s, v in zip(sel, values):
+        e = next((x for x in effects if x.key == s.cand.spec.key and x.undecided), None)
+        alts = [] if e is None else [a for a in e.undecided["alternatives"][1:]]  # type: ignore[index]
+        cands = [by_key.get(a["key"]) for a in alts]
+        ok = bool(alts) and all(c is not None and c.spec.kind != "cyclic" and c.cols.shape[1]
+                                and _in_table(eng, c) == _in_table(eng, s.cand) for c in cands)
+        if e is None or not alts:
+            plan.append((s.cand, np.asarray(v, dtype=float)))
+            continue
+        if not ok:
+            e.undecided["table_holds"] = {s.cand.spec.key: round_to(e.value)}  # type: ignore[index]
+            e.undecided["unknown"] = (  # type: ignore[index]
+                "which explanation holds; the table holds " + s.cand.spec.key + " alone (an "
+                "alternative cannot go where it goes: into the table / the prediction model)")
+            plan.append((s.cand, np.asarray(v, dtype=float)))
+            continue
+        n = len(alts) + 1
+        plan.append((s.cand, np.asarray(v, dtype=float) / n))
+        holds = {s.cand.spec.key: round_to(e.value / n)}
+        for a, c in zip(alts, cands):
+            coef = np.atleast_1d(np.asarray(a["value"], dtype=float))
+            if coef.size != len(c.param_idx):    # type: ignore[union-attr]
+                return None
+            plan.append((c, coef / n))  # type: ignore[arg-type]
+            holds[a["key"]] = [round_to(x) for x in coef / n] if coef.size > 1 \
+                else round_to(float(coef[0]) / n)
+        e.undecided["table_holds"] = holds  # type: ignore[index]
+        e.undecided["constrained"] = (  # type: ignore[index]
+            "the combination the checks see (the fitted signature): every explanation "
+            "reproduces it, and so does the equal share of them, which the table holds")
+        e.undecided["unknown"] = (  # type: ignore[index]
+            "the share between " + " and ".join(holds) + ": the checks cannot tell which "
+            "holds; the table's error off the checked paths is at most half of either")
+        shared = True
+    if not shared:
+        return None
+    fake = [Selected(c, {}) for c, _ in plan]
+    return apply_selection(eng, fake, [v for _, v in plan])
