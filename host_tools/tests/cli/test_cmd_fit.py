@@ -410,3 +410,20 @@ def test_write_error_in_the_staging_names_out(tmp_path: Path, monkeypatch, capsy
     assert str(out) in err and "Permission denied" in err, err
     assert not out.exists()
     assert not [p for p in tmp_path.iterdir() if ".abbe-" in p.name]
+
+
+def test_fit_report_reads_verdict_first(fitted) -> None:
+    """The fit report opens with machine, test, date and table, then the band: what the
+    written table leaves of each axis' own positioning error with its U (k = 2); the
+    per-term detail follows."""
+    from report_shots import assert_band_before
+
+    syn, out = fitted
+    page = (out / "report" / "index.html").read_text()
+    assert page.index("<b>Machine</b>") < page.index("<b>Date</b>") < page.index("id='verdict'")
+    assert_band_before(page, "<h2>X axis</h2>", "paper 3rd-order Fourier")
+    band = page[page.index("id='verdict'"):page.index("</div>", page.index("id='verdict'"))]
+    mj = json.loads((out / "model.json").read_text())
+    for a, own in (("X", "dx"), ("Y", "dy"), ("Z", "dz")):
+        c = mj["uncertainty"]["axes"][a]["terms"][own]["compensated_residual_um"]
+        assert f"{a} {c['max_abs']:.2f} &plusmn; {c['max_abs_U']:.2f} um" in band

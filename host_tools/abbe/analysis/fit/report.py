@@ -18,6 +18,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from abbe.analysis.fit.options import COMPARED
+from abbe.analysis.certificate import band, page_head, test_date
+from abbe.model.table import OWN_TERM
 
 if TYPE_CHECKING:
     from abbe.analysis.fit.results import AxisResult, FitResult, TermResult
@@ -150,13 +152,18 @@ def index_html(res: "FitResult") -> str:
     mj = res.model_json
     m = res.machine
     e = html.escape
-    out = ["<!DOCTYPE html>", "<html><head><meta charset='utf-8'>",
-           f"<title>abbe fit: {e(m.name)}</title>",
-           "<style>body{font-family:sans-serif;max-width:1100px;margin:auto}"
-           "table{border-collapse:collapse;margin:6px 0}td,th{border:1px solid #bbb;"
-           "padding:2px 6px;text-align:right}th{background:#eee}td.l,th.l{text-align:left}"
-           "img{max-width:100%}.best{font-weight:bold}</style></head><body>",
-           f"<h1>abbe fit: {e(m.name)}</h1>",
+    out = page_head(f"abbe fit: {m.name}", [
+        ("Machine", f"{m.name} (three-axis, machine file {m.path.name})"),
+        ("Test", "laser lines of " + ", ".join(res.axes) + ": the 18 error terms of Eq. 3 "
+                 "fitted and written as a compensation table (ISO 230-1 / ISO 230-2)"),
+        ("Date", test_date(str(m.path))),
+        ("Table", "model.bin" + (f" (CRC32 {mj['table']['crc32']})"
+                                 if isinstance(mj.get("table"), dict) and mj["table"].get("crc32")
+                                 else ""))])
+    out += ["<style>table{border-collapse:collapse;margin:6px 0}td,th{border:1px solid #bbb;"
+            "padding:2px 6px;text-align:right}th{background:#eee}td.l,th.l{text-align:left}"
+            "img{max-width:100%}.best{font-weight:bold}</style>", _headline_band(res)]
+    out += [
            f"<p>abbe {e(mj['provenance']['version'])}; machine file {e(m.path.name)} "
            f"(sha256 {e(m.sha256[:16])}...). Units: positions mm, linear terms um, "
            "angular terms urad; SSE in unit&sup2;.</p>",
@@ -237,6 +244,37 @@ def index_html(res: "FitResult") -> str:
                        f"alt='{a} {t}'></a></p>")
     out.append("</body></html>")
     return "\n".join(out) + "\n"
+
+
+def _headline_band(res: "FitResult") -> str:
+    """The verdict band of the fit report: what the written table leaves of each axis' own
+    positioning error at the measured targets (max |r| and RMS with U, k = 2), beside the
+    axis' ISO 230-2 E before compensation. A fit has no tolerance: the band is 'info'."""
+    mj = res.model_json
+    unc = mj.get("uncertainty") or {}
+    rows, parts = [], []
+    for a in res.axes:
+        own = OWN_TERM[a]
+        d = (unc.get("axes") or {}).get(a, {}).get("terms", {}).get(own)
+        iso = mj["axes"][a].get("iso230_2") or {}
+        e_before = f"{iso['E_um']:.2f}" if iso.get("E_um") is not None else "-"
+        if d is None:
+            rows.append(f"<tr><td class='l'>{a} ({own})</td><td>{e_before}</td>"
+                        "<td>-</td><td>-</td></tr>")
+            continue
+        c = d["compensated_residual_um"]
+        parts.append(f"{a} {c['max_abs']:.2f} &plusmn; {c['max_abs_U']:.2f} um")
+        rows.append(f"<tr><td class='l'>{a} ({own})</td><td>{e_before}</td>"
+                    f"<td>{_fmt(c['max_abs'], 3)} &plusmn; {_fmt(c['max_abs_U'], 3)}</td>"
+                    f"<td>{_fmt(c['rms'], 3)} &plusmn; {_fmt(c['rms_U'], 3)}</td></tr>")
+    headline = ("Table written for " + ", ".join(res.axes) + "; left at the targets (max |r| "
+                "&plusmn; U, k = 2): " + ("; ".join(parts) if parts else "no uncertainty block"))
+    body = ("<table><tr><th class='l'>axis (own positioning term)</th><th>ISO 230-2 E before "
+            "(um)</th><th>compensated max |r| &plusmn; U (um)</th><th>compensated RMS &plusmn; U "
+            "(um)</th></tr>" + "".join(rows) + "</table><p class='small'>No tolerance applies to a "
+            "fit: the verdicts are those of `abbe iso230-2` and `abbe ballbar` on the compensated "
+            "machine. Every term, its model choice and its held-out figures follow.</p>")
+    return band("info", headline, body)
 
 
 def _uncertainty_table(mj: dict[str, Any], a: str) -> list[str]:
