@@ -96,10 +96,10 @@ ABBE_NOINLINE static void motions_q(const abbe_rotary_model_t *ax, int32_t c, in
  * the other two in cyclic order (phi and delta have no component along k).
  * scratch: working memory for the motions. */
 static ABBE_ALWAYS_INLINE void twist_q(const abbe_rotary_model_t *ax, unsigned k, unsigned j, unsigned l, int32_t c,
-                                       int32_t s, int32_t sr, int32_t *scratch, int32_t v[3], int32_t w[3])
+                                       int32_t s_motion, int32_t sr, int32_t *scratch, int32_t v[3], int32_t w[3])
 {
-    motions_q(ax, c, s, scratch, v, w); /* the motions: functions of the joint angle; sr: the rotation's sine */
-    s = sr;
+    motions_q(ax, c, s_motion, scratch, v, w); /* the motions: functions of the joint angle */
+    const int32_t s = sr;                      /* sr: the rotation's sine */
     const int32_t pj = ax->phi_q36[j], pl = ax->phi_q36[l], dj = ax->delta_q8[j], dl = ax->delta_q8[l];
     w[k] += ax->zero_q36;
     w[j] += (int32_t)(pj - rot_q30(c, pj, s, pl));
@@ -235,9 +235,9 @@ ABBE_NOINLINE static uint32_t add_chain_q(const abbe_five_model_t *m5, const int
     } else {
         /* R0 of the inner axis' twist, R0 g with g = P0 - P1 = -offset */
         rotate_q(k0, c0, s0r, v1, a);
-        memcpy(v1, a, sizeof a);
+        (void)memcpy(v1, a, sizeof a);
         rotate_q(k0, c0, s0r, w1, a);
-        memcpy(w1, a, sizeof a);
+        (void)memcpy(w1, a, sizeof a);
         for (unsigned i = 0; i < 3u; i++) {
             b[i] = H0[i] - H1[i];
         }

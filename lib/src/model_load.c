@@ -778,11 +778,16 @@ static abbe_status_t check_rotary(const uint8_t *b, uint32_t total)
 #if defined(ABBE_NO_FIVE_KINDS)
     const unsigned chain = 0u;
 #else
-    const unsigned chain = KIND_CHAIN(kind) && kind <= ABBE_KIN_XYZAB_TDR && abbe_ld_u16(b + H_MINOR) >= 4u;
+    const unsigned chain =
+        (kind >= ABBE_KIN_XYZBC_HH && kind <= ABBE_KIN_XYZAB_TDR && abbe_ld_u16(b + H_MINOR) >= 4u) ? 1u : 0u;
 #endif
-    if ((kind != ABBE_KIN_XYZAC_TRT && kind != ABBE_KIN_XYZBC_TRT && !chain) || any_nonzero_u8(h + 1u, 3u) ||
-        any_nonzero_u8(h + RH_RESERVED + 12u * chain, 24u - 12u * chain) ||
-        (!chain && abbe_ld_u32(h + RH_OFFSET + 4u * (kind - 1u)) != 0u)) {
+    /* a trunnion kind (tested in this form so that the analysis knows kind is 1 or 2 where
+     * it indexes the offset with it: docs/proofs.md) */
+    if (chain == 0u && ((kind != ABBE_KIN_XYZAC_TRT && kind != ABBE_KIN_XYZBC_TRT) ||
+                        abbe_ld_u32(h + RH_OFFSET + 4u * (kind - 1u)) != 0u)) {
+        return ABBE_E_FLAGS;
+    }
+    if (any_nonzero_u8(h + 1u, 3u) || any_nonzero_u8(h + RH_RESERVED + 12u * chain, 24u - 12u * chain)) {
         return ABBE_E_FLAGS;
     }
     for (unsigned cat = 0; cat < RC_CATEGORIES; cat++) {
@@ -869,7 +874,8 @@ abbe_status_t abbe_five_model_load(abbe_five_model_t *model, const void *blob, s
         return ABBE_OK; /* a 3-axis table: no rotary errors, kind NONE */
     }
     const uint8_t *h = b + ABBE_ROTARY_HEADER_OFFSET;
-    model->kind = h[RH_KIND];
+    const uint32_t kind = h[RH_KIND];
+    model->kind = kind;
     for (unsigned k = 0; k < 3u; k++) {
         model->rot_point_nm[k] = abbe_ld_i32(h + RH_ROT_POINT + 4u * k);
         model->offset_nm[k] = abbe_ld_i32(h + RH_OFFSET + 4u * k);
@@ -878,11 +884,11 @@ abbe_status_t abbe_five_model_load(abbe_five_model_t *model, const void *blob, s
         model->squareness_q36[k] = abbe_ld_i32(h + RH_SQUARENESS + 4u * k);
     }
 #if !defined(ABBE_NO_FIVE_KINDS)
-    if (KIND_CHAIN(model->kind)) {
+    if (kind >= ABBE_KIN_XYZBC_HH && kind <= ABBE_KIN_XYZAB_TDR) { /* validated: check_rotary */
         /* record 0's and record 1's machine axes and angle slots (A, B, C in alphabetical order):
          * 3 C, B; 4 B, C; 5 B, A */
         static const uint8_t dirs[3][2] = {{2u, 1u}, {1u, 2u}, {1u, 0u}};
-        const unsigned i = model->kind - ABBE_KIN_XYZBC_HH;
+        const unsigned i = kind - ABBE_KIN_XYZBC_HH;
         for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {
             build_rotary(&model->rotary[r], b, rotary_record(b, r), dirs[i][r]);
             model->sign[r] = rotary_record(b, r)[RA_SIGN] != 0u ? (int8_t)-1 : (int8_t)1;
