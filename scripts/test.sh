@@ -146,11 +146,14 @@ lcnc_component() { # one LinuxCNC on a machine at a time: the same lock as every
 }
 
 lcnc_programs() { # as root, run.sh (step 9) created the unprivileged LinuxCNC user
+    local rc=0
     flock /tmp/abbe-linuxcnc.lock /usr/bin/python3 port/linuxcnc/tests/program_sim.py \
-        --json build-linuxcnc/programs.json
-    # the ISO 230-3 spindle program (2 speeds, 36 s phases: ~3 min)
+        --json build-linuxcnc/programs.json || rc=1
+    # the ISO 230-3 spindle program (2 speeds, 36 s phases: ~3 min); a failure of either fails
+    # the step (the step once reported only the last command's status)
     flock /tmp/abbe-linuxcnc.lock /usr/bin/python3 port/linuxcnc/tests/spindle_sim.py \
-        --json build-linuxcnc/spindle.json
+        --json build-linuxcnc/spindle.json || rc=1
+    return $rc
 }
 
 step "host ASan+UBSan build and ctest (build-asan)" host_asan

@@ -20,7 +20,8 @@
 #   8. the other three five-axis samples (bridgemill 5axiskins head-head, max5 maxkins
 #      head-table, table-dual-rotary xyzab_tdr_kins), TCP on and off, a true machine with
 #      location errors: LinuxCNC's joints are the module source's, and the tool tip minus
-#      programmed point WITHOUT abbe (kinds_sim.py, about 210 s)
+#      programmed point WITHOUT abbe (kinds_sim.py, about 210 s; opt-in:
+#      ABBE_LCNC_KINDS_BASELINE=1, listed as skipped in test.sh's summary otherwise)
 #   9. the same three samples WITH abbe (kinds_abbe_sim.py: format 1.4 tables written
 #      from the chain model, the component's offsets; about 210 s)
 # LinuxCNC's tools refuse to run as root: as root, this creates the
@@ -67,7 +68,17 @@ builtin_test || failed=$((failed + 1))
 /usr/bin/python3 "$HERE/five_sim.py" --fitted --json "$REPO/build-linuxcnc/five.json" || failed=$((failed + 1))
 /usr/bin/python3 "$HERE/five_sim.py" --kind xyzbc-trt --json "$REPO/build-linuxcnc/five-bc.json" ||
     failed=$((failed + 1))
-/usr/bin/python3 "$HERE/kinds_sim.py" --json "$REPO/build-linuxcnc/kinds.json" || failed=$((failed + 1))
+# step 8 (the samples without abbe: the figures docs/linuxcnc.md states, and LinuxCNC's joints
+# against the modules' sources) is opt-in to keep CI under 40 minutes; step 9 checks the same
+# samples with abbe against the same independent forward kinematics
+if [[ "${ABBE_LCNC_KINDS_BASELINE:-0}" == 1 ]]; then
+    /usr/bin/python3 "$HERE/kinds_sim.py" --json "$REPO/build-linuxcnc/kinds.json" || failed=$((failed + 1))
+else
+    echo "SKIPPED: kinds_sim.py (the three samples without abbe, ~210 s): opt-in, ABBE_LCNC_KINDS_BASELINE=1"
+    [[ -n "${ABBE_TEST_NOTES:-}" ]] &&
+        echo "LinuxCNC: kinds_sim.py (three samples WITHOUT abbe, ~210 s) is opt-in: ABBE_LCNC_KINDS_BASELINE=1" \
+            >>"$ABBE_TEST_NOTES"
+fi
 /usr/bin/python3 "$HERE/kinds_abbe_sim.py" --json "$REPO/build-linuxcnc/kinds-abbe.json" || failed=$((failed + 1))
 if ((failed)); then
     echo "[lcnc] FAILED: $failed of 9 LinuxCNC tests"
