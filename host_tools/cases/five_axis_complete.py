@@ -23,8 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from abbe.formats.five_axis import probe_csv
-from abbe.model.five_axis import TrunnionGeometry
-from abbe.sim.five_axis import VirtualFiveAxis, probing_positions, random_errors, write_campaign
+from cases.five_axis_second_sphere import example_campaign
 
 #: The datum sphere relative to the rotation point, mm: 100 mm above the table's pivot
 #: height (S1: 40 mm) and 150 mm off the C axis, at 127 deg from S1.
@@ -35,20 +34,8 @@ DATUM_ERROR_MM = (0.0008, -0.0010, 0.0005)
 
 
 def generate(out: Path, seed: int = 2026) -> Path:
-    g = TrunnionGeometry("xyzac-trt", (0.0, 0.0, -350.0), (0.0, 25.0, -90.0), 110.0,
-                         {"A": (-110.0, 110.0), "C": (-360.0, 360.0)})
-    rng = np.random.default_rng(seed)
-    errs = random_errors(g, rng, motion_um=1.0, motion_urad=4.0, harmonics=2)
-    vm = VirtualFiveAxis(g, errs, drift_per_h={"EZ0A": 0.5}, sphere_offset_mm=(0.04, -0.02, 0.03),
-                         sphere_radius_error_mm=0.0015, pretravel_um=0.2, pretravel_lobe_um=0.2,
-                         probe_noise_um=0.4, rtest_noise_um=0.3, indexer_noise_urad=0.8,
-                         rotary_backlash_urad=6.0, seed=seed)
-    c = np.arange(0.0, 360.0, 10.0)
-    path = np.vstack([np.column_stack([np.full(c.size, a), c]) for a in (0.0, -45.0, -90.0)])
-    pos = probing_positions(g, 4, 8)
-    mf = write_campaign(vm, out, positions=pos, sphere_mm=(80.0, 0.0, 40.0), rtest_path=path,
-                        indexer_targets=np.arange(0.0, 360.0, 15.0), harmonics=2,
-                        name="trunnion5ax complete (virtual A/C trunnion + datum sphere)")
+    g, vm, pos, mf = example_campaign(out, seed,
+                                      "trunnion5ax complete (virtual A/C trunnion + datum sphere)")
     rt = (out / "rtest.csv").read_text().strip().splitlines()
     t_end = float(rt[-1].split(",")[rt[0].split(",").index("t_s")])
     # the same machine (errors, drift, probe) with the datum sphere on its table: its own

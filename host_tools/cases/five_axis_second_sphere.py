@@ -22,7 +22,10 @@ from abbe.sim.five_axis import VirtualFiveAxis, probing_positions, random_errors
 SECOND_SPHERE_MM = (0.0, 0.0, 100.0)
 
 
-def generate(out: Path, seed: int = 2026) -> Path:
+def example_campaign(out: Path, seed: int, name: str):
+    """The five-axis example's machine and campaign (examples/trunnion5ax's plan) written to
+    ``out``: returns the geometry, the virtual machine, the probing positions and the machine
+    file. The cases that add a sphere (this one, five_axis_complete.py) start from it."""
     g = TrunnionGeometry("xyzac-trt", (0.0, 0.0, -350.0), (0.0, 25.0, -90.0), 110.0,
                          {"A": (-110.0, 110.0), "C": (-360.0, 360.0)})
     rng = np.random.default_rng(seed)
@@ -35,8 +38,12 @@ def generate(out: Path, seed: int = 2026) -> Path:
     path = np.vstack([np.column_stack([np.full(c.size, a), c]) for a in (0.0, -45.0, -90.0)])
     pos = probing_positions(g, 4, 8)
     mf = write_campaign(vm, out, positions=pos, sphere_mm=(80.0, 0.0, 40.0), rtest_path=path,
-                        indexer_targets=np.arange(0.0, 360.0, 15.0), harmonics=2,
-                        name="trunnion5ax + a second sphere height")
+                        indexer_targets=np.arange(0.0, 360.0, 15.0), harmonics=2, name=name)
+    return g, vm, pos, mf
+
+
+def generate(out: Path, seed: int = 2026) -> Path:
+    g, vm, pos, mf = example_campaign(out, seed, "trunnion5ax + a second sphere height")
     first = (out / "probe.csv").read_text().strip().splitlines()
     t_end = float(first[-1].split(",")[first[0].split(",").index("t_s")])
     sphere2 = tuple(float(v) for v in np.asarray(g.rot_point_mm) + np.asarray(SECOND_SPHERE_MM))

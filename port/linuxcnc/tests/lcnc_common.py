@@ -244,6 +244,29 @@ def run_checked(cmd: list[str], timeout: float, **kw) -> subprocess.CompletedPro
     return res
 
 
+def drive_programs(work: Path, ini: Path, args: list[str]) -> dict:
+    """Run program_drive.py (copied into ``work``) as the LinuxCNC user on ``ini`` with
+    ``args`` (its options and programs), bounded in time; return drive.json, or raise
+    TestFailure with the driver's output and the end of linuxcnc.log."""
+    proc = subprocess.Popen(as_user(["/usr/bin/python3", str(work / "program_drive.py"),
+                                     "--ini", str(ini), "--out", str(work), "--timeout", "600",
+                                     *args]),
+                            cwd=work, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        out, err = proc.communicate(timeout=660)
+    except subprocess.TimeoutExpired:
+        proc.terminate()
+        out, err = proc.communicate(timeout=90)
+    drive = json.loads((work / "drive.json").read_text()) if (work / "drive.json").exists() else {}
+    if proc.returncode != 0 or not drive.get("ok"):
+        lc = (work / "linuxcnc.log").read_text() if (work / "linuxcnc.log").exists() else ""
+        raise TestFailure(f"driving LinuxCNC failed: {drive.get('errors')}\n{out}\n{err}\n"
+                          f"--- linuxcnc.log ---\n{lc[-3000:]}")
+    check(not drive.get("operator_errors"), f"LinuxCNC errors: {drive.get('operator_errors')}")
+    return drive
+
+
 def main_wrapper(fn) -> None:
     try:
         fn()

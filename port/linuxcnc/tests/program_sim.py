@@ -46,8 +46,8 @@ import sys
 import tomllib
 from pathlib import Path
 
-from lcnc_common import (ABBE_CLI, REPO, TestFailure, as_user, check, cleanup, cli, give,
-                         hal_clean, log, main_wrapper, work_dir)
+from lcnc_common import (ABBE_CLI, REPO, TestFailure, as_user, check, cleanup, cli,
+                         drive_programs, give, hal_clean, log, main_wrapper, work_dir)
 
 sys.path.insert(0, str(REPO / "host_tools"))
 from cases.program_path import check_ballbar, check_positioning, params_of  # noqa: E402
@@ -93,22 +93,7 @@ def main() -> None:
             give(p)
         hal_clean()
         log("LinuxCNC simulator: " + ", ".join(p.name for p in progs))
-        proc = subprocess.Popen(as_user(["/usr/bin/python3", str(work / "program_drive.py"),
-                                         "--ini", str(ini), "--out", str(work), "--timeout", "600",
-                                         *map(str, progs)]),
-                                cwd=work, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                                stderr=subprocess.PIPE, text=True)
-        try:
-            out, err = proc.communicate(timeout=660)
-        except subprocess.TimeoutExpired:
-            proc.terminate()
-            out, err = proc.communicate(timeout=90)
-        drive = json.loads((work / "drive.json").read_text()) if (work / "drive.json").exists() else {}
-        if proc.returncode != 0 or not drive.get("ok"):
-            lc = (work / "linuxcnc.log").read_text() if (work / "linuxcnc.log").exists() else ""
-            raise TestFailure(f"driving LinuxCNC failed: {drive.get('errors')}\n{out}\n{err}\n"
-                              f"--- linuxcnc.log ---\n{lc[-3000:]}")
-        check(not drive.get("operator_errors"), f"LinuxCNC errors: {drive.get('operator_errors')}")
+        drive_programs(work, ini, [str(x) for x in progs])
         figures = {}
         for p in progs:
             rec = json.loads((work / f"{p.stem}.path.json").read_text())

@@ -22,12 +22,11 @@ import argparse
 import json
 import re
 import shutil
-import subprocess
 import sys
 import tomllib
 from pathlib import Path
 
-from lcnc_common import TestFailure, as_user, check, cleanup, cli, give, hal_clean, log, main_wrapper, work_dir
+from lcnc_common import check, cleanup, cli, drive_programs, give, hal_clean, log, main_wrapper, work_dir
 
 HERE = Path(__file__).resolve().parent
 CONFIG = HERE.parent / "config"
@@ -78,22 +77,7 @@ def main() -> None:
             give(p)
         hal_clean()
         log(f"LinuxCNC simulator: {prog.name} ({len(SPEEDS)} speeds, {on_s:g} s on, {off_s:g} s off)")
-        proc = subprocess.Popen(as_user(["/usr/bin/python3", str(work / "program_drive.py"),
-                                         "--ini", str(ini), "--out", str(work), "--timeout", "600",
-                                         "--program-timeout", "400", str(prog)]),
-                                cwd=work, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                                stderr=subprocess.PIPE, text=True)
-        try:
-            out, err = proc.communicate(timeout=660)
-        except subprocess.TimeoutExpired:
-            proc.terminate()
-            out, err = proc.communicate(timeout=90)
-        drive = json.loads((work / "drive.json").read_text()) if (work / "drive.json").exists() else {}
-        if proc.returncode != 0 or not drive.get("ok"):
-            lc = (work / "linuxcnc.log").read_text() if (work / "linuxcnc.log").exists() else ""
-            raise TestFailure(f"driving LinuxCNC failed: {drive.get('errors')}\n{out}\n{err}\n"
-                              f"--- linuxcnc.log ---\n{lc[-3000:]}")
-        check(not drive.get("operator_errors"), f"LinuxCNC errors: {drive.get('operator_errors')}")
+        drive_programs(work, ini, ["--program-timeout", "400", str(prog)])
         rec = json.loads((work / f"{prog.stem}.path.json").read_text())
         ph = phases(rec["t_s"], rec["spindle"])
         ph = [p for p in ph if p[2] - p[1] > 0.2 or p[0] != 0.0]  # the start's stopped spindle
