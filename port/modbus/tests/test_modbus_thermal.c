@@ -254,7 +254,7 @@ static void test_stuck_sensor(void **state)
         reads |= ((sh_tm.channel_inputs[c] >> ABBE_STUCK_INPUT) & 1u) << c;
     }
     assert_true(reads != 0u);
-    int32_t prev[3] = {0, 0, 0}, step_clean = 0, step_fade = 0, y_flag[5] = {0};
+    int32_t prev[3] = {0, 0, 0}, step_clean = 0, step_fade = 0, step_between = 0, y_flag[5] = {0};
     uint32_t n = 0, k_flag = 0, k_clear = 0, k_last_change = 0;
     answer_t a;
     memset(&a, 0, sizeof a);
@@ -282,6 +282,9 @@ static void test_stuck_sensor(void **state)
         }
         if (k_flag != 0u) { /* the fade-out, the hold, the catch-up and fade-in */
             step_fade = step > step_fade ? step : step_fade;
+            if (k % SAMPLE_EVERY != 0u) { /* between samples only the fades move it */
+                step_between = step > step_between ? step : step_between;
+            }
         }
         if (k_flag != 0u && k_clear == 0u) {
             if (!(a.flags & ABBE_THERMAL_F_STUCK)) {
@@ -308,15 +311,18 @@ static void test_stuck_sensor(void **state)
     assert_int_equal(modbus_read_registers(ctx, ABBE_MB_REG_TH_EVENTS, 2, ev), 2);
     assert_true(mbt_get32(ev, 0) & ABBE_THERMAL_F_STUCK); /* sticky */
     uint32_t flag_ms = (k_flag - k_last_change) * (CYCLE_US / 1000u);
-    int32_t bound = step_clean;
+    int32_t fade_step = 0;
     for (unsigned c = 0; c < 5u; c++) {
-        bound += abs(y_flag[c]) / 300 + 1; /* one fade step (100 ms of 30 s) of each channel */
+        fade_step += abs(y_flag[c]) / 300 + 1; /* one fade step (100 ms of 30 s) of each channel */
     }
+    int32_t bound = step_clean + fade_step;
     print_message("Modbus stuck sensor: TH_FLAGS 0x%02X %u ms after the last change; largest error step per cycle "
-                  "%d nm clean, %d nm from the flag through the fade-out and back (bound %d); cleared when it moved\n",
-                  (unsigned)ABBE_THERMAL_F_STUCK, flag_ms, step_clean, step_fade, bound);
+                  "%d nm clean, %d nm from the flag through the fade-out and back (bound %d), %d nm between samples "
+                  "(bound %d); cleared when it moved\n",
+                  (unsigned)ABBE_THERMAL_F_STUCK, flag_ms, step_clean, step_fade, bound, step_between, fade_step);
     assert_int_equal(flag_ms, 60000u * ABBE_STUCK_MIN);
     assert_true(step_fade <= bound);
+    assert_true(step_between <= fade_step);
 }
 
 int main(void)

@@ -311,7 +311,7 @@ static void test_stuck_sensor(void **state)
         reads |= ((fx.sh_tm.channel_inputs[c] >> ABBE_STUCK_INPUT) & 1u) << c;
     }
     assert_true(reads != 0u);
-    int32_t prev[3] = {0, 0, 0}, step_clean = 0, step_fade = 0, y_flag[5] = {0};
+    int32_t prev[3] = {0, 0, 0}, step_clean = 0, step_fade = 0, step_between = 0, y_flag[5] = {0};
     uint32_t n = 0, cyc_flag = 0, cyc_clear = 0, cyc_last_change = 0;
     answer_t a;
     memset(&a, 0, sizeof a);
@@ -343,6 +343,9 @@ static void test_stuck_sensor(void **state)
         }
         if (cyc_flag != 0u) { /* the fade-out, the hold, the catch-up and fade-in */
             step_fade = step > step_fade ? step : step_fade;
+            if (cyc % SAMPLE_EVERY != 0u) { /* between samples only the fades move it */
+                step_between = step > step_between ? step : step_between;
+            }
         }
         if (cyc_flag != 0u && cyc_clear == 0u) {
             if (!(fl & ABBE_THERMAL_F_STUCK)) {
@@ -371,15 +374,18 @@ static void test_stuck_sensor(void **state)
     assert_int_equal(abbe_thermal_flags(th) & (ABBE_THERMAL_F_FAULTS | ABBE_THERMAL_F_HOLD | ABBE_THERMAL_F_FADING), 0u);
     assert_int_equal(a.st.temp_stale, 0);
     uint32_t flag_ms = (cyc_flag - cyc_last_change) * (CYCLE_US / 1000u);
-    int32_t bound = step_clean;
+    int32_t fade_step = 0;
     for (unsigned c = 0; c < 5u; c++) {
-        bound += abs(y_flag[c]) / 300 + 1; /* one fade step (100 ms of 30 s) of each channel */
+        fade_step += abs(y_flag[c]) / 300 + 1; /* one fade step (100 ms of 30 s) of each channel */
     }
+    int32_t bound = step_clean + fade_step;
     print_message("CAN stuck sensor: TempStale %u ms after the last change; largest correction step per cycle "
-                  "%d nm clean, %d nm from the flag through the fade-out and back (bound %d); cleared when it moved\n",
-                  flag_ms, step_clean, step_fade, bound);
+                  "%d nm clean, %d nm from the flag through the fade-out and back (bound %d), %d nm between samples "
+                  "(bound %d); cleared when it moved\n",
+                  flag_ms, step_clean, step_fade, bound, step_between, fade_step);
     assert_int_equal(flag_ms, 60000u * ABBE_STUCK_MIN);
     assert_true(step_fade <= bound);
+    assert_true(step_between <= fade_step);
     stuck_milli = -1;
 }
 
