@@ -182,7 +182,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--stem", default="abbe_model", help="file and symbol stem")
     args = ap.parse_args(argv)
     try:
-        data, _ = read_blob_file(args.c)
+        from abbe.formats.limits import BLOB_MAX_BYTES
+        from abbe.formats.text import read_bytes
+        data = read_bytes(args.c, what="table blob", max_bytes=BLOB_MAX_BYTES)
+        if data[:4] == b"ABBE" and data[6:8] == b"\x03\x00":  # 1.3: write_c validates it
+            from abbe.formats.thermal_blob import read_thermal_blob
+            read_thermal_blob(data, source=str(args.c))
+        else:
+            data, _ = read_blob_file(args.c)
         for path in write_c(data, args.out, args.stem):
             print(path)
     except AbbeInputError as exc:

@@ -160,6 +160,10 @@ def test_cgen_thermal_guard_and_refusal(tmp_path: Path, capsys) -> None:
     path, blob = _table(tmp_path)
     gen = tmp_path / "gen"
     assert cli(["table", "cgen", str(path), "-o", str(gen)]) == 0
+    # python -m abbe.formats.c_source writes the same files
+    from abbe.formats.c_source import main as c_source_main
+    assert c_source_main(["--c", str(path), "-o", str(tmp_path / "module")]) == 0
+    assert (tmp_path / "module" / "abbe_model.c").read_bytes() == (gen / "abbe_model.c").read_bytes()
     capsys.readouterr()
     # a library whose thermal block is another minor refuses the generated file at build time
     fake = tmp_path / "fake" / "abbe"
