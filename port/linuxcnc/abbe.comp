@@ -54,7 +54,7 @@ pin in bit z.axis_fault "TRUE: the Z correction fades out";
 // ---- thermal block (tables of format 1.3; docs/linuxcnc.md, "Thermal block") ----
 pin in float th.in_##[17] "Thermal input NN of the table's thermal block: a temperature in deg C, or the spindle speed input in rpm (the table says which); sampled every thermal-sample-s";
 pin in bit th.fault_##[17] "TRUE: no reading of thermal input NN (open circuit): the channels that read it hold and fade out";
-pin out u32 th.flags "The thermal runtime's flags (ABBE_THERMAL_F_*: 1 open, 2 range, 4 step, 8 missing sample, 16 limit, 32 hold, 64 fading); 0 without a thermal block";
+pin out u32 th.flags "The thermal runtime's flags (ABBE_THERMAL_F_*: 1 open, 2 range, 4 step, 8 missing sample, 16 limit, 32 hold, 64 fading, 128 stuck); 0 without a thermal block";
 pin out u32 th.input_faults "Bit k: thermal input k faulted at the last sample";
 pin out float th.channel_##[5] "Thermal channel NN (the table's order), um (urad for tilts), before its fade";
 pin out u32 th.samples "Thermal samples taken";

@@ -8,7 +8,7 @@ Sub-commands:
   table (format 1.2, ``abbe fit``'s model_five.bin) takes joint positions
   X Y Z TILT C (mm, deg) and gives the tool tip's position (um) and orientation
   (urad) error relative to the workpiece;
-* ``cgen MODEL.bin -o DIR``: generated C (abbe_model.c / .h);
+* ``cgen MODEL.bin -o DIR``: generated C (abbe_model.c / .h; formats 1.0 - 1.3);
 * ``from-json MODEL.json -o MODEL.bin``; ``to-json MODEL.bin [-o MODEL.json]``;
 * ``thermal MODEL.bin thermal.json -o OUT.bin``: the table with the dynamic thermal
   model as its thermal block (format 1.3; ``--strip``: without it).
@@ -209,8 +209,17 @@ def _cmd_eval(args: argparse.Namespace) -> int:
 
 
 def _cmd_cgen(args: argparse.Namespace) -> int:
+    from abbe.formats.limits import BLOB_MAX_BYTES
+    from abbe.formats.text import read_bytes
+    from abbe.formats.thermal_blob import THERMAL_MINOR, read_thermal_blob
+
     Outputs().check_directory(args.out, option="--out")
-    data, _, _ = _read_any(args.model)
+    raw = read_bytes(args.model, what="table blob", max_bytes=BLOB_MAX_BYTES)
+    if raw[:4] == b"ABBE" and int.from_bytes(raw[6:8], "little") == THERMAL_MINOR:
+        read_thermal_blob(raw, source=str(args.model))  # format 1.3: errors name the file
+        data = raw
+    else:
+        data, _, _ = _read_any(args.model)
     h, c = write_c(data, args.out, stem=args.stem, option="--out")
     print(h)
     print(c)

@@ -12,7 +12,7 @@ from pathlib import Path
 from abbe.errors import AbbeInputError
 from abbe.formats.blob import FORMAT_MAJOR, blob_crc, read_blob, read_blob_file
 from abbe.formats.output import atomic_write_many
-from abbe.model.table import AXES, LINEAR_TERMS, Table, feature_names
+from abbe.model.table import AXES, FEATURE_REVERSAL, LINEAR_TERMS, Table, feature_names
 
 
 def _c_listing(table: Table, crc: int, size: int, minor: int) -> list[str]:
@@ -59,6 +59,27 @@ def _c_listing(table: Table, crc: int, size: int, minor: int) -> list[str]:
     return lines
 
 
+def _thermal_lines(model) -> list[str]:
+    """The listing of a format 1.3 table's thermal block (as the table holds it)."""
+    lines = [f"thermal block (format 1.3; load with abbe_thermal_load(), abbe/thermal.h): "
+             f"{len(model.inputs)} inputs, {len(model.channels)} channels, "
+             f"max_gap_s {model.max_gap_s:g}, fade_s {model.fade_s:g}"]
+    for k, i in enumerate(model.inputs):
+        unit = "rpm" if i.kind == "speed" else "degC"
+        line = (f"  in{k} {i.kind}: reference {i.reference:g} {unit}, valid "
+                f"[{i.valid_min:g}, {i.valid_max:g}], max_step {i.max_step:g}")
+        if i.stuck_s:
+            line += f", stuck after {i.stuck_s:g} s within {i.stuck_resolution:g}"
+        lines.append(line)
+    for c in model.channels:
+        unit = "urad" if c.output in ("a", "b") else "um"
+        per = {True: "krpm", False: "K"}
+        lines.append(f"  channel {c.output} ({unit}, limit {c.limit:g}): " + "; ".join(
+            f"in{t.input} {t.gain:.6f} {unit}/{per[model.inputs[t.input].kind == 'speed']} "
+            f"tau {t.tau_s:g} s" for t in c.terms))
+    return lines
+
+
 def write_c(blob: bytes, out_dir: Path, stem: str = "abbe_model",
             option: str = "--out") -> tuple[Path, Path]:
     """Write ``STEM.h`` and ``STEM.c`` (docs/table-format.md "Generated C").
@@ -70,11 +91,19 @@ def write_c(blob: bytes, out_dir: Path, stem: str = "abbe_model",
     name and moved into place only when both are complete.
     """
     from abbe.formats.five_axis_blob import five_table_lines, is_five_axis_blob, read_five_blob
+    from abbe.formats.thermal_blob import THERMAL_MINOR, read_thermal_blob
 
     five = read_five_blob(blob) if is_five_axis_blob(blob) else None
-    table = read_blob(blob) if five is None else five.errors.linear
+    thermal = None
+    minor, = struct.unpack_from("<H", blob, 6) if len(blob) >= 8 else (0,)
+    if five is None and bytes(blob[:4]) == b"ABBE" and minor == THERMAL_MINOR:
+        table, thermal = read_thermal_blob(blob)  # every check of abbe_thermal_load
+    else:
+        table = read_blob(blob) if five is None else five.errors.linear
     total, = struct.unpack_from("<I", blob, 8)
-    minor, = struct.unpack_from("<H", blob, 6)  # the table's: 1.0 tables still build with 1.0 libraries
+    # the table's minor: 1.0 tables still build with 1.0 libraries; a 1.3 table needs the
+    # minor of its geometric part (1.1 with reversal blocks) and a library with abbe/thermal.h
+    base_minor = minor if thermal is None else (1 if table.features() & FEATURE_REVERSAL else 0)
     blob = bytes(blob[:total])
     crc = blob_crc(blob)
     ident = stem
@@ -92,10 +121,17 @@ def write_c(blob: bytes, out_dir: Path, stem: str = "abbe_model",
         "#include <stdint.h>",
         "",
         '#include "abbe/version.h"',
-        f"#if ABBE_TABLE_FORMAT_MAJOR != {FORMAT_MAJOR} || ABBE_TABLE_FORMAT_MINOR < {minor}",
+        f"#if ABBE_TABLE_FORMAT_MAJOR != {FORMAT_MAJOR} || ABBE_TABLE_FORMAT_MINOR < {base_minor}",
         f'#error "{stem}.c was generated for table format {FORMAT_MAJOR}.{minor}: '
         'regenerate it with a matching abbe"',
         "#endif",
+        *([] if thermal is None else [
+            '#include "abbe/thermal.h" /* a library without it cannot read the thermal block */',
+            f"#if !defined(ABBE_THERMAL_FORMAT_MINOR) || ABBE_THERMAL_FORMAT_MINOR != {THERMAL_MINOR}",
+            f'#error "{stem}.c was generated for table format {FORMAT_MAJOR}.{minor} (thermal block): '
+            'regenerate it with a matching abbe"',
+            "#endif",
+            f"/* a table of format {FORMAT_MAJOR}.{minor}: load it with abbe_thermal_load() */"]),
         "",
         f"#define {ident.upper()}_BLOB_CRC32 0x{crc:08X}u /* abbe_model_crc() of this table */",
         "",
@@ -106,6 +142,8 @@ def write_c(blob: bytes, out_dir: Path, stem: str = "abbe_model",
         "",
     ])
     listing = _c_listing(table, crc, total, minor)
+    if thermal is not None:
+        listing += [""] + _thermal_lines(thermal)
     if five is not None:  # a five-axis table: abbe_five_model_load() reads it
         listing += ["", "rotary section (format 1.2; load with abbe_five_model_load(), "
                     "abbe/five_axis.h):"] + five_table_lines(five)
@@ -144,7 +182,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--stem", default="abbe_model", help="file and symbol stem")
     args = ap.parse_args(argv)
     try:
-        data, _ = read_blob_file(args.c)
+        from abbe.formats.limits import BLOB_MAX_BYTES
+        from abbe.formats.text import read_bytes
+        data = read_bytes(args.c, what="table blob", max_bytes=BLOB_MAX_BYTES)
+        if data[:4] == b"ABBE" and data[6:8] == b"\x03\x00":  # 1.3: write_c validates it
+            from abbe.formats.thermal_blob import read_thermal_blob
+            read_thermal_blob(data, source=str(args.c))
+        else:
+            data, _ = read_blob_file(args.c)
         for path in write_c(data, args.out, args.stem):
             print(path)
     except AbbeInputError as exc:

@@ -15,12 +15,17 @@ temperatures is the baseline); an open circuit, a value out of range and
 missing samples each raise their flag and fade their channels out by the
 Simulator's clock, no segment end moving OUT by more than |part| x elapsed /
 fade_s; the recovery fades back in; the stored table runs after a restart.
+Then a stuck sensor (a second table, t_column with a stuck check of 1 min /
+0.01 K): t_column alternates by 0.05 K, then repeats one value: FLAGS 80 (with
+20 hold, FAULTS 1) once a minute of the Simulator's clock has passed, dX fades
+out (dZ stays), and the flag clears when t_column moves again.
 Figures in --json.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 import tempfile
@@ -45,6 +50,7 @@ from abbe.model.thermal import (  # noqa: E402
 )
 
 FADE_S = 20.0
+STUCK_S = 60.0            # the stuck check's time (whole minutes in the table)
 MAX_GAP_S = 30.0
 GOOD = (25.0, 24.0, 3000.0)   # deg C, deg C, rpm
 N_MOVES = 50                  # Y moves per pass, 2 mm each
@@ -93,6 +99,8 @@ def main() -> int:
     ap.add_argument("--sim", type=Path, required=True)
     ap.add_argument("--table", type=Path, required=True, help="the compiled-in table (format 1.0 / 1.1)")
     ap.add_argument("--json", type=Path)
+    ap.add_argument("--stuck", action="store_true",
+                    help="also the stuck sensor (2-3 min more: off in run.sh for CI time)")
     args = ap.parse_args()
     args.sim = args.sim.resolve()
     C = Checks()
@@ -128,12 +136,13 @@ def main() -> int:
             C.check(r.startswith("error") and any(why in s for s in seen), f"{bad} refused ({why}): {seen}")
             sim.ok("$ABBET=CLEAR")  # a $ command that succeeds (grblHAL's error latch)
 
-        def one_pass(name: str, sample: str | None, pause_s: float = 0.0) -> list[dict]:
-            """Y moves of 2 mm (one segment each) from Y0 down, $ABBE after each; back to Y0."""
+        def one_pass(name: str, sample, pause_s: float = 0.0) -> list[dict]:
+            """Y moves of 2 mm (one segment each) from Y0 down, $ABBE after each; back to Y0.
+            ``sample``: the $ABBET values before every move (a callable: of the move's index)."""
             rows = []
             for k in range(N_MOVES):
                 if sample is not None:
-                    sim.ok("$ABBET=" + sample)
+                    sim.ok("$ABBET=" + (sample(k) if callable(sample) else sample))
                 if pause_s and k % 10 == 9:
                     time.sleep(pause_s)
                 sim.ok("G1 Y%.3f F600" % (Y0_MM - 2.0 * (k + 1)))
@@ -236,6 +245,9 @@ def main() -> int:
         d = info(sim)
         C.check(d.get("THERMAL", "").startswith("3 inputs,2 channels"),
                 f"after a restart the stored thermal table runs: {d.get('THERMAL')}")
+
+        if args.stuck:
+            stuck_phase(sim, C, summary, one_pass, fade_steps, base_blob, model)
         sim.close()
     finally:
         for s in list(Sim.running):
@@ -245,6 +257,63 @@ def main() -> int:
         args.json.write_text(json.dumps(summary, indent=2))
     print(f"[grblhal thermal] {'FAIL' if C.failed else 'ok'}: {len(C.failed)} failed")
     return 1 if C.failed else 0
+
+
+def stuck_phase(sim: Sim, C: Checks, summary: dict, one_pass, fade_steps, base_blob: bytes,
+                model: ThermalModel) -> None:
+    """A stuck sensor: a table whose t_column has a stuck check (1 min, 0.01 K)."""
+    t_start = time.monotonic()
+    stuck_in = list(model.inputs)
+    stuck_in[0] = dataclasses.replace(stuck_in[0], stuck_s=STUCK_S, stuck_resolution=0.01)
+    stuck_blob = write_thermal_blob(base_blob, dataclasses.replace(model, inputs=tuple(stuck_in)))
+    sim.ok("$ABBEU=A")
+    sim.ok(f"$ABBEU=B,{len(stuck_blob)},{zlib.crc32(stuck_blob):08X}")
+    for o in range(0, len(stuck_blob), 96):
+        sim.ok(f"$ABBEU=D,{o},{stuck_blob[o:o + 96].hex().upper()}")
+    sim.ok("$ABBEU=C")
+    sim.ok("G1 X%.3f Y%.3f Z%.3f F3000" % (X_MM, Y0_MM, Z_MM))
+    sim.ok("$ABBET=CLEAR")
+
+    def moving(k: int) -> str:  # t_column alternates by 0.05 K: a live sensor
+        return "%g,%g,%g" % (GOOD[0] + 0.05 * (k % 2), GOOD[1], GOOD[2])
+
+    one_pass("stuck check: warm-up (the new table fades in)", moving)
+    live = one_pass("stuck check: moving", moving) + one_pass("stuck check: moving, steady", moving)
+    C.check(not any(r["flags"] & 0x80 for r in live), "a moving t_column is not stuck")
+    frozen = moving(N_MOVES - 1)  # the live pass's last sample, repeated: no change from it
+    held = one_pass("stuck: t_column repeats one value", frozen, pause_s=0.5)
+    while held[-1]["applied_ms"] - live[-1]["applied_ms"] < (STUCK_S + FADE_S) * 1000 + 2000:
+        held += one_pass("stuck, continued", frozen, pause_s=0.5)
+    flagged = [r for r in held if r["flags"] & 0x80]
+    C.check(bool(flagged) and all(r["flags"] & 0x20 and r["faults"] == 1 for r in flagged),
+            f"stuck: FLAGS 80 with 20 hold, FAULTS 1 ({flagged[0]['flags'] if flagged else None})")
+    if flagged:
+        # t_column last changed at the last sample of the live pass (just before its last
+        # row): the flag's first row comes a minute of the clock later
+        t_flag = (flagged[0]["applied_ms"] - live[-1]["applied_ms"]) / 1000.0
+        before = [r for r in held if r["applied_ms"] < flagged[0]["applied_ms"]]
+        t_before = (before[-1]["applied_ms"] - live[-1]["applied_ms"]) / 1000.0 if before else 0.0
+        print(f"  stuck: FLAGS 80 first at a segment end {t_flag:.1f} s after the last change "
+              f"(the previous one {t_before:.1f} s, unflagged)")
+        # within the planner's lag: a sample is taken when grblHAL reads its line, the
+        # segment end that reports it executes later (seconds of the clock at -t 20)
+        C.check(STUCK_S - 5.0 <= t_flag and t_before <= STUCK_S + 5.0,
+                f"stuck: flagged about {STUCK_S:g} s after the last change ({t_before:.1f} .. {t_flag:.1f} s)")
+        summary["stuck_flag_after_s"] = [t_before, t_flag]
+    tip_live = expected_tip_um(model, tuple(float(v) for v in frozen.split(",")))
+    C.check(abs(held[-1]["out"][0]) <= 0.001 and abs(held[-1]["out"][2] - tip_live[2]) <= 0.002,
+            f"stuck: dX faded out, dZ kept ({held[-1]['out']})")
+    summary["stuck_worst_um_per_segment"] = fade_steps([live[-1]] + held, np.abs(tip_live) + 0.4,
+                                                       "stuck")
+    back = one_pass("stuck: t_column moves again", moving)
+    C.check(not back[0]["flags"] & 0x80 and bool(back[0]["events"] & 0x80),
+            f"stuck: cleared by the first moving sample, kept in EVENTS ({back[0]['flags']:02X}, "
+            f"{back[0]['events']:02X})")
+    back += one_pass("stuck: recovery, steady", moving)
+    C.check(not back[-1]["flags"] & 0xFF and abs(back[-1]["out"][0] - tip_live[0]) <= 0.41,
+            f"stuck: recovered ({back[-1]['flags']:02X}, OUT {back[-1]['out']})")
+    summary["stuck_wall_s"] = round(time.monotonic() - t_start, 1)
+    print(f"  stuck sensor: {summary['stuck_wall_s']} s of wall time")
 
 
 if __name__ == "__main__":

@@ -17,6 +17,7 @@
 #include "abbe_grblhal_core.h"
 #include "golden_data.h"
 #include "golden_thermal.h"
+#include "thermal_stuck.h"
 
 static abbe_gh_t gh;
 
@@ -653,6 +654,112 @@ static void test_thermal(void **state)
     assert_true(strlen(why) > 0u);
 }
 
+/* A stuck sensor: the golden table with input ABBE_STUCK_INPUT's stuck check
+ * on (2 min, 0.02 K), a sample every 1 s of the clock, two segment ends per
+ * second (250 and 750 ms after the sample); the input ramps, then repeats one
+ * value for 180 s, then ramps again. The flags ($ABBE's THERMAL FLAGS field
+ * prints abbe_thermal_flags of this state) show ABBE_THERMAL_F_STUCK with HOLD
+ * and the input in FAULTS exactly 120 s after the last change; the thermal
+ * part fades out by elapsed time (no segment end moves it by more than
+ * |tip| x elapsed / fade_s between samples), and everything clears when the
+ * reading moves again. */
+#define STUCK_HOLD_FROM 40u  /* samples (1 s apart) */
+#define STUCK_HOLD_TO 220u
+#define STUCK_SAMPLES 270u
+
+static void test_thermal_stuck(void **state)
+{
+    (void)state;
+    static union { uint32_t align; uint8_t b[8192]; } blob;
+    size_t size = abbe_stuck_blob(blob.b, sizeof blob.b);
+    assert_true(size > 0u);
+    abbe_gh_params_t prm;
+    abbe_gh_default_params(&prm);
+    prm.rate_um_per_seg = 1000.0f; /* the thermal fade, not the rate limit, is under test */
+    assert_int_equal(abbe_gh_init(&gh, &prm, blob.b, size), ABBE_OK);
+    assert_int_equal(abbe_gh_init(&ref_gh, &prm, blob.b, size), ABBE_OK);
+    assert_int_equal(abbe_gh_set_enabled(&gh, 1), ABBE_OK);
+    assert_int_equal(abbe_gh_set_enabled(&ref_gh, 1), ABBE_OK);
+    const abbe_thermal_state_t *st = abbe_gh_thermal(&gh);
+    assert_non_null(st);
+    uint32_t reads = 0; /* channels that read the stuck input */
+    for (unsigned c = 0; c < abbe_thermal_n_channels(st->model); c++) {
+        reads |= ((st->model->channel_inputs[c] >> ABBE_STUCK_INPUT) & 1u) << c;
+    }
+    assert_true(reads != 0u);
+    float lo[3], hi[3], p[3], m[3];
+    travel(lo, hi);
+    for (unsigned j = 0; j < 3; j++) {
+        p[j] = 0.5f * (lo[j] + hi[j]);
+    }
+    const int32_t base = abbe_golden_thermal_samples[0].x_milli[ABBE_STUCK_INPUT];
+    const char *why = "";
+    int32_t prev_d[3] = {0, 0, 0}, step_between = 0, step_fade = 0, step_clean = 0;
+    uint32_t i_flag = 0, i_clear = 0;
+    for (uint32_t i = 0; i < STUCK_SAMPLES; i++) {
+        const abbe_golden_thermal_sample_t *s =
+            &abbe_golden_thermal_samples[i < abbe_golden_thermal_sample_count ? i : abbe_golden_thermal_sample_count - 1u];
+        float x[ABBE_GOLDEN_THERMAL_INPUTS];
+        memcpy(x, s->x, sizeof x);
+        x[ABBE_STUCK_INPUT] = (float)abbe_stuck_reading_milli(base, i, STUCK_HOLD_FROM, STUCK_HOLD_TO) * 1e-3f;
+        abbe_gh_clock(&gh, 1000u * i);
+        assert_int_equal(abbe_gh_thermal_sample(&gh, x, 0x1FFFFu, &why), ABBE_OK);
+        uint32_t fl = abbe_thermal_flags(st);
+        if ((fl & ABBE_THERMAL_F_STUCK) && i_flag == 0u) {
+            i_flag = i;
+        }
+        if (i_flag != 0u && i_clear == 0u) {
+            if (!(fl & ABBE_THERMAL_F_STUCK)) {
+                i_clear = i;
+            } else {
+                assert_true(fl & ABBE_THERMAL_F_HOLD);
+                assert_int_equal(abbe_thermal_input_faults(st), 1u << ABBE_STUCK_INPUT);
+            }
+        }
+        if (i >= 31u && i_flag == 0u) { /* faded in (the table's 30 s), not yet stuck */
+            assert_int_equal(fl & (ABBE_THERMAL_F_FAULTS | ABBE_THERMAL_F_HOLD | ABBE_THERMAL_F_FADING), 0u);
+        }
+        for (uint32_t half = 0; half < 2u; half++) {
+            int32_t parts[3];
+            tip_parts(st, parts);
+            abbe_gh_clock(&gh, 1000u * i + 250u + 500u * half);
+            (void)abbe_gh_forward(&gh, p, m);
+            (void)abbe_gh_forward(&ref_gh, p, m);
+            for (unsigned j = 0; j < 3; j++) {
+                int32_t d = gh.last_corr_nm[j] - ref_gh.last_corr_nm[j];
+                int32_t step = th_abs(d - prev_d[j]);
+                prev_d[j] = d;
+                if (i >= 5u && i < STUCK_HOLD_FROM) {
+                    step_clean = step > step_clean ? step : step_clean;
+                }
+                if (i_flag != 0u) {
+                    step_fade = step > step_fade ? step : step_fade;
+                    if (half) { /* 500 ms after the previous segment end, no sample between: the fades alone */
+                        step_between = step > step_between ? step : step_between;
+                        assert_true(step <= parts[j] * 500 / 30000 + 3);
+                    }
+                }
+            }
+        }
+        if (i_flag != 0u && i == i_flag + 31u) { /* the table's fade (30 s) is over: faded out */
+            for (unsigned c = 0; c < abbe_thermal_n_channels(st->model); c++) {
+                int out = ABBE_GH_FIXED_POINT ? st->wq24[c] == 0u : st->w[c] == 0.0f;
+                assert_int_equal(out, (reads >> c) & 1u);
+            }
+        }
+    }
+    assert_true(i_flag != 0u);
+    assert_int_equal(i_clear, STUCK_HOLD_TO); /* the first sample that moves */
+    assert_int_equal(abbe_thermal_flags(st) & (ABBE_THERMAL_F_FAULTS | ABBE_THERMAL_F_HOLD | ABBE_THERMAL_F_FADING), 0u);
+    assert_true(abbe_thermal_events(st) & ABBE_THERMAL_F_STUCK);
+    uint32_t flag_ms = (i_flag - (STUCK_HOLD_FROM - 1u)) * 1000u;
+    print_message("grblHAL stuck sensor (%s): FLAGS 80 %u ms after the last change; largest thermal change per "
+                  "segment end %d nm clean, %d nm from the flag through the fade-out and back, %d nm between "
+                  "samples (500 ms)\n", ABBE_GH_FIXED_POINT ? "q" : "f32", flag_ms, step_clean, step_fade,
+                  step_between);
+    assert_int_equal(flag_ms, 60000u * ABBE_STUCK_MIN);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -667,6 +774,7 @@ int main(void)
         cmocka_unit_test(test_boot_in_place),
         cmocka_unit_test(test_rehome),
         cmocka_unit_test(test_thermal),
+        cmocka_unit_test(test_thermal_stuck),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -23,6 +23,7 @@
 #include "golden_data.h"
 #include "golden_five.h"
 #include "golden_thermal.h"
+#include "thermal_stuck.h"
 
 #define PERIOD_NS 1000000L
 
@@ -1150,12 +1151,176 @@ static void test_thermal_f32(void **state)
     thermal_case(ABBE_LCNC_VARIANT_F32);
 }
 
+/* A stuck sensor: the golden table with input ABBE_STUCK_INPUT's stuck check
+ * on (2 min, 0.02 K), the th-in pins sampled every 1 s; the input ramps, then
+ * repeats one value for 180 s, then ramps again. The th.flags pin shows
+ * ABBE_THERMAL_F_STUCK (with HOLD, th.input-faults naming the input) exactly
+ * 120 s after the last change; the target fades the thermal part out with no
+ * step larger than a fade step, and everything clears when the reading moves
+ * again. Every period equals a standalone runtime fed the same values. */
+#define STUCK_HOLD_FROM 40u  /* samples (1 s apart) */
+#define STUCK_HOLD_TO 220u
+#define STUCK_SAMPLES 270u
+
+static void stuck_case(abbe_lcnc_variant_t v)
+{
+    static uint32_t store[ABBE_LCNC_TABLE_MAX_BYTES / 4];
+    size_t size = abbe_stuck_blob((uint8_t *)store, sizeof store);
+    assert_true(size > 0u);
+    abbe_lcnc_params_t p;
+    quick_params(&p);
+    p.thermal_sample_s = 1.0;
+    p.fade_s = 0.5;
+    p.warn_mm[0] = p.warn_mm[1] = p.warn_mm[2] = 5.0;
+    p.limit_mm[0] = p.limit_mm[1] = p.limit_mm[2] = 10.0;
+    assert_int_equal(abbe_lcnc_init(&port, v, &p, PERIOD_NS), ABBE_OK);
+    assert_int_equal(abbe_lcnc_add_table(&port, store, size), ABBE_OK);
+    abbe_model_t m;
+    abbe_thermal_model_t tm;
+    abbe_thermal_state_t sh;
+    assert_int_equal(abbe_thermal_load(&m, &tm, store, size), ABBE_OK);
+    if (v == ABBE_LCNC_VARIANT_F32) {
+        assert_int_equal(abbe_thermal_init_f32(&sh, &tm, 0.001f), ABBE_OK);
+    } else {
+        assert_int_equal(abbe_thermal_init_q(&sh, &tm, 1000u), ABBE_OK);
+    }
+    uint32_t reads = 0; /* channels that read the stuck input */
+    for (unsigned c = 0; c < tm.n_channels; c++) {
+        reads |= ((tm.channel_inputs[c] >> ABBE_STUCK_INPUT) & 1u) << c;
+    }
+    assert_true(reads != 0u);
+    const int32_t base = abbe_golden_thermal_samples[0].x_milli[ABBE_STUCK_INPUT];
+    const unsigned periods = 1000u; /* 1 s at 1 ms */
+    abbe_lcnc_input_t in;
+    abbe_lcnc_output_t out;
+    double prev[3] = {0, 0, 0}, step_clean = 0.0, step_fade = 0.0, step_between = 0.0, ymax = 0.0;
+    uint32_t k_flag = 0, k_clear = 0, n = 0;
+    for (uint32_t k = 0; k < STUCK_SAMPLES * periods; k++) {
+        memset(&in, 0, sizeof in);
+        in.pos_mm[0] = 250.0;
+        in.pos_mm[1] = -200.0;
+        in.pos_mm[2] = -150.0;
+        in.temp_c[0] = in.temp_c[1] = in.temp_c[2] = 20.0;
+        in.enable = in.homed = in.machine_on = 1;
+        uint32_t i_s = k / periods;
+        const abbe_golden_thermal_sample_t *s = &abbe_golden_thermal_samples[i_s < abbe_golden_thermal_sample_count ? i_s : abbe_golden_thermal_sample_count - 1u];
+        int32_t xm[17];
+        memcpy(xm, s->x_milli, sizeof xm);
+        xm[ABBE_STUCK_INPUT] = abbe_stuck_reading_milli(base, i_s, STUCK_HOLD_FROM, STUCK_HOLD_TO);
+        for (unsigned i = 0; i < ABBE_LCNC_TH_INPUTS; i++) {
+            in.th_in[i] = i == 16u ? (double)xm[i] : (double)xm[i] / 1000.0;
+        }
+        if (k % periods == 0u) { /* the port samples now: so does the shadow */
+            if (v == ABBE_LCNC_VARIANT_F32) {
+                float x[17];
+                for (unsigned i = 0; i < 17u; i++) {
+                    x[i] = (float)in.th_in[i];
+                }
+                assert_int_equal(abbe_thermal_update_f32(&sh, x, 0x1FFFFu, 1.0f), ABBE_OK);
+            } else {
+                assert_int_equal(abbe_thermal_update_q(&sh, xm, 0x1FFFFu, 1000u), ABBE_OK);
+            }
+            n++;
+        }
+        abbe_lcnc_step(&port, &p, PERIOD_NS, &in, &out);
+        if (v == ABBE_LCNC_VARIANT_F32) {
+            float e[3] = {0, 0, 0};
+            abbe_thermal_apply_f32(&sh, e);
+            float y[5];
+            abbe_thermal_channels_f32(&sh, y);
+            for (unsigned c = 0; c < 5u; c++) {
+                assert_true(fabs(out.th_channel[c] - (double)y[c]) <= 1e-9);
+                ymax = fabs(out.th_channel[c]) > ymax ? fabs(out.th_channel[c]) : ymax;
+            }
+        } else {
+            int32_t e[3] = {0, 0, 0};
+            abbe_thermal_apply_q(&sh, e);
+            int32_t y[5];
+            abbe_thermal_channels_q(&sh, y);
+            for (unsigned c = 0; c < 5u; c++) {
+                assert_true(fabs(out.th_channel[c] - (double)y[c] / 1000.0) <= 1e-9);
+                ymax = fabs(out.th_channel[c]) > ymax ? fabs(out.th_channel[c]) : ymax;
+            }
+        }
+        assert_int_equal(out.th_flags, abbe_thermal_flags(&sh));
+        assert_int_equal(out.th_samples, n);
+        double step = 0.0;
+        for (unsigned j = 0; j < 3u; j++) {
+            double d = fabs(out.target_mm[j] - prev[j]) * 1e6; /* nm */
+            step = d > step ? d : step;
+            prev[j] = out.target_mm[j];
+        }
+        if (k > 1000u && k < STUCK_HOLD_FROM * periods) {
+            step_clean = step > step_clean ? step : step_clean;
+        }
+        if ((out.th_flags & ABBE_THERMAL_F_STUCK) && k_flag == 0u) {
+            k_flag = k;
+        }
+        if (k_flag != 0u) { /* the fade-out, the hold, the catch-up and fade-in */
+            step_fade = step > step_fade ? step : step_fade;
+            if (k % periods != 0u) { /* between samples only the fades move it */
+                step_between = step > step_between ? step : step_between;
+            }
+        }
+        if (k_flag != 0u && k_clear == 0u) {
+            if (!(out.th_flags & ABBE_THERMAL_F_STUCK)) {
+                k_clear = k;
+            } else {
+                assert_true(out.th_flags & ABBE_THERMAL_F_HOLD);
+                assert_int_equal(out.th_input_faults, 1u << ABBE_STUCK_INPUT);
+            }
+        }
+        if (k > 31000u && k_flag == 0u) { /* faded in (the table's 30 s), still moving or not yet stuck */
+            assert_int_equal(out.th_flags & (ABBE_THERMAL_F_FAULTS | ABBE_THERMAL_F_HOLD | ABBE_THERMAL_F_FADING), 0u);
+        }
+        if (k_flag != 0u && k == k_flag + 30100u) { /* the table's fade (30 s, in whole weight steps) is over */
+            for (unsigned c = 0; c < tm.n_channels; c++) {
+                if (v == ABBE_LCNC_VARIANT_F32) {
+                    assert_int_equal(sh.w[c] == 0.0f, (reads >> c) & 1u);
+                } else {
+                    assert_int_equal(sh.wq24[c] == 0u, (reads >> c) & 1u);
+                }
+            }
+        }
+    }
+    assert_true(k_flag != 0u);
+    /* the last change at sample STUCK_HOLD_FROM - 1; cleared by the first sample that moves */
+    uint32_t flag_ms = k_flag - (STUCK_HOLD_FROM - 1u) * periods;
+    assert_int_equal(k_clear, STUCK_HOLD_TO * periods);
+    assert_int_equal(out.th_flags & (ABBE_THERMAL_F_FAULTS | ABBE_THERMAL_F_HOLD | ABBE_THERMAL_F_FADING), 0u);
+    assert_true(abbe_thermal_events(&port.th) & ABBE_THERMAL_F_STUCK);
+    double fade_step = 5.0 * ymax * 1000.0 * 0.001 / 30.0 + 2.0; /* every channel's, 1 ms of 30 s */
+    double bound = step_clean + fade_step;
+    print_message("LinuxCNC stuck sensor (%s): th.flags STUCK %u ms after the last change; largest target step per "
+                  "period %.1f nm clean, %.1f nm from the flag through the fade-out and back (bound %.1f), "
+                  "%.2f nm between samples (bound %.2f)\n",
+                  v == ABBE_LCNC_VARIANT_F32 ? "f32" : "q", flag_ms, step_clean, step_fade, bound, step_between,
+                  fade_step);
+    assert_int_equal(flag_ms, 60000u * ABBE_STUCK_MIN);
+    assert_true(step_fade <= bound);
+    assert_true(step_between <= fade_step);
+}
+
+static void test_stuck_q(void **state)
+{
+    (void)state;
+    stuck_case(ABBE_LCNC_VARIANT_Q);
+}
+
+static void test_stuck_f32(void **state)
+{
+    (void)state;
+    stuck_case(ABBE_LCNC_VARIANT_F32);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_params_convert),
         cmocka_unit_test(test_thermal_q),
         cmocka_unit_test(test_thermal_f32),
+        cmocka_unit_test(test_stuck_q),
+        cmocka_unit_test(test_stuck_f32),
         cmocka_unit_test(test_params_rejected),
         cmocka_unit_test(test_runtime_bad_param),
         cmocka_unit_test(test_register_after_motion_q),

@@ -20,6 +20,7 @@
 
 #include "abbe/modbus_port.h"
 #include "golden_thermal.h"
+#include "thermal_stuck.h"
 #include "harness.h"
 
 #define CYCLE_US 100000u
@@ -33,13 +34,12 @@ static abbe_model_t sh_model;
 static abbe_thermal_model_t sh_tm;
 static abbe_thermal_state_t sh_th;
 
-static int group_setup(void **state)
+static int server_start(const uint8_t *blob, size_t size)
 {
-    (void)state;
     snprintf(model_path, sizeof model_path, "%s/abbe-mb-thermal-%ld.bin",
              getenv("TMPDIR") ? getenv("TMPDIR") : "/tmp", (long)getpid());
     FILE *f = fopen(model_path, "wb");
-    if (f == NULL || fwrite(abbe_golden_thermal_blob, 1, abbe_golden_thermal_blob_size, f) != abbe_golden_thermal_blob_size) {
+    if (f == NULL || fwrite(blob, 1, size, f) != size) {
         return -1;
     }
     fclose(f);
@@ -52,12 +52,28 @@ static int group_setup(void **state)
     /* the shadow: the server's defaults, the same table, enabled */
     abbe_mb_regs_config_t cfg;
     abbe_mb_regs_default_config(&cfg);
-    if (abbe_thermal_load(&sh_model, &sh_tm, abbe_golden_thermal_blob, abbe_golden_thermal_blob_size) != ABBE_OK ||
+    if (abbe_thermal_load(&sh_model, &sh_tm, blob, size) != ABBE_OK ||
         abbe_comp_init(&shadow, &cfg.comp, &sh_model) != ABBE_OK || abbe_comp_enable(&shadow) != ABBE_OK ||
         abbe_thermal_init_q(&sh_th, &sh_tm, CYCLE_US) != ABBE_OK) {
         return -1;
     }
     return ctx != NULL ? 0 : -1;
+}
+
+static int group_setup(void **state)
+{
+    (void)state;
+    return server_start(abbe_golden_thermal_blob, abbe_golden_thermal_blob_size);
+}
+
+/* the golden table with input ABBE_STUCK_INPUT's stuck check on (2 min, 0.02 K) */
+static union { uint32_t align; uint8_t b[8192]; } stuck_blob;
+
+static int stuck_group_setup(void **state)
+{
+    (void)state;
+    size_t size = abbe_stuck_blob(stuck_blob.b, sizeof stuck_blob.b);
+    return size > 0u ? server_start(stuck_blob.b, size) : -1;
 }
 
 static int group_teardown(void **state)
@@ -73,15 +89,23 @@ static int group_teardown(void **state)
 
 typedef struct { int32_t corr[3], err[3], y[5]; uint16_t flags; uint32_t faults; } answer_t;
 
-/* One sample: inputs as the registers carry them (0.01 degC; rpm), with faults */
+/* The stuck test's reading of input ABBE_STUCK_INPUT, m degC (-1: the golden one). */
+static int32_t stuck_milli = -1;
+
+/* One sample: inputs as the registers carry them (0.01 degC; rpm), with faults;
+ * past the golden record its last sample again (a wrap's jump would be a STEP fault) */
 static void sample(uint32_t n, int no_reading, int hot)
 {
-    const abbe_golden_thermal_sample_t *s = &abbe_golden_thermal_samples[n % abbe_golden_thermal_sample_count];
+    const abbe_golden_thermal_sample_t *s =
+        &abbe_golden_thermal_samples[n < abbe_golden_thermal_sample_count ? n : abbe_golden_thermal_sample_count - 1u];
     uint16_t w[ABBE_MB_TIN_COUNT];
     int32_t x[17];
     uint32_t valid = 0;
     for (unsigned k = 0; k < 17u; k++) {
         int32_t v = k == 16u ? s->x_milli[k] : s->x_milli[k] / 10;
+        if (k == ABBE_STUCK_INPUT && stuck_milli >= 0) {
+            v = stuck_milli / 10;
+        }
         if (k == 7u && hot) {
             v = 30000; /* 300 degC: a short, beyond the input's valid range */
         }
@@ -210,10 +234,105 @@ static void test_thermal_inputs_and_faults(void **state)
     assert_int_equal(modbus_write_registers(ctx, ABBE_MB_REG_IN_TH_DT_MS, 2, zero), -1);
 }
 
+/* A stuck sensor (a server running the golden table with input
+ * ABBE_STUCK_INPUT's stuck check on: 2 min, 0.02 K): the input ramps, then
+ * repeats one value for 240 s, then ramps again. TH_FLAGS (the port's thermal
+ * status register) shows ABBE_THERMAL_F_STUCK exactly 120 s after the last
+ * change, TH_INPUT_FAULTS the input, TH_EVENTS keeps it; the error fades out
+ * with no step larger than a fade step and everything clears when the reading
+ * moves again. Every cycle equals the shadow (cycle()). */
+#define STUCK_HOLD_FROM 90u  /* samples (1 s apart) */
+#define STUCK_HOLD_TO 330u
+#define STUCK_SAMPLES 420u
+
+static void test_stuck_sensor(void **state)
+{
+    (void)state;
+    const int32_t base = abbe_golden_thermal_samples[0].x_milli[ABBE_STUCK_INPUT];
+    uint32_t reads = 0; /* channels that read the stuck input */
+    for (unsigned c = 0; c < sh_tm.n_channels; c++) {
+        reads |= ((sh_tm.channel_inputs[c] >> ABBE_STUCK_INPUT) & 1u) << c;
+    }
+    assert_true(reads != 0u);
+    int32_t prev[3] = {0, 0, 0}, step_clean = 0, step_fade = 0, step_between = 0, y_flag[5] = {0};
+    uint32_t n = 0, k_flag = 0, k_clear = 0, k_last_change = 0;
+    answer_t a;
+    memset(&a, 0, sizeof a);
+    for (uint32_t k = 0; n < STUCK_SAMPLES || k % SAMPLE_EVERY != 0u; k++) {
+        if (k % SAMPLE_EVERY == 0u) {
+            stuck_milli = abbe_stuck_reading_milli(base, n, STUCK_HOLD_FROM, STUCK_HOLD_TO);
+            if (n == STUCK_HOLD_FROM - 1u) {
+                k_last_change = k;
+            }
+            sample(n++, -1, 0);
+        }
+        a = cycle((uint16_t)k);
+        int32_t step = 0;
+        for (unsigned j = 0; j < 3; j++) {
+            int32_t d = abs(a.err[j] - prev[j]);
+            step = d > step ? d : step;
+            prev[j] = a.err[j];
+        }
+        if (k > 400u && k < SAMPLE_EVERY * STUCK_HOLD_FROM) {
+            step_clean = step > step_clean ? step : step_clean; /* faded in, the sensor moving */
+        }
+        if ((a.flags & ABBE_THERMAL_F_STUCK) && k_flag == 0u) {
+            k_flag = k;
+            memcpy(y_flag, a.y, sizeof y_flag);
+        }
+        if (k_flag != 0u) { /* the fade-out, the hold, the catch-up and fade-in */
+            step_fade = step > step_fade ? step : step_fade;
+            if (k % SAMPLE_EVERY != 0u) { /* between samples only the fades move it */
+                step_between = step > step_between ? step : step_between;
+            }
+        }
+        if (k_flag != 0u && k_clear == 0u) {
+            if (!(a.flags & ABBE_THERMAL_F_STUCK)) {
+                k_clear = k;
+            } else {
+                assert_true(a.flags & ABBE_THERMAL_F_HOLD);
+                assert_int_equal(a.faults, 1u << ABBE_STUCK_INPUT);
+            }
+        }
+        if (k > 400u && k_flag == 0u) {
+            assert_int_equal(a.flags & (ABBE_THERMAL_F_FAULTS | ABBE_THERMAL_F_HOLD | ABBE_THERMAL_F_FADING), 0);
+        }
+        if (k_flag != 0u && k == k_flag + 301u) { /* the table's fade (30 s) is over: faded out */
+            for (unsigned c = 0; c < sh_tm.n_channels; c++) {
+                assert_int_equal(sh_th.wq24[c] == 0u, (reads >> c) & 1u);
+            }
+        }
+    }
+    stuck_milli = -1;
+    assert_true(k_flag != 0u);
+    assert_int_equal(k_clear, SAMPLE_EVERY * STUCK_HOLD_TO); /* the first sample that moves */
+    assert_int_equal(a.flags & (ABBE_THERMAL_F_FAULTS | ABBE_THERMAL_F_HOLD | ABBE_THERMAL_F_FADING), 0);
+    uint16_t ev[2];
+    assert_int_equal(modbus_read_registers(ctx, ABBE_MB_REG_TH_EVENTS, 2, ev), 2);
+    assert_true(mbt_get32(ev, 0) & ABBE_THERMAL_F_STUCK); /* sticky */
+    uint32_t flag_ms = (k_flag - k_last_change) * (CYCLE_US / 1000u);
+    int32_t fade_step = 0;
+    for (unsigned c = 0; c < 5u; c++) {
+        fade_step += abs(y_flag[c]) / 300 + 1; /* one fade step (100 ms of 30 s) of each channel */
+    }
+    int32_t bound = step_clean + fade_step;
+    print_message("Modbus stuck sensor: TH_FLAGS 0x%02X %u ms after the last change; largest error step per cycle "
+                  "%d nm clean, %d nm from the flag through the fade-out and back (bound %d), %d nm between samples "
+                  "(bound %d); cleared when it moved\n",
+                  (unsigned)ABBE_THERMAL_F_STUCK, flag_ms, step_clean, step_fade, bound, step_between, fade_step);
+    assert_int_equal(flag_ms, 60000u * ABBE_STUCK_MIN);
+    assert_true(step_fade <= bound);
+    assert_true(step_between <= fade_step);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_thermal_inputs_and_faults),
     };
-    return cmocka_run_group_tests(tests, group_setup, group_teardown);
+    const struct CMUnitTest stuck_tests[] = {
+        cmocka_unit_test(test_stuck_sensor),
+    };
+    int failed = cmocka_run_group_tests(tests, group_setup, group_teardown);
+    return failed + cmocka_run_group_tests(stuck_tests, stuck_group_setup, group_teardown);
 }

@@ -28,6 +28,7 @@
 #include "abbe_can_linux.h"
 #include "can_test_util.h"
 #include "golden_thermal.h"
+#include "thermal_stuck.h"
 
 #define TH_ID 0x3F0u
 #define STATUS_ID 0x1F0u
@@ -47,9 +48,8 @@ typedef struct {
 
 static fixture_t fx;
 
-static int setup(void **state)
+static int setup_blob(const uint8_t *blob, size_t size)
 {
-    (void)state;
     memset(&fx, 0, sizeof fx);
     int sv[2];
     assert_int_equal(socketpair(AF_UNIX, SOCK_SEQPACKET, 0, sv), 0);
@@ -72,7 +72,7 @@ static int setup(void **state)
         c.axis[j].rate_nm_per_cycle = 10000;
     }
     assert_int_equal(abbe_can_node_init(&fx.node, &c), ABBE_CAN_OK);
-    assert_int_equal(abbe_can_node_load_model(&fx.node, abbe_golden_thermal_blob, abbe_golden_thermal_blob_size),
+    assert_int_equal(abbe_can_node_load_model(&fx.node, blob, size),
                      ABBE_CAN_OK);
     /* the shadow: the same compensator settings as the node builds */
     abbe_comp_config_t cc;
@@ -87,11 +87,27 @@ static int setup(void **state)
     cc.stale_cycles = c.stale_cycles;
     assert_int_equal(abbe_comp_init(&fx.shadow, &cc, NULL), ABBE_OK);
     assert_int_equal(abbe_comp_enable(&fx.shadow), ABBE_OK);
-    assert_int_equal(abbe_thermal_load(&fx.sh_model, &fx.sh_tm, abbe_golden_thermal_blob,
-                                       abbe_golden_thermal_blob_size), ABBE_OK);
+    assert_int_equal(abbe_thermal_load(&fx.sh_model, &fx.sh_tm, blob, size), ABBE_OK);
     assert_int_equal(abbe_comp_swap_model(&fx.shadow, &fx.sh_model), ABBE_OK);
     assert_int_equal(abbe_thermal_init_q(&fx.sh_th, &fx.sh_tm, CYCLE_US), ABBE_OK);
     return 0;
+}
+
+static int setup(void **state)
+{
+    (void)state;
+    return setup_blob(abbe_golden_thermal_blob, abbe_golden_thermal_blob_size);
+}
+
+/* the golden table with input ABBE_STUCK_INPUT's stuck check on (2 min, 0.02 K) */
+static union { uint32_t align; uint8_t b[ABBE_CAN_BLOB_MAX]; } stuck_blob;
+
+static int setup_stuck(void **state)
+{
+    (void)state;
+    size_t size = abbe_stuck_blob(stuck_blob.b, sizeof stuck_blob.b);
+    assert_true(size > 0u);
+    return setup_blob(stuck_blob.b, size);
 }
 
 static int teardown(void **state)
@@ -107,6 +123,9 @@ static void bus_send(abbe_can_frame_t f)
     assert_int_equal(abbe_can_fd_write(fx.peer, &f), ABBE_CAN_OK);
 }
 
+/* The stuck test's reading of input ABBE_STUCK_INPUT, m degC (-1: the golden one). */
+static int32_t stuck_milli = -1;
+
 /* The sample's five thermal frames; no_reading: input whose slot says "no reading". */
 static void send_thermal(const abbe_golden_thermal_sample_t *s, int no_reading, int32_t x_sent[17], uint32_t *valid)
 {
@@ -118,6 +137,9 @@ static void send_thermal(const abbe_golden_thermal_sample_t *s, int no_reading, 
             int32_t v = 0;
             if (k < 17u) {
                 v = k == 16u ? s->x_milli[k] : s->x_milli[k] / 10; /* rpm; m degC -> 0.01 degC */
+                if (k == ABBE_STUCK_INPUT && stuck_milli >= 0) {
+                    v = stuck_milli / 10;
+                }
                 x_sent[k] = k == 16u ? v : 10 * v;
                 if ((int)k == no_reading) {
                     v = ABBE_CAN_TEMP_NO_READING;
@@ -141,7 +163,9 @@ static answer_t cycle(uint32_t n, int no_reading, int send_sample)
     int32_t x[17];
     uint32_t valid = 0;
     if (send_sample) {
-        send_thermal(&abbe_golden_thermal_samples[n % abbe_golden_thermal_sample_count], no_reading, x, &valid);
+        /* past the golden record: its last sample again (a wrap's jump would be a STEP fault) */
+        uint32_t g = n < abbe_golden_thermal_sample_count ? n : abbe_golden_thermal_sample_count - 1u;
+        send_thermal(&abbe_golden_thermal_samples[g], no_reading, x, &valid);
         assert_int_equal(abbe_thermal_update_q(&fx.sh_th, x, valid, SAMPLE_EVERY * CYCLE_US / 1000u), ABBE_OK);
     }
     bus_send(ctu_frame(0x080u, 0, NULL));
@@ -267,11 +291,110 @@ static void test_thermal_frame_dlc_and_no_block(void **state)
     assert_null(abbe_can_node_thermal(&fx.node));
 }
 
+/* A stuck sensor (the golden table with input ABBE_STUCK_INPUT's stuck check
+ * on: 2 min, 0.02 K): the input ramps, then repeats one value for 240 s, then
+ * ramps again. The status frame's TempStale bit (the port's thermal fault
+ * report) rises exactly 120 s after the last change, the thermal part fades
+ * out with no step larger than a fade step, and everything clears when the
+ * reading moves again. Every cycle equals the shadow (cycle()). */
+#define STUCK_HOLD_FROM 90u  /* samples (1 s apart) */
+#define STUCK_HOLD_TO 330u
+#define STUCK_SAMPLES 420u
+
+static void test_stuck_sensor(void **state)
+{
+    (void)state;
+    const abbe_thermal_state_t *th = NULL;
+    const int32_t base = abbe_golden_thermal_samples[0].x_milli[ABBE_STUCK_INPUT];
+    uint32_t reads = 0; /* channels that read the stuck input */
+    for (unsigned c = 0; c < fx.sh_tm.n_channels; c++) {
+        reads |= ((fx.sh_tm.channel_inputs[c] >> ABBE_STUCK_INPUT) & 1u) << c;
+    }
+    assert_true(reads != 0u);
+    int32_t prev[3] = {0, 0, 0}, step_clean = 0, step_fade = 0, step_between = 0, y_flag[5] = {0};
+    uint32_t n = 0, cyc_flag = 0, cyc_clear = 0, cyc_last_change = 0;
+    answer_t a;
+    memset(&a, 0, sizeof a);
+    for (uint32_t cyc = 0; n < STUCK_SAMPLES || cyc % SAMPLE_EVERY != 0u; cyc++) {
+        int sample = cyc % SAMPLE_EVERY == 0u;
+        if (sample) {
+            stuck_milli = abbe_stuck_reading_milli(base, n, STUCK_HOLD_FROM, STUCK_HOLD_TO);
+            if (n == STUCK_HOLD_FROM - 1u) {
+                cyc_last_change = cyc;
+            }
+        }
+        a = cycle(n, -1, sample);
+        n += (uint32_t)sample;
+        th = abbe_can_node_thermal(&fx.node);
+        assert_non_null(th);
+        uint32_t fl = abbe_thermal_flags(th);
+        int32_t step = 0;
+        for (unsigned j = 0; j < 3; j++) {
+            int32_t d = abs(a.corr[j] - prev[j]);
+            step = d > step ? d : step;
+            prev[j] = a.corr[j];
+        }
+        if (cyc > 400u && cyc < 10u * STUCK_HOLD_FROM) {
+            step_clean = step > step_clean ? step : step_clean; /* faded in, the sensor moving */
+        }
+        if ((fl & ABBE_THERMAL_F_STUCK) && cyc_flag == 0u) {
+            cyc_flag = cyc;
+            assert_int_equal(abbe_thermal_channels_q(th, y_flag), 5);
+        }
+        if (cyc_flag != 0u) { /* the fade-out, the hold, the catch-up and fade-in */
+            step_fade = step > step_fade ? step : step_fade;
+            if (cyc % SAMPLE_EVERY != 0u) { /* between samples only the fades move it */
+                step_between = step > step_between ? step : step_between;
+            }
+        }
+        if (cyc_flag != 0u && cyc_clear == 0u) {
+            if (!(fl & ABBE_THERMAL_F_STUCK)) {
+                cyc_clear = cyc;
+            } else {
+                assert_true(fl & ABBE_THERMAL_F_HOLD);
+                assert_int_equal(abbe_thermal_input_faults(th), 1u << ABBE_STUCK_INPUT);
+                assert_int_equal(a.st.temp_stale, 1); /* the status frame says so */
+            }
+        }
+        if (cyc > 400u && cyc_flag == 0u) {
+            assert_int_equal(fl & (ABBE_THERMAL_F_FAULTS | ABBE_THERMAL_F_HOLD | ABBE_THERMAL_F_FADING), 0u);
+            assert_int_equal(a.st.temp_stale, 0);
+        }
+        if (cyc_flag != 0u && cyc == cyc_flag + 301u) { /* the table's fade (30 s) is over: faded out */
+            for (unsigned c = 0; c < fx.sh_tm.n_channels; c++) {
+                assert_int_equal(fx.sh_th.wq24[c] == 0u, (reads >> c) & 1u);
+            }
+        }
+    }
+    assert_true(cyc_flag != 0u);
+    assert_true(cyc_clear != 0u);
+    /* clears on the first sample that moves (the frames of sample STUCK_HOLD_TO) */
+    assert_int_equal(cyc_clear, SAMPLE_EVERY * STUCK_HOLD_TO);
+    assert_true(abbe_thermal_events(th) & ABBE_THERMAL_F_STUCK);
+    assert_int_equal(abbe_thermal_flags(th) & (ABBE_THERMAL_F_FAULTS | ABBE_THERMAL_F_HOLD | ABBE_THERMAL_F_FADING), 0u);
+    assert_int_equal(a.st.temp_stale, 0);
+    uint32_t flag_ms = (cyc_flag - cyc_last_change) * (CYCLE_US / 1000u);
+    int32_t fade_step = 0;
+    for (unsigned c = 0; c < 5u; c++) {
+        fade_step += abs(y_flag[c]) / 300 + 1; /* one fade step (100 ms of 30 s) of each channel */
+    }
+    int32_t bound = step_clean + fade_step;
+    print_message("CAN stuck sensor: TempStale %u ms after the last change; largest correction step per cycle "
+                  "%d nm clean, %d nm from the flag through the fade-out and back (bound %d), %d nm between samples "
+                  "(bound %d); cleared when it moved\n",
+                  flag_ms, step_clean, step_fade, bound, step_between, fade_step);
+    assert_int_equal(flag_ms, 60000u * ABBE_STUCK_MIN);
+    assert_true(step_fade <= bound);
+    assert_true(step_between <= fade_step);
+    stuck_milli = -1;
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test_setup_teardown(test_thermal_frames_and_a_sensor_fault, setup, teardown),
         cmocka_unit_test_setup_teardown(test_thermal_frame_dlc_and_no_block, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_stuck_sensor, setup_stuck, teardown),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
