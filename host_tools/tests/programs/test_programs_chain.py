@@ -175,6 +175,17 @@ def test_probing_program_closed_loop(tmp_path: Path, name: str) -> None:
     for r in seen:
         floor = 1.0 if r["unit"] == "um" else 5.0
         assert abs(r["value"] - err[r["name"]]) <= max(r["u95"], floor), r
+    # the fit goes on to the module's parameters: abbe export reads the real chain_fit.json
+    target = {"5axiskins": "linuxcnc-5axiskins", "maxkins": "linuxcnc-maxkins",
+              "xyzab-tdr": "linuxcnc-xyzab-tdr"}[name]
+    assert main(["export", str(tmp_path / "fit" / "chain_fit.json"), "-f", target, "-o",
+                 str(tmp_path / "x"), "--machine", str(m), "--set", "volume_points=3",
+                 "rotary_points=5"]) == 0
+    rep = json.loads((tmp_path / "x" / "residual.json").read_text())
+    assert sorted(rep["not_observable"]["items"]) == sorted(
+        r["name"] for r in doc["location"] if r["value"] is None)
+    for key in ("volume", "tcp_path"):
+        assert rep[key]["residual"]["norm"]["rms_um"] < rep[key]["uncompensated"]["norm"]["rms_um"]
 
 
 @pytest.mark.parametrize("name", sorted(FILES))
