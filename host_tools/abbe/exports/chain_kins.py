@@ -77,6 +77,7 @@ class ChainContext:
     model_source: str = ""
     machine_source: str = ""
     not_observable: list[str] = field(default_factory=list)
+    motions_not_read: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -160,6 +161,10 @@ def load_chain_context(model: Path, machine, options: dict[str, Any]) -> ChainCo
                                  f"+-{LOCATION_LIMIT:g} or null (not observable), got {v!r}",
                                  file=name, field=f"{f}.value")
         loc[n] = float(v)
+    motions = doc.get("motions", [])
+    motion_names = [str(r.get("name")) for r in motions
+                    if isinstance(r, dict) and r.get("value") is not None] \
+        if isinstance(motions, list) else []
     missing = [n for n in want_names if n not in seen]
     if missing:
         raise AbbeInputError(f"missing location errors: {', '.join(missing)}", file=name,
@@ -172,7 +177,8 @@ def load_chain_context(model: Path, machine, options: dict[str, Any]) -> ChainCo
         travel[a] = tuple(float(v) for v in machine.axes[a].travel_mm)
     return ChainContext(chain=chain, errors=FiveAxisErrors(location=loc), travel_mm=travel,
                         options=options, model_source=name,
-                        machine_source=Path(machine.path).name, not_observable=unobs)
+                        machine_source=Path(machine.path).name, not_observable=unobs,
+                        motions_not_read=motion_names)
 
 
 def require(ok: bool, ctx: ChainContext, module: str, what: str) -> None:
@@ -350,7 +356,10 @@ def evaluate(ctx: ChainContext, exp: ChainExport) -> dict[str, Any]:
         "not_observable": {"items": ctx.not_observable,
                            "note": "not observable by the fit's plan: written at nominal, "
                                    "neither corrected nor sized here"},
-        "notes": exp.notes, "assumptions": exp.assumptions, "sources": exp.sources,
+        "notes": exp.notes + ([
+            "the fit's error motions are not read by this export (neither written nor sized): "
+            + ", ".join(ctx.motions_not_read)] if ctx.motions_not_read else []),
+        "assumptions": exp.assumptions, "sources": exp.sources,
         "files": sorted(exp.files),
     }
 

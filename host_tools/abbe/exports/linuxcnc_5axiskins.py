@@ -104,7 +104,7 @@ def build(ctx: ChainContext) -> ChainExport:
     unobs = [n for n in ctx.not_observable if n in HELD]
     notes = ["5axiskins holds where B's line crosses the tool axis (pivot-length) and the "
              "angular zeros; the lines' offsets across the tool axis and their tilts are the "
-             "residual (abbe's HAL component corrects them: docs/linuxcnc.md)"]
+             "residual (this export writes no table of them for abbe's HAL component yet)"]
     if unobs:
         notes.append("written at their nominal value (not observable by the fit): "
                      + ", ".join(unobs))

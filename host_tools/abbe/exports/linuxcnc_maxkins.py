@@ -129,7 +129,7 @@ def build(ctx: ChainContext) -> ChainExport:
     unobs = [n for n in ctx.not_observable if n in HELD]
     notes = ["maxkins holds the head's pivot height (pivot-length), the table's centre (as "
              "the X/Y home offsets) and the angular zeros; EX0B and the tilts are the residual "
-             "(abbe's HAL component corrects them: docs/linuxcnc.md)",
+             "(this export writes no table of them for abbe's HAL component yet)",
              "after the X/Y HOME_OFFSET change re-probe the work offsets (G54...): machine "
              "coordinates move by the C line's offset"]
     if unobs:

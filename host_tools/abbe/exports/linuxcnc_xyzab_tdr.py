@@ -123,7 +123,7 @@ def build(ctx: ChainContext) -> ChainExport:
                    "from": f"today + direction x E{a}0{a}"} for a in ("A", "B")]
     unobs = [n for n in ctx.not_observable if n in HELD]
     notes = ["xyzab_tdr_kins holds both lines' positions and the angular zeros; the lines' "
-             "tilts are the residual (abbe's HAL component corrects them: docs/linuxcnc.md)"]
+             "tilts are the residual (this export writes no table of them for abbe's HAL component yet)"]
     if unobs:
         notes.append("written at their nominal value (not observable by the fit): "
                      + ", ".join(unobs))

@@ -213,6 +213,15 @@ def test_written_values_follow_the_fit(tmp_path: Path) -> None:
     # direction -1: the joint reads -E0 more
     assert home[3] == pytest.approx(10.0 + np.degrees(115.6e-6), abs=1e-9)
     assert home[4] == pytest.approx(-np.degrees(69.6e-6), abs=1e-9)
+    # error motions of a fit with harmonics are not read: said, not silently dropped
+    doc = json.loads(fit.read_text())
+    doc["motions"] = [{"name": "EXA(A)", "value": 0.5, "u95": 0.1, "unit": "um",
+                       "status": "identified"}]
+    fit.write_text(json.dumps(doc))
+    assert main(["export", str(fit), "-f", fmt, "-o", str(tmp_path / "m"), "--machine",
+                 str(machine), "--set", *SMALL]) == 0
+    notes = json.loads((tmp_path / "m" / "residual.json").read_text())["notes"]
+    assert any("not read" in n and "EXA(A)" in n for n in notes)
 
 
 def test_bad_inputs_exit_2(tmp_path: Path, capsys) -> None:
