@@ -13,9 +13,9 @@ from abbe.cli.conventions import examples, json_file, json_option, json_to_stdou
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    from abbe.exports import FIVE_AXIS_TARGETS, TARGETS
+    from abbe.exports import CHAIN_TARGETS, FIVE_AXIS_TARGETS, TARGETS
 
-    names = list(TARGETS) + list(FIVE_AXIS_TARGETS)
+    names = list(TARGETS) + list(FIVE_AXIS_TARGETS) + list(CHAIN_TARGETS)
 
     p = subparsers.add_parser(
         "export", help="write a model in a controller's compensation format, with its residual",
@@ -24,14 +24,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "uncompensated over the work volume and the machine file's ballbar circles "
                     "(OUT/residual.json); a five-axis target (" + ", ".join(FIVE_AXIS_TARGETS)
                     + ") writes the rotary geometry of abbe fit's model_five.bin and needs the "
-                    "machine file. Targets: " + ", ".join(names) + ".",
+                    "machine file; a kinematics-module target (" + ", ".join(CHAIN_TARGETS)
+                    + ") writes the location errors of abbe fit's chain_fit.json (a [chain] "
+                    "machine file) as the module's parameters. Targets: " + ", ".join(names) + ".",
         epilog=examples("abbe export fit-out/model.bin --format linuxcnc-comp -o lcnc "
                         "--machine examples/vmc500/machine.toml",
                         "abbe export model.bin -f sinumerik-cec -o cec --set tables=8 points=200",
                         "abbe export model.bin -f fanuc-pitch --list-options -o x",
                         "abbe export fit5/model_five.bin -f linuxcnc-trt -o trt "
-                        "--machine examples/trunnion5ax/machine.toml"))
-    p.add_argument("model", type=Path, help="model: model.bin, table JSON or model.json")
+                        "--machine examples/trunnion5ax/machine.toml",
+                        "abbe export fitc/chain_fit.json -f linuxcnc-xyzab-tdr -o tdr "
+                        "--machine machine.toml"))
+    p.add_argument("model", type=Path, help="model: model.bin, table JSON, model.json, "
+                   "model_five.bin or chain_fit.json")
     p.add_argument("--format", "-f", required=True, choices=names, metavar="F",
                    help="target: " + ", ".join(names))
     p.add_argument("-o", "--out", type=Path, required=True, help="output directory")
@@ -46,7 +51,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from abbe.exports import run_export, run_five_export, target_module, write_files
+    from abbe.exports import (run_chain_export, run_export, run_five_export, target_module,
+                              write_files)
+    from abbe.exports.chain_kins import summary as chain_summary
     from abbe.exports.five_axis import summary as five_summary
     from abbe.exports.residual import summary
     from abbe.formats.machine import load_machine
@@ -62,7 +69,9 @@ def run(args: argparse.Namespace) -> int:
         staging = outs.directory(args.out, option="--out")  # checked before the work
         js = outs.file(json_file(args), option="--json") if json_file(args) else None
         machine = load_machine(args.machine) if args.machine else None
-        if getattr(mod, "FIVE_AXIS", False):
+        if getattr(mod, "CHAIN", False):
+            exp, report = run_chain_export(args.model, args.format, args.set, machine)
+        elif getattr(mod, "FIVE_AXIS", False):
             exp, report = run_five_export(args.model, args.format, args.set, machine)
         else:
             exp, report = run_export(load_table(args.model), args.format, args.set, machine,
@@ -75,6 +84,7 @@ def run(args: argparse.Namespace) -> int:
     if text is not None:
         sys.stdout.write(text)
     else:
-        show = five_summary if getattr(mod, "FIVE_AXIS", False) else summary
+        show = (chain_summary if getattr(mod, "CHAIN", False) else
+                five_summary if getattr(mod, "FIVE_AXIS", False) else summary)
         print(show(report).replace("wrote ", f"wrote {args.out}/: ", 1))
     return 0

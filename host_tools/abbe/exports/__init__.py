@@ -40,12 +40,40 @@ FIVE_AXIS_TARGETS: dict[str, str] = {
     "isg-kin91": "abbe.exports.isg_kin91",
 }
 
+#: kinematic-chain targets (a fitted ``[chain]``: abbe fit's chain_fit.json; :mod:`.chain_kins`).
+CHAIN_TARGETS: dict[str, str] = {
+    "linuxcnc-5axiskins": "abbe.exports.linuxcnc_5axiskins",
+    "linuxcnc-maxkins": "abbe.exports.linuxcnc_maxkins",
+    "linuxcnc-xyzab-tdr": "abbe.exports.linuxcnc_xyzab_tdr",
+}
+
 RESIDUAL_FILE = "residual.json"
 
 
 def target_module(name: str) -> ModuleType:
     """The module of target ``name`` (KeyError if unknown)."""
-    return importlib.import_module(TARGETS[name] if name in TARGETS else FIVE_AXIS_TARGETS[name])
+    for table in (TARGETS, FIVE_AXIS_TARGETS):
+        if name in table:
+            return importlib.import_module(table[name])
+    return importlib.import_module(CHAIN_TARGETS[name])
+
+
+def run_chain_export(model: Path, target: str, options: list[str] | None = None, machine=None
+                     ) -> tuple[Any, dict[str, Any]]:
+    """:func:`run_export` of a kinematic-chain target: ``model`` abbe fit's chain_fit.json,
+    ``machine`` the parsed ``[chain]`` machine file it was fitted from."""
+    from abbe.exports.chain_kins import evaluate, load_chain_context
+
+    mod = target_module(target)
+    opts = parse_options(target, mod.OPTIONS, list(options or []))
+    for k, o in mod.OPTIONS.items():  # X=..,Y=..,Z=.. values arrive as checked text
+        if o.kind == "axes" and o.item == "float":
+            opts[k] = {a: float(v) for a, v in opts[k].items()}
+    ctx = load_chain_context(model, machine, opts)
+    exp = mod.build(ctx)
+    report = evaluate(ctx, exp)
+    report["options"] = {k: v for k, v in opts.items()}
+    return exp, report
 
 
 def run_five_export(model: Path, target: str, options: list[str] | None = None, machine=None
