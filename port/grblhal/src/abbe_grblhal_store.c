@@ -1,6 +1,6 @@
 /* abbe grblHAL plugin glue: an uploaded table kept in non-volatile storage
  * for the next start-up, and the table chosen at start-up (a stored one, the
- * compiled-in one, or none; docs/grblhal.md "Uploading a table"). The
+ * compiled-in one, or none; docs/grblhal.md "Stored tables"). The
  * storage header's format is the core's (abbe_gh_store_header / _parse). */
 #include <stdio.h>
 #include <string.h>
