@@ -1,10 +1,12 @@
-/* abbe grblHAL plugin core, the state machine: parameters, start with a
- * table, enable / fade / fault, rehome, the forward transform of every
- * segment end and the thermal block's clock and samples, over the abbe
- * library's compensator (include/abbe_grblhal_core.h). The curvature scan
- * and the inverse are abbe_grblhal_core_eval.c, the line segmentation
- * abbe_grblhal_core_line.c, the upload and the stored header
- * abbe_grblhal_core_upload.c. C99, no heap, no I/O. */
+/* abbe grblHAL plugin core, the state machine: parameters and the segment
+ * length in force, a table's preparation, start with a table, enable / fade /
+ * fault, rehome, the forward transform of every segment end, and the thermal
+ * block's clock and samples, over the abbe library's compensator
+ * (include/abbe_grblhal_core.h). The curvature scan and the inverse are
+ * abbe_grblhal_core_eval.c, the line segmentation abbe_grblhal_core_line.c,
+ * the upload and the stored header abbe_grblhal_core_upload.c. Where a
+ * function lives keeps its callers' machine code as it was before the split
+ * (docs/architecture.md). C99, no heap, no I/O. */
 #include <string.h>
 
 #include "abbe_grblhal_core_private.h"
@@ -34,6 +36,23 @@ static void comp_config(const abbe_gh_params_t *p, abbe_comp_config_t *cfg)
     }
     cfg->fade_cycles = p->fade_segments;
     cfg->stale_cycles = 65535u; /* a cycle is a segment: the plugin steps only on motion */
+}
+
+float abbe_gh_segment_length(float dev_um, float kappa_um_per_mm2)
+{
+    if (!(kappa_um_per_mm2 > 0.0f) || !(dev_um > 0.0f)) {
+        return ABBE_GH_SEG_MAX_MM;
+    }
+    float len = sqrt_pos(8.0f * dev_um / kappa_um_per_mm2);
+    if (len < ABBE_GH_SEG_MIN_MM) {
+        return ABBE_GH_SEG_MIN_MM;
+    }
+    return len > ABBE_GH_SEG_MAX_MM ? ABBE_GH_SEG_MAX_MM : len;
+}
+
+float abbe_gh_deviation_um(float len_mm, float kappa_um_per_mm2)
+{
+    return len_mm * len_mm * 0.125f * kappa_um_per_mm2;
 }
 
 abbe_status_t abbe_gh_slot_prepare(abbe_gh_slot_t *s)

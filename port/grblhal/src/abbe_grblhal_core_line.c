@@ -1,46 +1,10 @@
-/* abbe grblHAL plugin core, the line segmentation: the segment length for
- * a deviation bound and the table's curvature, and a line split into
- * segments at the backlash take-ups and the travel box's faces
- * (include/abbe_grblhal_core.h, its header comment has the bound).
- * C99, no heap, no I/O. */
+/* abbe grblHAL plugin core, the line segmentation: a line split into
+ * segments no longer than the segment length in force, and at the backlash
+ * take-ups and the travel box's faces (include/abbe_grblhal_core.h, its
+ * header comment has the bound). C99, no heap, no I/O. */
 #include <string.h>
 
 #include "abbe_grblhal_core_private.h"
-
-/* Square root by Newton's method (no libm in the plugin core; only used at
- * table load and parameter changes). x >= 0. */
-static float sqrt_pos(float x)
-{
-    if (!(x > 0.0f)) {
-        return 0.0f;
-    }
-    float r = x > 1.0f ? x : 1.0f;
-    for (int i = 0; i < 40; i++) {
-        float next = 0.5f * (r + x / r);
-        if (absf(next - r) <= 1.0e-7f * next) {
-            return next;
-        }
-        r = next;
-    }
-    return r;
-}
-
-float abbe_gh_segment_length(float dev_um, float kappa_um_per_mm2)
-{
-    if (!(kappa_um_per_mm2 > 0.0f) || !(dev_um > 0.0f)) {
-        return ABBE_GH_SEG_MAX_MM;
-    }
-    float len = sqrt_pos(8.0f * dev_um / kappa_um_per_mm2);
-    if (len < ABBE_GH_SEG_MIN_MM) {
-        return ABBE_GH_SEG_MIN_MM;
-    }
-    return len > ABBE_GH_SEG_MAX_MM ? ABBE_GH_SEG_MAX_MM : len;
-}
-
-float abbe_gh_deviation_um(float len_mm, float kappa_um_per_mm2)
-{
-    return len_mm * len_mm * 0.125f * kappa_um_per_mm2;
-}
 
 /* Insert t into the ascending list ends[0..*n) unless it lies within 1e-6
  * of an entry (the same break); the last place stays for the line's end (at

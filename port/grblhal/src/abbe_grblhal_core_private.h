@@ -2,8 +2,10 @@
  * (abbe_grblhal_core.c the state machine, abbe_grblhal_core_eval.c the
  * curvature scan and the inverse, abbe_grblhal_core_line.c the line
  * segmentation, abbe_grblhal_core_upload.c the upload and the stored
- * header). The small helpers are static inline so that splitting the core
- * into files left the per-segment code as it was (docs/grblhal.md). */
+ * header). The small helpers are static inline, and each
+ * file holds the callees of its hot and its load-time paths, so that the
+ * split left the per-segment code and the flash as they were
+ * (docs/architecture.md). */
 #ifndef ABBE_GRBLHAL_CORE_PRIVATE_H
 #define ABBE_GRBLHAL_CORE_PRIVATE_H
 
@@ -30,6 +32,24 @@ static inline int32_t mm_to_nm(float mm)
 static inline float absf(float x)
 {
     return x < 0.0f ? -x : x;
+}
+
+/* Square root by Newton's method (no libm in the plugin core; only used at
+ * table load and parameter changes). x >= 0. */
+static inline float sqrt_pos(float x)
+{
+    if (!(x > 0.0f)) {
+        return 0.0f;
+    }
+    float r = x > 1.0f ? x : 1.0f;
+    for (int i = 0; i < 40; i++) {
+        float next = 0.5f * (r + x / r);
+        if (absf(next - r) <= 1.0e-7f * next) {
+            return next;
+        }
+        r = next;
+    }
+    return r;
 }
 
 /* 1 while a correction is applied (the last segment end's is not zero). */
