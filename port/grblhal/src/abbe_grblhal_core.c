@@ -55,6 +55,7 @@ float abbe_gh_deviation_um(float len_mm, float kappa_um_per_mm2)
     return len_mm * len_mm * 0.125f * kappa_um_per_mm2;
 }
 
+/* External (abbe_grblhal_core_private.h): the upload's commit prepares its slot too. */
 abbe_status_t abbe_gh_slot_prepare(abbe_gh_slot_t *s)
 {
     float kappa = 0.0f;
@@ -144,6 +145,8 @@ abbe_status_t abbe_gh_thermal_sample(abbe_gh_t *gh, const float x[], uint32_t va
     return ABBE_OK;
 }
 
+/* External (abbe_grblhal_core_private.h): a committed upload changes it too. Next
+ * to abbe_gh_segment_length, so its code is what it was before the split. */
 void abbe_gh_update_seg_len(abbe_gh_t *gh)
 {
     float len = ABBE_GH_SEG_MAX_MM;
