@@ -6,7 +6,7 @@
 #   ABBE_GRBLHAL_GLUE_SOURCES  the glue on grblHAL's interfaces (needs grblHAL's headers)
 set(_abbe_grblhal_src "${CMAKE_CURRENT_LIST_DIR}/src")
 set(ABBE_GRBLHAL_CORE_SOURCES
-    "${_abbe_grblhal_src}/abbe_grblhal_core.c"         # state machine, forward transform, thermal clock
+    "${_abbe_grblhal_src}/abbe_grblhal_core.c"         # state machine, segment length, forward transform, thermal clock
     "${_abbe_grblhal_src}/abbe_grblhal_core_eval.c"    # curvature scan, inverse transform
     "${_abbe_grblhal_src}/abbe_grblhal_core_line.c"    # line segmentation
     "${_abbe_grblhal_src}/abbe_grblhal_core_upload.c") # upload staging, stored-table header
