@@ -45,7 +45,7 @@ LOADER_PRECISION="-eva-split-return-function check_header:0 -eva-slevel-function
 HARNESSES=(
     "load3|tests/proofs/load3.c lib/src/model_load.c lib/src/crc32.c|-DPROOF_MAX_SIZE=512|$LOADER_PRECISION abbe_model_load:10"
     "load5|tests/proofs/load5.c lib/src/five_load.c lib/src/crc32.c|-DPROOF_MAX_SIZE=512|$LOADER_PRECISION abbe_five_model_load:40"
-    "grblhal|tests/proofs/grblhal.c port/grblhal/src/abbe_grblhal_core.c $(ls lib/src/*.c | tr '\n' ' ')|-Iport/grblhal/include -DPROOF_CHUNK=64|-eva-auto-loop-unroll 16"
+    "grblhal|tests/proofs/grblhal.c $(ls port/grblhal/src/abbe_grblhal_core*.c lib/src/*.c | tr '\n' ' ')|-Iport/grblhal/include -DPROOF_CHUNK=64|-eva-auto-loop-unroll 16"
     "lcnc_file|tests/proofs/lcnc_file.c port/linuxcnc/src/abbe_lcnc_file.c $(frama-c -print-share-path)/libc/string.c|-Iport/linuxcnc/include -DPROOF_MAX_SIZE=256|"
     "sincos|tests/proofs/sincos.c lib/src/sincos_q.c||"
 )

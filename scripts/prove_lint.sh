@@ -15,7 +15,9 @@ LIB=(lib/src/*.c)
 # the ports' portable cores: what runs in a drive or controller, no OS calls
 PORTS=(port/modbus/src/regs.c port/modbus/src/regs_render.c port/modbus/src/regs_upload.c port/modbus/src/regs_cycle.c
        port/modbus/src/regs_control.c port/socketcan/src/can_node.c port/socketcan/src/can_config_check.c
-       port/socketcan/src/can_frame.c port/socketcan/src/can_status.c port/grblhal/src/abbe_grblhal_core.c)
+       port/socketcan/src/can_frame.c port/socketcan/src/can_status.c
+       port/grblhal/src/abbe_grblhal_core.c port/grblhal/src/abbe_grblhal_core_eval.c
+       port/grblhal/src/abbe_grblhal_core_line.c port/grblhal/src/abbe_grblhal_core_upload.c)
 INC=(-Ilib/include -Ilib/src -Iport/modbus/include -Iport/socketcan/include -Iport/socketcan/src
      -Iport/grblhal/include)
 DEV="tests/proofs/misra_deviations.txt"

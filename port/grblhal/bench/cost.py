@@ -6,7 +6,8 @@ Builds port/grblhal/bench/bench_grblhal.c for both (build-bench-grblhal-m4f/,
 examples/vmc500, abbe table cgen), runs it under QEMU with an exec trace and
 counts the instructions of each call exactly (bench/report/measure.py's
 qemu_trace_counts: one trace line per executed instruction, minus an empty
-pair of marks); flash: the plugin core's object (all of it), and from the
+pair of marks); flash: the plugin core's objects (all of them,
+abbe_grblhal_core*.c: port/grblhal/sources.cmake), and from the
 link map the library members it pulls in and libgcc's soft-float helpers. Writes
 section 10 of bench/results.md (between its markers; replaced on every run)
 and, with --json, the figures.
@@ -45,14 +46,18 @@ def sh(cmd: list[str], **kw) -> subprocess.CompletedProcess:
     return subprocess.run(cmd, check=True, text=True, capture_output=True, **kw)
 
 
-def object_flash(obj: Path) -> int:
-    """Flash (.text*, .rodata*) of an object file: all of the plugin core, also
-    the functions this benchmark does not call (the upload)."""
+def object_flash(objs: list[Path]) -> int:
+    """Flash (.text*, .rodata*) of object files: all of the plugin core (its
+    files: port/grblhal/sources.cmake), also the functions this benchmark does
+    not call (the upload)."""
+    if not objs:
+        raise SystemExit("cost.py: no abbe_grblhal_core*.c.obj in the build")
     total = 0
-    for line in sh(["arm-none-eabi-size", "-A", str(obj)]).stdout.splitlines():
-        parts = line.split()
-        if len(parts) >= 2 and parts[0].startswith((".text", ".rodata")):
-            total += int(parts[1])
+    for obj in objs:
+        for line in sh(["arm-none-eabi-size", "-A", str(obj)]).stdout.splitlines():
+            parts = line.split()
+            if len(parts) >= 2 and parts[0].startswith((".text", ".rodata")):
+                total += int(parts[1])
     return total
 
 
@@ -106,7 +111,7 @@ def main() -> int:
         image = build / "bench" / "grblhal" / "bench_grblhal.elf"
         counts, out = qemu_trace_counts(machine, image, "arm-none-eabi-nm")
         maps = parse_map(image.with_suffix(".map"))
-        core = object_flash(next(build.glob("**/abbe_grblhal_core.c.obj")))
+        core = object_flash(sorted(build.glob("**/abbe_grblhal_core*.c.obj")))
         segs = re.search(r"^SEGMENTS (\d+)$", out, re.M)
         per_seg_circle = max(counts["forward_circle"])
         per_seg_line = max(counts["forward_line"]) + max(counts["line_next"])
@@ -145,10 +150,10 @@ def write_section(res: dict, thermal: bool = False) -> None:
          "transforms it (`abbe_gh_forward`: direction, one `abbe_comp_step`, motor = p + correction).",
          "Per line once `abbe_gh_line_begin`; per position report `abbe_gh_inverse` (fixed point of",
          "p = m - c(p), 1-2 iterations of one evaluation each, plus one at the last segment end).",
-         "Flash: the plugin core's object (all of it, the upload included), the library members",
+         "Flash: the plugin core's objects (all of them, the upload included), the library members",
          "it links, libgcc's soft-float helpers (M3: the core's float arithmetic; grblHAL links them",
-         "anyway). Not included: the grblHAL glue (abbe_grblhal.c: settings, commands, report; it",
-         "needs grblHAL to build).", "",
+         "anyway). Not included: the grblHAL glue (abbe_grblhal.c, _store.c, _settings.c, _commands.c:",
+         "kinematics hooks, storage, settings, commands, report; it needs grblHAL to build).", "",
          "| target | variant | transform per segment (circle) | per line segment (next + transform) | "
          "line begin | inverse | flash core + library + libgcc |",
          "|---|---|---:|---:|---:|---:|---:|"]

@@ -1,28 +1,28 @@
 /* abbe grblHAL plugin: installs the compensation on grblHAL's kinematics
- * interface, adds its $ settings, the $ABBE / $ABBEU / $ABBERESET commands and
- * the |ABBE: field of the status report (docs/grblhal.md).
+ * interface, adds its $ settings, the $ABBE / $ABBEU / $ABBET / $ABBERESET
+ * commands and the |ABBE: field of the status report (docs/grblhal.md).
  *
  * The plugin is Apache-2.0 (the project's licence); it includes grblHAL's
  * headers, and a firmware image that links grblHAL is GPL-3.0-or-later.
- * Everything that does not need grblHAL is in abbe_grblhal_core.c. */
+ * Everything that does not need grblHAL is in the core (abbe_grblhal_core*.c).
+ * The glue is this file (init, the kinematics, messages, the status report),
+ * abbe_grblhal_store.c, abbe_grblhal_settings.c and abbe_grblhal_commands.c
+ * (abbe_grblhal_glue.h). */
 #include <math.h>
 #include <stdio.h>
-#include <stdlib.h>
 #include <string.h>
 
 #include "grbl/hal.h"
 #include "grbl/kinematics/interface.h"
 #include "grbl/machine_limits.h"
-#include "grbl/nvs_buffer.h"
 #include "grbl/planner.h"
-#include "grbl/protocol.h"
 #include "grbl/report.h"
 #include "grbl/settings.h"
 #include "grbl/state_machine.h"
 #include "grbl/system.h"
 
 #include "abbe_grblhal.h"
-#include "abbe_grblhal_core.h"
+#include "abbe_grblhal_glue.h"
 
 #ifndef KINEMATICS_API
 #error "abbe_grblhal needs grblHAL built with KINEMATICS_API defined"
@@ -31,35 +31,7 @@
 #error "abbe_grblhal compensates X, Y and Z"
 #endif
 
-#ifdef ABBE_GRBLHAL_BUILTIN
-#include "abbe_model.h" /* abbe table cgen MODEL -o DIR */
-#endif
-
-#define SETTING_ENABLE ((setting_id_t)(ABBE_GRBLHAL_SETTING_BASE))
-#define SETTING_DEVIATION ((setting_id_t)(ABBE_GRBLHAL_SETTING_BASE + 1))
-#define SETTING_LIMIT ((setting_id_t)(ABBE_GRBLHAL_SETTING_BASE + 2))
-
-/* What is stored in grblHAL's non-volatile settings area. */
-typedef struct {
-    uint8_t enable;
-    float max_dev_um;
-    float limit_um;
-} abbe_nvs_settings_t;
-
-/* Physical non-volatile storage the driver provides, bytes, when it does not
- * say (hal.nvs.size_max == 0). Uploaded tables are kept above grblHAL's
- * buffered area (docs/grblhal.md); 0: none, uploads last until a restart.
- * The Simulator's EEPROM.DAT is 4096 bytes (its build sets this). */
-#ifndef ABBE_GRBLHAL_NVS_BYTES
-#define ABBE_GRBLHAL_NVS_BYTES 0
-#endif
-
-static abbe_gh_t gh;
-static abbe_nvs_settings_t cfg;
-static nvs_address_t nvs_address;
-static abbe_status_t boot_status = ABBE_OK;
-static char boot_text[144]; /* where the running table came from at start-up ($ABBE) */
-static bool booted;
+abbe_gh_t abbe_plugin;
 
 /* segment_line state: mc_line() keeps the pointer the first call returns and
  * hands it to the planner after every later call, so every segment is written
@@ -73,7 +45,7 @@ static float last_motor[3];
 static bool have_last_motor;
 
 /* Messages wait for the foreground (on_execute_realtime). */
-static char pending_msg[176];
+static char pending_msg[ABBE_PLUGIN_MESSAGE_BYTES];
 static volatile bool msg_pending;
 static bool msg_warning;
 static bool fault_reported;
@@ -85,12 +57,17 @@ static on_jog_cancel_ptr on_jog_cancel;
 static on_state_change_ptr on_state_change;
 static travel_limits_ptr check_travel_limits;
 
-static void queue_message(const char *text, bool warning)
+void abbe_plugin_queue_message(const char *text, bool warning)
 {
     msg_warning = warning;
     strncpy(pending_msg, text, sizeof pending_msg - 1u);
     pending_msg[sizeof pending_msg - 1u] = '\0';
     msg_pending = true;
+}
+
+void abbe_plugin_rearm_fault_message(void)
+{
+    fault_reported = false;
 }
 
 /* ---- kinematics ---------------------------------------------------------- */
@@ -104,20 +81,20 @@ static coord_data_t *abbe_transform_from_cartesian(coord_data_t *target, coord_d
     for (idx = 0; idx < N_AXIS; idx++)
         target->values[idx] = position->values[idx];
 
-    if (state_get() != STATE_HOMING && abbe_gh_active(&gh)) {
+    if (state_get() != STATE_HOMING && abbe_gh_active(&abbe_plugin)) {
         float motor[3];
-        abbe_gh_clock(&gh, hal.get_elapsed_ticks()); /* the thermal block advances by real time */
-        uint32_t flags = abbe_gh_forward(&gh, position->values, motor);
+        abbe_gh_clock(&abbe_plugin, hal.get_elapsed_ticks()); /* the thermal block advances by real time */
+        uint32_t flags = abbe_gh_forward(&abbe_plugin, position->values, motor);
         for (idx = 0; idx < 3; idx++)
             target->values[idx] = motor[idx];
         if ((flags & ABBE_FLAG_LIMIT) && !fault_reported) {
             fault_reported = true;
-            queue_message("abbe: correction limit exceeded, compensation fades out ($ABBERESET clears)", true);
+            abbe_plugin_queue_message("abbe: correction limit exceeded, compensation fades out ($ABBERESET clears)", true);
         }
         if (flags & ABBE_FLAG_MODEL_SWAPPED) {
             char text[64];
-            snprintf(text, sizeof text, "abbe: table %08lX in use", (unsigned long)abbe_model_crc(abbe_gh_model(&gh)));
-            queue_message(text, false);
+            snprintf(text, sizeof text, "abbe: table %08lX in use", (unsigned long)abbe_model_crc(abbe_gh_model(&abbe_plugin)));
+            abbe_plugin_queue_message(text, false);
         }
     }
     return target;
@@ -132,7 +109,7 @@ static coord_data_t *abbe_steps_to_cartesian(coord_data_t *position, mpos_t *ste
         position->values[idx] = (float)steps->values[idx] / settings.axis[idx].steps_per_mm;
     for (idx = 0; idx < 3; idx++)
         motor[idx] = position->values[idx];
-    (void)abbe_gh_inverse(&gh, motor, cart);
+    (void)abbe_gh_inverse(&abbe_plugin, motor, cart);
     for (idx = 0; idx < 3; idx++)
         position->values[idx] = cart[idx];
     return position;
@@ -148,11 +125,11 @@ static void line_start(const coord_data_t *position, float start[3])
     for (idx = 0; idx < 3 && same; idx++)
         same = fabsf(position->values[idx] - last_motor[idx]) <= 0.5f / settings.axis[idx].steps_per_mm + 1e-6f;
     if (same) {
-        memcpy(start, gh.last_cart, sizeof(float) * 3);
+        memcpy(start, abbe_plugin.last_cart, sizeof(float) * 3);
     } else {
         float motor[3] = {position->values[0], position->values[1], position->values[2]};
-        (void)abbe_gh_inverse(&gh, motor, start);
-        abbe_gh_set_position(&gh, start);
+        (void)abbe_gh_inverse(&abbe_plugin, motor, start);
+        abbe_gh_set_position(&abbe_plugin, start);
     }
 }
 
@@ -165,12 +142,12 @@ static coord_data_t *abbe_segment_line(coord_data_t *target, coord_data_t *posit
         jog_cancel = false;
         memcpy(&final_target, target, sizeof(coord_data_t));
         line_start(position, start);
-        line_compensated = abbe_gh_active(&gh);
+        line_compensated = abbe_gh_active(&abbe_plugin);
         if (line_compensated)
-            segments_left = abbe_gh_line_begin(&gh, &line, start, target->values);
+            segments_left = abbe_gh_line_begin(&abbe_plugin, &line, start, target->values);
         else {
             segments_left = 1;
-            abbe_gh_set_position(&gh, target->values);
+            abbe_gh_set_position(&abbe_plugin, target->values);
         }
         /* The first return is checked against the soft limits: the programmed
          * (Cartesian) target, as without the plugin. */
@@ -210,7 +187,7 @@ static void abbe_limits_set_target_pos(uint_fast8_t idx)
  * (MPos = grblHAL's own home position) and fades in with the next moves. */
 static void rehome(void)
 {
-    (void)abbe_gh_rehome(&gh);
+    (void)abbe_gh_rehome(&abbe_plugin);
     have_last_motor = false; /* the next line starts at the planner's (homed) position */
 }
 
@@ -246,15 +223,9 @@ static void abbe_jog_cancel(sys_state_t state)
         on_jog_cancel(state);
 }
 
-/* ---- table storage ------------------------------------------------------------ */
-
-/* Uploaded tables are kept in the physical NVS above the area grblHAL buffers
- * in RAM (NVS_SIZE, or up to NVS_SIZE_MAX when the driver reports a larger
- * hal.nvs.size_max): grblHAL neither reads nor writes there, and a table does
- * not fit in its settings area. Needs byte-addressable storage (EEPROM, FRAM:
- * memcpy_to_nvs); a driver with flash-emulated NVS has none. */
-static nvs_io_t *store_io(void)
+void abbe_plugin_last_steps(long steps[3])
 {
+<<<<<<< HEAD
     nvs_io_t *io = nvs_buffer_get_physical();
     return io != NULL && io->type != NVS_Flash && io->type != NVS_None && io->memcpy_to_nvs != NULL &&
                    io->memcpy_from_nvs != NULL
@@ -634,160 +605,12 @@ static status_code_t cmd_info(sys_state_t state, char *args)
      * plan_buffer_line() does): where the motors stop, unless the stepper lost
      * a step (a sender or a test compares it with the machine's counts). */
     long steps[3];
+=======
+>>>>>>> h_house_ports
     uint_fast8_t idx;
     for (idx = 0; idx < 3; idx++)
         steps[idx] = have_last_motor ? lroundf(last_motor[idx] * settings.axis[idx].steps_per_mm)
                                      : (long)sys.position[idx];
-    snprintf(buf, sizeof buf,
-             "[ABBE:%s|TABLE:%08lX|CURV:%.4f um/mm2|SEG:%.3f mm|DEV:%.3f um|SEGMENTS:%lu|FLAGS:%04lX|STEPS:%ld,%ld,%ld]"
-             ASCII_EOL,
-             state_name(), (unsigned long)table_crc(), (double)kappa, (double)gh.seg_len_mm,
-             (double)abbe_gh_deviation_um(gh.seg_len_mm, kappa), (unsigned long)gh.segments,
-             (unsigned long)gh.flags, steps[0], steps[1], steps[2]);
-    hal.stream.write(buf);
-    if (boot_status != ABBE_OK) {
-        snprintf(buf, sizeof buf, "[ABBE:compiled-in table refused: %s]" ASCII_EOL, abbe_strerror(boot_status));
-        hal.stream.write(buf);
-    }
-    snprintf(buf, sizeof buf, "[ABBE:start-up: %s|STORE:%lu bytes]" ASCII_EOL, boot_text,
-             (unsigned long)store_capacity());
-    hal.stream.write(buf);
-    thermal_info(buf, sizeof buf);
-    hal.stream.write(buf);
-    return Status_OK;
-}
-
-static status_code_t cmd_reset(sys_state_t state, char *args)
-{
-    (void)state;
-    (void)args;
-    (void)abbe_gh_set_enabled(&gh, 2);
-    fault_reported = false;
-    if (cfg.enable)
-        (void)abbe_gh_set_enabled(&gh, 1);
-    return Status_OK;
-}
-
-static int hex_nibble(char c)
-{
-    if (c >= '0' && c <= '9')
-        return c - '0';
-    if (c >= 'A' && c <= 'F')
-        return c - 'A' + 10;
-    if (c >= 'a' && c <= 'f')
-        return c - 'a' + 10;
-    return -1;
-}
-
-/* Unsigned decimal (base 10) or hex (base 16) field ending at ',' or '\0'. */
-static bool parse_u32(char **s, unsigned base, uint32_t *out)
-{
-    uint64_t v = 0;
-    char *p = *s;
-    int d;
-    if (*p == '\0' || *p == ',')
-        return false;
-    while (*p && *p != ',') {
-        d = hex_nibble(*p);
-        if (d < 0 || (unsigned)d >= base)
-            return false;
-        v = v * base + (unsigned)d;
-        if (v > 0xFFFFFFFFu)
-            return false;
-        p++;
-    }
-    if (*p == ',')
-        p++;
-    *s = p;
-    *out = (uint32_t)v;
-    return true;
-}
-
-static status_code_t upload_fail(const char *why)
-{
-    char text[160];
-    snprintf(text, sizeof text, "abbe upload refused: %s; the running table stays", why);
-    report_message(text, Message_Warning);
-    return Status_InvalidStatement;
-}
-
-/* $ABBEU=B,<size>,<crc32 hex> | D,<offset>,<hex bytes> | C | A | E (docs/grblhal.md). */
-static status_code_t cmd_upload(sys_state_t state, char *args)
-{
-    const char *why = "";
-    uint32_t a, b;
-    if (args == NULL || args[0] == '\0' || (args[1] != ',' && args[1] != '\0'))
-        return upload_fail("expected B,<size>,<crc32>  D,<offset>,<hex>  C  A  or E");
-    char op = args[0];
-    char *p = args[1] == ',' ? args + 2 : args + 1;
-    switch (op) {
-    case 'B':
-    case 'b':
-        if (!parse_u32(&p, 10, &a) || !parse_u32(&p, 16, &b) || *p != '\0')
-            return upload_fail("B needs <size in bytes, decimal>,<CRC-32, hex>");
-        if (abbe_gh_upload_begin(&gh, a, b, &why) != ABBE_OK)
-            return upload_fail(why);
-        return Status_OK;
-    case 'D':
-    case 'd': {
-        uint8_t bytes[(LINE_BUFFER_SIZE) / 2];
-        uint32_t n = 0;
-        if (!parse_u32(&p, 10, &a))
-            return upload_fail("D needs <offset, decimal>,<data, hex>");
-        while (p[0] && p[1]) {
-            int hi = hex_nibble(p[0]), lo = hex_nibble(p[1]);
-            if (hi < 0 || lo < 0 || n >= sizeof bytes) {
-                abbe_gh_upload_abort(&gh);
-                return upload_fail("data is not hex; upload aborted");
-            }
-            bytes[n++] = (uint8_t)(hi * 16 + lo);
-            p += 2;
-        }
-        if (*p != '\0' || n == 0) {
-            abbe_gh_upload_abort(&gh);
-            return upload_fail("data needs an even number (> 0) of hex digits; upload aborted");
-        }
-        if (abbe_gh_upload_data(&gh, a, bytes, n, &why) != ABBE_OK) {
-            abbe_gh_upload_abort(&gh);
-            return upload_fail(why);
-        }
-        return Status_OK;
-    }
-    case 'C':
-    case 'c':
-        if (!(state == STATE_IDLE || state == STATE_ALARM || state == STATE_CHECK_MODE)) {
-            abbe_gh_upload_abort(&gh);
-            return upload_fail("commit only when idle (the table is checked for ~0.1 s)");
-        }
-        if (abbe_gh_upload_commit(&gh, &why) != ABBE_OK)
-            return upload_fail(why);
-        report_message("abbe upload: table valid, in use from the next segment", Message_Info);
-        {
-            /* the committed blob is in the staging slot (it is the queued one now) */
-            char text[160];
-            const uint8_t *blob = (const uint8_t *)gh.slot[gh.stage.slot].blob;
-            if (store_table(blob, gh.stage.size, gh.stage.crc, &why))
-                report_message("abbe upload: table stored, in use after a restart", Message_Info);
-            else {
-                snprintf(text, sizeof text, "abbe upload: table not stored (%s); it runs until a restart", why);
-                report_message(text, Message_Warning);
-            }
-        }
-        return Status_OK;
-    case 'E':
-    case 'e':
-        if (*p != '\0')
-            return upload_fail("E takes no arguments");
-        store_erase();
-        report_message("abbe: stored table erased, the compiled-in table runs after a restart", Message_Info);
-        return Status_OK;
-    case 'A':
-    case 'a':
-        abbe_gh_upload_abort(&gh);
-        return Status_OK;
-    default:
-        return upload_fail("unknown operation (B, D, C, A or E)");
-    }
 }
 
 /* ---- reports --------------------------------------------------------------- */
@@ -795,7 +618,7 @@ static status_code_t cmd_upload(sys_state_t state, char *args)
 static void abbe_realtime_report(stream_write_ptr stream_write, report_tracking_flags_t report)
 {
     char buf[32];
-    snprintf(buf, sizeof buf, "|ABBE:%s,%08lX", state_name(), (unsigned long)table_crc());
+    snprintf(buf, sizeof buf, "|ABBE:%s,%08lX", abbe_plugin_state_name(), (unsigned long)abbe_plugin_table_crc());
     stream_write(buf);
     if (on_realtime_report)
         on_realtime_report(stream_write, report);
@@ -821,31 +644,10 @@ static void abbe_report_options(bool newopt)
 
 void abbe_grblhal_init(void)
 {
-    static const sys_command_t command_list[] = {
-        {"ABBE", cmd_info, {.noargs = On, .allow_blocking = On}, {.str = "abbe compensation state and table"}},
-        {"ABBEU", cmd_upload, {.allow_blocking = Off}, {.str = "abbe table upload: B,size,crc | D,offset,hex | C | A | E (erase stored)"}},
-        {"ABBET", cmd_thermal, {.allow_blocking = On}, {.str = "abbe temperatures: v0,v1,... (deg C, rpm; '-' no reading) | CLEAR"}},
-        {"ABBERESET", cmd_reset, {.noargs = On}, {.str = "abbe: clear a fault, fade in again if enabled"}},
-    };
-    static sys_commands_t commands = {
-        .n_commands = sizeof(command_list) / sizeof(sys_command_t),
-        .commands = command_list,
-    };
-
     abbe_gh_params_t p;
     abbe_gh_default_params(&p);
-    (void)abbe_gh_init(&gh, &p, NULL, 0); /* the table is chosen at settings load (boot_table) */
-    cfg.enable = 1;
-    cfg.max_dev_um = p.max_dev_um;
-    cfg.limit_um = p.limit_um;
-
-    if ((nvs_address = nvs_alloc(sizeof(abbe_nvs_settings_t))))
-        settings_register(&setting_details);
-    else { /* no settings area: the compiled-in table, enabled with the defaults */
-        boot_table(&p, false);
-        booted = true;
-        (void)abbe_gh_set_enabled(&gh, 1);
-    }
+    (void)abbe_gh_init(&abbe_plugin, &p, NULL, 0); /* the table is chosen at settings load (boot_table) */
+    abbe_plugin_settings_init(&p);
 
     kinematics.limits_set_target_pos = abbe_limits_set_target_pos;
     kinematics.limits_get_axis_mask = abbe_limits_get_axis_mask;
@@ -874,5 +676,5 @@ void abbe_grblhal_init(void)
     on_report_options = grbl.on_report_options;
     grbl.on_report_options = abbe_report_options;
 
-    system_register_commands(&commands);
+    abbe_plugin_register_commands();
 }

@@ -1,89 +1,15 @@
-/* abbe grblHAL plugin core: segmentation, forward and inverse transform,
- * enable / fade / fault and table upload over the abbe library
- * (include/abbe_grblhal_core.h). C99, no heap, no I/O. */
+/* abbe grblHAL plugin core, the state machine: parameters and the segment
+ * length in force, a table's preparation, start with a table, enable / fade /
+ * fault, rehome, the forward transform of every segment end, and the thermal
+ * block's clock and samples, over the abbe library's compensator
+ * (include/abbe_grblhal_core.h). The curvature scan and the inverse are
+ * abbe_grblhal_core_eval.c, the line segmentation abbe_grblhal_core_line.c,
+ * the upload and the stored header abbe_grblhal_core_upload.c. Where a
+ * function lives keeps its callers' machine code as it was before the split
+ * (docs/architecture.md). C99, no heap, no I/O. */
 #include <string.h>
 
-#include "abbe_grblhal_core.h"
-
-#define NM_PER_MM 1.0e6f
-#define MM_PER_NM 1.0e-6f
-#define UM_PER_MM 1.0e3f
-#define NO_SLOT 0xFFu
-
-/* Samples per axis line of the curvature scan (abbe_gh_curvature). */
-#ifndef ABBE_GH_CURV_SAMPLES
-#define ABBE_GH_CURV_SAMPLES 256
-#endif
-
-/* mm -> nm, rounded, clamped to int32 (the library clamps to the travel anyway). */
-static int32_t mm_to_nm(float mm)
-{
-    float nm = mm * NM_PER_MM;
-    if (!(nm < 2147483520.0f)) { /* also NaN: the compensator flags it as input */
-        return nm > 0.0f ? INT32_MAX : 0;
-    }
-    if (nm <= -2147483520.0f) {
-        return INT32_MIN + 1;
-    }
-    return (int32_t)(nm >= 0.0f ? nm + 0.5f : nm - 0.5f);
-}
-
-static float absf(float x)
-{
-    return x < 0.0f ? -x : x;
-}
-
-/* Square root by Newton's method (no libm in the plugin core; only used at
- * table load and parameter changes). x >= 0. */
-static float sqrt_pos(float x)
-{
-    if (!(x > 0.0f)) {
-        return 0.0f;
-    }
-    float r = x > 1.0f ? x : 1.0f;
-    for (int i = 0; i < 40; i++) {
-        float next = 0.5f * (r + x / r);
-        if (absf(next - r) <= 1.0e-7f * next) {
-            return next;
-        }
-        r = next;
-    }
-    return r;
-}
-
-/* Spatial error E at pos (mm), um, direction state 0, thermal term off
- * (temperature = the table's reference). The variant the build uses. */
-static void eval_um(const abbe_model_t *model, const float tref_c[ABBE_AXES], const float pos[ABBE_AXES],
-                    float err_um[ABBE_AXES])
-{
-#if ABBE_GH_FIXED_POINT
-    abbe_input_q_t in;
-    abbe_error_q_t out;
-    for (unsigned j = 0; j < ABBE_AXES; j++) {
-        in.pos_nm[j] = mm_to_nm(pos[j]);
-        in.dir_state_q30[j] = 0;
-        in.temp_mdegc[j] = (int32_t)(tref_c[j] * 1000.0f + (tref_c[j] >= 0.0f ? 0.5f : -0.5f));
-    }
-    (void)abbe_error_eval_q(model, &in, &out);
-    for (unsigned j = 0; j < ABBE_AXES; j++) {
-        err_um[j] = (float)out.error_nm[j] * 1.0e-3f;
-    }
-#else
-    abbe_input_f32_t in;
-    abbe_error_f32_t out;
-    for (unsigned j = 0; j < ABBE_AXES; j++) {
-        in.pos_mm[j] = pos[j];
-        in.dir_state[j] = 0.0f;
-        in.temp_c[j] = tref_c[j];
-    }
-    if (abbe_error_eval_f32(model, &in, &out) != ABBE_OK) {
-        memset(out.error_um, 0, sizeof out.error_um);
-    }
-    for (unsigned j = 0; j < ABBE_AXES; j++) {
-        err_um[j] = out.error_um[j];
-    }
-#endif
-}
+#include "abbe_grblhal_core_private.h"
 
 void abbe_gh_default_params(abbe_gh_params_t *params)
 {
@@ -129,101 +55,8 @@ float abbe_gh_deviation_um(float len_mm, float kappa_um_per_mm2)
     return len_mm * len_mm * 0.125f * kappa_um_per_mm2;
 }
 
-abbe_status_t abbe_gh_curvature(const abbe_model_t *model, float *kappa_um_per_mm2)
-{
-    if (model == NULL || kappa_um_per_mm2 == NULL) {
-        return ABBE_E_ARG;
-    }
-    float lo[ABBE_AXES], hi[ABBE_AXES], tref[ABBE_AXES];
-    for (unsigned j = 0; j < ABBE_AXES; j++) {
-        abbe_axis_info_t info;
-        abbe_status_t st = abbe_model_axis_info(model, j, &info);
-        if (st != ABBE_OK) {
-            return st;
-        }
-        lo[j] = (float)info.travel_min_nm * MM_PER_NM;
-        hi[j] = (float)info.travel_max_nm * MM_PER_NM;
-        tref[j] = (float)info.thermal_tref_mdegc * 1.0e-3f;
-    }
-    float shortest = hi[0] - lo[0];
-    for (unsigned j = 1; j < ABBE_AXES; j++) {
-        shortest = hi[j] - lo[j] < shortest ? hi[j] - lo[j] : shortest;
-    }
-    float kappa = 0.0f;
-    for (unsigned a = 0; a < ABBE_AXES; a++) {
-        unsigned b = (a + 1u) % ABBE_AXES, c = (a + 2u) % ABBE_AXES;
-        float span = hi[a] - lo[a];
-        /* differences over h = min(span / ABBE_GH_CURV_SAMPLES, 0.5 mm, a
-         * quarter of the shortest travel) */
-        float step = span / (float)ABBE_GH_CURV_SAMPLES;
-        float h = step < 0.5f ? step : 0.5f;
-        h = h < 0.25f * shortest ? h : 0.25f * shortest;
-        if (!(h > 0.0f)) {
-            continue;
-        }
-        /* Every point of the stencil (p, p +- h e_i, p + h e_i + h e_j) inside
-         * the travel: each coordinate of p in [lo + h, hi - h]. Outside the
-         * travel the library holds each term at its end value: a stencil
-         * reaching there measures the kink at the end (the slope over h), not
-         * a curvature, and made the segments 3x shorter than the bound needs
-         * (vmc500: 0.495 against 0.053 um/mm^2). */
-        uint32_t n = (uint32_t)ABBE_GH_CURV_SAMPLES - 1u;
-        float pitch = (span - 2.0f * h) / (float)(n - 1u);
-        for (unsigned corner = 0; corner < 4u; corner++) {
-            float p[ABBE_AXES];
-            p[b] = (corner & 1u) ? hi[b] - h : lo[b] + h;
-            p[c] = (corner & 2u) ? hi[c] - h : lo[c] + h;
-            for (uint32_t k = 0; k < n; k++) {
-                p[a] = lo[a] + h + (float)k * pitch;
-                /* E at p, p +- h e_i, p + h e_i + h e_j: the Hessian of each
-                 * error component by central (diagonal) and forward (mixed)
-                 * differences. */
-                float e0[ABBE_AXES], ep[ABBE_AXES][ABBE_AXES], em[ABBE_AXES][ABBE_AXES];
-                float epp[ABBE_AXES][ABBE_AXES]; /* [pair][component]: pairs (0,1) (0,2) (1,2) */
-                float q[ABBE_AXES];
-                eval_um(model, tref, p, e0);
-                for (unsigned i = 0; i < ABBE_AXES; i++) {
-                    memcpy(q, p, sizeof q);
-                    q[i] = p[i] + h;
-                    eval_um(model, tref, q, ep[i]);
-                    q[i] = p[i] - h;
-                    eval_um(model, tref, q, em[i]);
-                }
-                static const unsigned pair[3][2] = {{0u, 1u}, {0u, 2u}, {1u, 2u}};
-                for (unsigned pi = 0; pi < 3u; pi++) {
-                    memcpy(q, p, sizeof q);
-                    q[pair[pi][0]] += h;
-                    q[pair[pi][1]] += h;
-                    eval_um(model, tref, q, epp[pi]);
-                }
-                float inv_h2 = 1.0f / (h * h);
-                for (unsigned comp = 0; comp < ABBE_AXES; comp++) {
-                    float hess[ABBE_AXES][ABBE_AXES];
-                    for (unsigned i = 0; i < ABBE_AXES; i++) {
-                        hess[i][i] = (ep[i][comp] - 2.0f * e0[comp] + em[i][comp]) * inv_h2;
-                    }
-                    for (unsigned pi = 0; pi < 3u; pi++) {
-                        unsigned i = pair[pi][0], j = pair[pi][1];
-                        float m = (epp[pi][comp] - ep[i][comp] - ep[j][comp] + e0[comp]) * inv_h2;
-                        hess[i][j] = m;
-                        hess[j][i] = m;
-                    }
-                    for (unsigned i = 0; i < ABBE_AXES; i++) {
-                        float row = absf(hess[i][0]) + absf(hess[i][1]) + absf(hess[i][2]);
-                        if (row > kappa) {
-                            kappa = row;
-                        }
-                    }
-                }
-            }
-        }
-    }
-    *kappa_um_per_mm2 = kappa;
-    return ABBE_OK;
-}
-
-/* Validate blob into slot s and derive what segmentation needs. */
-static abbe_status_t slot_prepare(abbe_gh_slot_t *s)
+/* External (abbe_grblhal_core_private.h): the upload's commit prepares its slot too. */
+abbe_status_t abbe_gh_slot_prepare(abbe_gh_slot_t *s)
 {
     float kappa = 0.0f;
     abbe_status_t st = abbe_gh_curvature(&s->model, &kappa);
@@ -312,9 +145,9 @@ abbe_status_t abbe_gh_thermal_sample(abbe_gh_t *gh, const float x[], uint32_t va
     return ABBE_OK;
 }
 
-/* Segment length for the current parameters: the shorter of the running and
- * the queued table's while a swap is pending. */
-static void update_seg_len(abbe_gh_t *gh)
+/* External (abbe_grblhal_core_private.h): a committed upload changes it too. Next
+ * to abbe_gh_segment_length, so its code is what it was before the split. */
+void abbe_gh_update_seg_len(abbe_gh_t *gh)
 {
     float len = ABBE_GH_SEG_MAX_MM;
     if (gh->running != NO_SLOT) {
@@ -351,7 +184,7 @@ abbe_status_t abbe_gh_init(abbe_gh_t *gh, const abbe_gh_params_t *params, const 
     if (blob != NULL) {
         st = abbe_thermal_load(&gh->slot[0].model, &gh->slot[0].thermal, blob, size);
         if (st == ABBE_OK) {
-            st = slot_prepare(&gh->slot[0]);
+            st = abbe_gh_slot_prepare(&gh->slot[0]);
         }
     }
     /* The table is the compensator's model from the start (nothing ran yet). */
@@ -366,7 +199,7 @@ abbe_status_t abbe_gh_init(abbe_gh_t *gh, const abbe_gh_params_t *params, const 
         gh->slot[0].loaded = 0u;
         (void)abbe_comp_init(&gh->comp, &cfg, NULL);
     }
-    update_seg_len(gh);
+    abbe_gh_update_seg_len(gh);
     return st;
 }
 
@@ -397,7 +230,7 @@ abbe_status_t abbe_gh_rehome(abbe_gh_t *gh)
     memset(gh->last_corr_nm, 0, sizeof gh->last_corr_nm);
     gh->flags = 0u;
     gh->comp_state = ABBE_COMP_OFF;
-    update_seg_len(gh);
+    abbe_gh_update_seg_len(gh);
     return gh->enabled ? abbe_comp_enable(&gh->comp) : ABBE_OK;
 }
 
@@ -411,7 +244,7 @@ abbe_status_t abbe_gh_set_params(abbe_gh_t *gh, const abbe_gh_params_t *params)
     abbe_status_t st = abbe_comp_set_config(&gh->comp, &cfg);
     if (st == ABBE_OK) {
         gh->params = *params;
-        update_seg_len(gh);
+        abbe_gh_update_seg_len(gh);
     }
     return st;
 }
@@ -427,11 +260,6 @@ abbe_status_t abbe_gh_set_enabled(abbe_gh_t *gh, int enable)
     }
     gh->enabled = enable ? 1u : 0u;
     return enable ? abbe_comp_enable(&gh->comp) : abbe_comp_disable(&gh->comp);
-}
-
-static int any_correction(const abbe_gh_t *gh)
-{
-    return gh->last_corr_nm[0] != 0 || gh->last_corr_nm[1] != 0 || gh->last_corr_nm[2] != 0;
 }
 
 abbe_gh_state_t abbe_gh_state(const abbe_gh_t *gh)
@@ -455,112 +283,6 @@ int abbe_gh_active(const abbe_gh_t *gh)
         return 0;
     }
     return gh->enabled || any_correction(gh) || (gh->flags & ABBE_FLAG_FADING) != 0u;
-}
-
-/* Insert t into the ascending list ends[0..*n) unless it lies within 1e-6
- * of an entry (the same break); the last place stays for the line's end (at
- * most 3 x 3 breaks come: a take-up end and two faces per axis). */
-static void add_break(float ends[ABBE_GH_LINE_PIECES], uint32_t *n, float t)
-{
-    uint32_t k = 0u;
-    while (k < *n && ends[k] < t) {
-        k++;
-    }
-    if ((k < *n && ends[k] - t < 1.0e-6f) || (k > 0u && t - ends[k - 1u] < 1.0e-6f) ||
-        *n >= ABBE_GH_LINE_PIECES - 1u) {
-        return;
-    }
-    for (uint32_t m = *n; m > k; m--) {
-        ends[m] = ends[m - 1u];
-    }
-    ends[k] = t;
-    (*n)++;
-}
-
-uint32_t abbe_gh_line_begin(const abbe_gh_t *gh, abbe_gh_line_t *line, const float start[ABBE_AXES],
-                            const float end[ABBE_AXES])
-{
-    float len2 = 0.0f;
-    const abbe_gh_slot_t *s = gh->running != NO_SLOT ? &gh->slot[gh->running] : NULL;
-    line->pieces = 0u;
-    for (unsigned j = 0; j < ABBE_AXES; j++) {
-        line->start[j] = start[j];
-        line->end[j] = end[j];
-        float d = end[j] - start[j];
-        len2 += d * d;
-        /* NOLINTNEXTLINE(bugprone-narrowing-conversions): -1, 0 or 1 fit an int8_t */
-        int8_t dir = d > 0.0f ? 1 : (d < 0.0f ? -1 : 0);
-        if (s == NULL || dir == 0) {
-            continue;
-        }
-        /* A reversal of an axis with a take-up: its direction state ramps
-         * linearly over the take-up distance; a segment that ends where the
-         * ramp ends keeps the chord on the model. */
-        if (dir != gh->last_dir[j] && s->takeup_mm[j] > 0.0f) {
-            float t = s->takeup_mm[j] / absf(d);
-            if (t < 1.0f) {
-                add_break(line->t_end, &line->pieces, t);
-            }
-        }
-        /* The faces of the travel box the line crosses. */
-        float faces[2] = {s->travel_lo_mm[j], s->travel_hi_mm[j]};
-        for (unsigned f = 0; f < 2u; f++) {
-            float t = (faces[f] - start[j]) / d;
-            if (t > 1.0e-6f && t < 1.0f - 1.0e-6f) {
-                add_break(line->t_end, &line->pieces, t);
-            }
-        }
-    }
-    if (line->pieces >= ABBE_GH_LINE_PIECES) { /* cannot happen: at most 3 x 3 breaks */
-        line->pieces = ABBE_GH_LINE_PIECES - 1u;
-    }
-    line->t_end[line->pieces++] = 1.0f;
-    float len = sqrt_pos(len2);
-    float t0 = 0.0f;
-    line->total = 0u;
-    for (uint32_t k = 0; k < line->pieces; k++) {
-        float rest = len * (line->t_end[k] - t0);
-        uint32_t n = 1u;
-        if (gh->seg_len_mm > 0.0f && rest > gh->seg_len_mm) {
-            float f = rest / gh->seg_len_mm;
-            n = (uint32_t)f;
-            if ((float)n < f) {
-                n++;
-            }
-        }
-        line->n[k] = n;
-        line->total += n;
-        t0 = line->t_end[k];
-    }
-    line->piece = 0u;
-    line->k = 0u;
-    line->i = 0u;
-    return line->total;
-}
-
-int abbe_gh_line_next(abbe_gh_line_t *line, float out[ABBE_AXES])
-{
-    if (line->i >= line->total) {
-        return 0;
-    }
-    line->i++;
-    if (line->i == line->total) {
-        memcpy(out, line->end, sizeof line->end);
-        return 1;
-    }
-    uint32_t p = line->piece;
-    float t0 = p > 0u ? line->t_end[p - 1u] : 0.0f;
-    line->k++;
-    float t = t0 + (line->t_end[p] - t0) * (float)line->k / (float)line->n[p];
-    if (line->k >= line->n[p]) { /* the piece's end: exactly the break */
-        t = line->t_end[p];
-        line->piece++;
-        line->k = 0u;
-    }
-    for (unsigned j = 0; j < ABBE_AXES; j++) {
-        out[j] = line->start[j] + t * (line->end[j] - line->start[j]);
-    }
-    return 1;
 }
 
 /* ms since the previous segment end's thermal apply (0 at the first). */
@@ -614,7 +336,7 @@ uint32_t abbe_gh_forward(abbe_gh_t *gh, const float cart[ABBE_AXES], float motor
     if ((out.flags & ABBE_FLAG_MODEL_SWAPPED) && gh->pending != NO_SLOT) {
         gh->running = gh->pending;
         gh->pending = NO_SLOT;
-        update_seg_len(gh);
+        abbe_gh_update_seg_len(gh);
         thermal_start(gh); /* the new table's block (if any) starts from its first sample */
     }
     for (unsigned j = 0; j < ABBE_AXES; j++) {
@@ -632,222 +354,13 @@ uint32_t abbe_gh_forward(abbe_gh_t *gh, const float cart[ABBE_AXES], float motor
     return out.flags;
 }
 
-int abbe_gh_inverse(const abbe_gh_t *gh, const float motor[ABBE_AXES], float cart[ABBE_AXES])
-{
-    const abbe_model_t *model = abbe_comp_model(&gh->comp);
-    float base[ABBE_AXES];
-    for (unsigned j = 0; j < ABBE_AXES; j++) {
-        base[j] = (float)gh->last_corr_nm[j] * MM_PER_NM;
-        cart[j] = motor[j] - base[j];
-    }
-    if (model == NULL || !gh->have_last || !any_correction(gh)) {
-        return 0;
-    }
-    const float *tref = gh->slot[gh->running != NO_SLOT ? gh->running : 0u].tref_c;
-    float e_last[ABBE_AXES];
-    eval_um(model, tref, gh->last_cart, e_last);
-    int it;
-    for (it = 1; it <= 4; it++) {
-        float e[ABBE_AXES], moved = 0.0f;
-        eval_um(model, tref, cart, e);
-        for (unsigned j = 0; j < ABBE_AXES; j++) {
-            /* c(q) = c_last + (-(E(q) - E(last))) */
-            float c = base[j] - (e[j] - e_last[j]) / UM_PER_MM;
-            float q = motor[j] - c;
-            moved = absf(q - cart[j]) > moved ? absf(q - cart[j]) : moved;
-            cart[j] = q;
-        }
-        if (moved < 1.0e-6f) {
-            break;
-        }
-    }
-    return it > 4 ? 4 : it;
-}
-
 void abbe_gh_set_position(abbe_gh_t *gh, const float cart[ABBE_AXES])
 {
     memcpy(gh->last_cart, cart, sizeof gh->last_cart);
     gh->have_last = 1u;
 }
 
-static void put_le32(uint8_t *p, uint32_t v)
-{
-    for (unsigned k = 0; k < 4u; k++) {
-        p[k] = (uint8_t)(v >> (8u * k));
-    }
-}
-
-static uint32_t get_le32(const uint8_t *p)
-{
-    return (uint32_t)p[0] | ((uint32_t)p[1] << 8) | ((uint32_t)p[2] << 16) | ((uint32_t)p[3] << 24);
-}
-
-void abbe_gh_store_header(uint8_t out[ABBE_GH_STORE_HEADER_BYTES], uint32_t size, uint32_t crc)
-{
-    put_le32(out, ABBE_GH_STORE_MAGIC);
-    put_le32(out + 4, size);
-    put_le32(out + 8, crc);
-    put_le32(out + 12, abbe_crc32(0u, out, 12u));
-}
-
-abbe_gh_store_t abbe_gh_store_parse(const uint8_t in[ABBE_GH_STORE_HEADER_BYTES], uint32_t capacity,
-                                    uint32_t *size, uint32_t *crc, const char **why)
-{
-    static const char *const none = "";
-    *why = none;
-    uint32_t magic = get_le32(in);
-    if (magic == 0u || magic == 0xFFFFFFFFu) {
-        return ABBE_GH_STORE_NONE; /* invalidated / erased */
-    }
-    if (magic != ABBE_GH_STORE_MAGIC) {
-        *why = "no abbe table header (magic)";
-        return ABBE_GH_STORE_CORRUPT;
-    }
-    if (get_le32(in + 12) != abbe_crc32(0u, in, 12u)) {
-        *why = "header CRC-32 mismatch";
-        return ABBE_GH_STORE_CORRUPT;
-    }
-    uint32_t n = get_le32(in + 4);
-    uint32_t max = capacity < ABBE_GH_TABLE_MAX_BYTES ? capacity : ABBE_GH_TABLE_MAX_BYTES;
-    if (n < 16u || n > max) {
-        *why = "stored size out of range";
-        return ABBE_GH_STORE_CORRUPT;
-    }
-    *size = n;
-    *crc = get_le32(in + 8);
-    return ABBE_GH_STORE_VALID;
-}
-
 const abbe_model_t *abbe_gh_model(const abbe_gh_t *gh)
 {
     return abbe_comp_model(&gh->comp);
-}
-
-/* Append text / an unsigned decimal at w, never past end (the buffer's end: the
- * text is cut there); return the new end, NUL-terminated. w < end. */
-static char *put_text(char *w, const char *end, const char *text)
-{
-    while (*text != '\0' && w + 1 < end) {
-        *w = *text;
-        w++;
-        text++;
-    }
-    *w = '\0';
-    return w;
-}
-
-static char *put_u32(char *w, const char *end, uint32_t v)
-{
-    char digits[10] = {0}; /* 4294967295: ten digits */
-    unsigned n = 0u;
-    do {
-        digits[n] = (char)('0' + (char)(v % 10u));
-        n++;
-        v /= 10u;
-    } while (v != 0u && n < 10u);
-    while (n > 0u && w + 1 < end) {
-        n--;
-        *w = digits[n];
-        w++;
-    }
-    *w = '\0';
-    return w;
-}
-
-abbe_status_t abbe_gh_upload_begin(abbe_gh_t *gh, uint32_t size, uint32_t crc, const char **why)
-{
-    static const char *const none = "";
-    *why = none;
-    if (gh->pending != NO_SLOT) {
-        *why = "the previous upload is not in use yet (it takes over at the next segment: move first)";
-        return ABBE_E_ARG;
-    }
-    if (size < 16u || size > ABBE_GH_TABLE_MAX_BYTES) {
-        /* "table of 9000 bytes: this build takes 16 to 8192 bytes" */
-        char *w = gh->stage.why;
-        const char *end = gh->stage.why + sizeof gh->stage.why;
-        w = put_text(w, end, "table of ");
-        w = put_u32(w, end, size);
-        w = put_text(w, end, " bytes: this build takes 16 to ");
-        w = put_u32(w, end, (uint32_t)ABBE_GH_TABLE_MAX_BYTES);
-        (void)put_text(w, end, " bytes");
-        *why = gh->stage.why;
-        return ABBE_E_ARG;
-    }
-    gh->stage.slot = gh->running == 0u ? 1u : 0u;
-    gh->stage.size = size;
-    gh->stage.crc = crc;
-    gh->stage.received = 0u;
-    gh->stage.open = 1u;
-    return ABBE_OK;
-}
-
-abbe_status_t abbe_gh_upload_data(abbe_gh_t *gh, uint32_t offset, const uint8_t *data, uint32_t n,
-                                  const char **why)
-{
-    static const char *const none = "";
-    *why = none;
-    if (!gh->stage.open) {
-        *why = "no upload open (begin with B,<size>,<crc32>)";
-        return ABBE_E_ARG;
-    }
-    if (offset != gh->stage.received) {
-        *why = "chunk out of order (offset is not the number of bytes received)";
-        return ABBE_E_ARG;
-    }
-    /* the second test never binds (received <= size <= the slot's bytes): the
-     * slot's bound stated where the copy is, for the proof (docs/proofs.md) */
-    if (n > gh->stage.size - gh->stage.received || offset > ABBE_GH_TABLE_MAX_BYTES - n) {
-        *why = "chunk runs past the announced size";
-        return ABBE_E_ARG;
-    }
-    if (n != 0u) { /* an empty chunk at the end would pass memcpy a pointer past the slot */
-        memcpy((uint8_t *)gh->slot[gh->stage.slot].blob + offset, data, n);
-    }
-    gh->stage.received += n;
-    return ABBE_OK;
-}
-
-abbe_status_t abbe_gh_upload_commit(abbe_gh_t *gh, const char **why)
-{
-    static const char *const none = "";
-    *why = none;
-    if (!gh->stage.open) {
-        *why = "no upload open (begin with B,<size>,<crc32>)";
-        return ABBE_E_ARG;
-    }
-    gh->stage.open = 0u;
-    abbe_gh_slot_t *s = &gh->slot[gh->stage.slot];
-    if (gh->stage.received != gh->stage.size) {
-        *why = "incomplete: fewer bytes received than announced";
-        return ABBE_E_ARG;
-    }
-    if (abbe_crc32(0u, s->blob, gh->stage.size) != gh->stage.crc) {
-        *why = "CRC-32 of the received bytes differs from the announced one";
-        return ABBE_E_CRC;
-    }
-    /* Validate into the slot's model (on failure it is left untouched), derive
-     * the segment length, then queue it: the compensator swaps at the start of
-     * the next segment. The slot is not the running one; its model may be the
-     * one that ran before, which nothing references any more. */
-    abbe_status_t st = abbe_thermal_load(&s->model, &s->thermal, s->blob, gh->stage.size);
-    if (st == ABBE_OK) {
-        st = slot_prepare(s);
-    }
-    if (st == ABBE_OK) {
-        st = abbe_comp_swap_model(&gh->comp, &s->model);
-    }
-    if (st != ABBE_OK) {
-        s->loaded = 0u;
-        *why = abbe_strerror(st);
-        return st;
-    }
-    gh->pending = gh->stage.slot;
-    update_seg_len(gh);
-    return ABBE_OK;
-}
-
-void abbe_gh_upload_abort(abbe_gh_t *gh)
-{
-    gh->stage.open = 0u;
 }

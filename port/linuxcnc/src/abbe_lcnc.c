@@ -1,23 +1,13 @@
-/* abbe LinuxCNC port: HAL units, enable logic, backlash direction and the
- * external-offset counts around abbe_comp_t (include/abbe_lcnc.h).
- * C99, no heap, no I/O, no libm. */
-#include <float.h>
+/* abbe LinuxCNC port, every servo period: enable logic, lead, backlash
+ * direction, the thermal block's sampling, the compensator step and the
+ * external-offset counts around abbe_comp_t (include/abbe_lcnc.h). The load
+ * time (parameters, table slots) is abbe_lcnc_setup.c, the five-axis frames
+ * abbe_lcnc_five.c. C99, no heap, no I/O, no libm. */
 #include <string.h>
 
 #include "abbe_lcnc.h"
-
-#define NM_PER_MM 1e6
-
-static int finite_d(double x)
-{
-    return x >= -DBL_MAX && x <= DBL_MAX; /* false for NaN and +/-Inf */
-}
-
-/* Round to nearest (halves away from zero); x must be finite and in range. */
-static int64_t round_i64(double x)
-{
-    return (int64_t)(x >= 0.0 ? x + 0.5 : x - 0.5);
-}
+#include "abbe_lcnc_five.h"
+#include "abbe_lcnc_units.h"
 
 /* mm -> nm, rounded, clamped to +/-(2^31 - 1) nm (the library clamps to the
  * table's travel anyway). x must be finite. */
@@ -38,191 +28,6 @@ static int32_t c_to_mdegc(double c)
 {
     double clamped = c > 2e6 ? 2e6 : (c < -2e6 ? -2e6 : c);
     return (int32_t)round_i64(clamped * 1000.0);
-}
-
-/* A length parameter in mm as a positive int32 nm (at least 1). */
-static int length_nm(double mm, int32_t *nm)
-{
-    if (!finite_d(mm) || !(mm > 0.0) || mm * NM_PER_MM > 2147483647.0) {
-        return 0;
-    }
-    int64_t v = round_i64(mm * NM_PER_MM);
-    *nm = v < 1 ? 1 : (int32_t)v;
-    return 1;
-}
-
-/* A duration in s as a cycle count in [1, 65535] (0 s -> 1 cycle). */
-static int duration_cycles(double s, long period_ns, uint16_t *cycles)
-{
-    if (!finite_d(s) || s < 0.0) {
-        return 0;
-    }
-    double c = s * 1e9 / (double)period_ns;
-    if (c > 65535.0) {
-        return 0;
-    }
-    int64_t n = (int64_t)c;
-    if ((double)n < c) {
-        n++; /* ceil: a fade never runs shorter than asked */
-    }
-    *cycles = (uint16_t)(n < 1 ? 1 : n);
-    return 1;
-}
-
-void abbe_lcnc_default_params(abbe_lcnc_params_t *params)
-{
-    if (params == NULL) {
-        return;
-    }
-    memset(params, 0, sizeof *params);
-    for (unsigned j = 0; j < ABBE_AXES; j++) {
-        params->warn_mm[j] = 0.05;
-        params->limit_mm[j] = 0.1;
-        params->rate_mm_per_s[j] = 1.0;
-        params->sign[j] = 1;
-    }
-    params->fade_s = 0.5;
-    params->stale_s = 0.01;
-    params->dir_deadband_mm = 0.0005;
-    params->lead_periods = 2.0;
-    params->machine_unit_mm = 1.0;
-    params->kins_identity = 0;
-    params->kins_tcp = 1;
-    params->thermal_sample_s = 1.0;
-}
-
-abbe_status_t abbe_lcnc_params_to_config(const abbe_lcnc_params_t *params, long period_ns,
-                                         abbe_comp_config_t *cfg)
-{
-    if (params == NULL || cfg == NULL || period_ns <= 0) {
-        return ABBE_E_ARG;
-    }
-    abbe_comp_config_t c;
-    memset(&c, 0, sizeof c);
-    for (unsigned j = 0; j < ABBE_AXES; j++) {
-        double rate_mm_per_cycle = params->rate_mm_per_s[j] * (double)period_ns * 1e-9;
-        if (!length_nm(params->warn_mm[j], &c.warn_nm[j]) ||
-            !length_nm(params->limit_mm[j], &c.limit_nm[j]) || c.limit_nm[j] < c.warn_nm[j] ||
-            !finite_d(params->rate_mm_per_s[j]) || !(params->rate_mm_per_s[j] > 0.0) ||
-            !length_nm(rate_mm_per_cycle, &c.rate_nm_per_cycle[j]) ||
-            (params->sign[j] != 1 && params->sign[j] != -1)) {
-            return ABBE_E_ARG;
-        }
-        c.axis_sign[j] = (int8_t)params->sign[j];
-    }
-    if (!duration_cycles(params->fade_s, period_ns, &c.fade_cycles) ||
-        !duration_cycles(params->stale_s, period_ns, &c.stale_cycles) ||
-        !finite_d(params->dir_deadband_mm) || params->dir_deadband_mm < 0.0 ||
-        params->dir_deadband_mm > 1000.0 || !finite_d(params->lead_periods) ||
-        params->lead_periods < 0.0 || params->lead_periods > 100.0 ||
-        !finite_d(params->machine_unit_mm) ||
-        !(params->machine_unit_mm > 0.0) || params->kins_identity == params->kins_tcp ||
-        !finite_d(params->thermal_sample_s) || params->thermal_sample_s < 0.001 ||
-        params->thermal_sample_s > 3600.0) {
-        return ABBE_E_ARG;
-    }
-    *cfg = c;
-    return ABBE_OK;
-}
-
-abbe_status_t abbe_lcnc_init(abbe_lcnc_t *port, abbe_lcnc_variant_t variant,
-                             const abbe_lcnc_params_t *params, long period_ns)
-{
-    if (port == NULL || params == NULL ||
-        (variant != ABBE_LCNC_VARIANT_Q && variant != ABBE_LCNC_VARIANT_F32)) {
-        return ABBE_E_ARG;
-    }
-    abbe_comp_config_t cfg;
-    if (abbe_lcnc_params_to_config(params, period_ns, &cfg) != ABBE_OK) {
-        return ABBE_E_ARG;
-    }
-    memset(port, 0, sizeof *port);
-    if (abbe_comp_init(&port->comp, &cfg, NULL) != ABBE_OK) {
-        return ABBE_E_ARG;
-    }
-    port->variant = variant;
-    port->cfg = cfg;
-    port->deadband_nm = (int32_t)round_i64(params->dir_deadband_mm * NM_PER_MM);
-    port->lead_periods = params->lead_periods;
-    port->eoffset_scale = 1.0 / (NM_PER_MM * params->machine_unit_mm);
-    port->kins_identity = params->kins_identity;
-    port->kins_tcp = params->kins_tcp;
-    memcpy(&port->params_seen, params, sizeof port->params_seen);
-    port->period_seen_ns = period_ns;
-    port->th_table = -1;
-    return ABBE_OK;
-}
-
-/* Load blob into *slot: a five-axis table as one, a 3-axis table through
- * abbe_model_load into its linear member (the 3-axis path stays exactly the
- * 3-axis library's). *kind: ABBE_KIN_*. */
-static abbe_status_t load_table(abbe_five_model_t *slot, abbe_thermal_model_t *th, const void *blob, size_t size,
-                                uint32_t *kind)
-{
-    abbe_status_t st = abbe_five_model_load(slot, blob, size);
-    if (st == ABBE_E_VERSION_MINOR) {
-        /* format 1.3: a 3-axis table with a thermal block (abbe_thermal_load:
-         * every check of abbe_model_load, then the block's) */
-        abbe_thermal_model_t scratch;
-        memset(slot, 0, sizeof *slot);
-        *kind = ABBE_KIN_NONE;
-        return abbe_thermal_load(&slot->linear, th != NULL ? th : &scratch, blob, size);
-    }
-    if (st != ABBE_OK) {
-        return st;
-    }
-    if (th != NULL) {
-        memset(th, 0, sizeof *th); /* no thermal block */
-    }
-    *kind = abbe_five_model_kind(slot);
-    return *kind == ABBE_KIN_NONE ? abbe_model_load(&slot->linear, blob, size) : ABBE_OK;
-}
-
-uint32_t abbe_lcnc_blob_kind(const void *blob, size_t size)
-{
-    abbe_five_model_t m;
-    uint32_t kind = 0;
-    return (blob != NULL && load_table(&m, NULL, blob, size, &kind) == ABBE_OK) ? kind : 0xFFFFFFFFu;
-}
-
-abbe_status_t abbe_lcnc_add_table(abbe_lcnc_t *port, const void *blob, size_t size)
-{
-    if (port == NULL || blob == NULL || port->n_tables >= ABBE_LCNC_MAX_TABLES) {
-        return ABBE_E_ARG;
-    }
-    abbe_five_model_t m;
-    uint32_t kind = 0;
-    abbe_status_t st = load_table(&m, NULL, blob, size, &kind);
-    if (st != ABBE_OK) {
-        return st;
-    }
-    if (port->n_tables > 0u && kind != port->kind) {
-        return ABBE_E_ARG; /* the pins mean axis or joint positions: one kind for all tables */
-    }
-    (void)load_table(&port->model[port->n_tables], &port->thermal[port->n_tables], blob, size,
-                     &kind); /* a view: valid as m was */
-    if (port->n_tables == 0u) {
-        port->kind = kind;
-        (void)abbe_comp_swap_model(&port->comp, &port->model[0].linear); /* runs from the first step */
-        port->active = 0;
-    }
-    port->n_tables++;
-    return ABBE_OK;
-}
-
-uint32_t abbe_lcnc_kind(const abbe_lcnc_t *port)
-{
-    return port != NULL ? port->kind : 0u;
-}
-
-unsigned abbe_lcnc_table_count(const abbe_lcnc_t *port)
-{
-    return port != NULL ? port->n_tables : 0u;
-}
-
-uint32_t abbe_lcnc_table_crc(const abbe_lcnc_t *port, unsigned i)
-{
-    return (port != NULL && i < port->n_tables) ? abbe_model_crc(&port->model[i].linear) : 0u;
 }
 
 /* Parameters or period changed: convert and apply without touching the state. */
@@ -318,104 +123,6 @@ static int running_index(const abbe_lcnc_t *port)
     return -1;
 }
 
-/* An angle in degrees reduced to [-180, 180] (the model is periodic in one
- * turn; the q variant takes +/-2147 degrees). a must be finite. */
-static double reduce_deg(double a)
-{
-    double turns = a / 360.0;
-    if (turns > 9e15 || turns < -9e15) {
-        return 0.0; /* beyond double's integers: no fraction of a turn is left */
-    }
-    return a - 360.0 * (double)round_i64(turns);
-}
-
-/* sin and cos of an angle in [-180, 180] degrees, double precision, no libm:
- * the nearest quarter turn q is taken out exactly (90 q is exact in double),
- * the rest r in [-45, 45] degrees goes through Taylor series to x^17 / x^18
- * (truncation below 1e-18 at pi/4). The library's sin/cos are float or Q30 of
- * an integer phase: the offsets' rotation is done in the port's double. */
-static void sincos_deg(double deg, double *s_out, double *c_out)
-{
-    int64_t q = round_i64(deg / 90.0);
-    double x = (deg - 90.0 * (double)q) * 0.017453292519943295769; /* pi / 180 */
-    double z = x * x;
-    double s = 1.0, c = 1.0;
-    for (int k = 17; k >= 3; k -= 2) { /* 1 - z/(2*3) (1 - z/(4*5) (...)) */
-        s = 1.0 - z / (double)((k - 1) * k) * s;
-    }
-    for (int k = 18; k >= 2; k -= 2) {
-        c = 1.0 - z / (double)((k - 1) * k) * c;
-    }
-    s *= x;
-    switch ((int)(q & 3)) { /* two's complement: q & 3 is q mod 4 for negative q too */
-    case 1: *s_out = c; *c_out = -s; break;
-    case 2: *s_out = -s; *c_out = -c; break;
-    case 3: *s_out = -c; *c_out = s; break;
-    default: *s_out = s; *c_out = c; break;
-    }
-}
-
-/* The correction v (joint frame) as a world offset under the tool-centre-point
- * kinematics (format 1.4's kinds: 5axiskins, maxkins, xyzab_tdr_kins below; trt:
- * Rz(c)^T R_tilt(t)^T v, R_tilt = Rx (xyzac) or Ry (xyzbc); trtfuncs.c's
- * inverse kinematics moves the joints by R_tilt(t) Rz(c) e for a world change e. */
-static void joints_to_workpiece(uint32_t kind, const double angle_deg[ABBE_ROTARY_AXES], const double v[3],
-                                double w[3])
-{
-    double st, ct, sc, cc, u[3];
-    sincos_deg(angle_deg[0], &st, &ct);
-    sincos_deg(angle_deg[1], &sc, &cc);
-    if (kind == ABBE_KIN_XYZBC_HH) { /* 5axiskins: world = joints + f(B, C), the offsets are the joints' */
-        w[0] = v[0];
-        w[1] = v[1];
-        w[2] = v[2];
-        return;
-    }
-    if (kind == ABBE_KIN_XYZBC_HT) { /* maxkins: j = Rz(-C) P - h(B), so P moves by Rz(C) v (C: angle 1) */
-        w[0] = cc * v[0] - sc * v[1];
-        w[1] = sc * v[0] + cc * v[1];
-        w[2] = v[2];
-        return;
-    }
-    if (kind == ABBE_KIN_XYZAB_TDR) { /* xyzab_tdr_kins: j = Ry(B)^T Rx(A)^T p + ..., so Rx(A) Ry(B) v */
-        u[0] = sc * v[2] + cc * v[0]; /* Ry(B), B: angle 1 */
-        u[1] = v[1];
-        u[2] = cc * v[2] - sc * v[0];
-        w[0] = u[0]; /* Rx(A), A: angle 0 */
-        w[1] = ct * u[1] - st * u[2];
-        w[2] = st * u[1] + ct * u[2];
-        return;
-    }
-    if (kind == ABBE_KIN_XYZBC_TRT) { /* Ry(t)^T */
-        u[0] = ct * v[0] - st * v[2];
-        u[1] = v[1];
-        u[2] = st * v[0] + ct * v[2];
-    } else { /* Rx(t)^T */
-        u[0] = v[0];
-        u[1] = ct * v[1] + st * v[2];
-        u[2] = -st * v[1] + ct * v[2];
-    }
-    w[0] = cc * u[0] + sc * u[1]; /* Rz(c)^T */
-    w[1] = -sc * u[0] + cc * u[1];
-    w[2] = u[2];
-}
-
-/* ABBE_LCNC_FRAME_* of the kinematics in force. */
-static int32_t frame_of(const abbe_lcnc_t *port, double kinstype)
-{
-    if (port->kind == ABBE_KIN_NONE) {
-        return ABBE_LCNC_FRAME_JOINTS;
-    }
-    if (!finite_d(kinstype) || kinstype > 2e9 || kinstype < -2e9) {
-        return ABBE_LCNC_FRAME_UNKNOWN;
-    }
-    int64_t k = round_i64(kinstype); /* motion.switchkins-type is a float pin carrying an integer */
-    if (k == port->kins_tcp) {
-        return ABBE_LCNC_FRAME_WORKPIECE;
-    }
-    return k == port->kins_identity ? ABBE_LCNC_FRAME_JOINTS : ABBE_LCNC_FRAME_UNKNOWN;
-}
-
 static int32_t u32_to_i32(uint32_t u)
 {
     int32_t v;
@@ -497,7 +204,7 @@ void abbe_lcnc_step(abbe_lcnc_t *port, const abbe_lcnc_params_t *params, long pe
             fresh = 0;
         }
     }
-    int32_t frame = frame_of(port, in->kinstype);
+    int32_t frame = abbe_lcnc_frame_of(port, in->kinstype);
     if (five) {
         for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {
             if (finite_d(in->angle_deg[r])) {
@@ -525,7 +232,7 @@ void abbe_lcnc_step(abbe_lcnc_t *port, const abbe_lcnc_params_t *params, long pe
         follow_direction(port, pos_nm, port->deadband_nm);
         lead(port, pos_nm, angle_deg);
         for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {
-            angle_deg[r] = reduce_deg(angle_deg[r]);
+            angle_deg[r] = abbe_lcnc_reduce_deg(angle_deg[r]);
         }
     } else {
         port->have_last = 0; /* the lead restarts from the next valid position */
@@ -635,7 +342,7 @@ void abbe_lcnc_step(abbe_lcnc_t *port, const abbe_lcnc_params_t *params, long pe
         for (unsigned j = 0; j < ABBE_AXES; j++) {
             v[j] = (double)co.lin.corr_nm[j];
         }
-        joints_to_workpiece(port->kind, fresh ? angle_deg : port->held_angle_deg, v, w);
+        abbe_lcnc_joints_to_workpiece(port->kind, fresh ? angle_deg : port->held_angle_deg, v, w);
         for (unsigned j = 0; j < ABBE_AXES; j++) {
             world_nm[j] = round_i64(w[j]);
         }
