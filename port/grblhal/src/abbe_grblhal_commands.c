@@ -42,7 +42,7 @@ uint32_t abbe_plugin_table_crc(void)
 
 /* [ABBE:THERMAL:...]: the running table's thermal block. FLAGS current,
  * EVENTS sticky since the last $ABBET=CLEAR (ABBE_THERMAL_F_*: 01 open,
- * 02 range, 04 step, 08 missing samples, 10 limit, 20 hold, 40 fading),
+ * 02 range, 04 step, 08 missing samples, 10 limit, 20 hold, 40 fading, 80 stuck),
  * FAULTS the inputs faulted at the last sample (bit k = input k), OUT the
  * thermal tip error in use (faded), um, AGE ms since the last sample,
  * APPLIED the clock (hal.get_elapsed_ticks(), ms) at the segment end that
