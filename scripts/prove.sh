@@ -147,7 +147,7 @@ run_one() { # name sources defines options
 # and the format 1.3 thermal loader, where the tree has it
 OPEN_HARNESSES=(
     "modbus|tests/proofs/modbus.c port/modbus/src/regs.c $(ls lib/src/*.c | grep -v five_load | tr '\n' ' ')|-Iport/modbus/include|-eva-auto-loop-unroll 16"
-    "can_config|tests/proofs/can_config.c port/socketcan/src/can_config_file.c port/socketcan/src/can_config_check.c $(frama-c -print-share-path)/libc/string.c $(frama-c -print-share-path)/libc/stdlib.c|-Iport/socketcan/include -Iport/socketcan/src -DPROOF_MAX_SIZE=64|-eva-auto-loop-unroll 16"
+    "can_config|tests/proofs/can_config.c port/socketcan/src/can_config_parse.c port/socketcan/src/can_toml_number.c port/socketcan/src/can_config_check.c $(frama-c -print-share-path)/libc/string.c $(frama-c -print-share-path)/libc/stdlib.c|-Iport/socketcan/include -Iport/socketcan/src -DPROOF_MAX_SIZE=64|-eva-auto-loop-unroll 16"
 )
 if [[ -f lib/src/thermal_load.c ]]; then
     OPEN_HARNESSES+=("load_thermal|tests/proofs/load_thermal.c lib/src/thermal_load.c lib/src/crc32.c|-DPROOF_MAX_SIZE=512|$LOADER_PRECISION abbe_thermal_load:40")
