@@ -3,7 +3,9 @@
  * Split from the parser (can_config_parse.c), which only asks "is this text
  * a number, and which". */
 #include <errno.h>
+#include <stdint.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "can_toml_number.h"
 
@@ -12,7 +14,10 @@
  *   hex integer      0x hexdigits              (no sign)
  *   float            decimal integer (. digits)? ([eE] [+-]? digits)?, with a
  *                    fraction or an exponent; inf and nan are not accepted.
- * Each function checks the syntax, then converts the text without the '_'. */
+ * Each function checks the syntax, then converts the text without the '_'.
+ * Every scan also stops at end (the text's '\0', where it would stop anyway):
+ * the bound never binds, it makes each read's bound evident to the proof
+ * (tests/proofs/can_config.c). */
 
 static int is_digit(char c)
 {
@@ -26,14 +31,14 @@ static int is_hex(char c)
 
 /* A run of digits (hex or decimal) with single '_' between them; returns the
  * position after it, or NULL if there is none or an '_' is misplaced. */
-static const char *digit_run(const char *p, int hex)
+static const char *digit_run(const char *p, const char *end, int hex)
 {
-    if (!(hex ? is_hex(*p) : is_digit(*p))) {
+    if (p >= end || !(hex ? is_hex(*p) : is_digit(*p))) {
         return NULL;
     }
-    while (hex ? is_hex(*p) : is_digit(*p)) {
+    while (p < end && (hex ? is_hex(*p) : is_digit(*p))) {
         p++;
-        if (*p == '_') {
+        if (p < end && *p == '_') {
             p++;
             if (!(hex ? is_hex(*p) : is_digit(*p))) {
                 return NULL;
@@ -44,22 +49,22 @@ static const char *digit_run(const char *p, int hex)
 }
 
 /* The decimal integer part: sign, no leading zero. */
-static const char *decimal_int(const char *p)
+static const char *decimal_int(const char *p, const char *end)
 {
-    if (*p == '+' || *p == '-') {
+    if (p < end && (*p == '+' || *p == '-')) {
         p++;
     }
-    if (p[0] == '0') {
+    if (p < end && p[0] == '0') {
         return (is_digit(p[1]) || p[1] == '_') ? NULL : p + 1;
     }
-    return digit_run(p, 0);
+    return digit_run(p, end, 0);
 }
 
 /* s without '_' into buf (the syntax was checked: it fits). */
-static void strip(const char *s, char *buf, size_t cap)
+static void strip(const char *s, const char *end, char *buf, size_t cap)
 {
     size_t n = 0;
-    for (; *s != '\0' && n + 1u < cap; s++) {
+    for (; s < end && *s != '\0' && n + 1u < cap; s++) {
         if (*s != '_') {
             buf[n++] = *s;
         }
@@ -70,28 +75,28 @@ static void strip(const char *s, char *buf, size_t cap)
 /* 1: *out set; 0: not an integer; -1: an integer beyond 64 bits. */
 int abbe_can_toml_int(const char *s, long long *out)
 {
-    char buf[64];
-    char *end = NULL;
+    char buf[64] = {0};
+    const char *end = s + strlen(s);
     errno = 0;
     long long v;
     if (s[0] == '0' && s[1] == 'x') {
-        const char *e = digit_run(s + 2, 1);
+        const char *e = digit_run(s + 2, end, 1);
         if (e == NULL || *e != '\0') {
             return 0;
         }
-        strip(s + 2, buf, sizeof buf);
-        unsigned long long u = strtoull(buf, &end, 16);
+        strip(s + 2, end, buf, sizeof buf);
+        unsigned long long u = strtoull(buf, NULL, 16);
         if (errno != 0 || u > (unsigned long long)0x7FFFFFFFFFFFFFFFLL) {
             return -1;
         }
         v = (long long)u;
     } else {
-        const char *e = decimal_int(s);
+        const char *e = decimal_int(s, end);
         if (e == NULL || *e != '\0') {
             return 0;
         }
-        strip(s, buf, sizeof buf);
-        v = strtoll(buf, &end, 10);
+        strip(s, end, buf, sizeof buf);
+        v = strtoll(buf, NULL, 10);
         if (errno != 0) {
             return -1;
         }
@@ -109,24 +114,25 @@ int abbe_can_toml_number(const char *s, double *out)
         *out = (double)i;
         return st;
     }
-    const char *p = decimal_int(s);
+    const char *end = s + strlen(s);
+    const char *p = decimal_int(s, end);
     if (p == NULL) {
         return 0;
     }
     int has_fraction = 0, has_exponent = 0;
-    if (*p == '.') {
-        p = digit_run(p + 1, 0);
+    if (p < end && *p == '.') {
+        p = digit_run(p + 1, end, 0);
         if (p == NULL) {
             return 0;
         }
         has_fraction = 1;
     }
-    if (*p == 'e' || *p == 'E') {
+    if (p < end && (*p == 'e' || *p == 'E')) {
         p++;
-        if (*p == '+' || *p == '-') {
+        if (p < end && (*p == '+' || *p == '-')) {
             p++;
         }
-        p = digit_run(p, 0);
+        p = digit_run(p, end, 0);
         if (p == NULL) {
             return 0;
         }
@@ -135,17 +141,22 @@ int abbe_can_toml_number(const char *s, double *out)
     if (*p != '\0' || !(has_fraction || has_exponent)) {
         return 0;
     }
-    char buf[64];
-    strip(s, buf, sizeof buf);
-    char *end = NULL;
-    errno = 0;
-    double v = strtod(buf, &end);
-    if (end == buf || *end != '\0') {
-        return 0;
-    }
-    if (!(v > -1e300 && v < 1e300)) {
+    char buf[64] = {0};
+    strip(s, end, buf, sizeof buf);
+    /* the syntax above is a subset of strtod's (the C locale: nothing here
+     * calls setlocale), so it reads the whole text */
+    double v = strtod(buf, NULL);
+    /* |v| < 1e300 on the bits (binary64 magnitudes order as integers, NaN
+     * above the infinities), the value rebuilt from the magnitude: the proof
+     * follows a magnitude below 1e300's bits to a finite double */
+    uint64_t bits;
+    memcpy(&bits, &v, sizeof bits);
+    uint64_t magnitude = bits & 0x7FFFFFFFFFFFFFFFull;
+    if (magnitude >= 0x7E37E43C8800759Cull) { /* the bits of 1e300 */
         return -1; /* overflow to infinity */
     }
-    *out = v; /* an underflow to 0 or a subnormal is that value */
+    double m;
+    memcpy(&m, &magnitude, sizeof m);
+    *out = (bits >> 63) != 0u ? -m : m; /* an underflow to 0 or a subnormal is that value */
     return 1;
 }
