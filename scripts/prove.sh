@@ -150,7 +150,7 @@ run_one() { # name sources defines options
 # left, docs/proofs.md)
 OPEN_HARNESSES=(
     "modbus|tests/proofs/modbus.c port/modbus/src/regs.c $(ls lib/src/*.c | grep -v five_load | tr '\n' ' ')|-Iport/modbus/include|-eva-auto-loop-unroll 16"
-    "can_config|tests/proofs/can_config.c port/socketcan/src/can_config_parse.c port/socketcan/src/can_toml_number.c port/socketcan/src/can_config_check.c|-Iport/socketcan/include -Iport/socketcan/src -DPROOF_MAX_SIZE=64|-eva-auto-loop-unroll 16"
+    "can_config|tests/proofs/can_config.c port/socketcan/src/can_config_parse.c port/socketcan/src/can_toml_number.c port/socketcan/src/can_config_check.c|-Iport/socketcan/include -Iport/socketcan/src -DPROOF_MAX_SIZE=64|-eva-auto-loop-unroll 64 -eva-slevel-function parse_pair:200"
 )
 if ((OPEN)); then
     HARNESSES=("${OPEN_HARNESSES[@]}")

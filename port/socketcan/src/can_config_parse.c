@@ -74,7 +74,10 @@ static const field_t FIELDS[] = {
 };
 #define N_FIELDS (sizeof FIELDS / sizeof FIELDS[0])
 
-static const char *const SECTIONS[] = {"bus", "model", "status", "command", "compensator", "temperature",
+/* Fixed-width names (each a string in 12 bytes): a scan of any of them stays
+ * inside its 12 bytes, which the proof sees without knowing which one. */
+#define SECTION_NAME_MAX 12u
+static const char SECTIONS[][SECTION_NAME_MAX] = {"bus", "model", "status", "command", "compensator", "temperature",
                                        "thermal", "axis.X", "axis.Y", "axis.Z"};
 #define N_SECTIONS (sizeof SECTIONS / sizeof SECTIONS[0])
 #define AXIS_SECTION0 7u /* index of axis.X */
@@ -137,7 +140,7 @@ static const char *skip_space(const parser_t *ps, const char *p)
 static int rest_is_empty(const parser_t *ps, const char *p)
 {
     p = skip_space(ps, p);
-    return *p == '\0' || *p == '#';
+    return p >= ps->end || *p == '\0' || *p == '#';
 }
 
 static int is_key_char(char c)
@@ -161,7 +164,7 @@ static int parse_header(parser_t *ps, const char *p, unsigned line)
         p++;
     }
     name[n] = '\0';
-    if (*p != ']' || !rest_is_empty(ps, p + 1)) {
+    if (p >= ps->end || *p != ']' || !rest_is_empty(ps, p + 1)) {
         return error(ps, line, name, "malformed section header: expected [name]");
     }
     for (unsigned s = 0; s < N_SECTIONS; s++) {
@@ -275,7 +278,7 @@ static int store(parser_t *ps, const field_t *f, void *base, const token_t *tok,
         return ABBE_CAN_OK;
     }
     if (f->kind == V_DOUBLE || f->kind == V_SCALED) {
-        double v;
+        double v = 0.0;
         int st = abbe_can_toml_number(tok->text, &v);
         if (st == 0) {
             return error(ps, line, field, "expected a number (TOML syntax: 10000, -0.5, 2.6214e4, 1_000)");
@@ -295,7 +298,7 @@ static int store(parser_t *ps, const field_t *f, void *base, const token_t *tok,
         memcpy(dst, &iv, sizeof iv);
         return ABBE_CAN_OK;
     }
-    long long v;
+    long long v = 0;
     int ist = abbe_can_toml_int(tok->text, &v);
     if (ist == 0) {
         return error(ps, line, field, "expected an integer (decimal or 0x hex)");
@@ -304,12 +307,13 @@ static int store(parser_t *ps, const field_t *f, void *base, const token_t *tok,
         v = tok->text[0] == '-' ? LLONG_MIN : LLONG_MAX; /* reported as out of range below */
     }
     if (v < f->min || v > f->max) {
-        char msg[96];
+        char msg[96] = {0};
         if (f->kind == V_U32) {
             snprintf(msg, sizeof msg, "must be 0x%03llX..0x%03llX", f->min, f->max);
         } else {
             snprintf(msg, sizeof msg, "must be %lld..%lld", f->min, f->max);
         }
+        msg[sizeof msg - 1u] = '\0'; /* as field in parse_pair */
         return error(ps, line, field, msg);
     }
     switch (f->kind) {
@@ -331,7 +335,7 @@ static int store(parser_t *ps, const field_t *f, void *base, const token_t *tok,
 
 static unsigned seen_line(const parser_t *ps, const char *field)
 {
-    for (unsigned i = 0; i < ps->n_seen; i++) {
+    for (unsigned i = 0; i < ps->n_seen && i < MAX_SEEN; i++) { /* n_seen <= MAX_SEEN: the bound, stated */
         if (strcmp(ps->seen_field[i], field) == 0) {
             return ps->seen_line[i];
         }
@@ -339,47 +343,14 @@ static unsigned seen_line(const parser_t *ps, const char *field)
     return 0;
 }
 
-static int parse_pair(parser_t *ps, const char *p, unsigned line)
+/* The value after "field =" (p at the '='), into field f of base. */
+static int set_field(parser_t *ps, const field_t *f, const char *p, unsigned line, const char *field)
 {
-    char key[32] = {0};
-    size_t n = 0;
-    while (p + n < ps->end && is_key_char(p[n])) {
-        if (n + 1u >= sizeof key) {
-            return error(ps, line, NULL, "key too long");
-        }
-        key[n] = p[n];
-        n++;
-    }
-    key[n] = '\0';
-    if (n == 0) {
-        return error(ps, line, NULL, "expected key = value, [section] or # comment");
-    }
-    char field[48];
-    if (ps->section >= 0) {
-        snprintf(field, sizeof field, "%s.%s", SECTIONS[ps->section], key);
-    } else {
-        snprintf(field, sizeof field, "%s", key);
-    }
-    p = skip_space(ps, p + n);
-    if (*p != '=') {
-        return error(ps, line, field, "expected '=' after the key");
-    }
-    if (ps->section < 0) {
-        return error(ps, line, key, ps->section == -1 ? "key outside a section: start with [bus] or another section"
-                                                      : "keys go into [axis.X], [axis.Y] or [axis.Z]");
-    }
-    const char *sec = SECTIONS[ps->section];
-    int is_axis = (unsigned)ps->section >= AXIS_SECTION0;
-    const field_t *f = NULL;
-    for (unsigned i = 0; i < N_FIELDS; i++) {
-        if (strcmp(FIELDS[i].key, key) == 0 && strcmp(FIELDS[i].section, is_axis ? "axis" : sec) == 0) {
-            f = &FIELDS[i];
-            break;
-        }
-    }
-    if (f == NULL) {
-        return error(ps, line, field, "unknown key");
-    }
+    /* an axis field is matched in an axis section only: the index is 0..2
+     * (the clamp never binds; it states the bound where the proof needs it) */
+    unsigned axis = (unsigned)ps->section - AXIS_SECTION0;
+    void *base = strcmp(f->section, "axis") == 0 ? (void *)&ps->cfg->axis[axis < ABBE_AXES ? axis : 0u]
+                                                 : (void *)ps->cfg;
     if (seen_line(ps, field) != 0u) {
         return error(ps, line, field, "set twice");
     }
@@ -392,7 +363,6 @@ static int parse_pair(parser_t *ps, const char *p, unsigned line)
     if (!rest_is_empty(ps, p)) {
         return error(ps, line, field, "unexpected text after the value");
     }
-    void *base = is_axis ? (void *)&ps->cfg->axis[(unsigned)ps->section - AXIS_SECTION0] : (void *)ps->cfg;
     st = store(ps, f, base, &tok, line, field);
     if (st != ABBE_CAN_OK) {
         return st;
@@ -403,6 +373,60 @@ static int parse_pair(parser_t *ps, const char *p, unsigned line)
         ps->n_seen++;
     }
     return ABBE_CAN_OK;
+}
+
+/* "section.key" (or the key alone without a section) into field: a section's
+ * name (< 12 characters), '.', a key (< 32 characters) fit its 48 bytes. */
+static void join_field(char field[48], const char *section, const char key[32])
+{
+    size_t n = 0;
+    for (size_t i = 0; section != NULL && i < SECTION_NAME_MAX && section[i] != '\0'; i++) {
+        field[n++] = section[i];
+    }
+    if (section != NULL) {
+        field[n++] = '.';
+    }
+    for (size_t i = 0; i < 32u && key[i] != '\0'; i++) {
+        field[n++] = key[i];
+    }
+    field[n] = '\0';
+}
+
+static int parse_pair(parser_t *ps, const char *p, unsigned line)
+{
+    char key[32] = {0};
+    size_t n = 0;
+    while (p < ps->end && is_key_char(*p)) {
+        if (n + 1u >= sizeof key) {
+            return error(ps, line, NULL, "key too long");
+        }
+        key[n++] = *p++;
+    }
+    key[n] = '\0';
+    if (n == 0) {
+        return error(ps, line, NULL, "expected key = value, [section] or # comment");
+    }
+    /*@ split ps->section; */ /* the proof: each section's keys apart (the field table is matched per section) */
+    char field[48] = {0};
+    join_field(field, ps->section >= 0 ? SECTIONS[ps->section] : NULL, key);
+    p = skip_space(ps, p);
+    if (p >= ps->end || *p != '=') {
+        return error(ps, line, field, "expected '=' after the key");
+    }
+    if (ps->section < 0) {
+        return error(ps, line, key, ps->section == -1 ? "key outside a section: start with [bus] or another section"
+                                                      : "keys go into [axis.X], [axis.Y] or [axis.Z]");
+    }
+    const char *sec = SECTIONS[ps->section];
+    int is_axis = (unsigned)ps->section >= AXIS_SECTION0;
+    /* the value is read and stored from inside the match: each field's own
+     * call, so the proof sees which field (its kind, offset, size) it writes */
+    for (unsigned i = 0; i < N_FIELDS; i++) {
+        if (strcmp(FIELDS[i].key, key) == 0 && strcmp(FIELDS[i].section, is_axis ? "axis" : sec) == 0) {
+            return set_field(ps, &FIELDS[i], p, line, field);
+        }
+    }
+    return error(ps, line, field, "unknown key");
 }
 
 static int parse_line(parser_t *ps, const char *line, unsigned lineno)
@@ -425,9 +449,11 @@ static unsigned line_of(const parser_t *ps, const char *field)
     if (l != 0u) {
         return l;
     }
+    char name[48] = {0}; /* field in a buffer longer than every section's name */
+    copy_str(name, sizeof name, field);
     for (unsigned s = 0; s < N_SECTIONS; s++) {
         size_t n = strlen(SECTIONS[s]);
-        if (strncmp(field, SECTIONS[s], n) == 0 && field[n] == '.' && ps->section_line[s] != 0u) {
+        if (strncmp(name, SECTIONS[s], n) == 0 && name[n] == '.' && ps->section_line[s] != 0u) {
             return ps->section_line[s];
         }
     }
@@ -457,8 +483,9 @@ static int finish(parser_t *ps)
     for (unsigned s = 0; s < N_SECTIONS; s++) {
         int axis = s >= AXIS_SECTION0;
         if ((axis || strcmp(SECTIONS[s], "model") == 0) && ps->section_line[s] == 0u) {
-            char msg[64];
-            snprintf(msg, sizeof msg, "missing section [%s]", SECTIONS[s]);
+            char msg[64] = {0};
+            snprintf(msg, sizeof msg, "missing section [%.11s]", SECTIONS[s]);
+            msg[sizeof msg - 1u] = '\0'; /* as field in parse_pair */
             return error(ps, ps->last_line, SECTIONS[s], msg);
         }
         for (unsigned i = 0; i < N_FIELDS; i++) {
@@ -466,8 +493,8 @@ static int finish(parser_t *ps)
             if (!f->required || strcmp(f->section, axis ? "axis" : SECTIONS[s]) != 0) {
                 continue;
             }
-            char field[48];
-            snprintf(field, sizeof field, "%s.%s", SECTIONS[s], f->key);
+            char field[48] = {0};
+            join_field(field, SECTIONS[s], f->key);
             if (seen_line(ps, field) == 0u) {
                 return error(ps, ps->section_line[s], field, "missing (required)");
             }

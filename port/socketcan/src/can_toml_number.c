@@ -61,10 +61,12 @@ static const char *decimal_int(const char *p, const char *end)
 }
 
 /* s without '_' into buf (the syntax was checked: it fits). */
-static void strip(const char *s, const char *end, char *buf, size_t cap)
+#define NUMBER_MAX 64u /* a number's text, '\0' included (read_value: < 64 characters) */
+
+static void strip(const char *s, const char *end, char buf[NUMBER_MAX])
 {
     size_t n = 0;
-    for (; s < end && *s != '\0' && n + 1u < cap; s++) {
+    for (; s < end && *s != '\0' && n < NUMBER_MAX - 1u; s++) {
         if (*s != '_') {
             buf[n++] = *s;
         }
@@ -75,7 +77,7 @@ static void strip(const char *s, const char *end, char *buf, size_t cap)
 /* 1: *out set; 0: not an integer; -1: an integer beyond 64 bits. */
 int abbe_can_toml_int(const char *s, long long *out)
 {
-    char buf[64] = {0};
+    char buf[NUMBER_MAX] = {0};
     const char *end = s + strlen(s);
     errno = 0;
     long long v;
@@ -84,7 +86,7 @@ int abbe_can_toml_int(const char *s, long long *out)
         if (e == NULL || *e != '\0') {
             return 0;
         }
-        strip(s + 2, end, buf, sizeof buf);
+        strip(s + 2, end, buf);
         unsigned long long u = strtoull(buf, NULL, 16);
         if (errno != 0 || u > (unsigned long long)0x7FFFFFFFFFFFFFFFLL) {
             return -1;
@@ -95,7 +97,7 @@ int abbe_can_toml_int(const char *s, long long *out)
         if (e == NULL || *e != '\0') {
             return 0;
         }
-        strip(s, end, buf, sizeof buf);
+        strip(s, end, buf);
         v = strtoll(buf, NULL, 10);
         if (errno != 0) {
             return -1;
@@ -108,7 +110,7 @@ int abbe_can_toml_int(const char *s, long long *out)
 /* 1: *out set (finite, |v| < 1e300); 0: not a number; -1: out of that range. */
 int abbe_can_toml_number(const char *s, double *out)
 {
-    long long i;
+    long long i = 0;
     int st = abbe_can_toml_int(s, &i);
     if (st != 0) {
         *out = (double)i;
@@ -141,8 +143,8 @@ int abbe_can_toml_number(const char *s, double *out)
     if (*p != '\0' || !(has_fraction || has_exponent)) {
         return 0;
     }
-    char buf[64] = {0};
-    strip(s, end, buf, sizeof buf);
+    char buf[NUMBER_MAX] = {0};
+    strip(s, end, buf);
     /* the syntax above is a subset of strtod's (the C locale: nothing here
      * calls setlocale), so it reads the whole text */
     double v = strtod(buf, NULL);
