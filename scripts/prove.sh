@@ -51,6 +51,8 @@ HARNESSES=(
     "grblhal|tests/proofs/grblhal.c port/grblhal/src/abbe_grblhal_core.c $(ls lib/src/*.c | tr '\n' ' ')|-Iport/grblhal/include -DPROOF_CHUNK=64|-eva-auto-loop-unroll 16"
     "lcnc_file|tests/proofs/lcnc_file.c port/linuxcnc/src/abbe_lcnc_file.c $(frama-c -print-share-path)/libc/string.c|-Iport/linuxcnc/include -DPROOF_MAX_SIZE=256|"
     "sincos|tests/proofs/sincos.c lib/src/sincos_q.c||"
+    # the CAN node's frame handling: any sequence of frames of any id, DLC and payload, SYNCs among them
+    "can_node|tests/proofs/can_node.c port/socketcan/src/can_node.c port/socketcan/src/can_frame.c port/socketcan/src/can_config_check.c port/socketcan/src/can_status.c $(ls lib/src/*.c | grep -v five_load | tr '\n' ' ')|-Iport/socketcan/include -Iport/socketcan/src|-eva-auto-loop-unroll 16"
 )
 
 # The fixed-point evaluation and the compensator's cycle (eval_q.c) on each
