@@ -148,9 +148,13 @@ run_one() { # name sources defines options
     echo "[prove] ok   $name: 0 alarms, every property proven (${secs} s, ${cpu:-?} s CPU; $(grep -o '[0-9]* statements reached (out of [0-9]*): [0-9]*% coverage' "$log" | tail -1))"
 }
 
-# not proven yet: the Modbus path and the CAN configuration parser (alarms
-# left, docs/proofs.md)
+# not proven yet: the Modbus path, the CAN configuration parser and the
+# thermal runtime's updates (alarms left, docs/proofs.md)
+TH_SRCS="tests/proofs/thermal_update.c tests/golden/golden_thermal.c lib/src/thermal_load.c lib/src/thermal.c lib/src/thermal_q.c lib/src/thermal_f32.c lib/src/crc32.c"
+TH_OPTS="-eva-auto-loop-unroll 64 -eva-split-return-function check_header:0,abbe_thermal_load:0,abbe_thermal_init_q:0,abbe_thermal_init_f32:0 -eva-slevel-function main:10,abbe_thermal_load:40"
 OPEN_HARNESSES=(
+    "thermal_update_q|$TH_SRCS|-Itests/golden -DPROOF_CLZ_AS_CODE -DPROOF_Q|$TH_OPTS"
+    "thermal_update_f32|$TH_SRCS|-Itests/golden -DPROOF_CLZ_AS_CODE|$TH_OPTS -warn-special-float none"
     "modbus|tests/proofs/modbus.c port/modbus/src/regs.c $(ls lib/src/*.c | grep -v five_load | tr '\n' ' ')|-Iport/modbus/include|-eva-auto-loop-unroll 16"
     "can_config|tests/proofs/can_config.c port/socketcan/src/can_config_parse.c port/socketcan/src/can_toml_number.c port/socketcan/src/can_config_check.c|-Iport/socketcan/include -Iport/socketcan/src -DPROOF_MAX_SIZE=64|-eva-auto-loop-unroll 64 -eva-slevel-function parse_pair:200"
 )
