@@ -45,9 +45,14 @@ LOADER_PRECISION="-eva-split-return-function check_header:0 -eva-slevel-function
 HARNESSES=(
     "load3|tests/proofs/load3.c lib/src/model_load.c lib/src/crc32.c|-DPROOF_MAX_SIZE=512|$LOADER_PRECISION abbe_model_load:10"
     "load5|tests/proofs/load5.c lib/src/five_load.c lib/src/crc32.c|-DPROOF_MAX_SIZE=512|$LOADER_PRECISION abbe_five_model_load:40"
+    # format 1.3: 352 B is the shortest table with a thermal block (256 B of
+    # header and axis records, a block of one input and one channel, the CRC)
+    "load_thermal|tests/proofs/load_thermal.c lib/src/thermal_load.c lib/src/crc32.c|-DPROOF_MAX_SIZE=352|$LOADER_PRECISION abbe_thermal_load:40"
     "grblhal|tests/proofs/grblhal.c $(ls port/grblhal/src/abbe_grblhal_core*.c lib/src/*.c | tr '\n' ' ')|-Iport/grblhal/include -DPROOF_CHUNK=64|-eva-auto-loop-unroll 16"
     "lcnc_file|tests/proofs/lcnc_file.c port/linuxcnc/src/abbe_lcnc_file.c $(frama-c -print-share-path)/libc/string.c|-Iport/linuxcnc/include -DPROOF_MAX_SIZE=256|"
     "sincos|tests/proofs/sincos.c lib/src/sincos_q.c||"
+    # the CAN node's frame handling: any sequence of frames of any id, DLC and payload, SYNCs among them
+    "can_node|tests/proofs/can_node.c port/socketcan/src/can_node.c port/socketcan/src/can_frame.c port/socketcan/src/can_config_check.c port/socketcan/src/can_status.c $(ls lib/src/*.c | grep -v five_load | tr '\n' ' ')|-Iport/socketcan/include -Iport/socketcan/src|-eva-auto-loop-unroll 16"
 )
 # The Modbus register map, one harness per entry point (tests/proofs/modbus.c):
 # the port's code as it is, the library's bookkeeping as it is, the calls that
@@ -151,14 +156,15 @@ run_one() { # name sources defines options
     echo "[prove] ok   $name: 0 alarms, every property proven (${secs} s, ${cpu:-?} s CPU; $(grep -o '[0-9]* statements reached (out of [0-9]*): [0-9]*% coverage' "$log" | tail -1))"
 }
 
-# not proven yet: the evaluators on an accepted table (alarms left, docs/proofs.md)
-# and the format 1.3 thermal loader, where the tree has it
+# not proven yet: the CAN configuration parser and the thermal runtime's
+# updates (alarms left, docs/proofs.md)
+TH_SRCS="tests/proofs/thermal_update.c tests/golden/golden_thermal.c lib/src/thermal_load.c lib/src/thermal.c lib/src/thermal_q.c lib/src/thermal_f32.c lib/src/crc32.c"
+TH_OPTS="-eva-auto-loop-unroll 64 -eva-split-return-function check_header:0,abbe_thermal_load:0,abbe_thermal_init_q:0,abbe_thermal_init_f32:0 -eva-slevel-function main:10,abbe_thermal_load:40"
 OPEN_HARNESSES=(
-    "can_config|tests/proofs/can_config.c port/socketcan/src/can_config_file.c port/socketcan/src/can_config_check.c $(frama-c -print-share-path)/libc/string.c $(frama-c -print-share-path)/libc/stdlib.c|-Iport/socketcan/include -Iport/socketcan/src -DPROOF_MAX_SIZE=64|-eva-auto-loop-unroll 16"
+    "thermal_update_q|$TH_SRCS|-Itests/golden -DPROOF_CLZ_AS_CODE -DPROOF_Q|$TH_OPTS"
+    "thermal_update_f32|$TH_SRCS|-Itests/golden -DPROOF_CLZ_AS_CODE|$TH_OPTS -warn-special-float none"
+    "can_config|tests/proofs/can_config.c port/socketcan/src/can_config_parse.c port/socketcan/src/can_toml_number.c port/socketcan/src/can_config_check.c|-Iport/socketcan/include -Iport/socketcan/src -DPROOF_MAX_SIZE=64|-eva-auto-loop-unroll 64 -eva-slevel-function parse_pair:200"
 )
-if [[ -f lib/src/thermal_load.c ]]; then
-    OPEN_HARNESSES+=("load_thermal|tests/proofs/load_thermal.c lib/src/thermal_load.c lib/src/crc32.c|-DPROOF_MAX_SIZE=512|$LOADER_PRECISION abbe_thermal_load:40")
-fi
 if ((OPEN)); then
     HARNESSES=("${OPEN_HARNESSES[@]}")
 fi

@@ -22,14 +22,46 @@
 #define TH_GAIN_CAP ((int32_t)1 << 28)       /* |gain|, 2^-16 um per unit */
 #define TH_TIME_CAP ((uint32_t)1 << 31)      /* tau, max_gap, fade, ms */
 
-static const uint8_t *th_input(const uint8_t *t, unsigned k)
+/* Byte offsets (in the table) of the block's records: t the block's offset. */
+static uint32_t th_input(uint32_t t, unsigned k)
 {
     return t + TH_HEADER_SIZE + TH_INPUT_SIZE * k;
 }
 
-static const uint8_t *th_channel(const uint8_t *t, unsigned n_inputs, unsigned c)
+static uint32_t th_channel(uint32_t t, unsigned n_inputs, unsigned c)
 {
     return t + TH_HEADER_SIZE + TH_INPUT_SIZE * n_inputs + TH_CHANNEL_SIZE * c;
+}
+
+static uint32_t th_term(uint32_t ch, unsigned k)
+{
+    return ch + 8u + TH_TERM_SIZE * k;
+}
+
+/* The block's reads, bounded by the table's CRC word (the value, or 0 past it).
+ * check_thermal places the whole block inside [DATA_START, total - 4) before
+ * it reads anything at an offset derived from the block's counts, so the
+ * bound never binds on a table that gets there; it makes each read's bound
+ * evident at the read, where the proof (tests/proofs/load_thermal.c) checks it
+ * without relating the block's offset and counts to total (as coef_word). */
+static unsigned th_u8(const uint8_t *b, uint32_t total, uint32_t at)
+{
+    return total >= 5u && at < total - 4u ? b[at] : 0u;
+}
+
+static unsigned th_u16(const uint8_t *b, uint32_t total, uint32_t at)
+{
+    return total >= 6u && at <= total - 6u ? abbe_ld_u16(b + at) : 0u;
+}
+
+static uint32_t th_u32(const uint8_t *b, uint32_t total, uint32_t at)
+{
+    return total >= 8u && at <= total - 8u ? abbe_ld_u32(b + at) : 0u;
+}
+
+static int32_t th_i32(const uint8_t *b, uint32_t total, uint32_t at)
+{
+    return total >= 8u && at <= total - 8u ? abbe_ld_i32(b + at) : 0;
 }
 
 static int th_abs_over(int32_t v, int32_t cap)
@@ -42,80 +74,84 @@ static int th_abs_over(int32_t v, int32_t cap)
  * COUNT of terms, RANGE). */
 static abbe_status_t check_thermal(const uint8_t *b, uint32_t total)
 {
-    uint32_t off = abbe_ld_u32(b + H_RESERVED);
-    if ((off & 3u) != 0u || off < DATA_START || off > total - 4u || total - 4u - off < TH_HEADER_SIZE) {
+    uint32_t t = abbe_ld_u32(b + H_RESERVED);
+    if ((t & 3u) != 0u || t < DATA_START || t > total - 4u || total - 4u - t < TH_HEADER_SIZE) {
         return ABBE_E_OFFSET;
     }
-    const uint8_t *t = b + off;
-    unsigned n_in = t[0], n_ch = t[1];
+    unsigned n_in = th_u8(b, total, t), n_ch = th_u8(b, total, t + 1u);
     if (n_in < 1u || n_in > ABBE_THERMAL_MAX_INPUTS || n_ch < 1u || n_ch > ABBE_THERMAL_MAX_CHANNELS) {
         return ABBE_E_COUNT;
     }
-    if (total - 4u - off < TH_HEADER_SIZE + TH_INPUT_SIZE * n_in + TH_CHANNEL_SIZE * n_ch) {
+    if (total - 4u - t < TH_HEADER_SIZE + TH_INPUT_SIZE * n_in + TH_CHANNEL_SIZE * n_ch) {
         return ABBE_E_OFFSET;
     }
     /* FLAGS: reserved bytes, kinds, outputs (each at most once), unused term slots */
-    if (abbe_ld_u16(t + 2) != 0u || abbe_ld_u32(t + 12) != 0u) {
+    if (th_u16(b, total, t + 2u) != 0u || th_u32(b, total, t + 12u) != 0u) {
         return ABBE_E_FLAGS;
     }
     for (unsigned k = 0; k < n_in; k++) {
-        const uint8_t *in = th_input(t, k);
-        /* in[1]: stuck time in minutes (0: no stuck check), in[2..3]: stuck
+        uint32_t in = th_input(t, k);
+        /* in+1: stuck time in minutes (0: no stuck check), in+2..3: stuck
          * resolution in milli-units, 0 without a stuck time */
-        if (in[0] > ABBE_THERMAL_SPEED || (in[1] == 0u && abbe_ld_u16(in + 2) != 0u)) {
+        if (th_u8(b, total, in) > ABBE_THERMAL_SPEED ||
+            (th_u8(b, total, in + 1u) == 0u && th_u16(b, total, in + 2u) != 0u)) {
             return ABBE_E_FLAGS;
         }
     }
     unsigned outputs = 0;
     for (unsigned c = 0; c < n_ch; c++) {
-        const uint8_t *ch = th_channel(t, n_in, c);
-        if (ch[0] > ABBE_THERMAL_OUT_B || (outputs & (1u << ch[0])) != 0u || abbe_ld_u16(ch + 2) != 0u) {
+        uint32_t ch = th_channel(t, n_in, c);
+        unsigned out = th_u8(b, total, ch), n_terms = th_u8(b, total, ch + 1u);
+        if (out > ABBE_THERMAL_OUT_B || (outputs & (1u << out)) != 0u || th_u16(b, total, ch + 2u) != 0u) {
             return ABBE_E_FLAGS;
         }
-        outputs |= 1u << ch[0];
+        outputs |= 1u << out;
         for (unsigned k = 0; k < ABBE_THERMAL_MAX_TERMS; k++) {
-            const uint8_t *tm = ch + 8u + TH_TERM_SIZE * k;
-            uint32_t reserved = (uint32_t)tm[1] | (uint32_t)tm[2] | (uint32_t)tm[3];
-            if (reserved != 0u || (k >= ch[1] && (tm[0] != 0u || any_nonzero_i32(tm + 4, 2)))) {
+            uint32_t tm = th_term(ch, k);
+            unsigned reserved = th_u8(b, total, tm + 1u) | th_u8(b, total, tm + 2u) | th_u8(b, total, tm + 3u);
+            if (reserved != 0u || (k >= n_terms && (th_u8(b, total, tm) != 0u || th_u32(b, total, tm + 4u) != 0u ||
+                                                    th_u32(b, total, tm + 8u) != 0u))) {
                 return ABBE_E_FLAGS;
             }
         }
     }
     /* COUNT: terms per channel, the inputs they read */
     for (unsigned c = 0; c < n_ch; c++) {
-        const uint8_t *ch = th_channel(t, n_in, c);
-        if (ch[1] < 1u || ch[1] > ABBE_THERMAL_MAX_TERMS) {
+        uint32_t ch = th_channel(t, n_in, c);
+        unsigned n_terms = th_u8(b, total, ch + 1u);
+        if (n_terms < 1u || n_terms > ABBE_THERMAL_MAX_TERMS) {
             return ABBE_E_COUNT;
         }
-        for (unsigned k = 0; k < ch[1]; k++) {
-            if (ch[8u + TH_TERM_SIZE * k] >= n_in) {
+        for (unsigned k = 0; k < n_terms; k++) {
+            if (th_u8(b, total, th_term(ch, k)) >= n_in) {
                 return ABBE_E_COUNT;
             }
         }
     }
     /* RANGE */
-    uint32_t gap = abbe_ld_u32(t + 4), fade = abbe_ld_u32(t + 8);
+    uint32_t gap = th_u32(b, total, t + 4u), fade = th_u32(b, total, t + 8u);
     if (gap < 1u || gap > TH_TIME_CAP || fade < 1u || fade > TH_TIME_CAP) {
         return ABBE_E_RANGE;
     }
     for (unsigned k = 0; k < n_in; k++) {
-        const uint8_t *in = th_input(t, k);
-        int32_t ref = abbe_ld_i32(in + 4), lo = abbe_ld_i32(in + 8), hi = abbe_ld_i32(in + 12);
-        int32_t step = abbe_ld_i32(in + 16);
+        uint32_t in = th_input(t, k);
+        int32_t ref = th_i32(b, total, in + 4u), lo = th_i32(b, total, in + 8u), hi = th_i32(b, total, in + 12u);
+        int32_t step = th_i32(b, total, in + 16u);
         if (th_abs_over(ref, TH_VALUE_CAP) || th_abs_over(lo, TH_VALUE_CAP) || th_abs_over(hi, TH_VALUE_CAP) ||
             lo >= hi || step < 1 || step > TH_STEP_CAP) {
             return ABBE_E_RANGE;
         }
     }
     for (unsigned c = 0; c < n_ch; c++) {
-        const uint8_t *ch = th_channel(t, n_in, c);
-        int32_t limit = abbe_ld_i32(ch + 4);
+        uint32_t ch = th_channel(t, n_in, c);
+        int32_t limit = th_i32(b, total, ch + 4u);
         if (limit < 1 || limit > TH_LIMIT_CAP) {
             return ABBE_E_RANGE;
         }
-        for (unsigned k = 0; k < ch[1]; k++) {
-            const uint8_t *tm = ch + 8u + TH_TERM_SIZE * k;
-            if (abbe_ld_u32(tm + 4) > TH_TIME_CAP || th_abs_over(abbe_ld_i32(tm + 8), TH_GAIN_CAP)) {
+        unsigned n_terms = th_u8(b, total, ch + 1u);
+        for (unsigned k = 0; k < n_terms; k++) {
+            uint32_t tm = th_term(ch, k);
+            if (th_u32(b, total, tm + 4u) > TH_TIME_CAP || th_abs_over(th_i32(b, total, tm + 8u), TH_GAIN_CAP)) {
                 return ABBE_E_RANGE;
             }
         }
@@ -123,7 +159,15 @@ static abbe_status_t check_thermal(const uint8_t *b, uint32_t total)
     return ABBE_OK;
 }
 
-static void build_thermal(abbe_thermal_model_t *th, const uint8_t *b)
+/* v, or cap past it: check_thermal has refused every count above its cap, so
+ * this never binds; it states the bound where the counts index the model's
+ * arrays, for the proof (as the counts are re-read from the table here). */
+static unsigned th_cap(unsigned v, unsigned cap)
+{
+    return v <= cap ? v : cap;
+}
+
+static void build_thermal(abbe_thermal_model_t *th, const uint8_t *b, uint32_t total)
 {
     memset(th, 0, sizeof *th);
     uint32_t features = abbe_ld_u32(b + H_FEATURES);
@@ -131,33 +175,36 @@ static void build_thermal(abbe_thermal_model_t *th, const uint8_t *b)
     if ((features & ABBE_FEATURE_THERMAL_DYN) == 0u) {
         return; /* no block: n_inputs = n_channels = 0 */
     }
-    const uint8_t *t = b + abbe_ld_u32(b + H_RESERVED);
-    unsigned n_in = t[0], n_ch = t[1];
+    uint32_t t = abbe_ld_u32(b + H_RESERVED);
+    unsigned n_in = th_cap(th_u8(b, total, t), ABBE_THERMAL_MAX_INPUTS);
+    unsigned n_ch = th_cap(th_u8(b, total, t + 1u), ABBE_THERMAL_MAX_CHANNELS);
     th->n_inputs = (uint8_t)n_in;
     th->n_channels = (uint8_t)n_ch;
-    th->max_gap_ms = abbe_ld_u32(t + 4);
-    th->fade_ms = abbe_ld_u32(t + 8);
+    th->max_gap_ms = th_u32(b, total, t + 4u);
+    th->fade_ms = th_u32(b, total, t + 8u);
     for (unsigned k = 0; k < n_in; k++) {
-        const uint8_t *in = th_input(t, k);
-        th->kind[k] = in[0];
-        th->ref_milli[k] = abbe_ld_i32(in + 4);
-        th->vmin_milli[k] = abbe_ld_i32(in + 8);
-        th->vmax_milli[k] = abbe_ld_i32(in + 12);
-        th->max_step_milli[k] = abbe_ld_i32(in + 16);
-        th->stuck_ms[k] = (uint32_t)in[1] * 60000u;
-        th->stuck_res_milli[k] = (int32_t)abbe_ld_u16(in + 2);
+        uint32_t in = th_input(t, k);
+        th->kind[k] = (uint8_t)th_u8(b, total, in);
+        th->ref_milli[k] = th_i32(b, total, in + 4u);
+        th->vmin_milli[k] = th_i32(b, total, in + 8u);
+        th->vmax_milli[k] = th_i32(b, total, in + 12u);
+        th->max_step_milli[k] = th_i32(b, total, in + 16u);
+        th->stuck_ms[k] = (uint32_t)th_u8(b, total, in + 1u) * 60000u;
+        th->stuck_res_milli[k] = (int32_t)th_u16(b, total, in + 2u);
     }
     for (unsigned c = 0; c < n_ch; c++) {
-        const uint8_t *ch = th_channel(t, n_in, c);
-        th->output[c] = ch[0];
-        th->n_terms[c] = ch[1];
-        th->limit[c] = abbe_ld_i32(ch + 4);
-        for (unsigned k = 0; k < ch[1]; k++) {
-            const uint8_t *tm = ch + 8u + TH_TERM_SIZE * k;
-            th->term_input[c][k] = tm[0];
-            th->channel_inputs[c] |= 1u << tm[0];
-            th->tau_ms[c][k] = abbe_ld_u32(tm + 4);
-            th->gain_q16[c][k] = abbe_ld_i32(tm + 8);
+        uint32_t ch = th_channel(t, n_in, c);
+        unsigned n_terms = th_cap(th_u8(b, total, ch + 1u), ABBE_THERMAL_MAX_TERMS);
+        th->output[c] = (uint8_t)th_u8(b, total, ch);
+        th->n_terms[c] = (uint8_t)n_terms;
+        th->limit[c] = th_i32(b, total, ch + 4u);
+        for (unsigned k = 0; k < n_terms; k++) {
+            uint32_t tm = th_term(ch, k);
+            unsigned input = th_cap(th_u8(b, total, tm), ABBE_THERMAL_MAX_INPUTS - 1u); /* < n_in: check_thermal */
+            th->term_input[c][k] = (uint8_t)input;
+            th->channel_inputs[c] |= 1u << input;
+            th->tau_ms[c][k] = th_u32(b, total, tm + 4u);
+            th->gain_q16[c][k] = th_i32(b, total, tm + 8u);
         }
     }
 #if ABBE_WITH_F32
@@ -168,7 +215,7 @@ static void build_thermal(abbe_thermal_model_t *th, const uint8_t *b)
         th->vmin[k] = (float)th->vmin_milli[k] * unit;
         th->vmax[k] = (float)th->vmax_milli[k] * unit;
         th->max_step[k] = (float)th->max_step_milli[k] * unit;
-        th->stuck_s[k] = (float)th_input(t, k)[1] * 60.0f; /* whole minutes: exact, as the _q path */
+        th->stuck_s[k] = (float)th_u8(b, total, th_input(t, k) + 1u) * 60.0f; /* whole minutes: exact, as the _q path */
         th->stuck_res[k] = (float)th->stuck_res_milli[k] * unit;
         th->rise_scale[k] = th->kind[k] == ABBE_THERMAL_SPEED ? 0.001f : 1.0f;
     }
@@ -203,7 +250,7 @@ abbe_status_t abbe_thermal_load(abbe_model_t *model, abbe_thermal_model_t *therm
         return st; /* both untouched */
     }
     build_model(model, b, total);
-    build_thermal(thermal, b);
+    build_thermal(thermal, b, total);
     return ABBE_OK;
 }
 

@@ -1,4 +1,4 @@
-/* Eva harness (format 1.0-1.3 tables, not proven yet: docs/proofs.md): abbe_thermal_load on every table of unknown bytes of every
+/* Eva harness (format 1.0-1.3 tables): abbe_thermal_load on every table of unknown bytes of every
  * length 0..PROOF_MAX_SIZE (docs/proofs.md). */
 #include "__fc_builtin.h"
 #include "abbe/thermal.h"

@@ -149,14 +149,15 @@ static int check_axis(const abbe_can_axis_config_t *ax, unsigned j, const char *
 static int check_pair(const abbe_can_config_t *cfg, const map_entry_t *a, const map_entry_t *b,
                       const char **field, const char **why)
 {
-    if (a->role == R_TPDO && b->role == R_TPDO) {
+    /* a PDO's entry has its axis (0..2); the test states it for the proof */
+    if (a->role == R_TPDO && b->role == R_TPDO && a->axis >= 0 && b->axis >= 0) {
         if (cfg->axis[a->axis].tpdo_dlc != cfg->axis[b->axis].tpdo_dlc) {
             return fail(field, why, axis_field[b->axis][F_TPDO_DLC],
                         "axes sharing a TPDO must have the same tpdo_dlc");
         }
         return ABBE_CAN_OK;
     }
-    if (a->role == R_RPDO && b->role == R_RPDO) {
+    if (a->role == R_RPDO && b->role == R_RPDO && a->axis >= 0 && b->axis >= 0) {
         const abbe_can_axis_config_t *x = &cfg->axis[a->axis], *y = &cfg->axis[b->axis];
         if (x->rpdo_dlc != y->rpdo_dlc) {
             return fail(field, why, axis_field[b->axis][F_RPDO_DLC],
@@ -247,6 +248,9 @@ int abbe_can_config_check(abbe_can_config_t *cfg, const char **field, const char
     }
 
     map_entry_t map[5 + ABBE_CAN_THERMAL_FRAMES + 2 * ABBE_AXES];
+    for (unsigned i = 0; i < sizeof map / sizeof map[0]; i++) { /* every entry defined, the unused ones too: the proof does not count n */
+        map[i] = (map_entry_t){0u, R_SYNC, -1, ""};
+    }
     unsigned n = 0;
     map[n++] = (map_entry_t){cfg->sync_cob_id, R_SYNC, -1, "bus.sync_cob_id"};
     if (cfg->status_enable) {
