@@ -120,6 +120,11 @@ def check_truth(case: ks.Case, gch: gen.GenChain, loc: dict[str, float], n: int 
     return worst
 
 
+def _vec(v: np.ndarray) -> str:
+    """A TOML array of floats (repr of Python floats: numpy 2 would print np.float64(...))."""
+    return "[" + ", ".join(repr(float(x)) for x in v) + "]"
+
+
 def _touch_dirs() -> np.ndarray:
     e = np.radians(30.0)
     return np.array([[0.0, 0.0, 1.0]] + [[np.cos(e) * np.cos(u), np.cos(e) * np.sin(u), np.sin(e)]
@@ -159,15 +164,15 @@ def write_campaign(name: str, out: Path, seed: int = 39) -> Path:
                     q = c + reach * d + rng.normal(0.0, PROBE_NOISE_UM * 1e-3, 3)
                     rows.append(f"{k},{t:.1f},{pair[0]:.6f},{pair[1]:.6f},{q[0]:.7f},{q[1]:.7f},{q[2]:.7f}")
             toml += [f"[probing.{sname}]", f'file = "{fname}"',
-                     f"sphere_mm = [{w[0]!r}, {w[1]!r}, {w[2]!r}]", f"sphere_radius_mm = {SPHERE_RADIUS_MM}",
-                     f"stylus_radius_mm = {STYLUS_RADIUS_MM}", f"tip_mm = [{tip[0]!r}, {tip[1]!r}, {tip[2]!r}]"]
+                     f"sphere_mm = {_vec(w)}", f"sphere_radius_mm = {SPHERE_RADIUS_MM}",
+                     f"stylus_radius_mm = {STYLUS_RADIUS_MM}", f"tip_mm = {_vec(tip)}"]
         else:
             r = gen.rtest_readings(gch, loc, w, setup, tip, angles, RTEST_NOISE_UM, rng)
             rows = [f"t_s,{a0}_deg,{a1}_deg,dx_um,dy_um,dz_um"]
             rows += [f"{5.0 * i:.1f},{p[0]:.6f},{p[1]:.6f},{v[0]:.4f},{v[1]:.4f},{v[2]:.4f}"
                      for i, (p, v) in enumerate(zip(angles, r))]
-            toml += [f"[rtest.{sname}]", f'file = "{fname}"', f"sphere_mm = [{w[0]!r}, {w[1]!r}, {w[2]!r}]",
-                     f"tip_mm = [{tip[0]!r}, {tip[1]!r}, {tip[2]!r}]"]
+            toml += [f"[rtest.{sname}]", f'file = "{fname}"', f"sphere_mm = {_vec(w)}",
+                     f"tip_mm = {_vec(tip)}"]
         (out / fname).write_text("\n".join(rows) + "\n")
     mf.write_text("\n".join(toml) + "\n")
     return mf
