@@ -1,7 +1,9 @@
 """``abbe fit`` on a ``[chain]`` machine file (head-head, head-table, dual-rotary table, or
 a trunnion written as a chain): the location errors from its probing and R-test files,
 with what the plan cannot see (abbe.analysis.five_axis.chain_fit). Writes chain_fit.json
-and report.txt into the output directory."""
+and report.txt into the output directory, and for a head-head, head-table or dual
+rotary table chain model_five.bin (format 1.4, the C runtime's and the LinuxCNC
+component's table)."""
 
 from __future__ import annotations
 
@@ -39,8 +41,10 @@ def run_chain(args: argparse.Namespace) -> int:
     outs = Outputs()
     try:
         staging = outs.directory(args.out, option="--out")
-        (staging / "chain_fit.json").write_text(json.dumps(fit_to_json(fit, setups), indent=2)
-                                                + "\n", encoding="utf-8")
+        doc = fit_to_json(fit, setups)
+        doc["blob"] = write_chain_table(fit, staging)
+        (staging / "chain_fit.json").write_text(json.dumps(doc, indent=2) + "\n",
+                                                encoding="utf-8")
         (staging / "report.txt").write_text(text, encoding="utf-8")
     except BaseException:
         outs.abort()
@@ -48,8 +52,35 @@ def run_chain(args: argparse.Namespace) -> int:
     outs.commit()
     if not args.quiet:
         print(text, end="")
+    table = (f"model_five.bin (format 1.4, {doc['blob']['bytes']} B)" if doc["blob"].get("file")
+             else f"no table: {doc['blob']['reason']}")
     print(f"abbe fit: wrote {args.out} ({chain.name}, {chain.kind}: rank {fit.rank} of "
-          f"{fit.n_unknowns}, {len(fit.observable)} of 10 location errors observable)")
+          f"{fit.n_unknowns}, {len(fit.observable)} of 10 location errors observable; {table})")
     if args.bench:
         print(f"bench: total {1000 * (time.perf_counter() - t0):8.1f} ms")
     return 0
+
+
+def write_chain_table(fit, staging) -> dict:  # noqa: ANN001 (ChainFit, Path)
+    """Write model_five.bin (format 1.4) for a kind 3-5 chain into ``staging``: the
+    location errors in the fit's convention (an error the plan cannot see alone holds the
+    value the convention gives it, the ones fixed at 0 hold 0: a workpiece datum absorbs
+    what they leave, docs/concepts.md). Returns the JSON entry: the file, its size and
+    CRC-32 and the convention, or ``file`` None and the reason (a table-table trunnion
+    written as a chain: its table is the ``[rotary]`` machine file's format 1.2 one)."""
+    import zlib
+
+    from abbe.formats.chain_blob import write_chain_blob
+    from abbe.model.five_axis import FiveAxisErrors
+    from abbe.model.table import TableError
+
+    convention = {"fixed_at_zero": [r.name for r in fit.rows if r.status == "fixed at 0"],
+                  "held_in_convention": {r.name: fit.values[r.name] for r in fit.rows
+                                         if r.status == "convention"}}
+    try:
+        blob = write_chain_blob(fit.chain, FiveAxisErrors(location=dict(fit.values)))
+    except TableError as exc:
+        return {"file": None, "reason": str(exc), "convention": convention}
+    (staging / "model_five.bin").write_bytes(blob)
+    return {"file": "model_five.bin", "format": "1.4", "bytes": len(blob),
+            "crc32": f"0x{zlib.crc32(blob[:-4]) & 0xFFFFFFFF:08X}", "convention": convention}

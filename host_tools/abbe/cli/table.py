@@ -6,8 +6,9 @@ Sub-commands:
 * ``eval MODEL.bin X Y Z [X Y Z ...]``: reference spatial error (um) at machine
   positions (mm); ``--clib`` adds the C library's f32 and q results; a five-axis
   table (format 1.2, ``abbe fit``'s model_five.bin) takes joint positions
-  X Y Z TILT C (mm, deg) and gives the tool tip's position (um) and orientation
-  (urad) error relative to the workpiece;
+  X Y Z TILT C (mm, deg; a format 1.4 table of another kind: its two rotary axes in
+  alphabetical order, B C or A B) and gives the tool tip's position (um) and
+  orientation (urad) error relative to the workpiece;
 * ``cgen MODEL.bin -o DIR``: generated C (abbe_model.c / .h; formats 1.0 - 1.3);
 * ``from-json MODEL.json -o MODEL.bin``; ``to-json MODEL.bin [-o MODEL.json]``;
 * ``thermal MODEL.bin thermal.json -o OUT.bin``: the table with the dynamic thermal
@@ -116,21 +117,32 @@ def _cmd_info(args: argparse.Namespace) -> int:
 
 def _cmd_eval_five(args: argparse.Namespace, data: bytes, five) -> int:
     """``abbe table eval`` of a five-axis table: joint positions X Y Z TILT C."""
-    from abbe.formats.five_axis_blob import five_reference
+    from abbe.formats.five_axis_blob import CHAIN_KIND_AXES, five_reference
 
     if args.dir is not None or args.temp_c is not None:
         raise AbbeInputError("--dir / --temp-c are for 3-axis tables; a five-axis table is "
                              "evaluated at joint positions only", field="--dir/--temp-c")
     if len(args.pos) % 5:
         raise AbbeInputError(f"{len(args.pos)} numbers given; a five-axis table "
-                             f"({five.kind}) takes joint positions in X Y Z TILT C quintuples "
+                             f"({five.kind}) takes joint positions in X Y Z TILT C quintuples (format "
+                             "1.4: the rotary axes in alphabetical order) "
                              "(mm, mm, mm, deg, deg)", field="pos")
     j = np.array(args.pos, dtype=np.float64).reshape(-1, 5)
     if np.any(np.abs(j[:, 3:]) > 2147.0):
         raise AbbeInputError("angles must lie within +/-2147 deg (the C library's range)",
                              field="pos")
     pos, ang = j[:, :3], j[:, 3:]
-    ref, rot = five_reference(five, pos, ang)
+    if five.kind in {name for name, _axes in CHAIN_KIND_AXES.values()}:
+        # format 1.4 (head-head, head-table, dual rotary table): the chain model's reference
+        from abbe.formats.chain_blob import read_chain_blob
+        from abbe.model.chain import tool_error_linear
+
+        chain, errs = read_chain_blob(data)
+        ref, rot = tool_error_linear(chain, errs, pos, ang)
+        names = "".join(sorted(chain.rotaries))
+    else:
+        ref, rot = five_reference(five, pos, ang)
+        names = five.kind[3].upper() + "C"
     cm = None
     if args.clib:
         from abbe.model import clib
@@ -138,8 +150,7 @@ def _cmd_eval_five(args: argparse.Namespace, data: bytes, five) -> int:
             cm = clib.CFiveModel(data, source=str(args.model))
         except clib.LibraryNotFound as exc:
             raise AbbeInputError(str(exc), field="--clib") from None
-    tilt = five.kind[3].upper()
-    head = (f"joints X Y Z mm {tilt} C deg | ref tool tip dX dY dZ um | orientation "
+    head = (f"joints X Y Z mm {names[0]} {names[1]} deg | ref tool tip dX dY dZ um | orientation "
             "rX rY rZ urad")
     if cm is not None:
         head += " | f32 dX dY dZ um | f32 rX rY rZ urad | max |diff| nm, nrad"

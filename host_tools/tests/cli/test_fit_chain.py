@@ -10,7 +10,9 @@ import numpy as np
 import pytest
 
 from abbe.cli.entry import main
+from abbe.formats.chain_blob import read_chain_blob
 from abbe.formats.machine import load_machine
+from abbe.model.chain import tool_error_linear
 from abbe.sim.chain import (VirtualChainMachine, random_location_errors, sphere_plan,
                             write_chain_campaign)
 
@@ -45,6 +47,35 @@ def test_fit_a_chain_campaign_from_files(tmp_path: Path, file: str, unseen: set[
         assert abs(r["value"] - truth[r["name"]]) <= max(r["u95"], floor), r
     assert "observable" in capsys.readouterr().out
     assert (tmp_path / "o" / "report.txt").read_text().count("identified") == 10 - len(unseen)
+    # the table (format 1.4): the fit's values in its convention, evaluated by abbe table eval
+    blob = (tmp_path / "o" / "model_five.bin").read_bytes()
+    assert doc["blob"]["file"] == "model_five.bin" and doc["blob"]["bytes"] == len(blob)
+    chain, errs = read_chain_blob(blob)
+    fixed = set(doc["blob"]["convention"]["fixed_at_zero"])
+    held = doc["blob"]["convention"]["held_in_convention"]
+    assert fixed | set(held) == unseen
+    for r in doc["location"]:
+        want = held.get(r["name"], 0.0) if r["value"] is None else r["value"]
+        assert errs.location[r["name"]] == pytest.approx(want, abs=1e-3), r["name"]
+    pos, ang = np.array([[30.0, -20.0, -40.0]]), np.array([[25.0, 70.0]])
+    ref, _rot = tool_error_linear(chain, errs, pos, ang)
+    capsys.readouterr()
+    assert main(["table", "eval", str(tmp_path / "o" / "model_five.bin"), "30", "-20", "-40",
+                 "25", "70"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith(f"joints X Y Z mm {' '.join(sorted(chain.rotaries))} deg")
+    got = [float(v) for v in out[1].split("|")[1].split()]
+    assert got == pytest.approx(ref[0], abs=1e-4)
+    assert float(np.max(np.abs(ref))) > 1.0  # the errors move the tool: the check can fail
+
+
+def test_a_trunnion_chain_fit_names_why_it_writes_no_table(tmp_path: Path, capsys) -> None:
+    m, _t = _campaign(tmp_path, "trunnions/xyzac-trt.toml", 5)
+    assert main(["fit", str(m), "-o", str(tmp_path / "o"), "-q"]) == 0
+    doc = json.loads((tmp_path / "o" / "chain_fit.json").read_text())
+    assert doc["blob"]["file"] is None and "not a kind of format 1.4" in doc["blob"]["reason"]
+    assert not (tmp_path / "o" / "model_five.bin").exists()
+    assert "no table:" in capsys.readouterr().out
 
 
 def test_bad_chain_campaign_files_exit_2(tmp_path: Path, capsys) -> None:

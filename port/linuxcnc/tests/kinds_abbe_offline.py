@@ -13,6 +13,10 @@ by abbe_five_error_eval_f32 at the joints the module's inverse gives for each po
 corrected by -E go through kinds_sim's INDEPENDENT forward kinematics of the true
 machine, and the tool tip minus the programmed point is checked <= BOUND_UM.
 
+kinds_abbe_sim.py (CI) runs the same check through the command line (`abbe table eval
+--clib`, 306 poses) before its LinuxCNC runs, which use a FITTED table; chain_of and
+errors_of here write its truth table.
+
 What this is not: the HAL component inside LinuxCNC (external offsets, TCP on / off,
 the frame of the offsets); the joint-level correction is the same in both modes, the
 frame handling for these kinds is not built (docs/linuxcnc.md).

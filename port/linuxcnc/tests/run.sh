@@ -22,8 +22,10 @@
 #      location errors: LinuxCNC's joints are the module source's, and the tool tip minus
 #      programmed point WITHOUT abbe (kinds_sim.py, about 210 s; opt-in:
 #      ABBE_LCNC_KINDS_BASELINE=1, listed as skipped in test.sh's summary otherwise)
-#   9. the same three samples WITH abbe (kinds_abbe_sim.py: format 1.4 tables written
-#      from the chain model, the component's offsets; about 210 s)
+#   9. the same three samples WITH abbe (kinds_abbe_sim.py: per sample a campaign of the
+#      true machine by the independent generator, abbe fit -> model_five.bin (format 1.4),
+#      the component's offsets; <= 0.5 um with the workpiece placement out; the table
+#      written from the truth checked offline; about 280 s on the shared machine)
 # LinuxCNC's tools refuse to run as root: as root, this creates the
 # unprivileged user $ABBE_LCNC_USER (default abbe-lcnc) if needed and the tests
 # run halrun / linuxcnc as that user (runuser). Needs scripts/setup.sh first
