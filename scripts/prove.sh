@@ -169,7 +169,8 @@ if ((OPEN)); then
     HARNESSES=("${OPEN_HARNESSES[@]}")
 fi
 
-# WP: the loader contracts of model_load.c (check_header, array_ok), proven
+# WP: the loader contracts of model_load_checks.h (check_header, array_ok;
+# compiled through model_load.c, which includes it), proven
 # by Z3 through Why3 (Debian 12: why3 1.5.1, z3 4.8.12; Alt-Ergo is not
 # packaged). Why3's prover list is written into $OUT, not the home directory.
 WP_CONTRACTS="accepted_total,inside"

@@ -59,7 +59,10 @@ if [[ ! -x "$VENV/bin/python" ]]; then
     "$PYTHON" -m venv "$VENV"
 fi
 stamp="$VENV/.abbe-host-tools.sha256"
-want="$(cat host_tools/pyproject.toml "$LOCK" | sha256sum | cut -d' ' -f1)"
+# the editable install maps each module of abbe to its file once: a module that
+# becomes a package (abbe/model/clib.py -> clib/) or goes away needs a reinstall,
+# so the list of the package's files is part of the stamp
+want="$({ cat host_tools/pyproject.toml "$LOCK"; (cd host_tools && find abbe -name '*.py' | LC_ALL=C sort); } | sha256sum | cut -d' ' -f1)"
 if [[ ! -f "$stamp" || "$(cat "$stamp")" != "$want" ]] || ! "$VENV/bin/python" -c 'import abbe' 2>/dev/null; then
     log "installing $LOCK into $VENV"
     "$VENV/bin/python" -m pip install -q --require-hashes --no-deps -r "$LOCK" </dev/null

@@ -191,7 +191,7 @@ def test_clib_check_passes(tmp_path: Path, capsys) -> None:
 def test_missing_clib_fails_with_build_hint(tmp_path: Path, monkeypatch, capsys) -> None:
     syn = dataset(tmp_path, seed=7, axes=("X",))
     monkeypatch.setenv("ABBE_LIB", str(tmp_path / "no" / "libabbe.so"))
-    monkeypatch.setattr(clib, "_LIB", None)
+    monkeypatch.setattr(clib.library, "_LIB", None)  # the cache of load_library
     out = tmp_path / "o"
     assert fit(syn.machine, out) == 3
     err = capsys.readouterr().err

@@ -230,6 +230,6 @@ def test_compensator_follows_the_model() -> None:
 def test_missing_library_message(monkeypatch, tmp_path) -> None:
     monkeypatch.setenv("ABBE_LIB", str(tmp_path / "nope.so"))
     assert clib.library_path() == tmp_path / "nope.so"
-    monkeypatch.setattr(clib, "_LIB", None)
+    monkeypatch.setattr(clib.library, "_LIB", None)  # the cache of load_library
     with pytest.raises(clib.LibraryNotFound, match="nope.so"):
         clib.load_library()
