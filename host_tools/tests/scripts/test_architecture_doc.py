@@ -59,3 +59,29 @@ def test_circles_are_found(tmp_path: Path) -> None:
     edges, callbacks = check.c_edges(tmp_path)
     assert [[p.name for p in comp] for comp in check.cycles(edges)] == [["x.h", "y.h"]]
     assert len(callbacks) == 1 and "shared.h calls helper" in callbacks[0] and "user.c" in callbacks[0]
+
+
+#: Issue 41: no source file over this many lines outside tests (and the carried
+#: third-party sources): a file that grows past it is split by concern.
+MAX_LINES = 700
+SOURCE_SUFFIXES = (".c", ".h", ".py", ".sh", ".comp")
+
+
+def _source_files() -> list[Path]:
+    out = []
+    for top in ("lib", "port", "host_tools", "bench", "scripts", "cases"):
+        for p in (REPO / top).rglob("*"):
+            rel = p.relative_to(REPO).parts
+            if (p.suffix in SOURCE_SUFFIXES and p.is_file() and "tests" not in rel
+                    and "fuzz" not in rel and ".venv" not in rel and "build" not in rel[0]):
+                out.append(p)
+    return out
+
+
+def test_no_source_file_is_over_700_lines() -> None:
+    files = _source_files()
+    assert len(files) > 100  # the walk sees the tree, not an empty folder
+    long = sorted((sum(1 for _ in p.open(encoding="utf-8", errors="replace")), str(p.relative_to(REPO)))
+                  for p in files)
+    over = [f"{path}: {n} lines" for n, path in long if n > MAX_LINES]
+    assert not over, "split by concern (docs/architecture.md): " + "; ".join(over)
