@@ -213,11 +213,13 @@ The other kinds (issue 39: head-head, head-table, dual rotary table; format 1.4,
 lib option ABBE_WITH_FIVE_KINDS, ON by default) are in the image measured above: they
 add 1,764 B (f32 M4F), 2,354 B (q M4F), 2,366 B (q M3) of generic chain code
 (add_chain_f32 / add_chain_q and their helpers, out of line) and deepen the static
-stack of abbe_comp_step5_f32 to 576 B and of abbe_comp_step5_q to 528 / 536 B (their
-evaluation frames: 488 B f32, 540 / 548 B q, measured by painting). A trunnion-only
-firmware builds with -DABBE_WITH_FIVE_KINDS=OFF: its image is byte for byte the one
-of the paragraphs below (9,536 / 9,536 / 9,626 B; stack 496 / 312 / 320 B), which is
-what the budget text below discusses. Per kind, the instruction budgets: tdr meets
+stack of abbe_comp_step5_q to 528 / 536 B (its evaluation frames 540 / 548 B measured by
+painting); abbe_comp_step5_f32's is 456 B with or without them (its rotary part, the
+other kinds' chain included, is 416 B deep; the linear part's 456 B is the deepest: see
+"Stack" below). A trunnion-only firmware builds with -DABBE_WITH_FIVE_KINDS=OFF: its
+image is the one of the paragraphs below (measured 9,556 B f32 M4F, stack 456 B, after
+issue 39 item 4; q 9,536 / 9,626 B, stack 312 / 320 B), which is what the budget text
+below discusses. Per kind, the instruction budgets: tdr meets
 both (1,492 f32, 2,356 / 2,382 q); hh misses (1,851 f32, 3,424 / 3,464 q); ht,
 measured on the 'full' linear table as ac_location is, misses (3,021 f32, 7,095 /
 7,150 q). Not tuned yet.
@@ -234,7 +236,8 @@ Flash (missed, issue 39: what stands in the way, per byte; M4F f32 image 9,536 B
 - the evaluation, f32 +2,142 B over the 3-axis eval_f32.c + terms_f32.c (2,584 B):
   add_rotary_f32 1,266 B (both twists inlined, the tilt's rotation of v_C, w_C and the
   offset, two cross products, the squareness), abbe_five_eval_f32_core 756 B (the
-  linear core's source inlined once more, with the angle conversion), the rotary
+  linear core's source inlined once more, with the angle conversion; since issue 39 item 4
+  abbe_five_eval_f32_linear 728 B + abbe_five_eval_f32_rotary 32 B, M4F trunnion-only), the rotary
   motions' kernel 312 B, the sparse-motions path 196 B, abbe_sincos_f32 with its table
   196 B; the linear folds with angles (fold6_rot_f32 660 B, fold_values_rot_f32 164 B)
   replace the 3-axis fold6_f32 (604 B) in this image; q: add_rotary_q 1,532 B (M4F;
@@ -261,9 +264,20 @@ fewer values live, so the static stack of abbe_comp_step5_q stays 320 B on the M
 falls to 312 B on the M4F). Measured and not kept: `_q`'s twist out of line on top of
 that (-180 B M4F, -112 B M3, +34 / +41 instructions, but a static stack of 376 / 392 B:
 its frame is nested between the rotary part's and the motions'); the
-linear part out of line (`linear_f32`, so that its frame and the rotary part's are
-not summed): +96 B and a deeper static stack (536 B: the linear chain through the
-sparse terms kernel is then the deepest). Earlier trade-offs (issue 23): one
+linear part out of line under the core (`linear_f32`, so that its frame and the rotary
+part's are not summed): +96 B and a deeper static stack (536 B: the linear chain
+through the sparse terms kernel is then the deepest). Done instead (issue 39 item 4):
+no core; the compensator (and abbe_five_error_eval_f32) call the linear part
+(abbe_five_eval_f32_linear, the linear core's source inlined once, with the angle
+conversion) and then the rotary part (abbe_five_eval_f32_rotary), so the two are
+siblings under the step: static stack of abbe_comp_step5_f32 576 -> 456 B (trunnion-only
+496 -> 456 B), of abbe_five_error_eval_f32 488 -> 400 B, for +22 B of flash (f32 image
+11,300 -> 11,322 B measured at the same base; trunnion-only 9,528 -> 9,556 B) and +5
+instructions per `five_f32` call (+4 per compensator cycle). Measured and not kept on
+top of that: the fold's dispatch (abbe_axis_fold_rot_f32) inlined into the linear part,
+which removes its 32 B frame (GCC 12 reserves it before the tail call of a function
+returning three floats) but grows the linear part's frame by 24 B (160 -> 184): -8 B
+of stack (448 B) for +36 B of flash. Earlier trade-offs (issue 23): one
 out-of-line twist instead of two inlined ones saves 148 B (f32) / 124 B (q) for +43 /
 +55 instructions per call (f32 then misses its 1,500); -Os on five_load.c costs 110 B,
 on rotary_record_bad alone 100 B; -Os on five_eval_q.c saves 172 B (M3) for +492
@@ -278,16 +292,20 @@ them unchanged. Section 3 above still shows the older figures (not regenerated h
 
 Stack (missed for `_f32`, per byte): `_q` meets 320 B (the harmonics' basis in the
 compensator's scratch, the motions written straight into the twist's vectors, the
-outputs rounded per component inside the rotary part, no int64 vectors). `_f32`:
-abbe_comp_step5_f32's frame 112 B (nine saved registers 36 B, the evaluation's output
-28 B, positions in nm 12 B, direction states 12 B, the rest arguments and padding) +
-abbe_five_eval_f32_core 176 B (nine saved registers 36 B, d8-d12 40 B, the inlined
-linear core's locals and spills 100 B) + add_rotary_f32 160 B (36 B + d8-d10 24 B +
-its vectors and spills 100 B) + abbe_rotary_motions6_f32 48 B (the FPU registers it
-saves) = 496 B (504 B before issue 39). The linear path alone is 440 B (the step 112 B
-+ the core 176 B + abbe_axis_fold_rot_f32 32 B + fold6_rot_f32 120 B, which saves
-d8-d14) or 464 B through the sparse terms kernel (fold_values_rot_f32 96 B + abbe_axis_terms_sparse_f32
-48 B): above 320 B by itself, as the 3-axis abbe_comp_step_f32 is (496 B, section 4).
+outputs rounded per component inside the rotary part, no int64 vectors). `_f32`, 456 B
+(issue 39 item 4; 576 B before, 496 B trunnion-only): abbe_comp_step5_f32's frame 120 B
+(nine saved registers 36 B, the evaluation's output 28 B, positions in nm and angles in
+micro-degrees 20 B, direction states 12 B, three stacked arguments 12 B, the rest
+spills and padding) + abbe_five_eval_f32_linear 160 B (nine saved registers 36 B,
+d8-d12 40 B, the inlined linear core's locals and spills 84 B) +
+abbe_axis_fold_rot_f32 32 B (GCC's frame before its tail call, above) +
+fold_values_rot_f32 96 B + abbe_axis_terms_sparse_f32 48 B (a sparse axis; a six-term
+axis goes through fold6_rot_f32, 120 B, which saves d8-d14: 432 B). The rotary part
+is no longer on top of the linear one: the step 120 B + abbe_five_eval_f32_rotary 8 B +
+add_chain_f32 208 B + twist_chain_f32 32 B + abbe_rotary_motions6_f32 48 B = 416 B
+(kinds 3-5), + add_rotary_f32 160 B + 48 B = 336 B (trunnion). The linear path is above
+320 B by itself, as the 3-axis abbe_comp_step_f32 is (496 B, section 4): the step and
+the linear part are 280 B before any fold, and the folds 144-176 B.
 Meeting 320 B needs the linear core's and the fold kernels' frames smaller
 (lib/src/eval_f32_linear.h, shared with the 3-axis core), not done."""
 

@@ -13,7 +13,7 @@ abbe_status_t abbe_comp_step5_f32(abbe_comp_t *comp, const abbe_comp_input5_f32_
     }
     uint32_t flags = abbe_comp_begin(comp);
     int input_ok = in->lin.fresh != 0u;
-    int32_t pos_nm[ABBE_AXES] = {0, 0, 0};
+    int32_t pos_nm[ABBE_FIVE_AT] = {0, 0, 0, 0, 0}; /* then the angles (udeg): the evaluation's at */
     for (unsigned j = 0; input_ok && j < ABBE_AXES; j++) {
         uint32_t ignored = 0; /* out-of-travel is reported by the evaluation below */
         /* inline: the five-axis image then holds no out-of-line copy (64 B less flash,
@@ -30,17 +30,20 @@ abbe_status_t abbe_comp_step5_f32(abbe_comp_t *comp, const abbe_comp_input5_f32_
         for (unsigned j = 0; j < ABBE_AXES; j++) {
             dir_state[j] = (float)comp->dir_state_q30[j] * 9.31322574615478515625e-10f; /* 2^-30 */
         }
-        /* a 3-axis model: its linear error (orientation 0); the angles must still be finite */
-        have_error = abbe_five_eval_f32_core(comp->model, abbe_comp_five_model(comp), in->lin.pos_mm, in->angle_deg,
-                                             dir_state, in->lin.temp_c, &eval_out) == ABBE_OK;
-        input_ok = have_error;
-        for (unsigned j = 0; have_error && j < ABBE_AXES; j++) {
-            error_nm[j] = abbe_comp_um_to_nm(eval_out.error_um[j], &flags);
-            out->orient_nrad[j] = abbe_comp_um_to_nm(eval_out.orient_urad[j], &flags); /* x 1000: urad -> nrad */
-        }
-        if (have_error) {
+        /* a 3-axis model: its linear error (orientation 0); the angles must still be finite.
+         * The positions in nm again into pos_nm (the same conversion), then the angles. Two
+         * calls: the linear axes' frames and the rotary axes' are never on the stack together. */
+        have_error = abbe_five_eval_f32_linear(comp->model, in->lin.pos_mm, in->angle_deg, dir_state, in->lin.temp_c,
+                                               &eval_out, pos_nm) == ABBE_OK;
+        if (have_error != 0) {
+            abbe_five_eval_f32_rotary(abbe_comp_five_model(comp), pos_nm, &pos_nm[ABBE_AXES], &eval_out);
+            for (unsigned j = 0; j < ABBE_AXES; j++) {
+                error_nm[j] = abbe_comp_um_to_nm(eval_out.error_um[j], &flags);
+                out->orient_nrad[j] = abbe_comp_um_to_nm(eval_out.orient_urad[j], &flags); /* x 1000: urad -> nrad */
+            }
             flags |= eval_out.flags;
         }
+        input_ok = have_error;
     }
     abbe_comp_finish(comp, input_ok, have_error ? error_nm : NULL, flags, in->lin.axis_fault_mask, &out->lin);
     return ABBE_OK;

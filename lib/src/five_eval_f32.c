@@ -268,11 +268,11 @@ static void refuse(abbe_five_error_f32_t *out)
     out->flags = 0;
 }
 
-abbe_status_t abbe_five_eval_f32_core(const abbe_model_t *m, const abbe_five_model_t *m5, const float pos_mm[3],
-                                     const float angle_deg[2], const float dir_state[3], const float temp_c[3],
-                                     abbe_five_error_f32_t *out)
+abbe_status_t abbe_five_eval_f32_linear(const abbe_model_t *m, const float pos_mm[3], const float angle_deg[2],
+                                        const float dir_state[3], const float temp_c[3], abbe_five_error_f32_t *out,
+                                        int32_t at[ABBE_FIVE_AT])
 {
-    int32_t p[3], udeg[2];
+    int32_t *p = at, *udeg = &at[ABBE_AXES];
     uint32_t flags = 0, bad = 0;
     float *w = out->orient_urad; /* the linear axes' eps_Z - eps_X - eps_Y, summed by their folds */
     w[0] = w[1] = w[2] = 0.0f;
@@ -288,8 +288,16 @@ abbe_status_t abbe_five_eval_f32_core(const abbe_model_t *m, const abbe_five_mod
         refuse(out);
         return ABBE_E_INPUT;
     }
+    out->flags = flags;
+    return ABBE_OK;
+}
+
+void abbe_five_eval_f32_rotary(const abbe_five_model_t *m5, const int32_t p[3], const int32_t udeg[2],
+                               abbe_five_error_f32_t *out)
+{
     if (m5 == NULL) {
-        w[0] = w[1] = w[2] = 0.0f; /* a 3-axis model under the compensator: its position error only */
+        /* a 3-axis model under the compensator: its position error only */
+        out->orient_urad[0] = out->orient_urad[1] = out->orient_urad[2] = 0.0f;
 #if !defined(ABBE_NO_FIVE_KINDS)
     } else if (m5->kind >= ABBE_KIN_XYZBC_HH) {
         add_chain_f32(m5, p, udeg, out);
@@ -297,8 +305,6 @@ abbe_status_t abbe_five_eval_f32_core(const abbe_model_t *m, const abbe_five_mod
     } else if (m5->kind != ABBE_KIN_NONE) {
         add_rotary_f32(m5, p, udeg, out);
     }
-    out->flags = flags;
-    return ABBE_OK;
 }
 
 abbe_status_t abbe_five_error_eval_f32(const abbe_five_model_t *m5, const abbe_five_input_f32_t *in,
@@ -307,5 +313,11 @@ abbe_status_t abbe_five_error_eval_f32(const abbe_five_model_t *m5, const abbe_f
     if (m5 == NULL || in == NULL || out == NULL) {
         return ABBE_E_ARG;
     }
-    return abbe_five_eval_f32_core(&m5->linear, m5, in->pos_mm, in->angle_deg, in->dir_state, in->temp_c, out);
+    int32_t at[ABBE_FIVE_AT];
+    const abbe_status_t st =
+        abbe_five_eval_f32_linear(&m5->linear, in->pos_mm, in->angle_deg, in->dir_state, in->temp_c, out, at);
+    if (st == ABBE_OK) {
+        abbe_five_eval_f32_rotary(m5, at, &at[ABBE_AXES], out);
+    }
+    return st;
 }

@@ -406,12 +406,22 @@ uint32_t abbe_five_eval_q_core(const abbe_five_model_t *m5, const int32_t pos_nm
                                int32_t values[ABBE_AXES * ABBE_TERMS], int32_t error_nm[3], int32_t orient_nrad[3]);
 
 /* Five-axis error, single precision (five_eval_f32.c), for the public call
- * and the compensator (which passes its arrays without copying): m the
- * linear axes, m5 the five-axis model or NULL (a 3-axis model: its position
- * error, orientation 0). ABBE_OK, or ABBE_E_INPUT (NaN/Inf: *out zero). */
-abbe_status_t abbe_five_eval_f32_core(const abbe_model_t *m, const abbe_five_model_t *m5, const float pos_mm[3],
-                                     const float angle_deg[2], const float dir_state[3], const float temp_c[3],
-                                     abbe_five_error_f32_t *out);
+ * and the compensator (which passes its arrays without copying), in two
+ * calls one after the other: the linear axes' frames and the rotary axes'
+ * are then never on the stack together (bench/results.md section 11).
+ * abbe_five_eval_f32_linear: m the linear axes; *out their error, orientation
+ * and flags, at the positions (nm, at[0..2]) then the angles (micro-degrees,
+ * at[3..4]): one array, one argument fewer on the caller's stack; ABBE_OK,
+ * or ABBE_E_INPUT (NaN/Inf: *out zero). After ABBE_OK,
+ * abbe_five_eval_f32_rotary adds the rotary axes' part of m5 at p and udeg
+ * (at and at + 3), or for m5 NULL (a 3-axis model) leaves the position
+ * error, orientation 0. */
+#define ABBE_FIVE_AT (ABBE_AXES + ABBE_ROTARY_AXES)
+abbe_status_t abbe_five_eval_f32_linear(const abbe_model_t *m, const float pos_mm[3], const float angle_deg[2],
+                                        const float dir_state[3], const float temp_c[3], abbe_five_error_f32_t *out,
+                                        int32_t at[ABBE_FIVE_AT]);
+void abbe_five_eval_f32_rotary(const abbe_five_model_t *m5, const int32_t p[3], const int32_t udeg[2],
+                               abbe_five_error_f32_t *out);
 
 /* The *out of a refused input (cold path). */
 void abbe_f32_refuse(abbe_error_f32_t *out);
