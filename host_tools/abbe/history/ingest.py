@@ -28,6 +28,9 @@ Recognised by content, never by name alone (docs/history.md, "What `add` reads")
   firmware's mesh, uncorrected), the warp, the squareness with its interval.
 * ``abbe predict -o OUT``: ``predict.json`` -> per ballbar test the prediction
   residual (max, RMS) and the ideal compensated roundness.
+* ``abbe export TARGET -o OUT``: ``residual.json`` (three- or five-axis) -> |E| max and
+  RMS that the controller's tables leave over the work volume, the ballbar circles or
+  the tool-centre-point path, and the uncompensated figures beside them.
 
 A folder is searched at its top and one level down; files it holds that are not
 abbe outputs (plots, C sources, notes) are passed over, but a recognised file
@@ -165,7 +168,8 @@ def _kind_of(data: Any) -> str | None:
 FORMATS = {"abbe-five-axis": "five-axis", "abbe-five-axis-diagnose": "five-axis diagnose",
            "abbe-iso230-3": "thermal evaluate", "abbe-thermal-fit": "thermal fit",
            "abbe-thermal-diagnose": "thermal diagnose", "abbe-printer-fit": "printer fit",
-           "abbe-predict": "predict"}
+           "abbe-predict": "predict", "abbe-export-residual": "export",
+           "abbe-export-residual-five-axis": "export"}
 
 
 # --------------------------------------------------------------------------- readers
@@ -375,11 +379,13 @@ def read_iso230_2(c: Campaign, doc: _Doc, axis: str) -> None:
     _hash_named_file(c, doc.data.get("file"), f"measurement:iso230-2 {axis}", doc.path)
 
 
-def _begin(c: Campaign, doc: _Doc, kind: str) -> None:
+def _begin(c: Campaign, doc: _Doc, kind: str, names_machine: bool = True) -> None:
+    """Count ``doc`` in the campaign; ``names_machine``: its "machine" field is the
+    machine's name (an export's is the machine file it read, not a name)."""
     c.kinds.append(kind)
     c.parts.append((kind, doc.sha256))
     c.inputs.append((f"{kind}:{doc.path.name}", str(doc.path), doc.sha256))
-    name = doc.get("machine", str, optional=True)
+    name = doc.get("machine", str, optional=True) if names_machine else None
     if name:
         _set_machine(c, name, doc, "machine")
 
@@ -541,10 +547,29 @@ def read_predict(c: Campaign, doc: _Doc) -> None:
             c.results.append(Result(f"predict {name} {q}", "predict", q, v, "um"))
 
 
+def read_export(c: Campaign, doc: _Doc) -> None:
+    """``residual.json`` of ``abbe export -o``: what the controller's tables leave, |E| max
+    and RMS over the work volume (and the ballbar circles or the TCP path), with the
+    uncompensated figures beside it."""
+    _begin(c, doc, "export", names_machine=False)
+    target = doc.get("target", str)
+    keys = ["volume"] + (["tcp_path"] if "tcp_path" in doc.data else [])
+    keys += [f"circles.{n}" for n in sorted(doc.get("circles", dict, optional=True) or {})]
+    for key in keys:
+        for state in ("residual", "uncompensated"):
+            for stat in ("max_um", "rms_um"):
+                v = doc.num(f"{key}.{state}.norm.{stat}", lo=0)
+                assert v is not None
+                what = key.replace("circles.", "circle ").replace("_", " ")
+                c.results.append(Result(
+                    f"export {target} {what} {state} |E| {stat[:-3]}", "export",
+                    f"{state} |E| {stat[:-3]} after the export", v, "um"))
+
+
 READERS = {"five-axis": read_five_axis, "five-axis diagnose": read_five_axis_diagnose,
            "thermal evaluate": read_thermal_evaluate, "thermal fit": read_thermal_fit,
            "thermal diagnose": read_thermal_diagnose, "printer fit": read_printer_fit,
-           "predict": read_predict}
+           "predict": read_predict, "export": read_export}
 
 
 def _hash_named_file(c: Campaign, name: Any, role: str, beside: Path) -> None:
@@ -599,7 +624,7 @@ def read_campaign(paths: list[str], axes: dict[str, str], machine: str | None) -
                 raise AbbeInputError("not an output abbe history reads (expected the JSON of "
                                      "abbe ballbar --json, abbe iso230-2 --json, a fit's "
                                      "model.json or five_axis.json, a diagnose.json or an "
-                                     "output of abbe thermal, printer fit or predict)",
+                                     "output of abbe thermal, printer fit, predict or export)",
                                      file=text)
             docs.append((kind, doc, True))
             continue
@@ -615,7 +640,8 @@ def read_campaign(paths: list[str], axes: dict[str, str], machine: str | None) -
         if not found:
             raise AbbeInputError("no abbe output here: expected the -o folder of an abbe "
                                  "command that evaluates (fit, diagnose, demo, ballbar, "
-                                 "iso230-2, thermal, printer fit, predict) or its JSON",
+                                 "iso230-2, thermal, printer fit, predict, export) or its "
+                                 "JSON",
                                  file=text)
     seen: dict[tuple[str, str], tuple[_Doc, bool]] = {}
     for kind, doc, _explicit in docs:
