@@ -96,3 +96,33 @@ def monte_carlo(spec: FiveAxisSpec, blocks: list[Block], params: list[Param], re
                            "U": K * float(res.sd[i]), "U_mc": float(U_mc[i])}
     return {"draws": draws, "seed": seed, "parameters": out}
 
+
+
+#: First order and Monte Carlo further apart than this: the first order is not adequate
+#: (GUM S1's validation) and the Monte Carlo's U is the one stated (as for thermal results).
+AGREEMENT = 0.10
+
+
+def state_monte_carlo(doc: dict[str, Any], mc: dict[str, Any]) -> None:
+    """Put the Monte Carlo check into ``doc`` (five_axis.json): every observable parameter
+    gets ``U_first_order``, ``U_mc`` and ``U_from``; where the two part by more than 10 %
+    ``U`` (and u, ci95) become the Monte Carlo's, the figure every report then states."""
+    agree = n = 0
+    for row in doc["parameters"]:
+        m = mc["parameters"].get(row["name"])
+        if not row.get("observable") or m is None:
+            continue
+        n += 1
+        U1, Umc = float(row["U"]), float(m["U_mc"])
+        ok = U1 > 0 and abs(Umc / U1 - 1.0) <= AGREEMENT
+        agree += ok
+        row.update(U_first_order=U1, U_mc=round(Umc, 6),
+                   U_from="first order (the Monte Carlo agrees within 10 %)" if ok else
+                   "Monte Carlo (the first order is more than 10 % off: the model is not "
+                   "linear over this parameter's interval)")
+        if not ok:
+            row.update(U=round(Umc, 6), u=round(Umc / K, 6), ci95=round(1.96 * Umc / K, 6))
+    doc["uncertainty"]["monte_carlo"] = {
+        "draws": mc["draws"], "seed": mc["seed"], "agree": agree, "of": n,
+        "method": "GUM S1: new observations drawn from each block's standard deviation, "
+                  "the exact model solved again per draw; U_mc = 2 x the spread"}
