@@ -490,6 +490,19 @@ def _perturbed(trace: Any, radial_um: np.ndarray) -> Any:
     return t
 
 
+def ballbar_budget(machine: Any) -> tuple[Budget, dict[str, float]]:
+    """The machine file's ``[uncertainty.ballbar]`` budget (else the ballbar class
+    defaults, docs/uncertainty.md) and its ISO 230-4 tolerances (um; empty: none)."""
+    from abbe.formats.uncertainty_spec import default_budget
+    spec = machine.extra.get("uncertainty")
+    budget = spec.ballbar if spec is not None and spec.ballbar is not None else None
+    if budget is None:
+        budget = default_budget("ballbar")
+        budget.source = "class defaults (docs/uncertainty.md)"
+    limits = dict(spec.tolerances.get("ballbar", {})) if spec is not None else {}
+    return budget, limits
+
+
 def ballbar_uncertainty(trace: Any, test: Any, res: Any, budget: Budget,
                         limits: dict[str, float] | None = None) -> BallbarUncertainty:
     """Analytic budget of the ballbar results (docs/uncertainty.md, "ISO 230-4").

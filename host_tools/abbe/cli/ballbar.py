@@ -59,8 +59,8 @@ def _run(args: argparse.Namespace, outs: Outputs) -> int:
     from abbe.formats.ballbar_file import read_ballbar_file
     from abbe.model.geometry import check_test_in_travel, from_machine
 
-    from abbe.analysis.uncertainty import agreement, ballbar_uncertainty, monte_carlo_ballbar
-    from abbe.formats.uncertainty_spec import default_budget
+    from abbe.analysis.uncertainty import (agreement, ballbar_budget, ballbar_uncertainty,
+                                           monte_carlo_ballbar)
 
     folder = outs.directory(args.out, option="--out") if args.out else None
     js = outs.file(json_file(args), option="--json") if json_file(args) else None
@@ -86,12 +86,7 @@ def _run(args: argparse.Namespace, outs: Outputs) -> int:
     trace = read_ballbar_file(bt, str(m.path))
     check_trace_timing(trace, test, str(m.path))
     res = evaluate_ballbar(trace, test)
-    spec = m.extra.get("uncertainty")
-    budget = spec.ballbar if spec is not None and spec.ballbar is not None else None
-    if budget is None:
-        budget = default_budget("ballbar")
-        budget.source = "class defaults (docs/uncertainty.md)"
-    limits = dict(spec.tolerances.get("ballbar", {})) if spec is not None else {}
+    budget, limits = ballbar_budget(m)
     unc = ballbar_uncertainty(trace, test, res, budget, limits)
     if args.mc:
         unc.monte_carlo = monte_carlo_ballbar(trace, test, budget, draws=args.mc)

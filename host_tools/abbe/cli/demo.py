@@ -117,7 +117,8 @@ def run(args: argparse.Namespace) -> int:
         return 0
     print(f"abbe demo ({s['machine']}, {s['ballbar']}): prediction max residual "
           f"{s['prediction_max_residual_laser_only_um']} um (laser-only) -> {s['prediction_max_residual_um']} um; "
-          f"roundness {s['roundness_before_um']} -> {s['roundness_after_um']} um "
+          f"roundness {s['roundness_before_um']} +- {s['roundness_before_U_um']} -> "
+          f"{s['roundness_after_um']} +- {s['roundness_after_U_um']} um (U, k = 2) "
           f"({s['improvement_pct']} % better, model-ideal {s['ideal_improvement_pct']} %)")
     return 0
 

@@ -22,6 +22,7 @@ import numpy as np
 from abbe import paths
 from abbe.analysis.iso230_4 import BallbarResult, evaluate_ballbar, plot_polar
 from abbe.analysis.predict import Prediction, plot_prediction, predict
+from abbe.analysis.uncertainty import ballbar_budget, ballbar_uncertainty
 from abbe.errors import AbbeInputError
 from abbe.formats.machine import load_machine
 from abbe.model import clib
@@ -192,6 +193,12 @@ def run_demo(example_dir: Path, out_dir: Path, *, diagnose: bool = True,
     plot_polar(before, out_dir / "ballbar_before.png", title=f"{ballbar} before compensation")
     plot_polar(after, out_dir / "ballbar_after.png", title=f"{ballbar} with the C compensator")
     g0, g1 = before.both.G_um, after.both.G_um
+    # G with its expanded uncertainty (ISO 230-4 budget of the machine file, else the
+    # ballbar class defaults), as `abbe ballbar` states it
+    budget, _limits = ballbar_budget(machine)
+    U0 = ballbar_uncertainty(p_final.trace, p_final.test, before, budget).results[
+        "G_bidirectional"].U_um
+    U1 = ballbar_uncertainty(after_trace, test, after, budget).results["G_bidirectional"].U_um
     improvement = 100.0 * (1.0 - g1 / g0)
     log(f"[5/6] compensate in the loop: roundness {g0:.2f} -> {g1:.2f} um ({improvement:.1f} % better; "
         f"model-ideal {p_final.ideal_improvement_pct:.1f} %)")
@@ -207,6 +214,8 @@ def run_demo(example_dir: Path, out_dir: Path, *, diagnose: bool = True,
             diag["gap"]["after"]["max_um"] if diag else None,
         "prediction_rms_residual_laser_only_um": round(p_laser.rms_residual_um, 3),
         "roundness_before_um": round(g0, 3), "roundness_after_um": round(g1, 3),
+        "roundness_before_U_um": round(U0, 3), "roundness_after_U_um": round(U1, 3),
+        "roundness_budget": budget.source,
         "improvement_pct": round(improvement, 2),
         "ideal_roundness_um": round(p_final.ideal_G_um, 3),
         "ideal_improvement_pct": round(p_final.ideal_improvement_pct, 2),
@@ -331,20 +340,27 @@ def _report_html(res: DemoResult, table4: dict[str, Any], with_diag: bool) -> st
     checks += (f"; generated C compiles: {_yes_no(s['build_check'].get('generated_c_compiles'))}"
                f"; header CRC matches: {_yes_no(s['build_check']['header_crc_matches'])}")
     headline = (f"{'All checks pass' if status == 'pass' else 'FAILED: ' + html.escape('; '.join(failed))}"
-                f" &mdash; compensated roundness G {s['roundness_before_um']:.2f} &rarr; "
-                f"{s['roundness_after_um']:.2f} um ({s['improvement_pct']:.1f} % better, "
+                f" &mdash; compensated roundness G {s['roundness_before_um']:.2f} &plusmn; "
+                f"{s['roundness_before_U_um']:.2f} &rarr; {s['roundness_after_um']:.2f} &plusmn; "
+                f"{s['roundness_after_U_um']:.2f} um (U, k = 2; "
+                f"{s['improvement_pct']:.1f} % better, "
                 f"{s['achieved_of_ideal_pct']} % of what the model could ideally give)")
     with_fx = s.get("prediction_max_residual_with_prediction_effects_um")
-    body = ("<table><tr><th class='l'>figure</th><th>max (um)</th><th>RMS (um)</th></tr>"
+    body = ("<table><tr><th class='l'>figure</th><th>max (um)</th><th>RMS (um)</th>"
+            "<th>U, k = 2 (um)</th></tr>"
             f"<tr><td class='l'>measured circle, not compensated: roundness G</td>"
-            f"<td>{s['roundness_before_um']:.2f}</td><td>&ndash;</td></tr>"
+            f"<td>{s['roundness_before_um']:.2f}</td><td>&ndash;</td>"
+            f"<td>{s['roundness_before_U_um']:.2f}</td></tr>"
             f"<tr><td class='l'>compensated in the loop by the C library: roundness G</td>"
-            f"<td>{s['roundness_after_um']:.2f}</td><td>&ndash;</td></tr>"
+            f"<td>{s['roundness_after_um']:.2f}</td><td>&ndash;</td>"
+            f"<td>{s['roundness_after_U_um']:.2f}</td></tr>"
             f"<tr><td class='l'>prediction residual, table (what a controller applies)</td>"
             f"<td>{s['prediction_max_residual_um']:.2f}</td>"
-            f"<td>{s['prediction_rms_residual_um']:.2f}</td></tr>"
+            f"<td>{s['prediction_rms_residual_um']:.2f}</td>"
+            "<td>&ndash;</td></tr>"
             + (f"<tr><td class='l'>prediction residual, diagnosed model (table + servo)</td>"
-               f"<td>{with_fx:.2f}</td><td>{(s['diagnose_gap'] or {}).get('after', {}).get('rms_um', float('nan')):.2f}</td></tr>"
+               f"<td>{with_fx:.2f}</td><td>{(s['diagnose_gap'] or {}).get('after', {}).get('rms_um', float('nan')):.2f}</td>"
+               "<td>&ndash;</td></tr>"
                if with_fx is not None else "")
             + "</table>"
             + (f"<p>{html.escape(why)}</p>" if why else "")

@@ -21,6 +21,7 @@ from pathlib import Path
 from abbe.analysis.fit.options import MODELS
 from abbe.cli.conventions import examples
 from abbe.cli.options import int_range
+from abbe.errors import AbbeInputError
 from abbe.formats.output import Outputs
 
 
@@ -56,6 +57,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--no-report", action="store_true", help="skip the PNG/HTML report")
     p.add_argument("--no-clib-check", action="store_true",
                    help="do not check the table with the C library (tests without the library)")
+    p.add_argument("--mc", type=int_range(0, 100_000), default=0, metavar="N",
+                   help="five-axis fit: N Monte Carlo draws checking every U (GUM S1; the "
+                        "exact model solved per draw; its U is stated where the first order "
+                        "is more than 10 %% off); default 0. A three-axis table's check: "
+                        "abbe table uncertainty --mc")
     p.add_argument("--bench", action="store_true", help="print the time of each stage")
     p.add_argument("-q", "--quiet", action="store_true",
                    help="do not print the metrics table (paper Table 4 layout)")
@@ -65,10 +71,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from abbe.cli.fit_chain import is_chain_machine, run_chain
     from abbe.cli.fit_five_axis import is_five_axis, run_five_axis
+    if is_five_axis(args.machine) and not is_chain_machine(args.machine):
+        return run_five_axis(args)  # a [rotary] machine: the five-axis identification
+    if args.mc:
+        raise AbbeInputError("--mc is the trunnion five-axis fit's Monte Carlo check; for a "
+                             "three-axis table run abbe table uncertainty --mc", field="--mc",
+                             file=args.machine)
     if is_chain_machine(args.machine):  # a [chain] machine: any five-axis kind
         return run_chain(args)
-    if is_five_axis(args.machine):  # a [rotary] machine: the five-axis identification
-        return run_five_axis(args)
     # the with block turns a write error inside the staging (disk full, permission)
     # into an input error naming OUT, and removes the staging on any failure
     with Outputs() as outs:

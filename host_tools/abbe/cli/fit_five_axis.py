@@ -27,9 +27,12 @@ def is_five_axis(path: str) -> bool:
     return load_machine(path).five_axis is not None
 
 
-def identify_into(machine_path: str | Path, staging: Path, report: bool = True):
+def identify_into(machine_path: str | Path, staging: Path, report: bool = True,
+                  mc_draws: int = 0):
     """Identify a five-axis machine file and write five_axis.json, report.txt and report/
-    into ``staging``; returns (spec, result, json document, text, timings s)."""
+    into ``staging``; ``mc_draws`` > 0 runs the Monte Carlo check of U (GUM S1) and states
+    its U where the first order is more than 10 % off; returns (spec, result, json
+    document, text, timings s)."""
     from abbe.analysis.five_axis.data import load_plan
     from abbe.analysis.five_axis.identify import identify
     from abbe.analysis.five_axis.problem import build_params
@@ -45,6 +48,9 @@ def identify_into(machine_path: str | Path, staging: Path, report: bool = True):
     res = identify(spec, plan.blocks, params)
     t_fit = time.perf_counter()
     doc = to_json(res, spec, plan)
+    if mc_draws:
+        from abbe.analysis.five_axis.uncertainty import monte_carlo, state_monte_carlo
+        state_monte_carlo(doc, monte_carlo(spec, plan.blocks, params, res, draws=mc_draws))
     doc["machine"] = machine.name
     doc["provenance"] = {"machine_file": str(machine.path), "sha256": machine.sha256}
     doc["blob"] = write_table(res, spec, Path(staging), plan.blocks)
@@ -171,7 +177,8 @@ def run_five_axis(args: argparse.Namespace) -> int:
     outs = Outputs()
     try:
         staging = outs.directory(args.out, option="--out")
-        spec, res, _doc, text, times = identify_into(args.machine, staging, not args.no_report)
+        spec, res, _doc, text, times = identify_into(args.machine, staging, not args.no_report,
+                                                     mc_draws=args.mc)
     except BaseException:
         outs.abort()
         raise

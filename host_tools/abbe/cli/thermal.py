@@ -147,7 +147,7 @@ def run_fit(args: argparse.Namespace) -> int:
         summary["uncertainty"] = thermal_uncertainty(res, draws=200)  # issue 37: U (k = 2)
         (out / "fit.json").write_text(json.dumps(summary, indent=1, allow_nan=False,
                                                  default=_none), encoding="utf-8")
-        write_report(res, iso, out, machine=m.name)
+        write_report(res, iso, out, machine=m.name, uncertainty=summary["uncertainty"])
     print(f"abbe thermal fit: wrote {args.out}/thermal.json, fit.json, index.html")
     print(f"  held-out hours {spec.validate_hours[0]:g}-{spec.validate_hours[1]:g}, RMS:")
     print("\n".join(_table_text(res)))

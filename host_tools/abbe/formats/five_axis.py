@@ -59,6 +59,14 @@ DATUM_U_RANGE_UM = (0.01, 1000.0)
 #: table ball closer than 10 mm or further than 1000 mm are not a ballbar set-up.
 BAR_LENGTH_RANGE_MM = (10.0, 1000.0)
 
+#: Class defaults of the Type B budget (docs/uncertainty.md, "Five-axis identification"):
+#: an R-test's displacement sensors calibrated to 1 % of their sensitivity (k = 2); a
+#: ballbar's length calibrated to 1 um (k = 2, the ISO 230-4 ballbar class default).
+RTEST_CALIBRATION_U_PCT = 1.0
+BALLBAR_CALIBRATION_U_UM = 1.0
+CALIBRATION_U_PCT_RANGE = (0.0, 50.0)
+CALIBRATION_U_UM_RANGE = (0.0, 100.0)
+
 _OFFSETS = {"xyzac-trt": ("y_offset_mm", "z_offset_mm"), "xyzbc-trt": ("x_offset_mm", "z_offset_mm")}
 
 
@@ -89,6 +97,9 @@ class RTestPlan:
     file: Path
     sphere_mm: tuple[float, float, float]
     line: int | None = None
+    #: U (k = 2) of the R-test sensors' sensitivity, % (None: the class default,
+    #: RTEST_CALIBRATION_U_PCT)
+    calibration_U_pct: float | None = None
 
 
 @dataclass(frozen=True)
@@ -112,6 +123,8 @@ class RotaryBallbarPlan:
     tool_ball_mm: tuple[float, float, float]
     line: int | None = None
     setup: str = ""  # sections sharing a set-up share the table ball and the tool cup
+    #: U (k = 2) of the bar's length calibration, um (None: BALLBAR_CALIBRATION_U_UM)
+    calibration_U_um: float | None = None
 
     @property
     def length_mm(self) -> float:
@@ -218,9 +231,13 @@ def parse_five_axis(data: dict[str, Any], err: Callable[[str, str], AbbeInputErr
     rtest: dict[str, RTestPlan] = {}
     for name, sec in _table(data.get("rtest", {}), err, "rtest").items():
         f = f"rtest.{name}"
-        s = _keys(_table(sec, err, f), err, f, ("file", "sphere_mm"), ("file", "sphere_mm"))
+        s = _keys(_table(sec, err, f), err, f, ("file", "sphere_mm", "calibration_U_pct"),
+                  ("file", "sphere_mm"))
         rtest[name] = RTestPlan(name, resolve(_str(s["file"], err, f"{f}.file"), f"{f}.file"),
-                                _vec3(s["sphere_mm"], num, err, f"{f}.sphere_mm"), line(f))
+                                _vec3(s["sphere_mm"], num, err, f"{f}.sphere_mm"), line(f),
+                                None if "calibration_U_pct" not in s else
+                                num(s["calibration_U_pct"], f"{f}.calibration_U_pct",
+                                    *CALIBRATION_U_PCT_RANGE, "%"))
     indexer: dict[str, IndexerPlan] = {}
     for name, sec in _table(data.get("indexer", {}), err, "indexer").items():
         f = f"indexer.{name}"
@@ -232,7 +249,8 @@ def parse_five_axis(data: dict[str, Any], err: Callable[[str, str], AbbeInputErr
     ballbar: dict[str, RotaryBallbarPlan] = {}
     for name, sec in _table(data.get("rotary_ballbar", {}), err, "rotary_ballbar").items():
         f = f"rotary_ballbar.{name}"
-        s = _keys(_table(sec, err, f), err, f, ("file", "table_ball_mm", "tool_ball_mm", "setup"),
+        s = _keys(_table(sec, err, f), err, f, ("file", "table_ball_mm", "tool_ball_mm", "setup",
+                                                "calibration_U_um"),
                   ("file", "table_ball_mm", "tool_ball_mm"))
         su = s.get("setup", "")
         if not isinstance(su, str) or not su.replace("_", "").replace("-", "").isalnum() \
@@ -242,7 +260,9 @@ def parse_five_axis(data: dict[str, Any], err: Callable[[str, str], AbbeInputErr
         bb = RotaryBallbarPlan(name, resolve(_str(s["file"], err, f"{f}.file"), f"{f}.file"),
                                _vec3(s["table_ball_mm"], num, err, f"{f}.table_ball_mm"),
                                _vec3(s["tool_ball_mm"], num, err, f"{f}.tool_ball_mm"), line(f),
-                               su)
+                               su, None if "calibration_U_um" not in s else
+                               num(s["calibration_U_um"], f"{f}.calibration_U_um",
+                                   *CALIBRATION_U_UM_RANGE, "um"))
         same = [o for o in ballbar.values() if su and o.setup == su]
         if same and same[0].table_ball_mm != bb.table_ball_mm:
             raise err(f"{f}.table_ball_mm", f"set-up {su!r} shares one table ball: expected "

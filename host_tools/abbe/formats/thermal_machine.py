@@ -34,16 +34,28 @@ from abbe.formats.structured import unknown_key
 
 DIRECTIONS = ("x", "y", "z")
 _KEYS = ("record", "sheet", "identify_hours", "validate_hours", "cycle_hours", "tool_z_mm",
-         "note", "sensors", "channels")
+         "note", "temperature_calibration_U_pct", "sensors", "channels")
+_CHANNEL_KEYS = ("direction", "nest_z_mm", "calibration_U_pct")
+#: Class defaults of the Type B budget (docs/uncertainty.md, "Thermal records"): a
+#: non-contact displacement sensor's sensitivity known to 1 % (k = 2) after calibration
+#: against a gauge, and a temperature sensor's sensitivity (its reading of a rise) to
+#: 0.5 % (k = 2): a class A Pt100's tolerance changes by 0.002 K per K of rise (0.2 %),
+#: doubled for the logger's channel.
+DISPLACEMENT_CALIBRATION_U_PCT = 1.0
+TEMPERATURE_CALIBRATION_U_PCT = 0.5
 
 
 @dataclass(frozen=True)
 class ChannelSpec:
-    """One displacement channel: ``direction`` x / y / z, ``nest_z_mm`` its height, mm."""
+    """One displacement channel: ``direction`` x / y / z, ``nest_z_mm`` its height, mm;
+    ``calibration_U_pct`` the expanded uncertainty (k = 2) of its sensitivity, %, and
+    whether the machine file declared it (else the class default)."""
 
     name: str
     direction: str
     nest_z_mm: float
+    calibration_U_pct: float = DISPLACEMENT_CALIBRATION_U_PCT
+    calibration_declared: bool = False
 
 
 @dataclass(frozen=True)
@@ -70,6 +82,8 @@ class ThermalSpec:
     note: str
     sensors: dict[str, str]
     channels: dict[str, ChannelSpec]
+    temperature_calibration_U_pct: float = TEMPERATURE_CALIBRATION_U_PCT
+    temperature_calibration_declared: bool = False
 
     def tilt_pairs(self) -> list[TiltPair]:
         """The x and y pairs (the two extreme heights of each direction)."""
@@ -140,14 +154,20 @@ def parse_thermal(data: dict[str, Any], err: Callable[[str, str], AbbeInputError
         if not isinstance(c, dict):
             raise err(f, "expected a table (direction, nest_z_mm)")
         for k in c:
-            if k not in ("direction", "nest_z_mm"):
-                raise err(f"{f}.{k}", unknown_key(k, ("direction", "nest_z_mm")))
+            if k not in _CHANNEL_KEYS:
+                raise err(f"{f}.{k}", unknown_key(k, _CHANNEL_KEYS))
         d = c.get("direction")
         if d not in DIRECTIONS:
             raise err(f"{f}.direction", f"expected one of {', '.join(DIRECTIONS)}, got {d!r}")
         z = num(f"{f}.nest_z_mm", c.get("nest_z_mm", 0.0), -2000.0, 2000.0, "mm")
-        channels[name] = ChannelSpec(name, d, z)
-    return ThermalSpec(record, sheet, ident, valid, cycle, tool_z, note, sensors, channels)
+        cal = num(f"{f}.calibration_U_pct", c.get("calibration_U_pct",
+                                                   DISPLACEMENT_CALIBRATION_U_PCT), 0.0, 50.0, "%")
+        channels[name] = ChannelSpec(name, d, z, cal, "calibration_U_pct" in c)
+    t_cal = num("thermal.temperature_calibration_U_pct",
+                sec.get("temperature_calibration_U_pct", TEMPERATURE_CALIBRATION_U_PCT),
+                0.0, 50.0, "%")
+    return ThermalSpec(record, sheet, ident, valid, cycle, tool_z, note, sensors, channels,
+                       t_cal, "temperature_calibration_U_pct" in sec)
 
 
 def check_against_record(spec: ThermalSpec, temp_names: tuple[str, ...],

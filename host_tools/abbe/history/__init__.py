@@ -13,7 +13,10 @@ fleet (docs/history.md).
   status of every database condition, passwords masked.
 * :mod:`~abbe.history.readback`: every value read back checked (finite, typed, a date).
 * :mod:`~abbe.history.zones`: dates stored in UTC, given and shown in the site's zone.
-* :mod:`~abbe.history.ingest`: an output folder -> a :class:`Campaign` (no database).
+* :mod:`~abbe.history.ingest`: an output folder -> a :class:`Campaign` (no database);
+  :mod:`~abbe.history.document` the strict JSON document and the campaign it fills,
+  :mod:`~abbe.history.output_readers` the readers of the five-axis, thermal, printer,
+  predict and export outputs.
 * :mod:`~abbe.history.store`: a campaign in, series out (one transaction each);
   remove / amend with the audit trail.
 * :mod:`~abbe.history.trends`: bands, trend lines and alerts (numpy).

@@ -28,6 +28,9 @@ Recognised by content, never by name alone (docs/history.md, "What `add` reads")
   firmware's mesh, uncorrected), the warp, the squareness with its interval.
 * ``abbe predict -o OUT``: ``predict.json`` -> per ballbar test the prediction
   residual (max, RMS) and the ideal compensated roundness.
+* ``abbe export TARGET -o OUT``: ``residual.json`` (three- or five-axis) -> |E| max and
+  RMS that the controller's tables leave over the work volume, the ballbar circles or
+  the tool-centre-point path, and the uncompensated figures beside them.
 
 A folder is searched at its top and one level down; files it holds that are not
 abbe outputs (plots, C sources, notes) are passed over, but a recognised file
@@ -37,7 +40,6 @@ with a bad value stops the whole campaign (file, line, field).
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -45,103 +47,12 @@ import numpy as np
 
 from abbe.errors import AbbeInputError, check_number
 from abbe.formats.limits import BLOB_MAX_BYTES, TABLE_JSON_MAX_BYTES
-from abbe.formats.structured import JsonLocator, json_from_bytes
 from abbe.formats.text import read_bytes
+from abbe.history.document import (ANGULAR_TERMS, AXES, VALUE_LIMIT, Campaign, Result,
+                                   _Doc, _hash_named_file, _read, _set_machine)
+from abbe.history.output_readers import READERS
 
-#: Largest magnitude accepted for any stored value (um, urad, ppm/K, ...).
-VALUE_LIMIT = 1e7
-AXES = ("X", "Y", "Z")
-ANGULAR_TERMS = ("ex", "ey", "ez")
-
-
-@dataclass
-class Result:
-    """One stored value: ``series`` is what a trend follows across campaigns."""
-
-    series: str
-    source: str
-    quantity: str
-    value: float
-    unit: str
-    axis: str | None = None
-    direction: str | None = None
-    plane: str | None = None
-    feed_mm_min: float | None = None
-    ci_low: float | None = None
-    ci_high: float | None = None
-
-
-@dataclass
-class Campaign:
-    """Everything ``abbe history add`` stores for one campaign (before the database)."""
-
-    machine: str | None = None
-    kinds: list[str] = field(default_factory=list)
-    results: list[Result] = field(default_factory=list)
-    tables: list[tuple[str, bytes, int]] = field(default_factory=list)  # source, blob, crc
-    inputs: list[tuple[str, str, str]] = field(default_factory=list)  # role, file, sha256
-    temperatures: list[tuple[str, float]] = field(default_factory=list)  # source, deg C
-    parts: list[tuple[str, str]] = field(default_factory=list)  # (kind, sha256) -> the hash
-
-    def content_sha256(self) -> str:
-        """SHA-256 of what was read (kinds and file hashes, order-free): the campaign's id."""
-        h = hashlib.sha256()
-        for kind, digest in sorted(self.parts):
-            h.update(f"{kind}:{digest}\n".encode())
-        return h.hexdigest()
-
-
-class _Doc:
-    """A strict JSON document and its locator, for located errors."""
-
-    def __init__(self, path: Path, raw: bytes, what: str) -> None:
-        self.path = path
-        self.raw = raw
-        self.sha256 = hashlib.sha256(raw).hexdigest()
-        self.data, tf = json_from_bytes(raw, name=str(path), what=what)
-        self._loc: JsonLocator | None = None
-        self._text = tf.text
-
-    def err(self, field_: str, msg: str) -> AbbeInputError:
-        if self._loc is None:
-            self._loc = JsonLocator(self._text)
-        return AbbeInputError(msg, file=str(self.path), line=self._loc.line(field_), field=field_)
-
-    def get(self, dotted: str, kind: type | tuple[type, ...] = dict, optional: bool = False) -> Any:
-        node: Any = self.data
-        for part in dotted.split("."):
-            if not isinstance(node, dict) or part not in node:
-                if optional:
-                    return None
-                raise self.err(dotted, f"missing (expected {_kind_name(kind)})")
-            node = node[part]
-        if node is None and optional:
-            return None
-        if not isinstance(node, kind) or isinstance(node, bool) and kind is not bool:
-            raise self.err(dotted, f"expected {_kind_name(kind)}, got {type(node).__name__}")
-        return node
-
-    def num(self, dotted: str, optional: bool = False, lo: float = -VALUE_LIMIT,
-            hi: float = VALUE_LIMIT) -> float | None:
-        v = self.get(dotted, (int, float), optional=optional)
-        if v is None:
-            return None
-        try:
-            return check_number(v, file=str(self.path), field=dotted, lo=lo, hi=hi)
-        except AbbeInputError as exc:
-            raise self.err(dotted, exc.message) from None
-
-
-def _kind_name(kind: type | tuple[type, ...]) -> str:
-    names = {dict: "an object", list: "a list", str: "a string", int: "a number",
-             float: "a number", bool: "true or false"}
-    ks = kind if isinstance(kind, tuple) else (kind,)
-    return " or ".join(sorted({names.get(k, k.__name__) for k in ks}))
-
-
-def _read(path: Path, what: str, max_bytes: int = TABLE_JSON_MAX_BYTES) -> _Doc:
-    return _Doc(path, read_bytes(path, what=what, max_bytes=max_bytes), what)
-
+__all__ = ["Campaign", "Result", "read_campaign"]
 
 def _kind_of(data: Any) -> str | None:
     """What produced this JSON value (None: not an abbe output add reads)."""
@@ -165,7 +76,8 @@ def _kind_of(data: Any) -> str | None:
 FORMATS = {"abbe-five-axis": "five-axis", "abbe-five-axis-diagnose": "five-axis diagnose",
            "abbe-iso230-3": "thermal evaluate", "abbe-thermal-fit": "thermal fit",
            "abbe-thermal-diagnose": "thermal diagnose", "abbe-printer-fit": "printer fit",
-           "abbe-predict": "predict"}
+           "abbe-predict": "predict", "abbe-export-residual": "export",
+           "abbe-export-residual-five-axis": "export"}
 
 
 # --------------------------------------------------------------------------- readers
@@ -375,202 +287,6 @@ def read_iso230_2(c: Campaign, doc: _Doc, axis: str) -> None:
     _hash_named_file(c, doc.data.get("file"), f"measurement:iso230-2 {axis}", doc.path)
 
 
-def _begin(c: Campaign, doc: _Doc, kind: str) -> None:
-    c.kinds.append(kind)
-    c.parts.append((kind, doc.sha256))
-    c.inputs.append((f"{kind}:{doc.path.name}", str(doc.path), doc.sha256))
-    name = doc.get("machine", str, optional=True)
-    if name:
-        _set_machine(c, name, doc, "machine")
-
-
-def _list(doc: _Doc, key: str) -> list[Any]:
-    v = doc.get(key, list)
-    if len(v) > 10_000:
-        raise doc.err(key, f"{len(v)} entries: more than an abbe output writes")
-    return v
-
-
-def _entry_num(doc: _Doc, entry: Any, key: str, where: str, lo: float = -VALUE_LIMIT,
-               optional: bool = False) -> float | None:
-    if not isinstance(entry, dict):
-        raise doc.err(where, "expected an object")
-    v = entry.get(key)
-    if v is None and optional:
-        return None
-    if v is None:
-        raise doc.err(f"{where}.{key}", "missing (expected a number)")
-    try:
-        return check_number(v, file=str(doc.path), field=f"{where}.{key}", lo=lo,
-                            hi=VALUE_LIMIT)
-    except AbbeInputError as exc:
-        raise doc.err(f"{where}.{key}", exc.message) from None
-
-
-def _entry_str(doc: _Doc, entry: Any, key: str, where: str) -> str:
-    v = entry.get(key) if isinstance(entry, dict) else None
-    if not isinstance(v, str) or not v or len(v) > 100:
-        raise doc.err(f"{where}.{key}", "expected a name (1-100 characters)")
-    return v
-
-
-def _unit(doc: _Doc, u: Any, where: str) -> str:
-    if u not in ("um", "urad", "ppm", "mm", "deg", "K"):
-        raise doc.err(where, f"unknown unit {u!r}")
-    return str(u)
-
-
-def read_five_axis(c: Campaign, doc: _Doc) -> None:
-    """``five_axis.json`` of ``abbe fit`` on a five-axis file: the identified location
-    errors (value, 95 % interval) and the sphere-centre dispersion."""
-    _begin(c, doc, "five-axis")
-    for i, p in enumerate(_list(doc, "parameters")):
-        where = f"parameters[{i}]"
-        if not isinstance(p, dict) or p.get("kind") != "location" or p.get("observable") is not True:
-            continue
-        name = _entry_str(doc, p, "name", where)
-        v = _entry_num(doc, p, "value", where)
-        ci = _entry_num(doc, p, "ci95", where, lo=0)
-        assert v is not None and ci is not None
-        c.results.append(Result(f"five-axis {name}", "five-axis", "location error", v,
-                                _unit(doc, p.get("unit"), f"{where}.unit"), axis=name[-1],
-                                ci_low=v - ci, ci_high=v + ci))
-    for key in ("before", "after", "heldout_before", "heldout_after"):
-        v = doc.num(f"dispersion_um.{key}", optional=True, lo=0)
-        if v is not None:
-            c.results.append(Result(f"five-axis dispersion {key.replace('_', ' ')}", "five-axis",
-                                    "sphere-centre dispersion RMS", v, "um"))
-
-
-def read_five_axis_diagnose(c: Campaign, doc: _Doc) -> None:
-    """``diagnose_five_axis.json``: held-out dispersion before / after, named effects."""
-    _begin(c, doc, "five-axis diagnose")
-    for key in ("heldout_before_um", "heldout_after_um"):
-        v = doc.num(key, lo=0)
-        assert v is not None
-        c.results.append(Result(f"five-axis diagnose {key[:-3].replace('_', ' ')}",
-                                "five-axis diagnose", "held-out dispersion RMS", v, "um"))
-    for i, n in enumerate(_list(doc, "named")):
-        where = f"named[{i}]"
-        eff = _entry_str(doc, n, "effect", where)
-        v = _entry_num(doc, n, "amplitude", where)
-        ci = _entry_num(doc, n, "amplitude_ci95", where, lo=0, optional=True)
-        assert v is not None
-        c.results.append(Result(f"five-axis diagnose {eff} amplitude", "five-axis diagnose",
-                                "effect amplitude", v, "um",
-                                ci_low=None if ci is None else v - ci,
-                                ci_high=None if ci is None else v + ci))
-
-
-def read_thermal_evaluate(c: Campaign, doc: _Doc) -> None:
-    """``iso230_3.json`` of ``abbe thermal evaluate -o``: range per channel and tilt."""
-    _begin(c, doc, "thermal evaluate")
-    for key, unit in (("channels", "um"), ("tilts", "urad")):
-        for i, d in enumerate(_list(doc, key)):
-            where = f"{key}[{i}]"
-            name = _entry_str(doc, d, "name", where)
-            v = _entry_num(doc, d, "range", where, lo=0)
-            assert v is not None
-            c.results.append(Result(f"iso230-3 range {name}", "thermal evaluate",
-                                    "thermal drift range", v, unit))
-    v = doc.num("envelope.range_um", lo=0)
-    assert v is not None
-    c.results.append(Result("iso230-3 envelope", "thermal evaluate", "thermal drift envelope",
-                            v, "um"))
-
-
-def read_thermal_fit(c: Campaign, doc: _Doc) -> None:
-    """``fit.json`` of ``abbe thermal fit``: held-out RMS per signal."""
-    _begin(c, doc, "thermal fit")
-    for i, s in enumerate(_list(doc, "signals")):
-        where = f"signals[{i}]"
-        name = _entry_str(doc, s, "name", where)
-        unit = _unit(doc, s.get("unit"), f"{where}.unit")
-        for key, q in (("rms_uncompensated", "uncompensated"), ("rms_model", "model"),
-                       ("rms_mlr", "static regression")):
-            v = _entry_num(doc, s, key, where, lo=0)
-            assert v is not None
-            c.results.append(Result(f"thermal fit {name} held-out rms {q}", "thermal fit",
-                                    f"held-out RMS, {q}", v, unit))
-
-
-def read_thermal_diagnose(c: Campaign, doc: _Doc) -> None:
-    """``diagnosis.json`` of ``abbe thermal diagnose``: the held-out gap per channel."""
-    _begin(c, doc, "thermal diagnose")
-    for i, ch in enumerate(_list(doc, "channels")):
-        where = f"channels[{i}]"
-        name = _entry_str(doc, ch, "channel", where)
-        for key, q in (("gap_heldout_um", "before"), ("after_heldout_um", "after")):
-            v = _entry_num(doc, ch, key, where, lo=0, optional=True)
-            if v is not None:
-                c.results.append(Result(f"thermal diagnose {name} held-out gap {q}",
-                                        "thermal diagnose", f"held-out gap, {q}", v, "um"))
-
-
-def read_printer_fit(c: Campaign, doc: _Doc) -> None:
-    """``printer_fit.json`` of ``abbe printer fit``."""
-    _begin(c, doc, "printer fit")
-    for key, q in (("heldout.abbe_rms_um", "held-out RMS, abbe"),
-                   ("heldout.firmware_mesh_rms_um", "held-out RMS, firmware mesh"),
-                   ("heldout.uncorrected_rms_um", "held-out RMS, uncorrected"),
-                   ("nonseparable_rms_um", "warp RMS (not held by axis terms)")):
-        v = doc.num(key, optional=True, lo=0)
-        if v is not None:
-            c.results.append(Result(f"printer {q}", "printer fit", q, v, "um"))
-    sq = doc.get("squareness_urad", dict, optional=True) or {}
-    for plane in sorted(sq):
-        v = doc.num(f"squareness_urad.{plane}")
-        u = doc.num(f"squareness_u95_urad.{plane}", optional=True, lo=0)
-        assert v is not None
-        c.results.append(Result(f"printer squareness {plane}", "printer fit", "squareness", v,
-                                "urad", plane=plane[:8], ci_low=None if u is None else v - u,
-                                ci_high=None if u is None else v + u))
-
-
-def read_predict(c: Campaign, doc: _Doc) -> None:
-    """``predict.json`` of ``abbe predict -o``: residual per ballbar test."""
-    _begin(c, doc, "predict")
-    for i, p in enumerate(_list(doc, "predictions")):
-        where = f"predictions[{i}]"
-        name = _entry_str(doc, p, "ballbar", where)
-        for key, q in (("residual_max_um", "prediction residual max"),
-                       ("residual_rms_um", "prediction residual RMS"),
-                       ("ideal_roundness_um", "ideal compensated roundness")):
-            v = _entry_num(doc, p, key, where, lo=0)
-            assert v is not None
-            c.results.append(Result(f"predict {name} {q}", "predict", q, v, "um"))
-
-
-READERS = {"five-axis": read_five_axis, "five-axis diagnose": read_five_axis_diagnose,
-           "thermal evaluate": read_thermal_evaluate, "thermal fit": read_thermal_fit,
-           "thermal diagnose": read_thermal_diagnose, "printer fit": read_printer_fit,
-           "predict": read_predict}
-
-
-def _hash_named_file(c: Campaign, name: Any, role: str, beside: Path) -> None:
-    """Record the SHA-256 of a measurement file an output names, when it is still there."""
-    if not isinstance(name, str) or not name:
-        return
-    p = Path(name)
-    if not p.is_absolute():
-        p = beside.parent / p
-    try:
-        if p.is_file() and p.stat().st_size <= 256 << 20:
-            h = hashlib.sha256()
-            with open(p, "rb") as fh:
-                for chunk in iter(lambda: fh.read(1 << 20), b""):
-                    h.update(chunk)
-            c.inputs.append((role, name, h.hexdigest()))
-    except OSError:
-        pass  # the output is what is stored; its measurement file is a courtesy
-
-
-def _set_machine(c: Campaign, name: str, doc: _Doc, where: str) -> None:
-    if c.machine is not None and c.machine != name:
-        raise doc.err(where, f"machine {name!r}, but this campaign is of {c.machine!r}")
-    c.machine = name
-
-
 # --------------------------------------------------------------------------- folders
 def _candidates(path: Path) -> list[Path]:
     """JSON files of a folder and of its direct subfolders, in a fixed order."""
@@ -599,7 +315,7 @@ def read_campaign(paths: list[str], axes: dict[str, str], machine: str | None) -
                 raise AbbeInputError("not an output abbe history reads (expected the JSON of "
                                      "abbe ballbar --json, abbe iso230-2 --json, a fit's "
                                      "model.json or five_axis.json, a diagnose.json or an "
-                                     "output of abbe thermal, printer fit or predict)",
+                                     "output of abbe thermal, printer fit, predict or export)",
                                      file=text)
             docs.append((kind, doc, True))
             continue
@@ -615,7 +331,8 @@ def read_campaign(paths: list[str], axes: dict[str, str], machine: str | None) -
         if not found:
             raise AbbeInputError("no abbe output here: expected the -o folder of an abbe "
                                  "command that evaluates (fit, diagnose, demo, ballbar, "
-                                 "iso230-2, thermal, printer fit, predict) or its JSON",
+                                 "iso230-2, thermal, printer fit, predict, export) or its "
+                                 "JSON",
                                  file=text)
     seen: dict[tuple[str, str], tuple[_Doc, bool]] = {}
     for kind, doc, _explicit in docs:

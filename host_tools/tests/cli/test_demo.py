@@ -125,3 +125,21 @@ def test_demo_report_reads_verdict_first_in_chromium(demo, tmp_path) -> None:
         pytest.skip("chromium not installed: the report is not rendered")
     img = screenshot(out / "report" / "index.html", tmp_path / "shot.png", "demo_three_axis")
     assert assert_verdict_first(img) == "pass"
+
+
+def test_demo_states_the_roundness_with_its_uncertainty(demo) -> None:
+    """G before and after carries U (k = 2) from the same ISO 230-4 budget `abbe ballbar`
+    uses: the before-figure's U is the one `abbe ballbar` states for the same circle."""
+    out, s = demo
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        assert cli_main(["ballbar", str(Path(__file__).resolve().parents[3] / "examples" /
+                                         "vmc500" / "machine.toml"), s["ballbar"], "--no-plot",
+                         "--json", "-"]) == 0
+    bb = json.loads(printed.getvalue())["uncertainty"]["results"]["G_bidirectional"]
+    assert s["roundness_before_U_um"] == pytest.approx(bb["U_um"], abs=1e-3)
+    assert 0 < s["roundness_after_U_um"] < s["roundness_after_um"]
+    html = (out / "report" / "index.html").read_text()
+    assert (f"{s['roundness_before_um']:.2f} &plusmn; {s['roundness_before_U_um']:.2f} &rarr; "
+            f"{s['roundness_after_um']:.2f} &plusmn; {s['roundness_after_U_um']:.2f} um "
+            "(U, k = 2") in html

@@ -153,3 +153,44 @@ def test_a_bad_value_in_a_new_output_is_refused_with_its_place(sqlite, tmp_path,
     assert main(["history", "--db", sqlite, "add", str(out)]) == 2
     err = capsys.readouterr().err
     assert "iso230_3.json" in err and "channels[0].range" in err
+
+
+def test_export_folders(sqlite, tmp_path):
+    """abbe export -o: residual.json (three- and five-axis) stored against its own values."""
+    fit = tmp_path / "fit"
+    assert main(["fit", str(VMC / "machine.toml"), "-o", str(fit), "--no-report", "-q"]) == 0
+    out = tmp_path / "lcnc"
+    assert main(["export", str(fit / "model.bin"), "-f", "linuxcnc-comp", "-o", str(out),
+                 "--machine", str(VMC / "machine.toml")]) == 0
+    doc = json.loads((out / "residual.json").read_text())
+    vals = _add(sqlite, out, "--machine", "vmc500")
+    vol = doc["volume"]
+    assert vals["export linuxcnc-comp volume residual |E| max"][0] == vol["residual"]["norm"]["max_um"]
+    assert (vals["export linuxcnc-comp volume uncompensated |E| rms"][0]
+            == vol["uncompensated"]["norm"]["rms_um"])
+    assert doc["circles"]  # the machine file's circles are evaluated and stored too
+    for name, c in doc["circles"].items():
+        assert vals[f"export linuxcnc-comp circle {name} residual |E| max"][0] == \
+            c["residual"]["norm"]["max_um"]
+    fit5 = tmp_path / "fit5"
+    assert main(["fit", str(TRUNNION / "machine.toml"), "-o", str(fit5)]) == 0
+    trt = tmp_path / "trt"
+    assert main(["export", str(fit5 / "model_five.bin"), "-f", "linuxcnc-trt", "-o", str(trt),
+                 "--machine", str(TRUNNION / "machine.toml")]) == 0
+    d5 = json.loads((trt / "residual.json").read_text())
+    vals = _add(str(tmp_path / "h5.sqlite"), trt, "--machine", "trunnion5ax")
+    assert (vals["export linuxcnc-trt tcp path residual |E| rms"][0]
+            == d5["tcp_path"]["residual"]["norm"]["rms_um"])
+
+
+def test_a_bad_export_residual_is_refused_with_its_place(sqlite, tmp_path, capsys):
+    out = tmp_path / "ex"
+    out.mkdir()
+    stats = {"norm": {"max_um": 1.0, "rms_um": 0.5}}
+    (out / "residual.json").write_text(json.dumps(
+        {"format": "abbe-export-residual", "version": 1, "target": "marlin",
+         "volume": {"residual": {"norm": {"max_um": float("nan"), "rms_um": 0.5}},
+                    "uncompensated": stats}, "circles": {}}, indent=1))
+    assert main(["history", "--db", sqlite, "add", str(out), "--machine", "m"]) == 2
+    err = capsys.readouterr().err
+    assert "residual.json:" in err and "NaN" in err

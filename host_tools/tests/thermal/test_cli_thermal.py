@@ -43,6 +43,15 @@ def test_fit_writes_model_and_report(synthetic, tmp_path, capsys):
     assert html.index("signals.png") < html.index("Terms (95 %")
     for f in ("signals.png", "rms.png", "inputs.png", "fit.json"):
         assert (out / f).stat().st_size > 1000
+    # every signal's held-out RMS with its stated U in the band, the budget folded after
+    fit = json.loads((out / "fit.json").read_text())
+    band = html[html.index("id='verdict'"):html.index("rms.png")]
+    for s in fit["uncertainty"]["signals"]:
+        if s["terms"]:
+            assert f"&plusmn; {s['heldout_rms']['U_stated']:.2f} (" in band, s["name"]
+            assert {c["name"] for c in s["drift"]["budget"]} >= {
+                "identification residuals (Type A)", f"{s['name']} sensitivity"}
+    assert "Uncertainty budget (U, k = 2" in html
     text = capsys.readouterr().out
     assert re.search(r"chz .* met", text), text
 

@@ -24,6 +24,12 @@ def test_example_mapping(real_spec):
     ('direction = "z"', 'direction = "w"', "thermal.channels.chz.direction"),
     ('cycle_hours = 8.0', 'cycle_hours = 8.0\nspeed = 3', "thermal.speed"),
     ('identify_hours = [0.0, 24.0]', 'identify_hours = [24.0, 0.0]', "thermal.identify_hours"),
+    ('nest_z_mm = 0.0', 'nest_z_mm = 0.0\ncalibration_U_pct = -1.0',
+     "thermal.channels.chz.calibration_U_pct"),
+    ('nest_z_mm = 0.0', 'nest_z_mm = 0.0\ncalibration_U_pct = nan',
+     "thermal.channels.chz.calibration_U_pct"),
+    ('cycle_hours = 8.0', 'cycle_hours = 8.0\ntemperature_calibration_U_pct = "1"',
+     "thermal.temperature_calibration_U_pct"),
 ])
 def test_errors_name_the_line(tmp_path, old, new, field):
     text = machine_text("r.csv", {"chz": "z"})
@@ -34,6 +40,22 @@ def test_errors_name_the_line(tmp_path, old, new, field):
         load_machine(p)
     assert e.value.field == field and e.value.line is not None
     assert p.read_text().splitlines()[e.value.line - 1].split("=")[0].strip() in field
+
+
+def test_calibration_declared_or_class_default(tmp_path):
+    text = machine_text("r.csv", {"chz": "z", "chx": "x"})
+    p = tmp_path / "m.toml"
+    p.write_text(text)
+    spec = load_machine(p).extra["thermal"]
+    assert spec.channels["chz"].calibration_U_pct == 1.0 and not spec.channels["chz"].calibration_declared
+    assert spec.temperature_calibration_U_pct == 0.5 and not spec.temperature_calibration_declared
+    p.write_text(text.replace('cycle_hours = 8.0', 'cycle_hours = 8.0\ntemperature_calibration_U_pct = 0.2')
+                 .replace('direction = "z"\nnest_z_mm = 0.0',
+                          'direction = "z"\nnest_z_mm = 0.0\ncalibration_U_pct = 0.3'))
+    spec = load_machine(p).extra["thermal"]
+    assert spec.channels["chz"].calibration_U_pct == 0.3 and spec.channels["chz"].calibration_declared
+    assert not spec.channels["chx"].calibration_declared
+    assert spec.temperature_calibration_U_pct == 0.2 and spec.temperature_calibration_declared
 
 
 def test_undeclared_channel_is_exit_2(synthetic, tmp_path, capsys):

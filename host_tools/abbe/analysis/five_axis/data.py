@@ -14,7 +14,8 @@ import numpy as np
 from abbe.analysis.five_axis.problem import Block
 from abbe.analysis.five_axis.spheres import SphereCentres, sphere_centres
 from abbe.errors import AbbeInputError
-from abbe.formats.five_axis import (FiveAxisSpec, read_indexer, read_probe_points,
+from abbe.formats.five_axis import (BALLBAR_CALIBRATION_U_UM, RTEST_CALIBRATION_U_PCT,
+                                   FiveAxisSpec, read_indexer, read_probe_points,
                                    read_rotary_ballbar, read_rtest)
 
 
@@ -61,7 +62,10 @@ def load_plan(spec: FiveAxisSpec) -> PlanData:
     for name, rt in spec.rtest.items():
         tr = read_rtest(rt.file, tilt)
         blocks.append(Block("rtest", name, tr.angles_deg, tr.displacement_um,
-                            np.asarray(rt.sphere_mm), time_s=tr.time_s))
+                            np.asarray(rt.sphere_mm), time_s=tr.time_s,
+                            calibration=("scale", RTEST_CALIBRATION_U_PCT, "class default")
+                            if rt.calibration_U_pct is None else
+                            ("scale", rt.calibration_U_pct, "declared")))
     for axis, ix in spec.indexer.items():
         runs = read_indexer(ix.file)
         raw[axis] = runs
@@ -72,5 +76,8 @@ def load_plan(spec: FiveAxisSpec) -> PlanData:
         tr = read_rotary_ballbar(bb.file, tilt)
         blocks.append(Block("ballbar", name, tr.angles_deg, tr.radial_um,
                             np.asarray(bb.table_ball_mm), time_s=tr.time_s,
-                            tool_mm=np.asarray(bb.tool_ball_mm), setup=bb.setup))
+                            tool_mm=np.asarray(bb.tool_ball_mm), setup=bb.setup,
+                            calibration=("offset", BALLBAR_CALIBRATION_U_UM, "class default")
+                            if bb.calibration_U_um is None else
+                            ("offset", bb.calibration_U_um, "declared")))
     return PlanData(blocks, spheres, rejected, raw)

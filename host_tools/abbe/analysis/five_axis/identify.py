@@ -103,6 +103,11 @@ class FitResult:
     #: the fit fixed at 0 and every other error as the campaign determines it in that
     #: convention (the smallest, scaled, where the plan leaves more undetermined)
     x_table: np.ndarray | None = None
+    #: the identification's raw-residual Jacobian (scaled unknowns), the rows' weights and
+    #: each block's first row, as the covariance used them (for the Type B propagation)
+    jacobian: np.ndarray | None = None
+    weights: np.ndarray | None = None
+    row_offsets: np.ndarray | None = None
     #: the indices of x_table set by that smallest-norm choice (the plan sees them only in
     #: combinations it cannot separate from errors it cannot see at all)
     min_norm: list[int] = field(default_factory=list)
@@ -292,7 +297,8 @@ def identify(spec: FiveAxisSpec, blocks: list[Block], params: list[Param]) -> Fi
     hide = ~obs.observable
     xo[hide] = np.nan
     sd[hide] = np.nan
-    res = FitResult(params, xo, sd, corr, obs, blocks, h, nfev=nfev, x_solution=x.copy())
+    res = FitResult(params, xo, sd, corr, obs, blocks, h, nfev=nfev, x_solution=x.copy(),
+                    jacobian=pb.J, weights=w, row_offsets=pb.offsets)
     res.sd_convention = sd_convention
     xt, res.min_norm = table_solution(params, x, obs, pb.J * w[:, None], pb.scale)
     if any(xt[i] != 0.0 for i in obs.fixed):

@@ -70,6 +70,10 @@ class Block:
     setup: str = ""
     #: datum blocks: the probing whose sphere it declares (``probe.NAME``)
     of: str = ""
+    #: Type B calibration of the instrument: ("scale", U %, source) - a sensitivity error
+    #: scales the observations - or ("offset", U um, source) - every reading shifted alike;
+    #: U at k = 2, source "declared" or "class default"; None: none declared for this kind
+    calibration: tuple[str, float, str] | None = None
 
     @property
     def balls_key(self) -> str:

@@ -24,6 +24,7 @@ from abbe.analysis.five_axis.data import PlanData
 from abbe.analysis.five_axis.identify import SEEN_BY, FitResult
 from abbe.analysis.five_axis.problem import Block, residual_block
 from abbe.analysis.five_axis.uncertainty import budget as uncertainty_budget
+from abbe.analysis.five_axis.uncertainty import type_b
 from abbe.analysis.iso230_2 import evaluate
 from abbe.formats.deviations import PositioningData
 from abbe.formats.five_axis import FiveAxisSpec, IndexerRuns
@@ -49,15 +50,20 @@ def _seen_key(name: str, kind: str) -> str:
     return "zero" if kind == "location" and name[1] == name[3] else kind
 
 
-def param_rows(res: FitResult) -> list[dict[str, Any]]:
-    """One row per parameter: value and 95 % interval, or why it has no number."""
+def param_rows(res: FitResult, type_b: dict[str, Any] | None = None) -> list[dict[str, Any]]:
+    """One row per parameter: value and 95 % interval, or why it has no number;
+    ``type_b`` (``uncertainty.type_b``) adds each instrument's calibration to u."""
     rows = []
+    uB2 = np.zeros(len(res.params))
+    for ux, _what in (type_b or {}).values():
+        uB2 += np.asarray(ux) ** 2
     for i, p in enumerate(res.params):
         row: dict[str, Any] = {"name": p.name, "kind": p.kind, "unit": p.unit}
         if res.obs.observable[i]:
             # U (k = 2) is the certificate's figure (docs/uncertainty.md); ci95 (1.96 u) kept
-            row.update(observable=True, value=_f(res.x[i]), ci95=_f(1.96 * res.sd[i]),
-                       u=_f(res.sd[i]), U=_f(2.0 * res.sd[i]))
+            u = float(np.sqrt(res.sd[i] ** 2 + uB2[i]))
+            row.update(observable=True, value=_f(res.x[i]), ci95=_f(1.96 * u),
+                       u=_f(u), U=_f(2.0 * u), u_typeA=_f(res.sd[i]))
             if p.kind != "setup" and res.x_table is not None:
                 # what model_five.bin holds: the fit's value, moved (within its interval)
                 # by the prior on the errors the plan sees only in the convention
@@ -154,6 +160,7 @@ def ballbar_curves(res: FitResult, spec: FiveAxisSpec) -> dict[str, dict[str, An
 def to_json(res: FitResult, spec: FiveAxisSpec, plan: PlanData) -> dict[str, Any]:
     """The identification as JSON (five_axis.json)."""
     g = spec.geometry
+    tb = type_b(spec, plan.blocks, res.params, res)
     loc = {p.name: (_f(res.x[i]) if res.obs.observable[i] else None)
            for i, p in enumerate(res.params) if p.kind == "location"}
     motions: dict[str, Any] = {}
@@ -174,7 +181,7 @@ def to_json(res: FitResult, spec: FiveAxisSpec, plan: PlanData) -> dict[str, Any
                                       for i, p in enumerate(res.params) if p.kind == "squareness"},
                   "motions": motions,
                   "note": "null = not observable with this plan (never 0): see observability"},
-        "parameters": param_rows(res),
+        "parameters": param_rows(res, tb),
         "observability": {"rank": res.obs.rank, "n_params": res.obs.n_params,
                           "condition_number": _f(res.obs.condition),
                           "fixed_by_convention": [res.params[i].name for i in res.obs.fixed],

@@ -116,7 +116,7 @@ def _record_date(path: str) -> str:
 
 
 def write_report(res: FitResult, iso: dict, out: Path, diagnosis: dict | None = None,
-                 machine: str | None = None) -> None:
+                 machine: str | None = None, uncertainty: dict | None = None) -> None:
     """``out/index.html`` and its figures: machine, test, date and the verdict band (does
     the model meet its target on every held-out signal) first, with the bar chart; the
     signals, terms, selection and ISO 230-3 figures after, folded."""
@@ -126,12 +126,16 @@ def write_report(res: FitResult, iso: dict, out: Path, diagnosis: dict | None = 
     plot_inputs(res, out / "inputs.png")
     rec = res.record
     sigs = res.channels + [s for s in res.outputs if s.unit == "urad"]
+    unc = {u["name"]: u for u in (uncertainty or {}).get("signals", [])}
     rows = []
     for s in sigs:
         ok = "yes" if s.meets else "no"
+        rms_u = unc.get(s.name, {}).get("heldout_rms")
         rows.append(f"<tr><td class='l'>{_esc(s.name)}</td><td>{s.unit}</td><td>{_f(s.rms_uncomp)}</td>"
                     f"<td>{_f(s.rms_mlr)} ({100 * s.rms_mlr / s.rms_uncomp:.0f} %)</td>"
-                    f"<td>{_f(s.rms_comp)} ({100 * s.ratio:.0f} %)</td>"
+                    f"<td>{_f(s.rms_comp)}"
+                    + (f" &plusmn; {_f(rms_u['U_stated'])}" if rms_u else "")
+                    + f" ({100 * s.ratio:.0f} %)</td>"
                     f"<td>{_f(s.rms_comp_ident)}</td><td class='l {'pass' if s.meets else 'fail'}'>"
                     f"{ok}</td></tr>")
     terms = []
@@ -167,7 +171,10 @@ def write_report(res: FitResult, iso: dict, out: Path, diagnosis: dict | None = 
             f"is left after the static multi-linear regression on all {len(rec.temp_names)} "
             f"temperatures (MLR, trained on the same identification hours) and after the "
             f"dynamic model. Target: model &le; {100 * TARGET_RATIO:.0f} % of uncompensated "
-            f"and below MLR.</p>")
+            f"and below MLR."
+            + (" The model's figure &plusmn; U (k = 2: the identification's residuals and "
+               "the sensors' calibration, docs/uncertainty.md)." if unc else "")
+            + "</p>")
     head = page_head(f"Thermal model: {Path(rec.file).name}", [
         ("Machine", machine or "not named"),
         ("Test", f"ISO 230-3 thermal record, {iso['duration_h']:.1f} h, {iso['samples']} "
@@ -186,6 +193,7 @@ def write_report(res: FitResult, iso: dict, out: Path, diagnosis: dict | None = 
 <details><summary>Terms (95 % intervals from the Jacobian, serial correlation accounted)</summary>
 <table><tr><th class='l'>signal</th><th class='l'>input</th><th>tau (s)</th><th>gain (um or urad per K / krpm)</th></tr>
 {''.join(terms)}</table></details>
+{_budget_fold(unc)}
 <details><summary>Selection (forward, leave-one-cycle-out CV inside the identification hours)</summary>
 <table><tr><th class='l'>channel</th><th class='l'>added</th><th>tau, refined (s)</th><th>CV RMS (um)</th>
 <th>max VIF</th><th class='l'>rivals within 10 % (not decided by the data)</th></tr>
@@ -199,6 +207,31 @@ def write_report(res: FitResult, iso: dict, out: Path, diagnosis: dict | None = 
 <img class="wide" src="inputs.png" alt="inputs"></details>
 </body></html>"""
     (out / "index.html").write_text(page, encoding="utf-8")
+
+
+def _budget_fold(unc: dict) -> str:
+    """The uncertainty budget of each signal's largest predicted drift and held-out RMS."""
+    if not unc:
+        return ""
+    rows = []
+    for name, u in unc.items():
+        for key, what in (("drift", "largest predicted drift"), ("heldout_rms", "held-out RMS")):
+            d = u.get(key)
+            if not d:
+                continue
+            parts = "; ".join(f"{_esc(c['name'])} {c['u']:.3f}" for c in d.get("budget", []))
+            mc = (f"{d['U_mc']:.2f}" if "U_mc" in d else "&ndash;")
+            rows.append(f"<tr><td class='l'>{_esc(name)}</td><td class='l'>{what}</td>"
+                        f"<td>{d['value']:.2f}</td><td>{d['U']:.2f}</td><td>{mc}</td>"
+                        f"<td>{d['U_stated']:.2f}</td><td class='l'>{parts}</td></tr>")
+    return ("<details><summary>Uncertainty budget (U, k = 2; first order and Monte Carlo)"
+            "</summary><table><tr><th class='l'>signal</th><th class='l'>figure</th>"
+            "<th>value</th><th>U first order</th><th>U Monte Carlo</th><th>U stated</th>"
+            "<th class='l'>standard uncertainties u (um or urad)</th></tr>"
+            + "".join(rows) + "</table><p class='small'>Where the first order and the Monte "
+            "Carlo differ by more than 10 % the Monte Carlo's U is stated (GUM S1): a time "
+            "constant the data do not pin down makes the model non-linear over its "
+            "interval.</p></details>")
 
 
 def _drift_rows(iso: dict) -> str:

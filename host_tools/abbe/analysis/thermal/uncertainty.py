@@ -84,6 +84,46 @@ def _jac(fn, p: np.ndarray) -> np.ndarray:
     return J
 
 
+def type_b_inputs(res: Any, sig: Any) -> list[tuple[str, str, float, np.ndarray]]:
+    """The Type B inputs of one signal: (name, what, standard relative u, dy), where dy is
+    the change of the signal's samples per unit relative error of that sensor's
+    sensitivity (a channel: its own samples; a tilt: each of its two channels' rise over
+    the spacing, with the tilt's sign)."""
+    spec = res.spec
+    rec = res.record
+    chans = spec.channels
+    if sig.unit != "urad":
+        c = chans.get(sig.name)
+        U = c.calibration_U_pct if c is not None else 0.0
+        src = "declared" if c is not None and c.calibration_declared else "class default"
+        return [(f"{sig.name} sensitivity", f"displacement sensor calibration, U = {U:g} % "
+                 f"(k = 2, {src})", U / 100.0 / K, np.asarray(sig.measured, dtype=float))]
+    out = []
+    for p in spec.tilt_pairs():
+        if f"tilt_{p.output}" != sig.name:
+            continue
+        sign = 1.0 if p.output == "b" else -1.0
+        for name, side in ((p.upper, 1.0), (p.lower, -1.0)):
+            k = rec.channel_names.index(name)
+            rise = rec.disp_um[:, k] - rec.disp_um[0, k]
+            c = chans[name]
+            src = "declared" if c.calibration_declared else "class default"
+            out.append((f"{name} sensitivity", f"displacement sensor calibration, U = "
+                        f"{c.calibration_U_pct:g} % (k = 2, {src}), over the "
+                        f"{p.spacing_mm:g} mm spacing", c.calibration_U_pct / 100.0 / K,
+                        side * sign * rise / p.spacing_mm * 1e3))
+    return out
+
+
+def _refit_map(t_s: np.ndarray, cands: list[Any], fit: ChannelFit, p: np.ndarray,
+               mask: np.ndarray, dy: np.ndarray) -> np.ndarray:
+    """The change of (offset, gains) when the identification data change by dy, the time
+    constants held: exact, the gains are a least-squares fit linear in the data."""
+    ng = len(fit.terms) + 1
+    S = _states(t_s, cands, fit, p[ng:])
+    return np.linalg.lstsq(S[mask], dy[mask], rcond=None)[0]
+
+
 def signal_uncertainty(res: Any, sig: Any, draws: int = 0, seed: int = 1) -> dict[str, Any]:
     """One signal's terms, its largest predicted drift on the validation hours and its
     held-out RMS, each with U (k = 2); with ``draws`` the Monte Carlo beside each."""
@@ -111,22 +151,53 @@ def signal_uncertainty(res: Any, sig: Any, draws: int = 0, seed: int = 1) -> dic
     jd = _jac(drift_at, p)[0]
     jr = _jac(rms_valid, p)[0]
     ng = len(fit.terms) + 1
+    # Type B: each sensor's sensitivity error changes the data by e * dy; the gains follow
+    # linearly (refit map), so do the drift and the held-out residual
+    r0 = (y - prediction(t, cands, fit, p))[valid]
+    rms0 = float(rms_valid(p)[0])
+    S = _states(t, cands, fit, p[ng:])
+    type_b = []
+    for name, what, u_rel, dy in type_b_inputs(res, sig):
+        db = _refit_map(t, cands, fit, p, res.ident_mask, dy)
+        dd = float((S[:, 1:] @ db[1:])[i_max])
+        dr = (dy - S @ db)[valid]
+        type_b.append({"name": name, "what": what, "u_rel": u_rel, "d_gain": db[1:],
+                       "d_drift": dd, "d_resid": dr,
+                       "u_drift": abs(dd) * u_rel,
+                       "u_rms": abs(float(r0 @ dr) / (r0.size * rms0)) * u_rel if rms0 > 0 else 0.0})
+    t_u = res.spec.temperature_calibration_U_pct / 100.0 / K
+    t_src = "declared" if res.spec.temperature_calibration_declared else "class default"
     dyn = [j for j, tt in enumerate(fit.terms) if tt.tau_s > 0]
     terms = []
     for j, tt in enumerate(fit.terms):
-        row = {"input": res.input_names[tt.input], "gain": tt.gain, "gain_U": K * sd[j + 1],
+        uA = sd[j + 1]
+        uB2 = sum((b["u_rel"] * b["d_gain"][j]) ** 2 for b in type_b)
+        if cands[tt.input].name != "spindle":
+            # a temperature sensor reading a rise (1 + e) times too large: the gain per K
+            # is that much smaller; the prediction is unchanged (the same sensor runs it)
+            uB2 += (t_u * tt.gain) ** 2
+        row = {"input": res.input_names[tt.input], "gain": tt.gain,
+               "gain_U": K * float(np.sqrt(uA ** 2 + uB2)), "gain_U_typeA": K * uA,
                "tau_s": tt.tau_s, "tau_U_s": None}
         if j in dyn:
             s_lt = sd[ng + dyn.index(j)]
             # log tau's interval mapped to tau: the larger half-width (as identify's)
             row["tau_U_s"] = float(tt.tau_s * np.expm1(K * s_lt)) if K * s_lt < 20 else None
         terms.append(row)
+
+    def figure(value: float, uA: float, key: str) -> dict[str, Any]:
+        budget = [{"name": "identification residuals (Type A)", "u": uA}]
+        budget += [{"name": b["name"], "what": b["what"], "u": b[key]} for b in type_b]
+        return {"value": value, "U": K * float(np.sqrt(sum(c["u"] ** 2 for c in budget))),
+                "U_typeA": K * uA, "budget": budget}
+
     out: dict[str, Any] = {
         "name": sig.name, "unit": sig.unit, "terms": terms,
-        "drift": {"hours": float(rec.hours[i_max]), "value": float(d[i_max]),
-                  "U": K * float(np.sqrt(max(jd @ C @ jd, 0.0)))},
-        "heldout_rms": {"value": float(rms_valid(p)[0]),
-                        "U": K * float(np.sqrt(max(jr @ C @ jr, 0.0)))},
+        "drift": {"hours": float(rec.hours[i_max]),
+                  **figure(float(d[i_max]), float(np.sqrt(max(jd @ C @ jd, 0.0))), "u_drift")},
+        "heldout_rms": figure(rms0, float(np.sqrt(max(jr @ C @ jr, 0.0))), "u_rms"),
+        "temperature_calibration": f"U = {res.spec.temperature_calibration_U_pct:g} % (k = 2, "
+                                   f"{t_src}): in the gains per K only",
         "n_eff": float(fit.n_eff)}
     if draws:
         rng = np.random.default_rng(seed)
@@ -134,8 +205,13 @@ def signal_uncertainty(res: Any, sig: Any, draws: int = 0, seed: int = 1) -> dic
         dv, rv = np.empty(draws), np.empty(draws)
         for k in range(draws):
             q = p + L @ rng.standard_normal(p.size)
-            dv[k] = drift_at(q)[0]
-            rv[k] = rms_valid(q)[0]
+            e = [b["u_rel"] * rng.standard_normal() for b in type_b]
+            pred = prediction(t, cands, fit, q)  # once per draw: the drift has no offset
+            dv[k] = pred[i_max] - q[0] + sum(ek * b["d_drift"] for ek, b in zip(e, type_b))
+            r = (y - pred)[valid]
+            for ek, b in zip(e, type_b):
+                r = r + ek * b["d_resid"]
+            rv[k] = float(np.sqrt(np.mean(r ** 2)))
         out["drift"]["U_mc"] = K * float(dv.std(ddof=1))
         out["heldout_rms"]["U_mc"] = K * float(rv.std(ddof=1))
         out["monte_carlo"] = {"draws": draws, "seed": seed}
@@ -164,11 +240,14 @@ def _state(d: dict[str, Any]) -> None:
 
 
 def thermal_uncertainty(res: Any, draws: int = 0, seed: int = 1) -> dict[str, Any]:
-    """Every modelled output's figures with U (k = 2) (module docstring)."""
+    """Every channel's and tilt's figures with U (k = 2) (module docstring), in the order
+    the fit report lists them."""
     return {"method": ("GUM first order on the identification's covariance (offset, gains, "
                        "log taus; s^2 inflated for serial correlation); U = k u, k = 2"),
             "k": K,
-            "budget": ("Type A only: the residuals on the identification hours; the "
-                       "displacement and temperature sensors' calibration is not declared "
-                       "for thermal records and not included"),
-            "signals": [signal_uncertainty(res, s, draws, seed) for s in res.outputs]}
+            "budget": ("Type A: the residuals on the identification hours; Type B: each "
+                       "displacement sensor's sensitivity (calibration_U_pct, refit linearly: "
+                       "the gains are least squares in the data) and the temperature sensors' "
+                       "sensitivity (gains per K only); both drawn in the Monte Carlo"),
+            "signals": [signal_uncertainty(res, s, draws, seed) for s in
+                        res.channels + [s for s in res.outputs if s.unit == "urad"]]}

@@ -1,0 +1,153 @@
+"""Readers of the outputs added after the laser fit's: the five-axis fit and diagnose,
+the thermal evaluation / fit / diagnosis, the printer fit, predict and export (their
+"format" tag names them; docs/history.md lists the series each stores)."""
+
+from __future__ import annotations
+
+from abbe.history.document import (Campaign, Result, _begin, _Doc, _entry_num, _entry_str,
+                                   _list, _unit)
+
+def read_five_axis(c: Campaign, doc: _Doc) -> None:
+    """``five_axis.json`` of ``abbe fit`` on a five-axis file: the identified location
+    errors (value, 95 % interval) and the sphere-centre dispersion."""
+    _begin(c, doc, "five-axis")
+    for i, p in enumerate(_list(doc, "parameters")):
+        where = f"parameters[{i}]"
+        if not isinstance(p, dict) or p.get("kind") != "location" or p.get("observable") is not True:
+            continue
+        name = _entry_str(doc, p, "name", where)
+        v = _entry_num(doc, p, "value", where)
+        ci = _entry_num(doc, p, "ci95", where, lo=0)
+        assert v is not None and ci is not None
+        c.results.append(Result(f"five-axis {name}", "five-axis", "location error", v,
+                                _unit(doc, p.get("unit"), f"{where}.unit"), axis=name[-1],
+                                ci_low=v - ci, ci_high=v + ci))
+    for key in ("before", "after", "heldout_before", "heldout_after"):
+        v = doc.num(f"dispersion_um.{key}", optional=True, lo=0)
+        if v is not None:
+            c.results.append(Result(f"five-axis dispersion {key.replace('_', ' ')}", "five-axis",
+                                    "sphere-centre dispersion RMS", v, "um"))
+
+
+def read_five_axis_diagnose(c: Campaign, doc: _Doc) -> None:
+    """``diagnose_five_axis.json``: held-out dispersion before / after, named effects."""
+    _begin(c, doc, "five-axis diagnose")
+    for key in ("heldout_before_um", "heldout_after_um"):
+        v = doc.num(key, lo=0)
+        assert v is not None
+        c.results.append(Result(f"five-axis diagnose {key[:-3].replace('_', ' ')}",
+                                "five-axis diagnose", "held-out dispersion RMS", v, "um"))
+    for i, n in enumerate(_list(doc, "named")):
+        where = f"named[{i}]"
+        eff = _entry_str(doc, n, "effect", where)
+        v = _entry_num(doc, n, "amplitude", where)
+        ci = _entry_num(doc, n, "amplitude_ci95", where, lo=0, optional=True)
+        assert v is not None
+        c.results.append(Result(f"five-axis diagnose {eff} amplitude", "five-axis diagnose",
+                                "effect amplitude", v, "um",
+                                ci_low=None if ci is None else v - ci,
+                                ci_high=None if ci is None else v + ci))
+
+
+def read_thermal_evaluate(c: Campaign, doc: _Doc) -> None:
+    """``iso230_3.json`` of ``abbe thermal evaluate -o``: range per channel and tilt."""
+    _begin(c, doc, "thermal evaluate")
+    for key, unit in (("channels", "um"), ("tilts", "urad")):
+        for i, d in enumerate(_list(doc, key)):
+            where = f"{key}[{i}]"
+            name = _entry_str(doc, d, "name", where)
+            v = _entry_num(doc, d, "range", where, lo=0)
+            assert v is not None
+            c.results.append(Result(f"iso230-3 range {name}", "thermal evaluate",
+                                    "thermal drift range", v, unit))
+    v = doc.num("envelope.range_um", lo=0)
+    assert v is not None
+    c.results.append(Result("iso230-3 envelope", "thermal evaluate", "thermal drift envelope",
+                            v, "um"))
+
+
+def read_thermal_fit(c: Campaign, doc: _Doc) -> None:
+    """``fit.json`` of ``abbe thermal fit``: held-out RMS per signal."""
+    _begin(c, doc, "thermal fit")
+    for i, s in enumerate(_list(doc, "signals")):
+        where = f"signals[{i}]"
+        name = _entry_str(doc, s, "name", where)
+        unit = _unit(doc, s.get("unit"), f"{where}.unit")
+        for key, q in (("rms_uncompensated", "uncompensated"), ("rms_model", "model"),
+                       ("rms_mlr", "static regression")):
+            v = _entry_num(doc, s, key, where, lo=0)
+            assert v is not None
+            c.results.append(Result(f"thermal fit {name} held-out rms {q}", "thermal fit",
+                                    f"held-out RMS, {q}", v, unit))
+
+
+def read_thermal_diagnose(c: Campaign, doc: _Doc) -> None:
+    """``diagnosis.json`` of ``abbe thermal diagnose``: the held-out gap per channel."""
+    _begin(c, doc, "thermal diagnose")
+    for i, ch in enumerate(_list(doc, "channels")):
+        where = f"channels[{i}]"
+        name = _entry_str(doc, ch, "channel", where)
+        for key, q in (("gap_heldout_um", "before"), ("after_heldout_um", "after")):
+            v = _entry_num(doc, ch, key, where, lo=0, optional=True)
+            if v is not None:
+                c.results.append(Result(f"thermal diagnose {name} held-out gap {q}",
+                                        "thermal diagnose", f"held-out gap, {q}", v, "um"))
+
+
+def read_printer_fit(c: Campaign, doc: _Doc) -> None:
+    """``printer_fit.json`` of ``abbe printer fit``."""
+    _begin(c, doc, "printer fit")
+    for key, q in (("heldout.abbe_rms_um", "held-out RMS, abbe"),
+                   ("heldout.firmware_mesh_rms_um", "held-out RMS, firmware mesh"),
+                   ("heldout.uncorrected_rms_um", "held-out RMS, uncorrected"),
+                   ("nonseparable_rms_um", "warp RMS (not held by axis terms)")):
+        v = doc.num(key, optional=True, lo=0)
+        if v is not None:
+            c.results.append(Result(f"printer {q}", "printer fit", q, v, "um"))
+    sq = doc.get("squareness_urad", dict, optional=True) or {}
+    for plane in sorted(sq):
+        v = doc.num(f"squareness_urad.{plane}")
+        u = doc.num(f"squareness_u95_urad.{plane}", optional=True, lo=0)
+        assert v is not None
+        c.results.append(Result(f"printer squareness {plane}", "printer fit", "squareness", v,
+                                "urad", plane=plane[:8], ci_low=None if u is None else v - u,
+                                ci_high=None if u is None else v + u))
+
+
+def read_predict(c: Campaign, doc: _Doc) -> None:
+    """``predict.json`` of ``abbe predict -o``: residual per ballbar test."""
+    _begin(c, doc, "predict")
+    for i, p in enumerate(_list(doc, "predictions")):
+        where = f"predictions[{i}]"
+        name = _entry_str(doc, p, "ballbar", where)
+        for key, q in (("residual_max_um", "prediction residual max"),
+                       ("residual_rms_um", "prediction residual RMS"),
+                       ("ideal_roundness_um", "ideal compensated roundness")):
+            v = _entry_num(doc, p, key, where, lo=0)
+            assert v is not None
+            c.results.append(Result(f"predict {name} {q}", "predict", q, v, "um"))
+
+
+def read_export(c: Campaign, doc: _Doc) -> None:
+    """``residual.json`` of ``abbe export -o``: what the controller's tables leave, |E| max
+    and RMS over the work volume (and the ballbar circles or the TCP path), with the
+    uncompensated figures beside it."""
+    _begin(c, doc, "export", names_machine=False)
+    target = doc.get("target", str)
+    keys = ["volume"] + (["tcp_path"] if "tcp_path" in doc.data else [])
+    keys += [f"circles.{n}" for n in sorted(doc.get("circles", dict, optional=True) or {})]
+    for key in keys:
+        for state in ("residual", "uncompensated"):
+            for stat in ("max_um", "rms_um"):
+                v = doc.num(f"{key}.{state}.norm.{stat}", lo=0)
+                assert v is not None
+                what = key.replace("circles.", "circle ").replace("_", " ")
+                c.results.append(Result(
+                    f"export {target} {what} {state} |E| {stat[:-3]}", "export",
+                    f"{state} |E| {stat[:-3]} after the export", v, "um"))
+
+
+READERS = {"five-axis": read_five_axis, "five-axis diagnose": read_five_axis_diagnose,
+           "thermal evaluate": read_thermal_evaluate, "thermal fit": read_thermal_fit,
+           "thermal diagnose": read_thermal_diagnose, "printer fit": read_printer_fit,
+           "predict": read_predict, "export": read_export}
