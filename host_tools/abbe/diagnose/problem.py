@@ -128,6 +128,17 @@ def contribution_rms(prob: Problem, contrib: np.ndarray) -> float:
     return best
 
 
+def observable_rms(prob: Problem, contrib: np.ndarray) -> float:
+    """Size of an effect's contribution (N,) that the checks can see: its RMS (um) as in
+    :func:`contribution_rms`, after each check's nuisance (ballbar centre and radius, laser
+    zeros and set-up slopes, per-run zeros) is fitted to it and removed. The part a
+    nuisance takes is indistinguishable from a set-up of the check: a straightness of Z
+    moves every XY circle at one height by a constant, which its centre absorbs, so it
+    cannot make the effect "large enough to matter" (docs/effects.md §3, the size of an
+    effect)."""
+    return contribution_rms(prob, remove_nuisance(prob, contrib))
+
+
 def remove_nuisance(prob: Problem, r: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
     """Residual with each check's nuisance fitted (unweighted per noise group) and removed.
     ``rows``: only these rows take part (others returned as NaN)."""

@@ -33,7 +33,8 @@ def _judged(gain, contrib, coef, drss, eng):
     coef = np.asarray(coef, dtype=float)
     Z = np.diag(np.sqrt(drss) / np.abs(coef))
     ev = _evidence(eng, c, coef, Z, drss, 1.0, contrib)
-    st = {"ok": True, "coef": coef, "contrib_rms_um": contrib, "drss": drss, "k_eff": 1,
+    st = {"ok": True, "coef": coef, "contrib_rms_um": contrib, "observable_rms_um": contrib,
+          "drss": drss, "k_eff": 1,
           "heldout": {"gain": gain, "split": "x"}, "evidence": ev, "log_evidence": ev["log_evidence"]}
     return _judge(st, eng.opts)
 

@@ -44,7 +44,8 @@ def judged(cand: Cand, coef, drss: float, contrib: float, gain: float, eng=None,
     coef = np.asarray(coef, dtype=float)
     Z = np.diag(np.sqrt(drss / coef.size) / np.abs(coef))      # Z'Z so that coef'Z'Z coef = drss
     ev = _evidence(eng, cand, coef, Z, drss, 1.0, contrib)
-    st = {"ok": True, "coef": coef, "contrib_rms_um": contrib, "drss": drss, "k_eff": coef.size,
+    st = {"ok": True, "coef": coef, "contrib_rms_um": contrib, "observable_rms_um": contrib,
+          "drss": drss, "k_eff": coef.size,
           "heldout": {"gain": gain, "split": "x"}, "evidence": ev,
           "log_evidence": ev["log_evidence"]}
     ok, why = _judge(st, opts)
@@ -131,6 +132,39 @@ def test_contribution_on_the_channel_where_it_shows() -> None:
     c[900:1000] = 1.0
     c[1000:] = 50.0                     # an angular channel is not a size in um
     assert abs(contribution_rms(prob, c) - 1.0) < 1e-12
+
+
+def test_size_is_what_the_checks_see_not_what_their_set_up_takes() -> None:
+    """A straightness of Z seen by an XY circle at one height moves the whole circle: its
+    centre (a nuisance of the check) takes it all, so 1 um of it is no size at all; a
+    2-lobe (squareness-like) pattern of the same circle is seen whole. The selection's
+    size rule reads the observable size (issue 36: a clean machine got a straightness_zy
+    of 1.01 um whose 0.25 um RMS was the XY circles' centre shift)."""
+    from abbe.diagnose.problem import contribution_rms, observable_rms
+    th = np.radians(np.arange(0.0, 360.0, 2.0))
+    n = th.size
+    nuis = np.stack([np.ones(n), np.cos(th), np.sin(th)], axis=1)   # radius, centre x, centre y
+    prob = SimpleNamespace(N=n, checks=[None], slice=lambda i: slice(0, n), nuis=nuis,
+                           group=np.zeros(n, dtype=int), group_units=["um"])
+    shift = 1.0 * np.sin(th)                  # a constant Y offset of the circle, radially
+    assert abs(contribution_rms(prob, shift) - np.sqrt(0.5)) < 1e-12
+    assert observable_rms(prob, shift) < 1e-12
+    lobes = 0.3 * np.sin(2 * th)
+    assert abs(observable_rms(prob, lobes) - 0.3 / np.sqrt(2)) < 1e-12
+    assert abs(observable_rms(prob, shift + lobes) - 0.3 / np.sqrt(2)) < 1e-12
+    # the rule: decisive evidence, held out, 0.25 um raw but 0.05 um seen -> not named
+    c = _cand("straightness_zy")
+    eng = _eng()
+    coef = np.array([1.0])
+    Z = np.diag([np.sqrt(400.0)])
+    ev = _evidence(eng, c, coef, Z, 400.0, 1.0, 0.25)
+    st = {"ok": True, "coef": coef, "contrib_rms_um": 0.25, "observable_rms_um": 0.05,
+          "drss": 400.0, "k_eff": 1, "heldout": {"gain": 300.0, "split": "x"}, "evidence": ev,
+          "log_evidence": ev["log_evidence"]}
+    ok, why = _judge(st, OPTS)
+    assert not ok and "too small to matter" in why and "set-up" in why
+    st["observable_rms_um"] = 0.25
+    assert _judge(st, OPTS)[0]
 
 
 def test_drift_and_scale_separating_test_is_in_time() -> None:
