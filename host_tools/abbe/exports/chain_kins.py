@@ -36,6 +36,8 @@ from typing import Any, Callable
 import numpy as np
 
 from abbe.errors import AbbeInputError
+from abbe.exports.five_axis import pose_stats
+from abbe.exports.five_axis import summary as five_axis_summary
 from abbe.exports.target import Option
 from abbe.model.chain import (KinematicChain, nominal_joints, tool_tip, tool_transform,
                               workpiece_transform)
@@ -280,27 +282,12 @@ def pose_error(chain: KinematicChain, errs: FiveAxisErrors, work_mm: np.ndarray,
     return pos, rotvec(R) * 1e6
 
 
-def _stats(pos: np.ndarray, rot: np.ndarray) -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for k, a in enumerate(AXES):
-        v = pos[:, k]
-        out[f"d{a}"] = {"max_um": round(float(np.max(np.abs(v))), 4),
-                        "rms_um": round(float(np.sqrt(np.mean(v ** 2))), 4)}
-    n = np.linalg.norm(pos, axis=1)
-    out["norm"] = {"max_um": round(float(np.max(n)), 4),
-                   "rms_um": round(float(np.sqrt(np.mean(n ** 2))), 4)}
-    r = np.linalg.norm(rot, axis=1)
-    out["orientation"] = {"max_urad": round(float(np.max(r)), 4),
-                          "rms_urad": round(float(np.sqrt(np.mean(r ** 2))), 4)}
-    return out
-
-
 def _both(ctx: ChainContext, exp: ChainExport, W: np.ndarray, A: np.ndarray) -> dict[str, Any]:
     ch, e = ctx.chain, ctx.errors
     q0 = nominal_joints(ch, W, A)
     q, t = exp.joints(W, A)
-    return {"residual": _stats(*pose_error(ch, e, W, A, q, t)),
-            "uncompensated": _stats(*pose_error(ch, e, W, A, q0, A))}
+    return {"residual": pose_stats(*pose_error(ch, e, W, A, q, t)),
+            "uncompensated": pose_stats(*pose_error(ch, e, W, A, q0, A))}
 
 
 def not_held(ctx: ChainContext, held: tuple[str, ...], reason: Callable[[str], str]
@@ -366,21 +353,7 @@ def evaluate(ctx: ChainContext, exp: ChainExport) -> dict[str, Any]:
 
 def summary(report: dict[str, Any]) -> str:
     """The lines ``abbe export`` prints for a chain target."""
-    lines = [f"abbe export {report['target']}: wrote {', '.join(report['files'])}"]
-    for key, what in (("volume", "work volume"), ("tcp_path", "tool-centre-point path")):
-        r, u = report[key]["residual"], report[key]["uncompensated"]
-        lines.append(f"  {what} ({report[key]['poses']} poses), |E| max / RMS um: residual "
-                     f"{r['norm']['max_um']:.3f} / {r['norm']['rms_um']:.3f}, uncompensated "
-                     f"{u['norm']['max_um']:.3f} / {u['norm']['rms_um']:.3f}")
-    if report["not_held"]:
-        lines.append("  not held by this module (own size, volume / TCP path, max um):")
-        for d in sorted(report["not_held"], key=lambda d: -d["volume"]["max_um"]):
-            lines.append(f"    {d['item']}: {d['volume']['max_um']:.3f} / "
-                         f"{d['tcp_path']['max_um']:.3f} ({d['reason']})")
-    if report["not_observable"]["items"]:
-        lines.append("  not observable (written at nominal): "
-                     + ", ".join(report["not_observable"]["items"]))
-    return "\n".join(lines)
+    return five_axis_summary(report, holder="this module", unobserved="written at nominal")
 
 
 def home_offset_lines(joint: int, axis: str, old: float, shift: float, why: str,

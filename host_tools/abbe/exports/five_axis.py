@@ -286,7 +286,9 @@ def pose_error(geom: TrunnionGeometry, errs: FiveAxisErrors, work_mm: np.ndarray
     return pos, rotvec(R) * 1e6
 
 
-def _stats(pos: np.ndarray, rot: np.ndarray) -> dict[str, Any]:
+def pose_stats(pos: np.ndarray, rot: np.ndarray) -> dict[str, Any]:
+    """Max and RMS of the tip's position error per axis and in norm (um) and of the
+    orientation error (urad) over a set of poses."""
     out: dict[str, Any] = {}
     for k, a in enumerate(AXES):
         v = pos[:, k]
@@ -305,8 +307,8 @@ def _both(ctx: FiveContext, exp: FiveExport, W: np.ndarray, ANG: np.ndarray) -> 
     g, e = ctx.geometry, ctx.errors
     q0 = nominal_joints(g, W, ANG)
     q, t = exp.joints(W, ANG)
-    return {"residual": _stats(*pose_error(g, e, W, ANG, q, t)),
-            "uncompensated": _stats(*pose_error(g, e, W, ANG, q0, ANG))}
+    return {"residual": pose_stats(*pose_error(g, e, W, ANG, q, t)),
+            "uncompensated": pose_stats(*pose_error(g, e, W, ANG, q0, ANG))}
 
 
 def _only(errs: FiveAxisErrors, what: tuple[str, Any]) -> FiveAxisErrors:
@@ -410,8 +412,11 @@ def evaluate(ctx: FiveContext, exp: FiveExport) -> dict[str, Any]:
     }
 
 
-def summary(report: dict[str, Any]) -> str:
-    """The lines ``abbe export`` prints for a five-axis target."""
+def summary(report: dict[str, Any], holder: str = "this target",
+            unobserved: str = "written as 0 by the fit") -> str:
+    """The lines ``abbe export`` prints for a five-axis target (``holder``: what does
+    not hold the listed errors; ``unobserved``: what the table holds for the errors the
+    plan cannot see)."""
     lines = [f"abbe export {report['target']}: wrote {', '.join(report['files'])}"]
     for key, what in (("volume", "work volume"), ("tcp_path", "tool-centre-point path")):
         r, u = report[key]["residual"], report[key]["uncompensated"]
@@ -419,11 +424,11 @@ def summary(report: dict[str, Any]) -> str:
                      f"{r['norm']['max_um']:.3f} / {r['norm']['rms_um']:.3f}, uncompensated "
                      f"{u['norm']['max_um']:.3f} / {u['norm']['rms_um']:.3f}")
     if report["not_held"]:
-        lines.append("  not held by this target (own size, volume / TCP path, max um):")
+        lines.append(f"  not held by {holder} (own size, volume / TCP path, max um):")
         for d in sorted(report["not_held"], key=lambda d: -d["volume"]["max_um"]):
             lines.append(f"    {d['item']}: {d['volume']['max_um']:.3f} / "
                          f"{d['tcp_path']['max_um']:.3f} ({d['reason']})")
     if report["not_observable"]["items"]:
-        lines.append("  not observable (written as 0 by the fit): "
+        lines.append(f"  not observable ({unobserved}): "
                      + ", ".join(report["not_observable"]["items"]))
     return "\n".join(lines)
