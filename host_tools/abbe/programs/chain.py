@@ -31,7 +31,7 @@ import numpy as np
 
 from abbe.errors import AbbeInputError
 from abbe.model.chain import KinematicChain, nominal_joints
-from abbe.programs.five_axis import ProbingProgram, _n, probe_directions
+from abbe.programs.five_axis import ProbingProgram, _check, _check_rot, _n, probe_directions
 
 #: (identity, TCP) commands by chain name; None: the configuration decides (maxkins).
 MODES: dict[str, tuple[str | None, str | None]] = {
@@ -44,23 +44,6 @@ CONFIG_NOTE = {"maxkins": ("(maxkins has no identity mode: run this program unde
 
 def _modes(chain: KinematicChain) -> tuple[str | None, str | None]:
     return MODES.get(chain.name, ("M429", "M428"))
-
-
-def _check(pos: np.ndarray, travel: dict[str, tuple[float, float]], what: str) -> None:
-    for k, a in enumerate("XYZ"):
-        lo, hi = travel[a]
-        if not lo <= pos[k] <= hi:
-            raise AbbeInputError(f"{what}: {a} = {pos[k]:.4f} mm is outside the travel "
-                                 f"[{lo}, {hi}] mm", field=f"axes.{a}")
-
-
-def _check_rot(chain: KinematicChain, ang: np.ndarray) -> None:
-    for k, a in enumerate(chain.rotaries):
-        lo, hi = chain.travel_deg[a]
-        bad = np.flatnonzero((ang[:, k] < lo) | (ang[:, k] > hi))
-        if bad.size:
-            raise AbbeInputError(f"{a} = {ang[bad[0], k]:.4f} deg is outside its travel "
-                                 f"[{lo}, {hi}] deg", field=f"chain.{a}")
 
 
 def _rot_words(chain: KinematicChain, ang: np.ndarray) -> str:
@@ -76,7 +59,7 @@ def chain_probing_gcode(chain: KinematicChain, p: ProbingProgram,
     ang = np.asarray(p.positions_deg, dtype=np.float64).reshape(-1, 2)
     if ang.shape[0] == 0:
         raise AbbeInputError("a probing plan needs at least one position", field="positions")
-    _check_rot(chain, ang)
+    _check_rot(chain, ang, section="chain")
     for name, text in (("--log-file", p.log_file), ("file", p.fit_reads)):
         if any(c in text for c in "()\r\n") or (name == "--log-file" and not text.strip()):
             raise AbbeInputError(f"the log file {text!r} cannot go into a G-code comment "
@@ -176,7 +159,7 @@ def chain_rtest_gcode(chain: KinematicChain, sphere_mm: tuple[float, float, floa
     the approach (identity kinematics where the module switches, else in TCP), a stop to
     fit the nest, then the path holding the ball's nominal centre."""
     ang = np.asarray(path_deg, dtype=np.float64).reshape(-1, 2)
-    _check_rot(chain, ang)
+    _check_rot(chain, ang, section="chain")
     s = np.asarray(sphere_mm, dtype=np.float64)
     tip = np.asarray(tip_mm, dtype=np.float64)
     joints = nominal_joints(chain, np.repeat(s[None, :], len(ang), 0), ang, tip)

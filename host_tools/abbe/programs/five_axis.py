@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from abbe.errors import AbbeInputError
+from abbe.model.chain import KinematicChain
 from abbe.model.five_axis import TrunnionGeometry, nominal_joints
 
 FIVE_AXIS_TESTS: tuple[str, ...] = ("five-axis-probing", "five-axis-rtest")
@@ -65,13 +66,16 @@ def _check(pos: np.ndarray, travel: dict[str, tuple[float, float]], what: str) -
                                  f"[{lo}, {hi}] mm", field=f"axes.{a}")
 
 
-def _check_rot(geom: TrunnionGeometry, ang: np.ndarray) -> None:
+def _check_rot(geom: TrunnionGeometry | KinematicChain, ang: np.ndarray,
+               section: str = "rotary") -> None:
+    """Every rotary angle within its travel (``section``: the machine file's section
+    that declares the travel, for the error's field)."""
     for k, a in enumerate(geom.rotaries):
         lo, hi = geom.travel_deg[a]
         bad = np.flatnonzero((ang[:, k] < lo) | (ang[:, k] > hi))
         if bad.size:
             raise AbbeInputError(f"{a} = {ang[bad[0], k]:.4f} deg is outside its travel "
-                                 f"[{lo}, {hi}] deg", field=f"rotary.{a}")
+                                 f"[{lo}, {hi}] deg", field=f"{section}.{a}")
 
 
 def probe_directions(n_points: int) -> np.ndarray:
