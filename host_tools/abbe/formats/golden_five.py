@@ -161,8 +161,10 @@ def chain_golden_tables() -> list[GoldenChain]:
         ("ht_maxkins", KinematicChain("maxkins", (d("C", -1, (0.0, 0.0, -100.0), (-3600.0, 3600.0)),) + lin
                                       + (d("B", -1, (0.0, 0.0, 150.0), (-90.0, 90.0)),),
                                       0.0, (10.0, -20.0, 30.0))),
-        ("tdr_xyzab", KinematicChain("xyzab-tdr", (d("A", 1, (0.0, 30.0, -150.0), (-3600.0, 3600.0)),
-                                                   d("B", 1, (0.0, 0.0, -120.0), (-180.0, 180.0))) + lin,
+        # xyzab_tdr_kins turns A about -X and B about -Y (host_tools/cases/five_axis_chains/
+        # table-dual-rotary-xyzab.toml reads the module's kinematicsInverse)
+        ("tdr_xyzab", KinematicChain("xyzab-tdr", (d("A", -1, (0.0, 30.0, -150.0), (-3600.0, 3600.0)),
+                                                   d("B", -1, (0.0, 0.0, -120.0), (-180.0, 180.0))) + lin,
                                      0.0, (0.0, 0.0, 0.0))),
     ]
     full = full_table(np.random.default_rng(CHAIN_SEED + 7))
