@@ -166,6 +166,12 @@ def chain_golden_tables() -> list[GoldenChain]:
         ("tdr_xyzab", KinematicChain("xyzab-tdr", (d("A", -1, (0.0, 30.0, -150.0), (-3600.0, 3600.0)),
                                                    d("B", -1, (0.0, 0.0, -120.0), (-180.0, 180.0))) + lin,
                                      0.0, (0.0, 0.0, 0.0))),
+        # maxkins again with the paper machine's linear axes (the table the instruction
+        # budgets are judged on, bench/results.md section 11); drawn after the others, so
+        # their bytes do not move
+        ("ht_maxkins_paper", KinematicChain("maxkins", (d("C", -1, (0.0, 0.0, -100.0), (-3600.0, 3600.0)),) + lin
+                                            + (d("B", -1, (0.0, 0.0, 150.0), (-90.0, 90.0)),),
+                                            0.0, (10.0, -20.0, 30.0))),
     ]
     full = full_table(np.random.default_rng(CHAIN_SEED + 7))
     full = dataclasses.replace(full, axes={
@@ -173,7 +179,7 @@ def chain_golden_tables() -> list[GoldenChain]:
                                thermal_offset_um_per_k=0.0, thermal_tref_c=0.0)
         for a, ax in full.axes.items()})
     out = []
-    for (name, ch), linear, harm in zip(chains, (paper_table(), full, None), (4, 8, 3)):
+    for (name, ch), linear, harm in zip(chains, (paper_table(), full, None, paper_table()), (4, 8, 3, 4)):
         e = FiveAxisErrors()
         for axis in ch.rotaries:
             for n in LOCATION_ERRORS[axis]:
