@@ -184,7 +184,7 @@ static ABBE_ALWAYS_INLINE float lever_f32(int32_t p, int32_t pv)
 
 /* One kind's geometry, straight-line (kind, k0 = record 0's axis and k1 = record 1's are
  * constants where it is inlined: the loader fixes them per kind): the position error d
- * (um) and orientation error W (urad) the chain adds, before the kind's sign, and the
+ * (um) and orientation error W (urad) the chain adds to the tool's, and the
  * tool tip from q (mm, kinds 3, 4). vw1 is used up. */
 static ABBE_ALWAYS_INLINE void chain_f32(const abbe_five_model_t *m5, const int32_t p[3], unsigned kind, unsigned k0,
                                          unsigned k1, float c0, float s0r, float c1, float s1r, const float vw0[6],
@@ -245,6 +245,14 @@ static ABBE_ALWAYS_INLINE void chain_f32(const abbe_five_model_t *m5, const int3
         d[2] = v0[2] + v1[2];
     }
     cross_add_f32(W, L, 1.0e-3f, d);
+    if (kind == ABBE_KIN_XYZAB_TDR) { /* under the workpiece: the tool error gets -d, -w */
+        d[0] = -d[0];
+        d[1] = -d[1];
+        d[2] = -d[2];
+        W[0] = -W[0];
+        W[1] = -W[1];
+        W[2] = -W[2];
+    }
     /* the tool tip at T_T 0 = P0 + L from q in the head (kinds 3, 4) */
     tip[0] = P0[0] + L[0];
     tip[1] = P0[1] + L[1];
@@ -263,14 +271,12 @@ ABBE_NOINLINE static void add_chain_f32(const abbe_five_model_t *m5, const int32
     twist_chain_f32(&m5->rotary[0], c0, s0, s0r, vw0);
     twist_chain_f32(&m5->rotary[1], c1, s1, s1r, vw1);
     /* the machine axes per kind (the loader's): 3 C, B; 4 B, C; 5 B, A */
-    float sign = 1.0f; /* in the head */
     if (kind == ABBE_KIN_XYZBC_HH) {
         chain_f32(m5, p, ABBE_KIN_XYZBC_HH, 2u, 1u, c0, s0r, c1, s1r, vw0, vw1, d, W, tip);
     } else if (kind == ABBE_KIN_XYZBC_HT) {
         chain_f32(m5, p, ABBE_KIN_XYZBC_HT, 1u, 2u, c0, s0r, c1, s1r, vw0, vw1, d, W, tip);
     } else {
         chain_f32(m5, p, ABBE_KIN_XYZAB_TDR, 1u, 0u, c0, s0r, c1, s1r, vw0, vw1, d, W, tip);
-        sign = -1.0f; /* under the workpiece */
     }
     /* the linear axes' orientation error turns the head about q: W_lin x (tip - q) (kinds 3, 4) */
     if (kind != ABBE_KIN_XYZAB_TDR) {
@@ -280,12 +286,12 @@ ABBE_NOINLINE static void add_chain_f32(const abbe_five_model_t *m5, const int32
     const float sy = lever_f32(p[1], m5->square_ref_nm[1]);
     const float sz = lever_f32(p[2], m5->square_ref_nm[2]);
     const float qs = URAD_PER_Q36 * 1.0e-3f;
-    out->error_um[0] += (sy * (float)m5->squareness_q36[0] - sz * (float)m5->squareness_q36[1]) * qs + sign * d[0];
-    out->error_um[1] += sign * d[1] - sz * (float)m5->squareness_q36[2] * qs;
-    out->error_um[2] += sign * d[2];
-    out->orient_urad[0] += sign * W[0];
-    out->orient_urad[1] += sign * W[1];
-    out->orient_urad[2] += sign * W[2];
+    out->error_um[0] += (sy * (float)m5->squareness_q36[0] - sz * (float)m5->squareness_q36[1]) * qs + d[0];
+    out->error_um[1] += d[1] - sz * (float)m5->squareness_q36[2] * qs;
+    out->error_um[2] += d[2];
+    out->orient_urad[0] += W[0];
+    out->orient_urad[1] += W[1];
+    out->orient_urad[2] += W[2];
 }
 #endif
 

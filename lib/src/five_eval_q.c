@@ -216,33 +216,34 @@ static ABBE_ALWAYS_INLINE void chain_q(const abbe_five_model_t *m5, const int32_
                                        const int32_t v0[3], const int32_t w0[3], int32_t v1[3], int32_t w1[3],
                                        int64_t d[3], int64_t tip[3])
 {
-    int32_t H0[3], L[3];
-    int64_t G[3], in1[3];
+    int32_t H0[3], L[3], G[3];
+    int64_t in1[3];
     const int32_t *pv0 = kind == ABBE_KIN_XYZBC_HT ? m5->offset_nm : m5->rot_point_nm;
     H0[0] = pv0[0] >> 1; /* P0, 2 nm */
     H0[1] = pv0[1] >> 1;
     H0[2] = pv0[2] >> 1;
     if (kind == ABBE_KIN_XYZBC_HT) {
-        /* G = q - P_C + P_B; the head B's lever L0 = -R_B P_B */
-        G[0] = (int64_t)((pos_nm[0] >> 1) - (m5->rot_point_nm[0] >> 1)) + H0[0];
-        G[1] = (int64_t)((pos_nm[1] >> 1) - (m5->rot_point_nm[1] >> 1)) + H0[1];
-        G[2] = (int64_t)((pos_nm[2] >> 1) - (m5->rot_point_nm[2] >> 1)) + H0[2];
+        /* G = q - P_C + P_B (halves: |q| <= 2^30, |P| <= 2^29, so |G| < 2^31); the head B's
+         * lever L0 = -R_B P_B */
+        G[0] = (pos_nm[0] >> 1) - (m5->rot_point_nm[0] >> 1) + H0[0];
+        G[1] = (pos_nm[1] >> 1) - (m5->rot_point_nm[1] >> 1) + H0[1];
+        G[2] = (pos_nm[2] >> 1) - (m5->rot_point_nm[2] >> 1) + H0[2];
         L[0] = -H0[0];
         L[1] = -H0[1];
         L[2] = -H0[2];
         rotate_q(k0, c0, s0r, L);
     } else {
-        /* g = P0 - P1 */
-        G[0] = (int64_t)H0[0] - (m5->tilt_pivot_nm[0] >> 1);
-        G[1] = (int64_t)H0[1] - (m5->tilt_pivot_nm[1] >> 1);
-        G[2] = (int64_t)H0[2] - (m5->tilt_pivot_nm[2] >> 1);
+        /* g = P0 - P1 (|P1| < 2^31: |g| < 2^30.6) */
+        G[0] = H0[0] - (m5->tilt_pivot_nm[0] >> 1);
+        G[1] = H0[1] - (m5->tilt_pivot_nm[1] >> 1);
+        G[2] = H0[2] - (m5->tilt_pivot_nm[2] >> 1);
         if (kind == ABBE_KIN_XYZBC_HH) {
             /* L = -R0 (g + R1 P1), P1 = tilt_pivot */
             int32_t u[3] = {m5->tilt_pivot_nm[0] >> 1, m5->tilt_pivot_nm[1] >> 1, m5->tilt_pivot_nm[2] >> 1};
             rotate_q(k1, c1, s1r, u);
-            L[0] = -(int32_t)(G[0] + u[0]);
-            L[1] = -(int32_t)(G[1] + u[1]);
-            L[2] = -(int32_t)(G[2] + u[2]);
+            L[0] = -(G[0] + u[0]);
+            L[1] = -(G[1] + u[1]);
+            L[2] = -(G[2] + u[2]);
             rotate_q(k0, c0, s0r, L);
         } else { /* under the workpiece: L = q - P0, an int32 difference of halved positions */
             L[0] = (pos_nm[0] >> 1) - H0[0];
@@ -250,17 +251,10 @@ static ABBE_ALWAYS_INLINE void chain_q(const abbe_five_model_t *m5, const int32_
             L[2] = (pos_nm[2] >> 1) - H0[2];
         }
     }
-    /* the inner twist at its lever, v1 + w1 x G, 2^-4 nm (kinds 3, 5: |g| < 2^30, SMLALs) */
-    if (kind == ABBE_KIN_XYZBC_HT) {
-        in1[0] = (int64_t)v1[0] + cross_q(w1, G, 0u);
-        in1[1] = (int64_t)v1[1] + cross_q(w1, G, 1u);
-        in1[2] = (int64_t)v1[2] + cross_q(w1, G, 2u);
-    } else {
-        const int32_t g[3] = {(int32_t)G[0], (int32_t)G[1], (int32_t)G[2]};
-        in1[0] = (int64_t)v1[0] + cross32_q(w1, g, 0u);
-        in1[1] = (int64_t)v1[1] + cross32_q(w1, g, 1u);
-        in1[2] = (int64_t)v1[2] + cross32_q(w1, g, 2u);
-    }
+    /* the inner twist at its lever, v1 + w1 x G, 2^-4 nm (SMLALs: |w1| <= 2^30, |G| < 2^31) */
+    in1[0] = (int64_t)v1[0] + cross32_q(w1, G, 0u);
+    in1[1] = (int64_t)v1[1] + cross32_q(w1, G, 1u);
+    in1[2] = (int64_t)v1[2] + cross32_q(w1, G, 2u);
     if (kind == ABBE_KIN_XYZBC_HT) {
         w1[0] = -w1[0];
         w1[1] = -w1[1];
