@@ -298,12 +298,17 @@ ABBE_NOINLINE static uint32_t add_chain_q(const abbe_five_model_t *m5, const int
     int sign = 1; /* in the head */
     if (kind == ABBE_KIN_XYZBC_HH) {
         chain_q(m5, pos_nm, ABBE_KIN_XYZBC_HH, 2u, 1u, c0, s0r, c1, s1r, v0, w0, v1, w1, d, tip);
-    } else if (kind == ABBE_KIN_XYZBC_HT) {
-        chain_q(m5, pos_nm, ABBE_KIN_XYZBC_HT, 1u, 2u, c0, s0r, c1, s1r, v0, w0, v1, w1, d, tip);
     } else {
-        int64_t no_tip[3];
-        chain_q(m5, pos_nm, ABBE_KIN_XYZAB_TDR, 1u, 0u, c0, s0r, c1, s1r, v0, w0, v1, w1, d, no_tip);
-        sign = -1; /* under the workpiece, no tool tip term */
+        /* kinds 4 and 5 share record 0's axis (B) and one copy (flash); k1 is kind 3's only */
+        int64_t t[3];
+        chain_q(m5, pos_nm, kind, 1u, 0u, c0, s0r, c1, s1r, v0, w0, v1, w1, d, t);
+        if (kind == ABBE_KIN_XYZAB_TDR) {
+            sign = -1; /* under the workpiece, no tool tip term */
+        } else {
+            tip[0] = t[0];
+            tip[1] = t[1];
+            tip[2] = t[2];
+        }
     }
     for (unsigned i = 0; i < 3u; i++) {
         /* five-axis squareness, lever y, z from its reference point: 2 nm x 2^-36 rad -> 2^-4 nm */
