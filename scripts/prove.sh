@@ -93,7 +93,7 @@ five_table() { # name: as golden_table, from golden_five.c
 }
 FIVE_SRCS="tests/proofs/eval_five_q.c $(ls lib/src/*.c | grep -v thermal_load | tr '\n' ' ')"
 FIVE_OPTS="-eva-auto-loop-unroll 64 -eva-split-return-function check_header:0,abbe_five_model_load:0 -eva-slevel-function abbe_five_model_load:40,main:10"
-for t in ac_full bc_motions ac_location hh_5axiskins ht_maxkins tdr_xyzab; do
+for t in ac_full bc_motions ac_location hh_5axiskins ht_maxkins tdr_xyzab ht_maxkins_paper; do
     five_table "$t"
     HARNESSES+=("eval_five_q_$t|$FIVE_SRCS|-DPROOF_CLZ_AS_CODE -I$OUT -DPROOF_TABLE=table_five_$t.h|$FIVE_OPTS")
 done

@@ -132,19 +132,18 @@ ABBE_NOINLINE static void add_rotary_f32(const abbe_five_model_t *m5, const int3
 }
 
 #if !defined(ABBE_NO_FIVE_KINDS)
-/* out = Rot_k(t) in, (c, s) = (cos t, sin t). Out of line, as the helpers below: the
- * other kinds' code is called rarely enough per image that flash wins (bench/results.md). */
-ABBE_NOINLINE static void rotate_f32(unsigned k, float c, float s, const float in[3], float out[3])
+/* a = Rot_k(t) a in place, (c, s) = (cos t, sin t); inlined (bench/results.md section 11:
+ * the calls, not the products, were most of the other kinds' instructions). */
+static ABBE_ALWAYS_INLINE void rotate_f32(unsigned k, float c, float s, float a[3])
 {
     const unsigned j = k == 2u ? 0u : k + 1u, l = k == 0u ? 2u : k - 1u;
-    const float a = in[j], b = in[l];
-    out[k] = in[k];
-    out[j] = c * a - s * b;
-    out[l] = s * a + c * b;
+    const float x = a[j], y = a[l];
+    a[j] = c * x - s * y;
+    a[l] = s * x + c * y;
 }
 
 /* a x b added to acc times f */
-ABBE_NOINLINE static void cross_add_f32(const float a[3], const float b[3], float f, float acc[3])
+static ABBE_ALWAYS_INLINE void cross_add_f32(const float a[3], const float b[3], float f, float acc[3])
 {
     acc[0] += (a[1] * b[2] - a[2] * b[1]) * f;
     acc[1] += (a[2] * b[0] - a[0] * b[2]) * f;
@@ -160,9 +159,16 @@ ABBE_NOINLINE static void cross_add_f32(const float a[3], const float b[3], floa
  * g = P0 - P1:
  *   d = v0 + R0 v1 + (w0 + R0 w1) x L + R0 w1 x R0 g,   w = w0 + R0 w1,
  * L = q - P0 under the workpiece (the tool error gets -d, -w), and
- * L = R0 (P1 - R1 P1 - P0) in the head (pivots relative to the controlled
- * point; the tool error gets +d, +w). Kind 4: the head's B alone (lever
- * -R_B P_B, +) and the table's C alone (lever q - P_C, -). */
+ * L = R0 (P1 - R1 P1 - P0) = -R0 (g + R1 P1) in the head (pivots relative to
+ * the controlled point; the tool error gets +d, +w). Kind 4: the head's B
+ * alone (lever L0 = -R_B P_B, +) and the table's C alone (lever
+ * L1 = q - P_C + P_B + L0, -): d = v0 - v1 + w0 x L0 - w1 x L1.
+ * Evaluated as (rotations keep cross products: R0 w1 x R0 g = R0 (w1 x g);
+ * w1 x L1 = w1 x L0 + w1 x G with G = q - P_C + P_B)
+ *   kinds 3, 5: d = v0 + R0 (v1 + w1 x g) + w0 x L + (R0 w1) x L,
+ *   kind 4:     d = v0 - (v1 + w1 x G) + w0 x L0 - w1 x L0,
+ * i.e. one form: the inner twist moved to its lever G (g, or G), then turned by R0
+ * (kinds 3, 5) or negated (kind 4), both twists at the outer lever. */
 /* A record's twist (twist_f32) about its own machine axis: one copy for both records. */
 ABBE_NOINLINE static void twist_chain_f32(const abbe_rotary_model_t *ax, float c, float s, float sr, float vw[6])
 {
@@ -170,92 +176,122 @@ ABBE_NOINLINE static void twist_chain_f32(const abbe_rotary_model_t *ax, float c
     twist_f32(ax, k, k == 2u ? 0u : k + 1u, k == 0u ? 2u : k - 1u, c, s, sr, vw);
 }
 
+/* (p >> 1) - (pv >> 1): a lever in mm from exact halves (an int32 difference) */
+static ABBE_ALWAYS_INLINE float lever_f32(int32_t p, int32_t pv)
+{
+    return (float)((p >> 1) - (pv >> 1)) * MM_PER_HALF_NM;
+}
+
+/* One kind's geometry, straight-line (kind, k0 = record 0's axis and k1 = record 1's are
+ * constants where it is inlined: the loader fixes them per kind): the position error d
+ * (um) and orientation error W (urad) the chain adds to the tool's, and the
+ * tool tip from q (mm, kinds 3, 4). vw1 is used up. */
+static ABBE_ALWAYS_INLINE void chain_f32(const abbe_five_model_t *m5, const int32_t p[3], unsigned kind, unsigned k0,
+                                         unsigned k1, float c0, float s0r, float c1, float s1r, const float vw0[6],
+                                         float vw1[6], float d[3], float W[3], float tip[3])
+{
+    const float *v0 = vw0, *w0 = vw0 + 3;
+    float *v1 = vw1, *w1 = vw1 + 3;
+    float G[3], L[3], P0[3];
+    const int32_t *pv0 = kind == ABBE_KIN_XYZBC_HT ? m5->offset_nm : m5->rot_point_nm;
+    P0[0] = (float)pv0[0] * 1.0e-6f;
+    P0[1] = (float)pv0[1] * 1.0e-6f;
+    P0[2] = (float)pv0[2] * 1.0e-6f;
+    if (kind == ABBE_KIN_XYZBC_HT) {
+        /* G = q - P_C + P_B; the head B's lever L0 = -R_B P_B */
+        G[0] = lever_f32(p[0], m5->rot_point_nm[0]) + P0[0];
+        G[1] = lever_f32(p[1], m5->rot_point_nm[1]) + P0[1];
+        G[2] = lever_f32(p[2], m5->rot_point_nm[2]) + P0[2];
+        L[0] = -P0[0];
+        L[1] = -P0[1];
+        L[2] = -P0[2];
+        rotate_f32(k0, c0, s0r, L);
+    } else {
+        /* g = P0 - P1 = -offset */
+        G[0] = (float)-m5->offset_nm[0] * 1.0e-6f;
+        G[1] = (float)-m5->offset_nm[1] * 1.0e-6f;
+        G[2] = (float)-m5->offset_nm[2] * 1.0e-6f;
+        if (kind == ABBE_KIN_XYZBC_HH) {
+            /* L = -R0 (g + R1 P1), P1 = tilt_pivot */
+            float u[3] = {(float)m5->tilt_pivot_nm[0] * 1.0e-6f, (float)m5->tilt_pivot_nm[1] * 1.0e-6f,
+                          (float)m5->tilt_pivot_nm[2] * 1.0e-6f};
+            rotate_f32(k1, c1, s1r, u);
+            L[0] = -(G[0] + u[0]);
+            L[1] = -(G[1] + u[1]);
+            L[2] = -(G[2] + u[2]);
+            rotate_f32(k0, c0, s0r, L);
+        } else { /* under the workpiece: L = q - P0 */
+            L[0] = lever_f32(p[0], pv0[0]);
+            L[1] = lever_f32(p[1], pv0[1]);
+            L[2] = lever_f32(p[2], pv0[2]);
+        }
+    }
+    cross_add_f32(w1, G, 1.0e-3f, v1); /* the inner twist at its lever: urad x mm = nm */
+    if (kind == ABBE_KIN_XYZBC_HT) {
+        W[0] = w0[0] - w1[0];
+        W[1] = w0[1] - w1[1];
+        W[2] = w0[2] - w1[2];
+        d[0] = v0[0] - v1[0];
+        d[1] = v0[1] - v1[1];
+        d[2] = v0[2] - v1[2];
+    } else {
+        rotate_f32(k0, c0, s0r, v1);
+        rotate_f32(k0, c0, s0r, w1);
+        W[0] = w0[0] + w1[0];
+        W[1] = w0[1] + w1[1];
+        W[2] = w0[2] + w1[2];
+        d[0] = v0[0] + v1[0];
+        d[1] = v0[1] + v1[1];
+        d[2] = v0[2] + v1[2];
+    }
+    cross_add_f32(W, L, 1.0e-3f, d);
+    if (kind == ABBE_KIN_XYZAB_TDR) { /* under the workpiece: the tool error gets -d, -w */
+        d[0] = -d[0];
+        d[1] = -d[1];
+        d[2] = -d[2];
+        W[0] = -W[0];
+        W[1] = -W[1];
+        W[2] = -W[2];
+    }
+    /* the tool tip at T_T 0 = P0 + L from q in the head (kinds 3, 4) */
+    tip[0] = P0[0] + L[0];
+    tip[1] = P0[1] + L[1];
+    tip[2] = P0[2] + L[2];
+}
+
 ABBE_NOINLINE static void add_chain_f32(const abbe_five_model_t *m5, const int32_t p[3], const int32_t udeg[2],
                                         abbe_five_error_f32_t *out)
 {
-    const abbe_rotary_model_t *r0 = &m5->rotary[0], *r1 = &m5->rotary[1];
-    const unsigned k0 = r0->dir, k1 = r1->dir, kind = m5->kind;
+    const unsigned kind = m5->kind;
     float s0, c0, s1, c1;
     abbe_sincos_f32(abbe_udeg_phase_q32(udeg[m5->slot[0]]), &s0, &c0);
     abbe_sincos_f32(abbe_udeg_phase_q32(udeg[m5->slot[1]]), &s1, &c1);
     const float s0r = (float)m5->sign[0] * s0, s1r = (float)m5->sign[1] * s1;
-    float vw0[6], vw1[6], P0[3], P1[3], q[3], L0[3], L1[3], t[3], d[3] = {0.0f, 0.0f, 0.0f};
-    twist_chain_f32(r0, c0, s0, s0r, vw0);
-    twist_chain_f32(r1, c1, s1, s1r, vw1);
-    const int32_t *pv0 = kind == ABBE_KIN_XYZBC_HT ? m5->offset_nm : m5->rot_point_nm;
-    const int32_t *pv1 = kind == ABBE_KIN_XYZBC_HT ? m5->rot_point_nm : m5->tilt_pivot_nm;
-    for (unsigned i = 0; i < 3u; i++) {
-        P0[i] = (float)pv0[i] * 1.0e-6f;
-        P1[i] = (float)pv1[i] * 1.0e-6f;
-        q[i] = (float)((p[i] >> 1) - (pv0[i] >> 1)) * MM_PER_HALF_NM; /* q - P0, exact halves */
-    }
-    float *v0 = vw0, *w0 = vw0 + 3, *v1 = vw1, *w1 = vw1 + 3;
-    float sign = -1.0f; /* under the workpiece */
-    if (kind == ABBE_KIN_XYZBC_HT) {
-        /* head B: lever -R_B P_B; table C: lever q - P_C */
-        rotate_f32(k0, c0, s0r, P0, L0);
-        for (unsigned i = 0; i < 3u; i++) {
-            L0[i] = -L0[i];
-            /* the table's lever from the tool tip, q + T_B 0 = q + P_B - R_B P_B */
-            L1[i] = (float)((p[i] >> 1) - (pv1[i] >> 1)) * MM_PER_HALF_NM + (P0[i] + L0[i]);
-            d[i] = v0[i] - v1[i];
-        }
-        cross_add_f32(w0, L0, 1.0e-3f, d);
-        cross_add_f32(w1, L1, -1.0e-3f, d);
-        for (unsigned i = 0; i < 3u; i++) {
-            w0[i] -= w1[i];
-        }
-        sign = 1.0f;
+    float vw0[6], vw1[6], d[3], W[3], tip[3];
+    twist_chain_f32(&m5->rotary[0], c0, s0, s0r, vw0);
+    twist_chain_f32(&m5->rotary[1], c1, s1, s1r, vw1);
+    /* the machine axes per kind (the loader's): 3 C, B; 4 B, C; 5 B, A */
+    if (kind == ABBE_KIN_XYZBC_HH) {
+        chain_f32(m5, p, ABBE_KIN_XYZBC_HH, 2u, 1u, c0, s0r, c1, s1r, vw0, vw1, d, W, tip);
+    } else if (kind == ABBE_KIN_XYZBC_HT) {
+        chain_f32(m5, p, ABBE_KIN_XYZBC_HT, 1u, 2u, c0, s0r, c1, s1r, vw0, vw1, d, W, tip);
     } else {
-        /* R0 of the inner axis' twist; g = P0 - P1 = -offset */
-        rotate_f32(k0, c0, s0r, v1, t);
-        for (unsigned i = 0; i < 3u; i++) {
-            v1[i] = t[i];
-            L1[i] = (float)-m5->offset_nm[i] * 1.0e-6f;
-        }
-        rotate_f32(k0, c0, s0r, w1, t);
-        w1[0] = t[0];
-        w1[1] = t[1];
-        w1[2] = t[2];
-        rotate_f32(k0, c0, s0r, L1, t); /* R0 g */
-        if (kind == ABBE_KIN_XYZBC_HH) {
-            /* L = R0 (P1 - R1 P1 - P0) */
-            rotate_f32(k1, c1, s1r, P1, L0);
-            for (unsigned i = 0; i < 3u; i++) {
-                L1[i] = P1[i] - L0[i] - P0[i];
-            }
-            rotate_f32(k0, c0, s0r, L1, L0);
-            sign = 1.0f;
-        } else {
-            L0[0] = q[0];
-            L0[1] = q[1];
-            L0[2] = q[2];
-        }
-        for (unsigned i = 0; i < 3u; i++) {
-            d[i] = v0[i] + v1[i];
-            w0[i] += w1[i];
-        }
-        cross_add_f32(w0, L0, 1.0e-3f, d);
-        cross_add_f32(w1, t, 1.0e-3f, d);
+        chain_f32(m5, p, ABBE_KIN_XYZAB_TDR, 1u, 0u, c0, s0r, c1, s1r, vw0, vw1, d, W, tip);
     }
-    /* the linear axes' orientation error turns the head about q: W_lin x (tip - q), the tip
-     * at T_T 0 = P0 + L0 from q in the head (kinds 3, 4) */
+    /* the linear axes' orientation error turns the head about q: W_lin x (tip - q) (kinds 3, 4) */
     if (kind != ABBE_KIN_XYZAB_TDR) {
-        for (unsigned i = 0; i < 3u; i++) {
-            t[i] = P0[i] + L0[i];
-        }
-        cross_add_f32(out->orient_urad, t, 1.0e-3f, out->error_um);
+        cross_add_f32(out->orient_urad, tip, 1.0e-3f, out->error_um);
     }
     /* five-axis squareness, lever from its reference point: mm x urad = nm */
-    const float sy = (float)((p[1] >> 1) - (m5->square_ref_nm[1] >> 1)) * MM_PER_HALF_NM;
-    const float sz = (float)((p[2] >> 1) - (m5->square_ref_nm[2] >> 1)) * MM_PER_HALF_NM;
+    const float sy = lever_f32(p[1], m5->square_ref_nm[1]);
+    const float sz = lever_f32(p[2], m5->square_ref_nm[2]);
     const float qs = URAD_PER_Q36 * 1.0e-3f;
-    out->error_um[0] += (sy * (float)m5->squareness_q36[0] - sz * (float)m5->squareness_q36[1]) * qs;
-    out->error_um[1] -= sz * (float)m5->squareness_q36[2] * qs;
-    for (unsigned i = 0; i < 3u; i++) {
-        out->error_um[i] += sign * d[i];
-        out->orient_urad[i] += sign * w0[i];
-    }
+    out->error_um[0] += (sy * (float)m5->squareness_q36[0] - sz * (float)m5->squareness_q36[1]) * qs + d[0];
+    out->error_um[1] += d[1] - sz * (float)m5->squareness_q36[2] * qs;
+    out->error_um[2] += d[2];
+    out->orient_urad[0] += W[0];
+    out->orient_urad[1] += W[1];
+    out->orient_urad[2] += W[2];
 }
 #endif
 

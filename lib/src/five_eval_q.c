@@ -170,25 +170,33 @@ ABBE_NOINLINE static uint32_t add_rotary_q(const abbe_five_model_t *m5, const in
 }
 
 #if !defined(ABBE_NO_FIVE_KINDS)
-/* out = Rot_k(t) in, Q30 (c, s), rounded. Out of line, as the helpers below (flash). */
-ABBE_NOINLINE static void rotate_q(unsigned k, int32_t c, int32_t s, const int32_t in[3], int32_t out[3])
+/* a = Rot_k(t) a in place, Q30 (c, s), rounded; inlined (bench/results.md section 11: the
+ * calls, not the products, were most of the other kinds' instructions). */
+static ABBE_ALWAYS_INLINE void rotate_q(unsigned k, int32_t c, int32_t s, int32_t a[3])
 {
     const unsigned j = k == 2u ? 0u : k + 1u, l = k == 0u ? 2u : k - 1u;
-    const int32_t a = in[j], b = in[l];
-    out[k] = in[k];
-    out[j] = (int32_t)rot_q30(c, a, s, b);
-    out[l] = (int32_t)rot_q30(s, a, -c, b);
+    const int32_t x = a[j], y = a[l];
+    a[j] = (int32_t)rot_q30(c, x, s, y);
+    a[l] = (int32_t)rot_q30(s, x, -c, y);
 }
 
-/* (w x L)_i, w in 2^-36 rad (|.| <= 2^30), L in 2 nm (|.| < 2^31.6): 2^-35 nm -> 2^-4 nm, rounded */
-ABBE_NOINLINE static int64_t cross_q(const int32_t w[3], const int64_t L[3], unsigned i)
+/* (w x L)_i, w in 2^-36 rad, L in 2 nm, both int32 (two SMLALs): 2^-35 nm -> 2^-4 nm, rounded */
+static ABBE_ALWAYS_INLINE int64_t cross32_q(const int32_t w[3], const int32_t L[3], unsigned i)
+{
+    const unsigned i1 = i == 2u ? 0u : i + 1u, i2 = i == 0u ? 2u : i - 1u;
+    return abbe_smlal(abbe_smlal((int64_t)1 << 30, w[i1], L[i2]), -w[i2], L[i1]) >> 31;
+}
+
+/* (w x L)_i as cross32_q with an int64 lever (|L| < 2^31.6: the tool tip, kind 4's G) */
+static ABBE_ALWAYS_INLINE int64_t cross_q(const int32_t w[3], const int64_t L[3], unsigned i)
 {
     const unsigned i1 = i == 2u ? 0u : i + 1u, i2 = i == 0u ? 2u : i - 1u;
     return ((int64_t)w[i1] * L[i2] - (int64_t)w[i2] * L[i1] + ((int64_t)1 << 30)) >> 31;
 }
 
 /* Kinds 3-5 (format 1.4): five_eval_f32.c's add_chain_f32 in integers (the same
- * formulas; levers in 2 nm, w in 2^-36 rad, v and d in 2^-4 nm). */
+ * formulas, the inner twist moved to its lever G then turned by R0 or negated; levers in
+ * 2 nm, w in 2^-36 rad, v and d in 2^-4 nm; each cross product rounded to 2^-4 nm apart). */
 /* A record's twist (twist_q) about its own machine axis: one copy for both records. */
 ABBE_NOINLINE static void twist_chain_q(const abbe_rotary_model_t *ax, int32_t c, int32_t s, int32_t sr,
                                         int32_t *scratch, int32_t v[3], int32_t w[3])
@@ -197,75 +205,113 @@ ABBE_NOINLINE static void twist_chain_q(const abbe_rotary_model_t *ax, int32_t c
     twist_q(ax, k, k == 2u ? 0u : k + 1u, k == 0u ? 2u : k - 1u, c, s, sr, scratch, v, w);
 }
 
+/* One kind's geometry, straight-line (kind, k0 = record 0's axis and k1 = record 1's are
+ * constants where it is inlined: the loader fixes them per kind): the position error d
+ * (2^-4 nm) the chain adds before the kind's sign, w1 turned (R0 w1, kinds 3, 5) or negated
+ * (kind 4), and the tool tip from q (2 nm, kinds 3, 4). v1, w1 are used up. Ranges:
+ * |rot_point|, |offset| < 2^30 nm (the loader), so halves and their differences fit an
+ * int32 (|g| < 2^30.6, kind 4's G < 2^31), the inner twist v1 + w1 x g too (|v1| < 2^29,
+ * |w1 x g| < 2^30.6); the outer lever L: kind 5 q - P0 < 2^30.6, kind 4 R0 P0 < 2^29.5,
+ * kind 3 R0 (g + R1 P1), whose components are below |g| + |P1| / 2, i.e. below 2^31
+ * (2 nm) while |P0 - P1| + |P1| < 4.29 m (as before this form: the loader does not
+ * bound it further; the proofs hold on the golden tables). */
+static ABBE_ALWAYS_INLINE void chain_q(const abbe_five_model_t *m5, const int32_t pos_nm[3], unsigned kind,
+                                       unsigned k0, unsigned k1, int32_t c0, int32_t s0r, int32_t c1, int32_t s1r,
+                                       const int32_t v0[3], const int32_t w0[3], int32_t v1[3], int32_t w1[3],
+                                       int64_t d[3], int64_t tip[3])
+{
+    int32_t H0[3], L[3], G[3];
+    int64_t in1[3];
+    const int32_t *pv0 = kind == ABBE_KIN_XYZBC_HT ? m5->offset_nm : m5->rot_point_nm;
+    H0[0] = pv0[0] >> 1; /* P0, 2 nm */
+    H0[1] = pv0[1] >> 1;
+    H0[2] = pv0[2] >> 1;
+    if (kind == ABBE_KIN_XYZBC_HT) {
+        /* G = q - P_C + P_B (halves: |q| <= 2^30, |P| <= 2^29, so |G| < 2^31); the head B's
+         * lever L0 = -R_B P_B */
+        G[0] = (pos_nm[0] >> 1) - (m5->rot_point_nm[0] >> 1) + H0[0];
+        G[1] = (pos_nm[1] >> 1) - (m5->rot_point_nm[1] >> 1) + H0[1];
+        G[2] = (pos_nm[2] >> 1) - (m5->rot_point_nm[2] >> 1) + H0[2];
+        L[0] = -H0[0];
+        L[1] = -H0[1];
+        L[2] = -H0[2];
+        rotate_q(k0, c0, s0r, L);
+    } else {
+        /* g = P0 - P1 (|P1| < 2^31: |g| < 2^30.6) */
+        G[0] = H0[0] - (m5->tilt_pivot_nm[0] >> 1);
+        G[1] = H0[1] - (m5->tilt_pivot_nm[1] >> 1);
+        G[2] = H0[2] - (m5->tilt_pivot_nm[2] >> 1);
+        if (kind == ABBE_KIN_XYZBC_HH) {
+            /* L = -R0 (g + R1 P1), P1 = tilt_pivot */
+            int32_t u[3] = {m5->tilt_pivot_nm[0] >> 1, m5->tilt_pivot_nm[1] >> 1, m5->tilt_pivot_nm[2] >> 1};
+            rotate_q(k1, c1, s1r, u);
+            L[0] = -(G[0] + u[0]);
+            L[1] = -(G[1] + u[1]);
+            L[2] = -(G[2] + u[2]);
+            rotate_q(k0, c0, s0r, L);
+        } else { /* under the workpiece: L = q - P0, an int32 difference of halved positions */
+            L[0] = (pos_nm[0] >> 1) - H0[0];
+            L[1] = (pos_nm[1] >> 1) - H0[1];
+            L[2] = (pos_nm[2] >> 1) - H0[2];
+        }
+    }
+    /* the inner twist at its lever, v1 + w1 x G, 2^-4 nm (SMLALs: |w1| <= 2^30, |G| < 2^31) */
+    in1[0] = (int64_t)v1[0] + cross32_q(w1, G, 0u);
+    in1[1] = (int64_t)v1[1] + cross32_q(w1, G, 1u);
+    in1[2] = (int64_t)v1[2] + cross32_q(w1, G, 2u);
+    if (kind == ABBE_KIN_XYZBC_HT) {
+        w1[0] = -w1[0];
+        w1[1] = -w1[1];
+        w1[2] = -w1[2];
+        in1[0] = -in1[0];
+        in1[1] = -in1[1];
+        in1[2] = -in1[2];
+    } else {
+        v1[0] = (int32_t)in1[0];
+        v1[1] = (int32_t)in1[1];
+        v1[2] = (int32_t)in1[2];
+        rotate_q(k0, c0, s0r, v1);
+        rotate_q(k0, c0, s0r, w1);
+        in1[0] = v1[0];
+        in1[1] = v1[1];
+        in1[2] = v1[2];
+    }
+    d[0] = (int64_t)v0[0] + in1[0] + cross32_q(w0, L, 0u) + cross32_q(w1, L, 0u);
+    d[1] = (int64_t)v0[1] + in1[1] + cross32_q(w0, L, 1u) + cross32_q(w1, L, 1u);
+    d[2] = (int64_t)v0[2] + in1[2] + cross32_q(w0, L, 2u) + cross32_q(w1, L, 2u);
+    /* the tool tip at T_T 0 = P0 + L from q (kinds 3, 4) */
+    tip[0] = (int64_t)H0[0] + L[0];
+    tip[1] = (int64_t)H0[1] + L[1];
+    tip[2] = (int64_t)H0[2] + L[2];
+}
+
 ABBE_NOINLINE static uint32_t add_chain_q(const abbe_five_model_t *m5, const int32_t pos_nm[3],
                                           const int32_t angle_udeg[2], int32_t *scratch, int32_t error_nm[3],
                                           int32_t orient[3], uint32_t flags)
 {
-    const abbe_rotary_model_t *r0 = &m5->rotary[0], *r1 = &m5->rotary[1];
-    const unsigned k0 = r0->dir, k1 = r1->dir, kind = m5->kind;
+    const unsigned kind = m5->kind;
     int32_t s0, c0, s1, c1;
     abbe_sincos_q30(abbe_udeg_phase_q32(angle_udeg[m5->slot[0]]), &s0, &c0);
     abbe_sincos_q30(abbe_udeg_phase_q32(angle_udeg[m5->slot[1]]), &s1, &c1);
     const int32_t s0r = m5->sign[0] < 0 ? -s0 : s0, s1r = m5->sign[1] < 0 ? -s1 : s1;
-    int32_t v0[3], w0[3], v1[3], w1[3], H0[3], H1[3], a[3], b[3];
-    int64_t L0[3], L1[3], tip[3] = {0, 0, 0};
-    twist_chain_q(r0, c0, s0, s0r, scratch, v0, w0);
-    twist_chain_q(r1, c1, s1, s1r, scratch, v1, w1);
-    const int32_t *pv0 = kind == ABBE_KIN_XYZBC_HT ? m5->offset_nm : m5->rot_point_nm;
-    const int32_t *pv1 = kind == ABBE_KIN_XYZBC_HT ? m5->rot_point_nm : m5->tilt_pivot_nm;
-    for (unsigned i = 0; i < 3u; i++) {
-        H0[i] = pv0[i] >> 1; /* 2 nm */
-        H1[i] = pv1[i] >> 1;
-    }
-    int64_t d[3], W[3];
-    int sign = -1; /* under the workpiece */
-    if (kind == ABBE_KIN_XYZBC_HT) {
-        /* head B: lever -R_B P_B; table C: lever q + T_B 0 - P_C, T_B 0 = P_B - R_B P_B */
-        rotate_q(k0, c0, s0r, H0, a);
-        for (unsigned i = 0; i < 3u; i++) {
-            L0[i] = -(int64_t)a[i];
-            tip[i] = (int64_t)H0[i] - a[i];
-            L1[i] = (int64_t)((pos_nm[i] >> 1) - H1[i]) + tip[i];
-        }
-        for (unsigned i = 0; i < 3u; i++) {
-            d[i] = (int64_t)v0[i] - v1[i] + cross_q(w0, L0, i) - cross_q(w1, L1, i);
-            W[i] = (int64_t)w0[i] - w1[i];
-        }
-        sign = 1;
+    int32_t v0[3], w0[3], v1[3], w1[3];
+    int64_t d[3], tip[3] = {0, 0, 0};
+    twist_chain_q(&m5->rotary[0], c0, s0, s0r, scratch, v0, w0);
+    twist_chain_q(&m5->rotary[1], c1, s1, s1r, scratch, v1, w1);
+    /* the machine axes per kind (the loader's): 3 C, B; 4 B, C; 5 B, A */
+    int sign = 1; /* in the head */
+    if (kind == ABBE_KIN_XYZBC_HH) {
+        chain_q(m5, pos_nm, ABBE_KIN_XYZBC_HH, 2u, 1u, c0, s0r, c1, s1r, v0, w0, v1, w1, d, tip);
     } else {
-        /* R0 of the inner axis' twist, R0 g with g = P0 - P1 = -offset */
-        rotate_q(k0, c0, s0r, v1, a);
-        (void)memcpy(v1, a, sizeof a);
-        rotate_q(k0, c0, s0r, w1, a);
-        (void)memcpy(w1, a, sizeof a);
-        for (unsigned i = 0; i < 3u; i++) {
-            b[i] = H0[i] - H1[i];
-        }
-        int32_t Rg[3];
-        rotate_q(k0, c0, s0r, b, Rg);
-        if (kind == ABBE_KIN_XYZBC_HH) {
-            /* L = R0 (P1 - R1 P1 - P0), the tip T_T 0 = P0 + L */
-            rotate_q(k1, c1, s1r, H1, a);
-            for (unsigned i = 0; i < 3u; i++) {
-                b[i] = H1[i] - a[i] - H0[i];
-            }
-            rotate_q(k0, c0, s0r, b, a);
-            for (unsigned i = 0; i < 3u; i++) {
-                L0[i] = a[i];
-                tip[i] = (int64_t)H0[i] + a[i];
-            }
-            sign = 1;
+        /* kinds 4 and 5 share record 0's axis (B) and one copy (flash); k1 is kind 3's only */
+        int64_t t[3];
+        chain_q(m5, pos_nm, kind, 1u, 0u, c0, s0r, c1, s1r, v0, w0, v1, w1, d, t);
+        if (kind == ABBE_KIN_XYZAB_TDR) {
+            sign = -1; /* under the workpiece, no tool tip term */
         } else {
-            for (unsigned i = 0; i < 3u; i++) {
-                L0[i] = (pos_nm[i] >> 1) - H0[i];
-            }
-        }
-        for (unsigned i = 0; i < 3u; i++) {
-            L1[i] = L0[i] + Rg[i];
-        }
-        for (unsigned i = 0; i < 3u; i++) {
-            d[i] = (int64_t)v0[i] + v1[i] + cross_q(w0, L0, i) + cross_q(w1, L1, i);
-            W[i] = (int64_t)w0[i] + w1[i];
+            tip[0] = t[0];
+            tip[1] = t[1];
+            tip[2] = t[2];
         }
     }
     for (unsigned i = 0; i < 3u; i++) {
@@ -283,7 +329,8 @@ ABBE_NOINLINE static uint32_t add_chain_q(const abbe_five_model_t *m5, const int
         error_nm[i] = abbe_sat_i32(abbe_shr_round(pos, 4u), &flags);
     }
     for (unsigned i = 0; i < 3u; i++) {
-        const int64_t rot = (int64_t)orient[i] + (sign > 0 ? W[i] : -W[i]);
+        const int64_t W = (int64_t)w0[i] + w1[i];
+        const int64_t rot = (int64_t)orient[i] + (sign > 0 ? W : -W);
         orient[i] = abbe_sat_i32(abbe_shr_round(rot * 1953125, 27u), &flags);
     }
     return flags;

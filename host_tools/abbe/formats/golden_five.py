@@ -161,9 +161,17 @@ def chain_golden_tables() -> list[GoldenChain]:
         ("ht_maxkins", KinematicChain("maxkins", (d("C", -1, (0.0, 0.0, -100.0), (-3600.0, 3600.0)),) + lin
                                       + (d("B", -1, (0.0, 0.0, 150.0), (-90.0, 90.0)),),
                                       0.0, (10.0, -20.0, 30.0))),
-        ("tdr_xyzab", KinematicChain("xyzab-tdr", (d("A", 1, (0.0, 30.0, -150.0), (-3600.0, 3600.0)),
-                                                   d("B", 1, (0.0, 0.0, -120.0), (-180.0, 180.0))) + lin,
+        # xyzab_tdr_kins turns A about -X and B about -Y (host_tools/cases/five_axis_chains/
+        # table-dual-rotary-xyzab.toml reads the module's kinematicsInverse)
+        ("tdr_xyzab", KinematicChain("xyzab-tdr", (d("A", -1, (0.0, 30.0, -150.0), (-3600.0, 3600.0)),
+                                                   d("B", -1, (0.0, 0.0, -120.0), (-180.0, 180.0))) + lin,
                                      0.0, (0.0, 0.0, 0.0))),
+        # maxkins again with the paper machine's linear axes (the table the instruction
+        # budgets are judged on, bench/results.md section 11); drawn after the others, so
+        # their bytes do not move
+        ("ht_maxkins_paper", KinematicChain("maxkins", (d("C", -1, (0.0, 0.0, -100.0), (-3600.0, 3600.0)),) + lin
+                                            + (d("B", -1, (0.0, 0.0, 150.0), (-90.0, 90.0)),),
+                                            0.0, (10.0, -20.0, 30.0))),
     ]
     full = full_table(np.random.default_rng(CHAIN_SEED + 7))
     full = dataclasses.replace(full, axes={
@@ -171,7 +179,7 @@ def chain_golden_tables() -> list[GoldenChain]:
                                thermal_offset_um_per_k=0.0, thermal_tref_c=0.0)
         for a, ax in full.axes.items()})
     out = []
-    for (name, ch), linear, harm in zip(chains, (paper_table(), full, None), (4, 8, 3)):
+    for (name, ch), linear, harm in zip(chains, (paper_table(), full, None, paper_table()), (4, 8, 3, 4)):
         e = FiveAxisErrors()
         for axis in ch.rotaries:
             for n in LOCATION_ERRORS[axis]:
