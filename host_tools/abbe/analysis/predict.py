@@ -288,6 +288,18 @@ def residual_uncertainty(p: Prediction, budget: Any, draws: int = 0,
                   + rng.uniform(-0.5, 0.5, size=r.shape) * f["resolution_um"])
             F[k] = figures(rr)
         for i, key in enumerate(("max_abs", "rms")):
-            out[key]["U_mc_um"] = K * float(F[:, i].std(ddof=1))
+            d = out[key]
+            d["U_mc_um"] = K * float(F[:, i].std(ddof=1))
+            # GUM S1 validation, as the thermal results: beyond 10 % the first order is not
+            # adequate (the max: readings compete for it, its spread is smaller than one
+            # reading's) and the Monte Carlo's U is the one stated
+            ok = d["U_um"] > 0 and abs(d["U_mc_um"] / d["U_um"] - 1.0) <= 0.10
+            d["U_stated_um"] = d["U_um"] if ok else d["U_mc_um"]
+            d["U_from"] = ("first order (the Monte Carlo agrees within 10 %)" if ok else
+                           "Monte Carlo (the first order is more than 10 % off)")
         out["monte_carlo"] = {"draws": draws, "seed": seed}
+    else:
+        for key in ("max_abs", "rms"):
+            out[key]["U_stated_um"] = out[key]["U_um"]
+            out[key]["U_from"] = "first order (no Monte Carlo run)"
     return out
