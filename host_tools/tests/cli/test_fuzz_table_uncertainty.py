@@ -29,7 +29,7 @@ from cases.synthetic_laser import make_dataset
 from fuzzing.mutate import mutate
 
 #: Kept small: each case reads a model.json of ~100 kB (the CI budget of issue 37's tests).
-FUZZ = settings(max_examples=60, derandomize=True, database=None, deadline=None,
+FUZZ = settings(max_examples=40, derandomize=True, database=None, deadline=None,
                 suppress_health_check=list(HealthCheck))
 
 #: Values a node may be replaced by (JSON has no NaN: Python's json writes it as ``NaN``,
