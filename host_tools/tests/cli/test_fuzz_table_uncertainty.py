@@ -28,7 +28,7 @@ from abbe.errors import AbbeInputError
 from cases.synthetic_laser import make_dataset
 from fuzzing.mutate import mutate
 
-#: Kept small: each case reads a model.json of ~100 kB (the CI budget of issue 37's tests).
+#: Kept small: each case reads a model.json of ~130 kB (the CI budget of issue 37's tests).
 FUZZ = settings(max_examples=40, derandomize=True, database=None, deadline=None,
                 suppress_health_check=list(HealthCheck))
 
