@@ -76,18 +76,20 @@ def test_cubature_is_exact_for_a_quadratic() -> None:
     A = rng.standard_normal((n, n))
     A = A + A.T
     m = rng.standard_normal(n) * 0.3
-    mean, sd = cubature5(lambda x: np.array([x @ A @ x]), m, C)
     AC = A @ C
-    assert mean[0] == pytest.approx(m @ A @ m + np.trace(AC), rel=1e-9)
-    assert sd[0] ** 2 == pytest.approx(2 * np.trace(AC @ AC) + 4 * m @ A @ C @ A @ m, rel=1e-9)
+    for frames in (1, 3):  # exact in every frame, so in their average
+        mean, sd = cubature5(lambda x: np.array([x @ A @ x]), m, C, frames=frames)
+        assert mean[0] == pytest.approx(m @ A @ m + np.trace(AC), rel=1e-9)
+        assert sd[0] ** 2 == pytest.approx(2 * np.trace(AC @ AC) + 4 * m @ A @ C @ A @ m, rel=1e-9)
     first_order = 4 * m @ A @ C @ A @ m
     assert abs(first_order / sd[0] ** 2 - 1) > 0.5
 
 
 #: The figures the cubature carries (docs/uncertainty.md, measured with 3 x 1000 draws, seeds
-#: 1-3: all within 6 %). Left out: ch5's drift (+1.5 .. +10.0 %: at the limit, it passes or
-#: not with the draws) and ch2's and tilt_a's held-out RMS, which the cubature overstates by
-#: 11-15 % (there the Monte Carlo is stated).
+#: 1-3: 41 of 42 within 10 %, the miss ch5's held-out RMS at +11 % with seed 2; +3 % with
+#: the test's draws). Left out of the assertion: ch5's drift (+7 % at worst), ch2's and
+#: tilt_a's held-out RMS (-7 %, -9 %): with the test's 300 draws (about +-5 % of sampling
+#: spread) they pass or fail with the draws.
 CUBATURE_HOLDS = [(n, "drift") for n in ("ch1", "ch2", "ch3", "ch4", "tilt_b", "tilt_a")] + [
     (n, "heldout_rms") for n in ("ch1", "ch3", "ch4", "ch5", "tilt_b")]
 

@@ -11,9 +11,11 @@ the validation hours carries the same parameters (first order, -r.j / (n rms)).
 The analytic U of the drift and the held-out RMS is not the first order: it is the
 **degree-5 cubature** of the same Gaussian input distribution (parameters from N(p, C), every
 sensor's sensitivity error from N(0, u)), a deterministic sigma-point propagation (the fully
-symmetric rule of Stroud / McNamee-Stenger, 2 n^2 + 1 evaluations of the model, n inputs):
-exact for the mean and variance of any figure quadratic in the inputs, cross terms
-included. The first order (``U_first_order``, and the budget lines) is linear and underrates
+symmetric rule of Stroud / McNamee-Stenger, 2 n^2 + 1 evaluations of the model, n inputs,
+averaged over three fixed frames): exact for the mean and variance of any figure quadratic
+in the inputs, cross terms included. The frames (the principal axes, and the same mixed by
+the DCT-II and its transpose) were chosen after measuring that the principal axes alone put
+each point's whole excursion along the most non-linear direction (docs/uncertainty.md). The first order (``U_first_order``, and the budget lines) is linear and underrates
 the spread where a time constant's interval spans decades or the RMS sits near a minimum.
 
 The check (GUM S1) draws the parameters from N(p, C) and evaluates the model with the
@@ -97,31 +99,48 @@ def _sqrt_cov(C: np.ndarray) -> np.ndarray:
     return V * np.sqrt(np.clip(w, 0.0, None))
 
 
-def cubature5(fn, p: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _frames(C: np.ndarray) -> list[np.ndarray]:
+    """The square roots of C the rule is averaged over: the principal axes, and the same
+    axes mixed by the orthonormal DCT-II (and its transpose), which spreads each principal
+    direction over every sigma point (any orthogonal mix of a square root is one)."""
+    from scipy.fft import dct
+    L = _sqrt_cov(C)
+    Q = dct(np.eye(C.shape[0]), type=2, norm="ortho", axis=0)
+    return [L, L @ Q.T, L @ Q]
+
+
+def cubature5(fn, p: np.ndarray, C: np.ndarray, frames: int = 3) -> tuple[np.ndarray, np.ndarray]:
     """(mean, standard deviation) of fn(x), x ~ N(p, C), by the fully symmetric cubature rule
     of degree 5 for a Gaussian weight (Stroud 1971, rule E_n^r2 5-2; McNamee & Stenger 1967):
     the centre, the 2n points p +- sqrt(n + 2) L_i and the 2n(n - 1) points
-    p + sqrt((n + 2) / 2) (+-L_i +- L_j), L = C^(1/2). Exact for polynomials of degree <= 5,
-    so the variance is exact when fn is quadratic in x. fn returns a vector (each figure)."""
+    p + sqrt((n + 2) / 2) (+-L_i +- L_j), for a square root L of C. Exact for polynomials of
+    degree <= 5, so the variance is exact when fn is quadratic in x, in any frame L. For
+    other fn the result depends on the frame: the rule's first and second moments are
+    averaged over ``frames`` fixed frames (:func:`_frames`; 1 = the principal axes only).
+    fn returns a vector (each figure)."""
     n = p.size
-    L = _sqrt_cov(C)
     a, b = np.sqrt(n + 2.0), np.sqrt((n + 2.0) / 2.0)
-    pts = [p]
-    w = [2.0 / (n + 2.0)]
-    for i in range(n):
-        for s in (1.0, -1.0):
-            pts.append(p + s * a * L[:, i])
-            w.append((4.0 - n) / (2.0 * (n + 2.0) ** 2))
-    for i in range(n):
-        for j in range(i + 1, n):
-            for si in (1.0, -1.0):
-                for sj in (1.0, -1.0):
-                    pts.append(p + b * (si * L[:, i] + sj * L[:, j]))
-                    w.append(1.0 / (n + 2.0) ** 2)
-    W = np.asarray(w)
-    F = np.array([np.atleast_1d(fn(x)) for x in pts], dtype=float)
-    mean = W @ F
-    return mean, np.sqrt(np.clip(W @ (F - mean) ** 2, 0.0, None))
+    m1 = m2 = 0.0
+    Ls = _frames(C)[:max(1, frames)]
+    for L in Ls:
+        pts = [p]
+        w = [2.0 / (n + 2.0)]
+        for i in range(n):
+            for s in (1.0, -1.0):
+                pts.append(p + s * a * L[:, i])
+                w.append((4.0 - n) / (2.0 * (n + 2.0) ** 2))
+        for i in range(n):
+            for j in range(i + 1, n):
+                for si in (1.0, -1.0):
+                    for sj in (1.0, -1.0):
+                        pts.append(p + b * (si * L[:, i] + sj * L[:, j]))
+                        w.append(1.0 / (n + 2.0) ** 2)
+        W = np.asarray(w)
+        F = np.array([np.atleast_1d(fn(x)) for x in pts], dtype=float)
+        m1 = m1 + W @ F / len(Ls)
+        m2 = m2 + W @ F ** 2 / len(Ls)
+    mean = np.asarray(m1)
+    return mean, np.sqrt(np.clip(m2 - mean ** 2, 0.0, None))
 
 
 def type_b_inputs(res: Any, sig: Any) -> list[tuple[str, str, float, np.ndarray]]:
@@ -251,8 +270,8 @@ def signal_uncertainty(res: Any, sig: Any, draws: int = 0, seed: int = 1) -> dic
         return {"value": value, "U": K * u_c,
                 "U_first_order": K * float(np.sqrt(sum(c["u"] ** 2 for c in budget))),
                 "U_typeA": K * uA, "budget": budget,
-                "method": f"degree-5 cubature ({2 * pa.size ** 2 + 1} model evaluations); "
-                          "the budget lines are first order"}
+                "method": f"degree-5 cubature averaged over 3 frames ({3 * (2 * pa.size ** 2 + 1)} "
+                          "model evaluations); the budget lines are first order"}
 
     out: dict[str, Any] = {
         "name": sig.name, "unit": sig.unit, "terms": terms,
@@ -310,7 +329,8 @@ def thermal_uncertainty(res: Any, draws: int = 0, seed: int = 1) -> dict[str, An
     the fit report lists them."""
     return {"method": ("the identification's covariance (offset, gains, log taus; s^2 inflated "
                        "for serial correlation) and the sensors' calibration, propagated by the "
-                       "degree-5 cubature rule (deterministic sigma points; the budget lines and "
+                       "degree-5 cubature rule averaged over three frames (deterministic sigma "
+                       "points; the budget lines and "
                        "U_first_order are the GUM first order); U = k u, k = 2"),
             "k": K,
             "budget": ("Type A: the residuals on the identification hours; Type B: each "
