@@ -12,6 +12,7 @@ and the CW run, max - min of the residual), the figure ballbar software quotes.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -228,3 +229,77 @@ def predict_ballbar(model: Any, test: Any, angle_deg: np.ndarray | None = None,
 def predict_trace(model: Any, trace: BallbarTrace, test: Any, **kw: Any) -> np.ndarray:
     """:func:`predict_ballbar` at the samples of ``trace``."""
     return predict_ballbar(model, test, trace.angle_deg, trace.direction, **kw)
+
+
+def residual_uncertainty(p: Prediction, budget: Any, draws: int = 0,
+                         seed: int = 20232) -> dict[str, Any]:
+    """U (k = 2) of the prediction residual's max |r| and RMS (um) from the ballbar's own
+    budget (``abbe.analysis.uncertainty.ballbar_budget``, docs/uncertainty.md "ISO 230-4").
+
+    The residual is the measured circle minus the model's prediction, a least-squares
+    circle removed (:func:`predict`). The prediction is held fixed (the table the controller
+    applies is known exactly once written), so r is uncertain by the measurement: the bar's
+    reading scale (rectangular, sensitivity by a finite difference of the same evaluation),
+    the drift ramp over the test (rectangular), the resolution per reading (max: the one
+    reading that makes it; RMS: averaged over the n readings, 1 / sqrt(n); sensitivities by
+    central differences). The bar's length
+    (calibration, temperature) moves every reading alike and the circle absorbs it.
+    With ``draws`` a Monte Carlo of the same inputs (GUM S1) is returned beside it."""
+    from abbe.analysis.uncertainty import K, SQRT3, _ramp
+    f = budget.figures
+    m = p.trace.data_mask()
+    ang = p.trace.angle_deg[m]
+    r = np.asarray(p.trace.radial_um, dtype=np.float64)
+    pred = p.predicted_um
+    ramp = _ramp(p.trace)
+
+    def figures(rr: np.ndarray) -> np.ndarray:
+        res = fit_circle(ang, rr[m] - pred[m], p.test.radius_mm).residual_um
+        return np.array([np.max(np.abs(res)), np.sqrt(np.mean(res ** 2))])
+
+    base = figures(r)
+    # central differences with steps well inside each input's interval: the residual is
+    # near a least-squares optimum, where a one-sided step of 1 um would measure curvature
+    eps, d_um = 1e-5, 1e-3
+    c_scale = (figures(r * (1 + eps)) - figures(r * (1 - eps))) / (2 * eps)
+    c_drift = (figures(r + d_um * ramp) - figures(r - d_um * ramp)) / (2 * d_um)
+    L_mm = float(p.test.radius_mm)
+    u_scale = f["scale_pct"] / 100.0 / SQRT3
+    drift_um = abs(f["expansion_ppm_per_k"]) * f["drift_c"] * L_mm * 1e-3
+    u_drift = drift_um / SQRT3
+    u_res = f["resolution_um"] / math.sqrt(12.0)
+    n = int(np.count_nonzero(m))
+    c_res = np.array([1.0, 1.0 / math.sqrt(max(n, 1))])
+    out: dict[str, Any] = {"k": K, "budget": getattr(budget, "source", ""),
+                           "note": "measurement of the circle only; the prediction (the table "
+                                   "as written) is held fixed"}
+    for i, key in enumerate(("max_abs", "rms")):
+        parts = {"scale": abs(c_scale[i]) * u_scale, "thermal drift": abs(c_drift[i]) * u_drift,
+                 "resolution": c_res[i] * u_res}
+        u = math.sqrt(sum(v ** 2 for v in parts.values()))
+        out[key] = {"value_um": float(base[i]), "u_um": u, "U_um": K * u,
+                    "budget_u_um": parts}
+    if draws:
+        rng = np.random.default_rng(seed)
+        F = np.empty((draws, 2))
+        for k in range(draws):
+            rr = (r * (1 + rng.uniform(-1, 1) * f["scale_pct"] / 100.0)
+                  + rng.uniform(-drift_um, drift_um) * ramp
+                  + rng.uniform(-0.5, 0.5, size=r.shape) * f["resolution_um"])
+            F[k] = figures(rr)
+        for i, key in enumerate(("max_abs", "rms")):
+            d = out[key]
+            d["U_mc_um"] = K * float(F[:, i].std(ddof=1))
+            # GUM S1 validation, as the thermal results: beyond 10 % the first order is not
+            # adequate (the max: readings compete for it, its spread is smaller than one
+            # reading's) and the Monte Carlo's U is the one stated
+            ok = d["U_um"] > 0 and abs(d["U_mc_um"] / d["U_um"] - 1.0) <= 0.10
+            d["U_stated_um"] = d["U_um"] if ok else d["U_mc_um"]
+            d["U_from"] = ("first order (the Monte Carlo agrees within 10 %)" if ok else
+                           "Monte Carlo (the first order is more than 10 % off)")
+        out["monte_carlo"] = {"draws": draws, "seed": seed}
+    else:
+        for key in ("max_abs", "rms"):
+            out[key]["U_stated_um"] = out[key]["U_um"]
+            out[key]["U_from"] = "first order (no Monte Carlo run)"
+    return out

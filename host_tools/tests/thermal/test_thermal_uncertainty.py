@@ -1,7 +1,8 @@
 """Thermal results with U (k = 2) on the real record: the gains' U is identify's interval
 at k = 2 (the covariance recomputed agrees), the predicted drift and held-out RMS carry U,
 and where the first order and the Monte Carlo part by more than 10 % the MC's U is stated
-(measured: ch1, ch3 drifts agree; ch5 and tilt_a do not, docs/uncertainty.md)."""
+(measured: ch1, ch3 drifts agree; ch5 and tilt_a do not, docs/uncertainty.md). The analytic U
+is the degree-5 cubature, the first order beside it (U_first_order)."""
 
 from __future__ import annotations
 
@@ -48,7 +49,7 @@ def test_type_b_sensor_calibration(real_fit, unc) -> None:
     ch1 = by["ch1"]["drift"]
     b = {c["name"]: c["u"] for c in ch1["budget"]}
     assert b["ch1 sensitivity"] == pytest.approx(abs(ch1["value"]) * 0.01 / 2, rel=1e-6)
-    assert ch1["U"] == pytest.approx(2 * np.sqrt(sum(c["u"] ** 2 for c in ch1["budget"])))
+    assert ch1["U_first_order"] == pytest.approx(2 * np.sqrt(sum(c["u"] ** 2 for c in ch1["budget"])))
     tilt = by["tilt_b"]["drift"]
     assert {c["name"] for c in tilt["budget"]} >= {"ch1 sensitivity", "ch2 sensitivity"}
     spec = real_fit.spec
@@ -58,6 +59,53 @@ def test_type_b_sensor_calibration(real_fit, unc) -> None:
     for s in u0["signals"]:
         for key in ("drift", "heldout_rms"):
             if key in s:
-                assert s[key]["U"] == pytest.approx(s[key]["U_typeA"])
+                assert s[key]["U_first_order"] == pytest.approx(s[key]["U_typeA"])
         for row in s["terms"]:
             assert row["gain_U"] == pytest.approx(row["gain_U_typeA"])
+
+
+def test_cubature_is_exact_for_a_quadratic() -> None:
+    """The rule's variance of a quadratic form in Gaussian inputs is the exact one
+    (2 tr((AC)^2) + 4 m^T A C A m, cross terms included), which the first order misses."""
+    import numpy as np
+    from abbe.analysis.thermal.uncertainty import cubature5
+    rng = np.random.default_rng(4)
+    n = 6
+    B = rng.standard_normal((n, n))
+    C = B @ B.T / n
+    A = rng.standard_normal((n, n))
+    A = A + A.T
+    m = rng.standard_normal(n) * 0.3
+    AC = A @ C
+    for frames in (1, 3):  # exact in every frame, so in their average
+        mean, sd = cubature5(lambda x: np.array([x @ A @ x]), m, C, frames=frames)
+        assert mean[0] == pytest.approx(m @ A @ m + np.trace(AC), rel=1e-9)
+        assert sd[0] ** 2 == pytest.approx(2 * np.trace(AC @ AC) + 4 * m @ A @ C @ A @ m, rel=1e-9)
+    first_order = 4 * m @ A @ C @ A @ m
+    assert abs(first_order / sd[0] ** 2 - 1) > 0.5
+
+
+#: The figures the cubature carries (docs/uncertainty.md, measured with 3 x 1000 draws, seeds
+#: 1-3: 41 of 42 within 10 %, the miss ch5's held-out RMS at +11 % with seed 2; +3 % with
+#: the test's draws). Left out of the assertion: ch5's drift (+7 % at worst), ch2's and
+#: tilt_a's held-out RMS (-7 %, -9 %): with the test's 300 draws (about +-5 % of sampling
+#: spread) they pass or fail with the draws.
+CUBATURE_HOLDS = [(n, "drift") for n in ("ch1", "ch2", "ch3", "ch4", "tilt_b", "tilt_a")] + [
+    (n, "heldout_rms") for n in ("ch1", "ch3", "ch4", "ch5", "tilt_b")]
+
+
+def test_cubature_agrees_with_the_monte_carlo_where_first_order_did_not(unc) -> None:
+    """The analytic U (cubature) within 10 % of the Monte Carlo (300 draws, seed 3) on 11
+    named figures; on two of them (ch1's and tilt_b's held-out RMS: the RMS near a minimum)
+    the first order is more than 50 % off, so this test fails if the propagation falls back
+    to it."""
+    by = {s["name"]: s for s in unc["signals"]}
+    fo_off = 0
+    for name, key in CUBATURE_HOLDS:
+        d = by[name][key]
+        assert abs(d["U_mc"] / d["U"] - 1.0) <= AGREEMENT, (name, key, d["U"], d["U_mc"])
+        assert d["U_stated"] == d["U"] and d["U_from"].startswith("degree-5 cubature")
+        fo_off += abs(d["U_mc"] / d["U_first_order"] - 1.0) > 0.5
+    assert fo_off >= 2
+    lo, hi = by["ch5"]["heldout_rms"]["interval95_mc"]
+    assert lo < by["ch5"]["heldout_rms"]["value"] < hi

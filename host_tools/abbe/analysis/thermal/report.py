@@ -222,16 +222,20 @@ def _budget_fold(unc: dict) -> str:
             parts = "; ".join(f"{_esc(c['name'])} {c['u']:.3f}" for c in d.get("budget", []))
             mc = (f"{d['U_mc']:.2f}" if "U_mc" in d else "&ndash;")
             rows.append(f"<tr><td class='l'>{_esc(name)}</td><td class='l'>{what}</td>"
-                        f"<td>{d['value']:.2f}</td><td>{d['U']:.2f}</td><td>{mc}</td>"
+                        f"<td>{d['value']:.2f}</td><td>{d.get('U_first_order', d['U']):.2f}</td>"
+                        f"<td>{d['U']:.2f}</td><td>{mc}</td>"
                         f"<td>{d['U_stated']:.2f}</td><td class='l'>{parts}</td></tr>")
-    return ("<details><summary>Uncertainty budget (U, k = 2; first order and Monte Carlo)"
+    return ("<details><summary>Uncertainty budget (U, k = 2; first order, cubature and Monte "
+            "Carlo)"
             "</summary><table><tr><th class='l'>signal</th><th class='l'>figure</th>"
-            "<th>value</th><th>U first order</th><th>U Monte Carlo</th><th>U stated</th>"
+            "<th>value</th><th>U first order</th><th>U cubature</th><th>U Monte Carlo</th>"
+            "<th>U stated</th>"
             "<th class='l'>standard uncertainties u (um or urad)</th></tr>"
-            + "".join(rows) + "</table><p class='small'>Where the first order and the Monte "
-            "Carlo differ by more than 10 % the Monte Carlo's U is stated (GUM S1): a time "
-            "constant the data do not pin down makes the model non-linear over its "
-            "interval.</p></details>")
+            + "".join(rows) + "</table><p class='small'>The analytic U is the degree-5 "
+            "cubature of the parameters' distribution (deterministic sigma points; the budget "
+            "lines are first order). Where it and the Monte Carlo differ by more than 10 % the "
+            "Monte Carlo's U is stated (GUM S1): a held-out RMS near its minimum in the "
+            "parameters is not near a quadratic over their interval.</p></details>")
 
 
 def _drift_rows(iso: dict) -> str:

@@ -8,11 +8,20 @@ be carried to the predicted drift d(t) = sum_k g_k lag(u_k, tau_k)(t): u(d)^2 = 
 j = dd/dp (first order). The held-out RMS of the compensated residual r = y - prediction on
 the validation hours carries the same parameters (first order, -r.j / (n rms)).
 
+The analytic U of the drift and the held-out RMS is not the first order: it is the
+**degree-5 cubature** of the same Gaussian input distribution (parameters from N(p, C), every
+sensor's sensitivity error from N(0, u)), a deterministic sigma-point propagation (the fully
+symmetric rule of Stroud / McNamee-Stenger, 2 n^2 + 1 evaluations of the model, n inputs,
+averaged over three fixed frames): exact for the mean and variance of any figure quadratic
+in the inputs, cross terms included. The frames (the principal axes, and the same mixed by
+the DCT-II and its transpose) were chosen after measuring that the principal axes alone put
+each point's whole excursion along the most non-linear direction (docs/uncertainty.md). The first order (``U_first_order``, and the budget lines) is linear and underrates
+the spread where a time constant's interval spans decades or the RMS sits near a minimum.
+
 The check (GUM S1) draws the parameters from N(p, C) and evaluates the model with the
 runtime's discretisation (:func:`abbe.model.thermal.lag_states`) unchanged; U_MC = 2 x the
-standard deviation over the draws. It tests the first-order propagation, not the covariance
-(a poorly determined time constant, whose interval spans decades, is where the two part).
-Units: um (um per K, um per krpm for gains; urad for tilts), s, h.
+standard deviation over the draws. It tests the propagation (first order or cubature), not
+the covariance. Units: um (um per K, um per krpm for gains; urad for tilts), s, h.
 """
 
 from __future__ import annotations
@@ -82,6 +91,56 @@ def _jac(fn, p: np.ndarray) -> np.ndarray:
         dp[k] += h
         J[:, k] = (fn(dp) - f0) / h
     return J
+
+
+def _sqrt_cov(C: np.ndarray) -> np.ndarray:
+    """A square root L (L L^T = C) along C's principal axes, negative round-off clipped."""
+    w, V = np.linalg.eigh(C)
+    return V * np.sqrt(np.clip(w, 0.0, None))
+
+
+def _frames(C: np.ndarray) -> list[np.ndarray]:
+    """The square roots of C the rule is averaged over: the principal axes, and the same
+    axes mixed by the orthonormal DCT-II (and its transpose), which spreads each principal
+    direction over every sigma point (any orthogonal mix of a square root is one)."""
+    from scipy.fft import dct
+    L = _sqrt_cov(C)
+    Q = dct(np.eye(C.shape[0]), type=2, norm="ortho", axis=0)
+    return [L, L @ Q.T, L @ Q]
+
+
+def cubature5(fn, p: np.ndarray, C: np.ndarray, frames: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """(mean, standard deviation) of fn(x), x ~ N(p, C), by the fully symmetric cubature rule
+    of degree 5 for a Gaussian weight (Stroud 1971, rule E_n^r2 5-2; McNamee & Stenger 1967):
+    the centre, the 2n points p +- sqrt(n + 2) L_i and the 2n(n - 1) points
+    p + sqrt((n + 2) / 2) (+-L_i +- L_j), for a square root L of C. Exact for polynomials of
+    degree <= 5, so the variance is exact when fn is quadratic in x, in any frame L. For
+    other fn the result depends on the frame: the rule's first and second moments are
+    averaged over ``frames`` fixed frames (:func:`_frames`; 1 = the principal axes only).
+    fn returns a vector (each figure)."""
+    n = p.size
+    a, b = np.sqrt(n + 2.0), np.sqrt((n + 2.0) / 2.0)
+    m1 = m2 = 0.0
+    Ls = _frames(C)[:max(1, frames)]
+    for L in Ls:
+        pts = [p]
+        w = [2.0 / (n + 2.0)]
+        for i in range(n):
+            for s in (1.0, -1.0):
+                pts.append(p + s * a * L[:, i])
+                w.append((4.0 - n) / (2.0 * (n + 2.0) ** 2))
+        for i in range(n):
+            for j in range(i + 1, n):
+                for si in (1.0, -1.0):
+                    for sj in (1.0, -1.0):
+                        pts.append(p + b * (si * L[:, i] + sj * L[:, j]))
+                        w.append(1.0 / (n + 2.0) ** 2)
+        W = np.asarray(w)
+        F = np.array([np.atleast_1d(fn(x)) for x in pts], dtype=float)
+        m1 = m1 + W @ F / len(Ls)
+        m2 = m2 + W @ F ** 2 / len(Ls)
+    mean = np.asarray(m1)
+    return mean, np.sqrt(np.clip(m2 - mean ** 2, 0.0, None))
 
 
 def type_b_inputs(res: Any, sig: Any) -> list[tuple[str, str, float, np.ndarray]]:
@@ -185,65 +244,94 @@ def signal_uncertainty(res: Any, sig: Any, draws: int = 0, seed: int = 1) -> dic
             row["tau_U_s"] = float(tt.tau_s * np.expm1(K * s_lt)) if K * s_lt < 20 else None
         terms.append(row)
 
-    def figure(value: float, uA: float, key: str) -> dict[str, Any]:
+    # the augmented inputs (parameters, then each sensor's relative sensitivity error) and
+    # both figures as one function of them: what the cubature and the Monte Carlo evaluate
+    npar = p.size
+    pa = np.concatenate([p, np.zeros(len(type_b))])
+    Ca = np.zeros((pa.size, pa.size))
+    Ca[:npar, :npar] = C
+    for i, b in enumerate(type_b):
+        Ca[npar + i, npar + i] = b["u_rel"] ** 2
+
+    def figures(q: np.ndarray) -> np.ndarray:
+        e = q[npar:]
+        pred = prediction(t, cands, fit, q[:npar])  # once: the drift has no offset
+        dv = pred[i_max] - q[0] + sum(ek * b["d_drift"] for ek, b in zip(e, type_b))
+        r = (y - pred)[valid]
+        for ek, b in zip(e, type_b):
+            r = r + ek * b["d_resid"]
+        return np.array([dv, np.sqrt(np.mean(r ** 2))])
+
+    _, u_cub = cubature5(figures, pa, Ca)
+
+    def figure(value: float, uA: float, key: str, u_c: float) -> dict[str, Any]:
         budget = [{"name": "identification residuals (Type A)", "u": uA}]
         budget += [{"name": b["name"], "what": b["what"], "u": b[key]} for b in type_b]
-        return {"value": value, "U": K * float(np.sqrt(sum(c["u"] ** 2 for c in budget))),
-                "U_typeA": K * uA, "budget": budget}
+        return {"value": value, "U": K * u_c,
+                "U_first_order": K * float(np.sqrt(sum(c["u"] ** 2 for c in budget))),
+                "U_typeA": K * uA, "budget": budget,
+                "method": f"degree-5 cubature averaged over 3 frames ({3 * (2 * pa.size ** 2 + 1)} "
+                          "model evaluations); the budget lines are first order"}
 
     out: dict[str, Any] = {
         "name": sig.name, "unit": sig.unit, "terms": terms,
         "drift": {"hours": float(rec.hours[i_max]),
-                  **figure(float(d[i_max]), float(np.sqrt(max(jd @ C @ jd, 0.0))), "u_drift")},
-        "heldout_rms": figure(rms0, float(np.sqrt(max(jr @ C @ jr, 0.0))), "u_rms"),
+                  **figure(float(d[i_max]), float(np.sqrt(max(jd @ C @ jd, 0.0))), "u_drift",
+                           float(u_cub[0]))},
+        "heldout_rms": figure(rms0, float(np.sqrt(max(jr @ C @ jr, 0.0))), "u_rms",
+                              float(u_cub[1])),
         "temperature_calibration": f"U = {res.spec.temperature_calibration_U_pct:g} % (k = 2, "
                                    f"{t_src}): in the gains per K only",
         "n_eff": float(fit.n_eff)}
     if draws:
-        rng = np.random.default_rng(seed)
-        L = np.linalg.cholesky(C + 1e-12 * np.eye(C.shape[0]) * max(float(np.max(np.diag(C))), 1e-30))
-        dv, rv = np.empty(draws), np.empty(draws)
-        for k in range(draws):
-            q = p + L @ rng.standard_normal(p.size)
-            e = [b["u_rel"] * rng.standard_normal() for b in type_b]
-            pred = prediction(t, cands, fit, q)  # once per draw: the drift has no offset
-            dv[k] = pred[i_max] - q[0] + sum(ek * b["d_drift"] for ek, b in zip(e, type_b))
-            r = (y - pred)[valid]
-            for ek, b in zip(e, type_b):
-                r = r + ek * b["d_resid"]
-            rv[k] = float(np.sqrt(np.mean(r ** 2)))
-        out["drift"]["U_mc"] = K * float(dv.std(ddof=1))
-        out["heldout_rms"]["U_mc"] = K * float(rv.std(ddof=1))
+        F = monte_carlo_figures(figures, pa, Ca, draws, seed)
+        for i, key in enumerate(("drift", "heldout_rms")):
+            lo, hi = np.percentile(F[:, i], [2.5, 97.5])
+            out[key]["U_mc"] = K * float(F[:, i].std(ddof=1))
+            out[key]["interval95_mc"] = [float(lo), float(hi)]
         out["monte_carlo"] = {"draws": draws, "seed": seed}
         for key in ("drift", "heldout_rms"):
             _state(out[key])
     else:
         for key in ("drift", "heldout_rms"):
             out[key]["U_stated"] = out[key]["U"]
-            out[key]["U_from"] = "first order (no Monte Carlo run)"
+            out[key]["U_from"] = "degree-5 cubature (no Monte Carlo run)"
     return out
 
 
-#: First order and Monte Carlo further apart than this: the first order is not adequate
+def monte_carlo_figures(fn, p: np.ndarray, C: np.ndarray, draws: int, seed: int) -> np.ndarray:
+    """fn at ``draws`` random draws x ~ N(p, C) (GUM S1), one row per draw; independent of
+    :func:`cubature5` but for the distribution it samples."""
+    rng = np.random.default_rng(seed)
+    L = np.linalg.cholesky(C + 1e-12 * np.eye(C.shape[0]) * max(float(np.max(np.diag(C))), 1e-30))
+    return np.array([np.atleast_1d(fn(p + L @ rng.standard_normal(p.size)))
+                     for _ in range(draws)], dtype=float)
+
+
+#: Analytic (cubature) and Monte Carlo further apart than this: the first order is not adequate
 #: (GUM S1 validation) and the Monte Carlo's U is the one stated.
 AGREEMENT = 0.10
 
 
 def _state(d: dict[str, Any]) -> None:
-    """The U a certificate states: the first order's when the Monte Carlo confirms it within
-    AGREEMENT, else the Monte Carlo's (the model is not linear enough over the interval)."""
+    """The U a certificate states: the analytic (cubature) U when the Monte Carlo confirms it
+    within AGREEMENT, else the Monte Carlo's (the figure is not near enough a quadratic in
+    the inputs over their interval: the held-out RMS near its minimum, docs/uncertainty.md)."""
     ok = d["U"] > 0 and abs(d["U_mc"] / d["U"] - 1.0) <= AGREEMENT
     d["U_stated"] = d["U"] if ok else d["U_mc"]
-    d["U_from"] = ("first order (the Monte Carlo agrees within 10 %)" if ok else
-                   "Monte Carlo (the first order is more than 10 % off: a parameter's "
-                   "interval is too wide for the model to be linear over it)")
+    d["U_from"] = ("degree-5 cubature (the Monte Carlo agrees within 10 %)" if ok else
+                   "Monte Carlo (the cubature is more than 10 % off: the figure is not near a "
+                   "quadratic in the parameters over their interval)")
 
 
 def thermal_uncertainty(res: Any, draws: int = 0, seed: int = 1) -> dict[str, Any]:
     """Every channel's and tilt's figures with U (k = 2) (module docstring), in the order
     the fit report lists them."""
-    return {"method": ("GUM first order on the identification's covariance (offset, gains, "
-                       "log taus; s^2 inflated for serial correlation); U = k u, k = 2"),
+    return {"method": ("the identification's covariance (offset, gains, log taus; s^2 inflated "
+                       "for serial correlation) and the sensors' calibration, propagated by the "
+                       "degree-5 cubature rule averaged over three frames (deterministic sigma "
+                       "points; the budget lines and "
+                       "U_first_order are the GUM first order); U = k u, k = 2"),
             "k": K,
             "budget": ("Type A: the residuals on the identification hours; Type B: each "
                        "displacement sensor's sensitivity (calibration_U_pct, refit linearly: "
