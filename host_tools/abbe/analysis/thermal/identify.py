@@ -220,7 +220,8 @@ def select_terms(t_s: np.ndarray, y: np.ndarray, cands: list[Candidate], cyc: np
                  min_gain: float = MIN_GAIN_FRACTION,
                  grid: tuple[float, ...] = TAU_GRID_S,
                  start: list[tuple[int, float]] | None = None,
-                 physical_tiebreak: bool = False
+                 physical_tiebreak: bool = False,
+                 allowed: set[int] | None = None
                  ) -> tuple[list[tuple[int, float]], list]:
     """Forward selection: the (candidate index, tau s) terms and the trace (added input,
     its refined tau, CV RMS, max VIF, rivals). ``start``: terms taken as given (a diagnosis
@@ -235,9 +236,11 @@ def select_terms(t_s: np.ndarray, y: np.ndarray, cands: list[Candidate], cyc: np
     candidates by score, at most :data:`MAX_TRIALS`. A trial's time
     constants are refined with the others' (nonlinear least squares on the identification
     samples); it is kept if the refined set's CV RMS drops by ``min_gain`` and its largest
-    VIF stays <= ``max_vif``."""
-    grid_states = {(i, tau): lag_states(c.rise, t_s, tau)
-                   for i, c in enumerate(cands) for tau in grid}
+    VIF stays <= ``max_vif``. ``allowed``: the candidate indices the selection may use
+    (None: all; :func:`heated_inputs`)."""
+    usable = [i for i in range(len(cands)) if allowed is None or i in allowed]
+    grid_states = {(i, tau): lag_states(cands[i].rise, t_s, tau)
+                   for i in usable for tau in grid}
     fit_mask = cyc >= 0
     n_fixed = len(start or [])
     coupling = spindle_coupling(t_s, cands, fit_mask, grid) if physical_tiebreak else None
@@ -254,7 +257,7 @@ def select_terms(t_s: np.ndarray, y: np.ndarray, cands: list[Candidate], cyc: np
     while len(chosen) < max_terms:
         base = [st(k) for k in chosen]
         ranked = []
-        for key in [(i, tau) for i in range(len(cands)) for tau in grid]:
+        for key in [(i, tau) for i in usable for tau in grid]:
             if key in chosen:
                 continue
             cols = np.column_stack(base + [grid_states[key]])
@@ -396,16 +399,39 @@ def prune(t_s: np.ndarray, y: np.ndarray, cands: list[Candidate],
     return keep, dropped
 
 
+def heated_inputs(t_s: np.ndarray, cands: list[Candidate], mask: np.ndarray) -> set[int]:
+    """The inputs the spindle heats (docs/thermal.md, "The heated-inputs method"): the
+    speed, and the temperatures whose :func:`spindle_coupling` on the masked samples lies
+    above the largest gap of the temperatures' sorted couplings (a split the data make,
+    no threshold set by hand). Without a speed candidate every input is kept.
+
+    Real record, hours 0-24: couplings 0.02-0.10 (ten sensors: the room) and 0.39-0.51
+    (t4, t5, t6, t7, t10, t11), split at the gap 0.10 -> 0.39."""
+    coupling = spindle_coupling(t_s, cands, mask)
+    speed = {i for i, c in enumerate(cands) if c.kind == SPEED}
+    temps = sorted((coupling[i], i) for i in range(len(cands)) if i not in speed)
+    if not speed or len(temps) < 2:
+        return set(range(len(cands)))
+    gaps = [temps[k + 1][0] - temps[k][0] for k in range(len(temps) - 1)]
+    cut = int(np.argmax(gaps))
+    return speed | {i for _, i in temps[cut + 1:]}
+
+
 def identify_channel(name: str, t_s: np.ndarray, y: np.ndarray, cands: list[Candidate],
                      fit_mask: np.ndarray, cycle_s: float, *, decided_only: bool = False,
-                     **kw) -> ChannelFit:
+                     heated_only: bool = False, **kw) -> ChannelFit:
     """Select and refine one channel's terms on the samples of ``fit_mask``.
 
     ``decided_only`` (the "decided" method, docs/thermal.md): undecided choices go to the
     input with physical support (``physical_tiebreak``) and the terms the data do not
     decide are dropped (:func:`prune`). Off by default: the committed example model and
-    the runtime's end-to-end check use the forward selection alone."""
+    the runtime's end-to-end check use the forward selection alone.
+
+    ``heated_only``: the selection uses only the speed and the temperatures the spindle
+    heats (:func:`heated_inputs` on ``fit_mask``), not the room's."""
     cyc = cycles_of(t_s, fit_mask, cycle_s)
+    if heated_only:
+        kw = {**kw, "allowed": heated_inputs(t_s, cands, fit_mask)}
     chosen, trace = select_terms(t_s, y, cands, cyc, physical_tiebreak=decided_only, **kw)
     dropped: list[str] = []
     if decided_only:
