@@ -93,7 +93,13 @@ def _signal(name: str, unit: str, y: np.ndarray, rec: ThermalRecord, cands, iden
 
 
 def fit_record(rec: ThermalRecord, spec: ThermalSpec, **kw) -> FitResult:
-    """Identify on ``spec.identify_hours``, score on ``spec.validate_hours`` (module docs)."""
+    """Identify on ``spec.identify_hours``, score on ``spec.validate_hours`` (module docs).
+
+    Every signal's input set is chosen by cross-validation on the identification hours
+    (``inputs="by_cv"``: all inputs, or the speed and the temperatures the spindle heats;
+    docs/thermal.md, "Issue 35, third round"); ``kw`` goes to
+    :func:`~abbe.analysis.thermal.identify.identify_channel` and may override it."""
+    kw.setdefault("inputs", "by_cv")
     h = rec.hours
     ident = (h >= spec.identify_hours[0]) & (h < spec.identify_hours[1])
     valid = (h >= spec.validate_hours[0]) & (h <= spec.validate_hours[1])
