@@ -88,6 +88,10 @@ def post_hoc(rec, cands, ident, valid, cycle_s, fits) -> None:
         print(f"  {what}: ch1 RMS {_rms(y[m, 0]):.2f} um, ch2 {_rms(y[m, 1]):.2f} um, "
               f"correlation {np.corrcoef(y[m, 0], y[m, 1])[0, 1]:.3f}; ch2 - ch1 RMS "
               f"{_rms(d[m]):.2f} um, peak to peak {np.ptp(d[m]):.2f} um")
+    t = rec.temps_c - rec.temps_c[0]
+    corr = {n: np.corrcoef(t[valid, j], d[valid])[0, 1] for j, n in enumerate(rec.temp_names)}
+    print("  hours 24-46, correlation of ch2 - ch1 with each temperature: "
+          + ", ".join(f"{n} {c:+.2f}" for n, c in corr.items()))
     r2 = y[:, 1] - fits[1].predicted
     for lo, hi in ((24, 32), (32, 40), (40, 46.1)):
         m = valid & (h >= lo) & (h < hi)
