@@ -68,6 +68,9 @@ def test_held_out_figures_of_the_default(real_fit):
     ch2 falls from 86 % (all inputs) to about a third, still above the MLR; ch5 stays at
     24 %, beating the MLR."""
     by = {s.name: s for s in real_fit.channels}
+    assert [by[n].fit.input_set for n in ("ch1", "ch2", "ch3", "ch4", "ch5")] == \
+        ["all", "heated", "all", "all", "all"]
+    assert by["ch2"].row(real_fit.input_names)["input_set"] == "heated"
     for name in ("ch1", "ch3", "ch4"):
         assert by[name].meets, (name, by[name].ratio)
     assert 0.25 < by["ch2"].ratio < 0.40

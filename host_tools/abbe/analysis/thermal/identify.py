@@ -83,6 +83,7 @@ class ChannelFit:
     dropped: list[str] = field(default_factory=list)  # selected, then pruned: not decided
     selection_cv_um: float = float("inf")  # the selection's CV RMS (before any ridge)
     ridge_lambda: float = 0.0  # the ridge penalty of the gains (0: least squares)
+    input_set: str = "all"  # the inputs the selection used: "all" or "heated"
 
 
 def _vif_max(cols: np.ndarray) -> float:
@@ -452,7 +453,7 @@ def identify_channel(name: str, t_s: np.ndarray, y: np.ndarray, cands: list[Cand
         off = float(np.mean(y[fit_mask]))
         rms0 = float(np.sqrt(np.mean((y[fit_mask] - off) ** 2)))
         return ChannelFit(name, [], rms0, trace, offset_um=off, dropped=dropped,
-                          selection_cv_um=rms0)
+                          selection_cv_um=rms0, input_set=inputs)
     terms, fit_rms, rho, n_eff, offset = refine(t_s, y, cands, chosen, fit_mask)
     cv = (_cv_rms(np.column_stack([lag_states(cands[t.input].rise, t_s, t.tau_s)
                                    for t in terms]), y, cyc) if decided_only else trace[-1][2])
@@ -462,7 +463,7 @@ def identify_channel(name: str, t_s: np.ndarray, y: np.ndarray, cands: list[Cand
         terms, offset, lam, cv = ridge_gains(t_s, y, cands, terms, fit_mask, cyc)
         fit_rms = _rms_of_terms(t_s, y, cands, terms, offset, fit_mask)
     return ChannelFit(name, terms, cv, trace, rho, n_eff, fit_rms, offset, dropped,
-                      selection_cv, lam)
+                      selection_cv, lam, inputs)
 
 
 #: The ridge penalties :func:`ridge_gains` chooses from (per sample, standardised columns).

@@ -53,6 +53,7 @@ class SignalResult:
                 "ratio_model": self.ratio, "ratio_mlr": self.rms_mlr / self.rms_uncomp,
                 "rms_model_identification_hours": self.rms_comp_ident,
                 "meets_target": self.meets, "cv_rms": self.fit.cv_rms_um,
+                "input_set": self.fit.input_set,
                 "terms": [{"input": input_names[t.input], "tau_s": t.tau_s, "gain": t.gain,
                            "gain_u95": t.gain_u95, "tau_u95_s": t.tau_u95_s}
                           for t in self.fit.terms],
