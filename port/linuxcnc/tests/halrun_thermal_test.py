@@ -11,9 +11,19 @@ table's model within 5 nm (variant q); the fault raises OPEN and HOLD with input
 named; the targets never jump (largest change per period with the fault at most the
 largest without it plus one fade step of every channel).
 
+``--stuck`` (opt-in, about 75 s of wall time: the real-time thread runs in real time and
+the table's shortest stuck time is 1 min): the golden table with input 5's stuck check on
+(1 min, 0.02 K; the ports' C tests use 2 min), a 10 ms thread, a thermal sample every 1 s;
+input 5 ramps 0.05 K per sample, is held at one value for 63 s, then ramps again. Checks:
+no stuck flag before 60 s after the last change; th.flags STUCK (128) and HOLD (32) and
+th.input-faults bit 5 from the first sample at or after 60 s; cleared at the first sample
+that moves; the targets do not jump (at a sample at most the largest step at the samples
+before the flag plus one fade step of every channel; between samples at most one fade step
+of every channel).
+
 Usage (the component installed: port/linuxcnc/build.sh --install; as root the
 tests run halrun as $ABBE_LCNC_USER; under flock /tmp/abbe-linuxcnc.lock):
-    .venv/bin/python port/linuxcnc/tests/halrun_thermal_test.py
+    .venv/bin/python port/linuxcnc/tests/halrun_thermal_test.py [--stuck]
 """
 
 from __future__ import annotations
@@ -43,11 +53,13 @@ IN_PINS = [f"abbe.th.in-{k:02d}" for k in range(17)] + ["abbe.th.fault-03"]
 IN_CFG = "f" * 17 + "b"  # halstreamer takes at most 20 pins: the rest is set once
 
 
-def run(work: Path, table: Path, xs: np.ndarray, with_fault: bool) -> np.ndarray:
-    """One halrun of N periods; the sampler's columns (OUT_PINS)."""
+def run(work: Path, table: Path, xs: np.ndarray, with_fault: bool, n: int = N,
+        every: int = EVERY, period_ns: int = 1000000) -> np.ndarray:
+    """One halrun of n periods of period_ns, a thermal sample every ``every`` periods; the
+    sampler's columns (OUT_PINS)."""
     lines = []
-    for k in range(N):
-        s = xs[k // EVERY]
+    for k in range(n):
+        s = xs[k // every]
         fault = 1 if with_fault and FAULT[0] <= k < FAULT[1] else 0
         lines.append(" ".join([f"{v:.3f}" for v in s[:16]] + [f"{s[16]:.0f}", str(fault)]))
     stream = work / "stream.txt"
@@ -55,25 +67,25 @@ def run(work: Path, table: Path, xs: np.ndarray, with_fault: bool) -> np.ndarray
     give(stream)
     samples_path = work / "samples.txt"
     samples_path.unlink(missing_ok=True)
-    hal = ["loadrt threads name1=servo period1=1000000",
-           f"loadrt streamer depth={N + 16} cfg={IN_CFG}",
+    hal = [f"loadrt threads name1=servo period1={period_ns}",
+           f"loadrt streamer depth={n + 16} cfg={IN_CFG}",
            f"loadrt sampler depth=8000 cfg={OUT_CFG}",
            f"loadrt abbe variant=q table={table}"]
     hal += [f"net in{i} streamer.0.pin.{i} => {p}" for i, p in enumerate(IN_PINS)]
     hal += [f"net out{i} {p} => sampler.0.pin.{i}" for i, p in enumerate(OUT_PINS)]
     hal += ["addf streamer.0 servo", "addf abbe servo", "addf sampler.0 servo",
-            "setp abbe.thermal-sample-s 0.1",
+            f"setp abbe.thermal-sample-s {every * period_ns * 1e-9:g}",
             "setp abbe.x.pos-mm 250", "setp abbe.y.pos-mm -200", "setp abbe.z.pos-mm -150",
             "setp abbe.enable 1", "setp abbe.homed 1", "setp abbe.machine-on 1",
             "setp abbe.x.warn-mm 5", "setp abbe.y.warn-mm 5", "setp abbe.z.warn-mm 5",
             "setp abbe.x.limit-mm 10", "setp abbe.y.limit-mm 10", "setp abbe.z.limit-mm 10",
             f"loadusr -w halstreamer {stream}", "start",
-            f"loadusr -w halsampler -t -n {N} {samples_path}"]
+            f"loadusr -w halsampler -t -n {n} {samples_path}"]
     script = work / "test.hal"
     script.write_text("\n".join(hal) + "\n")
     give(script)
     res = subprocess.run(as_user(["halrun", "-f", str(script)]), cwd=work, capture_output=True, text=True,
-                         stdin=subprocess.DEVNULL, timeout=120)
+                         stdin=subprocess.DEVNULL, timeout=120 + n * period_ns * 1e-9)
     subprocess.run(as_user(["halrun", "-U"]), capture_output=True, timeout=60)
     check(res.returncode == 0, f"halrun exit {res.returncode}: {res.stdout}\n{res.stderr}")
     return read_samples(samples_path, len(OUT_PINS))[:, 1:]
@@ -126,5 +138,100 @@ def main() -> None:
         cleanup(work)
 
 
+STUCK_INPUT = 5
+STUCK_S, STUCK_RES = 60.0, 0.02     # the table's shortest stuck time (whole minutes)
+RAMP = 0.05                          # K per sample while the sensor moves (> the resolution)
+HELD = (3, 66)                       # samples held at the value of sample HELD[0] - 1
+STUCK_SAMPLES = 72                   # 1 s each
+STUCK_EVERY, STUCK_PERIOD_NS = 100, 10000000   # 10 ms periods, a sample every 1 s
+STUCK = 0x80
+
+
+def stuck_table() -> tuple[bytes, object]:
+    """The golden table with input STUCK_INPUT's stuck check on (written by the reference
+    writer, not patched by hand: the C ports' thermal_stuck.h patches the bytes)."""
+    import dataclasses
+
+    from abbe.formats.blob import write_blob
+    from abbe.formats.golden import full_table
+    from abbe.formats.golden_thermal import golden_model
+    from abbe.formats.thermal_blob import read_thermal_blob, write_thermal_blob
+    rng = np.random.default_rng(SEED)
+    table = full_table(rng)
+    model = golden_model(rng)
+    inputs = list(model.inputs)
+    inputs[STUCK_INPUT] = dataclasses.replace(inputs[STUCK_INPUT], stuck_s=STUCK_S,
+                                              stuck_resolution=STUCK_RES)
+    blob = write_thermal_blob(write_blob(table), dataclasses.replace(model, inputs=tuple(inputs)))
+    back = read_thermal_blob(blob)[1]
+    check(back is not None and back.inputs[STUCK_INPUT].stuck_s == STUCK_S,
+          "the stuck table does not read back with its stuck check")
+    return blob, back
+
+
+def main_stuck() -> None:
+    work = work_dir("abbe-halrun-stuck-")
+    try:
+        blob, model = stuck_table()
+        table = work / "thermal_stuck.bin"
+        table.write_bytes(blob)
+        give(table)
+        _, x = golden_record(np.random.default_rng(SEED + 1))
+        xs = x[:STUCK_SAMPLES].copy()
+        i = np.arange(STUCK_SAMPLES)
+        moving = np.where(i < HELD[0], i, np.where(i < HELD[1], HELD[0] - 1, i - (HELD[1] - HELD[0])))
+        xs[:, STUCK_INPUT] = xs[0, STUCK_INPUT] + RAMP * moving
+        n = STUCK_SAMPLES * STUCK_EVERY
+        a = run(work, table, xs, False, n=n, every=STUCK_EVERY, period_ns=STUCK_PERIOD_NS)
+        flags, faults, samples = a[:, 0].astype(int), a[:, 1].astype(int), a[:, 2].astype(int)
+        ch, target = a[:, 3:8], a[:, 8:11]
+        # sample j (0-based) reaches the runtime in the period where th.samples becomes j + 1;
+        # the last change is sample HELD[0] - 1
+        def first_period(j: int) -> int:
+            rows = np.flatnonzero(samples >= j + 1)
+            check(rows.size > 0, f"thermal sample {j} never taken ({samples[-1]} samples)")
+            return int(rows[0])
+        t_change = first_period(HELD[0] - 1)
+        up = np.flatnonzero(flags & STUCK)
+        check(up.size > 0, "the held input was never flagged stuck")
+        t_flag = (int(up[0]) - t_change) * STUCK_PERIOD_NS * 1e-9
+        log(f"halrun stuck: flagged {t_flag:.2f} s after the last change (stuck time {STUCK_S:g} s, "
+            f"samples every {STUCK_EVERY * STUCK_PERIOD_NS * 1e-9:g} s)")
+        check(STUCK_S - 1e-6 <= t_flag <= STUCK_S + STUCK_EVERY * STUCK_PERIOD_NS * 1e-9 + 1e-6,
+              f"stuck flagged {t_flag:.2f} s after the last change, expected {STUCK_S:g} s "
+              f"(+ at most one sample)")
+        t_move = first_period(HELD[1])
+        flagged = slice(int(up[0]), t_move)
+        check(bool(np.all(flags[flagged] & STUCK)) and bool(np.all(flags[flagged] & HOLD)),
+              "STUCK and HOLD not up from the flag to the first moving sample")
+        check(bool(np.all(faults[flagged] == 1 << STUCK_INPUT)),
+              f"th.input-faults does not name input {STUCK_INPUT} alone while stuck")
+        check(not np.any(flags[t_move:] & STUCK), "the stuck flag stays after the input moves")
+        check(not np.any(flags[STUCK_EVERY:int(up[0])] & 0x8F),
+              "a thermal fault flag before the stuck time ran out")
+        # no jump: from the flag on, the largest target step at a sample is at most the
+        # largest at the samples before it (the golden record moves every input but the held
+        # one) plus one fade step of every channel; between samples only the fades move it
+        steps = np.abs(np.diff(target, axis=0)).max(axis=1) * 1e6   # nm, period k -> k + 1
+        at_sample = np.diff(samples) > 0
+        fade = np.abs(ch).max(axis=0).sum() * 1000 * STUCK_PERIOD_NS * 1e-9 / model.fade_s
+        k0 = int(up[0]) - 1
+        before = steps[STUCK_EVERY:k0][at_sample[STUCK_EVERY:k0]].max()
+        after = steps[k0:][at_sample[k0:]].max()
+        between = steps[k0:][~at_sample[k0:]].max()
+        log(f"halrun stuck: largest target step at a sample {before:.0f} nm before the flag, "
+            f"{after:.0f} nm from the flag through the fade-out and back (bound "
+            f"{before + fade + 2:.0f}); between samples {between:.1f} nm (one fade step of every "
+            f"channel {fade:.1f} nm)")
+        check(after <= before + fade + 2, f"the target jumped at a sample: {after:.0f} nm "
+              f"(bound {before + fade + 2:.0f})")
+        check(between <= fade + 2, f"the target moved {between:.1f} nm between samples "
+              f"(bound: one fade step {fade:.1f} nm + 2)")
+        log("halrun thermal stuck test: OK")
+    finally:
+        cleanup(work)
+
+
+
 if __name__ == "__main__":
-    main_wrapper(main)
+    main_wrapper(main_stuck if "--stuck" in sys.argv[1:] else main)

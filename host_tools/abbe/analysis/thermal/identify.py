@@ -81,6 +81,9 @@ class ChannelFit:
     fit_rms_um: float = 0.0
     offset_um: float = 0.0  # the displacement sensor's zero (a nuisance, not in the model)
     dropped: list[str] = field(default_factory=list)  # selected, then pruned: not decided
+    selection_cv_um: float = float("inf")  # the selection's CV RMS (before any ridge)
+    ridge_lambda: float = 0.0  # the ridge penalty of the gains (0: least squares)
+    input_set: str = "all"  # the inputs the selection used: "all" or "heated"
 
 
 def _vif_max(cols: np.ndarray) -> float:
@@ -220,7 +223,8 @@ def select_terms(t_s: np.ndarray, y: np.ndarray, cands: list[Candidate], cyc: np
                  min_gain: float = MIN_GAIN_FRACTION,
                  grid: tuple[float, ...] = TAU_GRID_S,
                  start: list[tuple[int, float]] | None = None,
-                 physical_tiebreak: bool = False
+                 physical_tiebreak: bool = False,
+                 allowed: set[int] | None = None
                  ) -> tuple[list[tuple[int, float]], list]:
     """Forward selection: the (candidate index, tau s) terms and the trace (added input,
     its refined tau, CV RMS, max VIF, rivals). ``start``: terms taken as given (a diagnosis
@@ -235,9 +239,11 @@ def select_terms(t_s: np.ndarray, y: np.ndarray, cands: list[Candidate], cyc: np
     candidates by score, at most :data:`MAX_TRIALS`. A trial's time
     constants are refined with the others' (nonlinear least squares on the identification
     samples); it is kept if the refined set's CV RMS drops by ``min_gain`` and its largest
-    VIF stays <= ``max_vif``."""
-    grid_states = {(i, tau): lag_states(c.rise, t_s, tau)
-                   for i, c in enumerate(cands) for tau in grid}
+    VIF stays <= ``max_vif``. ``allowed``: the candidate indices the selection may use
+    (None: all; :func:`heated_inputs`)."""
+    usable = [i for i in range(len(cands)) if allowed is None or i in allowed]
+    grid_states = {(i, tau): lag_states(cands[i].rise, t_s, tau)
+                   for i in usable for tau in grid}
     fit_mask = cyc >= 0
     n_fixed = len(start or [])
     coupling = spindle_coupling(t_s, cands, fit_mask, grid) if physical_tiebreak else None
@@ -254,7 +260,7 @@ def select_terms(t_s: np.ndarray, y: np.ndarray, cands: list[Candidate], cyc: np
     while len(chosen) < max_terms:
         base = [st(k) for k in chosen]
         ranked = []
-        for key in [(i, tau) for i in range(len(cands)) for tau in grid]:
+        for key in [(i, tau) for i in usable for tau in grid]:
             if key in chosen:
                 continue
             cols = np.column_stack(base + [grid_states[key]])
@@ -396,28 +402,117 @@ def prune(t_s: np.ndarray, y: np.ndarray, cands: list[Candidate],
     return keep, dropped
 
 
+def heated_inputs(t_s: np.ndarray, cands: list[Candidate], mask: np.ndarray) -> set[int]:
+    """The inputs the spindle heats (docs/thermal.md, "The heated-inputs method"): the
+    speed, and the temperatures whose :func:`spindle_coupling` on the masked samples lies
+    above the largest gap of the temperatures' sorted couplings (a split the data make,
+    no threshold set by hand). Without a speed candidate every input is kept.
+
+    Real record, hours 0-24: couplings 0.02-0.10 (ten sensors: the room) and 0.39-0.51
+    (t4, t5, t6, t7, t10, t11), split at the gap 0.10 -> 0.39."""
+    coupling = spindle_coupling(t_s, cands, mask)
+    speed = {i for i, c in enumerate(cands) if c.kind == SPEED}
+    temps = sorted((coupling[i], i) for i in range(len(cands)) if i not in speed)
+    if not speed or len(temps) < 2:
+        return set(range(len(cands)))
+    gaps = [temps[k + 1][0] - temps[k][0] for k in range(len(temps) - 1)]
+    cut = int(np.argmax(gaps))
+    return speed | {i for _, i in temps[cut + 1:]}
+
+
 def identify_channel(name: str, t_s: np.ndarray, y: np.ndarray, cands: list[Candidate],
                      fit_mask: np.ndarray, cycle_s: float, *, decided_only: bool = False,
-                     **kw) -> ChannelFit:
+                     inputs: str = "all", ridge: bool = False, **kw) -> ChannelFit:
     """Select and refine one channel's terms on the samples of ``fit_mask``.
 
     ``decided_only`` (the "decided" method, docs/thermal.md): undecided choices go to the
     input with physical support (``physical_tiebreak``) and the terms the data do not
     decide are dropped (:func:`prune`). Off by default: the committed example model and
-    the runtime's end-to-end check use the forward selection alone."""
+    the runtime's end-to-end check use the forward selection alone.
+
+    ``inputs``: "all" (every candidate), "heated" (the speed and the temperatures the
+    spindle heats, :func:`heated_inputs` on ``fit_mask``) or "by_cv" (both selections run,
+    the one with the lower cross-validated RMS kept, ties to "all"). ``ridge``: the gains
+    by :func:`ridge_gains` (penalty chosen by the same cross-validation)."""
+    if inputs == "by_cv":
+        a = identify_channel(name, t_s, y, cands, fit_mask, cycle_s, decided_only=decided_only,
+                             inputs="all", ridge=ridge, **kw)
+        b = identify_channel(name, t_s, y, cands, fit_mask, cycle_s, decided_only=decided_only,
+                             inputs="heated", ridge=ridge, **kw)
+        return b if b.terms and b.selection_cv_um < a.selection_cv_um else a
+    if inputs not in ("all", "heated"):
+        raise ValueError(f"inputs: expected 'all', 'heated' or 'by_cv', got {inputs!r}")
     cyc = cycles_of(t_s, fit_mask, cycle_s)
+    if inputs == "heated":
+        kw = {**kw, "allowed": heated_inputs(t_s, cands, fit_mask)}
     chosen, trace = select_terms(t_s, y, cands, cyc, physical_tiebreak=decided_only, **kw)
     dropped: list[str] = []
     if decided_only:
         chosen, dropped = prune(t_s, y, cands, chosen, fit_mask)
     if not chosen:
         off = float(np.mean(y[fit_mask]))
-        return ChannelFit(name, [], float(np.sqrt(np.mean((y[fit_mask] - off) ** 2))), trace,
-                          offset_um=off, dropped=dropped)
+        rms0 = float(np.sqrt(np.mean((y[fit_mask] - off) ** 2)))
+        return ChannelFit(name, [], rms0, trace, offset_um=off, dropped=dropped,
+                          selection_cv_um=rms0, input_set=inputs)
     terms, fit_rms, rho, n_eff, offset = refine(t_s, y, cands, chosen, fit_mask)
     cv = (_cv_rms(np.column_stack([lag_states(cands[t.input].rise, t_s, t.tau_s)
                                    for t in terms]), y, cyc) if decided_only else trace[-1][2])
-    return ChannelFit(name, terms, cv, trace, rho, n_eff, fit_rms, offset, dropped)
+    selection_cv = cv
+    lam = 0.0
+    if ridge:
+        terms, offset, lam, cv = ridge_gains(t_s, y, cands, terms, fit_mask, cyc)
+        fit_rms = _rms_of_terms(t_s, y, cands, terms, offset, fit_mask)
+    return ChannelFit(name, terms, cv, trace, rho, n_eff, fit_rms, offset, dropped,
+                      selection_cv, lam, inputs)
+
+
+#: The ridge penalties :func:`ridge_gains` chooses from (per sample, standardised columns).
+RIDGE_GRID: tuple[float, ...] = (0.0, 1e-4, 1e-3, 3e-3, 1e-2, 3e-2, 1e-1)
+
+
+def _ridge_solve(cols: np.ndarray, y: np.ndarray, lam: float
+                 ) -> tuple[float, np.ndarray]:
+    """Offset (unpenalised) and gains of a ridge fit of y on cols: the penalty lam * n on
+    the gains of the standardised columns. Returns (offset, gains in the columns' units)."""
+    mu, sd = cols.mean(0), np.maximum(cols.std(0), 1e-300)
+    z = (cols - mu) / sd
+    ym = float(y.mean())
+    b = np.linalg.solve(z.T @ z + lam * len(z) * np.eye(z.shape[1]), z.T @ (y - ym))
+    g = b / sd
+    return ym - float(mu @ g), g
+
+
+def ridge_gains(t_s: np.ndarray, y: np.ndarray, cands: list[Candidate],
+                terms: list[ThermalTerm], mask: np.ndarray, cyc: np.ndarray,
+                grid: tuple[float, ...] = RIDGE_GRID
+                ) -> tuple[list[ThermalTerm], float, float, float]:
+    """The terms' gains by ridge regression, the penalty the grid's lowest leave-one-cycle-out
+    RMS (inputs and time constants unchanged; the gain intervals stay the unpenalised fit's:
+    a ridge estimate has no comparable interval). Returns (terms, offset um, lambda, CV RMS)."""
+    cols = np.column_stack([lag_states(cands[t.input].rise, t_s, t.tau_s) for t in terms])
+    best: tuple[float, float] | None = None
+    for lam in grid:
+        sq, n = 0.0, 0
+        for c in np.unique(cyc[cyc >= 0]):
+            tr, te = (cyc >= 0) & (cyc != c), cyc == c
+            off, g = _ridge_solve(cols[tr], y[tr], lam)
+            r = y[te] - off - cols[te] @ g
+            sq += float(r @ r)
+            n += int(te.sum())
+        rms = float(np.sqrt(sq / n))
+        if best is None or rms < best[0]:
+            best = (rms, lam)
+    assert best is not None
+    off, g = _ridge_solve(cols[mask], y[mask], best[1])
+    out = [ThermalTerm(input=t.input, tau_s=t.tau_s, gain=float(gk), gain_u95=t.gain_u95,
+                       tau_u95_s=t.tau_u95_s) for t, gk in zip(terms, g)]
+    return out, off, best[1], best[0]
+
+
+def _rms_of_terms(t_s: np.ndarray, y: np.ndarray, cands: list[Candidate],
+                  terms: list[ThermalTerm], offset: float, mask: np.ndarray) -> float:
+    pred = offset + sum(t.gain * lag_states(cands[t.input].rise, t_s, t.tau_s) for t in terms)
+    return float(np.sqrt(np.mean((y - pred)[mask] ** 2)))
 
 
 def candidates_of(temps_c: np.ndarray, temp_names: list[str], speed_rpm: np.ndarray | None,

@@ -53,6 +53,7 @@ class SignalResult:
                 "ratio_model": self.ratio, "ratio_mlr": self.rms_mlr / self.rms_uncomp,
                 "rms_model_identification_hours": self.rms_comp_ident,
                 "meets_target": self.meets, "cv_rms": self.fit.cv_rms_um,
+                "input_set": self.fit.input_set,
                 "terms": [{"input": input_names[t.input], "tau_s": t.tau_s, "gain": t.gain,
                            "gain_u95": t.gain_u95, "tau_u95_s": t.tau_u95_s}
                           for t in self.fit.terms],
@@ -93,7 +94,13 @@ def _signal(name: str, unit: str, y: np.ndarray, rec: ThermalRecord, cands, iden
 
 
 def fit_record(rec: ThermalRecord, spec: ThermalSpec, **kw) -> FitResult:
-    """Identify on ``spec.identify_hours``, score on ``spec.validate_hours`` (module docs)."""
+    """Identify on ``spec.identify_hours``, score on ``spec.validate_hours`` (module docs).
+
+    Every signal's input set is chosen by cross-validation on the identification hours
+    (``inputs="by_cv"``: all inputs, or the speed and the temperatures the spindle heats;
+    docs/thermal.md, "Issue 35, third round"); ``kw`` goes to
+    :func:`~abbe.analysis.thermal.identify.identify_channel` and may override it."""
+    kw.setdefault("inputs", "by_cv")
     h = rec.hours
     ident = (h >= spec.identify_hours[0]) & (h < spec.identify_hours[1])
     valid = (h >= spec.validate_hours[0]) & (h <= spec.validate_hours[1])

@@ -147,7 +147,8 @@ def write_report(res: FitResult, iso: dict, out: Path, diagnosis: dict | None = 
     sel = []
     for s in res.channels:
         for st in s.fit.steps:
-            sel.append(f"<tr><td class='l'>{_esc(s.name)}</td><td class='l'>{_esc(st[0])}</td><td>{st[1]:.0f}</td>"
+            inputs = ("heated inputs" if s.fit.input_set == "heated" else "all inputs")
+            sel.append(f"<tr><td class='l'>{_esc(s.name)} ({inputs})</td><td class='l'>{_esc(st[0])}</td><td>{st[1]:.0f}</td>"
                        f"<td>{st[2]:.2f}</td><td>{st[3]:.1f}</td>"
                        f"<td class='l'>{_esc(', '.join(st[4]) or '-')}</td></tr>")
     drift = _drift_rows(iso)
@@ -194,7 +195,7 @@ def write_report(res: FitResult, iso: dict, out: Path, diagnosis: dict | None = 
 <table><tr><th class='l'>signal</th><th class='l'>input</th><th>tau (s)</th><th>gain (um or urad per K / krpm)</th></tr>
 {''.join(terms)}</table></details>
 {_budget_fold(unc)}
-<details><summary>Selection (forward, leave-one-cycle-out CV inside the identification hours)</summary>
+<details><summary>Selection (forward, leave-one-cycle-out CV inside the identification hours; per channel on all inputs or on the speed and the sensors the spindle heats, whichever cross-validates better)</summary>
 <table><tr><th class='l'>channel</th><th class='l'>added</th><th>tau, refined (s)</th><th>CV RMS (um)</th>
 <th>max VIF</th><th class='l'>rivals within 10 % (not decided by the data)</th></tr>
 {''.join(sel)}</table></details>
