@@ -161,15 +161,24 @@ def predict(chain: KinematicChain, setups: list[ChainSetup], x: np.ndarray,
     names = [u[0] for u in _unknowns(chain, setups, harmonics)]
     errs, k = _errors(chain, names, x, harmonics)
     out = []
+    # set-ups of one plan share their angles: each transform once per distinct angle set
+    # (the same arithmetic, so the same bits)
+    work: dict[bytes, np.ndarray] = {}
+    tool: dict[bytes, np.ndarray] = {}
     for s in setups:
         ang = np.asarray(s.angles_deg, dtype=np.float64).reshape(-1, 2)
+        key = ang.tobytes()
         w = np.asarray(s.sphere_mm, dtype=np.float64) + x[k:k + 3] * 1e-3
         k += 3
-        T = workpiece_transform(chain, errs, ang)
+        if key not in work:
+            work[key] = workpiece_transform(chain, errs, ang)
+        T = work[key]
         centre = np.einsum("nij,j->ni", T[:, :3, :3], w) + T[:, :3, 3]
         if s.kind == "probe":
             # the machine position at which the true tip is on the centre
-            Ta = tool_transform(chain, errs, ang)
+            if key not in tool:
+                tool[key] = tool_transform(chain, errs, ang)
+            Ta = tool[key]
             tip = np.asarray(s.tip_mm, dtype=np.float64)
             out.append(centre - (np.einsum("nij,j->ni", Ta[:, :3, :3], tip) + Ta[:, :3, 3]))
         else:
