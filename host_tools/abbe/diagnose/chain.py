@@ -351,8 +351,12 @@ def diagnose_chain(chain: KinematicChain, setups: list[ChainSetup],
             r = lin.predict(every, current, cols, z, v)
             dof = max(r.size - rank - len(cols), 1)
             s2 = max(float(r @ r) / dof, 1.0)
-            cov = np.linalg.inv(B.T @ B) * s2
-            stat = float(v @ np.linalg.solve(cov, v))
+            try:
+                cov = np.linalg.inv(B.T @ B) * s2
+                stat = float(v @ np.linalg.solve(cov, v))
+            except np.linalg.LinAlgError:  # seen only at the edge of the rank tolerance
+                entry["observable"] = False
+                continue
             held, _fl = lin.heldout(current, cols, folds_b)
             gain = (prev_held - held) / prev_held if prev_held > 0 else 0.0
             entry.update({"chi2": stat, "heldout_um": held, "gain": gain})
