@@ -67,7 +67,7 @@ def run_chain(args: argparse.Namespace) -> int:
 
 def write_chain_table(fit, staging) -> dict:  # noqa: ANN001 (ChainFit, Path)
     """Write model_five.bin (format 1.4) for a kind 3-5 chain into ``staging``: the
-    location errors in the fit's convention (an error the plan cannot see alone holds the
+    location errors and error motions in the fit's convention (an error the plan cannot see alone holds the
     value the convention gives it, the ones fixed at 0 hold 0: a workpiece datum absorbs
     what they leave, docs/concepts.md). Returns the JSON entry: the file, its size and
     CRC-32 and the convention, or ``file`` None and the reason (a table-table trunnion
