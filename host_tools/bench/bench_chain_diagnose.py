@@ -11,7 +11,7 @@ hidden effect named first (exactly, or as ambiguous with it), nothing named on c
 cases, the held-out gap before and after. A changed location error the plan cannot see
 (:func:`identify_chain`'s unobservable set: the sphere's place takes it, or it is one
 error with another) is scored apart: nothing should be named for it, or (their sum
-seen) a name ambiguous with it.
+seen) it or a name ambiguous with it.
 
 Usage: python bench/bench_chain_diagnose.py [--cases N] [--seed S] [--json OUT]
 """
@@ -105,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
     rng = np.random.default_rng(a.seed)
     out = []
     print("| kind | hidden | cases | named first (exact) | named as ambiguous with it | "
-          "other name / nothing | hidden but unobservable alone: nothing or ambiguous | "
+          "other name / nothing | hidden but unobservable alone: nothing, it or ambiguous | "
           "clean: false names | median gap before -> after um | s per case |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for f in sorted(CHAINS.glob("*.toml")):
@@ -122,7 +122,8 @@ def main(argv: list[str] | None = None) -> int:
             other = "-" if what == "clean" else len(seen) - ex - am
             # nothing named, or (one error with another: their sum is seen) named as
             # ambiguous with the hidden one
-            quiet = (f"{sum(not r['named'] or r['ambiguous'] for r in hid)}/{len(hid)}"
+            quiet = (f"{sum(not r['named'] or r['ambiguous'] or r['exact'] for r in hid)}"
+                     f"/{len(hid)}"
                      if what == "location" else "-")
             gb = float(np.median([r["gap_before_um"] for r in res]))
             ga = float(np.median([r["gap_after_um"] for r in res]))
