@@ -16,6 +16,17 @@ builds every axis as a rotation about its *actual axis average line*:
 * workpiece-side axes are composed from the base to the workpiece, tool-side axes
   from the linear axes to the tool; the tool-side pivots travel with the linear axes.
 
+Error motions (ISO 230-1 / 230-7: the six components of an axis' error motion, e.g.
+for C the radial EXC, EYC, the axial EZC, the tilt EAC, EBC and the angular ECC, each a
+function of the commanded angle t): after the rotation about the actual line, the
+carried part is further moved by a small rigid motion in the machine's (non-rotating)
+axes about the point of the actual line next to the pivot - the homogeneous transform
+``Tr(p + t_err) Rot(r_err) Tr(-p)`` with ``Rot`` the exact rotation by the vector r_err
+(Rodrigues) - each component a sum of sines ``sum_k amp_k sin(k t + phase_k)`` (um /
+urad). ISO 230-7 puts the first harmonic of a radial or tilt motion into the axis
+average line (its location), so those start at the second harmonic; the axial and
+angular ones at the first; none has a constant.
+
 Instruments (the same meaning as abbe's, coded here again): a touch probe reports the
 machine position (the linear axes) where the actual tip is on the actual sphere centre; an
 R-test nest under tool-centre-point control reads the actual sphere centre minus the
@@ -88,8 +99,41 @@ def _rodrigues(k: np.ndarray, angle: float) -> np.ndarray:
     return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * K @ K
 
 
-def axis_matrix(ax: GenAxis, angle_deg: float, loc: dict[str, float] | None) -> np.ndarray:
-    """4 x 4 motion of ``ax`` at ``angle_deg``: rotation about its actual line."""
+@dataclass(frozen=True)
+class ErrorMotion:
+    """One component of an axis' error motion: ``sum_k amp[k] sin(k t + phase[k])`` with t
+    the commanded angle (um for X Y Z, urad for A B C)."""
+
+    amp: dict[int, float]
+    phase: dict[int, float]
+
+    def at(self, angle_deg: float) -> float:
+        t = np.deg2rad(angle_deg)
+        return float(sum(a * np.sin(k * t + self.phase[k]) for k, a in self.amp.items()))
+
+
+def first_harmonic(axis: str, comp: str) -> int:
+    """ISO 230-7: radial and tilt motions start at the 2nd harmonic (the 1st is the axis
+    average line's location), axial and angular ones at the 1st."""
+    along = _XYZ.index(comp) if comp in _XYZ else "ABC".index(comp)  # its machine axis
+    return 1 if along == _AXIS[axis] else 2
+
+
+def _small_motion(p: np.ndarray, trans_um: np.ndarray, rot_urad: np.ndarray) -> np.ndarray:
+    """4 x 4 ``Tr(p + t) Rot(r) Tr(-p)``: rotation by the vector r (exact) about p, then t."""
+    r = rot_urad * 1e-6
+    th = float(np.linalg.norm(r))
+    R = _rodrigues(r / th, th) if th > 0 else np.eye(3)
+    M = np.eye(4)
+    M[:3, :3] = R
+    M[:3, 3] = p + trans_um * 1e-3 - R @ p
+    return M
+
+
+def axis_matrix(ax: GenAxis, angle_deg: float, loc: dict[str, float] | None,
+                motions: dict[str, ErrorMotion] | None = None) -> np.ndarray:
+    """4 x 4 motion of ``ax`` at ``angle_deg``: rotation about its actual line, then its
+    error motion (``motions``: "C.X" .. "C.C" -> component, see module)."""
     i = _AXIS[ax.name]
     k = np.zeros(3)
     k[i] = 1.0
@@ -109,6 +153,11 @@ def axis_matrix(ax: GenAxis, angle_deg: float, loc: dict[str, float] | None) -> 
     M = np.eye(4)
     M[:3, :3] = R
     M[:3, 3] = p - R @ p
+    mine = {c: m for c, m in (motions or {}).items() if c.split(".")[0] == ax.name}
+    if mine:
+        v = np.array([mine[f"{ax.name}.{c}"].at(angle_deg) if f"{ax.name}.{c}" in mine else 0.0
+                      for c in "XYZABC"])
+        M = _small_motion(p, v[:3], v[3:]) @ M
     return M
 
 
@@ -116,21 +165,23 @@ def _angles(ch: GenChain, pair: np.ndarray) -> dict[str, float]:
     return {ch.names[0]: float(pair[0]), ch.names[1]: float(pair[1])}
 
 
-def work_matrix(ch: GenChain, pair: np.ndarray, loc: dict[str, float] | None) -> np.ndarray:
+def work_matrix(ch: GenChain, pair: np.ndarray, loc: dict[str, float] | None,
+                motions: dict[str, ErrorMotion] | None = None) -> np.ndarray:
     """Workpiece -> machine: the outermost axis' matrix on the left."""
     a = _angles(ch, pair)
     M = np.eye(4)
     for ax in reversed(ch.work):  # outermost first
-        M = M @ axis_matrix(ax, a[ax.name], loc)
+        M = M @ axis_matrix(ax, a[ax.name], loc, motions)
     return M
 
 
-def tool_matrix(ch: GenChain, pair: np.ndarray, loc: dict[str, float] | None) -> np.ndarray:
+def tool_matrix(ch: GenChain, pair: np.ndarray, loc: dict[str, float] | None,
+                motions: dict[str, ErrorMotion] | None = None) -> np.ndarray:
     """Tool -> linear axes' frame, relative to the controlled point."""
     a = _angles(ch, pair)
     M = np.eye(4)
     for ax in ch.tool:
-        M = M @ axis_matrix(ax, a[ax.name], loc)
+        M = M @ axis_matrix(ax, a[ax.name], loc, motions)
     return M
 
 
@@ -140,25 +191,27 @@ def _pt(M: np.ndarray, p: np.ndarray) -> np.ndarray:
 
 def probe_centres(ch: GenChain, loc: dict[str, float], sphere: np.ndarray, offset_mm: np.ndarray,
                   tip: np.ndarray, angles: np.ndarray, noise_um: float,
-                  rng: np.random.Generator) -> np.ndarray:
+                  rng: np.random.Generator,
+                  motions: dict[str, ErrorMotion] | None = None) -> np.ndarray:
     """(M, 3) machine positions (mm) at which the stylus tip is on the sphere's centre."""
     out = []
     for pair in angles:
-        centre = _pt(work_matrix(ch, pair, loc), sphere + offset_mm)
-        out.append(centre - _pt(tool_matrix(ch, pair, loc), tip))  # actual tip on the centre
+        centre = _pt(work_matrix(ch, pair, loc, motions), sphere + offset_mm)
+        out.append(centre - _pt(tool_matrix(ch, pair, loc, motions), tip))  # actual tip on it
     c = np.array(out)
     return c + rng.normal(0.0, noise_um * 1e-3, c.shape)
 
 
 def rtest_readings(ch: GenChain, loc: dict[str, float], sphere: np.ndarray, offset_mm: np.ndarray,
                    tip: np.ndarray, angles: np.ndarray, noise_um: float,
-                   rng: np.random.Generator) -> np.ndarray:
+                   rng: np.random.Generator,
+                   motions: dict[str, ErrorMotion] | None = None) -> np.ndarray:
     """(M, 3) R-test readings (um, nest frame) under tool-centre-point control."""
     out = []
     for pair in angles:
         q = _pt(work_matrix(ch, pair, None), sphere) - _pt(tool_matrix(ch, pair, None), tip)
-        nest = q + _pt(tool_matrix(ch, pair, loc), tip)
-        centre = _pt(work_matrix(ch, pair, loc), sphere + offset_mm)
+        nest = q + _pt(tool_matrix(ch, pair, loc, motions), tip)
+        centre = _pt(work_matrix(ch, pair, loc, motions), sphere + offset_mm)
         out.append(tool_matrix(ch, pair, None)[:3, :3].T @ (centre - nest) * 1e3)
     r = np.array(out)
     r = r - r[0] + rng.normal(0.0, noise_um, r.shape)
@@ -173,6 +226,23 @@ def random_location(ch: GenChain, rng: np.random.Generator, um: float = 20.0,
     for n in ch.names:
         for i, e in enumerate(location_names(n)):
             out[e] = float(rng.normal(0.0, um if i < 2 else urad))
+    return out
+
+
+def random_motions(ch: GenChain, rng: np.random.Generator, harmonics: int = 2,
+                   um: float = 1.0, urad: float = 4.0) -> dict[str, ErrorMotion]:
+    """Random error motions of both rotary axes: every component, each harmonic from its
+    first (:func:`first_harmonic`) to ``harmonics`` with an amplitude U(0, um / urad) and a
+    uniform phase."""
+    out = {}
+    for n in ch.names:
+        for c in "XYZABC":
+            ks = range(first_harmonic(n, c), harmonics + 1)
+            if not ks:
+                continue
+            size = um if c in _XYZ else urad
+            out[f"{n}.{c}"] = ErrorMotion({k: float(rng.uniform(0.0, size)) for k in ks},
+                                          {k: float(rng.uniform(0.0, 2.0 * np.pi)) for k in ks})
     return out
 
 

@@ -31,7 +31,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "plan, then the catalogue's five-axis effects (cyclic angular error of "
                     "C, pivot drift, C wobble) judged on held-out probing positions, written "
                     "to diagnose_five_axis.json and report.txt (--model is not used there: "
-                    "the model is identified from the same plan; docs/effects.md). Thermal "
+                    "the model is identified from the same plan; docs/effects.md). On a "
+                    "[chain] machine file (head-head, head-table, dual-rotary table) it "
+                    "names a missing error motion (or, with --model chain_fit.json, a "
+                    "changed location error) from the probing / R-test residuals, judged "
+                    "on held-out probing positions (diagnose_chain.json; docs/concepts.md). "
+                    "Thermal "
                     "records (ISO 230-3): `abbe thermal diagnose` names the missing thermal "
                     "effect (channel, input, lag; docs/thermal.md).",
         epilog=examples("abbe diagnose examples/vmc500/machine.toml --model fit-out/model.bin "
@@ -75,6 +80,10 @@ def run(args: argparse.Namespace) -> int:
         from abbe.cli.fit_five_axis import is_five_axis
         if is_five_axis(args.machine):
             return run_five_axis_diagnose(args)
+        from abbe.cli.fit_chain import is_chain_machine
+        if is_chain_machine(args.machine):  # head-head, head-table, dual-rotary table
+            from abbe.cli.diagnose_chain import run_chain_diagnose
+            return run_chain_diagnose(args)
     from abbe.diagnose.effects import catalogue
     from abbe.diagnose.report import format_text, write_outputs
     from abbe.diagnose.results import DiagnoseOptions

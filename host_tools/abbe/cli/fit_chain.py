@@ -1,6 +1,6 @@
 """``abbe fit`` on a ``[chain]`` machine file (head-head, head-table, dual-rotary table, or
-a trunnion written as a chain): the location errors from its probing and R-test files,
-with what the plan cannot see (abbe.analysis.five_axis.chain_fit). Writes chain_fit.json
+a trunnion written as a chain): the location errors (and with ``[chain.fit] harmonics``
+the error motions) from its probing and R-test files, with what the plan cannot see (abbe.analysis.five_axis.chain_fit). Writes chain_fit.json
 and report.txt into the output directory, and for a head-head, head-table or dual
 rotary table chain model_five.bin (format 1.4, the C runtime's and the LinuxCNC
 component's table)."""
@@ -34,9 +34,10 @@ def run_chain(args: argparse.Namespace) -> int:
     if not setups:
         raise AbbeInputError("a [chain] machine file needs at least one [probing.NAME] or "
                              "[rtest.NAME] section to fit", file=str(args.machine), field="chain")
-    fit = identify_chain(chain, setups, explain=False)
-    setups = reweight(chain, setups, fit)
-    fit = identify_chain(chain, setups)
+    h = machine.extra["chain_plans"].harmonics
+    fit = identify_chain(chain, setups, explain=False, harmonics=h)
+    setups = reweight(chain, setups, fit, h)
+    fit = identify_chain(chain, setups, harmonics=h)
     text = "\n".join(report_rows(fit)) + "\n"
     outs = Outputs()
     try:
@@ -54,8 +55,11 @@ def run_chain(args: argparse.Namespace) -> int:
         print(text, end="")
     table = (f"model_five.bin (format 1.4, {doc['blob']['bytes']} B)" if doc["blob"].get("file")
              else f"no table: {doc['blob']['reason']}")
+    mot = (f", {sum(r.value is not None for r in fit.motion_rows)} of {len(fit.motion_rows)} "
+           f"error motion coefficients (harmonics {h})" if h else "")
     print(f"abbe fit: wrote {args.out} ({chain.name}, {chain.kind}: rank {fit.rank} of "
-          f"{fit.n_unknowns}, {len(fit.observable)} of 10 location errors observable; {table})")
+          f"{fit.n_unknowns}, {len(fit.observable)} of 10 location errors{mot} observable; "
+          f"{table})")
     if args.bench:
         print(f"bench: total {1000 * (time.perf_counter() - t0):8.1f} ms")
     return 0
@@ -63,7 +67,7 @@ def run_chain(args: argparse.Namespace) -> int:
 
 def write_chain_table(fit, staging) -> dict:  # noqa: ANN001 (ChainFit, Path)
     """Write model_five.bin (format 1.4) for a kind 3-5 chain into ``staging``: the
-    location errors in the fit's convention (an error the plan cannot see alone holds the
+    location errors and error motions in the fit's convention (an error the plan cannot see alone holds the
     value the convention gives it, the ones fixed at 0 hold 0: a workpiece datum absorbs
     what they leave, docs/concepts.md). Returns the JSON entry: the file, its size and
     CRC-32 and the convention, or ``file`` None and the reason (a table-table trunnion
@@ -71,14 +75,15 @@ def write_chain_table(fit, staging) -> dict:  # noqa: ANN001 (ChainFit, Path)
     import zlib
 
     from abbe.formats.chain_blob import write_chain_blob
-    from abbe.model.five_axis import FiveAxisErrors
     from abbe.model.table import TableError
 
-    convention = {"fixed_at_zero": [r.name for r in fit.rows if r.status == "fixed at 0"],
-                  "held_in_convention": {r.name: fit.values[r.name] for r in fit.rows
+    rows = fit.rows + fit.motion_rows
+    held = {**fit.values, **fit.motion_values}
+    convention = {"fixed_at_zero": [r.name for r in rows if r.status == "fixed at 0"],
+                  "held_in_convention": {r.name: held[r.name] for r in rows
                                          if r.status == "convention"}}
     try:
-        blob = write_chain_blob(fit.chain, FiveAxisErrors(location=dict(fit.values)))
+        blob = write_chain_blob(fit.chain, fit.errors())
     except TableError as exc:
         return {"file": None, "reason": str(exc), "convention": convention}
     (staging / "model_five.bin").write_bytes(blob)

@@ -14,6 +14,9 @@
     travel_deg = [-360.0, 360.0]
     [chain.B]
     ...
+    [chain.fit]                           # optional: what `abbe fit` identifies
+    harmonics = 2                         # error motions up to H (0 = location errors only)
+    folds = 4                             # held-out folds of `abbe diagnose`
 
 Every problem is an :class:`abbe.errors.AbbeInputError` with file, line, field and
 what was expected (exit 2 from the CLI).
@@ -27,7 +30,7 @@ from typing import Any, Callable
 
 from abbe.errors import AbbeInputError, check_number
 from abbe.errors.numbers import show_value
-from abbe.formats.five_axis import (RADIUS_TOL_RANGE_MM, SPHERE_RADIUS_RANGE_MM,
+from abbe.formats.five_axis import (HARMONICS_MAX, RADIUS_TOL_RANGE_MM, SPHERE_RADIUS_RANGE_MM,
                                     STYLUS_RADIUS_RANGE_MM)
 from abbe.formats.structured import unknown_key
 from abbe.model.chain import (LINEAR_AXES, ROTARY_MACHINE_AXIS, ChainAxis, KinematicChain,
@@ -67,7 +70,7 @@ def parse_chain(data: dict[str, Any], err: Callable[[str, str], AbbeInputError],
     if problem:
         raise err("chain.order", f"{problem}; got {show_value(order)}")
     rotary = [n for n in order if n in ROTARY_MACHINE_AXIS]
-    allowed = (*_TOP_KEYS, *rotary)
+    allowed = (*_TOP_KEYS, *rotary, "fit")
     for k in sec:
         if k not in allowed:
             raise err(f"chain.{k}", unknown_key(k, allowed) + " (linear axes take no section: "
@@ -169,8 +172,39 @@ class ChainRTest:
 
 @dataclass(frozen=True)
 class ChainPlans:
+    """The measurement sections of a ``[chain]`` machine file and ``[chain.fit]``: the
+    error motions' highest harmonic the fit identifies (0: location errors only) and the
+    held-out folds of ``abbe diagnose``."""
+
     probing: dict[str, ChainProbing] = field(default_factory=dict)
     rtest: dict[str, ChainRTest] = field(default_factory=dict)
+    harmonics: int = 0
+    folds: int = 4
+
+
+_FIT_KEYS = ("harmonics", "folds")
+
+
+def _chain_fit(data: dict[str, Any], err: Callable[[str, str], AbbeInputError]
+               ) -> tuple[int, int]:
+    """(harmonics, folds) of ``[chain.fit]`` (0, 4 without it)."""
+    sec = data.get("chain", {}).get("fit")
+    if sec is None:
+        return 0, 4
+    f = "chain.fit"
+    if not isinstance(sec, dict):
+        raise err(f, f"expected a table [chain.fit], got {show_value(sec)}")
+    for k in sec:
+        if k not in _FIT_KEYS:
+            raise err(f"{f}.{k}", unknown_key(k, _FIT_KEYS))
+    h = sec.get("harmonics", 0)
+    if isinstance(h, bool) or not isinstance(h, int) or not 0 <= h <= HARMONICS_MAX:
+        raise err(f"{f}.harmonics", f"expected an integer in [0, {HARMONICS_MAX}] (error "
+                  f"motions up to that harmonic; 0 = location errors only), got {show_value(h)}")
+    folds = sec.get("folds", 4)
+    if isinstance(folds, bool) or not isinstance(folds, int) or not 2 <= folds <= 20:
+        raise err(f"{f}.folds", f"expected an integer in [2, 20], got {show_value(folds)}")
+    return h, folds
 
 
 _PROBING_KEYS = ("file", "sphere_mm", "sphere_radius_mm", "stylus_radius_mm",
@@ -229,4 +263,5 @@ def parse_chain_plans(data: dict[str, Any], err: Callable[[str, str], AbbeInputE
                                  _vec3(sec["sphere_mm"], f"{f}.sphere_mm", num, err),
                                  _vec3(sec.get("tip_mm", [0.0, 0.0, 0.0]), f"{f}.tip_mm", num, err),
                                  line(f))
-    return ChainPlans(probing, rtest)
+    harmonics, folds = _chain_fit(data, err)
+    return ChainPlans(probing, rtest, harmonics, folds)

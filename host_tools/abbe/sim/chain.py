@@ -120,12 +120,16 @@ def write_chain_campaign(vm: VirtualChainMachine, out: Path, angles_deg: np.ndar
                          sphere_radius_mm: float = 12.5, stylus_radius_mm: float = 1.5,
                          tips_mm: tuple[tuple[float, float, float], ...] = ((0.0, 0.0, 0.0),),
                          heights_mm: tuple[float, ...] = (0.0,), rtest: bool = True,
-                         name: str = "virtual chain machine") -> Path:
+                         name: str = "virtual chain machine", harmonics: int = 0,
+                         sphere_shifts_mm: tuple[tuple[float, float, float], ...] = ((0.0, 0.0, 0.0),)
+                         ) -> Path:
     """Simulate a campaign into ``out``: machine.toml ([chain], [probing.S<i>] per sphere
     height and stylus, [rtest.R1]), probe_<i>.csv (trigger points: the machine positions
     at which the stylus, carried by the tool-side axes, touches the sphere along
-    :data:`PROBE_DIRECTIONS`; noise per point), rtest.csv, truth.json. Returns the
-    machine file's path."""
+    :data:`PROBE_DIRECTIONS`; noise per point), rtest.csv, truth.json (location errors and
+    error motions). ``harmonics`` > 0 writes ``[chain.fit] harmonics``; ``sphere_shifts_mm``
+    places a sphere per shift and height (mm on the table: spheres at several radii).
+    Returns the machine file's path."""
     import json
 
     from abbe.formats.chain import chain_toml
@@ -140,8 +144,11 @@ def write_chain_campaign(vm: VirtualChainMachine, out: Path, angles_deg: np.ndar
              chain_toml(vm.chain)]
     reach = sphere_radius_mm + stylus_radius_mm
     k, t = 0, 0.0
-    for h in heights_mm:
-        s = (sphere_mm[0], sphere_mm[1], sphere_mm[2] + h)
+    if harmonics:
+        lines.append(f"[chain.fit]\nharmonics = {int(harmonics)}\n")
+    places = [(sphere_mm[0] + d[0], sphere_mm[1] + d[1], sphere_mm[2] + d[2] + h)
+              for d in sphere_shifts_mm for h in heights_mm]
+    for s in places:
         for tip in tips_mm:
             k += 1
             centres = vm.probe_centres(s, ang, tip, noise=False)
@@ -169,6 +176,8 @@ def write_chain_campaign(vm: VirtualChainMachine, out: Path, angles_deg: np.ndar
     (out / "machine.toml").write_text("\n".join(lines), encoding="utf-8")
     truth = {"chain": vm.chain.name, "kind": vm.chain.kind,
              "location": {n: float(v) for n, v in vm.errors.location.items()},
+             "motions": {f"{ax}.{c}": [float(v) for v in coef]
+                         for (ax, c), coef in vm.errors.motions.items()},
              "sphere_offset_mm": list(vm.sphere_offset_mm),
              "probe_noise_um": vm.probe_noise_um, "rtest_noise_um": vm.rtest_noise_um}
     (out / "truth.json").write_text(json.dumps(truth, indent=2) + "\n", encoding="utf-8")

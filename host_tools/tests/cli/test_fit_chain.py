@@ -98,3 +98,45 @@ def test_bad_chain_campaign_files_exit_2(tmp_path: Path, capsys) -> None:
     m.write_text(text.replace('[probing.S1]\nfile = "probe_1.csv"', '[probing.S1]\nfile = 3'))
     assert main(["fit", str(m), "-o", str(tmp_path / "o"), "-q"]) == 2
     assert "probing.S1.file" in capsys.readouterr().err
+
+
+def test_fit_error_motions_from_files(tmp_path: Path) -> None:
+    """``[chain.fit] harmonics = 2`` on a head-table campaign with C's error motions: the
+    fit reports every coefficient (ISO 230-7 names) with its status, the observable ones
+    within max(95 %, 1 um / 5 urad), the unobservable ones with what they are confounded
+    with and what would see them; model_five.bin holds the motions in the fit's
+    convention."""
+    ch = load_machine(CHAINS / "head-table-maxkins.toml").extra["chain"]
+    rng = np.random.default_rng(21)
+    e = random_location_errors(ch, rng)
+    e.motions[("C", "C")] = np.array([6.0, -4.0, 5.0, 3.0])  # ECC(C), 1st and 2nd harmonic
+    e.motions[("C", "X")] = np.array([0.0, 0.0, 1.5, -1.0])  # EXC(C), 2nd harmonic
+    vm = VirtualChainMachine(ch, e, (0.04, -0.02, 0.03), probe_noise_um=0.3, rtest_noise_um=0.2,
+                             seed=4)
+    m = write_chain_campaign(vm, tmp_path / "c", sphere_plan(ch, 5, 6),
+                             tips_mm=((0.0, 0.0, 0.0), (0.0, 0.0, -100.0)),
+                             heights_mm=(0.0, 100.0), harmonics=2)
+    assert main(["fit", str(m), "-o", str(tmp_path / "o"), "-q"]) == 0
+    doc = json.loads((tmp_path / "o" / "chain_fit.json").read_text())
+    assert doc["harmonics"] == 2 and len(doc["motions"]) == 32
+    truth = {"ECC(C) sin1": 6.0, "ECC(C) cos1": -4.0, "ECC(C) sin2": 5.0, "ECC(C) cos2": 3.0,
+             "EXC(C) sin2": 1.5, "EXC(C) cos2": -1.0}
+    seen = [r for r in doc["motions"] if r["value"] is not None]
+    assert {"ECC(C) sin2", "ECC(C) cos2"} <= {r["name"] for r in seen}
+    # one sphere radius: C's radial 2nd harmonic moves the sphere as C's line and the
+    # sphere's place do; a sphere further out would see it (the report says so)
+    rows = {r["name"]: r for r in doc["motions"]}
+    assert rows["EXC(C) sin2"]["value"] is None
+    assert "further out" in rows["EXC(C) sin2"]["seen_by"], rows["EXC(C) sin2"]
+    for r in seen:
+        floor = 1.0 if r["unit"] == "um" else 5.0
+        assert abs(r["value"] - truth.get(r["name"], 0.0)) <= max(r["u95"], floor), r
+    for r in doc["motions"]:
+        if r["value"] is None:
+            assert r["status"] in ("fixed at 0", "convention") and r["seen_by"], r
+            assert r["confounded_with"], r
+    report = (tmp_path / "o" / "report.txt").read_text()
+    assert "error motions (ISO 230-7" in report and "ECC(C) sin2" in report
+    _chain, errs = read_chain_blob((tmp_path / "o" / "model_five.bin").read_bytes())
+    assert errs.motions[("C", "C")][2] == pytest.approx(
+        next(r["value"] for r in seen if r["name"] == "ECC(C) sin2"), abs=0.01)

@@ -95,6 +95,14 @@ def test_a_trunnion_file_is_read_as_its_chain(tmp_path: Path) -> None:
     (('direction = "-Y"', 'direction = "-Y"\npivot = 1'), "chain.B.pivot", "unknown key"),
     (('name = "maxkins"', 'name = "maxkins"\ntool_length_mm = -1.0'), "chain.tool_length_mm",
      "in [0"),
+    (("[-90.0, 90.0]\n", "[-90.0, 90.0]\n[chain.fit]\nharmonics = 9\n"), "chain.fit.harmonics",
+     "[0, 8]"),
+    (("[-90.0, 90.0]\n", "[-90.0, 90.0]\n[chain.fit]\nharmonics = 2.0\n"),
+     "chain.fit.harmonics", "integer"),
+    (("[-90.0, 90.0]\n", "[-90.0, 90.0]\n[chain.fit]\nharmonic = 2\n"), "chain.fit.harmonic",
+     "unknown key"),
+    (("[-90.0, 90.0]\n", "[-90.0, 90.0]\n[chain.fit]\nfolds = 1\n"), "chain.fit.folds",
+     "[2, 20]"),
 ])
 def test_bad_chains_are_located(tmp_path: Path, edit, field, words) -> None:
     text = CHAIN.replace(*edit)
@@ -134,3 +142,13 @@ def test_a_trunnion_written_as_a_chain_is_the_trunnion(kind: str, offset) -> Non
     g = TrunnionGeometry(kind, (100.0, 50.0, -300.0), offset, 0.0,
                          {tilt: (-110.0, 110.0), "C": (-360.0, 360.0)})
     assert load_machine(f).extra["chain"] == trunnion_chain(g)
+
+
+def test_chain_fit_section_is_read(tmp_path: Path) -> None:
+    """``[chain.fit]``: the error motions' highest harmonic and the diagnose folds (0 and 4
+    without it)."""
+    plans = load_machine(_write(tmp_path, CHAIN)).extra["chain_plans"]
+    assert (plans.harmonics, plans.folds) == (0, 4)
+    text = CHAIN + "[chain.fit]\nharmonics = 3\nfolds = 5\n"
+    plans = load_machine(_write(tmp_path, text)).extra["chain_plans"]
+    assert (plans.harmonics, plans.folds) == (3, 5)

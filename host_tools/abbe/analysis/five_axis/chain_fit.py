@@ -1,7 +1,9 @@
 """Location errors of any kinematic chain from sphere probing and R-test data, with what
 the plan cannot see (docs/concepts.md, "Five-axis machines: the kinematic chain").
 
-Unknowns: the ten location errors of the two rotary axes (ISO 230-7 names), and per
+Unknowns: the ten location errors of the two rotary axes (ISO 230-7 names), with
+``harmonics`` H > 0 the error motions' Fourier coefficients of both axes (``EXC(C) sin2``
+..., ISO 230-7 names, from :func:`abbe.model.five_axis.lowest_harmonic` to H), and per
 set-up the sphere's place on the table (3, um) and, for an R-test, its zero (3, um).
 Residuals: measured minus predicted through the exact chain model, each block divided
 by its standard deviation; Gauss-Newton on a forward-difference Jacobian (the model is
@@ -10,8 +12,8 @@ linear in the location errors to 0.1 um at 100 um / 100 urad).
 Observability: the weighted Jacobian, columns scaled by each unknown's typical size,
 has a null space; an unknown is *observable* when no null direction moves it. A
 maximal set of the others is fixed at 0 by convention (angular zeros first, then
-positions, tilts, the set-up last); each unobservable location error is named with the
-unknowns it is confounded with and the first of a list of added measurements that
+positions, tilts, error motions, the set-up last); each unobservable location error and
+error motion coefficient is named with the unknowns it is confounded with and the first of a list of added measurements that
 would make it observable (:data:`EXTRA_MEASUREMENTS`). Intervals: 1.96 sigma from
 ``s^2 (J^T J)^-1`` (s^2 the weighted residual variance, at least 1).
 """
@@ -84,6 +86,23 @@ class ChainFit:
     setup: dict[str, float] = field(default_factory=dict)
     #: error motion coefficients (with ``harmonics`` > 0), rows as the location errors'
     motion_rows: list[ChainFitRow] = field(default_factory=list)
+    harmonics: int = 0
+    #: every motion coefficient as solved (the unobservable ones in the fit's convention:
+    #: fixed at 0 or the value the convention gives them), um / urad
+    motion_values: dict[str, float] = field(default_factory=dict)
+
+    def errors(self) -> FiveAxisErrors:
+        """The fitted errors in the fit's convention (what a table holds): location errors
+        and error motions as :class:`FiveAxisErrors` (Fourier ``[sin k, cos k]`` per
+        component, k = 1..harmonics)."""
+        mot: dict[tuple[str, str], np.ndarray] = {}
+        for name, v in self.motion_values.items():
+            head, term = name.split(" ")
+            comp, axis = head[1], head[2]
+            k = int(term[3:])
+            c = mot.setdefault((axis, comp), np.zeros(2 * self.harmonics))
+            c[2 * (k - 1) + (0 if term.startswith("sin") else 1)] = v
+        return FiveAxisErrors(dict(self.values), mot)
 
     @property
     def observable(self) -> tuple[str, ...]:
@@ -142,15 +161,24 @@ def predict(chain: KinematicChain, setups: list[ChainSetup], x: np.ndarray,
     names = [u[0] for u in _unknowns(chain, setups, harmonics)]
     errs, k = _errors(chain, names, x, harmonics)
     out = []
+    # set-ups of one plan share their angles: each transform once per distinct angle set
+    # (the same arithmetic, so the same bits)
+    work: dict[bytes, np.ndarray] = {}
+    tool: dict[bytes, np.ndarray] = {}
     for s in setups:
         ang = np.asarray(s.angles_deg, dtype=np.float64).reshape(-1, 2)
+        key = ang.tobytes()
         w = np.asarray(s.sphere_mm, dtype=np.float64) + x[k:k + 3] * 1e-3
         k += 3
-        T = workpiece_transform(chain, errs, ang)
+        if key not in work:
+            work[key] = workpiece_transform(chain, errs, ang)
+        T = work[key]
         centre = np.einsum("nij,j->ni", T[:, :3, :3], w) + T[:, :3, 3]
         if s.kind == "probe":
             # the machine position at which the true tip is on the centre
-            Ta = tool_transform(chain, errs, ang)
+            if key not in tool:
+                tool[key] = tool_transform(chain, errs, ang)
+            Ta = tool[key]
             tip = np.asarray(s.tip_mm, dtype=np.float64)
             out.append(centre - (np.einsum("nij,j->ni", Ta[:, :3, :3], tip) + Ta[:, :3, 3]))
         else:
@@ -233,18 +261,28 @@ def observability(chain: KinematicChain, setups: list[ChainSetup], harmonics: in
 
 
 #: Measurements a plan may add to see what it cannot: (label, how to build its set-ups
-#: from the plan's first set-up).
+#: from the plan's first set-up). The last one matters for error motions: a radial or tilt
+#: motion moves a sphere by the same amount at every radius, a line's tilt does not.
 EXTRA_MEASUREMENTS: tuple[str, ...] = (
     "a second sphere 100 mm higher on the table",
     "a second stylus (or R-test nest) 100 mm longer",
     "the sphere's place on the table known (probed at zero angles against a reference)",
+    "a second sphere 100 mm further out (70 mm along X and along Y)",
 )
+#: What an error motion coefficient nothing of :data:`EXTRA_MEASUREMENTS` separates needs
+#: (the trunnion report's wording, abbe.analysis.five_axis.identify.SEEN_BY["motion"]).
+MOTION_SEEN_BY = ("more angles of the axis per turn (the harmonic below half their number), "
+                  "an R-test with spheres at two heights (tilt against radial), the laser + "
+                  "rotary indexer for the angular motion")
 
 
 def _extra_setups(label: str, s: ChainSetup) -> list[ChainSetup]:
-    if label.startswith("a second sphere"):
+    if label.startswith("a second sphere 100 mm higher"):
         w = (s.sphere_mm[0], s.sphere_mm[1], s.sphere_mm[2] + 100.0)
         return [ChainSetup(s.kind, s.name + "_high", w, s.angles_deg, s.obs, s.tip_mm, s.sigma_um)]
+    if label.startswith("a second sphere 100 mm further"):
+        w = (s.sphere_mm[0] + 70.0, s.sphere_mm[1] + 70.0, s.sphere_mm[2])
+        return [ChainSetup(s.kind, s.name + "_out", w, s.angles_deg, s.obs, s.tip_mm, s.sigma_um)]
     if label.startswith("a second stylus"):
         tip = (s.tip_mm[0], s.tip_mm[1], s.tip_mm[2] - 100.0)
         return [ChainSetup(s.kind, s.name + "_long", s.sphere_mm, s.angles_deg, s.obs, tip,
@@ -252,25 +290,40 @@ def _extra_setups(label: str, s: ChainSetup) -> list[ChainSetup]:
     return []
 
 
-def _seen_by(chain: KinematicChain, setups: list[ChainSetup], j: int, harmonics: int = 0) -> str:
+def _seen_by_all(chain: KinematicChain, setups: list[ChainSetup], js: list[int],
+                 harmonics: int = 0) -> dict[int, str]:
+    """For each unobservable unknown ``js``: the first of :data:`EXTRA_MEASUREMENTS` that
+    makes it observable ("none of ..." when none does). Each added measurement's rank
+    analysis runs once for all of them."""
+    out: dict[int, str] = {}
+    todo = list(js)
     for label in EXTRA_MEASUREMENTS:
+        if not todo:
+            break
         if label.startswith("the sphere's place"):
             unk = _unknowns(chain, setups, harmonics)
             scale = np.array([u[1] for u in unk])
             J = _jacobian(chain, setups, np.zeros(len(unk)), scale, central=True,
                           harmonics=harmonics)
             keep = [i for i in range(len(unk)) if "sphere_" not in unk[i][0]]
-            J = J[:, keep]
-            _u, s, vt = np.linalg.svd(J)
+            _u, s, vt = np.linalg.svd(J[:, keep])
             rank = int(np.sum(s > s[0] * RANK_TOL))
-            if np.linalg.norm(vt[rank:].T[keep.index(j)]) <= 1e-6:
-                return label
-            continue
-        more = setups + _extra_setups(label, setups[0])
-        unobs, _f, _n, _r = observability(chain, more, harmonics)
-        if j not in unobs:
-            return label
-    return "none of " + "; ".join(EXTRA_MEASUREMENTS)
+            null = vt[rank:].T
+            seen = [j for j in todo if np.linalg.norm(null[keep.index(j)]) <= 1e-6]
+        else:
+            more = setups + _extra_setups(label, setups[0])
+            unobs, _f, _n, _r = observability(chain, more, harmonics)
+            seen = [j for j in todo if j not in unobs]
+        for j in seen:
+            out[j] = label
+        todo = [j for j in todo if j not in seen]
+    for j in todo:
+        out[j] = "none of " + "; ".join(EXTRA_MEASUREMENTS)
+    return out
+
+
+def _seen_by(chain: KinematicChain, setups: list[ChainSetup], j: int, harmonics: int = 0) -> str:
+    return _seen_by_all(chain, setups, [j], harmonics)[j]
 
 
 def identify_chain(chain: KinematicChain, setups: list[ChainSetup],
@@ -295,31 +348,41 @@ def identify_chain(chain: KinematicChain, setups: list[ChainSetup],
     cov = np.linalg.pinv(J.T @ J) * s2
     sig = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * scale[free]
     sv = np.linalg.svd(J, compute_uv=False)
+    n_mot = sum(1 for u in unk if "(" in u[0])
+    seen_by = _seen_by_all(chain, setups, [j for j in unobs if j < 10 + n_mot], harmonics) \
+        if explain else {}
+
+    def confounded(j: int) -> tuple[str, ...]:
+        return tuple(names[i] for i in range(len(unk)) if i != j
+                     and abs(float(null[i] @ null[j])) > 1e-6)
+
     rows = []
     for j in range(10):
         n, unit = names[j], unk[j][2]
         if j in unobs:
-            conf = tuple(names[i] for i in range(len(unk)) if i != j
-                         and abs(float(null[i] @ null[j])) > 1e-6)
             rows.append(ChainFitRow(n, None, None, unit,
-                                    "fixed at 0" if j in fixed else "convention", conf,
-                                    _seen_by(chain, setups, j, harmonics) if explain else ""))
+                                    "fixed at 0" if j in fixed else "convention", confounded(j),
+                                    seen_by.get(j, "")))
         else:
             rows.append(ChainFitRow(n, float(x[j]), float(1.96 * sig[free.index(j)]), unit,
                                     "identified"))
-    n_mot = sum(1 for u in unk if "(" in u[0])
     motions = []
     for j in range(10, 10 + n_mot):
         if j in unobs:
+            by = seen_by.get(j, "")
+            if by.startswith("none of"):
+                by = MOTION_SEEN_BY
             motions.append(ChainFitRow(names[j], None, None, unk[j][2],
-                                       "fixed at 0" if j in fixed else "convention"))
+                                       "fixed at 0" if j in fixed else "convention",
+                                       confounded(j), by))
         else:
             motions.append(ChainFitRow(names[j], float(x[j]), float(1.96 * sig[free.index(j)]),
                                        unk[j][2], "identified"))
     return ChainFit(chain, rows, {names[j]: float(x[j]) for j in range(10)}, rank, len(unk),
                     float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf"),
                     float(np.sqrt(np.mean(r ** 2))),
-                    {names[j]: float(x[j]) for j in range(10 + n_mot, len(unk))}, motions)
+                    {names[j]: float(x[j]) for j in range(10 + n_mot, len(unk))}, motions,
+                    harmonics, {names[j]: float(x[j]) for j in range(10, 10 + n_mot)})
 
 
 def report_rows(fit: ChainFit) -> list[str]:
@@ -336,10 +399,17 @@ def report_rows(fit: ChainFit) -> list[str]:
         else:
             out.append(f"{r.name:8s} {r.value:10.3f} {r.u95:8.3f} {r.unit:5s} {r.status}")
     if fit.motion_rows:
+        n_seen = sum(r.value is not None for r in fit.motion_rows)
+        out.append(f"error motions (ISO 230-7, Fourier coefficients up to harmonic "
+                   f"{fit.harmonics}): {n_seen} of {len(fit.motion_rows)} observable")
         for r in fit.motion_rows:
-            out.append(f"{r.name:14s} " + (f"{r.value:10.3f} {r.u95:8.3f} {r.unit:5s} {r.status}"
-                                            if r.value is not None else
-                                            f"{'-':>10s} {'-':>8s} {r.unit:5s} {r.status}"))
+            if r.value is not None:
+                out.append(f"{r.name:14s} {r.value:10.3f} {r.u95:8.3f} {r.unit:5s} {r.status}")
+                continue
+            conf = list(r.confounded_with)
+            more = f" and {len(conf) - 6} more" if len(conf) > 6 else ""
+            out.append(f"{r.name:14s} {'-':>10s} {'-':>8s} {r.unit:5s} {r.status}: confounded "
+                       f"with {', '.join(conf[:6]) or '-'}{more}; seen by {r.seen_by or '?'}")
     else:
         out.append("error motions (not fitted: harmonics = 0): " + ", ".join(
             motion_name(ax, c) for ax in fit.chain.rotaries for c in "XYZABC"))
@@ -385,7 +455,7 @@ def reweight(chain: KinematicChain, setups: list[ChainSetup], fit: ChainFit,
     """The set-ups with each sigma replaced by its RMS residual (um, at least 0.05) after
     ``fit``: blocks of unknown noise weighted by what they show."""
     unk = _unknowns(chain, setups, harmonics)
-    mot = {r.name: r.value or 0.0 for r in fit.motion_rows}
+    mot = dict(fit.motion_values)
     x = np.array([fit.values.get(u[0], mot.get(u[0], fit.setup.get(u[0], 0.0))) for u in unk])
     pred = predict(chain, setups, x, harmonics)
     out = []
@@ -405,7 +475,12 @@ def fit_to_json(fit: ChainFit, setups: list[ChainSetup]) -> dict:
             "sigma_um": {s.name: s.sigma_um for s in setups},
             "location": [{"name": r.name, "value": r.value, "u95": r.u95, "unit": r.unit,
                           "status": r.status, "confounded_with": list(r.confounded_with),
-                          "seen_by": r.seen_by} for r in fit.rows],
+                          "seen_by": r.seen_by, "value_in_convention": fit.values[r.name]}
+                         for r in fit.rows],
+            "harmonics": fit.harmonics,
             "motions": [{"name": r.name, "value": r.value, "u95": r.u95, "unit": r.unit,
-                         "status": r.status} for r in fit.motion_rows],
+                         "status": r.status, "confounded_with": list(r.confounded_with),
+                         "seen_by": r.seen_by,
+                         "value_in_convention": fit.motion_values.get(r.name, 0.0)}
+                        for r in fit.motion_rows],
             "setup_um": fit.setup}

@@ -1,0 +1,60 @@
+"""``abbe diagnose MACHINE.toml -o OUT/ [--model chain_fit.json]`` on a ``[chain]`` machine
+file (head-head, head-table, dual-rotary table, or a trunnion written as a chain).
+
+Runs :func:`abbe.diagnose.chain.diagnose_chain` on the file's probing and R-test set-ups:
+the base model (``--model``: an ``abbe fit`` chain_fit.json, its location errors and error
+motions held; without it the plan's location-only fit), then the catalogue (every error
+motion component and harmonic of both rotary axes; with a model, every location error)
+judged on held-out probing positions. Writes OUT/diagnose_chain.json and OUT/report.txt
+atomically (and ``--json FILE``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from abbe.cli.conventions import json_file, json_to_stdout
+from abbe.formats.output import Outputs
+
+
+def run_chain_diagnose(args: argparse.Namespace) -> int:
+    from abbe.analysis.five_axis.chain_fit import setups_from_machine
+    from abbe.diagnose.chain import diagnose_chain, model_values
+    from abbe.errors import AbbeInputError
+    from abbe.formats.machine import load_machine
+    from abbe.formats.structured import load_json
+
+    machine = load_machine(args.machine)
+    chain = machine.extra["chain"]
+    model = None
+    if args.model:
+        doc, _tf = load_json(args.model, what="chain fit JSON", max_bytes=16 * 1024 * 1024)
+        if not isinstance(doc, dict) or "location" not in doc or doc.get("chain") != chain.name:
+            raise AbbeInputError(f"expected the chain_fit.json `abbe fit` wrote for chain "
+                                 f"{chain.name!r} (keys chain, location, motions)",
+                                 file=str(args.model), field="chain")
+        model = model_values(doc)
+    setups = setups_from_machine(machine)
+    if not any(s.kind == "probe" for s in setups):
+        raise AbbeInputError("abbe diagnose on a [chain] machine file needs at least one "
+                             "[probing.NAME] section (its positions are the held-out data)",
+                             file=str(args.machine), field="probing")
+    with Outputs() as outs:
+        staging = outs.directory(args.out, option="--out")
+        js = outs.file(json_file(args), option="--json") if json_file(args) else None
+        diag = diagnose_chain(chain, setups, model, machine.extra["chain_plans"].folds)
+        doc = {"format": "abbe-chain-diagnose 1.0", "machine": machine.name, **diag.to_json(),
+               "provenance": {"machine_file": str(machine.path), "sha256": machine.sha256,
+                              "model": str(args.model) if args.model else None}}
+        text = json.dumps(doc, indent=2, allow_nan=False) + "\n"
+        (Path(staging) / "diagnose_chain.json").write_text(text, encoding="utf-8")
+        (Path(staging) / "report.txt").write_text(diag.text(), encoding="utf-8")
+        if js is not None:
+            js.write_text(text, encoding="utf-8")
+    if json_to_stdout(args):
+        print(text, end="")
+        return 0
+    print(diag.text(), end="")
+    return 0
