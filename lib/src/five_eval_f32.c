@@ -179,15 +179,15 @@ ABBE_NOINLINE static void add_chain_f32(const abbe_five_model_t *m5, const int32
     abbe_sincos_f32(abbe_udeg_phase_q32(udeg[m5->slot[0]]), &s0, &c0);
     abbe_sincos_f32(abbe_udeg_phase_q32(udeg[m5->slot[1]]), &s1, &c1);
     const float s0r = (float)m5->sign[0] * s0, s1r = (float)m5->sign[1] * s1;
-    float vw0[6], vw1[6], P0[3], P1[3], q[3], L0[3], L1[3], t[3], d[3] = {0.0f, 0.0f, 0.0f};
+    /* v0 becomes the position part d, L0 starts as q - P0: fewer arrays, less stack */
+    float vw0[6], vw1[6], P0[3], L0[3], L1[3], t[3];
     twist_chain_f32(r0, c0, s0, s0r, vw0);
     twist_chain_f32(r1, c1, s1, s1r, vw1);
     const int32_t *pv0 = kind == ABBE_KIN_XYZBC_HT ? m5->offset_nm : m5->rot_point_nm;
     const int32_t *pv1 = kind == ABBE_KIN_XYZBC_HT ? m5->rot_point_nm : m5->tilt_pivot_nm;
     for (unsigned i = 0; i < 3u; i++) {
         P0[i] = (float)pv0[i] * 1.0e-6f;
-        P1[i] = (float)pv1[i] * 1.0e-6f;
-        q[i] = (float)((p[i] >> 1) - (pv0[i] >> 1)) * MM_PER_HALF_NM; /* q - P0, exact halves */
+        L0[i] = (float)((p[i] >> 1) - (pv0[i] >> 1)) * MM_PER_HALF_NM; /* q - P0, exact halves */
     }
     float *v0 = vw0, *w0 = vw0 + 3, *v1 = vw1, *w1 = vw1 + 3;
     float sign = -1.0f; /* under the workpiece */
@@ -198,10 +198,10 @@ ABBE_NOINLINE static void add_chain_f32(const abbe_five_model_t *m5, const int32
             L0[i] = -L0[i];
             /* the table's lever from the tool tip, q + T_B 0 = q + P_B - R_B P_B */
             L1[i] = (float)((p[i] >> 1) - (pv1[i] >> 1)) * MM_PER_HALF_NM + (P0[i] + L0[i]);
-            d[i] = v0[i] - v1[i];
+            v0[i] -= v1[i];
         }
-        cross_add_f32(w0, L0, 1.0e-3f, d);
-        cross_add_f32(w1, L1, -1.0e-3f, d);
+        cross_add_f32(w0, L0, 1.0e-3f, v0);
+        cross_add_f32(w1, L1, -1.0e-3f, v0);
         for (unsigned i = 0; i < 3u; i++) {
             w0[i] -= w1[i];
         }
@@ -219,24 +219,23 @@ ABBE_NOINLINE static void add_chain_f32(const abbe_five_model_t *m5, const int32
         w1[2] = t[2];
         rotate_f32(k0, c0, s0r, L1, t); /* R0 g */
         if (kind == ABBE_KIN_XYZBC_HH) {
-            /* L = R0 (P1 - R1 P1 - P0) */
-            rotate_f32(k1, c1, s1r, P1, L0);
+            /* L = R0 (P1 - R1 P1 - P0), P1 in L1 (g is in t now) */
             for (unsigned i = 0; i < 3u; i++) {
-                L1[i] = P1[i] - L0[i] - P0[i];
+                L1[i] = (float)pv1[i] * 1.0e-6f;
+            }
+            rotate_f32(k1, c1, s1r, L1, L0);
+            for (unsigned i = 0; i < 3u; i++) {
+                L1[i] = L1[i] - L0[i] - P0[i];
             }
             rotate_f32(k0, c0, s0r, L1, L0);
             sign = 1.0f;
-        } else {
-            L0[0] = q[0];
-            L0[1] = q[1];
-            L0[2] = q[2];
-        }
+        } /* else L0 = q - P0 (above) */
         for (unsigned i = 0; i < 3u; i++) {
-            d[i] = v0[i] + v1[i];
+            v0[i] += v1[i];
             w0[i] += w1[i];
         }
-        cross_add_f32(w0, L0, 1.0e-3f, d);
-        cross_add_f32(w1, t, 1.0e-3f, d);
+        cross_add_f32(w0, L0, 1.0e-3f, v0);
+        cross_add_f32(w1, t, 1.0e-3f, v0);
     }
     /* the linear axes' orientation error turns the head about q: W_lin x (tip - q), the tip
      * at T_T 0 = P0 + L0 from q in the head (kinds 3, 4) */
@@ -253,7 +252,7 @@ ABBE_NOINLINE static void add_chain_f32(const abbe_five_model_t *m5, const int32
     out->error_um[0] += (sy * (float)m5->squareness_q36[0] - sz * (float)m5->squareness_q36[1]) * qs;
     out->error_um[1] -= sz * (float)m5->squareness_q36[2] * qs;
     for (unsigned i = 0; i < 3u; i++) {
-        out->error_um[i] += sign * d[i];
+        out->error_um[i] += sign * v0[i];
         out->orient_urad[i] += sign * w0[i];
     }
 }
