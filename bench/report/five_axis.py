@@ -211,103 +211,105 @@ tables whose linear axes are the paper table's, as the 3-axis budgets are.
 
 The other kinds (issue 39: head-head, head-table, dual rotary table; format 1.4,
 lib option ABBE_WITH_FIVE_KINDS, ON by default) are in the image measured above: they
-add 1,764 B (f32 M4F), 2,354 B (q M4F), 2,366 B (q M3) of generic chain code
-(add_chain_f32 / add_chain_q and their helpers, out of line) and deepen the static
-stack of abbe_comp_step5_q to 528 / 536 B (its evaluation frames 540 / 548 B measured by
-painting); abbe_comp_step5_f32's is 456 B with or without them (its rotary part, the
-other kinds' chain included, is 416 B deep; the linear part's 456 B is the deepest: see
-"Stack" below). A trunnion-only firmware builds with -DABBE_WITH_FIVE_KINDS=OFF: its
-image is the one of the paragraphs below (measured 9,556 B f32 M4F, stack 456 B, after
-issue 39 item 4; q 9,536 / 9,626 B, stack 312 / 320 B), which is what the budget text
-below discusses. Per kind, the instruction budgets: tdr meets
-both (1,492 f32, 2,356 / 2,382 q); hh misses (1,851 f32, 3,424 / 3,464 q); ht,
-measured on the 'full' linear table as ac_location is, misses (3,021 f32, 7,095 /
-7,150 q). Not tuned yet.
+add 1,750 B (f32 M4F: 11,270 against 9,520 B trunnion-only), 2,362 B (q M4F: 11,886
+against 9,524 B), 2,350 B (q M3: 11,968 against 9,618 B) of generic chain code
+(add_chain_f32 / add_chain_q and their helpers, out of line, and the loader's checks of
+kinds 3-5, 290 B) and deepen the static stack of abbe_comp_step5_q to 528 / 536 B
+(trunnion-only 312 / 320 B; its evaluation frames 540 / 548 B measured by painting);
+abbe_comp_step5_f32's is 320 B with or without them (see "Stack" below). A
+trunnion-only firmware builds with -DABBE_WITH_FIVE_KINDS=OFF. Per kind, the
+instruction budgets: tdr meets both (1,459 f32, 2,356 / 2,382 q); hh misses (1,826 f32,
+3,424 / 3,464 q); ht, measured on the 'full' linear table as ac_location is, misses
+(2,987 f32, 7,095 / 7,150 q).
 
-Flash (missed, issue 39: what stands in the way, per byte; M4F f32 image 9,536 B, q
-9,536 B, M3 q 9,626 B against 8,192). The image is the 3-axis load + compensator image
-(6,104 B f32 / 5,990 B q M4F / 6,100 B q M3, measured at the same commit) plus:
+Flash (missed, issue 39: what stands in the way, per byte). Measured with every kind
+(the rows above: 11,270 B f32 M4F, 11,886 B q M4F, 11,968 B q M3) and per kind: a
+trunnion-only library (-DABBE_WITH_FIVE_KINDS=OFF) 9,520 / 9,524 / 9,618 B; the chain
+kinds alone (measured, not kept: the trunnions' rotary part add_rotary_f32 / add_rotary_q
+left out of the evaluation, the loader unchanged) 10,120 / 10,330 / 10,428 B. No
+per-kind build meets 8,192 B: the smallest, trunnion-only, is 1,328 / 1,332 / 1,426 B
+over, so a finer compile-time choice of kinds (one kind per image) was not added. The
+f32 image with every kind is the 3-axis load + compensator image (6,108 B, unchanged)
+plus 5,162 B, where 8 KiB leaves 2,084 B:
 
-- the loader's rotary part, +1,114 B (five_load.c 3,154 B against model_load.c's
-  2,040 B; M3 3,254 against 2,140): abbe_five_model_load's own growth 400 B (the
-  header's fields, the feature test, the two build calls), rotary_record_bad 532 B (one
-  copy of the six check categories), build_rotary 174 B, recip64 / any_nonzero /
-  n_basis_of 132 B;
-- the evaluation, f32 +2,142 B over the 3-axis eval_f32.c + terms_f32.c (2,584 B):
-  add_rotary_f32 1,266 B (both twists inlined, the tilt's rotation of v_C, w_C and the
-  offset, two cross products, the squareness), abbe_five_eval_f32_core 756 B (the
-  linear core's source inlined once more, with the angle conversion; since issue 39 item 4
-  abbe_five_eval_f32_linear 728 B + abbe_five_eval_f32_rotary 32 B, M4F trunnion-only), the rotary
-  motions' kernel 312 B, the sparse-motions path 196 B, abbe_sincos_f32 with its table
-  196 B; the linear folds with angles (fold6_rot_f32 660 B, fold_values_rot_f32 164 B)
-  replace the 3-axis fold6_f32 (604 B) in this image; q: add_rotary_q 1,532 B (M4F;
-  1,516 B M3), motions_q 556 B;
+- the loader's rotary part, +1,392 B (five_load.c 3,432 B against model_load.c's
+  2,040 B; M3 3,516 against 2,140): abbe_five_model_load 2,564 B (the 3-axis loader
+  inlined, the header's fields, the feature test, the build calls), rotary_record_bad
+  544 B (one copy of the six check categories), build_rotary 174 B, recip64 /
+  any_nonzero / n_basis_of 132 B; the checks of kinds 3-5 are 290 B of it;
+- the evaluation, f32 +3,594 B over the 3-axis eval_f32.c + terms_f32.c + sin/cos
+  (2,588 B): add_rotary_f32 1,170 B (both twists inlined, the tilt's rotation of v_C, w_C
+  and the offset, two cross products, the squareness), kinds 3-5 1,460 B (add_chain_f32
+  984 B, twist_chain_f32 320 B, cross_add_f32 110 B, rotate_f32 84 B), the linear part
+  abbe_five_eval_f32_linear 684 B (the linear core's source inlined once more, with the
+  angle conversion), the rotary motions' kernel 312 B, the sparse-motions path 196 B,
+  abbe_sincos_f32 with its table 196 B; the linear folds with angles (fold6_rot_f32 672 B,
+  fold_values_rot_f32 166 B) replace the 3-axis fold6_f32 (604 B) in this image; q
+  (M4F): five_eval_q.c 4,380 B, of which kinds 3-5 2,072 B;
 - the five-axis compensator cycle, +176 B (comp_five_f32.c 416 B with the inline
   mm-to-nm conversion, comp_five.c 20 B, comp_f32.c's abbe_comp_um_to_nm 116 B, comp.c
   +16 B, against the 3-axis comp_f32.c 392 B).
 
-8 KiB leaves 2,088 B (f32) over the 3-axis image: the rotary evaluation alone (1,970
-B f32: add_rotary_f32, both motion paths, sin/cos) plus the loader's rotary part (1,114
-B) is 3,084 B. Without ANY rotary check in the loader the f32 image would still be
-8,422 B (230 B over; the q images 8,422 B M4F, 8,512 B M3); meeting 8 KiB needs the
-shared 3-axis core (loader 2,040 B, linear evaluation, comp.c 1,044 B) smaller as
-well, not done. Done here (issue 39):
-the f32 sin/cos table is one `const` object of sincos_f32.c instead of a static copy
-in each kernel unit that inlines the sin/cos (three copies of 96 B in the f32 image:
--192 B; the 3-axis images held one and are unchanged); abbe_comp_step5_f32 converts
-the positions to nm with the inline conversion, so the image holds no out-of-line
-abbe_mm_to_nm_f32 (-64 B, and 8 B less stack); `_q`'s rotary part writes its three
-output components in one loop instead of three copies of the code (-284 B M4F, -316 B
-M3, for +96 instructions: M3 `five_q` on ac_full 2,784 -> 2,880 of its 3,000; the
-squareness formed inside the loop and the orientations rounded in a second loop keep
-fewer values live, so the static stack of abbe_comp_step5_q stays 320 B on the M3 and
-falls to 312 B on the M4F). Measured and not kept: `_q`'s twist out of line on top of
-that (-180 B M4F, -112 B M3, +34 / +41 instructions, but a static stack of 376 / 392 B:
-its frame is nested between the rotary part's and the motions'); the
-linear part out of line under the core (`linear_f32`, so that its frame and the rotary
-part's are not summed): +96 B and a deeper static stack (536 B: the linear chain
-through the sparse terms kernel is then the deepest). Done instead (issue 39 item 4):
-no core; the compensator (and abbe_five_error_eval_f32) call the linear part
-(abbe_five_eval_f32_linear, the linear core's source inlined once, with the angle
-conversion) and then the rotary part (abbe_five_eval_f32_rotary), so the two are
-siblings under the step: static stack of abbe_comp_step5_f32 576 -> 456 B (trunnion-only
-496 -> 456 B), of abbe_five_error_eval_f32 488 -> 400 B, for +22 B of flash (f32 image
-11,300 -> 11,322 B measured at the same base; trunnion-only 9,528 -> 9,556 B) and +5
-instructions per `five_f32` call (+4 per compensator cycle). Measured and not kept on
-top of that: the fold's dispatch (abbe_axis_fold_rot_f32) inlined into the linear part,
-which removes its 32 B frame (GCC 12 reserves it before the tail call of a function
-returning three floats) but grows the linear part's frame by 24 B (160 -> 184): -8 B
-of stack (448 B) for +36 B of flash. Earlier trade-offs (issue 23): one
-out-of-line twist instead of two inlined ones saves 148 B (f32) / 124 B (q) for +43 /
-+55 instructions per call (f32 then misses its 1,500); -Os on five_load.c costs 110 B,
-on rotary_record_bad alone 100 B; -Os on five_eval_q.c saves 172 B (M3) for +492
-instructions. The five-axis kernels are a translation unit of their own
-(terms_rot_f32.c) so that the 3-axis kernels compile as before.
+The evaluation's five-axis code alone (3,594 B f32) is above the 2,084 B that 8 KiB
+leaves; without ANY rotary check in the loader the trunnion-only f32 image would still be
+8,418 B. Meeting 8 KiB needs the shared 3-axis core (loader 2,040 B, linear evaluation,
+comp.c 1,044 B) smaller as well, not done. Done for flash (issue 39): the f32 sin/cos
+table is one `const` object of sincos_f32.c instead of a static copy in each kernel unit
+that inlines the sin/cos (-192 B); abbe_comp_step5_f32 converts the positions to nm
+with the inline conversion (-64 B, and 8 B less stack); `_q`'s rotary part writes its
+three output components in one loop (-284 B M4F, -316 B M3, for +96 instructions);
+issue 39 item 4, second round: the f32 folds add into the output in place (below) and
+add_chain_f32 keeps fewer arrays, -52 B (11,322 -> 11,270 B), and 12 to 39 fewer
+instructions per `five_f32` call (trunnions 12-15, kinds 3-5 30-39). Measured and not kept: `_q`'s twist out of line
+(-180 B M4F, -112 B M3, +34 / +41 instructions, but a static stack of 376 / 392 B); one
+out-of-line twist instead of two inlined ones in `_f32` (-148 B, +43 instructions: f32
+then misses its 1,500); -Os on five_load.c costs 110 B, on rotary_record_bad alone
+100 B; -Os on five_eval_q.c saves 172 B (M3) for +492 instructions. The five-axis
+kernels are a translation unit of their own (terms_rot_f32.c) so that the 3-axis kernels
+compile as before.
 
 The 3-axis flash rows above say MISSES against issue 23's figures (6,040 / 5,926 /
 6,036 B): model_load.c is 64 B larger since the proof work (issue 38: coefficient
 reads bounded where the analysis joins a failed header, commits cbab152, a545721);
-measured 6,104 / 5,990 / 6,100 B at 271b02c, before issue 39's changes, which leave
-them unchanged. Section 3 above still shows the older figures (not regenerated here).
+measured 6,104 / 5,990 / 6,100 B at 271b02c, before issue 39's changes; issue 39's
+changes leave them unchanged (6,108 / 5,990 / 6,100 B now). Section 3 above still shows
+the older figures (not regenerated here).
 
-Stack (missed for `_f32`, per byte): `_q` meets 320 B (the harmonics' basis in the
-compensator's scratch, the motions written straight into the twist's vectors, the
-outputs rounded per component inside the rotary part, no int64 vectors). `_f32`, 456 B
-(issue 39 item 4; 576 B before, 496 B trunnion-only): abbe_comp_step5_f32's frame 120 B
-(nine saved registers 36 B, the evaluation's output 28 B, positions in nm and angles in
-micro-degrees 20 B, direction states 12 B, three stacked arguments 12 B, the rest
-spills and padding) + abbe_five_eval_f32_linear 160 B (nine saved registers 36 B,
-d8-d12 40 B, the inlined linear core's locals and spills 84 B) +
-abbe_axis_fold_rot_f32 32 B (GCC's frame before its tail call, above) +
-fold_values_rot_f32 96 B + abbe_axis_terms_sparse_f32 48 B (a sparse axis; a six-term
-axis goes through fold6_rot_f32, 120 B, which saves d8-d14: 432 B). The rotary part
-is no longer on top of the linear one: the step 120 B + abbe_five_eval_f32_rotary 8 B +
-add_chain_f32 208 B + twist_chain_f32 32 B + abbe_rotary_motions6_f32 48 B = 416 B
-(kinds 3-5), + add_rotary_f32 160 B + 48 B = 336 B (trunnion). The linear path is above
-320 B by itself, as the 3-axis abbe_comp_step_f32 is (496 B, section 4): the step and
-the linear part are 280 B before any fold, and the folds 144-176 B.
-Meeting 320 B needs the linear core's and the fold kernels' frames smaller
-(lib/src/eval_f32_linear.h, shared with the 3-axis core), not done."""
+Stack (`_f32` meets, issue 39 item 4): abbe_comp_step5_f32 320 B (576 B before issue 39
+item 4, 456 B after its first round), with or without kinds 3-5. Three changes, each
+measured, results bit for bit unchanged (every golden point's float outputs and three
+compensator cycles per point compared on the M4F before and after):
+
+- the five-axis folds (abbe_axis_fold_rot_f32 and its two kernels) add into e and w in
+  memory (the evaluation's output) instead of returning an abbe_vec3f_t: GCC 12 keeps 32
+  unused bytes of stack in every function that returns three floats in s0-s2 (a
+  three-line test: 64 B against 32 B for the same body writing through a pointer), so
+  the dispatch drops from 32 to 0 B, fold_values_rot_f32 from 96 to 64 B,
+  fold6_rot_f32 from 120 to 88 B, and the linear part from 160 to 144 B (e is no longer
+  live in registers across the calls): -40 B, and 12 to 15 fewer instructions per call;
+- the step's working memory (positions in nm and angles in micro-degrees 20 B, the
+  direction states as floats 12 B, the evaluation's output 28 B, the error in nm) is in
+  the compensator's scratch, which becomes a union of the fixed-point cycles' term
+  values and this (abbe_comp_t keeps its size, 248 B on the M4F: a larger struct would
+  have made the 3-axis abbe_comp_init's memset length a 32-bit immediate, +4 B in the
+  3-axis images; MISRA 19.2 deviated, docs/misra.md): the step's frame 120 -> 64 B;
+- add_chain_f32 (kinds 3-5) keeps fewer arrays (the outer twist's v is the position
+  part d, the outer lever starts as q - P0, the inner pivot only for kind 3 and in the
+  lever's array): its frame 208 -> 168 B, 15 to 24 fewer instructions.
+
+The deepest paths are now both 320 B: the linear one, the step 64 B +
+abbe_five_eval_f32_linear 144 B + abbe_axis_fold_rot_f32 0 B + fold_values_rot_f32 64 B
++ abbe_axis_terms_sparse_f32 48 B (a six-term axis: fold6_rot_f32 88 B, 296 B), and the
+kinds 3-5 rotary one, 64 + abbe_five_eval_f32_rotary 8 + add_chain_f32 168 +
+twist_chain_f32 32 + abbe_rotary_motions6_f32 48 B (trunnions: add_rotary_f32 152 B,
+272 B). abbe_five_error_eval_f32: 320 B (400 B before). Measured by painting (the table
+above), the compensator cycle now uses 296-312 B (364-412 B before). `_q` (not named by the budget):
+trunnion-only 312 / 320 B (meets); with kinds 3-5 528 / 536 B: abbe_comp_step5_q 48 B
++ abbe_five_eval_q_core 40 B + add_chain_q 328 B + twist_chain_q 56 / 64 B + motions_q
+56 B, so add_chain_q's frame would have to be 120 B (M4F) / 112 B (M3) or less, or the
+twists not nested under it; not done (add_chain_q's instruction counts were being
+reworked in parallel). The 3-axis abbe_comp_step_f32 stays 496 B (section 4; its
+kernels are not the five-axis ones and are unchanged)."""
 
 
 def replace_section(results: Path, lines: list[str]) -> None:
