@@ -211,7 +211,7 @@ tables whose linear axes are the paper table's, as the 3-axis budgets are.
 
 The other kinds (issue 39: head-head, head-table, dual rotary table; format 1.4,
 lib option ABBE_WITH_FIVE_KINDS, ON by default) are in the image measured above: they
-add 1,750 B (f32 M4F: 11,270 against 9,520 B trunnion-only), 2,362 B (q M4F: 11,886
+add 1,530 B (f32 M4F: 11,050 against 9,520 B trunnion-only), 2,362 B (q M4F: 11,886
 against 9,524 B), 2,350 B (q M3: 11,968 against 9,618 B) of generic chain code
 (add_chain_f32 / add_chain_q and their helpers, out of line, and the loader's checks of
 kinds 3-5, 290 B) and deepen the static stack of abbe_comp_step5_q to 528 / 536 B
@@ -223,24 +223,26 @@ instruction budgets: tdr meets both (1,459 f32, 2,356 / 2,382 q); hh misses (1,8
 (2,987 f32, 7,095 / 7,150 q).
 
 Flash (missed, issue 39: what stands in the way, per byte). Measured with every kind
-(the rows above: 11,270 B f32 M4F, 11,886 B q M4F, 11,968 B q M3) and per kind: a
+(the rows above: 11,050 B f32 M4F, 11,886 B q M4F, 11,968 B q M3) and per kind: a
 trunnion-only library (-DABBE_WITH_FIVE_KINDS=OFF) 9,520 / 9,524 / 9,618 B; the chain
 kinds alone (measured, not kept: the trunnions' rotary part add_rotary_f32 / add_rotary_q
 left out of the evaluation, the loader unchanged) 10,120 / 10,330 / 10,428 B. No
 per-kind build meets 8,192 B: the smallest, trunnion-only, is 1,328 / 1,332 / 1,426 B
 over, so a finer compile-time choice of kinds (one kind per image) was not added. The
 f32 image with every kind is the 3-axis load + compensator image (6,108 B, unchanged)
-plus 5,162 B, where 8 KiB leaves 2,084 B:
+plus 4,942 B, where 8 KiB leaves 2,084 B:
 
 - the loader's rotary part, +1,392 B (five_load.c 3,432 B against model_load.c's
   2,040 B; M3 3,516 against 2,140): abbe_five_model_load 2,564 B (the 3-axis loader
   inlined, the header's fields, the feature test, the build calls), rotary_record_bad
   544 B (one copy of the six check categories), build_rotary 174 B, recip64 /
   any_nonzero / n_basis_of 132 B; the checks of kinds 3-5 are 290 B of it;
-- the evaluation, f32 +3,594 B over the 3-axis eval_f32.c + terms_f32.c + sin/cos
-  (2,588 B): add_rotary_f32 1,170 B (both twists inlined, the tilt's rotation of v_C, w_C
-  and the offset, two cross products, the squareness), kinds 3-5 1,460 B (add_chain_f32
-  984 B, twist_chain_f32 320 B, cross_add_f32 110 B, rotate_f32 84 B), the linear part
+- the evaluation, f32 +3,374 B over the 3-axis eval_f32.c + terms_f32.c + sin/cos
+  (2,588 B): add_rotary_f32 952 B (the table's twist inlined, the tilt's rotation of v_C,
+  w_C and the offset, two cross products, the squareness), kinds 3-5 1,240 B
+  (add_chain_f32 984 B, cross_add_f32 110 B, rotate_f32 84 B, and twist_chain_f32 320 B,
+  the tilt's twist for the trunnions too: counted in the kinds, a trunnion-only build
+  inlines it into add_rotary_f32 instead), the linear part
   abbe_five_eval_f32_linear 684 B (the linear core's source inlined once more, with the
   angle conversion), the rotary motions' kernel 312 B, the sparse-motions path 196 B,
   abbe_sincos_f32 with its table 196 B; the linear folds with angles (fold6_rot_f32 672 B,
@@ -250,7 +252,7 @@ plus 5,162 B, where 8 KiB leaves 2,084 B:
   mm-to-nm conversion, comp_five.c 20 B, comp_f32.c's abbe_comp_um_to_nm 116 B, comp.c
   +16 B, against the 3-axis comp_f32.c 392 B).
 
-The evaluation's five-axis code alone (3,594 B f32) is above the 2,084 B that 8 KiB
+The evaluation's five-axis code alone (3,374 B f32) is above the 2,084 B that 8 KiB
 leaves; without ANY rotary check in the loader the trunnion-only f32 image would still be
 8,418 B. Meeting 8 KiB needs the shared 3-axis core (loader 2,040 B, linear evaluation,
 comp.c 1,044 B) smaller as well, not done. Done for flash (issue 39): the f32 sin/cos
@@ -260,10 +262,14 @@ with the inline conversion (-64 B, and 8 B less stack); `_q`'s rotary part write
 three output components in one loop (-284 B M4F, -316 B M3, for +96 instructions);
 issue 39 item 4, second round: the f32 folds add into the output in place (below) and
 add_chain_f32 keeps fewer arrays, -52 B (11,322 -> 11,270 B), and 12 to 39 fewer
-instructions per `five_f32` call (trunnions 12-15, kinds 3-5 30-39). Measured and not kept: `_q`'s twist out of line
-(-180 B M4F, -112 B M3, +34 / +41 instructions, but a static stack of 376 / 392 B); one
-out-of-line twist instead of two inlined ones in `_f32` (-148 B, +43 instructions: f32
-then misses its 1,500); -Os on five_load.c costs 110 B, on rotary_record_bad alone
+instructions per `five_f32` call (trunnions 12-15, kinds 3-5 30-39); then, with kinds
+3-5 compiled in, the trunnions' tilt twist is kinds 3-5's out-of-line twist_chain_f32
+instead of a second inlined copy: -220 B (11,270 -> 11,050 B; trunnion-only unchanged,
+9,520 B, where the out-of-line copy would be new: +92 B measured) for +23 instructions
+(M4F `five_f32` on ac_full 1,466 -> 1,489 of its 1,500; 1,481 before item 4's second
+round). Measured and not kept: both trunnion twists out of line (-456 B, 10,814 B, but
++45 instructions: ac_full 1,511, over its 1,500); `_q`'s twist out of line (-180 B
+M4F, -112 B M3, +34 / +41 instructions, but a static stack of 376 / 392 B); -Os on five_load.c costs 110 B, on rotary_record_bad alone
 100 B; -Os on five_eval_q.c saves 172 B (M3) for +492 instructions. The five-axis
 kernels are a translation unit of their own (terms_rot_f32.c) so that the 3-axis kernels
 compile as before.
@@ -301,8 +307,8 @@ The deepest paths are now both 320 B: the linear one, the step 64 B +
 abbe_five_eval_f32_linear 144 B + abbe_axis_fold_rot_f32 0 B + fold_values_rot_f32 64 B
 + abbe_axis_terms_sparse_f32 48 B (a six-term axis: fold6_rot_f32 88 B, 296 B), and the
 kinds 3-5 rotary one, 64 + abbe_five_eval_f32_rotary 8 + add_chain_f32 168 +
-twist_chain_f32 32 + abbe_rotary_motions6_f32 48 B (trunnions: add_rotary_f32 152 B,
-272 B). abbe_five_error_eval_f32: 320 B (400 B before). Measured by painting (the table
+twist_chain_f32 32 + abbe_rotary_motions6_f32 48 B (trunnions: add_rotary_f32 136 B +
+twist_chain_f32 32 B + 48 B, 288 B; trunnion-only add_rotary_f32 160 B + 48 B, 280 B). abbe_five_error_eval_f32: 320 B (400 B before). Measured by painting (the table
 above), the compensator cycle now uses 296-312 B (364-412 B before). `_q` (not named by the budget):
 trunnion-only 312 / 320 B (meets); with kinds 3-5 528 / 536 B: abbe_comp_step5_q 48 B
 + abbe_five_eval_q_core 40 B + add_chain_q 328 B + twist_chain_q 56 / 64 B + motions_q
