@@ -118,7 +118,7 @@ typedef struct {
     union {
         int32_t q[ABBE_AXES * ABBE_TERMS + ABBE_AXES];
         struct {
-            int32_t at[ABBE_AXES + 2];
+            int32_t at[ABBE_AXES + ABBE_ROTARY_AXES];
             float dir_state[ABBE_AXES];
             abbe_five_error_f32_t eval;
             int32_t error_nm[ABBE_AXES];
