@@ -24,10 +24,6 @@ TARGETS = {"five_f32": 1500, "five_q": 3000, "flash": 8 * 1024, "stack": 320}
 #: 3-axis budgets' table) or none, with the rotary axes. ac_location carries the 'full'
 #: 3-axis table, whose linear evaluation alone is above the five-axis budgets.
 BUDGET_TABLES = ("ac_full", "bc_motions")
-#: The other kinds' tables (issue 39), each judged on its own: the LinuxCNC samples' chains
-#: with the paper machine's linear axes or none. ht_maxkins carries the 'full' 3-axis table
-#: (reported apart, as ac_location); ht_maxkins_paper is the same chain on the paper table.
-KIND_BUDGET_TABLES = ("hh_5axiskins", "ht_maxkins_paper", "tdr_xyzab")
 #: bench/results.md's 3-axis figures this section must not regress (issue 23).
 THREE_AXIS_BEFORE = {("Cortex-M4F", "f32"): 697, ("Cortex-M3", "q"): 1409,
                      ("Cortex-M4F", "comp_f32"): 6048, ("Cortex-M4F", "comp_q"): 5926,
@@ -62,11 +58,7 @@ def section(m4f: Path, m3: Path) -> list[str]:
            "golden table (tests/golden/golden_five.*: `ac_full` A/C with every location error, all",
            "six motions of A (4 harmonics) and C (6), five-axis squareness and the paper machine's",
            "linear axes; `bc_motions` B/C, 8 harmonics on both, no linear errors; `ac_location`",
-           "location errors only with the 'full' 3-axis table's linear axes; the other kinds, issue 39:",
-           "`hh_5axiskins` 5axiskins with the paper machine's linear axes, `ht_maxkins` maxkins with the",
-           "'full' table's, `ht_maxkins_paper` maxkins with the paper machine's, `tdr_xyzab`",
-           "xyzab_tdr_kins without linear errors; all with every location error, motion and",
-           "squareness), 8 points each:",
+           "location errors only with the 'full' 3-axis table's linear axes), 8 points each:",
            "instructions per call from QEMU's exec trace (min / median / max), and the stack the",
            "call really used (painted stack, the benchmark wrapper's own frame taken out).", "",
            "| target | call | table | instructions (min / median / max) | stack measured (B) | target |",
@@ -140,14 +132,6 @@ def section(m4f: Path, m3: Path) -> list[str]:
          worst.get(("Cortex-M4F", "five_f32@ac_location")), TARGETS["five_f32"]),
         ("Cortex-M3 abbe_five_error_eval_q, ac_location ('full' 3-axis table: see below)",
          worst.get(("Cortex-M3", "five_q@ac_location")), TARGETS["five_q"]),
-    ]
-    for table in KIND_BUDGET_TABLES + ("ht_maxkins",):
-        apart = " ('full' 3-axis table: see below)" if table == "ht_maxkins" else ""
-        rows += [(f"Cortex-M4F abbe_five_error_eval_f32, {table}{apart}",
-                  worst.get(("Cortex-M4F", "five_f32@" + table)), TARGETS["five_f32"]),
-                 (f"Cortex-M3 abbe_five_error_eval_q, {table}{apart}",
-                  worst.get(("Cortex-M3", "five_q@" + table)), TARGETS["five_q"])]
-    rows += [
         ("flash, five-axis load + eval + compensator, f32 (M4F)", flash.get(("Cortex-M4F", "five_f32")),
          TARGETS["flash"]),
         ("flash, five-axis load + eval + compensator, q (M4F)", flash.get(("Cortex-M4F", "five_q")),
@@ -175,10 +159,7 @@ def section(m4f: Path, m3: Path) -> list[str]:
                    f"{_verdict(now, budget) if now is not None else 'not measured'} |")
     out += ["", "Where the instructions go (first point, instructions per function):", ""]
     for name, build, plan in (("Cortex-M4F", m4f, "five_f32@ac_full"), ("Cortex-M3", m3, "five_q@ac_full"),
-                              ("Cortex-M4F", m4f, "five_f32@ac_location"), ("Cortex-M3", m3, "five_q@ac_location"),
-                              ("Cortex-M4F", m4f, "five_f32@hh_5axiskins"), ("Cortex-M3", m3, "five_q@hh_5axiskins"),
-                              ("Cortex-M4F", m4f, "five_f32@ht_maxkins_paper"),
-                              ("Cortex-M3", m3, "five_q@ht_maxkins_paper")):
+                              ("Cortex-M4F", m4f, "five_f32@ac_location"), ("Cortex-M3", m3, "five_q@ac_location")):
         fc = qemu_function_counts(MACHINES[name], build / "bench" / "bench_five_target.elf", nm, plan)
         call, table = plan.split("@")
         out.append(f"- {name} `{call}` on `{table}`: " + ", ".join(f"{short(k)} {v}" for k, v in fc.items()
@@ -230,123 +211,123 @@ tables whose linear axes are the paper table's, as the 3-axis budgets are.
 
 The other kinds (issue 39: head-head, head-table, dual rotary table; format 1.4,
 lib option ABBE_WITH_FIVE_KINDS, ON by default) are in the image measured above: they
-add 1,764 B (f32 M4F), 2,354 B (q M4F), 2,366 B (q M3) of generic chain code
-(add_chain_f32 / add_chain_q and their helpers, out of line) and deepen the static
-stack of abbe_comp_step5_q to 528 / 536 B (its evaluation frames 540 / 548 B measured by
-painting; 424 / 448 B since the instruction work below); abbe_comp_step5_f32's is 456 B with or without them (its rotary part, the
-other kinds' chain included, is 416 B deep, 344 B since the instruction work below; the linear part's 456 B is the deepest: see
-"Stack" below). A trunnion-only firmware builds with -DABBE_WITH_FIVE_KINDS=OFF: its
-image is the one of the paragraphs below (measured 9,556 B f32 M4F, stack 456 B, after
-issue 39 item 4; q 9,536 / 9,626 B, stack 312 / 320 B), which is what the budget text
-below discusses. Per kind, the instruction budgets (issue 39 item 4) are met on the
-tables with the paper machine's linear axes or none: hh_5axiskins 1,496 (M4F f32) /
-2,957 (M3 q), ht_maxkins_paper 1,491 / 2,951, tdr_xyzab 1,253 / 1,976 (before: 1,856 /
-3,464, ht_maxkins 3,026 / 7,150 on the 'full' table, tdr 1,497 / 2,382); ht_maxkins
-keeps the 'full' 3-axis table and misses as ac_location does (3,026 / 7,150 before: its linear
-part alone, fold6_rot_f32 1,632 + abbe_five_eval_f32_linear 318 on the M4F, terms6_q
-4,314 + the core on the M3, is above the budgets; 2,798 / 6,836 now). How: the chain geometry
+add generic chain code (add_chain_f32 / add_chain_q and their helpers, out of line,
+and the loader's checks of kinds 3-5, 290 B): measured at h_fstack's head (before the
+instruction work was merged) 1,530 B f32 M4F (11,050 against 9,520 B trunnion-only),
+2,362 B q M4F (11,886 against 9,524 B), 2,350 B q M3 (11,968 against 9,618 B); the
+instruction work (below) costs +118 B f32 and +560 / +688 B q (the rows above: 11,168 /
+12,446 / 12,656 B). They deepen the static stack of abbe_comp_step5_q to 424 / 448 B
+(trunnion-only 312 / 320 B); abbe_comp_step5_f32's is 320 B with or without them (see
+"Stack" below). A trunnion-only firmware builds with -DABBE_WITH_FIVE_KINDS=OFF.
+
+Per kind, the instruction budgets (issue 39 item 4) are met on the tables with the paper
+machine's linear axes or none (the rows above): hh_5axiskins 1,481 (M4F f32) / 2,957
+(M3 q), ht_maxkins_paper 1,476 / 2,951, tdr_xyzab 1,241 / 1,976 (before: 1,856 / 3,464,
+tdr 1,497 / 2,382). ht_maxkins keeps the 'full' 3-axis table and misses as ac_location
+does (2,783 / 6,836): its linear part alone (fold6_rot_f32 and the linear core on the
+M4F, terms6_q and the core on the M3) is above the budgets. How: the chain geometry
 (add_chain_f32 / add_chain_q) is straight-line per kind with the machine axes the loader
 fixes (3: C, B; 4: B, C; 5: B, A) as constants, the rotations and cross products inlined
-instead of called per vector (f32) or per component (q: 9 cross_q and 5 rotate_q calls
-on hh before), and rearranged with R a x R b = R (a x b) so that the inner axis' twist
-is moved to its lever G once and then turned by the outer axis (kinds 3, 5) or negated
-(kind 4), both twists then at the outer lever: kind 3 needs 4 rotations instead of 5
-(cross products: 3 in `_f32` as before; 4 in `_q`, whose two at the outer lever are
-rounded apart), no loops or copies between them, and in `_q` every twist's lever is
-an int32 (SMULL / SMLAL; before, int64 levers: 64 x 64-bit multiplies; the tool tip
-that the linear axes' orientation turns stays int64). The price is flash: +102 B (f32
-M4F, 11,322 -> 11,424 B), +560 B (q M4F, 11,886 -> 12,446 B), +688 B (q M3, 11,968 ->
-12,656 B), against the same measurement at 7e255ef; `_q` keeps two copies
-of the geometry (kind 3; kinds 4 and 5 share record 0's axis): one generic copy (the
-axes read from the model) is 236 B smaller on the M3 but gives 3,057 on hh (misses),
-three copies (one per kind) about 330 B larger for 2,949 / 2,915 / 1,922 (M3; two copies:
-2,957 / 2,951 / 1,976). The static stack of abbe_comp_step5_q falls from 528 / 536 B to
-424 / 448 B (add_chain_q's frame 328 -> 224 / 240 B: no int64 lever arrays).
+instead of called per vector (f32) or per component (q: 9 cross_q and 5 rotate_q calls on
+hh before), and rearranged with R a x R b = R (a x b) so that the inner axis' twist is
+moved to its lever once and then turned by the outer axis (kinds 3, 5) or negated (kind
+4): kind 3 needs 4 rotations instead of 5; in `_q` every twist's lever is an int32
+(SMULL / SMLAL; before, int64 levers: 64 x 64-bit multiplies). `_q` keeps two copies of
+the geometry (kind 3; kinds 4 and 5 share record 0's axis): one generic copy is 236 B
+smaller on the M3 but gives 3,057 on hh (misses).
 
-Flash (missed, issue 39: what stands in the way, per byte; M4F f32 image 9,536 B, q
-9,536 B, M3 q 9,626 B against 8,192). The image is the 3-axis load + compensator image
-(6,104 B f32 / 5,990 B q M4F / 6,100 B q M3, measured at the same commit) plus:
+Flash (missed, issue 39: what stands in the way, per byte). Measured with every kind
+(the rows above: 11,050 B f32 M4F, 11,886 B q M4F, 11,968 B q M3) and per kind: a
+trunnion-only library (-DABBE_WITH_FIVE_KINDS=OFF) 9,520 / 9,524 / 9,618 B; the chain
+kinds alone (measured, not kept: the trunnions' rotary part add_rotary_f32 / add_rotary_q
+left out of the evaluation, the loader unchanged) 10,120 / 10,330 / 10,428 B. No
+per-kind build meets 8,192 B: the smallest, trunnion-only, is 1,328 / 1,332 / 1,426 B
+over, so a finer compile-time choice of kinds (one kind per image) was not added. The
+f32 image with every kind is the 3-axis load + compensator image (6,108 B, unchanged)
+plus 4,942 B, where 8 KiB leaves 2,084 B:
 
-- the loader's rotary part, +1,114 B (five_load.c 3,154 B against model_load.c's
-  2,040 B; M3 3,254 against 2,140): abbe_five_model_load's own growth 400 B (the
-  header's fields, the feature test, the two build calls), rotary_record_bad 532 B (one
-  copy of the six check categories), build_rotary 174 B, recip64 / any_nonzero /
-  n_basis_of 132 B;
-- the evaluation, f32 +2,142 B over the 3-axis eval_f32.c + terms_f32.c (2,584 B):
-  add_rotary_f32 1,266 B (both twists inlined, the tilt's rotation of v_C, w_C and the
-  offset, two cross products, the squareness), abbe_five_eval_f32_core 756 B (the
-  linear core's source inlined once more, with the angle conversion; since issue 39 item 4
-  abbe_five_eval_f32_linear 728 B + abbe_five_eval_f32_rotary 32 B, M4F trunnion-only), the rotary
-  motions' kernel 312 B, the sparse-motions path 196 B, abbe_sincos_f32 with its table
-  196 B; the linear folds with angles (fold6_rot_f32 660 B, fold_values_rot_f32 164 B)
-  replace the 3-axis fold6_f32 (604 B) in this image; q: add_rotary_q 1,532 B (M4F;
-  1,516 B M3), motions_q 556 B;
+- the loader's rotary part, +1,392 B (five_load.c 3,432 B against model_load.c's
+  2,040 B; M3 3,516 against 2,140): abbe_five_model_load 2,564 B (the 3-axis loader
+  inlined, the header's fields, the feature test, the build calls), rotary_record_bad
+  544 B (one copy of the six check categories), build_rotary 174 B, recip64 /
+  any_nonzero / n_basis_of 132 B; the checks of kinds 3-5 are 290 B of it;
+- the evaluation, f32 +3,374 B over the 3-axis eval_f32.c + terms_f32.c + sin/cos
+  (2,588 B): add_rotary_f32 952 B (the table's twist inlined, the tilt's rotation of v_C,
+  w_C and the offset, two cross products, the squareness), kinds 3-5 1,240 B
+  (add_chain_f32 984 B, cross_add_f32 110 B, rotate_f32 84 B, and twist_chain_f32 320 B,
+  the tilt's twist for the trunnions too: counted in the kinds, a trunnion-only build
+  inlines it into add_rotary_f32 instead), the linear part
+  abbe_five_eval_f32_linear 684 B (the linear core's source inlined once more, with the
+  angle conversion), the rotary motions' kernel 312 B, the sparse-motions path 196 B,
+  abbe_sincos_f32 with its table 196 B; the linear folds with angles (fold6_rot_f32 672 B,
+  fold_values_rot_f32 166 B) replace the 3-axis fold6_f32 (604 B) in this image; q
+  (M4F): five_eval_q.c 4,380 B, of which kinds 3-5 2,072 B;
 - the five-axis compensator cycle, +176 B (comp_five_f32.c 416 B with the inline
   mm-to-nm conversion, comp_five.c 20 B, comp_f32.c's abbe_comp_um_to_nm 116 B, comp.c
   +16 B, against the 3-axis comp_f32.c 392 B).
 
-8 KiB leaves 2,088 B (f32) over the 3-axis image: the rotary evaluation alone (1,970
-B f32: add_rotary_f32, both motion paths, sin/cos) plus the loader's rotary part (1,114
-B) is 3,084 B. Without ANY rotary check in the loader the f32 image would still be
-8,422 B (230 B over; the q images 8,422 B M4F, 8,512 B M3); meeting 8 KiB needs the
-shared 3-axis core (loader 2,040 B, linear evaluation, comp.c 1,044 B) smaller as
-well, not done. Done here (issue 39):
-the f32 sin/cos table is one `const` object of sincos_f32.c instead of a static copy
-in each kernel unit that inlines the sin/cos (three copies of 96 B in the f32 image:
--192 B; the 3-axis images held one and are unchanged); abbe_comp_step5_f32 converts
-the positions to nm with the inline conversion, so the image holds no out-of-line
-abbe_mm_to_nm_f32 (-64 B, and 8 B less stack); `_q`'s rotary part writes its three
-output components in one loop instead of three copies of the code (-284 B M4F, -316 B
-M3, for +96 instructions: M3 `five_q` on ac_full 2,784 -> 2,880 of its 3,000; the
-squareness formed inside the loop and the orientations rounded in a second loop keep
-fewer values live, so the static stack of abbe_comp_step5_q stays 320 B on the M3 and
-falls to 312 B on the M4F). Measured and not kept: `_q`'s twist out of line on top of
-that (-180 B M4F, -112 B M3, +34 / +41 instructions, but a static stack of 376 / 392 B:
-its frame is nested between the rotary part's and the motions'); the
-linear part out of line under the core (`linear_f32`, so that its frame and the rotary
-part's are not summed): +96 B and a deeper static stack (536 B: the linear chain
-through the sparse terms kernel is then the deepest). Done instead (issue 39 item 4):
-no core; the compensator (and abbe_five_error_eval_f32) call the linear part
-(abbe_five_eval_f32_linear, the linear core's source inlined once, with the angle
-conversion) and then the rotary part (abbe_five_eval_f32_rotary), so the two are
-siblings under the step: static stack of abbe_comp_step5_f32 576 -> 456 B (trunnion-only
-496 -> 456 B), of abbe_five_error_eval_f32 488 -> 400 B, for +22 B of flash (f32 image
-11,300 -> 11,322 B measured at the same base; trunnion-only 9,528 -> 9,556 B) and +5
-instructions per `five_f32` call (+4 per compensator cycle). Measured and not kept on
-top of that: the fold's dispatch (abbe_axis_fold_rot_f32) inlined into the linear part,
-which removes its 32 B frame (GCC 12 reserves it before the tail call of a function
-returning three floats) but grows the linear part's frame by 24 B (160 -> 184): -8 B
-of stack (448 B) for +36 B of flash. Earlier trade-offs (issue 23): one
-out-of-line twist instead of two inlined ones saves 148 B (f32) / 124 B (q) for +43 /
-+55 instructions per call (f32 then misses its 1,500); -Os on five_load.c costs 110 B,
-on rotary_record_bad alone 100 B; -Os on five_eval_q.c saves 172 B (M3) for +492
-instructions. The five-axis kernels are a translation unit of their own
-(terms_rot_f32.c) so that the 3-axis kernels compile as before.
+The evaluation's five-axis code alone (3,374 B f32) is above the 2,084 B that 8 KiB
+leaves; without ANY rotary check in the loader the trunnion-only f32 image would still be
+8,418 B. Meeting 8 KiB needs the shared 3-axis core (loader 2,040 B, linear evaluation,
+comp.c 1,044 B) smaller as well, not done. Done for flash (issue 39): the f32 sin/cos
+table is one `const` object of sincos_f32.c instead of a static copy in each kernel unit
+that inlines the sin/cos (-192 B); abbe_comp_step5_f32 converts the positions to nm
+with the inline conversion (-64 B, and 8 B less stack); `_q`'s rotary part writes its
+three output components in one loop (-284 B M4F, -316 B M3, for +96 instructions);
+issue 39 item 4, second round: the f32 folds add into the output in place (below) and
+add_chain_f32 keeps fewer arrays, -52 B (11,322 -> 11,270 B), and 12 to 39 fewer
+instructions per `five_f32` call (trunnions 12-15, kinds 3-5 30-39); then, with kinds
+3-5 compiled in, the trunnions' tilt twist is kinds 3-5's out-of-line twist_chain_f32
+instead of a second inlined copy: -220 B (11,270 -> 11,050 B; trunnion-only unchanged,
+9,520 B, where the out-of-line copy would be new: +92 B measured) for +23 instructions
+(M4F `five_f32` on ac_full 1,466 -> 1,489 of its 1,500; 1,481 before item 4's second
+round). Measured and not kept: both trunnion twists out of line (-456 B, 10,814 B, but
++45 instructions: ac_full 1,511, over its 1,500); `_q`'s twist out of line (-180 B
+M4F, -112 B M3, +34 / +41 instructions, but a static stack of 376 / 392 B); -Os on five_load.c costs 110 B, on rotary_record_bad alone
+100 B; -Os on five_eval_q.c saves 172 B (M3) for +492 instructions. The five-axis
+kernels are a translation unit of their own (terms_rot_f32.c) so that the 3-axis kernels
+compile as before.
 
 The 3-axis flash rows above say MISSES against issue 23's figures (6,040 / 5,926 /
 6,036 B): model_load.c is 64 B larger since the proof work (issue 38: coefficient
 reads bounded where the analysis joins a failed header, commits cbab152, a545721);
-measured 6,104 / 5,990 / 6,100 B at 271b02c, before issue 39's changes, which leave
-them unchanged. Section 3 above still shows the older figures (not regenerated here).
+measured 6,104 / 5,990 / 6,100 B at 271b02c, before issue 39's changes; issue 39's
+changes leave them unchanged (6,108 / 5,990 / 6,100 B now). Section 3 above still shows
+the older figures (not regenerated here).
 
-Stack (missed for `_f32`, per byte): `_q` meets 320 B (the harmonics' basis in the
-compensator's scratch, the motions written straight into the twist's vectors, the
-outputs rounded per component inside the rotary part, no int64 vectors). `_f32`, 456 B
-(issue 39 item 4; 576 B before, 496 B trunnion-only): abbe_comp_step5_f32's frame 120 B
-(nine saved registers 36 B, the evaluation's output 28 B, positions in nm and angles in
-micro-degrees 20 B, direction states 12 B, three stacked arguments 12 B, the rest
-spills and padding) + abbe_five_eval_f32_linear 160 B (nine saved registers 36 B,
-d8-d12 40 B, the inlined linear core's locals and spills 84 B) +
-abbe_axis_fold_rot_f32 32 B (GCC's frame before its tail call, above) +
-fold_values_rot_f32 96 B + abbe_axis_terms_sparse_f32 48 B (a sparse axis; a six-term
-axis goes through fold6_rot_f32, 120 B, which saves d8-d14: 432 B). The rotary part
-is no longer on top of the linear one: the step 120 B + abbe_five_eval_f32_rotary 8 B +
-add_chain_f32 136 B (208 B before issue 39 item 4's instruction work) + twist_chain_f32 32 B + abbe_rotary_motions6_f32 48 B = 344 B
-(kinds 3-5), + add_rotary_f32 160 B + 48 B = 336 B (trunnion). The linear path is above
-320 B by itself, as the 3-axis abbe_comp_step_f32 is (496 B, section 4): the step and
-the linear part are 280 B before any fold, and the folds 144-176 B.
-Meeting 320 B needs the linear core's and the fold kernels' frames smaller
-(lib/src/eval_f32_linear.h, shared with the 3-axis core), not done."""
+Stack (`_f32` meets, issue 39 item 4): abbe_comp_step5_f32 320 B (576 B before issue 39
+item 4, 456 B after its first round), with or without kinds 3-5. Three changes, each
+measured, results bit for bit unchanged (every golden point's float outputs and three
+compensator cycles per point compared on the M4F before and after):
+
+- the five-axis folds (abbe_axis_fold_rot_f32 and its two kernels) add into e and w in
+  memory (the evaluation's output) instead of returning an abbe_vec3f_t: GCC 12 keeps 32
+  unused bytes of stack in every function that returns three floats in s0-s2 (a
+  three-line test: 64 B against 32 B for the same body writing through a pointer), so
+  the dispatch drops from 32 to 0 B, fold_values_rot_f32 from 96 to 64 B,
+  fold6_rot_f32 from 120 to 88 B, and the linear part from 160 to 144 B (e is no longer
+  live in registers across the calls): -40 B, and 12 to 15 fewer instructions per call;
+- the step's working memory (positions in nm and angles in micro-degrees 20 B, the
+  direction states as floats 12 B, the evaluation's output 28 B, the error in nm) is in
+  the compensator's scratch, which becomes a union of the fixed-point cycles' term
+  values and this (abbe_comp_t keeps its size, 248 B on the M4F: a larger struct would
+  have made the 3-axis abbe_comp_init's memset length a 32-bit immediate, +4 B in the
+  3-axis images; MISRA 19.2 deviated, docs/misra.md): the step's frame 120 -> 64 B;
+- add_chain_f32 (kinds 3-5) keeps fewer arrays: its frame 208 -> 168 B in this change
+  alone, 136 B with the straight-line per-kind geometry of the instruction work (merged).
+
+The deepest path is now 320 B, the linear one: the step 64 B +
+abbe_five_eval_f32_linear 144 B + abbe_axis_fold_rot_f32 0 B + fold_values_rot_f32 64 B
++ abbe_axis_terms_sparse_f32 48 B (a six-term axis: fold6_rot_f32 88 B, 296 B), and the
+kinds 3-5 rotary one is below it, 64 + abbe_five_eval_f32_rotary 8 + add_chain_f32 136 +
+twist_chain_f32 32 + abbe_rotary_motions6_f32 48 B = 288 B (trunnions: add_rotary_f32 136 B +
+twist_chain_f32 32 B + 48 B, 288 B; trunnion-only add_rotary_f32 160 B + 48 B, 280 B). abbe_five_error_eval_f32: 320 B (400 B before). Measured by painting (the table
+above), the compensator cycle now uses 296-312 B (364-412 B before). `_q` (not named by the budget):
+trunnion-only 312 / 320 B (meets); with kinds 3-5 424 / 448 B: abbe_comp_step5_q 48 B
++ abbe_five_eval_q_core 40 B + add_chain_q 224 / 240 B + twist_chain_q 56 / 64 B +
+motions_q 56 B, so add_chain_q's frame would have to be 120 B (M4F) / 112 B (M3) or
+less, or the twists not nested under it; not done. The 3-axis abbe_comp_step_f32 stays 496 B (section 4; its
+kernels are not the five-axis ones and are unchanged)."""
 
 
 def replace_section(results: Path, lines: list[str]) -> None:

@@ -17,11 +17,11 @@ static inline abbe_status_t comp_step_thermal_q(abbe_comp_t *comp, abbe_thermal_
     }
     uint32_t flags = abbe_comp_begin(comp);
     int input_ok = in->fresh != 0u;
-    int32_t *error_nm = &comp->scratch[ABBE_AXES * ABBE_TERMS];
+    int32_t *error_nm = &comp->scratch.q[ABBE_AXES * ABBE_TERMS];
     int have_error = input_ok && comp->model != NULL;
     if (have_error) {
         abbe_comp_track_direction(comp, in->pos_nm, in->dir);
-        flags |= abbe_eval_q_core(comp->model, in->pos_nm, comp->dir_state_q30, in->temp_mdegc, comp->scratch,
+        flags |= abbe_eval_q_core(comp->model, in->pos_nm, comp->dir_state_q30, in->temp_mdegc, comp->scratch.q,
                                   error_nm);
     }
     if (thermal != NULL && thermal->model != NULL) {

@@ -19,12 +19,14 @@
 #define ABBE_URAD_PER_ANG_LSB 1.4551915228366852e-5f          /* 2^-36 rad in urad */
 
 #if defined(ABBE_EVAL_F32_ROT)
-/* Z's angles count +, X's and Y's - (the tool on Z, the workpiece on X and Y) */
-#define ABBE_FOLD_AXIS(j, ex, ey, ez, rx, ry, rz, lin)                                                         \
-    abbe_axis_fold_rot_f32(&m->axis[j], d[j], w, (j) == 2u ? ABBE_URAD_PER_ANG_LSB : -ABBE_URAD_PER_ANG_LSB, ex, \
-                           ey, ez, rx, ry, rz, lin)
+/* Z's angles count +, X's and Y's - (the tool on Z, the workpiece on X and Y).
+ * The five-axis kernels add into error_um in place (e is stored there first). */
+#define ABBE_FOLD_AXIS(j, ex, ey, ez, rx, ry, rz, lin)                                                          \
+    abbe_axis_fold_rot_f32(&m->axis[j], d[j], error_um, w,                                                    \
+                           (j) == 2u ? ABBE_URAD_PER_ANG_LSB : -ABBE_URAD_PER_ANG_LSB, rx, ry, rz, lin)
 #else
-#define ABBE_FOLD_AXIS(j, ex, ey, ez, rx, ry, rz, lin) abbe_axis_fold_f32(&m->axis[j], d[j], ex, ey, ez, rx, ry, rz, lin)
+#define ABBE_FOLD_AXIS(j, ex, ey, ez, rx, ry, rz, lin) \
+    e = abbe_axis_fold_f32(&m->axis[j], d[j], ex, ey, ez, rx, ry, rz, lin)
 #endif
 
 /* The spatial error (um) at pos_mm into error_um; returns its flags, or
@@ -73,17 +75,22 @@ static ABBE_ALWAYS_INLINE uint32_t eval_f32_linear(const abbe_model_t *m, const 
     e.x -= z * m->squareness_f[1];
     e.y = -z * m->squareness_f[2];
     e.z = 0.0f;
+#if defined(ABBE_EVAL_F32_ROT)
+    error_um[0] = e.x;
+    error_um[1] = e.y;
+    error_um[2] = e.z;
+#endif
     const abbe_vec3f_t r_x = {x - tx, y - ty, -(z + tz)};
-    e = ABBE_FOLD_AXIS(0u, e.x, e.y, e.z, r_x.x, r_x.y, r_x.z, -kl);
+    ABBE_FOLD_AXIS(0u, e.x, e.y, e.z, r_x.x, r_x.y, r_x.z, -kl);
     const abbe_vec3f_t r_y = {-tx, r_x.y, r_x.z};
-    e = ABBE_FOLD_AXIS(1u, e.x, e.y, e.z, r_y.x, r_y.y, r_y.z, -kl);
+    ABBE_FOLD_AXIS(1u, e.x, e.y, e.z, r_y.x, r_y.y, r_y.z, -kl);
     const abbe_vec3f_t r_z = {tx, ty, tz};
-    e = ABBE_FOLD_AXIS(2u, e.x, e.y, e.z, r_z.x, r_z.y, r_z.z, kl);
-    const float ex = e.x, ey = e.y, ez = e.z;
-
-    error_um[0] = ex;
-    error_um[1] = ey;
-    error_um[2] = ez;
+    ABBE_FOLD_AXIS(2u, e.x, e.y, e.z, r_z.x, r_z.y, r_z.z, kl);
+#if !defined(ABBE_EVAL_F32_ROT)
+    error_um[0] = e.x;
+    error_um[1] = e.y;
+    error_um[2] = e.z;
+#endif
     if (features & (ABBE_FEATURE_BACKLASH | ABBE_FEATURE_THERMAL)) {
         const float mm_per_scaled = 2.0e-6f / ka; /* scaled arm -> mm */
         const float lev_mm[ABBE_AXES] = {x * mm_per_scaled, y * mm_per_scaled, z * mm_per_scaled};

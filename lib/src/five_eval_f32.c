@@ -77,6 +77,11 @@ static ABBE_ALWAYS_INLINE void twist_f32(const abbe_rotary_model_t *ax, unsigned
     v[l] += omc * dl - sr * dj;
 }
 
+#if !defined(ABBE_NO_FIVE_KINDS)
+/* kinds 3-5's out-of-line twist (below), also the trunnions' tilt's */
+ABBE_NOINLINE static void twist_chain_f32(const abbe_rotary_model_t *ax, float c, float s, float sr, float vw[6]);
+#endif
+
 /* out's position (um) and orientation (urad) minus the rotary axes' twists,
  * plus the five-axis squareness, at positions p (nm) and angles udeg. With
  * R_t the tilt's rotation (about its axis k, X or Y; (j, l) = (k+1, k+2) mod
@@ -96,7 +101,13 @@ ABBE_NOINLINE static void add_rotary_f32(const abbe_five_model_t *m5, const int3
     abbe_sincos_f32(abbe_udeg_phase_q32(udeg[1]), &sc, &cc);
     float vw[6], vwt[6], Ro[3];
     twist_f32(table, 2u, 0u, 1u, cc, sc, sc, vw);
+#if defined(ABBE_NO_FIVE_KINDS)
     twist_f32(tilt, k, j, l, ct, st, st, vwt);
+#else
+    /* the kinds' out-of-line twist (the same code, j and l from tilt->dir as above): one
+     * copy less, -220 B of flash for +23 instructions (bench/results.md, section 11) */
+    twist_chain_f32(tilt, ct, st, st, vwt);
+#endif
     float *v = vw, *w = vw + 3;
     const float *vt = vwt, *wt = vwt + 3;
     /* R_t of the table's v and w, and of the offset (no component along k: the loader), mm */
@@ -169,7 +180,8 @@ static ABBE_ALWAYS_INLINE void cross_add_f32(const float a[3], const float b[3],
  *   kind 4:     d = v0 - (v1 + w1 x G) + w0 x L0 - w1 x L0,
  * i.e. one form: the inner twist moved to its lever G (g, or G), then turned by R0
  * (kinds 3, 5) or negated (kind 4), both twists at the outer lever. */
-/* A record's twist (twist_f32) about its own machine axis: one copy for both records. */
+/* A record's twist (twist_f32) about its own machine axis: one copy for both records
+ * (and the trunnions' tilt, add_rotary_f32). */
 ABBE_NOINLINE static void twist_chain_f32(const abbe_rotary_model_t *ax, float c, float s, float sr, float vw[6])
 {
     const unsigned k = ax->dir;

@@ -284,11 +284,12 @@ abbe_vec3f_t abbe_axis_fold_f32(const abbe_axis_model_t *ax, uint32_t d, float e
  * three linear ones times lin, the angular ones times ang (terms_rot_f32.c,
  * the Fourier blocks' loop). */
 void abbe_rotary_motions6_f32(const uint8_t *row, unsigned h, float s1, float c1, float lin, float ang, float m[6]);
-/* The same (every build, x86-64 included), also adding wsign x (eps_x,
- * eps_y, eps_z) to w: the five-axis evaluation's one pass over an axis
- * (terms_rot_f32.c). */
-abbe_vec3f_t abbe_axis_fold_rot_f32(const abbe_axis_model_t *ax, uint32_t d, float *w, float wsign, float ex,
-                                    float ey, float ez, float rx, float ry, float rz, float lin);
+/* The same (every build, x86-64 included) on e in place (e += the axis'
+ * share), also adding wsign x (eps_x, eps_y, eps_z) to w: the five-axis
+ * evaluation's one pass over an axis (terms_rot_f32.c). e and w in memory
+ * rather than a returned abbe_vec3f_t: less stack (bench/results.md, section 11). */
+void abbe_axis_fold_rot_f32(const abbe_axis_model_t *ax, uint32_t d, float e[3], float w[3], float wsign, float rx,
+                            float ry, float rz, float lin);
 
 
 /* Float mm -> integer nm, exact to 0.56 nm over +/-2147 mm (docs/numerics.md).

@@ -11,12 +11,17 @@
 
 #if !defined(ABBE_F32_SSE2)
 
-/* The five-axis evaluation's (abbe_axis_fold_rot_f32): also the angles. */
-ABBE_NOINLINE static abbe_vec3f_t fold6_rot_f32(const abbe_axis_model_t *ax, uint32_t d, float *w, float wsign,
-                                                float ex, float ey, float ez, float rx, float ry, float rz,
-                                                float lin)
+/* The five-axis evaluation's kernels (abbe_axis_fold_rot_f32): also the angles.
+ * e and w in memory (the caller's output), not returned: GCC 12 keeps 32 unused
+ * bytes of stack in every function returning the three floats (bench/results.md,
+ * section 11), and e then need not stay in registers across the basis loop. */
+ABBE_NOINLINE static void fold6_rot_f32(const abbe_axis_model_t *ax, uint32_t d, float e[3], float w[3], float wsign,
+                                        float rx, float ry, float rz, float lin)
 {
-    return fold6_body(ax, d, ex, ey, ez, rx, ry, rz, lin, w, wsign);
+    const abbe_vec3f_t f = fold6_body(ax, d, e[0], e[1], e[2], rx, ry, rz, lin, w, wsign);
+    e[0] = f.x;
+    e[1] = f.y;
+    e[2] = f.z;
 }
 
 #endif /* !ABBE_F32_SSE2 */
@@ -24,34 +29,36 @@ ABBE_NOINLINE static abbe_vec3f_t fold6_rot_f32(const abbe_axis_model_t *ax, uin
 /* An axis whose six values come as an array (a sparse axis; every axis on
  * x86-64, whose kernels return values), folded as by the kernel above. Out
  * of line: the values' array is not on the stack of the six-term path. */
-ABBE_NOINLINE static abbe_vec3f_t fold_values_rot_f32(const abbe_axis_model_t *ax, uint32_t d, float *w,
-                                                      float wsign, float ex, float ey, float ez, float rx,
-                                                      float ry, float rz, float lin)
+ABBE_NOINLINE static void fold_values_rot_f32(const abbe_axis_model_t *ax, uint32_t d, float e[3], float w[3],
+                                              float wsign, float rx, float ry, float rz, float lin)
 {
-    abbe_vec3f_t e = {ex, ey, ez};
-    const abbe_vec3f_t r = {rx, ry, rz};
     float v[ABBE_TERMS];
 #if defined(ABBE_F32_SSE2)
     abbe_axis_terms_f32(ax, d, v);
 #else
     abbe_axis_terms_sparse_f32(ax, d, v);
 #endif
-    ABBE_FOLD6(e, r, lin, v[0], v[1], v[2], v[3], v[4], v[5]);
+    abbe_vec3f_t f = {e[0], e[1], e[2]};
+    const abbe_vec3f_t r = {rx, ry, rz};
+    ABBE_FOLD6(f, r, lin, v[0], v[1], v[2], v[3], v[4], v[5]);
     w[0] += wsign * v[3];
     w[1] += wsign * v[4];
     w[2] += wsign * v[5];
-    return e;
+    e[0] = f.x;
+    e[1] = f.y;
+    e[2] = f.z;
 }
 
-abbe_vec3f_t abbe_axis_fold_rot_f32(const abbe_axis_model_t *ax, uint32_t d, float *w, float wsign, float ex,
-                                    float ey, float ez, float rx, float ry, float rz, float lin)
+void abbe_axis_fold_rot_f32(const abbe_axis_model_t *ax, uint32_t d, float e[3], float w[3], float wsign, float rx,
+                            float ry, float rz, float lin)
 {
 #if !defined(ABBE_F32_SSE2)
     if (ax->n_terms == ABBE_TERMS) {
-        return fold6_rot_f32(ax, d, w, wsign, ex, ey, ez, rx, ry, rz, lin);
+        fold6_rot_f32(ax, d, e, w, wsign, rx, ry, rz, lin);
+        return;
     }
 #endif
-    return fold_values_rot_f32(ax, d, w, wsign, ex, ey, ez, rx, ry, rz, lin);
+    fold_values_rot_f32(ax, d, e, w, wsign, rx, ry, rz, lin);
 }
 
 /* A rotary axis' six error motions (format 1.2, five_eval_f32.c): the sums

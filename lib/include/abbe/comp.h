@@ -109,10 +109,21 @@ typedef struct {
     uint8_t fault;
     uint8_t stale;
     abbe_comp_stats_t stats;
-    /* Working memory of one cycle's evaluation (the 18 term values and the
-     * error), kept here rather than on the stack: a cycle's stack stays
-     * within 256 B (bench/results.md). */
-    int32_t scratch[ABBE_AXES * ABBE_TERMS + ABBE_AXES];
+    /* Working memory of one cycle's evaluation, kept here rather than on the
+     * stack: a cycle's stack stays within 256 B (3-axis) and 320 B (five-axis
+     * _f32, bench/results.md section 11). A cycle uses one member: q the 18
+     * term values and the error (the fixed-point cycles); five_f32 the
+     * positions (nm) and angles (micro-degrees), the direction states as
+     * floats, the evaluation's output and the error (abbe_comp_step5_f32). */
+    union {
+        int32_t q[ABBE_AXES * ABBE_TERMS + ABBE_AXES];
+        struct {
+            int32_t at[ABBE_AXES + ABBE_ROTARY_AXES];
+            float dir_state[ABBE_AXES];
+            abbe_five_error_f32_t eval;
+            int32_t error_nm[ABBE_AXES];
+        } five_f32;
+    } scratch;
 } abbe_comp_t;
 
 /* Check cfg and start disabled with zero corrections. model may be NULL (no

@@ -153,6 +153,8 @@ class Comp(C.Structure):
         ("fault", C.c_uint8),
         ("stale", C.c_uint8),
         ("stats", CompStats),
+        # a union in C (the fixed-point cycles' int32 words, the five-axis _f32 cycle's
+        # working memory): the same 84 bytes, never read from Python
         ("scratch", C.c_int32 * (ABBE_AXES * ABBE_TERMS + ABBE_AXES)),
     ]
 
