@@ -93,14 +93,20 @@ five_table() { # name: as golden_table, from golden_five.c
 }
 FIVE_SRCS="tests/proofs/eval_five_q.c $(ls lib/src/*.c | grep -v thermal_load | tr '\n' ' ')"
 FIVE_OPTS="-eva-auto-loop-unroll 64 -eva-split-return-function check_header:0,abbe_five_model_load:0 -eva-slevel-function abbe_five_model_load:40,main:10"
+# the float evaluation: the linear part's return states kept apart too (a
+# refused input, whose angles are never converted, is not merged with an
+# accepted one)
+FIVE_F32_OPTS="${FIVE_OPTS/abbe_five_model_load:0/abbe_five_model_load:0,abbe_five_eval_f32_linear:0},abbe_five_eval_f32_linear:10,abbe_five_error_eval_f32:10"
 for t in ac_full bc_motions ac_location hh_5axiskins ht_maxkins tdr_xyzab; do
     five_table "$t"
     HARNESSES+=("eval_five_q_$t|$FIVE_SRCS|-DPROOF_CLZ_AS_CODE -I$OUT -DPROOF_TABLE=table_five_$t.h|$FIVE_OPTS")
+    HARNESSES+=("eval_five_f32_$t|${FIVE_SRCS/eval_five_q.c/eval_five_f32.c}|-DPROOF_CLZ_AS_CODE -I$OUT -DPROOF_TABLE=table_five_$t.h|$FIVE_F32_OPTS")
 done
 # the float evaluation given any bits, NaN and infinities included: the one
 # harness with -warn-special-float none (a non-finite input is not an alarm
 # by itself; every other kind of alarm still counts); the finite harnesses
 # above prove that finite inputs give nothing non-finite
+HARNESSES+=("eval_five_f32_nonfinite|${FIVE_SRCS/eval_five_q.c/eval_five_f32.c}|-DPROOF_CLZ_AS_CODE -I$OUT -DPROOF_TABLE=table_five_ac_full.h -DPROOF_NONFINITE|$FIVE_F32_OPTS -warn-special-float none")
 HARNESSES+=("eval_f32_nonfinite|${EVAL_SRCS/eval_q.c/eval_f32.c}|-DPROOF_CLZ_AS_CODE -I$OUT -DPROOF_TABLE=table_paper.h -DPROOF_NONFINITE|$EVAL_OPTS -warn-special-float none")
 
 # Hypotheses: ACSL assertions in lib/src that Eva cannot decide (a value
