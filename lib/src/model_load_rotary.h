@@ -173,9 +173,9 @@ static void build_rotary(abbe_rotary_model_t *ax, const uint8_t *b, const uint8_
     ax->dir = (uint8_t)dir;
     ax->delta_q8[i1] = abbe_ld_i32(rec + RA_LOC_LIN);
     ax->delta_q8[i2] = abbe_ld_i32(rec + RA_LOC_LIN + 4u);
-    ax->phi_q36[i1] = abbe_ld_i32(rec + RA_LOC_ANG);
-    ax->phi_q36[i2] = abbe_ld_i32(rec + RA_LOC_ANG + 4u);
-    ax->zero_q36 = abbe_ld_i32(rec + RA_LOC_ANG + 8u);
+    ax->phi_q36[i1] = capped_i32(abbe_ld_i32(rec + RA_LOC_ANG), SQUARENESS_CAP); /* check_rotary's cap */
+    ax->phi_q36[i2] = capped_i32(abbe_ld_i32(rec + RA_LOC_ANG + 4u), SQUARENESS_CAP);
+    ax->zero_q36 = capped_i32(abbe_ld_i32(rec + RA_LOC_ANG + 8u), SQUARENESS_CAP);
     ax->comp_mask = rec[RA_MASK];
     ax->n_comp = (uint8_t)popcount6(ax->comp_mask);
     /* no component, no coefficient arrays (NULL): the kernels' row pointer must

@@ -1,6 +1,6 @@
 /* Eva harness: the five-axis float evaluation (abbe_five_error_eval_f32) on
- * a five-axis table the loader accepted (PROOF_TABLE, a golden table of
- * tests/golden/golden_five.c, as in eval_five_q.c) at every joint position:
+ * the tables of eval_five_q.c (PROOF_TABLES_H, PROOF_ANY_SCALARS) at every
+ * joint position:
  * every finite linear position and angle, direction state, and every
  * temperature in [-10^6, 10^6] degC (as eval_f32.c: beyond, the refusal rests
  * on abbe_f32_temp_invalid's bit test); with -DPROOF_NONFINITE every input
@@ -13,11 +13,13 @@
 
 #include "abbe/five_axis.h"
 
-#define PROOF_STR2(x) #x
-#define PROOF_STR(x) PROOF_STR2(x)
-#include PROOF_STR(PROOF_TABLE)
+#include "tables.h"
 
-static uint32_t blob[(sizeof table_bin + 3u) / 4u];
+#if defined(PROOF_ANY_SCALARS)
+#define PROOF_FIVE 1
+#include "any_scalars.h"
+#endif
+
 static abbe_five_model_t model;
 
 #if defined(PROOF_NONFINITE)
@@ -47,8 +49,15 @@ static float any_temp(void)
 
 int main(void)
 {
-    memcpy(blob, table_bin, sizeof table_bin);
-    if (abbe_five_model_load(&model, blob, sizeof table_bin) != ABBE_OK) {
+    /* any of the tables, each its own partition (tables.h) */
+    proof_which = Frama_C_unsigned_int_interval(0u, PROOF_N_TABLES - 1u);
+    const size_t size = proof_tables[proof_which].size;
+    memcpy(blob, proof_tables[proof_which].bytes, size);
+#if defined(PROOF_ANY_SCALARS)
+    any_scalars((unsigned char *)blob);
+    any_rotary_scalars((unsigned char *)blob);
+#endif
+    if (abbe_five_model_load(&model, blob, size) != ABBE_OK) {
         return 1;
     }
     abbe_five_input_f32_t in;
