@@ -65,7 +65,7 @@ static ABBE_ALWAYS_INLINE int32_t dot2_q30(int32_t a, int32_t b, int32_t c, int3
         }                                                                                  \
     } while (0)
 
-#define LD(k) abbe_ld_i32(row + 4u * (k))
+#define LD(k) abbe_ld_i32_aligned(row + 4u * (k))
 #define MAC(acc, k, b) acc += (int64_t)LD(k) * (b)
 /* T_0 = 1 (2^30): with a constant basis GCC would turn each multiply-add into
  * a 64-bit shift sequence of seven instructions; this keeps the one SMLAL. */

@@ -41,10 +41,10 @@ ABBE_NOINLINE static int64_t axis_reversal_times(const abbe_axis_model_t *ax, in
     const int32_t u = abbe_arg_cheb_q30(ax, abbe_arg_offset(ax, pos_nm, &flags));
     int32_t t_prev = ABBE_Q30_ONE, t = u;
     int64_t acc = (int64_t)ax->backlash_reversal_q8 * ABBE_Q30_ONE + ((int64_t)1 << 29);
-    acc = abbe_smlal(acc, abbe_ld_i32(row), ABBE_Q30_ONE); /* T_0 = 1 */
+    acc = abbe_smlal(acc, abbe_ld_i32_aligned(row), ABBE_Q30_ONE); /* T_0 = 1 */
     /*@ loop unroll ABBE_MAX_REVERSAL_ROWS; */ /* the proofs: each row with its own state (docs/proofs.md) */
     for (unsigned k = 1; k < ax->reversal_rows; k++) {
-        acc += (int64_t)abbe_ld_i32(row + 4u * k) * t;
+        acc += (int64_t)abbe_ld_i32_aligned(row + 4u * k) * t;
         int32_t t_next = (int32_t)((((int64_t)u * t + ((int64_t)1 << 28)) >> 29) - t_prev);
         t_prev = t;
         t = t_next;

@@ -86,8 +86,20 @@ static inline float abbe_ld_f32_aligned(const uint8_t *p)
     memcpy(&v, __builtin_assume_aligned(p, 4), sizeof v);
     return v;
 }
+/* The same for an int32 coefficient (the _q kernels' reads): one load, which
+ * is also what GCC makes of abbe_ld_i32's four bytes here. Written as one
+ * load of the word so that the proof of the evaluation for any coefficients
+ * (docs/proofs.md) reads the word's value: an interval analysis loses a
+ * signed value's range when it is rebuilt from its bytes. */
+static inline int32_t abbe_ld_i32_aligned(const uint8_t *p)
+{
+    int32_t v;
+    memcpy(&v, p, sizeof v);
+    return v;
+}
 #else
 #define abbe_ld_f32_aligned abbe_ld_f32
+#define abbe_ld_i32_aligned abbe_ld_i32
 #endif
 
 /* Two's complement uint32 -> int32 without an implementation-defined cast. */

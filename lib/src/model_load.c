@@ -115,11 +115,11 @@ abbe_status_t abbe_five_model_load(abbe_five_model_t *model, const void *blob, s
     const uint32_t kind = h[RH_KIND];
     model->kind = kind;
     for (unsigned k = 0; k < 3u; k++) {
-        model->rot_point_nm[k] = abbe_ld_i32(h + RH_ROT_POINT + 4u * k);
-        model->offset_nm[k] = abbe_ld_i32(h + RH_OFFSET + 4u * k);
+        model->rot_point_nm[k] = geometry_at(h + RH_ROT_POINT + 4u * k);
+        model->offset_nm[k] = geometry_at(h + RH_OFFSET + 4u * k);
         /* |.| <= 2^31 - 2 (GEOMETRY_CAP): fits, so the sum mod 2^32 is the sum */
         model->tilt_pivot_nm[k] = abbe_u32_to_i32((uint32_t)model->rot_point_nm[k] + (uint32_t)model->offset_nm[k]);
-        model->squareness_q36[k] = abbe_ld_i32(h + RH_SQUARENESS + 4u * k);
+        model->squareness_q36[k] = angle_at(h + RH_SQUARENESS + 4u * k);
     }
 #if !defined(ABBE_NO_FIVE_KINDS)
     if (kind >= ABBE_KIN_XYZBC_HH && kind <= ABBE_KIN_XYZAB_TDR) { /* validated: check_rotary */
@@ -133,7 +133,7 @@ abbe_status_t abbe_five_model_load(abbe_five_model_t *model, const void *blob, s
             model->slot[r] = (uint8_t)(i == 1u ? r : 1u - r);
         }
         for (unsigned k = 0; k < 3u; k++) {
-            model->square_ref_nm[k] = abbe_ld_i32(h + RH_SQUARE_REF + 4u * k);
+            model->square_ref_nm[k] = geometry_at(h + RH_SQUARE_REF + 4u * k);
         }
         return ABBE_OK;
     }

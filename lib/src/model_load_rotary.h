@@ -165,6 +165,19 @@ static void others_of(unsigned dir, unsigned *i1, unsigned *i2)
     *i2 = dir == 2u ? 1u : 2u;
 }
 
+/* The rotary section's fields as the model keeps them, within the caps
+ * check_rotary refused beyond (capped_i32, model_load_view.h): a length
+ * (GEOMETRY_CAP) or an angle (SQUARENESS_CAP) at p. */
+static int32_t geometry_at(const uint8_t *p)
+{
+    return capped_i32(abbe_ld_i32(p), GEOMETRY_CAP);
+}
+
+static int32_t angle_at(const uint8_t *p)
+{
+    return capped_i32(abbe_ld_i32(p), SQUARENESS_CAP);
+}
+
 static void build_rotary(abbe_rotary_model_t *ax, const uint8_t *b, const uint8_t *rec, unsigned dir)
 {
     memset(ax, 0, sizeof *ax);
@@ -173,9 +186,9 @@ static void build_rotary(abbe_rotary_model_t *ax, const uint8_t *b, const uint8_
     ax->dir = (uint8_t)dir;
     ax->delta_q8[i1] = abbe_ld_i32(rec + RA_LOC_LIN);
     ax->delta_q8[i2] = abbe_ld_i32(rec + RA_LOC_LIN + 4u);
-    ax->phi_q36[i1] = abbe_ld_i32(rec + RA_LOC_ANG);
-    ax->phi_q36[i2] = abbe_ld_i32(rec + RA_LOC_ANG + 4u);
-    ax->zero_q36 = abbe_ld_i32(rec + RA_LOC_ANG + 8u);
+    ax->phi_q36[i1] = angle_at(rec + RA_LOC_ANG);
+    ax->phi_q36[i2] = angle_at(rec + RA_LOC_ANG + 4u);
+    ax->zero_q36 = angle_at(rec + RA_LOC_ANG + 8u);
     ax->comp_mask = rec[RA_MASK];
     ax->n_comp = (uint8_t)popcount6(ax->comp_mask);
     /* no component, no coefficient arrays (NULL): the kernels' row pointer must

@@ -120,6 +120,18 @@ static void build_assembly(abbe_model_t *m)
     m->square_const_q36[1] = (int64_t)m->reference_nm[2] * syz;
 }
 
+/* A field as the model keeps it: v within +/-cap, the cap its check
+ * refused beyond (check_ranges: SQUARENESS_CAP; check_rotary: also
+ * GEOMETRY_CAP). A no-op on every accepted table; done where the value is
+ * stored so that the proof of the evaluation for any accepted table
+ * (docs/proofs.md) sees the bound its products rely on (an interval analysis
+ * does not connect the check's read of the field to this one). Load time
+ * only. */
+ABBE_NOINLINE static int32_t capped_i32(int32_t v, int32_t cap)
+{
+    return v > cap ? cap : (v < -cap ? -cap : v);
+}
+
 /* *model as a view of the validated table b. */
 static ABBE_ALWAYS_INLINE void build_model(abbe_model_t *model, const uint8_t *b, uint32_t total)
 {
@@ -133,7 +145,7 @@ static ABBE_ALWAYS_INLINE void build_model(abbe_model_t *model, const uint8_t *b
     for (unsigned k = 0; k < 3u; k++) {
         model->reference_nm[k] = abbe_ld_i32(b + H_REFERENCE + 4u * k);
         model->tool_offset_nm[k] = abbe_ld_i32(b + H_TOOL + 4u * k);
-        model->squareness_q36[k] = abbe_ld_i32(b + H_SQUARENESS + 4u * k);
+        model->squareness_q36[k] = capped_i32(abbe_ld_i32(b + H_SQUARENESS + 4u * k), SQUARENESS_CAP);
     }
     for (unsigned j = 0; j < ABBE_AXES; j++) {
         build_axis(&model->axis[j], b, b + HEADER_SIZE + j * AXIS_RECORD_SIZE);

@@ -1,6 +1,6 @@
-/* Eva harness: the float evaluation (abbe_error_eval_f32) on a table the
- * loader accepted (PROOF_TABLE, as in eval_q.c) at every float input: every
- * position, direction state and temperature: finite (default: then nothing
+/* Eva harness: the float evaluation (abbe_error_eval_f32) on the tables of
+ * eval_q.c (PROOF_TABLES_H, PROOF_ANY_SCALARS, PROOF_ANY_COEFFICIENTS) at
+ * every float input: every position, direction state and temperature: finite (default: then nothing
  * non-finite may arise either), or with -DPROOF_NONFINITE any 32 bits, NaN and
  * infinities included (analysed with -warn-special-float none: no memory or
  * integer error for those; that they are refused with ABBE_E_INPUT rests on
@@ -12,13 +12,14 @@
 #include "abbe/comp.h"
 #include "abbe/error.h"
 
-#define PROOF_STR2(x) #x
-#define PROOF_STR(x) PROOF_STR2(x)
-#include PROOF_STR(PROOF_TABLE)
+#include "tables.h"
 
-static uint32_t blob[(sizeof table_bin + 3u) / 4u];
 static abbe_model_t model;
 static abbe_comp_t comp;
+
+#if defined(PROOF_ANY_SCALARS)
+#include "any_scalars.h"
+#endif
 
 #if defined(PROOF_NONFINITE)
 /* any float32, NaN and the infinities included: any 32 bits */
@@ -39,8 +40,17 @@ static float any_f32(void)
 
 int main(void)
 {
-    memcpy(blob, table_bin, sizeof table_bin);
-    if (abbe_model_load(&model, blob, sizeof table_bin) != ABBE_OK) {
+    /* any of the tables, each its own partition (tables.h) */
+    proof_which = Frama_C_unsigned_int_interval(0u, PROOF_N_TABLES - 1u);
+    const size_t size = proof_tables[proof_which].size;
+    memcpy(blob, proof_tables[proof_which].bytes, size);
+#if defined(PROOF_ANY_SCALARS)
+    any_scalars((unsigned char *)blob);
+#endif
+#if defined(PROOF_ANY_COEFFICIENTS)
+    any_coefficients((unsigned char *)blob);
+#endif
+    if (abbe_model_load(&model, blob, size) != ABBE_OK) {
         return 1;
     }
     abbe_input_f32_t in;

@@ -1,6 +1,9 @@
 /* Eva harness: the five-axis fixed-point evaluation (abbe_five_error_eval_q)
- * on a five-axis table the loader accepted (PROOF_TABLE, a golden table of
- * tests/golden/golden_five.c, as in eval_q.c) at every joint position:
+ * on every five-axis table the loader accepts with the layout and
+ * coefficients of one of the golden tables of PROOF_TABLES_H (from
+ * tests/golden/golden_five.c, as in eval_q.c), with PROOF_ANY_SCALARS any
+ * scalar field of the linear axes and of the rotary section (any_scalars.h),
+ * at every joint position:
  * every int32 linear position, angle (micro-degrees), direction state and
  * temperature (docs/proofs.md). */
 #include "__fc_builtin.h"
@@ -8,11 +11,13 @@
 
 #include "abbe/five_axis.h"
 
-#define PROOF_STR2(x) #x
-#define PROOF_STR(x) PROOF_STR2(x)
-#include PROOF_STR(PROOF_TABLE)
+#include "tables.h"
 
-static uint32_t blob[(sizeof table_bin + 3u) / 4u];
+#if defined(PROOF_ANY_SCALARS)
+#define PROOF_FIVE 1
+#include "any_scalars.h"
+#endif
+
 static abbe_five_model_t model;
 
 static int32_t any_i32(void)
@@ -22,8 +27,15 @@ static int32_t any_i32(void)
 
 int main(void)
 {
-    memcpy(blob, table_bin, sizeof table_bin);
-    if (abbe_five_model_load(&model, blob, sizeof table_bin) != ABBE_OK) {
+    /* any of the tables, each its own partition (tables.h) */
+    proof_which = Frama_C_unsigned_int_interval(0u, PROOF_N_TABLES - 1u);
+    const size_t size = proof_tables[proof_which].size;
+    memcpy(blob, proof_tables[proof_which].bytes, size);
+#if defined(PROOF_ANY_SCALARS)
+    any_scalars((unsigned char *)blob);
+    any_rotary_scalars((unsigned char *)blob);
+#endif
+    if (abbe_five_model_load(&model, blob, size) != ABBE_OK) {
         return 1;
     }
     abbe_five_input_q_t in;

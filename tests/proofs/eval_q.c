@@ -1,6 +1,9 @@
 /* Eva harness: the fixed-point evaluation and the compensator's fixed-point
- * cycle on a table the loader accepted (PROOF_TABLE: a C array of its bytes
- * that scripts/prove.sh generates with xxd from a .bin), at every position
+ * cycle on every table the loader accepts with the layout of one of the
+ * golden tables of PROOF_TABLES_H (tests/proofs/tables.h; scripts/prove.sh
+ * writes it from tests/golden): with PROOF_ANY_SCALARS any scalar field, with
+ * PROOF_ANY_COEFFICIENTS any coefficients in a box (tests/proofs/any_scalars.h),
+ * the real loader run on those bytes; at every position
  * (all of int32 nm, in and beyond the travel), every direction state and
  * every temperature; the compensator with any configuration, any number of
  * cycles of any input, resets in between (docs/proofs.md). */
@@ -10,15 +13,14 @@
 #include "abbe/comp.h"
 #include "abbe/error.h"
 
-/* PROOF_TABLE: the header's name, e.g. table_paper.h (in scripts/prove.sh's
- * build-proofs/): static const unsigned char table_bin[] = {...}; */
-#define PROOF_STR2(x) #x
-#define PROOF_STR(x) PROOF_STR2(x)
-#include PROOF_STR(PROOF_TABLE)
+#include "tables.h"
 
-static uint32_t blob[(sizeof table_bin + 3u) / 4u];
 static abbe_model_t model;
 static abbe_comp_t comp;
+
+#if defined(PROOF_ANY_SCALARS)
+#include "any_scalars.h"
+#endif
 
 static int32_t any_i32(void)
 {
@@ -27,8 +29,17 @@ static int32_t any_i32(void)
 
 int main(void)
 {
-    memcpy(blob, table_bin, sizeof table_bin);
-    if (abbe_model_load(&model, blob, sizeof table_bin) != ABBE_OK) {
+    /* any of the tables, each its own partition (tables.h) */
+    proof_which = Frama_C_unsigned_int_interval(0u, PROOF_N_TABLES - 1u);
+    const size_t size = proof_tables[proof_which].size;
+    memcpy(blob, proof_tables[proof_which].bytes, size);
+#if defined(PROOF_ANY_SCALARS)
+    any_scalars((unsigned char *)blob);
+#endif
+#if defined(PROOF_ANY_COEFFICIENTS)
+    any_coefficients((unsigned char *)blob);
+#endif
+    if (abbe_model_load(&model, blob, size) != ABBE_OK) {
         return 1;
     }
     /* the evaluation: every position, direction state and temperature */
