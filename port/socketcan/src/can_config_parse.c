@@ -284,18 +284,24 @@ static const char *read_value(parser_t *ps, const char *p, unsigned line, const 
  * (n characters) does not fit (store has checked both: never). */
 static int put_str(abbe_can_config_t *cfg, field_id_t id, const char *text, size_t n)
 {
+    /* the copy stays inside its member: Eva's memory checks see the whole
+     * configuration, so a copy past the member into the next one would not be
+     * an alarm by itself; the assertions (proven) make it one */
+    size_t len = n + 1u; /* the text and its terminator */
     switch (id) {
     case F_BUS_INTERFACE:
-        if (n >= sizeof cfg->interface) {
+        if (len > sizeof cfg->interface) {
             return 0;
         }
-        memcpy(cfg->interface, text, n + 1u);
+        /*@ assert interface_inside: len <= ABBE_CAN_IFNAME_MAX; */
+        memcpy(cfg->interface, text, len);
         return 1;
     case F_MODEL_PATH:
-        if (n >= sizeof cfg->model_path) {
+        if (len > sizeof cfg->model_path) {
             return 0;
         }
-        memcpy(cfg->model_path, text, n + 1u);
+        /*@ assert model_path_inside: len <= ABBE_CAN_PATH_MAX; */
+        memcpy(cfg->model_path, text, len);
         return 1;
     default:
         return 0;
