@@ -12,6 +12,9 @@
 #define TH_STATE_BITS 12u
 #define TH_W_BITS 28u
 #define TH_FADE_ONE ((uint32_t)1 << 24)
+#define TH_W_ONE ((uint32_t)1 << TH_W_BITS)
+/* |u| = |x - ref| x 2^12 <= 2^21 x 2^12 (the block's value cap 2^20, thermal_load.c) */
+#define TH_STATE_MAX ((int64_t)1 << 33)
 
 abbe_status_t abbe_thermal_init_q(abbe_thermal_state_t *st, const abbe_thermal_model_t *thermal, uint32_t period_us)
 {
@@ -34,10 +37,12 @@ static void th_mix_q(abbe_thermal_state_t *st)
     const abbe_thermal_model_t *th = st->model;
     int64_t out[3] = {0, 0, 0};
     unsigned fading = 0u;
+    /*@ loop unroll ABBE_THERMAL_MAX_CHANNELS; */
     for (unsigned c = 0; c < th->n_channels; c++) {
         int up = st->ch_state[c] == TH_CH_RUN && !st->gap;
         fading |= up ? (st->wq24[c] < TH_FADE_ONE) : (st->wq24[c] > 0u);
-        out[st->tip_axis[c]] += (int64_t)st->wq24[c] * st->tipq[c];
+        /* the weight <= 1 (th_fade_q keeps it there), stated for the proof as in th_fade_q */
+        out[st->tip_axis[c]] += (int64_t)(st->wq24[c] < TH_FADE_ONE ? st->wq24[c] : TH_FADE_ONE) * st->tipq[c];
     }
     for (unsigned a = 0; a < 3u; a++) { /* two channels per axis at most, each within 2^31: clamp the sum */
         st->outq[a] = (int32_t)abbe_clamp_i64(abbe_shr_round(out[a], 24u), -INT32_MAX, INT32_MAX);
@@ -101,6 +106,7 @@ abbe_status_t abbe_thermal_update_q(abbe_thermal_state_t *st, const int32_t x_mi
             flags |= fault;
         }
     }
+    /*@ loop unroll ABBE_THERMAL_MAX_CHANNELS; */ /* the proof: each channel's sums apart (no widening) */
     for (unsigned c = 0; c < th->n_channels; c++) {
         uint32_t age = st->age_ms[c] + dt_ms;
         st->age_ms[c] = age < st->age_ms[c] || age > 0x80000000u ? 0x80000000u : age; /* saturate at 2^31 ms */
@@ -113,17 +119,28 @@ abbe_status_t abbe_thermal_update_q(abbe_thermal_state_t *st, const int32_t x_mi
         int recompute = act == 2u && dt != st->wq_dt_ms[c];
         st->wq_dt_ms[c] = act == 2u ? dt : st->wq_dt_ms[c];
         int64_t acc = 0;
+        /*@ loop unroll ABBE_THERMAL_MAX_TERMS; */
         for (unsigned k = 0; k < th->n_terms[c]; k++) {
             unsigned i = th->term_input[c][k];
             int64_t u = (int64_t)(st->xq_prev[i] - th->ref_milli[i]) * ((int64_t)1 << TH_STATE_BITS);
-            int64_t s = st->sq[c][k];
+            /* the lag state and the weight as stored, held to their bounds: |s| <= TH_STATE_MAX
+             * (s only moves towards u, |u| <= TH_STATE_MAX), w <= 1 (dt / (tau + dt)); these
+             * never bind, they state the bounds for the proof (tests/proofs/thermal_update.c),
+             * whose state after any number of samples is not related to the inputs */
+            int64_t s = abbe_clamp_i64(st->sq[c][k], -TH_STATE_MAX, TH_STATE_MAX);
             if (act == 1u) {
                 s = u;
             } else {
                 if (recompute) {
-                    st->wq28[c][k] = (uint32_t)(((uint64_t)dt << TH_W_BITS) / ((uint64_t)th->tau_ms[c][k] + dt));
+                    /* a term without lag (tau 0) takes the sample whole: dt / (0 + dt) = 1 for every
+                     * dt >= 1 (a step's dt is the channel's age, >= 1 ms: dt_ms >= 1 once seen), so
+                     * the division is only made where its divisor is evidently > 0 */
+                    uint32_t tau = th->tau_ms[c][k];
+                    st->wq28[c][k] = tau == 0u ? TH_W_ONE
+                                               : (uint32_t)(((uint64_t)dt << TH_W_BITS) / ((uint64_t)tau + dt));
                 }
-                s += abbe_shr_round((int64_t)st->wq28[c][k] * (u - s), TH_W_BITS);
+                uint32_t w = st->wq28[c][k] < TH_W_ONE ? st->wq28[c][k] : TH_W_ONE;
+                s += abbe_shr_round((int64_t)w * (u - s), TH_W_BITS);
             }
             st->sq[c][k] = s;
             acc += abbe_shr_round((int64_t)th->gain_q16[c][k] * s, TH_STATE_BITS);
@@ -159,13 +176,20 @@ static inline void th_fade_q(abbe_thermal_state_t *st, uint32_t step)
     const abbe_thermal_model_t *th = st->model;
     int64_t out[3] = {0, 0, 0};
     unsigned fading = 0u;
+    /*@ loop unroll ABBE_THERMAL_MAX_CHANNELS; */
     for (unsigned c = 0; c < th->n_channels; c++) {
-        uint32_t w = st->wq24[c];
+        /* the weight and the step are both within [0, TH_FADE_ONE]: the sum and the
+         * difference computed whole, then held to [0, TH_FADE_ONE] (the same values
+         * as min(w + step, ONE) and max(w - step, 0), in a form whose bound the
+         * proof sees without relating w to step) */
+        uint32_t w = st->wq24[c] < TH_FADE_ONE ? st->wq24[c] : TH_FADE_ONE;
         if (st->ch_state[c] == TH_CH_RUN && !st->gap) {
-            w = TH_FADE_ONE - w > step ? w + step : TH_FADE_ONE;
+            uint32_t up = w + step;
+            w = up < TH_FADE_ONE ? up : TH_FADE_ONE;
             fading |= w < TH_FADE_ONE;
         } else {
-            w = w > step ? w - step : 0u;
+            int64_t down = (int64_t)w - (int64_t)step;
+            w = down > 0 ? (uint32_t)down : 0u;
             fading |= w > 0u;
         }
         st->wq24[c] = w;

@@ -29,6 +29,24 @@ static inline int abbe_proof_clz(unsigned int x)
  */
 int __builtin_clz(unsigned int x);
 #endif
+/* __builtin_add_overflow as GCC documents it, for the one use the library
+ * makes of it (int operands and result, thermal_q.c th_sat_add): the sum
+ * computed whole, stored wrapped to 32 bits, 1 when it did not fit. */
+static inline int abbe_proof_add_overflow(int a, int b, int *r)
+{
+    long long sum = (long long)a + b;
+    if (sum > 2147483647LL) {
+        *r = (int)(sum - 4294967296LL);
+        return 1;
+    }
+    if (sum < -2147483647LL - 1LL) {
+        *r = (int)(sum + 4294967296LL);
+        return 1;
+    }
+    *r = (int)sum;
+    return 0;
+}
+#define __builtin_add_overflow(a, b, r) abbe_proof_add_overflow((a), (b), (r))
 /*@ assigns \result \from p;
     ensures \result == p; */
 void *__builtin_assume_aligned(const void *p, unsigned long align);

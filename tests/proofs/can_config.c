@@ -1,9 +1,8 @@
-/* Eva harness (open: 4 alarms left, docs/proofs.md "Not proven yet"): the
- * CAN node's configuration parser (port/socketcan, abbe_can_config_parse in
+/* Eva harness: the CAN node's configuration parser (port/socketcan, abbe_can_config_parse in
  * can_config_parse.c with the TOML numbers of can_toml_number.c, then
  * abbe_can_config_check) on every text of unknown bytes of every length
- * 0..PROOF_MAX_SIZE. strlen/strcmp/memcpy are Eva's built-ins; strtod and
- * snprintf are Frama-C's libc contracts. */
+ * 0..PROOF_MAX_SIZE. strlen/strcmp/memcpy are Eva's built-ins; strncpy, strtod
+ * and snprintf are Frama-C's libc contracts. */
 #include "__fc_builtin.h"
 
 #include "abbe_can_config.h"

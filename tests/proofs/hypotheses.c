@@ -12,7 +12,9 @@
  *       [-2147, 2147] for every float, NaN and infinities included
  *       (internal.h, abbe_mm_to_nm_inline), and abbe_mm_to_nm_inline, which
  *       the float evaluations call on each position, reports exactly the NaNs
- *       and infinities (the evaluation refuses them: ABBE_E_INPUT).
+ *       and infinities (the evaluation refuses them: ABBE_E_INPUT);
+ *   hypotheses f32_finite: abbe_f32_nonfinite is false only for a finite
+ *       float (thermal_f32.c, the period of abbe_thermal_init_f32).
  * Exit 1 naming the first input that breaks one; 2 for a bad argument. */
 #include <inttypes.h>
 #include <stdio.h>
@@ -74,6 +76,28 @@ static int mm_clamped(void)
     return 0;
 }
 
+/* f32_finite: abbe_f32_nonfinite (the library's test of a float on its bits)
+ * is false only for a finite float: a float minus itself is 0 exactly when it
+ * is finite (NaN - NaN and inf - inf are NaN). */
+static int f32_finite(void)
+{
+    uint32_t bits = 0u;
+    do {
+        float f;
+        memcpy(&f, &bits, sizeof f);
+        volatile float g = f; /* the subtraction made at run time, not folded */
+        const int finite = (g - g) == 0.0f;
+        if (abbe_f32_nonfinite(f) == finite) {
+            printf("f32_finite: bits 0x%08" PRIx32 ": abbe_f32_nonfinite %d for a %s float\n", bits,
+                   abbe_f32_nonfinite(f), finite ? "finite" : "non-finite");
+            return 1;
+        }
+        bits++;
+    } while (bits != 0u);
+    printf("f32_finite: abbe_f32_nonfinite is true exactly for the 2^32 floats' NaNs and infinities\n");
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
     if (argc == 2 && strcmp(argv[1], "sincos_range") == 0) {
@@ -82,6 +106,9 @@ int main(int argc, char **argv)
     if (argc == 2 && strcmp(argv[1], "mm_clamped") == 0) {
         return mm_clamped();
     }
-    fprintf(stderr, "usage: %s sincos_range|mm_clamped\n", argv[0]);
+    if (argc == 2 && strcmp(argv[1], "f32_finite") == 0) {
+        return f32_finite();
+    }
+    fprintf(stderr, "usage: %s sincos_range|mm_clamped|f32_finite\n", argv[0]);
     return 2;
 }

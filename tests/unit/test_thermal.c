@@ -690,6 +690,43 @@ static void run_stuck(int with_check, int use_q)
     assert_true(abbe_thermal_events(&st) & ABBE_THERMAL_F_STUCK);
 }
 
+/* A term without lag (tau 0, which the loader accepts) takes each sample
+ * whole: after a step its state is the sample's, exactly as a channel just
+ * started on that sample (the weight dt / (0 + dt) = 1, which thermal_q.c
+ * gives without the division). */
+static void test_tau_zero_q(void **state)
+{
+    (void)state;
+    blob_buf_t buf;
+    copy_golden(&buf);
+    const uint32_t t = block_off(&buf);
+    for (unsigned c = 0; c < 5u; c++) {
+        for (unsigned k = 0; k < buf.b[t + CH(c, 1)]; k++) {
+            put_u32(buf.b + t + CH(c, 8u + 12u * k + 4u), 0u);
+        }
+    }
+    fix_crc(buf.b);
+    abbe_model_t m;
+    abbe_thermal_model_t th;
+    assert_int_equal(abbe_thermal_load(&m, &th, buf.b, abbe_golden_thermal_blob_size), ABBE_OK);
+    abbe_thermal_state_t stepped, started;
+    assert_int_equal(abbe_thermal_init_q(&stepped, &th, 1000u), ABBE_OK);
+    assert_int_equal(abbe_thermal_init_q(&started, &th, 1000u), ABBE_OK);
+    assert_int_equal(abbe_thermal_update_q(&stepped, S[0].x_milli, 0x1FFFFu, 0u), ABBE_OK);
+    assert_int_equal(abbe_thermal_update_q(&stepped, S[1].x_milli, 0x1FFFFu, S[1].dt_ms), ABBE_OK);
+    assert_int_equal(abbe_thermal_update_q(&started, S[1].x_milli, 0x1FFFFu, 0u), ABBE_OK);
+    assert_int_equal(abbe_thermal_flags(&stepped) & (ABBE_THERMAL_F_HOLD | ABBE_THERMAL_F_GAP), 0u);
+    int32_t y_stepped[ABBE_THERMAL_MAX_CHANNELS], y_started[ABBE_THERMAL_MAX_CHANNELS];
+    assert_int_equal(abbe_thermal_channels_q(&stepped, y_stepped), 5);
+    assert_int_equal(abbe_thermal_channels_q(&started, y_started), 5);
+    unsigned moved = 0u;
+    for (unsigned c = 0; c < 5u; c++) {
+        assert_int_equal(y_stepped[c], y_started[c]);
+        moved += y_started[c] != 0;
+    }
+    assert_true(moved > 0u); /* the comparison is not of zeros */
+}
+
 static void test_stuck(void **state)
 {
     (void)state;
@@ -708,6 +745,7 @@ int main(void)
         cmocka_unit_test(test_args),
         cmocka_unit_test(test_comp_step_thermal),
         cmocka_unit_test(test_apply_ms),
+        cmocka_unit_test(test_tau_zero_q),
         cmocka_unit_test(test_stuck),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
