@@ -272,11 +272,19 @@ def run_independent(args: argparse.Namespace) -> tuple[list[dict], int, list[flo
             sc = ind.score(b, res)
             sc["fit_rc"] = _fit_campaign(b) if args.fit else None
             sc.update(gap_flags(res))
+            # every named effect with its state (an "A or B" answer is scored from these)
+            sc["effects"] = [{"key": e["key"], "value": e["value"], "ci95": e["ci95"],
+                              "state": e.get("state"),
+                              "undecided_between": e.get("undecided_between")}
+                             for e in res.to_json()["effects"]]
         dt = time.time() - t0
         times.append(dt)
         sc["outliers_ok"] = sc["outliers_named"] == sc["outliers_expected"]
         sc.update({"seed": c.seed, "time_s": round(dt, 2), "hidden": list(c.parts)})
         rows.append(sc)
+        if args.jsonl:   # one line per case as it ends: a run stopped early keeps what it did
+            with open(args.jsonl, "a", encoding="utf-8") as fh:
+                fh.write(json.dumps(sc, default=float) + "\n")
         flag = "" if sc["exact"] else "  <--"
         print(f"[{i + 1:3d}/{len(cases)}] {c.name:34s} named {','.join(sc['named']) or '-':44s}"
               f"{' outliers ' + str(sc['outliers_named']) if sc['outliers_named'] else ''} {dt:4.1f}s{flag}",
@@ -298,6 +306,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="RMS of a smooth fit error added to the model, um (urad x 3)")
     ap.add_argument("--step-deg", type=float, default=1.0, help="ballbar sample step, deg")
     ap.add_argument("--json", help="write per-case results here")
+    ap.add_argument("--jsonl", help="independent suite: append each case's result here as it ends")
     ap.add_argument("--backend", default="auto", choices=("auto", "c", "reference"))
     ap.add_argument("--no-fit", dest="fit", action="store_false",
                     help="independent suite: do not run abbe fit on each campaign's laser lines")

@@ -139,6 +139,29 @@ def observable_rms(prob: Problem, contrib: np.ndarray) -> float:
     return contribution_rms(prob, remove_nuisance(prob, contrib))
 
 
+def effect_size_um(prob: Problem, kind: str, contrib: np.ndarray) -> float:
+    """The size (um RMS) the relevance rule (``min_effect_um``) judges an effect by.
+
+    A new term of the model (straightness, scale, drift, ...) is judged by what the
+    checks see of it (:func:`observable_rms`): the part each check's set-up takes is an
+    extrapolation of the pattern fitted to the rest, and a small real pattern (model
+    error, correlated noise) extrapolated that way is not "large".
+
+    A tool offset is a declared length, not a pattern: its change moves the tool tip by
+    the model's own angular error motions times the change (a lever law fixed by the
+    laser lines that measured those motions, not by the circles), and that displacement
+    is what a part machined at another height gets. The circles at several heights see
+    it mostly as a shift of each circle, which their centres take (their set-up), so the
+    set-up-removed RMS says "small" for a change of tens of mm. Its size is therefore
+    taken at the tool tip, i.e. the contribution at the checks' positions with nothing
+    removed (:func:`contribution_rms`); whether the change is real is the evidence
+    ratio's business (declared prior, model-angle uncertainty), not the size rule's
+    (docs/effects.md §3, the size of an effect)."""
+    if kind == "tool_offset":
+        return contribution_rms(prob, contrib)
+    return observable_rms(prob, contrib)
+
+
 def remove_nuisance(prob: Problem, r: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
     """Residual with each check's nuisance fitted (unweighted per noise group) and removed.
     ``rows``: only these rows take part (others returned as NaN)."""

@@ -54,10 +54,10 @@ from abbe.diagnose.outliers import OutlierRun, inconsistent_runs, screen
 from abbe.diagnose.problem import (
     Problem,
     contribution_rms,
+    effect_size_um,
     estimate_noise,
     gap_stats,
     is_identifiable,
-    observable_rms,
     lstsq_rss,
     project_out,
     qr_basis,
@@ -107,7 +107,7 @@ def _eval_candidate(eng: Engine, cand: Cand, sel: list[Selected], W: np.ndarray,
     if cand.offset is not None:
         contrib = contrib + cand.offset   # the change the grid value alone causes (a take-up)
     contrib_rms = contribution_rms(prob, contrib)
-    observable = observable_rms(prob, contrib)
+    observable = effect_size_um(prob, cand.spec.kind, contrib)
     ho = heldout_rss(eng, sel, cand, W, s2)
     # redundancy: the share of this candidate's fitted signature that the effects already
     # named reproduce (nuisance projected out of both)
@@ -131,6 +131,7 @@ def _eval_candidate(eng: Engine, cand: Cand, sel: list[Selected], W: np.ndarray,
     return {"ok": True, "F": F, "p": p, "p_eff": p_eff, "dbic": dbic, "drss": dr / s2,
             "k": k, "k_eff": k_eff, "coef": coef, "contrib_rms_um": contrib_rms,
             "observable_rms_um": observable,
+            "size_basis": "tool tip" if cand.spec.kind == "tool_offset" else "seen",
             "heldout": ho, "s2": s2, "evidence": ev, "log_evidence": ev["log_evidence"],
             "redundancy": redundancy, "redundant_with": red_with}
 def _judge(st: dict[str, Any], opts: DiagnoseOptions) -> tuple[bool, str]:
@@ -171,7 +172,11 @@ def _judge(st: dict[str, Any], opts: DiagnoseOptions) -> tuple[bool, str]:
         return False, (f"does not hold on held-out data (gain {ho['gain']:.1f} < {need:.1f} "
                        "noise units)")
     # the size the checks see: what each check's nuisance (its set-up) takes is not counted
+    # (a tool offset's size is taken at the tool tip: problem.effect_size_um)
     if st["observable_rms_um"] < opts.min_effect_um and st["contrib_rms_um"] > 0:
+        if st.get("size_basis") == "tool tip":
+            return False, (f"too small to matter (RMS {st['observable_rms_um']:.3f} um at the "
+                           "tool tip)")
         return False, (f"too small to matter (RMS {st['observable_rms_um']:.3f} um once the "
                        f"checks' set-up is removed; {st['contrib_rms_um']:.3f} um with it)")
     return True, ""
@@ -581,11 +586,12 @@ def _backward(eng: Engine, sel: list[Selected], W: np.ndarray,
     return sel
 def _final_contribution(prob: Problem, s: Selected, v: np.ndarray) -> float:
     """RMS (um, um-valued samples) of a named effect's part of the final prediction that the
-    checks see (each check's nuisance removed: problem.observable_rms)."""
+    checks see (each check's nuisance removed; a tool offset's at the tool tip:
+    problem.effect_size_um)."""
     c = s.cand.cols @ v
     if s.cand.offset is not None:
         c = c + s.cand.offset
-    return observable_rms(prob, c) if np.any(prob.um_rows) else math.inf
+    return effect_size_um(prob, s.cand.spec.kind, c) if np.any(prob.um_rows) else math.inf
 
 
 def _final_fit(eng: Engine, sel: list[Selected], W: np.ndarray

@@ -167,6 +167,46 @@ def test_size_is_what_the_checks_see_not_what_their_set_up_takes() -> None:
     assert _judge(st, OPTS)[0]
 
 
+def _two_circles(n: int = 180):
+    """Two XY circles (radius, centre x, centre y nuisance each) at two heights."""
+    th = np.radians(np.arange(n) * 360.0 / n)
+    one = np.stack([np.ones(n), np.cos(th), np.sin(th)], axis=1)
+    nuis = np.zeros((2 * n, 6))
+    nuis[:n, :3] = one
+    nuis[n:, 3:] = one
+    prob = SimpleNamespace(N=2 * n, checks=[None, None], nuis=nuis,
+                           slice=lambda i: slice(i * n, (i + 1) * n),
+                           group=np.zeros(2 * n, dtype=int), group_units=["um"],
+                           um_rows=np.ones(2 * n, dtype=bool))
+    return prob, th
+
+
+def test_a_tool_offset_is_sized_at_the_tool_tip_not_by_the_circles_set_up() -> None:
+    """A tool offset change moves the tool tip by the model's angular motions x the change:
+    on circles at two heights mostly a shift of each circle (0.5 and 0.2 um here), which
+    their centres take, and a small shape (0.05 um lobes). The team's independent suite
+    (seed 444896965, `tool_offset`) lost its tool offset to the seen-size rule that way
+    (issue 36, third round). The size of a declared length's change is taken at the tool
+    tip; a new term's (a straightness) stays what the checks see."""
+    from abbe.diagnose.problem import observable_rms
+    from abbe.diagnose.selection import _final_contribution
+    prob, th = _two_circles()
+    contrib = np.concatenate([0.5 * np.cos(th) + 0.05 * np.sin(2 * th),
+                              0.2 * np.cos(th) + 0.05 * np.sin(2 * th)])
+    seen = observable_rms(prob, contrib)
+    assert abs(seen - 0.05 / np.sqrt(2)) < 1e-9                   # below 0.15 um
+    # the final fit's drop rule: the tool offset stays, a bow of the same pattern goes
+    tool = Selected(Cand(spec=by_key()["tool_offset"], cols=contrib[:, None], param_idx=[2]), {})
+    bow = Selected(Cand(spec=by_key()["straightness_zy"], cols=contrib[:, None], param_idx=[0]), {})
+    assert _final_contribution(prob, tool, np.array([1.0])) > OPTS.min_effect_um
+    assert _final_contribution(prob, bow, np.array([1.0])) < OPTS.min_effect_um
+    # the forward step reads the same size (selection._eval_candidate)
+    from abbe.diagnose.problem import effect_size_um
+    tip = effect_size_um(prob, "tool_offset", contrib)
+    assert abs(tip - np.sqrt(np.mean(contrib ** 2))) < 1e-12
+    assert effect_size_um(prob, "straightness_zy", contrib) == seen
+
+
 def test_drift_and_scale_separating_test_is_in_time() -> None:
     """A drift and a scale of one axis are told apart by the time of the readings: the
     test named repeats the line in another order (or after a dwell)."""
