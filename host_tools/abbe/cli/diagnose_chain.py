@@ -12,11 +12,8 @@ atomically (and ``--json FILE``).
 from __future__ import annotations
 
 import argparse
-import json
-from pathlib import Path
 
-from abbe.cli.conventions import json_file, json_to_stdout
-from abbe.formats.output import Outputs
+from abbe.cli.diagnose_five_axis import write_diagnosis
 
 
 def run_chain_diagnose(args: argparse.Namespace) -> int:
@@ -41,20 +38,11 @@ def run_chain_diagnose(args: argparse.Namespace) -> int:
         raise AbbeInputError("abbe diagnose on a [chain] machine file needs at least one "
                              "[probing.NAME] section (its positions are the held-out data)",
                              file=str(args.machine), field="probing")
-    with Outputs() as outs:
-        staging = outs.directory(args.out, option="--out")
-        js = outs.file(json_file(args), option="--json") if json_file(args) else None
+    def build() -> tuple[dict, str]:
         diag = diagnose_chain(chain, setups, model, machine.extra["chain_plans"].folds)
         doc = {"format": "abbe-chain-diagnose 1.0", "machine": machine.name, **diag.to_json(),
                "provenance": {"machine_file": str(machine.path), "sha256": machine.sha256,
                               "model": str(args.model) if args.model else None}}
-        text = json.dumps(doc, indent=2, allow_nan=False) + "\n"
-        (Path(staging) / "diagnose_chain.json").write_text(text, encoding="utf-8")
-        (Path(staging) / "report.txt").write_text(diag.text(), encoding="utf-8")
-        if js is not None:
-            js.write_text(text, encoding="utf-8")
-    if json_to_stdout(args):
-        print(text, end="")
-        return 0
-    print(diag.text(), end="")
-    return 0
+        return doc, diag.text()
+
+    return write_diagnosis(args, "diagnose_chain.json", build)
