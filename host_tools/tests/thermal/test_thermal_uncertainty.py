@@ -1,7 +1,7 @@
 """Thermal results with U (k = 2) on the real record: the gains' U is identify's interval
 at k = 2 (the covariance recomputed agrees), the predicted drift and held-out RMS carry U,
 and where the first order and the Monte Carlo part by more than 10 % the MC's U is stated
-(measured: ch1, ch3 drifts agree; ch5 and tilt_a do not, docs/uncertainty.md). The analytic U
+(measured: ch1, ch4 drifts agree; ch5 and tilt_a do not, docs/uncertainty.md). The analytic U
 is the degree-5 cubature, the first order beside it (U_first_order)."""
 
 from __future__ import annotations
@@ -35,8 +35,8 @@ def test_drift_and_heldout_rms_carry_U(unc) -> None:
             agree += ok
     # the check is not a formality: some results pass it, some do not
     assert 0 < agree < 2 * len(unc["signals"])
-    ch3 = next(s for s in unc["signals"] if s["name"] == "ch3")
-    assert abs(ch3["drift"]["U_mc"] / ch3["drift"]["U"] - 1.0) < AGREEMENT
+    ch4 = next(s for s in unc["signals"] if s["name"] == "ch4")
+    assert abs(ch4["drift"]["U_mc"] / ch4["drift"]["U"] - 1.0) < AGREEMENT
 
 
 def test_type_b_sensor_calibration(real_fit, unc) -> None:
@@ -89,13 +89,15 @@ def test_cubature_is_exact_for_a_quadratic() -> None:
 #: 1-3: 41 of 42 within 10 %, the miss ch5's held-out RMS at +11 % with seed 2; +3 % with
 #: the test's draws). Left out of the assertion: ch5's drift (+7 % at worst), ch2's and
 #: tilt_a's held-out RMS (-7 %, -9 %): with the test's 300 draws (about +-5 % of sampling
-#: spread) they pass or fail with the draws.
-CUBATURE_HOLDS = [(n, "drift") for n in ("ch1", "ch2", "ch3", "ch4", "tilt_b", "tilt_a")] + [
-    (n, "heldout_rms") for n in ("ch1", "ch3", "ch4", "ch5", "tilt_b")]
+#: spread) they pass or fail with the draws. ch3's two figures left out since issue 35's
+#: round 4 (its room-sensor term t8, gain interval reaching 0 and lag not bounded: the MC
+#: parts from the cubature by +8..+11 % on the drift, +15..+26 % on the held-out RMS).
+CUBATURE_HOLDS = [(n, "drift") for n in ("ch1", "ch2", "ch4", "tilt_b", "tilt_a")] + [
+    (n, "heldout_rms") for n in ("ch1", "ch4", "ch5", "tilt_b")]
 
 
 def test_cubature_agrees_with_the_monte_carlo_where_first_order_did_not(unc) -> None:
-    """The analytic U (cubature) within 10 % of the Monte Carlo (300 draws, seed 3) on 11
+    """The analytic U (cubature) within 10 % of the Monte Carlo (300 draws, seed 3) on 9
     named figures; on two of them (ch1's and tilt_b's held-out RMS: the RMS near a minimum)
     the first order is more than 50 % off, so this test fails if the propagation falls back
     to it."""

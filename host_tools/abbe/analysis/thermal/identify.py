@@ -84,6 +84,11 @@ class ChannelFit:
     selection_cv_um: float = float("inf")  # the selection's CV RMS (before any ridge)
     ridge_lambda: float = 0.0  # the ridge penalty of the gains (0: least squares)
     input_set: str = "all"  # the inputs the selection used: "all" or "heated"
+    #: the selected (input, tau) terms after each step of the selection, and (by_cv) the
+    #: heated-input run's path and trace (reused by the round-4 room term, same result)
+    path: list = field(default_factory=list)
+    heated_path: list | None = None  # None: no heated-input run (not inputs="by_cv")
+    heated_steps: list | None = None
 
 
 def _vif_max(cols: np.ndarray) -> float:
@@ -224,7 +229,8 @@ def select_terms(t_s: np.ndarray, y: np.ndarray, cands: list[Candidate], cyc: np
                  grid: tuple[float, ...] = TAU_GRID_S,
                  start: list[tuple[int, float]] | None = None,
                  physical_tiebreak: bool = False,
-                 allowed: set[int] | None = None
+                 allowed: set[int] | None = None,
+                 path: list | None = None
                  ) -> tuple[list[tuple[int, float]], list]:
     """Forward selection: the (candidate index, tau s) terms and the trace (added input,
     its refined tau, CV RMS, max VIF, rivals). ``start``: terms taken as given (a diagnosis
@@ -240,7 +246,8 @@ def select_terms(t_s: np.ndarray, y: np.ndarray, cands: list[Candidate], cyc: np
     constants are refined with the others' (nonlinear least squares on the identification
     samples); it is kept if the refined set's CV RMS drops by ``min_gain`` and its largest
     VIF stays <= ``max_vif``. ``allowed``: the candidate indices the selection may use
-    (None: all; :func:`heated_inputs`)."""
+    (None: all; :func:`heated_inputs`). ``path``: if given, the chosen terms after each
+    accepted step are appended to it (the first k steps do not depend on ``max_terms``)."""
     usable = [i for i in range(len(cands)) if allowed is None or i in allowed]
     grid_states = {(i, tau): lag_states(cands[i].rise, t_s, tau)
                    for i in usable for tau in grid}
@@ -294,6 +301,8 @@ def select_terms(t_s: np.ndarray, y: np.ndarray, cands: list[Candidate], cyc: np
             if not (vif <= max_vif and rms <= best_rms * (1.0 - min_gain)):
                 continue
             chosen, best_rms, accepted = trial, rms, True
+            if path is not None:
+                path.append(list(chosen))
             grid_rms = next(r for r, k in ranked if k == key)
             rivals = []  # other inputs nearly as good on the grid: an ambiguous choice
             for r, k in ranked:
@@ -439,13 +448,17 @@ def identify_channel(name: str, t_s: np.ndarray, y: np.ndarray, cands: list[Cand
                              inputs="all", ridge=ridge, **kw)
         b = identify_channel(name, t_s, y, cands, fit_mask, cycle_s, decided_only=decided_only,
                              inputs="heated", ridge=ridge, **kw)
-        return b if b.terms and b.selection_cv_um < a.selection_cv_um else a
+        won = b if b.terms and b.selection_cv_um < a.selection_cv_um else a
+        won.heated_path, won.heated_steps = b.path, b.steps
+        return won
     if inputs not in ("all", "heated"):
         raise ValueError(f"inputs: expected 'all', 'heated' or 'by_cv', got {inputs!r}")
     cyc = cycles_of(t_s, fit_mask, cycle_s)
     if inputs == "heated":
         kw = {**kw, "allowed": heated_inputs(t_s, cands, fit_mask)}
-    chosen, trace = select_terms(t_s, y, cands, cyc, physical_tiebreak=decided_only, **kw)
+    path: list = []
+    chosen, trace = select_terms(t_s, y, cands, cyc, physical_tiebreak=decided_only,
+                                 path=path, **kw)
     dropped: list[str] = []
     if decided_only:
         chosen, dropped = prune(t_s, y, cands, chosen, fit_mask)
@@ -453,7 +466,7 @@ def identify_channel(name: str, t_s: np.ndarray, y: np.ndarray, cands: list[Cand
         off = float(np.mean(y[fit_mask]))
         rms0 = float(np.sqrt(np.mean((y[fit_mask] - off) ** 2)))
         return ChannelFit(name, [], rms0, trace, offset_um=off, dropped=dropped,
-                          selection_cv_um=rms0, input_set=inputs)
+                          selection_cv_um=rms0, input_set=inputs, path=path)
     terms, fit_rms, rho, n_eff, offset = refine(t_s, y, cands, chosen, fit_mask)
     cv = (_cv_rms(np.column_stack([lag_states(cands[t.input].rise, t_s, t.tau_s)
                                    for t in terms]), y, cyc) if decided_only else trace[-1][2])
@@ -463,7 +476,7 @@ def identify_channel(name: str, t_s: np.ndarray, y: np.ndarray, cands: list[Cand
         terms, offset, lam, cv = ridge_gains(t_s, y, cands, terms, fit_mask, cyc)
         fit_rms = _rms_of_terms(t_s, y, cands, terms, offset, fit_mask)
     return ChannelFit(name, terms, cv, trace, rho, n_eff, fit_rms, offset, dropped,
-                      selection_cv, lam, inputs)
+                      selection_cv, lam, inputs, path)
 
 
 #: The ridge penalties :func:`ridge_gains` chooses from (per sample, standardised columns).

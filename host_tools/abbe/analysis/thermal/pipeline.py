@@ -16,6 +16,7 @@ import numpy as np
 from abbe.analysis.thermal.identify import (ChannelFit, candidates_of, identify_channel,
                                             inputs_of, mlr_baseline)
 from abbe.analysis.thermal.iso230_3 import tilt_signal
+from abbe.analysis.thermal.structure import with_room_term
 from abbe.formats.thermal_machine import ThermalSpec
 from abbe.formats.thermal_record import ThermalRecord
 from abbe.model.thermal import ThermalChannel, ThermalModel, evaluate, lag_states
@@ -84,7 +85,10 @@ def _rms(v: np.ndarray) -> float:
 def _signal(name: str, unit: str, y: np.ndarray, rec: ThermalRecord, cands, ident, valid,
             cycle_s: float, **kw) -> SignalResult:
     t = rec.time_s
+    room = kw.pop("room_term", False)
     fit = identify_channel(name, t, y, cands, ident, cycle_s, **kw)
+    if room:
+        fit = with_room_term(name, t, y, cands, ident, cycle_s, fit)
     pred = np.full_like(y, fit.offset_um)  # the sensor's zero, then the model
     for term in fit.terms:
         pred += term.gain * lag_states(cands[term.input].rise, t, term.tau_s)
@@ -98,9 +102,13 @@ def fit_record(rec: ThermalRecord, spec: ThermalSpec, **kw) -> FitResult:
 
     Every signal's input set is chosen by cross-validation on the identification hours
     (``inputs="by_cv"``: all inputs, or the speed and the temperatures the spindle heats;
-    docs/thermal.md, "Issue 35, third round"); ``kw`` goes to
-    :func:`~abbe.analysis.thermal.identify.identify_channel` and may override it."""
+    docs/thermal.md, "Issue 35, third round"), then kept or replaced by the heated inputs
+    plus one room-sensor term, by the same cross-validation (``room_term=True``,
+    :func:`~abbe.analysis.thermal.structure.with_room_term`; "Issue 35, fourth round");
+    ``kw`` goes to :func:`~abbe.analysis.thermal.identify.identify_channel` and may
+    override them."""
     kw.setdefault("inputs", "by_cv")
+    kw.setdefault("room_term", True)
     h = rec.hours
     ident = (h >= spec.identify_hours[0]) & (h < spec.identify_hours[1])
     valid = (h >= spec.validate_hours[0]) & (h <= spec.validate_hours[1])

@@ -124,22 +124,43 @@ class _T:
 
 
 def room_term(name: str, t_s: np.ndarray, y: np.ndarray, cands: list[Candidate],
-              mask: np.ndarray, cycle_s: float) -> ChannelFit:
+              mask: np.ndarray, cycle_s: float, heated_run: ChannelFit | None = None
+              ) -> ChannelFit:
     """R4d's run: the forward selection on the heated inputs (at most 3 terms), then at
-    most one term of a room sensor (every temperature not heated) by the same rule."""
+    most one term of a room sensor (every temperature not heated) by the same rule.
+    ``heated_run``: a fit whose ``heated_path`` is that selection's path on the same
+    samples (the default's, ``inputs="by_cv"``): its first 3 steps are reused (the
+    forward selection's first k steps do not depend on its term limit)."""
     cyc = cycles_of(t_s, mask, cycle_s)
     heated = heated_inputs(t_s, cands, mask)
     room = {i for i in range(len(cands)) if i not in heated}
-    chosen, _ = select_terms(t_s, y, cands, cyc, allowed=heated,
-                             max_terms=MAX_TERMS_PER_CHANNEL - 1)
-    chosen, _ = select_terms(t_s, y, cands, cyc, start=chosen, allowed=room,
-                             max_terms=len(chosen) + 1, min_gain=MIN_GAIN_FRACTION)
+    n3 = MAX_TERMS_PER_CHANNEL - 1
+    if heated_run is not None and heated_run.heated_path is not None:
+        hp = heated_run.heated_path
+        chosen = list(hp[min(len(hp), n3) - 1]) if hp else []
+        trace = list((heated_run.heated_steps or [])[:len(hp[:n3])])
+    else:
+        chosen, trace = select_terms(t_s, y, cands, cyc, allowed=heated, max_terms=n3)
+    chosen, more = select_terms(t_s, y, cands, cyc, start=chosen, allowed=room,
+                                max_terms=len(chosen) + 1, min_gain=MIN_GAIN_FRACTION)
     if not chosen:
         off = float(np.mean(y[mask]))
         rms0 = float(np.sqrt(np.mean((y[mask] - off) ** 2)))
-        return ChannelFit(name, [], rms0, [], offset_um=off, selection_cv_um=rms0,
+        return ChannelFit(name, [], rms0, trace + more, offset_um=off, selection_cv_um=rms0,
                           input_set="heated+room")
-    return _finish(name, t_s, y, cands, chosen, mask, cyc, "heated+room")
+    fit = _finish(name, t_s, y, cands, chosen, mask, cyc, "heated+room")
+    fit.steps = trace + more
+    return fit
+
+
+def with_room_term(name: str, t_s: np.ndarray, y: np.ndarray, cands: list[Candidate],
+                   mask: np.ndarray, cycle_s: float, default: ChannelFit) -> ChannelFit:
+    """R4d, adopted as the default by round 4's rule (docs/thermal.md, "Issue 35, fourth
+    round"): the default run or the heated inputs plus one room-sensor term
+    (:func:`room_term`), whichever has the lower leave-one-cycle-out CV RMS of its final
+    terms on the identification hours (ties: the default)."""
+    return by_loco(t_s, y, cands, mask, cycle_s, default,
+                   room_term(name, t_s, y, cands, mask, cycle_s, heated_run=default))
 
 
 def by_loco(t_s: np.ndarray, y: np.ndarray, cands: list[Candidate], mask: np.ndarray,
