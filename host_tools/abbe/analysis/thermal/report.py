@@ -147,7 +147,9 @@ def write_report(res: FitResult, iso: dict, out: Path, diagnosis: dict | None = 
     sel = []
     for s in res.channels:
         for st in s.fit.steps:
-            inputs = ("heated inputs" if s.fit.input_set == "heated" else "all inputs")
+            inputs = {"heated": "heated inputs",
+                      "heated+room": "heated inputs, then a room sensor"}.get(
+                          s.fit.input_set, "all inputs")
             sel.append(f"<tr><td class='l'>{_esc(s.name)} ({inputs})</td><td class='l'>{_esc(st[0])}</td><td>{st[1]:.0f}</td>"
                        f"<td>{st[2]:.2f}</td><td>{st[3]:.1f}</td>"
                        f"<td class='l'>{_esc(', '.join(st[4]) or '-')}</td></tr>")
