@@ -43,7 +43,9 @@ def run_chain(args: argparse.Namespace) -> int:
     outs = Outputs()
     try:
         staging = outs.directory(args.out, option="--out")
-        doc = fit_to_json(fit, setups)
+        doc = {"format": "abbe-chain-fit 1.0", "machine": machine.name,
+               **fit_to_json(fit, setups),
+               "provenance": {"machine_file": str(machine.path), "sha256": machine.sha256}}
         doc["blob"] = write_chain_table(fit, staging)
         (staging / "chain_fit.json").write_text(json.dumps(doc, indent=2) + "\n",
                                                 encoding="utf-8")
