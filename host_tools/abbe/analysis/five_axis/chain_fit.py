@@ -178,10 +178,11 @@ def _errors(chain: KinematicChain, names: list[str], x: np.ndarray, harmonics: i
 
 
 def predict(chain: KinematicChain, setups: list[ChainSetup], x: np.ndarray,
-            harmonics: int = 0) -> list[np.ndarray]:
+            harmonics: int = 0, only: frozenset[int] | None = None) -> list[np.ndarray]:
     """Predicted observations of every set-up for the unknowns ``x`` (in :func:`_unknowns`
     order, um / urad): probe machine positions (mm), R-test readings (um), ballbar lengths
-    minus nominal (um)."""
+    minus nominal (um). ``only``: the indices of the set-ups to predict (the others get an
+    empty array)."""
     names = [u[0] for u in _unknowns(chain, setups, harmonics)]
     errs, k = _errors(chain, names, x, harmonics)
     index = {n: i for i, n in enumerate(names)}
@@ -191,7 +192,10 @@ def predict(chain: KinematicChain, setups: list[ChainSetup], x: np.ndarray,
     work: dict[bytes, np.ndarray] = {}
     tool: dict[bytes, np.ndarray] = {}
     nominal: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
-    for s in setups:
+    for i_s, s in enumerate(setups):
+        if only is not None and i_s not in only:
+            out.append(np.zeros(0))
+            continue
         ang = np.asarray(s.angles_deg, dtype=np.float64).reshape(-1, 2)
         key = ang.tobytes()
         if key not in work:
@@ -260,10 +264,13 @@ def _ballbar(chain: KinematicChain, errs: FiveAxisErrors, s: ChainSetup, T: np.n
 
 
 def _residual(chain: KinematicChain, setups: list[ChainSetup], x: np.ndarray,
-              harmonics: int = 0) -> np.ndarray:
-    pred = predict(chain, setups, x, harmonics)
+              harmonics: int = 0, only: frozenset[int] | None = None) -> np.ndarray:
+    """Weighted residuals of every set-up (``only``: of those set-ups, in order)."""
+    pred = predict(chain, setups, x, harmonics, only)
     r = []
-    for s, p in zip(setups, pred):
+    for i_s, (s, p) in enumerate(zip(setups, pred)):
+        if only is not None and i_s not in only:
+            continue
         diff = (np.asarray(s.obs) - p) * (1e3 if s.kind == "probe" else 1.0)
         r.append((diff / s.sigma_um).ravel())
     return np.concatenate(r)
@@ -273,17 +280,32 @@ def _jacobian(chain: KinematicChain, setups: list[ChainSetup], x: np.ndarray,
               scale: np.ndarray, central: bool = False, harmonics: int = 0) -> np.ndarray:
     """d(prediction)/d(unknown / scale), weighted. ``central``: central differences (no
     second-order part: what the rank needs, where a direction the model sees only to
-    second order must count as unseen); forward differences for the iterations."""
+    second order must count as unseen); forward differences for the iterations.
+
+    A set-up's own unknown (a sphere's place, a ballbar's length zero) moves only that
+    set-up's rows: its column is computed from those rows alone (the others' differences
+    are exactly 0 either way)."""
     r0 = _residual(chain, setups, x, harmonics)
-    J = np.empty((r0.size, x.size))
+    J = np.zeros((r0.size, x.size))
+    names = [u[0] for u in _unknowns(chain, setups, harmonics)]
+    ends = np.cumsum([np.asarray(s.obs).size for s in setups])
+    rows = [np.arange(e - np.asarray(s.obs).size, e) for s, e in zip(setups, ends)]
+    owners = {i: {s.name, s.balls_key} if s.kind == "ballbar" else {s.name}
+              for i, s in enumerate(setups)}
     for j in range(x.size):
         h = np.zeros(x.size)
         h[j] = scale[j]  # one typical size: the model is linear to 1e-3 um there
+        only = None
+        if "." in names[j] and "(" not in names[j]:
+            who = names[j].rsplit(".", 1)[0]
+            only = frozenset(i for i, o in owners.items() if who in o)
+        sel = slice(None) if only is None else np.concatenate([rows[i] for i in sorted(only)])
         if central:
-            J[:, j] = -(_residual(chain, setups, x + h, harmonics)
-                        - _residual(chain, setups, x - h, harmonics)) / 2.0
+            J[sel, j] = -(_residual(chain, setups, x + h, harmonics, only)
+                          - _residual(chain, setups, x - h, harmonics, only)) / 2.0
         else:
-            J[:, j] = -(_residual(chain, setups, x + h, harmonics) - r0) / h[j] * scale[j]
+            J[sel, j] = -(_residual(chain, setups, x + h, harmonics, only) - r0[sel]) \
+                / h[j] * scale[j]
     return J
 
 
