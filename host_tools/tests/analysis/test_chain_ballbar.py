@@ -64,6 +64,32 @@ def test_ballbar_model_agrees_with_the_independent_generator(kind: str) -> None:
     assert max(float(np.max(np.abs(s.obs - p))) for s, p in zip(setups, pred0)) > 5.0
 
 
+@pytest.mark.parametrize("kind", ["head-head", "table-dual"])
+def test_ballbar_model_with_error_motions_agrees_with_the_generator(kind: str) -> None:
+    """Error motions of both axes up to the 2nd harmonic (the generator's ISO 230-1
+    homogeneous transforms about the actual line) as abbe's Fourier coefficients: the
+    predicted readings are the generator's to < 0.005 um."""
+    chain, gch = _chain(kind)
+    rng = np.random.default_rng(392)
+    truth = gen.random_location(gch, rng)
+    motions = gen.random_motions(gch, rng, 2, 2.0, 8.0)
+    setups = []
+    tip = np.array([0.0, 0.0, -100.0]) if chain.tool_side else np.zeros(3)
+    for label, path in gen.ballbar_paths(gch):
+        for d, e in zip("XYZ", np.eye(3)):
+            obs = gen.ballbar_readings(gch, truth, TABLE, np.zeros(3), TABLE + 100.0 * e, tip,
+                                       np.zeros(3), path, 0.0, 0.0, rng, motions)
+            setups.append(ChainSetup("ballbar", f"{label}_{d}", tuple(TABLE), path, obs,
+                                     tuple(tip), 0.3, tuple(TABLE + 100.0 * e), "K"))
+    x = np.array([truth.get(n, chain_suite.true_coefficient(motions, n) if "(" in n else 0.0)
+                  for n, _s, _u in _unknowns(chain, setups, 2)])
+    pred = predict(chain, setups, x, 2)
+    assert max(float(np.max(np.abs(s.obs - p))) for s, p in zip(setups, pred)) < 0.005
+    x[10:10 + sum("(" in n for n, _s, _u in _unknowns(chain, setups, 2))] = 0.0
+    pred0 = predict(chain, setups, x, 2)  # the motions are seen: without them > 0.5 um off
+    assert max(float(np.max(np.abs(s.obs - p))) for s, p in zip(setups, pred0)) > 0.5
+
+
 def test_a_head_turns_the_tool_ball_with_the_spindle() -> None:
     """Head-head (5axiskins: B about -Y on C): the tool ball 10 um off its cup along the
     spindle's X. At B = 0 a bar along X reads +10 um; at B = 90 deg Ry(-90 deg) turns the
