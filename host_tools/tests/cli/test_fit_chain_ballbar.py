@@ -100,3 +100,52 @@ def test_bad_rotary_ballbar_sections_and_files_are_refused(tmp_path: Path, capsy
     assert main(["fit", str(m), "-o", out, "-q"]) == 2
     assert "K1_A0_X.csv:4" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+
+
+def test_probing_rtest_and_ballbar_files_together(tmp_path: Path) -> None:
+    """A dual-rotary table campaign of abbe's virtual machine (probing at two heights, an
+    R-test) with the independent generator's ballbar tests of the same location errors
+    added: `abbe fit` uses all three (the ballbar blocks re-weighted by their residual),
+    every observable error within max(95 %, 1 um / 5 urad); `abbe diagnose` on the same
+    file leaves the ballbar tests out (its checks are centres and R-test readings)."""
+    from abbe.formats.machine import load_machine
+    from abbe.sim.chain import (VirtualChainMachine, random_location_errors, sphere_plan,
+                                write_chain_campaign)
+    src = CHAINS / "table-dual-rotary-xyzab.toml"
+    ch = load_machine(src).extra["chain"]
+    errs = random_location_errors(ch, np.random.default_rng(11))
+    vm = VirtualChainMachine(ch, errs, (0.04, -0.02, 0.03), probe_noise_um=0.5,
+                             rtest_noise_um=0.3, seed=11)
+    m = write_chain_campaign(vm, tmp_path / "c", sphere_plan(ch, 4, 5), heights_mm=(0.0, 100.0))
+    # the generator's ballbar tests of the virtual machine's errors (same truth)
+    gch = gen.read_chain(src)
+    rng = np.random.default_rng(12)
+    a, b = (n.lower() for n in gch.names)
+    extra = []
+    off = rng.normal(0.0, 0.05, 3)  # the table ball's place, one for the set-up
+    for label, path in gen.ballbar_paths(gch):
+        for d, e in zip("XYZ", np.eye(3)):
+            name = f"K1_{label}_{d}"
+            r = gen.ballbar_readings(gch, dict(errs.location), TABLE, off,
+                                     TABLE + 100.0 * e, np.zeros(3), np.zeros(3), path, 1.0,
+                                     0.3, rng)
+            (tmp_path / "c" / f"{name}.csv").write_text(
+                f"t_s,{a}_deg,{b}_deg,radial_um\n" + "".join(
+                    f"{i}.0,{p[0]:.6f},{p[1]:.6f},{v:.5f}\n" for i, (p, v) in
+                    enumerate(zip(path, r))), encoding="utf-8")
+            extra.append(f'[rotary_ballbar.{name}]\nfile = "{name}.csv"\nsetup = "K1"\n'
+                         f"table_ball_mm = [{TABLE[0]}, {TABLE[1]}, {TABLE[2]}]\n"
+                         f"tool_ball_mm = [{TABLE[0] + 100 * e[0]}, {TABLE[1] + 100 * e[1]}, "
+                         f"{TABLE[2] + 100 * e[2]}]\n")
+    m.write_text(m.read_text() + "\n" + "\n".join(extra), encoding="utf-8")
+    assert main(["fit", str(m), "-o", str(tmp_path / "o"), "-q"]) == 0
+    doc = json.loads((tmp_path / "o" / "chain_fit.json").read_text())
+    assert len(doc["rotary_ballbar"]) == 12  # re-weighted to the 0.3 um reading noise
+    assert all(v < 0.5 for k, v in doc["sigma_um"].items() if k.startswith("K1_"))
+    seen = [r for r in doc["location"] if r["value"] is not None]
+    assert len(seen) == 7
+    for r in seen:
+        floor = 1.0 if r["unit"] == "um" else 5.0
+        assert abs(r["value"] - errs.location[r["name"]]) <= max(r["u95"], floor), r
+    assert main(["diagnose", str(m), "-o", str(tmp_path / "d")]) == 0
+    assert (tmp_path / "d" / "diagnose_chain.json").is_file()
