@@ -12,8 +12,13 @@ ISO 230-7 component, harmonics from the first ISO 230-7 allows up to H, amplitud
 motions up to H as well (cases/chain_suite.py ``motion_campaign``): every observable
 location error and motion coefficient judged the same way.
 
-Usage: python bench/bench_chain.py [--cases N] [--seed S] [--motions H] [--json OUT]
-[machine.toml ...] (default: every file in cases/five_axis_chains/). Prints one table row
+With ``--ballbar``: rotary ballbar data instead (cases/chain_suite.py ``ballbar_campaign``:
+each rotary axis turning, the other held at two angles, the bar 100 mm along X, Y and Z
+from one table ball; on a machine with a tool-side axis a second tool ball 100 mm longer);
+``--ballbar probe`` adds one sphere probed over a 5 x 6 grid.
+
+Usage: python bench/bench_chain.py [--cases N] [--seed S] [--motions H | --ballbar [probe]]
+[--json OUT] [machine.toml ...] (default: every file in cases/five_axis_chains/). Prints one table row
 per kind.
 """
 
@@ -26,7 +31,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from cases.chain_suite import CHAINS, campaign, motion_campaign  # noqa: E402
+from cases.chain_suite import CHAINS, ballbar_campaign, campaign, motion_campaign  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -39,9 +44,29 @@ def main(argv: list[str] | None = None) -> int:
                     help="hide and identify error motions up to harmonic H (0: location only)")
     ap.add_argument("--grid", type=int, nargs=2, default=(6, 8), metavar=("N1", "N2"),
                     help="angles per rotary axis with --motions (default 6 8)")
+    ap.add_argument("--ballbar", nargs="?", const="alone", choices=("alone", "probe"),
+                    help="rotary ballbar campaigns (alone, or with a probed sphere: probe)")
     a = ap.parse_args(argv)
     files = a.files or sorted(CHAINS.glob("*.toml"))
     out = []
+    if a.ballbar:
+        print("| kind | chain | plan | cases | observable within | share | cases all within | "
+              "within the 95 % interval alone | weighted RMS | unobservable | worst | s |")
+        print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+        for f in files:
+            r = ballbar_campaign(f, a.cases, a.seed, a.ballbar == "probe")
+            out.append(r)
+            w = r["worst"] or {"name": "-", "error": 0.0, "u95": 0.0}
+            print(f"| {r['kind']} | {r['chain']} | {r['plan']} | {r['cases']} | {r['within']}/"
+                  f"{r['compared']} | {100 * r['share_within']:.1f} % | "
+                  f"{r['cases_all_within']}/{r['cases']} | "
+                  f"{100 * r['within_interval_only'] / max(r['compared'], 1):.1f} % | "
+                  f"{r['rms_weighted']:.2f} | {', '.join(r['unobservable'])}"
+                  f"{' (varies)' if r['unobservable_varies'] else ''} | {w['name']} "
+                  f"{w['error']:.2f} (U {w['u95']:.2f}) | {r['seconds']:.0f} |", flush=True)
+        if a.json:
+            a.json.write_text(json.dumps(out, indent=2) + "\n", encoding="utf-8")
+        return 0 if all(r["share_within"] >= 0.97 for r in out) else 1
     if a.motions:
         print("| kind | chain | cases | location errors within | motion coefficients within "
               "| share | cases all within | within the 95 % interval alone | weighted RMS "

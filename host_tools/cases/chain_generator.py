@@ -31,6 +31,14 @@ Instruments (the same meaning as abbe's, coded here again): a touch probe report
 machine position (the linear axes) where the actual tip is on the actual sphere centre; an
 R-test nest under tool-centre-point control reads the actual sphere centre minus the
 actual nest, in the nest's nominal frame (um), zeroed at its first reading.
+A rotary ballbar (ISO 10791-6 style) reads the distance between a ball on the table and a
+ball in the spindle held, under tool-centre-point control, where the nominal kinematics put
+it: the controller drives the linear axes to ``W_nom(tool ball) - T_nom(tip)`` (the ball
+``tip`` mm from the controlled point at zero angles), the actual ball is where the actual
+tool-side axes put the ball's actual place in the spindle (``tip`` + its cup's run-out, in
+the spindle's frame: a head turns it), the actual table ball where the actual workpiece-side
+axes put it; the reading is the distance minus the nominal one (um) minus the bar's
+length calibration error.
 
 Usage: imported by cases/chain_suite.py (bench/bench_chain.py) and by the tests.
 """
@@ -217,6 +225,52 @@ def rtest_readings(ch: GenChain, loc: dict[str, float], sphere: np.ndarray, offs
     r = r - r[0] + rng.normal(0.0, noise_um, r.shape)
     r[0] = 0.0
     return r
+
+
+def ballbar_readings(ch: GenChain, loc: dict[str, float], table: np.ndarray,
+                     table_offset_mm: np.ndarray, tool: np.ndarray, tip: np.ndarray,
+                     cup_mm: np.ndarray, angles: np.ndarray, length_error_um: float,
+                     noise_um: float, rng: np.random.Generator,
+                     motions: dict[str, ErrorMotion] | None = None) -> np.ndarray:
+    """(M,) rotary ballbar readings (um): actual distance of the balls minus their nominal
+    distance, minus the bar's length error, plus noise (see module)."""
+    length = float(np.linalg.norm(tool - table))
+    out = []
+    for pair in angles:
+        q = _pt(work_matrix(ch, pair, None), tool) - _pt(tool_matrix(ch, pair, None), tip)
+        ball = q + _pt(tool_matrix(ch, pair, loc, motions), tip + cup_mm)
+        centre = _pt(work_matrix(ch, pair, loc, motions), table + table_offset_mm)
+        out.append((float(np.linalg.norm(ball - centre)) - length) * 1e3 - length_error_um)
+    r = np.array(out)
+    return r + rng.normal(0.0, noise_um, r.shape)
+
+
+def ballbar_paths(ch: GenChain, n_full: int = 12, n_part: int = 9) -> list[tuple[str, np.ndarray]]:
+    """(label, angle pairs) of the ballbar tests: each rotary axis turning (a full turn in
+    ``360 / n_full`` steps, or 80 % of its travel within +-90 deg in ``n_part`` steps) and
+    back, the other held at two angles (0 and 90 deg for a full-turn axis, 0 and half its
+    largest angle otherwise)."""
+    out = []
+    for i, n in enumerate(ch.names):
+        other = ch.names[1 - i]
+        lo, hi = ch.axis(n).travel
+        if hi - lo >= 360.0:
+            go = np.arange(n_full + 1) * 360.0 / n_full
+        else:
+            lo, hi = max(lo, -90.0), min(hi, 90.0)
+            mid, half = (lo + hi) / 2.0, (hi - lo) / 2.0 * 0.8
+            go = np.linspace(mid - half, mid + half, n_part)
+        path = np.r_[go, go[-2::-1]]
+        olo, ohi = ch.axis(other).travel
+        holds = (0.0, 90.0) if ohi - olo >= 360.0 else (
+            0.0, 0.5 * (max(olo, -90.0) if abs(max(olo, -90.0)) > abs(min(ohi, 90.0))
+                        else min(ohi, 90.0)))
+        for h in holds:
+            pair = np.zeros((path.size, 2))
+            pair[:, i] = path
+            pair[:, 1 - i] = h
+            out.append((f"{n}{int(round(h))}", pair))
+    return out
 
 
 def random_location(ch: GenChain, rng: np.random.Generator, um: float = 20.0,

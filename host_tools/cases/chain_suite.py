@@ -176,3 +176,85 @@ def motion_campaign(path: Path, cases: int, seed: int, harmonics: int = 2,
             "worst": None if worst is None else {"name": worst[0], "error": worst[1],
                                                   "u95": worst[2]},
             "seconds": dt}
+
+
+# ------------------------------------------------------------ rotary ballbar (issue 39)
+
+BALLBAR_NOISE_UM = 0.3
+#: The tool ball's cup run-out (um per axis, spindle frame) and each bar's length error
+#: (um, one per test: the bar is re-seated between tests).
+CUP_UM, BAR_LENGTH_UM = 20.0, 1.5
+BAR_MM = 100.0
+
+
+def ballbar_plan(tool_side: bool) -> list[tuple[str, np.ndarray]]:
+    """(set-up, tool ball tip mm) of a ballbar campaign: one table ball at SPHERE_MM and a
+    tool ball at the controlled point; with a tool-side rotary axis a second tool ball
+    100 mm longer (a head's axis sees a line's tilt only through two levers)."""
+    out = [("K1", np.zeros(3))]
+    if tool_side:
+        out.append(("K2", np.array([0.0, 0.0, -100.0])))
+    return out
+
+
+def run_ballbar_case(chain, gch: gen.GenChain, rng: np.random.Generator,  # noqa: ANN001
+                     probe: bool) -> dict:
+    """One campaign of rotary ballbar tests (:func:`cases.chain_generator.ballbar_paths`,
+    the bar 100 mm along X, Y and Z from the table ball, each set-up of
+    :func:`ballbar_plan`), with ``probe`` a sphere probed over a 5 x 6 grid as well; abbe
+    identifies the location errors, judged as :func:`run_case`."""
+    truth = gen.random_location(gch, rng)
+    setups = []
+    for su, tip in ballbar_plan(bool(chain.tool_side)):
+        off = rng.normal(0.0, SPHERE_SETUP_UM * 1e-3, 3)
+        cup = rng.normal(0.0, CUP_UM * 1e-3, 3)
+        for label, path in gen.ballbar_paths(gch):
+            for d, e in zip("XYZ", np.eye(3)):
+                tool = SPHERE_MM + BAR_MM * e
+                obs = gen.ballbar_readings(gch, truth, SPHERE_MM, off, tool, tip, cup, path,
+                                           float(rng.normal(0.0, BAR_LENGTH_UM)),
+                                           BALLBAR_NOISE_UM, rng)
+                setups.append(ChainSetup("ballbar", f"{su}_{label}_{d}", tuple(SPHERE_MM), path,
+                                         obs, tuple(tip), BALLBAR_NOISE_UM, tuple(tool), su))
+    if probe:
+        angles = gen.grid(gch)
+        off = rng.normal(0.0, SPHERE_SETUP_UM * 1e-3, 3)
+        obs = gen.probe_centres(gch, truth, SPHERE_MM, off, np.zeros(3), angles,
+                                PROBE_NOISE_UM, rng)
+        setups.append(ChainSetup("probe", "S1", tuple(SPHERE_MM), angles, obs,
+                                 (0.0, 0.0, 0.0), PROBE_NOISE_UM))
+    fit = identify_chain(chain, setups, explain=False)
+    rows = []
+    for r in fit.rows:
+        if r.value is None:
+            continue
+        floor = 1.0 if r.unit == "um" else 5.0
+        err = abs(r.value - truth[r.name])
+        rows.append((r.name, err, r.u95, err <= max(r.u95, floor)))
+    return {"rows": rows, "unobservable": fit.unobservable, "rms": fit.rms_weighted}
+
+
+def ballbar_campaign(path: Path, cases: int, seed: int, probe: bool = False) -> dict:
+    """:func:`campaign` with rotary ballbar tests (:func:`run_ballbar_case`)."""
+    chain = load_machine(path).extra["chain"]
+    gch = gen.read_chain(path)
+    rng = np.random.default_rng(seed)
+    t0 = time.perf_counter()
+    res = [run_ballbar_case(chain, gch, rng, probe) for _ in range(cases)]
+    dt = time.perf_counter() - t0
+    rows = [r for c in res for r in c["rows"]]
+    worst = max(rows, key=lambda r: r[1] / max(r[2], 1.0 if r[0][1] in "XYZ" else 5.0),
+                default=None)
+    return {"file": path.name, "chain": chain.name, "kind": chain.kind, "cases": cases,
+            "plan": "probing + rotary ballbar" if probe else "rotary ballbar",
+            "observable": sorted({r[0] for r in rows}),
+            "unobservable": list(res[0]["unobservable"]),
+            "unobservable_varies": any(c["unobservable"] != res[0]["unobservable"] for c in res),
+            "within": sum(r[3] for r in rows), "compared": len(rows),
+            "share_within": sum(r[3] for r in rows) / max(len(rows), 1),
+            "cases_all_within": sum(all(r[3] for r in c["rows"]) for c in res),
+            "within_interval_only": sum(r[1] <= r[2] for r in rows),
+            "rms_weighted": float(np.median([c["rms"] for c in res])),
+            "worst": None if worst is None else {"name": worst[0], "error": worst[1],
+                                                  "u95": worst[2]},
+            "seconds": dt}

@@ -33,7 +33,9 @@ def run_chain_diagnose(args: argparse.Namespace) -> int:
                                  f"{chain.name!r} (keys chain, location, motions)",
                                  file=str(args.model), field="chain")
         model = model_values(doc)
-    setups = setups_from_machine(machine)
+    # the diagnosis' checks are 3-D centres and R-test readings: rotary ballbar tests are
+    # read by `abbe fit` only (docs/concepts.md, "the kinematic chain")
+    setups = [s for s in setups_from_machine(machine) if s.kind != "ballbar"]
     if not any(s.kind == "probe" for s in setups):
         raise AbbeInputError("abbe diagnose on a [chain] machine file needs at least one "
                              "[probing.NAME] section (its positions are the held-out data)",

@@ -1,6 +1,6 @@
 """``abbe fit`` on a ``[chain]`` machine file (head-head, head-table, dual-rotary table, or
 a trunnion written as a chain): the location errors (and with ``[chain.fit] harmonics``
-the error motions) from its probing and R-test files, with what the plan cannot see (abbe.analysis.five_axis.chain_fit). Writes chain_fit.json
+the error motions) from its probing, R-test and rotary ballbar files, with what the plan cannot see (abbe.analysis.five_axis.chain_fit). Writes chain_fit.json
 and report.txt into the output directory, and for a head-head, head-table or dual
 rotary table chain model_five.bin (format 1.4, the C runtime's and the LinuxCNC
 component's table)."""
@@ -32,8 +32,9 @@ def run_chain(args: argparse.Namespace) -> int:
     chain = machine.extra["chain"]
     setups = setups_from_machine(machine)
     if not setups:
-        raise AbbeInputError("a [chain] machine file needs at least one [probing.NAME] or "
-                             "[rtest.NAME] section to fit", file=str(args.machine), field="chain")
+        raise AbbeInputError("a [chain] machine file needs at least one [probing.NAME], "
+                             "[rtest.NAME] or [rotary_ballbar.NAME] section to fit",
+                             file=str(args.machine), field="chain")
     h = machine.extra["chain_plans"].harmonics
     fit = identify_chain(chain, setups, explain=False, harmonics=h)
     setups = reweight(chain, setups, fit, h)
@@ -42,7 +43,9 @@ def run_chain(args: argparse.Namespace) -> int:
     outs = Outputs()
     try:
         staging = outs.directory(args.out, option="--out")
-        doc = fit_to_json(fit, setups)
+        doc = {"format": "abbe-chain-fit 1.0", "machine": machine.name,
+               **fit_to_json(fit, setups),
+               "provenance": {"machine_file": str(machine.path), "sha256": machine.sha256}}
         doc["blob"] = write_chain_table(fit, staging)
         (staging / "chain_fit.json").write_text(json.dumps(doc, indent=2) + "\n",
                                                 encoding="utf-8")

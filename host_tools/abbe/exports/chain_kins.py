@@ -11,11 +11,18 @@ the programmed workpiece point w (mm) at rotary axis positions theta (deg, the c
 alphabetical columns) under tool-centre-point control.
 
 The residual is the exact error of the fitted chain (:mod:`abbe.model.chain`,
-homogeneous transforms, the location errors of chain_fit.json; an unobservable one
-counts as 0, as the fit writes it) at those joints: the actual tool tip minus where the
+homogeneous transforms, the location errors and the error motions of chain_fit.json; an
+unobservable one counts as 0, as the fit writes it) at those joints: the actual tool tip minus where the
 workpiece point w actually is (um, machine coordinates), and the tool's orientation
 relative to the workpiece against the programmed one (urad, machine frame). The
 uncompensated machine commands the nominal chain's joints (t = theta).
+
+Error motions (``[chain.fit] harmonics``): none of LinuxCNC's 5axiskins, maxkins and
+xyzab_tdr_kins has a parameter that varies with the angle (their inputs are a pivot length,
+rotation points and offsets, and the joints' HOME_OFFSET), so no error motion can be
+written; each fitted component (``EXC(C)``: its Fourier coefficients together) is listed
+as not held with the size of its own exact error over the poses, and the residual
+includes it.
 
 Poses: the work volume (every linear-axis grid point of the machine file's travel at
 every rotary grid position: ``rotary_points`` per rotary axis over its travel, one turn
@@ -41,6 +48,7 @@ from abbe.exports.five_axis import summary as five_axis_summary
 from abbe.exports.target import Option
 from abbe.model.chain import (KinematicChain, nominal_joints, tool_tip, tool_transform,
                               workpiece_transform)
+from abbe.model.five_axis import MOTION_COMPONENTS, lowest_harmonic, motion_name
 from abbe.model.five_axis_base import LOCATION_ERRORS, FiveAxisErrors, rotvec
 from abbe.model.table import AXES
 
@@ -51,6 +59,10 @@ LOCATION_LIMIT = 1.0e5
 FLOOR_UM = 1e-4
 #: The nominal chain must be the module's geometry to this, mm.
 GEOMETRY_TOL_MM = 1e-9
+#: Error motion coefficients larger than this are refused (um / urad).
+MOTION_LIMIT = 1.0e4
+#: The highest harmonic abbe fit writes ([chain.fit] harmonics).
+HARMONICS_MAX = 8
 
 #: The pose options every chain target has.
 POSE_OPTIONS: dict[str, Option] = {
@@ -79,7 +91,6 @@ class ChainContext:
     model_source: str = ""
     machine_source: str = ""
     not_observable: list[str] = field(default_factory=list)
-    motions_not_read: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -163,10 +174,8 @@ def load_chain_context(model: Path, machine, options: dict[str, Any]) -> ChainCo
                                  f"+-{LOCATION_LIMIT:g} or null (not observable), got {v!r}",
                                  file=name, field=f"{f}.value")
         loc[n] = float(v)
-    motions = doc.get("motions", [])
-    motion_names = [str(r.get("name")) for r in motions
-                    if isinstance(r, dict) and r.get("value") is not None] \
-        if isinstance(motions, list) else []
+    motions, motion_unobs = _motions(doc.get("motions", []), chain, name)
+    unobs += motion_unobs
     missing = [n for n in want_names if n not in seen]
     if missing:
         raise AbbeInputError(f"missing location errors: {', '.join(missing)}", file=name,
@@ -177,10 +186,58 @@ def load_chain_context(model: Path, machine, options: dict[str, Any]) -> ChainCo
             raise AbbeInputError(f"the machine file has no [axes.{a}]: the work volume needs all "
                                  "three travels", file=str(machine.path), field=f"axes.{a}")
         travel[a] = tuple(float(v) for v in machine.axes[a].travel_mm)
-    return ChainContext(chain=chain, errors=FiveAxisErrors(location=loc), travel_mm=travel,
-                        options=options, model_source=name,
-                        machine_source=Path(machine.path).name, not_observable=unobs,
-                        motions_not_read=motion_names)
+    return ChainContext(chain=chain, errors=FiveAxisErrors(location=loc, motions=motions),
+                        travel_mm=travel, options=options, model_source=name,
+                        machine_source=Path(machine.path).name, not_observable=unobs)
+
+
+def _motions(rows: Any, chain: KinematicChain, file: str
+             ) -> tuple[dict[tuple[str, str], np.ndarray], list[str]]:
+    """The error motions of chain_fit.json's ``motions`` rows (``EXC(C) sin2``, um / urad):
+    Fourier coefficients ``[sin 1, cos 1, ...]`` per (axis, component); a row with value
+    null is not observable (counts as 0, listed). Bad rows: AbbeInputError."""
+    if not isinstance(rows, list):
+        raise AbbeInputError("expected a list of error motion coefficients", file=file,
+                             field="motions")
+    valid = {f"{motion_name(ax, comp)} {trig}{k}": (ax, comp, k, trig)
+             for ax in chain.rotaries for comp in MOTION_COMPONENTS
+             for k in range(lowest_harmonic(ax, comp), HARMONICS_MAX + 1)
+             for trig in ("sin", "cos")}
+    vals: dict[str, float] = {}
+    unobs: list[str] = []
+    for i, row in enumerate(rows):
+        f = f"motions[{i}]"
+        if not isinstance(row, dict) or not isinstance(row.get("name"), str):
+            raise AbbeInputError("expected an object with a name", file=file, field=f)
+        n = row["name"]
+        if n not in valid:
+            raise AbbeInputError(f"{n!r} is not an error motion coefficient of this chain "
+                                 f"(expected e.g. '{next(iter(valid))}': ISO 230-7 name, sin or "
+                                 f"cos and a harmonic up to {HARMONICS_MAX})", file=file,
+                                 field=f"{f}.name")
+        if n in vals or n in unobs:
+            raise AbbeInputError(f"{n} is given twice", file=file, field=f"{f}.name")
+        unit = "um" if valid[n][1] in "XYZ" else "urad"
+        if row.get("unit") != unit:
+            raise AbbeInputError(f"{n}: expected unit {unit!r}, got {row.get('unit')!r}",
+                                 file=file, field=f"{f}.unit")
+        v = row.get("value")
+        if v is None:
+            unobs.append(n)
+            continue
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) \
+                or abs(v) > MOTION_LIMIT:
+            raise AbbeInputError(f"{n}: expected a finite number of {unit} within "
+                                 f"+-{MOTION_LIMIT:g} or null (not observable), got {v!r}",
+                                 file=file, field=f"{f}.value")
+        vals[n] = float(v)
+    h = max([valid[n][2] for n in vals] + [0])
+    out: dict[tuple[str, str], np.ndarray] = {}
+    for n, v in vals.items():
+        ax, comp, k, trig = valid[n]
+        c = out.setdefault((ax, comp), np.zeros(2 * h))
+        c[2 * (k - 1) + (0 if trig == "sin" else 1)] = v
+    return out, unobs
 
 
 def require(ok: bool, ctx: ChainContext, module: str, what: str) -> None:
@@ -290,20 +347,33 @@ def _both(ctx: ChainContext, exp: ChainExport, W: np.ndarray, A: np.ndarray) -> 
             "uncompensated": pose_stats(*pose_error(ch, e, W, A, q0, A))}
 
 
-def not_held(ctx: ChainContext, held: tuple[str, ...], reason: Callable[[str], str]
-             ) -> list[dict[str, Any]]:
-    """The fitted location errors the module cannot hold, each with the size of its own
-    exact error (the machine otherwise nominal) over the volume and the TCP path."""
+def not_held(ctx: ChainContext, held: tuple[str, ...], reason: Callable[[str], str],
+             module: str = "this module") -> list[dict[str, Any]]:
+    """The fitted location errors the module cannot hold and every fitted error motion
+    component (none of these modules has a parameter for one), each with the size of its
+    own exact error (the machine otherwise nominal) over the volume and the TCP path."""
     ch = ctx.chain
     poses = {"volume": volume_poses(ctx), "tcp_path": tcp_path(ctx)}
     joints = {k: nominal_joints(ch, W, A) for k, (W, A) in poses.items()}
-    out = []
+    items: list[tuple[dict[str, Any], FiveAxisErrors]] = []
     for n in ch.location_names():
         v = ctx.errors.location.get(n, 0.0)
         if n in held or v == 0.0:
             continue
-        only = FiveAxisErrors(location={n: v})
-        d: dict[str, Any] = {"item": n, "kind": "location", "reason": reason(n)}
+        items.append(({"item": n, "kind": "location", "reason": reason(n)},
+                      FiveAxisErrors(location={n: v})))
+    for (ax, comp), c in sorted(ctx.errors.motions.items()):
+        if not np.any(c):
+            continue
+        items.append(({"item": motion_name(ax, comp), "kind": "error motion",
+                       "coefficients": {f"{'sin' if i % 2 == 0 else 'cos'}{i // 2 + 1}":
+                                        round(float(v), 6) for i, v in enumerate(c) if v != 0.0},
+                       "reason": f"an error motion of {ax} (a function of its angle): {module} "
+                                 "has no parameter that varies with the angle (not exportable "
+                                 "to it; abbe's table model_five.bin holds it)"},
+                      FiveAxisErrors(location={}, motions={(ax, comp): c})))
+    out = []
+    for d, only in items:
         big = 0.0
         for k, (W, A) in poses.items():
             pos, rot = pose_error(ch, only, W, A, joints[k], A)
@@ -344,8 +414,12 @@ def evaluate(ctx: ChainContext, exp: ChainExport) -> dict[str, Any]:
                            "note": "not observable by the fit's plan: written at nominal, "
                                    "neither corrected nor sized here"},
         "notes": exp.notes + ([
-            "the fit's error motions are not read by this export (neither written nor sized): "
-            + ", ".join(ctx.motions_not_read)] if ctx.motions_not_read else []),
+            "error motions: not exportable to this module (it takes no parameter that varies "
+            "with the angle); each fitted component is listed in not_held with its own size "
+            "and the residual includes them all: "
+            + ", ".join(sorted(motion_name(a, c) for (a, c), v in ctx.errors.motions.items()
+                               if np.any(v)))] if any(np.any(v) for v in
+                                                      ctx.errors.motions.values()) else []),
         "assumptions": exp.assumptions, "sources": exp.sources,
         "files": sorted(exp.files),
     }

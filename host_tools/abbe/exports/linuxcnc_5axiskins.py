@@ -112,7 +112,7 @@ def build(ctx: ChainContext) -> ChainExport:
         target=NAME, files={"5axiskins.hal": ("\n".join(hal) + "\n").encode(),
                             "5axiskins.ini": ("\n".join(ini) + "\n").encode()},
         joints=joints, expressed=expressed, held=HELD,
-        not_held=not_held(ctx, HELD, location_reasons(mod)), notes=notes,
+        not_held=not_held(ctx, HELD, location_reasons(mod), mod), notes=notes,
         assumptions=["abbe's machine coordinates are 5axiskins' joints with the tool the "
                      "controller programs (pivot-length includes its length)",
                      "the rotary joints home to a fixed switch or index: HOME_OFFSET moves the "

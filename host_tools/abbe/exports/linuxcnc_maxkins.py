@@ -139,7 +139,7 @@ def build(ctx: ChainContext) -> ChainExport:
         target=NAME, files={"maxkins.hal": ("\n".join(hal) + "\n").encode(),
                             "maxkins.ini": ("\n".join(ini) + "\n").encode()},
         joints=joints, expressed=expressed, held=HELD,
-        not_held=not_held(ctx, HELD, location_reasons(mod)), notes=notes,
+        not_held=not_held(ctx, HELD, location_reasons(mod), mod), notes=notes,
         assumptions=["abbe's machine coordinates are maxkins' joints with the tool the "
                      "controller programs (tool length 0 in abbe's chain)",
                      "maxkins 2.9's inverse (what tool-centre-point motion runs); its forward "

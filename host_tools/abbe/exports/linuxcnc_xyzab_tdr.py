@@ -131,7 +131,7 @@ def build(ctx: ChainContext) -> ChainExport:
         target=NAME, files={"xyzab-tdr.hal": ("\n".join(hal) + "\n").encode(),
                             "xyzab-tdr.ini": ("\n".join(ini) + "\n").encode()},
         joints=joints, expressed=expressed, held=HELD,
-        not_held=not_held(ctx, HELD, location_reasons(mod)), notes=notes,
+        not_held=not_held(ctx, HELD, location_reasons(mod), mod), notes=notes,
         assumptions=["abbe's machine coordinates are the module's joints with tool-offset-z 0 "
                      "(LinuxCNC adds the tool length itself)",
                      "tool-centre-point mode (switchkins type 1, M428 in the sample)",

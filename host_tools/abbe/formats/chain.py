@@ -30,8 +30,8 @@ from typing import Any, Callable
 
 from abbe.errors import AbbeInputError, check_number
 from abbe.errors.numbers import show_value
-from abbe.formats.five_axis import (HARMONICS_MAX, RADIUS_TOL_RANGE_MM, SPHERE_RADIUS_RANGE_MM,
-                                    STYLUS_RADIUS_RANGE_MM)
+from abbe.formats.five_axis import (BAR_LENGTH_RANGE_MM, HARMONICS_MAX, RADIUS_TOL_RANGE_MM,
+                                    SPHERE_RADIUS_RANGE_MM, STYLUS_RADIUS_RANGE_MM)
 from abbe.formats.structured import unknown_key
 from abbe.model.chain import (LINEAR_AXES, ROTARY_MACHINE_AXIS, ChainAxis, KinematicChain,
                               chain_problem)
@@ -171,6 +171,29 @@ class ChainRTest:
 
 
 @dataclass(frozen=True)
+class ChainBallbar:
+    """``[rotary_ballbar.N]`` of a ``[chain]`` machine: the rotary ballbar CSV (resolved;
+    angle columns the chain's rotary axes in alphabetical order), the table ball's and the
+    tool ball's nominal centres (workpiece coordinates, mm; the tool ball is held there
+    under tool-centre-point control), the tool ball relative to the controlled point at
+    zero angles (mm: a tool-side rotary axis swings it with the spindle), the set-up the
+    test shares with others (same table ball, same tool cup: one set of ball unknowns)."""
+
+    name: str
+    file: Path
+    table_ball_mm: tuple[float, float, float]
+    tool_ball_mm: tuple[float, float, float]
+    tip_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    setup: str = ""
+    line: int | None = None
+
+    @property
+    def length_mm(self) -> float:
+        return float(sum((a - b) ** 2 for a, b in zip(self.tool_ball_mm,
+                                                       self.table_ball_mm)) ** 0.5)
+
+
+@dataclass(frozen=True)
 class ChainPlans:
     """The measurement sections of a ``[chain]`` machine file and ``[chain.fit]``: the
     error motions' highest harmonic the fit identifies (0: location errors only) and the
@@ -180,6 +203,7 @@ class ChainPlans:
     rtest: dict[str, ChainRTest] = field(default_factory=dict)
     harmonics: int = 0
     folds: int = 4
+    ballbar: dict[str, ChainBallbar] = field(default_factory=dict)
 
 
 _FIT_KEYS = ("harmonics", "folds")
@@ -210,20 +234,20 @@ def _chain_fit(data: dict[str, Any], err: Callable[[str, str], AbbeInputError]
 _PROBING_KEYS = ("file", "sphere_mm", "sphere_radius_mm", "stylus_radius_mm",
                  "radius_tolerance_mm", "tip_mm")
 _RTEST_KEYS = ("file", "sphere_mm", "tip_mm")
+_BALLBAR_KEYS = ("file", "table_ball_mm", "tool_ball_mm", "tip_mm", "setup")
 
 
 def parse_chain_plans(data: dict[str, Any], err: Callable[[str, str], AbbeInputError],
                       line: Callable[[str], int | None], file: str,
                       resolve: Callable[[str, str], Path]) -> ChainPlans:
-    """The ``[probing.N]`` and ``[rtest.N]`` sections of a ``[chain]`` machine file
-    (``[indexer]`` and ``[rotary_ballbar]`` are the trunnions' only, for now)."""
+    """The ``[probing.N]``, ``[rtest.N]`` and ``[rotary_ballbar.N]`` sections of a
+    ``[chain]`` machine file (``[indexer]`` is the trunnions' only, for now)."""
     def num(v: Any, f: str, lo: float, hi: float, unit: str) -> float:
         return check_number(v, file=file, line=line(f), field=f, lo=lo, hi=hi, unit=unit)
 
-    for k in ("indexer", "rotary_ballbar"):
-        if k in data:
-            raise err(k, f"[{k}] is read for a [rotary] trunnion only; a [chain] machine takes "
-                         "[probing.NAME] and [rtest.NAME]")
+    if "indexer" in data:
+        raise err("indexer", "[indexer] is read for a [rotary] trunnion only; a [chain] machine "
+                             "takes [probing.NAME], [rtest.NAME] and [rotary_ballbar.NAME]")
 
     def sections(top: str, keys: tuple[str, ...], required: tuple[str, ...]
                  ) -> dict[str, tuple[str, dict[str, Any]]]:
@@ -263,5 +287,29 @@ def parse_chain_plans(data: dict[str, Any], err: Callable[[str, str], AbbeInputE
                                  _vec3(sec["sphere_mm"], f"{f}.sphere_mm", num, err),
                                  _vec3(sec.get("tip_mm", [0.0, 0.0, 0.0]), f"{f}.tip_mm", num, err),
                                  line(f))
+    ballbar: dict[str, ChainBallbar] = {}
+    for name, (f, sec) in sections("rotary_ballbar", _BALLBAR_KEYS,
+                                   ("file", "table_ball_mm", "tool_ball_mm")).items():
+        su = sec.get("setup", "")
+        if not isinstance(su, str) or (su != "" and not su.replace("_", "").replace(
+                "-", "").isalnum()):
+            raise err(f"{f}.setup", f"expected a set-up name (letters, digits, _ or -), got "
+                      f"{show_value(su)}")
+        bb = ChainBallbar(name, resolve(sec["file"], f"{f}.file"),
+                          _vec3(sec["table_ball_mm"], f"{f}.table_ball_mm", num, err),
+                          _vec3(sec["tool_ball_mm"], f"{f}.tool_ball_mm", num, err),
+                          _vec3(sec.get("tip_mm", [0.0, 0.0, 0.0]), f"{f}.tip_mm", num, err),
+                          su, line(f))
+        lo, hi = BAR_LENGTH_RANGE_MM
+        if not lo <= bb.length_mm <= hi:
+            raise err(f"{f}.tool_ball_mm", f"expected the balls {lo:g} to {hi:g} mm apart (the "
+                      f"bar's length), got {bb.length_mm:.6g} mm")
+        same = [o for o in ballbar.values() if su and o.setup == su]
+        if same and (same[0].table_ball_mm != bb.table_ball_mm or same[0].tip_mm != bb.tip_mm):
+            raise err(f"{f}.table_ball_mm", f"set-up {su!r} shares one table ball and one tool "
+                      f"cup: expected table_ball_mm {list(same[0].table_ball_mm)} and tip_mm "
+                      f"{list(same[0].tip_mm)} as [rotary_ballbar.{same[0].name}], got "
+                      f"{list(bb.table_ball_mm)} and {list(bb.tip_mm)}")
+        ballbar[name] = bb
     harmonics, folds = _chain_fit(data, err)
-    return ChainPlans(probing, rtest, harmonics, folds)
+    return ChainPlans(probing, rtest, harmonics, folds, ballbar)

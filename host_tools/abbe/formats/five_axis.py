@@ -377,8 +377,10 @@ def rtest_columns(tilt: str, second: str = "C") -> tuple[str, ...]:
     return ("t_s", f"{tilt.lower()}_deg", f"{second.lower()}_deg", "dx_um", "dy_um", "dz_um")
 
 
-def rotary_ballbar_columns(tilt: str) -> tuple[str, ...]:
-    return ("t_s", f"{tilt.lower()}_deg", "c_deg", "radial_um")
+def rotary_ballbar_columns(tilt: str, second: str = "C") -> tuple[str, ...]:
+    """Rotary ballbar CSV header (angle columns as :func:`probe_columns`: a ``[chain]``
+    machine's two rotary axes in alphabetical order)."""
+    return ("t_s", f"{tilt.lower()}_deg", f"{second.lower()}_deg", "radial_um")
 
 
 INDEXER_COLUMNS = ("run", "direction", "target_deg", "deviation_urad")
@@ -466,18 +468,18 @@ class RotaryBallbarTrace:
     file: str
 
 
-def read_rotary_ballbar(path: str | Path, tilt: str) -> RotaryBallbarTrace:
+def read_rotary_ballbar(path: str | Path, tilt: str, second: str = "C") -> RotaryBallbarTrace:
     """Read a rotary ballbar CSV (strict header, finite numbers in range, |radial_um| <=
     the 3-axis ballbar's limit, time not decreasing, at least 3 readings, a rotary axis
     that turns)."""
-    names = rotary_ballbar_columns(tilt)
-    cols = {"t_s": _time(), names[1]: _angle(names[1]), "c_deg": _angle("c_deg"),
+    names = rotary_ballbar_columns(tilt, second)
+    cols = {"t_s": _time(), names[1]: _angle(names[1]), names[2]: _angle(names[2]),
             "radial_um": Column("radial_um", 0, "number", -MAX_RADIAL_UM, MAX_RADIAL_UM, "um")}
     v, lines, f = _read(Path(path), names, cols, "rotary ballbar CSV")
     _monotone_time(v["t_s"], lines, f)
     if lines.size < 3:
         raise AbbeInputError("a rotary ballbar test needs at least 3 readings", file=f)
-    ang = np.column_stack([v[names[1]], v["c_deg"]])
+    ang = np.column_stack([v[names[1]], v[names[2]]])
     if np.ptp(ang, axis=0).max() < 1.0:
         raise AbbeInputError("no rotary axis turns (by 1 deg or more) in this ballbar test",
                              file=f, field=names[1])
@@ -545,9 +547,9 @@ def indexer_csv(run: np.ndarray, direction: np.ndarray, target_deg: np.ndarray,
 
 
 def rotary_ballbar_csv(tilt: str, time_s: np.ndarray, angles_deg: np.ndarray,
-                       radial_um: np.ndarray) -> str:
+                       radial_um: np.ndarray, second: str = "C") -> str:
     """The text of a rotary ballbar CSV (:func:`read_rotary_ballbar` reads it)."""
-    rows = [",".join(rotary_ballbar_columns(tilt))]
+    rows = [",".join(rotary_ballbar_columns(tilt, second))]
     for i in range(len(time_s)):
         rows.append(",".join([_fmt(time_s[i]), _fmt(angles_deg[i, 0]), _fmt(angles_deg[i, 1]),
                               _fmt(radial_um[i])]))

@@ -19,6 +19,11 @@ Recognised by content, never by name alone (docs/history.md, "What `add` reads")
   dispersion before / after (fitted and held out).
 * ``abbe diagnose -o OUT`` on a five-axis file: ``diagnose_five_axis.json`` -> the
   held-out dispersion before / after, every named effect's amplitude with its interval.
+* ``abbe fit -o OUT`` on a ``[chain]`` file: ``chain_fit.json`` -> every identified
+  location error and error motion coefficient with its 95 % interval, the RMS the fit
+  leaves of each rotary ballbar test; ``abbe diagnose -o OUT`` on one:
+  ``diagnose_chain.json`` -> the held-out RMS and gap before / after, every named
+  effect's amplitude.
 * ``abbe thermal evaluate -o OUT``: ``iso230_3.json`` -> the range of every channel
   and tilt, the envelope; ``abbe thermal fit -o OUT``: ``fit.json`` -> per signal the
   held-out RMS uncompensated, by the model and by the static regression;
@@ -69,7 +74,13 @@ def _kind_of(data: Any) -> str | None:
     fmt = data.get("format")
     if isinstance(fmt, str):
         return FORMATS.get(fmt.rsplit(" ", 1)[0])
+    if CHAIN_FIT_KEYS <= set(data):  # chain_fit.json written before it had its format tag
+        return "chain fit"
     return None
+
+
+#: What a ``chain_fit.json`` without its "format" tag (abbe before it had one) holds.
+CHAIN_FIT_KEYS = frozenset({"chain", "kind", "rank", "unknowns", "location", "setup_um"})
 
 
 #: The "format" tag of an output (without its version) -> its kind.
@@ -77,7 +88,8 @@ FORMATS = {"abbe-five-axis": "five-axis", "abbe-five-axis-diagnose": "five-axis 
            "abbe-iso230-3": "thermal evaluate", "abbe-thermal-fit": "thermal fit",
            "abbe-thermal-diagnose": "thermal diagnose", "abbe-printer-fit": "printer fit",
            "abbe-predict": "predict", "abbe-export-residual": "export",
-           "abbe-export-residual-five-axis": "export"}
+           "abbe-export-residual-five-axis": "export", "abbe-chain-fit": "chain fit",
+           "abbe-chain-diagnose": "chain diagnose"}
 
 
 # --------------------------------------------------------------------------- readers
@@ -314,7 +326,8 @@ def read_campaign(paths: list[str], axes: dict[str, str], machine: str | None) -
             if kind is None:
                 raise AbbeInputError("not an output abbe history reads (expected the JSON of "
                                      "abbe ballbar --json, abbe iso230-2 --json, a fit's "
-                                     "model.json or five_axis.json, a diagnose.json or an "
+                                     "model.json, five_axis.json or chain_fit.json, a "
+                                     "diagnose.json or an "
                                      "output of abbe thermal, printer fit, predict or export)",
                                      file=text)
             docs.append((kind, doc, True))

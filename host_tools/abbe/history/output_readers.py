@@ -1,4 +1,5 @@
-"""Readers of the outputs added after the laser fit's: the five-axis fit and diagnose,
+"""Readers of the outputs added after the laser fit's: the five-axis fit and diagnose (the
+trunnions' and any kinematic chain's),
 the thermal evaluation / fit / diagnosis, the printer fit, predict and export (their
 "format" tag names them; docs/history.md lists the series each stores)."""
 
@@ -147,7 +148,64 @@ def read_export(c: Campaign, doc: _Doc) -> None:
                     f"{state} |E| {stat[:-3]} after the export", v, "um"))
 
 
+def _rotary_axis(name: str) -> str:
+    """The rotary axis an ISO 230-7 name belongs to: ``EX0C`` -> C, ``EXC(C) sin2`` -> C."""
+    return name.split("(")[1][0] if "(" in name else name[-1]
+
+
+def read_chain_fit(c: Campaign, doc: _Doc) -> None:
+    """``chain_fit.json`` of ``abbe fit`` on a ``[chain]`` machine file (head-head,
+    head-table, dual-rotary table, a trunnion as a chain): every identified location error
+    and error motion coefficient (value, 95 % interval; the ones the plan cannot see are
+    not stored, never as 0) and what the fit leaves of each rotary ballbar test (RMS)."""
+    _begin(c, doc, "chain fit")
+    doc.get("chain", str)
+    for key, quantity in (("location", "location error"),
+                          ("motions", "error motion coefficient")):
+        for i, p in enumerate(_list(doc, key) if key in doc.data else []):
+            where = f"{key}[{i}]"
+            if not isinstance(p, dict):
+                raise doc.err(where, "expected an object")
+            if p.get("status") != "identified":
+                continue
+            name = _entry_str(doc, p, "name", where)
+            v = _entry_num(doc, p, "value", where)
+            u = _entry_num(doc, p, "u95", where, lo=0)
+            assert v is not None and u is not None
+            c.results.append(Result(f"chain {name}", "chain fit", quantity, v,
+                                    _unit(doc, p.get("unit"), f"{where}.unit"),
+                                    axis=_rotary_axis(name), ci_low=v - u, ci_high=v + u))
+    tests = doc.get("rotary_ballbar", dict, optional=True) or {}
+    for n in sorted(tests):
+        v = doc.num(f"rotary_ballbar.{n}.left_rms_um", lo=0)
+        assert v is not None
+        c.results.append(Result(f"chain ballbar {n} left RMS", "chain fit",
+                                "rotary ballbar length RMS the fit leaves", v, "um"))
+
+
+def read_chain_diagnose(c: Campaign, doc: _Doc) -> None:
+    """``diagnose_chain.json`` of ``abbe diagnose`` on a ``[chain]`` machine file: the
+    held-out sphere-centre RMS and the gap before / after, every named effect's amplitude."""
+    _begin(c, doc, "chain diagnose")
+    for key in ("heldout_before_um", "heldout_after_um", "gap_before_um", "gap_after_um"):
+        v = doc.num(key, lo=0)
+        assert v is not None
+        what = "held-out sphere-centre RMS" if key.startswith("heldout") else \
+            "held-out RMS above the floor (gap)"
+        c.results.append(Result(f"chain diagnose {key[:-3].replace('_', ' ')}",
+                                "chain diagnose", what, v, "um"))
+    for i, n in enumerate(_list(doc, "named")):
+        where = f"named[{i}]"
+        eff = _entry_str(doc, n, "effect", where)
+        v = _entry_num(doc, n, "amplitude", where)
+        assert v is not None
+        c.results.append(Result(f"chain diagnose {eff} amplitude", "chain diagnose",
+                                "effect amplitude", v, _unit(doc, n.get("unit"), f"{where}.unit"),
+                                axis=_rotary_axis(eff.split(" ")[0])))
+
+
 READERS = {"five-axis": read_five_axis, "five-axis diagnose": read_five_axis_diagnose,
+           "chain fit": read_chain_fit, "chain diagnose": read_chain_diagnose,
            "thermal evaluate": read_thermal_evaluate, "thermal fit": read_thermal_fit,
            "thermal diagnose": read_thermal_diagnose, "printer fit": read_printer_fit,
            "predict": read_predict, "export": read_export}

@@ -213,15 +213,57 @@ def test_written_values_follow_the_fit(tmp_path: Path) -> None:
     # direction -1: the joint reads -E0 more
     assert home[3] == pytest.approx(10.0 + np.degrees(115.6e-6), abs=1e-9)
     assert home[4] == pytest.approx(-np.degrees(69.6e-6), abs=1e-9)
-    # error motions of a fit with harmonics are not read: said, not silently dropped
+    # an error motion of a fit with harmonics: not exportable, said and sized (not dropped)
     doc = json.loads(fit.read_text())
-    doc["motions"] = [{"name": "EXA(A)", "value": 0.5, "u95": 0.1, "unit": "um",
+    doc["motions"] = [{"name": "EXA(A) sin2", "value": 0.5, "u95": 0.1, "unit": "um",
                        "status": "identified"}]
     fit.write_text(json.dumps(doc))
     assert main(["export", str(fit), "-f", fmt, "-o", str(tmp_path / "m"), "--machine",
                  str(machine), "--set", *SMALL]) == 0
-    notes = json.loads((tmp_path / "m" / "residual.json").read_text())["notes"]
-    assert any("not read" in n and "EXA(A)" in n for n in notes)
+    rep = json.loads((tmp_path / "m" / "residual.json").read_text())
+    assert any("not exportable" in n and "EXA(A)" in n for n in rep["notes"])
+    assert [d["item"] for d in rep["not_held"] if d["kind"] == "error motion"] == ["EXA(A)"]
+
+
+def test_error_motions_are_not_exportable_and_sized(tmp_path: Path, capsys) -> None:
+    """maxkins (head-table): the table C's angular motion ECC(C) = 50 urad sin C turns the
+    workpiece about C's line; on the tool-centre-point path (C one turn, the point (50, 20,
+    -50) mm, 53.85 mm off the line) the tool misses it by 50 urad x 53.85 mm = 2.693 um at
+    C = 90 deg (by hand). No module parameter holds it: listed as not held with that size,
+    and the residual (the held location errors written exactly) is it."""
+    fmt = "linuxcnc-maxkins"
+    machine = CHAINS / FILES[fmt]
+    chain = load_machine(machine).extra["chain"]
+    fit = _fit_json(tmp_path / "f.json", chain, HELD[fmt])
+    doc = json.loads(fit.read_text())
+    doc["harmonics"] = 1
+    doc["motions"] = [{"name": "ECC(C) sin1", "value": 50.0, "u95": 1.0, "unit": "urad",
+                       "status": "identified"},
+                      {"name": "ECC(C) cos1", "value": None, "u95": None, "unit": "urad",
+                       "status": "fixed at 0"}]
+    fit.write_text(json.dumps(doc))
+    assert main(["export", str(fit), "-f", fmt, "-o", str(tmp_path / "o"), "--machine",
+                 str(machine), "--set", *SMALL]) == 0
+    rep = json.loads((tmp_path / "o" / "residual.json").read_text())
+    mot = [d for d in rep["not_held"] if d["kind"] == "error motion"]
+    assert [d["item"] for d in mot] == ["ECC(C)"] and "no parameter" in mot[0]["reason"]
+    assert mot[0]["coefficients"] == {"sin1": 50.0}
+    assert mot[0]["tcp_path"]["max_um"] == pytest.approx(50e-6 * np.hypot(50.0, 20.0) * 1e3,
+                                                          abs=0.005)
+    assert rep["tcp_path"]["residual"]["norm"]["max_um"] == pytest.approx(
+        mot[0]["tcp_path"]["max_um"], abs=0.01)
+    assert "ECC(C) cos1" in rep["not_observable"]["items"]
+    # a coefficient that is not one of this chain's: refused, nothing written
+    doc["motions"][0]["name"] = "ECA(A) sin1"
+    fit.write_text(json.dumps(doc))
+    assert main(["export", str(fit), "-f", fmt, "-o", str(tmp_path / "x"), "--machine",
+                 str(machine), "--set", *SMALL]) == 2
+    assert "motions[0].name" in capsys.readouterr().err and not (tmp_path / "x").exists()
+    doc["motions"][0].update(name="ECC(C) sin1", value=float("inf"))
+    fit.write_text(json.dumps(doc).replace("Infinity", "1e999"))
+    assert main(["export", str(fit), "-f", fmt, "-o", str(tmp_path / "x"), "--machine",
+                 str(machine), "--set", *SMALL]) == 2
+    assert "motions[0].value" in capsys.readouterr().err
 
 
 def test_bad_inputs_exit_2(tmp_path: Path, capsys) -> None:

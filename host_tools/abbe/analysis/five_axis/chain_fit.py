@@ -1,10 +1,14 @@
-"""Location errors of any kinematic chain from sphere probing and R-test data, with what
-the plan cannot see (docs/concepts.md, "Five-axis machines: the kinematic chain").
+"""Location errors of any kinematic chain from sphere probing, R-test and rotary ballbar
+data, with what the plan cannot see (docs/concepts.md, "Five-axis machines: the kinematic chain").
 
 Unknowns: the ten location errors of the two rotary axes (ISO 230-7 names), with
 ``harmonics`` H > 0 the error motions' Fourier coefficients of both axes (``EXC(C) sin2``
 ..., ISO 230-7 names, from :func:`abbe.model.five_axis.lowest_harmonic` to H), and per
-set-up the sphere's place on the table (3, um) and, for an R-test, its zero (3, um).
+set-up the sphere's place on the table (3, um) and, for an R-test, its zero (3, um); per
+rotary ballbar set-up (tests sharing a table ball and a tool cup) the table ball's place
+on the table (3, um, workpiece frame) and the tool ball's offset from its nominal place
+in the spindle's frame (3, um: a tool-side rotary axis swings it with the spindle), and
+per ballbar test its length zero (um).
 Residuals: measured minus predicted through the exact chain model, each block divided
 by its standard deviation; Gauss-Newton on a forward-difference Jacobian (the model is
 linear in the location errors to 0.1 um at 100 um / 100 urad).
@@ -20,7 +24,7 @@ would make it observable (:data:`EXTRA_MEASUREMENTS`). Intervals: 1.96 sigma fro
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -28,6 +32,7 @@ from abbe.model.chain import (KinematicChain, nominal_joints, tool_tip, tool_tra
                               workpiece_transform)
 from abbe.model.five_axis import (LOCATION_ERRORS, MOTION_COMPONENTS, FiveAxisErrors,
                                   lowest_harmonic, motion_name)
+from abbe.model.five_axis_base import linear_axis_errors, small_rotation
 
 #: Typical sizes of the unknowns (the solver's column scaling): um for positions, urad
 #: for tilts and zeros, um for the set-up unknowns, um / urad for error motion coefficients.
@@ -42,10 +47,13 @@ RANK_TOL = 1e-7
 @dataclass
 class ChainSetup:
     """One measurement set-up: ``kind`` ``probe`` (the machine positions q that put the
-    stylus tip on the sphere's centre, mm) or ``rtest``
-    (readings, nest frame um), the sphere's nominal centre (workpiece mm), the tool tip
-    (stylus or nest) relative to the controlled point at zero angles (mm), the angle
-    pairs (M, 2) deg (alphabetical axes), observations (M, 3), sigma per axis (um)."""
+    stylus tip on the sphere's centre, mm), ``rtest`` (readings, nest frame um) or
+    ``ballbar`` (a rotary ballbar test: the bar's length minus its nominal length, um),
+    the sphere's (ballbar: the table ball's) nominal centre (workpiece mm), the tool tip
+    (stylus, nest or tool ball) relative to the controlled point at zero angles (mm), the
+    angle pairs (M, 2) deg (alphabetical axes), observations (M, 3) (ballbar (M,)), sigma
+    per axis (um); a ballbar's tool ball's nominal centre (workpiece mm, held there under
+    tool-centre-point control) and the set-up it shares with other tests ("": its own)."""
 
     kind: str
     name: str
@@ -54,6 +62,13 @@ class ChainSetup:
     obs: np.ndarray
     tip_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
     sigma_um: float = 1.0
+    tool_ball_mm: tuple[float, float, float] | None = None
+    balls: str = ""
+
+    @property
+    def balls_key(self) -> str:
+        """Whose ball unknowns a ballbar test uses: its set-up's, or its own."""
+        return f"set-up {self.balls}" if self.balls else self.name
 
 
 @dataclass
@@ -129,7 +144,15 @@ def _unknowns(chain: KinematicChain, setups: list[ChainSetup], harmonics: int = 
                     out.append((f"{motion_name(ax, comp)} {trig}{k}",
                                 SCALE_MOTION_UM if j < 3 else SCALE_MOTION_URAD,
                                 "um" if j < 3 else "urad"))
+    balls: set[str] = set()
     for s in setups:
+        if s.kind == "ballbar":
+            if s.balls_key not in balls:
+                balls.add(s.balls_key)
+                out += [(f"{s.balls_key}.table_ball_{c}", SCALE_SETUP_UM, "um") for c in "xyz"]
+                out += [(f"{s.balls_key}.tool_ball_{c}", SCALE_SETUP_UM, "um") for c in "xyz"]
+            out.append((f"{s.name}.length_zero", SCALE_UM, "um"))
+            continue
         for c in "xyz":
             out.append((f"{s.name}.sphere_{c}", SCALE_SETUP_UM, "um"))
         if s.kind == "rtest":
@@ -155,24 +178,40 @@ def _errors(chain: KinematicChain, names: list[str], x: np.ndarray, harmonics: i
 
 
 def predict(chain: KinematicChain, setups: list[ChainSetup], x: np.ndarray,
-            harmonics: int = 0) -> list[np.ndarray]:
+            harmonics: int = 0, only: frozenset[int] | None = None) -> list[np.ndarray]:
     """Predicted observations of every set-up for the unknowns ``x`` (in :func:`_unknowns`
-    order, um / urad): probe machine positions (mm), R-test readings (um)."""
+    order, um / urad): probe machine positions (mm), R-test readings (um), ballbar lengths
+    minus nominal (um). ``only``: the indices of the set-ups to predict (the others get an
+    empty array)."""
     names = [u[0] for u in _unknowns(chain, setups, harmonics)]
     errs, k = _errors(chain, names, x, harmonics)
+    index = {n: i for i, n in enumerate(names)}
     out = []
     # set-ups of one plan share their angles: each transform once per distinct angle set
     # (the same arithmetic, so the same bits)
     work: dict[bytes, np.ndarray] = {}
     tool: dict[bytes, np.ndarray] = {}
-    for s in setups:
+    nominal: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+    for i_s, s in enumerate(setups):
+        if only is not None and i_s not in only:
+            out.append(np.zeros(0))
+            continue
         ang = np.asarray(s.angles_deg, dtype=np.float64).reshape(-1, 2)
         key = ang.tobytes()
-        w = np.asarray(s.sphere_mm, dtype=np.float64) + x[k:k + 3] * 1e-3
-        k += 3
         if key not in work:
             work[key] = workpiece_transform(chain, errs, ang)
         T = work[key]
+        if s.kind == "ballbar":
+            if key not in tool:
+                tool[key] = tool_transform(chain, errs, ang)
+            if key not in nominal:
+                nominal[key] = (workpiece_transform(chain, None, ang),
+                                tool_transform(chain, None, ang))
+            out.append(_ballbar(chain, errs, s, T, tool[key], nominal[key], x, index))
+            continue
+        k = index[f"{s.name}.sphere_x"]
+        w = np.asarray(s.sphere_mm, dtype=np.float64) + x[k:k + 3] * 1e-3
+        k += 3
         centre = np.einsum("nij,j->ni", T[:, :3, :3], w) + T[:, :3, 3]
         if s.kind == "probe":
             # the machine position at which the true tip is on the centre
@@ -192,11 +231,46 @@ def predict(chain: KinematicChain, setups: list[ChainSetup], x: np.ndarray,
     return out
 
 
+def _ballbar(chain: KinematicChain, errs: FiveAxisErrors, s: ChainSetup, T: np.ndarray,
+             Ta: np.ndarray, nom: tuple[np.ndarray, np.ndarray], x: np.ndarray,
+             index: dict[str, int]) -> np.ndarray:
+    """A rotary ballbar test's readings (um): the distance of the actual tool ball from the
+    actual table ball minus the balls' nominal distance, plus the test's length zero.
+
+    The table ball sits on the table (its place an unknown of the set-up, workpiece frame);
+    the controller holds the tool ball's nominal centre on its workpiece point under
+    tool-centre-point control (the tool ball as the programmed tool: joints
+    ``T_W,nom w - T_T,nom tip``), and the actual tool ball is where the actual chain puts
+    the tool ball's actual place in the spindle (``tip`` + its unknown offset, spindle
+    frame at zero angles: a head's axes turn the offset with the spindle, as they turn a
+    stylus or an R-test nest). ``T``, ``Ta``: the actual workpiece and tool transforms at
+    the test's angles, ``nom`` the nominal ones (as :func:`nominal_joints` and
+    :func:`tool_tip` compute them, shared by the tests of one angle path)."""
+    kb = index[f"{s.balls_key}.table_ball_x"]
+    table = np.asarray(s.sphere_mm, dtype=np.float64) + x[kb:kb + 3] * 1e-3
+    centre = np.einsum("nij,j->ni", T[:, :3, :3], table) + T[:, :3, 3]
+    tool_nom = np.asarray(s.tool_ball_mm, dtype=np.float64)
+    tip = np.asarray(s.tip_mm, dtype=np.float64)
+    Tw, Tt = nom
+    q = (np.einsum("nij,j->ni", Tw[:, :3, :3], tool_nom) + Tw[:, :3, 3]
+         - (np.einsum("nij,j->ni", Tt[:, :3, :3], tip) + Tt[:, :3, 3]))
+    kt = index[f"{s.balls_key}.tool_ball_x"]
+    dl, rl = linear_axis_errors(chain, errs, q)  # type: ignore[arg-type]
+    held = np.einsum("nij,j->ni", Ta[:, :3, :3], tip + x[kt:kt + 3] * 1e-3) + Ta[:, :3, 3]
+    ball = q + dl * 1e-3 + np.einsum("nij,nj->ni", small_rotation(rl * 1e-6), held)
+    length = float(np.linalg.norm(tool_nom - np.asarray(s.sphere_mm, dtype=np.float64)))
+    return ((np.linalg.norm(ball - centre, axis=1) - length) * 1e3
+            + x[index[f"{s.name}.length_zero"]])
+
+
 def _residual(chain: KinematicChain, setups: list[ChainSetup], x: np.ndarray,
-              harmonics: int = 0) -> np.ndarray:
-    pred = predict(chain, setups, x, harmonics)
+              harmonics: int = 0, only: frozenset[int] | None = None) -> np.ndarray:
+    """Weighted residuals of every set-up (``only``: of those set-ups, in order)."""
+    pred = predict(chain, setups, x, harmonics, only)
     r = []
-    for s, p in zip(setups, pred):
+    for i_s, (s, p) in enumerate(zip(setups, pred)):
+        if only is not None and i_s not in only:
+            continue
         diff = (np.asarray(s.obs) - p) * (1e3 if s.kind == "probe" else 1.0)
         r.append((diff / s.sigma_um).ravel())
     return np.concatenate(r)
@@ -206,22 +280,43 @@ def _jacobian(chain: KinematicChain, setups: list[ChainSetup], x: np.ndarray,
               scale: np.ndarray, central: bool = False, harmonics: int = 0) -> np.ndarray:
     """d(prediction)/d(unknown / scale), weighted. ``central``: central differences (no
     second-order part: what the rank needs, where a direction the model sees only to
-    second order must count as unseen); forward differences for the iterations."""
+    second order must count as unseen); forward differences for the iterations.
+
+    A set-up's own unknown (a sphere's place, a ballbar's length zero) moves only that
+    set-up's rows: its column is computed from those rows alone (the others' differences
+    are exactly 0 either way)."""
     r0 = _residual(chain, setups, x, harmonics)
-    J = np.empty((r0.size, x.size))
+    J = np.zeros((r0.size, x.size))
+    names = [u[0] for u in _unknowns(chain, setups, harmonics)]
+    ends = np.cumsum([np.asarray(s.obs).size for s in setups])
+    rows = [np.arange(e - np.asarray(s.obs).size, e) for s, e in zip(setups, ends)]
+    owners = {i: {s.name, s.balls_key} if s.kind == "ballbar" else {s.name}
+              for i, s in enumerate(setups)}
     for j in range(x.size):
         h = np.zeros(x.size)
         h[j] = scale[j]  # one typical size: the model is linear to 1e-3 um there
+        only = None
+        if "." in names[j] and "(" not in names[j]:
+            who = names[j].rsplit(".", 1)[0]
+            only = frozenset(i for i, o in owners.items() if who in o)
+        sel = slice(None) if only is None else np.concatenate([rows[i] for i in sorted(only)])
         if central:
-            J[:, j] = -(_residual(chain, setups, x + h, harmonics)
-                        - _residual(chain, setups, x - h, harmonics)) / 2.0
+            J[sel, j] = -(_residual(chain, setups, x + h, harmonics, only)
+                          - _residual(chain, setups, x - h, harmonics, only)) / 2.0
         else:
-            J[:, j] = -(_residual(chain, setups, x + h, harmonics) - r0) / h[j] * scale[j]
+            J[sel, j] = -(_residual(chain, setups, x + h, harmonics, only) - r0[sel]) \
+                / h[j] * scale[j]
     return J
 
 
+def _reduced(J: np.ndarray) -> np.ndarray:
+    """A square matrix with the singular values and right singular vectors of a tall ``J``
+    (its QR factor R): the SVD of a plan's (rows x unknowns) Jacobian without the rows."""
+    return np.linalg.qr(J, mode="r") if J.shape[0] > J.shape[1] else J
+
+
 def _rank(J: np.ndarray) -> int:
-    s = np.linalg.svd(J, compute_uv=False)
+    s = np.linalg.svd(_reduced(J), compute_uv=False)
     return int(np.sum(s > s[0] * RANK_TOL)) if s.size and s[0] > 0 else 0
 
 
@@ -246,7 +341,7 @@ def observability(chain: KinematicChain, setups: list[ChainSetup], harmonics: in
     unk = _unknowns(chain, setups, harmonics)
     scale = np.array([u[1] for u in unk])
     J = _jacobian(chain, setups, np.zeros(len(unk)), scale, central=True, harmonics=harmonics)
-    _u, s, vt = np.linalg.svd(J, full_matrices=True)
+    _u, s, vt = np.linalg.svd(_reduced(J), full_matrices=True)
     rank = int(np.sum(s > s[0] * RANK_TOL))
     null = vt[rank:].T
     unobs = [j for j in range(len(unk)) if np.linalg.norm(null[j]) > 1e-6]
@@ -276,17 +371,35 @@ MOTION_SEEN_BY = ("more angles of the axis per turn (the harmonic below half the
                   "rotary indexer for the angular motion")
 
 
+#: What a plan of rotary ballbar tests alone adds first: the ballbar reads one distance,
+#: so a shift of an axis line is a shift of the table ball on the table plus one of the tool
+#: ball in the spindle (docs/concepts.md, "The rotary ballbar"); a probed sphere fixes it.
+BALLBAR_EXTRA = "a sphere probed with a touch probe where the table ball sits"
+
+
+def _probed_sphere(setups: list[ChainSetup]) -> ChainSetup:
+    """:data:`BALLBAR_EXTRA`: a sphere where the first table ball sits, probed at every
+    angle pair the ballbar tests reach."""
+    s = setups[0]
+    ang = np.unique(np.concatenate([np.asarray(b.angles_deg, dtype=np.float64).reshape(-1, 2)
+                                    for b in setups]), axis=0)
+    return ChainSetup("probe", s.name + "_probed", s.sphere_mm, ang, np.zeros((len(ang), 3)),
+                      (0.0, 0.0, 0.0), s.sigma_um)
+
+
 def _extra_setups(label: str, s: ChainSetup) -> list[ChainSetup]:
     if label.startswith("a second sphere 100 mm higher"):
         w = (s.sphere_mm[0], s.sphere_mm[1], s.sphere_mm[2] + 100.0)
-        return [ChainSetup(s.kind, s.name + "_high", w, s.angles_deg, s.obs, s.tip_mm, s.sigma_um)]
+        return [replace(s, name=s.name + "_high", sphere_mm=w,
+                        balls=s.balls + "_high" if s.balls else "")]
     if label.startswith("a second sphere 100 mm further"):
         w = (s.sphere_mm[0] + 70.0, s.sphere_mm[1] + 70.0, s.sphere_mm[2])
-        return [ChainSetup(s.kind, s.name + "_out", w, s.angles_deg, s.obs, s.tip_mm, s.sigma_um)]
+        return [replace(s, name=s.name + "_out", sphere_mm=w,
+                        balls=s.balls + "_out" if s.balls else "")]
     if label.startswith("a second stylus"):
         tip = (s.tip_mm[0], s.tip_mm[1], s.tip_mm[2] - 100.0)
-        return [ChainSetup(s.kind, s.name + "_long", s.sphere_mm, s.angles_deg, s.obs, tip,
-                           s.sigma_um)]
+        return [replace(s, name=s.name + "_long", tip_mm=tip, balls=s.balls + "_long"
+                        if s.balls else "")]
     return []
 
 
@@ -295,9 +408,22 @@ def _seen_by_all(chain: KinematicChain, setups: list[ChainSetup], js: list[int],
     """For each unobservable unknown ``js``: the first of :data:`EXTRA_MEASUREMENTS` that
     makes it observable ("none of ..." when none does). Each added measurement's rank
     analysis runs once for all of them."""
+    if setups and all(s.kind == "ballbar" for s in setups):
+        # rotary ballbar tests alone: a probed sphere first, then the others on top of it
+        base = setups + [_probed_sphere(setups)]
+        unobs, _f, _n, _r = observability(chain, base, harmonics)
+        out = {j: BALLBAR_EXTRA for j in js if j not in unobs}
+        rest = [j for j in js if j in unobs]
+        if rest:
+            more = _seen_by_all(chain, base, rest, harmonics)
+            out.update({j: (f"{BALLBAR_EXTRA}, with {v}" if not v.startswith("none of") else
+                            f"none of: {BALLBAR_EXTRA}, with {v[len('none of '):]}")
+                        for j, v in more.items()})
+        return out
     out: dict[int, str] = {}
     todo = list(js)
-    for label in EXTRA_MEASUREMENTS:
+    extras = EXTRA_MEASUREMENTS
+    for label in extras:
         if not todo:
             break
         if label.startswith("the sphere's place"):
@@ -311,14 +437,16 @@ def _seen_by_all(chain: KinematicChain, setups: list[ChainSetup], js: list[int],
             null = vt[rank:].T
             seen = [j for j in todo if np.linalg.norm(null[keep.index(j)]) <= 1e-6]
         else:
-            more = setups + _extra_setups(label, setups[0])
+            # the plan's first sphere (a ballbar plan's first table ball) is the template
+            first = next((s for s in setups if s.kind != "ballbar"), setups[0])
+            more = setups + _extra_setups(label, first)
             unobs, _f, _n, _r = observability(chain, more, harmonics)
             seen = [j for j in todo if j not in unobs]
         for j in seen:
             out[j] = label
         todo = [j for j in todo if j not in seen]
     for j in todo:
-        out[j] = "none of " + "; ".join(EXTRA_MEASUREMENTS)
+        out[j] = "none of " + "; ".join(extras)
     return out
 
 
@@ -419,11 +547,12 @@ def report_rows(fit: ChainFit) -> list[str]:
 def setups_from_machine(machine) -> list[ChainSetup]:  # noqa: ANN001 (abbe.formats.machine.Machine)
     """The set-ups of a ``[chain]`` machine file: each probing file's positions fitted as
     spheres (the centres are machine positions: the stylus' radius and the sphere's cancel),
-    each R-test file's readings. Sigma per set-up: probing from the sphere fits' point noise
-    and centre factor, R-test 1 um until :func:`identify_chain` re-estimates it."""
+    each R-test file's readings, each rotary ballbar file's lengths. Sigma per set-up:
+    probing from the sphere fits' point noise and centre factor, R-test and ballbar 1 um
+    until :func:`reweight` re-estimates it."""
     from abbe.analysis.five_axis.spheres import sphere_centres
     from abbe.errors import AbbeInputError
-    from abbe.formats.five_axis import read_probe_points, read_rtest
+    from abbe.formats.five_axis import read_probe_points, read_rotary_ballbar, read_rtest
 
     chain = machine.extra["chain"]
     plans = machine.extra["chain_plans"]
@@ -447,6 +576,10 @@ def setups_from_machine(machine) -> list[ChainSetup]:  # noqa: ANN001 (abbe.form
         tr = read_rtest(r.file, r1, r2)
         out.append(ChainSetup("rtest", r.name, r.sphere_mm, tr.angles_deg, tr.displacement_um,
                               r.tip_mm, 1.0))
+    for b in getattr(plans, "ballbar", {}).values():
+        bt = read_rotary_ballbar(b.file, r1, r2)
+        out.append(ChainSetup("ballbar", b.name, b.table_ball_mm, bt.angles_deg, bt.radial_um,
+                              b.tip_mm, 1.0, b.tool_ball_mm, b.setup))
     return out
 
 
@@ -461,8 +594,7 @@ def reweight(chain: KinematicChain, setups: list[ChainSetup], fit: ChainFit,
     out = []
     for s, p in zip(setups, pred):
         raw = (np.asarray(s.obs) - p) * (1e3 if s.kind == "probe" else 1.0)
-        out.append(ChainSetup(s.kind, s.name, s.sphere_mm, s.angles_deg, s.obs, s.tip_mm,
-                              max(float(np.sqrt(np.mean(raw ** 2))), 0.05)))
+        out.append(replace(s, sigma_um=max(float(np.sqrt(np.mean(raw ** 2))), 0.05)))
     return out
 
 
@@ -483,4 +615,30 @@ def fit_to_json(fit: ChainFit, setups: list[ChainSetup]) -> dict:
                          "seen_by": r.seen_by,
                          "value_in_convention": fit.motion_values.get(r.name, 0.0)}
                         for r in fit.motion_rows],
-            "setup_um": fit.setup}
+            "setup_um": fit.setup,
+            "rotary_ballbar": ballbar_summary(fit, setups)}
+
+
+def ballbar_summary(fit: ChainFit, setups: list[ChainSetup]) -> dict[str, dict]:
+    """Per rotary ballbar test: the axis that turns (the one with the larger range), the
+    bar's nominal length (mm), readings, the measured deviation's peak-to-valley less its
+    mean and what the fitted chain leaves of it (um; the length zero taken out)."""
+    bbs = [s for s in setups if s.kind == "ballbar"]
+    if not bbs:
+        return {}
+    unk = _unknowns(fit.chain, setups, fit.harmonics)
+    mot = dict(fit.motion_values)
+    x = np.array([fit.values.get(u[0], mot.get(u[0], fit.setup.get(u[0], 0.0))) for u in unk])
+    pred = dict(zip((s.name for s in setups), predict(fit.chain, setups, x, fit.harmonics)))
+    out = {}
+    for s in bbs:
+        ang = np.asarray(s.angles_deg, dtype=np.float64)
+        turning = fit.chain.rotaries[int(np.argmax(np.ptp(ang, axis=0)))]
+        obs = np.asarray(s.obs, dtype=np.float64)
+        left = obs - pred[s.name]
+        out[s.name] = {
+            "turning_axis": turning, "setup": s.balls,
+            "length_mm": float(np.linalg.norm(np.subtract(s.tool_ball_mm, s.sphere_mm))),
+            "readings": int(obs.size), "measured_pv_um": float(np.ptp(obs - obs.mean())),
+            "left_pv_um": float(np.ptp(left)), "left_rms_um": float(np.sqrt(np.mean(left ** 2)))}
+    return out
