@@ -213,8 +213,8 @@ ABBE_NOINLINE static void twist_chain_q(const abbe_rotary_model_t *ax, int32_t c
  * int32 (|g| < 2^30.6, kind 4's G < 2^31), the inner twist v1 + w1 x g too (|v1| < 2^29,
  * |w1 x g| < 2^30.6); the outer lever L: kind 5 q - P0 < 2^30.6, kind 4 R0 P0 < 2^29.5,
  * kind 3 R0 (g + R1 P1), whose components are below |g| + |P1| / 2, i.e. below 2^31
- * (2 nm) while |P0 - P1| + |P1| < 4.29 m (as before this form: the loader does not
- * bound it further; the proofs hold on the golden tables). */
+ * (2 nm) while |P0 - P1| + |P1| < 4.29 m: the loader refuses kind 3 tables beyond it
+ * (HH_LEVER_L1_CAP, model_load_rotary.h: the components' magnitudes summed, ABBE_E_RANGE). */
 static ABBE_ALWAYS_INLINE void chain_q(const abbe_five_model_t *m5, const int32_t pos_nm[3], unsigned kind,
                                        unsigned k0, unsigned k1, int32_t c0, int32_t s0r, int32_t c1, int32_t s1r,
                                        const int32_t v0[3], const int32_t w0[3], int32_t v1[3], int32_t w1[3],

@@ -29,6 +29,13 @@
 #define RH_SQUARE_REF 40u /* 1.4, kinds 3-5: i32[3], then 12 reserved bytes */
 #define RA_SIGN 22u       /* 1.4, kinds 3-5: 0 (+1) or 1 (-1), then 1 reserved byte */
 #define KIND_CHAIN(kind) ((kind) >= ABBE_KIN_XYZBC_HH)
+/* Kind 3 (head-head): |offset|_1 + |rot_point + offset|_1 (nm, sums of the components'
+ * magnitudes) at most 2^32 - 2^10 nm (4.294 m). The fixed-point evaluation keeps the head's
+ * lever R0 (P0 - P1 + R1 P1) (P0 = rot_point, P1 = rot_point + offset) as an int32 of 2 nm;
+ * each of its components is at most |P0 - P1|_2 + |P1|_2 <= this sum (half of it in 2 nm)
+ * plus a few LSB of the halvings and rotations: within 2^31 - 1 with 2^9 LSB to spare
+ * (five_eval_q.c chain_q, docs/table-format.md). Kinds 4 and 5 fit by the caps alone. */
+#define HH_LEVER_L1_CAP ((((uint64_t)1) << 32) - 1024u)
 
 static const uint8_t *rotary_record(const uint8_t *b, unsigned r)
 {
@@ -54,6 +61,19 @@ static int any_above(const uint8_t *p, unsigned count, uint32_t cap)
         }
     }
     return 0;
+}
+
+/* Whether a kind 3 table's head lever (HH_LEVER_L1_CAP) is beyond the _q evaluation's
+ * int32 range; h is the rotary header (rot_point, offset within GEOMETRY_CAP). */
+static int hh_lever_too_long(const uint8_t *h)
+{
+    uint64_t l1 = 0;
+    for (unsigned k = 0; k < 3u; k++) {
+        const int64_t off = abbe_ld_i32(h + RH_OFFSET + 4u * k);
+        const int64_t pivot = off + abbe_ld_i32(h + RH_ROT_POINT + 4u * k);
+        l1 += (uint64_t)(off < 0 ? -off : off) + (uint64_t)(pivot < 0 ? -pivot : pivot);
+    }
+    return l1 > HH_LEVER_L1_CAP;
 }
 
 /* The categories of the rotary records' checks, in the loader's order. */
@@ -145,7 +165,8 @@ static abbe_status_t check_rotary(const uint8_t *b, uint32_t total)
         /* the header's range: rot_point and offset (contiguous) then its squareness */
         if (cat == RC_RANGE && (any_above(h + RH_ROT_POINT, 6u, (uint32_t)GEOMETRY_CAP) ||
                                 any_above(h + RH_SQUARENESS, 3u, (uint32_t)SQUARENESS_CAP) ||
-                                (chain && any_above(h + RH_SQUARE_REF, 3u, (uint32_t)GEOMETRY_CAP)))) {
+                                (chain && (any_above(h + RH_SQUARE_REF, 3u, (uint32_t)GEOMETRY_CAP) ||
+                                           (kind == ABBE_KIN_XYZBC_HH && hh_lever_too_long(h)))))) {
             return ABBE_E_RANGE;
         }
         for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {

@@ -259,6 +259,75 @@ static void test_loader_refuses(void **state)
     assert_int_equal(abbe_five_model_load(&m, (const uint8_t *)g->blob + 1, g->blob_size - 1u), ABBE_E_ALIGN);
 }
 
+#if !defined(ABBE_NO_FIVE_KINDS)
+/* Kind 3 (head-head): the fixed-point evaluation keeps the head's lever as an int32 of
+ * 2 nm, so the loader refuses |offset|_1 + |rot_point + offset|_1 beyond 2^32 - 2^10 nm
+ * (ABBE_E_RANGE, docs/table-format.md), every component within its own cap (2^30 nm). At
+ * the cap the table loads and the fixed-point error agrees with the float one (an int32
+ * overflow there would be metres off); one nm more is refused, in either sign, *model
+ * untouched. */
+static void test_loader_hh_lever(void **state)
+{
+    (void)state;
+    unsigned t = 0;
+    while (abbe_golden_five_tables[t].kind != ABBE_KIN_XYZBC_HH) {
+        t++;
+        assert_true(t < abbe_golden_five_table_count);
+    }
+    const abbe_golden_five_table_t *g = &abbe_golden_five_tables[t];
+    static uint8_t buf[4096] __attribute__((aligned(8)));
+    assert_true(g->blob_size <= sizeof buf);
+    /* offset (1 m, 0, 0), rot_point (1 m, 1 m, z): 1 m + (2 m + 1 m + |z|) */
+    const int32_t cap_z = (int32_t)((((uint64_t)1 << 32) - 1024u) - 4000000000u);
+    const struct {
+        int32_t sign, z;
+        abbe_status_t status;
+    } cases[] = {{1, cap_z, ABBE_OK}, {1, cap_z + 1, ABBE_E_RANGE}, {-1, cap_z, ABBE_OK},
+                 {-1, cap_z + 1, ABBE_E_RANGE}, {1, -cap_z - 1, ABBE_E_RANGE}};
+    for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
+        memcpy(buf, g->blob, g->blob_size);
+        const int32_t sg = cases[c].sign, rot_point[3] = {sg * 1000000000, sg * 1000000000, cases[c].z};
+        const int32_t offset[3] = {sg * 1000000000, 0, 0};
+        for (unsigned k = 0; k < 3u; k++) {
+            tb_put_u32(buf + 256u + 4u + 4u * k, (uint32_t)rot_point[k]);
+            tb_put_u32(buf + 256u + 16u + 4u * k, (uint32_t)offset[k]);
+        }
+        tb_fix_crc(buf, g->blob_size);
+        abbe_five_model_t m;
+        memset(&m, 0xA5, sizeof m);
+        abbe_five_model_t before = m;
+        assert_int_equal(abbe_five_model_load(&m, buf, g->blob_size), cases[c].status);
+        if (cases[c].status != ABBE_OK) {
+            assert_memory_equal(&m, &before, sizeof m);
+            continue;
+        }
+        for (int32_t a = -180; a <= 180; a += 45) {
+            abbe_five_input_q_t in;
+            abbe_five_input_f32_t inf;
+            memset(&in, 0, sizeof in);
+            memset(&inf, 0, sizeof inf);
+            in.pos_nm[0] = 100000000;
+            inf.pos_mm[0] = 100.0f;
+            in.angle_udeg[0] = a * 1000000;
+            in.angle_udeg[1] = (a / 3) * 1000000;
+            inf.angle_deg[0] = (float)a;
+            inf.angle_deg[1] = (float)(a / 3);
+            abbe_five_error_q_t out;
+            abbe_five_error_f32_t outf;
+            assert_int_equal(abbe_five_error_eval_q(&m, &in, &out), ABBE_OK);
+            assert_int_equal(abbe_five_error_eval_f32(&m, &inf, &outf), ABBE_OK);
+            for (int k = 0; k < 3; k++) {
+                const double d = (double)out.error_nm[k] - (double)outf.error_um[k] * 1000.0;
+                if (d > 100.0 || d < -100.0) {
+                    fail_msg("angle %d comp %d: q %d nm, f32 %.3f um", (int)a, k, out.error_nm[k],
+                             (double)outf.error_um[k]);
+                }
+            }
+        }
+    }
+}
+#endif
+
 static abbe_comp_config_t config(void)
 {
     abbe_comp_config_t c;
@@ -431,6 +500,9 @@ int main(void)
         cmocka_unit_test(test_full_turn_exact),
         cmocka_unit_test(test_three_axis_tables),
         cmocka_unit_test(test_loader_refuses),
+#if !defined(ABBE_NO_FIVE_KINDS)
+        cmocka_unit_test(test_loader_hh_lever),
+#endif
         cmocka_unit_test(test_comp_step5),
         cmocka_unit_test(test_comp_step5_limit),
         cmocka_unit_test(test_comp_step5_three_axis_model),
