@@ -35,7 +35,7 @@
  * each of its components is at most |P0 - P1|_2 + |P1|_2 <= this sum (half of it in 2 nm)
  * plus a few LSB of the halvings and rotations: within 2^31 - 1 with 2^9 LSB to spare
  * (five_eval_q.c chain_q, docs/table-format.md). Kinds 4 and 5 fit by the caps alone. */
-#define HH_LEVER_L1_CAP ((((uint64_t)1) << 32) - 1024u)
+#define HH_LEVER_L1_CAP 0xFFFFFC00u /* 2^32 - 2^10 */
 
 static const uint8_t *rotary_record(const uint8_t *b, unsigned r)
 {
@@ -67,13 +67,18 @@ static int any_above(const uint8_t *p, unsigned count, uint32_t cap)
  * int32 range; h is the rotary header (rot_point, offset within GEOMETRY_CAP). */
 static int hh_lever_too_long(const uint8_t *h)
 {
-    uint64_t l1 = 0;
+    uint32_t left = HH_LEVER_L1_CAP; /* spent per component (each at most 3 x 2^30): exact in uint32 */
     for (unsigned k = 0; k < 3u; k++) {
-        const int64_t off = abbe_ld_i32(h + RH_OFFSET + 4u * k);
-        const int64_t pivot = off + abbe_ld_i32(h + RH_ROT_POINT + 4u * k);
-        l1 += (uint64_t)(off < 0 ? -off : off) + (uint64_t)(pivot < 0 ? -pivot : pivot);
+        const uint32_t off = abbe_ld_u32(h + RH_OFFSET + 4u * k);
+        /* |rot_point|, |offset| <= GEOMETRY_CAP: the sum fits an int32 (as tilt_pivot_nm) */
+        const uint32_t a = mag_i32(abbe_u32_to_i32(off)) +
+                           mag_i32(abbe_u32_to_i32(off + abbe_ld_u32(h + RH_ROT_POINT + 4u * k)));
+        if (a > left) {
+            return 1;
+        }
+        left -= a;
     }
-    return l1 > HH_LEVER_L1_CAP;
+    return 0;
 }
 
 /* The categories of the rotary records' checks, in the loader's order. */
