@@ -163,6 +163,12 @@ static abbe_status_t check_rotary(const uint8_t *b, uint32_t total)
                         abbe_ld_u32(h + RH_OFFSET + 4u * (kind - 1u)) != 0u)) {
         return ABBE_E_FLAGS;
     }
+#if ABBE_FIVE_KIND_MASK != 0x3Eu && !(defined(ABBE_NO_FIVE_KINDS) && ABBE_FIVE_KIND_MASK == 0x06u)
+    /* a kind this library was built without (ABBE_FIVE_KINDS): kind is 1..5 here */
+    if (ABBE_FIVE_KIND_BUILT(kind) == 0u) {
+        return ABBE_E_KIND;
+    }
+#endif
     if (any_nonzero_u8(h + 1u, 3u) || any_nonzero_u8(h + RH_RESERVED + 12u * chain, 24u - 12u * chain)) {
         return ABBE_E_FLAGS;
     }
