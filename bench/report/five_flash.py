@@ -78,7 +78,8 @@ def flash_lines(m4f: Path, m3: Path, budget: int) -> list[str]:
             "sizes; 'shared': the 3-axis load + compensator image links the same function;",
             "the rest of the map's figure is alignment and literal padding):", ""]
     for name, tgt, use in IMAGES:
-        for label, build in (("every kind", builds[tgt]), ("smallest kind image", smallest.get((tgt, use), (0, None))[1])):
+        small = smallest.get((tgt, use), (0, None))[1]
+        for label, build in (("every kind", builds[tgt]), ("smallest kind image", small)):
             if build is None:
                 continue
             mp = build / "bench" / f"bench_size_{use}.map"
@@ -94,8 +95,10 @@ def flash_lines(m4f: Path, m3: Path, budget: int) -> list[str]:
                        f"{budget}; five-axis only {s_five} B: " + ", ".join(f"{k} {v}" for v, k in five)
                        + f"; shared with the 3-axis image {s_both} B: " + ", ".join(f"{k} {v}" for v, k in both)
                        + f"; padding {total - s_five - s_both} B")
-    loaders = [f"{name} {_symbols(builds[tgt] / 'bench' / f'bench_size_comp_{use.split(chr(95))[1]}.elf').get('abbe_model_load', 0)} B"
-               for name, tgt, use in IMAGES[1:]]
+    loaders = []
+    for name, tgt, _ in IMAGES[1:]:
+        three = _symbols(builds[tgt] / "bench" / "bench_size_comp_q.elf")
+        loaders.append(f"{name} {three.get('abbe_model_load', 0)} B")
     out += ["", "abbe_five_model_load holds the 3-axis loader's checks and build inlined (five_load.c is",
             "model_load.c compiled a second time); the 3-axis image's abbe_model_load: " + ", ".join(loaders) + "."]
     return out
