@@ -316,8 +316,10 @@ The 3-axis flash rows above say MISSES against issue 23's figures (6,040 / 5,926
 6,036 B): model_load.c is 64 B larger since the proof work (issue 38: coefficient
 reads bounded where the analysis joins a failed header, commits cbab152, a545721);
 measured 6,104 / 5,990 / 6,100 B at 271b02c, before issue 39's changes; issue 39's
-changes leave them unchanged (6,108 / 5,990 / 6,100 B now). Section 3 above still shows
-the older figures (not regenerated here).
+changes leave them unchanged (6,108 / 5,990 / 6,100 B then). Issue 39 item 4's third round
+(the kind mask, the kind 3 lever rule) leaves them unchanged too: 6,132 / 5,968 / 6,082 B
+both at its start (3a033ba, after merges that moved them) and after it. Section 3 above
+still shows the older figures (not regenerated here).
 
 Stack (`_f32` meets, issue 39 item 4): abbe_comp_step5_f32 320 B (576 B before issue 39
 item 4, 456 B after its first round), with or without kinds 3-5. Three changes, each
