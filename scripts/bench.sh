@@ -42,6 +42,8 @@ for dir in build-bench-host build-bench-m4f build-bench-m3 build-bench-m4f-os bu
     build-bench-m4f-clang build-bench-m3-clang build-bench-m4f-clang-nounroll; do
     cmake --build "$dir" -j "$JOBS"
 done
+# Section 11's per-kind five-axis images (-DABBE_FIVE_KINDS=<k>: size images only)
+bash scripts/bench_five_kinds.sh build-bench-m4f build-bench-m3
 
 python3 scripts/bench_report.py --repo . --host build-bench-host --m4f build-bench-m4f \
     --m3 build-bench-m3 --m4f-os build-bench-m4f-os --m3-os build-bench-m3-os \

@@ -16,6 +16,7 @@ import argparse
 import statistics
 from pathlib import Path
 
+from report.five_flash import flash_lines
 from report.maps import deepest, parse_callgraph, parse_map, short
 from report.measure import qemu_function_counts, qemu_trace_counts, stack_measured
 
@@ -121,6 +122,7 @@ def section(m4f: Path, m3: Path) -> list[str]:
             if mp.exists():
                 members = sorted(parse_map(mp).lib_members.items(), key=lambda kv: -kv[1])
                 out.append(f"- {name}, {use}: " + ", ".join(f"{k} {v}" for k, v in members))
+    out += [""] + flash_lines(m4f, m3, TARGETS["flash"])
     out += ["", "Budgets (issue 23) and the 3-axis figures (must not regress):", "",
             "| measurement | now | budget / before | |", "|---|---:|---:|---|"]
     rows = [
@@ -236,13 +238,35 @@ moved to its lever once and then turned by the outer axis (kinds 3, 5) or negate
 the geometry (kind 3; kinds 4 and 5 share record 0's axis): one generic copy is 236 B
 smaller on the M3 but gives 3,057 on hh (misses).
 
-Flash (missed, issue 39: what stands in the way, per byte). Measured with every kind
+Flash per kind (issue 39 item 4, third round): `-DABBE_FIVE_KINDS=<list>` builds a library
+for some kinds only (the table "Flash per kind" above; a machine's firmware needs its own
+kind); the loader refuses the other kinds with ABBE_E_KIND (-19) and the evaluation keeps
+only the built kinds' geometry (with one chain kind built the kind is a constant, so
+add_chain_f32 / add_chain_q hold that kind's straight-line geometry once: kind 3 alone
+832 B f32 / 1,428 B q on the M4F against 1,294 / 2,282 B for all three). Measured at this
+round's head: every kind 11,300 / 12,532 / 12,814 B (f32 M4F, q M4F, q M3; 11,232 /
+12,464 / 12,750 B at its start: +68 / +68 / +64 B are the loader's new kind 3 lever rule,
+|offset|_1 + |rot_point + offset|_1 <= 2^32 - 2^10 nm, which keeps `_q`'s int32 head lever
+valid: docs/table-format.md), the trunnion pair 9,572 / 9,530 / 9,664 B, one kind
+9,592-9,750 B (f32) and 9,550-10,294 B (q). No per-kind image meets 8,192 B: the smallest
+misses by 1,338 B (q M4F, trunnions) to 1,380 B (f32 M4F, trunnions); the per-function
+lists above say where its bytes are: the 3-axis code every image carries (the linear
+evaluation and the compensator, 2,424 B f32 / 3,908-3,934 B q), the five-axis loader
+(abbe_five_model_load 2,304-2,308 B, the 3-axis loader's checks inlined, plus
+rotary_record_bad 532-560 B and build_rotary 190 B) and the rotary evaluation
+(add_rotary_f32 1,266 B / add_rotary_q 1,516-1,532 B, the motions 312-556 B). Meeting
+8 KiB in a one-kind image needs about 1.4 KB out of the loader and the shared 3-axis core;
+not done in this round. Measured and not kept: build_rotary out of line in a one-kind
+image (GCC inlines its two calls there): +14 B.
+
+Flash (missed, issue 39: what stands in the way, per byte; the second round's figures).
+Measured with every kind
 (the rows above: 11,050 B f32 M4F, 11,886 B q M4F, 11,968 B q M3) and per kind: a
 trunnion-only library (-DABBE_WITH_FIVE_KINDS=OFF) 9,520 / 9,524 / 9,618 B; the chain
 kinds alone (measured, not kept: the trunnions' rotary part add_rotary_f32 / add_rotary_q
 left out of the evaluation, the loader unchanged) 10,120 / 10,330 / 10,428 B. No
 per-kind build meets 8,192 B: the smallest, trunnion-only, is 1,328 / 1,332 / 1,426 B
-over, so a finer compile-time choice of kinds (one kind per image) was not added. The
+over (the third round, above, adds the choice of kinds all the same). The
 f32 image with every kind is the 3-axis load + compensator image (6,108 B, unchanged)
 plus 4,942 B, where 8 KiB leaves 2,084 B:
 
@@ -292,8 +316,10 @@ The 3-axis flash rows above say MISSES against issue 23's figures (6,040 / 5,926
 6,036 B): model_load.c is 64 B larger since the proof work (issue 38: coefficient
 reads bounded where the analysis joins a failed header, commits cbab152, a545721);
 measured 6,104 / 5,990 / 6,100 B at 271b02c, before issue 39's changes; issue 39's
-changes leave them unchanged (6,108 / 5,990 / 6,100 B now). Section 3 above still shows
-the older figures (not regenerated here).
+changes leave them unchanged (6,108 / 5,990 / 6,100 B then). Issue 39 item 4's third round
+(the kind mask, the kind 3 lever rule) leaves them unchanged too: 6,132 / 5,968 / 6,082 B
+both at its start (3a033ba, after merges that moved them) and after it. Section 3 above
+still shows the older figures (not regenerated here).
 
 Stack (`_f32` meets, issue 39 item 4): abbe_comp_step5_f32 320 B (576 B before issue 39
 item 4, 456 B after its first round), with or without kinds 3-5. Three changes, each

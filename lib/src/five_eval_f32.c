@@ -91,6 +91,7 @@ ABBE_NOINLINE static void twist_chain_f32(const abbe_rotary_model_t *ax, float c
  *   W -= W_C + w_t.
  * Out of line: its frame and the linear evaluation's are never on the stack
  * together. */
+#if (ABBE_FIVE_KIND_MASK & 0x06u) != 0u
 ABBE_NOINLINE static void add_rotary_f32(const abbe_five_model_t *m5, const int32_t p[3], const int32_t udeg[2],
                                          abbe_five_error_f32_t *out)
 {
@@ -141,6 +142,7 @@ ABBE_NOINLINE static void add_rotary_f32(const abbe_five_model_t *m5, const int3
     out->orient_urad[1] -= W1;
     out->orient_urad[2] -= W2;
 }
+#endif
 
 #if !defined(ABBE_NO_FIVE_KINDS)
 /* a = Rot_k(t) a in place, (c, s) = (cos t, sin t); inlined (bench/results.md section 11:
@@ -274,7 +276,7 @@ static ABBE_ALWAYS_INLINE void chain_f32(const abbe_five_model_t *m5, const int3
 ABBE_NOINLINE static void add_chain_f32(const abbe_five_model_t *m5, const int32_t p[3], const int32_t udeg[2],
                                         abbe_five_error_f32_t *out)
 {
-    const unsigned kind = m5->kind;
+    const unsigned kind = abbe_five_chain_kind(m5);
     float s0, c0, s1, c1;
     abbe_sincos_f32(abbe_udeg_phase_q32(udeg[m5->slot[0]]), &s0, &c0);
     abbe_sincos_f32(abbe_udeg_phase_q32(udeg[m5->slot[1]]), &s1, &c1);
@@ -283,9 +285,10 @@ ABBE_NOINLINE static void add_chain_f32(const abbe_five_model_t *m5, const int32
     twist_chain_f32(&m5->rotary[0], c0, s0, s0r, vw0);
     twist_chain_f32(&m5->rotary[1], c1, s1, s1r, vw1);
     /* the machine axes per kind (the loader's): 3 C, B; 4 B, C; 5 B, A */
-    if (kind == ABBE_KIN_XYZBC_HH) {
+    if (ABBE_FIVE_KIND_BUILT(ABBE_KIN_XYZBC_HH) != 0u && kind == ABBE_KIN_XYZBC_HH) {
         chain_f32(m5, p, ABBE_KIN_XYZBC_HH, 2u, 1u, c0, s0r, c1, s1r, vw0, vw1, d, W, tip);
-    } else if (kind == ABBE_KIN_XYZBC_HT) {
+    } else if (ABBE_FIVE_KIND_BUILT(ABBE_KIN_XYZBC_HT) != 0u &&
+               (kind == ABBE_KIN_XYZBC_HT || ABBE_FIVE_KIND_BUILT(ABBE_KIN_XYZAB_TDR) == 0u)) {
         chain_f32(m5, p, ABBE_KIN_XYZBC_HT, 1u, 2u, c0, s0r, c1, s1r, vw0, vw1, d, W, tip);
     } else {
         chain_f32(m5, p, ABBE_KIN_XYZAB_TDR, 1u, 0u, c0, s0r, c1, s1r, vw0, vw1, d, W, tip);
@@ -350,8 +353,12 @@ void abbe_five_eval_f32_rotary(const abbe_five_model_t *m5, const int32_t p[3], 
     } else if (m5->kind >= ABBE_KIN_XYZBC_HH) {
         add_chain_f32(m5, p, udeg, out);
 #endif
+#if (ABBE_FIVE_KIND_MASK & 0x06u) != 0u
     } else if (m5->kind != ABBE_KIN_NONE) {
         add_rotary_f32(m5, p, udeg, out);
+#endif
+    } else {
+        /* a 3-axis table: no rotary part */
     }
 }
 

@@ -108,6 +108,7 @@ static ABBE_ALWAYS_INLINE void twist_q(const abbe_rotary_model_t *ax, unsigned k
     v[l] += (int32_t)abbe_shr_round(dl - rot_q30(s, dj, -c, dl), 4u);
 }
 
+#if (ABBE_FIVE_KIND_MASK & 0x06u) != 0u
 /* The rotary axes' share, added to the linear axes' error (error_nm, nm) and
  * orientation (orient: 2^-36 rad in, |.| < 2^30), and the five-axis
  * squareness; then the outputs rounded to nm and nrad (saturated, flagged).
@@ -168,6 +169,7 @@ ABBE_NOINLINE static uint32_t add_rotary_q(const abbe_five_model_t *m5, const in
     }
     return flags;
 }
+#endif
 
 #if !defined(ABBE_NO_FIVE_KINDS)
 /* a = Rot_k(t) a in place, Q30 (c, s), rounded; inlined (bench/results.md section 11: the
@@ -213,8 +215,8 @@ ABBE_NOINLINE static void twist_chain_q(const abbe_rotary_model_t *ax, int32_t c
  * int32 (|g| < 2^30.6, kind 4's G < 2^31), the inner twist v1 + w1 x g too (|v1| < 2^29,
  * |w1 x g| < 2^30.6); the outer lever L: kind 5 q - P0 < 2^30.6, kind 4 R0 P0 < 2^29.5,
  * kind 3 R0 (g + R1 P1), whose components are below |g| + |P1| / 2, i.e. below 2^31
- * (2 nm) while |P0 - P1| + |P1| < 4.29 m (as before this form: the loader does not
- * bound it further; the proofs hold on the golden tables). */
+ * (2 nm) while |P0 - P1| + |P1| < 4.29 m: the loader refuses kind 3 tables beyond it
+ * (HH_LEVER_L1_CAP, model_load_rotary.h: the components' magnitudes summed, ABBE_E_RANGE). */
 static ABBE_ALWAYS_INLINE void chain_q(const abbe_five_model_t *m5, const int32_t pos_nm[3], unsigned kind,
                                        unsigned k0, unsigned k1, int32_t c0, int32_t s0r, int32_t c1, int32_t s1r,
                                        const int32_t v0[3], const int32_t w0[3], int32_t v1[3], int32_t w1[3],
@@ -289,7 +291,7 @@ ABBE_NOINLINE static uint32_t add_chain_q(const abbe_five_model_t *m5, const int
                                           const int32_t angle_udeg[2], int32_t *scratch, int32_t error_nm[3],
                                           int32_t orient[3], uint32_t flags)
 {
-    const unsigned kind = m5->kind;
+    const unsigned kind = abbe_five_chain_kind(m5);
     int32_t s0, c0, s1, c1;
     abbe_sincos_q30(abbe_udeg_phase_q32(angle_udeg[m5->slot[0]]), &s0, &c0);
     abbe_sincos_q30(abbe_udeg_phase_q32(angle_udeg[m5->slot[1]]), &s1, &c1);
@@ -300,7 +302,8 @@ ABBE_NOINLINE static uint32_t add_chain_q(const abbe_five_model_t *m5, const int
     twist_chain_q(&m5->rotary[1], c1, s1, s1r, scratch, v1, w1);
     /* the machine axes per kind (the loader's): 3 C, B; 4 B, C; 5 B, A */
     int sign = 1; /* in the head */
-    if (kind == ABBE_KIN_XYZBC_HH) {
+    if (ABBE_FIVE_KIND_BUILT(ABBE_KIN_XYZBC_HH) != 0u &&
+        (kind == ABBE_KIN_XYZBC_HH || (ABBE_FIVE_CHAIN_MASK & 0x30u) == 0u)) {
         chain_q(m5, pos_nm, ABBE_KIN_XYZBC_HH, 2u, 1u, c0, s0r, c1, s1r, v0, w0, v1, w1, d, tip);
     } else {
         /* kinds 4 and 5 share record 0's axis (B) and one copy (flash); k1 is kind 3's only */
@@ -351,9 +354,11 @@ uint32_t abbe_five_eval_q_core(const abbe_five_model_t *m5, const int32_t pos_nm
         return add_chain_q(m5, pos_nm, angle_udeg, values, error_nm, orient_nrad, flags);
     }
 #endif
+#if (ABBE_FIVE_KIND_MASK & 0x06u) != 0u
     if (m5->kind != ABBE_KIN_NONE) {
         return add_rotary_q(m5, pos_nm, angle_udeg, values, error_nm, orient_nrad, flags);
     }
+#endif
     for (unsigned i = 0; i < 3u; i++) {
         orient_nrad[i] = abbe_sat_i32(abbe_shr_round((int64_t)orient_nrad[i] * 1953125, 27u), &flags);
     }

@@ -400,6 +400,20 @@ abbe_status_t abbe_eval_f32_core(const abbe_model_t *m, const abbe_input_f32_t *
 #define ABBE_ROTARY_RECORD_SIZE 64u
 #define ABBE_ROTARY_DATA_START (ABBE_ROTARY_HEADER_OFFSET + ABBE_ROTARY_HEADER_SIZE + 2u * ABBE_ROTARY_RECORD_SIZE)
 
+/* The kinds this library reads (abbe/five_axis.h ABBE_FIVE_KIND_MASK): the trunnions
+ * (1, 2), and the chain kinds (3-5). */
+#define ABBE_FIVE_TRUNNIONS_BUILT (((unsigned)(ABBE_FIVE_KIND_MASK) & 0x06u) != 0u)
+#define ABBE_FIVE_CHAIN_MASK ((unsigned)(ABBE_FIVE_KIND_MASK) & 0x38u)
+
+/* A chain model's kind (3-5, the loader refuses the kinds not built): a constant where the
+ * library reads one chain kind only, so that the evaluation keeps that kind's geometry only. */
+static inline unsigned abbe_five_chain_kind(const abbe_five_model_t *m5)
+{
+    return ABBE_FIVE_CHAIN_MASK == 0x08u   ? ABBE_KIN_XYZBC_HH
+           : ABBE_FIVE_CHAIN_MASK == 0x10u ? ABBE_KIN_XYZBC_HT
+           : ABBE_FIVE_CHAIN_MASK == 0x20u ? ABBE_KIN_XYZAB_TDR
+                                           : (unsigned)m5->kind;
+}
 
 /* Phase (Q32 turn) of a rotary angle in micro-degrees: the angle modulo one
  * turn (360 000 000 udeg, exact in integers, so a full turn is an exact

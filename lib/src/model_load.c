@@ -122,7 +122,8 @@ abbe_status_t abbe_five_model_load(abbe_five_model_t *model, const void *blob, s
         model->squareness_q36[k] = angle_at(h + RH_SQUARENESS + 4u * k);
     }
 #if !defined(ABBE_NO_FIVE_KINDS)
-    if (kind >= ABBE_KIN_XYZBC_HH && kind <= ABBE_KIN_XYZAB_TDR) { /* validated: check_rotary */
+    /* validated: check_rotary (a library without the trunnion kinds has only kinds 3-5 here) */
+    if ((ABBE_FIVE_KIND_MASK & 0x06u) == 0u || (kind >= ABBE_KIN_XYZBC_HH && kind <= ABBE_KIN_XYZAB_TDR)) {
         /* record 0's and record 1's machine axes and angle slots (A, B, C in alphabetical order):
          * 3 C, B; 4 B, C; 5 B, A */
         static const uint8_t dirs[3][2] = {{2u, 1u}, {1u, 2u}, {1u, 0u}};

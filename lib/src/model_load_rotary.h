@@ -29,6 +29,13 @@
 #define RH_SQUARE_REF 40u /* 1.4, kinds 3-5: i32[3], then 12 reserved bytes */
 #define RA_SIGN 22u       /* 1.4, kinds 3-5: 0 (+1) or 1 (-1), then 1 reserved byte */
 #define KIND_CHAIN(kind) ((kind) >= ABBE_KIN_XYZBC_HH)
+/* Kind 3 (head-head): |offset|_1 + |rot_point + offset|_1 (nm, sums of the components'
+ * magnitudes) at most 2^32 - 2^10 nm (4.294 m). The fixed-point evaluation keeps the head's
+ * lever R0 (P0 - P1 + R1 P1) (P0 = rot_point, P1 = rot_point + offset) as an int32 of 2 nm;
+ * each of its components is at most |P0 - P1|_2 + |P1|_2 <= this sum (half of it in 2 nm)
+ * plus a few LSB of the halvings and rotations: within 2^31 - 1 with 2^9 LSB to spare
+ * (five_eval_q.c chain_q, docs/table-format.md). Kinds 4 and 5 fit by the caps alone. */
+#define HH_LEVER_L1_CAP 0xFFFFFC00u /* 2^32 - 2^10 */
 
 static const uint8_t *rotary_record(const uint8_t *b, unsigned r)
 {
@@ -52,6 +59,24 @@ static int any_above(const uint8_t *p, unsigned count, uint32_t cap)
         if (mag_i32(abbe_ld_i32(p + 4u * i)) > cap) {
             return 1;
         }
+    }
+    return 0;
+}
+
+/* Whether a kind 3 table's head lever (HH_LEVER_L1_CAP) is beyond the _q evaluation's
+ * int32 range; h is the rotary header (rot_point, offset within GEOMETRY_CAP). */
+static int hh_lever_too_long(const uint8_t *h)
+{
+    uint32_t left = HH_LEVER_L1_CAP; /* spent per component (each at most 3 x 2^30): exact in uint32 */
+    for (unsigned k = 0; k < 3u; k++) {
+        const uint32_t off = abbe_ld_u32(h + RH_OFFSET + 4u * k);
+        /* |rot_point|, |offset| <= GEOMETRY_CAP: the sum fits an int32 (as tilt_pivot_nm) */
+        const uint32_t a = mag_i32(abbe_u32_to_i32(off)) +
+                           mag_i32(abbe_u32_to_i32(off + abbe_ld_u32(h + RH_ROT_POINT + 4u * k)));
+        if (a > left) {
+            return 1;
+        }
+        left -= a;
     }
     return 0;
 }
@@ -138,6 +163,12 @@ static abbe_status_t check_rotary(const uint8_t *b, uint32_t total)
                         abbe_ld_u32(h + RH_OFFSET + 4u * (kind - 1u)) != 0u)) {
         return ABBE_E_FLAGS;
     }
+#if ABBE_FIVE_KIND_MASK != 0x3Eu && !(defined(ABBE_NO_FIVE_KINDS) && ABBE_FIVE_KIND_MASK == 0x06u)
+    /* a kind this library was built without (ABBE_FIVE_KINDS): kind is 1..5 here */
+    if (ABBE_FIVE_KIND_BUILT(kind) == 0u) {
+        return ABBE_E_KIND;
+    }
+#endif
     if (any_nonzero_u8(h + 1u, 3u) || any_nonzero_u8(h + RH_RESERVED + 12u * chain, 24u - 12u * chain)) {
         return ABBE_E_FLAGS;
     }
@@ -145,7 +176,8 @@ static abbe_status_t check_rotary(const uint8_t *b, uint32_t total)
         /* the header's range: rot_point and offset (contiguous) then its squareness */
         if (cat == RC_RANGE && (any_above(h + RH_ROT_POINT, 6u, (uint32_t)GEOMETRY_CAP) ||
                                 any_above(h + RH_SQUARENESS, 3u, (uint32_t)SQUARENESS_CAP) ||
-                                (chain && any_above(h + RH_SQUARE_REF, 3u, (uint32_t)GEOMETRY_CAP)))) {
+                                (chain && (any_above(h + RH_SQUARE_REF, 3u, (uint32_t)GEOMETRY_CAP) ||
+                                           (kind == ABBE_KIN_XYZBC_HH && hh_lever_too_long(h)))))) {
             return ABBE_E_RANGE;
         }
         for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {

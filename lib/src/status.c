@@ -23,6 +23,7 @@ const char *abbe_strerror(int status)
     case ABBE_E_NO_MODEL: return "no model loaded";
     case ABBE_E_MISMATCH: return "float32 twin differs from int32";
     case ABBE_E_ALIGN: return "table not 4-byte aligned";
+    case ABBE_E_KIND: return "five-axis kind not built into this library";
     default: return "unknown status";
     }
 }

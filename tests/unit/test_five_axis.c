@@ -41,9 +41,58 @@ static int load_five(unsigned t, abbe_five_model_t *m)
         return 0;
     }
 #endif
+    if (ABBE_FIVE_KIND_BUILT(g->kind) == 0u) { /* a library built for other kinds (ABBE_FIVE_KINDS) */
+        assert_int_equal(abbe_five_model_load(m, g->blob, g->blob_size), ABBE_E_KIND);
+        return 0;
+    }
     assert_int_equal(abbe_five_model_load(m, g->blob, g->blob_size), ABBE_OK);
     assert_int_equal(abbe_five_model_kind(m), g->kind);
     return 1;
+}
+
+/* The tests below that use the trunnion golden tables ac_full (kind 1) and bc_motions
+ * (kind 2) are skipped in a library built without them (ABBE_FIVE_KINDS). */
+#define NEEDS_TRUNNIONS()                                                                                   \
+    do {                                                                                                    \
+        if (ABBE_FIVE_KIND_BUILT(ABBE_KIN_XYZAC_TRT) == 0u || ABBE_FIVE_KIND_BUILT(ABBE_KIN_XYZBC_TRT) == 0u) { \
+            skip();                                                                                         \
+        }                                                                                                   \
+    } while (0)
+
+/* A table of a kind the library was built without is refused with ABBE_E_KIND, *model
+ * untouched, whatever else the table holds; every built kind loads. Meaningful in a library
+ * built for some kinds (test_five_axis_kind3: -DABBE_FIVE_KINDS=3); with every kind built
+ * it checks that each golden table loads. */
+static void test_kinds_built(void **state)
+{
+    (void)state;
+    unsigned refused = 0, loaded = 0;
+    for (unsigned t = 0; t < abbe_golden_five_table_count; t++) {
+        const abbe_golden_five_table_t *g = &abbe_golden_five_tables[t];
+        abbe_five_model_t m;
+        memset(&m, 0xA5, sizeof m);
+        abbe_five_model_t before = m;
+        const abbe_status_t st = abbe_five_model_load(&m, g->blob, g->blob_size);
+#if defined(ABBE_NO_FIVE_KINDS)
+        if (g->kind >= ABBE_KIN_XYZBC_HH) {
+            assert_int_equal(st, ABBE_E_VERSION_MINOR);
+            continue;
+        }
+#endif
+        if (ABBE_FIVE_KIND_BUILT(g->kind) == 0u) {
+            assert_int_equal(st, ABBE_E_KIND);
+            assert_memory_equal(&m, &before, sizeof m);
+            assert_string_equal(abbe_strerror(st), "five-axis kind not built into this library");
+            refused++;
+        } else {
+            assert_int_equal(st, ABBE_OK);
+            assert_int_equal(abbe_five_model_kind(&m), g->kind);
+            loaded++;
+        }
+    }
+    assert_true(loaded > 0u);
+    printf("five-axis kinds built 0x%02x: %u golden tables loaded, %u refused (ABBE_E_KIND)\n",
+           (unsigned)ABBE_FIVE_KIND_MASK, loaded, refused);
 }
 
 static void test_golden_f32(void **state)
@@ -207,6 +256,7 @@ static void test_three_axis_tables(void **state)
 static void test_loader_refuses(void **state)
 {
     (void)state;
+    NEEDS_TRUNNIONS();
     const abbe_golden_five_table_t *g = &abbe_golden_five_tables[0];
     static uint8_t buf[4096] __attribute__((aligned(8)));
     assert_true(g->blob_size <= sizeof buf);
@@ -259,6 +309,78 @@ static void test_loader_refuses(void **state)
     assert_int_equal(abbe_five_model_load(&m, (const uint8_t *)g->blob + 1, g->blob_size - 1u), ABBE_E_ALIGN);
 }
 
+#if !defined(ABBE_NO_FIVE_KINDS)
+/* Kind 3 (head-head): the fixed-point evaluation keeps the head's lever as an int32 of
+ * 2 nm, so the loader refuses |offset|_1 + |rot_point + offset|_1 beyond 2^32 - 2^10 nm
+ * (ABBE_E_RANGE, docs/table-format.md), every component within its own cap (2^30 nm). At
+ * the cap the table loads and the fixed-point error agrees with the float one (an int32
+ * overflow there would be metres off); one nm more is refused, in either sign, *model
+ * untouched. */
+static void test_loader_hh_lever(void **state)
+{
+    (void)state;
+    if (ABBE_FIVE_KIND_BUILT(ABBE_KIN_XYZBC_HH) == 0u) {
+        skip();
+    }
+    unsigned t = 0;
+    while (abbe_golden_five_tables[t].kind != ABBE_KIN_XYZBC_HH) {
+        t++;
+        assert_true(t < abbe_golden_five_table_count);
+    }
+    const abbe_golden_five_table_t *g = &abbe_golden_five_tables[t];
+    static uint8_t buf[4096] __attribute__((aligned(8)));
+    assert_true(g->blob_size <= sizeof buf);
+    /* offset (1 m, 0, 0), rot_point (1 m, 1 m, z): 1 m + (2 m + 1 m + |z|) */
+    const int32_t cap_z = (int32_t)((((uint64_t)1 << 32) - 1024u) - 4000000000u);
+    const struct {
+        int32_t sign, z;
+        abbe_status_t status;
+    } cases[] = {{1, cap_z, ABBE_OK}, {1, cap_z + 1, ABBE_E_RANGE}, {-1, cap_z, ABBE_OK},
+                 {-1, cap_z + 1, ABBE_E_RANGE}, {1, -cap_z - 1, ABBE_E_RANGE}};
+    for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
+        memcpy(buf, g->blob, g->blob_size);
+        const int32_t sg = cases[c].sign, rot_point[3] = {sg * 1000000000, sg * 1000000000, cases[c].z};
+        const int32_t offset[3] = {sg * 1000000000, 0, 0};
+        for (unsigned k = 0; k < 3u; k++) {
+            tb_put_u32(buf + 256u + 4u + 4u * k, (uint32_t)rot_point[k]);
+            tb_put_u32(buf + 256u + 16u + 4u * k, (uint32_t)offset[k]);
+        }
+        tb_fix_crc(buf, g->blob_size);
+        abbe_five_model_t m;
+        memset(&m, 0xA5, sizeof m);
+        abbe_five_model_t before = m;
+        assert_int_equal(abbe_five_model_load(&m, buf, g->blob_size), cases[c].status);
+        if (cases[c].status != ABBE_OK) {
+            assert_memory_equal(&m, &before, sizeof m);
+            continue;
+        }
+        for (int32_t a = -180; a <= 180; a += 45) {
+            abbe_five_input_q_t in;
+            abbe_five_input_f32_t inf;
+            memset(&in, 0, sizeof in);
+            memset(&inf, 0, sizeof inf);
+            in.pos_nm[0] = 100000000;
+            inf.pos_mm[0] = 100.0f;
+            in.angle_udeg[0] = a * 1000000;
+            in.angle_udeg[1] = (a / 3) * 1000000;
+            inf.angle_deg[0] = (float)a;
+            inf.angle_deg[1] = (float)(a / 3);
+            abbe_five_error_q_t out;
+            abbe_five_error_f32_t outf;
+            assert_int_equal(abbe_five_error_eval_q(&m, &in, &out), ABBE_OK);
+            assert_int_equal(abbe_five_error_eval_f32(&m, &inf, &outf), ABBE_OK);
+            for (int k = 0; k < 3; k++) {
+                const double d = (double)out.error_nm[k] - (double)outf.error_um[k] * 1000.0;
+                if (d > 100.0 || d < -100.0) {
+                    fail_msg("angle %d comp %d: q %d nm, f32 %.3f um", (int)a, k, out.error_nm[k],
+                             (double)outf.error_um[k]);
+                }
+            }
+        }
+    }
+}
+#endif
+
 static abbe_comp_config_t config(void)
 {
     abbe_comp_config_t c;
@@ -282,6 +404,7 @@ static abbe_comp_config_t config(void)
 static void test_comp_step5(void **state)
 {
     (void)state;
+    NEEDS_TRUNNIONS();
     static abbe_five_model_t m5, m5b;
     load_five(0, &m5);
     abbe_comp_t comp;
@@ -362,6 +485,7 @@ static void test_comp_step5(void **state)
 static void test_comp_step5_limit(void **state)
 {
     (void)state;
+    NEEDS_TRUNNIONS();
     static abbe_five_model_t m5;
     load_five(1, &m5); /* bc_motions: errors of some 100 um */
     abbe_comp_t comp;
@@ -426,11 +550,15 @@ static void test_comp_step5_three_axis_model(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_kinds_built),
         cmocka_unit_test(test_golden_f32),
         cmocka_unit_test(test_golden_q),
         cmocka_unit_test(test_full_turn_exact),
         cmocka_unit_test(test_three_axis_tables),
         cmocka_unit_test(test_loader_refuses),
+#if !defined(ABBE_NO_FIVE_KINDS)
+        cmocka_unit_test(test_loader_hh_lever),
+#endif
         cmocka_unit_test(test_comp_step5),
         cmocka_unit_test(test_comp_step5_limit),
         cmocka_unit_test(test_comp_step5_three_axis_model),

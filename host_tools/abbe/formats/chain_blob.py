@@ -27,6 +27,7 @@ from abbe.formats.five_axis_blob import (
     _RA_FMT,
     _RH_FMT,
     GEOMETRY_CAP_NM,
+    HH_LEVER_L1_CAP_NM,
     _int32,
     _motion_matrix,
     _Q8_PER_UM,
@@ -87,6 +88,9 @@ def write_chain_blob(chain: KinematicChain, errs: FiveAxisErrors) -> bytes:
     if max(abs(v) for v in rp + off + ref) > GEOMETRY_CAP_NM:
         raise TableError("rotation point / offset / reference beyond 1073 mm", status="ABBE_E_RANGE",
                          field="rotary.geometry")
+    if kind == 3 and sum(abs(o) + abs(r + o) for r, o in zip(rp, off)) > HH_LEVER_L1_CAP_NM:
+        raise TableError("head-head: |offset|_1 + |rot_point + offset|_1 beyond 2^32 - 2^10 nm (4294 mm), "
+                         "the fixed-point lever's range", status="ABBE_E_RANGE", field="rotary.geometry")
     sq = [_int32(v * _Q36_PER_URAD, f"rotary.squareness_urad[{i}]", "2^-36 rad")
           for i, v in enumerate(errs.squareness)]
     records, arrays = [], []

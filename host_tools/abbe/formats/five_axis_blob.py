@@ -41,6 +41,9 @@ CHAIN_KIND_AXES: dict[int, tuple[str, tuple[str, str]]] = {
 MAX_HARMONICS = 8
 #: Largest |rot_point| and |offset| component, nm (their sum stays an int32).
 GEOMETRY_CAP_NM = (1 << 30) - 1
+# Kind 3 (head-head): |offset|_1 + |rot_point + offset|_1 at most this, nm (the C loader's
+# HH_LEVER_L1_CAP: the fixed-point evaluation's int32 head lever; docs/table-format.md).
+HH_LEVER_L1_CAP_NM = (1 << 32) - 1024
 _RH_FMT = "<B3s3i3i3i24s"
 _RA_FMT = "<2i3iBB2sIII28s"
 assert struct.calcsize(_RH_FMT) == 64 and struct.calcsize(_RA_FMT) == 64
@@ -209,6 +212,10 @@ def read_five_blob(data: bytes, source: str = "<blob>") -> FiveAxisTable:
             or (chain and max(abs(v) for v in ref) > GEOMETRY_CAP_NM):
         raise err("ABBE_E_RANGE", "rotation point / offset beyond 2^30 - 1 nm or squareness beyond 2^28",
                   "rotary.geometry")
+    # kind 3 (head-head): the fixed-point evaluation's int32 head lever (docs/table-format.md)
+    if chain and kind == 3 and sum(abs(o) + abs(r + o) for r, o in zip(rp, off)) > HH_LEVER_L1_CAP_NM:
+        raise err("ABBE_E_RANGE", "head-head: |offset|_1 + |rot_point + offset|_1 beyond 2^32 - 2^10 nm "
+                  "(4294 mm), the fixed-point lever's range", "rotary.geometry")
     errs = FiveAxisErrors(squareness=tuple(v / _Q36_PER_URAD for v in sq))  # type: ignore[arg-type]
     for axis, r in zip(axes, recs):
         lin, ang, mask, h, count = r[0:2], r[2:5], r[5], r[6], r[10]

@@ -137,3 +137,19 @@ def test_writer_refuses_a_trunnion_chain() -> None:
                          {"A": (-90.0, 90.0), "C": (-360.0, 360.0)})
     with pytest.raises(TableError):
         write_chain_blob(trunnion_chain(g), FiveAxisErrors())
+
+
+@pytest.mark.parametrize("z_extra,status", [(0, None), (1, "ABBE_E_RANGE")])
+def test_head_head_lever_range(z_extra: int, status: str | None) -> None:
+    """Kind 3: |offset|_1 + |rot_point + offset|_1 <= 2^32 - 2^10 nm (the fixed-point head
+    lever's int32 range), refused by the C loader and the Python reader alike, one nm over."""
+    b = _blob("head-head-5axiskins")
+    z = (1 << 32) - 1024 - 4_000_000_000 + z_extra
+    struct.pack_into("<3i", b, 256 + 4, 1_000_000_000, 1_000_000_000, z)  # rot_point, nm
+    struct.pack_into("<3i", b, 256 + 16, 1_000_000_000, 0, 0)  # offset, nm
+    blob = _refresh_crc(b)
+    if status is None:
+        assert CFiveModel(blob).kind == 3
+        assert read_five_blob(blob).kind == "xyzbc-hh"
+    else:
+        assert _status(blob) == status

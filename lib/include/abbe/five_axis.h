@@ -42,6 +42,20 @@
 #define ABBE_KIN_XYZBC_HT 4u   /* head-table: B (about Y) in the head, C (about Z) the table, maxkins */
 #define ABBE_KIN_XYZAB_TDR 5u  /* dual rotary table: B (about Y) carries A (about X), xyzab-tdr */
 
+/* The kinds this library reads: bit k for ABBE_KIN_* k (CMake ABBE_FIVE_KINDS, a list of
+ * kinds; default all, 0x3E). A machine's firmware needs only its own kind: built without a
+ * kind, the loader refuses its tables with ABBE_E_KIND and the evaluation carries none of
+ * its geometry (flash: bench/results.md, section 11). ABBE_NO_FIVE_KINDS is the mask 0x06
+ * (trunnions only, format 1.2: kinds 3-5 are refused by their minor, ABBE_E_VERSION_MINOR). */
+#if !defined(ABBE_FIVE_KIND_MASK)
+#if defined(ABBE_NO_FIVE_KINDS)
+#define ABBE_FIVE_KIND_MASK 0x06u
+#else
+#define ABBE_FIVE_KIND_MASK 0x3Eu
+#endif
+#endif
+#define ABBE_FIVE_KIND_BUILT(kind) (((unsigned)(ABBE_FIVE_KIND_MASK) >> (kind)) & 1u)
+
 /* One rotary axis: a validated view; fields private. */
 typedef struct {
     const uint8_t *coef_q;       /* int32 LE, 2 x harmonics rows by n_comp columns, row-major */

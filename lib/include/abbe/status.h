@@ -26,12 +26,13 @@ typedef enum {
     ABBE_E_INPUT = -15,         /* NaN or infinite input (float path) */
     ABBE_E_NO_MODEL = -16,      /* compensator has no model loaded */
     ABBE_E_MISMATCH = -17,      /* a float32 coefficient is not its int32 twin converted */
-    ABBE_E_ALIGN = -18          /* blob not 4-byte aligned (coefficients are read in place) */
+    ABBE_E_ALIGN = -18,         /* blob not 4-byte aligned (coefficients are read in place) */
+    ABBE_E_KIND = -19           /* a five-axis kinematics kind this library was built without (ABBE_FIVE_KINDS) */
 } abbe_status_t;
 
 /* The most negative status: every status lies in [ABBE_STATUS_MIN, ABBE_OK].
  * Move it with the enum when a status is added. */
-#define ABBE_STATUS_MIN ABBE_E_ALIGN
+#define ABBE_STATUS_MIN ABBE_E_KIND
 
 /* Human-readable, static, never NULL (unknown codes give "unknown status"). */
 const char *abbe_strerror(int status);

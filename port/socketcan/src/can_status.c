@@ -51,6 +51,7 @@ const char *abbe_can_status_name(int status)
     case ABBE_E_NO_MODEL: return "ABBE_E_NO_MODEL";
     case ABBE_E_MISMATCH: return "ABBE_E_MISMATCH";
     case ABBE_E_ALIGN: return "ABBE_E_ALIGN";
+    case ABBE_E_KIND: return "ABBE_E_KIND";
     default: return "unknown status";
     }
 }

@@ -76,7 +76,7 @@
 #define ABBE_MB_UPLOAD_OPEN 1u
 
 /* UP_RESULT: 1 OK, 0 nothing yet, a negative abbe_status_t (-1 .. -99, the
- * library's range; today down to ABBE_STATUS_MIN = -18) when the table failed
+ * library's range; today down to ABBE_STATUS_MIN = -19) when the table failed
  * validation, or one of these. */
 #define ABBE_MB_UP_OK 1
 #define ABBE_MB_UP_NONE 0
