@@ -166,3 +166,38 @@ def test_demo_states_the_prediction_residual_with_its_uncertainty(demo) -> None:
     html = (out / "report" / "index.html").read_text()
     assert (f"<td>{s['prediction_max_residual_U_um']:.2f} (max), "
             f"{s['prediction_rms_residual_U_um']:.2f} (RMS)</td>") in html
+
+
+def test_demo_states_the_diagnosed_models_residual_with_its_uncertainty(demo) -> None:
+    """The diagnosed model's row (table + servo, the diagnosis's own residual of the circle,
+    its set-up removed) carries U (k = 2) from the same ballbar budget as the table's row:
+    U is k times the quadrature sum of its budget lines, a 200-draw Monte Carlo of the same
+    inputs (the readings redrawn, the diagnosis's set-up removal rerun) agrees with the
+    RMS's U within 10 % (first order stated; with the drift's derivative at the centre of
+    its interval, before the quadrature over it, it was 22 % low: measured +0.7 % now); the max's stated U is the Monte Carlo's where
+    the first order parts by more than 10 %; the row shows both stated U. The figure is the
+    circle's, below the table's (the servo is what the table cannot hold)."""
+    import math
+    out, s = demo
+    du = s["diagnosed_residual_uncertainty"]
+    for key, top in (("max_abs", "prediction_max_residual_with_prediction_effects"),
+                     ("rms", "prediction_rms_residual_with_prediction_effects")):
+        d = du[key]
+        assert d["value_um"] == pytest.approx(s[f"{top}_um"], abs=1e-3)
+        assert d["U_um"] == pytest.approx(2 * math.sqrt(sum(v ** 2 for v in d["budget_u_um"].values())))
+        assert d["U_um"] > 0 and d["U_mc_um"] > 0
+        ok = abs(d["U_mc_um"] / d["U_um"] - 1) <= 0.10
+        assert d["U_stated_um"] == (d["U_um"] if ok else d["U_mc_um"])
+        assert s[f"{top}_U_um"] == pytest.approx(d["U_stated_um"], abs=1e-4)
+    assert abs(du["rms"]["U_mc_um"] / du["rms"]["U_um"] - 1) <= 0.10, du["rms"]
+    assert du["rms"]["U_from"].startswith("first order")
+    assert du["monte_carlo"]["draws"] == 200
+    # the servo is what the table cannot hold: the diagnosed model leaves less of the circle
+    assert du["max_abs"]["value_um"] < s["prediction_max_residual_um"]
+    assert du["rms"]["value_um"] < s["prediction_rms_residual_um"]
+    html = (out / "report" / "index.html").read_text()
+    row = html[html.index("prediction residual, diagnosed model"):]
+    row = row[:row.index("</tr>")]
+    assert (f"<td>{s['prediction_max_residual_with_prediction_effects_U_um']:.2f} (max), "
+            f"{s['prediction_rms_residual_with_prediction_effects_U_um']:.2f} (RMS)</td>") in row
+    assert "&ndash;" not in row
