@@ -300,6 +300,12 @@ def run_demo(example_dir: Path, out_dir: Path, *, diagnose: bool = True,
 # --------------------------------------------------------------------------- report
 
 
+def fmt_U(U_um: float) -> str:
+    """An expanded uncertainty with two significant digits below 0.1 um (a U of 0.002 um
+    printed as 0.00 would read as none), two decimals above."""
+    return f"{U_um:.2f}" if U_um >= 0.1 else f"{U_um:.2g}"
+
+
 def _td(v: Any, nd: int = 2) -> str:
     if v is None:
         return "<td>-</td>"
@@ -414,13 +420,13 @@ def _report_html(res: DemoResult, table4: dict[str, Any], with_diag: bool) -> st
             f"<tr><td class='l'>prediction residual, table (what a controller applies)</td>"
             f"<td>{s['prediction_max_residual_um']:.2f}</td>"
             f"<td>{s['prediction_rms_residual_um']:.2f}</td>"
-            f"<td>{s['prediction_max_residual_U_um']:.2f} (max), "
-            f"{s['prediction_rms_residual_U_um']:.2f} (RMS)</td></tr>"
+            f"<td>{fmt_U(s['prediction_max_residual_U_um'])} (max), "
+            f"{fmt_U(s['prediction_rms_residual_U_um'])} (RMS)</td></tr>"
             + (f"<tr><td class='l'>prediction residual, diagnosed model (table + servo)</td>"
                f"<td>{with_fx:.2f}</td>"
                f"<td>{s['prediction_rms_residual_with_prediction_effects_um']:.2f}</td>"
-               f"<td>{s['prediction_max_residual_with_prediction_effects_U_um']:.2f} (max), "
-               f"{s['prediction_rms_residual_with_prediction_effects_U_um']:.2f} (RMS)</td></tr>"
+               f"<td>{fmt_U(s['prediction_max_residual_with_prediction_effects_U_um'])} (max), "
+               f"{fmt_U(s['prediction_rms_residual_with_prediction_effects_U_um'])} (RMS)</td></tr>"
                if with_fx is not None else "")
             + "</table>"
             + (f"<p>{html.escape(why)}</p>" if why else "")

@@ -164,8 +164,10 @@ def test_demo_states_the_prediction_residual_with_its_uncertainty(demo) -> None:
     assert abs(ru["rms"]["U_mc_um"] / ru["rms"]["U_um"] - 1) <= 0.10, ru["rms"]
     assert ru["rms"]["U_from"].startswith("first order")
     html = (out / "report" / "index.html").read_text()
-    assert (f"<td>{s['prediction_max_residual_U_um']:.2f} (max), "
-            f"{s['prediction_rms_residual_U_um']:.2f} (RMS)</td>") in html
+    from abbe.cli.demo_pipeline import fmt_U
+    assert (f"<td>{fmt_U(s['prediction_max_residual_U_um'])} (max), "
+            f"{fmt_U(s['prediction_rms_residual_U_um'])} (RMS)</td>") in html
+    assert fmt_U(0.0021) == "0.0021" and fmt_U(1.234) == "1.23"
 
 
 def test_demo_states_the_diagnosed_models_residual_with_its_uncertainty(demo) -> None:
@@ -198,6 +200,7 @@ def test_demo_states_the_diagnosed_models_residual_with_its_uncertainty(demo) ->
     html = (out / "report" / "index.html").read_text()
     row = html[html.index("prediction residual, diagnosed model"):]
     row = row[:row.index("</tr>")]
-    assert (f"<td>{s['prediction_max_residual_with_prediction_effects_U_um']:.2f} (max), "
-            f"{s['prediction_rms_residual_with_prediction_effects_U_um']:.2f} (RMS)</td>") in row
+    from abbe.cli.demo_pipeline import fmt_U
+    assert (f"<td>{fmt_U(s['prediction_max_residual_with_prediction_effects_U_um'])} (max), "
+            f"{fmt_U(s['prediction_rms_residual_with_prediction_effects_U_um'])} (RMS)</td>") in row
     assert "&ndash;" not in row

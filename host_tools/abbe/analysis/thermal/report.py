@@ -316,8 +316,8 @@ def write_record_report(doc: dict, rec, out: Path) -> None:
     mc = unc.get("monte_carlo") or {}
     body = ("<p>" + ", ".join(f"{_esc(d['name'])} {d['range']:.1f}{pm(d)} {d['unit']}"
                               for d in doc["channels"])
-            + (f"; largest tilt {_esc(tilts[0]['name'])} {tilts[0]['range']:.1f}{pm(tilts[0])} "
-               "urad" if tilts else "")
+            + (f"; the largest tilt: {_esc(tilts[0]['name'])} {tilts[0]['range']:.1f}"
+               f"{pm(tilts[0])} urad" if tilts else "")
             + "</p><p class='small'>Range of each channel from its start (ISO 230-3). "
             + ("U (k = 2): each sensor's calibration and reading noise"
                + (f", checked by a {mc['draws']}-draw Monte Carlo ({mc['agree']} of {mc['of']} "
