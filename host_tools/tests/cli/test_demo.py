@@ -204,3 +204,29 @@ def test_demo_states_the_diagnosed_models_residual_with_its_uncertainty(demo) ->
     assert (f"<td>{fmt_U(s['prediction_max_residual_with_prediction_effects_U_um'])} (max), "
             f"{fmt_U(s['prediction_rms_residual_with_prediction_effects_U_um'])} (RMS)</td>") in row
     assert "&ndash;" not in row
+
+
+def test_demo_fit_states_each_axis_iso230_2_with_its_uncertainty(demo, capsys) -> None:
+    """`abbe fit` (the demo's fit step) gives each axis' ISO 230-2 results with U (k = 2)
+    from the machine file's laser budget: on Y the same U `abbe iso230-2` states for the
+    same laser file (its Monte Carlo check is tests/analysis/test_uncertainty.py's); the
+    fit report's per-axis line and band carry them."""
+    out, _ = demo
+    model = json.loads((out / "report" / "fit" / "model.json").read_text())
+    capsys.readouterr()
+    assert cli_main(["iso230-2", str(Path(__file__).resolve().parents[3] / "examples" / "vmc500"
+                                     / "laser" / "y.csv"), "--mc", "0", "--json", "-"]) == 0
+    ref = json.loads(capsys.readouterr().out)["uncertainty"]["results"]
+    for a in ("X", "Y", "Z"):
+        iso = model["axes"][a]["iso230_2"]
+        assert iso["U_k"] == 2
+        for q in ("E", "A", "B", "R", "M"):
+            assert iso[f"{q}_U_um"] > 0, (a, q)
+    y = model["axes"]["Y"]["iso230_2"]
+    for q in ("E", "A", "B", "R", "M"):
+        assert y[f"{q}_um"] == pytest.approx(ref[q]["value_um"], abs=1e-3)
+        assert y[f"{q}_U_um"] == pytest.approx(ref[q]["U_um"], abs=1e-3)
+    page = (out / "report" / "fit" / "report" / "index.html").read_text()
+    assert f"E = {y['E_um']:.2f} &plusmn; {y['E_U_um']:.2f} um" in page
+    band = page[page.index("id='verdict'"):]
+    assert f"<td>{y['E_um']:.2f} &plusmn; {y['E_U_um']:.2f}</td>" in band[:band.index("</table>")]
