@@ -110,6 +110,14 @@ def _f(v: float | None, nd: int = 2) -> str:
     return "-" if v is None or not np.isfinite(v) else f"{v:.{nd}f}"
 
 
+def _fU(U: float | None) -> str:
+    """An expanded uncertainty: two significant digits below 0.1 (0.004 printed as 0.00
+    would read as none), two decimals above."""
+    if U is None or not np.isfinite(U):
+        return "-"
+    return f"{U:.2f}" if U >= 0.1 else f"{U:.2g}"
+
+
 def _record_date(path: str) -> str:
     from abbe.analysis.certificate import test_date
     return test_date(path)
@@ -134,7 +142,7 @@ def write_report(res: FitResult, iso: dict, out: Path, diagnosis: dict | None = 
         rows.append(f"<tr><td class='l'>{_esc(s.name)}</td><td>{s.unit}</td><td>{_f(s.rms_uncomp)}</td>"
                     f"<td>{_f(s.rms_mlr)} ({100 * s.rms_mlr / s.rms_uncomp:.0f} %)</td>"
                     f"<td>{_f(s.rms_comp)}"
-                    + (f" &plusmn; {_f(rms_u['U_stated'])}" if rms_u else "")
+                    + (f" &plusmn; {_fU(rms_u['U_stated'])}" if rms_u else "")
                     + f" ({100 * s.ratio:.0f} %)</td>"
                     f"<td>{_f(s.rms_comp_ident)}</td><td class='l {'pass' if s.meets else 'fail'}'>"
                     f"{ok}</td></tr>")
@@ -241,7 +249,7 @@ def _budget_fold(unc: dict) -> str:
 
 def _U_cell(d: dict) -> str:
     """A range's U (k = 2), or a dash where none was evaluated."""
-    return f"<td>{d['U']:.2f}</td>" if d.get("U") is not None else "<td>&ndash;</td>"
+    return f"<td>{_fU(d['U'])}</td>" if d.get("U") is not None else "<td>&ndash;</td>"
 
 
 def _drift_rows(iso: dict) -> str:
@@ -307,8 +315,8 @@ def write_record_report(doc: dict, rec, out: Path) -> None:
     plot_record(rec, out / "drift.png")
     env = doc["envelope"]
     tilts = sorted(doc["tilts"], key=lambda d: -d["range"])
-    pm = (lambda d: f" &plusmn; {d['U']:.2f}" if d.get("U") is not None else "")
-    env_U = f" &plusmn; {env['U_um']:.2f}" if env.get("U_um") is not None else ""
+    pm = (lambda d: f" &plusmn; {_fU(d['U'])}" if d.get("U") is not None else "")
+    env_U = f" &plusmn; {_fU(env['U_um'])}" if env.get("U_um") is not None else ""
     headline = (f"Thermal drift envelope {env['range_um']:.1f}{env_U} um "
                 f"({_esc(env['channel'])}) over {doc['duration_h']:.1f} h"
                 + (" (U, k = 2)" if env_U else ""))
