@@ -68,6 +68,8 @@ class PrinterFit:
     squareness_urad: dict[str, float] = field(default_factory=dict)
     squareness_u95_urad: dict[str, float] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    #: the artefact lengths' standard uncertainty the squareness's U comes from (mm)
+    length_u_mm: float | None = None
 
     def to_json(self) -> dict:
         def prof(p: AxisProfile) -> dict:
@@ -86,6 +88,13 @@ class PrinterFit:
                                   "neighbours (twice the spacing)"},
             "squareness_urad": self.squareness_urad,
             "squareness_u95_urad": self.squareness_u95_urad,
+            # U (k = 2), the certificate's convention (docs/uncertainty.md): u95 = 1.96 u
+            "squareness_U_urad": {k: 2.0 * v / 1.96 for k, v in self.squareness_u95_urad.items()},
+            "uncertainty": {"k": 2, "method": "GUM first order: each artefact length's standard "
+                            "uncertainty through the derivatives of the skew formula",
+                            "budget": {"length_u_mm": self.length_u_mm},
+                            "not_included": "the held-out RMS figures are comparisons of "
+                                            "models on the same probe points, given without U"},
             "notes": self.notes,
         }
 

@@ -101,17 +101,55 @@ def _roundness(res: BallbarResult) -> dict[str, float]:
             "H_um": res.H_um}
 
 
-def _diagnose_step(machine_file: Path, model_path: Path, ballbar: str, out_dir: Path) -> tuple[Path, dict]:
-    """Run the discrepancy workflow; returns the updated model and its JSON summary."""
-    from abbe.cli.entry import main as cli_main
+def _diagnose_step(machine_file: Path, model_path: Path, ballbar: str,
+                   out_dir: Path) -> tuple[Path, dict, Any]:
+    """Run the discrepancy workflow as ``abbe diagnose`` runs it (its parser, its defaults,
+    its outputs and printout); returns the updated model, its JSON summary and the
+    DiagnoseResult (its residuals give the diagnosed model's U)."""
+    from abbe.cli import conventions
+    from abbe.cli.diagnose import diagnose_three_axis
+    from abbe.cli.entry import build_parser
+    from abbe.diagnose.report import format_text
 
     json_path = out_dir / "diagnose.json"
-    rc = cli_main(["diagnose", str(machine_file), "--model", str(model_path), "--ballbar", ballbar,
-                   "--json", str(json_path), "-o", str(out_dir / "diagnose")])
-    if rc != 0:
-        raise AbbeInputError(f"abbe diagnose failed with status {rc}", file=str(machine_file))
+    argv = ["diagnose", str(machine_file), "--model", str(model_path), "--ballbar", ballbar,
+            "--json", str(json_path), "-o", str(out_dir / "diagnose")]
+    args = conventions.clean(build_parser().parse_args(argv))
+    res, written = diagnose_three_axis(args)
+    print(format_text(res, str(written["model.bin"])), end="")
+    print(f"wrote {len(written)} files to {args.out} and {json_path}")
     d = json.loads(json_path.read_text())
-    return Path(d["model"]), d
+    return Path(d["model"]), d, res
+
+
+def diagnosed_residual_uncertainty(res: Any, p: Prediction, budget: Any, draws: int = 200,
+                                   seed: int = 20233) -> dict[str, Any]:
+    """The diagnosed model's (table + servo) residual on the ballbar circle ``p`` (max |r|,
+    RMS, um) with U (k = 2) from the ballbar budget, as :func:`residual_uncertainty` gives
+    the table's: the diagnosis's own residual of that check (its set-up nuisance, centre and
+    radius, removed by least squares) is linear in the readings once the model is held
+    fixed, r(y') = r + P (y' - y) with P the nuisance removal; the same inputs (scale, drift
+    ramp, resolution) act on the readings, and a Monte Carlo of ``draws`` checks it."""
+    from abbe.analysis.predict import trace_residual_uncertainty
+    i = next(k for k, c in enumerate(res.checks) if c.kind == "ballbar" and c.name == p.name)
+    check = res.checks[i]
+    r_after = np.asarray(res.residual_after[i], dtype=np.float64)
+    m = p.trace.data_mask()
+    y = np.asarray(p.trace.radial_um, dtype=np.float64)[m]
+    if y.shape != r_after.shape or not np.allclose(y, check.y):
+        raise AbbeInputError(f"the diagnosis's ballbar check {p.name!r} does not hold the "
+                             "trace's readings", field=f"ballbar.{p.name}")
+    A = check.nuisance[:, np.any(check.nuisance != 0, axis=0)]
+
+    def residual_of(rr: np.ndarray) -> np.ndarray:
+        dy = rr[m] - y
+        coef, *_ = np.linalg.lstsq(A, dy, rcond=None)
+        return r_after + dy - A @ coef
+
+    return trace_residual_uncertainty(
+        p.trace, float(p.test.radius_mm), residual_of, budget, draws=draws, seed=seed,
+        note="measurement of the circle only; the diagnosed model (table and the "
+             "prediction-only effects) is held fixed")
 
 
 def run_demo(example_dir: Path, out_dir: Path, *, diagnose: bool = True,
@@ -169,8 +207,10 @@ def run_demo(example_dir: Path, out_dir: Path, *, diagnose: bool = True,
     final_model = fit_dir / "model.bin"
     p_final: Prediction = p_laser
     diag: dict[str, Any] | None = None
+    diag_res: Any = None
     if diagnose and "abbe.cli.diagnose" in COMMANDS:
-        final_model, diag = _diagnose_step(machine_file, fit_dir / "model.bin", ballbar, out_dir)
+        final_model, diag, diag_res = _diagnose_step(machine_file, fit_dir / "model.bin",
+                                                     ballbar, out_dir)
         p_final = predict(machine, final_model, ballbar)
         plot_prediction(p_final, out_dir / "predict_updated.png",
                         title=f"{ballbar}: prediction of the updated model vs measurement")
@@ -202,6 +242,9 @@ def run_demo(example_dir: Path, out_dir: Path, *, diagnose: bool = True,
     # the prediction residual's U from the same budget (the measured circle's inputs; the
     # table as written is exact), checked by a Monte Carlo of the same inputs
     res_u = residual_uncertainty(p_final, budget, draws=200)
+    # the diagnosed model's residual on the same circle, with U from the same budget
+    diag_u = (diagnosed_residual_uncertainty(diag_res, p_final, budget, draws=200)
+              if diag_res is not None else None)
     improvement = 100.0 * (1.0 - g1 / g0)
     log(f"[5/6] compensate in the loop: roundness {g0:.2f} -> {g1:.2f} um ({improvement:.1f} % better; "
         f"model-ideal {p_final.ideal_improvement_pct:.1f} %)")
@@ -215,9 +258,17 @@ def run_demo(example_dir: Path, out_dir: Path, *, diagnose: bool = True,
         "prediction_rms_residual_U_um": round(res_u["rms"]["U_stated_um"], 4),
         "prediction_residual_uncertainty": res_u,
         "prediction_max_residual_laser_only_um": round(p_laser.max_residual_um, 3),
-        # with the effects the table cannot hold (servo lag) in the prediction too (diagnose's model)
+        # with the effects the table cannot hold (servo lag) in the prediction too (diagnose's
+        # model), on the same circle: its residual there, with U (k = 2)
         "prediction_max_residual_with_prediction_effects_um":
-            diag["gap"]["after"]["max_um"] if diag else None,
+            round(diag_u["max_abs"]["value_um"], 3) if diag_u else None,
+        "prediction_rms_residual_with_prediction_effects_um":
+            round(diag_u["rms"]["value_um"], 3) if diag_u else None,
+        "prediction_max_residual_with_prediction_effects_U_um":
+            round(diag_u["max_abs"]["U_stated_um"], 4) if diag_u else None,
+        "prediction_rms_residual_with_prediction_effects_U_um":
+            round(diag_u["rms"]["U_stated_um"], 4) if diag_u else None,
+        "diagnosed_residual_uncertainty": diag_u,
         "prediction_rms_residual_laser_only_um": round(p_laser.rms_residual_um, 3),
         "roundness_before_um": round(g0, 3), "roundness_after_um": round(g1, 3),
         "roundness_before_U_um": round(U0, 3), "roundness_after_U_um": round(U1, 3),
@@ -247,6 +298,12 @@ def run_demo(example_dir: Path, out_dir: Path, *, diagnose: bool = True,
 
 
 # --------------------------------------------------------------------------- report
+
+
+def fmt_U(U_um: float) -> str:
+    """An expanded uncertainty with two significant digits below 0.1 um (a U of 0.002 um
+    printed as 0.00 would read as none), two decimals above."""
+    return f"{U_um:.2f}" if U_um >= 0.1 else f"{U_um:.2g}"
 
 
 def _td(v: Any, nd: int = 2) -> str:
@@ -363,11 +420,13 @@ def _report_html(res: DemoResult, table4: dict[str, Any], with_diag: bool) -> st
             f"<tr><td class='l'>prediction residual, table (what a controller applies)</td>"
             f"<td>{s['prediction_max_residual_um']:.2f}</td>"
             f"<td>{s['prediction_rms_residual_um']:.2f}</td>"
-            f"<td>{s['prediction_max_residual_U_um']:.2f} (max), "
-            f"{s['prediction_rms_residual_U_um']:.2f} (RMS)</td></tr>"
+            f"<td>{fmt_U(s['prediction_max_residual_U_um'])} (max), "
+            f"{fmt_U(s['prediction_rms_residual_U_um'])} (RMS)</td></tr>"
             + (f"<tr><td class='l'>prediction residual, diagnosed model (table + servo)</td>"
-               f"<td>{with_fx:.2f}</td><td>{(s['diagnose_gap'] or {}).get('after', {}).get('rms_um', float('nan')):.2f}</td>"
-               "<td>&ndash;</td></tr>"
+               f"<td>{with_fx:.2f}</td>"
+               f"<td>{s['prediction_rms_residual_with_prediction_effects_um']:.2f}</td>"
+               f"<td>{fmt_U(s['prediction_max_residual_with_prediction_effects_U_um'])} (max), "
+               f"{fmt_U(s['prediction_rms_residual_with_prediction_effects_U_um'])} (RMS)</td></tr>"
                if with_fx is not None else "")
             + "</table>"
             + (f"<p>{html.escape(why)}</p>" if why else "")

@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 from abbe.cli.conventions import examples, json_file, json_option, json_to_stdout, list_option
 from abbe.cli.options import in_range
@@ -84,8 +85,24 @@ def run(args: argparse.Namespace) -> int:
         if is_chain_machine(args.machine):  # head-head, head-table, dual-rotary table
             from abbe.cli.diagnose_chain import run_chain_diagnose
             return run_chain_diagnose(args)
+    from abbe.diagnose.report import format_text
+
+    res, written = diagnose_three_axis(args)
+    if json_to_stdout(args):
+        sys.stdout.write(Path(written["diagnose.json"]).read_text(encoding="utf-8"))
+        return 0
+    sys.stdout.write(format_text(res, str(written["model.bin"])))
+    print(f"wrote {len(written)} files to {args.out}"
+          + (f" and {args.json}" if json_file(args) else ""))
+    return 0
+
+
+def diagnose_three_axis(args: argparse.Namespace) -> tuple[Any, dict[str, Path]]:
+    """The three-axis diagnosis of ``args`` (parsed by this command's parser): the
+    DiagnoseResult and the files written (name -> path). The demo calls it to keep the
+    result (its residuals) as well as the files."""
     from abbe.diagnose.effects import catalogue
-    from abbe.diagnose.report import format_text, write_outputs
+    from abbe.diagnose.report import write_outputs
     from abbe.diagnose.results import DiagnoseOptions
     from abbe.diagnose.run import diagnose_machine, diagnose_positioning
     from abbe.errors import AbbeInputError
@@ -127,10 +144,4 @@ def run(args: argparse.Namespace) -> int:
                            "ballbar": args.ballbar, "laser": args.laser}}
     written = write_outputs(res, args.out, json_file(args), plots=not args.no_plots,
                             extra_json=extra)
-    if json_to_stdout(args):
-        sys.stdout.write(Path(written["diagnose.json"]).read_text(encoding="utf-8"))
-        return 0
-    sys.stdout.write(format_text(res, str(written["model.bin"])))
-    print(f"wrote {len(written)} files to {args.out}"
-          + (f" and {args.json}" if json_file(args) else ""))
-    return 0
+    return res, written

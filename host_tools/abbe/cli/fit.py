@@ -73,12 +73,12 @@ def run(args: argparse.Namespace) -> int:
     from abbe.cli.fit_five_axis import is_five_axis, run_five_axis
     if is_five_axis(args.machine) and not is_chain_machine(args.machine):
         return run_five_axis(args)  # a [rotary] machine: the five-axis identification
-    if args.mc:
-        raise AbbeInputError("--mc is the trunnion five-axis fit's Monte Carlo check; for a "
-                             "three-axis table run abbe table uncertainty --mc", field="--mc",
-                             file=args.machine)
     if is_chain_machine(args.machine):  # a [chain] machine: any five-axis kind
         return run_chain(args)
+    if args.mc:
+        raise AbbeInputError("--mc is the five-axis fits' Monte Carlo check; for a "
+                             "three-axis table run abbe table uncertainty --mc", field="--mc",
+                             file=args.machine)
     # the with block turns a write error inside the staging (disk full, permission)
     # into an input error naming OUT, and removes the staging on any failure
     with Outputs() as outs:

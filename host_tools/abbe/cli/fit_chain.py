@@ -22,8 +22,10 @@ def is_chain_machine(path: str) -> bool:
 
 
 def run_chain(args: argparse.Namespace) -> int:
-    from abbe.analysis.five_axis.chain_fit import (fit_to_json, identify_chain, report_rows,
-                                                   reweight, setups_from_machine)
+    from abbe.analysis.five_axis.chain_fit import (fit_to_json, identify_chain,
+                                                   monte_carlo_chain, report_rows, reweight,
+                                                   setups_from_machine,
+                                                   state_monte_carlo_chain)
     from abbe.errors import AbbeInputError
     from abbe.formats.machine import load_machine
 
@@ -39,13 +41,17 @@ def run_chain(args: argparse.Namespace) -> int:
     fit = identify_chain(chain, setups, explain=False, harmonics=h)
     setups = reweight(chain, setups, fit, h)
     fit = identify_chain(chain, setups, harmonics=h)
-    text = "\n".join(report_rows(fit)) + "\n"
+    doc = {"format": "abbe-chain-fit 1.0", "machine": machine.name,
+           **fit_to_json(fit, setups),
+           "provenance": {"machine_file": str(machine.path), "sha256": machine.sha256}}
+    stated: dict[str, float] = {}
+    if getattr(args, "mc", 0):  # GUM S1 check of every U; its U stated beyond 10 %
+        stated = state_monte_carlo_chain(doc, monte_carlo_chain(chain, setups, fit,
+                                                                draws=args.mc, seed=1))
+    text = "\n".join(report_rows(fit, stated)) + "\n"
     outs = Outputs()
     try:
         staging = outs.directory(args.out, option="--out")
-        doc = {"format": "abbe-chain-fit 1.0", "machine": machine.name,
-               **fit_to_json(fit, setups),
-               "provenance": {"machine_file": str(machine.path), "sha256": machine.sha256}}
         doc["blob"] = write_chain_table(fit, staging)
         (staging / "chain_fit.json").write_text(json.dumps(doc, indent=2) + "\n",
                                                 encoding="utf-8")

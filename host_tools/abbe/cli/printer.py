@@ -72,6 +72,7 @@ def run(args: argparse.Namespace) -> int:
     if args.skew:
         sq, u95 = squareness_from_artefacts(read_skew_csv(args.skew), args.length_u_mm)
         fit.squareness_urad, fit.squareness_u95_urad = sq, u95
+        fit.length_u_mm = args.length_u_mm
     table = table_of(fit, (lo, hi), fit.squareness_urad)
     blob = write_blob(table)
     doc = {"format": "abbe-printer-fit 1.0", **fit.to_json()}
@@ -94,7 +95,9 @@ def run(args: argparse.Namespace) -> int:
               f"{fit.heldout_rms_um:.1f} um RMS, the firmware's mesh {fit.firmware_heldout_rms_um:.1f} "
               f"um, uncorrected {fit.raw_rms_um:.1f} um")
     for plane, v in fit.squareness_urad.items():
-        print(f"  squareness S_{plane.lower()} {v:.1f} urad (95 % +/- {fit.squareness_u95_urad[plane]:.1f})")
+        print(f"  squareness S_{plane.lower()} {v:.1f} +- "
+              f"{2.0 * fit.squareness_u95_urad[plane] / 1.96:.1f} urad (U, k = 2; artefact "
+              f"lengths u = {fit.length_u_mm:g} mm)")
     for n in fit.notes:
         print(f"  note: {n}")
     print(f"abbe printer fit: wrote {args.out} (model.bin, printer_fit.json)")

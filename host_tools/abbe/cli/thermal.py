@@ -7,6 +7,7 @@ import argparse
 import json
 
 from abbe.cli.conventions import examples, json_file, json_option, json_to_stdout, print_json
+from abbe.cli.options import int_range
 from abbe.errors import AbbeInputError
 from abbe.formats.machine import load_machine
 from abbe.formats.output import Outputs
@@ -35,6 +36,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     e.add_argument("machine", help="machine file (TOML) with a [thermal] section")
     e.add_argument("-o", "--out", metavar="DIR",
                    help="output folder: iso230_3.json, report.html, drift.png")
+    e.add_argument("--mc", type=int_range(0, 100_000), default=200, metavar="N",
+                   help="Monte Carlo draws checking every range's U (GUM S1; its U is stated "
+                        "where the first order is more than 10 %% off); default 200, 0 = none")
     json_option(e, "the figures")
     e.set_defaults(func=run_evaluate)
     f = sub.add_parser("fit", help="identify the model, write thermal.json and the report",
@@ -84,14 +88,16 @@ def _load(path: str):
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
-    from abbe.analysis.thermal.iso230_3 import evaluate_record
+    from abbe.analysis.thermal.iso230_3 import evaluate_record, range_uncertainty
     from abbe.analysis.thermal.report import write_record_report
     with Outputs() as outs:
         folder = outs.directory(args.out) if args.out else None
         out = outs.file(json_file(args), option="--json") if json_file(args) else None
         m, spec, rec = _load(args.machine)
         iso = evaluate_record(rec, spec.tilt_pairs())
-        doc = {"format": "abbe-iso230-3 1.0", "machine": m.name, "record": rec.file, **iso}
+        unc = range_uncertainty(rec, spec, iso, draws=args.mc)
+        doc = {"format": "abbe-iso230-3 1.1", "machine": m.name, "record": rec.file, **iso,
+               "uncertainty": unc}
         text = json.dumps(doc, indent=1, allow_nan=False) + "\n"
         if out is not None:
             out.write_text(text, encoding="utf-8")
@@ -104,10 +110,12 @@ def run_evaluate(args: argparse.Namespace) -> int:
     print(f"abbe thermal evaluate: {rec.file}: {iso['samples']} samples, "
           f"{iso['duration_h']:.1f} h")
     for d in iso["channels"] + iso["tilts"]:
-        print(f"  {d['name']:<22} range {d['range']:8.1f} {d['unit']:<4} "
+        print(f"  {d['name']:<22} range {d['range']:8.1f} +- {d['U']:5.2f} {d['unit']:<4} "
               f"max {d['max']:7.1f} @ {d['max_h']:5.1f} h  min {d['min']:7.1f} @ "
               f"{d['min_h']:5.1f} h  end {d['final']:7.1f}")
-    print(f"  envelope: {iso['envelope']['channel']} {iso['envelope']['range_um']:.1f} um")
+    print(f"  envelope: {iso['envelope']['channel']} {iso['envelope']['range_um']:.1f} +- "
+          f"{iso['envelope']['U_um']:.2f} um (U, k = 2: the sensors' calibration and reading "
+          "noise, docs/uncertainty.md)")
     if folder is not None:
         print(f"abbe thermal evaluate: wrote {args.out}/iso230_3.json and report.html")
     return 0
@@ -123,7 +131,7 @@ def _table_text(res) -> list[str]:
 
 
 def run_fit(args: argparse.Namespace) -> int:
-    from abbe.analysis.thermal.iso230_3 import evaluate_record
+    from abbe.analysis.thermal.iso230_3 import evaluate_record, range_uncertainty
     from abbe.analysis.thermal.pipeline import check_model, fit_record
     from abbe.analysis.thermal.report import write_report
     from abbe.model.thermal import as_dict
@@ -135,6 +143,7 @@ def run_fit(args: argparse.Namespace) -> int:
         if gap > 1e-9:
             raise RuntimeError(f"the written model differs from the scored one by {gap:g}")
         iso = evaluate_record(rec, spec.tilt_pairs())
+        range_uncertainty(rec, spec, iso)  # every range of the report with U (k = 2)
         (out / "thermal.json").write_text(json.dumps(as_dict(res.model), indent=1,
                                                      allow_nan=False), encoding="utf-8")
         summary = {"format": "abbe-thermal-fit 1.0", "machine": m.name,

@@ -68,6 +68,28 @@ def test_predict_cli_json_and_plot(true_model: Path, tmp_path: Path, capsys) -> 
     (pred,) = d["predictions"]
     assert pred["ballbar"] == "circle1" and 0 < pred["residual_max_um"] < 4.5
     assert (tmp_path / "predict_circle1.png").stat().st_size > 10_000
+    # every figure with U (k = 2) and the budget it comes from (the ballbar class defaults:
+    # the machine file declares none); the roundness's U is the one abbe ballbar states
+    assert d["k"] == 2 and d["budget"]["source"].startswith("class defaults")
+    assert d["budget"]["figures"]["resolution_um"] > 0
+    capsys.readouterr()
+    assert cli_main(["ballbar", str(VMC / "machine.toml"), "circle1", "--no-plot",
+                     "--json", "-"]) == 0
+    bb = json.loads(capsys.readouterr().out)["uncertainty"]["results"]["G_bidirectional"]
+    assert pred["roundness_before_U_um"] == pytest.approx(bb["U_um"], abs=1e-4)
+    u = pred["uncertainty"]
+    assert u["monte_carlo"]["draws"] == 200
+    for key, top in (("max_abs", "residual_max"), ("rms", "residual_rms")):
+        assert u[key]["value_um"] == pytest.approx(pred[f"{top}_um"], abs=1e-4)
+        assert pred[f"{top}_U_um"] == pytest.approx(u[key]["U_stated_um"], abs=1e-4)
+        assert pred[f"{top}_U_um"] > 0
+    # the RMS: first order and Monte Carlo agree within 10 %
+    assert abs(u["rms"]["U_mc_um"] / u["rms"]["U_um"] - 1) <= 0.10, u["rms"]
+    capsys.readouterr()
+    assert cli_main(["predict", str(VMC / "machine.toml"), "--model", str(true_model),
+                     "--ballbar", "circle1", "--mc", "0"]) == 0
+    text = capsys.readouterr().out
+    assert f"RMS {pred['residual_rms_um']:.2f} +- " in text and "(U, k = 2; budget:" in text
 
 
 def test_unknown_ballbar_is_refused(true_model: Path, capsys) -> None:

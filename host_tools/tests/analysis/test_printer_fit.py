@@ -205,3 +205,23 @@ def test_skew_from_a_known_parallelogram(tmp_path):
     p.write_text("plane,ac_mm,bd_mm,ad_mm\nXY,200,100,100\n")
     with pytest.raises(AbbeInputError, match="square"):
         read_skew_csv(p)
+
+
+def test_printer_fit_states_the_squareness_with_U_and_its_budget(tmp_path, grid, capsys):
+    """`abbe printer fit --skew`: printer_fit.json gives the squareness's U (k = 2) beside
+    its 95 % half-width (U = 2 u, u95 = 1.96 u) and the budget (the lengths' u); the text
+    says U, k = 2."""
+    x, y, z = grid
+    p = tmp_path / "printer.cfg"
+    p.write_text(klipper_cfg(x, y, z))
+    skew = tmp_path / "skew.csv"
+    skew.write_text("plane,ac_mm,bd_mm,ad_mm\nXY,141.4567,141.3567,100\n")
+    out = tmp_path / "fit"
+    assert main(["printer", "fit", str(p), "--skew", str(skew), "--length-u-mm", "0.01",
+                 "-o", str(out)]) == 0
+    doc = json.loads((out / "printer_fit.json").read_text())
+    U, u95 = doc["squareness_U_urad"]["XY"], doc["squareness_u95_urad"]["XY"]
+    assert U == pytest.approx(2 * u95 / 1.96) and U > 0
+    assert doc["uncertainty"]["k"] == 2 and doc["uncertainty"]["budget"]["length_u_mm"] == 0.01
+    text = capsys.readouterr().out
+    assert f"+- {U:.1f} urad (U, k = 2; artefact lengths u = 0.01 mm)" in text

@@ -164,5 +164,69 @@ def test_demo_states_the_prediction_residual_with_its_uncertainty(demo) -> None:
     assert abs(ru["rms"]["U_mc_um"] / ru["rms"]["U_um"] - 1) <= 0.10, ru["rms"]
     assert ru["rms"]["U_from"].startswith("first order")
     html = (out / "report" / "index.html").read_text()
-    assert (f"<td>{s['prediction_max_residual_U_um']:.2f} (max), "
-            f"{s['prediction_rms_residual_U_um']:.2f} (RMS)</td>") in html
+    from abbe.cli.demo_pipeline import fmt_U
+    assert (f"<td>{fmt_U(s['prediction_max_residual_U_um'])} (max), "
+            f"{fmt_U(s['prediction_rms_residual_U_um'])} (RMS)</td>") in html
+    assert fmt_U(0.0021) == "0.0021" and fmt_U(1.234) == "1.23"
+
+
+def test_demo_states_the_diagnosed_models_residual_with_its_uncertainty(demo) -> None:
+    """The diagnosed model's row (table + servo, the diagnosis's own residual of the circle,
+    its set-up removed) carries U (k = 2) from the same ballbar budget as the table's row:
+    U is k times the quadrature sum of its budget lines, a 200-draw Monte Carlo of the same
+    inputs (the readings redrawn, the diagnosis's set-up removal rerun) agrees with the
+    RMS's U within 10 % (first order stated; with the drift's derivative at the centre of
+    its interval, before the quadrature over it, it was 22 % low: measured +0.7 % now); the max's stated U is the Monte Carlo's where
+    the first order parts by more than 10 %; the row shows both stated U. The figure is the
+    circle's, below the table's (the servo is what the table cannot hold)."""
+    import math
+    out, s = demo
+    du = s["diagnosed_residual_uncertainty"]
+    for key, top in (("max_abs", "prediction_max_residual_with_prediction_effects"),
+                     ("rms", "prediction_rms_residual_with_prediction_effects")):
+        d = du[key]
+        assert d["value_um"] == pytest.approx(s[f"{top}_um"], abs=1e-3)
+        assert d["U_um"] == pytest.approx(2 * math.sqrt(sum(v ** 2 for v in d["budget_u_um"].values())))
+        assert d["U_um"] > 0 and d["U_mc_um"] > 0
+        ok = abs(d["U_mc_um"] / d["U_um"] - 1) <= 0.10
+        assert d["U_stated_um"] == (d["U_um"] if ok else d["U_mc_um"])
+        assert s[f"{top}_U_um"] == pytest.approx(d["U_stated_um"], abs=1e-4)
+    assert abs(du["rms"]["U_mc_um"] / du["rms"]["U_um"] - 1) <= 0.10, du["rms"]
+    assert du["rms"]["U_from"].startswith("first order")
+    assert du["monte_carlo"]["draws"] == 200
+    # the servo is what the table cannot hold: the diagnosed model leaves less of the circle
+    assert du["max_abs"]["value_um"] < s["prediction_max_residual_um"]
+    assert du["rms"]["value_um"] < s["prediction_rms_residual_um"]
+    html = (out / "report" / "index.html").read_text()
+    row = html[html.index("prediction residual, diagnosed model"):]
+    row = row[:row.index("</tr>")]
+    from abbe.cli.demo_pipeline import fmt_U
+    assert (f"<td>{fmt_U(s['prediction_max_residual_with_prediction_effects_U_um'])} (max), "
+            f"{fmt_U(s['prediction_rms_residual_with_prediction_effects_U_um'])} (RMS)</td>") in row
+    assert "&ndash;" not in row
+
+
+def test_demo_fit_states_each_axis_iso230_2_with_its_uncertainty(demo, capsys) -> None:
+    """`abbe fit` (the demo's fit step) gives each axis' ISO 230-2 results with U (k = 2)
+    from the machine file's laser budget: on Y the same U `abbe iso230-2` states for the
+    same laser file (its Monte Carlo check is tests/analysis/test_uncertainty.py's); the
+    fit report's per-axis line and band carry them."""
+    out, _ = demo
+    model = json.loads((out / "report" / "fit" / "model.json").read_text())
+    capsys.readouterr()
+    assert cli_main(["iso230-2", str(Path(__file__).resolve().parents[3] / "examples" / "vmc500"
+                                     / "laser" / "y.csv"), "--mc", "0", "--json", "-"]) == 0
+    ref = json.loads(capsys.readouterr().out)["uncertainty"]["results"]
+    for a in ("X", "Y", "Z"):
+        iso = model["axes"][a]["iso230_2"]
+        assert iso["U_k"] == 2
+        for q in ("E", "A", "B", "R", "M"):
+            assert iso[f"{q}_U_um"] > 0, (a, q)
+    y = model["axes"]["Y"]["iso230_2"]
+    for q in ("E", "A", "B", "R", "M"):
+        assert y[f"{q}_um"] == pytest.approx(ref[q]["value_um"], abs=1e-3)
+        assert y[f"{q}_U_um"] == pytest.approx(ref[q]["U_um"], abs=1e-3)
+    page = (out / "report" / "fit" / "report" / "index.html").read_text()
+    assert f"E = {y['E_um']:.2f} &plusmn; {y['E_U_um']:.2f} um" in page
+    band = page[page.index("id='verdict'"):]
+    assert f"<td>{y['E_um']:.2f} &plusmn; {y['E_U_um']:.2f}</td>" in band[:band.index("</table>")]

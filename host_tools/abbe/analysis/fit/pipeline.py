@@ -377,9 +377,7 @@ def model_json(res: FitResult) -> dict[str, Any]:
             "warnings": axis_warnings(ar, res.options),
             "backlash": {k: (_r(v) if isinstance(v, float) else v) for k, v in ar.backlash.items()},
             "thermal": {k: (_r(v) if isinstance(v, float) else v) for k, v in ar.thermal.items()},
-            "iso230_2": None if ar.iso is None else {
-                "B_um": _r(ar.iso.B_um), "R_um": _r(ar.iso.R_um), "E_um": _r(ar.iso.E_um),
-                "A_um": _r(ar.iso.A_um), "M_um": _r(ar.iso.M_um)},
+            "iso230_2": None if ar.iso is None else _iso_with_U(ar.iso, res.machine),
             "normalisation_20c": (None if ar.data.normalisation is None else
                                   {k: (_r(v) if isinstance(v, float) else v)
                                    for k, v in ar.data.normalisation.to_json().items()}),
@@ -422,3 +420,20 @@ def model_json(res: FitResult) -> dict[str, Any]:
         **({"uncertainty": uncertainty_json(res, res.uncertainty)}
            if res.uncertainty is not None else {}),
     }
+
+
+def _iso_with_U(iso: Any, machine: Machine) -> dict[str, Any]:
+    """The axis' ISO 230-2 results (um) with their U (k = 2) from the machine file's laser
+    budget (else the laser_interferometer class defaults), as `abbe iso230-2` gives them
+    (docs/uncertainty.md, "ISO 230-2")."""
+    from abbe.analysis.fit.uncertainty import laser_budget
+    from abbe.analysis.uncertainty import iso230_2_uncertainty
+    budget = laser_budget(machine)
+    unc = iso230_2_uncertainty(iso, budget)
+    out: dict[str, Any] = {}
+    for q in ("B", "R", "E", "A", "M"):
+        out[f"{q}_um"] = _r(getattr(iso, f"{q}_um"))
+        out[f"{q}_U_um"] = _r(unc.results[q].U_um)
+    out["U_k"] = 2
+    out["U_budget"] = getattr(budget, "source", "")
+    return out

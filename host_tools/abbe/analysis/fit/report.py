@@ -203,8 +203,10 @@ def index_html(res: "FitResult") -> str:
                            f"{e(rv.get('note', ''))}.</p>")
         if aj["iso230_2"]:
             iso = aj["iso230_2"]
-            out.append("<p>ISO 230-2 (own positioning term): " + ", ".join(
-                f"{k[0]} = {iso[k]:.2f} um" for k in ("B_um", "R_um", "E_um", "A_um", "M_um"))
+            out.append("<p>ISO 230-2 (own positioning term, U with k = 2): " + ", ".join(
+                f"{k[0]} = {iso[k]:.2f}"
+                + (f" &plusmn; {iso[k[0] + '_U_um']:.2f}" if iso.get(k[0] + "_U_um") is not None
+                   else "") + " um" for k in ("B_um", "R_um", "E_um", "A_um", "M_um"))
                 + "</p>")
         out += _uncertainty_table(mj, a)
         n20 = aj.get("normalisation_20c")
@@ -257,7 +259,9 @@ def _headline_band(res: "FitResult") -> str:
         own = OWN_TERM[a]
         d = (unc.get("axes") or {}).get(a, {}).get("terms", {}).get(own)
         iso = mj["axes"][a].get("iso230_2") or {}
-        e_before = f"{iso['E_um']:.2f}" if iso.get("E_um") is not None else "-"
+        e_before = "-" if iso.get("E_um") is None else (
+            f"{iso['E_um']:.2f}" + (f" &plusmn; {iso['E_U_um']:.2f}"
+                                    if iso.get("E_U_um") is not None else ""))
         if d is None:
             rows.append(f"<tr><td class='l'>{a} ({own})</td><td>{e_before}</td>"
                         "<td>-</td><td>-</td></tr>")
@@ -270,7 +274,7 @@ def _headline_band(res: "FitResult") -> str:
     headline = ("Table written for " + ", ".join(res.axes) + "; left at the targets (max |r| "
                 "&plusmn; U, k = 2): " + ("; ".join(parts) if parts else "no uncertainty block"))
     body = ("<table><tr><th class='l'>axis (own positioning term)</th><th>ISO 230-2 E before "
-            "(um)</th><th>compensated max |r| &plusmn; U (um)</th><th>compensated RMS &plusmn; U "
+            "&plusmn; U (um)</th><th>compensated max |r| &plusmn; U (um)</th><th>compensated RMS &plusmn; U "
             "(um)</th></tr>" + "".join(rows) + "</table><p class='small'>No tolerance applies to a "
             "fit: the verdicts are those of `abbe iso230-2` and `abbe ballbar` on the compensated "
             "machine. Every term, its model choice and its held-out figures follow.</p>")

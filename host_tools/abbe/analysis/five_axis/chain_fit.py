@@ -28,6 +28,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from abbe.analysis.uncertainty import K
+
 from abbe.model.chain import (KinematicChain, nominal_joints, tool_tip, tool_transform,
                               workpiece_transform)
 from abbe.model.five_axis import (LOCATION_ERRORS, MOTION_COMPONENTS, FiveAxisErrors,
@@ -84,6 +86,14 @@ class ChainFitRow:
     status: str
     confounded_with: tuple[str, ...] = ()
     seen_by: str = ""
+    #: standard uncertainty (um / urad, Type A: the identification's covariance), None
+    #: when the plan cannot see the error
+    u: float | None = None
+
+    @property
+    def U(self) -> float | None:
+        """Expanded uncertainty, k = 2 (um / urad)."""
+        return None if self.u is None else K * self.u
 
 
 @dataclass
@@ -105,6 +115,9 @@ class ChainFit:
     #: every motion coefficient as solved (the unobservable ones in the fit's convention:
     #: fixed at 0 or the value the convention gives them), um / urad
     motion_values: dict[str, float] = field(default_factory=dict)
+    #: the weighted residual variance the covariance is scaled by (at least 1: the
+    #: blocks' sigmas are not trusted to be too large)
+    s2: float = 1.0
 
     def errors(self) -> FiveAxisErrors:
         """The fitted errors in the fit's convention (what a table holds): location errors
@@ -492,8 +505,8 @@ def identify_chain(chain: KinematicChain, setups: list[ChainSetup],
                                     "fixed at 0" if j in fixed else "convention", confounded(j),
                                     seen_by.get(j, "")))
         else:
-            rows.append(ChainFitRow(n, float(x[j]), float(1.96 * sig[free.index(j)]), unit,
-                                    "identified"))
+            sd = float(sig[free.index(j)])
+            rows.append(ChainFitRow(n, float(x[j]), 1.96 * sd, unit, "identified", u=sd))
     motions = []
     for j in range(10, 10 + n_mot):
         if j in unobs:
@@ -504,43 +517,51 @@ def identify_chain(chain: KinematicChain, setups: list[ChainSetup],
                                        "fixed at 0" if j in fixed else "convention",
                                        confounded(j), by))
         else:
-            motions.append(ChainFitRow(names[j], float(x[j]), float(1.96 * sig[free.index(j)]),
-                                       unk[j][2], "identified"))
+            sd = float(sig[free.index(j)])
+            motions.append(ChainFitRow(names[j], float(x[j]), 1.96 * sd, unk[j][2],
+                                       "identified", u=sd))
     return ChainFit(chain, rows, {names[j]: float(x[j]) for j in range(10)}, rank, len(unk),
                     float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf"),
                     float(np.sqrt(np.mean(r ** 2))),
                     {names[j]: float(x[j]) for j in range(10 + n_mot, len(unk))}, motions,
-                    harmonics, {names[j]: float(x[j]) for j in range(10, 10 + n_mot)})
+                    harmonics, {names[j]: float(x[j]) for j in range(10, 10 + n_mot)}, s2)
 
 
-def report_rows(fit: ChainFit) -> list[str]:
-    """The ISO 230-7 table of a fit as text lines (name, value, 95 %, status, notes)."""
+def report_rows(fit: ChainFit, U_stated: dict[str, float] | None = None) -> list[str]:
+    """The ISO 230-7 table of a fit as text lines (name, value, U (k = 2), status, notes).
+    ``U_stated``: name -> the U to print where the Monte Carlo's is stated
+    (:func:`state_monte_carlo_chain`); else the first order's."""
+    stated = U_stated or {}
+
+    def U(r: ChainFitRow) -> float:
+        return float(stated.get(r.name, r.U))
+
     out = [f"{fit.chain.name} ({fit.chain.kind}; workpiece side "
            f"{', '.join(fit.chain.workpiece_side) or '-'}, tool side "
            f"{', '.join(fit.chain.tool_side) or '-'}): rank {fit.rank} of {fit.n_unknowns}, "
            f"condition {fit.condition:.3g}",
-           f"{'error':8s} {'value':>10s} {'+-95%':>8s} unit  status"]
+           f"{'error':8s} {'value':>10s} {'U (k=2)':>8s} unit  status"]
     for r in fit.rows:
         if r.value is None:
             out.append(f"{r.name:8s} {'-':>10s} {'-':>8s} {r.unit:5s} {r.status}: confounded "
                        f"with {', '.join(r.confounded_with) or '-'}; seen by {r.seen_by or '?'}")
         else:
-            out.append(f"{r.name:8s} {r.value:10.3f} {r.u95:8.3f} {r.unit:5s} {r.status}")
+            out.append(f"{r.name:8s} {r.value:10.3f} {U(r):8.3f} {r.unit:5s} {r.status}")
     if fit.motion_rows:
         n_seen = sum(r.value is not None for r in fit.motion_rows)
         out.append(f"error motions (ISO 230-7, Fourier coefficients up to harmonic "
                    f"{fit.harmonics}): {n_seen} of {len(fit.motion_rows)} observable")
         for r in fit.motion_rows:
             if r.value is not None:
-                out.append(f"{r.name:14s} {r.value:10.3f} {r.u95:8.3f} {r.unit:5s} {r.status}")
+                out.append(f"{r.name:14s} {r.value:10.3f} {U(r):8.3f} {r.unit:5s} {r.status}")
                 continue
             conf = list(r.confounded_with)
             more = f" and {len(conf) - 6} more" if len(conf) > 6 else ""
             out.append(f"{r.name:14s} {'-':>10s} {'-':>8s} {r.unit:5s} {r.status}: confounded "
                        f"with {', '.join(conf[:6]) or '-'}{more}; seen by {r.seen_by or '?'}")
-    else:
-        out.append("error motions (not fitted: harmonics = 0): " + ", ".join(
-            motion_name(ax, c) for ax in fit.chain.rotaries for c in "XYZABC"))
+    out.append("U (k = 2): Type A, the identification's covariance s^2 (J^T W J)^-1 (each "
+               "set-up weighted by its own residual's sigma); not included: the instruments' "
+               "calibration, the model's adequacy beyond its residuals (docs/uncertainty.md)")
     return out
 
 
@@ -599,24 +620,38 @@ def reweight(chain: KinematicChain, setups: list[ChainSetup], fit: ChainFit,
 
 
 def fit_to_json(fit: ChainFit, setups: list[ChainSetup]) -> dict:
-    """The fit as JSON (units in the keys and rows)."""
+    """The fit as JSON (units in the keys and rows): every identified error with ``u``,
+    ``U`` (k = 2) and ``u95`` (1.96 u), and the budget (``uncertainty``)."""
     c = fit.chain
+
+    def row(r: ChainFitRow, held: float) -> dict:
+        return {"name": r.name, "value": r.value, "u": r.u, "U": r.U, "u95": r.u95,
+                "unit": r.unit, "status": r.status, "confounded_with": list(r.confounded_with),
+                "seen_by": r.seen_by, "value_in_convention": held}
+
     return {"chain": c.name, "kind": c.kind, "workpiece_side": list(c.workpiece_side),
             "tool_side": list(c.tool_side), "rank": fit.rank, "unknowns": fit.n_unknowns,
             "condition": fit.condition, "rms_weighted": fit.rms_weighted,
             "sigma_um": {s.name: s.sigma_um for s in setups},
-            "location": [{"name": r.name, "value": r.value, "u95": r.u95, "unit": r.unit,
-                          "status": r.status, "confounded_with": list(r.confounded_with),
-                          "seen_by": r.seen_by, "value_in_convention": fit.values[r.name]}
-                         for r in fit.rows],
+            "location": [row(r, fit.values[r.name]) for r in fit.rows],
             "harmonics": fit.harmonics,
-            "motions": [{"name": r.name, "value": r.value, "u95": r.u95, "unit": r.unit,
-                         "status": r.status, "confounded_with": list(r.confounded_with),
-                         "seen_by": r.seen_by,
-                         "value_in_convention": fit.motion_values.get(r.name, 0.0)}
-                        for r in fit.motion_rows],
+            "motions": [row(r, fit.motion_values.get(r.name, 0.0)) for r in fit.motion_rows],
             "setup_um": fit.setup,
-            "rotary_ballbar": ballbar_summary(fit, setups)}
+            "rotary_ballbar": ballbar_summary(fit, setups),
+            "uncertainty": {
+                "method": "GUM, Type A: the identification's covariance s^2 (J^T W J)^-1 "
+                          "at the solution, each set-up's rows weighted by 1 / its sigma",
+                "k": K,
+                "budget": {"block_sigma_um": {s.name: s.sigma_um for s in setups},
+                           "block_sigma_from": "each set-up's RMS residual after a first "
+                                               "fit (at least 0.05 um): a Type A "
+                                               "evaluation from the block's own residuals",
+                           "s2": fit.s2},
+                "not_included": ["the instruments' calibration (the probe's scale, an "
+                                 "R-test's sensitivity)", "the model's adequacy beyond its "
+                                 "residuals"],
+                "unobservable": "no U: the plan cannot see the error (its value is the "
+                                "convention's, value_in_convention)"}}
 
 
 def ballbar_summary(fit: ChainFit, setups: list[ChainSetup]) -> dict[str, dict]:
@@ -642,3 +677,70 @@ def ballbar_summary(fit: ChainFit, setups: list[ChainSetup]) -> dict[str, dict]:
             "readings": int(obs.size), "measured_pv_um": float(np.ptp(obs - obs.mean())),
             "left_pv_um": float(np.ptp(left)), "left_rms_um": float(np.sqrt(np.mean(left ** 2)))}
     return out
+
+
+def monte_carlo_chain(chain: KinematicChain, setups: list[ChainSetup], fit: ChainFit,
+                      draws: int = 100, seed: int = 1, iterations: int = 6) -> dict:
+    """GUM S1 check of every identified error's U: each draw adds normal noise with each
+    set-up's sigma x s to its observations (new observations) and solves the exact
+    nonlinear model again (the chain's own prediction, :func:`predict`); as in the
+    trunnion's check (abbe.analysis.five_axis.uncertainty.monte_carlo) the Jacobian at the
+    solution only steers the Gauss-Newton iterations (``iterations``, from the fit's
+    solution). Returns {draws, seed, parameters: name -> {value, U, U_mc}}."""
+    rng = np.random.default_rng(seed)
+    s = float(np.sqrt(fit.s2))
+    h = fit.harmonics
+    unk = _unknowns(chain, setups, h)
+    names = [u[0] for u in unk]
+    scale = np.array([u[1] for u in unk])
+    _unobs, fixed, _null, _rank = observability(chain, setups, h)
+    free = [j for j in range(len(unk)) if j not in fixed]
+    held = {**fit.values, **fit.motion_values, **fit.setup}
+    x0 = np.array([held.get(n, 0.0) for n in names])
+    Jpinv = np.linalg.pinv(_jacobian(chain, setups, x0, scale, harmonics=h)[:, free])
+    rows = [r for r in fit.rows + fit.motion_rows if r.value is not None]
+    idx = [names.index(r.name) for r in rows]
+    xs = np.empty((draws, len(rows)))
+    for k in range(draws):
+        new = []
+        for st in setups:
+            sd = st.sigma_um * s * (1e-3 if st.kind == "probe" else 1.0)  # probe obs in mm
+            obs = np.asarray(st.obs, dtype=np.float64)
+            new.append(replace(st, obs=obs + rng.normal(0.0, sd, size=obs.shape)))
+        x = x0.copy()
+        for _ in range(iterations):
+            x[free] += (Jpinv @ _residual(chain, new, x, h)) * scale[free]
+        xs[k] = x[idx]
+    U_mc = K * xs.std(axis=0, ddof=1)
+    return {"draws": draws, "seed": seed,
+            "parameters": {r.name: {"unit": r.unit, "value": r.value, "U": r.U,
+                                    "U_mc": float(U_mc[i])} for i, r in enumerate(rows)}}
+
+
+def state_monte_carlo_chain(doc: dict, mc: dict) -> dict[str, float]:
+    """Put the Monte Carlo check into ``doc`` (chain_fit.json), as the trunnion fit does
+    (abbe.analysis.five_axis.uncertainty.state_monte_carlo): every identified error gets
+    ``U_first_order``, ``U_mc``, ``U_from``; beyond 10 % ``U`` (u, u95) become the Monte
+    Carlo's. Returns name -> the U stated where it is the Monte Carlo's."""
+    from abbe.analysis.five_axis.uncertainty import AGREEMENT
+    agree = n = 0
+    stated: dict[str, float] = {}
+    for row in doc["location"] + doc["motions"]:
+        m = mc["parameters"].get(row["name"])
+        if row["value"] is None or m is None:
+            continue
+        n += 1
+        U1, Umc = float(row["U"]), float(m["U_mc"])
+        ok = U1 > 0 and abs(Umc / U1 - 1.0) <= AGREEMENT
+        agree += ok
+        row.update(U_first_order=U1, U_mc=Umc,
+                   U_from="first order (the Monte Carlo agrees within 10 %)" if ok else
+                   "Monte Carlo (the first order is more than 10 % off)")
+        if not ok:
+            row.update(U=Umc, u=Umc / K, u95=1.96 * Umc / K)
+            stated[row["name"]] = Umc
+    doc["uncertainty"]["monte_carlo"] = {
+        "draws": mc["draws"], "seed": mc["seed"], "agree": agree, "of": n,
+        "method": "GUM S1: new observations drawn from each set-up's sigma x s, the "
+                  "identification run again per draw; U_mc = 2 x the spread"}
+    return stated

@@ -110,6 +110,14 @@ def _f(v: float | None, nd: int = 2) -> str:
     return "-" if v is None or not np.isfinite(v) else f"{v:.{nd}f}"
 
 
+def _fU(U: float | None) -> str:
+    """An expanded uncertainty: two significant digits below 0.1 (0.004 printed as 0.00
+    would read as none), two decimals above."""
+    if U is None or not np.isfinite(U):
+        return "-"
+    return f"{U:.2f}" if U >= 0.1 else f"{U:.2g}"
+
+
 def _record_date(path: str) -> str:
     from abbe.analysis.certificate import test_date
     return test_date(path)
@@ -134,7 +142,7 @@ def write_report(res: FitResult, iso: dict, out: Path, diagnosis: dict | None = 
         rows.append(f"<tr><td class='l'>{_esc(s.name)}</td><td>{s.unit}</td><td>{_f(s.rms_uncomp)}</td>"
                     f"<td>{_f(s.rms_mlr)} ({100 * s.rms_mlr / s.rms_uncomp:.0f} %)</td>"
                     f"<td>{_f(s.rms_comp)}"
-                    + (f" &plusmn; {_f(rms_u['U_stated'])}" if rms_u else "")
+                    + (f" &plusmn; {_fU(rms_u['U_stated'])}" if rms_u else "")
                     + f" ({100 * s.ratio:.0f} %)</td>"
                     f"<td>{_f(s.rms_comp_ident)}</td><td class='l {'pass' if s.meets else 'fail'}'>"
                     f"{ok}</td></tr>")
@@ -203,7 +211,7 @@ def write_report(res: FitResult, iso: dict, out: Path, diagnosis: dict | None = 
 {''.join(sel)}</table></details>
 {diag}
 <details><summary>ISO 230-3 evaluation of the whole record</summary>
-<table><tr><th class='l'>signal</th><th>unit</th><th>range</th><th>max</th><th>min</th><th>end</th></tr>
+<table><tr><th class='l'>signal</th><th>unit</th><th>range</th><th>U, k = 2</th><th>max</th><th>min</th><th>end</th></tr>
 {drift}</table>
 <p>Envelope: {_esc(iso['envelope']['channel'])}, {iso['envelope']['range_um']:.1f} um.</p></details>
 <details><summary>Inputs (spindle speed, temperature rises)</summary>
@@ -241,11 +249,43 @@ def _budget_fold(unc: dict) -> str:
             "parameters is not near a quadratic over their interval.</p></details>")
 
 
+def _U_cell(d: dict) -> str:
+    """A range's U (k = 2), or a dash where none was evaluated."""
+    return f"<td>{_fU(d['U'])}</td>" if d.get("U") is not None else "<td>&ndash;</td>"
+
+
 def _drift_rows(iso: dict) -> str:
     return "".join(f"<tr><td class='l'>{_esc(d['name'])}</td><td>{d['unit']}</td><td>{d['range']:.1f}</td>"
+                   + _U_cell(d) +
                    f"<td>{d['max']:.1f} @ {d['max_h']:.1f} h</td>"
                    f"<td>{d['min']:.1f} @ {d['min_h']:.1f} h</td><td>{d['final']:.1f}</td></tr>"
                    for d in iso["channels"] + iso["tilts"])
+
+
+def _range_budget(doc: dict) -> str:
+    """The ranges' budget, folded: each sensor's calibration and noise, and per range its
+    standard uncertainty lines, first-order and Monte Carlo U."""
+    unc = doc.get("uncertainty")
+    if not unc:
+        return ""
+    sens = "".join(f"<tr><td class='l'>{_esc(n)}</td><td class='l'>{_esc(v['sensitivity'])}</td>"
+                   f"<td>{v['noise_sd']:.4f} {v['unit']}</td></tr>"
+                   for n, v in unc["sensors"].items())
+    rows = "".join(
+        f"<tr><td class='l'>{_esc(d['name'])}</td><td class='l'>"
+        + ", ".join(f"{_esc(k)} {v:.3g}" for k, v in d["budget_u"].items())
+        + f"</td><td>{d['U_first_order']:.3g}</td><td>"
+        + (f"{d['U_mc']:.3g}" if d.get("U_mc") is not None else "&ndash;")
+        + f"</td><td class='l'>{_esc(d['U_from'])}</td></tr>"
+        for d in doc["channels"] + doc["tilts"] + doc["temperatures"])
+    return ("<details><summary>Uncertainty budget (GUM; the sensors, then each range's "
+            "standard uncertainty lines)</summary>"
+            "<table><tr><th class='l'>sensor</th><th class='l'>sensitivity</th>"
+            f"<th>reading noise (1 sd)</th></tr>{sens}</table>"
+            "<table><tr><th class='l'>range</th><th class='l'>u per input</th><th>U first order"
+            f"</th><th>U Monte Carlo</th><th class='l'>stated</th></tr>{rows}</table>"
+            f"<p class='small'>{_esc(unc['method'])}. Not included: "
+            f"{_esc(unc['not_included'])}.</p></details>")
 
 
 def plot_record(rec, path: Path) -> None:
@@ -277,13 +317,22 @@ def write_record_report(doc: dict, rec, out: Path) -> None:
     plot_record(rec, out / "drift.png")
     env = doc["envelope"]
     tilts = sorted(doc["tilts"], key=lambda d: -d["range"])
-    headline = (f"Thermal drift envelope {env['range_um']:.1f} um ({_esc(env['channel'])}) over "
-                f"{doc['duration_h']:.1f} h")
-    body = ("<p>" + ", ".join(f"{_esc(d['name'])} {d['range']:.1f} {d['unit']}"
+    pm = (lambda d: f" &plusmn; {_fU(d['U'])}" if d.get("U") is not None else "")
+    env_U = f" &plusmn; {_fU(env['U_um'])}" if env.get("U_um") is not None else ""
+    headline = (f"Thermal drift envelope {env['range_um']:.1f}{env_U} um "
+                f"({_esc(env['channel'])}) over {doc['duration_h']:.1f} h"
+                + (" (U, k = 2)" if env_U else ""))
+    unc = doc.get("uncertainty") or {}
+    mc = unc.get("monte_carlo") or {}
+    body = ("<p>" + ", ".join(f"{_esc(d['name'])} {d['range']:.1f}{pm(d)} {d['unit']}"
                               for d in doc["channels"])
-            + (f"; largest tilt {_esc(tilts[0]['name'])} {tilts[0]['range']:.1f} urad" if tilts
-               else "") + "</p><p class='small'>Range of each channel from its start (ISO 230-3). "
-            "No tolerance stated: no verdict.</p>")
+            + (f"; the largest tilt: {_esc(tilts[0]['name'])} {tilts[0]['range']:.1f}"
+               f"{pm(tilts[0])} urad" if tilts else "")
+            + "</p><p class='small'>Range of each channel from its start (ISO 230-3). "
+            + ("U (k = 2): each sensor's calibration and reading noise"
+               + (f", checked by a {mc['draws']}-draw Monte Carlo ({mc['agree']} of {mc['of']} "
+                  "within 10 %)" if mc.get("draws") else "") + "; budget below. " if unc else "")
+            + "No tolerance stated: no verdict.</p>")
     head = page_head(f"ISO 230-3 thermal test: {Path(rec.file).name}", [
         ("Machine", doc.get("machine") or "not named"),
         ("Test", f"ISO 230-3 thermal drift record, {doc['duration_h']:.1f} h, {doc['samples']} "
@@ -297,8 +346,9 @@ def write_record_report(doc: dict, rec, out: Path) -> None:
 {band("info", headline, body)}
 <div class="plots"><img class="wide" src="drift.png" alt="drift"></div>
 <h2>Drift per channel and tilt</h2>
-<table><tr><th class='l'>signal</th><th>unit</th><th>range</th><th>max</th><th>min</th><th>end</th></tr>
+<table><tr><th class='l'>signal</th><th>unit</th><th>range</th><th>U, k = 2</th><th>max</th><th>min</th><th>end</th></tr>
 {_drift_rows(doc)}</table>
+{_range_budget(doc)}
 <details><summary>Temperature rises (K)</summary>
 <table><tr><th class='l'>sensor</th><th>range</th><th>max</th><th>end</th></tr>{temps}</table>
 </details>
