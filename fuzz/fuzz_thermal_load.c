@@ -4,7 +4,7 @@
  * variants). Checks: a status in range and both outputs untouched on
  * failure; the loader agrees with abbe_model_load on tables without a block;
  * every output finite and within what the channel limits allow; the flags
- * only known bits. */
+ * only known bits (KNOWN_FLAGS). */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -21,6 +21,11 @@
             abort();                                                           \
         }                                                                      \
     } while (0)
+
+/* Every flag abbe/thermal.h defines, by name: a flag added there (as STUCK, 0x80, was
+ * after this harness first spelled the mask 0x7F) is then known here too. */
+#define KNOWN_FLAGS                                                                       \
+    (ABBE_THERMAL_F_FAULTS | ABBE_THERMAL_F_LIMIT | ABBE_THERMAL_F_HOLD | ABBE_THERMAL_F_FADING)
 
 static uint32_t ld32(const uint8_t *p)
 {
@@ -71,7 +76,7 @@ static void run(const abbe_thermal_model_t *th, const uint8_t *extra, size_t n)
                 CHECK(fabs((double)eq[a]) * 1e-3 <= b + 1e-3);
             }
         }
-        CHECK((abbe_thermal_flags(&sf) & ~0x7Fu) == 0u && (abbe_thermal_flags(&sq) & ~0x7Fu) == 0u);
+        CHECK((abbe_thermal_flags(&sf) & ~KNOWN_FLAGS) == 0u && (abbe_thermal_flags(&sq) & ~KNOWN_FLAGS) == 0u);
     }
 }
 

@@ -23,6 +23,7 @@ import re
 from array import array
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 
@@ -185,6 +186,44 @@ def _col_letter(j: int) -> str:
     return s
 
 
+def _sheet_rows(ws: object, f: str) -> Iterator[tuple[int, dict[int, object]]]:
+    """(sheet row, {column (1-based): value}) of every row the sheet's XML holds, in order.
+
+    Not ``ws.iter_rows``: openpyxl's read-only iterator trusts the sheet's ``<dimension>``
+    and the row numbers, and silently drops the rows below and the cells right of the
+    declared dimension and any row numbered at or below an earlier one. Its own parser is
+    used instead (the same one, same cell values), and a repeated or out-of-order row or
+    cell is refused."""
+    from openpyxl.worksheet._reader import WorkSheetParser
+
+    wb = ws.parent  # type: ignore[attr-defined]
+    src = ws._get_source()  # type: ignore[attr-defined]
+    try:
+        parser = WorkSheetParser(src, ws._shared_strings,  # type: ignore[attr-defined]
+                                 data_only=True, epoch=wb.epoch,
+                                 date_formats=wb._date_formats,
+                                 timedelta_formats=wb._timedelta_formats)
+        prev = 0
+        for r, cells in parser.parse():
+            if r <= prev:
+                raise AbbeInputError(f"sheet row {r} comes after row {prev}: expected the rows "
+                                     "of the sheet's XML in increasing order, each once",
+                                     file=f, line=r)
+            prev = r
+            row: dict[int, object] = {}
+            for c in cells:
+                j = int(c["column"])
+                if j in row or (row and j < max(row)):
+                    col = _col_letter(j - 1)
+                    raise AbbeInputError(f"cell {col}{r} repeated or out of order in the "
+                                         "sheet's XML: expected each cell once, left to right",
+                                         file=f, line=r, field=col)
+                row[j] = c["value"]
+            yield r, row
+    finally:
+        src.close()
+
+
 def read_thermal_xlsx(path: str | Path, sheet: str | None = None) -> ThermalRecord:
     """Read a thermal record from an ``.xlsx`` workbook (module docs); errors name the
     sheet row and the column (``FILE:ROW: field 'ch3': ...``)."""
@@ -201,33 +240,36 @@ def read_thermal_xlsx(path: str | Path, sheet: str | None = None) -> ThermalReco
     except Exception as exc:  # a corrupt or foreign file: openpyxl's many exception types
         raise AbbeInputError(f"not a readable .xlsx workbook ({type(exc).__name__}: {exc})",
                              file=f) from None
+    r = 0  # the sheet row being read (for an error in the sheet's XML)
     try:
         if sheet is not None and sheet not in wb.sheetnames:
             raise AbbeInputError(f"no sheet {sheet!r}: the workbook has {wb.sheetnames}",
                                  file=f, field="sheet")
+        if sheet is None and not wb.worksheets:
+            raise AbbeInputError("the workbook has no worksheet", file=f, field="sheet")
         ws = wb[sheet] if sheet is not None else wb.worksheets[0]
-        it = ws.iter_rows(values_only=True)
-        header = None
+        it = _sheet_rows(ws, f)
+        header: dict[int, object] | None = None
         hrow = 0
-        for r, cells in enumerate(it, start=1):
-            if any(c is not None for c in cells):
+        for r, cells in it:
+            if any(c is not None for c in cells.values()):
                 header, hrow = cells, r
                 break
         if header is None:
             raise AbbeInputError("empty sheet: expected a header row", file=f, line=1)
-        width = len(header)
-        while width and header[width - 1] is None:
-            width -= 1
-        spec = _classify_header(header[:width], f, hrow)
+        width = max(j for j, c in header.items() if c is not None)
+        spec = _classify_header(tuple(header.get(j) for j in range(1, width + 1)), f, hrow)
         # one pass, converted as read: 8 bytes a value (array 'd'), not a row of objects
         cols = [array("d") for _ in range(width)]
         rows = array("q")
         checks = [(RANGES[kind], name, _col_letter(j)) for j, (kind, name) in enumerate(spec)]
         blank_at: int | None = None
-        for r, raw in enumerate(it, start=hrow + 1):
-            beyond = [j for j in range(width, len(raw)) if raw[j] is not None]
-            cells = tuple(raw[:width]) + (None,) * max(0, width - len(raw))
-            if all(c is None for c in cells) and not beyond:
+        last = hrow
+        for r, raw in it:
+            if blank_at is None and r > last + 1:  # rows the sheet XML leaves out are empty
+                blank_at = last + 1
+            last = r
+            if all(c is None for c in raw.values()):
                 if blank_at is None:
                     blank_at = r
                 continue
@@ -235,14 +277,16 @@ def read_thermal_xlsx(path: str | Path, sheet: str | None = None) -> ThermalReco
                 raise AbbeInputError(f"empty row {blank_at} between data rows: a record has no "
                                      "gaps (delete the row or split the record)", file=f,
                                      line=blank_at)
+            beyond = sorted(j for j, c in raw.items() if j > width and c is not None)
             if beyond:
-                c = _col_letter(beyond[0])
+                c = _col_letter(beyond[0] - 1)
                 raise AbbeInputError(f"cell {c}{r} lies beyond the header's {width} columns: "
                                      "expected a header for every column", file=f, line=r,
                                      field=c)
             if len(rows) >= MAX_ROWS:
                 raise AbbeInputError(f"more than {MAX_ROWS} data rows", file=f, line=r)
-            for j, v in enumerate(cells):
+            for j in range(width):
+                v = raw.get(j + 1)
                 (lo, hi, unit), name, col = checks[j]
                 if isinstance(v, str):
                     v = parse_number(v.strip(), file=f, line=r, field=name, lo=lo, hi=hi,
@@ -254,6 +298,11 @@ def read_thermal_xlsx(path: str | Path, sheet: str | None = None) -> ThermalReco
                     v = check_number(v, file=f, line=r, field=name, lo=lo, hi=hi, unit=unit)
                 cols[j].append(v)
             rows.append(r)
+    except (AbbeInputError, MemoryError):
+        raise
+    except Exception as exc:  # openpyxl on a broken sheet XML: its many exception types
+        raise AbbeInputError(f"the sheet's XML is not readable after row {r} "
+                             f"({type(exc).__name__}: {exc})", file=f, line=r + 1) from None
     finally:
         wb.close()
     vals = (np.column_stack([np.frombuffer(c, dtype=np.float64) for c in cols]) if len(rows)

@@ -17,6 +17,7 @@ import shutil
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from fuzz_budget import DERANDOMIZE, examples
 
 from fuzzing.commands import (
     OPTION_VALUES,
@@ -72,7 +73,7 @@ def test_command_promises_under_mutation(seed_ws, fuzz_env, name, capsys):
     seed = t.mutated.read_bytes()
     tried = []
 
-    @settings(max_examples=EXAMPLES[name], derandomize=True, database=None, deadline=None,
+    @settings(max_examples=examples(EXAMPLES[name]), derandomize=DERANDOMIZE, database=None, deadline=None,
               suppress_health_check=list(HealthCheck))
     @given(st.data())
     def run(data):
@@ -115,7 +116,7 @@ def test_option_values_are_range_checked(seed_ws, fuzz_env, name, capsys):
     numeric = option_slots(argv)
     assert numeric
 
-    @settings(max_examples=25, derandomize=True, database=None, deadline=None,
+    @settings(max_examples=examples(25), derandomize=DERANDOMIZE, database=None, deadline=None,
               suppress_health_check=list(HealthCheck))
     @given(st.sampled_from(numeric), st.sampled_from(OPTION_VALUES))
     def run(i, value):
@@ -143,7 +144,7 @@ def test_a_hostile_number_makes_the_command_refuse(seed_ws, fuzz_env, name, caps
     assert t.hostile_numbers
     seed = t.mutated.read_bytes()
 
-    @settings(max_examples=20, derandomize=True, database=None, deadline=None,
+    @settings(max_examples=examples(20), derandomize=DERANDOMIZE, database=None, deadline=None,
               suppress_health_check=list(HealthCheck))
     @given(st.data())
     def run(data):

@@ -20,6 +20,7 @@ from typing import Any
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from fuzz_budget import DERANDOMIZE, examples
 
 from abbe.cli.entry import main
 from abbe.cli.table_uncertainty import _load
@@ -29,7 +30,7 @@ from cases.synthetic_laser import make_dataset
 from fuzzing.mutate import mutate
 
 #: Kept small: each case reads a model.json of ~130 kB (the CI budget of issue 37's tests).
-FUZZ = settings(max_examples=40, derandomize=True, database=None, deadline=None,
+FUZZ = settings(max_examples=examples(40), derandomize=DERANDOMIZE, database=None, deadline=None,
                 suppress_health_check=list(HealthCheck))
 
 #: Values a node may be replaced by (JSON has no NaN: Python's json writes it as ``NaN``,

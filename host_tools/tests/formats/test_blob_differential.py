@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from fuzz_budget import DERANDOMIZE, examples
 
 from abbe.formats import golden
 from abbe.formats.blob import read_blob, write_blob
@@ -75,7 +76,7 @@ def _c_status(blob: bytes) -> tuple[str, clib.CModel | None]:
         return exc.status, None
 
 
-@settings(max_examples=400, deadline=None, derandomize=True,
+@settings(max_examples=examples(400), deadline=None, derandomize=DERANDOMIZE,
           suppress_health_check=[HealthCheck.too_slow])
 @given(mutated())
 def test_python_reader_and_c_loader_agree(blob: bytes) -> None:

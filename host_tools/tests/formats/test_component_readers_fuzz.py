@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from fuzz_budget import DERANDOMIZE, examples
 
 from abbe.errors import AbbeInputError
 from abbe.formats.etalon import read_etalon
@@ -25,7 +26,7 @@ def _check(data) -> None:
         assert all(np.isfinite(data.squareness_urad))
 
 
-@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=examples(300), deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(text=lines)
 def test_readers_accept_or_refuse_cleanly(tmp_path, text) -> None:
     f = tmp_path / "f.txt"

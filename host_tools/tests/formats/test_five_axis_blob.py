@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from fuzz_budget import DERANDOMIZE, examples
 
 from abbe.formats import golden_five
 from abbe.formats.blob import read_blob
@@ -148,7 +149,7 @@ pytestmark_c = pytest.mark.skipif(not clib.available(), reason="C library not bu
 
 
 @pytestmark_c
-@settings(max_examples=300, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(300), deadline=None, derandomize=DERANDOMIZE, suppress_health_check=[HealthCheck.too_slow])
 @given(mutated())
 def test_python_reader_and_c_loader_agree(blob: bytes) -> None:
     msg = ""

@@ -9,6 +9,7 @@ import numpy as np
 from fuzzing.mutate import mutate, replace_number
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from fuzz_budget import DERANDOMIZE, examples
 
 from abbe.errors import AbbeInputError
 from abbe.formats.printer_maps import read_height_map, read_skew_csv
@@ -63,7 +64,7 @@ def _check(result) -> None:
             assert all(np.isfinite([m.ac_mm, m.bd_mm, m.ad_mm, m.tangent()]))
 
 
-@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=examples(300), deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.data(), name=st.sampled_from(sorted(SEEDS)), rounds=st.integers(1, 4))
 def test_mutated_maps_read_or_refused(tmp_path, data, name, rounds):
     seed, reader = SEEDS[name]
@@ -76,7 +77,7 @@ def test_mutated_maps_read_or_refused(tmp_path, data, name, rounds):
         assert exc.file == str(p)
 
 
-@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=examples(100), deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.data(), name=st.sampled_from(sorted(SEEDS)))
 def test_hostile_number_is_refused(tmp_path, data, name):
     seed, reader = SEEDS[name]

@@ -19,13 +19,14 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from fuzz_budget import DERANDOMIZE, examples
 
 from abbe.errors import AbbeInputError
 from fuzzing.mutate import HOSTILE_NUMBERS, mutate, replace_number
 
 #: Mutated inputs per reader in CI (the long run: python -m fuzzing.run).
-EXAMPLES = 100
-FUZZ = settings(max_examples=EXAMPLES, derandomize=True, database=None, deadline=None,
+EXAMPLES = examples(100)
+FUZZ = settings(max_examples=EXAMPLES, derandomize=DERANDOMIZE, database=None, deadline=None,
                 suppress_health_check=list(HealthCheck))
 
 
@@ -201,7 +202,7 @@ def laser_files(draw):
     return bom + text.encode(), targets, want
 
 
-@settings(max_examples=80, derandomize=True, database=None, deadline=None)
+@settings(max_examples=examples(80), derandomize=DERANDOMIZE, database=None, deadline=None)
 @given(laser_files())
 def test_valid_laser_files_read_back(f):
     from abbe.formats.laser_csv import read_laser_csv
@@ -269,7 +270,7 @@ def _toml_value(v) -> str:
     return "{ " + ", ".join(f"{k} = {_toml_value(x)}" for k, x in v.items()) + " }"
 
 
-@settings(max_examples=80, derandomize=True, database=None, deadline=None)
+@settings(max_examples=examples(80), derandomize=DERANDOMIZE, database=None, deadline=None)
 @given(declared_files())
 def test_declared_dialects_read_back(f):
     from abbe.formats.columns import LASER_ROLES, parse_columns
@@ -288,7 +289,7 @@ def test_declared_dialects_read_back(f):
         assert np.allclose(got.channels[ch], want[ch], rtol=1e-12, atol=1e-9)
 
 
-@settings(max_examples=60, derandomize=True, database=None, deadline=None)
+@settings(max_examples=examples(60), derandomize=DERANDOMIZE, database=None, deadline=None)
 @given(st.floats(0.0, 359.0), st.floats(0.25, 3.0), st.integers(0, 40), st.booleans())
 def test_wrapped_ballbar_angles_unwrap(start, step, arc, feed):
     """A trace written with angles wrapped into [0, 360) reads back as abbe's convention."""

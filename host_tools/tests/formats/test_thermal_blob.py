@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from fuzz_budget import DERANDOMIZE, examples
 
 from abbe.formats import golden, golden_thermal
 from abbe.formats.blob import read_blob, write_blob
@@ -128,7 +129,7 @@ def _status_py(blob: bytes) -> str:
 
 
 @needs_c
-@settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(400), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.lists(st.tuples(st.integers(0, len(_FIELDS) - 1), st.integers(0, 2**32 - 1)),
                 min_size=1, max_size=3))
 def test_c_and_python_give_the_same_status(muts: list[tuple[int, int]]) -> None:
