@@ -114,6 +114,15 @@ for t in $EVAL_TABLES; do
 done
 HARNESSES+=("eval_q_full_golden|$EVAL_SRCS|$ANY -DPROOF_TABLES_H=tables_full.h|$EVAL_Q_OPTS")
 HARNESSES+=("eval_f32_full_golden|$EVAL_F32_SRCS|$ANY -DPROOF_TABLES_H=tables_full.h|$EVAL_OPTS")
+# Any layout (tests/proofs/any_layout.h: every term mask, trend degree,
+# harmonic count and reversal row count the loader accepts, any scalars):
+# terms_q_any proves the fixed-point term kernel's contract
+# (tests/proofs/terms_q_contract.h: the term ranges) on every layout, each
+# term mask its own partition; eval_q_any_layout runs the evaluation and the
+# compensator's cycles on a model of any layout with the kernel as that
+# contract (its preconditions checked at each call)
+HARNESSES+=("terms_q_any|tests/proofs/terms_q_any.c $(printf 'lib/src/%s.c ' terms_q terms_sparse_q sincos_q)||-eva-auto-loop-unroll 300 -eva-slevel-function terms6_q:100,abbe_axis_terms_sparse_q:100 -eva-slevel-merge-after-loop terms6_q,abbe_axis_terms_sparse_q -eva-interprocedural-splits")
+HARNESSES+=("eval_q_any_layout|tests/proofs/eval_q_any_layout.c $(printf 'lib/src/%s.c ' eval_q comp comp_q status)||-eva-auto-loop-unroll 300 -eva-use-spec abbe_axis_terms_q -eva-split-return-function abbe_comp_init:0,config_ok:0 -eva-slevel-function main:10,abbe_comp_init:10")
 # the five-axis evaluations on each five-axis golden table (tests/golden/golden_five.c:
 # A/C with every motion, B/C motions, A/C location errors; the head-head,
 # head-table and dual rotary table kinds of format 1.4), any scalars of the
