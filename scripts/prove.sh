@@ -123,6 +123,8 @@ HARNESSES+=("eval_f32_full_golden|$EVAL_F32_SRCS|$ANY -DPROOF_TABLES_H=tables_fu
 # contract (its preconditions checked at each call)
 HARNESSES+=("terms_q_any|tests/proofs/terms_q_any.c $(printf 'lib/src/%s.c ' terms_q terms_sparse_q sincos_q)||-eva-auto-loop-unroll 300 -eva-slevel-function terms6_q:100,abbe_axis_terms_sparse_q:100 -eva-slevel-merge-after-loop terms6_q,abbe_axis_terms_sparse_q -eva-interprocedural-splits")
 HARNESSES+=("eval_q_any_layout|tests/proofs/eval_q_any_layout.c $(printf 'lib/src/%s.c ' eval_q comp comp_q status)||-eva-auto-loop-unroll 300 -eva-use-spec abbe_axis_terms_q -eva-split-return-function abbe_comp_init:0,config_ok:0 -eva-slevel-function main:10,abbe_comp_init:10")
+# the float evaluation on any layout, its kernels as they are
+HARNESSES+=("eval_f32_any_layout|tests/proofs/eval_f32_any_layout.c $(printf 'lib/src/%s.c ' eval_f32 terms_f32 sincos_f32 status)||-eva-auto-loop-unroll 300 -eva-slevel-function main:10,fold6_body:100,fold6_f32:100,abbe_axis_terms_sparse_f32:100 -eva-slevel-merge-after-loop fold6_body,fold6_f32,abbe_axis_terms_sparse_f32")
 # the five-axis evaluations on each five-axis golden table (tests/golden/golden_five.c:
 # A/C with every motion, B/C motions, A/C location errors; the head-head,
 # head-table and dual rotary table kinds of format 1.4), any scalars of the
