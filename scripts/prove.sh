@@ -2,7 +2,9 @@
 # The proofs of docs/proofs.md: Frama-C Eva analyses of every reader of
 # untrusted bytes and of the evaluators and the compensator on every table
 # the loaders accept with a golden table's layout, any scalar fields and
-# (3-axis) any coefficients in a box (tests/proofs/*.c), each of which must end with zero alarms and every
+# (3-axis) any coefficients in a box, and on any layout / any thermal block
+# within the loaders' invariants (tests/proofs/any_layout.h, thermal_update.c)
+# (tests/proofs/*.c), each of which must end with zero alarms and every
 # ACSL property it reaches proven (but the hypotheses, which
 # tests/proofs/hypotheses.c checks on all their inputs, here); WP's proof of
 # the loader contracts (Why3 + Z3); then cppcheck's MISRA C:2012 addon and
