@@ -50,9 +50,9 @@ static void th_mix_q(abbe_thermal_state_t *st)
     st->fading = (uint8_t)fading;
 }
 
-static int32_t th_div_round(int64_t num, int64_t den)
+static int64_t th_div_round(int64_t num, int64_t den)
 {
-    return (int32_t)(num >= 0 ? (num + den / 2) / den : -((-num + den / 2) / den));
+    return num >= 0 ? (num + den / 2) / den : -((-num + den / 2) / den);
 }
 
 abbe_status_t abbe_thermal_update_q(abbe_thermal_state_t *st, const int32_t x_milli[], uint32_t valid_mask,
@@ -153,9 +153,16 @@ abbe_status_t abbe_thermal_update_q(abbe_thermal_state_t *st, const int32_t x_mi
         st->yq[c] = (int32_t)y;
         uint8_t out = th->output[c];
         if (out == ABBE_THERMAL_OUT_A || out == ABBE_THERMAL_OUT_B) {
-            /* nrad x nm = 1e-9 nm; |.| <= 2^30 x 2^31 */
-            int32_t tip = th_div_round(y * th->tool_z_nm, 1000000000);
-            st->tipq[c] = out == ABBE_THERMAL_OUT_A ? -tip : tip;
+            /* nrad x nm = 1e-9 nm; |.| <= 2^30 x 2^31 / 10^9 = 2.3e9 nm: beyond
+             * int32 for a tilt near its cap on a tool offset over 2.1 m (both
+             * accepted by the loader), so held to +/-INT32_MAX and flagged */
+            const int64_t tip_cap = INT32_MAX;
+            int64_t tip = th_div_round(y * th->tool_z_nm, 1000000000);
+            if ((tip > tip_cap) || (tip < -tip_cap)) {
+                tip = (tip > 0) ? tip_cap : -tip_cap;
+                flags |= ABBE_THERMAL_F_LIMIT;
+            }
+            st->tipq[c] = (int32_t)(out == ABBE_THERMAL_OUT_A ? -tip : tip);
         } else {
             st->tipq[c] = (int32_t)y;
         }

@@ -727,6 +727,70 @@ static void test_tau_zero_q(void **state)
     assert_true(moved > 0u); /* the comparison is not of zeros */
 }
 
+/* A tilt channel (A, B) at its limit, 2^30 nrad, on a tool offset t_z beyond
+ * 2.1 m (both accepted by the loader): its tool tip share y t_z / 10^9 is
+ * beyond int32. It is held to +/-INT32_MAX (and flagged), never wrapped: the
+ * int32 conversion wrapped it to the opposite sign before (found by the proof
+ * thermal_any_q, docs/proofs.md). Only the tilt channels have a gain here,
+ * every input far above its reference, no lag, a fade of 1 ms. */
+static void tilt_tip_err(int32_t tool_z_nm, int32_t err[3], uint32_t *flags)
+{
+    blob_buf_t buf;
+    copy_golden(&buf);
+    const uint32_t t = block_off(&buf);
+    put_u32(buf.b + 20, get_u32(buf.b + 20) | ABBE_FEATURE_TOOL_OFFSET);
+    put_u32(buf.b + 36 + 8, (uint32_t)tool_z_nm);
+    put_u32(buf.b + t + 8u, 1u); /* fade 1 ms */
+    for (unsigned k = 0; k < 17u; k++) {
+        put_u32(buf.b + t + IN(k, 4u), 0u);                 /* reference 0 */
+        put_u32(buf.b + t + IN(k, 8u), (uint32_t)-(1 << 20)); /* valid range: the caps */
+        put_u32(buf.b + t + IN(k, 12u), 1u << 20);
+        put_u32(buf.b + t + IN(k, 16u), 1u << 21);          /* max step */
+    }
+    for (unsigned c = 0; c < 5u; c++) {
+        const unsigned tilt = buf.b[t + CH(c, 0)] >= ABBE_THERMAL_OUT_A;
+        put_u32(buf.b + t + CH(c, 4u), 1u << 30); /* limit */
+        for (unsigned k = 0; k < buf.b[t + CH(c, 1)]; k++) {
+            put_u32(buf.b + t + CH(c, 8u + 12u * k + 4u), 0u); /* tau 0 */
+            put_u32(buf.b + t + CH(c, 8u + 12u * k + 8u), tilt ? 1u << 28 : 0u);
+        }
+    }
+    fix_crc(buf.b);
+    abbe_model_t m;
+    abbe_thermal_model_t th;
+    assert_int_equal(abbe_thermal_load(&m, &th, buf.b, abbe_golden_thermal_blob_size), ABBE_OK);
+    abbe_thermal_state_t st;
+    assert_int_equal(abbe_thermal_init_q(&st, &th, 1000u), ABBE_OK);
+    int32_t x[17];
+    for (unsigned k = 0; k < 17u; k++) {
+        x[k] = 1 << 20; /* 1048 K (or rpm) above the reference */
+    }
+    assert_int_equal(abbe_thermal_update_q(&st, x, 0x1FFFFu, 0u), ABBE_OK);
+    for (unsigned n = 0; n < 3u; n++) { /* faded in */
+        memset(err, 0, 3u * sizeof err[0]);
+        abbe_thermal_apply_q(&st, err);
+    }
+    *flags = abbe_thermal_flags(&st);
+}
+
+static void test_tilt_tip_saturates_q(void **state)
+{
+    (void)state;
+    int32_t fits[3], beyond[3];
+    uint32_t flags_fits, flags_beyond;
+    tilt_tip_err(-(1 << 30), fits, &flags_fits);            /* 2^30 x 2^30 / 10^9: fits int32 */
+    tilt_tip_err(INT32_MIN + 1, beyond, &flags_beyond);     /* 2^30 x (2^31 - 1) / 10^9: does not */
+    unsigned nonzero = 0;
+    for (unsigned j = 0; j < 3u; j++) {
+        /* the same sign, at least as large: no wrap */
+        assert_true((int64_t)fits[j] * beyond[j] >= 0);
+        assert_true(beyond[j] >= 0 ? beyond[j] >= fits[j] : beyond[j] <= fits[j]);
+        nonzero += beyond[j] != 0;
+    }
+    assert_true(nonzero > 0u);
+    assert_true(flags_beyond & ABBE_THERMAL_F_LIMIT);
+}
+
 static void test_stuck(void **state)
 {
     (void)state;
@@ -747,6 +811,7 @@ int main(void)
         cmocka_unit_test(test_apply_ms),
         cmocka_unit_test(test_tau_zero_q),
         cmocka_unit_test(test_stuck),
+        cmocka_unit_test(test_tilt_tip_saturates_q),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -1,0 +1,33 @@
+/* The contract of the fixed-point term kernel (terms_q.c, terms_sparse_q.c)
+ * the any-layout proofs use: terms_q_any.c proves it (Eva checks each
+ * postcondition at the kernel's return, for any layout within the loader's
+ * invariants, any offset d and the coefficient box of any_layout.h);
+ * eval_q_any_layout.c runs the kernel as this contract
+ * (-eva-use-spec abbe_axis_terms_q), checking the preconditions at each call.
+ * The postconditions are the term ranges assemble_q relies on (eval_q.c):
+ * a linear term within +/-2^30 (2^-6 nm: +/-16.8 mm), an angular one within
+ * +/-2^27 (2^-35 rad: +/-3.9 mrad). */
+#ifndef PROOF_TERMS_Q_CONTRACT_H
+#define PROOF_TERMS_Q_CONTRACT_H
+
+#include "internal.h"
+
+/*@ requires layout: ax->n_terms <= 6 && ax->trend_rows <= 8 && ax->harmonics[0] <= 8 &&
+                     ax->harmonics[1] <= 8 && ax->n_basis <= 40 && ax->cheb_shift <= 31;
+    requires coefficients: ax->n_basis * ax->n_terms == 0 ||
+                           \valid_read(ax->coef_q + (0 .. 4 * ax->n_basis * ax->n_terms - 1));
+    requires out: \valid(value + (0 .. 5));
+    assigns value[0 .. 5] \from d, ax->coef_q[0 .. 4 * 240 - 1], ax->travel_min_nm, ax->cheb_mul,
+        ax->cheb_shift, ax->freq[0 .. 1], ax->phase_min[0 .. 1], ax->n_terms, ax->trend_rows,
+        ax->harmonics[0 .. 1], ax->n_basis, ax->column[0 .. 5];
+    ensures init: \initialized(value + (0 .. 5));
+    ensures lin_x: -0x40000000 <= value[0] <= 0x40000000;
+    ensures lin_y: -0x40000000 <= value[1] <= 0x40000000;
+    ensures lin_z: -0x40000000 <= value[2] <= 0x40000000;
+    ensures ang_x: -0x8000000 <= value[3] <= 0x8000000;
+    ensures ang_y: -0x8000000 <= value[4] <= 0x8000000;
+    ensures ang_z: -0x8000000 <= value[5] <= 0x8000000;
+ */
+void abbe_axis_terms_q(const abbe_axis_model_t *ax, uint32_t d, int32_t value[ABBE_TERMS]);
+
+#endif /* PROOF_TERMS_Q_CONTRACT_H */
