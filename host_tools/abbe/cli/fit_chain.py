@@ -22,10 +22,10 @@ def is_chain_machine(path: str) -> bool:
 
 
 def run_chain(args: argparse.Namespace) -> int:
-    from abbe.analysis.five_axis.chain_fit import (fit_to_json, identify_chain,
-                                                   monte_carlo_chain, report_rows, reweight,
-                                                   setups_from_machine,
-                                                   state_monte_carlo_chain)
+    from abbe.analysis.five_axis.chain_fit import (fit_to_json, identify_chain, report_rows,
+                                                   reweight, setups_from_machine)
+    from abbe.analysis.five_axis.chain_uncertainty import (monte_carlo_chain,
+                                                           state_monte_carlo_chain)
     from abbe.errors import AbbeInputError
     from abbe.formats.machine import load_machine
 

@@ -185,8 +185,9 @@ def test_chain_monte_carlo_catches_a_wrong_U(tmp_path: Path) -> None:
     """The check can fail: with the first order's U halved (a budget error), every
     identified error is more than 10 % off and the Monte Carlo's U is stated."""
     from abbe.analysis.five_axis.chain_fit import (fit_to_json, identify_chain,
-                                                   monte_carlo_chain, setups_from_machine,
-                                                   state_monte_carlo_chain)
+                                                   setups_from_machine)
+    from abbe.analysis.five_axis.chain_uncertainty import (monte_carlo_chain,
+                                                           state_monte_carlo_chain)
     m, _truth = _campaign(tmp_path, "table-dual-rotary-xyzab.toml", 8)
     machine = load_machine(m)
     chain = machine.extra["chain"]
