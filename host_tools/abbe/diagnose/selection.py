@@ -297,6 +297,7 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
     cands = eng.build_candidates(table, eng.pp, eng.y0, W, Qn, specs)
     not_obs = [f"{c.spec.key}: {c.why_not}" for c in cands if not c.observable]
     pool = [c for c in cands if c.observable]
+    by_key_pool = {c.spec.key: c for c in pool}
 
     selected: list[Selected] = []
     tested: dict[str, dict[str, Any]] = {}
@@ -314,6 +315,18 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
             break
         results = []
         for c in remaining:
+            Qc, rbc, rss_c = Qb, rb, rss_base
+            static = by_key_pool.get(f"scale_{c.spec.axis.lower()}") \
+                if c.spec.kind == "thermal" and c.spec.axis else None
+            if static is not None and static.spec.key not in {s.cand.spec.key for s in selected}:
+                # A drift is named on its change in time (docs/effects.md §3, drift and
+                # scale): the part of its signature that is constant in time is the same
+                # axis' scale (with the drift variable taken from the cold state, a warm
+                # machine's drift column is mostly a scale). The drift is judged, and
+                # ranked, with that scale free in the base.
+                Qc = qr_basis(np.hstack([Qb, project_out(Qb, static.cols * W[:, None])]))
+                rbc = project_out(Qc, rw[:, None])[:, 0]
+                rss_c = float(rbc @ rbc)
             alts = eng._alts.get(c.spec.key)
             tau = _named_drift_tau(selected) if c.spec.kind == "thermal" else None
             if alts and tau is not None:
@@ -326,18 +339,18 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
                 # nonlinear grid value / parameter subset: the alternative with the best BIC
                 best_c, best_b = None, math.inf
                 for a in alts:
-                    Z = project_out(Qb, a.cols * W[:, None])
-                    ra = rb if a.offset is None else \
-                        project_out(Qb, (rw - a.offset * W)[:, None])[:, 0]
+                    Z = project_out(Qc, a.cols * W[:, None])
+                    ra = rbc if a.offset is None else \
+                        project_out(Qc, (rw - a.offset * W)[:, None])[:, 0]
                     _, fit = lstsq_rss(Z, ra)
-                    d = rss_base - (float(ra @ ra) - fit)
+                    d = rss_c - (float(ra @ ra) - fit)
                     b = -d + Z.shape[1] * math.log(prob.N)
                     if b < best_b:
                         best_c, best_b = a, b
                 if best_c is not None:
                     c.cols, c.param_idx, c.scan_value = best_c.cols, best_c.param_idx, best_c.scan_value
                     c.offset = best_c.offset
-            st = _eval_candidate(eng, c, selected, W, Qb, rb, rss_base, dof_noise,
+            st = _eval_candidate(eng, c, selected, W, Qc, rbc, rss_c, dof_noise,
                                  len(remaining), table, rw)
             ok, why = _judge(st, opts)
             st["qualifies"], st["why_not"] = ok, why
