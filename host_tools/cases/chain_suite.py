@@ -44,15 +44,7 @@ def run_case(path: Path, chain, gch: gen.GenChain, rng: np.random.Generator) -> 
             obs = gen.rtest_readings(gch, truth, sphere, off, tip, angles, RTEST_NOISE_UM, rng)
             sig = RTEST_NOISE_UM
         setups.append(ChainSetup(kind, name, tuple(sphere), angles, obs, tuple(tip), sig))
-    fit = identify_chain(chain, setups, explain=False)
-    rows = []
-    for r in fit.rows:
-        if r.value is None:
-            continue
-        floor = 1.0 if r.unit == "um" else 5.0
-        err = abs(r.value - truth[r.name])
-        rows.append((r.name, err, r.u95, err <= max(r.u95, floor)))
-    return {"rows": rows, "unobservable": fit.unobservable, "rms": fit.rms_weighted}
+    return _scored(chain, setups, truth)
 
 
 def campaign(path: Path, cases: int, seed: int) -> dict:
@@ -223,15 +215,7 @@ def run_ballbar_case(chain, gch: gen.GenChain, rng: np.random.Generator,  # noqa
                                 PROBE_NOISE_UM, rng)
         setups.append(ChainSetup("probe", "S1", tuple(SPHERE_MM), angles, obs,
                                  (0.0, 0.0, 0.0), PROBE_NOISE_UM))
-    fit = identify_chain(chain, setups, explain=False)
-    rows = []
-    for r in fit.rows:
-        if r.value is None:
-            continue
-        floor = 1.0 if r.unit == "um" else 5.0
-        err = abs(r.value - truth[r.name])
-        rows.append((r.name, err, r.u95, err <= max(r.u95, floor)))
-    return {"rows": rows, "unobservable": fit.unobservable, "rms": fit.rms_weighted}
+    return _scored(chain, setups, truth)
 
 
 def ballbar_campaign(path: Path, cases: int, seed: int, probe: bool = False) -> dict:
@@ -258,3 +242,18 @@ def ballbar_campaign(path: Path, cases: int, seed: int, probe: bool = False) -> 
             "worst": None if worst is None else {"name": worst[0], "error": worst[1],
                                                   "u95": worst[2]},
             "seconds": dt}
+
+
+def _scored(chain, setups: list[ChainSetup], truth: dict[str, float]) -> dict:  # noqa: ANN001
+    """Identify ``setups`` and score each identified location error against ``truth``:
+    (name, |error|, u95, within max(u95, 1 um / 5 urad)), with what stays unobservable and
+    the weighted RMS residual."""
+    fit = identify_chain(chain, setups, explain=False)
+    rows = []
+    for r in fit.rows:
+        if r.value is None:
+            continue
+        floor = 1.0 if r.unit == "um" else 5.0
+        err = abs(r.value - truth[r.name])
+        rows.append((r.name, err, r.u95, err <= max(r.u95, floor)))
+    return {"rows": rows, "unobservable": fit.unobservable, "rms": fit.rms_weighted}
