@@ -19,7 +19,7 @@ adoption rule applied.
 
 ``python -m cases.thermal_round5 --identification-only`` from host_tools/ prints the choices
 on hours 0-24 and the costs and computes nothing on hours 24-46. Without the flag it also
-prints the held-out table and the rule's verdict (about two minutes).
+prints the held-out table and the rule's verdict (about 25 s).
 """
 
 from __future__ import annotations
