@@ -35,8 +35,12 @@ def test_drift_and_heldout_rms_carry_U(unc) -> None:
             agree += ok
     # the check is not a formality: some results pass it, some do not
     assert 0 < agree < 2 * len(unc["signals"])
-    ch4 = next(s for s in unc["signals"] if s["name"] == "ch4")
-    assert abs(ch4["drift"]["U_mc"] / ch4["drift"]["U"] - 1.0) < AGREEMENT
+    # ch2, composed of ch1's and tilt b's fits (issue 35, round 5): both fits' parameters
+    # and the three sensors carried together
+    ch2 = next(s for s in unc["signals"] if s["name"] == "ch2")
+    assert ch2["composed"].startswith("ch1 + 0.1 x tilt_b")
+    assert abs(ch2["drift"]["U_mc"] / ch2["drift"]["U"] - 1.0) < AGREEMENT
+    assert {c["name"] for c in ch2["drift"]["budget"]} >= {"ch1 sensitivity", "ch2 sensitivity"}
 
 
 def test_type_b_sensor_calibration(real_fit, unc) -> None:
@@ -88,16 +92,20 @@ def test_cubature_is_exact_for_a_quadratic() -> None:
 #: The figures the cubature carries (docs/uncertainty.md, measured with 3 x 1000 draws, seeds
 #: 1-3: 41 of 42 within 10 %, the miss ch5's held-out RMS at +11 % with seed 2; +3 % with
 #: the test's draws). Left out of the assertion: ch5's drift (+7 % at worst), ch2's and
-#: tilt_a's held-out RMS (-7 %, -9 %): with the test's 300 draws (about +-5 % of sampling
+#: tilt_a's held-out RMS (-7 %, -9 %; ch2's before round 5 composed it, -0.3 / +1.4 /
+#: +0.1 % since, 3 x 1000 draws): with the test's 300 draws (about +-5 % of sampling
 #: spread) they pass or fail with the draws. ch3's two figures left out since issue 35's
 #: round 4 (its room-sensor term t8, gain interval reaching 0 and lag not bounded: the MC
 #: parts from the cubature by +8..+11 % on the drift, +15..+26 % on the held-out RMS).
-CUBATURE_HOLDS = [(n, "drift") for n in ("ch1", "ch2", "ch4", "tilt_b", "tilt_a")] + [
-    (n, "heldout_rms") for n in ("ch1", "ch4", "ch5", "tilt_b")]
+#: Since round 5 ch2 and ch4 are composed (partner + tilt, both fits' parameters): ch2's
+#: figures within 4 % (3 x 1000 draws); ch4's two left out (it carries ch3's t8 term: drift
+#: MC +14..+16 %, held-out RMS +20..+26 %).
+CUBATURE_HOLDS = [(n, "drift") for n in ("ch1", "ch2", "tilt_b", "tilt_a")] + [
+    (n, "heldout_rms") for n in ("ch1", "ch2", "ch5", "tilt_b")]
 
 
 def test_cubature_agrees_with_the_monte_carlo_where_first_order_did_not(unc) -> None:
-    """The analytic U (cubature) within 10 % of the Monte Carlo (300 draws, seed 3) on 9
+    """The analytic U (cubature) within 10 % of the Monte Carlo (300 draws, seed 3) on 8
     named figures; on two of them (ch1's and tilt_b's held-out RMS: the RMS near a minimum)
     the first order is more than 50 % off, so this test fails if the propagation falls back
     to it."""

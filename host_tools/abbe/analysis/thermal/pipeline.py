@@ -9,17 +9,18 @@ regression on every temperature (trained on the same hours).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from abbe.analysis.thermal.identify import (ChannelFit, candidates_of, identify_channel,
-                                            inputs_of, mlr_baseline)
+from abbe.analysis.thermal.identify import (ChannelFit, candidates_of, cycles_of,
+                                            identify_channel, inputs_of, mlr_baseline)
 from abbe.analysis.thermal.iso230_3 import tilt_signal
-from abbe.analysis.thermal.structure import with_room_term
+from abbe.analysis.thermal.structure import prefers_partner, with_room_term
 from abbe.formats.thermal_machine import ThermalSpec
 from abbe.formats.thermal_record import ThermalRecord
-from abbe.model.thermal import ThermalChannel, ThermalModel, evaluate, lag_states
+from abbe.model.thermal import (MAX_TERMS_PER_CHANNEL, ThermalChannel, ThermalModel, evaluate,
+                                lag_states)
 
 #: The done-when ratio: compensated RMS at most this fraction of the uncompensated RMS.
 TARGET_RATIO = 0.20
@@ -39,6 +40,11 @@ class SignalResult:
     rms_comp: float = 0.0
     rms_mlr: float = 0.0
     rms_comp_ident: float = 0.0
+    #: a channel predicted as its partner's model plus ``scale`` times the pair's tilt
+    #: model (round 5, R5a): (partner, tilt signal, scale um per urad); None: its own model
+    composed: tuple[str, str, float] | None = None
+    #: the channel's own model when ``composed`` (kept for the report and the CV figures)
+    direct: ChannelFit | None = None
 
     @property
     def ratio(self) -> float:
@@ -55,12 +61,15 @@ class SignalResult:
                 "rms_model_identification_hours": self.rms_comp_ident,
                 "meets_target": self.meets, "cv_rms": self.fit.cv_rms_um,
                 "input_set": self.fit.input_set,
+                "composed_of": (None if self.composed is None else
+                                {"partner": self.composed[0], "tilt": self.composed[1],
+                                 "um_per_urad": self.composed[2]}),
                 "terms": [{"input": input_names[t.input], "tau_s": t.tau_s, "gain": t.gain,
                            "gain_u95": t.gain_u95, "tau_u95_s": t.tau_u95_s}
                           for t in self.fit.terms],
                 "selection": [{"added": s[0], "tau_s": s[1], "cv_rms": s[2],
                                "max_vif": s[3], "rivals": list(s[4])}
-                              for s in self.fit.steps]}
+                              for s in (self.direct or self.fit).steps]}
 
 
 @dataclass
@@ -85,6 +94,8 @@ def _rms(v: np.ndarray) -> float:
 def _signal(name: str, unit: str, y: np.ndarray, rec: ThermalRecord, cands, ident, valid,
             cycle_s: float, **kw) -> SignalResult:
     t = rec.time_s
+    kw = dict(kw)
+    kw.pop("partner", None)
     room = kw.pop("room_term", False)
     fit = identify_channel(name, t, y, cands, ident, cycle_s, **kw)
     if room:
@@ -105,6 +116,9 @@ def fit_record(rec: ThermalRecord, spec: ThermalSpec, **kw) -> FitResult:
     docs/thermal.md, "Issue 35, third round"), then kept or replaced by the heated inputs
     plus one room-sensor term, by the same cross-validation (``room_term=True``,
     :func:`~abbe.analysis.thermal.structure.with_room_term`; "Issue 35, fourth round");
+    then every channel of a tilt pair is predicted directly or as its partner's model plus
+    the pair's difference (the tilt's model times the spacing), by the cross-validation of
+    round 5 (``partner=True``, :func:`_nest_pairs`; "Issue 35, fifth round").
     ``kw`` goes to :func:`~abbe.analysis.thermal.identify.identify_channel` and may
     override them."""
     kw.setdefault("inputs", "by_cv")
@@ -119,10 +133,18 @@ def fit_record(rec: ThermalRecord, spec: ThermalSpec, **kw) -> FitResult:
     for k, n in enumerate(rec.channel_names):
         y = rec.disp_um[:, k] - rec.disp_um[0, k]
         chans.append(_signal(n, "um", y, rec, cands, ident, valid, cycle_s, **kw))
+    pairs = spec.tilt_pairs()
+    tilts = {}
+    for p in pairs:
+        y = tilt_signal(rec, p)
+        tilts[p.output] = _signal(f"tilt_{p.output}", "urad", y, rec, cands, ident, valid,
+                                  cycle_s, **kw)
+    direct = {c.name: c for c in chans}
+    if kw.get("partner", True):
+        chans = _nest_pairs(chans, tilts, pairs, rec, cands, ident, valid, cycle_s)
     by_name = {c.name: c for c in chans}
     outputs: list[SignalResult] = []
     model_channels: list[ThermalChannel] = []
-    pairs = spec.tilt_pairs()
     lowers = {p.lower for p in pairs}
     used: set[str] = set()
     for d in ("x", "y", "z"):
@@ -130,18 +152,19 @@ def fit_record(rec: ThermalRecord, spec: ThermalSpec, **kw) -> FitResult:
         pick = [c for c in cs if c.name in lowers] or sorted(cs, key=lambda c: c.nest_z_mm)
         if pick and pick[0].name in by_name and pick[0].name not in used:
             s = by_name[pick[0].name]
+            if len(s.fit.terms) > MAX_TERMS_PER_CHANNEL:  # composed beyond the runtime's terms
+                s = direct[s.name]
             used.add(s.name)
             outputs.append(s)
             if s.fit.terms:
                 model_channels.append(ThermalChannel(s.name, d, tuple(s.fit.terms),
                                                      limit=_limit(s.measured)))
     for p in pairs:
-        y = tilt_signal(rec, p)
-        s = _signal(f"tilt_{p.output}", "urad", y, rec, cands, ident, valid, cycle_s, **kw)
+        s = tilts[p.output]
         outputs.append(s)
         if s.fit.terms:
             model_channels.append(ThermalChannel(s.name, p.output, tuple(s.fit.terms),
-                                                 limit=_limit(y)))
+                                                 limit=_limit(s.measured)))
     notes = [f"identified on hours {spec.identify_hours[0]:g}-{spec.identify_hours[1]:g} of "
              f"{rec.file.rsplit('/', 1)[-1]}, validated on hours {spec.validate_hours[0]:g}-"
              f"{spec.validate_hours[1]:g}"]
@@ -156,6 +179,68 @@ def fit_record(rec: ThermalRecord, spec: ThermalSpec, **kw) -> FitResult:
                          channels=tuple(model_channels), notes=tuple(notes))
     model.validate()
     return FitResult(rec, spec, ident, valid, chans, outputs, model, names, notes)
+
+
+def _nest_pairs(chans: list[SignalResult], tilts: dict[str, SignalResult], pairs,
+                rec: ThermalRecord, cands, ident: np.ndarray, valid: np.ndarray,
+                cycle_s: float) -> list[SignalResult]:
+    """Round 5's R5a (docs/thermal.md, "Issue 35, fifth round"): each channel of a tilt pair
+    keeps its own model, or is predicted as its partner's model plus (upper) or minus
+    (lower) the pair's difference, the tilt's model times the spacing, when that has both
+    the lower leave-one-cycle-out and the lower forward-chaining RMS on the identification
+    hours (:func:`~abbe.analysis.thermal.structure.prefers_partner`). The composed channel's
+    terms are the two models' terms summed (the same input and time constant merged)."""
+    t = rec.time_s
+    cyc = cycles_of(t, ident, cycle_s)
+    by = {c.name: c for c in chans}
+    out = dict(by)
+    for p in pairs:
+        tilt = tilts.get(p.output)
+        if tilt is None or p.lower not in by or p.upper not in by:
+            continue
+        k = (1.0 if p.output == "b" else -1.0) * p.spacing_mm * 1e-3  # um per urad
+        y_diff = by[p.upper].measured - by[p.lower].measured
+        for me, partner, sign in ((p.upper, p.lower, 1.0), (p.lower, p.upper, -1.0)):
+            mine, other = by[me], by[partner]
+            use, figs = prefers_partner(t, mine.measured, cands, mine.fit.terms,
+                                        other.fit.terms, other.measured, tilt.fit.terms,
+                                        y_diff, sign, cyc)
+            if not use:
+                continue
+            scale = sign * k
+            pred = other.predicted + scale * tilt.predicted
+            terms = _merged(list(other.fit.terms), [replace(tt, gain=scale * tt.gain,
+                                                            gain_u95=None if tt.gain_u95 is None
+                                                            else abs(scale) * tt.gain_u95)
+                                                    for tt in tilt.fit.terms])
+            resid = mine.measured - pred
+            fit = ChannelFit(me, terms, figs["loco_partner"], [],
+                             fit_rms_um=_rms(resid[ident]),
+                             offset_um=other.fit.offset_um + scale * tilt.fit.offset_um,
+                             selection_cv_um=figs["loco_partner"],
+                             input_set="partner+difference")
+            out[me] = replace(mine, predicted=pred, fit=fit, rms_comp=_rms(resid[valid]),
+                              rms_comp_ident=_rms(resid[ident]),
+                              composed=(partner, tilt.name, scale), direct=mine.fit)
+    return [out[c.name] for c in chans]
+
+
+def _merged(a: list, b: list) -> list:
+    """Terms a then b, a term of b with the same input and time constant as one of a added
+    into it (gains summed, their 95 % half-widths in quadrature: the two fits' errors taken
+    as independent)."""
+    out = list(a)
+    for tt in b:
+        j = next((i for i, u in enumerate(out)
+                  if u.input == tt.input and u.tau_s == tt.tau_s), None)
+        if j is None:
+            out.append(tt)
+            continue
+        u = out[j]
+        g_u = (None if u.gain_u95 is None or tt.gain_u95 is None
+               else float(np.hypot(u.gain_u95, tt.gain_u95)))
+        out[j] = replace(u, gain=u.gain + tt.gain, gain_u95=g_u)
+    return out
 
 
 def _limit(y: np.ndarray) -> float:

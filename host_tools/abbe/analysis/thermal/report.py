@@ -154,10 +154,14 @@ def write_report(res: FitResult, iso: dict, out: Path, diagnosis: dict | None = 
                          f"<td>{_f(t.gain, 3)} &plusmn; {_f(t.gain_u95, 3)}</td></tr>")
     sel = []
     for s in res.channels:
-        for st in s.fit.steps:
+        own = s.direct if s.direct is not None else s.fit  # a composed channel: its own run
+        for st in own.steps:
             inputs = {"heated": "heated inputs",
                       "heated+room": "heated inputs, then a room sensor"}.get(
-                          s.fit.input_set, "all inputs")
+                          own.input_set, "all inputs")
+            if s.composed:
+                inputs += (f"; not used: {s.composed[0]} + {s.composed[2]:g} x "
+                           f"{s.composed[1]} won")
             sel.append(f"<tr><td class='l'>{_esc(s.name)} ({inputs})</td><td class='l'>{_esc(st[0])}</td><td>{st[1]:.0f}</td>"
                        f"<td>{st[2]:.2f}</td><td>{st[3]:.1f}</td>"
                        f"<td class='l'>{_esc(', '.join(st[4]) or '-')}</td></tr>")

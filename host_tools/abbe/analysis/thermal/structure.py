@@ -188,3 +188,59 @@ def default_fit(name: str, t_s: np.ndarray, y: np.ndarray, cands: list[Candidate
                 mask: np.ndarray, cycle_s: float) -> ChannelFit:
     """R3a, the default (``inputs="by_cv"``)."""
     return identify_channel(name, t_s, y, cands, mask, cycle_s, inputs="by_cv")
+
+
+# Issue 35, round 5 (docs/thermal.md, "Issue 35, fifth round"): a paired channel of the
+# ISO 230-3 nest predicted as its partner's model plus a model of the pair's difference.
+
+def _fold_fit(cols: np.ndarray, y: np.ndarray, tr: np.ndarray) -> np.ndarray:
+    """Prediction over the record of a least squares fit (with the sensor's zero offset) of
+    y on cols over the samples ``tr``."""
+    a = _with_offset(cols)
+    return a @ _lstsq(a[tr], y[tr])
+
+
+def partner_difference_rms(t_s: np.ndarray, y: np.ndarray, cands: list[Candidate],
+                           partner_terms, y_partner: np.ndarray, diff_terms,
+                           y_diff: np.ndarray, sign: float, cyc: np.ndarray,
+                           scheme: str = "loco") -> float:
+    """Cross-validated RMS (um) of y predicted as the partner channel's model plus ``sign``
+    times the model of the pair's difference (y_diff = upper - lower, um; sign +1 for the
+    upper channel, -1 for the lower). Each model keeps its inputs and time constants; its
+    gains and offset are refitted on the training cycles of its own signal (the partner's
+    displacement, the difference), as the runtime would run them: two separate models.
+    ``scheme``: "loco" (leave one cycle out) or "forward" (fit on the cycles before the
+    last, score the last: :func:`forward_chain_rms`)."""
+    sp = states_of(t_s, cands, partner_terms) if partner_terms else np.empty((y.size, 0))
+    sd = states_of(t_s, cands, diff_terms) if diff_terms else np.empty((y.size, 0))
+    if scheme == "loco":
+        folds = [((cyc >= 0) & (cyc != c), cyc == c) for c in np.unique(cyc[cyc >= 0])]
+    elif scheme == "forward":
+        last = int(cyc.max())
+        folds = [((cyc >= 0) & (cyc < last), cyc == last)]
+    else:
+        raise ValueError(f"scheme: expected 'loco' or 'forward', got {scheme!r}")
+    sq, n = 0.0, 0
+    for tr, te in folds:
+        pred = _fold_fit(sp, y_partner, tr) + sign * _fold_fit(sd, y_diff, tr)
+        r = (y - pred)[te]
+        sq += float(r @ r)
+        n += int(te.sum())
+    return float(np.sqrt(sq / n))
+
+
+def prefers_partner(t_s: np.ndarray, y: np.ndarray, cands: list[Candidate], direct_terms,
+                    partner_terms, y_partner: np.ndarray, diff_terms, y_diff: np.ndarray,
+                    sign: float, cyc: np.ndarray) -> tuple[bool, dict[str, float]]:
+    """R5a's per-channel choice (docs/thermal.md, "Issue 35, fifth round"): partner plus
+    difference only if it has a lower leave-one-cycle-out RMS AND a lower forward-chaining
+    RMS than the channel's own model on the identification hours (ties: the direct model).
+    Returns (choice, the four figures, um)."""
+    f = {"loco_direct": loco_rms(t_s, y, cands, direct_terms, cyc),
+         "forward_direct": forward_chain_rms(t_s, y, cands, direct_terms, cyc),
+         "loco_partner": partner_difference_rms(t_s, y, cands, partner_terms, y_partner,
+                                                diff_terms, y_diff, sign, cyc, "loco"),
+         "forward_partner": partner_difference_rms(t_s, y, cands, partner_terms, y_partner,
+                                                   diff_terms, y_diff, sign, cyc, "forward")}
+    return (f["loco_partner"] < f["loco_direct"]
+            and f["forward_partner"] < f["forward_direct"]), f

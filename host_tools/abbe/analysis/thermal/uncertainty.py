@@ -337,5 +337,131 @@ def thermal_uncertainty(res: Any, draws: int = 0, seed: int = 1) -> dict[str, An
                        "displacement sensor's sensitivity (calibration_U_pct, refit linearly: "
                        "the gains are least squares in the data) and the temperature sensors' "
                        "sensitivity (gains per K only); both drawn in the Monte Carlo"),
-            "signals": [signal_uncertainty(res, s, draws, seed) for s in
+            "signals": [(composed_uncertainty(res, s, draws, seed) if s.composed else
+                         signal_uncertainty(res, s, draws, seed)) for s in
                         res.channels + [s for s in res.outputs if s.unit == "urad"]]}
+
+
+def composed_uncertainty(res: Any, sig: Any, draws: int = 0, seed: int = 1) -> dict[str, Any]:
+    """A channel predicted as its partner's model plus ``scale`` times the pair's tilt model
+    (docs/thermal.md, "Issue 35, fifth round"): the drift and the held-out RMS with U
+    (k = 2) from both fits' parameters (each fit's covariance as :func:`covariance`; the
+    two fits taken as independent: they are fitted on different signals, the partner's
+    displacement and the pair's difference) and every displacement sensor's sensitivity
+    (the partner's data, the tilt's two channels and the channel's own samples), by the
+    same cubature and Monte Carlo as :func:`signal_uncertainty`. The terms' U are their
+    fits' (:attr:`ThermalTerm.gain_u95` at k = 2)."""
+    rec = res.record
+    t = rec.time_s
+    cands = candidates_of(rec.temps_c, list(rec.temp_names), rec.speed_rpm)
+    partner_name, tilt_name, scale = sig.composed
+    by = {s.name: s for s in res.channels + res.outputs}
+    partner, tilt = by[partner_name], by[tilt_name]
+    f1 = partner.direct if partner.direct is not None else partner.fit
+    f2 = tilt.fit
+    p1, C1 = covariance(t, partner.measured, cands, f1, res.ident_mask)
+    p2, C2 = covariance(t, tilt.measured, cands, f2, res.ident_mask)
+    n1 = p1.size
+    y = sig.measured
+    valid = res.valid_mask
+
+    def pred_of(q: np.ndarray, with_offset: bool = True) -> np.ndarray:
+        return (prediction(t, cands, f1, q[:n1], with_offset)
+                + scale * prediction(t, cands, f2, q[n1:], with_offset))
+
+    p = np.concatenate([p1, p2])
+    C = np.zeros((p.size, p.size))
+    C[:n1, :n1], C[n1:, n1:] = C1, C2
+    d = pred_of(p, with_offset=False)
+    iv = np.flatnonzero(valid)
+    i_max = int(iv[np.argmax(np.abs(d[iv]))])
+    S1 = _states(t, cands, f1, p1[len(f1.terms) + 1:])
+    S2 = _states(t, cands, f2, p2[len(f2.terms) + 1:])
+    r0 = (y - pred_of(p))[valid]
+    rms0 = float(np.sqrt(np.mean(r0 ** 2)))
+    tilt_b = {name: (u_rel, what, dy) for name, what, u_rel, dy in type_b_inputs(res, tilt)}
+    type_b = []
+    for name, u_rel, what in [(f"{n} sensitivity", c.calibration_U_pct / 100.0 / K,
+                               f"displacement sensor calibration, U = {c.calibration_U_pct:g} % "
+                               f"(k = 2, {'declared' if c.calibration_declared else 'class default'})")
+                              for n, c in res.spec.channels.items()
+                              if n in (sig.name, partner_name)]:
+        db1 = _refit_map(t, cands, f1, p1, res.ident_mask,
+                         partner.measured if name == f"{partner_name} sensitivity"
+                         else np.zeros(t.size))
+        dy2 = tilt_b[name][2] if name in tilt_b else np.zeros(t.size)
+        db2 = _refit_map(t, cands, f2, p2, res.ident_mask, dy2)
+        dpred = S1 @ db1 + scale * (S2 @ db2)
+        dd = float((S1[:, 1:] @ db1[1:] + scale * (S2[:, 1:] @ db2[1:]))[i_max])
+        dy_me = y if name == f"{sig.name} sensitivity" else np.zeros(t.size)
+        dr = (dy_me - dpred)[valid]
+        type_b.append({"name": name, "what": what, "u_rel": u_rel, "d_drift": dd,
+                       "d_resid": dr, "u_drift": abs(dd) * u_rel,
+                       "u_rms": abs(float(r0 @ dr) / (r0.size * rms0)) * u_rel if rms0 > 0 else 0.0})
+
+    def drift_at(q: np.ndarray) -> np.ndarray:
+        return np.array([pred_of(q, with_offset=False)[i_max]])
+
+    def rms_valid(q: np.ndarray) -> np.ndarray:
+        return np.array([np.sqrt(np.mean((y - pred_of(q))[valid] ** 2))])
+
+    jd = _jac(drift_at, p)[0]
+    jr = _jac(rms_valid, p)[0]
+    npar = p.size
+    pa = np.concatenate([p, np.zeros(len(type_b))])
+    Ca = np.zeros((pa.size, pa.size))
+    Ca[:npar, :npar] = C
+    for i, b in enumerate(type_b):
+        Ca[npar + i, npar + i] = b["u_rel"] ** 2
+
+    def figures(q: np.ndarray) -> np.ndarray:
+        e = q[npar:]
+        dv = pred_of(q[:npar], with_offset=False)[i_max] + sum(
+            ek * b["d_drift"] for ek, b in zip(e, type_b))
+        r = (y - pred_of(q[:npar]))[valid]
+        for ek, b in zip(e, type_b):
+            r = r + ek * b["d_resid"]
+        return np.array([dv, np.sqrt(np.mean(r ** 2))])
+
+    _, u_cub = cubature5(figures, pa, Ca)
+
+    def figure(value: float, uA: float, key: str, u_c: float) -> dict[str, Any]:
+        budget = [{"name": "identification residuals of both fits (Type A)", "u": uA}]
+        budget += [{"name": b["name"], "what": b["what"], "u": b[key]} for b in type_b]
+        return {"value": value, "U": K * u_c,
+                "U_first_order": K * float(np.sqrt(sum(c["u"] ** 2 for c in budget))),
+                "U_typeA": K * uA, "budget": budget,
+                "method": f"degree-5 cubature averaged over 3 frames ({3 * (2 * pa.size ** 2 + 1)} "
+                          "model evaluations); the budget lines are first order"}
+
+    terms = [{"input": res.input_names[tt.input], "gain": tt.gain,
+              "gain_U": None if tt.gain_u95 is None else K / 1.96 * tt.gain_u95,
+              "gain_U_typeA": None if tt.gain_u95 is None else K / 1.96 * tt.gain_u95,
+              "tau_s": tt.tau_s,
+              "tau_U_s": None if tt.tau_u95_s is None else K / 1.96 * tt.tau_u95_s}
+             for tt in sig.fit.terms]
+    out: dict[str, Any] = {
+        "name": sig.name, "unit": sig.unit, "terms": terms,
+        "composed": f"{partner_name} + {scale:g} x {tilt_name} (the two fits independent)",
+        "drift": {"hours": float(rec.hours[i_max]),
+                  **figure(float(d[i_max]), float(np.sqrt(max(jd @ C @ jd, 0.0))), "u_drift",
+                           float(u_cub[0]))},
+        "heldout_rms": figure(rms0, float(np.sqrt(max(jr @ C @ jr, 0.0))), "u_rms",
+                              float(u_cub[1])),
+        "temperature_calibration": "the partner's and the tilt's gains per K; the prediction "
+                                   "does not change (the same sensors run it)",
+        "n_eff": float(min(f1.n_eff, f2.n_eff))}
+    if draws:
+        F = monte_carlo_figures(figures, pa, Ca, draws, seed)
+        for i, key in enumerate(("drift", "heldout_rms")):
+            lo, hi = np.percentile(F[:, i], [2.5, 97.5])
+            out[key]["U_mc"] = K * float(F[:, i].std(ddof=1))
+            out[key]["interval95_mc"] = [float(lo), float(hi)]
+        out["monte_carlo"] = {"draws": draws, "seed": seed}
+        for key in ("drift", "heldout_rms"):
+            _state(out[key])
+    else:
+        for key in ("drift", "heldout_rms"):
+            out[key]["U_stated"] = out[key]["U"]
+            out[key]["U_from"] = "degree-5 cubature (no Monte Carlo run)"
+    return out
