@@ -139,7 +139,8 @@ def _p(d: dict) -> dict:
     (lambda d: _p(d).update(ideal_improvement_pct=_p(d)["ideal_improvement_pct"] + 1), "100 \\(1"),
     (lambda d: _p(d)["uncertainty"]["rms"].update(U_um=_p(d)["uncertainty"]["rms"]["u_um"]), "k = 2"),
     (lambda d: _p(d)["uncertainty"]["max_abs"]["budget_u_um"].update(scale=1.0), "root sum"),
-    (lambda d: _p(d)["uncertainty"]["max_abs"].update(U_mc_um=None), "draws"),
+    (lambda d: _p(d)["uncertainty"]["max_abs"].pop("U_mc_um"), "draws"),
+    (lambda d: _p(d)["uncertainty"]["max_abs"].update(U_mc_um=None), "expected a number"),
     (lambda d: d["budget"]["figures"].pop("drift_c"), "missing"),
 ])
 def test_predict_reader_refuses_what_the_format_forbids(predict_json, tmp_path, change,
