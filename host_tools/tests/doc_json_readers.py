@@ -265,6 +265,10 @@ def read_chain_fit(path: Path, machine_file: Path | None = None) -> dict[str, An
         del pv
         if f"{name}.length_zero" not in setup:
             _fail("setup_um", f"no {name}.length_zero (each test has its own length zero)")
+        for ball in ("table_ball", "tool_ball"):  # the set-up's unknowns, one per set-up
+            for c in "xyz":
+                if f"set-up {t['setup']}.{ball}_{c}" not in setup:
+                    _fail("setup_um", f"no 'set-up {t['setup']}.{ball}_{c}' for {name}")
 
     blob = _obj(d["blob"], "blob")
     if blob.get("file") is None:
@@ -429,6 +433,11 @@ def read_iso230_3(path: Path) -> dict[str, Any]:
             for s in set(lines) - {"reading noise (Type A)"}:
                 if s not in sensors:
                     _fail(f"{w}.budget_u.{s}", "not a sensor of uncertainty.sensors")
+            # each sensor's own sensitivity; a tilt takes both channels of its pair
+            own = name[name.find("(") + 1:name.rfind(")")].split("-") if group == "tilts" \
+                else [name]
+            if not set(own) <= set(lines):
+                _fail(w + ".budget_u", f"no line for {sorted(set(own) - set(lines))}")
             u1 = _num(r["U_first_order"], w + ".U_first_order", 0.0)
             _close(u1, 2.0 * _rss(lines, w + ".budget_u"), w + ".U_first_order (2 x RSS)",
                    rel=1e-5, abs_=2e-6)

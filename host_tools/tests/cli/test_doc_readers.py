@@ -81,6 +81,7 @@ def test_chain_fit_json_reads_as_documented(chain_fit) -> None:
     (lambda d: d["blob"]["convention"]["fixed_at_zero"].pop(), "convention"),
     (lambda d: d["provenance"].update(sha256="0" * 64), "sha256"),
     (lambda d: d.update(extra=1), "undocumented"),
+    (lambda d: d["setup_um"].pop("set-up K1.tool_ball_y"), "tool_ball_y"),
     (lambda d: next(iter(d["rotary_ballbar"].values())).update(left_rms_um=1e3), "peak-to-valley"),
 ])
 def test_chain_fit_reader_refuses_what_the_format_forbids(chain_fit, tmp_path, change,
@@ -181,6 +182,7 @@ def _ch(d: dict, i: int = 0) -> dict:
     (lambda d: d["envelope"].update(channel="ch1"), "largest"),
     (lambda d: d["envelope"].update(U_um=d["envelope"]["U_um"] * 2), "envelope.U_um"),
     (lambda d: d["uncertainty"]["monte_carlo"].update(agree=-1), "agree"),
+    (lambda d: d["tilts"][0]["budget_u"].pop(d["tilts"][0]["name"][-4:-1]), "no line for"),
 ])
 def test_iso230_3_reader_refuses_what_the_format_forbids(iso230_3_json, tmp_path, change,
                                                         match) -> None:
