@@ -15,6 +15,7 @@ from abbe.formats.blob import quantize, write_blob
 from abbe.formats.machine import load_machine
 from abbe.model import clib
 from abbe.sim.truth import load_truth, truth_table
+from doc_json_readers import read_predict
 
 REPO = Path(__file__).resolve().parents[3]
 VMC = REPO / "examples" / "vmc500"
@@ -67,6 +68,7 @@ def test_predict_cli_json_and_plot(true_model: Path, tmp_path: Path, capsys) -> 
     d = json.loads(capsys.readouterr().out)
     (pred,) = d["predictions"]
     assert pred["ballbar"] == "circle1" and 0 < pred["residual_max_um"] < 4.5
+    read_predict(tmp_path / "predict.json")  # the docs' reader, --mc 200
     assert (tmp_path / "predict_circle1.png").stat().st_size > 10_000
     # every figure with U (k = 2) and the budget it comes from (the ballbar class defaults:
     # the machine file declares none); the roundness's U is the one abbe ballbar states

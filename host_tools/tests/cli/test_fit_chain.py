@@ -17,6 +17,7 @@ from abbe.sim.chain import (VirtualChainMachine, random_location_errors, sphere_
                             write_chain_campaign)
 
 from cases.chain_suite import CHAINS
+from doc_json_readers import read_chain_fit
 
 
 def _campaign(tmp_path: Path, file: str, seed: int) -> tuple[Path, dict[str, float]]:
@@ -38,7 +39,7 @@ def test_fit_a_chain_campaign_from_files(tmp_path: Path, file: str, unseen: set[
     m, truth = _campaign(tmp_path, file, 8)
     # --mc 200: the U check of test_chain_fit_states_U_... on the same fit (CI time)
     assert main(["fit", str(m), "-o", str(tmp_path / "o"), "-q", "--mc", "200"]) == 0
-    doc = json.loads((tmp_path / "o" / "chain_fit.json").read_text())
+    doc = read_chain_fit(tmp_path / "o" / "chain_fit.json", m)  # the docs' reader
     _assert_U_checked(tmp_path / "o", doc, truth)
     assert {r["name"] for r in doc["location"] if r["value"] is None} == unseen
     for r in doc["location"]:
@@ -74,7 +75,7 @@ def test_fit_a_chain_campaign_from_files(tmp_path: Path, file: str, unseen: set[
 def test_a_trunnion_chain_fit_names_why_it_writes_no_table(tmp_path: Path, capsys) -> None:
     m, _t = _campaign(tmp_path, "trunnions/xyzac-trt.toml", 5)
     assert main(["fit", str(m), "-o", str(tmp_path / "o"), "-q"]) == 0
-    doc = json.loads((tmp_path / "o" / "chain_fit.json").read_text())
+    doc = read_chain_fit(tmp_path / "o" / "chain_fit.json", m)
     assert doc["blob"]["file"] is None and "not a kind of format 1.4" in doc["blob"]["reason"]
     assert not (tmp_path / "o" / "model_five.bin").exists()
     assert "no table:" in capsys.readouterr().out
@@ -119,7 +120,7 @@ def test_fit_error_motions_from_files(tmp_path: Path) -> None:
                              tips_mm=((0.0, 0.0, 0.0), (0.0, 0.0, -100.0)),
                              heights_mm=(0.0, 100.0), harmonics=2)
     assert main(["fit", str(m), "-o", str(tmp_path / "o"), "-q"]) == 0
-    doc = json.loads((tmp_path / "o" / "chain_fit.json").read_text())
+    doc = read_chain_fit(tmp_path / "o" / "chain_fit.json", m)  # motions rows too
     assert doc["harmonics"] == 2 and len(doc["motions"]) == 32
     truth = {"ECC(C) sin1": 6.0, "ECC(C) cos1": -4.0, "ECC(C) sin2": 5.0, "ECC(C) cos2": 3.0,
              "EXC(C) sin2": 1.5, "EXC(C) cos2": -1.0}

@@ -14,6 +14,7 @@ from abbe.cli.entry import main
 from cases import chain_generator as gen
 from cases import chain_suite
 from cases.chain_suite import CHAINS
+from doc_json_readers import read_chain_fit
 
 TABLE = np.array([50.0, 20.0, 30.0])
 
@@ -139,7 +140,7 @@ def test_probing_rtest_and_ballbar_files_together(tmp_path: Path) -> None:
                          f"{TABLE[2] + 100 * e[2]}]\n")
     m.write_text(m.read_text() + "\n" + "\n".join(extra), encoding="utf-8")
     assert main(["fit", str(m), "-o", str(tmp_path / "o"), "-q"]) == 0
-    doc = json.loads((tmp_path / "o" / "chain_fit.json").read_text())
+    doc = read_chain_fit(tmp_path / "o" / "chain_fit.json", m)  # the docs' reader
     assert len(doc["rotary_ballbar"]) == 12  # re-weighted to the 0.3 um reading noise
     assert all(v < 0.5 for k, v in doc["sigma_um"].items() if k.startswith("K1_"))
     seen = [r for r in doc["location"] if r["value"] is not None]

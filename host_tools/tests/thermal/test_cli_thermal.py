@@ -12,6 +12,7 @@ from abbe.cli.entry import main
 from abbe.programs.dialects import DIALECTS
 from abbe.model.thermal import from_dict
 from thermal_helpers import REAL_MACHINE
+from doc_json_readers import read_iso230_3
 
 
 def test_evaluate_json(synthetic, tmp_path, capsys):
@@ -152,7 +153,7 @@ def test_record_ranges_carry_U_checked_by_monte_carlo(tmp_path):
     stated; the envelope, the text and the report's band carry U."""
     out = tmp_path / "ev"
     assert main(["thermal", "evaluate", str(REAL_MACHINE), "-o", str(out), "--mc", "1000"]) == 0
-    d = json.loads((out / "iso230_3.json").read_text())
+    d = read_iso230_3(out / "iso230_3.json")  # the docs' reader (tests/doc_json_readers.py)
     ranges = d["channels"] + d["tilts"] + d["temperatures"]
     assert len(ranges) == 23
     assert d["uncertainty"]["k"] == 2 and d["uncertainty"]["monte_carlo"]["draws"] == 1000

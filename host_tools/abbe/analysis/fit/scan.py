@@ -444,10 +444,8 @@ def search_period_each(design: AxisDesign, pos: np.ndarray, Y: np.ndarray, d: in
             if ej[k] <= best[j]:
                 best[j], f[j] = ej[k], s.freqs[q * n + k]
                 if level == 1 and 0 < k < n - 1:  # parabola through the lowest three
-                    den = ej[k - 1] - 2 * ej[k] + ej[k + 1]
-                    if den > 0:
-                        fg = s.freqs[q * n:(q + 1) * n]
-                        f[j] += 0.5 * (fg[1] - fg[0]) * (ej[k - 1] - ej[k + 1]) / den
+                    fg = s.freqs[q * n:(q + 1) * n]
+                    f[j] += _parabola_shift(ej[k - 1:k + 2], fg[1] - fg[0])
     return [None if not np.isfinite(v) else float(v) for v in f]
 
 
@@ -468,7 +466,19 @@ def refine_period(design: AxisDesign, pos: np.ndarray, Y: np.ndarray, f: float,
     score = (e / np.maximum(e[i0], 1e-300)).sum(axis=1)
     i = int(np.argmin(score))
     if 0 < i < grid.size - 1:
-        den = score[i - 1] - 2 * score[i] + score[i + 1]
-        if den > 0:
-            return float(grid[i] + 0.5 * (grid[1] - grid[0]) * (score[i - 1] - score[i + 1]) / den)
+        return float(grid[i] + _parabola_shift(score[i - 1:i + 2], grid[1] - grid[0]))
     return float(grid[i])
+
+
+def _parabola_shift(e: np.ndarray, step: float) -> float:
+    """Offset from the middle of three equally spaced points (``step`` apart) to the
+    vertex of the parabola through them, for a minimum at the middle one; 0 when there is
+    no such vertex. A neighbour whose model is inadmissible at its frequency has SSE +inf:
+    inf - inf in the formula was NaN and turned the refined frequency into "none", so
+    the grid's own frequency is kept then."""
+    if not np.all(np.isfinite(e)):
+        return 0.0
+    den = float(e[0] - 2.0 * e[1] + e[2])
+    if not den > 0.0:
+        return 0.0
+    return 0.5 * step * float(e[0] - e[2]) / den
