@@ -476,7 +476,9 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
     outl += incons
     for o in outl:
         notes.insert(0, ("OUTLIER: " if o.excluded else "OUTLIER (kept): ") + o.message())
+    from abbe.diagnose.uncertainty import FitState
     return DiagnoseResult(
+        fit_state=FitState(eng, selected, values, cov, s2_final, W),
         outliers=outl,
         effects=effects,
         gap={"before": gap_before, "after": gap_after, "held_out_before": ho_before,
