@@ -356,19 +356,30 @@ def _diagnose_budget(unc: dict[str, Any] | None, effects: list[dict[str, Any]]) 
     names: list[str] = []
     for e in effects:
         names += [k for k in (e.get("budget_u") or {}) if k not in names]
+
+    def small(e: dict[str, Any], n: str) -> bool:  # below 0.1 % of the effect's u
+        return (e.get("budget_u") or {}).get(n, 0.0) < 1e-3 * max(e.get("u") or 0.0, 1e-300)
+
+    # a line negligible for every effect (the bar's length: the circle's radius absorbs it)
+    gone = [n for n in names if all(small(e, n) for e in effects)]
+    names = [n for n in names if n not in gone]
     head = "".join(f"<th>{html.escape(n)}</th>" for n in names)
     rows = "".join(
         f"<tr><td class='l'>{html.escape(e['key'])}</td>"
-        + "".join(f"<td>{(e.get('budget_u') or {}).get(n, 0.0):.2g}</td>" for n in names)
+        + "".join("<td>&ndash;</td>" if small(e, n) else
+                  f"<td>{(e.get('budget_u') or {}).get(n, 0.0):.2g}</td>" for n in names)
         + f"<td>{e.get('U_first_order', e.get('U', 0.0)):.3g}</td>"
         + (f"<td>{e['U_mc']:.3g} ({100 * e['mc_agreement']:+.1f} %)</td>" if e.get("U_mc") is not None
            else "<td>-</td>") + "</tr>" for e in effects)
+    note = ("&ndash;: below 0.1 % of the effect's u." + (
+        " Negligible for every effect, not shown: " + html.escape(", ".join(gone)) + "."
+        if gone else ""))
     mc = unc.get("monte_carlo") or {}
     return ("<details><summary>Budget of the named effects (standard uncertainties u, in "
             "each effect's unit)</summary>"
             f"<table><tr><th class='l'>effect</th>{head}<th>U first order</th>"
             f"<th>U Monte Carlo</th></tr>{rows}</table>"
-            f"<p class='small'>{html.escape(unc.get('method', ''))}. Monte Carlo (GUM S1): "
+            f"<p class='small'>{note} {html.escape(unc.get('method', ''))}. Monte Carlo (GUM S1): "
             f"{mc.get('draws', 0)} draws re-running the final fit, {mc.get('agree_within_10pct', 0)} "
             f"of {mc.get('of', 0)} figures within 10 %; beyond, its U is stated.</p></details>")
 
