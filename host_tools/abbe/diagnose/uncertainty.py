@@ -154,12 +154,17 @@ def budgets_of_machine(machine: Any) -> tuple[Any, Any]:
     class defaults (laser_interferometer, ballbar)."""
     from abbe.analysis.uncertainty import ballbar_budget
     from abbe.formats.uncertainty_spec import default_budget
-    spec = machine.extra.get("uncertainty") if hasattr(machine, "extra") else None
+    extra = getattr(machine, "extra", None) or {}
+    spec = extra.get("uncertainty")
     laser = spec.laser if spec is not None and spec.laser is not None else None
     if laser is None:
         laser = default_budget("laser_interferometer")
         laser.source = "class defaults (docs/uncertainty.md)"
-    return laser, ballbar_budget(machine)[0]
+    if hasattr(machine, "extra"):
+        return laser, ballbar_budget(machine)[0]
+    ballbar = default_budget("ballbar")
+    ballbar.source = "class defaults (docs/uncertainty.md)"
+    return laser, ballbar
 
 
 def budget_of_positioning_file(path: Any) -> Any:
