@@ -186,6 +186,20 @@ def round_to(v: float, nd: int = 6) -> float:
 
 
 @dataclass
+class FitState:
+    """What the uncertainty of the named effects needs of the final fit (kept by
+    ``diagnose`` on its result; abbe.diagnose.uncertainty): the engine, the selected
+    effects, their values and covariance, s^2 and the weights (1 / um)."""
+
+    eng: Any
+    selected: list[Any]
+    values: list[np.ndarray]
+    cov: np.ndarray
+    s2: float
+    W: np.ndarray
+
+
+@dataclass
 class DiagnoseResult:
     """Outcome of :func:`diagnose`.
 
@@ -219,8 +233,8 @@ class DiagnoseResult:
     #: what the machine file declares and the prior it is judged with (the tool offset, mm;
     #: its 1-sigma uncertainty and where that comes from), or None (no machine file)
     declared: dict[str, Any] | None = None
-    #: the final fit, kept for the uncertainty (abbe.diagnose.uncertainty.FitState)
-    fit_state: Any = field(default=None, repr=False)
+    #: the final fit, kept for the uncertainty (FitState)
+    fit_state: FitState | None = field(default=None, repr=False)
     #: U (k = 2) of the named effects and gaps with the budget (diagnosis_uncertainty)
     uncertainty: dict[str, Any] | None = None
     #: before / after: rms_um / max_um: value, u, U, budget_u

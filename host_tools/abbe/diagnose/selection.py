@@ -63,7 +63,8 @@ from abbe.diagnose.problem import (
     qr_basis,
     remove_nuisance,
 )
-from abbe.diagnose.results import LACK_OF_FIT_LIMIT, DiagnoseOptions, DiagnoseResult, GapStats
+from abbe.diagnose.results import (LACK_OF_FIT_LIMIT, DiagnoseOptions, DiagnoseResult, FitState,
+                                  GapStats)
 from abbe.errors import AbbeInputError
 from abbe.model.table import Table
 
@@ -476,7 +477,6 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
     outl += incons
     for o in outl:
         notes.insert(0, ("OUTLIER: " if o.excluded else "OUTLIER (kept): ") + o.message())
-    from abbe.diagnose.uncertainty import FitState
     return DiagnoseResult(
         fit_state=FitState(eng, selected, values, cov, s2_final, W),
         outliers=outl,

@@ -38,6 +38,7 @@ import numpy as np
 from abbe.diagnose.candidates import Engine, Selected, apply_selection
 from abbe.diagnose.checks import OWN_TERM, BallbarCheck, LaserCheck
 from abbe.diagnose.problem import project_out, qr_basis, remove_nuisance
+from abbe.diagnose.results import FitState
 
 K = 2.0
 SQRT3 = math.sqrt(3.0)
@@ -213,18 +214,6 @@ def _grad(fn: Callable[[np.ndarray], float], v: np.ndarray, C: np.ndarray) -> np
         e[j] = h
         g[j] = (fn(v + e) - fn(v - e)) / (2 * h)
     return g
-
-
-@dataclass
-class FitState:
-    """What the propagation needs of the final fit: kept by ``diagnose`` on its result."""
-
-    eng: Engine
-    selected: list[Selected]
-    values: list[np.ndarray]
-    cov: np.ndarray
-    s2: float
-    W: np.ndarray
 
 
 def _final_design(st: FitState) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
