@@ -358,7 +358,7 @@ def _diagnose_budget(unc: dict[str, Any] | None, effects: list[dict[str, Any]]) 
         names += [k for k in (e.get("budget_u") or {}) if k not in names]
 
     def small(e: dict[str, Any], n: str) -> bool:  # below 0.1 % of the effect's u
-        return (e.get("budget_u") or {}).get(n, 0.0) < 1e-3 * max(e.get("u") or 0.0, 1e-300)
+        return ((e.get("budget_u") or {}).get(n) or 0.0) < 1e-3 * max(e.get("u") or 0.0, 1e-300)
 
     # a line negligible for every effect (the bar's length: the circle's radius absorbs it)
     gone = [n for n in names if all(small(e, n) for e in effects)]
@@ -367,9 +367,10 @@ def _diagnose_budget(unc: dict[str, Any] | None, effects: list[dict[str, Any]]) 
     rows = "".join(
         f"<tr><td class='l'>{html.escape(e['key'])}</td>"
         + "".join("<td>&ndash;</td>" if small(e, n) else
-                  f"<td>{(e.get('budget_u') or {}).get(n, 0.0):.2g}</td>" for n in names)
-        + f"<td>{e.get('U_first_order', e.get('U', 0.0)):.3g}</td>"
-        + (f"<td>{e['U_mc']:.3g} ({100 * e['mc_agreement']:+.1f} %)</td>" if e.get("U_mc") is not None
+                  f"<td>{(e.get('budget_u') or {}).get(n) or 0.0:.2g}</td>" for n in names)
+        + f"<td>{e.get('U_first_order') or e.get('U') or 0.0:.3g}</td>"
+        + (f"<td>{e['U_mc']:.3g} ({100 * e['mc_agreement']:+.1f} %)</td>"
+           if e.get("U_mc") is not None and e.get("mc_agreement") is not None
            else "<td>-</td>") + "</tr>" for e in effects)
     note = ("&ndash;: below 0.1 % of the effect's u." + (
         " Negligible for every effect, not shown: " + html.escape(", ".join(gone)) + "."

@@ -78,7 +78,8 @@ def format_text(res: DiagnoseResult, model_path: str | None = None) -> str:
                                                   for k, v in uu["budget_u"].items()
                                                   if v is not None and v >= 1e-4 * uu["u"])
                      + (f"; Monte Carlo U {_fmt(uu['U_mc'])} ({100 * uu['mc_agreement']:+.1f} %), "
-                        f"stated: {uu['U_from']}" if uu.get("U_mc") is not None else ""))
+                        f"stated: {uu['U_from']}" if uu.get("U_mc") is not None
+                        and uu.get("mc_agreement") is not None else ""))
         for p in e.params:
             L.append(f"    {p['name']} = {p['value']:.4f} {p['unit']} "
                      f"[{p['ci95'][0]:.4f}, {p['ci95'][1]:.4f}]")
@@ -141,7 +142,7 @@ def format_text(res: DiagnoseResult, model_path: str | None = None) -> str:
         g = res.gap.get(k)
         if g is not None:
             gu = (res.gap_uncertainty or {}).get(k)
-            if gu:
+            if gu and gu["rms_um"]["U"] is not None and gu["max_um"]["U"] is not None:
                 L.append(f"  {k:16s} RMS {g.rms_um:8.3f} +- {gu['rms_um']['U']:.3f} um   max "
                          f"{g.max_um:8.3f} +- {gu['max_um']['U']:.3f} um   (n = {g.n}; U, k = 2)")
             else:

@@ -441,18 +441,21 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
         X = np.zeros((prob.N, 0))
         L = np.zeros((0, prob.N))
     # gaps. Before: the base model is fixed, r_b(y') = P_n (y' - y0): M^T = P_n.
-    r_b = res.residual_before
-    clean_b = np.concatenate(r_b)
+    clean_b = np.concatenate(res.residual_before)
     clean_a = np.concatenate(res.residual_after)
-    gaps = {"before": _gap_lines(prob, clean_b, lambda a: _nuisance_removal_T(prob, a), sig2, inp,
-                                 lambda p: remove_nuisance(prob, p))}
+    # no um-valued sample (angular channels only): no gap figure, no U
+    no_gap = res.gap.get("before") is None or res.gap.get("after") is None
+    gaps: dict[str, Any] = {} if no_gap else {"before": _gap_lines(
+        prob, clean_b, lambda a: _nuisance_removal_T(prob, a), sig2, inp,
+        lambda p: remove_nuisance(prob, p))}
 
     def back_after(a: np.ndarray) -> np.ndarray:
         # r_a(y') = P_n (y' - X L y'): M^T a = (I - L^T X^T) P_n a
         pa = _nuisance_removal_T(prob, a)
         return pa - L.T @ (X.T @ pa)
-    gaps["after"] = _gap_lines(prob, clean_a, back_after, sig2, inp,
-                               lambda p: remove_nuisance(prob, p - X @ (L @ p)))
+    if not no_gap:
+        gaps["after"] = _gap_lines(prob, clean_a, back_after, sig2, inp,
+                                   lambda p: remove_nuisance(prob, p - X @ (L @ p)))
     out: dict[str, Any] = {
         "k": K, "method": "GUM first order: the final fit's covariance (Type A) and the "
                           "instruments' inputs through the fit's linear operator (Type B)",
@@ -526,7 +529,8 @@ def _monte_carlo(res: Any, st: FitState, inp: Inputs, sig2: np.ndarray,
     for j, name in enumerate(names):
         col = F[:, j][np.isfinite(F[:, j])]
         U_mc = K * float(np.std(col, ddof=1)) if col.size > 1 else float("nan")
-        tgt = per_key.get(name) if "." not in name else gaps[name.split(".")[0]][name.split(".")[1]]
+        which, _, fig = name.partition(".")
+        tgt = per_key.get(name) if not fig else gaps.get(which, {}).get(fig)
         if tgt is None:
             continue
         ratio = U_mc / tgt["U"] - 1.0 if tgt["U"] > 0 else float("nan")
