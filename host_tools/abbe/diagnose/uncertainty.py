@@ -20,9 +20,9 @@ lines they come from (docs/uncertainty.md, "Diagnosis"):
   (theta = theta0 + L dy, L = pinv(X_e) W), so each line is |s . p| u_t.
 
 The Monte Carlo (GUM S1) is independent of these formulas: each draw makes new readings
-(normal noise + one draw of every instrument input) and re-runs the nonlinear final fit
-(:func:`abbe.diagnose.selection._final_fit`, the same Gauss-Newton through the C library)
-and the headline and gap figures; U_MC = 2 x the draws' standard deviation. Beyond 10 %
+(normal noise + one draw of every instrument input) and fits them again through the
+nonlinear model (:func:`_refitter`: Gauss-Newton, every residual through the C library)
+and evaluates the headline and gap figures; U_MC = 2 x the draws' standard deviation. Beyond 10 %
 the Monte Carlo's U is stated (``U_from``), as in the rest of abbe.
 """
 
@@ -483,15 +483,43 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
     return res.uncertainty
 
 
+def _refitter(st: FitState, iterations: int = 4) -> Callable[[np.ndarray], list[np.ndarray]]:
+    """The final fit of new readings, nonlinear: Gauss-Newton from the solution, each step's
+    residual through the model (the C library, every effect applied), the Jacobian at the
+    solution steering the steps (as the chain's and the trunnion's Monte Carlo do); the
+    set-up nuisance refitted with it. Its fixed point is the weighted least squares of the
+    model on the new readings (to the Jacobian's change over the draws' spread)."""
+    eng, prob = st.eng, st.eng.prob
+    X, _, _ = _final_design(st)
+    A = np.hstack([prob.nuis, X]) * st.W[:, None]
+    P = np.linalg.pinv(A)
+    k0 = prob.nuis.shape[1]
+    sizes = [len(v) for v in st.values]
+    theta0 = np.concatenate([np.asarray(v, dtype=np.float64) for v in st.values])
+
+    def refit(y_new: np.ndarray) -> list[np.ndarray]:
+        theta = theta0.copy()
+        for _ in range(iterations):
+            vals = np.split(theta, np.cumsum(sizes)[:-1])
+            t, p = apply_selection(eng, st.selected, vals)
+            r = (y_new - prob.predict(eng.ev, t, p)) * st.W
+            step = (P @ r)[k0:]
+            theta = theta + step
+            if np.max(np.abs(step)) <= 1e-6 * max(float(np.max(np.abs(theta))), 1e-9):
+                break
+        return list(np.split(theta, np.cumsum(sizes)[:-1]))
+    return refit
+
+
 def _monte_carlo(res: Any, st: FitState, inp: Inputs, sig2: np.ndarray,
                  fns: list[tuple[str, Callable[[np.ndarray], float], slice]], draws: int,
                  seed: int, per_key: dict[str, Any], gaps: dict[str, Any]) -> dict[str, Any]:
     from abbe.diagnose.effects import fold_reversal
     from abbe.diagnose.checks import DEFAULT_TAKEUP_MM
     from abbe.diagnose.problem import gap_stats
-    from abbe.diagnose.selection import _final_fit
     eng, prob = st.eng, st.eng.prob
     rng = np.random.default_rng(seed)
+    refit = _refitter(st) if st.selected else None
     sd = np.sqrt(sig2)
     names = [k for k, _, _ in fns] + ["before.rms_um", "before.max_um", "after.rms_um",
                                       "after.max_um"]
@@ -507,14 +535,10 @@ def _monte_carlo(res: Any, st: FitState, inp: Inputs, sig2: np.ndarray,
         for r in inp.per_reading:
             dy += rng.uniform(-1.0, 1.0, prob.N) * r.half_um
         y_new = prob.y + dy
-        p2 = copy.copy(prob)
-        p2.y = y_new
-        e2 = copy.copy(eng)
-        e2.prob = p2
-        e2.r0 = y_new - eng.y0
         row = []
-        if st.selected:
-            t, pp, vals, _, _ = _final_fit(e2, st.selected, st.W)
+        if refit is not None:
+            vals = refit(y_new)
+            t, pp = apply_selection(eng, st.selected, vals)
             row += [fn(np.asarray(v)) for (_, fn, _), v in zip(fns, vals)]
             t, pp = fold_reversal(t, pp, DEFAULT_TAKEUP_MM)
             r_after = y_new - prob.predict(eng.ev, t, pp)
