@@ -28,7 +28,6 @@ the Monte Carlo's U is stated (``U_from``), as in the rest of abbe.
 
 from __future__ import annotations
 
-import copy
 import math
 from dataclasses import dataclass
 from typing import Any, Callable
