@@ -101,6 +101,10 @@ def _roundness(res: BallbarResult) -> dict[str, float]:
             "H_um": res.H_um}
 
 
+#: the Monte Carlo check of the diagnosis's U (about 5 s on the demo; docs/uncertainty.md)
+DIAGNOSE_MC_DRAWS = 200
+
+
 def _diagnose_step(machine_file: Path, model_path: Path, ballbar: str,
                    out_dir: Path) -> tuple[Path, dict, Any]:
     """Run the discrepancy workflow as ``abbe diagnose`` runs it (its parser, its defaults,
@@ -113,7 +117,8 @@ def _diagnose_step(machine_file: Path, model_path: Path, ballbar: str,
 
     json_path = out_dir / "diagnose.json"
     argv = ["diagnose", str(machine_file), "--model", str(model_path), "--ballbar", ballbar,
-            "--json", str(json_path), "-o", str(out_dir / "diagnose")]
+            "--json", str(json_path), "-o", str(out_dir / "diagnose"),
+            "--mc", str(DIAGNOSE_MC_DRAWS)]
     args = conventions.clean(build_parser().parse_args(argv))
     res, written = diagnose_three_axis(args)
     print(format_text(res, str(written["model.bin"])), end="")
@@ -283,6 +288,7 @@ def run_demo(example_dir: Path, out_dir: Path, *, diagnose: bool = True,
         "compensator": stats,
         "effects": diag["effects"] if diag else None,
         "diagnose_gap": diag["gap"] if diag else None,
+        "diagnose_uncertainty": diag.get("uncertainty") if diag else None,
         "table4": {"chosen_best_count": table4["chosen_best_count"], "n_terms": table4["n_terms"],
                    "y_positioning": table4["y_positioning"], "rows": table4["rows"]},
         "build_check": build, "clib_check": clib_check,
@@ -336,14 +342,64 @@ def _clib_check(c: dict[str, Any] | None) -> str:
             f"max |q - reference| {c.get('max_diff_q_nm')} nm (bound {c.get('bound_nm')} nm)")
 
 
+def _U_cell(e: dict[str, Any]) -> str:
+    """An effect's U (k = 2), and where it comes from when the Monte Carlo's is stated."""
+    if e.get("U") is None:
+        return "-"
+    return f"{e['U']:.3g}" + (" (Monte Carlo)" if e.get("U_from") == "Monte Carlo" else "")
+
+
+def _diagnose_budget(unc: dict[str, Any] | None, effects: list[dict[str, Any]]) -> str:
+    """The diagnosis's budget, folded: each effect's lines (u) and the Monte Carlo's U."""
+    if not unc:
+        return ""
+    names: list[str] = []
+    for e in effects:
+        names += [k for k in (e.get("budget_u") or {}) if k not in names]
+
+    def small(e: dict[str, Any], n: str) -> bool:  # below 0.1 % of the effect's u
+        return ((e.get("budget_u") or {}).get(n) or 0.0) < 1e-3 * max(e.get("u") or 0.0, 1e-300)
+
+    # a line negligible for every effect (the bar's length: the circle's radius absorbs it)
+    gone = [n for n in names if all(small(e, n) for e in effects)]
+    names = [n for n in names if n not in gone]
+    head = "".join(f"<th>{html.escape(n)}</th>" for n in names)
+    rows = "".join(
+        f"<tr><td class='l'>{html.escape(e['key'])}</td>"
+        + "".join("<td>&ndash;</td>" if small(e, n) else
+                  f"<td>{(e.get('budget_u') or {}).get(n) or 0.0:.2g}</td>" for n in names)
+        + f"<td>{e.get('U_first_order') or e.get('U') or 0.0:.3g}</td>"
+        + (f"<td>{e['U_mc']:.3g} ({100 * e['mc_agreement']:+.1f} %)</td>"
+           if e.get("U_mc") is not None and e.get("mc_agreement") is not None
+           else "<td>-</td>") + "</tr>" for e in effects)
+    note = ("&ndash;: below 0.1 % of the effect's u." + (
+        " Negligible for every effect, not shown: " + html.escape(", ".join(gone)) + "."
+        if gone else ""))
+    mc = unc.get("monte_carlo") or {}
+    return ("<details><summary>Budget of the named effects (standard uncertainties u, in "
+            "each effect's unit)</summary>"
+            f"<table><tr><th class='l'>effect</th>{head}<th>U first order</th>"
+            f"<th>U Monte Carlo</th></tr>{rows}</table>"
+            f"<p class='small'>{note} {html.escape(unc.get('method', ''))}. Monte Carlo (GUM S1): "
+            f"{mc.get('draws', 0)} draws re-running the final fit, {mc.get('agree_within_10pct', 0)} "
+            f"of {mc.get('of', 0)} figures within 10 %; beyond, its U is stated.</p></details>")
+
+
+def _gap_U(g: dict[str, Any], key: str) -> str:
+    v, U = g.get(key), g.get(key[:-3] + "_U_um")
+    if v is None:
+        return "<td>-</td>"
+    return f"<td>{v:.3f}" + (f" &plusmn; {U:.3f}" if U is not None else "") + "</td>"
+
+
 def _gap_table(gap: dict[str, Any]) -> str:
     rows = ""
     for label, before, after in (("fitted data", gap.get("before"), gap.get("after")),
                                  ("held-out data", gap.get("held_out_before"),
                                   gap.get("held_out_after"))):
         if before and after:
-            rows += (f"<tr><td>{label}</td>{_td(before.get('rms_um'), 3)}{_td(after.get('rms_um'), 3)}"
-                     f"{_td(before.get('max_um'), 3)}{_td(after.get('max_um'), 3)}</tr>")
+            rows += (f"<tr><td>{label}</td>{_gap_U(before, 'rms_um')}{_gap_U(after, 'rms_um')}"
+                     f"{_gap_U(before, 'max_um')}{_gap_U(after, 'max_um')}</tr>")
     return ("<table><tr><th>residual (um)</th><th>RMS before</th><th>RMS after</th>"
             f"<th>max before</th><th>max after</th></tr>{rows}</table>") if rows else ""
 
@@ -448,18 +504,21 @@ def _report_html(res: DemoResult, table4: dict[str, Any], with_diag: bool) -> st
     if with_diag:
         eff_rows = "".join(
             f"<tr><td class='l'>{html.escape(e['id'])}</td><td>{e['value']:.4g} {html.escape(e['unit'])}</td>"
+            f"<td>{_U_cell(e)}</td>"
             f"<td>[{e['ci95'][0]:.4g}, {e['ci95'][1]:.4g}]</td>"
             f"<td class='l'>{html.escape(e.get('compensated_by', ''))}</td></tr>"
             for e in (s["effects"] or []))
         gap = s["diagnose_gap"] or {}
         out.append(
             "<h2>What the laser-only model misses (diagnose)</h2>"
-            "<table><tr><th class='l'>effect</th><th>value</th><th>95 % interval</th>"
-            "<th class='l'>compensated by</th></tr>"
-            f"{eff_rows or '<tr><td colspan=4>nothing significant is missing</td></tr>'}</table>"
+            "<table><tr><th class='l'>effect</th><th>value</th><th>U (k = 2)</th>"
+            "<th>95 % interval</th><th class='l'>compensated by</th></tr>"
+            f"{eff_rows or '<tr><td colspan=5>nothing significant is missing</td></tr>'}</table>"
+            f"{_diagnose_budget(s.get('diagnose_uncertainty'), s['effects'] or [])}"
             "<details><summary>Gap before / after, prediction plot</summary>"
             f"<p>The gap between measurement and prediction, before and after the named effects "
-            f"were added to the model:</p>{_gap_table(gap)}"
+            f"were added to the model (U, k = 2: the ballbar's budget and the readings' noise):</p>"
+            f"{_gap_table(gap)}"
             f"<p>Details: <a href='diagnose/'>diagnose/</a>.</p>"
             f"<img src='predict_updated.png' class='wide' alt='prediction, updated'></details>")
     out.append(

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from abbe.cli.conventions import examples, json_file, json_option, json_to_stdout, list_option
-from abbe.cli.options import in_range
+from abbe.cli.options import in_range, int_range
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -72,7 +72,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--backend", choices=("c", "reference"), default="c",
                    help="predict through the C library (default) or the float64 reference")
     p.add_argument("--no-plots", action="store_true", help="do not write the PNG plots")
+    p.add_argument("--mc", type=int_range(0, 100_000), default=DEFAULT_MC_DRAWS,
+                   metavar="N",
+                   help="Monte Carlo draws (GUM S1) checking the effects' and the gaps' U "
+                        f"(k = 2), 0 = none (default {DEFAULT_MC_DRAWS}; each draw re-runs the "
+                        "final fit; docs/uncertainty.md, \"Diagnosis\")")
     p.set_defaults(func=run)
+
+
+#: none by default (each draw re-runs the final fit: 200 draws about 5 s on the demo; the
+#: demo runs 100)
+DEFAULT_MC_DRAWS = 0
 
 
 def run(args: argparse.Namespace) -> int:
@@ -128,7 +138,8 @@ def diagnose_three_axis(args: argparse.Namespace) -> tuple[Any, dict[str, Path]]
             raise AbbeInputError("--iso230-2 needs --axis X|Y|Z", field="axis")
         if args.axis.upper() not in ("X", "Y", "Z"):
             raise AbbeInputError(f"expected X, Y or Z, got {args.axis!r}", field="axis")
-        res = diagnose_positioning(args.iso, args.axis, args.model, opts, rezeroed=args.rezeroed)
+        res = diagnose_positioning(args.iso, args.axis, args.model, opts, rezeroed=args.rezeroed,
+                                   mc_draws=getattr(args, "mc", 0))
         extra = {"input": {"iso230_2": args.iso, "axis": args.axis.upper(),
                            "model": args.model or "position-only (built from the data)"}}
     else:
@@ -139,7 +150,7 @@ def diagnose_three_axis(args: argparse.Namespace) -> tuple[Any, dict[str, Path]]
             raise AbbeInputError("--model is required with a machine file (the table to check)",
                                  file=args.machine, field="model")
         res = diagnose_machine(args.machine, args.model, args.ballbar, args.laser, opts,
-                               rezeroed=args.rezeroed)
+                               rezeroed=args.rezeroed, mc_draws=getattr(args, "mc", 0))
         extra = {"input": {"machine": args.machine, "model": args.model,
                            "ballbar": args.ballbar, "laser": args.laser}}
     written = write_outputs(res, args.out, json_file(args), plots=not args.no_plots,

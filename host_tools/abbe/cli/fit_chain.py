@@ -1,7 +1,7 @@
 """``abbe fit`` on a ``[chain]`` machine file (head-head, head-table, dual-rotary table, or
 a trunnion written as a chain): the location errors (and with ``[chain.fit] harmonics``
-the error motions) from its probing, R-test and rotary ballbar files, with what the plan cannot see (abbe.analysis.five_axis.chain_fit). Writes chain_fit.json
-and report.txt into the output directory, and for a head-head, head-table or dual
+the error motions) from its probing, R-test and rotary ballbar files, with what the plan cannot see (abbe.analysis.five_axis.chain_fit). Writes chain_fit.json,
+report.txt and the HTML report (report/index.html) into the output directory, and for a head-head, head-table or dual
 rotary table chain model_five.bin (format 1.4, the C runtime's and the LinuxCNC
 component's table)."""
 
@@ -56,6 +56,10 @@ def run_chain(args: argparse.Namespace) -> int:
         (staging / "chain_fit.json").write_text(json.dumps(doc, indent=2) + "\n",
                                                 encoding="utf-8")
         (staging / "report.txt").write_text(text, encoding="utf-8")
+        from abbe.analysis.certificate import test_date
+        from abbe.analysis.five_axis.chain_report import write_chain_html
+        write_chain_html(doc, text, staging / "report", test_date(str(machine.path)),
+                         {st.name: st.kind for st in setups})
     except BaseException:
         outs.abort()
         raise

@@ -315,6 +315,15 @@ def format_campaigns(machine: str, camps: list[dict], audit: list[dict], zone=No
     return "\n".join(lines) + "\n"
 
 
+def _U_last(an, shown: list[dict]) -> str:
+    """U (k = 2) of the series' value in the last campaign shown, '-' when not stated."""
+    last = [p for p in an.series.points if p.campaign_id == shown[-1]["id"]] if shown else []
+    if not last or last[-1].U is None:
+        return "-"
+    k = last[-1].k
+    return f"{last[-1].U:.3g}" + ("" if k in (None, 2.0) else f" (k={k:g})")
+
+
 def format_show(machine: str, camps: list[dict], analyses: list, last: int, zone=None) -> str:
     """The trend table: one row per series, the last ``last`` campaigns as columns."""
     from abbe.history.zones import to_site, zone_name
@@ -322,12 +331,13 @@ def format_show(machine: str, camps: list[dict], analyses: list, last: int, zone
     num = {c["id"]: i + 1 for i, c in enumerate(camps)}
     head = ["series", "unit"] + [f"#{num[c['id']]} {to_site(c['measured_at'], zone):%Y-%m-%d}"
                                  for c in shown] \
-        + ["band", "limit", "trend/month", "alerts now"]
+        + ["U last", "band", "limit", "trend/month", "alerts now"]
     rows = [head]
     for an in sorted(analyses, key=lambda a: a.series.key):
         by = {p.campaign_id: p.value for p in an.series.points}
         rows.append([an.series.key, an.series.unit]
                     + [f"{by[c['id']]:.4g}" if c["id"] in by else "-" for c in shown]
+                    + [_U_last(an, shown)]
                     + [(f"{an.band[0]:.4g}..{an.band[1]:.4g}" + ("(out)" if an.out_of_band() else ""))
                        if an.band else "-",
                        "-" if an.limit is None else f"{an.limit:g}",

@@ -68,9 +68,18 @@ def format_text(res: DiagnoseResult, model_path: str | None = None) -> str:
         where = f" [{e.axis or e.plane}]" if (e.axis or e.plane) and e.id in (
             "thermal_drift", "servo_mismatch", "straightness") else ""
         key = f" ({e.key})" if e.key != e.id else ""
-        L.append(f"* {e.id}{where}{key}: {_fmt(e.value)} {e.unit}, 95 % interval "
-                 f"[{_fmt(e.ci95[0])}, {_fmt(e.ci95[1])}]"
+        uu = e.uncertainty or {}
+        L.append(f"* {e.id}{where}{key}: {_fmt(e.value)} {e.unit}"
+                 + (f" +- {_fmt(uu['U'])} (U, k = 2)" if uu.get("U") is not None else "")
+                 + f", 95 % interval [{_fmt(e.ci95[0])}, {_fmt(e.ci95[1])}]"
                  + ("  [TENTATIVE]" if e.tentative else ""))
+        if uu.get("budget_u"):
+            L.append("    budget (u): " + "; ".join(f"{k} {_fmt(v, 4)}"
+                                                  for k, v in uu["budget_u"].items()
+                                                  if v is not None and v >= 1e-4 * uu["u"])
+                     + (f"; Monte Carlo U {_fmt(uu['U_mc'])} ({100 * uu['mc_agreement']:+.1f} %), "
+                        f"stated: {uu['U_from']}" if uu.get("U_mc") is not None
+                        and uu.get("mc_agreement") is not None else ""))
         for p in e.params:
             L.append(f"    {p['name']} = {p['value']:.4f} {p['unit']} "
                      f"[{p['ci95'][0]:.4f}, {p['ci95'][1]:.4f}]")
@@ -132,7 +141,12 @@ def format_text(res: DiagnoseResult, model_path: str | None = None) -> str:
     for k in ("before", "after", "held_out_before", "held_out_after"):
         g = res.gap.get(k)
         if g is not None:
-            L.append(f"  {k:16s} RMS {g.rms_um:8.3f} um   max {g.max_um:8.3f} um   (n = {g.n})")
+            gu = (res.gap_uncertainty or {}).get(k)
+            if gu and gu["rms_um"]["U"] is not None and gu["max_um"]["U"] is not None:
+                L.append(f"  {k:16s} RMS {g.rms_um:8.3f} +- {gu['rms_um']['U']:.3f} um   max "
+                         f"{g.max_um:8.3f} +- {gu['max_um']['U']:.3f} um   (n = {g.n}; U, k = 2)")
+            else:
+                L.append(f"  {k:16s} RMS {g.rms_um:8.3f} um   max {g.max_um:8.3f} um   (n = {g.n})")
         else:
             L.append(f"  {k:16s} not available")
     b, a = res.gap.get("before"), res.gap.get("after")

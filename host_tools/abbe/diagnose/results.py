@@ -119,6 +119,8 @@ class EffectResult:
     #: (this one first), each with its value, and the test that separates them; None =
     #: decided
     undecided: dict[str, Any] | None = None
+    #: u, U (k = 2), budget_u (and the Monte Carlo's) of the value: abbe.diagnose.uncertainty
+    uncertainty: dict[str, Any] | None = None
 
     def named_parts(self) -> list[tuple[str, float, str, tuple[float, float]]]:
         """(key, value, unit, 95 % interval) of each component (the entry itself when it
@@ -131,6 +133,8 @@ class EffectResult:
     def to_json(self) -> dict[str, Any]:
         d: dict[str, Any] = {"id": self.id, "key": self.key, "value": round_to(self.value),
                              "unit": self.unit, "ci95": [round_to(self.ci95[0]), round_to(self.ci95[1])]}
+        if self.uncertainty:
+            d.update(self.uncertainty)
         if self.axis:
             d["axis"] = self.axis
         if self.plane:
@@ -182,6 +186,20 @@ def round_to(v: float, nd: int = 6) -> float:
 
 
 @dataclass
+class FitState:
+    """What the uncertainty of the named effects needs of the final fit (kept by
+    ``diagnose`` on its result; abbe.diagnose.uncertainty): the engine, the selected
+    effects, their values and covariance, s^2 and the weights (1 / um)."""
+
+    eng: Any
+    selected: list[Any]
+    values: list[np.ndarray]
+    cov: np.ndarray
+    s2: float
+    W: np.ndarray
+
+
+@dataclass
 class DiagnoseResult:
     """Outcome of :func:`diagnose`.
 
@@ -215,6 +233,12 @@ class DiagnoseResult:
     #: what the machine file declares and the prior it is judged with (the tool offset, mm;
     #: its 1-sigma uncertainty and where that comes from), or None (no machine file)
     declared: dict[str, Any] | None = None
+    #: the final fit, kept for the uncertainty (FitState)
+    fit_state: FitState | None = field(default=None, repr=False)
+    #: U (k = 2) of the named effects and gaps with the budget (diagnosis_uncertainty)
+    uncertainty: dict[str, Any] | None = None
+    #: before / after: rms_um / max_um: value, u, U, budget_u
+    gap_uncertainty: dict[str, Any] | None = None
 
     @property
     def drift_ties(self) -> list[Any]:
@@ -231,12 +255,20 @@ class DiagnoseResult:
         """No effect named and the model explains the checks down to the noise."""
         return not self.effects and not self.tentative
 
+    def _gap_U(self, which: str) -> dict[str, Any]:
+        g = (self.gap_uncertainty or {}).get(which)
+        if not g:
+            return {}
+        return {f"{k[:-3]}_U_um": g[k]["U"] for k in ("rms_um", "max_um")} | \
+            {f"{k[:-3]}_u_um": g[k]["u"] for k in ("rms_um", "max_um")}
+
     def to_json(self, model_path: str | None = None) -> dict[str, Any]:
         return {
             "effects": [e.to_json() for e in self.effects],
             "state": ("nothing missing" if not self.effects else
                       "undecided" if any(e.undecided for e in self.effects) else "named"),
-            "gap": {**{k: (None if v is None else v.to_json()) for k, v in self.gap.items()},
+            "gap": {**{k: (None if v is None else {**v.to_json(), **self._gap_U(k)})
+                       for k, v in self.gap.items()},
                     "held_out_split": self.heldout_split},
             "model": model_path,
             "lack_of_fit": {"residual_over_noise": round(self.lack_of_fit, 3),
@@ -251,6 +283,7 @@ class DiagnoseResult:
             "declared": self.declared,
             "notes": self.notes,
             "drift_temperature": [t.to_json() for t in self.drift_ties],
+            **({"uncertainty": self.uncertainty} if self.uncertainty else {}),
         }
 
 

@@ -52,7 +52,7 @@ def check_model_matches(table: Table, machine: Any, model_source: str = "model")
 
 def diagnose_machine(machine: Any, model: Any, ballbar: list[str] | None = None,
                      laser: list[str] | None = None, options: DiagnoseOptions | None = None,
-                     rezeroed: bool = False) -> DiagnoseResult:
+                     rezeroed: bool = False, mc_draws: int = 0) -> DiagnoseResult:
     """Diagnose the checks of a machine file against a model (the demo's entry point).
 
     ``machine``: path or :class:`abbe.formats.machine.Machine`; ``model``: path (blob / JSON) or
@@ -83,12 +83,14 @@ def diagnose_machine(machine: Any, model: Any, ballbar: list[str] | None = None,
                     "tool_offset_sigma_mm": opts.declared_tool_sigma_mm,
                     "tool_offset_sigma_source": ("machine file [tool] offset_sigma_mm"
                                                  if sigma is not None else "default (a presetter)")}
+    from abbe.diagnose.uncertainty import budgets_of_machine, diagnosis_uncertainty
+    res.uncertainty = diagnosis_uncertainty(res, *budgets_of_machine(m), draws=mc_draws)
     return res
 
 
 def diagnose_positioning(path: Any, axis: str, model: Any = None,
                          options: DiagnoseOptions | None = None,
-                         rezeroed: bool = False) -> DiagnoseResult:
+                         rezeroed: bool = False, mc_draws: int = 0) -> DiagnoseResult:
     """Diagnose repeated positioning runs (ISO 230-2 .dat or laser CSV) of one axis.
 
     Without ``model`` the model is position-only: the axis' own positioning term
@@ -112,4 +114,8 @@ def diagnose_positioning(path: Any, axis: str, model: Any = None,
     else:
         table = load_model(model)
         c = positioning_check(path, axis, table.reference_mm, rezeroed=rezeroed)
-    return diagnose(table, [c], options)
+    from abbe.diagnose.uncertainty import budget_of_positioning_file, diagnosis_uncertainty
+    res = diagnose(table, [c], options)
+    res.uncertainty = diagnosis_uncertainty(res, budget_of_positioning_file(path), None,
+                                            draws=mc_draws, model_from_the_data=model is None)
+    return res

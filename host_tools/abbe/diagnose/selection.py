@@ -63,7 +63,8 @@ from abbe.diagnose.problem import (
     qr_basis,
     remove_nuisance,
 )
-from abbe.diagnose.results import LACK_OF_FIT_LIMIT, DiagnoseOptions, DiagnoseResult, GapStats
+from abbe.diagnose.results import (LACK_OF_FIT_LIMIT, DiagnoseOptions, DiagnoseResult, FitState,
+                                  GapStats)
 from abbe.errors import AbbeInputError
 from abbe.model.table import Table
 
@@ -477,6 +478,7 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
     for o in outl:
         notes.insert(0, ("OUTLIER: " if o.excluded else "OUTLIER (kept): ") + o.message())
     return DiagnoseResult(
+        fit_state=FitState(eng, selected, values, cov, s2_final, W),
         outliers=outl,
         effects=effects,
         gap={"before": gap_before, "after": gap_after, "held_out_before": ho_before,

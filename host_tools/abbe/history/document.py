@@ -35,6 +35,9 @@ class Result:
     feed_mm_min: float | None = None
     ci_low: float | None = None
     ci_high: float | None = None
+    #: expanded uncertainty U (the result's unit) and its coverage factor k, when stated
+    U: float | None = None
+    k: float | None = None
 
 
 @dataclass

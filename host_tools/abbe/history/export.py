@@ -3,9 +3,13 @@
 CSV columns (units in the ``unit`` column; times UTC, ISO 8601)::
 
     machine,campaign,measured_at,operator,series,source,quantity,axis,direction,plane,
-    feed_mm_min,value,unit,ci_low,ci_high
+    feed_mm_min,value,unit,ci_low,ci_high,expanded_u,coverage_k
 
-JSON: ``{"format": "abbe-history", "version": 1, "machines": [{"name", "campaigns":
+(``expanded_u``: the expanded uncertainty U in ``unit`` with its coverage factor
+``coverage_k``, empty when the producer stated none; added in version 1.1, appended at
+the end so a reader by position keeps working.)
+
+JSON: ``{"format": "abbe-history", "version": "1.1", "machines": [{"name", "campaigns":
 [{"id", "measured_at", "added_at", "operator", "kinds", "note", "content_sha256",
 "instruments", "temperatures": [{"source", "value_c"}], "inputs": [{"role", "file",
 "sha256"}], "tables": [{"source", "crc32", "size_bytes"}], "results": [...]}]}]}``
@@ -26,7 +30,8 @@ from abbe.history.readback import fetch
 from abbe.history.store import campaigns_of
 
 CSV_COLUMNS = ("machine", "campaign", "measured_at", "operator", "series", "source", "quantity",
-               "axis", "direction", "plane", "feed_mm_min", "value", "unit", "ci_low", "ci_high")
+               "axis", "direction", "plane", "feed_mm_min", "value", "unit", "ci_low", "ci_high",
+               "expanded_u", "coverage_k")
 _RESULT_FIELDS = CSV_COLUMNS[4:]
 
 
@@ -37,7 +42,7 @@ def _iso(t: Any) -> str:
 def collect(conn: Any, machine_ids: list[int], shown: str | None = None) -> dict[str, Any]:
     """Everything stored about ``machine_ids`` (removed campaigns left out) as one
     JSON-ready document, every value checked as read (:mod:`abbe.history.readback`)."""
-    doc: dict[str, Any] = {"format": "abbe-history", "version": 1, "machines": []}
+    doc: dict[str, Any] = {"format": "abbe-history", "version": "1.1", "machines": []}
     for mid in machine_ids:
         name = fetch(conn, S.machines, S.machines.c.id == mid, shown=shown)[0]["name"]
         camps = campaigns_of(conn, mid, shown)

@@ -135,6 +135,12 @@ def _term_pv(table: Any) -> list[tuple[str, str, float]]:
     return out
 
 
+def _k(doc: _Doc, dotted: str) -> float:
+    """The coverage factor a producer states at ``dotted`` (every abbe output: 2)."""
+    k = doc.num(dotted, optional=True, lo=1.0, hi=10.0)
+    return 2.0 if k is None else float(k)
+
+
 def _ci(value: float, se: float | None) -> tuple[float | None, float | None]:
     if se is None:
         return None, None
@@ -163,10 +169,12 @@ def read_fit(c: Campaign, doc: _Doc) -> None:
         base = f"axes.{a}"
         iso = doc.get(f"{base}.iso230_2", dict, optional=True)
         if iso is not None:
+            k = _k(doc, f"{base}.iso230_2.U_k")
             for q in ("B", "R", "E", "A", "M"):
                 v = doc.num(f"{base}.iso230_2.{q}_um")
+                U = doc.num(f"{base}.iso230_2.{q}_U_um", optional=True, lo=0)
                 c.results.append(Result(f"iso230-2 {q} {a} bi", "fit", f"iso230-2 {q}", v, "um",
-                                        axis=a, direction="bi"))
+                                        axis=a, direction="bi", U=U, k=k))
         bl = doc.get(f"{base}.backlash", dict, optional=True)
         if bl is not None:
             v = doc.num(f"{base}.backlash.mean_reversal_um")
@@ -227,12 +235,17 @@ def read_diagnose(c: Campaign, doc: _Doc, with_table: bool) -> None:
             hi = None if ci[1] is None else _num_at(doc, ci[1], f"{w}.ci95[1]")
         axis = e.get("axis") if isinstance(e.get("axis"), str) else None
         plane = e.get("plane") if isinstance(e.get("plane"), str) else None
+        U = None if e.get("U") is None else _num_at(doc, e.get("U"), f"{w}.U")
+        if U is not None and U < 0:
+            raise doc.err(f"{w}.U", f"expected U >= 0, got {U!r}")
         c.results.append(Result(f"diagnose {key}", "diagnose", key, v, unit, axis=axis,
-                                plane=plane, ci_low=lo, ci_high=hi))
+                                plane=plane, ci_low=lo, ci_high=hi, U=U,
+                                k=_k(doc, "uncertainty.k")))
     for when in ("before", "after"):
         v = doc.num(f"gap.{when}.rms_um", lo=0)
+        U = doc.num(f"gap.{when}.rms_U_um", optional=True, lo=0)
         c.results.append(Result(f"diagnose gap rms {when}", "diagnose", f"gap rms {when}", v,
-                                "um"))
+                                "um", U=U, k=_k(doc, "uncertainty.k")))
     inp = doc.get("input", dict, optional=True) or {}
     _hash_named_file(c, inp.get("machine"), "measurement:machine", doc.path)
     if with_table:
@@ -259,16 +272,21 @@ def read_ballbar(c: Campaign, doc: _Doc) -> None:
         raise doc.err("plane", f"expected XY, ZX or YZ, got {plane!r}")
     feed = doc.num("feed_mm_min", lo=0, hi=1e6)
     tag = f"{plane} F{feed:g}"
+    def U_of(name: str) -> dict[str, float | None]:
+        """The U (k) abbe ballbar states for ``name`` (uncertainty.results), if any."""
+        U = doc.num(f"uncertainty.results.{name}.U_um", optional=True, lo=0)
+        return {"U": U, "k": _k(doc, f"uncertainty.results.{name}.k")}
+
     for d in ("ccw", "cw", "bidirectional"):
         v = doc.num(f"{d}.G_um", lo=0)
         short = "bi" if d == "bidirectional" else d
         c.results.append(Result(f"ballbar G {tag} {short}", "ballbar", "iso230-4 G", v, "um",
-                                direction=short, plane=plane, feed_mm_min=feed))
+                                direction=short, plane=plane, feed_mm_min=feed, **U_of(f"G_{d}")))
     c.results.append(Result(f"ballbar H {tag}", "ballbar", "iso230-4 H", doc.num("H_um", lo=0),
-                            "um", plane=plane, feed_mm_min=feed))
+                            "um", plane=plane, feed_mm_min=feed, **U_of("H")))
     c.results.append(Result(f"ballbar radius deviation {tag}", "ballbar", "radius deviation",
                             doc.num("bidirectional.radius_dev_um"), "um", plane=plane,
-                            feed_mm_min=feed))
+                            feed_mm_min=feed, **U_of("radius_dev")))
     for k in sorted(doc.get("bidirectional")):
         if k.startswith("center_") and k.endswith("_um"):
             ax = k[len("center_"):-3].upper()
@@ -288,7 +306,9 @@ def read_iso230_2(c: Campaign, doc: _Doc, axis: str) -> None:
         _set_machine(c, name, doc, "machine")
     for q in ("B", "R", "E", "A", "M"):
         c.results.append(Result(f"iso230-2 {q} {axis} bi", "iso230-2", f"iso230-2 {q}",
-                                doc.num(f"{q}_um"), "um", axis=axis, direction="bi"))
+                                doc.num(f"{q}_um"), "um", axis=axis, direction="bi",
+                                U=doc.num(f"uncertainty.results.{q}.U_um", optional=True, lo=0),
+                                k=_k(doc, f"uncertainty.results.{q}.k")))
     uni = doc.get("unidirectional", dict, optional=True)
     if uni is not None:
         for d in ("up", "down"):

@@ -8,6 +8,9 @@ from __future__ import annotations
 from abbe.history.document import (Campaign, Result, _begin, _Doc, _entry_num, _entry_str,
                                    _list, _unit)
 
+#: the coverage factor of every U abbe's outputs state (docs/uncertainty.md)
+K = 2.0
+
 def read_five_axis(c: Campaign, doc: _Doc) -> None:
     """``five_axis.json`` of ``abbe fit`` on a five-axis file: the identified location
     errors (value, 95 % interval) and the sphere-centre dispersion."""
@@ -19,10 +22,11 @@ def read_five_axis(c: Campaign, doc: _Doc) -> None:
         name = _entry_str(doc, p, "name", where)
         v = _entry_num(doc, p, "value", where)
         ci = _entry_num(doc, p, "ci95", where, lo=0)
+        U = _entry_num(doc, p, "U", where, lo=0, optional=True)
         assert v is not None and ci is not None
         c.results.append(Result(f"five-axis {name}", "five-axis", "location error", v,
                                 _unit(doc, p.get("unit"), f"{where}.unit"), axis=name[-1],
-                                ci_low=v - ci, ci_high=v + ci))
+                                ci_low=v - ci, ci_high=v + ci, U=U, k=K))
     for key in ("before", "after", "heldout_before", "heldout_after"):
         v = doc.num(f"dispersion_um.{key}", optional=True, lo=0)
         if v is not None:
@@ -58,13 +62,14 @@ def read_thermal_evaluate(c: Campaign, doc: _Doc) -> None:
             where = f"{key}[{i}]"
             name = _entry_str(doc, d, "name", where)
             v = _entry_num(doc, d, "range", where, lo=0)
+            U = _entry_num(doc, d, "U", where, lo=0, optional=True)
             assert v is not None
             c.results.append(Result(f"iso230-3 range {name}", "thermal evaluate",
-                                    "thermal drift range", v, unit))
+                                    "thermal drift range", v, unit, U=U, k=K))
     v = doc.num("envelope.range_um", lo=0)
     assert v is not None
     c.results.append(Result("iso230-3 envelope", "thermal evaluate", "thermal drift envelope",
-                            v, "um"))
+                            v, "um", U=doc.num("envelope.U_um", optional=True, lo=0), k=K))
 
 
 def read_thermal_fit(c: Campaign, doc: _Doc) -> None:
@@ -109,10 +114,11 @@ def read_printer_fit(c: Campaign, doc: _Doc) -> None:
     for plane in sorted(sq):
         v = doc.num(f"squareness_urad.{plane}")
         u = doc.num(f"squareness_u95_urad.{plane}", optional=True, lo=0)
+        U = doc.num(f"squareness_U_urad.{plane}", optional=True, lo=0)
         assert v is not None
         c.results.append(Result(f"printer squareness {plane}", "printer fit", "squareness", v,
                                 "urad", plane=plane[:8], ci_low=None if u is None else v - u,
-                                ci_high=None if u is None else v + u))
+                                ci_high=None if u is None else v + u, U=U, k=K))
 
 
 def read_predict(c: Campaign, doc: _Doc) -> None:
@@ -125,8 +131,9 @@ def read_predict(c: Campaign, doc: _Doc) -> None:
                        ("residual_rms_um", "prediction residual RMS"),
                        ("ideal_roundness_um", "ideal compensated roundness")):
             v = _entry_num(doc, p, key, where, lo=0)
+            U = _entry_num(doc, p, key[:-3] + "_U_um", where, lo=0, optional=True)
             assert v is not None
-            c.results.append(Result(f"predict {name} {q}", "predict", q, v, "um"))
+            c.results.append(Result(f"predict {name} {q}", "predict", q, v, "um", U=U, k=K))
 
 
 def read_export(c: Campaign, doc: _Doc) -> None:
@@ -171,10 +178,12 @@ def read_chain_fit(c: Campaign, doc: _Doc) -> None:
             name = _entry_str(doc, p, "name", where)
             v = _entry_num(doc, p, "value", where)
             u = _entry_num(doc, p, "u95", where, lo=0)
+            U = _entry_num(doc, p, "U", where, lo=0, optional=True)
             assert v is not None and u is not None
             c.results.append(Result(f"chain {name}", "chain fit", quantity, v,
                                     _unit(doc, p.get("unit"), f"{where}.unit"),
-                                    axis=_rotary_axis(name), ci_low=v - u, ci_high=v + u))
+                                    axis=_rotary_axis(name), ci_low=v - u, ci_high=v + u,
+                                    U=U, k=K))
     tests = doc.get("rotary_ballbar", dict, optional=True) or {}
     for n in sorted(tests):
         v = doc.num(f"rotary_ballbar.{n}.left_rms_um", lo=0)

@@ -48,11 +48,17 @@ def _plot(an: Analysis, s: Settings, path: Path) -> None:
     if an.band is not None:
         ax.axhspan(an.band[0], an.band[1], color="tab:green", alpha=0.12,
                    label=f"band (first {s.baseline_campaigns} campaigns)")
-    lo = [p.value - p.ci_low if p.ci_low is not None else 0.0 for p in pts]
-    hi = [p.ci_high - p.value if p.ci_high is not None else 0.0 for p in pts]
+    # the bar is U (k = 2) where the producer stated it, else its 95 % interval
+    lo = [p.U if p.U is not None else p.value - p.ci_low if p.ci_low is not None else 0.0
+          for p in pts]
+    hi = [p.U if p.U is not None else p.ci_high - p.value if p.ci_high is not None else 0.0
+          for p in pts]
     if any(lo) or any(hi):
+        what = ("U, k = 2" if all(p.U is not None for p in pts) else
+                "95 % interval" if all(p.U is None for p in pts) else
+                "U (k = 2), else the 95 % interval")
         ax.errorbar(x, y, yerr=[lo, hi], fmt="o-", ms=4, lw=1, capsize=2, color="tab:blue",
-                    label="value (95 % interval)")
+                    label=f"value ({what})")
     else:
         ax.plot(x, y, "o-", ms=4, lw=1, color="tab:blue", label="value")
     if an.limit is not None:
@@ -155,7 +161,8 @@ def render(out: Path, machine: str, campaigns: list[dict[str, Any]],
         h.append(f"<h3 id='s{i + 1}'>{_esc(an.series.key)}</h3><img src='{name}' "
                  f"alt='trend of {_esc(an.series.key)}'>")
     h.append("<h2>Every series</h2><table><tr><th class='l'>series</th><th>unit</th>"
-             "<th>n</th><th>first</th><th>last</th><th>band</th><th>limit</th>"
+             "<th>n</th><th>first</th><th>last</th><th>U of the last (k = 2)</th>"
+             "<th>band</th><th>limit</th>"
              "<th>trend / month</th><th class='l'>reaches the limit</th><th>alerts now</th></tr>")
     for an in sorted(analyses, key=lambda a: a.series.key):
         p = an.series.points
@@ -171,6 +178,7 @@ def render(out: Path, machine: str, campaigns: list[dict[str, Any]],
         now = ", ".join(a.kind for a in an.current())
         h.append(f"<tr><td class='l'>{_esc(an.series.key)}</td><td>{_esc(an.series.unit)}</td>"
                  f"<td>{len(p)}</td><td>{p[0].value:.4g}</td><td>{p[-1].value:.4g}</td>"
+                 f"<td>{'-' if p[-1].U is None else f'{p[-1].U:.3g}'}</td>"
                  f"<td>{band}</td><td>{'-' if an.limit is None else f'{an.limit:g}'}</td>"
                  f"<td>{trend}</td><td class='l'>{cross}</td>"
                  f"<td class='{'alert' if now else ''}'>{now or '-'}</td></tr>")

@@ -14,7 +14,9 @@ column names or in ``unit``; times are UTC without a zone.
   read and of every measurement file the outputs name.
 * ``results``: one value per row: ``series`` (the key a trend follows, e.g.
   ``iso230-2 B X bi``), the quantity, axis, direction, plane and feed where they
-  apply, value, unit, 95 % interval when the producer gave one.
+  apply, value, unit, 95 % interval when the producer gave one, and (revision 0004) the
+  expanded uncertainty U with its coverage factor k (``expanded_u``, ``coverage_k``)
+  when the producer states one (NULL otherwise, and in every row stored before 0004).
 * ``tables``: the table blobs (``model.bin`` of fit / diagnose) with their CRC-32.
 * ``exports``: every export and report written from the database (what, where, when).
 * ``audit`` (revision 0003): every correction of a campaign (``history amend``) and
@@ -93,6 +95,8 @@ results = sa.Table(
     sa.Column("unit", sa.String(20), nullable=False),
     sa.Column("ci_low", sa.Float),
     sa.Column("ci_high", sa.Float),
+    sa.Column("expanded_u", sa.Float),  # revision 0004: U in the result's unit, or NULL
+    sa.Column("coverage_k", sa.Float),  # revision 0004: its coverage factor (2), or NULL
 )
 
 tables = sa.Table(

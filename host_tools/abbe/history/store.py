@@ -81,7 +81,8 @@ def add_campaign(db: Database, c: Campaign, meta: Meta) -> int:
                     {"campaign_id": cid, "series": r.series, "source": r.source,
                      "quantity": r.quantity, "axis": r.axis, "direction": r.direction,
                      "plane": r.plane, "feed_mm_min": r.feed_mm_min, "value": r.value,
-                     "unit": r.unit, "ci_low": r.ci_low, "ci_high": r.ci_high}
+                     "unit": r.unit, "ci_low": r.ci_low, "ci_high": r.ci_high,
+                     "expanded_u": r.U, "coverage_k": None if r.U is None else r.k}
                     for r in c.results])
             if c.tables:
                 conn.execute(sa.insert(S.tables), [
@@ -117,6 +118,9 @@ class Point:
     value: float
     ci_low: float | None
     ci_high: float | None
+    #: expanded uncertainty (the series' unit) and its coverage factor; None: not stated
+    U: float | None = None
+    k: float | None = None
 
 
 @dataclass
@@ -162,14 +166,15 @@ def series_of(conn: Any, mid: int, shown: str | None = None,
     ids = sa.select(S.campaigns.c.id).where(S.campaigns.c.machine_id == mid,
                                             S.campaigns.c.removed_at.is_(None))
     rows = fetch(conn, S.results, S.results.c.campaign_id.in_(ids), shown=shown,
-                 columns=["campaign_id", "series", "unit", "value", "ci_low", "ci_high"])
+                 columns=["campaign_id", "series", "unit", "value", "ci_low", "ci_high",
+                          "expanded_u", "coverage_k"])
     rows = [r for r in rows if r["campaign_id"] in order]
     rows.sort(key=lambda r: (r["series"], order[r["campaign_id"]], r["id"]))
     out: dict[str, Series] = {}
     for r in rows:
         s = out.setdefault(r["series"], Series(r["series"], r["unit"], []))
         s.points.append(Point(r["campaign_id"], at[r["campaign_id"]], r["value"], r["ci_low"],
-                              r["ci_high"]))
+                              r["ci_high"], r["expanded_u"], r["coverage_k"]))
     return out
 
 

@@ -2,8 +2,8 @@
 campaign (every alert uses only the campaigns up to and including its own).
 
 * **band**: the mean of the first ``baseline_campaigns`` values +- the larger of
-  ``band_sigma`` x their standard deviation, the median 95 % half-interval the
-  producer gave, 10 % of the limit and 5 % of the mean (a band never narrower than
+  ``band_sigma`` x their standard deviation, the median U (k = 2) the producer stated
+  (else its 95 % half-interval), 10 % of the limit and 5 % of the mean (a band never narrower than
   what the measurement can resolve). A later value outside it: alert ``band``, for the
   quantities that matter -- those with a tolerance (a series without one has its band
   drawn and marked in the tables, but raises nothing: three campaigns cannot tell the
@@ -71,8 +71,9 @@ def band_of(points: list[Point], s: Settings, limit: float | None) -> tuple[floa
     v = np.array([p.value for p in base])
     centre = float(v.mean())
     sd = float(v.std(ddof=1)) if v.size > 1 else 0.0
-    halves = [(p.ci_high - p.ci_low) / 2 for p in base
-              if p.ci_low is not None and p.ci_high is not None]
+    # each value's own half-width: U (k = 2) where stated, else its 95 % interval's
+    halves = [p.U if p.U is not None else (p.ci_high - p.ci_low) / 2 for p in base
+              if p.U is not None or (p.ci_low is not None and p.ci_high is not None)]
     half = max(s.band_sigma * sd, float(np.median(halves)) if halves else 0.0,
                0.1 * limit if limit else 0.0, 0.05 * abs(centre), 1e-9)
     return centre - half, centre + half

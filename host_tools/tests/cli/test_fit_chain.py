@@ -50,6 +50,7 @@ def test_fit_a_chain_campaign_from_files(tmp_path: Path, file: str, unseen: set[
         assert abs(r["value"] - truth[r["name"]]) <= max(r["u95"], floor), r
     assert "observable" in capsys.readouterr().out
     assert (tmp_path / "o" / "report.txt").read_text().count("identified") == 10 - len(unseen)
+    _assert_report_reads_verdict_first(tmp_path / "o", doc, unseen, tmp_path, file)
     # the table (format 1.4): the fit's values in its convention, evaluated by abbe table eval
     blob = (tmp_path / "o" / "model_five.bin").read_bytes()
     assert doc["blob"]["file"] == "model_five.bin" and doc["blob"]["bytes"] == len(blob)
@@ -70,6 +71,35 @@ def test_fit_a_chain_campaign_from_files(tmp_path: Path, file: str, unseen: set[
     got = [float(v) for v in out[1].split("|")[1].split()]
     assert got == pytest.approx(ref[0], abs=1e-4)
     assert float(np.max(np.abs(ref))) > 1.0  # the errors move the tool: the check can fail
+
+
+def _assert_report_reads_verdict_first(out: Path, doc: dict, unseen: set[str], tmp: Path,
+                                       file: str) -> None:
+    """report/index.html, like the trunnion's: machine, test, date, then the band with the
+    identified location errors and their U, then one short table of what the plan could
+    not see with the one measurement that would see it, the budget; rendered by Chromium,
+    the band in the top quarter of the first screen."""
+    from report_shots import assert_band_before, assert_verdict_first, needs_chromium, screenshot
+    page = (out / "report" / "index.html").read_text()
+    assert_band_before(page, "What this plan could not see", "<h2>Budget</h2>", "<details>")
+    assert page.index("<b>Machine</b>") < page.index("<b>Test</b>") < page.index("<b>Date</b>") \
+        < page.index("id='verdict'")
+    for r in doc["location"]:
+        if r["value"] is None:
+            assert r["name"] in page.split("What this plan could not see")[1].split("</table>")[0]
+        else:  # each identified error with its U in the band
+            band = page.split("id='verdict'")[1].split("</div>")[0]
+            assert f"<td class='l'>{r['name']}</td><td>{r['value']:.3f}</td>" in band
+            assert f"&plusmn; {r['U']:.3f}" in band
+    # one short table: one row per measurement, not one per error
+    rows = page.split("What this plan could not see")[1].split("</table>")[0].count("<tr>") - 1
+    assert 1 <= rows <= len(unseen)
+    assert f"{10 - len(unseen)} of 10 location errors identified" in page
+    if needs_chromium.args[0]:
+        return
+    img = screenshot(out / "report" / "index.html", tmp / "shot.png",
+                     "chain_fit_" + file.split(".")[0])
+    assert assert_verdict_first(img) == "inconclusive"
 
 
 def test_a_trunnion_chain_fit_names_why_it_writes_no_table(tmp_path: Path, capsys) -> None:

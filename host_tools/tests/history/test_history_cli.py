@@ -255,7 +255,7 @@ def test_migration_from_the_first_schema(db, outputs, capsys):
     assert main(["history", "--db", db, "show", "old"]) == 2
     assert "abbe history migrate" in capsys.readouterr().err
     assert main(["history", "--db", db, "migrate"]) == 0
-    assert "revision 0003" in capsys.readouterr().out
+    assert "revision 0004" in capsys.readouterr().out
     assert main(["history", "--db", db, "show", "old"]) == 0
     assert "12.5" in capsys.readouterr().out
     assert main(["history", "--db", db, "add", str(outputs / "ballbar.json"), "--machine", "old",
