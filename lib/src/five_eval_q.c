@@ -210,12 +210,14 @@ ABBE_NOINLINE static void twist_chain_q(const abbe_rotary_model_t *ax, int32_t c
 
 /* A component of kind 3's head lever before R0: -(g + R1 P1), 2 nm. Within
  * +/-(2^31 - 2^9) on every table the loader accepts (HH_LEVER_L1_CAP: |g_j| + |(R1 P1)_j|
- * <= (|offset|_1 + |P1|_1) / 2 + 2); summed in int64 and held to +/-INT32_MAX, which never
- * binds there: an interval analysis does not relate g and P1 (both from rot_point and
- * offset), so the proof of the int32 sum rests on this hold (docs/proofs.md). */
+ * <= (|offset|_1 + |P1|_1) / 2 + 2), so the sum taken mod 2^32 is the sum (as the loader's
+ * tilt_pivot_nm): defined for every operand, where an int32 sum's range would rest on the
+ * cap, which relates g and P1 (both from rot_point and offset) as an interval analysis
+ * cannot (docs/proofs.md, "Five-axis: any layout"). The same instructions as the int32
+ * sum (a clamp in int64 was 132 B of flash, Cortex-M4F -O2). */
 static ABBE_ALWAYS_INLINE int32_t hh_lever(int32_t g, int32_t u)
 {
-    return (int32_t)abbe_clamp_i64(-((int64_t)g + u), -INT32_MAX, INT32_MAX);
+    return abbe_u32_to_i32(0u - ((uint32_t)g + (uint32_t)u));
 }
 
 /* One kind's geometry, straight-line (kind, k0 = record 0's axis and k1 = record 1's are
