@@ -83,10 +83,11 @@ ABBE_NOINLINE static void motions_q(const abbe_rotary_model_t *ax, int32_t c, in
         const unsigned shift = i < 3u ? Q30 + 4u : Q30;
         int64_t acc = (int64_t)1 << (shift - 1u);
         const unsigned col = ax->column[i];
-        /* an absent component's column (0xFF) would point 1020 B on: no pointer then */
-        const uint8_t *row = col != 0xFFu ? ax->coef_q + 4u * col : ax->coef_q;
-        for (unsigned r = 0; col != 0xFFu && r < rows; r++, row += 4u * n) {
-            acc = abbe_smlal(acc, abbe_ld_i32_aligned(row), basis[r]);
+        /* the word's pointer formed where it is read: an absent component's column
+         * (0xFF) would point 1020 B on, a row pointer stepped past the last row past
+         * the array's end */
+        for (unsigned r = 0; col != 0xFFu && r < rows; r++) {
+            acc = abbe_smlal(acc, abbe_ld_i32_aligned(ax->coef_q + 4u * (col + r * n)), basis[r]);
         }
         (i < 3u ? trans : rot)[i % 3u] = col != 0xFFu ? (int32_t)(acc >> shift) : 0;
     }
