@@ -1,7 +1,9 @@
 /* Eva harness: the five-axis evaluations on a model of ANY layout the
  * five-axis loader accepts (eval_five_any_q with PROOF_Q: abbe_five_error_eval_q
  * and the compensator's five-axis cycle abbe_comp_step5_q; eval_five_any_f32:
- * abbe_five_error_eval_f32 and abbe_comp_step5_f32). The model is built
+ * abbe_five_error_eval_f32, and abbe_comp_step5_f32 unless PROOF_NO_COMP, which
+ * scripts/prove.sh sets for it: with the float cycle it took over 86 s of CPU).
+ * The model is built
  * directly, every field unknown within the invariants abbe_five_model_load's
  * checks establish (model_load.c, model_load_rotary.h: check_rotary,
  * build_rotary), stated here as the evaluation's preconditions:
@@ -18,14 +20,15 @@
  *   each rotary record: any component mask 0..63, n_comp its popcount,
  *   column[c] its rank or 0xFF; harmonics 0..8 (0 without components);
  *   location errors: delta any int32 (the loader has no cap on them), the
- *   two tilts and the zero offset within +/-2^28 (SQUARENESS_CAP), 0 along
+ *   two tilts and the zero offset within +/-2^26 (LOCATION_BOX: a box inside
+ *   the loader's SQUARENESS_CAP, 2^28; docs/proofs.md says why), 0 along
  *   the axis; coef_q / coef_f32 an array of 2 x 8 x 6 = 96 words (the
  *   largest array: a read past it is an alarm; also where the loader leaves
  *   NULL, below);
  *   every word any int32 in [-2^24, 2^24] (+/-65.5 um in a linear
  *   component, 2^-8 nm; +/-244 urad in an angular one, 2^-36 rad: for 16
  *   rows the angular L1 cap, 2^28, and 1/16 of the linear one, 2^32),
- *   the float twins any float in the same range;
+ *   the float twins any float in the same range (a box inside the L1 caps);
  *   the linear axes: any layout as eval_q_any_layout.c (any_layout.h); in the
  *   _q harness the term kernel runs as its contract (terms_q_contract.h,
  *   proven by terms_q_any), in the _f32 one the kernels as they are.
