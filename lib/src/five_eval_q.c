@@ -63,12 +63,12 @@ ABBE_NOINLINE static void motions_q(const abbe_rotary_model_t *ax, int32_t c, in
         const uint8_t *row = ax->coef_q + 4u * (g);                                                        \
         for (unsigned r = 0; r < rows; r += 2u, row += 48u) {                                              \
             const int32_t bs = basis[r], bc = basis[r + 1u];                                               \
-            a0 = abbe_smlal(a0, abbe_ld_i32_aligned(row), bs);                                                \
-            a1 = abbe_smlal(a1, abbe_ld_i32_aligned(row + 4u), bs);                                           \
-            a2 = abbe_smlal(a2, abbe_ld_i32_aligned(row + 8u), bs);                                           \
-            a0 = abbe_smlal(a0, abbe_ld_i32_aligned(row + 24u), bc);                                          \
-            a1 = abbe_smlal(a1, abbe_ld_i32_aligned(row + 28u), bc);                                          \
-            a2 = abbe_smlal(a2, abbe_ld_i32_aligned(row + 32u), bc);                                          \
+            a0 = abbe_smlal(a0, abbe_ld_i32_aligned(row), bs);                                             \
+            a1 = abbe_smlal(a1, abbe_ld_i32_aligned(row + 4u), bs);                                        \
+            a2 = abbe_smlal(a2, abbe_ld_i32_aligned(row + 8u), bs);                                        \
+            a0 = abbe_smlal(a0, abbe_ld_i32_aligned(row + 24u), bc);                                       \
+            a1 = abbe_smlal(a1, abbe_ld_i32_aligned(row + 28u), bc);                                       \
+            a2 = abbe_smlal(a2, abbe_ld_i32_aligned(row + 32u), bc);                                       \
         }                                                                                                  \
         (m)[0] = (int32_t)(a0 >> (shift));                                                                 \
         (m)[1] = (int32_t)(a1 >> (shift));                                                                 \
