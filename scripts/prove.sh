@@ -3,7 +3,8 @@
 # untrusted bytes and of the evaluators and the compensator on every table
 # the loaders accept with a golden table's layout, any scalar fields and
 # (3-axis) any coefficients in a box, and on any layout / any thermal block
-# within the loaders' invariants (tests/proofs/any_layout.h, thermal_update.c)
+# within the loaders' invariants (tests/proofs/any_layout.h, thermal_update.c,
+# eval_five_any.c: the five-axis kinds, coefficients in a box)
 # (tests/proofs/*.c), each of which must end with zero alarms and every
 # ACSL property it reaches proven (but the hypotheses, which
 # tests/proofs/hypotheses.c checks on all their inputs, here); WP's proof of
@@ -141,13 +142,19 @@ FIVE_OPTS="-eva-auto-loop-unroll 64 -eva-split-return-function check_header:0,ab
 FIVE_F32_OPTS="${FIVE_OPTS/abbe_five_model_load:0/abbe_five_model_load:0,abbe_five_eval_f32_linear:0},abbe_five_eval_f32_linear:10,abbe_five_error_eval_f32:10"
 for t in $FIVE_TABLES; do
     golden_tables "tables_five_$t.h" tests/golden/golden_five.c golden_five_ "$t"
-    # hh_5axiskins: the golden scalars (with any, 7 alarms in add_chain_q are
-    # left: docs/proofs.md, "Not proven yet")
-    any=$ANY
-    [[ $t == hh_5axiskins ]] && any="-DPROOF_CLZ_AS_CODE -I$OUT"
-    HARNESSES+=("eval_five_q_$t|$FIVE_SRCS|$any -DPROOF_TABLES_H=tables_five_$t.h|$FIVE_OPTS")
+    HARNESSES+=("eval_five_q_$t|$FIVE_SRCS|$ANY -DPROOF_TABLES_H=tables_five_$t.h|$FIVE_OPTS")
     HARNESSES+=("eval_five_f32_$t|$FIVE_F32_SRCS|$ANY -DPROOF_TABLES_H=tables_five_$t.h|$FIVE_F32_OPTS")
 done
+# the five-axis evaluations and the compensator's five-axis cycles on a model of
+# ANY layout the five-axis loader accepts (tests/proofs/eval_five_any.c: every
+# kind, each its own partition; any component mask, harmonics and location
+# errors of both rotary records, any geometry within the caps; the linear axes
+# as eval_q_any_layout / eval_f32_any_layout), every input
+FIVE_ANY_Q_SRCS="tests/proofs/eval_five_any.c $(printf 'lib/src/%s.c ' five_eval_q eval_q sincos_q comp comp_q comp_five comp_five_q status)"
+FIVE_ANY_F32_SRCS="tests/proofs/eval_five_any.c $(printf 'lib/src/%s.c ' five_eval_f32 eval_f32 terms_f32 terms_rot_f32 sincos_f32 comp comp_f32 comp_five comp_five_f32 status)"
+FIVE_ANY_OPTS="-eva-auto-loop-unroll 300 -eva-split-return-function abbe_comp_init:0,config_ok:0 -eva-interprocedural-splits -eva-slevel-function main:10,abbe_comp_init:10"
+HARNESSES+=("eval_five_any_q|$FIVE_ANY_Q_SRCS|-DPROOF_Q|$FIVE_ANY_OPTS,abbe_comp_step5_q:20,motions_q:64 -eva-slevel-merge-after-loop motions_q -eva-use-spec abbe_axis_terms_q")
+HARNESSES+=("eval_five_any_f32|$FIVE_ANY_F32_SRCS|-DPROOF_NO_COMP|${FIVE_ANY_OPTS/config_ok:0/config_ok:0,abbe_five_eval_f32_linear:0,eval_f32_linear:full},abbe_five_eval_f32_linear:10,eval_f32_linear:10,abbe_five_error_eval_f32:10,fold6_body:100,fold6_rot_f32:100,fold_values_rot_f32:100,abbe_rotary_motions6_f32:100,motions_sparse_f32:100,abbe_axis_terms_sparse_f32:100 -eva-slevel-merge-after-loop fold6_body,fold6_rot_f32,fold_values_rot_f32,abbe_rotary_motions6_f32,motions_sparse_f32,abbe_axis_terms_sparse_f32")
 # the float evaluations given any bits, NaN and infinities included: the
 # harnesses with -warn-special-float none (a non-finite input is not an alarm
 # by itself; every other kind of alarm still counts); the finite harnesses

@@ -40,8 +40,10 @@ ABBE_NOINLINE static void motions_sparse_f32(const abbe_rotary_model_t *ax, floa
     }
     for (unsigned i = 0; i < ABBE_MOTIONS; i++) {
         float acc = 0.0f, sk = s, ck = c;
-        const uint8_t *row = ax->coef_f32 + 4u * ax->column[i];
-        for (unsigned k = 0; ax->column[i] != 0xFFu && k < h; k++, row += 8u * n) {
+        const unsigned col = ax->column[i];
+        /* an absent component's column (0xFF) would point 1020 B on: no pointer then */
+        const uint8_t *row = col != 0xFFu ? ax->coef_f32 + 4u * col : ax->coef_f32;
+        for (unsigned k = 0; col != 0xFFu && k < h; k++, row += 8u * n) {
             acc += abbe_ld_f32_aligned(row) * sk;
             acc += abbe_ld_f32_aligned(row + 4u * n) * ck;
             const float sn = sk * c + ck * s;

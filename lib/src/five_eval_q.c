@@ -63,12 +63,12 @@ ABBE_NOINLINE static void motions_q(const abbe_rotary_model_t *ax, int32_t c, in
         const uint8_t *row = ax->coef_q + 4u * (g);                                                        \
         for (unsigned r = 0; r < rows; r += 2u, row += 48u) {                                              \
             const int32_t bs = basis[r], bc = basis[r + 1u];                                               \
-            a0 = abbe_smlal(a0, abbe_ld_i32(row), bs);                                                     \
-            a1 = abbe_smlal(a1, abbe_ld_i32(row + 4u), bs);                                                \
-            a2 = abbe_smlal(a2, abbe_ld_i32(row + 8u), bs);                                                \
-            a0 = abbe_smlal(a0, abbe_ld_i32(row + 24u), bc);                                               \
-            a1 = abbe_smlal(a1, abbe_ld_i32(row + 28u), bc);                                               \
-            a2 = abbe_smlal(a2, abbe_ld_i32(row + 32u), bc);                                               \
+            a0 = abbe_smlal(a0, abbe_ld_i32_aligned(row), bs);                                             \
+            a1 = abbe_smlal(a1, abbe_ld_i32_aligned(row + 4u), bs);                                        \
+            a2 = abbe_smlal(a2, abbe_ld_i32_aligned(row + 8u), bs);                                        \
+            a0 = abbe_smlal(a0, abbe_ld_i32_aligned(row + 24u), bc);                                       \
+            a1 = abbe_smlal(a1, abbe_ld_i32_aligned(row + 28u), bc);                                       \
+            a2 = abbe_smlal(a2, abbe_ld_i32_aligned(row + 32u), bc);                                       \
         }                                                                                                  \
         (m)[0] = (int32_t)(a0 >> (shift));                                                                 \
         (m)[1] = (int32_t)(a1 >> (shift));                                                                 \
@@ -83,9 +83,11 @@ ABBE_NOINLINE static void motions_q(const abbe_rotary_model_t *ax, int32_t c, in
         const unsigned shift = i < 3u ? Q30 + 4u : Q30;
         int64_t acc = (int64_t)1 << (shift - 1u);
         const unsigned col = ax->column[i];
-        const uint8_t *row = ax->coef_q + 4u * col;
-        for (unsigned r = 0; col != 0xFFu && r < rows; r++, row += 4u * n) {
-            acc = abbe_smlal(acc, abbe_ld_i32(row), basis[r]);
+        /* the word's pointer formed where it is read: an absent component's column
+         * (0xFF) would point 1020 B on, a row pointer stepped past the last row past
+         * the array's end */
+        for (unsigned r = 0; col != 0xFFu && r < rows; r++) {
+            acc = abbe_smlal(acc, abbe_ld_i32_aligned(ax->coef_q + 4u * (col + r * n)), basis[r]);
         }
         (i < 3u ? trans : rot)[i % 3u] = col != 0xFFu ? (int32_t)(acc >> shift) : 0;
     }
@@ -207,6 +209,18 @@ ABBE_NOINLINE static void twist_chain_q(const abbe_rotary_model_t *ax, int32_t c
     twist_q(ax, k, k == 2u ? 0u : k + 1u, k == 0u ? 2u : k - 1u, c, s, sr, scratch, v, w);
 }
 
+/* A component of kind 3's head lever before R0: -(g + R1 P1), 2 nm. Within
+ * +/-(2^31 - 2^9) on every table the loader accepts (HH_LEVER_L1_CAP: |g_j| + |(R1 P1)_j|
+ * <= (|offset|_1 + |P1|_1) / 2 + 2), so the sum taken mod 2^32 is the sum (as the loader's
+ * tilt_pivot_nm): defined for every operand, where an int32 sum's range would rest on the
+ * cap, which relates g and P1 (both from rot_point and offset) as an interval analysis
+ * cannot (docs/proofs.md, "Five-axis: any layout"). The same instructions as the int32
+ * sum (a clamp in int64 was 132 B of flash, Cortex-M4F -O2). */
+static ABBE_ALWAYS_INLINE int32_t hh_lever(int32_t g, int32_t u)
+{
+    return abbe_u32_to_i32(0u - ((uint32_t)g + (uint32_t)u));
+}
+
 /* One kind's geometry, straight-line (kind, k0 = record 0's axis and k1 = record 1's are
  * constants where it is inlined: the loader fixes them per kind): the position error d
  * (2^-4 nm) the chain adds before the kind's sign, w1 turned (R0 w1, kinds 3, 5) or negated
@@ -247,9 +261,9 @@ static ABBE_ALWAYS_INLINE void chain_q(const abbe_five_model_t *m5, const int32_
             /* L = -R0 (g + R1 P1), P1 = tilt_pivot */
             int32_t u[3] = {m5->tilt_pivot_nm[0] >> 1, m5->tilt_pivot_nm[1] >> 1, m5->tilt_pivot_nm[2] >> 1};
             rotate_q(k1, c1, s1r, u);
-            L[0] = -(G[0] + u[0]);
-            L[1] = -(G[1] + u[1]);
-            L[2] = -(G[2] + u[2]);
+            L[0] = hh_lever(G[0], u[0]);
+            L[1] = hh_lever(G[1], u[1]);
+            L[2] = hh_lever(G[2], u[2]);
             rotate_q(k0, c0, s0r, L);
         } else { /* under the workpiece: L = q - P0, an int32 difference of halved positions */
             L[0] = (pos_nm[0] >> 1) - H0[0];
