@@ -36,7 +36,9 @@
 #      bad tables refused (port/klipper/tests/klipper_batch.py; SKIPPED without the snapshot)
 #  14. the README's demo command (scripts/demo.sh), run twice: into a new
 #      demo-out/ and over the old one
-# Runs every step even after a failure; exits non-zero if any step failed. The
+# Steps 12-13 run in the background during step 9 (CI time; scripts/lib/steps.sh step_bg),
+# their output printed in this order. Runs every step even after a failure; exits non-zero
+# if any step failed. The
 # summary says PASS, SKIPPED (what is missing; a failure under CI=true) or FAIL
 # per step, and lists the tests skipped inside a passing step (protocol:
 # scripts/lib/steps.sh).
@@ -149,7 +151,7 @@ lcnc_programs() { # as root, run.sh (step 9) created the unprivileged LinuxCNC u
     local rc=0
     flock /tmp/abbe-linuxcnc.lock /usr/bin/python3 port/linuxcnc/tests/program_sim.py \
         --json build-linuxcnc/programs.json || rc=1
-    # the ISO 230-3 spindle program (2 speeds, 36 s phases: ~3 min); a failure of either fails
+    # the ISO 230-3 spindle program (2 speeds, 9 s on and 12.6 s off: ~1 min); a failure of either fails
     # the step (the step once reported only the last command's status)
     flock /tmp/abbe-linuxcnc.lock /usr/bin/python3 port/linuxcnc/tests/spindle_sim.py \
         --json build-linuxcnc/spindle.json || rc=1
@@ -165,11 +167,16 @@ step "proofs: Frama-C Eva, MISRA C:2012, clang-tidy (scripts/prove.sh, docs/proo
 step "Python import contracts (lint-imports)" import_contracts
 step "pytest host_tools/tests" pytest_all
 step "wheel: build, install outside the checkout, run abbe there" wheel_test
+# CI time: grblHAL's and Klipper's steps (CPU bound, no LinuxCNC) run in the background, one
+# after the other, while LinuxCNC's component step (wall-clock bound: real-time simulator runs)
+# runs; their logs and outcomes appear where they stand in the order (step_join)
+step_bg "grblHAL plugin in grblHAL's Simulator" bash port/grblhal/tests/run.sh
+step_bg "Klipper module in Klipper's batch mode" klipper_batch
 step "LinuxCNC component: halrun and simulator tests" lcnc_component
 step "clang Cortex-M4F and M3 builds and ctest under QEMU (build-m{4f,3}-clang)" cross_clang
 step "measurement programs in LinuxCNC's simulator" lcnc_programs
-step "grblHAL plugin in grblHAL's Simulator" bash port/grblhal/tests/run.sh
-step "Klipper module in Klipper's batch mode" klipper_batch
+step_join "grblHAL plugin in grblHAL's Simulator"
+step_join "Klipper module in Klipper's batch mode"
 step "README's demo command (scripts/demo.sh), twice" readme_demo
 
 summary || exit 1
