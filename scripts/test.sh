@@ -36,7 +36,10 @@
 #      bad tables refused (port/klipper/tests/klipper_batch.py; SKIPPED without the snapshot)
 #  14. the README's demo command (scripts/demo.sh), run twice: into a new
 #      demo-out/ and over the old one
-# Runs every step even after a failure; exits non-zero if any step failed. The
+# CI time: the proofs and step 13 (Klipper) run in the background, one after the other, during
+# steps 9-11 (LinuxCNC: wall-clock bound; scripts/lib/steps.sh step_bg); their output and
+# summary lines come after step 11's, before step 12 (grblHAL). Runs every step even after a failure; exits non-zero
+# if any step failed. The
 # summary says PASS, SKIPPED (what is missing; a failure under CI=true) or FAIL
 # per step, and lists the tests skipped inside a passing step (protocol:
 # scripts/lib/steps.sh).
@@ -149,7 +152,7 @@ lcnc_programs() { # as root, run.sh (step 9) created the unprivileged LinuxCNC u
     local rc=0
     flock /tmp/abbe-linuxcnc.lock /usr/bin/python3 port/linuxcnc/tests/program_sim.py \
         --json build-linuxcnc/programs.json || rc=1
-    # the ISO 230-3 spindle program (2 speeds, 36 s phases: ~3 min); a failure of either fails
+    # the ISO 230-3 spindle program (2 speeds, 9 s on and 12.6 s off: ~1 min); a failure of either fails
     # the step (the step once reported only the last command's status)
     flock /tmp/abbe-linuxcnc.lock /usr/bin/python3 port/linuxcnc/tests/spindle_sim.py \
         --json build-linuxcnc/spindle.json || rc=1
@@ -161,15 +164,24 @@ step "host release build and ctest (build)" host_release
 step "Cortex-M4F build and ctest under QEMU (build-m4f)" cross m4f cortex-m4f
 step "Cortex-M3 build and ctest under QEMU (build-m3)" cross m3 cortex-m3
 step "libFuzzer run (build-fuzz)" fuzz
-step "proofs: Frama-C Eva, MISRA C:2012, clang-tidy (scripts/prove.sh, docs/proofs.md)" ./scripts/prove.sh --lint
 step "Python import contracts (lint-imports)" import_contracts
 step "pytest host_tools/tests" pytest_all
 step "wheel: build, install outside the checkout, run abbe there" wheel_test
+# CI time: Klipper's step (batch mode: no wall clock) and the proofs (CPU bound) run in the
+# background, one after the other, while LinuxCNC's steps (wall-clock bound: real-time simulator
+# runs) run; their logs and outcomes appear after LinuxCNC's programs step (step_join). The
+# proofs on one job (prove.sh's default is 2): one core stays for LinuxCNC's real-time thread.
+# grblHAL's step stays in the foreground after them: its programs run on wall time (a 230 s
+# deadline, dwell brackets) and failed once here when it shared the machine with LinuxCNC.
+step_bg "Klipper module in Klipper's batch mode" klipper_batch
+step_bg "proofs: Frama-C Eva, MISRA C:2012, clang-tidy (scripts/prove.sh, docs/proofs.md)" \
+    ./scripts/prove.sh --lint --jobs 1
 step "LinuxCNC component: halrun and simulator tests" lcnc_component
 step "clang Cortex-M4F and M3 builds and ctest under QEMU (build-m{4f,3}-clang)" cross_clang
 step "measurement programs in LinuxCNC's simulator" lcnc_programs
+step_join "Klipper module in Klipper's batch mode"
+step_join "proofs: Frama-C Eva, MISRA C:2012, clang-tidy (scripts/prove.sh, docs/proofs.md)"
 step "grblHAL plugin in grblHAL's Simulator" bash port/grblhal/tests/run.sh
-step "Klipper module in Klipper's batch mode" klipper_batch
 step "README's demo command (scripts/demo.sh), twice" readme_demo
 
 summary || exit 1

@@ -15,6 +15,12 @@
 # clone); skipped parts inside a passing step are listed, not failed (tests
 # that must not skip in CI fail by themselves there: real data, see
 # host_tools/tests/real_data.py).
+#
+# Background steps (CI time): step_bg starts a step now, its output into its own log;
+# step_join, called where the step stands in the run's order, waits for it, prints its
+# log under its header and records its outcome exactly as step does (the summary keeps
+# the run's order). Background steps run one after another (one lane: the machine has
+# two cores; the foreground is meant to be a wall-clock bound step such as LinuxCNC's).
 
 declare -a RESULTS=()
 failed=0
@@ -23,13 +29,19 @@ skipped=0
 step() { # NAME COMMAND [ARGS...]
     local name="$1"
     shift
-    local t0=$SECONDS rc notes line
+    local t0=$SECONDS rc notes
     notes="$(mktemp)"
     echo
     echo "==== [test] $name ===="
     ABBE_TEST_NOTES="$notes" "$@"
     rc=$?
-    local took="($((SECONDS - t0)) s)"
+    record_step "$name" "$rc" "$((SECONDS - t0))" "$notes"
+    rm -f "$notes"
+}
+
+# The outcome of one step into RESULTS (PASS / SKIPPED / FAIL, the notes below a PASS).
+record_step() { # NAME RC SECONDS NOTES_FILE
+    local name="$1" rc="$2" took="($3 s)" notes="$4" line
     if ((rc == 0)); then
         RESULTS+=("PASS     $name $took")
         while IFS= read -r line; do
@@ -50,7 +62,51 @@ step() { # NAME COMMAND [ARGS...]
         RESULTS+=("FAIL     $name $took")
         failed=$((failed + 1))
     fi
-    rm -f "$notes"
+}
+
+declare -a BG_NAMES=() BG_DIRS=() BG_PIDS=()
+
+step_bg() { # NAME COMMAND [ARGS...]: start the step in the background lane (after the lane's last one)
+    local name="$1" dir prev=""
+    shift
+    dir="$(mktemp -d)"
+    ((${#BG_DIRS[@]})) && prev="${BG_DIRS[-1]}"
+    echo
+    echo "==== [test] $name: started in the background (its output below its header further on) ===="
+    (
+        if [[ -n $prev ]]; then
+            while [[ ! -e $prev/rc ]]; do sleep 1; done
+        fi
+        t0=$(date +%s)
+        : >"$dir/notes"
+        ABBE_TEST_NOTES="$dir/notes" "$@" >"$dir/log" 2>&1 </dev/null
+        rc=$?
+        echo "$(($(date +%s) - t0))" >"$dir/seconds"
+        echo "$rc" >"$dir/rc.tmp" && mv "$dir/rc.tmp" "$dir/rc"
+    ) &
+    BG_NAMES+=("$name")
+    BG_DIRS+=("$dir")
+    BG_PIDS+=("$!")
+}
+
+step_join() { # NAME: wait for the background step, print its log, record its outcome
+    local name="$1" i dir rc t_wait=$SECONDS
+    for i in "${!BG_NAMES[@]}"; do
+        [[ ${BG_NAMES[i]} == "$name" ]] || continue
+        dir="${BG_DIRS[i]}"
+        wait "${BG_PIDS[i]}"
+        echo
+        echo "==== [test] $name ===="
+        echo "[test] (ran in the background; waited $((SECONDS - t_wait)) s for it here; its output:)"
+        cat "$dir/log"
+        rc="$(cat "$dir/rc" 2>/dev/null || echo 1)"
+        record_step "$name" "$rc" "$(cat "$dir/seconds" 2>/dev/null || echo '?')" "$dir/notes"
+        BG_NAMES[i]="(joined)" # its folder stays until the summary: the next one in the lane looks at rc
+        return 0
+    done
+    echo "[test] step_join: no background step named $name" >&2
+    RESULTS+=("FAIL     $name (never started)")
+    failed=$((failed + 1))
 }
 
 # Tell the running step what was left out (one line); for steps that are
@@ -79,6 +135,12 @@ pytest_skip_notes() { # LOG
 
 # The summary; returns 1 if a step failed. The closing line is the runner's plain last line.
 summary() {
+    local n
+    for n in "${BG_NAMES[@]}"; do # a background step nobody joined is still waited for and listed
+        [[ $n == "(joined)" ]] || step_join "$n"
+    done
+    wait # the lane's last waits for nobody; every background step is joined by now
+    ((${#BG_DIRS[@]} == 0)) || rm -rf "${BG_DIRS[@]}"
     echo
     echo "==== [test] summary ===="
     printf '%s\n' "${RESULTS[@]}"

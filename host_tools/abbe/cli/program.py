@@ -83,7 +83,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--speeds", type=_speeds, default=list(DEFAULT_SPEEDS_RPM),
                    help="iso230-3-spindle: the speeds, rpm, comma-separated "
                         "(default 1250,2500,3750,5000,3500)")
-    p.add_argument("--on-h", type=in_range(0.01, 100.0, "h"), default=4.0,
+    p.add_argument("--on-h", type=in_range(0.001, 100.0, "h"), default=4.0,
                    help="iso230-3-spindle: hours at each speed (4)")
     p.add_argument("--off-h", type=in_range(0.0, 100.0, "h"), default=4.0,
                    help="iso230-3-spindle: hours stopped after each speed (4)")

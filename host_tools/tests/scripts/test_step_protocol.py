@@ -120,6 +120,50 @@ def test_ctest_skip_notes(tmp_path):
     assert lines[1].strip() == "SKIPPED inside it: build: CTest skipped 1 test(s): test_can_socket"
 
 
+def test_background_steps_keep_the_order_the_outcomes_and_their_logs(tmp_path):
+    """step_bg / step_join: the summary in the joined order (not the finishing order), FAIL,
+    SKIPPED and the notes inside a PASS as for a foreground step, each log under its header,
+    the background steps one after another."""
+    order = tmp_path / "order"
+    body = FAKES + textwrap.dedent(f"""\
+        slow_ok() {{ sleep 1; echo "slow start $(date +%s%N)" >>{order}; echo "slow says hi"; \
+            echo "slow end $(date +%s%N)" >>{order}; }}
+        quick_bad() {{ echo "quick start $(date +%s%N)" >>{order}; echo "quick says no"; return 3; }}
+        step_bg "bg pass" slow_ok
+        step_bg "bg fail" quick_bad
+        step_bg "bg skip" missing
+        step_bg "bg partial" partial
+        step "fg" ok
+        step_join "bg pass"
+        step_join "bg fail"
+        step_join "bg skip"
+        step "last" ok
+        """)  # "bg partial" never joined: the summary waits for it and lists it
+    r = run_steps(body)
+    lines = summary_lines(r.stdout)
+    assert r.returncode == 1
+    steps = [ln for ln in lines if not ln.startswith(" ")]
+    assert [ln.split("(")[0].split(None, 1)[1].strip() for ln in steps[:-1]] == [
+        "fg", "bg pass", "bg fail", "bg skip", "last", "bg partial"]
+    assert steps[1].startswith("PASS     bg pass (") and steps[2].startswith("FAIL     bg fail (")
+    assert steps[3].startswith("SKIPPED  bg skip (") and steps[3].endswith(": the frobnicator is absent")
+    assert steps[5].startswith("PASS     bg partial (")
+    assert lines[-2].strip() == "SKIPPED inside it: pytest: 2 test(s): real data absent: /x"
+    assert steps[-1].startswith("[test] FAILED: 1 of 6 steps failed")
+    out = r.stdout
+    assert out.index("==== [test] bg pass ====") < out.index("slow says hi") < out.index("==== [test] bg fail ====")
+    assert out.index("==== [test] bg fail ====") < out.index("quick says no")
+    t = {ln.rsplit(" ", 1)[0]: int(ln.rsplit(" ", 1)[1]) for ln in order.read_text().splitlines()}
+    assert t["slow end"] <= t["quick start"]  # one lane: the second waits for the first
+
+
+def test_background_step_failing_fails_the_run_under_its_name():
+    r = run_steps(FAKES + 'step_bg "bg" bad\nstep "fg" ok\nstep_join "bg"\n')
+    lines = summary_lines(r.stdout)
+    assert r.returncode == 1
+    assert lines[0].startswith("PASS     fg (") and lines[1].startswith("FAIL     bg (")
+
+
 def test_grblhal_step_without_snapshots_skips_with_77(tmp_path):
     notes = tmp_path / "notes"
     notes.touch()

@@ -4,8 +4,10 @@ simulator (docs/thermal.md): wrap the run in `flock /tmp/abbe-linuxcnc.lock`.
 
   /usr/bin/python3 port/linuxcnc/tests/spindle_sim.py [--json FIGURES.json]
 
-The real test lasts 46 h; here the same program with two speeds (1250, 3500 rpm) and the
-shortest phases the command takes (0.01 h on, 0.01 h off, a reading every 6 s), for
+The real test lasts 46 h; here the same program with two speeds (1250, 3500 rpm) and short
+phases (0.0025 h = 9 s on, 0.0035 h = 12.6 s off, a reading every 3 s: whole readings on,
+four and a remainder off; on and off differ by more than twice the tolerance, so swapped
+phases or a missing reading fail; CI time: the phase length itself is not what is checked), for
 examples/vmc500/machine.toml, LinuxCNC dialect, run by program_drive.py (the vmc500
 simulator config without the abbe component), which records the commanded position and
 the commanded spindle (linuxcnc.stat spindle[0] speed and direction) every ~2 ms. Checks,
@@ -58,8 +60,8 @@ def main() -> None:
         ref = m["reference"]["point_mm"]
         prog = work / "iso230_3.ngc"
         cli("program", str(MACHINE), "--test", "iso230-3-spindle", "--dialect", "linuxcnc",
-            "--speeds", ",".join(f"{v:g}" for v in SPEEDS), "--on-h", "0.01", "--off-h", "0.01",
-            "--reading-s", "6", "-o", str(prog))
+            "--speeds", ",".join(f"{v:g}" for v in SPEEDS), "--on-h", "0.0025", "--off-h", "0.0035",
+            "--reading-s", "3", "-o", str(prog))
         text = prog.read_text()
         on_s = float(re.search(r"^\(on_s = ([0-9.]+)\)", text, re.M).group(1))
         off_s = float(re.search(r"^\(off_s = ([0-9.]+)\)", text, re.M).group(1))
