@@ -245,6 +245,16 @@ HARNESSES+=(
 # the CAN node's configuration parser: every text of unknown bytes of every
 # length 0..64 B
 HARNESSES+=("can_config|tests/proofs/can_config.c port/socketcan/src/can_config_parse.c port/socketcan/src/can_toml_number.c port/socketcan/src/can_config_check.c|-Iport/socketcan/include -Iport/socketcan/src -DPROOF_MAX_SIZE=64|-eva-auto-loop-unroll 64 -eva-slevel-function parse_pair:200")
+# the compensator with a five-axis model (tests/proofs/comp_five.c): any
+# configuration, the model queued by a swap, any number of cycles of
+# abbe_comp_step5_q / _f32, resets and swaps among them; the trunnion table
+# with every motion (ac_full) and the chain kinds (ht_maxkins, tdr_xyzab), any scalars
+COMP5_OPTS="-eva-auto-loop-unroll 64 -eva-split-return-function check_header:0,abbe_five_model_load:0,abbe_comp_init:0,config_ok:0 -eva-slevel-function abbe_five_model_load:40,main:10,abbe_comp_init:10"
+COMP5_SRCS="tests/proofs/comp_five.c $(printf 'lib/src/%s.c ' comp comp_five five_load crc32 status)"
+for t in ac_full ht_maxkins tdr_xyzab; do
+    HARNESSES+=("comp_five_q_$t|$COMP5_SRCS $(printf 'lib/src/%s.c ' comp_five_q five_eval_q eval_q terms_q terms_sparse_q sincos_q)|$ANY -DPROOF_Q -DPROOF_TABLES_H=tables_five_$t.h|$COMP5_OPTS")
+    HARNESSES+=("comp_five_f32_$t|$COMP5_SRCS $(printf 'lib/src/%s.c ' comp_five_f32 comp_f32 five_eval_f32 eval_f32 terms_f32 terms_rot_f32 sincos_f32)|$ANY -DPROOF_TABLES_H=tables_five_$t.h|${COMP5_OPTS/abbe_five_model_load:0/abbe_five_model_load:0,abbe_five_eval_f32_linear:0},abbe_five_eval_f32_linear:10,abbe_comp_step5_f32:20")
+done
 # the L1 proof of the _q term kernels (tests/proofs/terms_q_l1.c): the final
 # shifts' postconditions, for every accumulator in range (its WP part: prove_wp)
 HARNESSES+=("terms_q_l1_shifts|tests/proofs/terms_q_l1.c|-DPROOF_EVA_SHIFTS|")
