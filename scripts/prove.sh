@@ -248,10 +248,10 @@ HARNESSES+=("can_config|tests/proofs/can_config.c port/socketcan/src/can_config_
 # the compensator with a five-axis model (tests/proofs/comp_five.c): any
 # configuration, the model queued by a swap, any number of cycles of
 # abbe_comp_step5_q / _f32, resets and swaps among them; the trunnion table
-# with every motion (ac_full) and the chain kinds (ht_maxkins, tdr_xyzab), any scalars
+# with every motion (ac_full) and a chain kind (tdr_xyzab), any scalars
 COMP5_OPTS="-eva-auto-loop-unroll 64 -eva-split-return-function check_header:0,abbe_five_model_load:0,abbe_comp_init:0,config_ok:0 -eva-slevel-function abbe_five_model_load:40,main:10,abbe_comp_init:10"
 COMP5_SRCS="tests/proofs/comp_five.c $(printf 'lib/src/%s.c ' comp comp_five five_load crc32 status)"
-for t in ac_full ht_maxkins tdr_xyzab; do
+for t in ac_full tdr_xyzab; do # (ht_maxkins: proven once, 33 s of CPU, left out for the CI budget: docs/proofs.md)
     HARNESSES+=("comp_five_q_$t|$COMP5_SRCS $(printf 'lib/src/%s.c ' comp_five_q five_eval_q eval_q terms_q terms_sparse_q sincos_q)|$ANY -DPROOF_Q -DPROOF_TABLES_H=tables_five_$t.h|$COMP5_OPTS")
     HARNESSES+=("comp_five_f32_$t|$COMP5_SRCS $(printf 'lib/src/%s.c ' comp_five_f32 comp_f32 five_eval_f32 eval_f32 terms_f32 terms_rot_f32 sincos_f32)|$ANY -DPROOF_TABLES_H=tables_five_$t.h|${COMP5_OPTS/abbe_five_model_load:0/abbe_five_model_load:0,abbe_five_eval_f32_linear:0},abbe_five_eval_f32_linear:10,abbe_comp_step5_f32:20")
 done
