@@ -18,6 +18,14 @@ static ABBE_ALWAYS_INLINE int32_t dot2_q30(int32_t a, int32_t b, int32_t c, int3
     return (int32_t)(((int64_t)a * b + (int64_t)c * d + ((int64_t)1 << 29)) >> 30);
 }
 
+/* The next Chebyshev row, Q30: T_k = 2u T_(k-1) - T_(k-2), rounded once;
+ * |T_k| <= 1 on [-1, 1], in Q30 within 2^30 + a few LSB of rounding
+ * (tests/proofs/hypotheses.c, 'basis_rows', checks every u in [-2^30, 2^30]). */
+static ABBE_ALWAYS_INLINE int32_t cheb_next_q30(int32_t u, int32_t t, int32_t t_prev)
+{
+    return (int32_t)((((int64_t)u * t + ((int64_t)1 << 28)) >> 29) - t_prev);
+}
+
 /* The basis rows of one axis, in table order, each handed to ROW(b) (Q30) as
  * it is produced: T_0 = 1, T_1 = u, T_k by recurrence; then per Fourier block
  * sin/cos of harmonic 1 (abbe_sincos_q30_pair, sincos_q.c) and the higher
@@ -33,8 +41,7 @@ static ABBE_ALWAYS_INLINE int32_t dot2_q30(int32_t a, int32_t b, int32_t c, int3
                 int32_t t_prev_ = ABBE_Q30_ONE, t_ = u_;                                   \
                 ROW(t_);                                                                   \
                 for (unsigned k_ = 2; k_ < trend_rows_; k_++) {                            \
-                    /* T_k = 2u T_(k-1) - T_(k-2); |T_k| <= 1 on [-1, 1] */                \
-                    int32_t t_next_ = (int32_t)((((int64_t)u_ * t_ + ((int64_t)1 << 28)) >> 29) - t_prev_); \
+                    int32_t t_next_ = cheb_next_q30(u_, t_, t_prev_);                     \
                     t_prev_ = t_;                                                          \
                     t_ = t_next_;                                                          \
                     ROW(t_);                                                               \

@@ -15,33 +15,72 @@
  *       and infinities (the evaluation refuses them: ABBE_E_INPUT);
  *   hypotheses f32_finite: abbe_f32_nonfinite is false only for a finite
  *       float (thermal_f32.c, the period of abbe_thermal_init_f32).
+ *   hypotheses cheb_rows (and sincos_range's second part): every basis row
+ *       the _q kernels stream is within +/-(2^30 + 16), the precondition of
+ *       the L1 proof tests/proofs/terms_q_l1.c (WP).
  * Exit 1 naming the first input that breaks one; 2 for a bad argument. */
 #include <inttypes.h>
 #include <stdio.h>
 #include <string.h>
 
-#include "internal.h"
+#include "basis_q.h"
+
+/* sincos_range also checks the harmonics 2..8 the kernels rotate from the
+ * pair (basis_q.h: dot2_q30 with the fundamental, the code of the kernels)
+ * within +/-BASIS_ROW_MAX: the pairs of a batch of phases first, then each
+ * rotation over the batch (so the compiler can vectorize it). */
+#define BASIS_ROW_MAX (ABBE_Q30_ONE + 16)
+#define HARMONICS 8
+#define BATCH 4096u
 
 static int sincos_range(void)
 {
+    static int32_t s1[BATCH], c1[BATCH], ns1[BATCH], s[BATCH], c[BATCH];
     uint32_t phase = 0u;
-    int32_t lo = 0, hi = 0;
+    int32_t lo = 0, hi = 0, harm_lo = 0, harm_hi = 0;
     do {
-        const uint64_t pair = abbe_sincos_q30_pair(phase);
-        const int32_t s = abbe_u32_to_i32((uint32_t)pair);
-        const int32_t c = abbe_u32_to_i32((uint32_t)(pair >> 32));
-        if (s < -ABBE_Q30_ONE || s > ABBE_Q30_ONE || c < -ABBE_Q30_ONE || c > ABBE_Q30_ONE) {
-            printf("sincos_range: phase 0x%08" PRIx32 ": sin %" PRId32 ", cos %" PRId32 " beyond +/-2^30\n", phase, s,
-                   c);
-            return 1;
+        for (uint32_t i = 0; i < BATCH; i++) {
+            const uint64_t pair = abbe_sincos_q30_pair(phase + i);
+            s1[i] = abbe_u32_to_i32((uint32_t)pair);
+            c1[i] = abbe_u32_to_i32((uint32_t)(pair >> 32));
         }
-        lo = s < lo ? s : lo;
-        lo = c < lo ? c : lo;
-        hi = s > hi ? s : hi;
-        hi = c > hi ? c : hi;
-        phase++;
+        for (uint32_t i = 0; i < BATCH; i++) {
+            if (s1[i] < -ABBE_Q30_ONE || s1[i] > ABBE_Q30_ONE || c1[i] < -ABBE_Q30_ONE || c1[i] > ABBE_Q30_ONE) {
+                printf("sincos_range: phase 0x%08" PRIx32 ": sin %" PRId32 ", cos %" PRId32 " beyond +/-2^30\n",
+                       phase + i, s1[i], c1[i]);
+                return 1;
+            }
+            lo = s1[i] < lo ? s1[i] : lo;
+            lo = c1[i] < lo ? c1[i] : lo;
+            hi = s1[i] > hi ? s1[i] : hi;
+            hi = c1[i] > hi ? c1[i] : hi;
+            ns1[i] = -s1[i];
+            s[i] = s1[i];
+            c[i] = c1[i];
+        }
+        for (unsigned n = 2; n <= HARMONICS; n++) {
+            int32_t blo = 0, bhi = 0;
+            for (uint32_t i = 0; i < BATCH; i++) {
+                const int32_t sn = dot2_q30(s[i], c1[i], c[i], s1[i]);
+                c[i] = dot2_q30(c[i], c1[i], s[i], ns1[i]);
+                s[i] = sn;
+                blo = s[i] < blo ? s[i] : blo;
+                blo = c[i] < blo ? c[i] : blo;
+                bhi = s[i] > bhi ? s[i] : bhi;
+                bhi = c[i] > bhi ? c[i] : bhi;
+            }
+            if (blo < -BASIS_ROW_MAX || bhi > BASIS_ROW_MAX) {
+                printf("sincos_range: phases 0x%08" PRIx32 "..: harmonic %u within [%" PRId32 ", %" PRId32
+                       "], beyond 2^30 + %d\n", phase, n, blo, bhi, BASIS_ROW_MAX - ABBE_Q30_ONE);
+                return 1;
+            }
+            harm_lo = blo < harm_lo ? blo : harm_lo;
+            harm_hi = bhi > harm_hi ? bhi : harm_hi;
+        }
+        phase += BATCH;
     } while (phase != 0u);
-    printf("sincos_range: all 2^32 phases, sin and cos in [%" PRId32 ", %" PRId32 "]\n", lo, hi);
+    printf("sincos_range: all 2^32 phases, sin and cos in [%" PRId32 ", %" PRId32 "], the harmonics 2..%d in [%" PRId32
+           ", %" PRId32 "]\n", lo, hi, HARMONICS, harm_lo, harm_hi);
     return 0;
 }
 
@@ -98,6 +137,50 @@ static int f32_finite(void)
     return 0;
 }
 
+
+/* cheb_rows: the Chebyshev rows T_2..T_7 (trend degree <= 7) the kernels
+ * compute by their own recurrence (basis_q.h, cheb_next_q30) are within
+ * +/-BASIS_ROW_MAX for every argument u in [-2^30, 2^30] (T_0 = 2^30, T_1 = u:
+ * abbe_arg_cheb_q30's range for 0 <= d <= span), in batches so the compiler
+ * can vectorize the recurrence. With sincos_range's harmonics this bounds
+ * every basis row of the _q kernels: the precondition of the accumulation's WP
+ * proof (tests/proofs/terms_q_l1.c). */
+#define CHEB_ROWS 8
+
+static int cheb_rows(void)
+{
+    static int32_t u[BATCH], t_prev[BATCH], t[BATCH];
+    int32_t lo = 0, hi = 0;
+    for (int64_t first = -ABBE_Q30_ONE; first <= ABBE_Q30_ONE; first += BATCH) {
+        const uint32_t count = first + BATCH - 1 <= ABBE_Q30_ONE ? BATCH : (uint32_t)(ABBE_Q30_ONE - first + 1);
+        for (uint32_t i = 0; i < count; i++) {
+            u[i] = (int32_t)(first + i);
+            t_prev[i] = ABBE_Q30_ONE;
+            t[i] = u[i];
+        }
+        for (unsigned k = 2; k < CHEB_ROWS; k++) {
+            int32_t blo = 0, bhi = 0;
+            for (uint32_t i = 0; i < count; i++) {
+                const int32_t t_next = cheb_next_q30(u[i], t[i], t_prev[i]);
+                t_prev[i] = t[i];
+                t[i] = t_next;
+                blo = t_next < blo ? t_next : blo;
+                bhi = t_next > bhi ? t_next : bhi;
+            }
+            if (blo < -BASIS_ROW_MAX || bhi > BASIS_ROW_MAX) {
+                printf("cheb_rows: u from %" PRId64 ": T_%u within [%" PRId32 ", %" PRId32 "], beyond 2^30 + %d\n",
+                       first, k, blo, bhi, BASIS_ROW_MAX - ABBE_Q30_ONE);
+                return 1;
+            }
+            lo = blo < lo ? blo : lo;
+            hi = bhi > hi ? bhi : hi;
+        }
+    }
+    printf("cheb_rows: all 2^31 + 1 arguments u, T_2..T_%d in [%" PRId32 ", %" PRId32 "] (bound 2^30 + %d)\n",
+           CHEB_ROWS - 1, lo, hi, BASIS_ROW_MAX - ABBE_Q30_ONE);
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
     if (argc == 2 && strcmp(argv[1], "sincos_range") == 0) {
@@ -109,6 +192,9 @@ int main(int argc, char **argv)
     if (argc == 2 && strcmp(argv[1], "f32_finite") == 0) {
         return f32_finite();
     }
-    fprintf(stderr, "usage: %s sincos_range|mm_clamped|f32_finite\n", argv[0]);
+    if (argc == 2 && strcmp(argv[1], "cheb_rows") == 0) {
+        return cheb_rows();
+    }
+    fprintf(stderr, "usage: %s sincos_range|mm_clamped|f32_finite|cheb_rows\n", argv[0]);
     return 2;
 }

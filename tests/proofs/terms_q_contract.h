@@ -5,8 +5,14 @@
  * eval_q_any_layout.c runs the kernel as this contract
  * (-eva-use-spec abbe_axis_terms_q), checking the preconditions at each call.
  * The postconditions are the term ranges assemble_q relies on (eval_q.c):
- * a linear term within +/-2^30 (2^-6 nm: +/-16.8 mm), an angular one within
- * +/-2^27 (2^-35 rad: +/-3.9 mrad). */
+ * a linear term within +/-(2^30 + 16) (2^-6 nm: +/-16.8 mm), an angular one
+ * within +/-(2^27 + 2) (2^-35 rad: +/-3.9 mrad). Those are the ranges for
+ * every table the loader accepts: the L1 caps (sum |c| <= 2^32 linear, 2^28
+ * angular) times the basis rows' bound 2^30 + 16 (hypotheses cheb_rows and
+ * sincos_range: the Chebyshev rows reach 2^30 + 3, the rotated harmonics
+ * 2^30 + 11), WP-proven in tests/proofs/terms_q_l1.c. (Until the L1 proof
+ * they were +/-2^30 and +/-2^27, which the box of terms_q_any keeps but an
+ * accepted table's coefficients can exceed by a few LSB.) */
 #ifndef PROOF_TERMS_Q_CONTRACT_H
 #define PROOF_TERMS_Q_CONTRACT_H
 
@@ -21,12 +27,12 @@
         ax->cheb_shift, ax->freq[0 .. 1], ax->phase_min[0 .. 1], ax->n_terms, ax->trend_rows,
         ax->harmonics[0 .. 1], ax->n_basis, ax->column[0 .. 5];
     ensures init: \initialized(value + (0 .. 5));
-    ensures lin_x: -0x40000000 <= value[0] <= 0x40000000;
-    ensures lin_y: -0x40000000 <= value[1] <= 0x40000000;
-    ensures lin_z: -0x40000000 <= value[2] <= 0x40000000;
-    ensures ang_x: -0x8000000 <= value[3] <= 0x8000000;
-    ensures ang_y: -0x8000000 <= value[4] <= 0x8000000;
-    ensures ang_z: -0x8000000 <= value[5] <= 0x8000000;
+    ensures lin_x: -0x40000010 <= value[0] <= 0x40000010;
+    ensures lin_y: -0x40000010 <= value[1] <= 0x40000010;
+    ensures lin_z: -0x40000010 <= value[2] <= 0x40000010;
+    ensures ang_x: -0x8000002 <= value[3] <= 0x8000002;
+    ensures ang_y: -0x8000002 <= value[4] <= 0x8000002;
+    ensures ang_z: -0x8000002 <= value[5] <= 0x8000002;
  */
 void abbe_axis_terms_q(const abbe_axis_model_t *ax, uint32_t d, int32_t value[ABBE_TERMS]);
 
