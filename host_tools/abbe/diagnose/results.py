@@ -29,8 +29,9 @@ class DiagnoseOptions:
     units); ``redundant_heldout_fraction`` when the effects already named reproduce
     ``ambiguity_r2`` of its signature (the held-out data must prefer the pair).
     ambiguity_r2: a candidate reproducing this fraction of a named effect's signature
-    makes it ambiguous; undecided_r2: two explanations that reproduce each other to
-    this R^2 on every check are reported undecided ("A or B"), not one named;
+    makes it ambiguous (two explanations are *undecided*, "A or B", when what one cannot
+    reproduce of the other is within the noise: log likelihood ratio below
+    ``evidence_log_min``, docs/effects.md §3);
     min_effect_um: an effect whose fitted contribution has a smaller RMS (um, on its
     channel) is not named (relevance, not statistics); candidates: keys or families to
     consider (None = all); max_effects: safety stop; model_temp_c: temperature (deg C)
@@ -62,7 +63,6 @@ class DiagnoseOptions:
     declared_blunder_prob: float = 0.01
     model_angle_sigma_urad: float = 0.5
     prior_log_odds: float = 0.0
-    undecided_r2: float = 0.98
 
     @property
     def evidence_log_min(self) -> float:
