@@ -72,7 +72,8 @@ def describe_effects(eng: Engine, sel: list[Selected], values: list[np.ndarray],
         me = model_error_ambiguity(eng, spec)
         if me is not None:
             amb.append(me)
-        undecided = _undecided(spec.key, value, unit, amb, eng.opts.evidence_log_min)
+        undecided = _undecided(spec.key, value, unit, amb, eng.opts.evidence_log_min,
+                               eng.opts.undecided_r2)
         scan = scan_ci = None
         if s.cand.scan_value is not None and spec.scan:
             name = spec.scan if spec.kind != "thermal" else f"tau_{eng.drift_unit or 'h'}"
@@ -300,7 +301,7 @@ def _headline(spec: EffectSpec, idx: list[int], v: np.ndarray, C: np.ndarray, tq
 
 
 def _undecided(key: str, value: float, unit: str, amb: list[dict[str, Any]],
-               log_min: float) -> dict[str, Any] | None:
+               log_min: float, r2_min: float = 0.98) -> dict[str, Any] | None:
     """Undecided is an answer (issue 36): an alternative B fitted to this effect A's
     signature (the ambiguity already computed) whose misfit, in the estimated noise, is
     too small for the data to prefer A: the log likelihood ratio of A over B,
@@ -308,8 +309,12 @@ def _undecided(key: str, value: float, unit: str, amb: list[dict[str, Any]],
     units) / 2, is below ``log_min`` = log((1 - alpha) / alpha), the same level an effect
     needs to be named (docs/effects.md §3, "Undecided is an answer"). The result states
     both with their values and the test that separates them; what the checks constrain
-    is what every alternative reproduces (the fitted signature)."""
-    alts = [a for a in amb if a.get("log_lr") is not None and a["log_lr"] < log_min]
+    is what every alternative reproduces (the fitted signature). The likelihood ratio
+    trusts the model to the noise: an alternative reproducing ``r2_min`` of the signature
+    is undecided too, since a misfit that small (relative to a large signature, many noise
+    units) is within what the model reproduces of a real machine (DiagnoseOptions.undecided_r2)."""
+    alts = [a for a in amb if (a.get("log_lr") is not None and a["log_lr"] < log_min)
+            or (a.get("r2") is not None and a["r2"] >= r2_min)]
     if not alts:
         return None
     entries = [{"key": key, "value": round(float(value), 6), "unit": unit}]

@@ -74,6 +74,14 @@ def log_evidence(theta: np.ndarray, cov_white: np.ndarray, drss: float, contrib_
     C = np.asarray(cov_white, dtype=float).reshape(k, k) * f2
     if declared_cov is not None:
         C = C + np.asarray(declared_cov, dtype=float).reshape(k, k)
+    # the covariance must be a proper (positive definite) one: a parameter the data do
+    # not identify has none, and no evidence (never a solve on a singular matrix)
+    C = 0.5 * (C + C.T)
+    if not np.all(np.isfinite(C)):
+        return out
+    lam = np.linalg.eigvalsh(C)
+    if not lam[0] > 1e-12 * max(float(lam[-1]), 0.0):
+        return out
     sign, logdet = np.linalg.slogdet(2.0 * math.pi * C)
     if sign <= 0:
         return out

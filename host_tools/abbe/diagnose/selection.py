@@ -147,8 +147,12 @@ def _cyclic_harmonics(eng: Engine, cand: Cand, period: float, table: Table, W: n
     best: tuple[float, np.ndarray, list[int]] | None = None
     for h in (1, 2):
         cols = eng.cyclic_cols(cand.spec.axis, period, table, h)  # type: ignore[arg-type]
-        Z = project_out(Qb, cols * W[:, None])
-        if Z.shape[1] > 2 and not is_identifiable(Z):
+        S = cols * W[:, None]
+        Z = project_out(Qb, S)
+        # a harmonic the data cannot identify is no candidate: each column must keep its
+        # share of the block's scale once the base is projected out (a period / 2 sampled
+        # at the targets' spacing is a constant, or zero, that the set-up takes whole)
+        if Z.shape[1] > 2 and not is_identifiable(Z, ref_norm=float(np.max(np.linalg.norm(S, axis=0)))):
             break
         coef, fit = lstsq_rss(Z, rb)
         s2 = max(1.0, (rss_base - fit) / max(N - Qb.shape[1] - Z.shape[1], 1))
@@ -504,6 +508,13 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
         new_checks = [c.without_runs({r for (n, r) in drop if n == c.name})
                       if isinstance(c, LaserCheck) and any(n == c.name for n, _ in drop) else c
                       for c in checks]
+        # a run is "inconsistent" against this diagnosis' model; the drift's tie to the
+        # campaign temperature (drift_temperature) is another explanation of the same
+        # excess, so it is tested on the runs before that exclusion (gross outliers, found
+        # model free, stay out): excluding them first would remove what it must explain
+        for i, (old_c, new_c) in enumerate(zip(checks, new_checks)):
+            if new_c is not old_c and isinstance(new_c, LaserCheck) and isinstance(old_c, LaserCheck):
+                new_c.tie_source = old_c.tie_source or (old_c, clean0[prob.slice(i)])
         return diagnose(table, new_checks, opts, pred_params, evaluator, outl + incons)
     outl += incons
     for o in outl:
