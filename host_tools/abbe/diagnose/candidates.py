@@ -409,13 +409,17 @@ class Engine:
         self._cyc_freqs[axis] = freqs
         return c
 
-    def cyclic_cols(self, axis: str, period: float, table: Table) -> np.ndarray:
-        """Probe-based cyclic columns (N, 2) at ``period`` (phase origin: travel min)."""
+    def cyclic_cols(self, axis: str, period: float, table: Table, harmonics: int = 1) -> np.ndarray:
+        """Probe-based cyclic columns (N, 2 x harmonics) at ``period`` (phase origin: travel
+        min): sin, cos of the fundamental, then of the second harmonic (period / 2)."""
         g = self._probe[axis]
         p = self._cyc_pos[axis]
         o = float(table.axes[axis].travel_mm[0])
         phi = 2 * np.pi * (p - o) / period
-        return np.stack([g * np.sin(phi), g * np.cos(phi)], axis=1)
+        cols = [g * np.sin(phi), g * np.cos(phi)]
+        if harmonics > 1:
+            cols += [g * np.sin(2 * phi), g * np.cos(2 * phi)]
+        return np.stack(cols, axis=1)
 
     def cyclic_scan(self, axis: str, table: Table, W: np.ndarray, Qb: np.ndarray,
                     rb: np.ndarray) -> tuple[float, float]:

@@ -275,6 +275,11 @@ class LaserCheck(Check):
     with ``rezeroed``), and a set-up slope for straightness channels.
     """
 
+    #: the check before an "inconsistent run" exclusion and its residual before the
+    #: diagnosis (um), set by selection.diagnose: what the drift's temperature tie is
+    #: tested on (abbe.diagnose.drift_temperature.ties_of); None: this check as it is
+    tie_source: "tuple[LaserCheck, np.ndarray] | None" = None
+
     def __init__(self, name: str, axis: str, line_mm: tuple[float, float, float],
                  targets_mm: np.ndarray, channels: list[LaserChannel],
                  order: np.ndarray, reference_mm: tuple[float, float, float],

@@ -68,11 +68,12 @@ def describe_effects(eng: Engine, sel: list[Selected], values: list[np.ndarray],
                                       "takeup_mm": float(b0.backlash_takeup_mm)}
                 ev["note"] = ("the model already had a backlash term: the value is the change of "
                               "the reversal; the take-up is the one that fits the checks")
-        amb = _ambiguity(eng, sel, i, v, W, pool, table, pp)
+        amb = _ambiguity(eng, sel, i, v, W, pool, table, pp, s2)
         me = model_error_ambiguity(eng, spec)
         if me is not None:
             amb.append(me)
-        undecided = _undecided(spec.key, value, unit, amb, eng.opts.undecided_r2)
+        undecided = _undecided(spec.key, value, unit, amb, eng.opts.evidence_log_min,
+                               eng.opts.undecided_r2)
         scan = scan_ci = None
         if s.cand.scan_value is not None and spec.scan:
             name = spec.scan if spec.kind != "thermal" else f"tau_{eng.drift_unit or 'h'}"
@@ -269,8 +270,9 @@ def _headline(spec: EffectSpec, idx: list[int], v: np.ndarray, C: np.ndarray, tq
     """The effect's value, unit and 95 % interval (amplitude for cyclic, norm for the tool
     offset, offset rate for the drift: else the single parameter)."""
     if spec.kind == "cyclic":
-        a = float(np.hypot(v[0], v[1]))
-        g = np.array([v[0], v[1]]) / max(a, 1e-300)
+        a = float(np.hypot(v[0], v[1]))      # the fundamental's amplitude (the harmonic's
+        g = np.zeros(len(v))                 # two amplitudes are in the parameters)
+        g[:2] = np.array([v[0], v[1]]) / max(a, 1e-300)
         sd = math.sqrt(max(float(g @ C @ g), 0.0))
         return a, "um", (max(0.0, a - tq * sd), a + tq * sd)
     if spec.kind == "reversal":
@@ -299,13 +301,20 @@ def _headline(spec: EffectSpec, idx: list[int], v: np.ndarray, C: np.ndarray, tq
 
 
 def _undecided(key: str, value: float, unit: str, amb: list[dict[str, Any]],
-               r2_min: float) -> dict[str, Any] | None:
-    """Undecided is an answer (issue 36): the candidates that reproduce this effect's
-    signature on every check to ``r2_min`` (the ambiguity already computed) are other
-    explanations the data cannot tell from it. The result states both with their values
-    and the test that separates them; what the checks constrain is what every
-    alternative reproduces (the fitted signature, which the table's update holds)."""
-    alts = [a for a in amb if a.get("r2") is not None and a["r2"] >= r2_min]
+               log_min: float, r2_min: float = 0.98) -> dict[str, Any] | None:
+    """Undecided is an answer (issue 36): an alternative B fitted to this effect A's
+    signature (the ambiguity already computed) whose misfit, in the estimated noise, is
+    too small for the data to prefer A: the log likelihood ratio of A over B,
+    ``log_lr`` = (the part of A's fitted signature B cannot reproduce, whitened RSS in s^2
+    units) / 2, is below ``log_min`` = log((1 - alpha) / alpha), the same level an effect
+    needs to be named (docs/effects.md §3, "Undecided is an answer"). The result states
+    both with their values and the test that separates them; what the checks constrain
+    is what every alternative reproduces (the fitted signature). The likelihood ratio
+    trusts the model to the noise: an alternative reproducing ``r2_min`` of the signature
+    is undecided too, since a misfit that small (relative to a large signature, many noise
+    units) is within what the model reproduces of a real machine (DiagnoseOptions.undecided_r2)."""
+    alts = [a for a in amb if (a.get("log_lr") is not None and a["log_lr"] < log_min)
+            or (a.get("r2") is not None and a["r2"] >= r2_min)]
     if not alts:
         return None
     entries = [{"key": key, "value": round(float(value), 6), "unit": unit}]
@@ -313,13 +322,47 @@ def _undecided(key: str, value: float, unit: str, amb: list[dict[str, Any]],
         v = a.get("value") or [None]
         u = a.get("unit") or [None]
         entries.append({"key": a["key"], "value": v[0] if len(v) == 1 else v,
-                        "unit": u[0] if len(u) == 1 else u, "r2": a["r2"]})
+                        "unit": u[0] if len(u) == 1 else u, "r2": a["r2"],
+                        "log_lr": a["log_lr"]})
     tests = [a["separating_test"] for a in alts]
     return {"alternatives": entries, "separating_test": tests[0] if len(tests) == 1 else tests,
             "statement": " or ".join(e["key"] for e in entries) +
             ", indistinguishable on these checks; to separate them run: " + "; ".join(tests),
             "constrained": "the combination the checks see (the fitted signature): every "
                            "alternative reproduces it; the table holds it as " + key}
+
+
+def companion_undecided(effect: EffectResult, key: str, value: float, unit: str,
+                        separating_test: str, log_k: float, log_k_typical: float) -> None:
+    """Undecided between "A alone" and "A + B" (issue 36): a candidate B that the named
+    effect A mostly reproduces, which the held-out data prefer but whose evidence ratio
+    is decided by the prior alone (strong against under the catalogue's plausible range
+    ``log_k``, not strong against under a prior of the typical magnitude
+    ``log_k_typical``): the data cannot say whether B is present beside A. The entry
+    says so with both values; the table keeps A alone (what the evidence requires)."""
+    entry = {"key": key, "value": round(float(value), 6), "unit": unit, "with": effect.key,
+             "log_evidence": round(float(log_k), 2),
+             "log_evidence_typical": round(float(log_k_typical), 2)}
+    stmt = (f"{effect.key} alone, or {effect.key} + {key}: indistinguishable on these checks "
+            f"(the evidence for {key} beside {effect.key} depends on the prior: log K "
+            f"{log_k:.1f} for any plausible size, {log_k_typical:.1f} for a typical one; the "
+            f"held-out data prefer the pair); to separate them run: {separating_test}")
+    if effect.undecided is None:
+        effect.undecided = {"alternatives": [{"key": effect.key, "value": round(float(effect.value), 6),
+                                              "unit": effect.unit}],
+                            "separating_test": separating_test, "statement": stmt,
+                            "constrained": f"{effect.key}: its signature is in the data either "
+                                           "way; the table holds it alone",
+                            "companion": True}
+    else:
+        effect.undecided["statement"] += "; " + stmt
+    effect.undecided["alternatives"].append(entry)
+    effect.undecided.setdefault("companions", []).append(key)
+    unknown = f"whether {key} is present beside {effect.key} (not written into the table)"
+    if effect.undecided.get("companion") and "table_holds" not in effect.undecided:
+        effect.undecided["table_holds"] = {effect.key: round_to(effect.value)}
+    effect.undecided["unknown"] = (effect.undecided["unknown"] + "; " + unknown
+                                   if effect.undecided.get("unknown") else unknown)
 
 
 def _per_check_contrib(eng: Engine, s: Selected, v: np.ndarray) -> dict[str, float]:
@@ -353,8 +396,11 @@ def model_error_ambiguity(eng: Engine, spec: EffectSpec) -> dict[str, Any] | Non
 
 
 def _ambiguity(eng: Engine, sel: list[Selected], i: int, v: np.ndarray, W: np.ndarray,
-               pool: list[Cand], table: Table, pp: PredParams) -> list[dict[str, Any]]:
-    """Other candidates that reproduce >= ambiguity_r2 of this effect's fitted signature."""
+               pool: list[Cand], table: Table, pp: PredParams,
+               s2: float = 1.0) -> list[dict[str, Any]]:
+    """Other candidates that reproduce >= ambiguity_r2 of this effect's fitted signature,
+    or whose misfit to it is within the noise (``log_lr`` = the whitened RSS of the part
+    they cannot reproduce / (2 s2) below the evidence level: then undecided)."""
     prob = eng.prob
     s = sel[i]
     others = [o for j, o in enumerate(sel) if j != i]
@@ -379,11 +425,13 @@ def _ambiguity(eng: Engine, sel: list[Selected], i: int, v: np.ndarray, W: np.nd
         coef, d = lstsq_rss(Z, sig)
         r2 = d / nrm
         ps = [c.spec.params[i] for i in c.param_idx] if c.spec.kind != "cyclic" else \
-            list(c.spec.params)
+            list(c.spec.params)[:cols.shape[1]]
         if any(abs(x) > p.limit for x, p in zip(coef, ps)):
             continue  # only with an implausible value
-        if r2 >= eng.opts.ambiguity_r2:
+        log_lr = max(nrm - d, 0.0) / (2.0 * max(s2, 1e-300))
+        if r2 >= eng.opts.ambiguity_r2 or (r2 > 0 and log_lr < eng.opts.evidence_log_min):
             out.append({"key": c.spec.key, "id": c.spec.family, "r2": round(r2, 4),
+                        "log_lr": round(log_lr, 3),
                         "value": [round(float(x), 4) for x in coef],
                         "unit": [p.unit for p in ps],
                         "separating_test": _separating_test(eng, s, v, c, coef, table)})

@@ -220,6 +220,11 @@ def ties_of(checks: list[Any], residuals: list[np.ndarray]) -> list[DriftTie]:
     from abbe.diagnose.checks import LaserCheck
     out = []
     for c, res in zip(checks, residuals):
+        # the runs before an "inconsistent run" exclusion (selection.diagnose): the tie is
+        # an explanation of that inconsistency, tested on the data it must explain
+        if not isinstance(c, LaserCheck):
+            continue
+        c, res = c.tie_source or (c, res)
         if not isinstance(c, LaserCheck) or c.temp_grid is None or "h" not in c.drift_options:
             continue
         m = c.group == 0

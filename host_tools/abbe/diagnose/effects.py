@@ -351,12 +351,16 @@ class EffectSpec:
             a = self.axis
             period = float(scan_value)  # type: ignore[arg-type]
 
+            h2 = th.size > 3 and bool(th[2] or th[3])
+
             def cyc_coef(ax: AxisTable) -> np.ndarray:
-                b = add_block(ax, period, float(ax.travel_mm[0]), 1)
+                b = add_block(ax, period, float(ax.travel_mm[0]), 2 if h2 else 1)
                 ensure_term(ax, OWN_TERM[a])  # type: ignore[index]
                 c = np.zeros(ax.n_basis())
                 r = block_row(ax, b)
                 c[r], c[r + 1] = th[0], th[1]
+                if h2:     # rows sin1, cos1, sin2, cos2 (abbe.model.table.basis_matrix)
+                    c[r + 2], c[r + 3] = th[2], th[3]
                 return c
             add_shape(t, a, OWN_TERM[a], cyc_coef)  # type: ignore[index]
         elif k == "straightness":
@@ -453,7 +457,11 @@ def catalogue() -> list[EffectSpec]:
     for a in AXES:
         out.append(EffectSpec(
             family=f"cyclic_{_axis_l(a)}", key=f"cyclic_{_axis_l(a)}", kind="cyclic", axis=a,
-            compensable=True, params=(ParamSpec("a_sin", "um", 1.0, 50.0), ParamSpec("a_cos", "um", 1.0, 50.0)),
+            compensable=True, params=(ParamSpec("a_sin", "um", 1.0, 50.0), ParamSpec("a_cos", "um", 1.0, 50.0),
+                                      # the second harmonic (period / 2) of a screw's lead error,
+                                      # kept when the evidence ratio prefers it (selection.py)
+                                      ParamSpec("a2_sin", "um", 0.5, 50.0, optional=True),
+                                      ParamSpec("a2_cos", "um", 0.5, 50.0, optional=True)),
             scan="period_mm", scan_unit="mm",
             physics=f"cyclic (screw lead) error of {a}: a sine of the position with an unknown "
                     "period, possibly shorter than the laser target spacing",

@@ -42,7 +42,7 @@ import numpy as np
 def log_evidence(theta: np.ndarray, cov_white: np.ndarray, drss: float, contrib_um: float,
                  half_width: np.ndarray, sigma_model_um: float = 0.0,
                  prior_log_odds: float = 0.0, declared_cov: np.ndarray | None = None,
-                 n_scan: int = 1) -> dict[str, float]:
+                 n_scan: int = 1, typical: np.ndarray | None = None) -> dict[str, float]:
     """Log evidence ratio of a change ``theta`` (parameter units) against no change.
 
     ``cov_white``: its covariance from the whitened fit (s^2 (Z'Z)^-1); ``drss``: the
@@ -51,7 +51,11 @@ def log_evidence(theta: np.ndarray, cov_white: np.ndarray, drss: float, contrib_
     has no prior mass: -inf); ``sigma_model_um``: the RMS of the same signature the
     model's own uncertainty gives; ``prior_log_odds``: log P(present) / P(absent);
     ``declared_cov``: the covariance of a declared value's uncertainty (None = 0);
-    ``n_scan``: independent grid points searched for a shape value."""
+    ``n_scan``: independent grid points searched for a shape value; ``typical``: the
+    catalogue's typical magnitude of each parameter: ``log_evidence_typical`` is then the
+    same ratio under a Gaussian prior of that standard deviation (an effect of typical
+    size expected), log N(theta; 0, T + C) - log N(theta; 0, C) + log odds - log(points):
+    the prior-sensitivity of the decision (docs/effects.md §3, "Undecided")."""
     theta = np.atleast_1d(np.asarray(theta, dtype=float))
     k = theta.size
     L = np.broadcast_to(np.asarray(half_width, dtype=float), (k,))
@@ -70,12 +74,27 @@ def log_evidence(theta: np.ndarray, cov_white: np.ndarray, drss: float, contrib_
     C = np.asarray(cov_white, dtype=float).reshape(k, k) * f2
     if declared_cov is not None:
         C = C + np.asarray(declared_cov, dtype=float).reshape(k, k)
+    # the covariance must be a proper (positive definite) one: a parameter the data do
+    # not identify has none, and no evidence (never a solve on a singular matrix)
+    C = 0.5 * (C + C.T)
+    if not np.all(np.isfinite(C)):
+        return out
+    lam = np.linalg.eigvalsh(C)
+    if not lam[0] > 1e-12 * max(float(lam[-1]), 0.0):
+        return out
     sign, logdet = np.linalg.slogdet(2.0 * math.pi * C)
     if sign <= 0:
         return out
     quad = float(theta @ np.linalg.solve(C, theta))
     log_n0 = -0.5 * logdet - 0.5 * quad        # log N(theta; 0, Sigma0 + C)
     logk = -log_n0 - float(np.sum(np.log(2.0 * L))) + prior_log_odds - math.log(max(n_scan, 1))
+    if typical is not None and declared_cov is None:
+        T = np.diag(np.broadcast_to(np.asarray(typical, dtype=float), (k,)) ** 2)
+        s_t, logdet_t = np.linalg.slogdet(2.0 * math.pi * (T + C))
+        if s_t > 0:
+            quad_t = float(theta @ np.linalg.solve(T + C, theta))
+            out["log_evidence_typical"] = float(-0.5 * logdet_t - 0.5 * quad_t - log_n0
+                                                + prior_log_odds - math.log(max(n_scan, 1)))
     out.update({"log_evidence": float(logk), "log_lr": float(drss / (2.0 * f2)),
                 "inflation": float(math.sqrt(f2))})
     return out

@@ -19,13 +19,16 @@ from abbe.diagnose.problem import gap_stats, is_identifiable, project_out, qr_ba
 from abbe.diagnose.results import GapStats
 
 def heldout_rss(eng: Engine, sel: list[Selected], cand: Cand | None, W: np.ndarray,
-             s2: float) -> dict[str, Any]:
+             s2: float, free: np.ndarray | None = None) -> dict[str, Any]:
     """Held-out RSS (whitened, / s2) without and with ``cand``: fit the effects (and the
-    nuisance) on one fold, judge the other (nuisance refitted there), and back."""
+    nuisance) on one fold, judge the other (nuisance refitted there), and back.
+    ``free``: columns (um rows) fitted in both, like the named effects: a drift is judged
+    with its axis' scale free (docs/effects.md §3, drift and scale), on held-out data as in
+    its evidence ratio."""
     prob = eng.prob
     r_sel = selection_residual(eng, sel) * W
     Nw = prob.nuis * W[:, None]
-    X_sel = [s.cand.cols for s in sel]
+    X_sel = [s.cand.cols for s in sel] + ([free] if free is not None and free.shape[1] else [])
     # the rows the candidate acts on (its support): its held-out gain is judged against
     # the residual there, not diluted by checks it does not touch
     support = np.ones(prob.N, dtype=bool) if cand is None else \

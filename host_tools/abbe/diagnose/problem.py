@@ -51,16 +51,25 @@ def lstsq_rss(Z: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, float]:
     return coef, float(fit @ fit)
 
 
-def is_identifiable(A: np.ndarray, tol: float = 1e-4) -> bool:
-    """Full column rank with a sane condition (columns normalised)."""
+def is_identifiable(A: np.ndarray, tol: float = 1e-4, ref_norm: np.ndarray | None = None) -> bool:
+    """Full column rank with a sane condition (columns normalised).
+
+    ``ref_norm``: the columns' scale before the nuisance (and the named effects) were
+    projected out. Without it each column is normalised by its own norm, so a column the
+    projection reduced to rounding noise (a sine sampled at its own period's nodes, a
+    harmonic the set-up takes whole) looks as good as any; with it, a column must keep
+    ``tol`` of its scale, and the set must be well conditioned at that scale."""
     if A.shape[1] == 0:
         return True
-    if A.shape[0] < A.shape[1]:
+    if A.shape[0] < A.shape[1] or not np.all(np.isfinite(A)):
         return False
-    nrm = np.linalg.norm(A, axis=0)
-    if np.any(nrm <= 0):
+    nrm = np.linalg.norm(A, axis=0) if ref_norm is None else \
+        np.broadcast_to(np.asarray(ref_norm, dtype=float), (A.shape[1],))
+    if np.any(~(nrm > 0)):
         return False
     s = np.linalg.svd(A / nrm, compute_uv=False)
+    if ref_norm is not None and not s[-1] > tol:
+        return False
     return bool(s[-1] > tol * s[0])
 
 

@@ -29,8 +29,13 @@ class DiagnoseOptions:
     units); ``redundant_heldout_fraction`` when the effects already named reproduce
     ``ambiguity_r2`` of its signature (the held-out data must prefer the pair).
     ambiguity_r2: a candidate reproducing this fraction of a named effect's signature
-    makes it ambiguous; undecided_r2: two explanations that reproduce each other to
-    this R^2 on every check are reported undecided ("A or B"), not one named;
+    makes it ambiguous (two explanations are *undecided*, "A or B", when what one cannot
+    reproduce of the other is within the noise: log likelihood ratio below
+    ``evidence_log_min``, docs/effects.md §3); undecided_r2: or when one reproduces this
+    share of the other's signature whatever the noise: a misfit of less than 2 % of the
+    signature's power is below what the model itself reproduces of a machine built
+    another way (the independent generator's thermal drift + scale of X seen on circles:
+    scale_y named, scale_x reproducing 0.9997 of it, log LR 5.3 from the model's error);
     min_effect_um: an effect whose fitted contribution has a smaller RMS (um, on its
     channel) is not named (relevance, not statistics); candidates: keys or families to
     consider (None = all); max_effects: safety stop; model_temp_c: temperature (deg C)

@@ -42,7 +42,8 @@ def _rss_fn(eng: Engine, sel: list[Selected], i: int, W: np.ndarray
 
     def f(v: float) -> tuple[float, np.ndarray, np.ndarray | None]:
         if spec.kind == "cyclic":
-            cols, off = eng.cyclic_cols(spec.axis, v, eng.table), None  # type: ignore[arg-type]
+            cols, off = eng.cyclic_cols(spec.axis, v, eng.table,  # type: ignore[arg-type]
+                                        len(s.cand.param_idx) // 2), None
         else:
             c, off = eng.sensitivity_offset(spec, v, eng.table, eng.pp, eng.y0)
             cols = c[:, s.cand.param_idx]

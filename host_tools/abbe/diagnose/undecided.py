@@ -1,8 +1,8 @@
 """What the table holds when the data cannot decide between explanations (issue 36).
 
 An undecided effect (describe._undecided: another candidate reproduces its signature on
-every check to ``undecided_r2``) has several explanations that predict the same on the
-checked paths: scale_x = +k or scale_y = -k on one XY circle. Any mixture w A + (1 - w) B
+every check within the estimated noise, log likelihood ratio below log 19) has several
+explanations that predict the same on the checked paths: scale_x = +k or scale_y = -k on one XY circle. Any mixture w A + (1 - w) B
 reproduces the checks too (the signatures are linear in the values). The table gets the
 **equal share**, (A + B) / n: the combination the checks constrain, with no weight on
 what they cannot see; whichever explanation is true, the table's error off the checked
@@ -46,6 +46,8 @@ def share_undecided(eng: Engine, sel: list[Selected], values: list[np.ndarray],
         e = next((x for x in effects if x.key == s.cand.spec.key and x.undecided), None)
         alts = [] if e is None else [a for a in e.undecided["alternatives"][1:]]  # type: ignore[index]
         cands = [by_key.get(a["key"]) for a in alts]
+        if e is not None and e.undecided.get("companion"):  # type: ignore[union-attr]
+            alts = []    # "A alone, or A + B": the table holds A alone (describe.companion_undecided)
         ok = bool(alts) and all(c is not None and c.spec.kind != "cyclic" and c.cols.shape[1]
                                 and _in_table(eng, c) == _in_table(eng, s.cand) for c in cands)
         if e is None or not alts:

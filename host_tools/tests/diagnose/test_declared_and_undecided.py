@@ -80,11 +80,14 @@ def test_evidence_grows_with_the_signature_and_falls_with_model_uncertainty() ->
 
 
 def test_two_explanations_that_reproduce_each_other_are_undecided() -> None:
-    amb = [{"key": "scale_y", "id": "scale", "r2": 0.999, "value": [-12.1], "unit": ["ppm"],
-            "separating_test": "laser_Y"},
-           {"key": "straightness_xy", "id": "straightness", "r2": 0.93, "value": [2.0],
-            "unit": ["um"], "separating_test": "laser_X"}]
-    u = _undecided("scale_x", 12.0, "ppm", amb, OPTS.undecided_r2)
+    """Undecided when the misfit of the alternative to the named signature is within the
+    noise: its log likelihood ratio (whitened RSS of what it cannot reproduce / 2 s^2) is
+    below the evidence level log 19, whatever its R^2."""
+    amb = [{"key": "scale_y", "id": "scale", "r2": 0.999, "log_lr": 0.4, "value": [-12.1],
+            "unit": ["ppm"], "separating_test": "laser_Y"},
+           {"key": "straightness_xy", "id": "straightness", "r2": 0.93, "log_lr": 35.0,
+            "value": [2.0], "unit": ["um"], "separating_test": "laser_X"}]
+    u = _undecided("scale_x", 12.0, "ppm", amb, OPTS.evidence_log_min)
     assert u is not None
     assert [a["key"] for a in u["alternatives"]] == ["scale_x", "scale_y"]
     assert u["alternatives"][1]["value"] == -12.1 and "laser_Y" in u["statement"]
@@ -93,8 +96,20 @@ def test_two_explanations_that_reproduce_each_other_are_undecided() -> None:
                      evidence={}, ambiguous_with=amb, undecided=u)
     d = e.to_json()
     assert d["state"] == "undecided" and d["undecided_between"] == ["scale_x", "scale_y"]
-    # an ambiguity below the threshold (0.93) leaves the name decided
-    assert _undecided("squareness_xy", 20.0, "urad", amb[1:], OPTS.undecided_r2) is None
+    # an alternative whose misfit the data see (log LR 35 > log 19) leaves the name decided
+    assert _undecided("squareness_xy", 20.0, "urad", amb[1:], OPTS.evidence_log_min) is None
+
+
+def test_undecided_follows_the_noise_not_a_fixed_share() -> None:
+    """The same R^2 (0.75: the fifth round's drift / scale pair, below the old fixed 0.98) is
+    undecided when what the alternative cannot reproduce is within the noise (log LR 1.5)
+    and decided when the data see it (log LR 8.4); the old rule said "decided" for both."""
+    near = [{"key": "thermal_drift_z", "id": "thermal_drift", "r2": 0.75, "log_lr": 1.5,
+             "value": [0.2], "unit": ["um/h"], "separating_test": "laser_Z reversed"}]
+    far = [dict(near[0], log_lr=8.4)]
+    u = _undecided("scale_z", 35.0, "ppm", near, OPTS.evidence_log_min)
+    assert u is not None and u["alternatives"][1]["key"] == "thermal_drift_z"
+    assert _undecided("scale_z", 35.0, "ppm", far, OPTS.evidence_log_min) is None
 
 
 def test_the_machine_file_states_the_declared_uncertainty(monkeypatch) -> None:
