@@ -183,6 +183,33 @@ def _refit_map(t_s: np.ndarray, cands: list[Any], fit: ChannelFit, p: np.ndarray
     return np.linalg.lstsq(S[mask], dy[mask], rcond=None)[0]
 
 
+def _augmented(p: np.ndarray, C: np.ndarray, type_b: list[dict[str, Any]]
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """The augmented inputs: the parameters (covariance C), then each sensor's relative
+    sensitivity error (mean 0, variance u_rel^2, independent); what the cubature and the
+    Monte Carlo evaluate."""
+    npar = p.size
+    pa = np.concatenate([p, np.zeros(len(type_b))])
+    Ca = np.zeros((pa.size, pa.size))
+    Ca[:npar, :npar] = C
+    for i, b in enumerate(type_b):
+        Ca[npar + i, npar + i] = b["u_rel"] ** 2
+    return pa, Ca
+
+
+def _figure_entry(value: float, uA: float, key: str, u_c: float, type_b: list[dict[str, Any]],
+                  n_inputs: int, type_a_name: str) -> dict[str, Any]:
+    """One figure's value (um), its U (k = 2) from the cubature's u_c, and its budget: the
+    Type A line (uA) and each sensor's first-order line (``b[key]``)."""
+    budget = [{"name": type_a_name, "u": uA}]
+    budget += [{"name": b["name"], "what": b["what"], "u": b[key]} for b in type_b]
+    return {"value": value, "U": K * u_c,
+            "U_first_order": K * float(np.sqrt(sum(c["u"] ** 2 for c in budget))),
+            "U_typeA": K * uA, "budget": budget,
+            "method": f"degree-5 cubature averaged over 3 frames ({3 * (2 * n_inputs ** 2 + 1)} "
+                      "model evaluations); the budget lines are first order"}
+
+
 def signal_uncertainty(res: Any, sig: Any, draws: int = 0, seed: int = 1) -> dict[str, Any]:
     """One signal's terms, its largest predicted drift on the validation hours and its
     held-out RMS, each with U (k = 2); with ``draws`` the Monte Carlo beside each."""
@@ -247,11 +274,7 @@ def signal_uncertainty(res: Any, sig: Any, draws: int = 0, seed: int = 1) -> dic
     # the augmented inputs (parameters, then each sensor's relative sensitivity error) and
     # both figures as one function of them: what the cubature and the Monte Carlo evaluate
     npar = p.size
-    pa = np.concatenate([p, np.zeros(len(type_b))])
-    Ca = np.zeros((pa.size, pa.size))
-    Ca[:npar, :npar] = C
-    for i, b in enumerate(type_b):
-        Ca[npar + i, npar + i] = b["u_rel"] ** 2
+    pa, Ca = _augmented(p, C, type_b)
 
     def figures(q: np.ndarray) -> np.ndarray:
         e = q[npar:]
@@ -265,13 +288,7 @@ def signal_uncertainty(res: Any, sig: Any, draws: int = 0, seed: int = 1) -> dic
     _, u_cub = cubature5(figures, pa, Ca)
 
     def figure(value: float, uA: float, key: str, u_c: float) -> dict[str, Any]:
-        budget = [{"name": "identification residuals (Type A)", "u": uA}]
-        budget += [{"name": b["name"], "what": b["what"], "u": b[key]} for b in type_b]
-        return {"value": value, "U": K * u_c,
-                "U_first_order": K * float(np.sqrt(sum(c["u"] ** 2 for c in budget))),
-                "U_typeA": K * uA, "budget": budget,
-                "method": f"degree-5 cubature averaged over 3 frames ({3 * (2 * pa.size ** 2 + 1)} "
-                          "model evaluations); the budget lines are first order"}
+        return _figure_entry(value, uA, key, u_c, type_b, pa.size, "identification residuals (Type A)")
 
     out: dict[str, Any] = {
         "name": sig.name, "unit": sig.unit, "terms": terms,
@@ -408,11 +425,7 @@ def composed_uncertainty(res: Any, sig: Any, draws: int = 0, seed: int = 1) -> d
     jd = _jac(drift_at, p)[0]
     jr = _jac(rms_valid, p)[0]
     npar = p.size
-    pa = np.concatenate([p, np.zeros(len(type_b))])
-    Ca = np.zeros((pa.size, pa.size))
-    Ca[:npar, :npar] = C
-    for i, b in enumerate(type_b):
-        Ca[npar + i, npar + i] = b["u_rel"] ** 2
+    pa, Ca = _augmented(p, C, type_b)
 
     def figures(q: np.ndarray) -> np.ndarray:
         e = q[npar:]
@@ -426,13 +439,8 @@ def composed_uncertainty(res: Any, sig: Any, draws: int = 0, seed: int = 1) -> d
     _, u_cub = cubature5(figures, pa, Ca)
 
     def figure(value: float, uA: float, key: str, u_c: float) -> dict[str, Any]:
-        budget = [{"name": "identification residuals of both fits (Type A)", "u": uA}]
-        budget += [{"name": b["name"], "what": b["what"], "u": b[key]} for b in type_b]
-        return {"value": value, "U": K * u_c,
-                "U_first_order": K * float(np.sqrt(sum(c["u"] ** 2 for c in budget))),
-                "U_typeA": K * uA, "budget": budget,
-                "method": f"degree-5 cubature averaged over 3 frames ({3 * (2 * pa.size ** 2 + 1)} "
-                          "model evaluations); the budget lines are first order"}
+        return _figure_entry(value, uA, key, u_c, type_b, pa.size,
+                             "identification residuals of both fits (Type A)")
 
     terms = [{"input": res.input_names[tt.input], "gain": tt.gain,
               "gain_U": None if tt.gain_u95 is None else K / 1.96 * tt.gain_u95,
