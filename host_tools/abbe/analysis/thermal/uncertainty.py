@@ -300,20 +300,7 @@ def signal_uncertainty(res: Any, sig: Any, draws: int = 0, seed: int = 1) -> dic
         "temperature_calibration": f"U = {res.spec.temperature_calibration_U_pct:g} % (k = 2, "
                                    f"{t_src}): in the gains per K only",
         "n_eff": float(fit.n_eff)}
-    if draws:
-        F = monte_carlo_figures(figures, pa, Ca, draws, seed)
-        for i, key in enumerate(("drift", "heldout_rms")):
-            lo, hi = np.percentile(F[:, i], [2.5, 97.5])
-            out[key]["U_mc"] = K * float(F[:, i].std(ddof=1))
-            out[key]["interval95_mc"] = [float(lo), float(hi)]
-        out["monte_carlo"] = {"draws": draws, "seed": seed}
-        for key in ("drift", "heldout_rms"):
-            _state(out[key])
-    else:
-        for key in ("drift", "heldout_rms"):
-            out[key]["U_stated"] = out[key]["U"]
-            out[key]["U_from"] = "degree-5 cubature (no Monte Carlo run)"
-    return out
+    return _with_monte_carlo(out, figures, pa, Ca, draws, seed)
 
 
 def monte_carlo_figures(fn, p: np.ndarray, C: np.ndarray, draws: int, seed: int) -> np.ndarray:
@@ -339,6 +326,27 @@ def _state(d: dict[str, Any]) -> None:
     d["U_from"] = ("degree-5 cubature (the Monte Carlo agrees within 10 %)" if ok else
                    "Monte Carlo (the cubature is more than 10 % off: the figure is not near a "
                    "quadratic in the parameters over their interval)")
+
+
+def _with_monte_carlo(out: dict[str, Any], figures, pa: np.ndarray, Ca: np.ndarray,
+                      draws: int, seed: int) -> dict[str, Any]:
+    """Add the Monte Carlo's U (k = 2) and 95 % interval of the drift and the held-out RMS
+    (um) to ``out`` and state the U per the 10 % rule (:func:`_state`); with no draws, the
+    cubature's U is the one stated."""
+    if draws:
+        F = monte_carlo_figures(figures, pa, Ca, draws, seed)
+        for i, key in enumerate(("drift", "heldout_rms")):
+            lo, hi = np.percentile(F[:, i], [2.5, 97.5])
+            out[key]["U_mc"] = K * float(F[:, i].std(ddof=1))
+            out[key]["interval95_mc"] = [float(lo), float(hi)]
+        out["monte_carlo"] = {"draws": draws, "seed": seed}
+        for key in ("drift", "heldout_rms"):
+            _state(out[key])
+    else:
+        for key in ("drift", "heldout_rms"):
+            out[key]["U_stated"] = out[key]["U"]
+            out[key]["U_from"] = "degree-5 cubature (no Monte Carlo run)"
+    return out
 
 
 def thermal_uncertainty(res: Any, draws: int = 0, seed: int = 1) -> dict[str, Any]:
@@ -459,17 +467,4 @@ def composed_uncertainty(res: Any, sig: Any, draws: int = 0, seed: int = 1) -> d
         "temperature_calibration": "the partner's and the tilt's gains per K; the prediction "
                                    "does not change (the same sensors run it)",
         "n_eff": float(min(f1.n_eff, f2.n_eff))}
-    if draws:
-        F = monte_carlo_figures(figures, pa, Ca, draws, seed)
-        for i, key in enumerate(("drift", "heldout_rms")):
-            lo, hi = np.percentile(F[:, i], [2.5, 97.5])
-            out[key]["U_mc"] = K * float(F[:, i].std(ddof=1))
-            out[key]["interval95_mc"] = [float(lo), float(hi)]
-        out["monte_carlo"] = {"draws": draws, "seed": seed}
-        for key in ("drift", "heldout_rms"):
-            _state(out[key])
-    else:
-        for key in ("drift", "heldout_rms"):
-            out[key]["U_stated"] = out[key]["U"]
-            out[key]["U_from"] = "degree-5 cubature (no Monte Carlo run)"
-    return out
+    return _with_monte_carlo(out, figures, pa, Ca, draws, seed)
