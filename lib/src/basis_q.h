@@ -12,18 +12,39 @@
 #define LIN_BIAS ((int64_t)1 << (LIN_SHIFT - 1))
 #define ANG_BIAS ((int64_t)1 << (ANG_SHIFT - 1))
 
-/* (a b + c d) / 2^30, rounded once: Q30 x Q30 + Q30 x Q30 -> Q30. */
-static ABBE_ALWAYS_INLINE int32_t dot2_q30(int32_t a, int32_t b, int32_t c, int32_t d)
+/* (a b + c d) / 2^30, rounded once: Q30 x Q30 + Q30 x Q30 -> Q30, as int64;
+ * dot2_q30 converts it to int32. Only the harmonics' rotation uses it (the
+ * basis below), whose rows stay within +/-(2^30 + 16): the hypothesis
+ * sincos_range, which tests/proofs/hypotheses.c checks on this int64 value
+ * for every phase, so the conversion is always in range. */
+static ABBE_ALWAYS_INLINE int64_t dot2_wide_q30(int32_t a, int32_t b, int32_t c, int32_t d)
 {
-    return (int32_t)(((int64_t)a * b + (int64_t)c * d + ((int64_t)1 << 29)) >> 30);
+    return ((int64_t)a * b + (int64_t)c * d + ((int64_t)1 << 29)) >> 30;
 }
 
-/* The next Chebyshev row, Q30: T_k = 2u T_(k-1) - T_(k-2), rounded once;
- * |T_k| <= 1 on [-1, 1], in Q30 within 2^30 + a few LSB of rounding
- * (tests/proofs/hypotheses.c, 'basis_rows', checks every u in [-2^30, 2^30]). */
+static ABBE_ALWAYS_INLINE int32_t dot2_q30(int32_t a, int32_t b, int32_t c, int32_t d)
+{
+    const int64_t r = dot2_wide_q30(a, b, c, d);
+    /*@ assert sincos_range: -1073741840 <= r <= 1073741840; */
+    return (int32_t)r;
+}
+
+/* The next Chebyshev row, Q30: T_k = 2u T_(k-1) - T_(k-2), rounded once, as
+ * int64; cheb_next_q30 converts it to int32. |T_k| <= 1 on [-1, 1], in Q30
+ * within 2^30 + a few LSB of rounding: the hypothesis cheb_rows, which
+ * tests/proofs/hypotheses.c checks on this int64 value for every u in
+ * [-2^30, 2^30] and rows T_2..T_7 (the trend's and the reversal block's rows:
+ * eval_q.c), so the conversion is always in range. */
+static ABBE_ALWAYS_INLINE int64_t cheb_next_wide_q30(int32_t u, int32_t t, int32_t t_prev)
+{
+    return (((int64_t)u * t + ((int64_t)1 << 28)) >> 29) - t_prev;
+}
+
 static ABBE_ALWAYS_INLINE int32_t cheb_next_q30(int32_t u, int32_t t, int32_t t_prev)
 {
-    return (int32_t)((((int64_t)u * t + ((int64_t)1 << 28)) >> 29) - t_prev);
+    const int64_t r = cheb_next_wide_q30(u, t, t_prev);
+    /*@ assert cheb_rows: -1073741840 <= r <= 1073741840; */
+    return (int32_t)r;
 }
 
 /* The basis rows of one axis, in table order, each handed to ROW(b) (Q30) as

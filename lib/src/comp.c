@@ -145,10 +145,14 @@ void abbe_comp_track_direction(abbe_comp_t *comp, const int32_t pos_nm[ABBE_AXES
 
 static uint32_t ramp_gain(uint32_t gain, uint32_t step, int up)
 {
+    /* gain, step <= GAIN_ONE; each result a variable that its test bounds
+     * where it is returned (the proofs: docs/proofs.md, "Signed downcasts") */
     if (up) {
-        return gain + step >= GAIN_ONE ? GAIN_ONE : gain + step;
+        const uint32_t g = gain + step;
+        return g >= GAIN_ONE ? GAIN_ONE : g;
     }
-    return gain <= step ? 0u : gain - step;
+    const int32_t g = (int32_t)gain - (int32_t)step;
+    return g > 0 ? (uint32_t)g : 0u;
 }
 
 void abbe_comp_finish(abbe_comp_t *comp, int input_ok, const int32_t *error_nm, uint32_t flags,
@@ -218,13 +222,22 @@ void abbe_comp_finish(abbe_comp_t *comp, int input_ok, const int32_t *error_nm, 
          * limit); otherwise the output follows gain * target. */
         int32_t base = comp->fault ? comp->fault_from_nm[j] : comp->target_nm[j];
         int64_t desired = abbe_shr_round((int64_t)base * comp->gain_q16[j], 16u);
-        int64_t delta = desired - comp->out_nm[j];
+        /* within rate of the previous output: desired held to [lo, hi]. The
+         * result lies between the output and desired, both int32 (the gain is
+         * at most 1), and is taken from a bound only where desired is beyond
+         * it, which states that range for the conversion to int32
+         * (docs/proofs.md, "Signed downcasts") */
         int64_t rate = cfg->rate_nm_per_cycle[j];
-        if (delta > rate || delta < -rate) {
-            delta = abbe_clamp_i64(delta, -rate, rate);
+        int64_t lo = (int64_t)comp->out_nm[j] - rate, hi = (int64_t)comp->out_nm[j] + rate;
+        int64_t next = desired;
+        if (desired > hi) {
+            next = hi;
+            clipped = 1;
+        } else if (desired < lo) {
+            next = lo;
             clipped = 1;
         }
-        comp->out_nm[j] = (int32_t)((int64_t)comp->out_nm[j] + delta);
+        comp->out_nm[j] = (int32_t)next;
         out->corr_nm[j] = comp->out_nm[j];
         out->target_nm[j] = comp->target_nm[j];
     }

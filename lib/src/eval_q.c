@@ -13,6 +13,7 @@
  * (backlash with its reversal block, thermal), which can be far larger, are
  * summed in 2^-8 nm as before, added to E >> 27 and saturated.
  */
+#include "basis_q.h"
 #include "internal.h"
 
 enum { DX = ABBE_TERM_DX, DY = ABBE_TERM_DY, DZ = ABBE_TERM_DZ, EX = ABBE_TERM_EX, EY = ABBE_TERM_EY, EZ = ABBE_TERM_EZ };
@@ -45,7 +46,7 @@ ABBE_NOINLINE static int64_t axis_reversal_times(const abbe_axis_model_t *ax, in
     /*@ loop unroll ABBE_MAX_REVERSAL_ROWS; */ /* the proofs: each row with its own state (docs/proofs.md) */
     for (unsigned k = 1; k < ax->reversal_rows; k++) {
         acc += (int64_t)abbe_ld_i32_aligned(row + 4u * k) * t;
-        int32_t t_next = (int32_t)((((int64_t)u * t + ((int64_t)1 << 28)) >> 29) - t_prev);
+        int32_t t_next = cheb_next_q30(u, t, t_prev); /* the trend's recurrence (basis_q.h) */
         t_prev = t;
         t = t_next;
     }

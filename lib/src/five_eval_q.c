@@ -47,11 +47,18 @@ ABBE_NOINLINE static void motions_q(const abbe_rotary_model_t *ax, int32_t c, in
     for (unsigned r = 0; r < rows; r += 2u) {
         basis[r] = sk;
         basis[r + 1u] = ck;
-        /* next harmonic: rotate by the fundamental, rounded (one SMULL, one SMLAL each) */
+        /* next harmonic: rotate by the fundamental, rounded (one SMULL, one SMLAL each).
+         * (c, s) is abbe_sincos_q30's pair of the joint angle and this is
+         * basis_q.h's dot2_q30 (the same int64 sums): harmonics 2..9 of every
+         * phase stay within +/-(2^30 + 16), the hypothesis sincos_range that
+         * tests/proofs/hypotheses.c checks on these int64 values, so their
+         * conversions to int32 are in range */
         const int64_t half30 = (int64_t)1 << (Q30 - 1u);
-        const int32_t sn = (int32_t)(abbe_smlal(abbe_smlal(half30, sk, c), ck, s) >> Q30);
-        ck = (int32_t)(abbe_smlal(abbe_smlal(half30, ck, c), sk, ns) >> Q30);
-        sk = sn;
+        const int64_t sn_w = abbe_smlal(abbe_smlal(half30, sk, c), ck, s) >> Q30;
+        const int64_t cn_w = abbe_smlal(abbe_smlal(half30, ck, c), sk, ns) >> Q30;
+        /*@ assert sincos_range: -1073741840 <= sn_w <= 1073741840 && -1073741840 <= cn_w <= 1073741840; */
+        ck = (int32_t)cn_w;
+        sk = (int32_t)sn_w;
     }
     if (n == ABBE_MOTIONS) {
         /* components g .. g + 2, a harmonic's two rows (sin, cos) per pass; 2^-38 nm -> 2^-4 nm

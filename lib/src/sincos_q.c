@@ -25,10 +25,13 @@
 #include "internal.h"
 
 /* hi32(p * z) + c, rounded: c in the high word and 2^31 in the low word of
- * the 64-bit accumulator, one multiply-accumulate. */
+ * the 64-bit accumulator, one multiply-accumulate. The accumulator is formed
+ * by arithmetic (c 2^32 + 2^31: the same bits, the same code), not by
+ * converting the uint64 of those bits, which for a negative c is out of
+ * int64's range (implementation-defined, docs/proofs.md "Signed downcasts"). */
 static ABBE_ALWAYS_INLINE int32_t abbe_horner_step(int32_t c, int32_t p, int32_t z)
 {
-    int64_t acc = (int64_t)(((uint64_t)(uint32_t)c << 32) | 0x80000000u);
+    int64_t acc = (int64_t)c * ((int64_t)1 << 32) + ((int64_t)1 << 31);
     return (int32_t)(abbe_smlal(acc, p, z) >> 32);
 }
 

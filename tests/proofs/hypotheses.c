@@ -17,7 +17,10 @@
  *       float (thermal_f32.c, the period of abbe_thermal_init_f32).
  *   hypotheses cheb_rows (and sincos_range's second part): every basis row
  *       the _q kernels stream is within +/-(2^30 + 16), the precondition of
- *       the L1 proof tests/proofs/terms_q_l1.c (WP).
+ *       the L1 proof tests/proofs/terms_q_l1.c (WP); checked on the int64
+ *       value before its conversion to int32 (basis_q.h: the assertions
+ *       cheb_rows in cheb_next_q30, sincos_range in dot2_q30), so the
+ *       conversion is in range (-warn-signed-downcast, docs/proofs.md).
  * Exit 1 naming the first input that breaks one; 2 for a bad argument. */
 #include <inttypes.h>
 #include <stdio.h>
@@ -25,12 +28,12 @@
 
 #include "basis_q.h"
 
-/* sincos_range also checks the harmonics 2..8 the kernels rotate from the
+/* sincos_range also checks the harmonics 2..9 the kernels rotate from the
  * pair (basis_q.h: dot2_q30 with the fundamental, the code of the kernels)
  * within +/-BASIS_ROW_MAX: the pairs of a batch of phases first, then each
  * rotation over the batch (so the compiler can vectorize it). */
 #define BASIS_ROW_MAX (ABBE_Q30_ONE + 16)
-#define HARMONICS 8
+#define HARMONICS 9 /* 8 in the 3-axis kernels; five_eval_q.c's motions_q makes the 9th too (unused) */
 #define BATCH 4096u
 
 static int sincos_range(void)
@@ -59,23 +62,25 @@ static int sincos_range(void)
             c[i] = c1[i];
         }
         for (unsigned n = 2; n <= HARMONICS; n++) {
-            int32_t blo = 0, bhi = 0;
+            int64_t blo = 0, bhi = 0;
             for (uint32_t i = 0; i < BATCH; i++) {
-                const int32_t sn = dot2_q30(s[i], c1[i], c[i], s1[i]);
-                c[i] = dot2_q30(c[i], c1[i], s[i], ns1[i]);
-                s[i] = sn;
-                blo = s[i] < blo ? s[i] : blo;
-                blo = c[i] < blo ? c[i] : blo;
-                bhi = s[i] > bhi ? s[i] : bhi;
-                bhi = c[i] > bhi ? c[i] : bhi;
+                /* the int64 values before dot2_q30's conversion (its assertion) */
+                const int64_t sn = dot2_wide_q30(s[i], c1[i], c[i], s1[i]);
+                const int64_t cn = dot2_wide_q30(c[i], c1[i], s[i], ns1[i]);
+                blo = sn < blo ? sn : blo;
+                blo = cn < blo ? cn : blo;
+                bhi = sn > bhi ? sn : bhi;
+                bhi = cn > bhi ? cn : bhi;
+                s[i] = (int32_t)sn;
+                c[i] = (int32_t)cn;
             }
             if (blo < -BASIS_ROW_MAX || bhi > BASIS_ROW_MAX) {
-                printf("sincos_range: phases 0x%08" PRIx32 "..: harmonic %u within [%" PRId32 ", %" PRId32
+                printf("sincos_range: phases 0x%08" PRIx32 "..: harmonic %u within [%" PRId64 ", %" PRId64
                        "], beyond 2^30 + %d\n", phase, n, blo, bhi, BASIS_ROW_MAX - ABBE_Q30_ONE);
                 return 1;
             }
-            harm_lo = blo < harm_lo ? blo : harm_lo;
-            harm_hi = bhi > harm_hi ? bhi : harm_hi;
+            harm_lo = blo < harm_lo ? (int32_t)blo : harm_lo; /* within +/-BASIS_ROW_MAX here */
+            harm_hi = bhi > harm_hi ? (int32_t)bhi : harm_hi;
         }
         phase += BATCH;
     } while (phase != 0u);
@@ -159,21 +164,22 @@ static int cheb_rows(void)
             t[i] = u[i];
         }
         for (unsigned k = 2; k < CHEB_ROWS; k++) {
-            int32_t blo = 0, bhi = 0;
+            int64_t blo = 0, bhi = 0;
             for (uint32_t i = 0; i < count; i++) {
-                const int32_t t_next = cheb_next_q30(u[i], t[i], t_prev[i]);
+                /* the int64 value before cheb_next_q30's conversion (its assertion) */
+                const int64_t t_next = cheb_next_wide_q30(u[i], t[i], t_prev[i]);
                 t_prev[i] = t[i];
-                t[i] = t_next;
+                t[i] = (int32_t)t_next;
                 blo = t_next < blo ? t_next : blo;
                 bhi = t_next > bhi ? t_next : bhi;
             }
             if (blo < -BASIS_ROW_MAX || bhi > BASIS_ROW_MAX) {
-                printf("cheb_rows: u from %" PRId64 ": T_%u within [%" PRId32 ", %" PRId32 "], beyond 2^30 + %d\n",
+                printf("cheb_rows: u from %" PRId64 ": T_%u within [%" PRId64 ", %" PRId64 "], beyond 2^30 + %d\n",
                        first, k, blo, bhi, BASIS_ROW_MAX - ABBE_Q30_ONE);
                 return 1;
             }
-            lo = blo < lo ? blo : lo;
-            hi = bhi > hi ? bhi : hi;
+            lo = blo < lo ? (int32_t)blo : lo; /* within +/-BASIS_ROW_MAX here */
+            hi = bhi > hi ? (int32_t)bhi : hi;
         }
     }
     printf("cheb_rows: all 2^31 + 1 arguments u, T_2..T_%d in [%" PRId32 ", %" PRId32 "] (bound 2^30 + %d)\n",
