@@ -228,12 +228,14 @@ void abbe_comp_finish(abbe_comp_t *comp, int input_ok, const int32_t *error_nm, 
          * it, which states that range for the conversion to int32
          * (docs/proofs.md, "Signed downcasts") */
         int64_t rate = cfg->rate_nm_per_cycle[j];
-        int64_t lo = (int64_t)comp->out_nm[j] - rate, hi = (int64_t)comp->out_nm[j] + rate;
+        const int64_t lo = (int64_t)comp->out_nm[j] - rate;
+        const int64_t hi = (int64_t)comp->out_nm[j] + rate;
         int64_t next = desired;
         if (desired > hi) {
             next = hi;
             clipped = 1;
-        } else if (desired < lo) {
+        }
+        if (desired < lo) { /* lo < hi: never both */
             next = lo;
             clipped = 1;
         }
