@@ -37,6 +37,14 @@ def exports(outputs, tmp_path_factory) -> tuple[Path, Path]:
     return tmp / "h.csv", tmp / "h.json"
 
 
+def test_the_stored_diagnosis_reads_as_documented(outputs) -> None:
+    """The diagnose.json this campaign stores (no Monte Carlo) by the independent reader of
+    its uncertainty fields (tests/diagnose_json_reader.py, from docs/formats.md)."""
+    from diagnose_json_reader import read_diagnose_uncertainty
+    d = read_diagnose_uncertainty(outputs / "diagnose" / "diagnose.json", mc=0)
+    assert d["effects"] and "monte_carlo" not in d["uncertainty"]
+
+
 def test_history_exports_read_as_documented(exports) -> None:
     rows = read_history_csv(exports[0])
     doc = read_history_json(exports[1])
@@ -117,7 +125,7 @@ def test_the_json_reader_refuses_what_the_page_forbids(exports, tmp_path, change
 
 def test_the_json_reader_refuses_nan(exports, tmp_path) -> None:
     bad = tmp_path / "nan.json"
-    bad.write_text(exports[1].read_text(encoding="utf-8").replace('"value": ', '"value": NaN, "x": ',
-                                                                   1), encoding="utf-8")
+    text = exports[1].read_text(encoding="utf-8")
+    bad.write_text(text.replace('"value": ', '"value": NaN, "x": ', 1), encoding="utf-8")
     with pytest.raises(FormatError, match="NaN"):
         read_history_json(bad)
