@@ -48,6 +48,8 @@ UNIT_TYPES: dict[str, str] = {
 PLANES = {("X", "Y"): "XY", ("Z", "X"): "ZX", ("Y", "Z"): "YZ"}
 _META = ("OPERATOR", "DATE_STARTED", "DATE_COMPLETED", "SERIAL_NUMBER", "LAST_CALIBRATED",
          "PART_NUMBER")
+#: White space in XML (XML 1.0, production S): nothing else is stripped from a value.
+_XML_WS = " \t\r\n"
 _SAFE = re.compile(r"<!(DOCTYPE|ENTITY)", re.IGNORECASE)
 
 
@@ -143,11 +145,18 @@ def _features(root: _El) -> list[tuple[_El, str]]:
                      f"{name}{' ' + ver if ver else ''}/")
             elif c.tag == "BALLBAR_RUN":
                 d = [x for x in c.children if x.tag == "RUN_DIRECTION"]
-                walk(c, ("".join(d[0].text).strip().upper() if d else "RUN") + "/")
+                walk(c, (_text(d[0]).upper() if d else "RUN") + "/")
             else:
                 walk(c, where)
     walk(root, "")
     return out
+
+
+def _text(el: _El) -> str:
+    """An element's text without the XML white space around it (space, tab, CR, LF) --
+    only that: ``str.strip()`` would also drop Unicode spaces (a no-break space after a
+    number), which are not white space in XML and make the cell something else."""
+    return "".join(el.text).strip(_XML_WS)
 
 
 def _child(run: _El, tag: str, fname: str) -> _El:
@@ -169,7 +178,7 @@ def _real_runs(els: dict[str, list[_El]], root: _El, fname: str, radius: float, 
     runs = els["BALLBAR_RUN"]
     dirs = []
     for r in runs:
-        dirs.append("".join(_child(r, "RUN_DIRECTION", fname).text).strip().upper())
+        dirs.append(_text(_child(r, "RUN_DIRECTION", fname)).upper())
     if dirs != ["CCW", "CW"]:
         raise AbbeInputError(f"runs {dirs}: expected one BALLBAR_RUN with RUN_DIRECTION CCW "
                              "then one with CW", file=fname, line=runs[0].line,
@@ -188,7 +197,7 @@ def _real_runs(els: dict[str, list[_El]], root: _El, fname: str, radius: float, 
                                  line=got[1].line if len(got) > 1 else root.line, field=tag)
         el = got[0]
         lines[tag] = el.line
-        return parse_number("".join(el.text).strip(), file=fname, line=el.line, field=tag,
+        return parse_number(_text(el), file=fname, line=el.line, field=tag,
                             lo=-360.0, hi=720.0, unit="deg")
     start, end = angle("START_ANGLE"), angle("END_ANGLE")
     arc = (end - start) % 360.0
@@ -201,7 +210,7 @@ def _real_runs(els: dict[str, list[_El]], root: _El, fname: str, radius: float, 
     for run, d in zip(runs, ("ccw", "cw")):
         de = _child(run, "READINGS", fname)
         sr = _child(run, "SAMPLE_RATE", fname)
-        fs = parse_number("".join(sr.text).strip(), file=fname, line=sr.line, field="SAMPLE_RATE",
+        fs = parse_number(_text(sr), file=fname, line=sr.line, field="SAMPLE_RATE",
                           lo=1.0, hi=1e5, unit="Hz")
         fs_first = fs_first or fs
         cells = [c for c in re.split(r"[ \t\r\n]+", "".join(de.text)) if c]
@@ -211,7 +220,7 @@ def _real_runs(els: dict[str, list[_El]], root: _El, fname: str, radius: float, 
         idx = []
         for tag in ("START_INDEX", "END_INDEX"):
             el = _child(run, tag, fname)
-            idx.append(parse_int("".join(el.text).strip(), file=fname, line=el.line,
+            idx.append(parse_int(_text(el), file=fname, line=el.line,
                                  field=tag, lo=0, hi=max(len(cells) - 1, 0)))
         si, ei = idx
         if ei - si < 8:
@@ -259,7 +268,7 @@ def _assumed_runs(els, root, fname, radius, feed, deg_per_s, one, num, dt
     fs = num(one("SAMPLE_RATE"), {"UT_FREQUENCY": 1.0}, 1.0, 1e5, "Hz")
     over = num(one("OVERRUN_ARC"), {"UT_ANGLE": 1.0}, 0.0, 360.0, "deg")
     runs = els.get("RUN", [])
-    dirs = [r.attrs.get("DIRECTION", "").strip().upper() for r in runs]
+    dirs = [r.attrs.get("DIRECTION", "").strip(_XML_WS).upper() for r in runs]
     if dirs != ["CCW", "CW"]:
         at = runs[0] if runs else root
         raise AbbeInputError(f"runs {dirs}: expected one RUN DIRECTION=\"CCW\" then one "
@@ -342,14 +351,14 @@ def read_b5r(path: str | Path) -> B5rTest:
 
     def num(el: _El, allowed: dict[str, float], lo: float, hi: float, unit: str) -> float:
         scale = dt(el, allowed)
-        v = parse_number("".join(el.text).strip(), file=fname, line=el.line, field=el.tag,
+        v = parse_number(_text(el), file=fname, line=el.line, field=el.tag,
                          lo=lo / scale, hi=hi / scale)
         return v * scale
 
     plane_el = one("PLANE")
     a_el, b_el = one("A_AXIS_NAME"), one("B_AXIS_NAME")
-    ab = ("".join(a_el.text).strip().upper(), "".join(b_el.text).strip().upper())
-    tp = plane_el.attrs.get("TEST_PLANE", "").strip().upper()
+    ab = (_text(a_el).upper(), _text(b_el).upper())
+    tp = plane_el.attrs.get("TEST_PLANE", "").strip(_XML_WS).upper()
     if ab not in PLANES:
         raise AbbeInputError(f"plane with A axis {ab[0]!r} and B axis {ab[1]!r}: abbe's planes "
                              "are (A, B) = (X, Y), (Z, X), (Y, Z) with the angle from A toward "
@@ -374,7 +383,7 @@ def read_b5r(path: str | Path) -> B5rTest:
             if "DT" in el.attrs:
                 vals.append(num(el, allowed, lo, hi, unit))
             else:
-                vals.append(parse_number("".join(el.text).strip(), file=fname, line=el.line,
+                vals.append(parse_number(_text(el), file=fname, line=el.line,
                                          field=t, lo=lo, hi=hi, unit=unit))
         for t, v in zip(got[1:], vals[1:]):
             if abs(v - vals[0]) > 1e-9 * max(1.0, abs(vals[0])):
@@ -418,7 +427,7 @@ def read_b5r(path: str | Path) -> B5rTest:
             raise AbbeInputError(f"unit type {u!r} of FEATURE {name!r} is not one abbe knows: "
                                  f"{', '.join(UNIT_TYPES)}", file=fname, line=fe.line,
                                  field="FEATURE")
-        value = (parse_number("".join(fe.text).strip(), file=fname, line=fe.line,
+        value = (parse_number(_text(fe), file=fname, line=fe.line,
                               field=f"FEATURE {name}"), UNIT_TYPES[u])
         feats.setdefault(f"{where}{name}", value)
     return B5rTest(trace=tr, plane=plane, radius_mm=radius, feed_mm_min=feed, sample_rate_hz=fs,

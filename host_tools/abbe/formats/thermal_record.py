@@ -289,7 +289,8 @@ def read_thermal_xlsx(path: str | Path, sheet: str | None = None) -> ThermalReco
                 v = raw.get(j + 1)
                 (lo, hi, unit), name, col = checks[j]
                 if isinstance(v, str):
-                    v = parse_number(v.strip(), file=f, line=r, field=name, lo=lo, hi=hi,
+                    # only ASCII blanks: str.strip() would also drop a no-break space
+                    v = parse_number(v.strip(" \t"), file=f, line=r, field=name, lo=lo, hi=hi,
                                      unit=unit)
                 elif v is None:
                     raise AbbeInputError(f"empty cell {col}{r}: expected a number in "

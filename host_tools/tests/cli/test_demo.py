@@ -117,6 +117,9 @@ def test_demo_states_each_named_effect_with_its_uncertainty(demo) -> None:
     unc = s["diagnose_uncertainty"]
     figs = unc["monte_carlo"]["figures"]
     assert unc["monte_carlo"]["draws"] == 200
+    # the demo's diagnose.json by the independent reader (docs/formats.md, "diagnose JSON")
+    from diagnose_json_reader import read_diagnose_uncertainty
+    read_diagnose_uncertainty(out / "report" / "diagnose" / "diagnose.json", mc=200)
     for e in s["effects"]:
         assert e["U"] > 0 and e["budget_u"], e["key"]
         assert abs(figs[e["key"]]["agreement"]) <= 0.10, (e["key"], figs[e["key"]])

@@ -18,6 +18,7 @@ from pathlib import Path
 import pytest
 
 from abbe.cli.entry import main
+from diagnose_json_reader import read_diagnose_uncertainty
 from doc_json_readers import FormatError, read_chain_fit, read_iso230_3, read_predict
 
 REPO = Path(__file__).resolve().parents[3]
@@ -187,3 +188,57 @@ def _ch(d: dict, i: int = 0) -> dict:
 def test_iso230_3_reader_refuses_what_the_format_forbids(iso230_3_json, tmp_path, change,
                                                         match) -> None:
     _refused(read_iso230_3, iso230_3_json, tmp_path, change, match)
+
+
+# ------------------------------------------------------------------ diagnose.json (U fields)
+
+@pytest.fixture(scope="module")
+def diagnose_json(tmp_path_factory) -> Path:
+    """abbe diagnose --iso230-2 on examples/vmc500's Y line with --mc 20 (position-only
+    model: backlash_y and cyclic_y named; ~2 s)."""
+    tmp = tmp_path_factory.mktemp("diag")
+    assert main(["diagnose", "--iso230-2", str(VMC / "laser" / "y.csv"), "--axis", "Y", "-o",
+                 str(tmp / "o"), "--no-plots", "--mc", "20"]) == 0
+    return tmp / "o" / "diagnose.json"
+
+
+def test_diagnose_json_uncertainty_reads_as_documented(diagnose_json) -> None:
+    d = read_diagnose_uncertainty(diagnose_json, mc=20)
+    assert {e["key"] for e in d["effects"]} >= {"backlash_y"}
+    assert d["uncertainty"]["monte_carlo"]["of"] == len(d["effects"]) + 4
+
+
+def _eff(d: dict) -> dict:
+    return d["effects"][0]
+
+
+def _mc_stated(d: dict) -> dict:
+    """An effect and its summary entry with U taken the other way than the 10 % rule says."""
+    e = _eff(d)
+    other = e["U_mc"] if e["U_from"] == "first order" else e["U_first_order"]
+    e.update(U=other, u=other / 2)
+    return d
+
+
+@pytest.mark.parametrize("change, match", [
+    (lambda d: d["uncertainty"].update(k=1.96), "k must be 2"),
+    (lambda d: _eff(d).update(U=2.5 * _eff(d)["u"]), "U = 2 u"),
+    (lambda d: _eff(d).update(u=float("nan")), "NaN"),
+    (lambda d: _eff(d)["budget_u"].update({"extra line": _eff(d)["U_first_order"]}), "RSS"),
+    (lambda d: _eff(d).pop("budget_u"), "budget_u"),
+    (lambda d: _eff(d).update(mc_agreement=0.5), "mc_agreement"),
+    (_mc_stated, r"\.U"),
+    (lambda d: d["gap"]["after"].update(rms_U_um=3 * d["gap"]["after"]["rms_U_um"]), "gap"),
+    (lambda d: d["uncertainty"]["monte_carlo"].update(of=99), "of"),
+    (lambda d: d["uncertainty"]["monte_carlo"].update(draws=200), "draws"),
+    (lambda d: d["uncertainty"].pop("assumptions"), "assumptions"),
+])
+def test_diagnose_reader_refuses_what_the_docs_forbid(diagnose_json, tmp_path, change,
+                                                      match) -> None:
+    _refused(lambda p: read_diagnose_uncertainty(p, mc=20), diagnose_json, tmp_path, change,
+             match)
+
+
+def test_diagnose_reader_refuses_mc_fields_without_mc(diagnose_json) -> None:
+    with pytest.raises(FormatError, match="without --mc"):
+        read_diagnose_uncertainty(diagnose_json, mc=0)

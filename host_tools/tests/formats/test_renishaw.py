@@ -244,6 +244,27 @@ def test_b5r_refusals(tmp_path: Path, edit, msg, field) -> None:
         assert e.value.field == field
 
 
+@pytest.mark.parametrize("space", ["\u00a0", "\u2003", "\u3000", "\u2028"])
+@pytest.mark.parametrize("old,field", [
+    ('DT="UT_SQUARENESS">-12.0<', "FEATURE AF_SQUARENESS"),
+    ('<RADIUS DT="UT_LENGTH_MM">100<', "RADIUS"),
+    ('<OVERRUN_ARC DT="UT_ANGLE">45<', "OVERRUN_ARC"),
+])
+def test_b5r_a_unicode_space_in_a_number_is_refused(tmp_path: Path, old, field, space) -> None:
+    """A no-break (or other Unicode) space beside a number is not XML white space: the
+    value is "12\u00a0", not 12. Regression: the reader stripped with str.strip(), so a
+    FEATURE value "12\u00a0" was read as 12 (fuzz seed 4850 at ABBE_FUZZ_SCALE=5)."""
+    text = b5r_from_trace(VMC / "ballbar" / "circle1.csv")[0]
+    assert old in text
+    p = write(tmp_path / "b.b5r", text.replace(old, old[:-1] + space + "<", 1))
+    with pytest.raises(AbbeInputError, match="expected") as e:
+        read_b5r(p)
+    assert e.value.file == str(p) and e.value.line is not None and e.value.field == field
+    # XML white space around the same value (space, tab, CR LF) is still read
+    ok = write(tmp_path / "ok.b5r", text.replace(old, old[:-1] + " \t\r\n<", 1))
+    assert read_b5r(ok).radius_mm == 100.0
+
+
 def test_b5r_in_machine_file_must_agree(tmp_path: Path) -> None:
     shutil.copytree(VMC, tmp_path / "m")
     mf = tmp_path / "m" / "machine.toml"

@@ -85,6 +85,9 @@ def test_xlsx_small_good(tmp_path):
     ([HEAD, (0, 0, 0.1, 20.0), (15, 0, 0.1, 500.0)], 3, "t1", "200"),
     ([HEAD, (0, 0, 0.1, 20.0), (0, 0, 0.1, 20.0)], 3, "time", "increasing"),
     ([HEAD, (0, 0, True, 20.0)], 2, "ch1", "number"),
+    # a text cell with a no-break space is not the number (it was read as 0.3)
+    ([HEAD, (0, 0, "0.3\u00a0", 20.0)], 2, "ch1", "ASCII"),
+    ([HEAD, (0, 0, 0.1, "\u300020.5")], 2, "t1", "ASCII"),
 ])
 def test_xlsx_errors_name_row_and_field(tmp_path, rows, row, field, words):
     p = tmp_path / "bad.xlsx"
