@@ -154,6 +154,11 @@ FIVE_ANY_Q_SRCS="tests/proofs/eval_five_any.c $(printf 'lib/src/%s.c ' five_eval
 FIVE_ANY_F32_SRCS="tests/proofs/eval_five_any.c $(printf 'lib/src/%s.c ' five_eval_f32 eval_f32 terms_f32 terms_rot_f32 sincos_f32 comp comp_f32 comp_five comp_five_f32 status)"
 FIVE_ANY_OPTS="-eva-auto-loop-unroll 300 -eva-split-return-function abbe_comp_init:0,config_ok:0 -eva-interprocedural-splits -eva-slevel-function main:10,abbe_comp_init:10"
 HARNESSES+=("eval_five_any_q|$FIVE_ANY_Q_SRCS|-DPROOF_Q|$FIVE_ANY_OPTS,abbe_comp_step5_q:20,motions_q:64 -eva-slevel-merge-after-loop motions_q -eva-use-spec abbe_axis_terms_q")
+# the same on the loader's whole domain (-DPROOF_ROT_CAPS: every coefficient, the
+# tilts and zero offsets within SQUARENESS_CAP): the rotary motions as their
+# contract (five_eval_q.c motions_q: checked on the body above, for the box; WP-proven
+# for the loader's L1 caps, tests/proofs/terms_q_l1.c rot_trans_q / rot_ang_q)
+HARNESSES+=("eval_five_any_q_caps|$FIVE_ANY_Q_SRCS|-DPROOF_Q -DPROOF_ROT_CAPS|$FIVE_ANY_OPTS,abbe_comp_step5_q:20 -eva-use-spec abbe_axis_terms_q,motions_q")
 HARNESSES+=("eval_five_any_f32|$FIVE_ANY_F32_SRCS|-DPROOF_NO_COMP|${FIVE_ANY_OPTS/config_ok:0/config_ok:0,abbe_five_eval_f32_linear:0,eval_f32_linear:full},abbe_five_eval_f32_linear:10,eval_f32_linear:10,abbe_five_error_eval_f32:10,fold6_body:100,fold6_rot_f32:100,fold_values_rot_f32:100,abbe_rotary_motions6_f32:100,motions_sparse_f32:100,abbe_axis_terms_sparse_f32:100 -eva-slevel-merge-after-loop fold6_body,fold6_rot_f32,fold_values_rot_f32,abbe_rotary_motions6_f32,motions_sparse_f32,abbe_axis_terms_sparse_f32")
 # the float evaluations given any bits, NaN and infinities included: the
 # harnesses with -warn-special-float none (a non-finite input is not an alarm
