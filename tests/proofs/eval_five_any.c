@@ -51,10 +51,12 @@
 #define GEOMETRY_BOX ((1 << 30) - 1)
 #define ANGLE_BOX (1 << 28)
 #if defined(PROOF_ROT_CAPS)
-/* eval_five_any_q_caps: the loader's whole domain (docs/proofs.md, "Five-axis: the
- * loader's caps"): every coefficient any int32 (motions_q runs as its contract,
- * WP-proven for the L1 caps, -eva-use-spec motions_q), the tilts and zero offsets
- * within SQUARENESS_CAP (2^28) */
+/* eval_five_any_q_caps (docs/proofs.md, "Five-axis: the loader's caps"): every
+ * coefficient any int32, a superset of the loader's L1 caps (motions_q runs as its
+ * contract, WP-proven for those caps: -eva-use-spec motions_q); the tilts and zero
+ * offsets within +/-13 x 2^24 (+/-3174 urad, 0.8125 of the loader's SQUARENESS_CAP
+ * 2^28: with 14 x 2^24 the interval bound of the table's w turned by the tilt takes
+ * add_rotary_q's W_C x (Lt + R_t offset) past int64, 2 alarms) */
 #define ROT_LO INT32_MIN
 #define ROT_HI INT32_MAX
 #define LOCATION_BOX (13 << 24)
