@@ -176,7 +176,9 @@ HARNESSES+=("eval_f32_nonfinite|$EVAL_F32_SRCS|$ANY -DPROOF_TABLES_H=tables_pape
 # [-2147, 2147] for every float; 'f32_finite' (thermal_f32.c): abbe_f32_nonfinite
 # is false only for a finite float.
 # 'cheb_rows' (basis_q.h) and sincos_range's harmonics: every basis row of the
-# _q kernels within 2^30 + 16, the precondition of terms_q_l1.c's WP proof.
+# _q kernels within 2^30 + 16, the precondition of terms_q_l1.c's WP proof; the
+# same harmonics are the five-axis motions' basis (five_eval_q.c motions_q, its
+# assertion 'sincos_range').
 HYPOTHESES="sincos_range mm_clamped f32_finite cheb_rows"
 check_hypothesis() { # name
     local t0=$SECONDS msg
@@ -297,11 +299,12 @@ prove_wp() {
         return 1
     fi
     echo "[prove] ok   wp: ${proved% *} of ${proved#* } goals proven ($WP_CONTRACTS; $((SECONDS - t0)) s)"
-    # the _q term kernels' accumulation under the loader's L1 caps and the
-    # basis rows' bound (tests/proofs/terms_q_l1.c; the shifts: Eva, above)
+    # the _q term kernels' and the five-axis rotary motions' (motions_q) accumulation
+    # under the loader's L1 caps and the basis rows' bound (tests/proofs/terms_q_l1.c;
+    # the shifts: Eva, above)
     t0=$SECONDS
     log="$OUT/wp_terms_q_l1.log"
-    frama-c tests/proofs/terms_q_l1.c -wp -wp-rte -wp-prop="-lin_shift,-ang_shift" -wp-prover z3 \
+    frama-c tests/proofs/terms_q_l1.c -wp -wp-rte -wp-prop="-lin_shift,-ang_shift,-rot_trans_shift,-rot_ang_shift" -wp-prover z3 \
         -wp-timeout 30 >"$log" 2>&1
     proved=$(sed -n 's/.*Proved goals: *\([0-9]*\) \/ \([0-9]*\).*/\1 \2/p' "$log" | tail -1)
     if [[ -z "$proved" || "${proved% *}" != "${proved#* }" || "${proved% *}" == 0 ]]; then

@@ -17,7 +17,12 @@
  *       float (thermal_f32.c, the period of abbe_thermal_init_f32).
  *   hypotheses cheb_rows (and sincos_range's second part): every basis row
  *       the _q kernels stream is within +/-(2^30 + 16), the precondition of
- *       the L1 proof tests/proofs/terms_q_l1.c (WP).
+ *       the L1 proof tests/proofs/terms_q_l1.c (WP). The harmonics are also
+ *       the five-axis motions' basis (five_eval_q.c motions_q: the same
+ *       rotation, abbe_smlal(abbe_smlal(2^29, a, b), c, d) >> 30 being
+ *       dot2_q30's value, from abbe_sincos_q30's unpacked pair; its assertion
+ *       'sincos_range' on harmonics 1..8, the precondition of rot_trans_q /
+ *       rot_ang_q in terms_q_l1.c).
  * Exit 1 naming the first input that breaks one; 2 for a bad argument. */
 #include <inttypes.h>
 #include <stdio.h>
