@@ -19,6 +19,8 @@
  * is the kernels' (basis_q.h MAC / MAC1, terms_q.c). */
 #include <stdint.h>
 
+#include "model_load_layout.h" /* the loader's caps: LIN_L1_CAP, ANG_L1_CAP (check_ranges, check_rotary) */
+
 #define ROW_MAX 1073741840 /* 2^30 + 16 */
 #define MAX_ROWS 40
 
@@ -166,13 +168,13 @@ static int32_t rot_ang_shifted(int64_t acc)
 /*@ requires rows: 0 <= n <= 16;
     requires \valid_read(c + (0 .. n - 1)) && \valid_read(b + (0 .. n - 1));
     requires basis: \forall integer k; 0 <= k < n ==> -ROW_MAX <= b[k] <= ROW_MAX;
-    requires cap: l1(c, n) <= 0x100000000;
+    requires cap: l1(c, n) <= LIN_L1_CAP;
     assigns \nothing;
     ensures motion: -0x10000004 <= \result <= 0x10000004;
  */
 int32_t rot_trans_q(const int32_t *c, const int32_t *b, unsigned n)
 {
-    const int64_t acc = term_acc(c, b, n, 0x100000000, 0x200000000); /* 2^(34 - 1) */
+    const int64_t acc = term_acc(c, b, n, (int64_t)LIN_L1_CAP, 0x200000000); /* 2^(34 - 1) */
     return rot_trans_shifted(acc);
 }
 
@@ -180,13 +182,13 @@ int32_t rot_trans_q(const int32_t *c, const int32_t *b, unsigned n)
 /*@ requires rows: 0 <= n <= 16;
     requires \valid_read(c + (0 .. n - 1)) && \valid_read(b + (0 .. n - 1));
     requires basis: \forall integer k; 0 <= k < n ==> -ROW_MAX <= b[k] <= ROW_MAX;
-    requires cap: l1(c, n) <= 0x10000000;
+    requires cap: l1(c, n) <= ANG_L1_CAP;
     assigns \nothing;
     ensures motion: -0x10000004 <= \result <= 0x10000004;
  */
 int32_t rot_ang_q(const int32_t *c, const int32_t *b, unsigned n)
 {
-    const int64_t acc = term_acc(c, b, n, 0x10000000, 0x20000000); /* 2^(30 - 1) */
+    const int64_t acc = term_acc(c, b, n, (int64_t)ANG_L1_CAP, 0x20000000); /* 2^(30 - 1) */
     return rot_ang_shifted(acc);
 }
 
