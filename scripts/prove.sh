@@ -4,7 +4,8 @@
 # the loaders accept with a golden table's layout, any scalar fields and
 # (3-axis) any coefficients in a box, and on any layout / any thermal block
 # within the loaders' invariants (tests/proofs/any_layout.h, thermal_update.c,
-# eval_five_any.c: the five-axis kinds, coefficients in a box)
+# eval_five_any.c: the five-axis kinds, coefficients in a box; and every
+# coefficient the loaders accept, through WP-proven contracts: terms_q_l1.c)
 # (tests/proofs/*.c), each of which must end with zero alarms and every
 # ACSL property it reaches proven (but the hypotheses, which
 # tests/proofs/hypotheses.c checks on all their inputs, here); WP's proof of
