@@ -36,7 +36,9 @@
  * Then every int32 (_q) / finite (_f32) joint position, angle and direction
  * state, every temperature (_f32: within +/-10^6 degC), and the compensator
  * with any configuration and any number of cycles of any input, with resets
- * (docs/proofs.md, "Five-axis: any layout"). */
+ * (docs/proofs.md, "Five-axis: any layout"). With PROOF_ROT_CAPS (_q only:
+ * eval_five_any_q_caps) the coefficients and location errors of the loader's
+ * caps instead, motions_q as its contract (below, ROT_LO). */
 #if defined(PROOF_Q)
 #include "terms_q_contract.h"
 #endif
@@ -54,19 +56,19 @@
 /* eval_five_any_q_caps (docs/proofs.md, "Five-axis: the loader's caps"): every
  * coefficient any int32, a superset of the loader's L1 caps (motions_q runs as its
  * contract, WP-proven for those caps: -eva-use-spec motions_q); the tilts and zero
- * offsets of the chain kinds 3-5 within the loader's SQUARENESS_CAP (2^28), of the
- * trunnions within +/-13 x 2^24 (+/-3174 urad, 0.8125 of the cap: with 14 x 2^24 the
- * interval bound of the table's w turned by the tilt takes add_rotary_q's
- * W_C x (Lt + R_t offset) past int64, 2 alarms) */
+ * offsets of every record within the loader's SQUARENESS_CAP (2^28) but a trunnion's
+ * table axis (C, record 1 of kinds 1, 2): within +/-13 x 2^24 (TABLE_LOCATION_BOX,
+ * +/-3174 urad, 0.8125 of the cap: with 14 x 2^24 the interval bound of the table's
+ * w turned by the tilt takes add_rotary_q's W_C x (Lt + R_t offset) past int64, 2 alarms) */
 #define ROT_LO INT32_MIN
 #define ROT_HI INT32_MAX
-#define LOCATION_BOX (13 << 24)
-#define CHAIN_LOCATION_BOX (1 << 28)
+#define LOCATION_BOX (1 << 28)
+#define TABLE_LOCATION_BOX (13 << 24)
 #else
 #define ROT_LO (-(1 << 24))
 #define ROT_HI (1 << 24)
 #define LOCATION_BOX (1 << 26)
-#define CHAIN_LOCATION_BOX LOCATION_BOX
+#define TABLE_LOCATION_BOX LOCATION_BOX
 #endif
 
 static abbe_five_model_t model;
@@ -183,7 +185,7 @@ static void any_five(abbe_five_model_t *m5)
         static const uint8_t dirs[3][2] = {{2u, 1u}, {1u, 2u}, {1u, 0u}};
         const unsigned i = kind - ABBE_KIN_XYZBC_HH;
         for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {
-            any_rotary(&m5->rotary[r], r, dirs[i][r], CHAIN_LOCATION_BOX);
+            any_rotary(&m5->rotary[r], r, dirs[i][r], LOCATION_BOX);
             m5->sign[r] = Frama_C_nondet(0, 1) ? (int8_t)-1 : (int8_t)1;
             m5->slot[r] = (uint8_t)(i == 1u ? r : 1u - r);
         }
@@ -193,7 +195,7 @@ static void any_five(abbe_five_model_t *m5)
         return;
     }
     any_rotary(&m5->rotary[0], 0u, kind == ABBE_KIN_XYZAC_TRT ? 0u : 1u, LOCATION_BOX);
-    any_rotary(&m5->rotary[1], 1u, 2u, LOCATION_BOX);
+    any_rotary(&m5->rotary[1], 1u, 2u, TABLE_LOCATION_BOX);
 }
 
 int main(void)
