@@ -311,7 +311,8 @@ prove_wp() {
         -wp-timeout 30 >"$log" 2>&1
     proved=$(sed -n 's/.*Proved goals: *\([0-9]*\) \/ \([0-9]*\).*/\1 \2/p' "$log" | tail -1)
     if [[ -z "$proved" || "${proved% *}" != "${proved#* }" || "${proved% *}" == 0 ]]; then
-        echo "[prove] FAIL wp terms_q_l1: ${proved:-no} goals proven: see $log"
+        local shown="${proved/ / of }"
+        echo "[prove] FAIL wp terms_q_l1: ${shown:-no} goals proven: see $log"
         grep -A1 'Goal.*\(Failed\|Unknown\|Timeout\)' "$log" | sed 's/^/[prove]   /'
         return 1
     fi
