@@ -113,13 +113,13 @@ static int64_t term_acc(const int32_t *c, const int32_t *b, unsigned n, int64_t 
 /*@ requires rows: 0 <= n <= MAX_ROWS;
     requires \valid_read(c + (0 .. n - 1)) && \valid_read(b + (0 .. n - 1));
     requires basis: \forall integer k; 0 <= k < n ==> -ROW_MAX <= b[k] <= ROW_MAX;
-    requires cap: l1(c, n) <= 0x100000000;
+    requires cap: l1(c, n) <= LIN_L1_CAP;
     assigns \nothing;
     ensures lin: -ROW_MAX <= \result <= ROW_MAX;
  */
 int32_t term_lin_q(const int32_t *c, const int32_t *b, unsigned n)
 {
-    const int64_t acc = term_acc(c, b, n, 0x100000000, 0x80000000); /* LIN_BIAS */
+    const int64_t acc = term_acc(c, b, n, (int64_t)LIN_L1_CAP, 0x80000000); /* LIN_BIAS */
     return lin_high_word(acc);
 }
 
@@ -127,13 +127,13 @@ int32_t term_lin_q(const int32_t *c, const int32_t *b, unsigned n)
 /*@ requires rows: 0 <= n <= MAX_ROWS;
     requires \valid_read(c + (0 .. n - 1)) && \valid_read(b + (0 .. n - 1));
     requires basis: \forall integer k; 0 <= k < n ==> -ROW_MAX <= b[k] <= ROW_MAX;
-    requires cap: l1(c, n) <= 0x10000000;
+    requires cap: l1(c, n) <= ANG_L1_CAP;
     assigns \nothing;
     ensures ang: -0x8000002 <= \result <= 0x8000002;
  */
 int32_t term_ang_q(const int32_t *c, const int32_t *b, unsigned n)
 {
-    const int64_t acc = term_acc(c, b, n, 0x10000000, 0x40000000); /* ANG_BIAS */
+    const int64_t acc = term_acc(c, b, n, (int64_t)ANG_L1_CAP, 0x40000000); /* ANG_BIAS */
     return ang_shifted(acc);
 }
 
