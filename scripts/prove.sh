@@ -180,7 +180,13 @@ HARNESSES+=("eval_f32_nonfinite|$EVAL_F32_SRCS|$ANY -DPROOF_TABLES_H=tables_pape
 # _q kernels within 2^30 + 16, the precondition of terms_q_l1.c's WP proof; the
 # same harmonics are the five-axis motions' basis (five_eval_q.c motions_q, its
 # assertion 'sincos_range').
-HYPOTHESES="sincos_range mm_clamped f32_finite cheb_rows"
+# 'sincos_norm': sin^2 + cos^2 <= 2^60 + 2^33, the precondition of turn_q.c's WP proof.
+HYPOTHESES="sincos_range mm_clamped f32_finite cheb_rows sincos_norm"
+# Assertions in lib/src that WP proves on a model (not Eva): may stay unknown to
+# Eva; 'turned_w' (five_eval_q.c add_rotary_q): tests/proofs/turn_q.c, its
+# preconditions the hypotheses sincos_range, sincos_norm and the assertion
+# 'turn_vector' (Eva-proven, every harness)
+WP_ASSERTIONS="turned_w"
 check_hypothesis() { # name
     local t0=$SECONDS msg
     if ! msg=$("$OUT/hypotheses" "$1"); then
@@ -217,7 +223,7 @@ run_one() { # name sources defines options
     done
     # the hypotheses' assertions (checked on their own, above) may stay unknown
     local hyp h
-    for h in $HYPOTHESES; do
+    for h in $HYPOTHESES $WP_ASSERTIONS; do
         hyp=$(grep -c "assertion '$h' got status unknown" "$log")
         unknown=$((unknown - hyp))
     done
@@ -273,6 +279,7 @@ done
 # the L1 proof of the _q term kernels (tests/proofs/terms_q_l1.c): the final
 # shifts' postconditions, for every accumulator in range (its WP part: prove_wp)
 HARNESSES+=("terms_q_l1_shifts|tests/proofs/terms_q_l1.c|-DPROOF_EVA_SHIFTS|")
+HARNESSES+=("turn_q_shift|tests/proofs/turn_q.c|-DPROOF_EVA_SHIFTS|")
 # not proven yet: none (docs/proofs.md, "Not proven yet", lists what has no harness)
 OPEN_HARNESSES=()
 if ((OPEN)); then
@@ -317,6 +324,19 @@ prove_wp() {
         return 1
     fi
     echo "[prove] ok   wp terms_q_l1: ${proved% *} of ${proved#* } goals proven (the L1 accumulation; $((SECONDS - t0)) s)"
+    # the trunnion table axis' angle sum turned by the tilt (tests/proofs/turn_q.c:
+    # five_eval_q.c's assertion 'turned_w'; the shift: Eva, turn_q_shift)
+    t0=$SECONDS
+    log="$OUT/wp_turn_q.log"
+    frama-c tests/proofs/turn_q.c -wp -wp-rte -wp-prop=-turned_shift -wp-prover z3 -wp-timeout 30 >"$log" 2>&1
+    proved=$(sed -n 's/.*Proved goals: *\([0-9]*\) \/ \([0-9]*\).*/\1 \2/p' "$log" | tail -1)
+    if [[ -z "$proved" || "${proved% *}" != "${proved#* }" || "${proved% *}" == 0 ]]; then
+        local shown_turn="${proved/ / of }"
+        echo "[prove] FAIL wp turn_q: ${shown_turn:-no} goals proven: see $log"
+        grep -A1 'Goal.*\(Failed\|Unknown\|Timeout\)' "$log" | sed 's/^/[prove]   /'
+        return 1
+    fi
+    echo "[prove] ok   wp turn_q: ${proved% *} of ${proved#* } goals proven (the turned angle sum; $((SECONDS - t0)) s)"
 }
 
 pids=()

@@ -153,8 +153,14 @@ ABBE_NOINLINE static uint32_t add_rotary_q(const abbe_five_model_t *m5, const in
     const int32_t vj = v[j], wj = w[j];
     v[j] = (int32_t)rot_q30(ct, vj, st, v[l]);
     v[l] = (int32_t)rot_q30(st, vj, -ct, v[l]);
+    /* the turn keeps the norm (docs/proofs.md, "Five-axis: the loader's caps"): with
+     * |(wj, w_l)|^2 <= 5 x 2^58 + 2^35 (the caps: |wj| <= 2^30 + 8, |w_l| <= 2^29 + 8) and
+     * sin^2 + cos^2 <= 2^60 + 2^33 (every phase, enumerated), each turned component is
+     * within 9 x 2^27 (WP: tests/proofs/turn_q.c) */
+    /*@ assert turn_vector: (integer)wj * wj + (integer)w[l] * w[l] <= 0x1400000800000000; */
     w[j] = (int32_t)rot_q30(ct, wj, st, w[l]);
     w[l] = (int32_t)rot_q30(st, wj, -ct, w[l]);
+    /*@ assert turned_w: -0x48000000 <= w[j] <= 0x48000000 && -0x48000000 <= w[l] <= 0x48000000; */
     /* R_t offset, 2 nm (no component along the tilt axis: the loader), |.| < 2^29.5 */
     const int32_t oj = m5->offset_nm[j] >> 1, ol = m5->offset_nm[l] >> 1;
     Ro[k] = 0;

@@ -56,19 +56,15 @@
 /* eval_five_any_q_caps (docs/proofs.md, "Five-axis: the loader's caps"): every
  * coefficient any int32, a superset of the loader's L1 caps (motions_q runs as its
  * contract, WP-proven for those caps: -eva-use-spec motions_q); the tilts and zero
- * offsets of every record within the loader's SQUARENESS_CAP (2^28) but a trunnion's
- * table axis (C, record 1 of kinds 1, 2): within +/-13 x 2^24 (TABLE_LOCATION_BOX,
- * +/-3174 urad, 0.8125 of the cap: with 14 x 2^24 the interval bound of the table's
- * w turned by the tilt takes add_rotary_q's W_C x (Lt + R_t offset) past int64, 2 alarms) */
+ * offsets within the loader's SQUARENESS_CAP (2^28; the trunnion table axis' turned
+ * angle sum bounded by a WP-proven assertion, tests/proofs/turn_q.c) */
 #define ROT_LO INT32_MIN
 #define ROT_HI INT32_MAX
 #define LOCATION_BOX (1 << 28)
-#define TABLE_LOCATION_BOX (13 << 24)
 #else
 #define ROT_LO (-(1 << 24))
 #define ROT_HI (1 << 24)
 #define LOCATION_BOX (1 << 26)
-#define TABLE_LOCATION_BOX LOCATION_BOX
 #endif
 
 static abbe_five_model_t model;
@@ -121,18 +117,17 @@ static void any_linear(abbe_model_t *m)
     m->five_view = 1u;
 }
 
-/* one rotary record turning about dir, as build_rotary leaves it; its tilts and zero
- * offset within +/-box */
-static void any_rotary(abbe_rotary_model_t *ax, unsigned r, unsigned dir, int box)
+/* one rotary record turning about dir, as build_rotary leaves it */
+static void any_rotary(abbe_rotary_model_t *ax, unsigned r, unsigned dir)
 {
     memset(ax, 0, sizeof *ax);
     const unsigned i1 = dir == 0u ? 1u : 0u, i2 = dir == 2u ? 1u : 2u;
     ax->dir = (uint8_t)dir;
     ax->delta_q8[i1] = any_i32();
     ax->delta_q8[i2] = any_i32();
-    ax->phi_q36[i1] = Frama_C_int_interval(-box, box);
-    ax->phi_q36[i2] = Frama_C_int_interval(-box, box);
-    ax->zero_q36 = Frama_C_int_interval(-box, box);
+    ax->phi_q36[i1] = Frama_C_int_interval(-LOCATION_BOX, LOCATION_BOX);
+    ax->phi_q36[i2] = Frama_C_int_interval(-LOCATION_BOX, LOCATION_BOX);
+    ax->zero_q36 = Frama_C_int_interval(-LOCATION_BOX, LOCATION_BOX);
     const unsigned mask = Frama_C_unsigned_int_interval(0u, 63u);
     unsigned n = 0;
     for (unsigned c = 0; c < ABBE_MOTIONS; c++) {
@@ -185,7 +180,7 @@ static void any_five(abbe_five_model_t *m5)
         static const uint8_t dirs[3][2] = {{2u, 1u}, {1u, 2u}, {1u, 0u}};
         const unsigned i = kind - ABBE_KIN_XYZBC_HH;
         for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {
-            any_rotary(&m5->rotary[r], r, dirs[i][r], LOCATION_BOX);
+            any_rotary(&m5->rotary[r], r, dirs[i][r]);
             m5->sign[r] = Frama_C_nondet(0, 1) ? (int8_t)-1 : (int8_t)1;
             m5->slot[r] = (uint8_t)(i == 1u ? r : 1u - r);
         }
@@ -194,8 +189,8 @@ static void any_five(abbe_five_model_t *m5)
         }
         return;
     }
-    any_rotary(&m5->rotary[0], 0u, kind == ABBE_KIN_XYZAC_TRT ? 0u : 1u, LOCATION_BOX);
-    any_rotary(&m5->rotary[1], 1u, 2u, TABLE_LOCATION_BOX);
+    any_rotary(&m5->rotary[0], 0u, kind == ABBE_KIN_XYZAC_TRT ? 0u : 1u);
+    any_rotary(&m5->rotary[1], 1u, 2u);
 }
 
 int main(void)
