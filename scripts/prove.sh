@@ -232,7 +232,14 @@ run_one() { # name sources defines options
     if [[ $rc -ne 0 || -z "$alarms" || "$alarms" != 0 || "$unknown" != 0 ]] || grep -q '^\[kernel\].*[Ee]rror\|User Error\|Neither code nor specification' "$log"; then
         echo "[prove] FAIL $name (${secs} s, ${cpu:-?} s CPU, rc $rc, ${alarms:-?} alarms, $unknown properties not proven): see $log"
         # each alarm: where, what, in which function (the first frame of its call stack)
-        awk '/^\[eva:alarm\]/ { loc = $2; what = ""; inside = 1; next }
+        # (an assertion's warning has no call stack: printed with its place only, but the
+        # hypotheses' and the WP-proven assertions')
+        awk -v accepted="$HYPOTHESES $WP_ASSERTIONS" '
+             function known(w,    n, h, i) { n = split(accepted, h, " "); for (i = 1; i <= n; i++) if (index(w, "assertion \047" h[i] "\047 got status unknown")) return 1; return 0 }
+             function flush() { if (inside && !known(what)) printf "[prove]   %s %s\n", loc, what; inside = 0 }
+             /^\[eva:alarm\]/ { flush(); loc = $2; what = ""; inside = 1; next }
+             inside && /^\[/ { flush(); next }
+             END { flush() }
              inside && /^ *stack: / { fn = $2; if ((getline nxt) > 0 && nxt !~ /^\[/) { split(nxt, c, " "); if (c[2] == "::") fn = fn " (called from " c[1] ")" }
                                       printf "[prove]   %s in %s: %s\n", loc, fn, what; inside = 0; next }
              inside { line = $0; gsub(/^ +/, "", line); what = what (what == "" ? "" : " ") line }' "$log"
