@@ -4,7 +4,8 @@
 # the loaders accept with a golden table's layout, any scalar fields and
 # (3-axis) any coefficients in a box, and on any layout / any thermal block
 # within the loaders' invariants (tests/proofs/any_layout.h, thermal_update.c,
-# eval_five_any.c: the five-axis kinds, coefficients in a box)
+# eval_five_any.c: the five-axis kinds, coefficients in a box; and every
+# coefficient the loaders accept, through WP-proven contracts: terms_q_l1.c)
 # (tests/proofs/*.c), each of which must end with zero alarms and every
 # ACSL property it reaches proven (but the hypotheses, which
 # tests/proofs/hypotheses.c checks on all their inputs, here); WP's proof of
@@ -53,7 +54,7 @@ LOADER_PRECISION="-eva-split-return-function check_header:0 -eva-slevel-function
 DOWNCAST="-warn-signed-downcast"
 downcast() { # harness name: $DOWNCAST, or nothing for the chain kinds' harnesses
     case "$1" in
-        eval_five_q_hh_5axiskins | eval_five_q_tdr_xyzab | comp_five_q_tdr_xyzab | eval_five_any_q) ;;
+        eval_five_q_hh_5axiskins | eval_five_q_tdr_xyzab | comp_five_q_tdr_xyzab | eval_five_any_q | eval_five_any_q_caps) ;;
         *) printf '%s' "$DOWNCAST" ;;
     esac
 }
@@ -175,6 +176,11 @@ FIVE_ANY_Q_SRCS="tests/proofs/eval_five_any.c $(printf 'lib/src/%s.c ' five_eval
 FIVE_ANY_F32_SRCS="tests/proofs/eval_five_any.c $(printf 'lib/src/%s.c ' five_eval_f32 eval_f32 terms_f32 terms_rot_f32 sincos_f32 comp comp_f32 comp_five comp_five_f32 status)"
 FIVE_ANY_OPTS="-eva-auto-loop-unroll 300 -eva-split-return-function abbe_comp_init:0,config_ok:0 -eva-interprocedural-splits -eva-slevel-function main:10,abbe_comp_init:10"
 HARNESSES+=("eval_five_any_q|$FIVE_ANY_Q_SRCS|-DPROOF_Q|$FIVE_ANY_OPTS,abbe_comp_step5_q:20,motions_q:64 -eva-slevel-merge-after-loop motions_q -eva-use-spec abbe_axis_terms_q $(downcast eval_five_any_q)")
+# the same on the loader's whole domain (-DPROOF_ROT_CAPS: every coefficient, the
+# tilts and zero offsets within SQUARENESS_CAP): the rotary motions as their
+# contract (five_eval_q.c motions_q: checked on the body above, for the box; WP-proven
+# for the loader's L1 caps, tests/proofs/terms_q_l1.c rot_trans_q / rot_ang_q)
+HARNESSES+=("eval_five_any_q_caps|$FIVE_ANY_Q_SRCS|-DPROOF_Q -DPROOF_ROT_CAPS|$FIVE_ANY_OPTS,abbe_comp_step5_q:20 -eva-use-spec abbe_axis_terms_q,motions_q $(downcast eval_five_any_q_caps)")
 HARNESSES+=("eval_five_any_f32|$FIVE_ANY_F32_SRCS|-DPROOF_NO_COMP|${FIVE_ANY_OPTS/config_ok:0/config_ok:0,abbe_five_eval_f32_linear:0,eval_f32_linear:full},abbe_five_eval_f32_linear:10,eval_f32_linear:10,abbe_five_error_eval_f32:10,fold6_body:100,fold6_rot_f32:100,fold_values_rot_f32:100,abbe_rotary_motions6_f32:100,motions_sparse_f32:100,abbe_axis_terms_sparse_f32:100 -eva-slevel-merge-after-loop fold6_body,fold6_rot_f32,fold_values_rot_f32,abbe_rotary_motions6_f32,motions_sparse_f32,abbe_axis_terms_sparse_f32")
 # the float evaluations given any bits, NaN and infinities included: the
 # harnesses with -warn-special-float none (a non-finite input is not an alarm
@@ -192,8 +198,16 @@ HARNESSES+=("eval_f32_nonfinite|$EVAL_F32_SRCS|$ANY -DPROOF_TABLES_H=tables_pape
 # [-2147, 2147] for every float; 'f32_finite' (thermal_f32.c): abbe_f32_nonfinite
 # is false only for a finite float.
 # 'cheb_rows' (basis_q.h) and sincos_range's harmonics: every basis row of the
-# _q kernels within 2^30 + 16, the precondition of terms_q_l1.c's WP proof.
-HYPOTHESES="sincos_range mm_clamped f32_finite cheb_rows"
+# _q kernels within 2^30 + 16, the precondition of terms_q_l1.c's WP proof; the
+# same harmonics are the five-axis motions' basis (five_eval_q.c motions_q, its
+# assertion 'sincos_range').
+# 'sincos_norm': sin^2 + cos^2 <= 2^60 + 2^33, the precondition of turn_q.c's WP proof.
+HYPOTHESES="sincos_range mm_clamped f32_finite cheb_rows sincos_norm"
+# Assertions in lib/src that WP proves on a model (not Eva): may stay unknown to
+# Eva; 'turned_w' (five_eval_q.c add_rotary_q): tests/proofs/turn_q.c, its
+# preconditions the hypotheses sincos_range, sincos_norm and the assertion
+# 'turn_vector' (Eva-proven, every harness)
+WP_ASSERTIONS="turned_w"
 check_hypothesis() { # name
     local t0=$SECONDS msg
     if ! msg=$("$OUT/hypotheses" "$1"); then
@@ -230,7 +244,7 @@ run_one() { # name sources defines options
     done
     # the hypotheses' assertions (checked on their own, above) may stay unknown
     local hyp h
-    for h in $HYPOTHESES; do
+    for h in $HYPOTHESES $WP_ASSERTIONS; do
         hyp=$(grep -c "assertion '$h' got status unknown" "$log")
         unknown=$((unknown - hyp))
     done
@@ -239,7 +253,14 @@ run_one() { # name sources defines options
     if [[ $rc -ne 0 || -z "$alarms" || "$alarms" != 0 || "$unknown" != 0 ]] || grep -q '^\[kernel\].*[Ee]rror\|User Error\|Neither code nor specification' "$log"; then
         echo "[prove] FAIL $name (${secs} s, ${cpu:-?} s CPU, rc $rc, ${alarms:-?} alarms, $unknown properties not proven): see $log"
         # each alarm: where, what, in which function (the first frame of its call stack)
-        awk '/^\[eva:alarm\]/ { loc = $2; what = ""; inside = 1; next }
+        # (an assertion's warning has no call stack: printed with its place only, but the
+        # hypotheses' and the WP-proven assertions')
+        awk -v accepted="$HYPOTHESES $WP_ASSERTIONS" '
+             function known(w,    n, h, i) { n = split(accepted, h, " "); for (i = 1; i <= n; i++) if (index(w, "assertion \047" h[i] "\047 got status unknown")) return 1; return 0 }
+             function flush() { if (inside && !known(what)) printf "[prove]   %s %s\n", loc, what; inside = 0 }
+             /^\[eva:alarm\]/ { flush(); loc = $2; what = ""; inside = 1; next }
+             inside && /^\[/ { flush(); next }
+             END { flush() }
              inside && /^ *stack: / { fn = $2; if ((getline nxt) > 0 && nxt !~ /^\[/) { split(nxt, c, " "); if (c[2] == "::") fn = fn " (called from " c[1] ")" }
                                       printf "[prove]   %s in %s: %s\n", loc, fn, what; inside = 0; next }
              inside { line = $0; gsub(/^ +/, "", line); what = what (what == "" ? "" : " ") line }' "$log"
@@ -286,6 +307,7 @@ done
 # the L1 proof of the _q term kernels (tests/proofs/terms_q_l1.c): the final
 # shifts' postconditions, for every accumulator in range (its WP part: prove_wp)
 HARNESSES+=("terms_q_l1_shifts|tests/proofs/terms_q_l1.c|-DPROOF_EVA_SHIFTS|")
+HARNESSES+=("turn_q_shift|tests/proofs/turn_q.c|-DPROOF_EVA_SHIFTS|")
 # not proven yet: none (docs/proofs.md, "Not proven yet", lists what has no harness)
 OPEN_HARNESSES=()
 if ((OPEN)); then
@@ -313,19 +335,36 @@ prove_wp() {
         return 1
     fi
     echo "[prove] ok   wp: ${proved% *} of ${proved#* } goals proven ($WP_CONTRACTS; $((SECONDS - t0)) s)"
-    # the _q term kernels' accumulation under the loader's L1 caps and the
-    # basis rows' bound (tests/proofs/terms_q_l1.c; the shifts: Eva, above)
+    # the _q term kernels' and the five-axis rotary motions' (motions_q) accumulation
+    # under the loader's L1 caps and the basis rows' bound (tests/proofs/terms_q_l1.c;
+    # the shifts: Eva, above)
+    # (the model's functions only: the file includes the loader's caps, model_load_layout.h)
+    local L1_FCTS="row_product,term_acc,term_lin_q,term_ang_q,rot_trans_q,rot_ang_q,lin_high_word,ang_shifted,rot_trans_shifted,rot_ang_shifted"
     t0=$SECONDS
     log="$OUT/wp_terms_q_l1.log"
-    frama-c tests/proofs/terms_q_l1.c -wp -wp-rte -wp-prop="-lin_shift,-ang_shift" -wp-prover z3 \
+    frama-c -cpp-extra-args="$CPP" tests/proofs/terms_q_l1.c -wp -wp-fct "$L1_FCTS" -wp-rte -wp-prop="-lin_shift,-ang_shift,-rot_trans_shift,-rot_ang_shift" -wp-prover z3 \
         -wp-timeout 30 >"$log" 2>&1
     proved=$(sed -n 's/.*Proved goals: *\([0-9]*\) \/ \([0-9]*\).*/\1 \2/p' "$log" | tail -1)
     if [[ -z "$proved" || "${proved% *}" != "${proved#* }" || "${proved% *}" == 0 ]]; then
-        echo "[prove] FAIL wp terms_q_l1: ${proved:-no} goals proven: see $log"
+        local shown="${proved/ / of }"
+        echo "[prove] FAIL wp terms_q_l1: ${shown:-no} goals proven: see $log"
         grep -A1 'Goal.*\(Failed\|Unknown\|Timeout\)' "$log" | sed 's/^/[prove]   /'
         return 1
     fi
     echo "[prove] ok   wp terms_q_l1: ${proved% *} of ${proved#* } goals proven (the L1 accumulation; $((SECONDS - t0)) s)"
+    # the trunnion table axis' angle sum turned by the tilt (tests/proofs/turn_q.c:
+    # five_eval_q.c's assertion 'turned_w'; the shift: Eva, turn_q_shift)
+    t0=$SECONDS
+    log="$OUT/wp_turn_q.log"
+    frama-c tests/proofs/turn_q.c -wp -wp-rte -wp-prop=-turned_shift -wp-prover z3 -wp-timeout 30 >"$log" 2>&1
+    proved=$(sed -n 's/.*Proved goals: *\([0-9]*\) \/ \([0-9]*\).*/\1 \2/p' "$log" | tail -1)
+    if [[ -z "$proved" || "${proved% *}" != "${proved#* }" || "${proved% *}" == 0 ]]; then
+        local shown_turn="${proved/ / of }"
+        echo "[prove] FAIL wp turn_q: ${shown_turn:-no} goals proven: see $log"
+        grep -A1 'Goal.*\(Failed\|Unknown\|Timeout\)' "$log" | sed 's/^/[prove]   /'
+        return 1
+    fi
+    echo "[prove] ok   wp turn_q: ${proved% *} of ${proved#* } goals proven (the turned angle sum; $((SECONDS - t0)) s)"
 }
 
 pids=()

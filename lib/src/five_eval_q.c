@@ -33,7 +33,24 @@ static ABBE_ALWAYS_INLINE int64_t rot_q30(int32_t a, int32_t b, int32_t c, int32
  * in 2^-36 rad, into trans and rot. The harmonics' sin k t, cos k t (Q30, by rotation) are made
  * once, into basis (the caller's working memory: the compensator's scratch);
  * then three components per pass over them (a fitted axis: two passes), the
- * int64 sums in registers; sum |coef| x 2^30 <= 2^62 (loader caps). */
+ * int64 sums in registers; sum |coef| x 2^30 <= 2^62 (loader caps).
+ * The contract (docs/proofs.md, "Five-axis: the loader's caps"): each motion within
+ * +/-(2^28 + 4), for every table the loader accepts (sum |c| <= 2^32 linear, 2^28
+ * angular, times the basis rows' bound 2^30 + 16: WP, tests/proofs/terms_q_l1.c
+ * rot_trans_q / rot_ang_q; checked on the body by Eva in eval_five_any_q, used as
+ * the function by eval_five_any_q_caps). */
+/*@ requires layout: ax->harmonics <= 8 && ax->n_comp <= 6;
+    requires \valid(basis + (0 .. 15)) && \valid(trans + (0 .. 2)) && \valid(rot + (0 .. 2));
+    assigns basis[0 .. 15], trans[0 .. 2], rot[0 .. 2]
+        \from c, s, ax->harmonics, ax->n_comp, ax->column[0 .. 5], ax->coef_q[0 .. 4 * 96 - 1];
+    ensures init: \initialized(trans + (0 .. 2)) && \initialized(rot + (0 .. 2));
+    ensures motion_x: -0x10000004 <= trans[0] <= 0x10000004;
+    ensures motion_y: -0x10000004 <= trans[1] <= 0x10000004;
+    ensures motion_z: -0x10000004 <= trans[2] <= 0x10000004;
+    ensures motion_a: -0x10000004 <= rot[0] <= 0x10000004;
+    ensures motion_b: -0x10000004 <= rot[1] <= 0x10000004;
+    ensures motion_c: -0x10000004 <= rot[2] <= 0x10000004;
+ */
 ABBE_NOINLINE static void motions_q(const abbe_rotary_model_t *ax, int32_t c, int32_t s, int32_t *basis,
                                     int32_t trans[3], int32_t rot[3])
 {
@@ -45,6 +62,9 @@ ABBE_NOINLINE static void motions_q(const abbe_rotary_model_t *ax, int32_t c, in
     const int32_t ns = -s;
     int32_t sk = s, ck = c;
     for (unsigned r = 0; r < rows; r += 2u) {
+        /* harmonic r / 2 + 1 (the rotation of basis_q.h's dot2_q30 from abbe_sincos_q30's pair):
+         * within 2^30 + 16 for every phase, enumerated (tests/proofs/hypotheses.c) */
+        /*@ assert sincos_range: -0x40000010 <= sk <= 0x40000010 && -0x40000010 <= ck <= 0x40000010; */
         basis[r] = sk;
         basis[r + 1u] = ck;
         /* next harmonic: rotate by the fundamental, rounded (one SMULL, one SMLAL each).
@@ -140,8 +160,14 @@ ABBE_NOINLINE static uint32_t add_rotary_q(const abbe_five_model_t *m5, const in
     const int32_t vj = v[j], wj = w[j];
     v[j] = (int32_t)rot_q30(ct, vj, st, v[l]);
     v[l] = (int32_t)rot_q30(st, vj, -ct, v[l]);
+    /* the turn keeps the norm (docs/proofs.md, "Five-axis: the loader's caps"): with
+     * |(wj, w_l)|^2 <= 5 x 2^58 + 2^35 (the caps: |wj| <= 2^30 + 8, |w_l| <= 2^29 + 8) and
+     * sin^2 + cos^2 <= 2^60 + 2^33 (every phase, enumerated), each turned component is
+     * within 9 x 2^27 (WP: tests/proofs/turn_q.c) */
+    /*@ assert turn_vector: (integer)wj * wj + (integer)w[l] * w[l] <= 0x1400000800000000; */
     w[j] = (int32_t)rot_q30(ct, wj, st, w[l]);
     w[l] = (int32_t)rot_q30(st, wj, -ct, w[l]);
+    /*@ assert turned_w: -0x48000000 <= w[j] <= 0x48000000 && -0x48000000 <= w[l] <= 0x48000000; */
     /* R_t offset, 2 nm (no component along the tilt axis: the loader), |.| < 2^29.5 */
     const int32_t oj = m5->offset_nm[j] >> 1, ol = m5->offset_nm[l] >> 1;
     Ro[k] = 0;

@@ -36,7 +36,9 @@
  * Then every int32 (_q) / finite (_f32) joint position, angle and direction
  * state, every temperature (_f32: within +/-10^6 degC), and the compensator
  * with any configuration and any number of cycles of any input, with resets
- * (docs/proofs.md, "Five-axis: any layout"). */
+ * (docs/proofs.md, "Five-axis: any layout"). With PROOF_ROT_CAPS (_q only:
+ * eval_five_any_q_caps) the coefficients and location errors of the loader's
+ * caps instead, motions_q as its contract (below, ROT_LO). */
 #if defined(PROOF_Q)
 #include "terms_q_contract.h"
 #endif
@@ -48,10 +50,22 @@
 #include "abbe/five_axis.h"
 
 #define ROT_COEF_WORDS (2u * ABBE_ROTARY_MAX_HARMONICS * ABBE_MOTIONS)
-#define ROT_BOX (1 << 24)
 #define GEOMETRY_BOX ((1 << 30) - 1)
 #define ANGLE_BOX (1 << 28)
+#if defined(PROOF_ROT_CAPS)
+/* eval_five_any_q_caps (docs/proofs.md, "Five-axis: the loader's caps"): every
+ * coefficient any int32, a superset of the loader's L1 caps (motions_q runs as its
+ * contract, WP-proven for those caps: -eva-use-spec motions_q); the tilts and zero
+ * offsets within the loader's SQUARENESS_CAP (2^28; the trunnion table axis' turned
+ * angle sum bounded by a WP-proven assertion, tests/proofs/turn_q.c) */
+#define ROT_LO INT32_MIN
+#define ROT_HI INT32_MAX
+#define LOCATION_BOX (1 << 28)
+#else
+#define ROT_LO (-(1 << 24))
+#define ROT_HI (1 << 24)
 #define LOCATION_BOX (1 << 26)
+#endif
 
 static abbe_five_model_t model;
 static abbe_comp_t comp;
@@ -129,7 +143,7 @@ static void any_rotary(abbe_rotary_model_t *ax, unsigned r, unsigned dir)
     ax->harmonics = (uint8_t)(n != 0u ? Frama_C_unsigned_int_interval(0u, ABBE_ROTARY_MAX_HARMONICS) : 0u);
     /*@ loop unroll 0; */
     for (unsigned i = 0; i < ROT_COEF_WORDS; i++) {
-        rot_coef[r][i] = Frama_C_int_interval(-ROT_BOX, ROT_BOX);
+        rot_coef[r][i] = Frama_C_int_interval(ROT_LO, ROT_HI);
 #if !defined(PROOF_Q)
         rot_coef_f[r][i] = Frama_C_float_interval(-16777216.0f, 16777216.0f);
 #endif

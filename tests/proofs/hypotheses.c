@@ -21,6 +21,13 @@
  *       value before its conversion to int32 (basis_q.h: the assertions
  *       cheb_rows in cheb_next_q30, sincos_range in dot2_q30), so the
  *       conversion is in range (-warn-signed-downcast, docs/proofs.md).
+ *   hypotheses sincos_norm: sin^2 + cos^2 <= 2^60 + 2^33 for every phase, the
+ *       precondition of tests/proofs/turn_q.c (WP). The harmonics are also
+ *       the five-axis motions' basis (five_eval_q.c motions_q: the same
+ *       rotation, abbe_smlal(abbe_smlal(2^29, a, b), c, d) >> 30 being
+ *       dot2_q30's value, from abbe_sincos_q30's unpacked pair; its assertion
+ *       'sincos_range' on harmonics 1..8, the precondition of rot_trans_q /
+ *       rot_ang_q in terms_q_l1.c).
  * Exit 1 naming the first input that breaks one; 2 for a bad argument. */
 #include <inttypes.h>
 #include <stdio.h>
@@ -86,6 +93,39 @@ static int sincos_range(void)
     } while (phase != 0u);
     printf("sincos_range: all 2^32 phases, sin and cos in [%" PRId32 ", %" PRId32 "], the harmonics 2..%d in [%" PRId32
            ", %" PRId32 "]\n", lo, hi, HARMONICS, harm_lo, harm_hi);
+    return 0;
+}
+
+/* sincos_norm: sin^2 + cos^2 of abbe_sincos_q30_pair within 2^60 + 2^33 for
+ * every phase (the precondition of tests/proofs/turn_q.c's WP proof: the
+ * trunnion table axis' angle sum turned by the tilt, five_eval_q.c's
+ * assertion 'turned_w'), batched as sincos_range. */
+#define NORM_MAX (((int64_t)1 << 60) + ((int64_t)1 << 33))
+
+static int sincos_norm(void)
+{
+    static int64_t n[BATCH];
+    uint32_t phase = 0u;
+    int64_t lo = INT64_MAX, hi = 0;
+    do {
+        for (uint32_t i = 0; i < BATCH; i++) {
+            const uint64_t pair = abbe_sincos_q30_pair(phase + i);
+            const int64_t sn = abbe_u32_to_i32((uint32_t)pair), cs = abbe_u32_to_i32((uint32_t)(pair >> 32));
+            n[i] = sn * sn + cs * cs;
+        }
+        for (uint32_t i = 0; i < BATCH; i++) {
+            if (n[i] > NORM_MAX) {
+                printf("sincos_norm: phase 0x%08" PRIx32 ": sin^2 + cos^2 = 2^60 + %" PRId64 ", beyond 2^60 + 2^33\n",
+                       phase + i, n[i] - ((int64_t)1 << 60));
+                return 1;
+            }
+            lo = n[i] < lo ? n[i] : lo;
+            hi = n[i] > hi ? n[i] : hi;
+        }
+        phase += BATCH;
+    } while (phase != 0u);
+    printf("sincos_norm: all 2^32 phases, sin^2 + cos^2 in [2^60 %+" PRId64 ", 2^60 %+" PRId64 "] (bound 2^60 + 2^33)\n",
+           lo - ((int64_t)1 << 60), hi - ((int64_t)1 << 60));
     return 0;
 }
 
@@ -201,6 +241,9 @@ int main(int argc, char **argv)
     if (argc == 2 && strcmp(argv[1], "cheb_rows") == 0) {
         return cheb_rows();
     }
-    fprintf(stderr, "usage: %s sincos_range|mm_clamped|f32_finite|cheb_rows\n", argv[0]);
+    if (argc == 2 && strcmp(argv[1], "sincos_norm") == 0) {
+        return sincos_norm();
+    }
+    fprintf(stderr, "usage: %s sincos_range|mm_clamped|f32_finite|cheb_rows|sincos_norm\n", argv[0]);
     return 2;
 }

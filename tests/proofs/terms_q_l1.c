@@ -19,6 +19,8 @@
  * is the kernels' (basis_q.h MAC / MAC1, terms_q.c). */
 #include <stdint.h>
 
+#include "model_load_layout.h" /* the loader's caps: LIN_L1_CAP, ANG_L1_CAP (check_ranges, check_rotary) */
+
 #define ROW_MAX 1073741840 /* 2^30 + 16 */
 #define MAX_ROWS 40
 
@@ -74,7 +76,8 @@ static int32_t ang_shifted(int64_t acc)
 /*@ requires rows: 0 <= n <= MAX_ROWS;
     requires \valid_read(c + (0 .. n - 1)) && \valid_read(b + (0 .. n - 1));
     requires basis: \forall integer k; 0 <= k < n ==> -ROW_MAX <= b[k] <= ROW_MAX;
-    requires caps: (cap == 0x100000000 && bias == 0x80000000) || (cap == 0x10000000 && bias == 0x40000000);
+    requires caps: (cap == 0x100000000 && (bias == 0x80000000 || bias == 0x200000000)) ||
+                   (cap == 0x10000000 && (bias == 0x40000000 || bias == 0x20000000));
     requires cap: l1(c, n) <= cap;
     assigns \nothing;
     ensures sum: -(cap * ROW_MAX) <= \result - bias <= cap * ROW_MAX;
@@ -110,13 +113,13 @@ static int64_t term_acc(const int32_t *c, const int32_t *b, unsigned n, int64_t 
 /*@ requires rows: 0 <= n <= MAX_ROWS;
     requires \valid_read(c + (0 .. n - 1)) && \valid_read(b + (0 .. n - 1));
     requires basis: \forall integer k; 0 <= k < n ==> -ROW_MAX <= b[k] <= ROW_MAX;
-    requires cap: l1(c, n) <= 0x100000000;
+    requires cap: l1(c, n) <= LIN_L1_CAP;
     assigns \nothing;
     ensures lin: -ROW_MAX <= \result <= ROW_MAX;
  */
 int32_t term_lin_q(const int32_t *c, const int32_t *b, unsigned n)
 {
-    const int64_t acc = term_acc(c, b, n, 0x100000000, 0x80000000); /* LIN_BIAS */
+    const int64_t acc = term_acc(c, b, n, (int64_t)LIN_L1_CAP, 0x80000000); /* LIN_BIAS */
     return lin_high_word(acc);
 }
 
@@ -124,14 +127,69 @@ int32_t term_lin_q(const int32_t *c, const int32_t *b, unsigned n)
 /*@ requires rows: 0 <= n <= MAX_ROWS;
     requires \valid_read(c + (0 .. n - 1)) && \valid_read(b + (0 .. n - 1));
     requires basis: \forall integer k; 0 <= k < n ==> -ROW_MAX <= b[k] <= ROW_MAX;
-    requires cap: l1(c, n) <= 0x10000000;
+    requires cap: l1(c, n) <= ANG_L1_CAP;
     assigns \nothing;
     ensures ang: -0x8000002 <= \result <= 0x8000002;
  */
 int32_t term_ang_q(const int32_t *c, const int32_t *b, unsigned n)
 {
-    const int64_t acc = term_acc(c, b, n, 0x10000000, 0x40000000); /* ANG_BIAS */
+    const int64_t acc = term_acc(c, b, n, (int64_t)ANG_L1_CAP, 0x40000000); /* ANG_BIAS */
     return ang_shifted(acc);
+}
+
+/* The five-axis rotary motions (five_eval_q.c motions_q): per component the
+ * same accumulation over the record's rows (2 x harmonics <= 16: sin k t, then
+ * cos k t, harmonic by harmonic, the table's row order; the fitted axis' GROUP
+ * and the sparse loop alike), from the rounding constant of the final shift,
+ * under the same L1 caps (model_load_rotary.h: sum |c| <= 2^32 for X, Y, Z in
+ * 2^-8 nm, 2^28 for A, B, C in 2^-36 rad); the basis rows are the harmonics
+ * 1..8 (hypothesis sincos_range: within 2^30 + 16). The shifts: 34 (2^-38 nm
+ * -> 2^-4 nm) and 30 (2^-66 rad -> 2^-36 rad); the motion within
+ * +/-(2^28 + 4) either way: motions_q's contract (five_eval_q.c). */
+/*@ requires -(0x100000000 * ROW_MAX) + 0x200000000 <= acc <= 0x100000000 * ROW_MAX + 0x200000000;
+    assigns \nothing;
+    ensures rot_trans_shift: -0x10000004 <= \result <= 0x10000004;
+ */
+static int32_t rot_trans_shifted(int64_t acc)
+{
+    return (int32_t)(acc >> 34); /* Q30 + 4 */
+}
+
+/*@ requires -(0x10000000 * ROW_MAX) + 0x20000000 <= acc <= 0x10000000 * ROW_MAX + 0x20000000;
+    assigns \nothing;
+    ensures rot_ang_shift: -0x10000004 <= \result <= 0x10000004;
+ */
+static int32_t rot_ang_shifted(int64_t acc)
+{
+    return (int32_t)(acc >> 30); /* Q30 */
+}
+
+/* A linear motion (X, Y, Z): L1 cap 2^32, shift 34. */
+/*@ requires rows: 0 <= n <= 16;
+    requires \valid_read(c + (0 .. n - 1)) && \valid_read(b + (0 .. n - 1));
+    requires basis: \forall integer k; 0 <= k < n ==> -ROW_MAX <= b[k] <= ROW_MAX;
+    requires cap: l1(c, n) <= LIN_L1_CAP;
+    assigns \nothing;
+    ensures motion: -0x10000004 <= \result <= 0x10000004;
+ */
+int32_t rot_trans_q(const int32_t *c, const int32_t *b, unsigned n)
+{
+    const int64_t acc = term_acc(c, b, n, (int64_t)LIN_L1_CAP, 0x200000000); /* 2^(34 - 1) */
+    return rot_trans_shifted(acc);
+}
+
+/* An angular motion (A, B, C): L1 cap 2^28, shift 30. */
+/*@ requires rows: 0 <= n <= 16;
+    requires \valid_read(c + (0 .. n - 1)) && \valid_read(b + (0 .. n - 1));
+    requires basis: \forall integer k; 0 <= k < n ==> -ROW_MAX <= b[k] <= ROW_MAX;
+    requires cap: l1(c, n) <= ANG_L1_CAP;
+    assigns \nothing;
+    ensures motion: -0x10000004 <= \result <= 0x10000004;
+ */
+int32_t rot_ang_q(const int32_t *c, const int32_t *b, unsigned n)
+{
+    const int64_t acc = term_acc(c, b, n, (int64_t)ANG_L1_CAP, 0x20000000); /* 2^(30 - 1) */
+    return rot_ang_shifted(acc);
 }
 
 #ifdef PROOF_EVA_SHIFTS
@@ -145,6 +203,10 @@ int main(void)
                                                0x100000000L * ROW_MAX + 0x80000000L));
     sink = ang_shifted(Frama_C_long_interval(-(0x10000000L * ROW_MAX) + 0x40000000L,
                                              0x10000000L * ROW_MAX + 0x40000000L));
+    sink = rot_trans_shifted(Frama_C_long_interval(-(0x100000000L * ROW_MAX) + 0x200000000L,
+                                                   0x100000000L * ROW_MAX + 0x200000000L));
+    sink = rot_ang_shifted(Frama_C_long_interval(-(0x10000000L * ROW_MAX) + 0x20000000L,
+                                                 0x10000000L * ROW_MAX + 0x20000000L));
     (void)sink;
     return 0;
 }
