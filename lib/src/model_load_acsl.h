@@ -148,10 +148,12 @@ static uint64_t recip64(uint32_t d);
 static abbe_status_t check_counts(const uint8_t *b);
 
 /* build_axis: stated, NOT proven yet (scripts/prove.sh does not run it; docs/proofs.md,
- * "Not proven yet"): WP proves its loop invariants (wp_rank, wp_columns,
- * wp_blocks, wp_harmonics) and 99 of its other goals, but not layout_ok nor
- * the assigns: the memset of *ax through a char pointer is a cast the Typed
- * memory model hides ("Stronger" goals Z3 does not prove). */
+ * "Not proven yet"): WP proves 103 of its 107 goals, its loop invariants
+ * (wp_rank, wp_columns, wp_blocks, wp_harmonics) among them, but not
+ * layout_ok, the two assigns goals and memset's precondition: the memset of
+ * *ax through a char pointer is a cast the Typed memory model hides
+ * ("Stronger" goals Z3 does not prove; without the memset, on a copy,
+ * layout_ok is proven). */
 /*@ requires out: \valid(ax);
     requires record: \valid_read(rec + (0 .. 63)) && \valid_read(b);
     requires apart: \separated(ax, rec + (0 .. 63));
