@@ -127,6 +127,7 @@ static abbe_status_t check_flags(const uint8_t *b, uint32_t rotary)
 
 static abbe_status_t check_counts(const uint8_t *b)
 {
+    /*@ WP_LOOP_COUNTS */
     for (unsigned j = 0; j < ABBE_AXES; j++) {
         const uint8_t *rec = b + HEADER_SIZE + j * AXIS_RECORD_SIZE;
         uint8_t degree = rec[A_DEGREE];

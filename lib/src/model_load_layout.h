@@ -9,6 +9,7 @@
 #define ABBE_MODEL_LOAD_LAYOUT_H
 
 #include "internal.h"
+#include "model_load_acsl.h"
 
 #define HEADER_SIZE 64u
 #define AXIS_RECORD_SIZE 64u
@@ -63,6 +64,7 @@
 static unsigned popcount6(unsigned mask)
 {
     unsigned n = 0;
+    /*@ WP_LOOP_POPCOUNT */
     for (unsigned t = 0; t < ABBE_TERMS; t++) {
         n += (mask >> t) & 1u;
     }

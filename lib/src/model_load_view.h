@@ -31,6 +31,7 @@ static void build_axis(abbe_axis_model_t *ax, const uint8_t *b, const uint8_t *r
     ax->trend_rows = (uint8_t)trend_rows_of(rec[A_DEGREE]);
     ax->n_basis = (uint8_t)n_basis_of(rec);
     uint8_t column = 0;
+    /*@ WP_LOOP_COLUMNS */
     for (unsigned t = 0; t < ABBE_TERMS; t++) {
         if (((unsigned)ax->term_mask >> t) & 1u) {
             ax->column[t] = column++;
@@ -54,6 +55,7 @@ static void build_axis(abbe_axis_model_t *ax, const uint8_t *b, const uint8_t *r
     ax->span_nm = span;
     ax->cheb_shift = (uint8_t)(32u - n);
     ax->cheb_mul = mul > UINT32_MAX ? UINT32_MAX : (uint32_t)mul;
+    /*@ WP_LOOP_BLOCKS */
     for (unsigned k = 0; k < ABBE_BLOCKS; k++) {
         ax->harmonics[k] = rec[A_HARMONICS + k];
         int32_t origin = abbe_ld_i32(rec + A_ORIGIN + 4u * k);

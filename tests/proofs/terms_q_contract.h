@@ -10,16 +10,23 @@
  * every table the loader accepts: the L1 caps (sum |c| <= 2^32 linear, 2^28
  * angular) times the basis rows' bound 2^30 + 16 (hypotheses cheb_rows and
  * sincos_range: the Chebyshev rows reach 2^30 + 3, the rotated harmonics
- * 2^30 + 11), WP-proven in tests/proofs/terms_q_l1.c. (Until the L1 proof
+ * 2^30 + 11), WP-proven in tests/proofs/terms_q_l1.c. The precondition
+ * 'layout' is the shared predicate of the loader's contract (axis_ranges_ok,
+ * lib/src/model_load_acsl.h). (Until the L1 proof
  * they were +/-2^30 and +/-2^27, which the box of terms_q_any keeps but an
  * accepted table's coefficients can exceed by a few LSB.) */
 #ifndef PROOF_TERMS_Q_CONTRACT_H
 #define PROOF_TERMS_Q_CONTRACT_H
 
 #include "internal.h"
+#include "model_load_acsl.h"
 
-/*@ requires layout: ax->n_terms <= 6 && ax->trend_rows <= 8 && ax->harmonics[0] <= 8 &&
-                     ax->harmonics[1] <= 8 && ax->n_basis <= 40 && ax->cheb_shift <= 31;
+/* requires layout: the predicate the 3-axis loader's build_axis ensures
+ * (lib/src/model_load_acsl.h: axis_layout_ok implies axis_ranges_ok; WP,
+ * docs/proofs.md "WP: loader contracts"): the counts' ranges (n_terms <= 6,
+ * trend_rows <= 8, harmonics <= 8, n_basis <= 40, reversal_rows <= 8,
+ * cheb_shift <= 31) */
+/*@ requires layout: axis_ranges_ok(ax);
     requires coefficients: ax->n_basis * ax->n_terms == 0 ||
                            \valid_read(ax->coef_q + (0 .. 4 * ax->n_basis * ax->n_terms - 1));
     requires out: \valid(value + (0 .. 5));
