@@ -152,7 +152,7 @@ done
 # as eval_q_any_layout / eval_f32_any_layout), every input
 FIVE_ANY_Q_SRCS="tests/proofs/eval_five_any.c $(printf 'lib/src/%s.c ' five_eval_q eval_q sincos_q comp comp_q comp_five comp_five_q status)"
 FIVE_ANY_F32_SRCS="tests/proofs/eval_five_any.c $(printf 'lib/src/%s.c ' five_eval_f32 eval_f32 terms_f32 terms_rot_f32 sincos_f32 comp comp_f32 comp_five comp_five_f32 status)"
-FIVE_ANY_OPTS="-eva-auto-loop-unroll 300 -eva-split-return-function abbe_comp_init:0,config_ok:0 -eva-interprocedural-splits -eva-slevel-function main:10,abbe_comp_init:10"
+FIVE_ANY_OPTS="-eva-auto-loop-unroll 300 -eva-split-return-function abbe_comp_init:0,config_ok:0 -eva-interprocedural-splits -eva-slevel-function main:10,abbe_comp_init:10,any5_cycles:10"
 HARNESSES+=("eval_five_any_q|$FIVE_ANY_Q_SRCS|-DPROOF_Q|$FIVE_ANY_OPTS,abbe_comp_step5_q:20,motions_q:64 -eva-slevel-merge-after-loop motions_q -eva-use-spec abbe_axis_terms_q")
 HARNESSES+=("eval_five_any_f32|$FIVE_ANY_F32_SRCS|-DPROOF_NO_COMP|${FIVE_ANY_OPTS/config_ok:0/config_ok:0,abbe_five_eval_f32_linear:0,eval_f32_linear:full},abbe_five_eval_f32_linear:10,eval_f32_linear:10,abbe_five_error_eval_f32:10,fold6_body:100,fold6_rot_f32:100,fold_values_rot_f32:100,abbe_rotary_motions6_f32:100,motions_sparse_f32:100,abbe_axis_terms_sparse_f32:100 -eva-slevel-merge-after-loop fold6_body,fold6_rot_f32,fold_values_rot_f32,abbe_rotary_motions6_f32,motions_sparse_f32,abbe_axis_terms_sparse_f32")
 # the float evaluations given any bits, NaN and infinities included: the
@@ -256,7 +256,7 @@ HARNESSES+=("can_config|tests/proofs/can_config.c port/socketcan/src/can_config_
 # configuration, the model queued by a swap, any number of cycles of
 # abbe_comp_step5_q / _f32, resets and swaps among them; the trunnion table
 # with every motion (ac_full) and a chain kind (tdr_xyzab), any scalars
-COMP5_OPTS="-eva-auto-loop-unroll 64 -eva-split-return-function check_header:0,abbe_five_model_load:0,abbe_comp_init:0,config_ok:0 -eva-slevel-function abbe_five_model_load:40,main:10,abbe_comp_init:10"
+COMP5_OPTS="-eva-auto-loop-unroll 64 -eva-split-return-function check_header:0,abbe_five_model_load:0,abbe_comp_init:0,config_ok:0 -eva-slevel-function abbe_five_model_load:40,main:10,abbe_comp_init:10,any5_cycles:10"
 COMP5_SRCS="tests/proofs/comp_five.c $(printf 'lib/src/%s.c ' comp comp_five five_load crc32 status)"
 for t in ac_full tdr_xyzab; do # (ht_maxkins: proven once, 33 s of CPU, left out for the CI budget: docs/proofs.md)
     HARNESSES+=("comp_five_q_$t|$COMP5_SRCS $(printf 'lib/src/%s.c ' comp_five_q five_eval_q eval_q terms_q terms_sparse_q sincos_q)|$ANY -DPROOF_Q -DPROOF_TABLES_H=tables_five_$t.h|$COMP5_OPTS")
