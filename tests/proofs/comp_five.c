@@ -23,8 +23,14 @@
 #include "any_scalars.h"
 #endif
 
-static abbe_five_model_t model;
+#ifndef PROOF_LOAD_MAX
+#define PROOF_LOAD_MAX 64 /* bytes: the bound of the table of unknown bytes (prove.sh sets it) */
+#endif
+
+/* the controller's two model slots: the running one and the one loaded next */
+static abbe_five_model_t slot[2];
 static abbe_comp_t comp;
+static uint32_t any_bytes[PROOF_LOAD_MAX / 4u];
 
 int main(void)
 {
@@ -36,17 +42,37 @@ int main(void)
     any_scalars((unsigned char *)blob);
     any_rotary_scalars((unsigned char *)blob);
 #endif
-    if (abbe_five_model_load(&model, blob, size) != ABBE_OK) {
-        return 1;
-    }
-    /* any configuration; the compensator starts without a model and gets the
-     * five-axis one queued, as a controller does after a load */
+    /* any configuration; the compensator starts without a model */
     abbe_comp_config_t cfg;
     any5_config(&cfg);
     if (abbe_comp_init(&comp, &cfg, NULL) != ABBE_OK || abbe_comp_enable(&comp) != ABBE_OK) {
         return 1;
     }
-    (void)abbe_comp_swap_five_model(&comp, &model);
-    any5_cycles(&comp, &model);
+    /* the table's bytes loaded into a slot and queued, as a controller does: the
+     * next cycle swaps it in */
+    if (abbe_comp_load_five_model(&comp, &slot[0], blob, size) != ABBE_OK) {
+        return 1;
+    }
+    /* then, that model queued, a table of unknown bytes of every length
+     * 0..PROOF_LOAD_MAX (each length its own partition; the table ends where the
+     * buffer does, as load5.c): into the queued slot it is refused, into the
+     * other one the loader runs */
+    uint8_t *arr = (uint8_t *)any_bytes;
+    Frama_C_make_unknown((char *)arr, PROOF_LOAD_MAX);
+    size_t n = Frama_C_interval(0, PROOF_LOAD_MAX);
+    //@ split n;
+    const uint8_t *bytes = arr + (PROOF_LOAD_MAX - n);
+    abbe_status_t st = abbe_comp_load_five_model(&comp, &slot[0], bytes, n);
+    //@ assert queued_slot_refused: st == ABBE_E_ARG;
+    st = abbe_comp_load_five_model(&comp, &slot[1], bytes, n);
+    //@ merge n;
+    if (st == ABBE_OK) {
+        /* queued instead: a table of any layout, whose cycles are eval_five_any's
+         * (within its coefficient box; docs/proofs.md, "Not proven yet") */
+        return 0;
+    }
+    /* refused: the table's model stays queued; any number of cycles (the first
+     * swaps it in), resets and re-queued swaps of it */
+    any5_cycles(&comp, &slot[0]);
     return 0;
 }
