@@ -2,13 +2,16 @@
  * comp_five_q.c with PROOF_Q, else comp_five_f32.c; comp.c's safety layer):
  * on every five-axis table the loader accepts with the layout and
  * coefficients of a golden table of PROOF_TABLES_H (tests/golden/golden_five.c)
- * and any scalar field (PROOF_ANY_SCALARS, any_scalars.h), queued by
- * abbe_comp_swap_five_model; any configuration abbe_comp_init is given (a
- * refused one leaves no compensator); then any number of cycles of
- * abbe_comp_step5_q / _f32 with any linear position, angle, temperature,
- * direction, freshness and fault mask (the float ones: every finite
- * position and angle, every temperature in [-10^6, 10^6] degC), with
- * resets and re-queued swaps of the same model among them (docs/proofs.md). */
+ * and any scalar field (PROOF_ANY_SCALARS, any_scalars.h): any configuration
+ * abbe_comp_init is given (a refused one leaves no compensator); the table's
+ * bytes loaded into a slot by abbe_comp_load_five_model and queued; a table
+ * of unknown bytes of every length 0..PROOF_LOAD_MAX loaded into the queued
+ * slot (refused) and into the other one; then any number of cycles of
+ * abbe_comp_step5_q / _f32 (the first swaps the queued model in) with any
+ * linear position, angle, temperature, direction, freshness and fault mask
+ * (the float ones: every finite position and angle, every temperature in
+ * [-10^6, 10^6] degC; with PROOF_NONFINITE any 32 bits), with resets and
+ * re-queued swaps among them (comp5_cycles.h; docs/proofs.md). */
 #include "__fc_builtin.h"
 #include <string.h>
 

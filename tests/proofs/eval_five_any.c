@@ -1,8 +1,10 @@
 /* Eva harness: the five-axis evaluations on a model of ANY layout the
  * five-axis loader accepts (eval_five_any_q with PROOF_Q: abbe_five_error_eval_q
- * and the compensator's five-axis cycle abbe_comp_step5_q; eval_five_any_f32:
- * abbe_five_error_eval_f32, and abbe_comp_step5_f32 unless PROOF_NO_COMP, which
- * scripts/prove.sh sets for it: with the float cycle it took over 86 s of CPU).
+ * and the compensator's five-axis cycle abbe_comp_step5_q; eval_five_any_f32
+ * (PROOF_NO_COMP): abbe_five_error_eval_f32 and the contracts of its two parts,
+ * five_eval_f32_contract.h; comp_five_any_f32 (PROOF_COMP_ONLY): the cycles of
+ * abbe_comp_step5_f32 with those parts as their contracts: with them as they
+ * are, the cycles took over 63 s of CPU, unfinished).
  * The model is built
  * directly, every field unknown within the invariants abbe_five_model_load's
  * checks establish (model_load.c, model_load_rotary.h: check_rotary,
@@ -39,6 +41,8 @@
  * (docs/proofs.md, "Five-axis: any layout"). */
 #if defined(PROOF_Q)
 #include "terms_q_contract.h"
+#else
+#include "five_eval_f32_contract.h" /* proven by eval_five_any_f32, used by comp_five_any_f32 */
 #endif
 #define PROOF_LAYOUT_COEF_UNION
 #include "any_layout.h"
@@ -174,7 +178,10 @@ int main(void)
     any_five(&model);
     abbe_comp_config_t cfg;
     any5_config(&cfg);
-#if defined(PROOF_Q)
+#if defined(PROOF_COMP_ONLY)
+    /* comp_five_any_f32: the compensator's cycles only (the evaluation on its own
+     * is eval_five_any_f32's) */
+#elif defined(PROOF_Q)
     abbe_five_input_q_t in;
     abbe_five_error_q_t out;
     for (unsigned j = 0; j < 3u; j++) {
