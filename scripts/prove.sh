@@ -261,9 +261,12 @@ HARNESSES+=(
 # length 0..64 B
 HARNESSES+=("can_config|tests/proofs/can_config.c port/socketcan/src/can_config_parse.c port/socketcan/src/can_toml_number.c port/socketcan/src/can_config_check.c|-Iport/socketcan/include -Iport/socketcan/src -DPROOF_MAX_SIZE=64|-eva-auto-loop-unroll 64 -eva-slevel-function parse_pair:200")
 # the compensator with a five-axis model (tests/proofs/comp_five.c): any
-# configuration, the model queued by a swap, any number of cycles of
-# abbe_comp_step5_q / _f32, resets and swaps among them; the trunnion table
-# with every motion (ac_full) and a chain kind (tdr_xyzab), any scalars
+# configuration, the table's bytes loaded into a slot and queued
+# (abbe_comp_load_five_model; a table of unknown bytes into either slot after
+# it), any number of cycles of abbe_comp_step5_q / _f32, resets and swaps among
+# them; the trunnion table with every motion (ac_full) and a chain kind
+# (tdr_xyzab), any scalars. The load's return states kept apart (a refused and
+# an accepted unknown table are not merged)
 COMP5_OPTS="-eva-auto-loop-unroll 64 -eva-split-return-function check_header:0,abbe_five_model_load:0,abbe_comp_load_five_model:0,abbe_comp_init:0,config_ok:0 -eva-slevel-function abbe_five_model_load:40,abbe_comp_load_five_model:10,main:10,abbe_comp_init:10,any5_cycles:10"
 COMP5_LOAD_MAX=64 # bytes: the table of unknown bytes loaded into a slot (comp_five.c; with 512 B a harness took more than 50 s of CPU more, stopped)
 COMP5_SRCS="tests/proofs/comp_five.c $(printf 'lib/src/%s.c ' comp comp_five five_load crc32 status)"
