@@ -19,37 +19,7 @@
 #include "abbe/comp.h"
 #include "abbe/five_axis.h"
 
-static int32_t any_i32(void)
-{
-    return Frama_C_int_interval(INT32_MIN, INT32_MAX);
-}
-
-#if !defined(PROOF_Q)
-#if defined(PROOF_NONFINITE)
-/* any float32, NaN and the infinities included: any 32 bits */
-static float any_f32(void)
-{
-    uint32_t bits = Frama_C_unsigned_int_interval(0u, UINT32_MAX);
-    float f;
-    memcpy(&f, &bits, sizeof f);
-    return f;
-}
-static float any_temp(void)
-{
-    return any_f32();
-}
-#else
-/* any finite float32 */
-static float any_f32(void)
-{
-    return Frama_C_float_interval(-3.40282347e+38f, 3.40282347e+38f);
-}
-static float any_temp(void)
-{
-    return Frama_C_float_interval(-1.0e6f, 1.0e6f);
-}
-#endif
-#endif
+#include "any_inputs.h" /* any_i32, any_f32, any_temp */
 
 /* any configuration abbe_comp_init may be given (the refused ones included) */
 static void any5_config(abbe_comp_config_t *cfg)
