@@ -1,8 +1,10 @@
 /* Eva harness: the five-axis evaluations on a model of ANY layout the
  * five-axis loader accepts (eval_five_any_q with PROOF_Q: abbe_five_error_eval_q
- * and the compensator's five-axis cycle abbe_comp_step5_q; eval_five_any_f32:
- * abbe_five_error_eval_f32, and abbe_comp_step5_f32 unless PROOF_NO_COMP, which
- * scripts/prove.sh sets for it: with the float cycle it took over 86 s of CPU).
+ * and the compensator's five-axis cycle abbe_comp_step5_q; eval_five_any_f32
+ * (PROOF_NO_COMP): abbe_five_error_eval_f32 and the contracts of its two parts,
+ * five_eval_f32_contract.h; comp_five_any_f32 (PROOF_COMP_ONLY): the cycles of
+ * abbe_comp_step5_f32 with those parts as their contracts: with them as they
+ * are, the cycles took over 63 s of CPU, unfinished).
  * The model is built
  * directly, every field unknown within the invariants abbe_five_model_load's
  * checks establish (model_load.c, model_load_rotary.h: check_rotary,
@@ -41,6 +43,8 @@
  * caps instead, motions_q as its contract (below, ROT_LO). */
 #if defined(PROOF_Q)
 #include "terms_q_contract.h"
+#else
+#include "five_eval_f32_contract.h" /* proven by eval_five_any_f32, used by comp_five_any_f32 */
 #endif
 #define PROOF_LAYOUT_COEF_UNION
 #include "any_layout.h"
@@ -48,6 +52,8 @@
 #include "abbe/comp.h"
 #include "abbe/error.h"
 #include "abbe/five_axis.h"
+
+#include "comp5_cycles.h" /* any_i32, any_f32, the compensator's config and cycles */
 
 #define ROT_COEF_WORDS (2u * ABBE_ROTARY_MAX_HARMONICS * ABBE_MOTIONS)
 #define GEOMETRY_BOX ((1 << 30) - 1)
@@ -74,18 +80,6 @@ static int32_t rot_coef[ABBE_ROTARY_AXES][ROT_COEF_WORDS];
 #if !defined(PROOF_Q)
 static float coef_f[ABBE_AXES][ANY_COEF_WORDS];
 static float rot_coef_f[ABBE_ROTARY_AXES][ROT_COEF_WORDS];
-#endif
-
-static int32_t any_i32(void)
-{
-    return Frama_C_int_interval(INT32_MIN, INT32_MAX);
-}
-
-#if !defined(PROOF_Q)
-static float any_f32(void)
-{
-    return Frama_C_float_interval(-3.40282347e+38f, 3.40282347e+38f);
-}
 #endif
 
 /* the linear model's own fields as eval_q_any_layout.c / eval_f32_any_layout.c */
@@ -197,15 +191,11 @@ int main(void)
 {
     any_five(&model);
     abbe_comp_config_t cfg;
-    for (unsigned j = 0; j < ABBE_AXES; j++) {
-        cfg.warn_nm[j] = any_i32();
-        cfg.limit_nm[j] = any_i32();
-        cfg.rate_nm_per_cycle[j] = any_i32();
-        cfg.axis_sign[j] = (int8_t)Frama_C_interval(INT8_MIN, INT8_MAX);
-    }
-    cfg.fade_cycles = (uint16_t)Frama_C_interval(0, 65535);
-    cfg.stale_cycles = (uint16_t)Frama_C_interval(0, 65535);
-#if defined(PROOF_Q)
+    any5_config(&cfg);
+#if defined(PROOF_COMP_ONLY)
+    /* comp_five_any_f32: the compensator's cycles only (the evaluation on its own
+     * is eval_five_any_f32's) */
+#elif defined(PROOF_Q)
     abbe_five_input_q_t in;
     abbe_five_error_q_t out;
     for (unsigned j = 0; j < 3u; j++) {
@@ -233,38 +223,7 @@ int main(void)
     if (abbe_comp_init(&comp, &cfg, &model.linear) != ABBE_OK || abbe_comp_enable(&comp) != ABBE_OK) {
         return 1;
     }
-    while (Frama_C_nondet(0, 1)) {
-        abbe_comp_output5_t cout;
-#if defined(PROOF_Q)
-        abbe_comp_input5_q_t cin;
-        for (unsigned j = 0; j < ABBE_AXES; j++) {
-            cin.lin.pos_nm[j] = any_i32();
-            cin.lin.temp_mdegc[j] = any_i32();
-            cin.lin.dir[j] = (int8_t)Frama_C_interval(INT8_MIN, INT8_MAX);
-        }
-        cin.angle_udeg[0] = any_i32();
-        cin.angle_udeg[1] = any_i32();
-#else
-        abbe_comp_input5_f32_t cin;
-        for (unsigned j = 0; j < ABBE_AXES; j++) {
-            cin.lin.pos_mm[j] = any_f32();
-            cin.lin.temp_c[j] = Frama_C_float_interval(-1.0e6f, 1.0e6f);
-            cin.lin.dir[j] = (int8_t)Frama_C_interval(INT8_MIN, INT8_MAX);
-        }
-        cin.angle_deg[0] = any_f32();
-        cin.angle_deg[1] = any_f32();
-#endif
-        cin.lin.fresh = (uint8_t)Frama_C_interval(0, 255);
-        cin.lin.axis_fault_mask = (uint8_t)Frama_C_interval(0, 255);
-#if defined(PROOF_Q)
-        (void)abbe_comp_step5_q(&comp, &cin, &cout);
-#else
-        (void)abbe_comp_step5_f32(&comp, &cin, &cout);
-#endif
-        if (Frama_C_nondet(0, 1)) {
-            (void)abbe_comp_reset(&comp);
-        }
-    }
+    any5_cycles(&comp, NULL);
 #endif
     return 0;
 }

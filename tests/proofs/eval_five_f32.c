@@ -13,6 +13,7 @@
 
 #include "abbe/five_axis.h"
 
+#include "any_inputs.h" /* any_f32, any_temp (PROOF_NONFINITE: any bits) */
 #include "tables.h"
 
 #if defined(PROOF_ANY_SCALARS)
@@ -21,31 +22,6 @@
 #endif
 
 static abbe_five_model_t model;
-
-#if defined(PROOF_NONFINITE)
-/* any float32, NaN and the infinities included: any 32 bits */
-static float any_f32(void)
-{
-    uint32_t bits = Frama_C_unsigned_int_interval(0u, UINT32_MAX);
-    float f;
-    memcpy(&f, &bits, sizeof f);
-    return f;
-}
-static float any_temp(void)
-{
-    return any_f32();
-}
-#else
-/* any finite float32 */
-static float any_f32(void)
-{
-    return Frama_C_float_interval(-3.40282347e+38f, 3.40282347e+38f);
-}
-static float any_temp(void)
-{
-    return Frama_C_float_interval(-1.0e6f, 1.0e6f);
-}
-#endif
 
 int main(void)
 {

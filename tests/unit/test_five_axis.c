@@ -518,6 +518,67 @@ static void test_comp_step5_limit(void **state)
     }
 }
 
+/* Non-finite inputs of the float five-axis cycle: a NaN or infinite linear
+ * position or angle, and (the thermal feature set) a NaN or infinite
+ * temperature, is bad input: ABBE_FLAG_INPUT_INVALID, the target held
+ * (docs/proofs.md: comp_five_f32_nonfinite proves no other runtime error for
+ * any bits; that they are refused rests on this test and the hypotheses). */
+static void test_comp_step5_nonfinite(void **state)
+{
+    (void)state;
+    static abbe_five_model_t m5;
+    const float bad[3] = {(float)NAN, (float)INFINITY, -(float)INFINITY};
+    unsigned checked = 0, checked_temp = 0;
+    for (unsigned t = 0; t < abbe_golden_five_table_count; t++) { /* every kind this library reads */
+        if (load_five(t, &m5) == 0) {
+            continue;
+        }
+        const abbe_golden_five_table_t *g = &abbe_golden_five_tables[t];
+        const abbe_golden_five_point_t *p = &abbe_golden_five_points[g->first_point + g->n_points / 2u];
+        for (unsigned slot = 0; slot < 8u; slot++) { /* X, Y, Z; tilt, C; the three temperatures */
+            if (slot == 5u) {
+                /* no five-axis golden table has the thermal feature: set it (its
+                 * coefficients are the loader's zeros), so the temperatures are read */
+                m5.linear.features |= ABBE_FEATURE_THERMAL;
+            }
+            for (unsigned b = 0; b < 3u; b++) {
+                abbe_comp_t comp;
+                abbe_comp_config_t cfg = config();
+                assert_int_equal(abbe_comp_init(&comp, &cfg, NULL), ABBE_OK);
+                assert_int_equal(abbe_comp_swap_five_model(&comp, &m5), ABBE_OK);
+                assert_int_equal(abbe_comp_enable(&comp), ABBE_OK);
+                abbe_comp_input5_f32_t in;
+                memset(&in, 0, sizeof in);
+                memcpy(in.lin.pos_mm, p->pos_mm, sizeof in.lin.pos_mm);
+                memcpy(in.angle_deg, p->angle_deg, sizeof in.angle_deg);
+                for (unsigned j = 0; j < 3u; j++) {
+                    in.lin.temp_c[j] = 20.0f;
+                }
+                in.lin.fresh = 1;
+                abbe_comp_output5_t good, out;
+                assert_int_equal(abbe_comp_step5_f32(&comp, &in, &good), ABBE_OK);
+                assert_false(good.lin.flags & ABBE_FLAG_INPUT_INVALID);
+                if (slot < 3u) {
+                    in.lin.pos_mm[slot] = bad[b];
+                } else if (slot < 5u) {
+                    in.angle_deg[slot - 3u] = bad[b];
+                } else {
+                    in.lin.temp_c[slot - 5u] = bad[b];
+                    checked_temp++;
+                }
+                assert_int_equal(abbe_comp_step5_f32(&comp, &in, &out), ABBE_OK);
+                assert_true(out.lin.flags & ABBE_FLAG_INPUT_INVALID);
+                for (unsigned k = 0; k < 3u; k++) {
+                    assert_int_equal(out.lin.target_nm[k], good.lin.target_nm[k]);
+                }
+                checked++;
+            }
+        }
+    }
+    print_message("step5_f32: %u non-finite inputs refused (%u temperatures)\n", checked, checked_temp);
+    assert_true(checked >= 15u && checked_temp >= 9u);
+}
+
 /* A 3-axis model under the five-axis step gives the 3-axis correction. */
 static void test_comp_step5_three_axis_model(void **state)
 {
@@ -561,6 +622,7 @@ int main(void)
 #endif
         cmocka_unit_test(test_comp_step5),
         cmocka_unit_test(test_comp_step5_limit),
+        cmocka_unit_test(test_comp_step5_nonfinite),
         cmocka_unit_test(test_comp_step5_three_axis_model),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
