@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+from collections import OrderedDict
 
 import numpy as np
 
@@ -23,8 +24,32 @@ from abbe.model.table import Table
 NOISE_FLOOR = 0.01
 
 
+#: qr_basis results by the bytes of their input (the same nuisance, fold and selected
+#: set recur for every candidate of a selection step): (shape, tol, digest) -> basis
+_QR_CACHE: OrderedDict[tuple[tuple[int, ...], float, bytes], np.ndarray] = OrderedDict()
+_QR_CACHE_SIZE = 48
+
+
 def qr_basis(A: np.ndarray, tol: float = 1e-10) -> np.ndarray:
-    """Orthonormal basis of the column space of A (columns scaled first)."""
+    """Orthonormal basis of the column space of A (columns scaled first).
+
+    The result is cached by A's bytes (an SVD of thousands of rows costs far more than a
+    digest of them) and returned read-only: the same input gives the same array."""
+    A = np.ascontiguousarray(A, dtype=np.float64)
+    key = (A.shape, float(tol), hashlib.blake2b(A.data, digest_size=20).digest())
+    Q = _QR_CACHE.get(key)
+    if Q is not None:
+        _QR_CACHE.move_to_end(key)
+        return Q
+    Q = _qr_basis(A, tol)
+    Q.flags.writeable = False
+    _QR_CACHE[key] = Q
+    if len(_QR_CACHE) > _QR_CACHE_SIZE:
+        _QR_CACHE.popitem(last=False)
+    return Q
+
+
+def _qr_basis(A: np.ndarray, tol: float) -> np.ndarray:
     if A.shape[1] == 0:
         return np.zeros((A.shape[0], 0))
     nrm = np.linalg.norm(A, axis=0)
