@@ -138,7 +138,8 @@ class Problem:
         return np.concatenate(labs), "; ".join(uniq)
 
     def predict(self, ev: Evaluator, table: Table, pp: PredParams) -> np.ndarray:
-        return np.concatenate([c.predict(ev, table, pp) for c in self.checks])
+        with ev.pinned(table):
+            return np.concatenate([c.predict(ev, table, pp) for c in self.checks])
 
     def slice(self, i: int) -> slice:
         return slice(int(self.offsets[i]), int(self.offsets[i + 1]))
