@@ -4,7 +4,8 @@ The diagnosis multiplies and factorises matrices of a few thousand rows by a few
 columns, thousands of times. OpenBLAS splits each such product over every core and
 busy-waits between the pieces: on an idle machine that gains nothing, on a shared one
 (another job on the cores) each product waits for a descheduled thread, and a diagnosis
-took 3-13 minutes where one thread takes well under one (docs/effects.md, "Speed").
+took 3-13 minutes where one thread takes well under one (docs/effects.md, "Speed";
+``bench/bench_diagnose_equiv.py`` times a diagnosis and compares its answers).
 :func:`one_blas_thread` sets the OpenBLAS libraries loaded in the process (numpy's and
 scipy's) to one thread for the duration of a call and restores their count after; where
 none is found (another BLAS, another OS) it does nothing.

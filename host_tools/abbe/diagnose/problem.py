@@ -27,7 +27,7 @@ NOISE_FLOOR = 0.01
 #: qr_basis results by the bytes of their input (the same nuisance, fold and selected
 #: set recur for every candidate of a selection step): (shape, tol, digest) -> basis
 _QR_CACHE: OrderedDict[tuple[tuple[int, ...], float, bytes], np.ndarray] = OrderedDict()
-_QR_CACHE_SIZE = 48
+_QR_CACHE_SIZE = 16
 
 
 def qr_basis(A: np.ndarray, tol: float = 1e-10) -> np.ndarray:
@@ -36,7 +36,7 @@ def qr_basis(A: np.ndarray, tol: float = 1e-10) -> np.ndarray:
     The result is cached by A's bytes (an SVD of thousands of rows costs far more than a
     digest of them) and returned read-only: the same input gives the same array."""
     A = np.ascontiguousarray(A, dtype=np.float64)
-    key = (A.shape, float(tol), hashlib.blake2b(A.data, digest_size=20).digest())
+    key = (A.shape, float(tol), hashlib.sha1(A.data, usedforsecurity=False).digest())
     Q = _QR_CACHE.get(key)
     if Q is not None:
         _QR_CACHE.move_to_end(key)
