@@ -421,6 +421,24 @@ class Engine:
             cols += [g * np.sin(2 * phi), g * np.cos(2 * phi)]
         return np.stack(cols, axis=1)
 
+    def _cyc_trig_cache(self, axis: str, o: float, p: np.ndarray, freqs: np.ndarray
+                        ) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray]]] | None:
+        """sin / cos of 2 pi f (p - o) per chunk of the period grid of ``axis``, at the
+        distinct positions only (a laser line repeats its targets in every run and
+        channel), with the index of each sample's position: the same at every call of
+        cyclic_scan, so computed once; None when they would hold more than
+        _TRIG_CACHE_MAX values (then each call computes them again)."""
+        cache = self.__dict__.setdefault("_cyc_trig", {})
+        key = (axis, o, p.tobytes(), freqs.tobytes())
+        if key not in cache:
+            u, inv = np.unique(p, return_inverse=True)
+            if u.size * freqs.size > _TRIG_CACHE_MAX:
+                return None
+            cache[key] = (inv.reshape(-1), [
+                _trig(u, o, freqs[chunk]) for chunk in
+                np.array_split(np.arange(freqs.size), max(1, freqs.size // 128))])
+        return cache[key]
+
     def cyclic_scan(self, axis: str, table: Table, W: np.ndarray, Qb: np.ndarray,
                     rb: np.ndarray) -> tuple[float, float]:
         """Best period (mm) and its RSS decrease on the whitened, projected residual rb."""
@@ -433,12 +451,20 @@ class Engine:
         best = (float("nan"), -1.0)
         # For each frequency f: columns S = g (sin, cos)(2 pi f (p - o)); with Q the basis
         # already fitted, the RSS decrease is b' A^-1 b, A = S'S - (Q'S)'(Q'S), b = S' rb
-        # (rb is orthogonal to Q). Products over samples are BLAS matrix products.
-        for chunk in np.array_split(np.arange(freqs.size), max(1, freqs.size // 128)):
+        # (rb is orthogonal to Q). Products over samples are BLAS matrix products. The
+        # sines and cosines depend on the axis only (not on the weights, the basis or the
+        # residual): computed once per axis and kept (up to _TRIG_CACHE_MAX values).
+        trig = self._cyc_trig_cache(axis, o, p, freqs)
+        for ci, chunk in enumerate(np.array_split(np.arange(freqs.size),
+                                                  max(1, freqs.size // 128))):
             f = freqs[chunk]
-            phi = 2 * np.pi * np.outer(p - o, f)  # (N, F)
-            Ss = g[:, None] * np.sin(phi)
-            Sc = g[:, None] * np.cos(phi)
+            if trig is not None:    # the same values as _trig(p, o, f), bit for bit
+                inv, parts = trig
+                sin_phi, cos_phi = parts[ci][0][inv], parts[ci][1][inv]
+            else:
+                sin_phi, cos_phi = _trig(p, o, f)
+            Ss = g[:, None] * sin_phi
+            Sc = g[:, None] * cos_phi
             a_ss = np.einsum("nf,nf->f", Ss, Ss)
             a_cc = np.einsum("nf,nf->f", Sc, Sc)
             a_sc = np.einsum("nf,nf->f", Ss, Sc)
@@ -483,6 +509,16 @@ class Engine:
             if gbest > best[1]:
                 best = (1.0 / fb, gbest)
         return best
+
+
+#: most sine and cosine values (each) Engine._cyc_trig_cache keeps per axis (8 bytes each)
+_TRIG_CACHE_MAX = 4_000_000
+
+
+def _trig(p: np.ndarray, o: float, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """sin and cos of 2 pi f (p - o): (N, F) each (p (N,) mm, f (F,) 1/mm)."""
+    phi = 2 * np.pi * np.outer(p - o, f)
+    return np.sin(phi), np.cos(phi)
 
 
 @dataclass

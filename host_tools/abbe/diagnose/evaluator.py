@@ -4,6 +4,8 @@
 from __future__ import annotations
 
 from collections import OrderedDict
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
@@ -36,9 +38,24 @@ class Evaluator:
         self._cache: OrderedDict[bytes, Any] = OrderedDict()
         self._size = cache
         self.calls = 0
+        self._pin: tuple[Table, Any] | None = None
+
+    @contextmanager
+    def pinned(self, table: Table) -> Iterator[None]:
+        """Within the block ``table`` is read only: its loaded model is found once, not by
+        encoding the table again at every evaluation (a prediction of every check
+        evaluates the same table many times; encoding it was most of a diagnosis' time)."""
+        prev = self._pin
+        self._pin = (table, self.model(table))
+        try:
+            yield
+        finally:
+            self._pin = prev
 
     def model(self, table: Table) -> Any:
         """The loaded model of ``table`` (CModel or quantized Table)."""
+        if self._pin is not None and table is self._pin[0]:
+            return self._pin[1]
         blob = write_blob(table)
         m = self._cache.get(blob)
         if m is not None:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+from collections import OrderedDict
 
 import numpy as np
 
@@ -23,8 +24,32 @@ from abbe.model.table import Table
 NOISE_FLOOR = 0.01
 
 
+#: qr_basis results by the bytes of their input (the same nuisance, fold and selected
+#: set recur for every candidate of a selection step): (shape, tol, digest) -> basis
+_QR_CACHE: OrderedDict[tuple[tuple[int, ...], float, bytes], np.ndarray] = OrderedDict()
+_QR_CACHE_SIZE = 16
+
+
 def qr_basis(A: np.ndarray, tol: float = 1e-10) -> np.ndarray:
-    """Orthonormal basis of the column space of A (columns scaled first)."""
+    """Orthonormal basis of the column space of A (columns scaled first).
+
+    The result is cached by A's bytes (an SVD of thousands of rows costs far more than a
+    digest of them) and returned read-only: the same input gives the same array."""
+    A = np.ascontiguousarray(A, dtype=np.float64)
+    key = (A.shape, float(tol), hashlib.sha1(A.data, usedforsecurity=False).digest())
+    Q = _QR_CACHE.get(key)
+    if Q is not None:
+        _QR_CACHE.move_to_end(key)
+        return Q
+    Q = _qr_basis(A, tol)
+    Q.flags.writeable = False
+    _QR_CACHE[key] = Q
+    if len(_QR_CACHE) > _QR_CACHE_SIZE:
+        _QR_CACHE.popitem(last=False)
+    return Q
+
+
+def _qr_basis(A: np.ndarray, tol: float) -> np.ndarray:
     if A.shape[1] == 0:
         return np.zeros((A.shape[0], 0))
     nrm = np.linalg.norm(A, axis=0)
@@ -113,7 +138,8 @@ class Problem:
         return np.concatenate(labs), "; ".join(uniq)
 
     def predict(self, ev: Evaluator, table: Table, pp: PredParams) -> np.ndarray:
-        return np.concatenate([c.predict(ev, table, pp) for c in self.checks])
+        with ev.pinned(table):
+            return np.concatenate([c.predict(ev, table, pp) for c in self.checks])
 
     def slice(self, i: int) -> slice:
         return slice(int(self.offsets[i]), int(self.offsets[i + 1]))

@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from abbe.diagnose.blas import one_blas_thread
 from abbe.diagnose.checks import Check
 from abbe.diagnose.results import DiagnoseOptions, DiagnoseResult
 from abbe.diagnose.selection import diagnose
@@ -50,6 +51,7 @@ def check_model_matches(table: Table, machine: Any, model_source: str = "model")
                 field=f"axes.{a}.travel_mm")
 
 
+@one_blas_thread
 def diagnose_machine(machine: Any, model: Any, ballbar: list[str] | None = None,
                      laser: list[str] | None = None, options: DiagnoseOptions | None = None,
                      rezeroed: bool = False, mc_draws: int = 0) -> DiagnoseResult:
@@ -88,6 +90,7 @@ def diagnose_machine(machine: Any, model: Any, ballbar: list[str] | None = None,
     return res
 
 
+@one_blas_thread
 def diagnose_positioning(path: Any, axis: str, model: Any = None,
                          options: DiagnoseOptions | None = None,
                          rezeroed: bool = False, mc_draws: int = 0) -> DiagnoseResult:

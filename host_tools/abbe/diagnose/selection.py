@@ -39,6 +39,7 @@ from typing import Any
 
 import numpy as np
 
+from abbe.diagnose.blas import one_blas_thread
 from abbe.diagnose.candidates import Cand, Engine, Selected, apply_selection, selection_residual
 from abbe.diagnose.caps import cap_violations
 from abbe.diagnose.checks import DEFAULT_TAKEUP_MM, Check, LaserCheck, check_travel
@@ -80,6 +81,7 @@ def _named_drift_tau(sel: list[Selected]) -> float | None:
 
 
 
+@one_blas_thread
 def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None = None,
              pred_params: PredParams | None = None, evaluator: Evaluator | None = None,
              _outliers: list[OutlierRun] | None = None) -> DiagnoseResult:
