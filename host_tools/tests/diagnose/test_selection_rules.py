@@ -66,7 +66,7 @@ def test_the_model_error_makes_a_small_share_of_a_large_signature_undecided() ->
     """The second generator's thermal drift + scale of X on circles (the case behind
     test_issue36_a_scale_of_x_is_never_called_y_alone): scale_x reproduces R^2 0.9997 of
     the named scale_y, log LR 5.3 against the noise alone -- decided, the wrong axis. With
-    the model's relative error of the signature (2 %) in the misfit's variance it is
+    the model's relative error of the signature (5 %) in the misfit's variance it is
     undecided by the one rule (log LR < log 19), and no R^2 floor is needed."""
     r2, lr_noise = 0.9997, 5.3
     norm = 2.0 * lr_noise / (1.0 - r2)          # |s_A|^2 in noise units
@@ -78,7 +78,7 @@ def test_the_model_error_makes_a_small_share_of_a_large_signature_undecided() ->
     big = 1.0e5
     assert misfit_log_lr(0.07 * big, big, 1.0, OPTS.model_rel_sigma) > OPTS.evidence_log_min
     # near the noise the model's error is negligible: the noise rule of the sixth round
-    assert math.isclose(misfit_log_lr(4.0, 16.0, 1.0, OPTS.model_rel_sigma), 2.0, rel_tol=0.01)
+    assert math.isclose(misfit_log_lr(4.0, 16.0, 1.0, OPTS.model_rel_sigma), 2.0, rel_tol=0.05)
 
 
 def test_undecided_has_one_rule_no_share_floor() -> None:
