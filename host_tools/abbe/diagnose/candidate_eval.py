@@ -26,6 +26,7 @@ from abbe.diagnose.problem import (
     qr_basis,
     )
 from abbe.diagnose.results import DiagnoseOptions
+from abbe.diagnose.undecided import heldout_in_time
 from abbe.model.table import Table
 
 
@@ -96,7 +97,8 @@ def _eval_candidate(eng: Engine, cand: Cand, sel: list[Selected], W: np.ndarray,
             "observable_rms_um": observable,
             "size_basis": "tool tip" if cand.spec.kind == "tool_offset" else "seen",
             "heldout": ho, "s2": s2, "evidence": ev, "log_evidence": ev["log_evidence"],
-            "redundancy": redundancy, "redundant_with": red_with}
+            "redundancy": redundancy, "redundant_with": red_with,
+            "heldout_in_time": heldout_in_time(prob, cand.cols)}
 def _cyclic_harmonics(eng: Engine, cand: Cand, period: float, table: Table, W: np.ndarray,
                       Qb: np.ndarray, rb: np.ndarray, rss_base: float,
                       N: int) -> tuple[np.ndarray, list[int]]:

@@ -14,6 +14,7 @@ from abbe.diagnose.checks import BallbarCheck
 from abbe.diagnose.effects import REVERSAL_MAX_DEGREE, EffectSpec, NotRepresentable, PredParams
 from abbe.diagnose.problem import gap_stats, lstsq_rss, project_out, qr_basis, remove_nuisance
 from abbe.diagnose.results import EffectResult, round_to
+from abbe.diagnose.undecided import misfit_log_lr
 from abbe.model.table import AXES, Table
 
 
@@ -72,8 +73,7 @@ def describe_effects(eng: Engine, sel: list[Selected], values: list[np.ndarray],
         me = model_error_ambiguity(eng, spec)
         if me is not None:
             amb.append(me)
-        undecided = _undecided(spec.key, value, unit, amb, eng.opts.evidence_log_min,
-                               eng.opts.undecided_r2)
+        undecided = _undecided(spec.key, value, unit, amb, eng.opts.evidence_log_min)
         scan = scan_ci = None
         if s.cand.scan_value is not None and spec.scan:
             name = spec.scan if spec.kind != "thermal" else f"tau_{eng.drift_unit or 'h'}"
@@ -301,7 +301,7 @@ def _headline(spec: EffectSpec, idx: list[int], v: np.ndarray, C: np.ndarray, tq
 
 
 def _undecided(key: str, value: float, unit: str, amb: list[dict[str, Any]],
-               log_min: float, r2_min: float = 0.98) -> dict[str, Any] | None:
+               log_min: float) -> dict[str, Any] | None:
     """Undecided is an answer (issue 36): an alternative B fitted to this effect A's
     signature (the ambiguity already computed) whose misfit, in the estimated noise, is
     too small for the data to prefer A: the log likelihood ratio of A over B,
@@ -309,12 +309,11 @@ def _undecided(key: str, value: float, unit: str, amb: list[dict[str, Any]],
     units) / 2, is below ``log_min`` = log((1 - alpha) / alpha), the same level an effect
     needs to be named (docs/effects.md §3, "Undecided is an answer"). The result states
     both with their values and the test that separates them; what the checks constrain
-    is what every alternative reproduces (the fitted signature). The likelihood ratio
-    trusts the model to the noise: an alternative reproducing ``r2_min`` of the signature
-    is undecided too, since a misfit that small (relative to a large signature, many noise
-    units) is within what the model reproduces of a real machine (DiagnoseOptions.undecided_r2)."""
-    alts = [a for a in amb if (a.get("log_lr") is not None and a["log_lr"] < log_min)
-            or (a.get("r2") is not None and a["r2"] >= r2_min)]
+    is what every alternative reproduces (the fitted signature). The misfit is compared
+    with the noise and the model's own relative error of the signature
+    (undecided.misfit_log_lr), so a large signature reproduced to a small share is
+    undecided by the same rule, with no second threshold."""
+    alts = [a for a in amb if a.get("log_lr") is not None and a["log_lr"] < log_min]
     if not alts:
         return None
     entries = [{"key": key, "value": round(float(value), 6), "unit": unit}]
@@ -399,8 +398,8 @@ def _ambiguity(eng: Engine, sel: list[Selected], i: int, v: np.ndarray, W: np.nd
                pool: list[Cand], table: Table, pp: PredParams,
                s2: float = 1.0) -> list[dict[str, Any]]:
     """Other candidates that reproduce >= ambiguity_r2 of this effect's fitted signature,
-    or whose misfit to it is within the noise (``log_lr`` = the whitened RSS of the part
-    they cannot reproduce / (2 s2) below the evidence level: then undecided)."""
+    or whose misfit to it is within the noise and the model's error (``log_lr``,
+    undecided.misfit_log_lr, below the evidence level: then undecided)."""
     prob = eng.prob
     s = sel[i]
     others = [o for j, o in enumerate(sel) if j != i]
@@ -428,7 +427,7 @@ def _ambiguity(eng: Engine, sel: list[Selected], i: int, v: np.ndarray, W: np.nd
             list(c.spec.params)[:cols.shape[1]]
         if any(abs(x) > p.limit for x, p in zip(coef, ps)):
             continue  # only with an implausible value
-        log_lr = max(nrm - d, 0.0) / (2.0 * max(s2, 1e-300))
+        log_lr = misfit_log_lr(nrm - d, nrm, s2, eng.opts.model_rel_sigma)
         if r2 >= eng.opts.ambiguity_r2 or (r2 > 0 and log_lr < eng.opts.evidence_log_min):
             out.append({"key": c.spec.key, "id": c.spec.family, "r2": round(r2, 4),
                         "log_lr": round(log_lr, 3),

@@ -31,11 +31,11 @@ class DiagnoseOptions:
     ambiguity_r2: a candidate reproducing this fraction of a named effect's signature
     makes it ambiguous (two explanations are *undecided*, "A or B", when what one cannot
     reproduce of the other is within the noise: log likelihood ratio below
-    ``evidence_log_min``, docs/effects.md §3); undecided_r2: or when one reproduces this
-    share of the other's signature whatever the noise: a misfit of less than 2 % of the
-    signature's power is below what the model itself reproduces of a machine built
-    another way (the independent generator's thermal drift + scale of X seen on circles:
-    scale_y named, scale_x reproducing 0.9997 of it, log LR 5.3 from the model's error);
+    ``evidence_log_min``, docs/effects.md §3), the misfit's variance being the noise plus
+    (``model_rel_sigma`` x the signature)^2: the model predicts an effect's signature to
+    a relative accuracy of 5 % RMS (undecided.misfit_log_lr; the independent generator's
+    thermal drift + scale of X seen on circles: scale_y named, scale_x reproducing 0.9997
+    of it, log LR 5.3 against the noise alone, 0.06 with the model's error);
     min_effect_um: an effect whose fitted contribution has a smaller RMS (um, on its
     channel) is not named (relevance, not statistics); candidates: keys or families to
     consider (None = all); max_effects: safety stop; model_temp_c: temperature (deg C)
@@ -67,7 +67,7 @@ class DiagnoseOptions:
     declared_blunder_prob: float = 0.01
     model_angle_sigma_urad: float = 0.5
     prior_log_odds: float = 0.0
-    undecided_r2: float = 0.98
+    model_rel_sigma: float = 0.05
 
     @property
     def evidence_log_min(self) -> float:

@@ -44,6 +44,7 @@ from abbe.diagnose.candidates import Cand, Engine, Selected, apply_selection, se
 from abbe.diagnose.caps import cap_violations
 from abbe.diagnose.checks import DEFAULT_TAKEUP_MM, Check, LaserCheck, check_travel
 from abbe.diagnose.describe import describe_effects
+from abbe.diagnose.entangled import first_of_entangled
 from abbe.diagnose.heldout import heldout_gap, heldout_removal
 from abbe.diagnose.undecided import share_undecided
 from abbe.diagnose.effects import PredParams, catalogue, copy_table, fold_reversal
@@ -205,7 +206,11 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
         good = [(c, st) for c, st in results if st["qualifies"]]
         if not good:
             break
-        c, st = min(good, key=lambda cs: cs[1]["dbic"])
+        # the BIC decrease orders the additions; of two entangled explanations the one
+        # with the larger evidence ratio goes first (entangled.first_of_entangled)
+        (c, st), why_first = first_of_entangled(good, W, Qb, opts.ambiguity_r2)
+        if why_first:
+            notes.append("ORDER: " + why_first)
         selected.append(Selected(c, st))
         tested[c.spec.key]["selected"] = True
         # re-estimate the noise with the effect in the model
@@ -417,6 +422,7 @@ def _summ(st: dict[str, Any], c: Cand, opts: DiagnoseOptions) -> dict[str, Any]:
         d["observable_rms_um"] = round(float(st["observable_rms_um"]), 4)
         if c.scan_value is not None:
             d["scan"] = {c.spec.scan or "scan": round(float(c.scan_value), 4)}
+        d["heldout_in_time"] = bool(st.get("heldout_in_time"))
         if st.get("redundant_with"):
             d["redundancy"] = round(float(st["redundancy"]), 4)
             d["redundant_with"] = st["redundant_with"]
@@ -428,7 +434,10 @@ def _companions(eng: Engine, effects: list[Any], tested: dict[str, dict[str, Any
     than it leaves (redundancy >= 0.5), and whose evidence ratio the prior decides: strong
     against for any plausible size (the selection's prior), not strong against for an
     effect of typical size (log K_typical > -log 19). The data then cannot say whether B
-    is present beside A; the named effect's entry becomes undecided with both."""
+    is present beside A; the named effect's entry becomes undecided with both. A drift
+    qualifies only when its held-out gain comes from a split in time (a check with
+    repeated runs, ``heldout_in_time``): a split by angle sectors has not checked that it
+    changes in time."""
     from abbe.diagnose.describe import _unit, companion_undecided
     lo = eng.opts.evidence_log_min
     by_key = {e.key: e for e in effects}
@@ -446,6 +455,8 @@ def _companions(eng: Engine, effects: list[Any], tested: dict[str, dict[str, Any
         spec = by_key_spec[k]
         if spec.kind == "tool_offset":
             continue   # a declared quantity is judged by its own prior only (never "maybe")
+        if spec.kind == "thermal" and not v.get("heldout_in_time"):
+            continue   # a drift's held-out gain must come from a split in time (early / late runs)
         if {spec.kind, by_key_spec[a.key].kind} == {"thermal", "scale"} and spec.axis == a.axis:
             test = (f"the laser line of {spec.axis} again in the reverse time order of its runs "
                     "and targets, or after a dwell of about the warm-up time (a scale error "

@@ -27,6 +27,38 @@ from abbe.diagnose.results import EffectResult, round_to
 from abbe.model.table import Table
 
 
+def misfit_log_lr(misfit: float, norm: float, s2: float, model_rel_sigma: float) -> float:
+    """The log likelihood ratio of a named effect A over an alternative B fitted to A's
+    signature (docs/effects.md section 3, "Undecided is an answer"): half the part of A's
+    whitened fitted signature B cannot reproduce (``misfit``, RSS in noise units) over its
+    variance along that one direction, the noise ``s2`` plus the model's own error of the
+    signature, (``model_rel_sigma`` x |s_A|)^2 with ``norm`` = |s_A|^2 (whitened): the
+    model predicts a signature's shape to a relative accuracy, not exactly, so a misfit
+    of a small share of a large signature is not many noise units of evidence. The same
+    form as a tool offset's model-angle term (evidence.log_evidence: sigma_w^2 +
+    sigma_m^2). Tends to (1 - R^2) / (2 model_rel_sigma^2) for a large signature and to
+    misfit / (2 s2) for a small one."""
+    var = max(s2, 1e-300) + model_rel_sigma ** 2 * max(norm, 0.0)
+    return max(misfit, 0.0) / (2.0 * var)
+
+
+def heldout_in_time(prob: Any, cols: np.ndarray) -> bool:
+    """True when a candidate acts on a check whose held-out split is in time (a repeated-run
+    laser or positioning line: fit on the early runs, judge the late ones): a drift is a
+    change in time, and only such a split has checked its extrapolation in time. A drift
+    seen only within circle traces (split by angle sectors) has not (docs/effects.md §3,
+    the size rule and "A alone, or A + B")."""
+    if cols.size == 0:
+        return False
+    scale = max(float(np.max(np.abs(cols))), 1e-300)
+    acts = np.any(np.abs(cols) > 1e-12 * scale, axis=1)
+    for i, c in enumerate(prob.checks):
+        keys = list(c.folds)
+        if keys and keys[0].startswith("runs") and np.any(acts[prob.slice(i)]):
+            return True
+    return False
+
+
 def _in_table(eng: Engine, c: Cand) -> bool:
     spec = c.spec
     return bool(spec.compensable) and not (spec.kind == "thermal" and not eng.drift_on_table)

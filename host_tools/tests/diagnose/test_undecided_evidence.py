@@ -60,7 +60,7 @@ class _Eng:
 def _tested(**kw: float) -> dict:
     base = {"selected": False, "log_evidence": -8.7, "log_evidence_typical": 1.0,
             "heldout_gain": 41.3, "heldout_need": 6.0, "redundancy": 0.75,
-            "redundant_with": "scale_z", "value": 0.2, "unit": "um"}
+            "redundant_with": "scale_z", "value": 0.2, "unit": "um", "heldout_in_time": True}
     base.update(kw)
     return base
 
