@@ -330,22 +330,27 @@ fi
 # by Z3 through Why3 (Debian 12: why3 1.5.1, z3 4.8.12; Alt-Ergo is not
 # packaged). Why3's prover list is written into $OUT, not the home directory.
 WP_CONTRACTS="accepted_total,inside"
+wp_run() { # NAME WHAT LOG FRAMA-C-ARGS...: one WP pass, all its goals proven or a failure naming them
+    local name="$1" what="$2" log="$3" t0=$SECONDS proved
+    shift 3
+    frama-c "$@" >"$log" 2>&1
+    proved=$(sed -n 's/.*Proved goals: *\([0-9]*\) \/ \([0-9]*\).*/\1 \2/p' "$log" | tail -1)
+    if [[ -z "$proved" || "${proved% *}" != "${proved#* }" || "${proved% *}" == 0 ]]; then
+        local shown="${proved/ / of }"
+        echo "[prove] FAIL $name: ${shown:-no} goals proven ($what): see $log"
+        grep -A1 'Goal.*\(Failed\|Unknown\|Timeout\)\|\[\(Failed\|Unknown\|Timeout\)\] Goal' "$log" | sed 's/^/[prove]   /'
+        return 1
+    fi
+    echo "[prove] ok   $name: ${proved% *} of ${proved#* } goals proven ($what; $((SECONDS - t0)) s)"
+}
+
 prove_wp() {
-    local t0=$SECONDS log="$OUT/wp.log"
     command -v why3 >/dev/null && command -v z3 >/dev/null ||
         { echo "[prove] FAIL wp: why3 or z3 missing (scripts/setup.sh installs them)"; return 1; }
     export WHY3CONFIG="$OUT/why3.conf"
     [[ -s "$WHY3CONFIG" ]] || why3 config detect >/dev/null 2>&1
-    frama-c -cpp-extra-args="$CPP" lib/src/model_load.c -wp -wp-fct check_header,array_ok \
-        -wp-prop "$WP_CONTRACTS" -wp-prover z3 -wp-timeout 30 >"$log" 2>&1
-    local proved
-    proved=$(sed -n 's/.*Proved goals: *\([0-9]*\) \/ \([0-9]*\).*/\1 \2/p' "$log" | tail -1)
-    if [[ -z "$proved" || "${proved% *}" != "${proved#* }" || "${proved% *}" == 0 ]]; then
-        echo "[prove] FAIL wp: ${proved:-no} goals proven (of the contracts $WP_CONTRACTS): see $log"
-        grep 'Goal.*\(Failed\|Unknown\|Timeout\)' "$log" | sed 's/^/[prove]   /'
-        return 1
-    fi
-    echo "[prove] ok   wp: ${proved% *} of ${proved#* } goals proven ($WP_CONTRACTS; $((SECONDS - t0)) s)"
+    wp_run wp "$WP_CONTRACTS" "$OUT/wp.log" -cpp-extra-args="$CPP" lib/src/model_load.c -wp \
+        -wp-fct check_header,array_ok -wp-prop "$WP_CONTRACTS" -wp-prover z3 -wp-timeout 30 || return 1
     # the 3-axis loader's count contracts (lib/src/model_load_acsl.h, seen only
     # with ABBE_PROOF_WP: no compiler, no Eva harness reads them): check_counts
     # accepts only records within table_counts_ok, with popcount6,
@@ -353,48 +358,22 @@ prove_wp() {
     # of these functions. wp:range / wp:split: WP's case split on the axis
     # index (Z3 alone does not relate the record at 64 + 64 j to j); Z3 needs
     # about 2 s on the hardest goal, more under load, hence the 200 s bound
-    t0=$SECONDS
-    log="$OUT/wp_loader.log"
-    frama-c -cpp-extra-args="$CPP -DABBE_PROOF_WP" lib/src/model_load.c -wp \
+    wp_run "wp loader" "check_counts' counts_ok and its helpers" "$OUT/wp_loader.log" \
+        -cpp-extra-args="$CPP -DABBE_PROOF_WP" lib/src/model_load.c -wp \
         -wp-fct popcount6,trend_rows_of,n_basis_of,bit_length,check_counts \
-        -wp-prover z3 -wp-timeout 200 -wp-auto wp:range,wp:split >"$log" 2>&1
-    proved=$(sed -n 's/.*Proved goals: *\([0-9]*\) \/ \([0-9]*\).*/\1 \2/p' "$log" | tail -1)
-    if [[ -z "$proved" || "${proved% *}" != "${proved#* }" || "${proved% *}" == 0 ]]; then
-        echo "[prove] FAIL wp loader: ${proved:-no} goals proven: see $log"
-        grep -A1 'Goal.*\(Failed\|Unknown\|Timeout\)\|\[\(Failed\|Unknown\|Timeout\)\] Goal' "$log" | sed 's/^/[prove]   /'
-        return 1
-    fi
-    echo "[prove] ok   wp loader: ${proved% *} of ${proved#* } goals proven (check_counts' counts_ok and its helpers; $((SECONDS - t0)) s)"
+        -wp-prover z3 -wp-timeout 200 -wp-auto wp:range,wp:split || return 1
     # the _q term kernels' and the five-axis rotary motions' (motions_q) accumulation
     # under the loader's L1 caps and the basis rows' bound (tests/proofs/terms_q_l1.c;
     # the shifts: Eva, above)
     # (the model's functions only: the file includes the loader's caps, model_load_layout.h)
     local L1_FCTS="row_product,term_acc,term_lin_q,term_ang_q,rot_trans_q,rot_ang_q,lin_high_word,ang_shifted,rot_trans_shifted,rot_ang_shifted"
-    t0=$SECONDS
-    log="$OUT/wp_terms_q_l1.log"
-    frama-c -cpp-extra-args="$CPP" tests/proofs/terms_q_l1.c -wp -wp-fct "$L1_FCTS" -wp-rte -wp-prop="-lin_shift,-ang_shift,-rot_trans_shift,-rot_ang_shift" -wp-prover z3 \
-        -wp-timeout 30 >"$log" 2>&1
-    proved=$(sed -n 's/.*Proved goals: *\([0-9]*\) \/ \([0-9]*\).*/\1 \2/p' "$log" | tail -1)
-    if [[ -z "$proved" || "${proved% *}" != "${proved#* }" || "${proved% *}" == 0 ]]; then
-        local shown="${proved/ / of }"
-        echo "[prove] FAIL wp terms_q_l1: ${shown:-no} goals proven: see $log"
-        grep -A1 'Goal.*\(Failed\|Unknown\|Timeout\)' "$log" | sed 's/^/[prove]   /'
-        return 1
-    fi
-    echo "[prove] ok   wp terms_q_l1: ${proved% *} of ${proved#* } goals proven (the L1 accumulation; $((SECONDS - t0)) s)"
+    wp_run "wp terms_q_l1" "the L1 accumulation" "$OUT/wp_terms_q_l1.log" \
+        -cpp-extra-args="$CPP" tests/proofs/terms_q_l1.c -wp -wp-fct "$L1_FCTS" -wp-rte \
+        -wp-prop="-lin_shift,-ang_shift,-rot_trans_shift,-rot_ang_shift" -wp-prover z3 -wp-timeout 30 || return 1
     # the trunnion table axis' angle sum turned by the tilt (tests/proofs/turn_q.c:
     # five_eval_q.c's assertion 'turned_w'; the shift: Eva, turn_q_shift)
-    t0=$SECONDS
-    log="$OUT/wp_turn_q.log"
-    frama-c tests/proofs/turn_q.c -wp -wp-rte -wp-prop=-turned_shift -wp-prover z3 -wp-timeout 30 >"$log" 2>&1
-    proved=$(sed -n 's/.*Proved goals: *\([0-9]*\) \/ \([0-9]*\).*/\1 \2/p' "$log" | tail -1)
-    if [[ -z "$proved" || "${proved% *}" != "${proved#* }" || "${proved% *}" == 0 ]]; then
-        local shown_turn="${proved/ / of }"
-        echo "[prove] FAIL wp turn_q: ${shown_turn:-no} goals proven: see $log"
-        grep -A1 'Goal.*\(Failed\|Unknown\|Timeout\)' "$log" | sed 's/^/[prove]   /'
-        return 1
-    fi
-    echo "[prove] ok   wp turn_q: ${proved% *} of ${proved#* } goals proven (the turned angle sum; $((SECONDS - t0)) s)"
+    wp_run "wp turn_q" "the turned angle sum" "$OUT/wp_turn_q.log" \
+        tests/proofs/turn_q.c -wp -wp-rte -wp-prop=-turned_shift -wp-prover z3 -wp-timeout 30
 }
 
 pids=()
