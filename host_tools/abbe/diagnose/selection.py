@@ -186,7 +186,10 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
                 # nonlinear grid value / parameter subset: the alternative with the best BIC
                 # (a drift's time constant on the checks that span it: Engine.tau_rows)
                 best_c, best_b = None, math.inf
-                rows = eng.tau_rows() if c.spec.kind == "thermal" else None
+                rows = eng.tau_rows() if c.spec.kind == "thermal" and not eng.drift_on_table \
+                    else None
+                if rows is not None and not rows.any():
+                    rows = None
                 for a in alts:
                     Z = project_out(Qc, a.cols * W[:, None])
                     ra = rbc if a.offset is None else \
