@@ -35,6 +35,8 @@ from abbe.model.table import AXES, OWN_TERM, Table
 
 #: Finite-difference step, as a fraction of the parameter's typical magnitude.
 FD_FRACTION = 1.0
+#: Warm-up time constants searched, as multiples of the longest check's drift span.
+TAU_GRID_FACTORS = (0.5, 1.0, 2.0, 4.0)
 
 
 @dataclass
@@ -324,7 +326,26 @@ class Engine:
         span = max(float(np.max(c.drift)) for c in self.prob.checks if c.drift is not None)
         if not span > 0:
             return [math.inf]
-        return [math.inf] + [f * span for f in (0.5, 1.0, 2.0, 4.0)]
+        return [math.inf] + [f * span for f in TAU_GRID_FACTORS]
+
+    def tau_rows(self) -> np.ndarray:
+        """Rows (N,) bool of the checks that can tell the warm-up's shape: those whose
+        drift variable spans at least the shortest time constant searched
+        (:meth:`_tau_grid`). A shorter check (a ballbar trace of minutes beside a laser
+        campaign) sees every warm-up on the grid as a straight line; its only say in the
+        choice of tau would come through the warm-up's origin, which is each check's own
+        start (the files share no clock, so a later check is not further along the
+        warm-up), and through what its ccw / cw pair carries in time besides the drift
+        (a direction-dependent centre). Such checks bias the time constant short and the
+        drift rate (the slope at the origin) up; tau is chosen on the others."""
+        spans = [float(np.max(c.drift)) if c.drift is not None and c.drift.size else 0.0
+                 for c in self.prob.checks]
+        shortest = TAU_GRID_FACTORS[0] * max(spans, default=0.0)
+        rows = np.zeros(self.prob.N, dtype=bool)
+        for i, sp in enumerate(spans):
+            if sp > 0.0 and sp >= shortest:
+                rows[self.prob.slice(i)] = True
+        return rows
 
     def _takeup_grid(self, axis: str, table: Table) -> list[float | None]:
         """Take-up values to search: only if a check has continuous motion (ballbar)."""

@@ -184,14 +184,24 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
                     continue
             if alts:
                 # nonlinear grid value / parameter subset: the alternative with the best BIC
+                # (a drift's time constant on the checks that span it: Engine.tau_rows)
                 best_c, best_b = None, math.inf
+                rows = eng.tau_rows() if c.spec.kind == "thermal" and not eng.drift_on_table \
+                    else None
+                if rows is not None and not rows.any():
+                    rows = None
                 for a in alts:
                     Z = project_out(Qc, a.cols * W[:, None])
                     ra = rbc if a.offset is None else \
                         project_out(Qc, (rw - a.offset * W)[:, None])[:, 0]
-                    _, fit = lstsq_rss(Z, ra)
-                    d = rss_c - (float(ra @ ra) - fit)
-                    b = -d + Z.shape[1] * math.log(prob.N)
+                    if rows is None:
+                        _, fit = lstsq_rss(Z, ra)
+                        d = rss_c - (float(ra @ ra) - fit)
+                    else:
+                        _, fit = lstsq_rss(Z[rows], ra[rows])
+                        d = float(rbc[rows] @ rbc[rows]) - (float(ra[rows] @ ra[rows]) - fit)
+                    n_obs = prob.N if rows is None else int(rows.sum())
+                    b = -d + Z.shape[1] * math.log(n_obs)
                     if b < best_b:
                         best_c, best_b = a, b
                 if best_c is not None:

@@ -103,3 +103,22 @@ def test_issue36_a_scale_of_x_is_never_called_y_alone(tmp_path) -> None:
     named_y_alone = any(e.key == "scale_y" and not e.undecided for e in res.effects)
     assert not named_y_alone, [e.key for e in res.effects]
     assert "scale_x" in said, said          # named, or among the undecided explanations
+
+
+def test_issue36_drift_of_x_rate_not_inflated_by_the_ballbar(tmp_path) -> None:
+    """Issue 36, "the known drift-of-X miss": a drift linear in time (um/h) seen on a
+    laser line of X (20 min) and on ballbar traces of minutes. The traces cannot tell a
+    warm-up's shape (each starts its own clock; their ccw / cw pair carries a
+    direction-dependent centre the drift column picks up), so they must not choose the
+    time constant: before, they made a warm-up of tau = the laser's span win and the rate
+    reported (the slope at each check's start) was -8.94 for a true -5.71."""
+    from cases.independent2.suite import Case, build, run, score
+    b = build(Case("thermal_drift_x_0", "single", ("thermal_drift_x",), 1780183835), tmp_path)
+    res = run(b)
+    s = score(b, res)
+    assert s["exact"], s
+    d = {e["key"]: e for e in res.to_json()["effects"]}["thermal_drift_x"]
+    assert d.get("scan") in (None, {}) or d["scan"]["tau_h"] is None or \
+        d["scan"]["tau_h"] > 1.0, d.get("scan")   # linear (inf), not a warm-up within the check
+    assert all(v[3] for v in s["values"]), s["values"]
+    assert abs(d["value"] - b.truth["thermal_drift_x"]["value"]) < 0.1 * 5.706
