@@ -183,15 +183,25 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
                 if not alts:
                     continue
             if alts:
-                # nonlinear grid value / parameter subset: the alternative with the best BIC
-                best_c, best_b = None, math.inf
+                # nonlinear grid value / parameter subset: the alternative with the best BIC;
+                # a tool offset's components by the evidence ratio that judges it (its
+                # model-angle uncertainty depends on the change's direction, which the BIC
+                # does not see: evidence.py, issue 36 clean_3)
+                by_ev = c.spec.kind == "tool_offset"
+                best_c, best_b = None, (2, math.inf)
                 for a in alts:
                     Z = project_out(Qc, a.cols * W[:, None])
                     ra = rbc if a.offset is None else \
                         project_out(Qc, (rw - a.offset * W)[:, None])[:, 0]
-                    _, fit = lstsq_rss(Z, ra)
+                    coef_a, fit = lstsq_rss(Z, ra)
                     d = rss_c - (float(ra @ ra) - fit)
-                    b = -d + Z.shape[1] * math.log(prob.N)
+                    b = (1, -d + Z.shape[1] * math.log(prob.N))
+                    if by_ev:
+                        s2a = max(1.0, (rss_c - d) / max(prob.N - Qc.shape[1] - Z.shape[1], 1))
+                        ev_a = _evidence(eng, a, coef_a, Z, d / s2a, s2a,
+                                         contribution_rms(prob, a.cols @ coef_a))
+                        if np.isfinite(ev_a["log_evidence"]):
+                            b = (0, -float(ev_a["log_evidence"]))
                     if b < best_b:
                         best_c, best_b = a, b
                 if best_c is not None:
