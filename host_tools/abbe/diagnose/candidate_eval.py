@@ -13,7 +13,7 @@ import numpy as np
 from scipy import stats
 
 from abbe.diagnose.candidates import Cand, Engine, Selected
-from abbe.diagnose.checks import BallbarCheck
+from abbe.diagnose.checks import PLANE_AXES, BallbarCheck
 from abbe.diagnose.evidence import candidate_prior, log_evidence
 from abbe.diagnose.heldout import heldout_rss
 from abbe.diagnose.problem import (
@@ -219,18 +219,27 @@ def tool_lever_mm(eng: Engine, param_idx: list[int], coef: np.ndarray) -> float:
     A tool component t_i multiplies the same angular terms as the i-th component of the
     arm from the reference point (eq. 3, ``combine_eq3``: ``z`` and ``tz`` on the pitch
     and roll of X and Y, ``y`` and ``ty`` on their yaw, ...), so the model's angular error
-    gives the signature of a change of t_i with the lever L_i = RMS over the circles'
-    samples of (position_i - reference_i + declared t_i). Along a change of direction
+    gives the signature of a change of t_i with the lever L_i = RMS over the circles of
+    (position_i - reference_i + declared t_i): the centre's arm, and on an axis in the
+    circle's plane the radius as well (r² / 2 added to the mean square over the circle;
+    L_z of the XY circles is their height plus the tool, as before). Along a change of direction
     u = coef / |coef| the lever is sqrt(sum u_i² L_i²): a change that is mostly lateral
     is judged against the circles' lateral arms, not against their heights (issue 36,
     ``clean_3``: a lateral 84 mm change was judged against the vertical lever)."""
     t = np.asarray(eng.table.tool_offset_mm, dtype=float)
     ref = np.asarray(getattr(eng.table, "reference_mm", (0.0, 0.0, 0.0)), dtype=float)
-    pos = [c.sample_positions() for c in eng.prob.checks if isinstance(c, BallbarCheck)]
-    if not pos:
+    circles = [c for c in eng.prob.checks if isinstance(c, BallbarCheck)]
+    if not circles:
         return float(np.linalg.norm(t))
-    arm = np.vstack(pos) - ref + t
-    L = np.sqrt(np.mean(arm * arm, axis=0))
+    ms = np.zeros(3)
+    for c in circles:
+        arm = np.asarray(c.center_mm, dtype=float) - ref + t
+        ms += arm * arm
+        plane = getattr(c, "plane", None)
+        if plane in PLANE_AXES:
+            for j in PLANE_AXES[plane]:
+                ms[j] += float(getattr(c, "radius_mm", 0.0)) ** 2 / 2.0
+    L = np.sqrt(ms / len(circles))
     idx = list(param_idx) if len(param_idx) else [2]
     u = np.abs(np.asarray(coef, dtype=float).reshape(-1))
     if u.size != len(idx) or not float(u @ u) > 0:
