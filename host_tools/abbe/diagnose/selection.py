@@ -186,8 +186,11 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
                 # nonlinear grid value / parameter subset: the alternative with the best BIC;
                 # a tool offset's components by the evidence ratio that judges it (its
                 # model-angle uncertainty depends on the change's direction, which the BIC
-                # does not see: evidence.py, issue 36 clean_3)
+                # does not see: candidate_eval.tool_lever_mm, issue 36 clean_3): its optional
+                # (lateral) components are a further effect, kept only when they add strong
+                # evidence (log K over the fewer components >= the selection's level)
                 by_ev = c.spec.kind == "tool_offset"
+                k_min = min(len(a.param_idx) for a in alts)
                 best_c, best_b = None, (2, math.inf)
                 for a in alts:
                     Z = project_out(Qc, a.cols * W[:, None])
@@ -201,7 +204,9 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
                         ev_a = _evidence(eng, a, coef_a, Z, d / s2a, s2a,
                                          contribution_rms(prob, a.cols @ coef_a))
                         if np.isfinite(ev_a["log_evidence"]):
-                            b = (0, -float(ev_a["log_evidence"]))
+                            # fewer components unless more add log K >= log 19
+                            b = (0, -float(ev_a["log_evidence"])
+                                 + (eng.opts.evidence_log_min if len(a.param_idx) > k_min else 0.0))
                     if b < best_b:
                         best_c, best_b = a, b
                 if best_c is not None:
