@@ -13,7 +13,7 @@ import numpy as np
 from scipy import stats
 
 from abbe.diagnose.candidates import Cand, Engine, Selected
-from abbe.diagnose.checks import BallbarCheck
+from abbe.diagnose.checks import PLANE_AXES, BallbarCheck
 from abbe.diagnose.evidence import candidate_prior, log_evidence
 from abbe.diagnose.heldout import heldout_rss
 from abbe.diagnose.problem import (
@@ -183,7 +183,8 @@ def _evidence(eng: Engine, cand: Cand, coef: np.ndarray, Z: np.ndarray, drss: fl
     offset's prior range is on the resulting tool (declared + change)."""
     spec = cand.spec
     declared = np.asarray(eng.table.tool_offset_mm, dtype=float)
-    pr = candidate_prior(spec, cand.param_idx, declared, _tool_lever_mm(eng), eng.opts)
+    lever = tool_lever_mm(eng, cand.param_idx, coef) if spec.kind == "tool_offset" else 0.0
+    pr = candidate_prior(spec, cand.param_idx, declared, lever, eng.opts)
     rng = ", ".join(f"{spec.params[i].name} +/- {L:g}" for i, L in zip(cand.param_idx,
                                                                        pr["half_width"]))
     if spec.kind == "tool_offset":
@@ -211,12 +212,37 @@ def _evidence(eng: Engine, cand: Cand, coef: np.ndarray, Z: np.ndarray, drss: fl
 #: offset, backlash and thermal scalars, servo in the prediction model)
 
 
-def _tool_lever_mm(eng: Engine) -> float:
-    """Lever (mm) of the model's angular terms on the circles: the declared tool length
-    plus the circles' height from the reference point (RMS over the ballbar checks)."""
+def tool_lever_mm(eng: Engine, param_idx: list[int], coef: np.ndarray) -> float:
+    """Lever (mm) of the model's angular terms along a tool offset change ``coef`` (mm) of
+    the components ``param_idx`` (0, 1, 2 = t_x, t_y, t_z).
+
+    A tool component t_i multiplies the same angular terms as the i-th component of the
+    arm from the reference point (eq. 3, ``combine_eq3``: ``z`` and ``tz`` on the pitch
+    and roll of X and Y, ``y`` and ``ty`` on their yaw, ...), so the model's angular error
+    gives the signature of a change of t_i with the lever L_i = RMS over the circles of
+    (position_i - reference_i + declared t_i): the centre's arm, and on an axis in the
+    circle's plane the radius as well (r² / 2 added to the mean square over the circle;
+    L_z of the XY circles is their height plus the tool, as before). Along a change of direction
+    u = coef / |coef| the lever is sqrt(sum u_i² L_i²): a change that is mostly lateral
+    is judged against the circles' lateral arms, not against their heights (issue 36,
+    ``clean_3``: a lateral 84 mm change was judged against the vertical lever)."""
     t = np.asarray(eng.table.tool_offset_mm, dtype=float)
-    zr = float(getattr(eng.table, "reference_mm", (0.0, 0.0, 0.0))[2])
-    zs = [float(c.center_mm[2]) - zr for c in eng.prob.checks if isinstance(c, BallbarCheck)]
-    if not zs:
+    ref = np.asarray(getattr(eng.table, "reference_mm", (0.0, 0.0, 0.0)), dtype=float)
+    circles = [c for c in eng.prob.checks if isinstance(c, BallbarCheck)]
+    if not circles:
         return float(np.linalg.norm(t))
-    return float(math.sqrt(np.mean([(z + t[2]) ** 2 for z in zs])))
+    ms = np.zeros(3)
+    for c in circles:
+        arm = np.asarray(c.center_mm, dtype=float) - ref + t
+        ms += arm * arm
+        plane = getattr(c, "plane", None)
+        if plane in PLANE_AXES:
+            for j in PLANE_AXES[plane]:
+                ms[j] += float(getattr(c, "radius_mm", 0.0)) ** 2 / 2.0
+    L = np.sqrt(ms / len(circles))
+    idx = list(param_idx) if len(param_idx) else [2]
+    u = np.abs(np.asarray(coef, dtype=float).reshape(-1))
+    if u.size != len(idx) or not float(u @ u) > 0:
+        u = np.ones(len(idx))
+    w = u * u / float(u @ u)
+    return float(math.sqrt(float(np.sum(w * L[idx] ** 2))))

@@ -83,6 +83,35 @@ def _named_drift_tau(sel: list[Selected]) -> float | None:
 
 
 @one_blas_thread
+def _tool_components(eng: Engine, c: Cand, alts: list[Cand], W: np.ndarray, Qc: np.ndarray,
+                     rbc: np.ndarray, rss_c: float, rw: np.ndarray) -> None:
+    """Choose a tool offset's components (t_z alone, or with t_x, t_y) by the evidence ratio
+    that judges it, not by the BIC: its model-angle uncertainty depends on the change's
+    direction (candidate_eval.tool_lever_mm), which the BIC does not see (issue 36,
+    ``clean_3``). The optional (lateral) components are a further effect beside t_z, kept
+    only when they add strong evidence: log K over the fewer components >= the selection's
+    level (``evidence_log_min``, log 19). Updates ``c``'s columns and components in place."""
+    prob = eng.prob
+    k_min = min(len(a.param_idx) for a in alts)
+    best_c, best_b = None, (2, math.inf)
+    for a in alts:
+        Z = project_out(Qc, a.cols * W[:, None])
+        ra = rbc if a.offset is None else project_out(Qc, (rw - a.offset * W)[:, None])[:, 0]
+        coef, fit = lstsq_rss(Z, ra)
+        d = rss_c - (float(ra @ ra) - fit)
+        b = (1, -d + Z.shape[1] * math.log(prob.N))   # the BIC when there is no evidence
+        s2 = max(1.0, (rss_c - d) / max(prob.N - Qc.shape[1] - Z.shape[1], 1))
+        ev = _evidence(eng, a, coef, Z, d / s2, s2, contribution_rms(prob, a.cols @ coef))
+        if np.isfinite(ev["log_evidence"]):
+            b = (0, -float(ev["log_evidence"])
+                 + (eng.opts.evidence_log_min if len(a.param_idx) > k_min else 0.0))
+        if b < best_b:
+            best_c, best_b = a, b
+    if best_c is not None:
+        c.cols, c.param_idx, c.scan_value = best_c.cols, best_c.param_idx, best_c.scan_value
+        c.offset = best_c.offset
+
+
 def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None = None,
              pred_params: PredParams | None = None, evaluator: Evaluator | None = None,
              _outliers: list[OutlierRun] | None = None) -> DiagnoseResult:
@@ -175,6 +204,9 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
                 rss_c = float(rbc @ rbc)
                 free = static.cols
             alts = eng._alts.get(c.spec.key)
+            if alts and c.spec.kind == "tool_offset":
+                _tool_components(eng, c, alts, W, Qc, rbc, rss_c, rw)
+                alts = None
             tau = _named_drift_tau(selected) if c.spec.kind == "thermal" else None
             if alts and tau is not None:
                 # a further component of the one thermal drift: the same warm-up, the

@@ -87,6 +87,24 @@ def test_issue36_squareness_only_keeps_the_declared_tool(tmp_path) -> None:
     assert "squareness_xy" in keys, keys
 
 
+def test_issue36_clean3_a_lateral_change_is_judged_on_lateral_arms(tmp_path) -> None:
+    """Issue 36, second generator's ``clean_3`` (seed 631078656): a clean machine with a
+    right declared tool (151.3 mm) was named a tool offset of 88.8 mm whose change was
+    mostly lateral (t_x 27, t_y 84, t_z 12 mm), judged against the model-angle
+    uncertainty of the circles' *vertical* lever (0.061 um; log K 4.2). A change along
+    t_y multiplies the angular terms the circles' y arm multiplies: against that lever
+    (0.081 um) its log K is -2.0, and the declared tool stays."""
+    from abbe.diagnose.run import diagnose_machine
+    from cases.independent2.suite import Case, build, score
+    b = build(Case("clean_3", "clean", (), 1995020907), tmp_path)
+    assert b.declared_tool_mm > 0 and b.truth == {}
+    res = diagnose_machine(b.machine, b.model)
+    s = score(b, res)
+    assert not s["tool_changed_where_right"], s
+    tool = res.to_json()["candidates"]["tool_offset"]
+    assert tool["log_evidence"] < 2.94, tool
+
+
 def test_issue36_a_scale_of_x_is_never_called_y_alone(tmp_path) -> None:
     """Issue 36's second case: a thermal drift with a scale error of X, seen on circles (which
     see only kx - ky): the answer names scale_x or is undecided with scale_x among the
