@@ -15,6 +15,18 @@
 
 #include "internal.h"
 
+/*@ // the evaluation's outputs: finite, and within B = 10^30 um / urad
+    predicate out_finite(abbe_five_error_f32_t *o) =
+        \is_finite(o->error_um[0]) && \is_finite(o->error_um[1]) && \is_finite(o->error_um[2]) &&
+        \is_finite(o->orient_urad[0]) && \is_finite(o->orient_urad[1]) && \is_finite(o->orient_urad[2]);
+    predicate error_bounded(abbe_five_error_f32_t *o) =
+        -1.0e30 <= o->error_um[0] <= 1.0e30 && -1.0e30 <= o->error_um[1] <= 1.0e30 &&
+        -1.0e30 <= o->error_um[2] <= 1.0e30;
+    predicate orient_bounded(abbe_five_error_f32_t *o) =
+        -1.0e30 <= o->orient_urad[0] <= 1.0e30 && -1.0e30 <= o->orient_urad[1] <= 1.0e30 &&
+        -1.0e30 <= o->orient_urad[2] <= 1.0e30;
+ */
+
 /*@ requires out: \valid(out);
     requires at: \valid(at + (0 .. 4));
     requires inputs: \valid_read(pos_mm + (0 .. 2)) && \valid_read(angle_deg + (0 .. 1)) &&
@@ -30,13 +42,9 @@
     ensures init: \initialized(out->error_um + (0 .. 2)) && \initialized(out->orient_urad + (0 .. 2)) &&
                   \initialized(&out->flags);
     ensures at_init: \result == ABBE_OK ==> \initialized(at + (0 .. 4));
-    ensures finite: \is_finite(out->error_um[0]) && \is_finite(out->error_um[1]) && \is_finite(out->error_um[2]) &&
-                    \is_finite(out->orient_urad[0]) && \is_finite(out->orient_urad[1]) &&
-                    \is_finite(out->orient_urad[2]);
-    ensures error_um: -1.0e30 <= out->error_um[0] <= 1.0e30 && -1.0e30 <= out->error_um[1] <= 1.0e30 &&
-                      -1.0e30 <= out->error_um[2] <= 1.0e30;
-    ensures orient_urad: -1.0e30 <= out->orient_urad[0] <= 1.0e30 && -1.0e30 <= out->orient_urad[1] <= 1.0e30 &&
-                         -1.0e30 <= out->orient_urad[2] <= 1.0e30;
+    ensures finite: out_finite(out);
+    ensures error_um: error_bounded(out);
+    ensures orient_urad: orient_bounded(out);
  */
 abbe_status_t abbe_five_eval_f32_linear(const abbe_model_t *m, const float pos_mm[3], const float angle_deg[2],
                                         const float dir_state[3], const float temp_c[3], abbe_five_error_f32_t *out,
@@ -45,19 +53,13 @@ abbe_status_t abbe_five_eval_f32_linear(const abbe_model_t *m, const float pos_m
 /*@ requires out: \valid(out);
     requires at: \valid_read(p + (0 .. 2)) && \valid_read(udeg + (0 .. 1)) &&
                  \initialized(p + (0 .. 2)) && \initialized(udeg + (0 .. 1));
-    requires error_um: -1.0e30 <= out->error_um[0] <= 1.0e30 && -1.0e30 <= out->error_um[1] <= 1.0e30 &&
-                       -1.0e30 <= out->error_um[2] <= 1.0e30;
-    requires orient_urad: -1.0e30 <= out->orient_urad[0] <= 1.0e30 && -1.0e30 <= out->orient_urad[1] <= 1.0e30 &&
-                          -1.0e30 <= out->orient_urad[2] <= 1.0e30;
+    requires error_um: error_bounded(out);
+    requires orient_urad: orient_bounded(out);
     assigns out->error_um[0 .. 2], out->orient_urad[0 .. 2]
         \from p[0 .. 2], udeg[0 .. 1], out->error_um[0 .. 2], out->orient_urad[0 .. 2];
-    ensures finite: \is_finite(out->error_um[0]) && \is_finite(out->error_um[1]) && \is_finite(out->error_um[2]) &&
-                    \is_finite(out->orient_urad[0]) && \is_finite(out->orient_urad[1]) &&
-                    \is_finite(out->orient_urad[2]);
-    ensures error_um: -1.0e30 <= out->error_um[0] <= 1.0e30 && -1.0e30 <= out->error_um[1] <= 1.0e30 &&
-                      -1.0e30 <= out->error_um[2] <= 1.0e30;
-    ensures orient_urad: -1.0e30 <= out->orient_urad[0] <= 1.0e30 && -1.0e30 <= out->orient_urad[1] <= 1.0e30 &&
-                         -1.0e30 <= out->orient_urad[2] <= 1.0e30;
+    ensures finite: out_finite(out);
+    ensures error_um: error_bounded(out);
+    ensures orient_urad: orient_bounded(out);
  */
 void abbe_five_eval_f32_rotary(const abbe_five_model_t *m5, const int32_t p[3], const int32_t udeg[2],
                                abbe_five_error_f32_t *out);
