@@ -181,10 +181,17 @@ HARNESSES+=("eval_five_any_q|$FIVE_ANY_Q_SRCS|-DPROOF_Q|$FIVE_ANY_OPTS,abbe_comp
 # contract (five_eval_q.c motions_q: checked on the body above, for the box; WP-proven
 # for the loader's L1 caps, tests/proofs/terms_q_l1.c rot_trans_q / rot_ang_q)
 HARNESSES+=("eval_five_any_q_caps|$FIVE_ANY_Q_SRCS|-DPROOF_Q -DPROOF_ROT_CAPS|$FIVE_ANY_OPTS,abbe_comp_step5_q:20 -eva-use-spec abbe_axis_terms_q,motions_q $(downcast eval_five_any_q_caps)")
-HARNESSES+=("eval_five_any_f32|$FIVE_ANY_F32_SRCS|-DPROOF_NO_COMP|${FIVE_ANY_OPTS/config_ok:0/config_ok:0,abbe_five_eval_f32_linear:0,eval_f32_linear:full},abbe_five_eval_f32_linear:10,eval_f32_linear:10,abbe_five_error_eval_f32:10,fold6_body:100,fold6_rot_f32:100,fold_values_rot_f32:100,abbe_rotary_motions6_f32:100,motions_sparse_f32:100,abbe_axis_terms_sparse_f32:100 -eva-slevel-merge-after-loop fold6_body,fold6_rot_f32,fold_values_rot_f32,abbe_rotary_motions6_f32,motions_sparse_f32,abbe_axis_terms_sparse_f32")
+FIVE_ANY_F32_OPTS="${FIVE_ANY_OPTS/config_ok:0/config_ok:0,abbe_five_eval_f32_linear:0,eval_f32_linear:full},abbe_five_eval_f32_linear:10,eval_f32_linear:10,abbe_five_error_eval_f32:10,fold6_body:100,fold6_rot_f32:100,fold_values_rot_f32:100,abbe_rotary_motions6_f32:100,motions_sparse_f32:100,abbe_axis_terms_sparse_f32:100 -eva-slevel-merge-after-loop fold6_body,fold6_rot_f32,fold_values_rot_f32,abbe_rotary_motions6_f32,motions_sparse_f32,abbe_axis_terms_sparse_f32"
+HARNESSES+=("eval_five_any_f32|$FIVE_ANY_F32_SRCS|-DPROOF_NO_COMP|$FIVE_ANY_F32_OPTS")
+# the same on the loader's whole domain (-DPROOF_ROT_CAPS, as eval_five_any_q_caps: every
+# rotary coefficient, its float twin any float within 2^31; the tilts and zero offsets
+# within SQUARENESS_CAP), the kernels as they are
+HARNESSES+=("eval_five_any_f32_caps|$FIVE_ANY_F32_SRCS|-DPROOF_NO_COMP -DPROOF_ROT_CAPS|$FIVE_ANY_F32_OPTS")
 # the compensator's float five-axis cycle on a model of any layout, the cycles
-# only (the evaluation on its own: eval_five_any_f32)
-HARNESSES+=("comp_five_any_f32|$FIVE_ANY_F32_SRCS|-DPROOF_COMP_ONLY|$FIVE_ANY_OPTS,abbe_comp_step5_f32:20 -eva-use-spec abbe_five_eval_f32_linear,abbe_five_eval_f32_rotary")
+# only (the evaluation on its own: eval_five_any_f32, eval_five_any_f32_caps), on
+# the loader's whole domain (-DPROOF_ROT_CAPS: its evaluation's two parts run as
+# their contracts, which eval_five_any_f32_caps proves on that domain)
+HARNESSES+=("comp_five_any_f32|$FIVE_ANY_F32_SRCS|-DPROOF_COMP_ONLY -DPROOF_ROT_CAPS|$FIVE_ANY_OPTS,abbe_comp_step5_f32:20 -eva-use-spec abbe_five_eval_f32_linear,abbe_five_eval_f32_rotary")
 # the float evaluations given any bits, NaN and infinities included: the
 # harnesses with -warn-special-float none (a non-finite input is not an alarm
 # by itself; every other kind of alarm still counts); the finite harnesses

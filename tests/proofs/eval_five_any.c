@@ -38,9 +38,13 @@
  * Then every int32 (_q) / finite (_f32) joint position, angle and direction
  * state, every temperature (_f32: within +/-10^6 degC), and the compensator
  * with any configuration and any number of cycles of any input, with resets
- * (docs/proofs.md, "Five-axis: any layout"). With PROOF_ROT_CAPS (_q only:
- * eval_five_any_q_caps) the coefficients and location errors of the loader's
- * caps instead, motions_q as its contract (below, ROT_LO). */
+ * (docs/proofs.md, "Five-axis: any layout"). With PROOF_ROT_CAPS the
+ * coefficients and location errors of the loader's caps instead (below, ROT_LO):
+ * eval_five_any_q_caps with motions_q as its contract; eval_five_any_f32_caps
+ * with the float kernels as they are, every float twin (rotary and linear axes)
+ * any float within 2^31, the twin of any int32 (docs/proofs.md, "Five-axis: the
+ * loader's caps, single precision"); comp_five_any_f32 on the same models (its
+ * evaluation's parts as their contracts, which eval_five_any_f32_caps proves). */
 #if defined(PROOF_Q)
 #include "terms_q_contract.h"
 #else
@@ -66,10 +70,17 @@
  * angle sum bounded by a WP-proven assertion, tests/proofs/turn_q.c) */
 #define ROT_LO INT32_MIN
 #define ROT_HI INT32_MAX
+/* _f32: a float twin is its int32 converted (check_twins, rotary_record_bad's
+ * RC_MISMATCH), so within 2^31: any float in [-2^31, 2^31], a superset of every
+ * accepted twin and of the L1 caps; the linear axes' twins too */
+#define ROT_F_BOX 2147483648.0f
+#define LIN_F_BOX 2147483648.0f
 #define LOCATION_BOX (1 << 28)
 #else
 #define ROT_LO (-(1 << 24))
 #define ROT_HI (1 << 24)
+#define ROT_F_BOX 16777216.0f
+#define LIN_F_BOX 134217728.0f /* 2^27: the union of any_layout.h's boxes */
 #define LOCATION_BOX (1 << 26)
 #endif
 
@@ -100,7 +111,7 @@ static void any_linear(abbe_model_t *m)
         m->squareness_f[j] = (float)m->squareness_q36[j];
         /*@ loop unroll 0; */
         for (unsigned i = 0; i < ANY_COEF_WORDS; i++) {
-            coef_f[j][i] = Frama_C_float_interval(-134217728.0f, 134217728.0f);
+            coef_f[j][i] = Frama_C_float_interval(-LIN_F_BOX, LIN_F_BOX);
         }
         m->axis[j].coef_f32 = (const uint8_t *)coef_f[j];
 #endif
@@ -139,7 +150,7 @@ static void any_rotary(abbe_rotary_model_t *ax, unsigned r, unsigned dir)
     for (unsigned i = 0; i < ROT_COEF_WORDS; i++) {
         rot_coef[r][i] = Frama_C_int_interval(ROT_LO, ROT_HI);
 #if !defined(PROOF_Q)
-        rot_coef_f[r][i] = Frama_C_float_interval(-16777216.0f, 16777216.0f);
+        rot_coef_f[r][i] = Frama_C_float_interval(-ROT_F_BOX, ROT_F_BOX);
 #endif
     }
     /* always the record's buffer: where the loader leaves NULL (no components or no
