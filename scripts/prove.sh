@@ -197,6 +197,9 @@ HARNESSES+=("comp_five_any_f32|$FIVE_ANY_F32_SRCS|-DPROOF_COMP_ONLY -DPROOF_ROT_
 # by itself; every other kind of alarm still counts); the finite harnesses
 # above prove that finite inputs give nothing non-finite
 HARNESSES+=("eval_five_f32_nonfinite|$FIVE_F32_SRCS|$ANY -DPROOF_TABLES_H=tables_five_ac_full.h -DPROOF_NONFINITE|$FIVE_F32_OPTS -warn-special-float none")
+# the five-axis float evaluation on the loader's whole domain (eval_five_any_f32_caps'
+# models) given any bits as every position, angle, direction state and temperature
+HARNESSES+=("eval_five_any_f32_nonfinite|$FIVE_ANY_F32_SRCS|-DPROOF_NO_COMP -DPROOF_ROT_CAPS -DPROOF_NONFINITE|$FIVE_ANY_F32_OPTS -warn-special-float none")
 HARNESSES+=("eval_f32_nonfinite|$EVAL_F32_SRCS|$ANY -DPROOF_TABLES_H=tables_paper.h -DPROOF_NONFINITE|$EVAL_OPTS -warn-special-float none")
 
 # Hypotheses: ACSL assertions in lib/src that Eva cannot decide (a value

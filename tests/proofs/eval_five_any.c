@@ -44,10 +44,13 @@
  * with the float kernels as they are, every float twin (rotary and linear axes)
  * any float within 2^31, the twin of any int32 (docs/proofs.md, "Five-axis: the
  * loader's caps, single precision"); comp_five_any_f32 on the same models (its
- * evaluation's parts as their contracts, which eval_five_any_f32_caps proves). */
+ * evaluation's parts as their contracts, which eval_five_any_f32_caps proves).
+ * With PROOF_NONFINITE too (eval_five_any_f32_nonfinite) every position, angle,
+ * direction state and temperature any 32 bits, NaN and the infinities included
+ * (-warn-special-float none; the contracts, which require finite inputs, left out). */
 #if defined(PROOF_Q)
 #include "terms_q_contract.h"
-#else
+#elif !defined(PROOF_NONFINITE) /* (the contracts require finite inputs) */
 #include "five_eval_f32_contract.h" /* proven by eval_five_any_f32, used by comp_five_any_f32 */
 #endif
 #define PROOF_LAYOUT_COEF_UNION
@@ -223,7 +226,7 @@ int main(void)
     for (unsigned j = 0; j < 3u; j++) {
         in.pos_mm[j] = any_f32();
         in.dir_state[j] = any_f32();
-        in.temp_c[j] = Frama_C_float_interval(-1.0e6f, 1.0e6f);
+        in.temp_c[j] = any_temp();
     }
     in.angle_deg[0] = any_f32();
     in.angle_deg[1] = any_f32();
