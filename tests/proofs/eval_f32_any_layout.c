@@ -5,8 +5,11 @@
  * header fields as in eval_q_any_layout.c, their float twins as
  * build_assembly computes them), the kernels run as they are (a float sum
  * has no undefined overflow; what is proven is no runtime error and nothing
- * non-finite). Coefficients (float): any value in [-2^27, 2^27] in every word
- * (the union of the boxes of any_layout.h). Every finite position and
+ * non-finite). Coefficients (float): any value in [-2^31, 2^31] in every word
+ * (the loader accepts a float twin only as its int32 converted, check_twins:
+ * every accepted coefficient, the L1 caps' and the reversal rows' included;
+ * [-2^27, 2^27], the union of the boxes of any_layout.h, until the five-axis
+ * float caps proof, docs/proofs.md). Every finite position and
  * direction state, every temperature in [-10^6, 10^6] degC. The compensator's
  * float cycle is left to the golden-layout harnesses (eval_f32_<table>): with
  * it this harness cost 32 s of CPU instead of 2 (docs/proofs.md). */
@@ -42,7 +45,7 @@ static void any_model(abbe_model_t *m)
         any_axis(&m->axis[j], coef[j]);
         /*@ loop unroll 0; */
         for (unsigned i = 0; i < ANY_COEF_WORDS; i++) {
-            coef_f[j][i] = Frama_C_float_interval(-134217728.0f, 134217728.0f);
+            coef_f[j][i] = Frama_C_float_interval(-2147483648.0f, 2147483648.0f);
         }
         m->axis[j].coef_f32 = (const uint8_t *)coef_f[j];
     }
