@@ -51,7 +51,7 @@
 #if defined(PROOF_Q)
 #include "terms_q_contract.h"
 #elif !defined(PROOF_NONFINITE) /* (the contracts require finite inputs) */
-#include "five_eval_f32_contract.h" /* proven by eval_five_any_f32, used by comp_five_any_f32 */
+#include "five_eval_f32_contract.h" /* proven by eval_five_any_f32(_caps), used by comp_five_any_f32 */
 #endif
 #define PROOF_LAYOUT_COEF_UNION
 #include "any_layout.h"

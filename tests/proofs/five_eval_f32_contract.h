@@ -4,7 +4,9 @@
  * eval_five_any_f32 proves them: Eva checks each precondition at the call and
  * each postcondition at the return, the functions analysed as they are, on a
  * model of any layout (eval_five_any.c's builder) and every input of the
- * preconditions. comp_five_any_f32 runs the cycles on the same models with
+ * preconditions; eval_five_any_f32_caps the same on the loader's whole domain
+ * (every accepted coefficient and location error: -DPROOF_ROT_CAPS).
+ * comp_five_any_f32 runs the cycles on the caps' models with
  * both functions as these contracts (-eva-use-spec), checking the
  * preconditions at each call: the model domain is the same builder, the
  * inputs are the preconditions' (docs/proofs.md, "Five-axis: any layout").
