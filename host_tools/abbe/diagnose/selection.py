@@ -81,8 +81,23 @@ def _named_drift_tau(sel: list[Selected]) -> float | None:
     return None
 
 
+def _alt_fit(a: Cand, W: np.ndarray, Qc: np.ndarray, rbc: np.ndarray, rss_c: float,
+             rw: np.ndarray, rows: np.ndarray | None = None
+             ) -> tuple[np.ndarray, np.ndarray, float]:
+    """Fit of one alternative ``a`` (grid value / parameter subset) of a candidate on the
+    whitened residual ``rbc`` (base ``Qc`` projected out; ``rw`` before projection, for an
+    alternative whose grid value alone changes the prediction, ``a.offset``). Returns its
+    projected columns Z, its coefficients and the RSS decrease d (noise units), on
+    ``rows`` only when given (a drift's time constant on the checks that span it)."""
+    Z = project_out(Qc, a.cols * W[:, None])
+    ra = rbc if a.offset is None else project_out(Qc, (rw - a.offset * W)[:, None])[:, 0]
+    if rows is None:
+        coef, fit = lstsq_rss(Z, ra)
+        return Z, coef, rss_c - (float(ra @ ra) - fit)
+    coef, fit = lstsq_rss(Z[rows], ra[rows])
+    return Z, coef, float(rbc[rows] @ rbc[rows]) - (float(ra[rows] @ ra[rows]) - fit)
 
-@one_blas_thread
+
 def _tool_components(eng: Engine, c: Cand, alts: list[Cand], W: np.ndarray, Qc: np.ndarray,
                      rbc: np.ndarray, rss_c: float, rw: np.ndarray) -> None:
     """Choose a tool offset's components (t_z alone, or with t_x, t_y) by the evidence ratio
@@ -95,10 +110,7 @@ def _tool_components(eng: Engine, c: Cand, alts: list[Cand], W: np.ndarray, Qc: 
     k_min = min(len(a.param_idx) for a in alts)
     best_c, best_b = None, (2, math.inf)
     for a in alts:
-        Z = project_out(Qc, a.cols * W[:, None])
-        ra = rbc if a.offset is None else project_out(Qc, (rw - a.offset * W)[:, None])[:, 0]
-        coef, fit = lstsq_rss(Z, ra)
-        d = rss_c - (float(ra @ ra) - fit)
+        Z, coef, d = _alt_fit(a, W, Qc, rbc, rss_c, rw)
         b = (1, -d + Z.shape[1] * math.log(prob.N))   # the BIC when there is no evidence
         s2 = max(1.0, (rss_c - d) / max(prob.N - Qc.shape[1] - Z.shape[1], 1))
         ev = _evidence(eng, a, coef, Z, d / s2, s2, contribution_rms(prob, a.cols @ coef))
@@ -112,6 +124,7 @@ def _tool_components(eng: Engine, c: Cand, alts: list[Cand], W: np.ndarray, Qc: 
         c.offset = best_c.offset
 
 
+@one_blas_thread
 def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None = None,
              pred_params: PredParams | None = None, evaluator: Evaluator | None = None,
              _outliers: list[OutlierRun] | None = None) -> DiagnoseResult:
@@ -223,15 +236,7 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
                 if rows is not None and not rows.any():
                     rows = None
                 for a in alts:
-                    Z = project_out(Qc, a.cols * W[:, None])
-                    ra = rbc if a.offset is None else \
-                        project_out(Qc, (rw - a.offset * W)[:, None])[:, 0]
-                    if rows is None:
-                        _, fit = lstsq_rss(Z, ra)
-                        d = rss_c - (float(ra @ ra) - fit)
-                    else:
-                        _, fit = lstsq_rss(Z[rows], ra[rows])
-                        d = float(rbc[rows] @ rbc[rows]) - (float(ra[rows] @ ra[rows]) - fit)
+                    Z, _, d = _alt_fit(a, W, Qc, rbc, rss_c, rw, rows)
                     n_obs = prob.N if rows is None else int(rows.sum())
                     b = -d + Z.shape[1] * math.log(n_obs)
                     if b < best_b:
