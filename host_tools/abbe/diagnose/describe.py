@@ -32,6 +32,9 @@ def describe_effects(eng: Engine, sel: list[Selected], values: list[np.ndarray],
         n = len(v)
         C = cov[k0:k0 + n, k0:k0 + n]
         k0 += n
+        model_infl = None
+        if spec.kind == "tool_offset":
+            C, model_infl = tool_model_cov(eng, s.cand, v, C)
         params = []
         for jj, pi in enumerate(s.cand.param_idx):
             ps = spec.params[pi]
@@ -62,6 +65,8 @@ def describe_effects(eng: Engine, sel: list[Selected], values: list[np.ndarray],
             "contribution_rms_um": round(st["contrib_rms_um"], 4),
             "checks": _per_check_contrib(eng, s, v),
         }
+        if model_infl is not None:
+            ev["interval_model_inflation"] = round(model_infl, 3)
         if spec.kind == "backlash":
             b0 = eng.table.axes[spec.axis]  # type: ignore[index]
             if b0.backlash_um:
@@ -106,6 +111,32 @@ def describe_effects(eng: Engine, sel: list[Selected], values: list[np.ndarray],
             stage_before=[rb_[prob.slice(k)] for k in range(len(prob.checks))],
             stage_after=[ra_[prob.slice(k)] for k in range(len(prob.checks))]))
     return merge_components(out)
+
+
+def tool_model_cov(eng: Engine, cand: Cand, v: np.ndarray, C: np.ndarray
+                   ) -> tuple[np.ndarray, float]:
+    """A tool offset's covariance (mm²) with the model's angular uncertainty in it, and the
+    factor f its standard deviations grew by (docs/effects.md §3, "The model's own
+    uncertainty"). A tool offset is a lever: it is estimated through the model's angular
+    terms, whose error (``model_angle_sigma_urad``) times the lever along the change
+    (candidate_eval.tool_lever_mm) gives the same signature with an RMS of sigma_m (um).
+    The fitted amplitude's variance is then the white part c² / D plus sigma_m² (c the
+    contribution's RMS, um; D = v' C^-1 v its RSS decrease in noise units), so every
+    variance of the change is inflated by f² = 1 + sigma_m² D / c², the factor its
+    evidence ratio uses (evidence.log_evidence). For one component this is
+    sd² = sd_w² + (sigma_m / g)², g = c / |v| the contribution per mm of change: the
+    angular uncertainty times the lever, over the angular motion the change is seen
+    through."""
+    from abbe.diagnose.candidate_eval import tool_lever_mm
+    from abbe.diagnose.problem import contribution_rms
+    v = np.asarray(v, dtype=float).reshape(-1)
+    sigma_m = tool_lever_mm(eng, cand.param_idx, v) * eng.opts.model_angle_sigma_urad * 1e-3
+    c = contribution_rms(eng.prob, cand.cols @ v)
+    if not (sigma_m > 0 and c > 0 and v.size):
+        return C, 1.0
+    D = float(v @ np.linalg.pinv(C) @ v)
+    f2 = 1.0 + sigma_m ** 2 * D / c ** 2
+    return C * f2, math.sqrt(f2)
 
 
 def merge_components(effects: list[EffectResult]) -> list[EffectResult]:
