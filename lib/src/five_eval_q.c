@@ -219,21 +219,29 @@ static ABBE_ALWAYS_INLINE void rotate_q(unsigned k, int32_t c, int32_t s, int32_
 
 /* rotate_q with each turned component saturated to int32 (ABBE_FLAG_SATURATED): the
  * chain kinds' pairs whose bound is their norm, not each component's (chain_q: kind 3's
- * R1 P1 and head lever, kinds 3 and 5's inner twist v1 + w1 x g; w1 too, in range by its
- * components' bounds alone, for the one shared copy: less flash than w1 inlined). On every
- * table the loader accepts each turned component is below 2^31 (their norms: docs/numerics.md,
- * "Five-axis evaluation"), so the result is rotate_q's, bit for bit, and the flag is never
- * set; beyond (a model not from the loader) it is defined and flagged where the int32
- * conversion would wrap. rot_q30 is an int64 of |.| < 2^32. Out of line: inlined, the
- * compares cost five_eval_q.o 620 B (Cortex-M4F -O2), this copy 44 B (docs/proofs.md). */
-ABBE_NOINLINE static uint32_t rotate_sat_q(unsigned k, int32_t c, int32_t s, int32_t a[3])
+ * R1 P1 and head lever, kinds 3 and 5's inner twist v1 + w1 x g). On every table the loader
+ * accepts each turned component is below 2^31 (their norms: docs/numerics.md, "Five-axis
+ * evaluation"), so the result is rotate_q's, bit for bit, and the flag is never set; beyond
+ * (a model not from the loader) it is defined and flagged where the int32 conversion would
+ * wrap. rot_q30 is an int64 of |.| < 2^32: the test on its high word inlined (instructions),
+ * the saturation out of line (flash); docs/proofs.md, "The chain kinds' turned pairs". */
+ABBE_NOINLINE static int32_t saturate_q(int64_t v, uint32_t *flags)
+{
+    return abbe_sat_i32(v, flags);
+}
+
+static ABBE_ALWAYS_INLINE void rotate_sat_q(unsigned k, int32_t c, int32_t s, int32_t a[3], uint32_t *flags)
 {
     const unsigned j = k == 2u ? 0u : k + 1u, l = k == 0u ? 2u : k - 1u;
-    const int32_t x = a[j], y = a[l];
-    uint32_t flags = 0u;
-    a[j] = abbe_sat_i32(rot_q30(c, x, s, y), &flags);
-    a[l] = abbe_sat_i32(rot_q30(s, x, -c, y), &flags);
-    return flags;
+    const int64_t x = rot_q30(c, a[j], s, a[l]), y = rot_q30(s, a[j], -c, a[l]);
+    const int32_t xl = abbe_u32_to_i32((uint32_t)(uint64_t)x), yl = abbe_u32_to_i32((uint32_t)(uint64_t)y);
+    if (x == xl && y == yl) { /* within int32: their low words */
+        a[j] = xl;
+        a[l] = yl;
+    } else {
+        a[j] = saturate_q(x, flags);
+        a[l] = saturate_q(y, flags);
+    }
 }
 
 /* (w x L)_i, w in 2^-36 rad, L in 2 nm, both int32 (two SMLALs): 2^-35 nm -> 2^-4 nm, rounded */
@@ -312,11 +320,11 @@ static ABBE_ALWAYS_INLINE void chain_q(const abbe_five_model_t *m5, const int32_
         if (kind == ABBE_KIN_XYZBC_HH) {
             /* L = -R0 (g + R1 P1), P1 = tilt_pivot */
             int32_t u[3] = {m5->tilt_pivot_nm[0] >> 1, m5->tilt_pivot_nm[1] >> 1, m5->tilt_pivot_nm[2] >> 1};
-            *flags |= rotate_sat_q(k1, c1, s1r, u); /* |u| <= 2^30.5: halves of int32 */
+            rotate_sat_q(k1, c1, s1r, u, flags); /* |u| <= 2^30.5: halves of int32 */
             L[0] = hh_lever(G[0], u[0]);
             L[1] = hh_lever(G[1], u[1]);
             L[2] = hh_lever(G[2], u[2]);
-            *flags |= rotate_sat_q(k0, c0, s0r, L); /* |L| <= |g| + |P1| < 2^31: the norm (cap) */
+            rotate_sat_q(k0, c0, s0r, L, flags); /* |L| <= |g| + |P1| < 2^31: the norm (cap) */
         } else { /* under the workpiece: L = q - P0, an int32 difference of halved positions */
             L[0] = (pos_nm[0] >> 1) - H0[0];
             L[1] = (pos_nm[1] >> 1) - H0[1];
@@ -338,8 +346,8 @@ static ABBE_ALWAYS_INLINE void chain_q(const abbe_five_model_t *m5, const int32_
         v1[0] = (int32_t)in1[0];
         v1[1] = (int32_t)in1[1];
         v1[2] = (int32_t)in1[2];
-        *flags |= rotate_sat_q(k0, c0, s0r, v1); /* |v1| < 2^29, |w1 x g| < 2^29 + 2^4 */
-        *flags |= rotate_sat_q(k0, c0, s0r, w1); /* in range by its intervals: the shared copy (flash) */
+        rotate_sat_q(k0, c0, s0r, v1, flags); /* |v1| < 2^29, |w1 x g| < 2^29 + 2^4 */
+        rotate_q(k0, c0, s0r, w1); /* each |.| <= 2^30 + 8: turned in range by its intervals */
         in1[0] = v1[0];
         in1[1] = v1[1];
         in1[2] = v1[2];
