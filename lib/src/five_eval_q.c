@@ -232,10 +232,13 @@ ABBE_NOINLINE static int32_t saturate_q(int64_t v, uint32_t *flags)
 
 static ABBE_ALWAYS_INLINE void rotate_sat_q(unsigned k, int32_t c, int32_t s, int32_t a[3], uint32_t *flags)
 {
-    const unsigned j = k == 2u ? 0u : k + 1u, l = k == 0u ? 2u : k - 1u;
-    const int64_t x = rot_q30(c, a[j], s, a[l]), y = rot_q30(s, a[j], -c, a[l]);
-    const int32_t xl = abbe_u32_to_i32((uint32_t)(uint64_t)x), yl = abbe_u32_to_i32((uint32_t)(uint64_t)y);
-    if (x == xl && y == yl) { /* within int32: their low words */
+    const unsigned j = (k == 2u) ? 0u : (k + 1u);
+    const unsigned l = (k == 0u) ? 2u : (k - 1u);
+    const int64_t x = rot_q30(c, a[j], s, a[l]);
+    const int64_t y = rot_q30(s, a[j], -c, a[l]);
+    const int32_t xl = abbe_u32_to_i32((uint32_t)(uint64_t)x);
+    const int32_t yl = abbe_u32_to_i32((uint32_t)(uint64_t)y);
+    if ((x == xl) && (y == yl)) { /* within int32: their low words */
         a[j] = xl;
         a[l] = yl;
     } else {
