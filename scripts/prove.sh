@@ -48,16 +48,9 @@ LOADER_PRECISION="-eva-split-return-function check_header:0 -eva-slevel-function
 # the fixed-point harnesses: a conversion of an integer out of the range of
 # the signed type it is converted to ((int32_t) of an int64) is
 # implementation-defined, not undefined, and Eva reports it only with this
-# option: every _q harness has it but those of the chain kinds 3 and 5, whose
-# rotations of the levers and twists (five_eval_q.c rotate_q, from chain_q)
-# it does not bound yet (docs/proofs.md, "Signed downcasts")
+# option: every _q harness has it (the chain kinds' turned pairs, five_eval_q.c
+# rotate_sat_q, are saturated: docs/proofs.md, "Signed downcasts")
 DOWNCAST="-warn-signed-downcast"
-downcast() { # harness name: $DOWNCAST, or nothing for the chain kinds' harnesses
-    case "$1" in
-        eval_five_q_hh_5axiskins | eval_five_q_tdr_xyzab | comp_five_q_tdr_xyzab | eval_five_any_q | eval_five_any_q_caps) ;;
-        *) printf '%s' "$DOWNCAST" ;;
-    esac
-}
 
 # name | sources | bound macro | extra options
 HARNESSES=(
@@ -164,7 +157,7 @@ FIVE_OPTS="-eva-auto-loop-unroll 64 -eva-split-return-function check_header:0,ab
 FIVE_F32_OPTS="${FIVE_OPTS/abbe_five_model_load:0/abbe_five_model_load:0,abbe_five_eval_f32_linear:0},abbe_five_eval_f32_linear:10,abbe_five_error_eval_f32:10"
 for t in $FIVE_TABLES; do
     golden_tables "tables_five_$t.h" tests/golden/golden_five.c golden_five_ "$t"
-    HARNESSES+=("eval_five_q_$t|$FIVE_SRCS|$ANY -DPROOF_TABLES_H=tables_five_$t.h|$FIVE_OPTS $(downcast "eval_five_q_$t")")
+    HARNESSES+=("eval_five_q_$t|$FIVE_SRCS|$ANY -DPROOF_TABLES_H=tables_five_$t.h|$FIVE_OPTS $DOWNCAST")
     HARNESSES+=("eval_five_f32_$t|$FIVE_F32_SRCS|$ANY -DPROOF_TABLES_H=tables_five_$t.h|$FIVE_F32_OPTS")
 done
 # the five-axis evaluations and the compensator's five-axis cycles on a model of
@@ -175,12 +168,12 @@ done
 FIVE_ANY_Q_SRCS="tests/proofs/eval_five_any.c $(printf 'lib/src/%s.c ' five_eval_q eval_q sincos_q comp comp_q comp_five comp_five_q status)"
 FIVE_ANY_F32_SRCS="tests/proofs/eval_five_any.c $(printf 'lib/src/%s.c ' five_eval_f32 eval_f32 terms_f32 terms_rot_f32 sincos_f32 comp comp_f32 comp_five comp_five_f32 status)"
 FIVE_ANY_OPTS="-eva-auto-loop-unroll 300 -eva-split-return-function abbe_comp_init:0,config_ok:0 -eva-interprocedural-splits -eva-slevel-function main:10,abbe_comp_init:10,any5_cycles:10"
-HARNESSES+=("eval_five_any_q|$FIVE_ANY_Q_SRCS|-DPROOF_Q|$FIVE_ANY_OPTS,abbe_comp_step5_q:20,motions_q:64 -eva-slevel-merge-after-loop motions_q -eva-use-spec abbe_axis_terms_q $(downcast eval_five_any_q)")
+HARNESSES+=("eval_five_any_q|$FIVE_ANY_Q_SRCS|-DPROOF_Q|$FIVE_ANY_OPTS,abbe_comp_step5_q:20,motions_q:64 -eva-slevel-merge-after-loop motions_q -eva-use-spec abbe_axis_terms_q $DOWNCAST")
 # the same on the loader's whole domain (-DPROOF_ROT_CAPS: every coefficient, the
 # tilts and zero offsets within SQUARENESS_CAP): the rotary motions as their
 # contract (five_eval_q.c motions_q: checked on the body above, for the box; WP-proven
 # for the loader's L1 caps, tests/proofs/terms_q_l1.c rot_trans_q / rot_ang_q)
-HARNESSES+=("eval_five_any_q_caps|$FIVE_ANY_Q_SRCS|-DPROOF_Q -DPROOF_ROT_CAPS|$FIVE_ANY_OPTS,abbe_comp_step5_q:20 -eva-use-spec abbe_axis_terms_q,motions_q $(downcast eval_five_any_q_caps)")
+HARNESSES+=("eval_five_any_q_caps|$FIVE_ANY_Q_SRCS|-DPROOF_Q -DPROOF_ROT_CAPS|$FIVE_ANY_OPTS,abbe_comp_step5_q:20 -eva-use-spec abbe_axis_terms_q,motions_q $DOWNCAST")
 FIVE_ANY_F32_OPTS="${FIVE_ANY_OPTS/config_ok:0/config_ok:0,abbe_five_eval_f32_linear:0,eval_f32_linear:full},abbe_five_eval_f32_linear:10,eval_f32_linear:10,abbe_five_error_eval_f32:10,fold6_body:100,fold6_rot_f32:100,fold_values_rot_f32:100,abbe_rotary_motions6_f32:100,motions_sparse_f32:100,abbe_axis_terms_sparse_f32:100 -eva-slevel-merge-after-loop fold6_body,fold6_rot_f32,fold_values_rot_f32,abbe_rotary_motions6_f32,motions_sparse_f32,abbe_axis_terms_sparse_f32"
 HARNESSES+=("eval_five_any_f32|$FIVE_ANY_F32_SRCS|-DPROOF_NO_COMP|$FIVE_ANY_F32_OPTS")
 # the same on the loader's whole domain (-DPROOF_ROT_CAPS, as eval_five_any_q_caps: every
@@ -318,7 +311,7 @@ COMP5_OPTS="-eva-auto-loop-unroll 64 -eva-split-return-function check_header:0,a
 COMP5_LOAD_MAX=64 # bytes: the table of unknown bytes loaded into a slot (comp_five.c; 512 B does not hold yet: docs/proofs.md, "Not proven yet")
 COMP5_SRCS="tests/proofs/comp_five.c $(printf 'lib/src/%s.c ' comp comp_five five_load crc32 status)"
 for t in ac_full tdr_xyzab; do # (ht_maxkins: proven once, 21 s of CPU with the load, left out for the CI budget: docs/proofs.md)
-    HARNESSES+=("comp_five_q_$t|$COMP5_SRCS $(printf 'lib/src/%s.c ' comp_five_q five_eval_q eval_q terms_q terms_sparse_q sincos_q)|$ANY -DPROOF_Q -DPROOF_LOAD_MAX=$COMP5_LOAD_MAX -DPROOF_TABLES_H=tables_five_$t.h|$COMP5_OPTS $(downcast "comp_five_q_$t")")
+    HARNESSES+=("comp_five_q_$t|$COMP5_SRCS $(printf 'lib/src/%s.c ' comp_five_q five_eval_q eval_q terms_q terms_sparse_q sincos_q)|$ANY -DPROOF_Q -DPROOF_LOAD_MAX=$COMP5_LOAD_MAX -DPROOF_TABLES_H=tables_five_$t.h|$COMP5_OPTS $DOWNCAST")
     HARNESSES+=("comp_five_f32_$t|$COMP5_SRCS $(printf 'lib/src/%s.c ' comp_five_f32 comp_f32 five_eval_f32 eval_f32 terms_f32 terms_rot_f32 sincos_f32)|$ANY -DPROOF_LOAD_MAX=$COMP5_LOAD_MAX -DPROOF_TABLES_H=tables_five_$t.h|${COMP5_OPTS/abbe_five_model_load:0/abbe_five_model_load:0,abbe_five_eval_f32_linear:0},abbe_five_eval_f32_linear:10,abbe_comp_step5_f32:20")
 done
 # the float cycle given any bits (NaN and the infinities included) as every

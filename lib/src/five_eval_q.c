@@ -217,6 +217,36 @@ static ABBE_ALWAYS_INLINE void rotate_q(unsigned k, int32_t c, int32_t s, int32_
     a[l] = (int32_t)rot_q30(s, x, -c, y);
 }
 
+/* rotate_q with each turned component saturated to int32 (ABBE_FLAG_SATURATED): the
+ * chain kinds' pairs whose bound is their norm, not each component's (chain_q: kind 3's
+ * R1 P1 and head lever, kinds 3 and 5's inner twist v1 + w1 x g). On every table the loader
+ * accepts each turned component is below 2^31 (their norms: docs/numerics.md, "Five-axis
+ * evaluation"), so the result is rotate_q's, bit for bit, and the flag is never set; beyond
+ * (a model not from the loader) it is defined and flagged where the int32 conversion would
+ * wrap. rot_q30 is an int64 of |.| < 2^32: the test on its high word inlined (instructions),
+ * the saturation out of line (flash); docs/proofs.md, "The chain kinds' turned pairs". */
+ABBE_NOINLINE static int32_t saturate_q(int64_t v, uint32_t *flags)
+{
+    return abbe_sat_i32(v, flags);
+}
+
+static ABBE_ALWAYS_INLINE void rotate_sat_q(unsigned k, int32_t c, int32_t s, int32_t a[3], uint32_t *flags)
+{
+    const unsigned j = (k == 2u) ? 0u : (k + 1u);
+    const unsigned l = (k == 0u) ? 2u : (k - 1u);
+    const int64_t x = rot_q30(c, a[j], s, a[l]);
+    const int64_t y = rot_q30(s, a[j], -c, a[l]);
+    const int32_t xl = abbe_u32_to_i32((uint32_t)(uint64_t)x);
+    const int32_t yl = abbe_u32_to_i32((uint32_t)(uint64_t)y);
+    if ((x == xl) && (y == yl)) { /* within int32: their low words */
+        a[j] = xl;
+        a[l] = yl;
+    } else {
+        a[j] = saturate_q(x, flags);
+        a[l] = saturate_q(y, flags);
+    }
+}
+
 /* (w x L)_i, w in 2^-36 rad, L in 2 nm, both int32 (two SMLALs): 2^-35 nm -> 2^-4 nm, rounded */
 static ABBE_ALWAYS_INLINE int64_t cross32_q(const int32_t w[3], const int32_t L[3], unsigned i)
 {
@@ -267,7 +297,7 @@ static ABBE_ALWAYS_INLINE int32_t hh_lever(int32_t g, int32_t u)
 static ABBE_ALWAYS_INLINE void chain_q(const abbe_five_model_t *m5, const int32_t pos_nm[3], unsigned kind,
                                        unsigned k0, unsigned k1, int32_t c0, int32_t s0r, int32_t c1, int32_t s1r,
                                        const int32_t v0[3], const int32_t w0[3], int32_t v1[3], int32_t w1[3],
-                                       int64_t d[3], int64_t tip[3])
+                                       int64_t d[3], int64_t tip[3], uint32_t *flags)
 {
     int32_t H0[3], L[3], G[3];
     int64_t in1[3];
@@ -293,11 +323,11 @@ static ABBE_ALWAYS_INLINE void chain_q(const abbe_five_model_t *m5, const int32_
         if (kind == ABBE_KIN_XYZBC_HH) {
             /* L = -R0 (g + R1 P1), P1 = tilt_pivot */
             int32_t u[3] = {m5->tilt_pivot_nm[0] >> 1, m5->tilt_pivot_nm[1] >> 1, m5->tilt_pivot_nm[2] >> 1};
-            rotate_q(k1, c1, s1r, u);
+            rotate_sat_q(k1, c1, s1r, u, flags); /* |u| <= 2^30.5: halves of int32 */
             L[0] = hh_lever(G[0], u[0]);
             L[1] = hh_lever(G[1], u[1]);
             L[2] = hh_lever(G[2], u[2]);
-            rotate_q(k0, c0, s0r, L);
+            rotate_sat_q(k0, c0, s0r, L, flags); /* |L| <= |g| + |P1| < 2^31: the norm (cap) */
         } else { /* under the workpiece: L = q - P0, an int32 difference of halved positions */
             L[0] = (pos_nm[0] >> 1) - H0[0];
             L[1] = (pos_nm[1] >> 1) - H0[1];
@@ -319,8 +349,8 @@ static ABBE_ALWAYS_INLINE void chain_q(const abbe_five_model_t *m5, const int32_
         v1[0] = (int32_t)in1[0];
         v1[1] = (int32_t)in1[1];
         v1[2] = (int32_t)in1[2];
-        rotate_q(k0, c0, s0r, v1);
-        rotate_q(k0, c0, s0r, w1);
+        rotate_sat_q(k0, c0, s0r, v1, flags); /* |v1| < 2^29, |w1 x g| < 2^29 + 2^4 */
+        rotate_q(k0, c0, s0r, w1); /* each |.| <= 2^30 + 8: turned in range by its intervals */
         in1[0] = v1[0];
         in1[1] = v1[1];
         in1[2] = v1[2];
@@ -351,11 +381,11 @@ ABBE_NOINLINE static uint32_t add_chain_q(const abbe_five_model_t *m5, const int
     int sign = 1; /* in the head */
     if (ABBE_FIVE_KIND_BUILT(ABBE_KIN_XYZBC_HH) != 0u &&
         (kind == ABBE_KIN_XYZBC_HH || (ABBE_FIVE_CHAIN_MASK & 0x30u) == 0u)) {
-        chain_q(m5, pos_nm, ABBE_KIN_XYZBC_HH, 2u, 1u, c0, s0r, c1, s1r, v0, w0, v1, w1, d, tip);
+        chain_q(m5, pos_nm, ABBE_KIN_XYZBC_HH, 2u, 1u, c0, s0r, c1, s1r, v0, w0, v1, w1, d, tip, &flags);
     } else {
         /* kinds 4 and 5 share record 0's axis (B) and one copy (flash); k1 is kind 3's only */
         int64_t t[3];
-        chain_q(m5, pos_nm, kind, 1u, 0u, c0, s0r, c1, s1r, v0, w0, v1, w1, d, t);
+        chain_q(m5, pos_nm, kind, 1u, 0u, c0, s0r, c1, s1r, v0, w0, v1, w1, d, t, &flags);
         if (kind == ABBE_KIN_XYZAB_TDR) {
             sign = -1; /* under the workpiece, no tool tip term */
         } else {

@@ -381,6 +381,55 @@ static void test_loader_hh_lever(void **state)
 }
 #endif
 
+#if !defined(ABBE_NO_FIVE_KINDS)
+/* A kind 3 model the loader would refuse (its head lever beyond HH_LEVER_L1_CAP, made in
+ * memory): the lever L = -(g + R1 P1) is (2^31 - 2, 2^30 - 1) in 2 nm with B at 180 deg, and
+ * C turns it beyond int32 near 45 deg (|L| = 1.118 x 2^31). The fixed-point evaluation
+ * saturates the turned components and flags it (ABBE_FLAG_SATURATED; five_eval_q.c
+ * rotate_sat_q), where an int32 conversion would wrap silently; the golden table as
+ * loaded never sets the flag. */
+static void test_chain_turn_saturates(void **state)
+{
+    (void)state;
+    if (ABBE_FIVE_KIND_BUILT(ABBE_KIN_XYZBC_HH) == 0u) {
+        skip();
+    }
+    unsigned t = 0;
+    while (abbe_golden_five_tables[t].kind != ABBE_KIN_XYZBC_HH) {
+        t++;
+        assert_true(t < abbe_golden_five_table_count);
+    }
+    abbe_five_model_t m;
+    assert_int_equal(load_five(t, &m), 1);
+    unsigned flagged = 0, angles = 0;
+    for (int pass = 0; pass < 2; pass++) {
+        if (pass == 1) {
+            const int32_t p0[3] = {0, -2147483646, 0}, p1[3] = {2147483646, 0, 0};
+            memcpy(m.rot_point_nm, p0, sizeof p0);
+            memcpy(m.tilt_pivot_nm, p1, sizeof p1);
+        }
+        for (int32_t a = -180; a < 180; a += 15) {
+            abbe_five_input_q_t in;
+            memset(&in, 0, sizeof in);
+            in.angle_udeg[m.slot[0]] = a * 1000000;  /* record 0 (C) */
+            in.angle_udeg[m.slot[1]] = 180000000;    /* record 1 (B) at 180 deg */
+            abbe_five_error_q_t out;
+            assert_int_equal(abbe_five_error_eval_q(&m, &in, &out), ABBE_OK);
+            const unsigned sat = (out.flags & ABBE_FLAG_SATURATED) != 0u;
+            if (pass == 0) {
+                assert_int_equal(sat, 0);
+            } else {
+                flagged += sat;
+                angles++;
+            }
+        }
+    }
+    /* near +/-45 and +/-135 deg the turned lever is beyond int32; at 0 and 180 it is not */
+    assert_true(flagged >= 4u);
+    assert_true(flagged < angles);
+}
+#endif
+
 static abbe_comp_config_t config(void)
 {
     abbe_comp_config_t c;
@@ -619,6 +668,7 @@ int main(void)
         cmocka_unit_test(test_loader_refuses),
 #if !defined(ABBE_NO_FIVE_KINDS)
         cmocka_unit_test(test_loader_hh_lever),
+        cmocka_unit_test(test_chain_turn_saturates),
 #endif
         cmocka_unit_test(test_comp_step5),
         cmocka_unit_test(test_comp_step5_limit),
