@@ -54,6 +54,7 @@
 #include "abbe/five_axis.h"
 
 #include "comp5_cycles.h" /* any_i32, any_f32, the compensator's config and cycles */
+#include "model_load_rotary_acsl.h" /* rotary_ranges_ok: the loader's statement (WP-proven, build_rotary) */
 
 #define ROT_COEF_WORDS (2u * ABBE_ROTARY_MAX_HARMONICS * ABBE_MOTIONS)
 #define GEOMETRY_BOX ((1 << 30) - 1)
@@ -150,6 +151,9 @@ static void any_rotary(abbe_rotary_model_t *ax, unsigned r, unsigned dir)
 #if !defined(PROOF_Q)
     ax->coef_f32 = (const uint8_t *)rot_coef_f[r];
 #endif
+    /* the record's counts and ranges are the predicate build_rotary's proven contract
+     * gives (lib/src/model_load_rotary_acsl.h, layout_ok; docs/proofs.md) */
+    /*@ assert loader_ranges: rotary_ranges_ok(ax); */
 }
 
 static void any_five(abbe_five_model_t *m5)
