@@ -8,7 +8,9 @@
  * The model is built
  * directly, every field unknown within the invariants abbe_five_model_load's
  * checks establish (model_load.c, model_load_rotary.h: check_rotary,
- * build_rotary), stated here as the evaluation's preconditions:
+ * build_rotary), stated here as the evaluation's preconditions (the rotary
+ * records' counts and ranges are also asserted as rotary_ranges_ok, the
+ * predicate build_rotary's WP-proven contract gives: model_load_rotary_acsl.h):
  *
  *   kind: 0 (a 3-axis table), the trunnions 1, 2 and the chain kinds 3-5
  *   (format 1.4), each its own partition; per kind the records' machine axes
