@@ -365,6 +365,15 @@ prove_wp() {
         -cpp-extra-args="$CPP -DABBE_PROOF_WP" lib/src/model_load.c -wp \
         -wp-fct popcount6,trend_rows_of,n_basis_of,bit_length,check_counts \
         -wp-prover z3 -wp-timeout 200 -wp-auto wp:range,wp:split || return 1
+    # the five-axis loader's rotary records (lib/src/model_load_rotary_acsl.h, seen
+    # only with ABBE_PROOF_WP): check_rotary accepts only records within
+    # rotary_table_counts_ok, build_rotary makes of such a record a model within
+    # rotary_layout_ok (the predicate tests/proofs/eval_five_any.c asserts of its
+    # records), with every helper they call; all goals of these functions
+    local ROT_FCTS="rotary_record,any_nonzero_u8,any_above,hh_lever_too_long,mag_i32,abbe_f32_bits_nonfinite,coef_word,rotary_record_bad,check_rotary,capped_i32,others_of,geometry_at,angle_at,build_rotary"
+    wp_run "wp five loader" "check_rotary's counts_ok, build_rotary's layout_ok and their helpers" \
+        "$OUT/wp_five_loader.log" -cpp-extra-args="$CPP -DABBE_PROOF_WP" lib/src/five_load.c -wp \
+        -wp-fct "$ROT_FCTS" -wp-prover z3 -wp-timeout 200 -wp-auto wp:range,wp:split || return 1
     # the _q term kernels' and the five-axis rotary motions' (motions_q) accumulation
     # under the loader's L1 caps and the basis rows' bound (tests/proofs/terms_q_l1.c;
     # the shifts: Eva, above)

@@ -10,6 +10,7 @@
 #define ABBE_MODEL_LOAD_ROTARY_H
 
 #include "model_load_checks.h"
+#include "model_load_rotary_acsl.h"
 
 #define RH_KIND 0u
 #define RH_ROT_POINT 4u
@@ -44,6 +45,7 @@ static const uint8_t *rotary_record(const uint8_t *b, unsigned r)
 
 static int any_nonzero_u8(const uint8_t *p, unsigned count)
 {
+    /*@ WP_LOOP_ROT_BYTES */
     for (unsigned i = 0; i < count; i++) {
         if (p[i] != 0u) {
             return 1;
@@ -55,6 +57,7 @@ static int any_nonzero_u8(const uint8_t *p, unsigned count)
 /* Whether any of the count int32 at p has |v| > cap. */
 static int any_above(const uint8_t *p, unsigned count, uint32_t cap)
 {
+    /*@ WP_LOOP_ROT_WORDS */
     for (unsigned i = 0; i < count; i++) {
         if (mag_i32(abbe_ld_i32(p + 4u * i)) > cap) {
             return 1;
@@ -68,6 +71,7 @@ static int any_above(const uint8_t *p, unsigned count, uint32_t cap)
 static int hh_lever_too_long(const uint8_t *h)
 {
     uint32_t left = HH_LEVER_L1_CAP; /* spent per component (each at most 3 x 2^30): exact in uint32 */
+    /*@ WP_LOOP_ROT_LEVER */
     for (unsigned k = 0; k < 3u; k++) {
         const uint32_t off = abbe_ld_u32(h + RH_OFFSET + 4u * k);
         /* |rot_point|, |offset| <= GEOMETRY_CAP: the sum fits an int32 (as tilt_pivot_nm) */
@@ -109,6 +113,7 @@ static ABBE_NOINLINE int rotary_record_bad(const uint8_t *b, const uint8_t *rec,
                               !array_ok(off_f, count, total, ABBE_ROTARY_DATA_START));
     case RC_NONFINITE:
     case RC_MISMATCH:
+        /*@ WP_LOOP_ROT_COEFS */
         for (uint32_t i = 0; i < count; i++) {
             uint32_t bits = coef_word(b, total, off_f, i);
             if (cat == RC_NONFINITE ? abbe_f32_bits_nonfinite(bits)
@@ -122,11 +127,13 @@ static ABBE_NOINLINE int rotary_record_bad(const uint8_t *b, const uint8_t *rec,
             return 1;
         }
         unsigned column = 0;
+        /*@ WP_LOOP_ROT_COMPONENTS */
         for (unsigned c = 0; c < ABBE_MOTIONS; c++) {
             if (!((mask >> c) & 1u)) {
                 continue;
             }
             uint64_t l1 = 0;
+            /*@ WP_LOOP_ROT_ROWS */
             for (unsigned row = 0; row < rows; row++) {
                 l1 += mag_i32(abbe_u32_to_i32(coef_word(b, total, off_q, row * n_comp + column)));
             }
@@ -172,6 +179,7 @@ static abbe_status_t check_rotary(const uint8_t *b, uint32_t total)
     if (any_nonzero_u8(h + 1u, 3u) || any_nonzero_u8(h + RH_RESERVED + 12u * chain, 24u - 12u * chain)) {
         return ABBE_E_FLAGS;
     }
+    /*@ WP_LOOP_ROT_CATEGORIES */
     for (unsigned cat = 0; cat < RC_CATEGORIES; cat++) {
         /* the header's range: rot_point and offset (contiguous) then its squareness */
         if (cat == RC_RANGE && (any_above(h + RH_ROT_POINT, 6u, (uint32_t)GEOMETRY_CAP) ||
@@ -180,6 +188,7 @@ static abbe_status_t check_rotary(const uint8_t *b, uint32_t total)
                                            (kind == ABBE_KIN_XYZBC_HH && hh_lever_too_long(h)))))) {
             return ABBE_E_RANGE;
         }
+        /*@ WP_LOOP_ROT_RECORDS */
         for (unsigned r = 0; r < ABBE_ROTARY_AXES; r++) {
             if (rotary_record_bad(b, rotary_record(b, r), total, cat)) {
                 return code[cat];
@@ -212,10 +221,14 @@ static int32_t angle_at(const uint8_t *p)
 
 static void build_rotary(abbe_rotary_model_t *ax, const uint8_t *b, const uint8_t *rec, unsigned dir)
 {
-    memset(ax, 0, sizeof *ax);
+    /* every field written, no memset: WP's Typed memory model does not see through
+     * memset's char pointer (docs/proofs.md, "Five-axis: the rotary records"); the
+     * caller has zeroed the whole model, padding included */
     unsigned i1, i2;
     others_of(dir, &i1, &i2);
     ax->dir = (uint8_t)dir;
+    ax->delta_q8[dir] = 0;
+    ax->phi_q36[dir] = 0;
     ax->delta_q8[i1] = abbe_ld_i32(rec + RA_LOC_LIN);
     ax->delta_q8[i2] = abbe_ld_i32(rec + RA_LOC_LIN + 4u);
     ax->phi_q36[i1] = angle_at(rec + RA_LOC_ANG);
@@ -227,6 +240,7 @@ static void build_rotary(abbe_rotary_model_t *ax, const uint8_t *b, const uint8_
      * not be stepped through harmonics that have nothing to read */
     ax->harmonics = ax->n_comp != 0u ? rec[RA_HARMONICS] : (uint8_t)0u;
     uint8_t column = 0;
+    /*@ WP_LOOP_ROT_COLUMNS */
     for (unsigned c = 0; c < ABBE_MOTIONS; c++) {
         if (((unsigned)ax->comp_mask >> c) & 1u) {
             ax->column[c] = column++;
@@ -237,6 +251,9 @@ static void build_rotary(abbe_rotary_model_t *ax, const uint8_t *b, const uint8_
     if (abbe_ld_u32(rec + RA_COEF_COUNT) != 0u) {
         ax->coef_q = b + abbe_ld_u32(rec + RA_COEF_Q);
         ax->coef_f32 = b + abbe_ld_u32(rec + RA_COEF_F32);
+    } else {
+        ax->coef_q = NULL;
+        ax->coef_f32 = NULL;
     }
 }
 

@@ -8,7 +8,9 @@
  * The model is built
  * directly, every field unknown within the invariants abbe_five_model_load's
  * checks establish (model_load.c, model_load_rotary.h: check_rotary,
- * build_rotary), stated here as the evaluation's preconditions:
+ * build_rotary), stated here as the evaluation's preconditions (the rotary
+ * records' counts and ranges are also asserted as rotary_ranges_ok, the
+ * predicate build_rotary's WP-proven contract gives: model_load_rotary_acsl.h):
  *
  *   kind: 0 (a 3-axis table), the trunnions 1, 2 and the chain kinds 3-5
  *   (format 1.4), each its own partition; per kind the records' machine axes
@@ -61,6 +63,7 @@
 #include "abbe/five_axis.h"
 
 #include "comp5_cycles.h" /* any_i32, any_f32, the compensator's config and cycles */
+#include "model_load_rotary_acsl.h" /* rotary_ranges_ok: the loader's statement (WP-proven, build_rotary) */
 
 #define ROT_COEF_WORDS (2u * ABBE_ROTARY_MAX_HARMONICS * ABBE_MOTIONS)
 #define GEOMETRY_BOX ((1 << 30) - 1)
@@ -164,6 +167,9 @@ static void any_rotary(abbe_rotary_model_t *ax, unsigned r, unsigned dir)
 #if !defined(PROOF_Q)
     ax->coef_f32 = (const uint8_t *)rot_coef_f[r];
 #endif
+    /* the record's counts and ranges are the predicate build_rotary's proven contract
+     * gives (lib/src/model_load_rotary_acsl.h, layout_ok; docs/proofs.md) */
+    /*@ assert loader_ranges: rotary_ranges_ok(ax); */
 }
 
 static void any_five(abbe_five_model_t *m5)
