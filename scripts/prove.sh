@@ -362,6 +362,14 @@ prove_wp() {
         -cpp-extra-args="$CPP -DABBE_PROOF_WP" lib/src/model_load.c -wp \
         -wp-fct popcount6,trend_rows_of,n_basis_of,bit_length,check_counts \
         -wp-prover z3 -wp-timeout 200 -wp-auto wp:range,wp:split || return 1
+    # build_axis' contract (model_load_acsl.h, with ABBE_PROOF_WP): the model it
+    # makes of a record within record_counts_ok satisfies axis_layout_ok (which
+    # implies the term kernels' precondition axis_ranges_ok); all goals of
+    # build_axis (no case split needed). layout_ok is the hardest goal: about
+    # 30 s of Z3's CPU (27 M steps), minutes of wall time under load, hence 300 s
+    wp_run "wp build_axis" "build_axis' layout_ok" "$OUT/wp_build_axis.log" \
+        -cpp-extra-args="$CPP -DABBE_PROOF_WP" lib/src/model_load.c -wp -wp-fct build_axis \
+        -wp-prover z3 -wp-timeout 300 || return 1
     # the _q term kernels' and the five-axis rotary motions' (motions_q) accumulation
     # under the loader's L1 caps and the basis rows' bound (tests/proofs/terms_q_l1.c;
     # the shifts: Eva, above)
