@@ -145,8 +145,8 @@ static uint64_t recip64(uint32_t d);
 static abbe_status_t check_counts(const uint8_t *b);
 
 /* build_axis: proven (scripts/prove.sh, prove_wp's "wp build_axis": every
- * goal, its loop invariants wp_rank, wp_columns, wp_blocks, wp_harmonics
- * among them). It stores every field of *ax itself, no memset: the memset's
+ * goal, its loop invariants wp_rank, wp_columns, wp_blocks among them). It
+ * stores every field of *ax itself, no memset: the memset's
  * char-pointer view of *ax is a cast WP's Typed memory model hides (with it,
  * layout_ok, the assigns and memset's precondition were not proven). */
 /*@ requires out: \valid(ax);
