@@ -374,6 +374,17 @@ prove_wp() {
     wp_run "wp five loader" "check_rotary's counts_ok, build_rotary's layout_ok and their helpers" \
         "$OUT/wp_five_loader.log" -cpp-extra-args="$CPP -DABBE_PROOF_WP" lib/src/five_load.c -wp \
         -wp-fct "$ROT_FCTS" -wp-prover z3 -wp-timeout 200 -wp-auto wp:range,wp:split || return 1
+    # build_axis' contract (model_load_acsl.h, with ABBE_PROOF_WP): the model it
+    # makes of a record within record_counts_ok satisfies axis_layout_ok (which
+    # implies the term kernels' precondition axis_ranges_ok); all goals of
+    # build_axis (no case split needed). layout_ok is the hardest goal: about
+    # 30 s of Z3's CPU (27-30 M steps). Z3's -T bound is wall-clock time (at a
+    # load average of ~25 the goal failed at 300 s, reported "Unknown error"):
+    # bounded by steps instead (-wp-steps: the same result at any load), with a
+    # wall-clock bound that only stops a hang
+    wp_run "wp build_axis" "build_axis' layout_ok" "$OUT/wp_build_axis.log" \
+        -cpp-extra-args="$CPP -DABBE_PROOF_WP" lib/src/model_load.c -wp -wp-fct build_axis \
+        -wp-prover z3 -wp-steps 60000000 -wp-timeout 900 || return 1
     # the _q term kernels' and the five-axis rotary motions' (motions_q) accumulation
     # under the loader's L1 caps and the basis rows' bound (tests/proofs/terms_q_l1.c;
     # the shifts: Eva, above)

@@ -21,9 +21,16 @@ ABBE_NOINLINE static uint64_t recip64(uint32_t d)
     return q + (2u * r >= d ? 1u : 0u);
 }
 
+/* *ax as the view of the axis record rec of table b. Every field is stored
+ * here, the conditional ones (the coefficient pointers, the take-up rate,
+ * the reversal rows without format 1.1) zero in their other branch; the
+ * padding is zero from build_model's memset of the whole model, build_axis'
+ * one caller. No memset of *ax here: its char-pointer view is a cast WP's
+ * Typed memory model cannot follow, and build_axis' contract (layout_ok,
+ * model_load_acsl.h) is WP-proven (docs/proofs.md, "WP: loader
+ * contracts"). */
 static void build_axis(abbe_axis_model_t *ax, const uint8_t *b, const uint8_t *rec)
 {
-    memset(ax, 0, sizeof *ax);
     ax->travel_min_nm = abbe_ld_i32(rec + A_MIN);
     ax->travel_max_nm = abbe_ld_i32(rec + A_MAX);
     ax->term_mask = rec[A_MASK];
@@ -42,6 +49,9 @@ static void build_axis(abbe_axis_model_t *ax, const uint8_t *b, const uint8_t *r
     if (abbe_ld_u32(rec + A_COEF_COUNT) != 0u) {
         ax->coef_q = b + abbe_ld_u32(rec + A_COEF_Q);
         ax->coef_f32 = b + abbe_ld_u32(rec + A_COEF_F32);
+    } else {
+        ax->coef_q = NULL;
+        ax->coef_f32 = NULL;
     }
     /* Chebyshev argument (abbe_arg_cheb_q30): with n the bit length of the
      * span, shift = 32 - n keeps d << shift below 2^32, and
@@ -55,9 +65,13 @@ static void build_axis(abbe_axis_model_t *ax, const uint8_t *b, const uint8_t *r
     ax->span_nm = span;
     ax->cheb_shift = (uint8_t)(32u - n);
     ax->cheb_mul = mul > UINT32_MAX ? UINT32_MAX : (uint32_t)mul;
+    /* the two blocks' harmonics (ABBE_BLOCKS is 2), stored before their
+     * loop so that it writes no count (WP: the loop's assigns leave every
+     * uint8_t field as it is) */
+    ax->harmonics[0] = rec[A_HARMONICS];
+    ax->harmonics[1] = rec[A_HARMONICS + 1u];
     /*@ WP_LOOP_BLOCKS */
     for (unsigned k = 0; k < ABBE_BLOCKS; k++) {
-        ax->harmonics[k] = rec[A_HARMONICS + k];
         int32_t origin = abbe_ld_i32(rec + A_ORIGIN + 4u * k);
         int32_t period = abbe_ld_i32(rec + A_PERIOD + 4u * k);
         ax->freq[k] = period > 0 ? recip64((uint32_t)period) : 0u;
@@ -71,12 +85,16 @@ static void build_axis(abbe_axis_model_t *ax, const uint8_t *b, const uint8_t *r
     if (takeup_nm > 0) {
         uint64_t takeup = (uint64_t)takeup_nm;
         ax->takeup_rate_q46 = (((uint64_t)1 << 46) + takeup / 2u) / takeup;
+    } else {
+        ax->takeup_rate_q46 = 0u;
     }
     ax->thermal_expansion_q50 = abbe_ld_i32(rec + A_EXPANSION);
     ax->thermal_offset_q16 = abbe_ld_i32(rec + A_THERMAL_OFFSET);
     ax->thermal_tref_mdegc = abbe_ld_i32(rec + A_TREF);
 #if !defined(ABBE_NO_REVERSAL)
     ax->reversal_rows = rec[A_REVERSAL_ROWS];
+#else
+    ax->reversal_rows = 0u;
 #endif
 }
 
