@@ -225,7 +225,14 @@ instruction work (below) costs +118 B f32 and +560 / +688 B q (the rows above: 1
 Per kind, the instruction budgets (issue 39 item 4) are met on the tables with the paper
 machine's linear axes or none (the rows above): hh_5axiskins 1,481 (M4F f32) / 2,957
 (M3 q), ht_maxkins_paper 1,476 / 2,951, tdr_xyzab 1,241 / 1,976 (before: 1,856 / 3,464,
-tdr 1,497 / 2,382). ht_maxkins keeps the 'full' 3-axis table and misses as ac_location
+tdr 1,497 / 2,382). One miss since issue 38's saturation of the chain kinds' turned pairs
+(docs/proofs.md, "The chain kinds' turned pairs"): hh_5axiskins on the M3 takes 3,008
+(`_q`), 8 over 3,000 (2,973 just before: the three range tests and the flags pointer cost
+35). What stands in the way: Eva keeps each component's interval, not a pair's norm. With
+kind 3's R1 P1 turned unsaturated (its norm <= 2^30.5 on any model) the count is 2,999, but
+Eva then reports two downcast alarms there (the sin/cos intervals it carries do not bound
+each turned component below 2^31); the saturation stays until a relational proof (a WP
+contract of rotate_q) replaces it. ht_maxkins keeps the 'full' 3-axis table and misses as ac_location
 does (2,783 / 6,836): its linear part alone (fold6_rot_f32 and the linear core on the
 M4F, terms6_q and the core on the M3) is above the budgets. How: the chain geometry
 (add_chain_f32 / add_chain_q) is straight-line per kind with the machine axes the loader
