@@ -385,6 +385,17 @@ prove_wp() {
     wp_run "wp build_axis" "build_axis' layout_ok" "$OUT/wp_build_axis.log" \
         -cpp-extra-args="$CPP -DABBE_PROOF_WP" lib/src/model_load.c -wp -wp-fct build_axis \
         -wp-prover z3 -wp-steps 60000000 -wp-timeout 900 || return 1
+    # the thermal block loader's bounded reads and offsets (lib/src/thermal_acsl.h,
+    # seen only with ABBE_PROOF_WP): th_u8 / th_u16 / th_u32 / th_i32 return the
+    # value of the table's bytes at an offset inside [0, total - 4) or 0, as the
+    # logic readers P (thermal_block_ok) is written with; th_input / th_channel /
+    # th_term the records' offsets; th_abs_over, th_cap. check_thermal's
+    # block_ok and build_thermal's model_ok are stated there, not proven yet
+    # (docs/proofs.md, "WP: the thermal loader")
+    wp_run "wp thermal" "the thermal loader's reads and offsets" "$OUT/wp_thermal.log" \
+        -cpp-extra-args="$CPP -DABBE_PROOF_WP" lib/src/thermal_load.c -wp \
+        -wp-fct th_input,th_channel,th_term,th_u8,th_u16,th_u32,th_i32,th_abs_over,th_cap \
+        -wp-prover z3 -wp-timeout 60 || return 1
     # the _q term kernels' and the five-axis rotary motions' (motions_q) accumulation
     # under the loader's L1 caps and the basis rows' bound (tests/proofs/terms_q_l1.c;
     # the shifts: Eva, above)

@@ -22,6 +22,8 @@
 #define TH_GAIN_CAP ((int32_t)1 << 28)       /* |gain|, 2^-16 um per unit */
 #define TH_TIME_CAP ((uint32_t)1 << 31)      /* tau, max_gap, fade, ms */
 
+#include "thermal_acsl.h" /* the contracts of the functions below, for WP (ACSL only) */
+
 /* Byte offsets (in the table) of the block's records: t the block's offset. */
 static uint32_t th_input(uint32_t t, unsigned k)
 {
@@ -85,10 +87,12 @@ static abbe_status_t check_thermal(const uint8_t *b, uint32_t total)
     if (total - 4u - t < TH_HEADER_SIZE + TH_INPUT_SIZE * n_in + TH_CHANNEL_SIZE * n_ch) {
         return ABBE_E_OFFSET;
     }
+    /*@ TH_ASSERT_FITS */
     /* FLAGS: reserved bytes, kinds, outputs (each at most once), unused term slots */
     if (th_u16(b, total, t + 2u) != 0u || th_u32(b, total, t + 12u) != 0u) {
         return ABBE_E_FLAGS;
     }
+    /*@ TH_LOOP_IN_FLAGS */
     for (unsigned k = 0; k < n_in; k++) {
         uint32_t in = th_input(t, k);
         /* in+1: stuck time in minutes (0: no stuck check), in+2..3: stuck
@@ -99,6 +103,7 @@ static abbe_status_t check_thermal(const uint8_t *b, uint32_t total)
         }
     }
     unsigned outputs = 0;
+    /*@ TH_LOOP_CH_FLAGS */
     for (unsigned c = 0; c < n_ch; c++) {
         uint32_t ch = th_channel(t, n_in, c);
         unsigned out = th_u8(b, total, ch), n_terms = th_u8(b, total, ch + 1u);
@@ -106,6 +111,7 @@ static abbe_status_t check_thermal(const uint8_t *b, uint32_t total)
             return ABBE_E_FLAGS;
         }
         outputs |= 1u << out;
+        /*@ TH_LOOP_SLOTS */
         for (unsigned k = 0; k < ABBE_THERMAL_MAX_TERMS; k++) {
             uint32_t tm = th_term(ch, k);
             unsigned reserved = th_u8(b, total, tm + 1u) | th_u8(b, total, tm + 2u) | th_u8(b, total, tm + 3u);
@@ -116,12 +122,14 @@ static abbe_status_t check_thermal(const uint8_t *b, uint32_t total)
         }
     }
     /* COUNT: terms per channel, the inputs they read */
+    /*@ TH_LOOP_CH_COUNT */
     for (unsigned c = 0; c < n_ch; c++) {
         uint32_t ch = th_channel(t, n_in, c);
         unsigned n_terms = th_u8(b, total, ch + 1u);
         if (n_terms < 1u || n_terms > ABBE_THERMAL_MAX_TERMS) {
             return ABBE_E_COUNT;
         }
+        /*@ TH_LOOP_TERM_INPUT */
         for (unsigned k = 0; k < n_terms; k++) {
             if (th_u8(b, total, th_term(ch, k)) >= n_in) {
                 return ABBE_E_COUNT;
@@ -133,6 +141,7 @@ static abbe_status_t check_thermal(const uint8_t *b, uint32_t total)
     if (gap < 1u || gap > TH_TIME_CAP || fade < 1u || fade > TH_TIME_CAP) {
         return ABBE_E_RANGE;
     }
+    /*@ TH_LOOP_IN_RANGE */
     for (unsigned k = 0; k < n_in; k++) {
         uint32_t in = th_input(t, k);
         int32_t ref = th_i32(b, total, in + 4u), lo = th_i32(b, total, in + 8u), hi = th_i32(b, total, in + 12u);
@@ -142,6 +151,7 @@ static abbe_status_t check_thermal(const uint8_t *b, uint32_t total)
             return ABBE_E_RANGE;
         }
     }
+    /*@ TH_LOOP_CH_RANGE */
     for (unsigned c = 0; c < n_ch; c++) {
         uint32_t ch = th_channel(t, n_in, c);
         int32_t limit = th_i32(b, total, ch + 4u);
@@ -149,6 +159,7 @@ static abbe_status_t check_thermal(const uint8_t *b, uint32_t total)
             return ABBE_E_RANGE;
         }
         unsigned n_terms = th_u8(b, total, ch + 1u);
+        /*@ TH_LOOP_TERM_RANGE */
         for (unsigned k = 0; k < n_terms; k++) {
             uint32_t tm = th_term(ch, k);
             if (th_u32(b, total, tm + 4u) > TH_TIME_CAP || th_abs_over(th_i32(b, total, tm + 8u), TH_GAIN_CAP)) {
@@ -178,10 +189,12 @@ static void build_thermal(abbe_thermal_model_t *th, const uint8_t *b, uint32_t t
     uint32_t t = abbe_ld_u32(b + H_RESERVED);
     unsigned n_in = th_cap(th_u8(b, total, t), ABBE_THERMAL_MAX_INPUTS);
     unsigned n_ch = th_cap(th_u8(b, total, t + 1u), ABBE_THERMAL_MAX_CHANNELS);
+    /*@ TH_ASSERT_FITS */
     th->n_inputs = (uint8_t)n_in;
     th->n_channels = (uint8_t)n_ch;
     th->max_gap_ms = th_u32(b, total, t + 4u);
     th->fade_ms = th_u32(b, total, t + 8u);
+    /*@ TH_LOOP_BUILD_INPUTS */
     for (unsigned k = 0; k < n_in; k++) {
         uint32_t in = th_input(t, k);
         th->kind[k] = (uint8_t)th_u8(b, total, in);
@@ -192,12 +205,14 @@ static void build_thermal(abbe_thermal_model_t *th, const uint8_t *b, uint32_t t
         th->stuck_ms[k] = (uint32_t)th_u8(b, total, in + 1u) * 60000u;
         th->stuck_res_milli[k] = (int32_t)th_u16(b, total, in + 2u);
     }
+    /*@ TH_LOOP_BUILD_CHANNELS */
     for (unsigned c = 0; c < n_ch; c++) {
         uint32_t ch = th_channel(t, n_in, c);
         unsigned n_terms = th_cap(th_u8(b, total, ch + 1u), ABBE_THERMAL_MAX_TERMS);
         th->output[c] = (uint8_t)th_u8(b, total, ch);
         th->n_terms[c] = (uint8_t)n_terms;
         th->limit[c] = th_i32(b, total, ch + 4u);
+        /*@ TH_LOOP_BUILD_TERMS */
         for (unsigned k = 0; k < n_terms; k++) {
             uint32_t tm = th_term(ch, k);
             unsigned input = th_cap(th_u8(b, total, tm), ABBE_THERMAL_MAX_INPUTS - 1u); /* < n_in: check_thermal */
@@ -209,6 +224,7 @@ static void build_thermal(abbe_thermal_model_t *th, const uint8_t *b, uint32_t t
     }
 #if ABBE_WITH_F32
     /* the float twins: temperatures in degC (milli / 1000), speed in rpm */
+    /*@ TH_LOOP_TWINS_INPUTS */
     for (unsigned k = 0; k < n_in; k++) {
         float unit = th->kind[k] == ABBE_THERMAL_SPEED ? 1.0f : 0.001f;
         th->ref[k] = (float)th->ref_milli[k] * unit;
@@ -219,8 +235,10 @@ static void build_thermal(abbe_thermal_model_t *th, const uint8_t *b, uint32_t t
         th->stuck_res[k] = (float)th->stuck_res_milli[k] * unit;
         th->rise_scale[k] = th->kind[k] == ABBE_THERMAL_SPEED ? 0.001f : 1.0f;
     }
+    /*@ TH_LOOP_TWINS_CHANNELS */
     for (unsigned c = 0; c < n_ch; c++) {
         th->limit_f[c] = (float)th->limit[c] * 0.001f;
+        /*@ TH_LOOP_TWINS_TERMS */
         for (unsigned k = 0; k < th->n_terms[c]; k++) {
             th->tau_s[c][k] = (float)th->tau_ms[c][k] * 0.001f;
             th->gain[c][k] = (float)th->gain_q16[c][k] * (1.0f / 65536.0f);

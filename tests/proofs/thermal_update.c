@@ -29,7 +29,12 @@ static abbe_thermal_state_t state;
  * gain within +/-2^28, the channel's limit 1..2^30; the gap and fade times
  * 1..2^31 ms; the tool offset t_z any int32; the float twins as build_thermal
  * computes them. Or no block at all (0 inputs, 0 channels): the two cases
- * are kept apart (a partition each). */
+ * are kept apart (a partition each). These are the ranges of the ACSL
+ * predicate thermal_model_ok (lib/src/thermal_acsl.h), the postcondition
+ * stated for build_thermal (its proof is open: docs/proofs.md, "WP: the
+ * thermal loader"); each field is drawn over the whole range that predicate
+ * allows, independently, so every model satisfying it is among the
+ * harness' models (and more: vmin >= vmax, repeated outputs). */
 static void any_thermal(abbe_thermal_model_t *th)
 {
     memset(th, 0, sizeof *th);
