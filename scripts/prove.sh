@@ -370,7 +370,7 @@ prove_wp() {
     # goals of these five functions (wp:range / wp:split: the axis and term
     # indices, as for check_counts)
     wp_run "wp l1 caps" "check_ranges' l1_caps and its helpers" "$OUT/wp_l1_caps.log" \
-        -cpp-extra-args="$CPP -DABBE_PROOF_WP" lib/src/model_load.c -wp \
+        -cpp-extra-args="$CPP -DABBE_PROOF_WP -DABBE_PROOF_WP_L1" lib/src/model_load.c -wp \
         -wp-fct coef_word,abs_i32,mag_i32,column_l1_of,check_ranges \
         -wp-prover z3 -wp-timeout 60 -wp-auto wp:range,wp:split || return 1
     # the _q term kernels' and the five-axis rotary motions' (motions_q) accumulation
