@@ -154,6 +154,7 @@
 #define WP_LOOP_COLUMNS loop invariant \true;
 #endif
 
+#if defined(ABBE_PROOF_WP)
 /* abbe_ld_u32's value, the little-endian word (stated, by reading: one line
  * of internal.h), for the L1 caps' pass only (ABBE_PROOF_WP_L1): in the
  * count pass the extra fact per read made Z3 need 18 s instead of 2 for
@@ -163,7 +164,6 @@
 #else
 #define WP_LD_U32_VALUE
 #endif
-#if defined(ABBE_PROOF_WP)
 /* The loader's contracts WP proves (scripts/prove.sh, prove_wp: only there is
  * ABBE_PROOF_WP defined; no compiler and no Eva harness sees them). The
  * functions are model_load_layout.h's, model_load_checks.h's and
