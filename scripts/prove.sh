@@ -396,11 +396,23 @@ prove_wp() {
         -cpp-extra-args="$CPP -DABBE_PROOF_WP" lib/src/thermal_load.c -wp \
         -wp-fct th_input,th_channel,th_term,th_u8,th_u16,th_u32,th_i32,th_abs_over,th_cap \
         -wp-prover z3 -wp-timeout 60 || return 1
+    # the 3-axis loader's L1 caps (lib/src/model_load_acsl.h, ABBE_PROOF_WP only):
+    # check_ranges accepts only tables whose every present term keeps sum |c|
+    # (column_l1, the sum over the term's words as the code reads them) within
+    # LIN_L1_CAP / ANG_L1_CAP on each axis (l1_caps), with column_l1_of's
+    # loop (the uint64 sum never wraps), coef_word, abs_i32 and mag_i32; all
+    # goals of these five functions (wp:range / wp:split: the axis and term
+    # indices, as for check_counts)
+    wp_run "wp l1 caps" "check_ranges' l1_caps and its helpers" "$OUT/wp_l1_caps.log" \
+        -cpp-extra-args="$CPP -DABBE_PROOF_WP -DABBE_PROOF_WP_L1" lib/src/model_load.c -wp \
+        -wp-fct coef_word,abs_i32,mag_i32,column_l1_of,check_ranges \
+        -wp-prover z3 -wp-timeout 60 -wp-auto wp:range,wp:split || return 1
     # the _q term kernels' and the five-axis rotary motions' (motions_q) accumulation
     # under the loader's L1 caps and the basis rows' bound (tests/proofs/terms_q_l1.c;
     # the shifts: Eva, above)
     # (the model's functions only: the file includes the loader's caps, model_load_layout.h)
     local L1_FCTS="row_product,term_acc,term_lin_q,term_ang_q,rot_trans_q,rot_ang_q,lin_high_word,ang_shifted,rot_trans_shifted,rot_ang_shifted"
+    L1_FCTS+=",term_lin_q_table,term_ang_q_table" # the kernels' cap in the loader's column_l1 (l1_caps above)
     wp_run "wp terms_q_l1" "the L1 accumulation" "$OUT/wp_terms_q_l1.log" \
         -cpp-extra-args="$CPP" tests/proofs/terms_q_l1.c -wp -wp-fct "$L1_FCTS" -wp-rte \
         -wp-prop="-lin_shift,-ang_shift,-rot_trans_shift,-rot_ang_shift" -wp-prover z3 -wp-timeout 30 || return 1

@@ -73,6 +73,52 @@
         column_ok(ax, 3) && column_ok(ax, 4) && column_ok(ax, 5);
  */
 
+/* The L1 caps of check_ranges (model_load_checks.h): the loader's sum of
+ * |coefficient| over one term's words, as the code computes it (each read
+ * and index as wrapped in uint32), and the cap each accepted term keeps.
+ * The same logic function is the precondition of the term kernel model's
+ * table form (tests/proofs/terms_q_l1.c, term_lin_q_table / term_ang_q_table),
+ * so "check_ranges accepts" -> "the kernel's L1 precondition" is one
+ * statement (docs/proofs.md, "The L1 caps"). */
+/* the little-endian word at p (abbe_ld_u32) */
+/*@ logic integer ld_u32_l{L}(uint8_t *p) = p[0] + 0x100 * p[1] + 0x10000 * p[2] + 0x1000000 * p[3];
+ */
+/* a uint32's two's complement int32 (abbe_u32_to_i32), and |v| */
+/*@ logic integer i32_of_u32_l(integer u) = u < 0x80000000 ? u : u - 0x100000000;
+    logic integer abs_l(integer v) = v < 0 ? -v : v;
+ */
+/* word i of the coefficient array at byte offset off (coef_word) */
+/*@ logic integer coef_word_l{L}(uint8_t *b, integer total, integer off, integer i) =
+        total >= 8 && (uint32_t)(off + (uint32_t)(4 * i)) <= total - 8 ?
+            ld_u32_l(b + (uint32_t)(off + (uint32_t)(4 * i))) : 0;
+ */
+/* sum |c| over rows 0 .. n-1 of a term's column of the int32 matrix at off
+ * (row r's word r * n_terms + column: column_l1_of) */
+/*@ logic integer column_l1{L}(uint8_t *b, integer total, integer off, integer n_terms, integer column, integer n) =
+        n <= 0 ? 0 :
+        column_l1(b, total, off, n_terms, column, n - 1) +
+        abs_l(i32_of_u32_l(coef_word_l(b, total, off, (uint32_t)((uint32_t)((n - 1) * n_terms) + column))));
+ */
+/* term t of an axis record (mask byte 8, the int32 array's offset at byte 48)
+ * within its cap if present: sum |c| <= 2^32 (t < 3, linear) or 2^28, the
+ * values of LIN_L1_CAP and ANG_L1_CAP (model_load_layout.h, after this file;
+ * check_ranges' proof compares them with the code's caps). Macros that
+ * expand in the annotations, not ACSL predicates: Why3's Z3 fails ("Unknown
+ * error") on every goal with such a predicate over the table, and proves the
+ * same goals with the body written out (docs/proofs.md, "The L1 caps"). */
+#define TERM_L1_OK(b, total, rec, t)                                                                   \
+    (mask_bit((rec)[8], t) == 1 ==>                                                                   \
+     column_l1(b, total, ld_u32_l((rec) + 48), popcount_below((rec)[8], ABBE_TERMS),                   \
+               popcount_below((rec)[8], t), n_basis_l(rec)) <= ((t) < 3 ? 0x100000000 : 0x10000000))
+/* terms 0 .. n-1 of a record, all its terms, the three records */
+#define TERMS_L1_BELOW(b, total, rec, n)                                                               \
+    (((n) > 0 ==> TERM_L1_OK(b, total, rec, 0)) && ((n) > 1 ==> TERM_L1_OK(b, total, rec, 1)) &&       \
+     ((n) > 2 ==> TERM_L1_OK(b, total, rec, 2)) && ((n) > 3 ==> TERM_L1_OK(b, total, rec, 3)) &&       \
+     ((n) > 4 ==> TERM_L1_OK(b, total, rec, 4)) && ((n) > 5 ==> TERM_L1_OK(b, total, rec, 5)))
+#define RECORD_L1_OK(b, total, rec) TERMS_L1_BELOW(b, total, rec, ABBE_TERMS)
+#define TABLE_L1_OK(b, total)                                                                          \
+    (RECORD_L1_OK(b, total, (b) + 64) && RECORD_L1_OK(b, total, (b) + 128) && RECORD_L1_OK(b, total, (b) + 192))
+
 /* The loops' annotations of those contracts (WP_LOOP_*, in the loops of
  * model_load_layout.h, model_load_checks.h, model_load_view.h): the
  * invariants under ABBE_PROOF_WP, a trivial one in the other Frama-C runs
@@ -106,13 +152,23 @@
 #endif
 
 #if defined(ABBE_PROOF_WP)
+/* abbe_ld_u32's value, the little-endian word (stated, by reading: one line
+ * of internal.h), for the L1 caps' pass only (ABBE_PROOF_WP_L1): in the
+ * count pass the extra fact per read made Z3 need 18 s instead of 2 for
+ * wp_records, and fail under load */
+#if defined(ABBE_PROOF_WP_L1)
+#define WP_LD_U32_VALUE ensures ld_u32: \result == ld_u32_l(p);
+#else
+#define WP_LD_U32_VALUE
+#endif
 /* The loader's contracts WP proves (scripts/prove.sh, prove_wp: only there is
  * ABBE_PROOF_WP defined; no compiler and no Eva harness sees them). The
  * functions are model_load_layout.h's, model_load_checks.h's and
  * model_load_view.h's; the helpers of internal.h they call are given what
  * WP needs of them (they read, and write nothing). */
 /*@ requires \valid_read(p + (0 .. 3));
-    assigns \nothing; */
+    assigns \nothing;
+    WP_LD_U32_VALUE */
 static inline uint32_t abbe_ld_u32(const uint8_t *p);
 /*@ requires \valid_read(p + (0 .. 3));
     assigns \nothing; */
@@ -157,6 +213,83 @@ static abbe_status_t check_counts(const uint8_t *b);
     ensures layout_ok: axis_layout_ok(ax);
  */
 static void build_axis(abbe_axis_model_t *ax, const uint8_t *b, const uint8_t *rec);
+#endif
+
+/* check_ranges' loops (the L1 caps' contract below) */
+#if defined(ABBE_PROOF_WP)
+#define WP_LOOP_SQUARENESS                                                                 \
+    loop invariant wp_squareness: 0 <= k <= 3;                                             \
+    loop assigns k;                                                                        \
+    loop variant 3 - k;
+#define WP_LOOP_L1_AXES                                                                    \
+    loop invariant wp_l1_axes: 0 <= j <= ABBE_AXES;                                        \
+    loop invariant wp_l1_records: (j > 0 ==> RECORD_L1_OK(b, total, b + 64)) &&            \
+        (j > 1 ==> RECORD_L1_OK(b, total, b + 128)) && (j > 2 ==> RECORD_L1_OK(b, total, b + 192)); \
+    loop assigns j;                                                                        \
+    loop variant ABBE_AXES - j;
+#define WP_LOOP_L1_TERMS                                                                   \
+    loop invariant wp_l1_rank: 0 <= t <= ABBE_TERMS && column == popcount_below(mask, t);  \
+    loop invariant wp_l1_terms: TERMS_L1_BELOW(b, total, rec, t);                          \
+    loop assigns t, column;                                                                \
+    loop variant ABBE_TERMS - t;
+#define WP_LOOP_L1_ROWS                                                                    \
+    loop invariant wp_l1_rows: 0 <= r <= n_basis;                                          \
+    loop invariant wp_l1_sum: l1 == column_l1(b, total, off_q, n_terms, column, r);        \
+    loop invariant wp_l1_bound: column_l1(b, total, off_q, n_terms, column, r) <= r * 0x80000000; \
+    loop assigns r, l1;                                                                    \
+    loop variant n_basis - r;
+#define WP_L1_ROW                                                                          \
+    assert wp_l1_next: r + 1 <= n_basis && column_l1(b, total, off_q, n_terms, column, r + 1) == \
+        column_l1(b, total, off_q, n_terms, column, r) +                                   \
+        abs_l(i32_of_u32_l(coef_word_l(b, total, off_q, (uint32_t)((uint32_t)(r * n_terms) + column))));
+#define WP_L1_ABSENT assert wp_l1_absent: mask_bit(mask, t) == 0;
+#define WP_L1_PRESENT assert wp_l1_present: TERM_L1_OK(b, total, rec, t);
+#define WP_L1_AXIS                                                                         \
+    assert wp_l1_axis: (j == 0 ==> RECORD_L1_OK(b, total, b + 64)) &&                      \
+        (j == 1 ==> RECORD_L1_OK(b, total, b + 128)) && (j == 2 ==> RECORD_L1_OK(b, total, b + 192));
+#define WP_LOOP_REVERSAL_LEFT                                                              \
+    loop invariant wp_reversal_rows: 0 <= k <= rec[60];                                    \
+    loop assigns k, left;                                                                  \
+    loop variant rec[60] - k;
+#elif defined(__FRAMAC__)
+#define WP_LOOP_SQUARENESS loop invariant \true;
+#define WP_LOOP_L1_AXES loop invariant \true;
+#define WP_LOOP_L1_TERMS loop invariant \true;
+#define WP_LOOP_L1_ROWS loop invariant \true;
+#define WP_L1_ROW assert \true;
+#define WP_L1_ABSENT assert \true;
+#define WP_L1_PRESENT assert \true;
+#define WP_L1_AXIS assert \true;
+#define WP_LOOP_REVERSAL_LEFT loop invariant \true;
+#endif
+
+#if defined(ABBE_PROOF_WP)
+/* The L1 caps' contract (scripts/prove.sh, "wp l1 caps"), with the helpers
+ * it calls. abbe_u32_to_i32 (internal.h: a memcpy WP does not model) is
+ * given its result, two's complement, by reading. */
+/*@ assigns \nothing;
+    ensures i32: \result == i32_of_u32_l(u); */
+static inline int32_t abbe_u32_to_i32(uint32_t u);
+/*@ assigns \nothing;
+    ensures abs: \result == abs_l(v); */
+static uint64_t abs_i32(int32_t v);
+/*@ assigns \nothing; */
+static uint32_t mag_i32(int32_t v);
+/*@ requires table: \valid_read(b + (0 .. total - 1));
+    assigns \nothing;
+    ensures word: \result == coef_word_l(b, total, off, i); */
+static uint32_t coef_word(const uint8_t *b, uint32_t total, uint32_t off, uint32_t i);
+/*@ requires table: \valid_read(b + (0 .. total - 1));
+    assigns \nothing;
+    ensures column_l1: \result == column_l1(b, total, off_q, n_terms, column, n_basis); */
+static uint64_t column_l1_of(const uint8_t *b, uint32_t total, uint32_t off_q, uint32_t n_basis, unsigned n_terms,
+                             unsigned column);
+/* an accepted table keeps every present term's L1 cap on each axis (260:
+ * MIN_TOTAL_SIZE, defined after this file; check_header's accepted_total) */
+/*@ requires table: 260 <= total && \valid_read(b + (0 .. total - 1));
+    assigns \nothing;
+    ensures l1_caps: \result == ABBE_OK ==> TABLE_L1_OK(b, total); */
+static abbe_status_t check_ranges(const uint8_t *b, uint32_t total);
 #endif
 
 #endif /* ABBE_MODEL_LOAD_ACSL_H */

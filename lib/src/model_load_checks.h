@@ -297,15 +297,32 @@ static uint64_t abs_i32(int32_t v)
     return v < 0 ? (uint64_t)(-(int64_t)v) : (uint64_t)v;
 }
 
+/* sum |c| over the n_basis words of one term's column of the int32 matrix
+ * at off_q (row r's word r * n_terms + column), in uint64: at most
+ * 2^32 rows of 2^31 each, below 2^63 (WP: column_l1, model_load_acsl.h) */
+static uint64_t column_l1_of(const uint8_t *b, uint32_t total, uint32_t off_q, uint32_t n_basis, unsigned n_terms,
+                             unsigned column)
+{
+    uint64_t l1 = 0;
+    /*@ WP_LOOP_L1_ROWS */
+    for (uint32_t r = 0; r < n_basis; r++) {
+        /*@ WP_L1_ROW */
+        l1 += abs_i32(abbe_u32_to_i32(coef_word(b, total, off_q, r * n_terms + column)));
+    }
+    return l1;
+}
+
 /* The caps keep every fixed-point intermediate below 2^63 (docs/numerics.md). */
 static abbe_status_t check_ranges(const uint8_t *b, uint32_t total)
 {
     uint32_t features = abbe_ld_u32(b + H_FEATURES);
+    /*@ WP_LOOP_SQUARENESS */
     for (unsigned k = 0; k < 3u; k++) {
         if (abs_i32(abbe_ld_i32(b + H_SQUARENESS + 4u * k)) > (uint64_t)SQUARENESS_CAP) {
             return ABBE_E_RANGE;
         }
     }
+    /*@ WP_LOOP_L1_AXES */
     for (unsigned j = 0; j < ABBE_AXES; j++) {
         const uint8_t *rec = b + HEADER_SIZE + j * AXIS_RECORD_SIZE;
         if (features & ABBE_FEATURE_BACKLASH) {
@@ -321,23 +338,24 @@ static abbe_status_t check_ranges(const uint8_t *b, uint32_t total)
         uint32_t n_basis = n_basis_of(rec);
         uint32_t off_q = abbe_ld_u32(rec + A_COEF_Q);
         unsigned column = 0;
+        /*@ WP_LOOP_L1_TERMS */
         for (unsigned t = 0; t < ABBE_TERMS; t++) {
             if (!((mask >> t) & 1u)) {
+                /*@ WP_L1_ABSENT */
                 continue;
             }
-            uint64_t l1 = 0;
-            for (uint32_t r = 0; r < n_basis; r++) {
-                l1 += abs_i32(abbe_u32_to_i32(coef_word(b, total, off_q, r * n_terms + column)));
-            }
-            if (l1 > (t < 3u ? LIN_L1_CAP : ANG_L1_CAP)) {
+            if (column_l1_of(b, total, off_q, n_basis, n_terms, column) > (t < 3u ? LIN_L1_CAP : ANG_L1_CAP)) {
                 return ABBE_E_RANGE;
             }
+            /*@ WP_L1_PRESENT */
             column++;
         }
+        /*@ WP_L1_AXIS */
 #if !defined(ABBE_NO_REVERSAL)
         /* the total reversal |B + R(p)| <= |B| + sum |r_k| <= 2^31 (keeps
          * s (B + R) below 2^62), counted down in 32 bits */
         uint32_t left = REVERSAL_L1_CAP - mag_i32(abbe_ld_i32(rec + A_BACKLASH));
+        /*@ WP_LOOP_REVERSAL_LEFT */
         for (unsigned k = 0; k < REVERSAL_ROWS(rec); k++) {
             uint32_t a = mag_i32(abbe_u32_to_i32(coef_word(b, total, off_q, n_basis * n_terms + k)));
             if (a > left) {

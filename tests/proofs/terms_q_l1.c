@@ -137,6 +137,73 @@ int32_t term_ang_q(const int32_t *c, const int32_t *b, unsigned n)
     return ang_shifted(acc);
 }
 
+/* The same two terms with the precondition in the loader's words
+ * (lib/src/model_load_acsl.h): the term's coefficients c[] are its column of
+ * the table's int32 matrix at byte offset off, row k's word k * n_terms +
+ * column as the loader reads it (coef_word_l: the view the loaded model's
+ * coefficient pointer gives the kernels, on paper), and the loader's sum
+ * column_l1 of that column is within the cap, which check_ranges' WP-proven
+ * postcondition l1_caps gives every present term of an accepted table. The
+ * ghost loop shows l1(c, n) is that sum, so term_lin_q's / term_ang_q's
+ * precondition holds: the chain check_ranges -> kernel is checked by WP. */
+/*@ requires rows: 0 <= n <= MAX_ROWS;
+    requires \valid_read(c + (0 .. n - 1)) && \valid_read(b + (0 .. n - 1));
+    requires basis: \forall integer k; 0 <= k < n ==> -ROW_MAX <= b[k] <= ROW_MAX;
+    requires view: \forall integer k; 0 <= k < n ==>
+        c[k] == i32_of_u32_l(coef_word_l(tb, total, off, (uint32_t)((uint32_t)(k * n_terms) + column)));
+    requires loader_cap: column_l1(tb, total, off, n_terms, column, n) <= 0x100000000;
+    assigns \nothing;
+    ensures lin: -ROW_MAX <= \result <= ROW_MAX;
+ */
+int32_t term_lin_q_table(const int32_t *c, const int32_t *b, unsigned n, const uint8_t *tb, uint32_t total,
+                         uint32_t off, uint32_t n_terms, uint32_t column)
+{
+    /*@ ghost
+        unsigned i = 0;
+        /@ loop invariant 0 <= i <= n;
+           loop invariant l1(c, i) == column_l1(tb, total, off, n_terms, column, i);
+           loop assigns i;
+           loop variant n - i; @/
+        while (i < n) {
+            /@ assert l1(c, i + 1) == l1(c, i) + (c[i] < 0 ? -c[i] : c[i]); @/
+            /@ assert c[i] == i32_of_u32_l(coef_word_l(tb, total, off, (uint32_t)((uint32_t)(i * n_terms) + column))); @/
+            /@ assert column_l1(tb, total, off, n_terms, column, i + 1) == column_l1(tb, total, off, n_terms, column, i) +
+                   abs_l(i32_of_u32_l(coef_word_l(tb, total, off, (uint32_t)((uint32_t)(i * n_terms) + column)))); @/
+            i++;
+        }
+    */
+    return term_lin_q(c, b, n);
+}
+
+/*@ requires rows: 0 <= n <= MAX_ROWS;
+    requires \valid_read(c + (0 .. n - 1)) && \valid_read(b + (0 .. n - 1));
+    requires basis: \forall integer k; 0 <= k < n ==> -ROW_MAX <= b[k] <= ROW_MAX;
+    requires view: \forall integer k; 0 <= k < n ==>
+        c[k] == i32_of_u32_l(coef_word_l(tb, total, off, (uint32_t)((uint32_t)(k * n_terms) + column)));
+    requires loader_cap: column_l1(tb, total, off, n_terms, column, n) <= 0x10000000;
+    assigns \nothing;
+    ensures ang: -0x8000002 <= \result <= 0x8000002;
+ */
+int32_t term_ang_q_table(const int32_t *c, const int32_t *b, unsigned n, const uint8_t *tb, uint32_t total,
+                         uint32_t off, uint32_t n_terms, uint32_t column)
+{
+    /*@ ghost
+        unsigned i = 0;
+        /@ loop invariant 0 <= i <= n;
+           loop invariant l1(c, i) == column_l1(tb, total, off, n_terms, column, i);
+           loop assigns i;
+           loop variant n - i; @/
+        while (i < n) {
+            /@ assert l1(c, i + 1) == l1(c, i) + (c[i] < 0 ? -c[i] : c[i]); @/
+            /@ assert c[i] == i32_of_u32_l(coef_word_l(tb, total, off, (uint32_t)((uint32_t)(i * n_terms) + column))); @/
+            /@ assert column_l1(tb, total, off, n_terms, column, i + 1) == column_l1(tb, total, off, n_terms, column, i) +
+                   abs_l(i32_of_u32_l(coef_word_l(tb, total, off, (uint32_t)((uint32_t)(i * n_terms) + column)))); @/
+            i++;
+        }
+    */
+    return term_ang_q(c, b, n);
+}
+
 /* The five-axis rotary motions (five_eval_q.c motions_q): per component the
  * same accumulation over the record's rows (2 x harmonics <= 16: sin k t, then
  * cos k t, harmonic by harmonic, the table's row order; the fitted axis' GROUP
