@@ -4,7 +4,8 @@ Fit on one fold, judge the other (nuisance refitted there), and back (docs/effec
 §3): laser / positioning data early runs against late runs (a drift must
 extrapolate in time), ballbar alternate 45 deg sectors with both directions; the
 secondary split (CCW / CW, alternate targets) when a fold cannot identify the
-effects. Units: RSS in noise units (whitened), gaps in um.
+effects. A thermal drift is judged on the split in time of every check that has one
+(early / late runs, the CCW trace / the CW trace run after it: Problem.split_in_time). Units: RSS in noise units (whitened), gaps in um.
 """
 
 from __future__ import annotations
