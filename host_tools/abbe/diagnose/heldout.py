@@ -4,7 +4,8 @@ Fit on one fold, judge the other (nuisance refitted there), and back (docs/effec
 §3): laser / positioning data early runs against late runs (a drift must
 extrapolate in time), ballbar alternate 45 deg sectors with both directions; the
 secondary split (CCW / CW, alternate targets) when a fold cannot identify the
-effects. Units: RSS in noise units (whitened), gaps in um.
+effects. A thermal drift is judged on the split in time of every check that has one
+(early / late runs, the CCW trace / the CW trace run after it: Problem.split_in_time). Units: RSS in noise units (whitened), gaps in um.
 """
 
 from __future__ import annotations
@@ -34,8 +35,12 @@ def heldout_rss(eng: Engine, sel: list[Selected], cand: Cand | None, W: np.ndarr
     support = np.ones(prob.N, dtype=bool) if cand is None else \
         np.any(np.abs(cand.cols) > 1e-12 * max(float(np.max(np.abs(cand.cols), initial=0.0)), 1e-300),
                axis=1) | (np.abs(cand.offset) > 0 if cand.offset is not None else False)
-    for level in (0, 1):
-        sp = prob.split(level)
+    # a drift is judged on the split in time (fit the early runs / the CCW trace, judge
+    # the late runs / the CW trace, and back): a change in time must extrapolate in time.
+    # On a split by angle sectors a drift column is one more shape within each trace and
+    # can take a static misfit (of a large squareness, say) that no later run repeats.
+    timed = prob.split_in_time() if cand is not None and cand.spec.kind == "thermal" else None
+    for sp in ([timed] if timed is not None else [prob.split(0), prob.split(1)]):
         if sp is None:
             continue
         lab, name = sp

@@ -23,6 +23,10 @@ from abbe.model.table import Table
 #: instrument resolution; keeps noiseless synthetic data from making everything significant.
 NOISE_FLOOR = 0.01
 
+#: Held-out splits in time (checks.py's fold names): a repeated-run line's early / late
+#: runs, a circle's CCW trace then its CW trace.
+TIME_SPLITS = ("runs", "direction")
+
 
 #: qr_basis results by the bytes of their input (the same nuisance, fold and selected
 #: set recur for every candidate of a selection step): (shape, tol, digest) -> basis
@@ -136,6 +140,25 @@ class Problem:
             names.append(k)
         uniq = sorted(set(names))
         return np.concatenate(labs), "; ".join(uniq)
+
+    def split_in_time(self) -> tuple[np.ndarray, str] | None:
+        """Fold labels (N,) of the split in time of every check that has one, or None when
+        none has: a repeated-run line's early / late runs, a circle's CCW / CW trace (run
+        one after the other); a check without one keeps its preferred split. The arbiter
+        of a drift: a change in time must extrapolate from one fold in time to the other
+        (docs/effects.md §3, "a drift needs a held-out split in time")."""
+        labs, names, timed = [], [], False
+        for c in self.checks:
+            keys = list(c.folds)
+            if not keys:
+                return None
+            k = next((x for x in keys if x.startswith(TIME_SPLITS)), keys[0])
+            timed |= k.startswith(TIME_SPLITS)
+            labs.append(c.folds[k])
+            names.append(k)
+        if not timed:
+            return None
+        return np.concatenate(labs), "; ".join(sorted(set(names)))
 
     def predict(self, ev: Evaluator, table: Table, pp: PredParams) -> np.ndarray:
         with ev.pinned(table):
