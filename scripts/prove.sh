@@ -370,7 +370,10 @@ prove_wp() {
     # rotary_table_counts_ok, build_rotary makes of such a record a model within
     # rotary_layout_ok (the predicate tests/proofs/eval_five_any.c asserts of its
     # records), with every helper they call; all goals of these functions
-    local ROT_FCTS="rotary_record,any_nonzero_u8,any_above,hh_lever_too_long,mag_i32,abbe_f32_bits_nonfinite,coef_word,rotary_record_bad,check_rotary,capped_i32,others_of,geometry_at,angle_at,build_rotary"
+    # (coef_word is used here through its contract: its postcondition `word` needs
+    # abbe_ld_u32's value, seen only in the `wp l1 caps` pass, which proves it; the
+    # same function of model_load_checks.h, included by both loaders)
+    local ROT_FCTS="rotary_record,any_nonzero_u8,any_above,hh_lever_too_long,mag_i32,abbe_f32_bits_nonfinite,rotary_record_bad,check_rotary,capped_i32,others_of,geometry_at,angle_at,build_rotary"
     wp_run "wp five loader" "check_rotary's counts_ok, build_rotary's layout_ok and their helpers" \
         "$OUT/wp_five_loader.log" -cpp-extra-args="$CPP -DABBE_PROOF_WP" lib/src/five_load.c -wp \
         -wp-fct "$ROT_FCTS" -wp-prover z3 -wp-timeout 200 -wp-auto wp:range,wp:split || return 1
