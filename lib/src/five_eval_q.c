@@ -219,32 +219,61 @@ static ABBE_ALWAYS_INLINE void rotate_q(unsigned k, int32_t c, int32_t s, int32_
 
 /* rotate_q with each turned component saturated to int32 (ABBE_FLAG_SATURATED): the
  * chain kinds' pairs whose bound is their norm, not each component's (chain_q: kind 3's
- * R1 P1 and head lever, kinds 3 and 5's inner twist v1 + w1 x g). On every table the loader
- * accepts each turned component is below 2^31 (their norms: docs/numerics.md, "Five-axis
+ * head lever, kinds 3 and 5's inner twist v1 + w1 x g). On every table the loader accepts
+ * each turned component is below 2^31 (their norms: docs/numerics.md, "Five-axis
  * evaluation"), so the result is rotate_q's, bit for bit, and the flag is never set; beyond
  * (a model not from the loader) it is defined and flagged where the int32 conversion would
- * wrap. rot_q30 is an int64 of |.| < 2^32: the test on its high word inlined (instructions),
- * the saturation out of line (flash); docs/proofs.md, "The chain kinds' turned pairs". */
-ABBE_NOINLINE static int32_t saturate_q(int64_t v, uint32_t *flags)
+ * wrap. The test is on rot_q30's two int64 sums before the shift: acc >> 30 is within
+ * int32 iff acc is within [-2^61, 2^61), i.e. its high word within [-2^29, 2^29); both high
+ * words offset by 2^29 and or-ed, one unsigned test (instructions: bench/results.md
+ * section 11); the values are then the low words of the shifted sums, the saturation out
+ * of line (flash); docs/proofs.md, "The chain kinds' turned pairs". */
+ABBE_COLD static int32_t saturate_q(int64_t v, uint32_t *flags)
 {
     return abbe_sat_i32(v, flags);
+}
+
+/* rot_q30's sum before its shift: a b - c d + 2^29 (two SMLALs) */
+static ABBE_ALWAYS_INLINE int64_t rot_sum_q30(int32_t a, int32_t b, int32_t c, int32_t d)
+{
+    return abbe_smlal(abbe_smlal((int64_t)1 << (Q30 - 1u), a, b), -c, d);
+}
+
+/* The high word of an int64 plus 2^29 (mod 2^32): below 2^30 iff the int64 is within
+ * [-2^61, 2^61) */
+static ABBE_ALWAYS_INLINE uint32_t hi_offset_q(int64_t v)
+{
+    return (uint32_t)((uint64_t)v >> 32) + 0x20000000u;
 }
 
 static ABBE_ALWAYS_INLINE void rotate_sat_q(unsigned k, int32_t c, int32_t s, int32_t a[3], uint32_t *flags)
 {
     const unsigned j = (k == 2u) ? 0u : (k + 1u);
     const unsigned l = (k == 0u) ? 2u : (k - 1u);
-    const int64_t x = rot_q30(c, a[j], s, a[l]);
-    const int64_t y = rot_q30(s, a[j], -c, a[l]);
-    const int32_t xl = abbe_u32_to_i32((uint32_t)(uint64_t)x);
-    const int32_t yl = abbe_u32_to_i32((uint32_t)(uint64_t)y);
-    if ((x == xl) && (y == yl)) { /* within int32: their low words */
-        a[j] = xl;
-        a[l] = yl;
+    const int64_t x = rot_sum_q30(c, a[j], s, a[l]);
+    const int64_t y = rot_sum_q30(s, a[j], -c, a[l]);
+    if ((hi_offset_q(x) | hi_offset_q(y)) < 0x40000000u) { /* both within int32 after the shift */
+        a[j] = abbe_u32_to_i32((uint32_t)((uint64_t)x >> Q30));
+        a[l] = abbe_u32_to_i32((uint32_t)((uint64_t)y >> Q30));
     } else {
-        a[j] = saturate_q(x, flags);
-        a[l] = saturate_q(y, flags);
+        a[j] = saturate_q(x >> Q30, flags);
+        a[l] = saturate_q(y >> Q30, flags);
     }
+}
+
+/* Kind 3's R1 P1 (P1 = tilt_pivot, halved) as rotate_q's values mod 2^32, for the head
+ * lever's sum, which is taken mod 2^32 (hh_lever). Exact for every model: the pair's norm
+ * is at most 2^30.5 (halves of int32) and a Q30 turn keeps it to within (1 + 2^-28)
+ * (c^2 + s^2 <= 2^60 + 2^33, the hypothesis sincos_norm), so each turned component is
+ * within 2^30.5 + 7 < 2^31 and its low word is its value: no test, no saturation, and no
+ * signed conversion for Eva to bound (docs/proofs.md, "The chain kinds' turned pairs"). */
+static ABBE_ALWAYS_INLINE void rotate_low_q(unsigned k, int32_t c, int32_t s, const int32_t a[3], uint32_t u[3])
+{
+    const unsigned j = (k == 2u) ? 0u : (k + 1u);
+    const unsigned l = (k == 0u) ? 2u : (k - 1u);
+    u[k] = (uint32_t)a[k];
+    u[j] = (uint32_t)(uint64_t)rot_q30(c, a[j], s, a[l]);
+    u[l] = (uint32_t)(uint64_t)rot_q30(s, a[j], -c, a[l]);
 }
 
 /* (w x L)_i, w in 2^-36 rad, L in 2 nm, both int32 (two SMLALs): 2^-35 nm -> 2^-4 nm, rounded */
@@ -279,9 +308,9 @@ ABBE_NOINLINE static void twist_chain_q(const abbe_rotary_model_t *ax, int32_t c
  * cap, which relates g and P1 (both from rot_point and offset) as an interval analysis
  * cannot (docs/proofs.md, "Five-axis: any layout"). The same instructions as the int32
  * sum (a clamp in int64 was 132 B of flash, Cortex-M4F -O2). */
-static ABBE_ALWAYS_INLINE int32_t hh_lever(int32_t g, int32_t u)
+static ABBE_ALWAYS_INLINE int32_t hh_lever(int32_t g, uint32_t u)
 {
-    return abbe_u32_to_i32(0u - ((uint32_t)g + (uint32_t)u));
+    return abbe_u32_to_i32(0u - ((uint32_t)g + u));
 }
 
 /* One kind's geometry, straight-line (kind, k0 = record 0's axis and k1 = record 1's are
@@ -322,8 +351,10 @@ static ABBE_ALWAYS_INLINE void chain_q(const abbe_five_model_t *m5, const int32_
         G[2] = H0[2] - (m5->tilt_pivot_nm[2] >> 1);
         if (kind == ABBE_KIN_XYZBC_HH) {
             /* L = -R0 (g + R1 P1), P1 = tilt_pivot */
-            int32_t u[3] = {m5->tilt_pivot_nm[0] >> 1, m5->tilt_pivot_nm[1] >> 1, m5->tilt_pivot_nm[2] >> 1};
-            rotate_sat_q(k1, c1, s1r, u, flags); /* |u| <= 2^30.5: halves of int32 */
+            const int32_t P1[3] = {m5->tilt_pivot_nm[0] >> 1, m5->tilt_pivot_nm[1] >> 1,
+                                   m5->tilt_pivot_nm[2] >> 1};
+            uint32_t u[3];
+            rotate_low_q(k1, c1, s1r, P1, u); /* |u| <= 2^30.5: halves of int32, mod 2^32 */
             L[0] = hh_lever(G[0], u[0]);
             L[1] = hh_lever(G[1], u[1]);
             L[2] = hh_lever(G[2], u[2]);

@@ -47,6 +47,14 @@ typedef char abbe_requires_arithmetic_shift[((-2 >> 1) == -1) ? 1 : -1];
 #define ABBE_NOINLINE
 #endif
 
+/* Out of line and off the hot path: a function only the rare branch calls (a
+ * saturation), so the compiler lays the common path out straight. */
+#if defined(__GNUC__)
+#define ABBE_COLD __attribute__((noinline, cold))
+#else
+#define ABBE_COLD
+#endif
+
 /* Little-endian loads; compilers turn these into one load on LE targets. */
 static inline uint32_t abbe_ld_u32(const uint8_t *p)
 {
