@@ -217,6 +217,32 @@ static ABBE_ALWAYS_INLINE void rotate_q(unsigned k, int32_t c, int32_t s, int32_
     a[l] = (int32_t)rot_q30(s, x, -c, y);
 }
 
+/* rot_q30's sum before its shift: a b - c d + 2^29 (two SMLALs) */
+static ABBE_ALWAYS_INLINE int64_t rot_sum_q30(int32_t a, int32_t b, int32_t c, int32_t d)
+{
+    return abbe_smlal(abbe_smlal((int64_t)0x20000000, a, b), -c, d);
+}
+
+/* The high word of an int64 plus 2^29 (mod 2^32): below 2^30 iff the int64 is within
+ * [-2^61, 2^61), i.e. iff the int64 >> 30 is within int32 */
+static ABBE_ALWAYS_INLINE uint32_t hi_offset_q(int64_t v)
+{
+    return (uint32_t)((uint64_t)v >> 32) + 0x20000000u;
+}
+
+/* acc >> 30 saturated to int32 (abbe_sat_i32's value and flag): its low word where it is
+ * within int32, else the bound of acc's sign, flagged */
+ABBE_COLD static int32_t saturate_q(int64_t acc, uint32_t *flags)
+{
+    int32_t v = abbe_u32_to_i32((acc < 0) ? 0x80000000u : 0x7FFFFFFFu); /* INT32_MIN, INT32_MAX */
+    if (hi_offset_q(acc) < 0x40000000u) {
+        v = abbe_u32_to_i32((uint32_t)((uint64_t)acc >> Q30));
+    } else {
+        *flags |= ABBE_FLAG_SATURATED;
+    }
+    return v;
+}
+
 /* rotate_q with each turned component saturated to int32 (ABBE_FLAG_SATURATED): the
  * chain kinds' pairs whose bound is their norm, not each component's (chain_q: kind 3's
  * head lever, kinds 3 and 5's inner twist v1 + w1 x g). On every table the loader accepts
@@ -227,25 +253,8 @@ static ABBE_ALWAYS_INLINE void rotate_q(unsigned k, int32_t c, int32_t s, int32_
  * int32 iff acc is within [-2^61, 2^61), i.e. its high word within [-2^29, 2^29); both high
  * words offset by 2^29 and or-ed, one unsigned test (instructions: bench/results.md
  * section 11); the values are then the low words of the shifted sums, the saturation out
- * of line (flash); docs/proofs.md, "The chain kinds' turned pairs". */
-ABBE_COLD static int32_t saturate_q(int64_t v, uint32_t *flags)
-{
-    return abbe_sat_i32(v, flags);
-}
-
-/* rot_q30's sum before its shift: a b - c d + 2^29 (two SMLALs) */
-static ABBE_ALWAYS_INLINE int64_t rot_sum_q30(int32_t a, int32_t b, int32_t c, int32_t d)
-{
-    return abbe_smlal(abbe_smlal((int64_t)1 << (Q30 - 1u), a, b), -c, d);
-}
-
-/* The high word of an int64 plus 2^29 (mod 2^32): below 2^30 iff the int64 is within
- * [-2^61, 2^61) */
-static ABBE_ALWAYS_INLINE uint32_t hi_offset_q(int64_t v)
-{
-    return (uint32_t)((uint64_t)v >> 32) + 0x20000000u;
-}
-
+ * of line and cold (flash; the common path laid out straight); docs/proofs.md, "The chain
+ * kinds' turned pairs". */
 static ABBE_ALWAYS_INLINE void rotate_sat_q(unsigned k, int32_t c, int32_t s, int32_t a[3], uint32_t *flags)
 {
     const unsigned j = (k == 2u) ? 0u : (k + 1u);
@@ -256,8 +265,8 @@ static ABBE_ALWAYS_INLINE void rotate_sat_q(unsigned k, int32_t c, int32_t s, in
         a[j] = abbe_u32_to_i32((uint32_t)((uint64_t)x >> Q30));
         a[l] = abbe_u32_to_i32((uint32_t)((uint64_t)y >> Q30));
     } else {
-        a[j] = saturate_q(x >> Q30, flags);
-        a[l] = saturate_q(y >> Q30, flags);
+        a[j] = saturate_q(x, flags);
+        a[l] = saturate_q(y, flags);
     }
 }
 
@@ -351,8 +360,7 @@ static ABBE_ALWAYS_INLINE void chain_q(const abbe_five_model_t *m5, const int32_
         G[2] = H0[2] - (m5->tilt_pivot_nm[2] >> 1);
         if (kind == ABBE_KIN_XYZBC_HH) {
             /* L = -R0 (g + R1 P1), P1 = tilt_pivot */
-            const int32_t P1[3] = {m5->tilt_pivot_nm[0] >> 1, m5->tilt_pivot_nm[1] >> 1,
-                                   m5->tilt_pivot_nm[2] >> 1};
+            const int32_t P1[3] = {m5->tilt_pivot_nm[0] >> 1, m5->tilt_pivot_nm[1] >> 1, m5->tilt_pivot_nm[2] >> 1};
             uint32_t u[3];
             rotate_low_q(k1, c1, s1r, P1, u); /* |u| <= 2^30.5: halves of int32, mod 2^32 */
             L[0] = hh_lever(G[0], u[0]);
