@@ -396,8 +396,9 @@ static void test_loader_hh_lever(void **state)
  * memory): the lever L = -(g + R1 P1) is (2^31 - 2, 2^30 - 1) in 2 nm with B at 180 deg, and
  * C turns it beyond int32 near 45 deg (|L| = 1.118 x 2^31). The fixed-point evaluation
  * saturates the turned components and flags it (ABBE_FLAG_SATURATED; five_eval_q.c
- * rotate_sat_q), where an int32 conversion would wrap silently; the golden table as
- * loaded never sets the flag. */
+ * rotate_sat_q), where an int32 conversion would wrap silently, at exactly the angles where
+ * a turned component is beyond int32 on either side (a range test that let one side through
+ * would fail here); the golden table as loaded never sets the flag. */
 static void test_chain_turn_saturates(void **state)
 {
     (void)state;
@@ -424,6 +425,16 @@ static void test_chain_turn_saturates(void **state)
             } else {
                 flagged += sat;
                 angles++;
+                if (a % 90 != 0) { /* (at multiples of 90 deg a component is 2 LSB inside int32) */
+                    /* the turned lever R_C (L0, L1) (chain_q: s0r, C's sine times record 0's sign):
+                     * flagged exactly where a component is beyond int32, either side (every other
+                     * angle is at least 2^27 from the bound) */
+                    const double t = (double)a * 3.14159265358979323846 / 180.0;
+                    const double L0 = 2147483646.0, L1 = 1073741823.0, c = cos(t);
+                    const double s = m.sign[0] < 0 ? -sin(t) : sin(t);
+                    const double x = c * L0 - s * L1, y = s * L0 + c * L1;
+                    assert_int_equal(sat, (fabs(x) >= 2147483648.0 || fabs(y) >= 2147483648.0) ? 1u : 0u);
+                }
             }
         }
     }
