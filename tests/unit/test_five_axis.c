@@ -428,7 +428,7 @@ static void test_chain_turn_saturates(void **state)
                 if (a % 90 != 0) { /* (at multiples of 90 deg a component is 2 LSB inside int32) */
                     /* the turned lever R_C (L0, L1) (chain_q: s0r, C's sine times record 0's sign):
                      * flagged exactly where a component is beyond int32, either side (every other
-                     * angle is at least 2^27 from the bound) */
+                     * angle is at least 2^26 from the bound) */
                     const double t = (double)a * 3.14159265358979323846 / 180.0;
                     const double L0 = 2147483646.0, L1 = 1073741823.0, c = cos(t);
                     const double s = m.sign[0] < 0 ? -sin(t) : sin(t);
