@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from abbe.diagnose.drift_temperature import smooth_temperature
 from abbe.diagnose.effects import PredParams
 from abbe.diagnose.evaluator import Evaluator
 from abbe.errors import AbbeInputError
@@ -134,7 +135,10 @@ class BallbarCheck(Check):
         self.all_dir = np.asarray(direction).astype(str)
         self.all_ang = np.asarray(angle_deg, dtype=np.float64)
         self.all_time = np.asarray(time_s, dtype=np.float64)
-        self.all_temp = None if temp_c is None else np.asarray(temp_c, dtype=np.float64)
+        # the sensor's readings -> the temperature as a smooth curve in time (regression
+        # calibration: drift_temperature.smooth_temperature)
+        self.all_temp = None if temp_c is None else \
+            smooth_temperature(self.all_time, np.asarray(temp_c, dtype=np.float64))
         self.reference_mm = np.asarray(reference_mm, dtype=np.float64)
         # The data arc: [0, 360) unless the file says otherwise (a Renishaw START_ANGLE).
         m = (self.all_ang >= data_from_deg) & (self.all_ang < data_from_deg + 360.0)
@@ -298,7 +302,11 @@ class LaserCheck(Check):
         self.reference_mm = np.asarray(reference_mm, dtype=np.float64)
         n_runs, _, T = channels[0].values.shape
         self.n_runs, self.T = n_runs, T
-        self.temp_grid = None if temp_c is None else np.asarray(temp_c, dtype=np.float64)
+        # the sensor's readings -> a smooth curve in time (or in the reading order):
+        # regression calibration, drift_temperature.smooth_temperature
+        self.temp_grid = None if temp_c is None else smooth_temperature(
+            np.asarray(order if time_s is None else time_s, dtype=np.float64),
+            np.asarray(temp_c, dtype=np.float64))
         # Drift variables per reading (n_runs, 2, T): time (h), temperature (K) or,
         # without a time column, the fractional run index from the measured order.
         grids: dict[str, np.ndarray] = {}
