@@ -87,3 +87,6 @@ def test_a_drift_rate_interval_carries_the_time_constant(tmp_path: Path) -> None
     lin = [a for a in alts if a["tau"] is None][0]
     assert abs(lin["value"] - 2.0) < 0.1 and lin["weight"] > 0.05, alts
     assert abs(sum(a["weight"] for a in alts) - 1.0) < 1e-6
+    # its U (k = 2) carries the same line (0.10 um/h of Type A alone: U 0.20 before)
+    assert d["budget_u"]["drift time constant (the grid's alternatives, BIC weights)"] > 0.2
+    assert d["value"] - d["U"] <= 2.0, (d["value"], d["U"], d["budget_u"])
