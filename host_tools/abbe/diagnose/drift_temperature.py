@@ -83,9 +83,10 @@ class DriftTie:
 
 
 #: Highest degree of the polynomial in time that stands for a check's temperature
-#: (:func:`smooth_temperature`): a check lasts minutes to an hour, shorter than or about a
-#: machine's thermal time constants, so its temperature is a smooth curve in time.
-TEMP_SMOOTH_MAX_DEGREE = 6
+#: (:func:`smooth_temperature`; at most a quarter of the readings): enough for a
+#: temperature that swings a few times over a long campaign (a ripple of 1.4 h over 3.5 h
+#: needs about 12), while the BIC keeps a trace of a minute at degree 1 or 2.
+TEMP_SMOOTH_MAX_DEGREE = 20
 
 
 def smooth_temperature(abscissa: np.ndarray, temp_c: np.ndarray) -> np.ndarray:
@@ -116,7 +117,7 @@ def smooth_temperature(abscissa: np.ndarray, temp_c: np.ndarray) -> np.ndarray:
         return T.copy()
     u = (2.0 * t - lo - hi) / (hi - lo)
     best = None
-    for d in range(min(TEMP_SMOOTH_MAX_DEGREE, n - 3) + 1):
+    for d in range(min(TEMP_SMOOTH_MAX_DEGREE, n // 4) + 1):
         V = np.polynomial.chebyshev.chebvander(u, d)
         coef, *_ = np.linalg.lstsq(V, y, rcond=None)
         fit = V @ coef
