@@ -6,7 +6,7 @@ of the tenth round").
   sees a temperature change no larger than that noise. The team's suite,
   ``thermal_lin+scale_x`` of seed 380921099 (case seed 308825946): -3.40 [-3.71, -3.08] um/K
   for -4.60 before; the readings are now smoothed in time per check
-  (drift_temperature.smooth_temperature).
+  (checks.smooth_temperature).
 - A drift in time whose warm-up time constant the data cannot pin down: the rate (the slope
   at the check's start) depends on the time constant chosen, and its interval carried only
   the chosen one's. The interval is now the mixture over the grid's time constants
@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from abbe.diagnose.drift_temperature import smooth_temperature
+from abbe.diagnose.checks import smooth_temperature
 
 
 def test_smoothing_removes_the_sensor_noise_not_the_temperature() -> None:
