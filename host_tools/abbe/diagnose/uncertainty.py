@@ -420,6 +420,7 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
     sig2 = st.s2 / np.maximum(st.W, 1e-300) ** 2
     per_key: dict[str, dict[str, Any]] = {}
     fns: list[tuple[str, Callable[[np.ndarray], float], slice]] = []
+    u_time_constant: dict[str, float] = {}   # a drift's time-constant line (not simulated)
     if st.selected:
         X, L, _ = _final_design(st)
         # a drift's rate under the grid's other warm-up time constants (the same mixture its
@@ -444,7 +445,8 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
                 lines["drift time constant (the grid's alternatives, BIC weights)"] = u_tau
             u = math.sqrt(sum(x * x for x in lines.values()))
             per_key[s.cand.spec.key] = {"value": fn(np.asarray(v)), "u": u, "U": K * u,
-                                        "budget_u": lines, "u_time_constant": u_tau}
+                                        "budget_u": lines}
+            u_time_constant[s.cand.spec.key] = u_tau
             fns.append((s.cand.spec.key, fn, slice(k0, k0 + n)))
             k0 += n
     else:
@@ -488,7 +490,8 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
         "effects": per_key, "gap": gaps,
     }
     if draws:
-        out["monte_carlo"] = _monte_carlo(res, st, inp, sig2, fns, draws, seed, per_key, gaps)
+        out["monte_carlo"] = _monte_carlo(res, st, inp, sig2, fns, draws, seed, per_key, gaps,
+                                          u_time_constant)
     _attach(res, per_key, gaps)
     res.uncertainty = _round(out)
     return res.uncertainty
@@ -524,7 +527,8 @@ def _refitter(st: FitState, iterations: int = 4) -> Callable[[np.ndarray], list[
 
 def _monte_carlo(res: Any, st: FitState, inp: Inputs, sig2: np.ndarray,
                  fns: list[tuple[str, Callable[[np.ndarray], float], slice]], draws: int,
-                 seed: int, per_key: dict[str, Any], gaps: dict[str, Any]) -> dict[str, Any]:
+                 seed: int, per_key: dict[str, Any], gaps: dict[str, Any],
+                 u_time_constant: dict[str, float] | None = None) -> dict[str, Any]:
     from abbe.diagnose.effects import fold_reversal
     from abbe.diagnose.checks import DEFAULT_TAKEUP_MM
     from abbe.diagnose.problem import gap_stats
@@ -571,7 +575,7 @@ def _monte_carlo(res: Any, st: FitState, inp: Inputs, sig2: np.ndarray,
         # the draws hold the selection fixed: they check the first order's propagation of
         # the noise and the instruments, not a drift's time-constant line, which is added
         # to either in quadrature
-        U_sel = K * float(tgt.get("u_time_constant", 0.0))
+        U_sel = K * float((u_time_constant or {}).get(name, 0.0)) if not fig else 0.0
         U_fo = math.sqrt(max(tgt["U"] ** 2 - U_sel ** 2, 0.0))
         ratio = U_mc / U_fo - 1.0 if U_fo > 0 else float("nan")
         agree = bool(abs(ratio) <= AGREEMENT)
