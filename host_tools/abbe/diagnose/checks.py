@@ -51,7 +51,7 @@ def smooth_temperature(abscissa: np.ndarray, temp_c: np.ndarray) -> np.ndarray:
     its time (``abscissa``: time in s, or the reading order when the file has no time)
     that the BIC chooses (degree 0 .. :data:`TEMP_SMOOTH_MAX_DEGREE`, Chebyshev on the
     check's span) -- regression calibration of a noisy regressor (docs/effects.md §3,
-    "drift and scale").
+    "a temperature is smoothed in time before it drives a drift").
 
     A drift with the temperature as its variable is a regression on the temperature
     sensor's readings. Their noise (a few hundredths of a kelvin) does not average out
@@ -59,7 +59,7 @@ def smooth_temperature(abscissa: np.ndarray, temp_c: np.ndarray) -> np.ndarray:
     sigma²) (regression dilution). Within one ballbar trace of a minute the temperature
     changes by a few hundredths of a kelvin, as much as the noise, and the drift that trace
     carries came out at a fraction of its size (issue 36, tenth round: the team's
-    ``thermal_lin+scale_x``, 3.40 for 4.60 um/K; 4.46 with noise-free sensors). The
+    ``thermal_lin+scale_x``, -3.40 for -4.60 um/K; -4.46 with noise-free sensors). The
     machine's temperature is smooth in time while the sensor's noise is white, so the
     readings are replaced by their expectation given the time. Non-finite values, fewer
     than four readings or no change are returned as they are."""
