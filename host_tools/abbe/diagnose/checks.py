@@ -39,6 +39,54 @@ from abbe.model.table import AXES, LINEAR_TERMS, OWN_SIGN, OWN_TERM, Table
 DEFAULT_TAKEUP_MM = 1.0
 
 
+#: Highest degree of the polynomial in time that stands for a check's temperature
+#: (:func:`smooth_temperature`; at most a quarter of the readings): enough for a
+#: temperature that swings a few times over a long campaign (a ripple of 1.4 h over 3.5 h
+#: needs about 12), while the BIC keeps a trace of a minute at degree 1 or 2.
+TEMP_SMOOTH_MAX_DEGREE = 20
+
+
+def smooth_temperature(abscissa: np.ndarray, temp_c: np.ndarray) -> np.ndarray:
+    """The temperature of one check (deg C, the shape of ``temp_c``) as the polynomial in
+    its time (``abscissa``: time in s, or the reading order when the file has no time)
+    that the BIC chooses (degree 0 .. :data:`TEMP_SMOOTH_MAX_DEGREE`, Chebyshev on the
+    check's span) -- regression calibration of a noisy regressor (docs/effects.md §3,
+    "a temperature is smoothed in time before it drives a drift").
+
+    A drift with the temperature as its variable is a regression on the temperature
+    sensor's readings. Their noise (a few hundredths of a kelvin) does not average out
+    there: it sits in the regressor, and attenuates the fitted drift by var(T) / (var(T) +
+    sigma²) (regression dilution). Within one ballbar trace of a minute the temperature
+    changes by a few hundredths of a kelvin, as much as the noise, and the drift that trace
+    carries came out at a fraction of its size (issue 36, tenth round: the team's
+    ``thermal_lin+scale_x``, -3.40 for -4.60 um/K; -4.46 with noise-free sensors). The
+    machine's temperature is smooth in time while the sensor's noise is white, so the
+    readings are replaced by their expectation given the time. Non-finite values, fewer
+    than four readings or no change are returned as they are."""
+    T = np.asarray(temp_c, dtype=np.float64)
+    t = np.asarray(abscissa, dtype=np.float64).reshape(-1)
+    y = T.reshape(-1)
+    n = y.size
+    if n < 4 or t.size != n or not (np.all(np.isfinite(y)) and np.all(np.isfinite(t))):
+        return T.copy()
+    lo, hi = float(t.min()), float(t.max())
+    if not hi > lo or float(np.ptp(y)) == 0.0:
+        return T.copy()
+    u = (2.0 * t - lo - hi) / (hi - lo)
+    best = None
+    for d in range(min(TEMP_SMOOTH_MAX_DEGREE, n // 4) + 1):
+        V = np.polynomial.chebyshev.chebvander(u, d)
+        coef, *_ = np.linalg.lstsq(V, y, rcond=None)
+        fit = V @ coef
+        rss = float(np.sum((y - fit) ** 2))
+        if rss <= 1e-24 * n:
+            return fit.reshape(T.shape)   # the readings are the polynomial itself
+        bic = n * np.log(rss / n) + (d + 1) * np.log(n)
+        if best is None or bic < best[0]:
+            best = (bic, fit)
+    return best[1].reshape(T.shape)  # type: ignore[index]
+
+
 def _outside_msg(axis: str, lo: float, hi: float, vmin: float, vmax: float) -> str:
     return (f"spans {axis} = [{vmin:g}, {vmax:g}] mm but the model covers only "
             f"[{lo:g}, {hi:g}] mm of axis {axis}: the check is outside the model's travel "
@@ -134,7 +182,10 @@ class BallbarCheck(Check):
         self.all_dir = np.asarray(direction).astype(str)
         self.all_ang = np.asarray(angle_deg, dtype=np.float64)
         self.all_time = np.asarray(time_s, dtype=np.float64)
-        self.all_temp = None if temp_c is None else np.asarray(temp_c, dtype=np.float64)
+        # the sensor's readings -> the temperature as a smooth curve in time (regression
+        # calibration: smooth_temperature)
+        self.all_temp = None if temp_c is None else \
+            smooth_temperature(self.all_time, np.asarray(temp_c, dtype=np.float64))
         self.reference_mm = np.asarray(reference_mm, dtype=np.float64)
         # The data arc: [0, 360) unless the file says otherwise (a Renishaw START_ANGLE).
         m = (self.all_ang >= data_from_deg) & (self.all_ang < data_from_deg + 360.0)
@@ -298,7 +349,11 @@ class LaserCheck(Check):
         self.reference_mm = np.asarray(reference_mm, dtype=np.float64)
         n_runs, _, T = channels[0].values.shape
         self.n_runs, self.T = n_runs, T
-        self.temp_grid = None if temp_c is None else np.asarray(temp_c, dtype=np.float64)
+        # the sensor's readings -> a smooth curve in time (or in the reading order):
+        # regression calibration, smooth_temperature
+        self.temp_grid = None if temp_c is None else smooth_temperature(
+            np.asarray(order if time_s is None else time_s, dtype=np.float64),
+            np.asarray(temp_c, dtype=np.float64))
         # Drift variables per reading (n_runs, 2, T): time (h), temperature (K) or,
         # without a time column, the fractional run index from the measured order.
         grids: dict[str, np.ndarray] = {}

@@ -14,6 +14,7 @@ from abbe.diagnose.checks import BallbarCheck
 from abbe.diagnose.effects import REVERSAL_MAX_DEGREE, EffectSpec, NotRepresentable, PredParams
 from abbe.diagnose.problem import gap_stats, lstsq_rss, project_out, qr_basis, remove_nuisance
 from abbe.diagnose.results import EffectResult, round_to
+from abbe.diagnose.shape import drift_tau_average
 from abbe.diagnose.undecided import misfit_log_lr
 from abbe.model.table import AXES, Table
 
@@ -26,6 +27,8 @@ def describe_effects(eng: Engine, sel: list[Selected], values: list[np.ndarray],
     out: list[EffectResult] = []
     dof = max(prob.N - prob.nuis.shape[1] - sum(len(v) for v in values), 1)
     tq = float(stats.t.ppf(0.975, dof))
+    # a drift's rate under every warm-up time constant the data cannot rule out
+    tau_avg = drift_tau_average(eng, sel, values, W, s2)
     k0 = 0
     for i, (s, v) in enumerate(zip(sel, values)):
         spec = s.cand.spec
@@ -42,6 +45,14 @@ def describe_effects(eng: Engine, sel: list[Selected], values: list[np.ndarray],
             params.append({"name": ps.name, "value": round_to(v[jj]), "unit": _unit(ps.unit, spec, eng),
                            "ci95": [round_to(v[jj] - tq * sd), round_to(v[jj] + tq * sd)]})
         value, unit, ci = _headline(spec, s.cand.param_idx, v, C, tq, eng)
+        ta = tau_avg.get(spec.key)
+        if ta is not None:
+            # the interval carries the time constant's uncertainty: the mixture over the
+            # grid's time constants (shape.drift_tau_average), never narrower than its own
+            ci = (min(ci[0], ta["ci95"][0]), max(ci[1], ta["ci95"][1]))
+            for p_ in params:
+                if p_["name"] == spec.params[0].name:
+                    p_["ci95"] = [round_to(ci[0]), round_to(ci[1])]
         # evidence: residual before/after adding this effect (through the model)
         t_b, p_b = apply_selection(eng, sel[:i], values[:i])
         t_a, p_a = apply_selection(eng, sel[:i + 1], values[:i + 1])
@@ -67,6 +78,9 @@ def describe_effects(eng: Engine, sel: list[Selected], values: list[np.ndarray],
         }
         if model_infl is not None:
             ev["interval_model_inflation"] = round(model_infl, 3)
+        if ta is not None:
+            ev["tau_alternatives"] = [{k: (round(x, 6) if isinstance(x, float) else x)
+                                       for k, x in a.items()} for a in ta["alternatives"]]
         if spec.kind == "backlash":
             b0 = eng.table.axes[spec.axis]  # type: ignore[index]
             if b0.backlash_um:

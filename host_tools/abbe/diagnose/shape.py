@@ -151,3 +151,91 @@ def refine_scans(eng: Engine, sel: list[Selected], W: np.ndarray) -> None:
         s.cand.cols = cols
         s.cand.offset = off
         s.stats["scan_ci"] = (float(va), float(vb), bool(a_closed), bool(b_closed))
+
+
+def drift_tau_average(eng: Engine, sel: list[Selected], values: list[np.ndarray], W: np.ndarray,
+                      s2: float) -> dict[str, dict]:
+    """The time drift's headline (its rate at the check's start, um/h) under every warm-up
+    time constant of the grid the selection searched (candidates.Engine._tau_grid), and the
+    95 % interval of their mixture: the time constant's uncertainty carried into the rate
+    (docs/effects.md §3, "the warm-up time constant is chosen on the checks that span it").
+
+    The grid values are equally likely models before the data; after them each weighs
+    exp(-dRSS / (2 s2)) (dRSS its whitened RSS above the best one on the checks that span
+    the grid, Engine.tau_rows, as the selection chose; the parameter counts are equal, so
+    this is the BIC's weight; s2 = max(1, the final fit's residual variance)). For each
+    value every named drift (one warm-up, one time constant) and the other named effects
+    are refitted, linearised at the final values. Returns, per drift key: ``ci95`` of the
+    mixture of the normal laws N(v_k, sd_k^2) with those weights, and per time constant
+    (``tau`` in the drift variable's unit, None = linear) the value, its sd and its weight.
+    Empty when no drift in time is named or the grid has one value."""
+    drifts = [i for i, s in enumerate(sel) if s.cand.spec.kind == "thermal"
+              and not eng.drift_on_table and 0 in s.cand.param_idx]
+    if not drifts:
+        return {}
+    grid = eng._tau_grid()
+    if len(grid) < 2:
+        return {}
+    prob = eng.prob
+    from abbe.diagnose.candidates import apply_selection
+    others = [i for i in range(len(sel)) if i not in drifts]
+    t_o, p_o = apply_selection(eng, [sel[i] for i in others], [values[i] for i in others])
+    y_o = prob.predict(eng.ev, t_o, p_o)
+    r = (prob.y - y_o) * W
+    X_o = [prob.nuis] + [eng.sensitivity(sel[i].cand.spec, sel[i].cand.scan_value, t_o, p_o, y_o,
+                                         sel[i].cand.param_idx)[:, sel[i].cand.param_idx]
+                         for i in others]
+    rows = eng.tau_rows()
+    if not rows.any():
+        rows = np.ones(prob.N, dtype=bool)
+    k_o = sum(x.shape[1] for x in X_o)
+    fits = []
+    for tau in grid:
+        X_d = [eng.sensitivity(sel[i].cand.spec, tau, t_o, p_o, y_o,
+                               sel[i].cand.param_idx)[:, sel[i].cand.param_idx] for i in drifts]
+        X = np.hstack(X_o + X_d) * W[:, None]
+        beta, *_ = np.linalg.lstsq(X, r, rcond=None)
+        cov = s2 * np.linalg.pinv(X.T @ X)
+        b_r, *_ = np.linalg.lstsq(X[rows], r[rows], rcond=None)
+        e = r[rows] - X[rows] @ b_r
+        k, heads = k_o, {}
+        for i, x in zip(drifts, X_d):
+            jj = k + sel[i].cand.param_idx.index(0)
+            heads[sel[i].cand.spec.key] = (float(beta[jj]), math.sqrt(max(float(cov[jj, jj]), 0.0)))
+            k += x.shape[1]
+        fits.append((None if not math.isfinite(tau) else float(tau), float(e @ e), heads))
+    best = min(f[1] for f in fits)
+    w = np.array([math.exp(-(f[1] - best) / (2.0 * max(s2, 1.0))) for f in fits])
+    w /= w.sum()
+    out: dict[str, dict] = {}
+    for i in drifts:
+        key = sel[i].cand.spec.key
+        v = np.array([f[2][key][0] for f in fits])
+        sd = np.array([f[2][key][1] for f in fits])
+        out[key] = {"ci95": _mixture_interval(v, sd, w),
+                    "alternatives": [{"tau": f[0], "value": float(a), "sd": float(b),
+                                      "weight": float(c)}
+                                     for f, a, b, c in zip(fits, v, sd, w)]}
+    return out
+
+
+def _mixture_interval(v: np.ndarray, sd: np.ndarray, w: np.ndarray,
+                      level: float = 0.95) -> tuple[float, float]:
+    """Central ``level`` interval of the mixture sum_k w_k N(v_k, sd_k^2) (bisection on its
+    distribution function)."""
+    sd = np.maximum(sd, 1e-12 * max(float(np.max(np.abs(v))), 1.0))
+
+    def cdf(x: float) -> float:
+        return float(np.sum(w * stats.norm.cdf((x - v) / sd)))
+
+    def q(p: float) -> float:
+        lo, hi = float(np.min(v - 10 * sd)), float(np.max(v + 10 * sd))
+        for _ in range(80):
+            m = 0.5 * (lo + hi)
+            if cdf(m) < p:
+                lo = m
+            else:
+                hi = m
+        return 0.5 * (lo + hi)
+    a = 0.5 * (1.0 - level)
+    return q(a), q(1.0 - a)

@@ -420,8 +420,13 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
     sig2 = st.s2 / np.maximum(st.W, 1e-300) ** 2
     per_key: dict[str, dict[str, Any]] = {}
     fns: list[tuple[str, Callable[[np.ndarray], float], slice]] = []
+    u_time_constant: dict[str, float] = {}   # a drift's time-constant line (not simulated)
     if st.selected:
         X, L, _ = _final_design(st)
+        # a drift's rate under the grid's other warm-up time constants (the same mixture its
+        # 95 % interval is: shape.drift_tau_average): the spread about the value reported
+        from abbe.diagnose.shape import drift_tau_average
+        tau_avg = drift_tau_average(eng, st.selected, st.values, st.W, st.s2)
         k0 = 0
         for s, v in zip(st.selected, st.values):
             n = len(v)
@@ -431,9 +436,17 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
             sens = g @ L[k0:k0 + n]
             lines = {"fit (Type A: noise, lack of fit)": math.sqrt(max(float(g @ C @ g), 0.0)),
                      **_line_u(sens, inp)}
+            ta = tau_avg.get(s.cand.spec.key)
+            u_tau = 0.0
+            if ta is not None:
+                v0 = fn(np.asarray(v))
+                u_tau = math.sqrt(sum(a["weight"] * (a["value"] - v0) ** 2
+                                      for a in ta["alternatives"]))
+                lines["drift time constant (the grid's alternatives, BIC weights)"] = u_tau
             u = math.sqrt(sum(x * x for x in lines.values()))
             per_key[s.cand.spec.key] = {"value": fn(np.asarray(v)), "u": u, "U": K * u,
                                         "budget_u": lines}
+            u_time_constant[s.cand.spec.key] = u_tau
             fns.append((s.cand.spec.key, fn, slice(k0, k0 + n)))
             k0 += n
     else:
@@ -460,7 +473,8 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
                           "instruments' inputs through the fit's linear operator (Type B)",
         "budgets": inp.budgets,
         "assumptions": [
-            "the selection (which effects, their grid values) held fixed",
+            "the selection (which effects, their grid values) held fixed; a drift's warm-up "
+            "time constant has its own line (the rate under the grid's other time constants)",
             *(["the position-only model is built from these readings (each target's mean): "
                "an error that depends on the target alone (the scale errors, a target's "
                "linearity) moves it too and cancels; left out"]
@@ -476,7 +490,8 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
         "effects": per_key, "gap": gaps,
     }
     if draws:
-        out["monte_carlo"] = _monte_carlo(res, st, inp, sig2, fns, draws, seed, per_key, gaps)
+        out["monte_carlo"] = _monte_carlo(res, st, inp, sig2, fns, draws, seed, per_key, gaps,
+                                          u_time_constant)
     _attach(res, per_key, gaps)
     res.uncertainty = _round(out)
     return res.uncertainty
@@ -512,7 +527,8 @@ def _refitter(st: FitState, iterations: int = 4) -> Callable[[np.ndarray], list[
 
 def _monte_carlo(res: Any, st: FitState, inp: Inputs, sig2: np.ndarray,
                  fns: list[tuple[str, Callable[[np.ndarray], float], slice]], draws: int,
-                 seed: int, per_key: dict[str, Any], gaps: dict[str, Any]) -> dict[str, Any]:
+                 seed: int, per_key: dict[str, Any], gaps: dict[str, Any],
+                 u_time_constant: dict[str, float] | None = None) -> dict[str, Any]:
     from abbe.diagnose.effects import fold_reversal
     from abbe.diagnose.checks import DEFAULT_TAKEUP_MM
     from abbe.diagnose.problem import gap_stats
@@ -556,7 +572,12 @@ def _monte_carlo(res: Any, st: FitState, inp: Inputs, sig2: np.ndarray,
         tgt = per_key.get(name) if not fig else gaps.get(which, {}).get(fig)
         if tgt is None:
             continue
-        ratio = U_mc / tgt["U"] - 1.0 if tgt["U"] > 0 else float("nan")
+        # the draws hold the selection fixed: they check the first order's propagation of
+        # the noise and the instruments, not a drift's time-constant line, which is added
+        # to either in quadrature
+        U_sel = K * float((u_time_constant or {}).get(name, 0.0)) if not fig else 0.0
+        U_fo = math.sqrt(max(tgt["U"] ** 2 - U_sel ** 2, 0.0))
+        ratio = U_mc / U_fo - 1.0 if U_fo > 0 else float("nan")
         agree = bool(abs(ratio) <= AGREEMENT)
         n_ok += agree
         tgt["U_first_order"] = tgt["U"]
@@ -564,7 +585,8 @@ def _monte_carlo(res: Any, st: FitState, inp: Inputs, sig2: np.ndarray,
         tgt["mc_agreement"] = ratio
         tgt["mc_interval95"] = [float(np.percentile(col, 2.5)), float(np.percentile(col, 97.5))]
         if not agree:
-            tgt["U"], tgt["u"] = U_mc, U_mc / K
+            U_new = math.sqrt(U_mc ** 2 + U_sel ** 2)
+            tgt["U"], tgt["u"] = U_new, U_new / K
         tgt["U_from"] = "first order" if agree else "Monte Carlo"
         out["figures"][name] = {"U": tgt["U_first_order"], "U_mc": U_mc, "agreement": ratio}
     out["agree_within_10pct"] = n_ok
