@@ -81,6 +81,29 @@ def _named_drift_tau(sel: list[Selected]) -> float | None:
     return None
 
 
+def _static_free(eng: Engine, c: Cand, selected: list[Selected],
+                 by_key_pool: dict[str, Cand]) -> np.ndarray | None:
+    """Columns (N, k) of the static effects a drift of ``c``'s axis is judged beside
+    (docs/effects.md §3, drift and scale), or None: the axis' scale and its position-
+    dependent reversal while they are not named (the reversal in its widest form searched:
+    per target, else the highest degree, so that no static reversal the catalogue holds
+    is taken as a change in time)."""
+    if c.spec.kind != "thermal" or not c.spec.axis:
+        return None
+    named = {s.cand.spec.key for s in selected}
+    ax = c.spec.axis.lower()
+    cols = []
+    sc = by_key_pool.get(f"scale_{ax}")
+    if sc is not None and sc.spec.key not in named:
+        cols.append(sc.cols)
+    rv = by_key_pool.get(f"reversal_{ax}")
+    if rv is not None and rv.spec.key not in named:
+        alts = eng._alts.get(rv.spec.key) or [rv]
+        cols.append(max(alts, key=lambda a: a.cols.shape[1]).cols)
+    cols = [x for x in cols if x.shape[1]]
+    return np.hstack(cols) if cols else None
+
+
 def _alt_fit(a: Cand, W: np.ndarray, Qc: np.ndarray, rbc: np.ndarray, rss_c: float,
              rw: np.ndarray, rows: np.ndarray | None = None
              ) -> tuple[np.ndarray, np.ndarray, float]:
@@ -249,18 +272,20 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
         results = []
         for c in remaining:
             Qc, rbc, rss_c, free = Qb, rb, rss_base, None
-            static = by_key_pool.get(f"scale_{c.spec.axis.lower()}") \
-                if c.spec.kind == "thermal" and c.spec.axis else None
-            if static is not None and static.spec.key not in {s.cand.spec.key for s in selected}:
+            static = _static_free(eng, c, selected, by_key_pool)
+            if static is not None:
                 # A drift is named on its change in time (docs/effects.md §3, drift and
-                # scale): the part of its signature that is constant in time is the same
-                # axis' scale (with the drift variable taken from the cold state, a warm
-                # machine's drift column is mostly a scale). The drift is judged, and
-                # ranked, with that scale free in the base.
-                Qc = qr_basis(np.hstack([Qb, project_out(Qb, static.cols * W[:, None])]))
+                # scale): the part of its signature that is the same in every run is a
+                # static effect of the axis, a function of the position (its scale: with
+                # the drift variable taken from the cold state, a warm machine's drift
+                # column is mostly a scale) or of the position and the direction (its
+                # reversal: within each bidirectional cycle the forward pass is read early
+                # at the low targets, the backward pass late). The drift is judged, and
+                # ranked, with those free in the base.
+                Qc = qr_basis(np.hstack([Qb, project_out(Qb, static * W[:, None])]))
                 rbc = project_out(Qc, rw[:, None])[:, 0]
                 rss_c = float(rbc @ rbc)
-                free = static.cols
+                free = static
             alts = eng._alts.get(c.spec.key)
             if alts and c.spec.kind == "tool_offset":
                 _tool_components(eng, c, alts, W, Qc, rbc, rss_c, rw)
