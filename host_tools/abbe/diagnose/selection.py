@@ -45,7 +45,7 @@ from abbe.diagnose.caps import cap_violations
 from abbe.diagnose.checks import DEFAULT_TAKEUP_MM, Check, LaserCheck, check_travel
 from abbe.diagnose.describe import describe_effects
 from abbe.diagnose.entangled import first_of_entangled
-from abbe.diagnose.heldout import heldout_gap, heldout_removal
+from abbe.diagnose.heldout import heldout_gap, heldout_removal, heldout_rss
 from abbe.diagnose.undecided import share_undecided
 from abbe.diagnose.effects import PredParams, catalogue, copy_table, fold_reversal
 from abbe.diagnose.evaluator import Evaluator
@@ -82,26 +82,28 @@ def _named_drift_tau(sel: list[Selected]) -> float | None:
 
 
 def _static_free(eng: Engine, c: Cand, selected: list[Selected],
-                 by_key_pool: dict[str, Cand]) -> np.ndarray | None:
+                 by_key_pool: dict[str, Cand]) -> tuple[np.ndarray | None, np.ndarray | None]:
     """Columns (N, k) of the static effects a drift of ``c``'s axis is judged beside
     (docs/effects.md §3, drift and scale), or None: the axis' scale and its position-
     dependent reversal while they are not named (the reversal in its widest form searched:
     per target, else the highest degree, so that no static reversal the catalogue holds
-    is taken as a change in time)."""
+    is taken as a change in time). Second: the scale's alone, for a held-out fold of a
+    single bidirectional run, which cannot tell a drift from a reversal (within one cycle
+    the drift's column is a constant plus a reversal's shape)."""
     if c.spec.kind != "thermal" or not c.spec.axis:
-        return None
+        return None, None
     named = {s.cand.spec.key for s in selected}
     ax = c.spec.axis.lower()
-    cols = []
     sc = by_key_pool.get(f"scale_{ax}")
-    if sc is not None and sc.spec.key not in named:
-        cols.append(sc.cols)
+    scale = sc.cols if sc is not None and sc.spec.key not in named and sc.cols.shape[1] else None
     rv = by_key_pool.get(f"reversal_{ax}")
+    rev = None
     if rv is not None and rv.spec.key not in named:
-        alts = eng._alts.get(rv.spec.key) or [rv]
-        cols.append(max(alts, key=lambda a: a.cols.shape[1]).cols)
-    cols = [x for x in cols if x.shape[1]]
-    return np.hstack(cols) if cols else None
+        rev = max(eng._alts.get(rv.spec.key) or [rv], key=lambda a: a.cols.shape[1]).cols
+        rev = rev if rev.shape[1] else None
+    if rev is None:
+        return scale, scale
+    return (rev if scale is None else np.hstack([scale, rev])), scale
 
 
 def _alt_fit(a: Cand, W: np.ndarray, Qc: np.ndarray, rbc: np.ndarray, rss_c: float,
@@ -272,7 +274,7 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
         results = []
         for c in remaining:
             Qc, rbc, rss_c, free = Qb, rb, rss_base, None
-            static = _static_free(eng, c, selected, by_key_pool)
+            static, static_ho = _static_free(eng, c, selected, by_key_pool)
             if static is not None:
                 # A drift is named on its change in time (docs/effects.md §3, drift and
                 # scale): the part of its signature that is the same in every run is a
@@ -316,6 +318,11 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
                     c.offset = best_c.offset
             st = _eval_candidate(eng, c, selected, W, Qc, rbc, rss_c, dof_noise,
                                  len(remaining), table, rw, free)
+            if st.get("ok") and st["heldout"]["split"] is None and static_ho is not free:
+                # a fold of one bidirectional run cannot identify a drift beside a reversal:
+                # the drift is judged there beside its scale alone (as before issue 36's
+                # eleventh round); its evidence keeps the reversal free
+                st["heldout"] = heldout_rss(eng, selected, c, W, st["s2"], static_ho)
             ok, why = _judge(st, opts)
             st["qualifies"], st["why_not"] = ok, why
             results.append((c, st))
