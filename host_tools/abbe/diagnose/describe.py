@@ -321,7 +321,11 @@ def _headline(spec: EffectSpec, idx: list[int], v: np.ndarray, C: np.ndarray, tq
         sd = math.sqrt(max(float(g @ C @ g), 0.0))
         return a, "um", (max(0.0, a - tq * sd), a + tq * sd)
     if spec.kind == "reversal":
+        # RMS over the targets of the position-dependent part about its mean: the mean is a
+        # constant reversal, the backlash's (B = mean(+) - mean(-) over the targets); the
+        # per-target form sums to zero already, a Chebyshev form (T2, T4 ...) need not
         pts, Phi = eng.reversal_design(spec.axis, idx)  # type: ignore[arg-type]
+        Phi = Phi - Phi.mean(axis=0) if Phi.size else Phi
         f = Phi @ v
         a = float(np.sqrt(np.mean(f * f)))
         g = Phi.T @ f / (f.size * max(a, 1e-300))

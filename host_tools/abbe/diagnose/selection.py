@@ -45,7 +45,7 @@ from abbe.diagnose.caps import cap_violations
 from abbe.diagnose.checks import DEFAULT_TAKEUP_MM, Check, LaserCheck, check_travel
 from abbe.diagnose.describe import describe_effects
 from abbe.diagnose.entangled import first_of_entangled
-from abbe.diagnose.heldout import heldout_gap, heldout_removal
+from abbe.diagnose.heldout import heldout_gap, heldout_removal, heldout_rss
 from abbe.diagnose.undecided import share_undecided
 from abbe.diagnose.effects import PredParams, catalogue, copy_table, fold_reversal
 from abbe.diagnose.evaluator import Evaluator
@@ -79,6 +79,31 @@ def _named_drift_tau(sel: list[Selected]) -> float | None:
         if s.cand.spec.kind == "thermal":
             return math.inf if s.cand.scan_value is None else float(s.cand.scan_value)
     return None
+
+
+def _static_free(eng: Engine, c: Cand, selected: list[Selected],
+                 by_key_pool: dict[str, Cand]) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Columns (N, k) of the static effects a drift of ``c``'s axis is judged beside
+    (docs/effects.md §3, drift and scale), or None: the axis' scale and its position-
+    dependent reversal while they are not named (the reversal in its widest form searched:
+    per target, else the highest degree, so that no static reversal the catalogue holds
+    is taken as a change in time). Second: the scale's alone, for a held-out fold of a
+    single bidirectional run, which cannot tell a drift from a reversal (within one cycle
+    the drift's column is a constant plus a reversal's shape)."""
+    if c.spec.kind != "thermal" or not c.spec.axis:
+        return None, None
+    named = {s.cand.spec.key for s in selected}
+    ax = c.spec.axis.lower()
+    sc = by_key_pool.get(f"scale_{ax}")
+    scale = sc.cols if sc is not None and sc.spec.key not in named and sc.cols.shape[1] else None
+    rv = by_key_pool.get(f"reversal_{ax}")
+    rev = None
+    if rv is not None and rv.spec.key not in named:
+        rev = max(eng._alts.get(rv.spec.key) or [rv], key=lambda a: a.cols.shape[1]).cols
+        rev = rev if rev.shape[1] else None
+    if rev is None:
+        return scale, scale
+    return (rev if scale is None else np.hstack([scale, rev])), scale
 
 
 def _alt_fit(a: Cand, W: np.ndarray, Qc: np.ndarray, rbc: np.ndarray, rss_c: float,
@@ -249,18 +274,20 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
         results = []
         for c in remaining:
             Qc, rbc, rss_c, free = Qb, rb, rss_base, None
-            static = by_key_pool.get(f"scale_{c.spec.axis.lower()}") \
-                if c.spec.kind == "thermal" and c.spec.axis else None
-            if static is not None and static.spec.key not in {s.cand.spec.key for s in selected}:
+            static, static_ho = _static_free(eng, c, selected, by_key_pool)
+            if static is not None:
                 # A drift is named on its change in time (docs/effects.md §3, drift and
-                # scale): the part of its signature that is constant in time is the same
-                # axis' scale (with the drift variable taken from the cold state, a warm
-                # machine's drift column is mostly a scale). The drift is judged, and
-                # ranked, with that scale free in the base.
-                Qc = qr_basis(np.hstack([Qb, project_out(Qb, static.cols * W[:, None])]))
+                # scale): the part of its signature that is the same in every run is a
+                # static effect of the axis, a function of the position (its scale: with
+                # the drift variable taken from the cold state, a warm machine's drift
+                # column is mostly a scale) or of the position and the direction (its
+                # reversal: within each bidirectional cycle the forward pass is read early
+                # at the low targets, the backward pass late). The drift is judged, and
+                # ranked, with those free in the base.
+                Qc = qr_basis(np.hstack([Qb, project_out(Qb, static * W[:, None])]))
                 rbc = project_out(Qc, rw[:, None])[:, 0]
                 rss_c = float(rbc @ rbc)
-                free = static.cols
+                free = static
             alts = eng._alts.get(c.spec.key)
             if alts and c.spec.kind == "tool_offset":
                 _tool_components(eng, c, alts, W, Qc, rbc, rss_c, rw)
@@ -291,6 +318,11 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
                     c.offset = best_c.offset
             st = _eval_candidate(eng, c, selected, W, Qc, rbc, rss_c, dof_noise,
                                  len(remaining), table, rw, free)
+            if st.get("ok") and st["heldout"]["split"] is None and static_ho is not free:
+                # a fold of one bidirectional run cannot identify a drift beside a reversal:
+                # the drift is judged there beside its scale alone (as before issue 36's
+                # eleventh round); its evidence keeps the reversal free
+                st["heldout"] = heldout_rss(eng, selected, c, W, st["s2"], static_ho)
             ok, why = _judge(st, opts)
             st["qualifies"], st["why_not"] = ok, why
             results.append((c, st))
