@@ -13,6 +13,8 @@
 # clang-tidy-14 (scripts/prove_lint.sh) when given --lint.
 # Fails naming the harness, the function, the place and the alarm.
 #   ./scripts/prove.sh [--jobs N] [--only NAME] [--lint] [--open]
+# --only NAME: one harness or hypothesis, "wp" (every WP pass) or one WP pass
+# as its line names it ("wp terms_q_l1"); a name that is none of these fails.
 # --open runs the harnesses that do not hold yet instead (docs/proofs.md, "Not
 # proven yet"): they report their alarms and are not part of the pass.
 set -uo pipefail
@@ -333,9 +335,13 @@ fi
 # by Z3 through Why3 (Debian 12: why3 1.5.1, z3 4.8.12; Alt-Ergo is not
 # packaged). Why3's prover list is written into $OUT, not the home directory.
 WP_CONTRACTS="accepted_total,inside"
+WP_RAN=0
 wp_run() { # NAME WHAT LOG FRAMA-C-ARGS...: one WP pass, all its goals proven or a failure naming them
     local name="$1" what="$2" log="$3" t0=$SECONDS proved
     shift 3
+    # --only wp: every WP pass; --only "wp NAME": that one (as its [prove] line names it)
+    [[ -z "$ONLY" || "$ONLY" == wp || "$ONLY" == "$name" ]] || return 0
+    WP_RAN=$((WP_RAN + 1))
     frama-c "$@" >"$log" 2>&1
     proved=$(sed -n 's/.*Proved goals: *\([0-9]*\) \/ \([0-9]*\).*/\1 \2/p' "$log" | tail -1)
     if [[ -z "$proved" || "${proved% *}" != "${proved#* }" || "${proved% *}" == 0 ]]; then
@@ -428,8 +434,10 @@ prove_wp() {
 pids=()
 names=()
 fail=0
-if ((!OPEN)) && [[ -z "$ONLY" || "$ONLY" == wp ]]; then
-    prove_wp &
+if ((!OPEN)) && [[ -z "$ONLY" || "$ONLY" == wp || "$ONLY" == "wp "* ]]; then
+    { prove_wp || exit 1
+      ((WP_RAN)) || { echo "[prove] FAIL --only $ONLY: no WP pass of that name"; exit 1; }; } &
+    pids+=($!)
 fi
 if ((!OPEN)); then
     # -O3 -march=native: the basis rows' checks vectorized (built and run here)
@@ -439,15 +447,24 @@ if ((!OPEN)); then
         [[ -n "$ONLY" && "$ONLY" != "$h" ]] && continue
         while (($(jobs -rp | wc -l) >= JOBS)); do wait -n || fail=1; done
         check_hypothesis "$h" &
+        pids+=($!)
     done
+fi
+if [[ -n "$ONLY" && "$ONLY" != wp && "$ONLY" != "wp "* && " $HYPOTHESES " != *" $ONLY "* ]] &&
+    ! printf '%s\n' "${HARNESSES[@]}" | grep -q "^$ONLY|"; then
+    echo "[prove] FAIL --only $ONLY: no harness, hypothesis or WP pass of that name"
+    fail=1
 fi
 for h in "${HARNESSES[@]}"; do
     IFS='|' read -r name srcs defs opts <<<"$h"
     [[ -n "$ONLY" && "$ONLY" != "$name" ]] && continue
     while (($(jobs -rp | wc -l) >= JOBS)); do wait -n || fail=1; done
     run_one "$name" "$srcs" "$defs" "$opts" &
+    pids+=($!)
 done
-while (($(jobs -rp | wc -l) > 0)); do wait -n || fail=1; done
+# every job's status, by its pid: a job that ended while none was waited for
+# (jobs -rp no longer lists it) is not lost
+for p in "${pids[@]}"; do wait "$p" || fail=1; done
 
 if ((LINT)); then
     "$REPO/scripts/prove_lint.sh" || fail=1
