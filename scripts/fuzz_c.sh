@@ -27,7 +27,7 @@ while (($#)); do
     case "$1" in
     --seconds) SECONDS_PER="$2"; shift 2 ;;
     --jobs) JOBS="$2"; shift 2 ;;
-    -h | --help) sed -n '2,19p' "$0"; exit 0 ;;
+    -h | --help) sed -n '2,18p' "$0"; exit 0 ;;
     -*) echo "fuzz_c.sh: unknown option $1" >&2; exit 2 ;;
     *) HARNESSES+=("$1"); shift ;;
     esac
