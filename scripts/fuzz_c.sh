@@ -4,14 +4,17 @@
 #
 #   scripts/fuzz_c.sh [--seconds S] [--jobs N] [HARNESS...]
 #
-# HARNESS: fuzz_model_load, fuzz_can_node, fuzz_can_config, fuzz_modbus_regs
-# (default: all). Each runs S seconds (default 600) on N processes (default 1;
-# the machine is shared), from its seeds and committed regressions, with a
-# corpus that persists across runs in build-fuzz/long/<harness>/corpus.
+# HARNESS: fuzz_model_load, fuzz_five_load, fuzz_thermal_load, fuzz_can_node,
+# fuzz_can_config, fuzz_modbus_regs (default: all). Each runs S seconds
+# (default 600) on N processes (default 1; the machine is shared), from its
+# seeds and committed regressions, with a corpus that persists across runs in
+# build-fuzz/long/<harness>/corpus.
 # A finding is written to build-fuzz/long/<harness>/ (crash-*, timeout-*,
 # oom-*) and makes the script exit 1; reproduce it with
 # `build-fuzz/.../<harness> FILE`, then copy it into the harness'
 # regressions/ folder (named after what it exposed) once fixed.
+# With N > 1, libFuzzer's per-job logs (fuzz-<k>.log, written in its working
+# directory) go to build-fuzz/long/<harness>/ too: each harness runs there.
 # At the end: executions, executions per second and corpus size per harness.
 set -uo pipefail
 
@@ -24,7 +27,7 @@ while (($#)); do
     case "$1" in
     --seconds) SECONDS_PER="$2"; shift 2 ;;
     --jobs) JOBS="$2"; shift 2 ;;
-    -h | --help) sed -n '2,17p' "$0"; exit 0 ;;
+    -h | --help) sed -n '2,18p' "$0"; exit 0 ;;
     -*) echo "fuzz_c.sh: unknown option $1" >&2; exit 2 ;;
     *) HARNESSES+=("$1"); shift ;;
     esac
@@ -33,7 +36,7 @@ if ! [[ "$SECONDS_PER" =~ ^[0-9]+$ && "$JOBS" =~ ^[1-9][0-9]*$ ]]; then
     echo "fuzz_c.sh: --seconds wants a number of seconds, --jobs a count >= 1" >&2
     exit 2
 fi
-((${#HARNESSES[@]})) || HARNESSES=(fuzz_model_load fuzz_can_node fuzz_can_config fuzz_modbus_regs)
+((${#HARNESSES[@]})) || HARNESSES=(fuzz_model_load fuzz_five_load fuzz_thermal_load fuzz_can_node fuzz_can_config fuzz_modbus_regs)
 
 BUILD=build-fuzz
 CC=clang cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DABBE_BUILD_FUZZ=ON -DABBE_BUILD_TESTS=OFF >/dev/null &&
@@ -43,6 +46,10 @@ CC=clang cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DABBE_BUILD_F
 corpus_of() {
     case "$1" in
     fuzz_model_load) echo "$BUILD/fuzz/fuzz_model_load|$BUILD/fuzz/seeds fuzz/regressions" ;;
+    # the five-axis and the thermal loaders: the same seeds (the golden tables,
+    # five-axis and thermal ones among them) and regressions (fuzz/CMakeLists.txt)
+    fuzz_five_load) echo "$BUILD/fuzz/fuzz_five_load|$BUILD/fuzz/seeds fuzz/regressions" ;;
+    fuzz_thermal_load) echo "$BUILD/fuzz/fuzz_thermal_load|$BUILD/fuzz/seeds fuzz/regressions" ;;
     fuzz_can_node) echo "$BUILD/fuzz/port-socketcan/fuzz_can_node|$BUILD/fuzz/port-socketcan/seeds-node port/socketcan/fuzz/regressions" ;;
     fuzz_can_config) echo "$BUILD/fuzz/port-socketcan/fuzz_can_config|port/socketcan/fuzz/seeds/config port/socketcan/fuzz/regressions" ;;
     fuzz_modbus_regs) echo "$BUILD/fuzz/port-modbus/fuzz_modbus_regs|$BUILD/fuzz/port-modbus/seeds port/modbus/fuzz/regressions" ;;
@@ -56,7 +63,7 @@ for h in "${HARNESSES[@]}"; do
     spec="$(corpus_of "$h")" || { echo "fuzz_c.sh: unknown harness $h" >&2; exit 2; }
     bin="${spec%%|*}"
     read -r -a seeds <<<"${spec#*|}"
-    out="$BUILD/long/$h"
+    out="$REPO/$BUILD/long/$h"
     mkdir -p "$out/corpus"
     log="$out/run.log"
     echo "[fuzz] $h: $SECONDS_PER s x $JOBS job(s), log $log"
@@ -64,8 +71,10 @@ for h in "${HARNESSES[@]}"; do
     if ((JOBS > 1)); then
         args+=(-jobs="$JOBS" -workers="$JOBS")
     fi
-    ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-        "$bin" "${args[@]}" "$out/corpus" "${seeds[@]}" >"$log" 2>&1
+    # run in $out (libFuzzer's -jobs logs land in its working directory), every path absolute
+    seeds=("${seeds[@]/#/$REPO/}")
+    (cd "$out" && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+        "$REPO/$bin" "${args[@]}" "$out/corpus" "${seeds[@]}") >"$log" 2>&1
     rc=$?
     runs=$(grep -h 'stat::number_of_executed_units' "$log" "$out"/fuzz-*.log 2>/dev/null | awk '{s += $2} END {print s + 0}')
     rate=$(grep -h 'stat::average_exec_per_sec' "$log" "$out"/fuzz-*.log 2>/dev/null | awk '{s += $2} END {print s + 0}')

@@ -13,6 +13,8 @@
 # clang-tidy-14 (scripts/prove_lint.sh) when given --lint.
 # Fails naming the harness, the function, the place and the alarm.
 #   ./scripts/prove.sh [--jobs N] [--only NAME] [--lint] [--open]
+# --only NAME: one harness or hypothesis, "wp" (every WP pass) or one WP pass
+# as its line names it ("wp terms_q_l1"); a name that is none of these fails.
 # --open runs the harnesses that do not hold yet instead (docs/proofs.md, "Not
 # proven yet"): they report their alarms and are not part of the pass.
 set -uo pipefail
@@ -175,13 +177,16 @@ HARNESSES+=("eval_five_any_q|$FIVE_ANY_Q_SRCS|-DPROOF_Q|$FIVE_ANY_OPTS,abbe_comp
 # for the loader's L1 caps, tests/proofs/terms_q_l1.c rot_trans_q / rot_ang_q)
 HARNESSES+=("eval_five_any_q_caps|$FIVE_ANY_Q_SRCS|-DPROOF_Q -DPROOF_ROT_CAPS|$FIVE_ANY_OPTS,abbe_comp_step5_q:20 -eva-use-spec abbe_axis_terms_q,motions_q $DOWNCAST")
 FIVE_ANY_F32_OPTS="${FIVE_ANY_OPTS/config_ok:0/config_ok:0,abbe_five_eval_f32_linear:0,eval_f32_linear:full},abbe_five_eval_f32_linear:10,eval_f32_linear:10,abbe_five_error_eval_f32:10,fold6_body:100,fold6_rot_f32:100,fold_values_rot_f32:100,abbe_rotary_motions6_f32:100,motions_sparse_f32:100,abbe_axis_terms_sparse_f32:100 -eva-slevel-merge-after-loop fold6_body,fold6_rot_f32,fold_values_rot_f32,abbe_rotary_motions6_f32,motions_sparse_f32,abbe_axis_terms_sparse_f32"
-HARNESSES+=("eval_five_any_f32|$FIVE_ANY_F32_SRCS|-DPROOF_NO_COMP|$FIVE_ANY_F32_OPTS")
-# the same on the loader's whole domain (-DPROOF_ROT_CAPS, as eval_five_any_q_caps: every
-# rotary coefficient, its float twin any float within 2^31; the tilts and zero offsets
-# within SQUARENESS_CAP), the kernels as they are
+# the float evaluation and its parts' contracts on the loader's whole domain
+# (-DPROOF_ROT_CAPS, as eval_five_any_q_caps: every rotary coefficient, its float
+# twin any float within 2^31; the tilts and zero offsets within SQUARENESS_CAP),
+# the kernels as they are. (The box version, eval_five_any_f32 without
+# PROOF_ROT_CAPS, is not run: the same code, contracts and options on a subset of
+# this domain in every field, ROT_LO/ROT_HI, ROT_F_BOX, LIN_F_BOX, LOCATION_BOX,
+# nothing else differing: docs/proofs.md, "Cost of the proofs".)
 HARNESSES+=("eval_five_any_f32_caps|$FIVE_ANY_F32_SRCS|-DPROOF_NO_COMP -DPROOF_ROT_CAPS|$FIVE_ANY_F32_OPTS")
 # the compensator's float five-axis cycle on a model of any layout, the cycles
-# only (the evaluation on its own: eval_five_any_f32, eval_five_any_f32_caps), on
+# only (the evaluation on its own: eval_five_any_f32_caps), on
 # the loader's whole domain (-DPROOF_ROT_CAPS: its evaluation's two parts run as
 # their contracts, which eval_five_any_f32_caps proves on that domain)
 HARNESSES+=("comp_five_any_f32|$FIVE_ANY_F32_SRCS|-DPROOF_COMP_ONLY -DPROOF_ROT_CAPS|$FIVE_ANY_OPTS,abbe_comp_step5_f32:20 -eva-use-spec abbe_five_eval_f32_linear,abbe_five_eval_f32_rotary")
@@ -214,13 +219,21 @@ HYPOTHESES="sincos_range mm_clamped f32_finite cheb_rows sincos_norm"
 # preconditions the hypotheses sincos_range, sincos_norm and the assertion
 # 'turn_vector' (Eva-proven, every harness)
 WP_ASSERTIONS="turned_w"
-check_hypothesis() { # name
-    local t0=$SECONDS msg
-    if ! msg=$("$OUT/hypotheses" "$1"); then
-        echo "[prove] FAIL hypothesis $msg"
+# the checks run as these groups: one enumeration of the 2^32 phases for both
+# sincos_range and sincos_norm (abbe_sincos_q30_pair is most of either's time)
+HYPOTHESIS_RUNS=("sincos_range sincos_norm" mm_clamped f32_finite cheb_rows)
+check_hypothesis() { # name...: one run of tests/proofs/hypotheses.c, a line a check
+    local t0=$SECONDS msg cpu rc timer=()
+    rm -f "$OUT/hypotheses.$1.cpu"
+    [[ -x /usr/bin/time ]] && timer=(/usr/bin/time -f '%U %S' -o "$OUT/hypotheses.$1.cpu")
+    msg=$("${timer[@]}" "$OUT/hypotheses" "$@")
+    rc=$?
+    cpu=$(awk '/^[0-9.]+ [0-9.]+$/ {printf "%.0f", $1 + $2}' "$OUT/hypotheses.$1.cpu" 2>/dev/null)
+    if ((rc != 0)); then
+        printf '%s\n' "${msg:-no output (exit $rc)}" | sed 's/^/[prove] FAIL hypothesis /'
         return 1
     fi
-    echo "[prove] ok   hypothesis $msg ($((SECONDS - t0)) s)"
+    printf '%s\n' "$msg" | sed "s/\$/ ($((SECONDS - t0)) s, ${cpu:-?} s CPU)/; s/^/[prove] ok   hypothesis /"
 }
 
 run_one() { # name sources defines options
@@ -333,10 +346,19 @@ fi
 # by Z3 through Why3 (Debian 12: why3 1.5.1, z3 4.8.12; Alt-Ergo is not
 # packaged). Why3's prover list is written into $OUT, not the home directory.
 WP_CONTRACTS="accepted_total,inside"
+WP_RAN=0
 wp_run() { # NAME WHAT LOG FRAMA-C-ARGS...: one WP pass, all its goals proven or a failure naming them
     local name="$1" what="$2" log="$3" t0=$SECONDS proved
     shift 3
-    frama-c "$@" >"$log" 2>&1
+    # --only wp: every WP pass; --only "wp NAME": that one (as its [prove] line names it)
+    [[ -z "$ONLY" || "$ONLY" == wp || "$ONLY" == "$name" ]] || return 0
+    WP_RAN=$((WP_RAN + 1))
+    # CPU: frama-c's and its provers' (Why3's server and the Z3 runs it waits for)
+    local timer=() cpu
+    rm -f "$log.cpu"
+    [[ -x /usr/bin/time ]] && timer=(/usr/bin/time -f '%U %S' -o "$log.cpu")
+    "${timer[@]}" frama-c "$@" >"$log" 2>&1
+    cpu=$(awk '/^[0-9.]+ [0-9.]+$/ {printf "%.0f", $1 + $2}' "$log.cpu" 2>/dev/null)
     proved=$(sed -n 's/.*Proved goals: *\([0-9]*\) \/ \([0-9]*\).*/\1 \2/p' "$log" | tail -1)
     if [[ -z "$proved" || "${proved% *}" != "${proved#* }" || "${proved% *}" == 0 ]]; then
         local shown="${proved/ / of }"
@@ -344,7 +366,7 @@ wp_run() { # NAME WHAT LOG FRAMA-C-ARGS...: one WP pass, all its goals proven or
         grep -A1 'Goal.*\(Failed\|Unknown\|Timeout\)\|\[\(Failed\|Unknown\|Timeout\)\] Goal' "$log" | sed 's/^/[prove]   /'
         return 1
     fi
-    echo "[prove] ok   $name: ${proved% *} of ${proved#* } goals proven ($what; $((SECONDS - t0)) s)"
+    echo "[prove] ok   $name: ${proved% *} of ${proved#* } goals proven ($what; $((SECONDS - t0)) s, ${cpu:-?} s CPU)"
 }
 
 prove_wp() {
@@ -405,11 +427,15 @@ prove_wp() {
     # LIN_L1_CAP / ANG_L1_CAP on each axis (l1_caps), with column_l1_of's
     # loop (the uint64 sum never wraps), coef_word, abs_i32 and mag_i32; all
     # goals of these five functions (wp:range / wp:split: the axis and term
-    # indices, as for check_counts)
+    # indices, as for check_counts). Z3 does not prove one goal directly (the
+    # strategies then do): bounded by steps, not only by the 60 s wall-clock
+    # bound, so the failing attempt costs the same at any load (it ran into the
+    # 60 s under load: 71 s for the pass, 30-36 s of CPU otherwise); the goals Z3
+    # proves take at most 4.3 M steps
     wp_run "wp l1 caps" "check_ranges' l1_caps and its helpers" "$OUT/wp_l1_caps.log" \
         -cpp-extra-args="$CPP -DABBE_PROOF_WP -DABBE_PROOF_WP_L1" lib/src/model_load.c -wp \
         -wp-fct coef_word,abs_i32,mag_i32,column_l1_of,check_ranges \
-        -wp-prover z3 -wp-timeout 60 -wp-auto wp:range,wp:split || return 1
+        -wp-prover z3 -wp-steps 20000000 -wp-timeout 60 -wp-auto wp:range,wp:split || return 1
     # the _q term kernels' and the five-axis rotary motions' (motions_q) accumulation
     # under the loader's L1 caps and the basis rows' bound (tests/proofs/terms_q_l1.c;
     # the shifts: Eva, above)
@@ -428,26 +454,38 @@ prove_wp() {
 pids=()
 names=()
 fail=0
-if ((!OPEN)) && [[ -z "$ONLY" || "$ONLY" == wp ]]; then
-    prove_wp &
+if ((!OPEN)) && [[ -z "$ONLY" || "$ONLY" == wp || "$ONLY" == "wp "* ]]; then
+    { prove_wp || exit 1
+      ((WP_RAN)) || { echo "[prove] FAIL --only $ONLY: no WP pass of that name"; exit 1; }; } &
+    pids+=($!)
 fi
 if ((!OPEN)); then
     # -O3 -march=native: the basis rows' checks vectorized (built and run here)
     cc -std=c99 -O3 -march=native -Ilib/include -Ilib/src -DABBE_PORTABLE_C tests/proofs/hypotheses.c lib/src/sincos_q.c \
         -o "$OUT/hypotheses" || { echo "[prove] FAIL tests/proofs/hypotheses.c does not compile"; exit 1; }
-    for h in $HYPOTHESES; do
-        [[ -n "$ONLY" && "$ONLY" != "$h" ]] && continue
+    for h in "${HYPOTHESIS_RUNS[@]}"; do
+        [[ -n "$ONLY" && " $h " != *" $ONLY "* ]] && continue
+        [[ -n "$ONLY" ]] && h="$ONLY"
         while (($(jobs -rp | wc -l) >= JOBS)); do wait -n || fail=1; done
-        check_hypothesis "$h" &
+        check_hypothesis $h &
+        pids+=($!)
     done
+fi
+if [[ -n "$ONLY" && "$ONLY" != wp && "$ONLY" != "wp "* && " $HYPOTHESES " != *" $ONLY "* ]] &&
+    ! printf '%s\n' "${HARNESSES[@]}" | grep -q "^$ONLY|"; then
+    echo "[prove] FAIL --only $ONLY: no harness, hypothesis or WP pass of that name"
+    fail=1
 fi
 for h in "${HARNESSES[@]}"; do
     IFS='|' read -r name srcs defs opts <<<"$h"
     [[ -n "$ONLY" && "$ONLY" != "$name" ]] && continue
     while (($(jobs -rp | wc -l) >= JOBS)); do wait -n || fail=1; done
     run_one "$name" "$srcs" "$defs" "$opts" &
+    pids+=($!)
 done
-while (($(jobs -rp | wc -l) > 0)); do wait -n || fail=1; done
+# every job's status, by its pid: a job that ended while none was waited for
+# (jobs -rp no longer lists it) is not lost
+for p in "${pids[@]}"; do wait "$p" || fail=1; done
 
 if ((LINT)); then
     "$REPO/scripts/prove_lint.sh" || fail=1

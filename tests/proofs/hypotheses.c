@@ -43,16 +43,40 @@
 #define HARMONICS 9 /* 8 in the 3-axis kernels; five_eval_q.c's motions_q makes the 9th too (unused) */
 #define BATCH 4096u
 
-static int sincos_range(void)
+/* sincos_norm: sin^2 + cos^2 of abbe_sincos_q30_pair within 2^60 + 2^33 for
+ * every phase (the precondition of tests/proofs/turn_q.c's WP proof: the
+ * trunnion table axis' angle sum turned by the tilt, five_eval_q.c's
+ * assertion 'turned_w'). Checked in sincos_range's enumeration: the pairs
+ * of a batch are made once for both (abbe_sincos_q30_pair is most of the
+ * time of either check). */
+#define NORM_MAX (((int64_t)1 << 60) + ((int64_t)1 << 33))
+
+static int sincos_checks(int want_range, int want_norm)
 {
     static int32_t s1[BATCH], c1[BATCH], ns1[BATCH], s[BATCH], c[BATCH];
+    static int64_t n2[BATCH];
     uint32_t phase = 0u;
     int32_t lo = 0, hi = 0, harm_lo = 0, harm_hi = 0;
+    int64_t nlo = INT64_MAX, nhi = 0;
     do {
         for (uint32_t i = 0; i < BATCH; i++) {
             const uint64_t pair = abbe_sincos_q30_pair(phase + i);
             s1[i] = abbe_u32_to_i32((uint32_t)pair);
             c1[i] = abbe_u32_to_i32((uint32_t)(pair >> 32));
+            n2[i] = (int64_t)s1[i] * s1[i] + (int64_t)c1[i] * c1[i];
+        }
+        for (uint32_t i = 0; want_norm && i < BATCH; i++) {
+            if (n2[i] > NORM_MAX) {
+                printf("sincos_norm: phase 0x%08" PRIx32 ": sin^2 + cos^2 = 2^60 + %" PRId64 ", beyond 2^60 + 2^33\n",
+                       phase + i, n2[i] - ((int64_t)1 << 60));
+                return 1;
+            }
+            nlo = n2[i] < nlo ? n2[i] : nlo;
+            nhi = n2[i] > nhi ? n2[i] : nhi;
+        }
+        if (!want_range) {
+            phase += BATCH;
+            continue;
         }
         for (uint32_t i = 0; i < BATCH; i++) {
             if (s1[i] < -ABBE_Q30_ONE || s1[i] > ABBE_Q30_ONE || c1[i] < -ABBE_Q30_ONE || c1[i] > ABBE_Q30_ONE) {
@@ -91,43 +115,17 @@ static int sincos_range(void)
         }
         phase += BATCH;
     } while (phase != 0u);
-    printf("sincos_range: all 2^32 phases, sin and cos in [%" PRId32 ", %" PRId32 "], the harmonics 2..%d in [%" PRId32
-           ", %" PRId32 "]\n", lo, hi, HARMONICS, harm_lo, harm_hi);
+    if (want_range) {
+        printf("sincos_range: all 2^32 phases, sin and cos in [%" PRId32 ", %" PRId32 "], the harmonics 2..%d in [%" PRId32
+               ", %" PRId32 "]\n", lo, hi, HARMONICS, harm_lo, harm_hi);
+    }
+    if (want_norm) {
+        printf("sincos_norm: all 2^32 phases, sin^2 + cos^2 in [2^60 %+" PRId64 ", 2^60 %+" PRId64 "] (bound 2^60 + 2^33)\n",
+               nlo - ((int64_t)1 << 60), nhi - ((int64_t)1 << 60));
+    }
     return 0;
 }
 
-/* sincos_norm: sin^2 + cos^2 of abbe_sincos_q30_pair within 2^60 + 2^33 for
- * every phase (the precondition of tests/proofs/turn_q.c's WP proof: the
- * trunnion table axis' angle sum turned by the tilt, five_eval_q.c's
- * assertion 'turned_w'), batched as sincos_range. */
-#define NORM_MAX (((int64_t)1 << 60) + ((int64_t)1 << 33))
-
-static int sincos_norm(void)
-{
-    static int64_t n[BATCH];
-    uint32_t phase = 0u;
-    int64_t lo = INT64_MAX, hi = 0;
-    do {
-        for (uint32_t i = 0; i < BATCH; i++) {
-            const uint64_t pair = abbe_sincos_q30_pair(phase + i);
-            const int64_t sn = abbe_u32_to_i32((uint32_t)pair), cs = abbe_u32_to_i32((uint32_t)(pair >> 32));
-            n[i] = sn * sn + cs * cs;
-        }
-        for (uint32_t i = 0; i < BATCH; i++) {
-            if (n[i] > NORM_MAX) {
-                printf("sincos_norm: phase 0x%08" PRIx32 ": sin^2 + cos^2 = 2^60 + %" PRId64 ", beyond 2^60 + 2^33\n",
-                       phase + i, n[i] - ((int64_t)1 << 60));
-                return 1;
-            }
-            lo = n[i] < lo ? n[i] : lo;
-            hi = n[i] > hi ? n[i] : hi;
-        }
-        phase += BATCH;
-    } while (phase != 0u);
-    printf("sincos_norm: all 2^32 phases, sin^2 + cos^2 in [2^60 %+" PRId64 ", 2^60 %+" PRId64 "] (bound 2^60 + 2^33)\n",
-           lo - ((int64_t)1 << 60), hi - ((int64_t)1 << 60));
-    return 0;
-}
 
 static int mm_clamped(void)
 {
@@ -227,23 +225,37 @@ static int cheb_rows(void)
     return 0;
 }
 
+/* hypotheses NAME...: each named check, the first that fails ends the run
+ * (exit 1); sincos_range and sincos_norm named together share one enumeration */
 int main(int argc, char **argv)
 {
-    if (argc == 2 && strcmp(argv[1], "sincos_range") == 0) {
-        return sincos_range();
+    int want_range = 0, want_norm = 0, others = 0;
+    for (int a = 1; a < argc; a++) {
+        if (strcmp(argv[a], "sincos_range") == 0) {
+            want_range = 1;
+        } else if (strcmp(argv[a], "sincos_norm") == 0) {
+            want_norm = 1;
+        } else if (strcmp(argv[a], "mm_clamped") == 0 || strcmp(argv[a], "f32_finite") == 0 ||
+                   strcmp(argv[a], "cheb_rows") == 0) {
+            others = 1;
+        } else {
+            argc = 0; /* a bad name: the usage */
+            break;
+        }
     }
-    if (argc == 2 && strcmp(argv[1], "mm_clamped") == 0) {
-        return mm_clamped();
+    if (argc < 2) {
+        fprintf(stderr, "usage: %s NAME... (sincos_range sincos_norm mm_clamped f32_finite cheb_rows)\n", argv[0]);
+        return 2;
     }
-    if (argc == 2 && strcmp(argv[1], "f32_finite") == 0) {
-        return f32_finite();
+    if ((want_range || want_norm) && sincos_checks(want_range, want_norm) != 0) {
+        return 1;
     }
-    if (argc == 2 && strcmp(argv[1], "cheb_rows") == 0) {
-        return cheb_rows();
+    for (int a = 1; others && a < argc; a++) {
+        if ((strcmp(argv[a], "mm_clamped") == 0 && mm_clamped() != 0) ||
+            (strcmp(argv[a], "f32_finite") == 0 && f32_finite() != 0) ||
+            (strcmp(argv[a], "cheb_rows") == 0 && cheb_rows() != 0)) {
+            return 1;
+        }
     }
-    if (argc == 2 && strcmp(argv[1], "sincos_norm") == 0) {
-        return sincos_norm();
-    }
-    fprintf(stderr, "usage: %s sincos_range|mm_clamped|f32_finite|cheb_rows|sincos_norm\n", argv[0]);
-    return 2;
+    return 0;
 }
