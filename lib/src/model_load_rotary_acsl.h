@@ -27,9 +27,7 @@
         rotary_record_counts_ok(b + 320) && rotary_record_counts_ok(b + 384);
  */
 /* the location angles' cap (SQUARENESS_CAP, 2^28 x 2^-36 rad) */
-/*@ logic integer rotary_angle_cap = 268435456;
- */
-/*@ predicate rotary_angle_ok(integer v) = -rotary_angle_cap <= v <= rotary_angle_cap;
+/*@ predicate rotary_angle_ok(integer v) = -268435456 <= v <= 268435456;
  */
 /* component c's column absent (0xFF) or one of the six */
 /*@ predicate rotary_column_range(abbe_rotary_model_t *ax, integer c) =
@@ -44,9 +42,7 @@
 /* the ranges a rotary axis model's evaluators index by (what
  * tests/proofs/eval_five_any.c builds: Eva checks this predicate on each
  * record there): the machine axis, at most six components, 0..8 harmonics, each column absent (0xFF) or one of the six.
- * Not yet here (docs/proofs.md, "Not proven yet"): the location tilts' and
- * zero offset's cap (rotary_angle_ok: angle_at's contract, proven) and the
- * location errors' zeros along the axis itself */
+ * The location errors are rotary_location_ok (below; in rotary_layout_ok) */
 /*@ predicate rotary_ranges_ok(abbe_rotary_model_t *ax) =
         ax->dir <= 2 && ax->n_comp <= ABBE_MOTIONS &&
         ax->harmonics <= ABBE_ROTARY_MAX_HARMONICS &&
@@ -63,15 +59,26 @@
         (n > 2 ==> rotary_column_ok(ax, 2)) && (n > 3 ==> rotary_column_ok(ax, 3)) &&
         (n > 4 ==> rotary_column_ok(ax, 4)) && (n > 5 ==> rotary_column_ok(ax, 5));
  */
+/* the location errors build_rotary keeps of a record turning about dir:
+ * none along the axis itself (delta_q8[dir], phi_q36[dir] 0), the tilts and
+ * the zero offset within the loader's angle cap (angle_at, SQUARENESS_CAP);
+ * the linear location errors have no cap (any int32) */
+/*@ predicate rotary_location_ok(abbe_rotary_model_t *ax, integer dir) =
+        ax->delta_q8[dir] == 0 && ax->phi_q36[dir] == 0 &&
+        rotary_angle_ok(ax->phi_q36[0]) && rotary_angle_ok(ax->phi_q36[1]) &&
+        rotary_angle_ok(ax->phi_q36[2]) && rotary_angle_ok(ax->zero_q36);
+ */
 /* the whole layout build_rotary makes of an accepted record turning about
  * dir: the ranges, n_comp the mask's popcount, each column the component's
  * rank or 0xFF (as eval_five_any.c's builder), no harmonics without
- * components */
+ * components, and the location errors (rotary_location_ok: Z3 does not prove
+ * this part, CVC4 does: scripts/prove.sh, "wp five loader") */
 /*@ predicate rotary_layout_ok(abbe_rotary_model_t *ax, integer dir) =
         rotary_ranges_ok(ax) && ax->dir == dir &&
         ax->n_comp == popcount_below(ax->comp_mask, ABBE_MOTIONS) &&
         rotary_columns_below(ax, ABBE_MOTIONS) &&
-        (ax->n_comp == 0 ==> ax->harmonics == 0);
+        (ax->n_comp == 0 ==> ax->harmonics == 0) &&
+        rotary_location_ok(ax, dir);
  */
 
 /* The loops' annotations (as WP_LOOP_* of model_load_acsl.h): the invariants

@@ -9,8 +9,9 @@
  * directly, every field unknown within the invariants abbe_five_model_load's
  * checks establish (model_load.c, model_load_rotary.h: check_rotary,
  * build_rotary), stated here as the evaluation's preconditions (the rotary
- * records' counts and ranges are also asserted as rotary_ranges_ok, the
- * predicate build_rotary's WP-proven contract gives: model_load_rotary_acsl.h):
+ * records' counts and ranges are also asserted as rotary_ranges_ok, their
+ * location errors as rotary_location_ok, the predicates build_rotary's
+ * WP-proven contract gives: model_load_rotary_acsl.h):
  *
  *   kind: 0 (a 3-axis table), the trunnions 1, 2 and the chain kinds 3-5
  *   (format 1.4), each its own partition; per kind the records' machine axes
@@ -131,6 +132,7 @@ static void any_linear(abbe_model_t *m)
 /* one rotary record turning about dir, as build_rotary leaves it */
 static void any_rotary(abbe_rotary_model_t *ax, unsigned r, unsigned dir)
 {
+    /*@ split dir; */
     memset(ax, 0, sizeof *ax);
     const unsigned i1 = dir == 0u ? 1u : 0u, i2 = dir == 2u ? 1u : 2u;
     ax->dir = (uint8_t)dir;
@@ -167,9 +169,14 @@ static void any_rotary(abbe_rotary_model_t *ax, unsigned r, unsigned dir)
 #if !defined(PROOF_Q)
     ax->coef_f32 = (const uint8_t *)rot_coef_f[r];
 #endif
-    /* the record's counts and ranges are the predicate build_rotary's proven contract
-     * gives (lib/src/model_load_rotary_acsl.h, layout_ok; docs/proofs.md) */
+    /* the record's counts and ranges, and its location errors, are the predicates
+     * build_rotary's proven contract gives (lib/src/model_load_rotary_acsl.h,
+     * layout_ok; docs/proofs.md); the location's zeros along dir are a relation with
+     * dir, which Eva checks per value of dir (split at the start, merged here: the
+     * callers' states as before) */
     /*@ assert loader_ranges: rotary_ranges_ok(ax); */
+    /*@ assert loader_location: rotary_location_ok(ax, dir); */
+    /*@ merge dir; */
 }
 
 static void any_five(abbe_five_model_t *m5)
