@@ -20,7 +20,7 @@ PACKAGES=(
     postgresql
     chromium fonts-dejavu-core
     lld
-    frama-c-base why3 z3 cppcheck clang-tidy-14
+    frama-c-base why3 z3 cvc4 cppcheck clang-tidy-14
 )
 
 log() { printf '[setup] %s\n' "$*"; }
