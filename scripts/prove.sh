@@ -348,13 +348,11 @@ wp_run() { # NAME WHAT LOG FRAMA-C-ARGS...: one WP pass, all its goals proven or
 }
 
 prove_wp() {
-    command -v why3 >/dev/null && command -v z3 >/dev/null ||
-        { echo "[prove] FAIL wp: why3 or z3 missing (scripts/setup.sh installs them)"; return 1; }
-    command -v cvc4 >/dev/null ||
-        { echo "[prove] FAIL wp: cvc4 missing (scripts/setup.sh installs it)"; return 1; }
+    command -v why3 >/dev/null && command -v z3 >/dev/null && command -v cvc4 >/dev/null ||
+        { echo "[prove] FAIL wp: why3, z3 or cvc4 missing (scripts/setup.sh installs them)"; return 1; }
     export WHY3CONFIG="$OUT/why3.conf"
-    # (re-detected when a prover list written before CVC4 was installed lacks it)
-    { [[ -s "$WHY3CONFIG" ]] && grep -q CVC4 "$WHY3CONFIG"; } || why3 config detect >/dev/null 2>&1
+    # (detected again if a configuration written before CVC4 was installed lacks it)
+    [[ -s "$WHY3CONFIG" ]] && grep -q CVC4 "$WHY3CONFIG" || why3 config detect >/dev/null 2>&1
     wp_run wp "$WP_CONTRACTS" "$OUT/wp.log" -cpp-extra-args="$CPP" lib/src/model_load.c -wp \
         -wp-fct check_header,array_ok -wp-prop "$WP_CONTRACTS" -wp-prover z3 -wp-timeout 30 || return 1
     # the 3-axis loader's count contracts (lib/src/model_load_acsl.h, seen only
