@@ -4,10 +4,11 @@
  *      check_thermal(b, total) == ABBE_OK  ->  thermal_block_ok(b, total)   (P)
  *      thermal_block_ok(b, total)          ->  build_thermal makes a model
  *                                              with thermal_model_ok(th)    (Q)
- *    STATED, NOT PROVEN YET: WP (Z3 4.8.12 through Why3 1.5.1) proves the
- *    helpers' contracts below (th_u8 .. th_cap: scripts/prove.sh, "wp
- *    thermal"), not block_ok, model_ok nor the loops' invariants
- *    (docs/proofs.md, "WP: the thermal loader", what fails and why);
+ *    the first step PROVEN: WP (CVC4 1.8 through Why3 1.5.1) proves
+ *    check_thermal's block_ok, every loop invariant and the helpers'
+ *    contracts (th_u8 .. th_cap: scripts/prove.sh, "wp thermal"); the second,
+ *    build_thermal's model_ok, is STATED, NOT PROVEN YET (docs/proofs.md, "WP:
+ *    the thermal loader", what fails and why);
  *  - the runtime's proofs on any block (tests/proofs/thermal_update.c,
  *    PROOF_ANY_BLOCK: thermal_any_q, thermal_any_f32), whose model draws each
  *    field over the range thermal_model_ok allows (a superset of it: vmin <
@@ -18,25 +19,10 @@
 
 #include "abbe/thermal.h"
 
-/* "P holds for indices 0 .. n-1" spelt out, not quantified, for the fixed
- * array sizes (17 inputs, 5 channels, 4 terms): Z3 (through Why3 1.5.1) does
- * not prove even the simplest quantified loop invariant here (it times out
- * on "forall j < k + 1"), and needs no instantiation this way (as
- * model_load_acsl.h's table_counts_ok). Frama-C only (annotations). */
-#if defined(__FRAMAC__)
-#define TH_UPTO4(n, pred, ...)                                                             \
-    ((n) > 0 ==> pred(__VA_ARGS__, 0)) && ((n) > 1 ==> pred(__VA_ARGS__, 1)) &&            \
-    ((n) > 2 ==> pred(__VA_ARGS__, 2)) && ((n) > 3 ==> pred(__VA_ARGS__, 3))
-#define TH_UPTO5(n, pred, ...) TH_UPTO4(n, pred, __VA_ARGS__) && ((n) > 4 ==> pred(__VA_ARGS__, 4))
-#define TH_UPTO17(n, pred, ...)                                                            \
-    TH_UPTO5(n, pred, __VA_ARGS__) &&                                                      \
-    ((n) > 5 ==> pred(__VA_ARGS__, 5)) && ((n) > 6 ==> pred(__VA_ARGS__, 6)) &&            \
-    ((n) > 7 ==> pred(__VA_ARGS__, 7)) && ((n) > 8 ==> pred(__VA_ARGS__, 8)) &&            \
-    ((n) > 9 ==> pred(__VA_ARGS__, 9)) && ((n) > 10 ==> pred(__VA_ARGS__, 10)) &&          \
-    ((n) > 11 ==> pred(__VA_ARGS__, 11)) && ((n) > 12 ==> pred(__VA_ARGS__, 12)) &&        \
-    ((n) > 13 ==> pred(__VA_ARGS__, 13)) && ((n) > 14 ==> pred(__VA_ARGS__, 14)) &&        \
-    ((n) > 15 ==> pred(__VA_ARGS__, 15)) && ((n) > 16 ==> pred(__VA_ARGS__, 16))
-#endif
+/* "P (or Q) holds for every index below n" is a \forall over the index (a
+ * prefix predicate): CVC4 1.8 proves its loop invariants; Z3 4.8.12 through
+ * Why3 1.5.1 fails them, and a version spelt out over the fixed sizes (17
+ * inputs, 5 channels, 4 terms) was not proven by either (docs/proofs.md). */
 
 /* ---- Q: the model the runtime may be given ---------------------------- */
 
@@ -67,17 +53,17 @@
         th->output[c] <= ABBE_THERMAL_OUT_B &&
         1 <= th->n_terms[c] <= ABBE_THERMAL_MAX_TERMS &&
         1 <= th->limit[c] <= 1073741824 &&
-        TH_UPTO4(th->n_terms[c], th_model_term_ok, th, c);
+        \forall integer k; 0 <= k < th->n_terms[c] ==> th_model_term_ok(th, c, k);
+    predicate th_model_channels_below(abbe_thermal_model_t *th, integer n) =
+        \forall integer c; 0 <= c < n ==> th_model_channel_ok(th, c);
  */
 /* the inputs below n, the channels below n, channel c's terms below n */
-/*@ predicate th_model_inputs_below(abbe_thermal_model_t *th, integer n) =
-        TH_UPTO17(n, th_model_input_ok, th);
+/*@ predicate th_model_terms_below(abbe_thermal_model_t *th, integer c, integer n) =
+        \forall integer k; 0 <= k < n ==> th_model_term_ok(th, c, k);
+    predicate th_model_inputs_below(abbe_thermal_model_t *th, integer n) =
+        \forall integer k; 0 <= k < n ==> th_model_input_ok(th, k);
     predicate th_model_input_ranges_below(abbe_thermal_model_t *th, integer n) =
-        TH_UPTO17(n, th_model_input_ranges, th);
-    predicate th_model_channels_below(abbe_thermal_model_t *th, integer n) =
-        TH_UPTO5(n, th_model_channel_ok, th);
-    predicate th_model_terms_below(abbe_thermal_model_t *th, integer c, integer n) =
-        TH_UPTO4(n, th_model_term_ok, th, c);
+        \forall integer k; 0 <= k < n ==> th_model_input_ranges(th, k);
  */
 /* a block's counts and times */
 /*@ predicate th_model_counts_ok(abbe_thermal_model_t *th) =
@@ -139,7 +125,7 @@
 /* OFFSET and COUNT of the block: aligned, after the axis records, inside
  * [t, total - 4) with its 1..17 inputs and 1..5 channels */
 /*@ predicate th_block_offsets_ok(uint8_t *b, integer total) =
-        th_t(b) % 4 == 0 && 256 <= th_t(b) && th_t(b) <= total - 4 &&
+        (th_t(b) & 3) == 0 && 256 <= th_t(b) && th_t(b) <= total - 4 &&
         1 <= th_nin(b, total) <= ABBE_THERMAL_MAX_INPUTS &&
         1 <= th_nch(b, total) <= ABBE_THERMAL_MAX_CHANNELS &&
         total - 4 - th_t(b) >= 16 + 20 * th_nin(b, total) + 56 * th_nch(b, total);
@@ -158,37 +144,38 @@
         1 <= th_i32_l(b, total, th_in_at(b, k) + 16) <= 2097152;
  */
 /* channel c's COUNT of terms, and the inputs its terms read */
-/*@ predicate th_block_term_input(uint8_t *b, integer total, integer c, integer k) =
+/*@ logic integer th_nterms(uint8_t *b, integer total, integer c) = th_u8_l(b, total, th_ch_at(b, total, c) + 1);
+    predicate th_block_term_input(uint8_t *b, integer total, integer c, integer k) =
         th_u8_l(b, total, th_tm_at(th_ch_at(b, total, c), k)) < th_nin(b, total);
-    predicate th_block_channel_count(uint8_t *b, integer total, integer c) =
-        1 <= th_u8_l(b, total, th_ch_at(b, total, c) + 1) <= ABBE_THERMAL_MAX_TERMS &&
-        TH_UPTO4(th_u8_l(b, total, th_ch_at(b, total, c) + 1), th_block_term_input, b, total, c);
     predicate th_block_term_inputs_below(uint8_t *b, integer total, integer c, integer n) =
-        TH_UPTO4(n, th_block_term_input, b, total, c);
+        \forall integer k; 0 <= k < n ==> th_block_term_input(b, total, c, k);
+    predicate th_block_channel_count(uint8_t *b, integer total, integer c) =
+        1 <= th_nterms(b, total, c) <= ABBE_THERMAL_MAX_TERMS &&
+        th_block_term_inputs_below(b, total, c, th_nterms(b, total, c));
  */
 /* channel c's output (FLAGS) and RANGE (limit; per term, tau and gain) */
 /*@ predicate th_block_term_range(uint8_t *b, integer total, integer c, integer k) =
         th_u32_l(b, total, th_tm_at(th_ch_at(b, total, c), k) + 4) <= 2147483648 &&
         -268435456 <= th_i32_l(b, total, th_tm_at(th_ch_at(b, total, c), k) + 8) <= 268435456;
+    predicate th_block_term_ranges_below(uint8_t *b, integer total, integer c, integer n) =
+        \forall integer k; 0 <= k < n ==> th_block_term_range(b, total, c, k);
     predicate th_block_channel_range(uint8_t *b, integer total, integer c) =
         1 <= th_i32_l(b, total, th_ch_at(b, total, c) + 4) <= 1073741824 &&
-        TH_UPTO4(th_u8_l(b, total, th_ch_at(b, total, c) + 1), th_block_term_range, b, total, c);
-    predicate th_block_term_ranges_below(uint8_t *b, integer total, integer c, integer n) =
-        TH_UPTO4(n, th_block_term_range, b, total, c);
+        th_block_term_ranges_below(b, total, c, th_nterms(b, total, c));
     predicate th_block_channel_output(uint8_t *b, integer total, integer c) =
         th_u8_l(b, total, th_ch_at(b, total, c)) <= ABBE_THERMAL_OUT_B;
  */
 /* the inputs and channels below n */
 /*@ predicate th_block_in_flags_below(uint8_t *b, integer total, integer n) =
-        TH_UPTO17(n, th_block_input_flags, b, total);
+        \forall integer k; 0 <= k < n ==> th_block_input_flags(b, total, k);
     predicate th_block_in_ranges_below(uint8_t *b, integer total, integer n) =
-        TH_UPTO17(n, th_block_input_range, b, total);
+        \forall integer k; 0 <= k < n ==> th_block_input_range(b, total, k);
     predicate th_block_outputs_below(uint8_t *b, integer total, integer n) =
-        TH_UPTO5(n, th_block_channel_output, b, total);
+        \forall integer c; 0 <= c < n ==> th_block_channel_output(b, total, c);
     predicate th_block_counts_below(uint8_t *b, integer total, integer n) =
-        TH_UPTO5(n, th_block_channel_count, b, total);
+        \forall integer c; 0 <= c < n ==> th_block_channel_count(b, total, c);
     predicate th_block_ch_ranges_below(uint8_t *b, integer total, integer n) =
-        TH_UPTO5(n, th_block_channel_range, b, total);
+        \forall integer c; 0 <= c < n ==> th_block_channel_range(b, total, c);
  */
 /* P: a block check_thermal accepts. Not stated: the reserved bytes and the
  * unused term slots being 0 and the outputs being distinct (FLAGS checks no
@@ -211,16 +198,24 @@
 #if defined(ABBE_PROOF_WP)
 /* the block inside the table, no offset wrapping (check_thermal: after its
  * OFFSET check; build_thermal: from thermal_block_ok) */
-#define TH_ASSERT_FITS assert th_fits: t + 16 + 20 * n_in + 56 * n_ch <= total - 4;
+#define TH_ASSERT_FITS                                                                     \
+    assert th_fits: t + 16 + 20 * n_in + 56 * n_ch <= total - 4 && t == th_t(b) &&         \
+        n_in == th_nin(b, total) && n_ch == th_nch(b, total);
+/* check_thermal: the block's times as P reads them; channel c's term count,
+ * checked by the COUNT loop (th_counts), where the RANGE loop reads it */
+#define TH_ASSERT_TIMES                                                                    \
+    assert th_times: gap == th_u32_l(b, total, th_t(b) + 4) && fade == th_u32_l(b, total, th_t(b) + 8);
+#define TH_ASSERT_COUNTED                                                                  \
+    assert th_counted: n_terms == th_nterms(b, total, c) && th_block_channel_count(b, total, c);
 /* check_thermal */
 #define TH_LOOP_IN_FLAGS                                                                   \
     loop invariant th_in_flags: 0 <= k <= n_in &&                                          \
-        TH_UPTO17(k, th_block_input_flags, b, total);              \
+        th_block_in_flags_below(b, total, k);              \
     loop assigns k;                                                                        \
     loop variant n_in - k;
 #define TH_LOOP_CH_FLAGS                                                                   \
     loop invariant th_outputs: 0 <= c <= n_ch &&                                           \
-        TH_UPTO5(c, th_block_channel_output, b, total);           \
+        th_block_outputs_below(b, total, c);           \
     loop assigns c, outputs;                                                               \
     loop variant n_ch - c;
 #define TH_LOOP_SLOTS                                                                      \
@@ -229,33 +224,33 @@
     loop variant ABBE_THERMAL_MAX_TERMS - k;
 #define TH_LOOP_CH_COUNT                                                                   \
     loop invariant th_counts: 0 <= c <= n_ch &&                                            \
-        TH_UPTO5(c, th_block_channel_count, b, total);            \
+        th_block_counts_below(b, total, c);            \
     loop assigns c;                                                                        \
     loop variant n_ch - c;
 #define TH_LOOP_TERM_INPUT                                                                 \
     loop invariant th_term_inputs: 0 <= k <= n_terms &&                                    \
-        TH_UPTO4(k, th_block_term_input, b, total, c);            \
+        th_block_term_inputs_below(b, total, c, k);            \
     loop assigns k;                                                                        \
     loop variant n_terms - k;
 #define TH_LOOP_IN_RANGE                                                                   \
     loop invariant th_in_ranges: 0 <= k <= n_in &&                                         \
-        TH_UPTO17(k, th_block_input_range, b, total);              \
+        th_block_in_ranges_below(b, total, k);              \
     loop assigns k;                                                                        \
     loop variant n_in - k;
 #define TH_LOOP_CH_RANGE                                                                   \
     loop invariant th_ch_ranges: 0 <= c <= n_ch &&                                         \
-        TH_UPTO5(c, th_block_channel_range, b, total);            \
+        th_block_ch_ranges_below(b, total, c);            \
     loop assigns c;                                                                        \
     loop variant n_ch - c;
 #define TH_LOOP_TERM_RANGE                                                                 \
     loop invariant th_term_ranges: 0 <= k <= n_terms &&                                    \
-        TH_UPTO4(k, th_block_term_range, b, total, c);            \
+        th_block_term_ranges_below(b, total, c, k);            \
     loop assigns k;                                                                        \
     loop variant n_terms - k;
 /* build_thermal */
 #define TH_LOOP_BUILD_INPUTS                                                               \
     loop invariant th_inputs_built: 0 <= k <= n_in &&                                      \
-        TH_UPTO17(k, th_model_input_ok, th);                       \
+        th_model_inputs_below(th, k);                       \
     loop assigns k, th->kind[0 .. ABBE_THERMAL_MAX_INPUTS - 1],                            \
         th->ref_milli[0 .. ABBE_THERMAL_MAX_INPUTS - 1],                                   \
         th->vmin_milli[0 .. ABBE_THERMAL_MAX_INPUTS - 1],                                  \
@@ -266,7 +261,7 @@
     loop variant n_in - k;
 #define TH_LOOP_BUILD_CHANNELS                                                             \
     loop invariant th_channels_built: 0 <= c <= n_ch &&                                    \
-        TH_UPTO5(c, th_model_channel_ok, th);                     \
+        th_model_channels_below(th, c);                     \
     loop invariant th_inputs_kept: th_model_inputs_below(th, n_in); \
     loop assigns c, th->output[0 .. ABBE_THERMAL_MAX_CHANNELS - 1],                        \
         th->n_terms[0 .. ABBE_THERMAL_MAX_CHANNELS - 1],                                   \
@@ -278,7 +273,7 @@
     loop variant n_ch - c;
 #define TH_LOOP_BUILD_TERMS                                                                \
     loop invariant th_terms_built: 0 <= k <= n_terms &&                                    \
-        TH_UPTO4(k, th_model_term_ok, th, c);                     \
+        th_model_terms_below(th, c, k);                     \
     loop assigns k, th->term_input[c][0 .. ABBE_THERMAL_MAX_TERMS - 1],                    \
         th->channel_inputs[c], th->tau_ms[c][0 .. ABBE_THERMAL_MAX_TERMS - 1],             \
         th->gain_q16[c][0 .. ABBE_THERMAL_MAX_TERMS - 1];                                  \
@@ -305,6 +300,8 @@
     loop variant th->n_terms[c] - k;
 #elif defined(__FRAMAC__)
 #define TH_ASSERT_FITS assert \true;
+#define TH_ASSERT_TIMES assert \true;
+#define TH_ASSERT_COUNTED assert \true;
 #define TH_LOOP_IN_FLAGS loop invariant \true;
 #define TH_LOOP_CH_FLAGS loop invariant \true;
 #define TH_LOOP_SLOTS loop invariant \true;

@@ -141,6 +141,7 @@ static abbe_status_t check_thermal(const uint8_t *b, uint32_t total)
     if (gap < 1u || gap > TH_TIME_CAP || fade < 1u || fade > TH_TIME_CAP) {
         return ABBE_E_RANGE;
     }
+    /*@ TH_ASSERT_TIMES */
     /*@ TH_LOOP_IN_RANGE */
     for (unsigned k = 0; k < n_in; k++) {
         uint32_t in = th_input(t, k);
@@ -159,6 +160,7 @@ static abbe_status_t check_thermal(const uint8_t *b, uint32_t total)
             return ABBE_E_RANGE;
         }
         unsigned n_terms = th_u8(b, total, ch + 1u);
+        /*@ TH_ASSERT_COUNTED */
         /*@ TH_LOOP_TERM_RANGE */
         for (unsigned k = 0; k < n_terms; k++) {
             uint32_t tm = th_term(ch, k);
