@@ -433,16 +433,27 @@ prove_wp() {
     # (column_l1, the sum over the term's words as the code reads them) within
     # LIN_L1_CAP / ANG_L1_CAP on each axis (l1_caps), with column_l1_of's
     # loop (the uint64 sum never wraps), coef_word, abs_i32 and mag_i32; all
-    # goals of these five functions (wp:range / wp:split: the axis and term
-    # indices, as for check_counts). Z3 does not prove one goal directly (the
-    # strategies then do): bounded by steps, not only by the 60 s wall-clock
-    # bound, so the failing attempt costs the same at any load (it ran into the
-    # 60 s under load: 71 s for the pass, 30-36 s of CPU otherwise); the goals Z3
-    # proves take at most 4.3 M steps
+    # goals of these four functions (wp:range / wp:split: the axis and term
+    # indices, as for check_counts); check_ranges' squareness_caps and
+    # reversal_caps from its two callees' contracts, proven in `wp caps` below.
+    # Z3 does not prove one goal directly (the strategies then do): bounded by
+    # steps, not only by the 60 s wall-clock bound, so the failing attempt costs
+    # the same at any load (the goals Z3 proves take at most 4.3 M steps)
     wp_run "wp l1 caps" "check_ranges' l1_caps and its helpers" "$OUT/wp_l1_caps.log" \
         -cpp-extra-args="$CPP -DABBE_PROOF_WP -DABBE_PROOF_WP_L1" lib/src/model_load.c -wp \
-        -wp-fct coef_word,abs_i32,mag_i32,column_l1_of,check_ranges \
+        -wp-fct coef_word,abs_i32,column_l1_of,check_ranges \
         -wp-prover z3 -wp-steps 20000000 -wp-timeout 60 -wp-auto wp:range,wp:split || return 1
+    # check_ranges' other caps (model_load_acsl.h, ABBE_PROOF_WP only):
+    # check_squareness accepts only a header whose three squareness words are
+    # within SQUARENESS_CAP (squareness_caps), check_reversal only axes with
+    # |B| + sum |r_k| <= REVERSAL_L1_CAP (reversal_caps: reversal_l1, the sum
+    # over the rows after the matrix as the code reads them), with mag_i32; all
+    # goals. Bounded by Z3's steps (the same outcome at any load), the
+    # wall-clock bound only stops a hang
+    wp_run "wp caps" "check_squareness' squareness_caps, check_reversal's reversal_caps" \
+        "$OUT/wp_caps.log" -cpp-extra-args="$CPP -DABBE_PROOF_WP -DABBE_PROOF_WP_L1" lib/src/model_load.c -wp \
+        -wp-fct mag_i32,check_squareness,check_reversal \
+        -wp-prover z3 -wp-steps 20000000 -wp-timeout 600 -wp-auto wp:range,wp:split || return 1
     # the _q term kernels' and the five-axis rotary motions' (motions_q) accumulation
     # under the loader's L1 caps and the basis rows' bound (tests/proofs/terms_q_l1.c;
     # the shifts: Eva, above)

@@ -119,6 +119,31 @@
 #define TABLE_L1_OK(b, total)                                                                          \
     (RECORD_L1_OK(b, total, (b) + 64) && RECORD_L1_OK(b, total, (b) + 128) && RECORD_L1_OK(b, total, (b) + 192))
 
+/* The other caps of check_ranges, as the evaluators' proofs state them
+ * (tests/proofs/eval_q_any_layout.c: the squareness within +/-2^28; the
+ * reversal blocks): the header's three squareness words within
+ * SQUARENESS_CAP = 2^28, and per axis the backlash B and the reversal rows r_k
+ * (the words n_basis x n_terms + k after the matrix, as coef_word reads them)
+ * within REVERSAL_L1_CAP: |B| + sum |r_k| <= 2^31 (the values of
+ * model_load_layout.h, written as literals as the L1 caps'). Macros, as
+ * TERM_L1_OK. */
+/* sum |r_k| over rows 0 .. n-1 of the reversal block at word base */
+/*@ logic integer reversal_l1{L}(uint8_t *b, integer total, integer off, integer base, integer n) =
+        n <= 0 ? 0 :
+        reversal_l1(b, total, off, base, n - 1) +
+        abs_l(i32_of_u32_l(coef_word_l(b, total, off, (uint32_t)(base + (n - 1)))));
+ */
+#define SQUARE_OK(b, k) (abs_l(i32_of_u32_l(ld_u32_l((b) + 48 + 4 * (k)))) <= 0x10000000)
+#define SQUARES_BELOW(b, n) (((n) > 0 ==> SQUARE_OK(b, 0)) && ((n) > 1 ==> SQUARE_OK(b, 1)) && ((n) > 2 ==> SQUARE_OK(b, 2)))
+#define SQUARENESS_OK(b) SQUARES_BELOW(b, 3)
+/* the reversal block's first word: n_basis x n_terms (n_matrix_of) */
+#define REVERSAL_BASE(rec) ((uint32_t)(n_basis_l(rec) * popcount_below((rec)[8], ABBE_TERMS)))
+#define REVERSAL_OK(b, total, rec)                                                                     \
+    (abs_l(i32_of_u32_l(ld_u32_l((rec) + 28))) +                                                        \
+         reversal_l1(b, total, ld_u32_l((rec) + 48), REVERSAL_BASE(rec), (rec)[60]) <= 0x80000000)
+#define TABLE_REVERSAL_OK(b, total)                                                                    \
+    (REVERSAL_OK(b, total, (b) + 64) && REVERSAL_OK(b, total, (b) + 128) && REVERSAL_OK(b, total, (b) + 192))
+
 /* The loops' annotations of those contracts (WP_LOOP_*, in the loops of
  * model_load_layout.h, model_load_checks.h, model_load_view.h): the
  * invariants under ABBE_PROOF_WP, a trivial one in the other Frama-C runs
@@ -218,7 +243,7 @@ static void build_axis(abbe_axis_model_t *ax, const uint8_t *b, const uint8_t *r
 /* check_ranges' loops (the L1 caps' contract below) */
 #if defined(ABBE_PROOF_WP)
 #define WP_LOOP_SQUARENESS                                                                 \
-    loop invariant wp_squareness: 0 <= k <= 3;                                             \
+    loop invariant wp_squareness: 0 <= k <= 3 && SQUARES_BELOW(b, k);                      \
     loop assigns k;                                                                        \
     loop variant 3 - k;
 #define WP_LOOP_L1_AXES                                                                    \
@@ -249,8 +274,24 @@ static void build_axis(abbe_axis_model_t *ax, const uint8_t *b, const uint8_t *r
         (j == 1 ==> RECORD_L1_OK(b, total, b + 128)) && (j == 2 ==> RECORD_L1_OK(b, total, b + 192));
 #define WP_LOOP_REVERSAL_LEFT                                                              \
     loop invariant wp_reversal_rows: 0 <= k <= rec[60];                                    \
+    loop invariant wp_reversal_left: left + reversal_l1(b, total, off_q, base, k) ==        \
+        0x80000000 - abs_l(i32_of_u32_l(ld_u32_l(rec + 28)));                              \
     loop assigns k, left;                                                                  \
     loop variant rec[60] - k;
+#define WP_REV_NEXT                                                                        \
+    assert wp_rev_next: reversal_l1(b, total, off_q, base, k + 1) ==                       \
+        reversal_l1(b, total, off_q, base, k) + abs_l(i32_of_u32_l(coef_word_l(b, total, off_q, (uint32_t)(base + k))));
+#define WP_REV_WRAP assert wp_rev_wrap: (uint32_t)(k + 1) == k + 1 && (uint32_t)(left - a) == left - a;
+#define WP_REV_RECORD assert wp_rev_record: REVERSAL_OK(b, total, rec);
+#define WP_REV_AXIS                                                                        \
+    assert wp_rev_axis: (j == 0 ==> REVERSAL_OK(b, total, b + 64)) &&                      \
+        (j == 1 ==> REVERSAL_OK(b, total, b + 128)) && (j == 2 ==> REVERSAL_OK(b, total, b + 192));
+#define WP_LOOP_REV_AXES                                                                   \
+    loop invariant wp_rev_axes: 0 <= j <= ABBE_AXES;                                       \
+    loop invariant wp_rev_records: (j > 0 ==> REVERSAL_OK(b, total, b + 64)) &&            \
+        (j > 1 ==> REVERSAL_OK(b, total, b + 128)) && (j > 2 ==> REVERSAL_OK(b, total, b + 192)); \
+    loop assigns j;                                                                        \
+    loop variant ABBE_AXES - j;
 #elif defined(__FRAMAC__)
 #define WP_LOOP_SQUARENESS loop invariant \true;
 #define WP_LOOP_L1_AXES loop invariant \true;
@@ -261,6 +302,11 @@ static void build_axis(abbe_axis_model_t *ax, const uint8_t *b, const uint8_t *r
 #define WP_L1_PRESENT assert \true;
 #define WP_L1_AXIS assert \true;
 #define WP_LOOP_REVERSAL_LEFT loop invariant \true;
+#define WP_REV_NEXT assert \true;
+#define WP_REV_WRAP assert \true;
+#define WP_REV_RECORD assert \true;
+#define WP_REV_AXIS assert \true;
+#define WP_LOOP_REV_AXES loop invariant \true;
 #endif
 
 #if defined(ABBE_PROOF_WP)
@@ -273,7 +319,8 @@ static inline int32_t abbe_u32_to_i32(uint32_t u);
 /*@ assigns \nothing;
     ensures abs: \result == abs_l(v); */
 static uint64_t abs_i32(int32_t v);
-/*@ assigns \nothing; */
+/*@ assigns \nothing;
+    ensures mag: \result == abs_l(v); */
 static uint32_t mag_i32(int32_t v);
 /*@ requires table: \valid_read(b + (0 .. total - 1));
     assigns \nothing;
@@ -284,11 +331,29 @@ static uint32_t coef_word(const uint8_t *b, uint32_t total, uint32_t off, uint32
     ensures column_l1: \result == column_l1(b, total, off_q, n_terms, column, n_basis); */
 static uint64_t column_l1_of(const uint8_t *b, uint32_t total, uint32_t off_q, uint32_t n_basis, unsigned n_terms,
                              unsigned column);
+/* check_ranges' other caps, each its own function (and pass: "wp caps"): the
+ * squareness words, and the reversal caps (|B| + sum |r_k| <= 2^31 on each
+ * axis) in a library with the reversal blocks */
+/*@ requires header: \valid_read(b + (0 .. 63));
+    assigns \nothing;
+    ensures squareness_caps: \result == ABBE_OK ==> SQUARENESS_OK(b); */
+static abbe_status_t check_squareness(const uint8_t *b);
+#if defined(ABBE_NO_REVERSAL)
+#define WP_REVERSAL_CAPS
+#else
+#define WP_REVERSAL_CAPS ensures reversal_caps: \result == ABBE_OK ==> TABLE_REVERSAL_OK(b, total);
+/*@ requires table: 260 <= total && \valid_read(b + (0 .. total - 1));
+    assigns \nothing;
+    WP_REVERSAL_CAPS */
+static abbe_status_t check_reversal(const uint8_t *b, uint32_t total);
+#endif
 /* an accepted table keeps every present term's L1 cap on each axis (260:
  * MIN_TOTAL_SIZE, defined after this file; check_header's accepted_total) */
 /*@ requires table: 260 <= total && \valid_read(b + (0 .. total - 1));
     assigns \nothing;
-    ensures l1_caps: \result == ABBE_OK ==> TABLE_L1_OK(b, total); */
+    ensures l1_caps: \result == ABBE_OK ==> TABLE_L1_OK(b, total);
+    ensures squareness_caps: \result == ABBE_OK ==> SQUARENESS_OK(b);
+    WP_REVERSAL_CAPS */
 static abbe_status_t check_ranges(const uint8_t *b, uint32_t total);
 #endif
 

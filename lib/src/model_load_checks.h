@@ -288,7 +288,7 @@ static abbe_status_t check_travel(const uint8_t *b)
 /* |v| as uint32 (2^31 for INT32_MIN) */
 static uint32_t mag_i32(int32_t v)
 {
-    return v < 0 ? 0u - (uint32_t)v : (uint32_t)v;
+    return v < 0 ? (uint32_t)(-(int64_t)v) : (uint32_t)v; /* -v <= 2^31: no wrap */
 }
 #endif
 
@@ -312,16 +312,55 @@ static uint64_t column_l1_of(const uint8_t *b, uint32_t total, uint32_t off_q, u
     return l1;
 }
 
+/* The header's squareness words within SQUARENESS_CAP (WP:
+ * squareness_caps, model_load_acsl.h). The words read as abbe_ld_i32 does,
+ * spelt as its two steps so that only this function's proof sees their value. */
+static abbe_status_t check_squareness(const uint8_t *b)
+{
+    /*@ WP_LOOP_SQUARENESS */
+    for (unsigned k = 0; k < 3u; k++) {
+        if (abs_i32(abbe_u32_to_i32(abbe_ld_u32(b + H_SQUARENESS + 4u * k))) > (uint64_t)SQUARENESS_CAP) {
+            return ABBE_E_RANGE;
+        }
+    }
+    return ABBE_OK;
+}
+
+#if !defined(ABBE_NO_REVERSAL)
+/* Per axis the total reversal |B + R(p)| <= |B| + sum |r_k| <= 2^31 (keeps
+ * s (B + R) below 2^62), counted down in 32 bits (WP: reversal_caps,
+ * model_load_acsl.h). Its own loop over the axes after the L1 caps' one: each
+ * check returns ABBE_E_RANGE, so a table refused by both is refused with the
+ * same status whichever comes first; apart, each proof's goals stay small. */
+static abbe_status_t check_reversal(const uint8_t *b, uint32_t total)
+{
+    /*@ WP_LOOP_REV_AXES */
+    for (unsigned j = 0; j < ABBE_AXES; j++) {
+        const uint8_t *rec = b + HEADER_SIZE + j * AXIS_RECORD_SIZE;
+        const uint32_t base = n_basis_of(rec) * popcount6(rec[A_MASK]); /* the rows after the matrix */
+        const uint32_t off_q = abbe_ld_u32(rec + A_COEF_Q);
+        uint32_t left = REVERSAL_L1_CAP - mag_i32(abbe_u32_to_i32(abbe_ld_u32(rec + A_BACKLASH)));
+        /*@ WP_LOOP_REVERSAL_LEFT */
+        for (unsigned k = 0; k < REVERSAL_ROWS(rec); k++) {
+            /*@ WP_REV_NEXT */
+            uint32_t a = mag_i32(abbe_u32_to_i32(coef_word(b, total, off_q, base + k)));
+            if (a > left) {
+                return ABBE_E_RANGE;
+            }
+            /*@ WP_REV_WRAP */
+            left -= a;
+        }
+        /*@ WP_REV_RECORD */
+        /*@ WP_REV_AXIS */
+    }
+    return ABBE_OK;
+}
+#endif
+
 /* The caps keep every fixed-point intermediate below 2^63 (docs/numerics.md). */
 static abbe_status_t check_ranges(const uint8_t *b, uint32_t total)
 {
     uint32_t features = abbe_ld_u32(b + H_FEATURES);
-    /*@ WP_LOOP_SQUARENESS */
-    for (unsigned k = 0; k < 3u; k++) {
-        if (abs_i32(abbe_ld_i32(b + H_SQUARENESS + 4u * k)) > (uint64_t)SQUARENESS_CAP) {
-            return ABBE_E_RANGE;
-        }
-    }
     /*@ WP_LOOP_L1_AXES */
     for (unsigned j = 0; j < ABBE_AXES; j++) {
         const uint8_t *rec = b + HEADER_SIZE + j * AXIS_RECORD_SIZE;
@@ -351,21 +390,17 @@ static abbe_status_t check_ranges(const uint8_t *b, uint32_t total)
             column++;
         }
         /*@ WP_L1_AXIS */
-#if !defined(ABBE_NO_REVERSAL)
-        /* the total reversal |B + R(p)| <= |B| + sum |r_k| <= 2^31 (keeps
-         * s (B + R) below 2^62), counted down in 32 bits */
-        uint32_t left = REVERSAL_L1_CAP - mag_i32(abbe_ld_i32(rec + A_BACKLASH));
-        /*@ WP_LOOP_REVERSAL_LEFT */
-        for (unsigned k = 0; k < REVERSAL_ROWS(rec); k++) {
-            uint32_t a = mag_i32(abbe_u32_to_i32(coef_word(b, total, off_q, n_basis * n_terms + k)));
-            if (a > left) {
-                return ABBE_E_RANGE;
-            }
-            left -= a;
-        }
-#endif
     }
+    /* after the L1 caps' loop (any failure here is ABBE_E_RANGE too): that
+     * loop's proof then does not carry these caps' facts */
+    if (check_squareness(b) != ABBE_OK) {
+        return ABBE_E_RANGE;
+    }
+#if !defined(ABBE_NO_REVERSAL)
+    return check_reversal(b, total);
+#else
     return ABBE_OK;
+#endif
 }
 
 /* The checks of docs/table-format.md in their order, over the header and the
