@@ -8,7 +8,7 @@ differences through the model), with grid searches for nonlinear parameters.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -236,7 +236,12 @@ class Engine:
                 continue
             for c in alts:
                 c.n_scan = n_alt
-            best = alts[0]
+            # the pool's candidate is a copy: each selection step sets its grid value /
+            # parameter subset from the alternatives (selection._tool_components and the
+            # BIC choice), which must stay intact for the next step (issue 36: the first
+            # alternative overwritten at step 1 lost a tool offset's lateral components
+            # for good, docs/effects.md §3)
+            best = replace(alts[0])
             if len(alts) > 1:
                 self._alts[spec.key] = alts
             out.append(best)
@@ -317,7 +322,7 @@ class Engine:
             c.n_scan = len(alts)
         if len(alts) > 1:
             self._alts[spec.key] = alts
-        return alts[0]
+        return replace(alts[0])  # a copy: the alternatives stay intact (above)
 
     def _tau_grid(self) -> list[float | None]:
         """Warm-up time constants to search (drift-variable units): linear (inf) and
