@@ -29,3 +29,16 @@ def lines_of(path: Path) -> list[str]:
 def write_lines(path: Path, lines: list[str]) -> Path:
     path.write_text("\n".join(lines) + "\n")
     return path
+
+
+def write_positioning_dat(path: Path, v: np.ndarray, targets: np.ndarray) -> Path:
+    """An ISO 230-2 positioning run in the ESS .dat format (docs/formats.md), written from
+    deviations v[cycle, direction (0 forward, 1 backward), target] in um at targets in mm
+    (the reference reading is the target plus its deviation, in mm)."""
+    lines = ["UNIT=mm", f"CYCLES={v.shape[0]}", f"POSITIONS={targets.size}"]
+    lines += [f"TGT_DATA[{i + 1}]={t:g}" for i, t in enumerate(targets)]
+    for c in range(v.shape[0]):
+        for i, t in enumerate(targets):
+            lines.append(f"REF_DATA_FWD[{i + 1},{c + 1}]={t + v[c, 0, i] * 1e-3:.9f}")
+            lines.append(f"REF_DATA_BWD[{i + 1},{c + 1}]={t + v[c, 1, i] * 1e-3:.9f}")
+    return write_lines(path, lines)

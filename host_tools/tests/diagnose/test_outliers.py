@@ -14,6 +14,7 @@ from abbe.diagnose.checks import LaserChannel, LaserCheck
 from abbe.diagnose.outliers import gross_outliers, inconsistent_runs
 from abbe.diagnose.problem import Problem, estimate_noise
 from abbe.diagnose.run import diagnose_positioning
+from fit_helpers import write_positioning_dat
 
 TARGETS = np.array([-20.0, -15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0, 20.0])
 
@@ -36,17 +37,6 @@ def _check(v: np.ndarray) -> LaserCheck:
         order[r, 1] = r * 2 * T + T + np.arange(T)[::-1]
     return LaserCheck("positioning_X", "X", (0.0, 0.0, 0.0), TARGETS,
                       [LaserChannel("linear", "dx", 1, v)], order, (0.0, 0.0, 0.0))
-
-
-def _write_dat(path: Path, v: np.ndarray) -> Path:
-    lines = ["UNIT=mm", f"CYCLES={v.shape[0]}", f"POSITIONS={TARGETS.size}"]
-    lines += [f"TGT_DATA[{i + 1}]={t:g}" for i, t in enumerate(TARGETS)]
-    for c in range(v.shape[0]):
-        for i, t in enumerate(TARGETS):
-            lines.append(f"REF_DATA_FWD[{i + 1},{c + 1}]={t + v[c, 0, i] * 1e-3:.9f}")
-            lines.append(f"REF_DATA_BWD[{i + 1},{c + 1}]={t + v[c, 1, i] * 1e-3:.9f}")
-    path.write_text("\n".join(lines) + "\n")
-    return path
 
 
 def test_startup_outlier_cycle_is_named_with_where_it_is_off() -> None:
@@ -109,7 +99,7 @@ def test_positioning_diagnosis_excludes_the_outlier_and_names_the_reversal(tmp_p
     v = _runs(6, noise=1.5, reversal=-20.0)
     v[0, 0, 1] += 110.0
     v[0, 0, 6] += 60.0
-    res = diagnose_positioning(_write_dat(tmp_path / "x.dat", v), "X")
+    res = diagnose_positioning(write_positioning_dat(tmp_path / "x.dat", v, TARGETS), "X")
     assert [(o.run, o.excluded) for o in res.outliers] == [(1, True)]
     assert any(n.startswith("OUTLIER: positioning_X: start-up outlier, cycle 1") for n in res.notes)
     keys = {e.key: e for e in res.effects}

@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 from abbe.diagnose.run import diagnose_positioning
+from fit_helpers import write_positioning_dat
 
 TARGETS = np.linspace(-20.0, 20.0, 11)
 
@@ -46,22 +47,12 @@ def _runs(seed: int, slope_um: float, drift_um: float, noise_um: float = 1.2,
     return v
 
 
-def _dat(path: Path, v: np.ndarray, targets: np.ndarray = TARGETS) -> Path:
-    lines = ["UNIT=mm", f"CYCLES={v.shape[0]}", f"POSITIONS={targets.size}"]
-    lines += [f"TGT_DATA[{i + 1}]={t:g}" for i, t in enumerate(targets)]
-    for c in range(v.shape[0]):
-        for i, t in enumerate(targets):
-            lines.append(f"REF_DATA_FWD[{i + 1},{c + 1}]={t + v[c, 0, i] * 1e-3:.9f}")
-            lines.append(f"REF_DATA_BWD[{i + 1},{c + 1}]={t + v[c, 1, i] * 1e-3:.9f}")
-    path.write_text("\n".join(lines) + "\n")
-    return path
-
-
 @pytest.mark.parametrize("seed", [0, 1])
 def test_reversal_and_drift_are_both_named(tmp_path: Path, seed: int) -> None:
     """Backlash 24 um, a reversal rising 8 um over the half travel, a drift of -3 um per
     cycle: the code before named the backlash alone (drift held-out gain -165 / -216)."""
-    res = diagnose_positioning(_dat(tmp_path / "x.dat", _runs(seed, 8.0, -3.0)), "X")
+    dat = write_positioning_dat(tmp_path / "x.dat", _runs(seed, 8.0, -3.0), TARGETS)
+    res = diagnose_positioning(dat, "X")
     keys = {e.key: e for e in res.effects}
     assert set(keys) == {"backlash_x", "reversal_x", "thermal_drift_x"}
     assert not res.tentative
@@ -75,14 +66,16 @@ def test_reversal_and_drift_are_both_named(tmp_path: Path, seed: int) -> None:
 
 def test_reversal_without_drift_gets_no_drift(tmp_path: Path) -> None:
     """The static reversal freed beside the drift: no drift is named for it."""
-    res = diagnose_positioning(_dat(tmp_path / "x.dat", _runs(2, 8.0, 0.0)), "X")
+    dat = write_positioning_dat(tmp_path / "x.dat", _runs(2, 8.0, 0.0), TARGETS)
+    res = diagnose_positioning(dat, "X")
     assert {e.key for e in res.effects} == {"backlash_x", "reversal_x"}
 
 
 def test_drift_without_reversal_is_still_named(tmp_path: Path) -> None:
     """A constant reversal (backlash) and a drift: the reversal freed in the drift's base
     does not take the drift away."""
-    res = diagnose_positioning(_dat(tmp_path / "x.dat", _runs(3, 0.0, -3.0)), "X")
+    dat = write_positioning_dat(tmp_path / "x.dat", _runs(3, 0.0, -3.0), TARGETS)
+    res = diagnose_positioning(dat, "X")
     assert {e.key for e in res.effects} == {"backlash_x", "thermal_drift_x"}
 
 
@@ -95,7 +88,8 @@ def test_reversal_value_is_about_its_mean_over_the_targets(tmp_path: Path) -> No
     mean is the part the backlash column shares, hence the wide interval)."""
     tg = np.array([-20.0, -10.0, -6.0, -4.0, -2.0, 0.0, 2.0, 4.0, 6.0, 10.0, 20.0])
     v = _runs(4, 0.0, 0.0, noise_um=0.5, bow_um=10.0, targets=tg)
-    res = diagnose_positioning(_dat(tmp_path / "x.dat", v, tg), "X")
+    dat = write_positioning_dat(tmp_path / "x.dat", v, tg)
+    res = diagnose_positioning(dat, "X")
     rv = next(e for e in res.effects if e.key == "reversal_x")
     u = tg / 20.0
     true = 10.0 * float(np.std(u * u))
@@ -108,5 +102,6 @@ def test_drift_on_three_runs_is_still_named(tmp_path: Path) -> None:
     a drift from a reversal (within one cycle the drift's column is a constant plus a
     reversal's shape). There the drift is judged beside its scale alone, as before; with
     the reversal free in that fold it was "not identifiable" and went unnamed."""
-    res = diagnose_positioning(_dat(tmp_path / "x.dat", _runs(3, 0.0, -3.0, cycles=3)), "X")
+    dat = write_positioning_dat(tmp_path / "x.dat", _runs(3, 0.0, -3.0, cycles=3), TARGETS)
+    res = diagnose_positioning(dat, "X")
     assert {e.key for e in res.effects} == {"backlash_x", "thermal_drift_x"}
