@@ -395,14 +395,17 @@ prove_wp() {
     # tests/proofs/eval_five_any.c asserts of its records), with every helper they
     # call; all goals of these functions. Z3, then CVC4 on a goal Z3 does not prove:
     # layout_ok (Z3 fails it since the location errors are in it; CVC4 1.8 proves it
-    # in ~2 s, ~0.2 M steps; the pass ~+7 s of CPU)
+    # in ~2 s, ~0.2 M steps; the pass ~+7 s of CPU). Bounded by steps: the goals Z3
+    # proves take at most 8.1 M; Z3's failing attempt on layout_ok ran to the 200 s
+    # wall-clock bound on an idle machine (149 s of CPU for the pass), 20 M steps
+    # stop it at the same point at any load (58 s)
     # (coef_word is used here through its contract: its postcondition `word` needs
     # abbe_ld_u32's value, seen only in the `wp l1 caps` pass, which proves it; the
     # same function of model_load_checks.h, included by both loaders)
     local ROT_FCTS="rotary_record,any_nonzero_u8,any_above,hh_lever_too_long,mag_i32,abbe_f32_bits_nonfinite,rotary_record_bad,check_rotary,capped_i32,others_of,geometry_at,angle_at,build_rotary"
     wp_run "wp five loader" "check_rotary's counts_ok, build_rotary's layout_ok with the location errors, and their helpers" \
         "$OUT/wp_five_loader.log" -cpp-extra-args="$CPP -DABBE_PROOF_WP" lib/src/five_load.c -wp \
-        -wp-fct "$ROT_FCTS" -wp-prover z3,cvc4 -wp-timeout 200 -wp-auto wp:range,wp:split || return 1
+        -wp-fct "$ROT_FCTS" -wp-prover z3,cvc4 -wp-steps 20000000 -wp-timeout 200 -wp-auto wp:range,wp:split || return 1
     # build_axis' contract (model_load_acsl.h, with ABBE_PROOF_WP): the model it
     # makes of a record within record_counts_ok satisfies axis_layout_ok (which
     # implies the term kernels' precondition axis_ranges_ok); all goals of
