@@ -58,7 +58,8 @@ class BuiltCase:
     declared_tool_mm: float = 0.0
     true_tool_mm: float = 0.0
     #: per effect: the RMS (um) of its noise-free contribution on the check where it shows
-    #: most, once the set-up the generator randomises is removed (see ``seen_um``)
+    #: most, once the set-up the generator randomises is removed (a tool offset: nothing
+    #: removed, its size at the tool tip; see ``seen_um``)
     seen_um: dict[str, float] = field(default_factory=dict)
 
 
@@ -144,10 +145,12 @@ def _only(e: str, eff: Effects, sq: dict[str, float], tool_mm: np.ndarray,
     return one, sq1, tool
 
 
-def _seen_rms(d_um: np.ndarray, angle_deg: np.ndarray | None) -> float:
+def _seen_rms(d_um: np.ndarray, angle_deg: np.ndarray | None, setup: bool = True) -> float:
     """RMS (um) of a check's noise-free contribution once the set-up the generator
     randomises is fitted to it and removed: a circle's centre and bar length (1, cos,
-    sin of the angle), a laser line's zero (a constant)."""
+    sin of the angle), a laser line's zero (a constant); ``setup=False``: nothing removed."""
+    if not setup:
+        return float(np.sqrt(np.mean(d_um * d_um)))
     if angle_deg is None:
         A = np.ones((len(d_um), 1))
     else:
@@ -160,10 +163,12 @@ def _seen_rms(d_um: np.ndarray, angle_deg: np.ndarray | None) -> float:
 def seen_um(m: Any, eff: Effects, sq: dict[str, float], base: Effects, declared_mm: float,
             effects: tuple[str, ...], lasers: dict[str, list[float]],
             circles: list[tuple[Circle, list[dict[str, Any]]]]) -> dict[str, float]:
-    """Per effect, the largest RMS (um) over the checks of its noise-free contribution
-    (the machine with the effect alone minus the machine without it, traced on the same
-    samples) once each check's set-up is removed (``_seen_rms``): what the checks can
-    see of it at all. The laser lines read their own terms (no tool, no squareness):
+    """Per effect, its true size on the basis the diagnosis' size rule uses
+    (docs/effects.md section 3, "Size"): the largest RMS (um) over the checks of its
+    noise-free contribution (the machine with the effect alone minus the machine without
+    it, traced on the same samples) once each check's set-up is removed (``_seen_rms``),
+    i.e. what the checks can see of it at all; a tool offset, which the diagnosis sizes
+    at the tool tip, with nothing removed. The laser lines read their own terms (no tool, no squareness):
     their contribution is the effect's part of the linear reading (``lasers``, recorded
     with every effect on; an effect of one axis shows on that axis' line only)."""
     out: dict[str, float] = {}
@@ -187,7 +192,8 @@ def seen_um(m: Any, eff: Effects, sq: dict[str, float], base: Effects, declared_
                 th0 = -r["arc"] if r["direction"] == "ccw" else 360.0 + r["arc"]
                 angs.append(th0 + sgn * np.degrees(c.feed / 60.0 * ts / c.radius))
                 diffs.append(with_e - without)
-            best = max(best, _seen_rms(np.concatenate(diffs), np.concatenate(angs)))
+            best = max(best, _seen_rms(np.concatenate(diffs), np.concatenate(angs),
+                                       setup=e != "tool_offset"))
         out[e] = best
     m.squareness_urad, m.tool_mm = sq_true, tool_true
     return out
@@ -321,9 +327,10 @@ def _named(res: Any) -> dict[str, Any]:
 def unobservable(b: BuiltCase) -> list[str]:
     """The case's effects that the checks cannot show above the diagnosis' documented size
     threshold by construction: the true, noise-free contribution, with the set-up the
-    generator randomises removed, has an RMS below ``min_effect_um`` (0.15 um,
-    docs/effects.md section 3, "Size") on every check (``BuiltCase.seen_um``). Such a case
-    is counted apart by the summary, not dropped: a name there is still reported."""
+    generator randomises removed (a tool offset: at the tool tip, nothing removed, as the
+    diagnosis sizes it), has an RMS below ``min_effect_um`` (0.15 um, docs/effects.md
+    section 3, "Size") on every check (``BuiltCase.seen_um``). Such a case is counted apart
+    by the summary, not dropped: a name there is still reported."""
     from abbe.diagnose.results import DiagnoseOptions
     floor = DiagnoseOptions().min_effect_um
     return sorted(e for e, v in b.seen_um.items() if v < floor)

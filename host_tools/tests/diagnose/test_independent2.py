@@ -146,8 +146,9 @@ def test_what_the_checks_see_of_an_effect_is_measured_and_counted_apart(tmp_path
     """Issue 36, twelfth round, second generator seed 1909725787: ``tool_offset_4`` (86.3 mm
     run, none declared) was scored a miss, but a tool shows only through the machine's
     angular errors times its length: on this machine its true noise-free contribution to
-    the checks, set-up removed, is 0.07 um RMS, below the 0.15 um size threshold, so the
-    scorer counts it apart (``unobservable``) instead of as a miss. The same measure on
+    the checks is 0.11 um RMS at most (at the tool tip, nothing removed, as the diagnosis
+    sizes a tool; 0.07 um once the circles' set-up is removed), below the 0.15 um size
+    threshold, so the scorer counts it apart (``unobservable``) instead of as a miss. The same measure on
     ``limit_squareness_yz_0`` (5.30 urad) is the analytic oval of a squareness on the YZ
     circle, |S| r / (2 sqrt 2) = 0.19 um (0.18 um on the runs' samples, whose arcs overlap):
     observable, still scored."""
@@ -160,7 +161,7 @@ def test_what_the_checks_see_of_an_effect_is_measured_and_counted_apart(tmp_path
     summarise = bench.summarise
     tool = build(Case("tool_offset_4", "single", ("tool_offset",), 1970364177),
                  tmp_path / "t", fit=False)
-    assert tool.seen_um["tool_offset"] < 0.1, tool.seen_um
+    assert 0.1 < tool.seen_um["tool_offset"] < 0.12, tool.seen_um
     assert unobservable(tool) == ["tool_offset"]
     sq = build(Case("limit_squareness_yz_0", "limit", ("squareness_yz",), 721559547),
                tmp_path / "s", fit=False)
