@@ -12,6 +12,7 @@ import math
 from collections import OrderedDict
 
 import numpy as np
+from scipy.signal import lfilter
 
 from abbe.diagnose.checks import Check
 from abbe.diagnose.effects import PredParams
@@ -328,6 +329,8 @@ def estimate_noise(prob: Problem, r: np.ndarray) -> tuple[np.ndarray, np.ndarray
             ss, d_tot, rho_num, rho_den = 0.0, 0, 0.0, 0.0
             resid_parts: list[np.ndarray] = []
             moments: list[np.ndarray] = []
+            moments0: list[np.ndarray] = []
+            total0 = 0.0
             labels = c.direction[sel].astype(str)
             xs = c.x[sel]
             for lab in np.unique(labels):
@@ -352,6 +355,11 @@ def estimate_noise(prob: Problem, r: np.ndarray) -> tuple[np.ndarray, np.ndarray
                 rho_num += float(e[1:] @ e[:-1])
                 rho_den += float(e @ e)
                 moments.append(_ar1_moments(A))
+                # the same about the fit's first three columns (a circle's centre and radius)
+                A0 = A[:, :3]
+                e0 = rv - A0 @ np.linalg.lstsq(A0, rv, rcond=None)[0]
+                total0 += float(e0 @ e0)
+                moments0.append(_ar1_moments(A0)[0])
             if d_tot >= 2:
                 ee = np.concatenate(resid_parts)
                 rob = 1.4826 * float(np.median(np.abs(ee))) * math.sqrt(x.size / d_tot)
@@ -375,9 +383,18 @@ def estimate_noise(prob: Problem, r: np.ndarray) -> tuple[np.ndarray, np.ndarray
                     if _AR1_GRID[k] < rho and ll[k] - float(np.interp(rho, _AR1_GRID, ll)) \
                             >= PAIR_LOG_LR:
                         rho = float(_AR1_GRID[k])
-                trace_mr = float(np.interp(rho, _AR1_GRID, mom[0]))
                 kept = max(d_tot - int(rej.sum()), 1) / d_tot
-                sd = math.sqrt((ss - float(ee[rej] @ ee[rej])) / max(trace_mr * kept, 1.0))
+                # the noise cannot leave more than all the scatter there is: sigma(rho)^2 x
+                # the expected scatter about the centre and radius alone must not exceed the
+                # scatter observed about them (a noise whose fast part is damped, e.g. by the
+                # instrument's filter, is no AR(1): its slow part would be over-extrapolated)
+                ss_kept = ss - float(ee[rej] @ ee[rej])
+                need = ss_kept / np.maximum(mom[0] * kept, 1.0) * np.sum(moments0, axis=0)
+                if rho > 0 and float(np.interp(rho, _AR1_GRID, need)) > total0:
+                    ok = _AR1_GRID[need <= total0]
+                    rho = float(ok.max()) if ok.size else 0.0
+                trace_mr = float(np.interp(rho, _AR1_GRID, mom[0]))
+                sd = math.sqrt(ss_kept / max(trace_mr * kept, 1.0))
                 sig[gg] = max(NOISE_FLOOR, sd)
                 dof[gg] = d_tot
                 infl[gg] = (1 + rho) / (1 - rho)
@@ -406,7 +423,8 @@ def _ar1_moments(A: np.ndarray) -> np.ndarray:
     """Expected scatter and lag-1 sum of unit AR(1) noise (in reading order) about the
     least-squares fit of the columns ``A`` (n, p), at each rho of _AR1_GRID: rows
     tr(M R) and tr(S M R M), M = I - Q Q' the fit's residual projection, R_ij =
-    rho^|i-j|, S the symmetric lag-1 matrix (1/2 beside the diagonal). (2, grid)."""
+    rho^|i-j|, S the symmetric lag-1 matrix (1/2 beside the diagonal). (2, grid).
+    R Q by a forward and a backward first-order recursion (O(n p), no n x n matrix)."""
     key = (hashlib.sha1(np.ascontiguousarray(A).tobytes(), usedforsecurity=False).digest()
            + str(A.shape).encode())
     hit = _AR1_CACHE.get(key)
@@ -414,18 +432,17 @@ def _ar1_moments(A: np.ndarray) -> np.ndarray:
         return hit
     n = A.shape[0]
     Q = qr_basis(A)
-    lag = np.abs(np.subtract.outer(np.arange(n), np.arange(n)))
+    SQ = 0.5 * (np.vstack([Q[1:], np.zeros((1, Q.shape[1]))])
+                + np.vstack([np.zeros((1, Q.shape[1])), Q[:-1]]))
+    QSQ = Q.T @ SQ
     out = np.zeros((2, _AR1_GRID.size))
     for k, rho in enumerate(_AR1_GRID):
-        R = rho ** lag
-        RQ = R @ Q
+        RQ = (lfilter([1.0], [1.0, -rho], Q, axis=0)
+              + lfilter([1.0], [1.0, -rho], Q[::-1], axis=0)[::-1] - Q)
         QRQ = Q.T @ RQ
         out[0, k] = n - float(np.trace(QRQ))
         # tr(S M R M) with M R M = R - Q Q'R - R Q Q' + Q (Q'R Q) Q'
-        SQ = 0.5 * (np.vstack([Q[1:], np.zeros((1, Q.shape[1]))])
-                    + np.vstack([np.zeros((1, Q.shape[1])), Q[:-1]]))
-        out[1, k] = ((n - 1) * rho - 2.0 * float(np.sum(SQ * RQ))
-                     + float(np.sum((Q.T @ SQ) * QRQ)))
+        out[1, k] = ((n - 1) * rho - 2.0 * float(np.sum(SQ * RQ)) + float(np.sum(QSQ * QRQ)))
     _AR1_CACHE[key] = out
     while len(_AR1_CACHE) > 64:
         _AR1_CACHE.popitem(last=False)
@@ -438,54 +455,40 @@ PAIR_LOG_LR = math.log(19.0)
 
 
 def _pair_loglik(ang: np.ndarray, labels: np.ndarray, r: np.ndarray) -> np.ndarray | None:
-    """Restricted log likelihood, at each rho of _AR1_GRID, of the CW/CCW pair's difference.
+    """Log likelihood, at each rho of _AR1_GRID, of the CW/CCW pair's difference above the
+    saturated fit's harmonics (Whittle's, from its periodogram over the circle).
 
     d = r_ccw - B r_cw (B: the CW trace taken at the CCW angles, periodic linear
-    interpolation, as _pair_sigma), with its saturated Fourier fit projected out (the
-    complement basis N); each trace's noise AR(1) in its reading order, independent of the
-    other's: Cov(N'd) = sigma^2 N'(R_a + B R_b B')N, sigma^2 profiled out. None when a
-    direction has fewer than 16 readings or the fit leaves fewer than 2 degrees of freedom."""
+    interpolation, as _pair_sigma); each trace's noise AR(1) in its reading order,
+    independent of the other's, so d's spectrum is sigma^2 S(w) (1 + |H(w)|^2), S the
+    AR(1) spectrum, |H|^2 = (1 - f)^2 + f^2 + 2 f (1 - f) cos w the interpolation's at the
+    readings' fractions f (mean); sigma^2 profiled out. The harmonics up to the saturated
+    fit's K (what it takes) are left out. None when a direction has fewer than 16 readings
+    or fewer than 4 harmonics remain."""
     a, b = labels == "ccw", labels == "cw"
     if a.sum() < 16 or b.sum() < 16:
         return None
-    aa, ab = ang[a], ang[b]
-    o = np.argsort(ab)
-    key = hashlib.sha1(np.concatenate([aa, [np.nan], ab]).tobytes(),
-                       usedforsecurity=False).digest()
-    hit = _PAIR_CACHE.get(key)
-    if hit is None:
-        th = np.radians(aa)
-        K = int(min(40, max(1, aa.size // 8)))
-        A = np.stack([np.ones(aa.size)] + [f(k * th) for k in range(1, K + 1)
-                                           for f in (np.cos, np.sin)], axis=1)
-        if aa.size - A.shape[1] < 2:
-            return None
-        B = np.stack([np.interp(aa, ab[o], np.eye(ab.size)[j][o], period=360.0)
-                      for j in range(ab.size)], axis=1)
-        Q = qr_basis(A)
-        u, sv, _ = np.linalg.svd(np.eye(aa.size) - Q @ Q.T)
-        N = u[:, sv > 0.5]
-        la = np.abs(np.subtract.outer(np.arange(aa.size), np.arange(aa.size)))
-        lb = np.abs(np.subtract.outer(np.arange(ab.size), np.arange(ab.size)))
-        whiten, logdet = [], []
-        for rho in _AR1_GRID:
-            L = np.linalg.cholesky(N.T @ (rho ** la + B @ (rho ** lb) @ B.T) @ N)
-            whiten.append(np.linalg.solve(L, N.T))
-            logdet.append(2.0 * float(np.sum(np.log(np.diag(L)))))
-        hit = (np.stack(whiten), np.array(logdet))
-        _PAIR_CACHE[key] = hit
-        while len(_PAIR_CACHE) > 8:
-            _PAIR_CACHE.popitem(last=False)
-    whiten, logdet = hit
-    d = r[a] - np.interp(aa, ab[o], r[b][o], period=360.0)
-    w = whiten @ d
-    q = np.einsum("ki,ki->k", w, w)
-    m = whiten.shape[1]
-    return -0.5 * (logdet + m * np.log(np.maximum(q, 1e-300) / m))
-
-
-#: _pair_loglik's whitening per grid rho, by the pair's angles
-_PAIR_CACHE: OrderedDict[bytes, tuple[np.ndarray, np.ndarray]] = OrderedDict()
+    o_a = np.argsort(ang[a])
+    aa = ang[a][o_a]
+    o = np.argsort(ang[b])
+    ab = ang[b][o]
+    n = aa.size
+    K = int(min(40, max(1, n // 8)))
+    ks = np.arange(K + 1, (n - 1) // 2 + 1)
+    if ks.size < 4:
+        return None
+    d = r[a][o_a] - np.interp(aa, ab, r[b][o], period=360.0)
+    j = np.searchsorted(ab, aa)
+    lo = np.where(j > 0, ab[np.maximum(j - 1, 0)], ab[-1] - 360.0)
+    hi = np.where(j < ab.size, ab[np.minimum(j, ab.size - 1)], ab[0] + 360.0)
+    f = np.clip((aa - lo) / np.maximum(hi - lo, 1e-12), 0.0, 1.0)
+    w = 2.0 * np.pi * ks / n
+    h2 = float(np.mean((1 - f) ** 2 + f ** 2)) + float(np.mean(2 * f * (1 - f))) * np.cos(w)
+    per = np.abs(np.fft.rfft(d)[ks]) ** 2 / n
+    g = _AR1_GRID[:, None]
+    spec = (1 - g ** 2) / (1 - 2 * g * np.cos(w)[None, :] + g ** 2) * (1 + h2)[None, :]
+    m = ks.size
+    return -np.sum(np.log(spec), axis=1) - m * np.log(np.mean(per[None, :] / spec, axis=1))
 
 
 def _ar1_rho(ratio: float, mom: np.ndarray) -> float:

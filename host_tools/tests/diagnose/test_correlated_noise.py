@@ -82,3 +82,24 @@ def test_a_fine_pattern_both_traces_share_is_not_correlated_noise() -> None:
     for k in range(3):
         s, f = _estimate(k, 0.2, 0.0, fine_um=0.4)
         assert f < 1.3, (k, s, f)
+
+
+def test_a_filtered_noise_is_not_over_extrapolated() -> None:
+    """Noise whose fast part is damped (white noise through a 3-reading moving average, as an
+    instrument's filter gives) is no AR(1): read as one from its fast part, its slow part
+    came out 30 x too large. The noise cannot leave more scatter about the centre and radius
+    than the circle has: the variance a smooth signature sees is unbiased (geometric mean
+    over 6 draws within a factor 1.6 of the truth, 0.2^2 x the filter's gain 1) and no
+    draw is beyond 4 x."""
+    g = ballbar_geometry("XY", CENTER_MM, step_deg=2.0)
+    ratios = []
+    for k in range(6):
+        rng = np.random.default_rng(k)
+        y = np.convolve(rng.normal(0.0, 0.2, g["angle_deg"].size), np.ones(3) / 3, "same")
+        c = ballbar_check_from(g, y, REFERENCE_MM)
+        prob = Problem([c])
+        sig, infl, _ = estimate_noise(prob, prob.y)
+        ratios.append(float(sig[0] ** 2 * infl[0]) / 0.04)
+    gm = float(np.exp(np.mean(np.log(ratios))))
+    assert 1 / 1.6 < gm < 1.6, ratios
+    assert max(ratios) < 4.0, ratios
