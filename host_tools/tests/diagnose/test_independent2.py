@@ -180,3 +180,22 @@ def test_what_the_checks_see_of_an_effect_is_measured_and_counted_apart(tmp_path
     assert (s["effect_cases"], s["exact"]) == (2, 1)            # the raw figure stays
     assert (s["observable_effect_cases"], s["observable_exact"]) == (1, 1)
     assert s["unobservable"] and s["unobservable"][0].startswith("tool_offset_4")
+
+
+def test_issue36_correlated_ballbar_noise_names_no_reversal_or_scale(tmp_path) -> None:
+    """Issue 36, twelfth round's only false name (second generator seed 1909725787,
+    ``thermal_drift_x_0``, a drift of X of 7.18 um/h): the fast circle's noise is
+    correlated over a few samples (0.167 um, lag-1 0.51); the scatter about the saturated
+    fit gave 0.118 um and inflation 1.00, so that circle weighed 6 x too much and its noise
+    named a reversal of X (0.40 um) and a scale of Y (1.16 ppm) beside the drift (7.94, 10.5 %
+    high). The same machine and noise without the drift named the two as well; without the
+    noise, the drift alone. With the noise estimated through the fit: the drift alone."""
+    from cases.independent2.suite import Case, build, run, score
+    b = build(Case("thermal_drift_x_0", "single", ("thermal_drift_x",), 1630505371), tmp_path)
+    res = run(b)
+    s = score(b, res)
+    assert s["named"] == ["thermal_drift_x"], s["named"]
+    fast = res.to_json()["noise"]["xy_fast:radial"]
+    assert fast["sigma"] * fast["inflation"] ** 0.5 > 0.2, fast      # 0.118 before
+    d = {e["key"]: e for e in res.to_json()["effects"]}["thermal_drift_x"]
+    assert abs(d["value"] - b.truth["thermal_drift_x"]["value"]) < 0.1 * 7.184, d["value"]
