@@ -43,6 +43,8 @@ K = 2.0
 SQRT3 = math.sqrt(3.0)
 #: beyond this relative difference the Monte Carlo's U is stated
 AGREEMENT = 0.10
+#: the budget line of the table's own fit error along the effect
+TABLE_LINE = "table (fit) uncertainty"
 
 
 @dataclass
@@ -396,7 +398,9 @@ def _gap_lines(prob: Any, r_clean: np.ndarray, back: Callable[[np.ndarray], np.n
 
 def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
                           draws: int = 0, seed: int = 20241,
-                          model_from_the_data: bool = False) -> dict[str, Any] | None:
+                          model_from_the_data: bool = False,
+                          table_cov: dict[tuple[str, str], np.ndarray] | None = None
+                          ) -> dict[str, Any] | None:
     """u, U (k = 2) and the budget of each named effect's value and of the gap figures of a
     :class:`~abbe.diagnose.results.DiagnoseResult` (its ``fit_state`` kept by diagnose);
     with ``draws``, the Monte Carlo check. Sets ``u``, ``U``, ``budget_u`` (and the Monte
@@ -406,7 +410,13 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
     ``model_from_the_data``: the model was built from the same readings (``abbe diagnose
     --iso230-2`` without ``--model``: the position-only model is each target's mean), so an
     error per target (the sensor's linearity) moves the model with the readings and
-    cancels in every residual: it is left out (stated in the assumptions)."""
+    cancels in every residual: it is left out (stated in the assumptions).
+
+    ``table_cov``: the table's coefficient covariance (abbe.diagnose.table_uncertainty):
+    each effect gets a line "table (fit) uncertainty" (a tool offset: the model's angular
+    uncertainty its interval already carries, describe.tool_model_cov), and each effect's
+    95 % interval grows in quadrature by 2 u of the lines it did not carry yet (the
+    instruments', the table's), so it contains the whole budget (:func:`_widen`)."""
     st: FitState | None = getattr(res, "fit_state", None)
     if st is None:
         return None
@@ -421,8 +431,10 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
     per_key: dict[str, dict[str, Any]] = {}
     fns: list[tuple[str, Callable[[np.ndarray], float], slice]] = []
     u_time_constant: dict[str, float] = {}   # a drift's time-constant line (not simulated)
+    extra_u: dict[str, float] = {}   # u of the lines the describe interval does not carry
     if st.selected:
         X, L, _ = _final_design(st)
+        _, p_fin = apply_selection(eng, st.selected, st.values)
         # a drift's rate under the grid's other warm-up time constants (the same mixture its
         # 95 % interval is: shape.drift_tau_average): the spread about the value reported
         from abbe.diagnose.shape import drift_tau_average
@@ -436,6 +448,20 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
             sens = g @ L[k0:k0 + n]
             lines = {"fit (Type A: noise, lack of fit)": math.sqrt(max(float(g @ C @ g), 0.0)),
                      **_line_u(sens, inp)}
+            extra = sum(x * x for x in lines.values()) - lines["fit (Type A: noise, lack of fit)"] ** 2
+            if s.cand.spec.kind == "tool_offset":
+                # the model's angular uncertainty along the lever (the selection's sigma_m),
+                # already in the interval (describe.tool_model_cov)
+                from abbe.diagnose.describe import tool_model_cov
+                _, f = tool_model_cov(eng, s.cand, np.asarray(v, dtype=np.float64), C)
+                lines[TABLE_LINE] = math.sqrt(max(f * f - 1.0, 0.0) * max(float(g @ C @ g), 0.0))
+            elif table_cov:
+                from abbe.diagnose.table_uncertainty import table_u
+                # the derivative by the model's own coefficients (the table as loaded: the
+                # effects may add rows), at the final prediction parameters
+                lines[TABLE_LINE] = table_u(eng, eng.table, p_fin, sens, table_cov)
+                extra += lines[TABLE_LINE] ** 2
+            extra_u[s.cand.spec.key] = math.sqrt(max(extra, 0.0))
             ta = tau_avg.get(s.cand.spec.key)
             u_tau = 0.0
             if ta is not None:
@@ -446,7 +472,8 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
             u = math.sqrt(sum(x * x for x in lines.values()))
             per_key[s.cand.spec.key] = {"value": fn(np.asarray(v)), "u": u, "U": K * u,
                                         "budget_u": lines}
-            u_time_constant[s.cand.spec.key] = u_tau
+            # the Monte Carlo's draws simulate neither line: added to its U in quadrature
+            u_time_constant[s.cand.spec.key] = math.hypot(u_tau, lines.get(TABLE_LINE, 0.0))
             fns.append((s.cand.spec.key, fn, slice(k0, k0 + n)))
             k0 += n
     else:
@@ -493,6 +520,7 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
         out["monte_carlo"] = _monte_carlo(res, st, inp, sig2, fns, draws, seed, per_key, gaps,
                                           u_time_constant)
     _attach(res, per_key, gaps)
+    _widen(res, extra_u)
     res.uncertainty = _round(out)
     return res.uncertainty
 
@@ -572,9 +600,9 @@ def _monte_carlo(res: Any, st: FitState, inp: Inputs, sig2: np.ndarray,
         tgt = per_key.get(name) if not fig else gaps.get(which, {}).get(fig)
         if tgt is None:
             continue
-        # the draws hold the selection fixed: they check the first order's propagation of
-        # the noise and the instruments, not a drift's time-constant line, which is added
-        # to either in quadrature
+        # the draws hold the selection and the table fixed: they check the first order's
+        # propagation of the noise and the instruments, not a drift's time-constant line nor
+        # the table's line, which are added to either in quadrature
         U_sel = K * float((u_time_constant or {}).get(name, 0.0)) if not fig else 0.0
         U_fo = math.sqrt(max(tgt["U"] ** 2 - U_sel ** 2, 0.0))
         ratio = U_mc / U_fo - 1.0 if U_fo > 0 else float("nan")
@@ -609,6 +637,30 @@ def _attach(res: Any, per_key: dict[str, Any], gaps: dict[str, Any]) -> None:
             if c["key"] in per_key:
                 put(c, per_key[c["key"]])
     res.gap_uncertainty = _round(gaps)
+
+
+def _widen(res: Any, extra_u: dict[str, float]) -> None:
+    """Each named effect's 95 % interval (describe: Student t on the fit's covariance, a
+    tool offset's model inflation, a drift's time-constant mixture) with the budget lines
+    it did not carry (the instruments', the table's) added in quadrature to each
+    half-width at k = 2: the interval the report states then contains the whole budget."""
+    def wid(d: Any, v: float, ci: Any, u: float) -> list[float]:
+        lo, hi = float(ci[0]), float(ci[1])
+        return [float(f"{v - math.hypot(v - lo, K * u):.6g}"),
+                float(f"{v + math.hypot(hi - v, K * u):.6g}")]
+    for e in res.effects:
+        u = extra_u.get(e.key, 0.0)
+        if u > 0 and e.ci95 is not None:
+            # the fit's part alone, kept for the reader who compares with earlier reports
+            e.evidence["ci95_fit_only"] = [float(e.ci95[0]), float(e.ci95[1])]
+            e.evidence["u_not_in_fit_interval"] = float(f"{u:.6g}")
+            e.ci95 = wid(e, float(e.value), e.ci95, u)
+            if len(e.params) == 1:
+                e.params[0]["ci95"] = wid(e, float(e.params[0]["value"]), e.params[0]["ci95"], u)
+        for c in e.components:
+            uc = extra_u.get(c["key"], 0.0)
+            if uc > 0 and c.get("ci95") is not None:
+                c["ci95"] = wid(c, float(c["value"]), c["ci95"], uc)
 
 
 def _round(o: Any) -> Any:
