@@ -644,7 +644,7 @@ def _widen(res: Any, extra_u: dict[str, float]) -> None:
     tool offset's model inflation, a drift's time-constant mixture) with the budget lines
     it did not carry (the instruments', the table's) added in quadrature to each
     half-width at k = 2: the interval the report states then contains the whole budget."""
-    def wid(d: Any, v: float, ci: Any, u: float) -> list[float]:
+    def wid(v: float, ci: Any, u: float) -> list[float]:
         lo, hi = float(ci[0]), float(ci[1])
         return [float(f"{v - math.hypot(v - lo, K * u):.6g}"),
                 float(f"{v + math.hypot(hi - v, K * u):.6g}")]
@@ -654,13 +654,13 @@ def _widen(res: Any, extra_u: dict[str, float]) -> None:
             # the fit's part alone, kept for the reader who compares with earlier reports
             e.evidence["ci95_fit_only"] = [float(e.ci95[0]), float(e.ci95[1])]
             e.evidence["u_not_in_fit_interval"] = float(f"{u:.6g}")
-            e.ci95 = wid(e, float(e.value), e.ci95, u)
+            e.ci95 = wid(float(e.value), e.ci95, u)
             if len(e.params) == 1:
-                e.params[0]["ci95"] = wid(e, float(e.params[0]["value"]), e.params[0]["ci95"], u)
+                e.params[0]["ci95"] = wid(float(e.params[0]["value"]), e.params[0]["ci95"], u)
         for c in e.components:
             uc = extra_u.get(c["key"], 0.0)
             if uc > 0 and c.get("ci95") is not None:
-                c["ci95"] = wid(c, float(c["value"]), c["ci95"], uc)
+                c["ci95"] = wid(float(c["value"]), c["ci95"], uc)
 
 
 def _round(o: Any) -> Any:
