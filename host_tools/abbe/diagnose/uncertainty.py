@@ -38,6 +38,7 @@ from abbe.diagnose.candidates import Engine, Selected, apply_selection
 from abbe.diagnose.checks import OWN_TERM, BallbarCheck, LaserCheck
 from abbe.diagnose.problem import project_out, qr_basis, remove_nuisance
 from abbe.diagnose.results import FitState
+from abbe.diagnose.scale_free import free_scale_axes, free_scale_L, scale_columns
 
 K = 2.0
 SQRT3 = math.sqrt(3.0)
@@ -57,6 +58,9 @@ class Systematic:
     low: float = -1.0
     high: float = 1.0
     normal_sd: float | None = None  # set: t is normal with this standard deviation
+    #: a laser line's scale-like input (a ramp along this axis' own channel): propagated
+    #: with the axis' scale free in the fit unless a scale of the axis is named
+    ramp_axis: str | None = None
 
     @property
     def sd(self) -> float:
@@ -139,7 +143,8 @@ def instrument_inputs(prob: Any, laser_budget: Any, ballbar_budget: Any) -> Inpu
             for si in scale_inputs(laser_budget, None):
                 p = np.zeros(N)
                 p[s] = np.where(c.group == own, dist_um * 1e-6, 0.0)
-                sysl.append(Systematic(si.name, c.name, p, si.low_ppm, si.high_ppm))
+                sysl.append(Systematic(si.name, c.name, p, si.low_ppm, si.high_ppm,
+                                       ramp_axis=c.axis))
             if f["linearity_um"] > 0:
                 lab = np.full(N, -1)
                 lab[s] = np.where(c.group == own, c.cell % c.T, -1)  # one error per target, both directions
@@ -183,11 +188,15 @@ def budget_of_positioning_file(path: Any) -> Any:
 
 
 # ------------------------------------------------------------------ the linear propagation
-def _line_u(s: np.ndarray, inp: Inputs) -> dict[str, float]:
-    """Each instrument input's standard uncertainty of a figure whose change is s . dy."""
+def _line_u(s: np.ndarray, inp: Inputs,
+            s_free: dict[str, np.ndarray] | None = None) -> dict[str, float]:
+    """Each instrument input's standard uncertainty of a figure whose change is s . dy;
+    ``s_free[a]``: the figure's sensitivity with axis a's scale free in the fit, used for
+    the scale-like inputs (ramps) along a (:mod:`abbe.diagnose.scale_free`)."""
     out: dict[str, float] = {}
     for x in inp.systematic:
-        v = abs(float(s @ x.pattern)) * x.sd
+        sx = (s_free or {}).get(x.ramp_axis or "", s)
+        v = abs(float(sx @ x.pattern)) * x.sd
         out[f"{x.check}: {x.name}"] = out.get(f"{x.check}: {x.name}", 0.0) + v
     for g in inp.grouped:
         m = g.labels >= 0
@@ -439,6 +448,9 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
         # 95 % interval is: shape.drift_tau_average): the spread about the value reported
         from abbe.diagnose.shape import drift_tau_average
         tau_avg = drift_tau_average(eng, st.selected, st.values, st.W, st.s2)
+        free = free_scale_axes(inp, st)
+        xs = scale_columns(st, free)
+        L_free = {a: free_scale_L(st, X, xs[:, [i]]) for i, a in enumerate(free)}
         k0 = 0
         for s, v in zip(st.selected, st.values):
             n = len(v)
@@ -446,8 +458,9 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
             fn = _headline_fn(eng, s, C)
             g = _grad(fn, np.asarray(v, dtype=np.float64), C)
             sens = g @ L[k0:k0 + n]
+            s_free = {a: g @ Lf[k0:k0 + n] for a, Lf in L_free.items()}
             lines = {"fit (Type A: noise, lack of fit)": math.sqrt(max(float(g @ C @ g), 0.0)),
-                     **_line_u(sens, inp)}
+                     **_line_u(sens, inp, s_free)}
             extra = sum(x * x for x in lines.values()) - lines["fit (Type A: noise, lack of fit)"] ** 2
             if s.cand.spec.kind == "tool_offset":
                 # the model's angular uncertainty along the lever (the selection's sigma_m),
@@ -525,28 +538,36 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
     return res.uncertainty
 
 
-def _refitter(st: FitState, iterations: int = 4) -> Callable[[np.ndarray], list[np.ndarray]]:
+def _refitter(st: FitState, iterations: int = 4,
+              xs: np.ndarray | None = None) -> Callable[[np.ndarray], list[np.ndarray]]:
     """The final fit of new readings, nonlinear: Gauss-Newton from the solution, each step's
     residual through the model (the C library, every effect applied), the Jacobian at the
     solution steering the steps (as the chain's and the trunnion's Monte Carlo do); the
-    set-up nuisance refitted with it. Its fixed point is the weighted least squares of the
-    model on the new readings (to the Jacobian's change over the draws' spread)."""
+    set-up nuisance refitted with it, and the columns ``xs`` (N, m) (the scales of the axes
+    not named whose laser lines have scale-like inputs, :func:`free_scale_axes`) free as
+    nuisances, linear. Its fixed point is the weighted least squares of the model on the
+    new readings (to the Jacobian's change over the draws' spread)."""
     eng, prob = st.eng, st.eng.prob
     X, _, _ = _final_design(st)
-    A = np.hstack([prob.nuis, X]) * st.W[:, None]
+    xs = np.zeros((prob.N, 0)) if xs is None else xs
+    A = np.hstack([prob.nuis, X, xs]) * st.W[:, None]
     P = np.linalg.pinv(A)
     k0 = prob.nuis.shape[1]
+    k1 = k0 + X.shape[1]
     sizes = [len(v) for v in st.values]
     theta0 = np.concatenate([np.asarray(v, dtype=np.float64) for v in st.values])
 
     def refit(y_new: np.ndarray) -> list[np.ndarray]:
         theta = theta0.copy()
+        c = np.zeros(xs.shape[1])
         for _ in range(iterations):
             vals = np.split(theta, np.cumsum(sizes)[:-1])
             t, p = apply_selection(eng, st.selected, vals)
-            r = (y_new - prob.predict(eng.ev, t, p)) * st.W
-            step = (P @ r)[k0:]
+            r = (y_new - prob.predict(eng.ev, t, p) - xs @ c) * st.W
+            full = P @ r
+            step = full[k0:k1]
             theta = theta + step
+            c = c + full[k1:]
             if np.max(np.abs(step)) <= 1e-6 * max(float(np.max(np.abs(theta))), 1e-9):
                 break
         return list(np.split(theta, np.cumsum(sizes)[:-1]))
@@ -562,7 +583,8 @@ def _monte_carlo(res: Any, st: FitState, inp: Inputs, sig2: np.ndarray,
     from abbe.diagnose.problem import gap_stats
     eng, prob = st.eng, st.eng.prob
     rng = np.random.default_rng(seed)
-    refit = _refitter(st) if st.selected else None
+    refit = _refitter(st, xs=scale_columns(st, free_scale_axes(inp, st))) \
+        if st.selected else None
     sd = np.sqrt(sig2)
     names = [k for k, _, _ in fns] + ["before.rms_um", "before.max_um", "after.rms_um",
                                       "after.max_um"]
