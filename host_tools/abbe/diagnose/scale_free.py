@@ -46,6 +46,26 @@ def scale_columns(st: FitState, axes: list[str]) -> np.ndarray:
                             for a in axes])
 
 
+def freed_with(inp: Any, st: FitState, axis: str) -> list[str]:
+    """The scales held free for a ramp along ``axis``: its own, and those of the axes that
+    share a ballbar circle's plane with it and that no laser line measures (a circle sees
+    only the difference of its two axes' scales, its radius taking a common one: a ramp
+    on one line is then a common scale of the plane, as the whole diagnosis names it),
+    none named already (their columns are in the fit)."""
+    named = {s.cand.spec.axis for s in st.selected if s.cand.spec.kind == "scale"}
+    lined = {x.ramp_axis for x in inp.systematic if x.ramp_axis is not None}
+    planes = [str(getattr(c, "plane", "")).upper() for c in st.eng.prob.checks]
+    partners = {b for pl in planes if axis in pl for b in pl}
+    return [a for a in ("X", "Y", "Z") if a not in named
+            and (a == axis or (a in partners and a not in lined))]
+
+
+def freed_columns(st: FitState, axes: list[str]) -> np.ndarray:
+    """:func:`scale_columns` of ``axes``, those the checks do not move left out."""
+    xs = scale_columns(st, axes)
+    return xs[:, np.any(xs != 0.0, axis=0)]
+
+
 def free_scale_L(st: FitState, X: np.ndarray, xs: np.ndarray) -> np.ndarray:
     """(p, N) d theta / d y of the final fit with the columns ``xs`` free beside the
     selection (nuisances, projected out with the set-up's); theta's rows only."""
@@ -53,3 +73,16 @@ def free_scale_L(st: FitState, X: np.ndarray, xs: np.ndarray) -> np.ndarray:
     Q = qr_basis(prob.nuis * st.W[:, None])
     Xe = project_out(Q, np.hstack([X, xs]) * st.W[:, None])
     return (np.linalg.pinv(Xe) * st.W[None, :])[:X.shape[1]]
+
+
+def absorbed(st: FitState, X: np.ndarray, xs: np.ndarray, pattern: np.ndarray) -> np.ndarray:
+    """(N,) the part of a reading change ``pattern`` the free scales ``xs`` take in the
+    weighted fit beside the set-up nuisance and the selection ``X``: the rest, fitted with
+    the selection alone, moves the effects as :func:`free_scale_L` says (the rest is
+    orthogonal to every column of the larger fit). The Monte Carlo draws the rest."""
+    if xs.shape[1] == 0:
+        return np.zeros_like(pattern)
+    W = st.W
+    A = np.hstack([st.eng.prob.nuis, X, xs]) * W[:, None]
+    coef = np.linalg.lstsq(A, pattern * W, rcond=None)[0]
+    return xs @ coef[-xs.shape[1]:]

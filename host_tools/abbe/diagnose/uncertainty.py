@@ -38,7 +38,7 @@ from abbe.diagnose.candidates import Engine, Selected, apply_selection
 from abbe.diagnose.checks import OWN_TERM, BallbarCheck, LaserCheck
 from abbe.diagnose.problem import project_out, qr_basis, remove_nuisance
 from abbe.diagnose.results import FitState
-from abbe.diagnose.scale_free import free_scale_axes, free_scale_L, scale_columns
+from abbe.diagnose.scale_free import absorbed, free_scale_axes, free_scale_L, freed_columns, freed_with
 
 K = 2.0
 SQRT3 = math.sqrt(3.0)
@@ -448,9 +448,8 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
         # 95 % interval is: shape.drift_tau_average): the spread about the value reported
         from abbe.diagnose.shape import drift_tau_average
         tau_avg = drift_tau_average(eng, st.selected, st.values, st.W, st.s2)
-        free = free_scale_axes(inp, st)
-        xs = scale_columns(st, free)
-        L_free = {a: free_scale_L(st, X, xs[:, [i]]) for i, a in enumerate(free)}
+        L_free = {a: free_scale_L(st, X, freed_columns(st, freed_with(inp, st, a)))
+                  for a in free_scale_axes(inp, st)}
         k0 = 0
         for s, v in zip(st.selected, st.values):
             n = len(v)
@@ -538,36 +537,28 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
     return res.uncertainty
 
 
-def _refitter(st: FitState, iterations: int = 4,
-              xs: np.ndarray | None = None) -> Callable[[np.ndarray], list[np.ndarray]]:
+def _refitter(st: FitState, iterations: int = 4) -> Callable[[np.ndarray], list[np.ndarray]]:
     """The final fit of new readings, nonlinear: Gauss-Newton from the solution, each step's
     residual through the model (the C library, every effect applied), the Jacobian at the
     solution steering the steps (as the chain's and the trunnion's Monte Carlo do); the
-    set-up nuisance refitted with it, and the columns ``xs`` (N, m) (the scales of the axes
-    not named whose laser lines have scale-like inputs, :func:`free_scale_axes`) free as
-    nuisances, linear. Its fixed point is the weighted least squares of the model on the
-    new readings (to the Jacobian's change over the draws' spread)."""
+    set-up nuisance refitted with it. Its fixed point is the weighted least squares of the
+    model on the new readings (to the Jacobian's change over the draws' spread)."""
     eng, prob = st.eng, st.eng.prob
     X, _, _ = _final_design(st)
-    xs = np.zeros((prob.N, 0)) if xs is None else xs
-    A = np.hstack([prob.nuis, X, xs]) * st.W[:, None]
+    A = np.hstack([prob.nuis, X]) * st.W[:, None]
     P = np.linalg.pinv(A)
     k0 = prob.nuis.shape[1]
-    k1 = k0 + X.shape[1]
     sizes = [len(v) for v in st.values]
     theta0 = np.concatenate([np.asarray(v, dtype=np.float64) for v in st.values])
 
     def refit(y_new: np.ndarray) -> list[np.ndarray]:
         theta = theta0.copy()
-        c = np.zeros(xs.shape[1])
         for _ in range(iterations):
             vals = np.split(theta, np.cumsum(sizes)[:-1])
             t, p = apply_selection(eng, st.selected, vals)
-            r = (y_new - prob.predict(eng.ev, t, p) - xs @ c) * st.W
-            full = P @ r
-            step = full[k0:k1]
+            r = (y_new - prob.predict(eng.ev, t, p)) * st.W
+            step = (P @ r)[k0:]
             theta = theta + step
-            c = c + full[k1:]
             if np.max(np.abs(step)) <= 1e-6 * max(float(np.max(np.abs(theta))), 1e-9):
                 break
         return list(np.split(theta, np.cumsum(sizes)[:-1]))
@@ -583,16 +574,27 @@ def _monte_carlo(res: Any, st: FitState, inp: Inputs, sig2: np.ndarray,
     from abbe.diagnose.problem import gap_stats
     eng, prob = st.eng, st.eng.prob
     rng = np.random.default_rng(seed)
-    refit = _refitter(st, xs=scale_columns(st, free_scale_axes(inp, st))) \
-        if st.selected else None
+    refit = _refitter(st) if st.selected else None
+    # a scale-like input moves the effects through the scales it would have named: their
+    # refit takes each such draw without the part those scales take (scale_free.absorbed);
+    # the gaps, like their first order, take the draws whole
+    free = free_scale_axes(inp, st) if st.selected else []
+    X = _final_design(st)[0] if free else np.zeros((prob.N, 0))
+    eff_pattern = {i: x.pattern - absorbed(
+        st, X, freed_columns(st, freed_with(inp, st, str(x.ramp_axis))), x.pattern)
+        for i, x in enumerate(inp.systematic) if x.ramp_axis in free}
     sd = np.sqrt(sig2)
     names = [k for k, _, _ in fns] + ["before.rms_um", "before.max_um", "after.rms_um",
                                       "after.max_um"]
     F = np.full((draws, len(names)), np.nan)
     for d in range(draws):
         dy = rng.normal(0.0, 1.0, prob.N) * sd
-        for x in inp.systematic:
-            dy += x.draw(rng) * x.pattern
+        dy_eff = np.zeros(prob.N)   # what the scales the ramps would name take back
+        for i, x in enumerate(inp.systematic):
+            t_x = x.draw(rng)
+            dy += t_x * x.pattern
+            if i in eff_pattern:
+                dy_eff += t_x * (eff_pattern[i] - x.pattern)
         for g in inp.grouped:
             m = g.labels >= 0
             e = rng.uniform(-g.half_um, g.half_um, int(g.labels[m].max()) + 1)
@@ -602,9 +604,11 @@ def _monte_carlo(res: Any, st: FitState, inp: Inputs, sig2: np.ndarray,
         y_new = prob.y + dy
         row = []
         if refit is not None:
-            vals = refit(y_new)
-            t, pp = apply_selection(eng, st.selected, vals)
+            vals = refit(y_new + dy_eff)
             row += [fn(np.asarray(v)) for (_, fn, _), v in zip(fns, vals)]
+            if eff_pattern:
+                vals = refit(y_new)
+            t, pp = apply_selection(eng, st.selected, vals)
             t, pp = fold_reversal(t, pp, DEFAULT_TAKEUP_MM)
             r_after = y_new - prob.predict(eng.ev, t, pp)
         else:
