@@ -47,15 +47,19 @@ def scale_columns(st: FitState, axes: list[str]) -> np.ndarray:
 
 
 def freed_with(inp: Any, st: FitState, axis: str) -> list[str]:
-    """The scales held free for a ramp along ``axis``: its own, and those of the axes that
-    share a ballbar circle's plane with it and that no laser line measures (a circle sees
-    only the difference of its two axes' scales, its radius taking a common one: a ramp
-    on one line is then a common scale of the plane, as the whole diagnosis names it),
-    none named already (their columns are in the fit)."""
+    """The scales held free for a ramp along ``axis``: its own, and those of the axes no
+    laser line measures that the checks see only in a ballbar circle's plane with it (a
+    circle sees only the difference of its two axes' scales, its radius taking a common
+    one: a ramp on one line is then a common scale of the plane, as the whole diagnosis
+    names it), none named already (their columns are in the fit). An axis also seen in
+    a plane without ``axis`` is held (the diagnosis rerun on a ramped line names the
+    line's scale alone there)."""
     named = {s.cand.spec.axis for s in st.selected if s.cand.spec.kind == "scale"}
     lined = {x.ramp_axis for x in inp.systematic if x.ramp_axis is not None}
     planes = [str(getattr(c, "plane", "")).upper() for c in st.eng.prob.checks]
-    partners = {b for pl in planes if axis in pl for b in pl}
+    planes = [pl for pl in planes if len(pl) == 2]
+    partners = {b for pl in planes if axis in pl for b in pl
+                if all(axis in q for q in planes if b in q)}
     return [a for a in ("X", "Y", "Z") if a not in named
             and (a == axis or (a in partners and a not in lined))]
 
