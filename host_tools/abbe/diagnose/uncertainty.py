@@ -10,14 +10,11 @@ lines they come from (docs/uncertainty.md, "Diagnosis"):
   of fit), through the headline's gradient. For a gap: the readings' noise of a
   re-measurement, sigma^2 = s^2 / W^2 per reading, through the residual (first order plus
   the quadratic form's own variance, exact for normal noise);
-* **the instruments' budget** (Type B), the same figures ``abbe iso230-2`` / ``abbe
-  ballbar`` use (the machine file's ``[uncertainty.laser]`` / ``[uncertainty.ballbar]``,
-  else the class defaults): on a laser line's own positioning channel the scale errors
-  (ppm of the distance from the reference point), the linearity (per target) and the
-  resolution (per reading); on a ballbar trace the bar's scale, the drift ramp, the
-  resolution and the length calibration (a constant: the radius absorbs it). Each acts on
-  the readings; the selection held fixed, the final fit is linear in them to first order
-  (theta = theta0 + L dy, L = pinv(X_e) W), so each line is |s . p| u_t.
+* **the instruments' budget** (Type B; ``[uncertainty.*]``, else the class defaults): a
+  laser line's scale errors (ppm of the distance from the reference point), linearity and
+  resolution; a ballbar's scale, drift ramp, resolution and length calibration. The
+  selection held fixed, the final fit is linear in the readings (theta = theta0 + L dy),
+  so each line is |s . p| u_t; a laser's scale-like ramp: :mod:`abbe.diagnose.scale_free`.
 
 The Monte Carlo (GUM S1) is independent of these formulas: each draw makes new readings
 (normal noise + one draw of every instrument input) and fits them again through the
@@ -190,13 +187,13 @@ def budget_of_positioning_file(path: Any) -> Any:
 # ------------------------------------------------------------------ the linear propagation
 def _line_u(s: np.ndarray, inp: Inputs,
             s_free: dict[str, np.ndarray] | None = None) -> dict[str, float]:
-    """Each instrument input's standard uncertainty of a figure whose change is s . dy;
-    ``s_free[a]``: the figure's sensitivity with axis a's scale free in the fit, used for
-    the scale-like inputs (ramps) along a (:mod:`abbe.diagnose.scale_free`)."""
+    """Each input's standard uncertainty of a figure whose change is s . dy; a ramp along
+    a: the smaller with ``s_free[a]`` (:mod:`abbe.diagnose.scale_free`)."""
     out: dict[str, float] = {}
     for x in inp.systematic:
-        sx = (s_free or {}).get(x.ramp_axis or "", s)
-        v = abs(float(sx @ x.pattern)) * x.sd
+        v = abs(float(s @ x.pattern)) * x.sd
+        if x.ramp_axis in (s_free or {}):
+            v = min(v, abs(float(s_free[x.ramp_axis] @ x.pattern)) * x.sd)  # type: ignore[index]
         out[f"{x.check}: {x.name}"] = out.get(f"{x.check}: {x.name}", 0.0) + v
     for g in inp.grouped:
         m = g.labels >= 0
@@ -441,6 +438,7 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
     fns: list[tuple[str, Callable[[np.ndarray], float], slice]] = []
     u_time_constant: dict[str, float] = {}   # a drift's time-constant line (not simulated)
     extra_u: dict[str, float] = {}   # u of the lines the describe interval does not carry
+    whole: set[int] = set()   # the ramps some effect takes with the selection fixed
     if st.selected:
         X, L, _ = _final_design(st)
         _, p_fin = apply_selection(eng, st.selected, st.values)
@@ -458,15 +456,18 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
             g = _grad(fn, np.asarray(v, dtype=np.float64), C)
             sens = g @ L[k0:k0 + n]
             s_free = {a: g @ Lf[k0:k0 + n] for a, Lf in L_free.items()}
-            lines = {"fit (Type A: noise, lack of fit)": math.sqrt(max(float(g @ C @ g), 0.0)),
-                     **_line_u(sens, inp, s_free)}
-            extra = sum(x * x for x in lines.values()) - lines["fit (Type A: noise, lack of fit)"] ** 2
+            u_fit = math.sqrt(max(float(g @ C @ g), 0.0))
+            whole |= {i for i, x in enumerate(inp.systematic) if x.ramp_axis in s_free and (
+                abs(float(s_free[x.ramp_axis] @ x.pattern)) - abs(float(sens @ x.pattern)))
+                * x.sd > 0.1 * u_fit}   # beyond a tenth of the fit's own part
+            lines = {"fit (Type A: noise, lack of fit)": u_fit, **_line_u(sens, inp, s_free)}
+            extra = sum(x * x for x in lines.values()) - u_fit ** 2
             if s.cand.spec.kind == "tool_offset":
                 # the model's angular uncertainty along the lever (the selection's sigma_m),
                 # already in the interval (describe.tool_model_cov)
                 from abbe.diagnose.describe import tool_model_cov
                 _, f = tool_model_cov(eng, s.cand, np.asarray(v, dtype=np.float64), C)
-                lines[TABLE_LINE] = math.sqrt(max(f * f - 1.0, 0.0) * max(float(g @ C @ g), 0.0))
+                lines[TABLE_LINE] = math.sqrt(max(f * f - 1.0, 0.0)) * u_fit
             elif table_cov:
                 from abbe.diagnose.table_uncertainty import table_u
                 # the derivative by the model's own coefficients (the table as loaded: the
@@ -530,7 +531,7 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
     }
     if draws:
         out["monte_carlo"] = _monte_carlo(res, st, inp, sig2, fns, draws, seed, per_key, gaps,
-                                          u_time_constant)
+                                          u_time_constant, whole)
     _attach(res, per_key, gaps)
     _widen(res, extra_u)
     res.uncertainty = _round(out)
@@ -568,21 +569,22 @@ def _refitter(st: FitState, iterations: int = 4) -> Callable[[np.ndarray], list[
 def _monte_carlo(res: Any, st: FitState, inp: Inputs, sig2: np.ndarray,
                  fns: list[tuple[str, Callable[[np.ndarray], float], slice]], draws: int,
                  seed: int, per_key: dict[str, Any], gaps: dict[str, Any],
-                 u_time_constant: dict[str, float] | None = None) -> dict[str, Any]:
+                 u_time_constant: dict[str, float] | None = None,
+                 whole: set[int] | None = None) -> dict[str, Any]:
     from abbe.diagnose.effects import fold_reversal
     from abbe.diagnose.checks import DEFAULT_TAKEUP_MM
     from abbe.diagnose.problem import gap_stats
     eng, prob = st.eng, st.eng.prob
     rng = np.random.default_rng(seed)
     refit = _refitter(st) if st.selected else None
-    # a scale-like input moves the effects through the scales it would have named: their
-    # refit takes each such draw without the part those scales take (scale_free.absorbed);
-    # the gaps, like their first order, take the draws whole
+    # a ramp moves the effects through the scales it would name: their refit takes each draw
+    # without the part those scales take (scale_free.absorbed) where the first order did so
+    # for every effect (else whole: one that parts states the MC's U); the gaps take it whole
     free = free_scale_axes(inp, st) if st.selected else []
     X = _final_design(st)[0] if free else np.zeros((prob.N, 0))
-    eff_pattern = {i: x.pattern - absorbed(
-        st, X, freed_columns(st, freed_with(inp, st, str(x.ramp_axis))), x.pattern)
-        for i, x in enumerate(inp.systematic) if x.ramp_axis in free}
+    eff_pattern = {i: -absorbed(st, X, freed_columns(st, freed_with(inp, st, str(x.ramp_axis))),
+                                x.pattern) for i, x in enumerate(inp.systematic)
+                   if x.ramp_axis in free and i not in (whole or set())}
     sd = np.sqrt(sig2)
     names = [k for k, _, _ in fns] + ["before.rms_um", "before.max_um", "after.rms_um",
                                       "after.max_um"]
@@ -593,8 +595,7 @@ def _monte_carlo(res: Any, st: FitState, inp: Inputs, sig2: np.ndarray,
         for i, x in enumerate(inp.systematic):
             t_x = x.draw(rng)
             dy += t_x * x.pattern
-            if i in eff_pattern:
-                dy_eff += t_x * (eff_pattern[i] - x.pattern)
+            dy_eff += t_x * eff_pattern.get(i, 0.0)
         for g in inp.grouped:
             m = g.labels >= 0
             e = rng.uniform(-g.half_um, g.half_um, int(g.labels[m].max()) + 1)
