@@ -7,8 +7,13 @@ line's axis. Had the readings carried that ramp, the diagnosis would have named 
 free) the axis' scale rather than moved another effect; so, unless a scale of the axis is
 named (then its column is in the fit already), each named effect's line of such an input
 is its sensitivity with the axis' scale column free in the final fit (a nuisance,
-projected out with the set-up's). A scale named on the axis carries the line as before
-(a scale measured at an unknown temperature is uncertain by alpha dT).
+projected out with the set-up's), with the scales :func:`freed_with` adds; the line is
+the smaller of that and the selection held fixed (freeing a scale can make an effect
+more sensitive through the scale's other signature, a circle's ellipse: gen2's tool
+offsets 14 -> 722 mm, where the diagnosis rerun on a ramped line moves less; which
+scales the diagnosis names under a ramp is a change of the selection no first order
+holds). A scale named on the axis carries the line as before (a scale measured at an
+unknown temperature is uncertain by alpha dT).
 """
 
 from __future__ import annotations
