@@ -37,6 +37,8 @@ TYPE_A = "fit (Type A: noise, lack of fit)"
 #: docs/formats.md: a drift's budget line for its warm-up time constant, which the Monte
 #: Carlo does not draw: compared without it, added to the Monte Carlo's U in quadrature.
 TIME_CONSTANT = "drift time constant"
+#: the fitted table's own uncertainty along the effect (abbe.diagnose.uncertainty.TABLE_LINE)
+TABLE_LINE = "table (fit) uncertainty"
 #: Figures in the JSON are rounded; U = 2 u and the root sum of squares hold to this.
 _REL = 2e-3
 _ABS = 2e-6
@@ -55,9 +57,11 @@ def _budget(b: Any, where: str, type_a: str = TYPE_A) -> float:
 
 def _without_time_constant(U1: float, budget: dict[str, Any], U: float
                            ) -> tuple[float, float]:
-    """(the first-order U, the stated U) without a drift's time-constant line (2 x its u
-    removed in quadrature): what the Monte Carlo's U is compared with and stated as."""
-    line = sum(float(v) ** 2 for k, v in budget.items() if k.startswith(TIME_CONSTANT))
+    """(the first-order U, the stated U) without a drift's time-constant line and the
+    table's line (2 x their u removed in quadrature; the draws hold both fixed): what the
+    Monte Carlo's U is compared with and stated as."""
+    line = sum(float(v) ** 2 for k, v in budget.items()
+               if k.startswith(TIME_CONSTANT) or k == TABLE_LINE)
     return (math.sqrt(max(U1 ** 2 - 4.0 * line, 0.0)), math.sqrt(max(U ** 2 - 4.0 * line, 0.0)))
 
 

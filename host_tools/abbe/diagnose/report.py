@@ -70,8 +70,13 @@ def format_text(res: DiagnoseResult, model_path: str | None = None) -> str:
         key = f" ({e.key})" if e.key != e.id else ""
         uu = e.uncertainty or {}
         L.append(f"* {e.id}{where}{key}: {_fmt(e.value)} {e.unit}"
-                 + (f" +- {_fmt(uu['U'])} (U, k = 2)" if uu.get("U") is not None else "")
+                 + (f" +- {_fmt(uu['U'])} (U, k = 2, the budget below)" if uu.get("U") is not None
+                    else "")
                  + f", 95 % interval [{_fmt(e.ci95[0])}, {_fmt(e.ci95[1])}]"
+                 + (" (the coverage interval to state: the same budget, Student t on the "
+                    "fit's part" + ("; the warm-up time constants the data allow: asymmetric"
+                                    if e.evidence.get("tau_alternatives") else "") + ")"
+                    if uu.get("U") is not None else "")
                  + ("  [TENTATIVE]" if e.tentative else ""))
         if uu.get("budget_u"):
             L.append("    budget (u): " + "; ".join(f"{k} {_fmt(v, 4)}"

@@ -85,8 +85,10 @@ def diagnose_machine(machine: Any, model: Any, ballbar: list[str] | None = None,
                     "tool_offset_sigma_mm": opts.declared_tool_sigma_mm,
                     "tool_offset_sigma_source": ("machine file [tool] offset_sigma_mm"
                                                  if sigma is not None else "default (a presetter)")}
+    from abbe.diagnose.table_uncertainty import table_covariance
     from abbe.diagnose.uncertainty import budgets_of_machine, diagnosis_uncertainty
-    res.uncertainty = diagnosis_uncertainty(res, *budgets_of_machine(m), draws=mc_draws)
+    res.uncertainty = diagnosis_uncertainty(res, *budgets_of_machine(m), draws=mc_draws,
+                                            table_cov=table_covariance(model, table))
     return res
 
 
@@ -119,6 +121,8 @@ def diagnose_positioning(path: Any, axis: str, model: Any = None,
         c = positioning_check(path, axis, table.reference_mm, rezeroed=rezeroed)
     from abbe.diagnose.uncertainty import budget_of_positioning_file, diagnosis_uncertainty
     res = diagnose(table, [c], options)
+    from abbe.diagnose.table_uncertainty import table_covariance
     res.uncertainty = diagnosis_uncertainty(res, budget_of_positioning_file(path), None,
-                                            draws=mc_draws, model_from_the_data=model is None)
+                                            draws=mc_draws, model_from_the_data=model is None,
+                                            table_cov=table_covariance(model, table))
     return res

@@ -10,14 +10,11 @@ lines they come from (docs/uncertainty.md, "Diagnosis"):
   of fit), through the headline's gradient. For a gap: the readings' noise of a
   re-measurement, sigma^2 = s^2 / W^2 per reading, through the residual (first order plus
   the quadratic form's own variance, exact for normal noise);
-* **the instruments' budget** (Type B), the same figures ``abbe iso230-2`` / ``abbe
-  ballbar`` use (the machine file's ``[uncertainty.laser]`` / ``[uncertainty.ballbar]``,
-  else the class defaults): on a laser line's own positioning channel the scale errors
-  (ppm of the distance from the reference point), the linearity (per target) and the
-  resolution (per reading); on a ballbar trace the bar's scale, the drift ramp, the
-  resolution and the length calibration (a constant: the radius absorbs it). Each acts on
-  the readings; the selection held fixed, the final fit is linear in them to first order
-  (theta = theta0 + L dy, L = pinv(X_e) W), so each line is |s . p| u_t.
+* **the instruments' budget** (Type B; ``[uncertainty.*]``, else the class defaults): a
+  laser line's scale errors (ppm of the distance from the reference point), linearity and
+  resolution; a ballbar's scale, drift ramp, resolution and length calibration. The
+  selection held fixed, the final fit is linear in the readings (theta = theta0 + L dy),
+  so each line is |s . p| u_t; a laser's scale-like ramp: :mod:`abbe.diagnose.scale_free`.
 
 The Monte Carlo (GUM S1) is independent of these formulas: each draw makes new readings
 (normal noise + one draw of every instrument input) and fits them again through the
@@ -38,11 +35,14 @@ from abbe.diagnose.candidates import Engine, Selected, apply_selection
 from abbe.diagnose.checks import OWN_TERM, BallbarCheck, LaserCheck
 from abbe.diagnose.problem import project_out, qr_basis, remove_nuisance
 from abbe.diagnose.results import FitState
+from abbe.diagnose.scale_free import absorbed, free_scale_axes, free_scale_L, freed_columns, freed_with
 
 K = 2.0
 SQRT3 = math.sqrt(3.0)
 #: beyond this relative difference the Monte Carlo's U is stated
 AGREEMENT = 0.10
+#: the budget line of the table's own fit error along the effect
+TABLE_LINE = "table (fit) uncertainty"
 
 
 @dataclass
@@ -55,6 +55,9 @@ class Systematic:
     low: float = -1.0
     high: float = 1.0
     normal_sd: float | None = None  # set: t is normal with this standard deviation
+    #: a laser line's scale-like input (a ramp along this axis' own channel): propagated
+    #: with the axis' scale free in the fit unless a scale of the axis is named
+    ramp_axis: str | None = None
 
     @property
     def sd(self) -> float:
@@ -137,7 +140,8 @@ def instrument_inputs(prob: Any, laser_budget: Any, ballbar_budget: Any) -> Inpu
             for si in scale_inputs(laser_budget, None):
                 p = np.zeros(N)
                 p[s] = np.where(c.group == own, dist_um * 1e-6, 0.0)
-                sysl.append(Systematic(si.name, c.name, p, si.low_ppm, si.high_ppm))
+                sysl.append(Systematic(si.name, c.name, p, si.low_ppm, si.high_ppm,
+                                       ramp_axis=c.axis))
             if f["linearity_um"] > 0:
                 lab = np.full(N, -1)
                 lab[s] = np.where(c.group == own, c.cell % c.T, -1)  # one error per target, both directions
@@ -181,11 +185,15 @@ def budget_of_positioning_file(path: Any) -> Any:
 
 
 # ------------------------------------------------------------------ the linear propagation
-def _line_u(s: np.ndarray, inp: Inputs) -> dict[str, float]:
-    """Each instrument input's standard uncertainty of a figure whose change is s . dy."""
+def _line_u(s: np.ndarray, inp: Inputs,
+            s_free: dict[str, np.ndarray] | None = None) -> dict[str, float]:
+    """Each input's standard uncertainty of a figure whose change is s . dy; a ramp along
+    a: the smaller with ``s_free[a]`` (:mod:`abbe.diagnose.scale_free`)."""
     out: dict[str, float] = {}
     for x in inp.systematic:
         v = abs(float(s @ x.pattern)) * x.sd
+        if x.ramp_axis in (s_free or {}):
+            v = min(v, abs(float(s_free[x.ramp_axis] @ x.pattern)) * x.sd)  # type: ignore[index]
         out[f"{x.check}: {x.name}"] = out.get(f"{x.check}: {x.name}", 0.0) + v
     for g in inp.grouped:
         m = g.labels >= 0
@@ -396,7 +404,9 @@ def _gap_lines(prob: Any, r_clean: np.ndarray, back: Callable[[np.ndarray], np.n
 
 def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
                           draws: int = 0, seed: int = 20241,
-                          model_from_the_data: bool = False) -> dict[str, Any] | None:
+                          model_from_the_data: bool = False,
+                          table_cov: dict[tuple[str, str], np.ndarray] | None = None
+                          ) -> dict[str, Any] | None:
     """u, U (k = 2) and the budget of each named effect's value and of the gap figures of a
     :class:`~abbe.diagnose.results.DiagnoseResult` (its ``fit_state`` kept by diagnose);
     with ``draws``, the Monte Carlo check. Sets ``u``, ``U``, ``budget_u`` (and the Monte
@@ -406,7 +416,13 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
     ``model_from_the_data``: the model was built from the same readings (``abbe diagnose
     --iso230-2`` without ``--model``: the position-only model is each target's mean), so an
     error per target (the sensor's linearity) moves the model with the readings and
-    cancels in every residual: it is left out (stated in the assumptions)."""
+    cancels in every residual: it is left out (stated in the assumptions).
+
+    ``table_cov``: the table's coefficient covariance (abbe.diagnose.table_uncertainty):
+    each effect gets a line "table (fit) uncertainty" (a tool offset: the model's angular
+    uncertainty its interval already carries, describe.tool_model_cov), and each effect's
+    95 % interval grows in quadrature by 2 u of the lines it did not carry yet (the
+    instruments', the table's), so it contains the whole budget (:func:`_widen`)."""
     st: FitState | None = getattr(res, "fit_state", None)
     if st is None:
         return None
@@ -421,12 +437,17 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
     per_key: dict[str, dict[str, Any]] = {}
     fns: list[tuple[str, Callable[[np.ndarray], float], slice]] = []
     u_time_constant: dict[str, float] = {}   # a drift's time-constant line (not simulated)
+    extra_u: dict[str, float] = {}   # u of the lines the describe interval does not carry
+    whole: set[int] = set()   # the ramps some effect takes with the selection fixed
     if st.selected:
         X, L, _ = _final_design(st)
+        _, p_fin = apply_selection(eng, st.selected, st.values)
         # a drift's rate under the grid's other warm-up time constants (the same mixture its
         # 95 % interval is: shape.drift_tau_average): the spread about the value reported
         from abbe.diagnose.shape import drift_tau_average
         tau_avg = drift_tau_average(eng, st.selected, st.values, st.W, st.s2)
+        L_free = {a: free_scale_L(st, X, freed_columns(st, freed_with(inp, st, a)))
+                  for a in free_scale_axes(inp, st)}
         k0 = 0
         for s, v in zip(st.selected, st.values):
             n = len(v)
@@ -434,8 +455,26 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
             fn = _headline_fn(eng, s, C)
             g = _grad(fn, np.asarray(v, dtype=np.float64), C)
             sens = g @ L[k0:k0 + n]
-            lines = {"fit (Type A: noise, lack of fit)": math.sqrt(max(float(g @ C @ g), 0.0)),
-                     **_line_u(sens, inp)}
+            s_free = {a: g @ Lf[k0:k0 + n] for a, Lf in L_free.items()}
+            u_fit = math.sqrt(max(float(g @ C @ g), 0.0))
+            whole |= {i for i, x in enumerate(inp.systematic) if x.ramp_axis in s_free and (
+                abs(float(s_free[x.ramp_axis] @ x.pattern)) - abs(float(sens @ x.pattern)))
+                * x.sd > 0.1 * u_fit}   # beyond a tenth of the fit's own part
+            lines = {"fit (Type A: noise, lack of fit)": u_fit, **_line_u(sens, inp, s_free)}
+            extra = sum(x * x for x in lines.values()) - u_fit ** 2
+            if s.cand.spec.kind == "tool_offset":
+                # the model's angular uncertainty along the lever (the selection's sigma_m),
+                # already in the interval (describe.tool_model_cov)
+                from abbe.diagnose.describe import tool_model_cov
+                _, f = tool_model_cov(eng, s.cand, np.asarray(v, dtype=np.float64), C)
+                lines[TABLE_LINE] = math.sqrt(max(f * f - 1.0, 0.0)) * u_fit
+            elif table_cov:
+                from abbe.diagnose.table_uncertainty import table_u
+                # the derivative by the model's own coefficients (the table as loaded: the
+                # effects may add rows), at the final prediction parameters
+                lines[TABLE_LINE] = table_u(eng, eng.table, p_fin, sens, table_cov)
+                extra += lines[TABLE_LINE] ** 2
+            extra_u[s.cand.spec.key] = math.sqrt(max(extra, 0.0))
             ta = tau_avg.get(s.cand.spec.key)
             u_tau = 0.0
             if ta is not None:
@@ -446,7 +485,8 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
             u = math.sqrt(sum(x * x for x in lines.values()))
             per_key[s.cand.spec.key] = {"value": fn(np.asarray(v)), "u": u, "U": K * u,
                                         "budget_u": lines}
-            u_time_constant[s.cand.spec.key] = u_tau
+            # the Monte Carlo's draws simulate neither line: added to its U in quadrature
+            u_time_constant[s.cand.spec.key] = math.hypot(u_tau, lines.get(TABLE_LINE, 0.0))
             fns.append((s.cand.spec.key, fn, slice(k0, k0 + n)))
             k0 += n
     else:
@@ -491,8 +531,9 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
     }
     if draws:
         out["monte_carlo"] = _monte_carlo(res, st, inp, sig2, fns, draws, seed, per_key, gaps,
-                                          u_time_constant)
+                                          u_time_constant, whole)
     _attach(res, per_key, gaps)
+    _widen(res, extra_u)
     res.uncertainty = _round(out)
     return res.uncertainty
 
@@ -528,21 +569,33 @@ def _refitter(st: FitState, iterations: int = 4) -> Callable[[np.ndarray], list[
 def _monte_carlo(res: Any, st: FitState, inp: Inputs, sig2: np.ndarray,
                  fns: list[tuple[str, Callable[[np.ndarray], float], slice]], draws: int,
                  seed: int, per_key: dict[str, Any], gaps: dict[str, Any],
-                 u_time_constant: dict[str, float] | None = None) -> dict[str, Any]:
+                 u_time_constant: dict[str, float] | None = None,
+                 whole: set[int] | None = None) -> dict[str, Any]:
     from abbe.diagnose.effects import fold_reversal
     from abbe.diagnose.checks import DEFAULT_TAKEUP_MM
     from abbe.diagnose.problem import gap_stats
     eng, prob = st.eng, st.eng.prob
     rng = np.random.default_rng(seed)
     refit = _refitter(st) if st.selected else None
+    # a ramp moves the effects through the scales it would name: their refit takes each draw
+    # without the part those scales take (scale_free.absorbed) where the first order did so
+    # for every effect (else whole: one that parts states the MC's U); the gaps take it whole
+    free = free_scale_axes(inp, st) if st.selected else []
+    X = _final_design(st)[0] if free else np.zeros((prob.N, 0))
+    eff_pattern = {i: -absorbed(st, X, freed_columns(st, freed_with(inp, st, str(x.ramp_axis))),
+                                x.pattern) for i, x in enumerate(inp.systematic)
+                   if x.ramp_axis in free and i not in (whole or set())}
     sd = np.sqrt(sig2)
     names = [k for k, _, _ in fns] + ["before.rms_um", "before.max_um", "after.rms_um",
                                       "after.max_um"]
     F = np.full((draws, len(names)), np.nan)
     for d in range(draws):
         dy = rng.normal(0.0, 1.0, prob.N) * sd
-        for x in inp.systematic:
-            dy += x.draw(rng) * x.pattern
+        dy_eff = np.zeros(prob.N)   # what the scales the ramps would name take back
+        for i, x in enumerate(inp.systematic):
+            t_x = x.draw(rng)
+            dy += t_x * x.pattern
+            dy_eff += t_x * eff_pattern.get(i, 0.0)
         for g in inp.grouped:
             m = g.labels >= 0
             e = rng.uniform(-g.half_um, g.half_um, int(g.labels[m].max()) + 1)
@@ -552,9 +605,11 @@ def _monte_carlo(res: Any, st: FitState, inp: Inputs, sig2: np.ndarray,
         y_new = prob.y + dy
         row = []
         if refit is not None:
-            vals = refit(y_new)
-            t, pp = apply_selection(eng, st.selected, vals)
+            vals = refit(y_new + dy_eff)
             row += [fn(np.asarray(v)) for (_, fn, _), v in zip(fns, vals)]
+            if eff_pattern:
+                vals = refit(y_new)
+            t, pp = apply_selection(eng, st.selected, vals)
             t, pp = fold_reversal(t, pp, DEFAULT_TAKEUP_MM)
             r_after = y_new - prob.predict(eng.ev, t, pp)
         else:
@@ -572,9 +627,9 @@ def _monte_carlo(res: Any, st: FitState, inp: Inputs, sig2: np.ndarray,
         tgt = per_key.get(name) if not fig else gaps.get(which, {}).get(fig)
         if tgt is None:
             continue
-        # the draws hold the selection fixed: they check the first order's propagation of
-        # the noise and the instruments, not a drift's time-constant line, which is added
-        # to either in quadrature
+        # the draws hold the selection and the table fixed: they check the first order's
+        # propagation of the noise and the instruments, not a drift's time-constant line nor
+        # the table's line, which are added to either in quadrature
         U_sel = K * float((u_time_constant or {}).get(name, 0.0)) if not fig else 0.0
         U_fo = math.sqrt(max(tgt["U"] ** 2 - U_sel ** 2, 0.0))
         ratio = U_mc / U_fo - 1.0 if U_fo > 0 else float("nan")
@@ -609,6 +664,30 @@ def _attach(res: Any, per_key: dict[str, Any], gaps: dict[str, Any]) -> None:
             if c["key"] in per_key:
                 put(c, per_key[c["key"]])
     res.gap_uncertainty = _round(gaps)
+
+
+def _widen(res: Any, extra_u: dict[str, float]) -> None:
+    """Each named effect's 95 % interval (describe: Student t on the fit's covariance, a
+    tool offset's model inflation, a drift's time-constant mixture) with the budget lines
+    it did not carry (the instruments', the table's) added in quadrature to each
+    half-width at k = 2: the interval the report states then contains the whole budget."""
+    def wid(v: float, ci: Any, u: float) -> list[float]:
+        lo, hi = float(ci[0]), float(ci[1])
+        return [float(f"{v - math.hypot(v - lo, K * u):.6g}"),
+                float(f"{v + math.hypot(hi - v, K * u):.6g}")]
+    for e in res.effects:
+        u = extra_u.get(e.key, 0.0)
+        if u > 0 and e.ci95 is not None:
+            # the fit's part alone, kept for the reader who compares with earlier reports
+            e.evidence["ci95_fit_only"] = [float(e.ci95[0]), float(e.ci95[1])]
+            e.evidence["u_not_in_fit_interval"] = float(f"{u:.6g}")
+            e.ci95 = wid(float(e.value), e.ci95, u)
+            if len(e.params) == 1:
+                e.params[0]["ci95"] = wid(float(e.params[0]["value"]), e.params[0]["ci95"], u)
+        for c in e.components:
+            uc = extra_u.get(c["key"], 0.0)
+            if uc > 0 and c.get("ci95") is not None:
+                c["ci95"] = wid(float(c["value"]), c["ci95"], uc)
 
 
 def _round(o: Any) -> Any:

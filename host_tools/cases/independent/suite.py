@@ -11,7 +11,10 @@ Expected answers (keys of the diagnose catalogue) and values in the diagnosis'
 units: squareness urad, backlash B = mean(+) - mean(-) of the own term (um, -b
 here), scale ppm (and bow um), cyclic amplitude um, thermal offset um/K (only with
 a temperature), servo mismatch tau_b - tau_a ms per tested plane (a, b) = XY, YZ, ZX,
-tool offset norm mm, straightness bow um, position-dependent reversal: RMS over the
+tool offset norm mm, straightness bow um in the catalogue's definition (the sag of the
+least-squares parabola over the axis' travel, :func:`arch_sag_in_catalogue`: this
+generator's sine arch of sag b has the catalogue sag 1.0306 b), position-dependent
+reversal: RMS over the
 targets of its part about the mean (um). A scale seen only on one XY circle may be
 named on either axis.
 """
@@ -266,11 +269,25 @@ def _apply_part(part: str, rng: np.random.Generator, m: Machine, d: _Design,
         a, t = part[-2].upper(), "d" + part[-1]
         bow = _sgn(rng) * rng.uniform(1.5, 6.0)
         e.bow[(a, t)] = float(bow)
-        exp[part] = float(bow)
+        exp[part] = arch_sag_in_catalogue(float(bow))
         d.circles.append({"plane": _plane_of(a, t[1].upper())})
         d.lasers.append(a)
     else:
         raise ValueError(part)
+
+
+def arch_sag_in_catalogue(bow_um: float) -> float:
+    """The catalogue's straightness value (um) of this generator's sine arch of sag
+    ``bow_um``: the catalogue's bow is the sag of a parabola, bow (1 - u²) over the axis'
+    travel (u in [-1, 1], abbe.diagnose.effects: Chebyshev T0 / T2), so the arch
+    bow sin(pi s) = bow cos(pi u / 2) is expressed as its least-squares parabola over the
+    travel (constant, slope and sag free, uniform weight): sag = 1.0306 bow. Like with
+    like: the two shapes differ beyond the parabola, and what a check sees of that
+    difference depends on where it samples (docs/effects.md §5, twelfth round)."""
+    u, w = np.polynomial.legendre.leggauss(64)
+    A = np.stack([np.ones_like(u), u, 1.0 - u * u], axis=1) * np.sqrt(w)[:, None]
+    c, *_ = np.linalg.lstsq(A, np.cos(0.5 * math.pi * u) * np.sqrt(w), rcond=None)
+    return float(bow_um * c[2])
 
 
 def _targets(rng: np.random.Generator, lo: float, hi: float, n: int) -> np.ndarray:

@@ -1,0 +1,109 @@
+"""The fitted table's own uncertainty along a named effect (docs/effects.md §3, "The model's
+own uncertainty"; docs/uncertainty.md, "Diagnosis").
+
+A diagnosed effect is relative to the table the checks are compared with: the table's own
+fit error (the commissioning lines' repeatability and lack of fit, carried to its
+coefficients by ``abbe fit``: ``model.json`` ``uncertainty.axes.<A>.terms.<t>.covariance_*``,
+C = G S G^T, docs/uncertainty.md "Fitted table") moves every prediction by J dc (J the
+predictions' derivative by the coefficients), hence the effect's value by -s . J dc (s the
+value's sensitivity to the readings, the final fit's linear operator). Its standard
+uncertainty is sqrt(s J C J^T s^T). The table's instrument scale (a laser's ppm on the own
+positioning term) is left out: the check lines' own instrument inputs carry that figure in
+the budget already, and the table was measured with the same instrument class.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from abbe.model.table import AXES, Table, basis_matrix
+
+#: the own positioning term of each axis (the one the instrument's scale acts on)
+_OWN = {"X": "dx", "Y": "dy", "Z": "dz"}
+
+
+def model_json_of(model: Any) -> Path | None:
+    """The ``model.json`` of ``abbe fit`` that belongs to ``model`` (the file itself, or the
+    one beside a ``model.bin``), or None."""
+    if model is None or isinstance(model, Table):
+        return None
+    p = Path(model)
+    cand = p if p.suffix == ".json" else p.with_name("model.json")
+    return cand if cand.is_file() else None
+
+
+def _scale_coefficients(ax: Any, ref_mm: float) -> np.ndarray:
+    """Coefficients (table row order) of the linear function (p - ref) * 1e-3 um per ppm:
+    a scale error of 1 ppm of the distance from the reference point."""
+    lo, hi = ax.travel_mm
+    p = np.linspace(lo, hi, 201)
+    B = basis_matrix(ax, p)
+    c, *_ = np.linalg.lstsq(B, (p - ref_mm) * 1e-3, rcond=None)
+    return np.asarray(c, dtype=np.float64)
+
+
+def table_covariance(model: Any, table: Table) -> dict[tuple[str, str], np.ndarray]:
+    """Per (axis, term) the covariance (um² / urad²) of the table's coefficients that its
+    own fit leaves: ``model.json``'s (read by the fit's own reader,
+    abbe.analysis.fit.uncertainty.terms_from_json), the instrument scale removed from the
+    own positioning term (``scale_u_ppm``, standard, of the distance from the reference
+    point); {} when there is no ``model.json`` with an ``uncertainty`` section beside the
+    model (an imported or hand-made table: no line)."""
+    from abbe.analysis.fit.uncertainty import terms_from_json
+    from abbe.errors import AbbeInputError
+    path = model_json_of(model)
+    if path is None:
+        return {}
+    try:
+        unc = json.loads(path.read_text()).get("uncertainty")
+        terms = terms_from_json(unc, table, str(path)) if unc else {}
+    except (OSError, ValueError, AbbeInputError):
+        return {}
+    out: dict[tuple[str, str], np.ndarray] = {}
+    for a, per in terms.items():
+        ax = table.axes[a]
+        for t, tu in per.items():
+            C = np.asarray(tu.cov, dtype=np.float64)
+            su = float(((unc["axes"][a]["terms"][t]).get("scale_u_ppm")) or 0.0)
+            if t == _OWN[a] and su > 0:
+                c = _scale_coefficients(ax, float(table.reference_mm[AXES.index(a)]))
+                w, V = np.linalg.eigh(C - su * su * np.outer(c, c))
+                C = (V * np.clip(w, 0.0, None)) @ V.T
+            out[(a, t)] = C
+    return out
+
+
+def table_u(eng: Any, table: Table, pp: Any, sens: np.ndarray,
+            cov: dict[tuple[str, str], np.ndarray]) -> float:
+    """Standard uncertainty of a figure whose change is ``sens`` . dy (dy the readings'
+    change, ``sens`` (N,)) due to the table's coefficient covariance ``cov``: the
+    predictions' derivative by each coefficient (one unit of it, the model being linear in
+    its coefficients) through ``sens``, then sqrt(g C g^T) per term, summed in quadrature
+    (the terms' fits are independent lines or independent channels of one)."""
+    if not cov:
+        return 0.0
+    prob = eng.prob
+    y0 = prob.predict(eng.ev, table, pp)
+    t = copy.deepcopy(table)
+    var = 0.0
+    for (a, term), C in cov.items():
+        co = t.axes[a].coef.get(term)
+        if co is None or co.size != C.shape[0]:
+            continue
+        g = np.zeros(co.size)
+        for k in range(co.size):
+            if C[k, k] <= 0.0:
+                continue
+            h = 1.0     # one um / urad: the model is linear in its coefficients
+            old = co[k]
+            co[k] = old + h
+            g[k] = float(sens @ (prob.predict(eng.ev, t, pp) - y0)) / h
+            co[k] = old
+        var += max(float(g @ C @ g), 0.0)
+    return math.sqrt(var)
