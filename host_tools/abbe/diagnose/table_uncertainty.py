@@ -60,11 +60,20 @@ def table_covariance(model: Any, table: Table) -> dict[tuple[str, str], np.ndarr
     path = model_json_of(model)
     if path is None:
         return {}
+    # a model.json beside the table is input: unreadable, not JSON or a covariance that does
+    # not fit the table is an error (exit 2), never a budget line silently left out
     try:
-        unc = json.loads(path.read_text()).get("uncertainty")
-        terms = terms_from_json(unc, table, str(path)) if unc else {}
-    except (OSError, ValueError, AbbeInputError):
+        doc = json.loads(path.read_text())
+    except OSError as exc:
+        raise AbbeInputError(f"cannot read the table's model.json: {exc.strerror}",
+                             file=str(path)) from None
+    except ValueError as exc:
+        raise AbbeInputError(f"expected JSON (the model.json of `abbe fit`): {exc}",
+                             file=str(path), line=getattr(exc, "lineno", None)) from None
+    unc = doc.get("uncertainty") if isinstance(doc, dict) else None
+    if not unc:
         return {}
+    terms = terms_from_json(unc, table, str(path))
     out: dict[tuple[str, str], np.ndarray] = {}
     for a, per in terms.items():
         ax = table.axes[a]

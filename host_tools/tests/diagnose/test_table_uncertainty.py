@@ -98,3 +98,36 @@ def test_the_instrument_scale_is_left_to_the_check_lines(fitted: Path) -> None:
     assert np.all(np.linalg.eigvalsh(C[("X", "dx")]) >= -1e-12)
     # a table without its model.json (imported, hand-made): no line
     assert table_covariance(table, table) == {}
+
+
+@pytest.mark.parametrize("spoil, says", [
+    (lambda t: t[: len(t) // 2], "expected JSON"),                      # cut short
+    (lambda t: json.dumps(_first_cov_scaled(json.loads(t), math.nan)), "finite"),  # NaN
+    (lambda t: json.dumps(_first_cov_scaled(json.loads(t), -1.0)), "covariance"),
+])
+def test_a_spoiled_model_json_is_an_error_not_a_line_left_out(
+        fitted: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], spoil, says) -> None:
+    """A model.json beside the table is input: cut short, NaN in a covariance or a negative
+    variance stops the diagnosis with exit 2 naming the file (and the field), and writes
+    nothing; before, the table's line was silently left out of the budget."""
+    d = tmp_path / "m"
+    d.mkdir()
+    (d / "model.bin").write_bytes((fitted / "fit" / "model.bin").read_bytes())
+    (d / "model.json").write_text(spoil((fitted / "fit" / "model.json").read_text()))
+    out = tmp_path / "out"
+    rc = main(["diagnose", "--iso230-2", str(fitted / "x.csv"), "--axis", "X", "--model",
+               str(d / "model.bin"), "-o", str(out), "--no-plots"])
+    err = capsys.readouterr().err
+    assert rc == 2, err
+    assert "model.json" in err and says in err, err
+    assert not (out / "diagnose.json").exists()
+
+
+def _first_cov_scaled(d: dict, k: float) -> dict:
+    """``d`` with the first term's covariance multiplied by ``k`` (k < 0: negative variances)."""
+    for ad in d["uncertainty"]["axes"].values():
+        for td in ad["terms"].values():
+            key = "covariance_um2" if "covariance_um2" in td else "covariance_urad2"
+            td[key] = [[k * v for v in row] for row in td[key]]
+            return d
+    raise AssertionError("no term")
