@@ -174,7 +174,7 @@ def _lateral_evidence(eng: Engine, base: tuple[Any, ...], full: tuple[Any, ...],
     Comparing each alternative with "no change" instead (the seventh round) let the base
     win whenever the further components made the whole change's contribution smaller
     (a lateral change cancelling part of t_z's: the team suite's `tool_offset+scale_x`,
-    seed 759937823, t_x -37.5 mm dropped and t_z 172 mm for 140.2, docs/effects.md §5)."""
+    seed 759937823, t_x -37.5 mm dropped and t_z 172 mm for 140.2, docs/diagnose-validation.md)."""
     from abbe.diagnose.evidence import candidate_prior, log_evidence
     from abbe.diagnose.candidate_eval import tool_lever_mm
     b_c, f_c = base[0], full[0]

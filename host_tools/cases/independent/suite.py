@@ -283,7 +283,7 @@ def arch_sag_in_catalogue(bow_um: float) -> float:
     bow sin(pi s) = bow cos(pi u / 2) is expressed as its least-squares parabola over the
     travel (constant, slope and sag free, uniform weight): sag = 1.0306 bow. Like with
     like: the two shapes differ beyond the parabola, and what a check sees of that
-    difference depends on where it samples (docs/effects.md §5, twelfth round)."""
+    difference depends on where it samples (docs/diagnose-validation.md, twelfth round)."""
     u, w = np.polynomial.legendre.leggauss(64)
     A = np.stack([np.ones_like(u), u, 1.0 - u * u], axis=1) * np.sqrt(w)[:, None]
     c, *_ = np.linalg.lstsq(A, np.cos(0.5 * math.pi * u) * np.sqrt(w), rcond=None)

@@ -1,4 +1,4 @@
-"""Issue 36, tenth round: the two drift values outside (docs/effects.md §5, "the drift values
+"""Issue 36, tenth round: the two drift values outside (docs/diagnose-validation.md, "the drift values
 of the tenth round").
 
 - A drift per kelvin fitted on the temperature sensor's readings: their noise sits in the

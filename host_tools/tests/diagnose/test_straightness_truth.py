@@ -3,7 +3,7 @@
 The independent generator (cases/independent) bends a straightness term by a sine arch of
 sag b; the catalogue's straightness (abbe.diagnose.effects) is the sag of a parabola,
 bow (1 - u²) over the axis' travel (Chebyshev T0 / T2). The scorer compares like with like:
-the arch's least-squares parabola over the travel, sag 1.0306 b (docs/effects.md §5, "Values
+the arch's least-squares parabola over the travel, sag 1.0306 b (docs/diagnose-validation.md, "Values
 within their interval"); the twelfth round compared the arch's sag itself (`straightness_xy`
 -2.553 for -2.271, outside)."""
 
