@@ -16,6 +16,7 @@ lag-1 sum through that fit (a projection) for sigma and rho.
 from __future__ import annotations
 
 import numpy as np
+from scipy.signal import lfilter
 
 from abbe.diagnose.problem import Problem, estimate_noise
 from abbe.diagnose.recommend import ballbar_check_from, ballbar_geometry
@@ -23,13 +24,10 @@ from cases.hidden_effects import CENTER_MM, REFERENCE_MM
 
 
 def _ar1(rng: np.random.Generator, n: int, sigma: float, rho: float) -> np.ndarray:
+    """Stationary AR(1) noise of standard deviation ``sigma`` (um), lag-1 correlation ``rho``."""
     e = rng.normal(0.0, sigma * np.sqrt(1.0 - rho * rho), n)
-    out = np.empty(n)
-    prev = rng.normal(0.0, sigma)
-    for i in range(n):
-        prev = rho * prev + e[i]
-        out[i] = prev
-    return out
+    start = rng.normal(0.0, sigma)
+    return lfilter([1.0], [1.0, -rho], e, zi=[rho * start])[0]
 
 
 def _estimate(seed: int, sigma: float, rho: float, fine_um: float = 0.0) -> tuple[float, float]:
