@@ -25,7 +25,9 @@ def heldout_rss(eng: Engine, sel: list[Selected], cand: Cand | None, W: np.ndarr
     nuisance) on one fold, judge the other (nuisance refitted there), and back.
     ``free``: columns (um rows) fitted in both, like the named effects: a drift is judged
     with its axis' scale free (docs/effects.md §3, drift and scale), on held-out data as in
-    its evidence ratio."""
+    its evidence ratio. ``drss_split``: the candidate's in-sample RSS decrease within the
+    fitted folds (each with its own nuisance), what the split can see of it (the arbiter's
+    share is of that: candidate_eval.heldout_need)."""
     prob = eng.prob
     r_sel = selection_residual(eng, sel) * W
     Nw = prob.nuis * W[:, None]
@@ -52,7 +54,7 @@ def heldout_rss(eng: Engine, sel: list[Selected], cand: Cand | None, W: np.ndarr
                 r = r_sel - cand.offset * W
             cols = X_sel + ([cand.cols] if (with_c and cand is not None) else [])
             X = np.hstack(cols) * W[:, None] if cols else np.zeros((prob.N, 0))
-            tot = tot_s = 0.0
+            tot = tot_s = tot_in = 0.0
             n_s = 0
             for f in (0, 1):
                 A, B = lab == f, lab != f
@@ -65,8 +67,11 @@ def heldout_rss(eng: Engine, sel: list[Selected], cand: Cand | None, W: np.ndarr
                 if not is_identifiable(XA):
                     ok = False
                     break
-                beta, *_ = np.linalg.lstsq(XA, project_out(QA, r[A][:, None])[:, 0], rcond=None) \
-                    if X.shape[1] else (np.zeros(0),)
+                rA = project_out(QA, r[A][:, None])[:, 0]
+                beta, *_ = np.linalg.lstsq(XA, rA, rcond=None) if X.shape[1] else (np.zeros(0),)
+                # the fitted fold's own residual: the in-sample decrease the split sees
+                eA = rA - (XA @ beta if X.shape[1] else 0.0)
+                tot_in += float(eA @ eA)
                 eB = r[B] - (X[B] @ beta if X.shape[1] else 0.0)
                 nB = Nw[B][:, np.any(Nw[B] != 0, axis=0)]
                 eB = project_out(qr_basis(nB), eB[:, None])[:, 0]
@@ -78,9 +83,11 @@ def heldout_rss(eng: Engine, sel: list[Selected], cand: Cand | None, W: np.ndarr
                 break
             res["with" if with_c else "without"] = tot / s2
             res["support_with" if with_c else "support_without"] = tot_s / s2
+            res["in_with" if with_c else "in_without"] = tot_in / s2
         if ok:
             return {"split": name, "rss_without": res["without"], "rss_with": res["with"],
                     "gain": res["without"] - res["with"],
+                    "drss_split": res["in_without"] - res["in_with"],
                     "rss_without_support": res["support_without"], "n_support": n_s}
     return {"split": None, "gain": float("nan")}
 

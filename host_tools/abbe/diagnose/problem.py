@@ -12,6 +12,7 @@ import math
 from collections import OrderedDict
 
 import numpy as np
+from scipy.signal import lfilter
 
 from abbe.diagnose.checks import Check
 from abbe.diagnose.effects import PredParams
@@ -278,8 +279,11 @@ def estimate_noise(prob: Problem, r: np.ndarray) -> tuple[np.ndarray, np.ndarray
     more than REJECT_Z robust sigmas off are left out (reported as ``robust`` with
     ``rejected_readings``): a few wild readings cannot inflate the estimate. Ballbar groups: the
     scatter of each direction's residual about a saturated smooth fit (Fourier series
-    in the angle, up to min(40, n/8) harmonics); the lag-1 autocorrelation rho of that
-    scatter inflates the variance by (1 + rho) / (1 - rho). Returns (sigma (G,),
+    in the angle, up to min(40, n/8) harmonics), read as AR(1) noise through that fit:
+    sigma and the lag-1 correlation rho solve its expected scatter and lag-1 sum (the
+    fit takes the correlated noise's slow part; _ar1_moments), unless the CW - CCW
+    difference rejects that rho for a smaller one (_pair_loglik: a fine pattern both
+    traces share); the variance is inflated by (1 + rho) / (1 - rho). Returns (sigma (G,),
     inflation (G,), report dict). ``r`` is the current residual (N,).
     """
     G = len(prob.group_names)
@@ -324,6 +328,9 @@ def estimate_noise(prob: Problem, r: np.ndarray) -> tuple[np.ndarray, np.ndarray
             # Saturated smooth fit per direction (ballbar) / per run and direction.
             ss, d_tot, rho_num, rho_den = 0.0, 0, 0.0, 0.0
             resid_parts: list[np.ndarray] = []
+            moments: list[np.ndarray] = []
+            moments0: list[np.ndarray] = []
+            total0 = 0.0
             labels = c.direction[sel].astype(str)
             xs = c.x[sel]
             for lab in np.unique(labels):
@@ -347,17 +354,49 @@ def estimate_noise(prob: Problem, r: np.ndarray) -> tuple[np.ndarray, np.ndarray
                 d_tot += max(n - A.shape[1], 0)
                 rho_num += float(e[1:] @ e[:-1])
                 rho_den += float(e @ e)
+                moments.append(_ar1_moments(A))
+                # the same about the fit's first three columns (a circle's centre and radius)
+                A0 = A[:, :3]
+                e0 = rv - A0 @ np.linalg.lstsq(A0, rv, rcond=None)[0]
+                total0 += float(e0 @ e0)
+                moments0.append(_ar1_moments(A0)[0])
             if d_tot >= 2:
                 ee = np.concatenate(resid_parts)
                 rob = 1.4826 * float(np.median(np.abs(ee))) * math.sqrt(x.size / d_tot)
                 rej = np.abs(ee) > REJECT_Z * rob * math.sqrt(d_tot / x.size)
-                sd = math.sqrt((ss - float(ee[rej] @ ee[rej])) / max(d_tot - int(rej.sum()), 1))
                 if rej.any():
                     robust[gg] = int(rej.sum())
+                # AR(1) noise through the saturated fit (a projection): its expected scatter
+                # and lag-1 sum are sigma^2 tr(M R) and sigma^2 tr(S M R M) (_ar1_moments);
+                # rho solves their ratio, sigma^2 = scatter / tr(M R). White noise: rho 0,
+                # tr(M R) = n - rank, the plain estimate.
+                mom = np.sum(moments, axis=0)
+                rho = _ar1_rho(rho_num / rho_den if rho_den > 0 else 0.0, mom)
+                ll = _pair_loglik(xs, labels, x) if c.kind == "ballbar" and rho > 0 else None
+                if ll is not None:
+                    # a pattern both traces share, finer than the saturated fit (a short
+                    # cyclic error), reads as correlated noise in each trace; it cancels in
+                    # the CW - CCW difference. When that difference rejects the traces'
+                    # rho at the selection's level (log LR >= log 19) for a smaller one,
+                    # the difference's rho holds.
+                    k = int(np.argmax(ll))
+                    if _AR1_GRID[k] < rho and ll[k] - float(np.interp(rho, _AR1_GRID, ll)) \
+                            >= PAIR_LOG_LR:
+                        rho = float(_AR1_GRID[k])
+                kept = max(d_tot - int(rej.sum()), 1) / d_tot
+                # the noise cannot leave more than all the scatter there is: sigma(rho)^2 x
+                # the expected scatter about the centre and radius alone must not exceed the
+                # scatter observed about them (a noise whose fast part is damped, e.g. by the
+                # instrument's filter, is no AR(1): its slow part would be over-extrapolated)
+                ss_kept = ss - float(ee[rej] @ ee[rej])
+                need = ss_kept / np.maximum(mom[0] * kept, 1.0) * np.sum(moments0, axis=0)
+                if rho > 0 and float(np.interp(rho, _AR1_GRID, need)) > total0:
+                    ok = _AR1_GRID[need <= total0]
+                    rho = float(ok.max()) if ok.size else 0.0
+                trace_mr = float(np.interp(rho, _AR1_GRID, mom[0]))
+                sd = math.sqrt(ss_kept / max(trace_mr * kept, 1.0))
                 sig[gg] = max(NOISE_FLOOR, sd)
                 dof[gg] = d_tot
-                rho = rho_num / rho_den if rho_den > 0 else 0.0
-                rho = min(max(rho, 0.0), 0.9)
                 infl[gg] = (1 + rho) / (1 - rho)
             if c.kind == "ballbar":
                 pair[gg] = _pair_sigma(xs, labels, x)
@@ -371,6 +410,97 @@ def estimate_noise(prob: Problem, r: np.ndarray) -> tuple[np.ndarray, np.ndarray
         rep[prob.group_names[g]]["robust"] = True
         rep[prob.group_names[g]]["rejected_readings"] = int(robust[g])
     return sig, infl, rep
+
+
+#: Lag-1 correlations at which the saturated fit's effect on AR(1) noise is tabulated
+#: (the estimate is clipped to [0, 0.9] as before: 0.9 bounds the inflation at 19)
+_AR1_GRID = np.linspace(0.0, 0.9, 19)
+#: _ar1_moments results by the fit's design (the same angles recur at every step)
+_AR1_CACHE: OrderedDict[bytes, np.ndarray] = OrderedDict()
+
+
+def _ar1_moments(A: np.ndarray) -> np.ndarray:
+    """Expected scatter and lag-1 sum of unit AR(1) noise (in reading order) about the
+    least-squares fit of the columns ``A`` (n, p), at each rho of _AR1_GRID: rows
+    tr(M R) and tr(S M R M), M = I - Q Q' the fit's residual projection, R_ij =
+    rho^|i-j|, S the symmetric lag-1 matrix (1/2 beside the diagonal). (2, grid).
+    R Q by a forward and a backward first-order recursion (O(n p), no n x n matrix)."""
+    key = (hashlib.sha1(np.ascontiguousarray(A).tobytes(), usedforsecurity=False).digest()
+           + str(A.shape).encode())
+    hit = _AR1_CACHE.get(key)
+    if hit is not None:
+        return hit
+    n = A.shape[0]
+    Q = qr_basis(A)
+    SQ = 0.5 * (np.vstack([Q[1:], np.zeros((1, Q.shape[1]))])
+                + np.vstack([np.zeros((1, Q.shape[1])), Q[:-1]]))
+    QSQ = Q.T @ SQ
+    out = np.zeros((2, _AR1_GRID.size))
+    for k, rho in enumerate(_AR1_GRID):
+        RQ = (lfilter([1.0], [1.0, -rho], Q, axis=0)
+              + lfilter([1.0], [1.0, -rho], Q[::-1], axis=0)[::-1] - Q)
+        QRQ = Q.T @ RQ
+        out[0, k] = n - float(np.trace(QRQ))
+        # tr(S M R M) with M R M = R - Q Q'R - R Q Q' + Q (Q'R Q) Q'
+        out[1, k] = ((n - 1) * rho - 2.0 * float(np.sum(SQ * RQ)) + float(np.sum(QSQ * QRQ)))
+    _AR1_CACHE[key] = out
+    while len(_AR1_CACHE) > 64:
+        _AR1_CACHE.popitem(last=False)
+    return out
+
+
+#: log likelihood ratio at which the CW - CCW difference overrules the traces' noise
+#: correlation: the selection's level, log((1 - alpha) / alpha) at alpha = 0.05
+PAIR_LOG_LR = math.log(19.0)
+
+
+def _pair_loglik(ang: np.ndarray, labels: np.ndarray, r: np.ndarray) -> np.ndarray | None:
+    """Log likelihood, at each rho of _AR1_GRID, of the CW/CCW pair's difference above the
+    saturated fit's harmonics (Whittle's, from its periodogram over the circle).
+
+    d = r_ccw - B r_cw (B: the CW trace taken at the CCW angles, periodic linear
+    interpolation, as _pair_sigma); each trace's noise AR(1) in its reading order,
+    independent of the other's, so d's spectrum is sigma^2 S(w) (1 + |H(w)|^2), S the
+    AR(1) spectrum, |H|^2 = (1 - f)^2 + f^2 + 2 f (1 - f) cos w the interpolation's at the
+    readings' fractions f (mean); sigma^2 profiled out. The harmonics up to the saturated
+    fit's K (what it takes) are left out. None when a direction has fewer than 16 readings
+    or fewer than 4 harmonics remain."""
+    a, b = labels == "ccw", labels == "cw"
+    if a.sum() < 16 or b.sum() < 16:
+        return None
+    o_a = np.argsort(ang[a])
+    aa = ang[a][o_a]
+    o = np.argsort(ang[b])
+    ab = ang[b][o]
+    n = aa.size
+    K = int(min(40, max(1, n // 8)))
+    ks = np.arange(K + 1, (n - 1) // 2 + 1)
+    if ks.size < 4:
+        return None
+    d = r[a][o_a] - np.interp(aa, ab, r[b][o], period=360.0)
+    j = np.searchsorted(ab, aa)
+    lo = np.where(j > 0, ab[np.maximum(j - 1, 0)], ab[-1] - 360.0)
+    hi = np.where(j < ab.size, ab[np.minimum(j, ab.size - 1)], ab[0] + 360.0)
+    f = np.clip((aa - lo) / np.maximum(hi - lo, 1e-12), 0.0, 1.0)
+    w = 2.0 * np.pi * ks / n
+    h2 = float(np.mean((1 - f) ** 2 + f ** 2)) + float(np.mean(2 * f * (1 - f))) * np.cos(w)
+    per = np.abs(np.fft.rfft(d)[ks]) ** 2 / n
+    g = _AR1_GRID[:, None]
+    spec = (1 - g ** 2) / (1 - 2 * g * np.cos(w)[None, :] + g ** 2) * (1 + h2)[None, :]
+    m = ks.size
+    return -np.sum(np.log(spec), axis=1) - m * np.log(np.mean(per[None, :] / spec, axis=1))
+
+
+def _ar1_rho(ratio: float, mom: np.ndarray) -> float:
+    """Lag-1 correlation of AR(1) noise whose expected lag-1 sum over scatter, about the
+    saturated fit, is the observed ``ratio`` (``mom`` from _ar1_moments, summed over the
+    traces); clipped to the grid's [0, 0.9]."""
+    f = mom[1] / np.maximum(mom[0], 1e-12)
+    if ratio <= f[0]:
+        return 0.0
+    if ratio >= f[-1]:
+        return float(_AR1_GRID[-1])
+    return float(np.interp(ratio, f, _AR1_GRID))
 
 
 #: Readings this many robust sigmas off (Huber fit / median absolute deviation) are

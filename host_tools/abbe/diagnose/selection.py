@@ -66,7 +66,7 @@ from abbe.diagnose.results import (LACK_OF_FIT_LIMIT, DiagnoseOptions, DiagnoseR
                                   GapStats)
 from abbe.errors import AbbeInputError
 from abbe.model.table import Table
-from abbe.diagnose.candidate_eval import _eval_candidate, _evidence, _judge, _weights
+from abbe.diagnose.candidate_eval import _eval_candidate, _evidence, _judge, _weights, heldout_need
 
 
 _TERM_WRITERS = ("scale", "cyclic", "straightness", "reversal")
@@ -537,9 +537,7 @@ def _summ(st: dict[str, Any], c: Cand, opts: DiagnoseOptions) -> dict[str, Any]:
         lt = st["evidence"].get("log_evidence_typical")
         if lt is not None and np.isfinite(lt):
             d["log_evidence_typical"] = round(float(lt), 2)
-        red = st.get("redundancy", 0.0) >= opts.ambiguity_r2
-        frac = opts.redundant_heldout_fraction if red else opts.heldout_fraction
-        d["heldout_need"] = round(max(2.0 * st["k_eff"], frac * st["drss"]), 2)
+        d["heldout_need"] = round(heldout_need(st, opts), 2)
         if st["k"]:
             d["value"] = round(float(st["coef"][0]), 6)
             d["unit"] = c.spec.params[c.param_idx[0]].unit

@@ -101,11 +101,47 @@ class Circle:
     feed: float
 
 
-def ballbar_rows(rng: np.random.Generator, m: Machine, eff: Effects, c: Circle,
-                 t0_h: float, noise: dict[str, float], wrap: bool) -> list[str]:
-    """CSV rows of a CCW then CW run of circle ``c`` (header included)."""
+def trace_um(m: Machine, eff: Effects, c: Circle, direction: str, arc: float, step: float,
+             phase: float, t0_h: float, t_start: float,
+             setup_mm: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Noise-free radial deviation (um) of one run of circle ``c`` and its sample times
+    (s, from the run's start): the axes follow the command through their lag and play,
+    the effects move the own terms, the machine's error motions move the tool tip."""
     a, b = PLANES[c.plane]
     ia, ib = AXES.index(a), AXES.index(b)
+    v = c.feed / 60.0                                 # mm/s
+    dt_sample = np.radians(step) * c.radius / v
+    sweep = 360.0 + 2 * arc
+    dur = np.radians(sweep) * c.radius / v
+    fine = np.arange(0.0, dur + 1e-9, 1e-3)
+    sgn = 1.0 if direction == "ccw" else -1.0
+    th0 = -arc if direction == "ccw" else 360.0 + arc
+    theta_f = th0 + sgn * np.degrees(v * fine / c.radius)
+    cmd = np.tile(c.center, (len(fine), 1))
+    cmd[:, ia] += c.radius * np.cos(np.radians(theta_f))
+    cmd[:, ib] += c.radius * np.sin(np.radians(theta_f))
+    act = cmd.copy()
+    for j, ax in enumerate(AXES):
+        if j in (ia, ib):
+            act[:, j] = play(first_order_lag(cmd[:, j], 1e-3, eff.lag_ms[ax]), eff.play_um[ax] * 1e-3)
+    ts = np.arange(phase, dur - 1e-9, dt_sample)
+    idx = np.clip(np.round(ts / 1e-3).astype(int), 0, len(fine) - 1)
+    t_abs_h = t0_h + (t_start + ts) / 3600.0
+    q = act[idx]
+    for j, ax in enumerate(AXES):
+        q[:, j] = q[:, j] + TO_E[ax] * eff.term_delta(ax, q[:, j], t_abs_h, m.ref[j]) * 1e-3
+    E = m.error_um(q) * 1e-3
+    tip = q + E
+    setup = np.zeros(3) if setup_mm is None else setup_mm
+    return ts, (np.linalg.norm(tip - c.center - setup, axis=1) - c.radius) * 1e3
+
+
+def ballbar_rows(rng: np.random.Generator, m: Machine, eff: Effects, c: Circle,
+                 t0_h: float, noise: dict[str, float], wrap: bool,
+                 runs_out: list[dict[str, Any]] | None = None) -> list[str]:
+    """CSV rows of a CCW then CW run of circle ``c`` (header included). ``runs_out``
+    receives each run's sampling (direction, arc, step, phase, t0_h, t_start), so the
+    same run can be traced again noise-free (``trace_um``)."""
     v = c.feed / 60.0                                 # mm/s
     arc = float(rng.uniform(15, 40))
     step = float(rng.uniform(1.5, 2.5))               # deg per sample
@@ -115,27 +151,14 @@ def ballbar_rows(rng: np.random.Generator, m: Machine, eff: Effects, c: Circle,
     for direction in ("ccw", "cw"):
         sweep = 360.0 + 2 * arc
         dur = np.radians(sweep) * c.radius / v
-        fine = np.arange(0.0, dur + 1e-9, 1e-3)
         sgn = 1.0 if direction == "ccw" else -1.0
         th0 = -arc if direction == "ccw" else 360.0 + arc
-        theta_f = th0 + sgn * np.degrees(v * fine / c.radius)
-        cmd = np.tile(c.center, (len(fine), 1))
-        cmd[:, ia] += c.radius * np.cos(np.radians(theta_f))
-        cmd[:, ib] += c.radius * np.sin(np.radians(theta_f))
-        act = cmd.copy()
-        for j, ax in enumerate(AXES):
-            if j in (ia, ib):
-                act[:, j] = play(first_order_lag(cmd[:, j], 1e-3, eff.lag_ms[ax]), eff.play_um[ax] * 1e-3)
         phase = float(rng.uniform(0, dt_sample))
-        ts = np.arange(phase, dur - 1e-9, dt_sample)
-        idx = np.clip(np.round(ts / 1e-3).astype(int), 0, len(fine) - 1)
-        t_abs_h = t0_h + (t_start + ts) / 3600.0
-        q = act[idx]
-        for j, ax in enumerate(AXES):
-            q[:, j] = q[:, j] + TO_E[ax] * eff.term_delta(ax, q[:, j], t_abs_h, m.ref[j]) * 1e-3
-        E = m.error_um(q) * 1e-3
-        tip = q + E
-        radial = (np.linalg.norm(tip - c.center - noise["setup_mm"], axis=1) - c.radius) * 1e3
+        ts, radial = trace_um(m, eff, c, direction, arc, step, phase, t0_h, t_start,
+                              noise["setup_mm"])
+        if runs_out is not None:
+            runs_out.append({"direction": direction, "arc": arc, "step": step, "phase": phase,
+                             "t0_h": t0_h, "t_start": t_start})
         # correlated in time (vibration, the bar's own dynamics): a correlation time of
         # 20-150 ms, so the correlation between samples depends on the feed and sampling
         rho = float(np.exp(-dt_sample / noise["corr_s"]))
@@ -152,13 +175,15 @@ def ballbar_rows(rng: np.random.Generator, m: Machine, eff: Effects, c: Circle,
 
 def laser_rows(rng: np.random.Generator, m: Machine, eff: Effects | None, axis: str,
                targets: np.ndarray, signs: dict[str, float], runs: int, t0_h: float,
-               noise: dict[str, float]) -> tuple[list[str], float]:
+               noise: dict[str, float],
+               effect_out: list[float] | None = None) -> tuple[list[str], float]:
     """A 6D laser line through the reference point along ``axis`` (docs/formats.md).
 
     A line through the reference reads sign x (term(p) - term(p0)) per channel
     (docs/formats.md, "6D laser"), plus a beam tilt on the straightness channels,
     an arbitrary zero per channel and white noise. The own term carries the
-    effects at the actual (played, scaled) position. Returns rows and the duration (h).
+    effects at the actual (played, scaled) position. Returns rows and the duration (h);
+    ``effect_out`` receives the effects' noise-free part of each linear reading (um).
     """
     j = AXES.index(axis)
     lo, hi = targets[0], targets[-1]
@@ -182,8 +207,11 @@ def laser_rows(rng: np.random.Generator, m: Machine, eff: Effects | None, axis: 
                     val = float(f(np.array([p]))[0])
                     if term == own and eff is not None:
                         # the lost motion: the carriage short of the target by half the play
-                        val += TO_E[axis] * (-s * play_um / 2.0)
-                        val += float(eff.term_delta(axis, np.array([p]), t0_h + t / 3600.0, m.ref[j])[0])
+                        e_um = TO_E[axis] * (-s * play_um / 2.0)
+                        e_um += float(eff.term_delta(axis, np.array([p]), t0_h + t / 3600.0, m.ref[j])[0])
+                        val += e_um
+                        if effect_out is not None:
+                            effect_out.append(e_um)
                     if ch in tilt:
                         val += tilt[ch] * 1e-3 * (p - lo)
                     sig = noise["laser_um"] if ch == "linear" else (
