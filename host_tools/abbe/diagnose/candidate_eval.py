@@ -89,7 +89,7 @@ def _eval_candidate(eng: Engine, cand: Cand, sel: list[Selected], W: np.ndarray,
                 _, d_o = lstsq_rss(Zo, sig_n)
                 if d_o / nn > best:
                     best, red_with = d_o / nn, o.cand.spec.key
-    ev = _evidence(eng, cand, coef, Z, dr / s2, s2, contrib_rms)
+    ev = _evidence(eng, cand, coef, Z, dr / s2, s2, contrib_rms, W)
     # F and BIC are reported beside the evidence ratio (the JSON's fields); the decision is
     # the evidence ratio's (_judge)
     return {"ok": True, "F": F, "p": p, "p_eff": p_eff, "dbic": dbic, "drss": dr / s2,
@@ -121,7 +121,7 @@ def _cyclic_harmonics(eng: Engine, cand: Cand, period: float, table: Table, W: n
         s2 = max(1.0, (rss_base - fit) / max(N - Qb.shape[1] - Z.shape[1], 1))
         trial = Cand(cand.spec, cols, list(range(2 * h)), period, cand.n_scan)
         ev = _evidence(eng, trial, coef, Z, fit / s2, s2,
-                       contribution_rms(eng.prob, cols @ coef))
+                       contribution_rms(eng.prob, cols @ coef), W)
         lk = ev["log_evidence"]
         if best is None or lk > best[0]:
             best = (lk, cols, list(range(2 * h)))
@@ -194,9 +194,11 @@ def heldout_need(st: dict[str, Any], opts: DiagnoseOptions) -> float:
 
 
 def _evidence(eng: Engine, cand: Cand, coef: np.ndarray, Z: np.ndarray, drss: float, s2: float,
-              contrib_um: float) -> dict[str, Any]:
+              contrib_um: float, W: np.ndarray | None = None) -> dict[str, Any]:
     """The candidate's log evidence ratio with its prior (evidence.candidate_prior); a tool
-    offset's prior range is on the resulting tool (declared + change)."""
+    offset's prior range is on the resulting tool (declared + change). ``W``: the weights
+    that whiten ``Z``'s rows (the table's own error is carried through them: table_cov_of;
+    None = not carried)."""
     spec = cand.spec
     declared = np.asarray(eng.table.tool_offset_mm, dtype=float)
     lever = tool_lever_mm(eng, cand.param_idx, coef) if spec.kind == "tool_offset" else 0.0
@@ -215,13 +217,32 @@ def _evidence(eng: Engine, cand: Cand, coef: np.ndarray, Z: np.ndarray, drss: fl
     cov_w = s2 * np.linalg.pinv(Z.T @ Z) if Z.shape[1] else np.zeros((0, 0))
     typ = np.array([spec.params[i].typical for i in cand.param_idx], dtype=float) \
         if spec.kind != "tool_offset" else None
+    # the table's own fit error along the signature (a tool offset: the model's angular
+    # uncertainty above, its own assumed figure, instead)
+    cov_t = table_cov_of(eng, Z, W) if spec.kind != "tool_offset" and W is not None else None
     ev = log_evidence(coef, cov_w, drss, contrib_um, pr["half_width"], pr["sigma_model_um"],
-                      pr["prior_log_odds"], pr["declared_cov"], max(cand.n_scan, 1), typ)
+                      pr["prior_log_odds"], pr["declared_cov"], max(cand.n_scan, 1), typ,
+                      cov_t)
     ev["declared"] = pr["declared"]
     ev["range"] = rng
     if ev.get("reason"):
         ev["reason"] = "implausible value: " + str(ev["reason"])
     return ev
+
+
+def table_cov_of(eng: Engine, Z: np.ndarray, W: np.ndarray) -> np.ndarray | None:
+    """Covariance of a candidate's fitted amplitude (parameter units) that the fitted
+    table's own coefficient error gives: the amplitude is pinv(Z) r (Z its whitened columns
+    with the base, the checks' set-up and the effects named, projected out; r the whitened
+    residual), the table's error moves r by W M e (M the factor of J C J^T,
+    table_uncertainty.table_factor; e ~ N(0, I)), hence A A^T with A = pinv(Z) W M (pinv(Z)
+    lies in the span of Z, so the base's projection of W M is implied). None without
+    ``model.json`` (``eng.table_M`` None)."""
+    M = eng.table_M
+    if M is None or not Z.shape[1] or not M.shape[1]:
+        return None
+    A = np.linalg.pinv(Z) @ (M * W[:, None])
+    return A @ A.T
 
 
 #: effect kinds that write into a term's coefficients (the others: squareness, tool

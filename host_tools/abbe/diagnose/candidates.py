@@ -83,6 +83,9 @@ class Engine:
         self.pp = pp.copy() if pp is not None else PredParams()
         self.ev = ev or Evaluator(opts.backend)
         self.prob = Problem(checks)
+        #: a factor (N, r) of the predictions' covariance from the table's own fit error
+        #: (table_uncertainty.table_factor; None: no model.json, not carried)
+        self.table_M: np.ndarray | None = None
         # One drift variable for all checks: the temperature if a check has one (the drift
         # then goes into the table's thermal term; checks without a temperature carry no
         # drift), else the time, else the run index.
@@ -111,6 +114,7 @@ class Engine:
         sub = Engine.__new__(Engine)
         sub.opts, sub.table, sub.pp, sub.ev = self.opts, table, self.pp, self.ev
         sub.prob = Problem(checks)
+        sub.table_M = None
         for c in checks:
             c.set_drift_unit(self.drift_unit)
         sub.drift_unit, sub.drift_on_table = self.drift_unit, self.drift_on_table

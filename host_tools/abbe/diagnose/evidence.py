@@ -17,6 +17,11 @@ model plus this effect" against "the model as it is", computed from
   model's angular terms, whose error (``model_angle_sigma_urad`` x the lever) gives
   the same signature, so its amplitude's variance is sigma_w^2 + sigma_m^2, not the
   white-noise sigma_w^2 alone; what stays below it is lack of fit / model error;
+* the **fitted table's own error** (``model.json``'s coefficient covariance C_t, the
+  checks' derivative J by the coefficients: abbe.diagnose.table_uncertainty): the
+  readings' covariance J C J^T carried to the candidate's fitted amplitude (the same
+  whitening and set-up projection as its columns) is added to the amplitude's
+  covariance; without ``model.json`` none (the behaviour before);
 * the **look-elsewhere** of a searched shape (period, take-up, time constant, degree):
   a uniform prior over the searched grid's independent points, i.e. - log(points).
 
@@ -42,7 +47,8 @@ import numpy as np
 def log_evidence(theta: np.ndarray, cov_white: np.ndarray, drss: float, contrib_um: float,
                  half_width: np.ndarray, sigma_model_um: float = 0.0,
                  prior_log_odds: float = 0.0, declared_cov: np.ndarray | None = None,
-                 n_scan: int = 1, typical: np.ndarray | None = None) -> dict[str, float]:
+                 n_scan: int = 1, typical: np.ndarray | None = None,
+                 cov_table: np.ndarray | None = None) -> dict[str, float]:
     """Log evidence ratio of a change ``theta`` (parameter units) against no change.
 
     ``cov_white``: its covariance from the whitened fit (s^2 (Z'Z)^-1); ``drss``: the
@@ -55,7 +61,10 @@ def log_evidence(theta: np.ndarray, cov_white: np.ndarray, drss: float, contrib_
     catalogue's typical magnitude of each parameter: ``log_evidence_typical`` is then the
     same ratio under a Gaussian prior of that standard deviation (an effect of typical
     size expected), log N(theta; 0, T + C) - log N(theta; 0, C) + log odds - log(points):
-    the prior-sensitivity of the decision (docs/effects.md §3, "Undecided")."""
+    the prior-sensitivity of the decision (docs/effects.md §3, "Undecided");
+    ``cov_table``: the covariance of ``theta`` the fitted table's own coefficient error
+    gives (candidate_eval.table_cov_of; None = no ``model.json``: none), added to the
+    white one (docs/effects.md §3, "The model's own uncertainty")."""
     theta = np.atleast_1d(np.asarray(theta, dtype=float))
     k = theta.size
     L = np.broadcast_to(np.asarray(half_width, dtype=float), (k,))
@@ -72,6 +81,16 @@ def log_evidence(theta: np.ndarray, cov_white: np.ndarray, drss: float, contrib_
     if sigma_model_um > 0 and contrib_um > 0:
         f2 = 1.0 + sigma_model_um ** 2 * drss / contrib_um ** 2
     C = np.asarray(cov_white, dtype=float).reshape(k, k) * f2
+    if cov_table is not None:
+        T = np.asarray(cov_table, dtype=float).reshape(k, k)
+        C = C + T
+        # the RMS of the same signature the table's error gives (beside sigma_model_um)
+        tt = float(theta @ T @ theta)
+        th2 = float(theta @ theta)
+        if tt > 0 and th2 > 0:
+            s_tab = contrib_um * math.sqrt(tt) / th2
+            out["sigma_table_um"] = float(s_tab)
+            out["sigma_model_um"] = float(math.hypot(sigma_model_um, s_tab))
     if declared_cov is not None:
         C = C + np.asarray(declared_cov, dtype=float).reshape(k, k)
     # the covariance must be a proper (positive definite) one: a parameter the data do

@@ -80,15 +80,16 @@ def diagnose_machine(machine: Any, model: Any, ballbar: list[str] | None = None,
     if sigma is not None:
         # the machine file states how well it knows its tool: the declared quantity's prior
         opts = dataclasses.replace(opts, declared_tool_sigma_mm=float(sigma))
-    res = diagnose(table, checks, opts)
+    from abbe.diagnose.table_uncertainty import table_covariance
+    tcov = table_covariance(model, table)
+    res = diagnose(table, checks, opts, table_cov=tcov)
     res.declared = {"tool_offset_mm": [float(x) for x in table.tool_offset_mm],
                     "tool_offset_sigma_mm": opts.declared_tool_sigma_mm,
                     "tool_offset_sigma_source": ("machine file [tool] offset_sigma_mm"
                                                  if sigma is not None else "default (a presetter)")}
-    from abbe.diagnose.table_uncertainty import table_covariance
     from abbe.diagnose.uncertainty import budgets_of_machine, diagnosis_uncertainty
     res.uncertainty = diagnosis_uncertainty(res, *budgets_of_machine(m), draws=mc_draws,
-                                            table_cov=table_covariance(model, table))
+                                            table_cov=tcov)
     return res
 
 
@@ -120,9 +121,10 @@ def diagnose_positioning(path: Any, axis: str, model: Any = None,
         table = load_model(model)
         c = positioning_check(path, axis, table.reference_mm, rezeroed=rezeroed)
     from abbe.diagnose.uncertainty import budget_of_positioning_file, diagnosis_uncertainty
-    res = diagnose(table, [c], options)
     from abbe.diagnose.table_uncertainty import table_covariance
+    tcov = table_covariance(model, table)
+    res = diagnose(table, [c], options, table_cov=tcov)
     res.uncertainty = diagnosis_uncertainty(res, budget_of_positioning_file(path), None,
                                             draws=mc_draws, model_from_the_data=model is None,
-                                            table_cov=table_covariance(model, table))
+                                            table_cov=tcov)
     return res

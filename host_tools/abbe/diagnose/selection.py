@@ -197,7 +197,8 @@ def _lateral_evidence(eng: Engine, base: tuple[Any, ...], full: tuple[Any, ...],
 @one_blas_thread
 def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None = None,
              pred_params: PredParams | None = None, evaluator: Evaluator | None = None,
-             _outliers: list[OutlierRun] | None = None) -> DiagnoseResult:
+             _outliers: list[OutlierRun] | None = None,
+             table_cov: dict[tuple[str, str], np.ndarray] | None = None) -> DiagnoseResult:
     """Diagnose what ``table`` is missing to reproduce ``checks``; see the module doc.
 
     Outlier runs of repeated laser / positioning checks are found first (gross readings,
@@ -207,6 +208,9 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
     Returns a :class:`DiagnoseResult` with the named effects, the gap before/after
     (also on held-out data) and the updated table. Raises AbbeInputError for checks
     outside the model's travel or too little data to decide.
+
+    ``table_cov``: the table's coefficient covariance (table_uncertainty.table_covariance),
+    carried into every candidate's evidence (docs/effects.md §3); None / {}: not carried.
     """
     opts = options or DiagnoseOptions()
     if not checks:
@@ -219,6 +223,9 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
     checks, found = screen(checks)
     outl += found
     eng = Engine(table, checks, opts, pred_params, evaluator)
+    if table_cov:
+        from abbe.diagnose.table_uncertainty import table_factor
+        eng.table_M = table_factor(eng, table, eng.pp, table_cov)
     prob = eng.prob
     by_key_spec = {s.key: s for s in catalogue()}
     specs = [s for s in catalogue() if opts.candidates is None
@@ -455,7 +462,8 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
         for i, (old_c, new_c) in enumerate(zip(checks, new_checks)):
             if new_c is not old_c and isinstance(new_c, LaserCheck) and isinstance(old_c, LaserCheck):
                 new_c.tie_source = old_c.tie_source or (old_c, clean0[prob.slice(i)])
-        return diagnose(table, new_checks, opts, pred_params, evaluator, outl + incons)
+        return diagnose(table, new_checks, opts, pred_params, evaluator, outl + incons,
+                        table_cov)
     outl += incons
     for o in outl:
         notes.insert(0, ("OUTLIER: " if o.excluded else "OUTLIER (kept): ") + o.message())
@@ -619,7 +627,7 @@ def _backward(eng: Engine, sel: list[Selected], W: np.ndarray,
             dof_res = prob.N - Qb.shape[1] - k
             s2 = max(1.0, (float(rb_s @ rb_s) - fit) / max(dof_res, 1))
             contrib = s.cand.cols @ coef + (0.0 if s.cand.offset is None else s.cand.offset)
-            ev = _evidence(eng, s.cand, coef, Z, dr / s2, s2, contribution_rms(prob, contrib))
+            ev = _evidence(eng, s.cand, coef, Z, dr / s2, s2, contribution_rms(prob, contrib), W)
             # the same rule as the forward step: the evidence ratio with the others in
             if not ev["log_evidence"] >= eng.opts.evidence_log_min:
                 notes.append(f"{s.cand.spec.key} dropped: no longer significant once "

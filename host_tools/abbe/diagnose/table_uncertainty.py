@@ -48,13 +48,37 @@ def _scale_coefficients(ax: Any, ref_mm: float) -> np.ndarray:
     return np.asarray(c, dtype=np.float64)
 
 
+def _fit_scale_image(doc: dict[str, Any], table: Table, a: str, term: str) -> np.ndarray | None:
+    """g = G (p x 1e-3): the coefficients ``abbe fit`` gave a scale of 1 ppm of its own line
+    (``G`` the fit's operator, abbe.analysis.fit.uncertainty.fit_operator, on the line's
+    targets ``axes.<A>.targets_mm`` with the term's ``trend_degree`` and ``harmonics``):
+    the direction of the instrument-scale part it put into C (su² g g^T). It is the exact
+    linear function only where the term's basis reproduces a line on those targets; with
+    harmonics or targets over part of the travel it is aliased. None when model.json does
+    not state the targets or the term's order."""
+    from abbe.analysis.fit.uncertainty import fit_operator
+    try:
+        ad = doc["axes"][a]
+        td = ad["terms"][term]
+        p = np.asarray(ad["targets_mm"], dtype=np.float64)
+        order = (int(td["trend_degree"]), int(td.get("harmonics") or 0))
+        G = fit_operator(p, float(table.reference_mm[AXES.index(a)]), table.axes[a], order,
+                         detrend=False)
+    except (KeyError, TypeError, ValueError, IndexError):
+        return None
+    return np.asarray(G @ (p * 1e-3), dtype=np.float64)
+
+
 def table_covariance(model: Any, table: Table) -> dict[tuple[str, str], np.ndarray]:
     """Per (axis, term) the covariance (um² / urad²) of the table's coefficients that its
     own fit leaves: ``model.json``'s (read by the fit's own reader,
     abbe.analysis.fit.uncertainty.terms_from_json), the instrument scale removed from the
-    own positioning term (``scale_u_ppm``, standard, of the distance from the reference
-    point); {} when there is no ``model.json`` with an ``uncertainty`` section beside the
-    model (an imported or hand-made table: no line)."""
+    own positioning term (``scale_u_ppm``, standard, along the fit's own image of a scale,
+    :func:`_fit_scale_image`; without the targets in model.json, the linear function of
+    the distance from the reference point); {} when there is no ``model.json`` with an
+    ``uncertainty`` section beside the model (an imported or hand-made table, or diagnose's
+    own output: no line). A model.json that is there but unreadable, not JSON, or whose
+    covariances do not fit ``table`` raises AbbeInputError (file, line, field)."""
     from abbe.analysis.fit.uncertainty import terms_from_json
     from abbe.errors import AbbeInputError
     path = model_json_of(model)
@@ -81,38 +105,56 @@ def table_covariance(model: Any, table: Table) -> dict[tuple[str, str], np.ndarr
             C = np.asarray(tu.cov, dtype=np.float64)
             su = float(((unc["axes"][a]["terms"][t]).get("scale_u_ppm")) or 0.0)
             if t == _OWN[a] and su > 0:
-                c = _scale_coefficients(ax, float(table.reference_mm[AXES.index(a)]))
-                w, V = np.linalg.eigh(C - su * su * np.outer(c, c))
+                g = _fit_scale_image(doc, table, a, t)
+                if g is None or g.size != C.shape[0]:
+                    g = _scale_coefficients(ax, float(table.reference_mm[AXES.index(a)]))
+                w, V = np.linalg.eigh(C - su * su * np.outer(g, g))
                 C = (V * np.clip(w, 0.0, None)) @ V.T
             out[(a, t)] = C
     return out
 
 
-def table_u(eng: Any, table: Table, pp: Any, sens: np.ndarray,
-            cov: dict[tuple[str, str], np.ndarray]) -> float:
-    """Standard uncertainty of a figure whose change is ``sens`` . dy (dy the readings'
-    change, ``sens`` (N,)) due to the table's coefficient covariance ``cov``: the
-    predictions' derivative by each coefficient (one unit of it, the model being linear in
-    its coefficients) through ``sens``, then sqrt(g C g^T) per term, summed in quadrature
-    (the terms' fits are independent lines or independent channels of one)."""
+def table_factor(eng: Any, table: Table, pp: Any,
+                 cov: dict[tuple[str, str], np.ndarray]) -> np.ndarray | None:
+    """A factor M (N, r) of the predictions' covariance the table's coefficient covariance
+    ``cov`` gives, M M^T = sum over terms of J_t C_t J_t^T (um²; J_t the predictions'
+    derivative by the term's coefficients, one unit of each, the model being linear in its
+    coefficients; C_t = V diag(w) V^T, M_t = J_t V sqrt(w)); the terms' fits are
+    independent lines or independent channels of one. None when ``cov`` is empty (no
+    ``model.json``: no line)."""
     if not cov:
-        return 0.0
+        return None
     prob = eng.prob
     y0 = prob.predict(eng.ev, table, pp)
     t = copy.deepcopy(table)
-    var = 0.0
+    blocks: list[np.ndarray] = []
     for (a, term), C in cov.items():
         co = t.axes[a].coef.get(term)
         if co is None or co.size != C.shape[0]:
             continue
-        g = np.zeros(co.size)
+        J = np.zeros((y0.size, co.size))
         for k in range(co.size):
             if C[k, k] <= 0.0:
                 continue
-            h = 1.0     # one um / urad: the model is linear in its coefficients
             old = co[k]
-            co[k] = old + h
-            g[k] = float(sens @ (prob.predict(eng.ev, t, pp) - y0)) / h
+            co[k] = old + 1.0     # one um / urad
+            J[:, k] = prob.predict(eng.ev, t, pp) - y0
             co[k] = old
-        var += max(float(g @ C @ g), 0.0)
-    return math.sqrt(var)
+        w, V = np.linalg.eigh(0.5 * (C + C.T))
+        keep = w > 0.0
+        if np.any(keep):
+            blocks.append(J @ (V[:, keep] * np.sqrt(w[keep])))
+    return np.hstack(blocks) if blocks else np.zeros((y0.size, 0))
+
+
+def table_u(eng: Any, table: Table, pp: Any, sens: np.ndarray,
+            cov: dict[tuple[str, str], np.ndarray]) -> float:
+    """Standard uncertainty of a figure whose change is ``sens`` . dy (dy the readings'
+    change, ``sens`` (N,)) due to the table's coefficient covariance ``cov``:
+    sqrt(|sens M|²), M the factor of :func:`table_factor` (sqrt(g C g^T) per term, g the
+    term's derivative through ``sens``, summed in quadrature)."""
+    M = table_factor(eng, table, pp, cov)
+    if M is None:
+        return 0.0
+    g = np.asarray(sens, dtype=np.float64) @ M
+    return math.sqrt(float(g @ g))

@@ -120,7 +120,7 @@ def test_the_machine_file_states_the_declared_uncertainty(monkeypatch) -> None:
     from abbe.model.table import Table
     seen = {}
 
-    def fake_diagnose(table, chks, opts):
+    def fake_diagnose(table, chks, opts, table_cov=None):
         seen["sigma"] = opts.declared_tool_sigma_mm
         return SimpleNamespace()
     table = Table.__new__(Table)
