@@ -103,7 +103,7 @@ def table_covariance(model: Any, table: Table) -> dict[tuple[str, str], np.ndarr
         ax = table.axes[a]
         for t, tu in per.items():
             C = np.asarray(tu.cov, dtype=np.float64)
-            su = float(((unc["axes"][a]["terms"][t]).get("scale_u_ppm")) or 0.0)
+            su = tu.inputs.get("scale_u_ppm", 0.0)      # checked by terms_from_json
             if t == _OWN[a] and su > 0:
                 g = _fit_scale_image(doc, table, a, t)
                 if g is None or g.size != C.shape[0]:

@@ -104,11 +104,13 @@ def test_the_instrument_scale_is_left_to_the_check_lines(fitted: Path) -> None:
     (lambda t: t[: len(t) // 2], "expected JSON"),                      # cut short
     (lambda t: json.dumps(_first_cov_scaled(json.loads(t), math.nan)), "finite"),  # NaN
     (lambda t: json.dumps(_first_cov_scaled(json.loads(t), -1.0)), "covariance"),
+    (lambda t: json.dumps(_scale_u_set(json.loads(t), "x")), "scale_u_ppm"),
+    (lambda t: json.dumps(_scale_u_set(json.loads(t), 1e308)), "scale_u_ppm"),
 ])
 def test_a_spoiled_model_json_is_an_error_not_a_line_left_out(
         fitted: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], spoil, says) -> None:
-    """A model.json beside the table is input: cut short, NaN in a covariance or a negative
-    variance stops the diagnosis with exit 2 naming the file (and the field), and writes
+    """A model.json beside the table is input: cut short, NaN in a covariance, a negative
+    variance or a scale uncertainty that is a word or overflows when squared stops the diagnosis with exit 2 naming the file (and the field), and writes
     nothing; before, the table's line was silently left out of the budget."""
     d = tmp_path / "m"
     d.mkdir()
@@ -121,6 +123,14 @@ def test_a_spoiled_model_json_is_an_error_not_a_line_left_out(
     assert rc == 2, err
     assert "model.json" in err and says in err, err
     assert not (out / "diagnose.json").exists()
+
+
+def _scale_u_set(d: dict, v: object) -> dict:
+    """``d`` with every term's ``scale_u_ppm`` set to ``v`` (a word, an overflow)."""
+    for ad in d["uncertainty"]["axes"].values():
+        for td in ad["terms"].values():
+            td["scale_u_ppm"] = v
+    return d
 
 
 def _first_cov_scaled(d: dict, k: float) -> dict:

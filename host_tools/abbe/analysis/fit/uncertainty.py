@@ -467,6 +467,11 @@ def to_json(res: "FitResult", fu: FitUncertainty, grid: int = GRID_POINTS) -> di
 
 
 
+#: The largest scale uncertainty model.json may state (ppm, standard): 1 % of the length,
+#: far above any laser's (its squares stay finite in every covariance they enter).
+SCALE_U_PPM_MAX = 1e4
+
+
 def terms_from_json(d: Any, table: Table, source: str) -> dict[str, dict[str, TermUncertainty]]:
     """The covariances of model.json's ``uncertainty`` block, checked against ``table``
     (one n_basis x n_basis matrix of finite numbers per fitted term, symmetric)."""
@@ -503,5 +508,11 @@ def terms_from_json(d: Any, table: Table, source: str) -> dict[str, dict[str, Te
             if float(np.max(np.abs(cov - cov.T))) > 1e-6 * scale or np.any(np.diag(cov) < 0):
                 raise err("not a covariance matrix (asymmetric or a negative variance)",
                           f"{fld}.{key}")
-            out[a][t] = TermUncertainty(a, t, unit, cov, {}, {})
+            su = td.get("scale_u_ppm")
+            if su is not None and not (isinstance(su, (int, float)) and not isinstance(su, bool)
+                                       and math.isfinite(su) and 0.0 <= su <= SCALE_U_PPM_MAX):
+                raise err(f"expected the scale's standard uncertainty in ppm, a finite number "
+                          f"from 0 to {SCALE_U_PPM_MAX:g} (or none)", f"{fld}.scale_u_ppm")
+            out[a][t] = TermUncertainty(a, t, unit, cov, {},
+                                        {} if su is None else {"scale_u_ppm": float(su)})
     return out
