@@ -248,3 +248,68 @@ def test_the_instrument_scale_is_removed_along_the_fits_own_image(fitted: Path) 
         w, V = np.linalg.eigh(R + su * su * np.outer(g_part, g_part) - su * su * np.outer(v, v))
         left = float(np.max(np.clip(w, 0.0, None)))
         assert (left < 2e-4) is ok, (ok, left)
+
+
+def test_fuzzed_model_json_gives_a_line_or_a_named_error(fitted: Path, tmp_path: Path) -> None:
+    """Fuzz of diagnose's own reader of the model.json beside the table (table_covariance):
+    byte mutations (fuzzing.mutate) and hostile JSON nodes (the whole document, the
+    ``uncertainty`` section or any node in it replaced). Each input gives finite
+    covariances or an AbbeInputError naming the file in one line; a top level or an
+    ``uncertainty`` that is not an object is always that error (never "no line")."""
+    from hypothesis import HealthCheck, given, settings
+    from hypothesis import strategies as st
+    from fuzz_budget import DERANDOMIZE, examples
+
+    from abbe.errors import AbbeInputError
+    from fuzzing.mutate import mutate
+    fuzz = settings(max_examples=examples(12), derandomize=DERANDOMIZE, database=None,
+                    deadline=None, suppress_health_check=list(HealthCheck))
+    hostile = [math.nan, 1e308, "1.0", None, True, [], {}, [[1.0]], -1.0, 0, "X", {"X": {}}]
+    table = load_model(fitted / "fit" / "model.bin")
+    seed_text = (fitted / "fit" / "model.json").read_text()
+    d = tmp_path / "m"
+    d.mkdir()
+    mj = d / "model.json"
+
+    def read(data: bytes) -> dict | None:
+        mj.write_bytes(data)
+        try:
+            C = table_covariance(d / "model.bin", table)
+        except AbbeInputError as e:
+            assert e.file == str(mj) and "\n" not in str(e), str(e)
+            return None
+        assert all(np.all(np.isfinite(c)) for c in C.values())
+        return C
+
+    paths: list[tuple] = [(), ("uncertainty",)]
+    unc = json.loads(seed_text)["uncertainty"]
+    for a, ad in unc["axes"].items():
+        paths.append(("uncertainty", "axes", a))
+        for t, td in ad["terms"].items():
+            paths += [("uncertainty", "axes", a, "terms", t)] + [
+                ("uncertainty", "axes", a, "terms", t, k) for k in td]
+
+    @fuzz
+    @given(st.sampled_from(paths), st.sampled_from(hostile))
+    def nodes(path: tuple, value: object) -> None:
+        doc = json.loads(seed_text)
+        if not path:
+            doc = value
+        else:
+            node = doc
+            for k in path[:-1]:
+                node = node[k]
+            node[path[-1]] = value
+        got = read(json.dumps(doc).encode())
+        if path in ((), ("uncertainty",)) and not isinstance(value, dict):
+            assert got is None, (path, value)
+
+    @fuzz
+    @given(st.data())
+    def raw(data: st.DataObject) -> None:
+        pick = lambda n: data.draw(st.integers(0, max(n - 1, 0)))  # noqa: E731
+        blob, _ = mutate(seed_text.encode(), pick, data.draw(st.integers(1, 4)))
+        read(blob)
+
+    nodes()
+    raw()
