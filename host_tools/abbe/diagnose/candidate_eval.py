@@ -153,8 +153,8 @@ def _judge(st: dict[str, Any], opts: DiagnoseOptions) -> tuple[bool, str]:
     ho = st["heldout"]
     if ho["split"] is None:
         return False, "cannot be validated on held-out data (not identifiable in a fold)"
-    redundant = st.get("redundancy", 0.0) >= opts.ambiguity_r2
-    need = heldout_need(st, opts)
+    redundant = _redundant(st, opts)
+    need = heldout_need(st, opts, redundant)
     if not ho["gain"] >= need:
         if redundant:
             return False, (f"{100 * st['redundancy']:.0f} % of its signature is reproduced by "
@@ -173,7 +173,14 @@ def _judge(st: dict[str, Any], opts: DiagnoseOptions) -> tuple[bool, str]:
     return True, ""
 
 
-def heldout_need(st: dict[str, Any], opts: DiagnoseOptions) -> float:
+def _redundant(st: dict[str, Any], opts: DiagnoseOptions) -> bool:
+    """True when the effects already named reproduce most of the candidate's signature
+    (its ``redundancy`` >= ``ambiguity_r2``): the held-out data must then prefer the pair."""
+    return bool(st.get("redundancy", 0.0) >= opts.ambiguity_r2)
+
+
+def heldout_need(st: dict[str, Any], opts: DiagnoseOptions,
+                 redundant: bool | None = None) -> float:
     """The held-out gain (noise units) the arbiter asks of a candidate (docs/effects.md §3,
     rule 2): at least 2 per parameter and ``heldout_fraction`` (``redundant_heldout_fraction``
     when the effects already named reproduce most of it) of the in-sample decrease **the
@@ -181,9 +188,11 @@ def heldout_need(st: dict[str, Any], opts: DiagnoseOptions) -> float:
     its four 45 deg sectors), which takes the part of a signature that looks like a set-up
     within a fold (a 3-theta harmonic: the centre times the sectors' square wave), a part no
     held-out prediction can keep. The share is of the decrease with the folds' own set-up
-    (the folds' in-sample decreases, ``drss_split``), never more than the whole decrease."""
+    (the folds' in-sample decreases, ``drss_split``), never more than the whole decrease.
+    ``redundant``: :func:`_redundant` of ``st`` when the caller has it already (None:
+    computed here)."""
     frac = opts.heldout_fraction
-    if st.get("redundancy", 0.0) >= opts.ambiguity_r2:
+    if _redundant(st, opts) if redundant is None else redundant:
         # mostly reproduced by an effect already named: the held-out data must prefer the pair
         frac = opts.redundant_heldout_fraction
     seen = st["drss"]

@@ -241,7 +241,7 @@ class Engine:
             for c in alts:
                 c.n_scan = n_alt
             # the pool's candidate is a copy: each selection step sets its grid value /
-            # parameter subset from the alternatives (selection._tool_components and the
+            # parameter subset from the alternatives (alternatives._tool_components and the
             # BIC choice), which must stay intact for the next step (issue 36: the first
             # alternative overwritten at step 1 lost a tool offset's lateral components
             # for good, docs/effects.md §3)

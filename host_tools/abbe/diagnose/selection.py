@@ -30,6 +30,13 @@ Steps (docs/effects.md):
 7. **Gap**: predict again through the C library with the updated model.
 
 Units: positions mm, linear values um, angles urad; see each field.
+
+Where the parts are: this module holds the selection loop (:func:`diagnose`); a
+candidate's alternative (grid value, parameter subset) and the static effects a drift is
+judged beside: :mod:`abbe.diagnose.alternatives`; each candidate's fit and judgement:
+:mod:`abbe.diagnose.candidate_eval`; the final fit through the model, the backward check
+and the gap after: :mod:`abbe.diagnose.final_fit`; the record of every candidate tested
+and the companions read from it: :mod:`abbe.diagnose.tested`.
 """
 
 from __future__ import annotations
@@ -39,159 +46,40 @@ from typing import Any
 
 import numpy as np
 
+from abbe.diagnose.alternatives import _alt_fit, _named_drift_tau, _static_free, _tool_components
 from abbe.diagnose.blas import one_blas_thread
-from abbe.diagnose.candidates import Cand, Engine, Selected, apply_selection, selection_residual
+from abbe.diagnose.candidates import Engine, Selected, selection_residual
 from abbe.diagnose.caps import cap_violations
-from abbe.diagnose.checks import DEFAULT_TAKEUP_MM, Check, LaserCheck, check_travel
+from abbe.diagnose.checks import Check, LaserCheck, check_travel
 from abbe.diagnose.describe import describe_effects
 from abbe.diagnose.entangled import first_of_entangled
-from abbe.diagnose.heldout import heldout_gap, heldout_removal, heldout_rss
+from abbe.diagnose.final_fit import (_backward, _final_contribution, _finish, _gap_grew, _gap_key,
+                                     _gap_text, _lack_of_fit, _linear_fit)
+from abbe.diagnose.heldout import heldout_removal, heldout_rss
+from abbe.diagnose.tested import _companions, _summ
 from abbe.diagnose.undecided import share_undecided
-from abbe.diagnose.effects import PredParams, catalogue, copy_table, fold_reversal
+from abbe.diagnose.effects import PredParams, catalogue
 from abbe.diagnose.evaluator import Evaluator
 from abbe.diagnose.shape import refine_scans
 from abbe.diagnose.outliers import OutlierRun, inconsistent_runs, screen
 from abbe.diagnose.problem import (
-    Problem,
-    contribution_rms,
-    effect_size_um,
     estimate_noise,
     gap_stats,
-    lstsq_rss,
     project_out,
     qr_basis,
     remove_nuisance,
 )
-from abbe.diagnose.results import (LACK_OF_FIT_LIMIT, DiagnoseOptions, DiagnoseResult, FitState,
-                                  GapStats)
+from abbe.diagnose.results import LACK_OF_FIT_LIMIT, DiagnoseOptions, DiagnoseResult, FitState
 from abbe.errors import AbbeInputError
 from abbe.model.table import Table
-from abbe.diagnose.candidate_eval import _eval_candidate, _evidence, _judge, _weights, heldout_need
+from abbe.diagnose.candidate_eval import _eval_candidate, _evidence, _judge, _weights
+
+#: moved to alternatives / final_fit / candidate_eval, still imported from here (tests)
+__all__ = ["diagnose", "_evidence", "_judge", "_named_drift_tau", "_gap_grew",
+           "_final_contribution", "_companions", "_tool_components"]
 
 
 _TERM_WRITERS = ("scale", "cyclic", "straightness", "reversal")
-
-
-def _named_drift_tau(sel: list[Selected]) -> float | None:
-    """The warm-up time constant of the thermal drift already named (drift-variable
-    units; inf = linear), or None: a further axis is a component of the same drift."""
-    for s in sel:
-        if s.cand.spec.kind == "thermal":
-            return math.inf if s.cand.scan_value is None else float(s.cand.scan_value)
-    return None
-
-
-def _static_free(eng: Engine, c: Cand, selected: list[Selected],
-                 by_key_pool: dict[str, Cand]) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """Columns (N, k) of the static effects a drift of ``c``'s axis is judged beside
-    (docs/effects.md §3, drift and scale), or None: the axis' scale and its position-
-    dependent reversal while they are not named (the reversal in its widest form searched:
-    per target, else the highest degree, so that no static reversal the catalogue holds
-    is taken as a change in time). Second: the scale's alone, for a held-out fold of a
-    single bidirectional run, which cannot tell a drift from a reversal (within one cycle
-    the drift's column is a constant plus a reversal's shape)."""
-    if c.spec.kind != "thermal" or not c.spec.axis:
-        return None, None
-    named = {s.cand.spec.key for s in selected}
-    ax = c.spec.axis.lower()
-    sc = by_key_pool.get(f"scale_{ax}")
-    scale = sc.cols if sc is not None and sc.spec.key not in named and sc.cols.shape[1] else None
-    rv = by_key_pool.get(f"reversal_{ax}")
-    rev = None
-    if rv is not None and rv.spec.key not in named:
-        rev = max(eng._alts.get(rv.spec.key) or [rv], key=lambda a: a.cols.shape[1]).cols
-        rev = rev if rev.shape[1] else None
-    if rev is None:
-        return scale, scale
-    return (rev if scale is None else np.hstack([scale, rev])), scale
-
-
-def _alt_fit(a: Cand, W: np.ndarray, Qc: np.ndarray, rbc: np.ndarray, rss_c: float,
-             rw: np.ndarray, rows: np.ndarray | None = None
-             ) -> tuple[np.ndarray, np.ndarray, float]:
-    """Fit of one alternative ``a`` (grid value / parameter subset) of a candidate on the
-    whitened residual ``rbc`` (base ``Qc`` projected out; ``rw`` before projection, for an
-    alternative whose grid value alone changes the prediction, ``a.offset``). Returns its
-    projected columns Z, its coefficients and the RSS decrease d (noise units), on
-    ``rows`` only when given (a drift's time constant on the checks that span it)."""
-    Z = project_out(Qc, a.cols * W[:, None])
-    ra = rbc if a.offset is None else project_out(Qc, (rw - a.offset * W)[:, None])[:, 0]
-    if rows is None:
-        coef, fit = lstsq_rss(Z, ra)
-        return Z, coef, rss_c - (float(ra @ ra) - fit)
-    coef, fit = lstsq_rss(Z[rows], ra[rows])
-    return Z, coef, float(rbc[rows] @ rbc[rows]) - (float(ra[rows] @ ra[rows]) - fit)
-
-
-def _tool_components(eng: Engine, c: Cand, alts: list[Cand], W: np.ndarray, Qc: np.ndarray,
-                     rbc: np.ndarray, rss_c: float, rw: np.ndarray) -> None:
-    """Choose a tool offset's components (t_z alone, or with t_x, t_y) by the evidence ratio
-    that judges it, not by the BIC: its model-angle uncertainty depends on the change's
-    direction (candidate_eval.tool_lever_mm), which the BIC does not see (issue 36,
-    ``clean_3``). The optional (lateral) components are a further effect beside t_z, kept
-    only when they add strong evidence: their own log evidence ratio with t_z in the base
-    (their RSS decrease beyond t_z's, their own contribution and their own lever along the
-    lateral change: :func:`_lateral_evidence`) >= the selection's level
-    (``evidence_log_min``, log 19). Updates ``c``'s columns and components in place."""
-    prob = eng.prob
-    k_min = min(len(a.param_idx) for a in alts)
-    fits = []
-    for a in alts:
-        Z, coef, d = _alt_fit(a, W, Qc, rbc, rss_c, rw)
-        s2 = max(1.0, (rss_c - d) / max(prob.N - Qc.shape[1] - Z.shape[1], 1))
-        ev = _evidence(eng, a, coef, Z, d / s2, s2, contribution_rms(prob, a.cols @ coef))
-        fits.append((a, coef, d, s2, float(ev["log_evidence"]), Z.shape[1]))
-    base = next(f for f in fits if len(f[0].param_idx) == k_min)
-    best_c = None
-    if np.isfinite(base[4]):
-        best_c, best_lk = base[0], -math.inf
-        for f in fits:
-            if not np.isfinite(f[4]) or not set(base[0].param_idx) < set(f[0].param_idx):
-                continue
-            lk = _lateral_evidence(eng, base, f, W, Qc)
-            if lk >= eng.opts.evidence_log_min and lk > best_lk:
-                best_c, best_lk = f[0], lk
-    else:
-        # no evidence for t_z alone: the evidence, else the BIC (as for other candidates)
-        best_b: tuple[int, float] = (2, math.inf)
-        for a, coef, d, s2, lk, k in fits:
-            b = (0, -lk) if np.isfinite(lk) else (1, -d + k * math.log(prob.N))
-            if b < best_b:
-                best_c, best_b = a, b
-    if best_c is not None:
-        c.cols, c.param_idx, c.scan_value = best_c.cols, best_c.param_idx, best_c.scan_value
-        c.offset = best_c.offset
-
-
-def _lateral_evidence(eng: Engine, base: tuple[Any, ...], full: tuple[Any, ...],
-                      W: np.ndarray, Qc: np.ndarray) -> float:
-    """Log evidence ratio of a tool offset's further components (those of ``full`` not in
-    ``base``, each a tuple (cand, coef, rss decrease, s², log K, k)) as an effect beside
-    the base components: the RSS decrease they add, their covariance with the base's
-    columns projected out, their own contribution and lever (the model-angle uncertainty
-    along the lateral change, candidate_eval.tool_lever_mm) and the +/- 300 mm range of
-    each. The declared value's blunder odds are paid once, by the tool change itself.
-    Comparing each alternative with "no change" instead (the seventh round) let the base
-    win whenever the further components made the whole change's contribution smaller
-    (a lateral change cancelling part of t_z's: the team suite's `tool_offset+scale_x`,
-    seed 759937823, t_x -37.5 mm dropped and t_z 172 mm for 140.2, docs/diagnose-validation.md)."""
-    from abbe.diagnose.evidence import candidate_prior, log_evidence
-    from abbe.diagnose.candidate_eval import tool_lever_mm
-    b_c, f_c = base[0], full[0]
-    extra = [j for j, i in enumerate(f_c.param_idx) if i not in b_c.param_idx]
-    idx = [f_c.param_idx[j] for j in extra]
-    coef = np.asarray(full[1], dtype=float)[extra]
-    Qb = qr_basis(np.hstack([Qc, project_out(Qc, b_c.cols * W[:, None])]))
-    Z = project_out(Qb, f_c.cols[:, extra] * W[:, None])
-    s2 = full[3]
-    drss = (full[2] - base[2]) / s2
-    cov_w = s2 * np.linalg.pinv(Z.T @ Z)
-    contrib = contribution_rms(eng.prob, f_c.cols[:, extra] @ coef)
-    declared = np.asarray(eng.table.tool_offset_mm, dtype=float)
-    pr = candidate_prior(f_c.spec, idx, declared, tool_lever_mm(eng, idx, coef), eng.opts)
-    ev = log_evidence(coef, cov_w, drss, contrib, pr["half_width"], pr["sigma_model_um"],
-                      eng.opts.prior_log_odds, pr["declared_cov"], max(f_c.n_scan, 1))
-    return float(ev["log_evidence"])
 
 
 @one_blas_thread
@@ -479,220 +367,3 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
         noise=noise_rep, tested=tested, not_observable=not_obs, notes=notes,
         backend=eng.ev.backend, drift_unit=eng.drift_unit, lack_of_fit=lof, tentative=tentative,
         heldout_split=ho_split)
-def _finish(eng: Engine, selected: list[Selected], W: np.ndarray, clean0: np.ndarray,
-            notes: list[str]) -> dict[str, Any]:
-    """Final fit of ``selected`` through the model (Gauss-Newton), values, intervals, and
-    the gap after it, on the data used and held out. An effect whose final contribution
-    is below the size threshold is dropped (noted) and the rest refitted."""
-    prob, opts = eng.prob, eng.opts
-    new_table, new_pp, values, cov, s2_final = _final_fit(eng, selected, W)
-    while len(selected) > 1:
-        small = [(i, _final_contribution(prob, s, v)) for i, (s, v) in enumerate(zip(selected, values))]
-        small = [(i, c) for i, c in small if c < opts.min_effect_um]
-        if not small:
-            break
-        i, c = min(small, key=lambda x: x[1])
-        notes.append(f"{selected[i].cand.spec.key} dropped: its contribution in the final fit "
-                     f"is {c:.3f} um RMS (< {opts.min_effect_um:g} um) once the others are in")
-        selected = selected[:i] + selected[i + 1:]
-        new_table, new_pp, values, cov, s2_final = _final_fit(eng, selected, W)
-    # the reversal found along the travel goes into the table's reversal blocks (format
-    # 1.1): model.bin carries it, the prediction below evaluates it through the library
-    new_table, new_pp = fold_reversal(new_table, new_pp, DEFAULT_TAKEUP_MM)
-    y_after = prob.predict(eng.ev, new_table, new_pp)
-    r_after = prob.y - y_after
-    clean_after = remove_nuisance(prob, r_after)
-    # Held-out gap through the model: fit on one fold, judge the other (and back).
-    ho_before, ho_after, ho_split = heldout_gap(eng, selected, W, clean0)
-    return {"selected": selected, "table": new_table, "pp": new_pp, "values": values,
-            "cov": cov, "s2": s2_final, "r_after": r_after, "clean_after": clean_after,
-            "gap_after": gap_stats(prob, clean_after), "ho_before": ho_before,
-            "ho_after": ho_after, "ho_split": ho_split}
-
-
-def _gap_grew(before: GapStats | None, fin: dict[str, Any]) -> bool:
-    """True if the residual after the update is larger than before, on the data used
-    or on held-out data (RMS, um; a relative 1e-9 for rounding)."""
-    pairs = [(before, fin["gap_after"]), (fin["ho_before"], fin["ho_after"])]
-    return any(b is not None and a is not None and a.rms_um > b.rms_um * (1 + 1e-9)
-               for b, a in pairs)
-
-
-def _gap_key(fin: dict[str, Any]) -> float:
-    a = fin["ho_after"] or fin["gap_after"]
-    return a.rms_um if a is not None else math.inf
-
-
-def _gap_text(before: GapStats | None, fin: dict[str, Any]) -> str:
-    parts = []
-    for label, b, a in (("used", before, fin["gap_after"]),
-                        ("held out", fin["ho_before"], fin["ho_after"])):
-        if b is not None and a is not None:
-            parts.append(f"{label}: {b.rms_um:.3f} -> {a.rms_um:.3f} um RMS")
-    return "; ".join(parts)
-
-
-def _summ(st: dict[str, Any], c: Cand, opts: DiagnoseOptions) -> dict[str, Any]:
-    d = {"significant": bool(st.get("ok") and st["log_evidence"] >= opts.evidence_log_min),
-         "qualifies": bool(st.get("qualifies")), "why_not": st.get("why_not", "")}
-    if st.get("ok"):
-        d.update({"p_value": float(f"{st['p_eff']:.3g}"), "delta_bic": round(st["dbic"], 2),
-                  "F": round(st["F"], 3), "heldout_gain": (None if not np.isfinite(st["heldout"]["gain"])
-                                                            else round(st["heldout"]["gain"], 2)),
-                  "contribution_rms_um": round(st["contrib_rms_um"], 4),
-                  "log_evidence": (None if not np.isfinite(st["log_evidence"])
-                                   else round(st["log_evidence"], 2))})
-        lt = st["evidence"].get("log_evidence_typical")
-        if lt is not None and np.isfinite(lt):
-            d["log_evidence_typical"] = round(float(lt), 2)
-        d["heldout_need"] = round(heldout_need(st, opts), 2)
-        if st["k"]:
-            d["value"] = round(float(st["coef"][0]), 6)
-            d["unit"] = c.spec.params[c.param_idx[0]].unit
-        d["observable_rms_um"] = round(float(st["observable_rms_um"]), 4)
-        if c.scan_value is not None:
-            d["scan"] = {c.spec.scan or "scan": round(float(c.scan_value), 4)}
-        d["heldout_in_time"] = bool(st.get("heldout_in_time"))
-        if st.get("redundant_with"):
-            d["redundancy"] = round(float(st["redundancy"]), 4)
-            d["redundant_with"] = st["redundant_with"]
-    return d
-def _companions(eng: Engine, effects: list[Any], tested: dict[str, dict[str, Any]],
-                by_key_spec: dict[str, Any]) -> None:
-    """"A alone, or A + B" (docs/effects.md §3, "Undecided is an answer"): a candidate B not
-    named whose held-out gain passes the arbiter, that a named effect A reproduces more
-    than it leaves (redundancy >= 0.5), and whose evidence ratio the prior decides: strong
-    against for any plausible size (the selection's prior), not strong against for an
-    effect of typical size (log K_typical > -log 19). The data then cannot say whether B
-    is present beside A; the named effect's entry becomes undecided with both. A drift
-    qualifies only when its held-out gain comes from a split in time (a check with
-    repeated runs, ``heldout_in_time``): a split by angle sectors has not checked that it
-    changes in time."""
-    from abbe.diagnose.describe import _unit, companion_undecided
-    lo = eng.opts.evidence_log_min
-    by_key = {e.key: e for e in effects}
-    for k, v in tested.items():
-        a = by_key.get(v.get("redundant_with") or "")
-        if a is None or v.get("selected") or k in by_key or v.get("value") is None:
-            continue
-        lk, lt, g = v.get("log_evidence"), v.get("log_evidence_typical"), v.get("heldout_gain")
-        if lk is None or lt is None or g is None or lk >= lo or lt <= -lo:
-            continue
-        if not g >= v["heldout_need"] or v.get("redundancy", 0.0) < 0.5:
-            continue
-        if any(x.get("key") == k for x in (a.undecided or {}).get("alternatives", [])):
-            continue
-        spec = by_key_spec[k]
-        if spec.kind == "tool_offset":
-            continue   # a declared quantity is judged by its own prior only (never "maybe")
-        if spec.kind == "thermal" and not v.get("heldout_in_time"):
-            continue   # a drift's held-out gain must come from a split in time (early / late runs)
-        if {spec.kind, by_key_spec[a.key].kind} == {"thermal", "scale"} and spec.axis == a.axis:
-            test = (f"the laser line of {spec.axis} again in the reverse time order of its runs "
-                    "and targets, or after a dwell of about the warm-up time (a scale error "
-                    "depends on the position only, a drift on when the reading is taken)")
-        else:
-            test = f"a test that sees {k} apart from {a.key} (docs/effects.md §3, Ambiguity)"
-        companion_undecided(a, k, v["value"], _unit(v.get("unit", ""), spec, eng), test, lk, lt)
-
-
-def _linear_fit(prob: Problem, r: np.ndarray, sel: list[Selected], W: np.ndarray) -> list[np.ndarray]:
-    """Coefficients of the selected effects (with nuisance) on residual r, whitened LS."""
-    if not sel:
-        return []
-    X = np.hstack([prob.nuis] + [s.cand.cols for s in sel]) * W[:, None]
-    coef, *_ = np.linalg.lstsq(X, r * W, rcond=None)
-    out, k = [], prob.nuis.shape[1]
-    for s in sel:
-        n = s.cand.cols.shape[1]
-        out.append(coef[k:k + n])
-        k += n
-    return out
-def _backward(eng: Engine, sel: list[Selected], W: np.ndarray,
-              notes: list[str]) -> list[Selected]:
-    prob = eng.prob
-    changed = True
-    while changed and len(sel) > 1:
-        changed = False
-        for i, s in enumerate(sel):
-            others = sel[:i] + sel[i + 1:]
-            X_o = np.hstack([o.cand.cols for o in others]) * W[:, None]
-            Qb = qr_basis(np.hstack([prob.nuis * W[:, None], X_o]))
-            rb = project_out(Qb, (selection_residual(eng, others) * W)[:, None])[:, 0]
-            rb_s = project_out(Qb, (selection_residual(eng, sel) * W)[:, None])[:, 0]
-            Z = project_out(Qb, s.cand.cols * W[:, None])
-            coef, fit = lstsq_rss(Z, rb_s)
-            dr = float(rb @ rb) - (float(rb_s @ rb_s) - fit)
-            k = Z.shape[1]
-            dof_res = prob.N - Qb.shape[1] - k
-            s2 = max(1.0, (float(rb_s @ rb_s) - fit) / max(dof_res, 1))
-            contrib = s.cand.cols @ coef + (0.0 if s.cand.offset is None else s.cand.offset)
-            ev = _evidence(eng, s.cand, coef, Z, dr / s2, s2, contribution_rms(prob, contrib), W)
-            # the same rule as the forward step: the evidence ratio with the others in
-            if not ev["log_evidence"] >= eng.opts.evidence_log_min:
-                notes.append(f"{s.cand.spec.key} dropped: no longer significant once "
-                             + ", ".join(o.cand.spec.key for o in others) + " are in the model"
-                             f" (log evidence ratio {ev['log_evidence']:.1f})")
-                sel = others
-                changed = True
-                break
-    return sel
-def _final_contribution(prob: Problem, s: Selected, v: np.ndarray) -> float:
-    """RMS (um, um-valued samples) of a named effect's part of the final prediction that the
-    checks see (each check's nuisance removed; a tool offset's at the tool tip:
-    problem.effect_size_um)."""
-    c = s.cand.cols @ v
-    if s.cand.offset is not None:
-        c = c + s.cand.offset
-    return effect_size_um(prob, s.cand.spec.kind, c) if np.any(prob.um_rows) else math.inf
-
-
-def _final_fit(eng: Engine, sel: list[Selected], W: np.ndarray
-               ) -> tuple[Table, PredParams, list[np.ndarray], np.ndarray, float]:
-    """Gauss-Newton through the model: values of the selected parameters, covariance."""
-    prob = eng.prob
-    if not sel:
-        return copy_table(eng.table), eng.pp.copy(), [], np.zeros((0, 0)), 1.0
-    values = _linear_fit(prob, selection_residual(eng, sel), sel, W)
-    for it in range(3):
-        t, p = apply_selection(eng, sel, values)
-        y = prob.predict(eng.ev, t, p)
-        r = prob.y - y
-        # re-linearise (columns at the current point)
-        cols = []
-        for s, v in zip(sel, values):
-            c = eng.sensitivity(s.cand.spec, s.cand.scan_value, t, p, y, s.cand.param_idx)
-            cols.append(c[:, s.cand.param_idx])
-        X = np.hstack([prob.nuis] + cols) * W[:, None]
-        d, *_ = np.linalg.lstsq(X, r * W, rcond=None)
-        k = prob.nuis.shape[1]
-        step_norm = 0.0
-        new_vals = []
-        for s, v, c in zip(sel, values, cols):
-            n = c.shape[1]
-            dv = d[k:k + n]
-            k += n
-            new_vals.append(v + dv)
-            step_norm = max(step_norm, float(np.max(np.abs(dv) / np.array(
-                [s.cand.spec.params[i].typical for i in s.cand.param_idx]))))
-        values = new_vals
-        if step_norm < 1e-4:
-            break
-    t, p = apply_selection(eng, sel, values)
-    y = prob.predict(eng.ev, t, p)
-    r = (prob.y - y) * W
-    Q = qr_basis(prob.nuis * W[:, None])
-    Xe = project_out(Q, np.hstack(cols) * W[:, None])
-    re = project_out(Q, r[:, None])[:, 0]
-    dof = max(prob.N - Q.shape[1] - Xe.shape[1], 1)
-    s2 = max(1.0, float(re @ re) / dof)
-    cov = s2 * np.linalg.pinv(Xe.T @ Xe)
-    return t, p, values, cov, s2
-def _lack_of_fit(eng: Engine, r_after: np.ndarray) -> float:
-    """RMS of the residual after the update in units of the noise (with the
-    autocorrelation inflation), about 1 when the updated model explains the checks."""
-    prob = eng.prob
-    clean = remove_nuisance(prob, r_after)
-    sig, infl, _ = estimate_noise(prob, clean)
-    w = _weights(prob, sig, infl)
-    return float(np.sqrt(np.nanmean((clean * w) ** 2)))

@@ -77,27 +77,44 @@ def table_covariance(model: Any, table: Table) -> dict[tuple[str, str], np.ndarr
     :func:`_fit_scale_image`; without the targets in model.json, the linear function of
     the distance from the reference point); {} when there is no ``model.json`` with an
     ``uncertainty`` section beside the model (an imported or hand-made table, or diagnose's
-    own output: no line). A model.json that is there but unreadable, not JSON, or whose
-    covariances do not fit ``table`` raises AbbeInputError (file, line, field)."""
+    own output: no line). A model.json that is there but unreadable, not JSON, not a JSON
+    object, whose ``uncertainty`` is not an object, or whose covariances do not fit
+    ``table`` raises AbbeInputError (file, line, field)."""
     from abbe.analysis.fit.uncertainty import terms_from_json
     from abbe.errors import AbbeInputError
+    from abbe.formats.structured import JsonLocator
     path = model_json_of(model)
     if path is None:
         return {}
     # a model.json beside the table is input: unreadable, not JSON or a covariance that does
     # not fit the table is an error (exit 2), never a budget line silently left out
     try:
-        doc = json.loads(path.read_text())
+        text = path.read_text()
+        doc = json.loads(text)
     except OSError as exc:
         raise AbbeInputError(f"cannot read the table's model.json: {exc.strerror}",
                              file=str(path)) from None
     except ValueError as exc:
         raise AbbeInputError(f"expected JSON (the model.json of `abbe fit`): {exc}",
                              file=str(path), line=getattr(exc, "lineno", None)) from None
-    unc = doc.get("uncertainty") if isinstance(doc, dict) else None
-    if not unc:
+    # only a missing ``uncertainty`` section means "no line" (a table fitted without one);
+    # any other shape is a spoiled file (issue 36: a list, a number or a string was taken
+    # for "no line" silently)
+    if not isinstance(doc, dict):
+        raise AbbeInputError("expected a JSON object (the model.json of `abbe fit`), got "
+                             f"{_json_kind(doc)}", file=str(path), line=1, field="(top level)")
+    if "uncertainty" not in doc:
         return {}
-    terms = terms_from_json(unc, table, str(path))
+    loc = JsonLocator(text)
+    unc = doc["uncertainty"]
+    if not isinstance(unc, dict):
+        raise AbbeInputError("expected an object (the fitted table's uncertainty block of "
+                             f"`abbe fit`, with its axes), got {_json_kind(unc)}",
+                             file=str(path), line=loc.line("uncertainty"), field="uncertainty")
+    try:
+        terms = terms_from_json(unc, table, str(path))
+    except AbbeInputError as exc:
+        raise exc.located(line=loc.line(exc.field)) from None
     out: dict[tuple[str, str], np.ndarray] = {}
     for a, per in terms.items():
         ax = table.axes[a]
@@ -112,6 +129,12 @@ def table_covariance(model: Any, table: Table) -> dict[tuple[str, str], np.ndarr
                 C = (V * np.clip(w, 0.0, None)) @ V.T
             out[(a, t)] = C
     return out
+
+
+def _json_kind(v: Any) -> str:
+    """A parsed JSON value for a message: ``null``, else :func:`abbe.errors.numbers.show_value`."""
+    from abbe.errors.numbers import show_value
+    return "null" if v is None else show_value(v)
 
 
 def table_factor(eng: Any, table: Table, pp: Any,

@@ -106,6 +106,8 @@ def test_the_instrument_scale_is_left_to_the_check_lines(fitted: Path) -> None:
     (lambda t: json.dumps(_first_cov_scaled(json.loads(t), -1.0)), "covariance"),
     (lambda t: json.dumps(_scale_u_set(json.loads(t), "x")), "scale_u_ppm"),
     (lambda t: json.dumps(_scale_u_set(json.loads(t), 1e308)), "scale_u_ppm"),
+    (lambda t: json.dumps([json.loads(t)]), ":1: field '(top level)': expected a JSON object"),
+    (lambda t: json.dumps({**json.loads(t), "uncertainty": []}), "field 'uncertainty'"),
 ])
 def test_a_spoiled_model_json_is_an_error_not_a_line_left_out(
         fitted: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], spoil, says) -> None:
@@ -123,6 +125,47 @@ def test_a_spoiled_model_json_is_an_error_not_a_line_left_out(
     assert rc == 2, err
     assert "model.json" in err and says in err, err
     assert not (out / "diagnose.json").exists()
+
+
+@pytest.mark.parametrize("text, line, field, says", [
+    ("[1, 2]\n", 1, "(top level)", "got a list of 2 items"),
+    ("3\n", 1, "(top level)", "got 3"),
+    ('"model"\n', 1, "(top level)", "got 'model'"),
+    ("null\n", 1, "(top level)", "got null"),
+    ({"uncertainty": []}, "uncertainty", "uncertainty", "expected an object"),
+    ({"uncertainty": 0}, "uncertainty", "uncertainty", "got 0"),
+    ({"uncertainty": ""}, "uncertainty", "uncertainty", "got ''"),
+    ({"uncertainty": None}, "uncertainty", "uncertainty", "got null"),
+    ({"uncertainty": False}, "uncertainty", "uncertainty", "got False"),
+    ({"uncertainty": {}}, "uncertainty", "uncertainty.axes", "no uncertainty block with axes"),
+    ({"uncertainty": {"axes": {"X": {"terms": {"dx": {"covariance_um2": 1}}}}}},
+     '"covariance_um2"', "uncertainty.axes.X.terms.dx.covariance_um2", "matrix of finite numbers"),
+])
+def test_a_model_json_of_the_wrong_shape_is_named_not_taken_for_no_line(
+        fitted: Path, tmp_path: Path, text: object, line: object, field: str, says: str) -> None:
+    """Issue 36: a model.json whose top level is not a JSON object, or whose ``uncertainty``
+    is not an object, gave "no table line" silently (a falsy section too: [], 0, "", null,
+    {}); only a missing file or a missing section means that. Now AbbeInputError: the file,
+    the line (1 for the top level, else the line of the field), the field and what was
+    expected; the errors of the block's contents get their line too."""
+    from abbe.errors import AbbeInputError
+    table = load_model(fitted / "fit" / "model.bin")
+    d = tmp_path / "m"
+    d.mkdir()
+    if not isinstance(text, str):
+        text = json.dumps({"format": "abbe-model-json", "other": [1, 2], **text}, indent=1) + "\n"
+        line = 1 + next(i for i, s in enumerate(text.splitlines()) if str(line) in s)
+    (d / "model.json").write_text(text)
+    with pytest.raises(AbbeInputError) as exc:
+        table_covariance(d / "model.bin", table)
+    e = exc.value
+    assert (e.file, e.line, e.field) == (str(d / "model.json"), line, field), str(e)
+    assert says in str(e), str(e)
+    # a missing section (a table fitted without one) is no line, as a missing file
+    (d / "model.json").write_text(json.dumps({"format": "abbe-model-json"}))
+    assert table_covariance(d / "model.bin", table) == {}
+    (d / "model.json").unlink()
+    assert table_covariance(d / "model.bin", table) == {}
 
 
 def _scale_u_set(d: dict, v: object) -> dict:
@@ -205,3 +248,68 @@ def test_the_instrument_scale_is_removed_along_the_fits_own_image(fitted: Path) 
         w, V = np.linalg.eigh(R + su * su * np.outer(g_part, g_part) - su * su * np.outer(v, v))
         left = float(np.max(np.clip(w, 0.0, None)))
         assert (left < 2e-4) is ok, (ok, left)
+
+
+def test_fuzzed_model_json_gives_a_line_or_a_named_error(fitted: Path, tmp_path: Path) -> None:
+    """Fuzz of diagnose's own reader of the model.json beside the table (table_covariance):
+    byte mutations (fuzzing.mutate) and hostile JSON nodes (the whole document, the
+    ``uncertainty`` section or any node in it replaced). Each input gives finite
+    covariances or an AbbeInputError naming the file in one line; a top level or an
+    ``uncertainty`` that is not an object is always that error (never "no line")."""
+    from hypothesis import HealthCheck, given, settings
+    from hypothesis import strategies as st
+    from fuzz_budget import DERANDOMIZE, examples
+
+    from abbe.errors import AbbeInputError
+    from fuzzing.mutate import mutate
+    fuzz = settings(max_examples=examples(12), derandomize=DERANDOMIZE, database=None,
+                    deadline=None, suppress_health_check=list(HealthCheck))
+    hostile = [math.nan, 1e308, "1.0", None, True, [], {}, [[1.0]], -1.0, 0, "X", {"X": {}}]
+    table = load_model(fitted / "fit" / "model.bin")
+    seed_text = (fitted / "fit" / "model.json").read_text()
+    d = tmp_path / "m"
+    d.mkdir()
+    mj = d / "model.json"
+
+    def read(data: bytes) -> dict | None:
+        mj.write_bytes(data)
+        try:
+            C = table_covariance(d / "model.bin", table)
+        except AbbeInputError as e:
+            assert e.file == str(mj) and "\n" not in str(e), str(e)
+            return None
+        assert all(np.all(np.isfinite(c)) for c in C.values())
+        return C
+
+    paths: list[tuple] = [(), ("uncertainty",)]
+    unc = json.loads(seed_text)["uncertainty"]
+    for a, ad in unc["axes"].items():
+        paths.append(("uncertainty", "axes", a))
+        for t, td in ad["terms"].items():
+            paths += [("uncertainty", "axes", a, "terms", t)] + [
+                ("uncertainty", "axes", a, "terms", t, k) for k in td]
+
+    @fuzz
+    @given(st.sampled_from(paths), st.sampled_from(hostile))
+    def nodes(path: tuple, value: object) -> None:
+        doc = json.loads(seed_text)
+        if not path:
+            doc = value
+        else:
+            node = doc
+            for k in path[:-1]:
+                node = node[k]
+            node[path[-1]] = value
+        got = read(json.dumps(doc).encode())
+        if path in ((), ("uncertainty",)) and not isinstance(value, dict):
+            assert got is None, (path, value)
+
+    @fuzz
+    @given(st.data())
+    def raw(data: st.DataObject) -> None:
+        pick = lambda n: data.draw(st.integers(0, max(n - 1, 0)))  # noqa: E731
+        blob, _ = mutate(seed_text.encode(), pick, data.draw(st.integers(1, 4)))
+        read(blob)
+
+    nodes()
+    raw()

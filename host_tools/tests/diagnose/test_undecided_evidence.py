@@ -5,7 +5,7 @@
   its R^2 passes a fixed share (the old 0.98): describe._undecided;
 * "A alone, or A + B": a candidate the named effect mostly reproduces, preferred by the
   held-out data, whose evidence ratio the prior decides (strong against for any
-  plausible size, not for a typical one): selection._companions;
+  plausible size, not for a typical one): tested._companions;
 * a drift's held-out gain is computed with its axis' scale free, like its evidence ratio
   (the team suite's rise-and-fall drift beside a scale was named nothing).
 

@@ -1,0 +1,80 @@
+"""What ``abbe diagnose`` records of every candidate it tests (moved from
+:mod:`abbe.diagnose.selection`): the summary of a candidate's test (``DiagnoseResult.tested``:
+significance, evidence, held-out gain, value, redundancy) and what is read from that record
+once the effects are named: a companion "A alone, or A + B" (docs/effects.md §3,
+"Undecided is an answer").
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from abbe.diagnose.candidates import Cand, Engine
+from abbe.diagnose.results import DiagnoseOptions
+from abbe.diagnose.candidate_eval import heldout_need
+
+
+def _summ(st: dict[str, Any], c: Cand, opts: DiagnoseOptions) -> dict[str, Any]:
+    d = {"significant": bool(st.get("ok") and st["log_evidence"] >= opts.evidence_log_min),
+         "qualifies": bool(st.get("qualifies")), "why_not": st.get("why_not", "")}
+    if st.get("ok"):
+        d.update({"p_value": float(f"{st['p_eff']:.3g}"), "delta_bic": round(st["dbic"], 2),
+                  "F": round(st["F"], 3), "heldout_gain": (None if not np.isfinite(st["heldout"]["gain"])
+                                                            else round(st["heldout"]["gain"], 2)),
+                  "contribution_rms_um": round(st["contrib_rms_um"], 4),
+                  "log_evidence": (None if not np.isfinite(st["log_evidence"])
+                                   else round(st["log_evidence"], 2))})
+        lt = st["evidence"].get("log_evidence_typical")
+        if lt is not None and np.isfinite(lt):
+            d["log_evidence_typical"] = round(float(lt), 2)
+        d["heldout_need"] = round(heldout_need(st, opts), 2)
+        if st["k"]:
+            d["value"] = round(float(st["coef"][0]), 6)
+            d["unit"] = c.spec.params[c.param_idx[0]].unit
+        d["observable_rms_um"] = round(float(st["observable_rms_um"]), 4)
+        if c.scan_value is not None:
+            d["scan"] = {c.spec.scan or "scan": round(float(c.scan_value), 4)}
+        d["heldout_in_time"] = bool(st.get("heldout_in_time"))
+        if st.get("redundant_with"):
+            d["redundancy"] = round(float(st["redundancy"]), 4)
+            d["redundant_with"] = st["redundant_with"]
+    return d
+def _companions(eng: Engine, effects: list[Any], tested: dict[str, dict[str, Any]],
+                by_key_spec: dict[str, Any]) -> None:
+    """"A alone, or A + B" (docs/effects.md §3, "Undecided is an answer"): a candidate B not
+    named whose held-out gain passes the arbiter, that a named effect A reproduces more
+    than it leaves (redundancy >= 0.5), and whose evidence ratio the prior decides: strong
+    against for any plausible size (the selection's prior), not strong against for an
+    effect of typical size (log K_typical > -log 19). The data then cannot say whether B
+    is present beside A; the named effect's entry becomes undecided with both. A drift
+    qualifies only when its held-out gain comes from a split in time (a check with
+    repeated runs, ``heldout_in_time``): a split by angle sectors has not checked that it
+    changes in time."""
+    from abbe.diagnose.describe import _unit, companion_undecided
+    lo = eng.opts.evidence_log_min
+    by_key = {e.key: e for e in effects}
+    for k, v in tested.items():
+        a = by_key.get(v.get("redundant_with") or "")
+        if a is None or v.get("selected") or k in by_key or v.get("value") is None:
+            continue
+        lk, lt, g = v.get("log_evidence"), v.get("log_evidence_typical"), v.get("heldout_gain")
+        if lk is None or lt is None or g is None or lk >= lo or lt <= -lo:
+            continue
+        if not g >= v["heldout_need"] or v.get("redundancy", 0.0) < 0.5:
+            continue
+        if any(x.get("key") == k for x in (a.undecided or {}).get("alternatives", [])):
+            continue
+        spec = by_key_spec[k]
+        if spec.kind == "tool_offset":
+            continue   # a declared quantity is judged by its own prior only (never "maybe")
+        if spec.kind == "thermal" and not v.get("heldout_in_time"):
+            continue   # a drift's held-out gain must come from a split in time (early / late runs)
+        if {spec.kind, by_key_spec[a.key].kind} == {"thermal", "scale"} and spec.axis == a.axis:
+            test = (f"the laser line of {spec.axis} again in the reverse time order of its runs "
+                    "and targets, or after a dwell of about the warm-up time (a scale error "
+                    "depends on the position only, a drift on when the reading is taken)")
+        else:
+            test = f"a test that sees {k} apart from {a.key} (docs/effects.md §3, Ambiguity)"
+        companion_undecided(a, k, v["value"], _unit(v.get("unit", ""), spec, eng), test, lk, lt)
