@@ -119,6 +119,7 @@ def summarize(title: str, rows: list[dict], errors: int, times: list[float]) -> 
     n_case = n_exact = 0
     shr_raw, shr_exc = [], []
     misses = []
+    apart: list[dict] = []   # effect cases below the size threshold by construction
     for sc in rows:
         n_exp += len(sc["expected"])
         n_hit += len(sc["hits"])
@@ -126,6 +127,9 @@ def summarize(title: str, rows: list[dict], errors: int, times: list[float]) -> 
         if not sc["expected"] and not sc.get("outliers_expected"):
             clean += 1
             clean_fp += bool(sc["named"])
+        elif sc.get("unobservable") and set(sc["expected"]) <= set(sc["unobservable"]) \
+                and not sc.get("outliers_expected"):
+            apart.append(sc)   # counted apart (cases.independent.suite.unobservable)
         else:
             n_case += 1
             ok = not sc["misses"] and not sc["extra"] and sc.get("outliers_ok", True)
@@ -166,7 +170,12 @@ def summarize(title: str, rows: list[dict], errors: int, times: list[float]) -> 
     out = {"effect_cases_exact": [n_exact, n_case], "effects_named": [n_hit, n_exp],
            "clean_false": [clean_fp, clean], "extra_names": extra_total,
            "values_ok": [vals_ok, vals_n], "errors": errors}
+    out["unobservable"] = [[sc.get("case"), sc["named"], sc.get("seen_um")] for sc in apart]
     print(f"effect cases named exactly: {n_exact}/{n_case} = {pct(n_exact, n_case):.1f} %  (target >= 95 %)")
+    if apart:
+        print(f"effect cases below the size threshold by construction (counted apart): {len(apart)}: "
+              + "; ".join(f"{sc.get('case')} (seen {sc.get('seen_um')} um, named {sc['named'] or '-'})"
+                          for sc in apart))
     print(f"hidden effects named: {n_hit}/{n_exp} = {pct(n_hit, n_exp):.1f} %")
     print(f"clean machines with a false name: {clean_fp}/{clean} = {pct(clean_fp, clean):.1f} %  (target <= 5 %)")
     print(f"names not in the truth (all cases): {extra_total}")

@@ -337,7 +337,7 @@ class Engine:
             return [math.inf]
         return [math.inf] + [f * span for f in TAU_GRID_FACTORS]
 
-    def tau_rows(self) -> np.ndarray:
+    def tau_rows(self, cols: np.ndarray | None = None) -> np.ndarray:
         """Rows (N,) bool of the checks that can tell the warm-up's shape: those whose
         drift variable spans at least the shortest time constant searched
         (:meth:`_tau_grid`). A shorter check (a ballbar trace of minutes beside a laser
@@ -346,9 +346,21 @@ class Engine:
         start (the files share no clock, so a later check is not further along the
         warm-up), and through what its ccw / cw pair carries in time besides the drift
         (a direction-dependent centre). Such checks bias the time constant short and the
-        drift rate (the slope at the origin) up; tau is chosen on the others."""
-        spans = [float(np.max(c.drift)) if c.drift is not None and c.drift.size else 0.0
-                 for c in self.prob.checks]
+        drift rate (the slope at the origin) up; tau is chosen on the others.
+
+        ``cols`` (N, k): the drift candidate's columns. Only the checks on which they
+        act count, for the longest span as for the rows: a check the drift does not move
+        (the laser line of X beside a drift of Z) tells nothing of its warm-up, and as the
+        longest check it excluded the one line that sees the drift, leaving the choice to
+        a tie (docs/diagnose-validation.md, "The team suite's two drift-of-Z misses")."""
+        sees = [True] * len(self.prob.checks)
+        if cols is not None:
+            a = np.abs(np.asarray(cols, dtype=np.float64).reshape(self.prob.N, -1))
+            top = float(a.max(initial=0.0))
+            sees = [bool(top > 0.0 and a[self.prob.slice(i)].max(initial=0.0) > 1e-9 * top)
+                    for i in range(len(self.prob.checks))]
+        spans = [float(np.max(c.drift)) if see and c.drift is not None and c.drift.size else 0.0
+                 for c, see in zip(self.prob.checks, sees)]
         shortest = TAU_GRID_FACTORS[0] * max(spans, default=0.0)
         rows = np.zeros(self.prob.N, dtype=bool)
         for i, sp in enumerate(spans):

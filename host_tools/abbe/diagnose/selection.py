@@ -198,8 +198,8 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
                 # nonlinear grid value / parameter subset: the alternative with the best BIC
                 # (a drift's time constant on the checks that span it: Engine.tau_rows)
                 best_c, best_b = None, math.inf
-                rows = eng.tau_rows() if c.spec.kind == "thermal" and not eng.drift_on_table \
-                    else None
+                rows = eng.tau_rows(alts[0].cols) if c.spec.kind == "thermal" \
+                    and not eng.drift_on_table else None
                 if rows is not None and not rows.any():
                     rows = None
                 for a in alts:

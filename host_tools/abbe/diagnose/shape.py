@@ -185,14 +185,16 @@ def drift_tau_average(eng: Engine, sel: list[Selected], values: list[np.ndarray]
     X_o = [prob.nuis] + [eng.sensitivity(sel[i].cand.spec, sel[i].cand.scan_value, t_o, p_o, y_o,
                                          sel[i].cand.param_idx)[:, sel[i].cand.param_idx]
                          for i in others]
-    rows = eng.tau_rows()
-    if not rows.any():
-        rows = np.ones(prob.N, dtype=bool)
+    rows = None
     k_o = sum(x.shape[1] for x in X_o)
     fits = []
     for tau in grid:
         X_d = [eng.sensitivity(sel[i].cand.spec, tau, t_o, p_o, y_o,
                                sel[i].cand.param_idx)[:, sel[i].cand.param_idx] for i in drifts]
+        if rows is None:   # the checks the drift acts on that span the grid, as chosen
+            rows = eng.tau_rows(np.hstack(X_d))
+            if not rows.any():
+                rows = np.ones(prob.N, dtype=bool)
         X = np.hstack(X_o + X_d) * W[:, None]
         beta, *_ = np.linalg.lstsq(X, r, rcond=None)
         cov = s2 * np.linalg.pinv(X.T @ X)

@@ -101,6 +101,9 @@ class Built:
     shapes: dict[str, dict[str, float]] = field(default_factory=dict)
     outlier_runs: set[int] = field(default_factory=set)
     info: dict[str, Any] = field(default_factory=dict)
+    #: key -> the effect's true size on the diagnosis' own size basis (um), where computed:
+    #: a thermal drift's (:func:`_drift_seen_um`); see :func:`unobservable`
+    seen_um: dict[str, float] = field(default_factory=dict)
     machine_file: Path | None = None
     model_file: Path | None = None
     dat_file: Path | None = None
@@ -358,8 +361,10 @@ def _laser_plan(rng: np.random.Generator, m: Machine, a: str) -> LaserPlan:
                      repeat_um=float(rng.uniform(0.03, 0.12)))
 
 
-def build(case: CaseDef, out_dir: str | Path) -> Built:
-    """Generate the case's machine, measure it and write every file into ``out_dir``."""
+def build(case: CaseDef, out_dir: str | Path, _no_drift: bool = False) -> Built:
+    """Generate the case's machine, measure it and write every file into ``out_dir``.
+    ``_no_drift``: the same machine and measurements (the same random draws) with the
+    thermal drift's gains zeroed (for :func:`_drift_seen_um`)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(case.seed)
@@ -374,6 +379,9 @@ def build(case: CaseDef, out_dir: str | Path) -> Built:
     for part in case.parts:
         _apply_part(part, rng, m, d, exp, either, hidden_sq)
     m.effects.squareness_urad = tuple(k + h for k, h in zip(known_sq, hidden_sq))  # type: ignore[assignment]
+    if _no_drift and m.effects.thermal is not None:   # after every draw: the same stream
+        m.effects.thermal.alpha_ppm_per_k = 0.0
+        m.effects.thermal.offset_um_per_k = 0.0
     if d.only_circle:
         d.lasers = [x for x in d.lasers if x not in ("X", "Y")]
     model = files.fit_model(m, rng, known_sq)
@@ -413,7 +421,9 @@ def build(case: CaseDef, out_dir: str | Path) -> Built:
                     d.shapes[key] = {"tau_mean_ms_if_first_order": 0.5 * (tau[a] + tau[b])}
     (out / "machine.toml").write_text(files.machine_toml(m, laser_files, circle_files, case.name))
     files.write_model(out / "model.bin", model)
-    return Built(case, out, exp, either, params=d.params, shapes=d.shapes,
+    seen = {} if th is None or _no_drift else _drift_seen_um(case, out, th.axis, laser_files,
+                                                              circle_files)
+    return Built(case, out, exp, either, params=d.params, shapes=d.shapes, seen_um=seen,
                  machine_file=out / "machine.toml",
                  model_file=out / "model.bin",
                  info={"circles": [c.name for c, _ in circle_files],
@@ -422,6 +432,56 @@ def build(case: CaseDef, out_dir: str | Path) -> Built:
                        (m.effects.servo.model, m.effects.servo.tau_ms),
                        "lost_motion": {a: (lm.shape, lm.takeup_up_mm, lm.takeup_down_mm)
                                        for a, lm in m.effects.lost_motion.items()}})
+
+
+def _csv_columns(path: Path) -> dict[str, np.ndarray]:
+    """The numeric columns of a CSV file written by :mod:`.files`, by header name."""
+    import csv
+    with open(path, newline="", encoding="utf-8") as fh:
+        rows = list(csv.DictReader(fh))
+    out = {}
+    for k in rows[0]:
+        try:
+            out[k] = np.array([float(r[k]) for r in rows])
+        except ValueError:
+            continue
+    return out
+
+
+def _drift_seen_um(case: CaseDef, out: Path, axis: str, laser_files: list[tuple[Any, str]],
+                   circle_files: list[tuple[Any, str]]) -> dict[str, float]:
+    """A thermal drift's true size on the diagnosis' size basis (docs/effects.md section 3,
+    "Size"; the second generator's ``BuiltCase.seen_um``): the case built again with the
+    drift's gains zeroed (the same random draws, so the same noise), and its noise-free
+    image, the difference of the two files, sized as the diagnosis sizes a drift: on a
+    laser line of the drifting axis (repeated runs) its linear reading with nothing removed,
+    on a circle its radial deviation with the centre and radius removed; the largest."""
+    import tempfile
+    best = 0.0
+    with tempfile.TemporaryDirectory(prefix="abbe-ind-nodrift-") as tmp:
+        build(case, tmp, _no_drift=True)
+        for p, f in laser_files:
+            if p.axis == axis:
+                d = _csv_columns(out / f)["linear_um"] - _csv_columns(Path(tmp) / f)["linear_um"]
+                best = max(best, float(np.sqrt(np.mean(d * d))))
+        for _, f in circle_files:
+            a, b = _csv_columns(out / f), _csv_columns(Path(tmp) / f)
+            th = np.radians(a["angle_deg"])
+            A = np.column_stack([np.ones_like(th), np.cos(th), np.sin(th)])
+            d = a["radial_um"] - b["radial_um"]
+            r = d - A @ np.linalg.lstsq(A, d, rcond=None)[0]
+            best = max(best, float(np.sqrt(np.mean(r * r))))
+    return {f"thermal_drift_{axis.lower()}": best}
+
+
+def unobservable(b: Built) -> list[str]:
+    """The case's effects below the diagnosis' documented size threshold by construction
+    (``min_effect_um``, 0.15 um) on every check, as the second generator's
+    :func:`cases.independent2.suite.unobservable`; only effects with a ``seen_um`` (a
+    thermal drift) can be. The summary counts such a case apart, it does not drop it."""
+    from abbe.diagnose.results import DiagnoseOptions
+    floor = DiagnoseOptions().min_effect_um
+    return sorted(k for k, v in b.seen_um.items() if v < floor and k in b.expected)
 
 
 def _build_positioning(case: CaseDef, out: Path, rng: np.random.Generator) -> Built:
@@ -576,4 +636,5 @@ def score(b: Built, res: Any) -> dict[str, Any]:
             "exact": not misses and not extra and out_ok, "outliers_expected": sorted(b.outlier_runs),
             "outliers_named": sorted(named_out), "shrink": shrink, "shapes": shapes, "tentative": bool(res.tentative),
             "ambiguous": {k: [x["key"] for x in named[k].ambiguous_with] for k in named
-                          if named[k].ambiguous_with}}
+                          if named[k].ambiguous_with},
+            "unobservable": unobservable(b), "seen_um": {k: round(v, 4) for k, v in b.seen_um.items()}}
