@@ -157,7 +157,8 @@ class Engine:
             if scan_value is not None and (
                     (spec.kind == "backlash" and table.axes[spec.axis].has_reversal())  # type: ignore[index]
                     or (spec.kind == "thermal" and not self.drift_on_table
-                        and (np.any(pp.drift_offset) or np.any(pp.drift_scale_ppm)))):
+                        and (np.any(pp.drift_offset) or np.any(pp.drift_scale_ppm)
+                             or np.any(pp.drift_bow_um)))):
                 # the take-up changes the state of an existing backlash too: difference
                 # against the same take-up with zero added reversal
                 if offset is None:
@@ -216,6 +217,12 @@ class Engine:
             req = [i for i, ps in enumerate(spec.params) if not ps.optional]
             if len(req) < len(subsets[0]):
                 subsets.append(req)
+            if spec.kind == "thermal":
+                # a drift's optional parameters (scale, bow) one at a time too: each is a
+                # shape of the rate along the travel the BIC keeps only if the data need it
+                opt = [i for i, ps in enumerate(spec.params) if ps.optional]
+                if len(opt) > 1:
+                    subsets += [req + [i] for i in opt]
             alts: list[Cand] = []
             failed: Cand | None = None
             for sv in scan_vals:

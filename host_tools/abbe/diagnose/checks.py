@@ -296,11 +296,14 @@ class BallbarCheck(Check):
             if pp.has_reversal(j):
                 e[:, j] += OWN_SIGN[ax] * ds[m][:, j] * 0.5 * pp.reversal_at(
                     j, table.axes[ax].travel_mm, pos[m][:, j])
-        if self.drift is not None and (np.any(pp.drift_offset) or np.any(pp.drift_scale_ppm)):
+        if self.drift is not None and (np.any(pp.drift_offset) or np.any(pp.drift_scale_ppm)
+                                       or np.any(pp.drift_bow_um)):
             rel = pos[m] - self.reference_mm
             for j, ax in enumerate(AXES):
-                own = (pp.drift_offset[j] + pp.drift_scale_ppm[j] * rel[:, j] * 1e-3) \
-                    * pp.drift_shape(self.drift)
+                lo, hi = table.axes[ax].travel_mm
+                u = (2.0 * pos[m][:, j] - lo - hi) / (hi - lo)
+                own = (pp.drift_offset[j] + pp.drift_scale_ppm[j] * rel[:, j] * 1e-3
+                       + pp.drift_bow_um[j] * (1.0 - u * u)) * pp.drift_shape(self.drift)
                 e[:, j] += OWN_SIGN[ax] * own
         v = pos[m] + e * 1e-3 - self.center_mm
         return (np.linalg.norm(v, axis=1) - self.radius_mm) * 1e3
@@ -349,6 +352,9 @@ class LaserCheck(Check):
         self.reference_mm = np.asarray(reference_mm, dtype=np.float64)
         n_runs, _, T = channels[0].values.shape
         self.n_runs, self.T = n_runs, T
+        #: the table is these runs' own mean per target (diagnose_positioning without a
+        #: model): the drift is then referred to the runs' mean state, not the first reading
+        self.drift_from_table_mean = False
         # the sensor's readings -> a smooth curve in time (or in the reading order):
         # regression calibration, smooth_temperature
         self.temp_grid = None if temp_c is None else smooth_temperature(
@@ -434,6 +440,7 @@ class LaserCheck(Check):
         chans = [LaserChannel(ch.channel, ch.term, ch.sign, ch.values[keep]) for ch in self.channels]
         c = LaserCheck(channels=chans, **a)
         c.run_numbers = [self.run_numbers[i] for i in keep]
+        c.drift_from_table_mean = self.drift_from_table_mean
         c.run = np.asarray(c.run_numbers)[c.run - 1]
         c.meta.update({k: v for k, v in self.meta.items() if k.startswith("source_")})
         c.meta["runs_excluded"] = sorted(set(self.run_numbers) - set(c.run_numbers)) + \
@@ -494,11 +501,20 @@ class LaserCheck(Check):
         if pp.has_reversal(j):
             s_dir = np.where(d_idx == 0, 1.0, -1.0)
             extra += s_dir * 0.5 * pp.reversal_at(j, at.travel_mm, self.targets[t_idx])
-        if np.any(pp.drift_offset) or np.any(pp.drift_scale_ppm):
+        if np.any(pp.drift_offset) or np.any(pp.drift_scale_ppm) or np.any(pp.drift_bow_um):
             rel = self.targets[t_idx] - self.reference_mm[j]
+            lo, hi = at.travel_mm
+            u = (2.0 * self.targets[t_idx] - lo - hi) / (hi - lo)
             if self.drift is not None:
-                extra += (pp.drift_offset[j] + pp.drift_scale_ppm[j] * rel * 1e-3) \
-                    * pp.drift_shape(self.drift[:n])
+                sh = pp.drift_shape(self.drift[:n])
+                if self.drift_from_table_mean:
+                    # the table is these runs' mean per target (position_only_table): it
+                    # holds the drift's mean state already, so the drift is the change
+                    # from that state (docs/effects.md section 3, drift and its origin)
+                    cnt = np.bincount(t_idx, minlength=self.T)
+                    sh = sh - (np.bincount(t_idx, weights=sh, minlength=self.T) / cnt)[t_idx]
+                extra += (pp.drift_offset[j] + pp.drift_scale_ppm[j] * rel * 1e-3
+                          + pp.drift_bow_um[j] * (1.0 - u * u)) * sh
         return extra
 
 

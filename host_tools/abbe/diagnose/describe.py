@@ -14,7 +14,7 @@ from abbe.diagnose.checks import BallbarCheck
 from abbe.diagnose.effects import REVERSAL_MAX_DEGREE, EffectSpec, NotRepresentable, PredParams
 from abbe.diagnose.problem import gap_stats, lstsq_rss, project_out, qr_basis, remove_nuisance
 from abbe.diagnose.results import EffectResult, round_to
-from abbe.diagnose.shape import drift_tau_average
+from abbe.diagnose.shape import drift_headline_weights, drift_tau_average
 from abbe.diagnose.undecided import misfit_log_lr
 from abbe.model.table import AXES, Table
 
@@ -51,7 +51,7 @@ def describe_effects(eng: Engine, sel: list[Selected], values: list[np.ndarray],
             # grid's time constants (shape.drift_tau_average), never narrower than its own
             ci = (min(ci[0], ta["ci95"][0]), max(ci[1], ta["ci95"][1]))
             for p_ in params:
-                if p_["name"] == spec.params[0].name:
+                if p_["name"] == spec.params[0].name and 2 not in s.cand.param_idx:
                     p_["ci95"] = [round_to(ci[0]), round_to(ci[1])]
         # evidence: residual before/after adding this effect (through the model)
         t_b, p_b = apply_selection(eng, sel[:i], values[:i])
@@ -342,9 +342,11 @@ def _headline(spec: EffectSpec, idx: list[int], v: np.ndarray, C: np.ndarray, tq
             jj = 0
             return float(v[jj]), _unit(spec.params[idx[0]].unit, spec, eng), \
                 (float(v[jj] - tq * math.sqrt(C[jj, jj])), float(v[jj] + tq * math.sqrt(C[jj, jj])))
-        jj = idx.index(0)
-        sd = math.sqrt(max(C[jj, jj], 0.0))
-        return float(v[jj]), _unit("um", spec, eng), (float(v[jj] - tq * sd), float(v[jj] + tq * sd))
+        # the rate at the reference point (with a bow the rate varies along the travel)
+        g = drift_headline_weights(eng, spec, idx)
+        val = float(g @ v)
+        sd = math.sqrt(max(float(g @ C @ g), 0.0))
+        return val, _unit("um", spec, eng), (val - tq * sd, val + tq * sd)
     sd = math.sqrt(max(C[0, 0], 0.0))
     return float(v[0]), spec.params[idx[0]].unit, (float(v[0] - tq * sd), float(v[0] + tq * sd))
 

@@ -91,13 +91,15 @@ class PredParams:
         default_factory=lambda: np.zeros((3, REVERSAL_MAX_DEGREE + 1)))
     reversal_knots_mm: list = field(default_factory=lambda: [None, None, None])
     reversal_knot_um: list = field(default_factory=lambda: [None, None, None])
+    drift_bow_um: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     def copy(self) -> "PredParams":
         return PredParams(self.servo_lag_ms.copy(), self.servo_mismatch_ms.copy(),
                           self.drift_offset.copy(), self.drift_scale_ppm.copy(), self.drift_tau,
                           self.servo_gain_ms2.copy(), self.reversal_cheb_um.copy(),
                           list(self.reversal_knots_mm),
-                          [None if v is None else v.copy() for v in self.reversal_knot_um])
+                          [None if v is None else v.copy() for v in self.reversal_knot_um],
+                          self.drift_bow_um.copy())
 
     def has_reversal(self, j: int) -> bool:
         k = self.reversal_knot_um[j]
@@ -122,6 +124,7 @@ class PredParams:
     def is_zero(self) -> bool:
         return not (np.any(self.servo_lag_ms) or np.any(self.servo_mismatch_ms)
                     or np.any(self.drift_offset) or np.any(self.drift_scale_ppm)
+                    or np.any(self.drift_bow_um)
                     or np.any(self.servo_gain_ms2) or np.any(self.reversal_cheb_um))
 
     def plane_lags_ms(self, plane: str) -> tuple[float, float]:
@@ -405,6 +408,8 @@ class EffectSpec:
             else:
                 p.drift_offset[j] += th[0]  # type: ignore[index]
                 p.drift_scale_ppm[j] += th[1]  # type: ignore[index]
+                if th.size > 2:
+                    p.drift_bow_um[j] += th[2]  # type: ignore[index]
                 if scan_value is not None:
                     p.drift_tau = float(scan_value)
         else:  # pragma: no cover - catalogue is closed
@@ -470,7 +475,8 @@ def catalogue() -> list[EffectSpec]:
         out.append(EffectSpec(
             family="thermal_drift", key=f"thermal_drift_{_axis_l(a)}", kind="thermal", axis=a,
             compensable=True, scan="tau",
-            params=(ParamSpec("offset", "um", 3.0, 500.0), ParamSpec("scale", "ppm", 10.0, 2000.0, optional=True)),
+            params=(ParamSpec("offset", "um", 3.0, 500.0), ParamSpec("scale", "ppm", 10.0, 2000.0, optional=True),
+                    ParamSpec("bow", "um", 3.0, 500.0, optional=True)),
             physics=f"thermal drift of {a}: own positioning offset and scale changing with time "
                     "(or temperature) between and during runs",
             remedy="table thermal terms when a temperature is measured; otherwise warm the "

@@ -117,6 +117,8 @@ def diagnose_positioning(path: Any, axis: str, model: Any = None,
         (c,), found = screen([c])
         c.meta["outliers_found"] = found
         table = position_only_table(c)
+        # the model is these runs' mean: a drift is the change from their mean state
+        c.drift_from_table_mean = True
     else:
         table = load_model(model)
         c = positioning_check(path, axis, table.reference_mm, rezeroed=rezeroed)

@@ -15,13 +15,14 @@ Units: take-up mm, period mm.
 from __future__ import annotations
 
 import math
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 from scipy import stats
 
 from abbe.diagnose.candidates import Engine, Selected, selection_residual
 from abbe.diagnose.effects import BACKLASH_TAKEUP_GRID_MM
+from abbe.model.table import AXES
 from abbe.diagnose.problem import qr_basis
 
 #: Range searched for a take-up (mm) and a cyclic period (relative to the grid value).
@@ -153,6 +154,20 @@ def refine_scans(eng: Engine, sel: list[Selected], W: np.ndarray) -> None:
         s.stats["scan_ci"] = (float(va), float(vb), bool(a_closed), bool(b_closed))
 
 
+def drift_headline_weights(eng: Engine, spec: Any, idx: list[int]) -> np.ndarray:
+    """Weights g (len(idx),) of a drift's headline g @ theta: its rate at the reference
+    point, the offset, plus the bow's (1 - u_ref^2) when the bow is fitted (the scale is
+    zero there). Units: the drift's (um per h, run or K)."""
+    g = np.zeros(len(idx))
+    g[idx.index(0)] = 1.0
+    if 2 in idx:
+        lo, hi = eng.table.axes[spec.axis].travel_mm
+        r = float(eng.table.reference_mm[AXES.index(spec.axis)])
+        u = (2.0 * r - lo - hi) / (hi - lo)
+        g[idx.index(2)] = 1.0 - u * u
+    return g
+
+
 def drift_tau_average(eng: Engine, sel: list[Selected], values: list[np.ndarray], W: np.ndarray,
                       s2: float) -> dict[str, dict]:
     """The time drift's headline (its rate at the check's start, um/h) under every warm-up
@@ -202,8 +217,10 @@ def drift_tau_average(eng: Engine, sel: list[Selected], values: list[np.ndarray]
         e = r[rows] - X[rows] @ b_r
         k, heads = k_o, {}
         for i, x in zip(drifts, X_d):
-            jj = k + sel[i].cand.param_idx.index(0)
-            heads[sel[i].cand.spec.key] = (float(beta[jj]), math.sqrt(max(float(cov[jj, jj]), 0.0)))
+            g = drift_headline_weights(eng, sel[i].cand.spec, sel[i].cand.param_idx)
+            sl = slice(k, k + x.shape[1])
+            heads[sel[i].cand.spec.key] = (float(g @ beta[sl]),
+                                           math.sqrt(max(float(g @ cov[sl, sl] @ g), 0.0)))
             k += x.shape[1]
         fits.append((None if not math.isfinite(tau) else float(tau), float(e @ e), heads))
     best = min(f[1] for f in fits)
