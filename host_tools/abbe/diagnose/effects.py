@@ -477,8 +477,9 @@ def catalogue() -> list[EffectSpec]:
             compensable=True, scan="tau",
             params=(ParamSpec("offset", "um", 3.0, 500.0), ParamSpec("scale", "ppm", 10.0, 2000.0, optional=True),
                     ParamSpec("bow", "um", 3.0, 500.0, optional=True)),
-            physics=f"thermal drift of {a}: own positioning offset and scale changing with time "
-                    "(or temperature) between and during runs",
+            physics=f"thermal drift of {a}: own positioning offset, scale and bow along the travel "
+                    "(a screw warming where the nut runs most) changing with time (or "
+                    "temperature) between and during runs",
             remedy="table thermal terms when a temperature is measured; otherwise warm the "
                    "machine up / log temperature (time drift cannot be compensated by a table)"))
     for plane in ("XY", "YZ", "ZX"):
