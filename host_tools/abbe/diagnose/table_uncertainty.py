@@ -7,7 +7,9 @@ coefficients by ``abbe fit``: ``model.json`` ``uncertainty.axes.<A>.terms.<t>.co
 C = G S G^T, docs/uncertainty.md "Fitted table") moves every prediction by J dc (J the
 predictions' derivative by the coefficients), hence the effect's value by -s . J dc (s the
 value's sensitivity to the readings, the final fit's linear operator). Its standard
-uncertainty is sqrt(s J C J^T s^T). The table's instrument scale (a laser's ppm on the own
+uncertainty is sqrt(s J C J^T s^T). A term whose order the fit's selection chose below the axis'
+full structure gets the selection's bias added to C (:func:`post_selection_covariance`:
+model.json states the selected order's covariance only). The table's instrument scale (a laser's ppm on the own
 positioning term) is left out: the check lines' own instrument inputs carry that figure in
 the budget already, and the table was measured with the same instrument class.
 """
