@@ -7,7 +7,9 @@ coefficients by ``abbe fit``: ``model.json`` ``uncertainty.axes.<A>.terms.<t>.co
 C = G S G^T, docs/uncertainty.md "Fitted table") moves every prediction by J dc (J the
 predictions' derivative by the coefficients), hence the effect's value by -s . J dc (s the
 value's sensitivity to the readings, the final fit's linear operator). Its standard
-uncertainty is sqrt(s J C J^T s^T). The table's instrument scale (a laser's ppm on the own
+uncertainty is sqrt(s J C J^T s^T). A term whose order the fit's selection chose below the axis'
+full structure gets the selection's bias added to C (:func:`post_selection_covariance`:
+model.json states the selected order's covariance only). The table's instrument scale (a laser's ppm on the own
 positioning term) is left out: the check lines' own instrument inputs carry that figure in
 the budget already, and the table was measured with the same instrument class.
 """
@@ -69,6 +71,96 @@ def _fit_scale_image(doc: dict[str, Any], table: Table, a: str, term: str) -> np
     return np.asarray(G @ (p * 1e-3), dtype=np.float64)
 
 
+def full_order(ax: Any) -> tuple[int, int]:
+    """The axis' full structure (trend degree, block-0 harmonics): every column of the
+    table's basis a term's order may select (abbe.analysis.fit.select.columns)."""
+    blk = ax.blocks[0]
+    return ax.n_trend() - 1, int(blk.harmonics) if blk is not None else 0
+
+
+def post_selection_covariance(doc: dict[str, Any], table: Table, a: str,
+                              term: str) -> np.ndarray | None:
+    """The covariance (unit²) of the shape ``abbe fit``'s order selection left out of a
+    term, from the lack of fit model.json states beside it (docs/effects.md §3, "The
+    model's own uncertainty"); None when there is none to add.
+
+    model.json's ``covariance_*`` is u_y² G_S G_S^T with G_S the *selected* order's
+    operator: the selected estimator's variance, the order held fixed. Its error is that
+    plus the bias of what the selection dropped (mean squared error = variance + bias
+    bias^T); a coefficient set to zero by selection has no variance there, so a shape the
+    selection left out is taken for exact. The bias is the fit of the left-out shape f
+    minus f itself: D z with f = W z, W the functions the axis' full structure (the table's
+    own basis, abbe.analysis.fit.select.columns) adds beyond the selected columns (and the
+    line, for a detrended term), orthonormal over the travel, and D = G_S B_t W - W_t (B_t
+    the basis at the line's targets, W_t the same functions as the table states them:
+    detrended on the targets, zero at the reference). Nothing tells the direction of z:
+    z ~ N(0, tau² I), the same mean square per direction over the travel (so a wiggle the
+    targets do not see gets no more than any other shape). tau² is set by the fit's own
+    figures: the selected order's residual sum of squares exceeds its noise share by
+    E[SSE_S] - (T - p) u_rep² = |(I - H_S) f_t|², measured as
+    e² = (T - p)(u_lack_of_fit² - u_repeatability²), so tau² = e² / ||(I - H_S) B_t W||²_F.
+    C_b = tau² D D^T. Zero when the lack of fit is within the repeatability (e² <= 0), the
+    term is at the full structure, or the run-to-run spread is not known (one run)."""
+    from abbe.analysis.fit.select import columns
+    from abbe.analysis.fit.uncertainty import fit_operator
+    from abbe.model.table import LINEAR_TERMS
+    try:
+        ax = table.axes[a]
+        ad = doc["axes"][a]
+        td = ad["terms"][term]
+        p = np.asarray(ad["targets_mm"], dtype=np.float64)
+        d, h = int(td["trend_degree"]), int(td.get("harmonics") or 0)
+        unit = "um" if term in LINEAR_TERMS else "urad"
+        ud = doc["uncertainty"]["axes"][a]["terms"][term]
+        u_rep = float(ud[f"u_repeatability_{unit}"])
+        u_fit = float(ud[f"u_lack_of_fit_{unit}"])
+    except (KeyError, TypeError, ValueError, IndexError, AttributeError):
+        return None
+    if (p.ndim != 1 or ax.trend_degree is None or not math.isfinite(u_rep)
+            or not math.isfinite(u_fit) or u_fit <= u_rep):
+        return None
+    hh = h if ax.blocks[0] is not None else 0
+    n_p = d + 1 + 2 * hh + (1 if hh else 0)     # the fit's own count (the period counted)
+    e2 = (p.size - n_p) * (u_fit * u_fit - u_rep * u_rep)
+    detrend = term in LINEAR_TERMS and term != _OWN[a]
+    sel = sorted(set(columns(ax, d, hh)) | ({0, 1} if detrend else set()))
+    full = [c for c in columns(ax, *full_order(ax)) if c not in sel]
+    if e2 <= 0.0 or not full:
+        return None
+    # functions of the full structure orthogonal (over the travel) to the selected ones
+    x = np.linspace(float(ax.travel_mm[0]), float(ax.travel_mm[1]), 401)
+    Bx = basis_matrix(ax, x)
+    Qs, _ = np.linalg.qr(Bx[:, sel])
+    R = Bx[:, full] - Qs @ (Qs.T @ Bx[:, full])
+    U, sv, Vt = np.linalg.svd(R / math.sqrt(x.size), full_matrices=False)
+    keep = sv > 1e-8 * max(float(sv[0]), 1e-300)
+    if not np.any(keep):
+        return None
+    # coefficient vectors: R v / s = Bx[:, full] v / s - (selected columns' part)
+    Cs, *_ = np.linalg.lstsq(Bx[:, sel], Bx[:, full], rcond=None)
+    nb = ax.n_basis()
+    W = np.zeros((nb, int(keep.sum())))
+    Vk = Vt[keep].T / sv[keep]
+    W[full] = Vk
+    W[sel] = -Cs @ Vk
+    ref = float(table.reference_mm[AXES.index(a)])
+    Bt = basis_matrix(ax, p)
+    Ft = Bt @ W                                   # the functions at the targets
+    Wt = W.copy()                                 # as the table states them
+    if detrend:
+        Wt -= fit_operator(p, ref, ax, (1, 0), detrend=False) @ Ft
+    Wt[0] -= basis_matrix(ax, np.array([ref]))[0] @ Wt
+    G = fit_operator(p, ref, ax, (d, hh), detrend=detrend)
+    D = G @ Ft - Wt
+    St = Bt[:, sel]
+    Qt, _ = np.linalg.qr(St)
+    Rt = Ft - Qt @ (Qt.T @ Ft)
+    den = float(np.sum(Rt * Rt))
+    if den <= 0.0:
+        return None
+    return np.asarray((e2 / den) * (D @ D.T), dtype=np.float64)
+
+
 def table_covariance(model: Any, table: Table) -> dict[tuple[str, str], np.ndarray]:
     """Per (axis, term) the covariance (um² / urad²) of the table's coefficients that its
     own fit leaves: ``model.json``'s (read by the fit's own reader,
@@ -127,7 +219,8 @@ def table_covariance(model: Any, table: Table) -> dict[tuple[str, str], np.ndarr
                     g = _scale_coefficients(ax, float(table.reference_mm[AXES.index(a)]))
                 w, V = np.linalg.eigh(C - su * su * np.outer(g, g))
                 C = (V * np.clip(w, 0.0, None)) @ V.T
-            out[(a, t)] = C
+            Cb = post_selection_covariance(doc, table, a, t)
+            out[(a, t)] = C if Cb is None or Cb.shape != C.shape else C + Cb
     return out
 
 

@@ -313,3 +313,47 @@ def test_fuzzed_model_json_gives_a_line_or_a_named_error(fitted: Path, tmp_path:
 
     nodes()
     raw()
+
+
+def test_a_shape_the_order_selection_left_out_is_not_taken_for_exact(fitted: Path) -> None:
+    """Issue 36 (gen2 seed 864512458 ``servo_mismatch_xy_4``: a false ``straightness_xy``
+    0.563 um): ``abbe fit``'s selection left X's d_y a constant (detrended: zero), so its
+    stored covariance u_y² G_S G_S^T is zero, while the same entry states a lack of fit of
+    0.158 um against a repeatability of 0.076 um; the diagnosis took the term for exact and
+    named the commissioning line's bow. The covariance the diagnosis reads now adds the
+    selection's bias (docs/effects.md §3, "The model's own uncertainty"): the excess lack
+    of fit e² = (T - p)(u_fit² - u_rep²) spread over the shapes the selection dropped. It is
+    in proportion to e², nothing without an excess, nothing at the full structure."""
+    from abbe.diagnose.table_uncertainty import full_order
+    from abbe.model.table import basis_matrix
+    table = load_model(fitted / "fit" / "model.bin")
+    ax = table.axes["X"]
+    base = json.loads((fitted / "fit" / "model.json").read_text())
+    T = len(base["axes"]["X"]["targets_mm"])
+
+    def cov(u_fit: float, u_rep: float, order: tuple[int, int]) -> np.ndarray:
+        d = json.loads(json.dumps(base))
+        d["axes"]["X"]["terms"]["dy"].update(trend_degree=order[0], harmonics=order[1])
+        ud = d["uncertainty"]["axes"]["X"]["terms"]["dy"]
+        ud["covariance_um2"] = np.zeros((ax.n_basis(), ax.n_basis())).tolist()
+        ud.update(u_lack_of_fit_um=u_fit, u_repeatability_um=u_rep)
+        sub = fitted / f"sel_{u_fit}_{u_rep}_{order[0]}_{order[1]}"
+        sub.mkdir(exist_ok=True)
+        (sub / "model.json").write_text(json.dumps(d))
+        (sub / "model.bin").write_bytes((fitted / "fit" / "model.bin").read_bytes())
+        return table_covariance(sub / "model.bin", table)[("X", "dy")]
+
+    C = cov(0.158, 0.076, (0, 0))
+    assert np.all(np.linalg.eigvalsh(C) >= -1e-12)
+    x = np.linspace(*ax.travel_mm, 201)
+    B = basis_matrix(ax, x)
+    sd = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", B, C, B), 0.0))
+    # the order of the stated excess lack of fit (0.139 um per target), not zero
+    assert 0.03 < float(np.sqrt(np.mean(sd ** 2))) < 0.3, sd
+    # proportional to e² = (T - 1)(u_fit² - u_rep²)
+    u2 = math.sqrt(0.076 ** 2 + 2 * (0.158 ** 2 - 0.076 ** 2))
+    assert np.allclose(cov(u2, 0.076, (0, 0)), 2.0 * C, rtol=1e-9, atol=1e-15)
+    # no excess (the lack of fit within the repeatability), or the full structure: as stored
+    assert not np.any(cov(0.07, 0.076, (0, 0)))
+    assert not np.any(cov(0.158, 0.076, full_order(ax)))
+    assert T > 3
