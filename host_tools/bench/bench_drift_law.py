@@ -3,6 +3,8 @@
 python host_tools/bench/bench_drift_law.py noise --seed S CASE [CASE ...] [--axis X]
 python host_tools/bench/bench_drift_law.py coverage --laser FILE.csv [--sigma UM]
        [--rate UM_PER_H] [--draws N]
+python host_tools/bench/bench_drift_law.py redraw --seed S --model-from DIR --work DIR
+       [--draws N] CASE
 
 The second generator's drift is linear in time (cases/independent2/instruments.py,
 ``Effects.term_delta``). The diagnosis searches its warm-up time constant on a grid
@@ -23,6 +25,11 @@ carry); compare with the diagnosis' ``tau_alternatives`` (diagnose.json).
 often the mixture's 95 % interval holds the truth, how often the linear law is the best
 one, and how often the stated value (the best law's) is both > 10 % off and outside its
 interval (the issue's done-when). A denser grid (8, 16, 32 x span added) for comparison.
+
+``redraw``: the real pipeline on fresh noise: the case rebuilt with every draw the same but
+the check lasers' noise (fresh seeds 0 .. N-1), the model copied from ``--model-from`` (the
+round's built case), ``abbe diagnose`` run on each; prints the drift's value, interval,
+whether the truth is inside, and the linear law's weight.
 """
 from __future__ import annotations
 
@@ -129,6 +136,67 @@ def coverage(path: Path, sigma: float, rate: float, draws: int) -> None:
               f"({draws} draws)", flush=True)
 
 
+class _FreshNoise:
+    """The generator's rng, but the draws at the laser's noise sigmas come from ``fresh``
+    (the generator's own draw is still taken, so every later draw stays the same)."""
+
+    def __init__(self, rng: np.random.Generator, fresh: np.random.Generator, sigmas: set) -> None:
+        self.rng, self.fresh, self.sigmas = rng, fresh, sigmas
+
+    def normal(self, loc: float = 0.0, scale: float = 1.0, size=None):  # type: ignore[no-untyped-def]
+        if size is None and scale in self.sigmas:
+            self.rng.normal(loc, scale)
+            return self.fresh.normal(loc, scale)
+        return self.rng.normal(loc, scale, size)
+
+    def __getattr__(self, k: str):  # type: ignore[no-untyped-def]
+        return getattr(self.rng, k)
+
+
+def redraw(seed: int, name: str, model_from: Path, work: Path, draws: int) -> None:
+    """Diagnose the case on ``draws`` fresh check-laser noises (see the module doc)."""
+    import json
+    import shutil
+    import subprocess
+    import bench_independent2_ab as B
+    import cases.independent2.suite as S
+    orig = S.laser_rows
+    state = {"k": 0}
+
+    def laser(rng, m, eff, ax, targets, signs, runs, t0_h, nz, effect_out=None):  # type: ignore[no-untyped-def]
+        if eff is not None:
+            fresh = np.random.default_rng([state["k"], "XYZ".index(ax)])
+            rng = _FreshNoise(rng, fresh, {nz["laser_um"], nz["straight_um"], nz["angle_urad"]})
+        return orig(rng, m, eff, ax, targets, signs, runs, t0_h, nz, effect_out)
+    S.laser_rows = laser
+    case = {c.name: c for c in B.suite(seed, per_single=5, per_pair=3, n_clean=20,
+                                       per_limit=1)}[name]
+    abbe = str(Path(sys.executable).with_name("abbe"))
+    for k in range(draws):
+        state["k"] = k
+        d = work / f"{name}_{k}"
+        if d.exists():
+            shutil.rmtree(d)
+        b = S.build(case, d, fit=False)
+        shutil.copytree(model_from / "model", d / "model")
+        subprocess.run([abbe, "diagnose", "machine.toml", "--model", "model/model.bin", "-o",
+                        "out", "--no-plots"], cwd=d, capture_output=True, check=False)
+        r = json.loads((d / "out" / "diagnose.json").read_text())
+        shutil.rmtree(d)
+        es = [e for e in r["effects"] if e["key"].startswith("thermal_drift")]
+        if not es:
+            print(f"{k}: no drift named; named {[e['key'] for e in r['effects']]}", flush=True)
+            continue
+        e = es[0]
+        truth = b.truth[e["key"]]["value"] if e["key"] in b.truth else float("nan")
+        lo, hi = e["ci95"]
+        wl = [a["weight"] for a in e["evidence"].get("tau_alternatives") or [] if a["tau"] is None]
+        print(f"{k}: truth {truth:.3f} value {e['value']:.3f} [{lo:.3f}, {hi:.3f}] inside "
+              f"{lo <= truth <= hi} >10% {abs(e['value'] / truth - 1.0) > 0.10} linear weight "
+              f"{wl[0] if wl else float('nan'):.3f}; others {[x['key'] for x in r['effects'] if x is not e]}",
+              flush=True)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -141,9 +209,18 @@ def main() -> int:
     c.add_argument("--sigma", type=float, default=0.1)
     c.add_argument("--rate", type=float, default=-7.0)
     c.add_argument("--draws", type=int, default=4000)
+    r = sub.add_parser("redraw")
+    r.add_argument("--seed", type=int, required=True)
+    r.add_argument("--model-from", type=Path, required=True)
+    r.add_argument("--work", type=Path, required=True)
+    r.add_argument("--draws", type=int, default=30)
+    r.add_argument("case")
     args = ap.parse_args()
     if args.cmd == "noise":
         noise(args.seed, args.cases, args.axis)
+    elif args.cmd == "redraw":
+        args.work.mkdir(parents=True, exist_ok=True)
+        redraw(args.seed, args.case, args.model_from, args.work, args.draws)
     else:
         coverage(args.laser, args.sigma, args.rate, args.draws)
     return 0
