@@ -5,7 +5,8 @@
 #   0    PASS     it ran and passed
 #   77   SKIPPED  it could not run: something it needs is missing (the
 #                 Automake / CTest convention for "skipped")
-#   else FAIL
+#   else FAIL     the summary shows the step's last $FAILED_TAIL_LINES lines of output
+#                 under it (CI's record may keep only the summary)
 # A step writes what is missing, one line each, into the file named by
 # $ABBE_TEST_NOTES (set by step for the step's duration). A step that ran may
 # have left parts out (tests skipped inside it: pytest's, CTest's); it writes
@@ -29,19 +30,33 @@ skipped=0
 step() { # NAME COMMAND [ARGS...]
     local name="$1"
     shift
-    local t0=$SECONDS rc notes
+    local t0=$SECONDS rc notes out tee_pid n=0
     notes="$(mktemp)"
+    out="$(mktemp)"
     echo
     echo "==== [test] $name ===="
-    ABBE_TEST_NOTES="$notes" "$@"
+    # The output goes to the terminal as it comes and into OUT (a failed step's last lines
+    # go into the summary). A redirection of this one command, not a pipe: a step that is a
+    # shell function runs in this shell (its variables stay), and a process the step leaves
+    # running (holding the pipe) cannot make the run wait: tee is waited for 5 s at most.
+    ABBE_TEST_NOTES="$notes" "$@" > >(tee "$out") 2>&1
     rc=$?
-    record_step "$name" "$rc" "$((SECONDS - t0))" "$notes"
-    rm -f "$notes"
+    tee_pid=$!
+    while kill -0 "$tee_pid" 2>/dev/null && ((n < 50)); do
+        sleep 0.1
+        n=$((n + 1))
+    done
+    record_step "$name" "$rc" "$((SECONDS - t0))" "$notes" "$out"
+    rm -f "$notes" "$out"
 }
 
+#: How many of a failed step's last output lines the summary shows (CI's record keeps the
+#: summary; the whole output may be cut).
+FAILED_TAIL_LINES=${FAILED_TAIL_LINES:-25}
+
 # The outcome of one step into RESULTS (PASS / SKIPPED / FAIL, the notes below a PASS).
-record_step() { # NAME RC SECONDS NOTES_FILE
-    local name="$1" rc="$2" took="($3 s)" notes="$4" line
+record_step() { # NAME RC SECONDS NOTES_FILE [OUTPUT_FILE]
+    local name="$1" rc="$2" took="($3 s)" notes="$4" output="${5:-}" line
     if ((rc == 0)); then
         RESULTS+=("PASS     $name $took")
         while IFS= read -r line; do
@@ -61,6 +76,12 @@ record_step() { # NAME RC SECONDS NOTES_FILE
     else
         RESULTS+=("FAIL     $name $took")
         failed=$((failed + 1))
+        if [[ -n $output && -s $output ]]; then
+            RESULTS+=("         its last lines of output:")
+            while IFS= read -r line; do
+                RESULTS+=("         | ${line:0:300}")
+            done < <(tr -d '\r' <"$output" | tail -n "$FAILED_TAIL_LINES")
+        fi
     fi
 }
 
@@ -100,7 +121,7 @@ step_join() { # NAME: wait for the background step, print its log, record its ou
         echo "[test] (ran in the background; waited $((SECONDS - t_wait)) s for it here; its output:)"
         cat "$dir/log"
         rc="$(cat "$dir/rc" 2>/dev/null || echo 1)"
-        record_step "$name" "$rc" "$(cat "$dir/seconds" 2>/dev/null || echo '?')" "$dir/notes"
+        record_step "$name" "$rc" "$(cat "$dir/seconds" 2>/dev/null || echo '?')" "$dir/notes" "$dir/log"
         BG_NAMES[i]="(joined)" # its folder stays until the summary: the next one in the lane looks at rc
         return 0
     done
@@ -139,7 +160,12 @@ summary() {
     for n in "${BG_NAMES[@]}"; do # a background step nobody joined is still waited for and listed
         [[ $n == "(joined)" ]] || step_join "$n"
     done
-    wait # the lane's last waits for nobody; every background step is joined by now
+    # every background step is joined by now; waited for by pid: a bare wait would also wait for
+    # the last step's tee (a process substitution), which a process the step left running can hold
+    local pid
+    for pid in "${BG_PIDS[@]}"; do
+        wait "$pid" 2>/dev/null
+    done
     ((${#BG_DIRS[@]} == 0)) || rm -rf "${BG_DIRS[@]}"
     echo
     echo "==== [test] summary ===="

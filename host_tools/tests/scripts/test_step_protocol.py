@@ -53,6 +53,66 @@ def test_pass_and_fail():
     assert lines[-1].startswith("[test] FAILED: 1 of 2 steps failed")
 
 
+def test_a_failed_steps_last_lines_are_in_the_summary_a_passing_steps_are_not():
+    """CI's record of a run may keep only the summary: a failed step's last lines (stdout and
+    stderr, in order, at most FAILED_TAIL_LINES) are there, under its FAIL line; a step that
+    is a shell function keeps running in the runner's shell (its variables stay)."""
+    body = FAKES + textwrap.dedent("""\
+        chatty_bad() { for i in $(seq 1 40); do echo "line $i"; done; echo "why: the oops" >&2; \
+            LEFT_BY_STEP=set; return 4; }
+        FAILED_TAIL_LINES=5
+        step "talks then fails" chatty_bad
+        step "ok" ok
+        echo "after: ${LEFT_BY_STEP:-unset}"
+        """)
+    r = run_steps(body)
+    assert r.returncode == 1
+    assert "line 1\n" in r.stdout and "why: the oops" in r.stdout  # streamed as it came
+    assert "after: set" in r.stdout
+    lines = summary_lines(r.stdout)
+    assert lines[0].startswith("FAIL     talks then fails (")
+    assert lines[1] == "         its last lines of output:"
+    assert lines[2:7] == ["         | line 37", "         | line 38", "         | line 39",
+                          "         | line 40", "         | why: the oops"]
+    assert lines[7].startswith("PASS     ok (")
+    assert "fine" not in "\n".join(lines)  # a passing step's output is not repeated
+    assert lines[-1].startswith("[test] FAILED: 1 of 2 steps failed")
+
+
+def test_a_process_a_step_leaves_running_does_not_hold_the_run(tmp_path):
+    """A step that leaves a process behind holding its output (a daemon) does not make the
+    run wait for it: tee is waited for 5 s at most, and the summary waits for the background
+    steps by pid, not for every job. (The run's output goes to a file here: a pipe would be
+    held open by the sleeper through tee, whatever the runner does.)"""
+    import time
+    script = (f"set -uo pipefail\nt_all=$SECONDS\nsource {STEPS}\n" + FAKES
+              + 'lingering() { sleep 30 & echo "left a sleeper"; }\nstep "one" lingering\n'
+              + 'step "two" bad\nsummary || exit 1\n')
+    out = tmp_path / "out"
+    env = {k: v for k, v in os.environ.items() if k not in ("CI", "ABBE_TEST_NOTES")}
+    t0 = time.monotonic()
+    with out.open("w") as f:
+        rc = subprocess.run(["bash", "-c", script], stdout=f, stderr=subprocess.STDOUT, env=env,
+                            timeout=60).returncode
+    took = time.monotonic() - t0
+    assert rc == 1 and summary_lines(out.read_text())[0].startswith("PASS     one (")
+    assert "left a sleeper" in out.read_text()
+    assert took < 20, f"the run waited {took:.0f} s for what a step left running"
+
+
+def test_a_failed_background_steps_last_lines_are_in_the_summary():
+    body = FAKES + textwrap.dedent("""\
+        bg_bad() { echo "first"; echo "bg: it broke"; return 2; }
+        step_bg "bg" bg_bad
+        step "fg" ok
+        step_join "bg"
+        """)
+    r = run_steps(body)
+    lines = summary_lines(r.stdout)
+    assert lines[1].startswith("FAIL     bg (")
+    assert lines[2:5] == ["         its last lines of output:", "         | first", "         | bg: it broke"]
+
+
 def test_all_pass_keeps_the_plain_closing_line():
     r = run_steps(FAKES + 'step "one" ok\nstep "two" ok\n')
     assert r.returncode == 0

@@ -56,6 +56,8 @@ from pathlib import Path
 
 import numpy as np
 
+from lcnc_common import headless_halfile
+
 HERE = Path(__file__).resolve().parent
 SAMPLES = Path("/usr/share/doc/linuxcnc/examples/sample-configs/sim/axis/vismach/5axis")
 JOINT_TOL_MM = 1e-6
@@ -306,7 +308,7 @@ def _headless_ini(case: Case, ini: Path) -> None:
             line = "DISPLAY = linuxcncrsh"
         if key == "PROGRAM_PREFIX":
             line = "PROGRAM_PREFIX = ."
-        out.append(line)
+        out.append(headless_halfile(line))
         if s == "[RS274NGC]" and "HAL_PIN_VARS" not in text:  # the remaps' and M68's pin reads
             out.append("HAL_PIN_VARS = 1")
     ini.write_text("\n".join(out) + "\n")

@@ -44,6 +44,20 @@ def log(msg: str) -> None:
     print(f"[lcnc] {msg}", flush=True)
 
 
+def headless_halfile(line: str) -> str:
+    """A sample INI's ``HALFILE = LIB:basic_sim.tcl`` line for a run without a display:
+    without hal_manualtoolchange (basic_sim.tcl's option; its tool-change loop stays, so
+    an M6 completes at once). That program calls ``h.ready()`` and only then opens its
+    Tk window, which fails without $DISPLAY; when it dies before ``loadusr -W`` has seen
+    it ready, LinuxCNC stops at start with status 255 (seen once in ~55 CI runs:
+    ~/linuxcnc_debug.txt "hal_manualtoolchange exited without becoming ready")."""
+    s = line.strip()
+    if (s.split("=", 1)[0].strip() == "HALFILE" and "basic_sim.tcl" in s
+            and "-no_use_hal_manualtoolchange" not in s):
+        return line.rstrip() + " -no_use_hal_manualtoolchange"
+    return line
+
+
 def as_user(cmd: list[str]) -> list[str]:
     """LinuxCNC's tools refuse root: run them as the unprivileged test user."""
     if os.geteuid() == 0:

@@ -227,7 +227,15 @@ def connect(proc: subprocess.Popen):
     """Wait for linuxcncrsh and for the task in e-stop: (stat, command, error channel)."""
     def up() -> bool:
         if proc.poll() is not None:
-            raise SystemExit(f"linuxcnc exited with status {proc.returncode} (see linuxcnc.log)")
+            # on an error the linuxcnc script copies its debug output to ~/linuxcnc_debug.txt
+            # (its stdout, linuxcnc.log, may be empty): its end says why
+            debug = Path.home() / "linuxcnc_debug.txt"
+            try:
+                tail = "\n".join(debug.read_text(errors="replace").splitlines()[-25:])
+            except OSError as e:
+                tail = f"({debug}: {e.strerror})"
+            raise SystemExit(f"linuxcnc exited with status {proc.returncode} (see linuxcnc.log); "
+                             f"the end of {debug}:\n{tail}")
         return rsh_hello()
     wait_for(up, 90, "linuxcncrsh on 127.0.0.1:5007")
     log("linuxcncrsh answers HELLO ACK")

@@ -25,6 +25,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from lcnc_common import headless_halfile
+
 HERE = Path(__file__).resolve().parent
 SAMPLE = Path("/usr/share/doc/linuxcnc/examples/sample-configs/sim/axis/vismach/5axis/"
               "table-rotary-tilting")
@@ -84,6 +86,7 @@ def headless_ini(text: str, pins: dict[str, float], home: dict[int, float],
             line = "DISPLAY = linuxcncrsh"
         if key == "PROGRAM_PREFIX":
             line = "PROGRAM_PREFIX = ."
+        line = headless_halfile(line)
         sets = [o for o in offsets if key == "HALCMD" and f"sets :{o}" in s]
         if sets:
             line = f"HALCMD = sets :{sets[0]} {pins[sets[0]]!r}"
