@@ -119,6 +119,14 @@ def log_evidence(theta: np.ndarray, cov_white: np.ndarray, drss: float, contrib_
     return out
 
 
+def tool_is_declared(declared_mm: Any, opts: Any) -> bool:
+    """Whether the tool offset is a declared quantity (docs/effects.md, "Declared
+    quantities"): the model's tool (mm) is not zero, or the machine file states the tool's
+    uncertainty (``[tool] offset_sigma_mm``: a zero tool stated so is a declaration)."""
+    return (float(np.linalg.norm(np.asarray(declared_mm, dtype=float))) > 0
+            or bool(getattr(opts, "declared_tool_stated", False)))
+
+
 def candidate_prior(spec: Any, param_idx: list[int], declared_mm: np.ndarray,
                     lever_mm: float, opts: Any) -> dict[str, Any]:
     """The prior of a candidate (docs/effects.md §3): its parameters' plausible half-widths,
@@ -134,7 +142,7 @@ def candidate_prior(spec: Any, param_idx: list[int], declared_mm: np.ndarray,
         # lever gives the same signature; the range is the physically plausible tool
         prior["half_width"] = np.full(len(param_idx), opts.tool_offset_max_mm)
         prior["sigma_model_um"] = lever_mm * opts.model_angle_sigma_urad * 1e-3
-        if float(np.linalg.norm(declared_mm)) > 0:
+        if tool_is_declared(declared_mm, opts):
             p = opts.declared_blunder_prob
             prior.update({"prior_log_odds": math.log(p / (1.0 - p)), "declared": True,
                           "declared_cov": np.eye(len(param_idx)) * opts.declared_tool_sigma_mm ** 2})

@@ -47,7 +47,9 @@ class DiagnoseOptions:
     quantity (the tool offset in the machine file) is a measurement: right within
     declared_tool_sigma_mm (1 sigma; a presetter 0.01 mm, or the machine file's
     ``[tool] offset_sigma_mm``), a blunder (wrong tool, typo) with probability
-    declared_blunder_prob, then anywhere in the range. model_angle_sigma_urad: the
+    declared_blunder_prob, then anywhere in the range. The tool counts as declared when
+    the model's tool is not zero, or when the machine file states its uncertainty
+    (declared_tool_stated: a zero tool is then a declaration too). model_angle_sigma_urad: the
     uncertainty of the model's angular terms (a 6D laser fit: 0.5 urad), which a tool
     offset's signature cannot be told from beyond lever x this.
     """
@@ -64,6 +66,7 @@ class DiagnoseOptions:
     model_temp_c: float | None = None
     tool_offset_max_mm: float = 300.0
     declared_tool_sigma_mm: float = 0.01
+    declared_tool_stated: bool = False
     declared_blunder_prob: float = 0.01
     model_angle_sigma_urad: float = 0.5
     prior_log_odds: float = 0.0

@@ -79,14 +79,22 @@ def diagnose_machine(machine: Any, model: Any, ballbar: list[str] | None = None,
     sigma = getattr(m, "tool_offset_sigma_mm", None)
     if sigma is not None:
         # the machine file states how well it knows its tool: the declared quantity's prior
-        opts = dataclasses.replace(opts, declared_tool_sigma_mm=float(sigma))
+        opts = dataclasses.replace(opts, declared_tool_sigma_mm=float(sigma),
+                                   declared_tool_stated=True)
+    from abbe.diagnose.evidence import tool_is_declared
     from abbe.diagnose.table_uncertainty import table_covariance
     tcov = table_covariance(model, table)
     res = diagnose(table, checks, opts, table_cov=tcov)
+    declared = tool_is_declared(table.tool_offset_mm, opts)
     res.declared = {"tool_offset_mm": [float(x) for x in table.tool_offset_mm],
-                    "tool_offset_sigma_mm": opts.declared_tool_sigma_mm,
-                    "tool_offset_sigma_source": ("machine file [tool] offset_sigma_mm"
-                                                 if sigma is not None else "default (a presetter)")}
+                    "tool_offset_declared": declared,
+                    "tool_offset_sigma_mm": opts.declared_tool_sigma_mm if declared else None,
+                    "tool_offset_sigma_source": (
+                        "machine file [tool] offset_sigma_mm" if sigma is not None
+                        else "default (a presetter)" if declared
+                        else f"not declared: the model's tool is zero and the machine file states "
+                             f"no [tool] offset_sigma_mm (prior odds 1, anywhere within "
+                             f"+/- {opts.tool_offset_max_mm:g} mm)")}
     from abbe.diagnose.uncertainty import budgets_of_machine, diagnosis_uncertainty
     res.uncertainty = diagnosis_uncertainty(res, *budgets_of_machine(m), draws=mc_draws,
                                             table_cov=tcov)

@@ -138,6 +138,48 @@ def test_the_machine_file_states_the_declared_uncertainty(monkeypatch) -> None:
         assert res.declared["tool_offset_sigma_mm"] == want
         assert res.declared["tool_offset_sigma_source"].startswith(source)
         assert res.declared["tool_offset_mm"] == [0.0, 0.0, 120.0]
+        assert res.declared["tool_offset_declared"] is True
+
+
+def test_a_zero_tool_is_declared_only_when_the_machine_file_states_its_uncertainty(monkeypatch) -> None:
+    """A zero tool in the model is not a declaration (prior odds 1 over +/- 300 mm), and the
+    JSON says so (it once stated "0.01 mm, a presetter" for it, which the evidence did not
+    use); a machine file that states ``[tool] offset_sigma_mm`` declares even a zero tool:
+    the evidence then uses the declared prior (log odds log(0.01 / 0.99))."""
+    import math
+
+    import abbe.diagnose.checks as checks
+    import abbe.diagnose.run as run
+    from abbe.diagnose.evidence import candidate_prior, tool_is_declared
+    from abbe.model.table import Table
+    seen = {}
+
+    def fake_diagnose(table, chks, opts, table_cov=None):
+        seen["opts"] = opts
+        return SimpleNamespace()
+    table = Table.__new__(Table)
+    table.tool_offset_mm = (0.0, 0.0, 0.0)
+    table.reference_mm = (0.0, 0.0, 0.0)
+    monkeypatch.setattr(run, "diagnose", fake_diagnose)
+    monkeypatch.setattr(run, "check_model_matches", lambda *a, **k: None)
+    monkeypatch.setattr(checks, "laser_check", lambda *a, **k: "a check")
+    tool = by_key()["tool_offset"]
+    for sigma, declared in ((None, False), (0.05, True)):
+        m = SimpleNamespace(ballbar={}, laser={"X": None}, tool_offset_sigma_mm=sigma,
+                            reference_mm=(0.0, 0.0, 0.0))
+        res = run.diagnose_machine(m, table)
+        assert res.declared["tool_offset_declared"] is declared
+        assert tool_is_declared(table.tool_offset_mm, seen["opts"]) is declared
+        pr = candidate_prior(tool, [0, 1, 2], np.zeros(3), 100.0, seen["opts"])
+        assert pr["declared"] is declared
+        if declared:
+            assert res.declared["tool_offset_sigma_mm"] == 0.05
+            assert pr["prior_log_odds"] == math.log(0.01 / 0.99)
+            assert np.allclose(np.diag(pr["declared_cov"]), 0.05 ** 2)
+        else:
+            assert res.declared["tool_offset_sigma_mm"] is None
+            assert res.declared["tool_offset_sigma_source"].startswith("not declared")
+            assert pr["prior_log_odds"] == 0.0 and pr["declared_cov"] is None
 
 
 def test_an_undecided_scale_puts_the_equal_share_into_the_table() -> None:
