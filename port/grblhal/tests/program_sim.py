@@ -68,7 +68,7 @@ SPEEDUP = float(os.environ.get("ABBE_GRBLHAL_SPEEDUP", "10"))
 #: Runs of one program at most: a run that stalled (Run.stream) and failed a check is run
 #: again at half the speed-up (twice the wall time per simulated second for grblHAL's
 #: thread); a failure without a stall stands.
-ATTEMPTS = 3
+ATTEMPTS = 4
 
 
 def late_s(speedup: float) -> float:
