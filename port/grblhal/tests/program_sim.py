@@ -83,8 +83,8 @@ SAMPLE_S = 0.02
 #: Bytes in flight: below the Simulator's receive buffer (RX_BUFFER_SIZE, 1024).
 WINDOW = 256
 RUN_TIMEOUT_S = 240
-#: Wall time after which a cycle start is sent again (a hold still complete; the machine
-#: standing still before the program's end, not on hold: Run.stream).
+#: Wall time after which a cycle start is sent (again) to a hold still complete, or to a
+#: machine standing Idle with blocks planned (Run.stream).
 RESEND_S = 1.0
 #: The Simulator's rates: above the programs' feeds, accelerations of a machine tool.
 RATE_MM_MIN = 15000.0
@@ -129,6 +129,7 @@ class Run:
         self.log: list[str] = []
         self.holds: list[str] = []  # the status line of each programmed stop
         self.cycle_restarts = 0  # cycle starts sent again (stream's docstring)
+        self.free_blocks = 0  # the most free planner blocks a status report gave (Bf)
         threading.Thread(target=self._reader, daemon=True).start()
         while not self._next(60).startswith("GrblHAL"):  # a fresh EEPROM.DAT says error:7 first
             pass
@@ -163,12 +164,14 @@ class Run:
         grblHAL ignores a cycle start while the hold is pending (state_machine.c,
         state_await_hold), and one sent then is lost, leaving the program on hold (a
         hang to the deadline). If the hold is still complete RESEND_S later, it is
-        sent again. A machine that stands still for RESEND_S of wall time (longer than any
-        dwell here at the speed-up) before the program's end, not on hold, gets a cycle
+        sent again. A machine that stands still for RESEND_S of wall time, Idle with blocks
+        in its planner (the status report's Bf: fewer free than when empty), gets a cycle
         start too, as a sender sends one: grblHAL's thread fell behind the Simulator's
-        stepper, the segment buffer ran empty and the cycle ended with blocks planned
-        (sim_test.py's Sim.send; a run here stood mid-arc to the deadline so). A cycle start
-        is a no-op while moving and with nothing planned. Each resend is counted
+        stepper, the segment buffer ran empty and the cycle ended with blocks planned,
+        which nothing restarts (sim_test.py's Sim.send; a run here stood mid-arc to the
+        deadline so). Never with the planner empty: before an M0 grblHAL syncs the buffer
+        and stands Idle, and a cycle start arriving with its hold cancelled the stop (seen
+        under load when this sent one on any standstill). Each resend is counted
         (``cycle_restarts``)."""
         pending = [ln for ln in lines if ln.strip()]
         inflight: list[tuple[str, int]] = []
@@ -210,9 +213,15 @@ class Run:
                         self.cycle_restarts += 1
                 elif not state.startswith("Hold"):
                     resumed_at = None
-                mpos = r.split("MPos:", 1)[1].split("|", 1)[0] if "MPos:" in r else ""
+                fields = dict(f.split(":", 1) for f in r.strip("<>").split("|")[1:] if ":" in f)
+                mpos = fields.get("MPos", "")
+                free = int(fields.get("Bf", "0,0").split(",")[0])
+                self.free_blocks = max(self.free_blocks, free)  # the planner's size: Bf when empty
                 done = state == "Idle" and not pending and not inflight
-                if state.startswith("Hold") or done or mpos != stalled_at:
+                # a stall: Idle with blocks planned (fewer free than when empty), not moving;
+                # never Idle with the planner empty (a dwell; the buffer sync before an M0,
+                # whose hold a cycle start arriving with it would cancel)
+                if state != "Idle" or free >= self.free_blocks or done or mpos != stalled_at:
                     stalled_at, stalled_since = mpos, now
                 elif now - stalled_since > RESEND_S:
                     self._write(b"~")
