@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
+from abbe.diagnose.backlash_pair import is_pair
 from abbe.diagnose.candidates import Cand, Engine, Selected
 from abbe.diagnose.checks import PLANE_AXES, BallbarCheck
 from abbe.diagnose.evidence import candidate_prior, log_evidence
@@ -53,7 +54,7 @@ def _eval_candidate(eng: Engine, cand: Cand, sel: list[Selected], W: np.ndarray,
     coef, fit = lstsq_rss(Z, rb_c)
     dr = rss_base - (float(rb_c @ rb_c) - fit)
     k = Z.shape[1]
-    k_eff = k + (1 if cand.spec.kind == "cyclic" or cand.n_scan > 1 else 0)
+    k_eff = k + (1 if cand.spec.kind == "cyclic" or cand.n_scan > 1 else 0) + is_pair(cand.scan_value)
     p_sel = Qb.shape[1]
     dof_res = N - p_sel - k
     rss_c = max(rss_base - dr, 0.0)

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from abbe.diagnose.backlash_pair import is_pair, pair_grid
 from abbe.diagnose.checks import BallbarCheck, Check, LaserCheck
 from abbe.diagnose.effects import (
     BACKLASH_TAKEUP_GRID_MM,
@@ -46,7 +47,7 @@ class Cand:
     spec: EffectSpec
     cols: np.ndarray              # (N, k) raw sensitivities (units of y per unit parameter)
     param_idx: list[int]          # which of spec.params the columns are
-    scan_value: float | None = None
+    scan_value: Any = None        # grid value (float), a backlash's take-up pair, or None
     n_scan: int = 1               # independent grid points searched (look-elsewhere)
     observable: bool = True
     why_not: str = ""
@@ -238,6 +239,9 @@ class Engine:
                     if c.observable:
                         alts.append(c)
             n_alt = max(len(scan_vals) * len(subsets), 1)
+            # a backlash's per-direction take-up pairs pay for the whole grid they were
+            # searched on, the single take-ups for theirs (abbe.diagnose.backlash_pair)
+            n_single = max(sum(not is_pair(v) for v in scan_vals) * len(subsets), 1)
             if failed is not None or not alts:
                 c = failed or Cand(spec, np.zeros((self.prob.N, 0)), [], observable=False,
                                    why_not="no signature on these checks (at a typical magnitude "
@@ -246,7 +250,7 @@ class Engine:
                 out.append(c)
                 continue
             for c in alts:
-                c.n_scan = n_alt
+                c.n_scan = n_alt if is_pair(c.scan_value) else n_single
             # the pool's candidate is a copy: each selection step sets its grid value /
             # parameter subset from the alternatives (alternatives._tool_components and the
             # BIC choice), which must stay intact for the next step (issue 36: the first
@@ -375,14 +379,15 @@ class Engine:
                 rows[self.prob.slice(i)] = True
         return rows
 
-    def _takeup_grid(self, axis: str, table: Table) -> list[float | None]:
-        """Take-up values to search: only if a check has continuous motion (ballbar)."""
+    def _takeup_grid(self, axis: str, table: Table) -> list[Any]:
+        """Take-up values to search: only if a check has continuous motion (ballbar); then
+        also the per-direction pairs (abbe.diagnose.backlash_pair)."""
         j = AXES.index(axis)
         dyn = any(isinstance(c, BallbarCheck) and j in PLANE_AXES[c.plane] for c in self.prob.checks)
         if not dyn:
             tk = table.axes[axis].backlash_takeup_mm
             return [tk if tk > 0 else 1.0]
-        return list(BACKLASH_TAKEUP_GRID_MM)
+        return list(BACKLASH_TAKEUP_GRID_MM) + pair_grid(BACKLASH_TAKEUP_GRID_MM)
 
     def _prune(self, c: Cand, W: np.ndarray, Qn: np.ndarray) -> Cand:
         """Drop parameters the checks cannot see; mark unobservable candidates."""

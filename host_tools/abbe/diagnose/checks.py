@@ -29,6 +29,7 @@ import numpy as np
 from abbe.diagnose.effects import PredParams
 from abbe.diagnose.evaluator import Evaluator
 from abbe.errors import AbbeInputError
+from abbe.diagnose.backlash_pair import pair_state
 from abbe.model.backlash import direction_state
 from abbe.model.geometry import PLANE_AXES
 from abbe.model.table import AXES, LINEAR_TERMS, OWN_SIGN, OWN_TERM, Table
@@ -286,7 +287,9 @@ class BallbarCheck(Check):
                 if dense is None:
                     dense, at_sample = self._reversal_path()
                 tk = at.backlash_takeup_mm if at.backlash_takeup_mm > 0 else DEFAULT_TAKEUP_MM
-                ds[:, j] = direction_state(dense[:, j], tk)[at_sample]
+                pr = pp.backlash_takeup_pair_mm[j]
+                ds[:, j] = (pair_state(dense[:, j], pr[0], pr[1]) if pr[0] > 0
+                            else direction_state(dense[:, j], tk))[at_sample]
         m = self.mask
         temp = None
         if self.all_temp is not None:

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
+from abbe.diagnose.backlash_pair import scan_entries
 from abbe.diagnose.candidates import Cand, Engine, Selected, apply_selection
 from abbe.diagnose.checks import BallbarCheck
 from abbe.diagnose.effects import REVERSAL_MAX_DEGREE, EffectSpec, NotRepresentable, PredParams
@@ -96,12 +97,15 @@ def describe_effects(eng: Engine, sel: list[Selected], values: list[np.ndarray],
         scan = scan_ci = None
         if s.cand.scan_value is not None and spec.scan:
             name = spec.scan if spec.kind != "thermal" else f"tau_{eng.drift_unit or 'h'}"
-            scan = {name: float(s.cand.scan_value)}
+            scan = scan_entries(s.cand.scan_value, name)
             if spec.kind == "reversal" and s.cand.scan_value < 0:
                 scan = {"per_target": float(-s.cand.scan_value)}
             sci = s.stats.get("scan_ci")
             if sci is not None:
                 scan_ci = {name: [sci[0] if sci[2] else None, sci[1] if sci[3] else None]}
+            for k2, ci2 in s.stats.get("scan_ci_pair", {}).items():
+                scan_ci = dict(scan_ci or {}, **{k2: [ci2[0] if ci2[2] else None,
+                                                      ci2[1] if ci2[3] else None]})
         where = "table" if spec.compensable and not (spec.kind == "thermal" and not eng.drift_on_table) \
             else "prediction model only"
         remedy = spec.remedy

@@ -26,6 +26,7 @@ from typing import Callable
 
 import numpy as np
 
+from abbe.diagnose.backlash_pair import is_pair, table_takeup_mm
 from abbe.model.geometry import PLANE_AXES, PLANES
 from abbe.model.table import AXES, OWN_TERM, AxisTable, FourierBlock, Table, basis_matrix
 
@@ -92,6 +93,9 @@ class PredParams:
     reversal_knots_mm: list = field(default_factory=lambda: [None, None, None])
     reversal_knot_um: list = field(default_factory=lambda: [None, None, None])
     drift_bow_um: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    #: per axis (take-up after a reversal to + motion, to - motion) mm, or zeros: the
+    #: table's one take-up (abbe.diagnose.backlash_pair; the table holds their mean)
+    backlash_takeup_pair_mm: np.ndarray = field(default_factory=lambda: np.zeros((3, 2)))
 
     def copy(self) -> "PredParams":
         return PredParams(self.servo_lag_ms.copy(), self.servo_mismatch_ms.copy(),
@@ -99,7 +103,7 @@ class PredParams:
                           self.servo_gain_ms2.copy(), self.reversal_cheb_um.copy(),
                           list(self.reversal_knots_mm),
                           [None if v is None else v.copy() for v in self.reversal_knot_um],
-                          self.drift_bow_um.copy())
+                          self.drift_bow_um.copy(), self.backlash_takeup_pair_mm.copy())
 
     def has_reversal(self, j: int) -> bool:
         k = self.reversal_knot_um[j]
@@ -307,12 +311,12 @@ class EffectSpec:
     remedy: str = ""
 
     def apply(self, table: Table, pp: PredParams, theta: np.ndarray,
-              scan_value: float | None = None, drift_on_table: bool = False,
+              scan_value: float | tuple[float, float] | None = None, drift_on_table: bool = False,
               tref_c: float = 20.0) -> tuple[Table, PredParams]:
         """Return copies of (table, pp) with this effect's parameters ``theta`` added.
 
         ``scan_value``: the nonlinear parameter (cyclic period mm, backlash take-up
-        mm). ``drift_on_table``: thermal drift driven by temperature goes into the
+        mm, or a backlash's per-direction pair: abbe.diagnose.backlash_pair). ``drift_on_table``: thermal drift driven by temperature goes into the
         table's thermal fields (reference temperature ``tref_c``) instead of the
         prediction parameters. Raises NotRepresentable if the table cannot hold it.
         """
@@ -329,7 +333,9 @@ class EffectSpec:
             ax = t.axes[self.axis]  # type: ignore[index]
             ax.backlash_um = float(ax.backlash_um + th[0])
             if scan_value is not None:
-                ax.backlash_takeup_mm = float(scan_value)
+                # a per-direction pair: the prediction's, the table keeps their mean
+                ax.backlash_takeup_mm = table_takeup_mm(scan_value)
+                p.backlash_takeup_pair_mm[j] = scan_value if is_pair(scan_value) else 0.0
             elif ax.backlash_takeup_mm <= 0:
                 ax.backlash_takeup_mm = 1.0
         elif k == "scale":

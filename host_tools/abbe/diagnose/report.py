@@ -105,6 +105,10 @@ def format_text(res: DiagnoseResult, model_path: str | None = None) -> str:
                 elif k == "degree" and e.id.startswith("reversal"):
                     L.append(f"    form: smooth, degree {int(v)} over the travel (chosen by BIC "
                              "among the degrees and the per-target form)")
+                elif k == "takeup_mm" and "takeup_plus_mm" in e.scan:
+                    L.append(f"    {k} = {txt} (the table's one take-up: the mean of the take-ups "
+                             "after a reversal to + and to - motion below, which the table and the "
+                             "compensator cannot hold apart; the residual after is the pair's)")
                 elif ci is None:
                     L.append(f"    {k} = {txt} (searched on a grid)")
                 else:

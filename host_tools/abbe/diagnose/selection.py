@@ -47,6 +47,7 @@ from typing import Any
 import numpy as np
 
 from abbe.diagnose.alternatives import _alt_fit, _named_drift_tau, _static_free, _tool_components
+from abbe.diagnose.backlash_pair import is_pair
 from abbe.diagnose.blas import one_blas_thread
 from abbe.diagnose.candidates import Engine, Selected, selection_residual
 from abbe.diagnose.caps import cap_violations
@@ -205,12 +206,13 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
                 for a in alts:
                     Z, _, d = _alt_fit(a, W, Qc, rbc, rss_c, rw, rows)
                     n_obs = prob.N if rows is None else int(rows.sum())
-                    b = -d + Z.shape[1] * math.log(n_obs)
+                    # a backlash's take-up pair: one shape parameter more than one take-up
+                    b = -d + (Z.shape[1] + is_pair(a.scan_value)) * math.log(n_obs)
                     if b < best_b:
                         best_c, best_b = a, b
                 if best_c is not None:
                     c.cols, c.param_idx, c.scan_value = best_c.cols, best_c.param_idx, best_c.scan_value
-                    c.offset = best_c.offset
+                    c.offset, c.n_scan = best_c.offset, best_c.n_scan
             st = _eval_candidate(eng, c, selected, W, Qc, rbc, rss_c, dof_noise,
                                  len(remaining), table, rw, free)
             if st.get("ok") and st["heldout"]["split"] is None and static_ho is not free:

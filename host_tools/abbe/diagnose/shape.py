@@ -20,6 +20,7 @@ from typing import Any, Callable
 import numpy as np
 from scipy import stats
 
+from abbe.diagnose.backlash_pair import is_pair
 from abbe.diagnose.candidates import Engine, Selected, selection_residual
 from abbe.diagnose.effects import BACKLASH_TAKEUP_GRID_MM
 from abbe.model.table import AXES
@@ -104,6 +105,9 @@ def refine_scans(eng: Engine, sel: list[Selected], W: np.ndarray) -> None:
     prob = eng.prob
     for i, s in enumerate(sel):
         spec = s.cand.spec
+        s.stats.pop("scan_ci_pair", None)
+        if spec.kind == "backlash" and is_pair(s.cand.scan_value) and _refine_pair(eng, sel, i, W):
+            continue
         v0 = s.cand.scan_value
         if v0 is None or not math.isfinite(v0):
             continue
@@ -152,6 +156,71 @@ def refine_scans(eng: Engine, sel: list[Selected], W: np.ndarray) -> None:
         s.cand.cols = cols
         s.cand.offset = off
         s.stats["scan_ci"] = (float(va), float(vb), bool(a_closed), bool(b_closed))
+
+
+def _refine_pair(eng: Engine, sel: list[Selected], i: int, W: np.ndarray) -> bool:
+    """A backlash named with a per-direction take-up pair (abbe.diagnose.backlash_pair):
+    refine the pair (log take-ups, each in turn, twice, within the grid's neighbours) and
+    the single take-up between the pair's, and keep the pair only if the BIC keeps its
+    second shape parameter (RSS decrease > log N x s2, as the selection's choice among a
+    candidate's alternatives). Kept: the candidate's pair, columns and offset, the 95 %
+    interval of each take-up with the other at its value (``stats['scan_ci_pair']``); True.
+    Not kept: the single take-up becomes the candidate's grid value for the 1-D refinement
+    (the caller); False. Units: take-ups mm, RSS in noise units."""
+    s = sel[i]
+    f = _rss_fn(eng, sel, i, W)
+    lo_b, hi_b = math.log(TAKEUP_RANGE_MM[0]), math.log(TAKEUP_RANGE_MM[1])
+    grid = [math.log(g) for g in BACKLASH_TAKEUP_GRID_MM]
+    cache: dict[tuple[float, float], float] = {}
+
+    def g2(x: tuple[float, float]) -> float:
+        if x not in cache:
+            cache[x] = f((math.exp(x[0]), math.exp(x[1])))[0]
+        return cache[x]
+
+    def bracket(x0: float) -> tuple[float, float]:
+        nb = [g for g in grid if abs(g - x0) > 1e-9]
+        return (max([g for g in nb if g < x0], default=lo_b),
+                min([g for g in nb if g > x0], default=hi_b))
+
+    x = [math.log(v) for v in s.cand.scan_value]
+    for _ in range(2):
+        for c in (0, 1):
+            def gc(v: float, c: int = c) -> float:
+                return g2((v, x[1]) if c == 0 else (x[0], v))
+            xb = _golden(gc, *bracket(x[c]))
+            if gc(xb) < gc(x[c]):
+                x[c] = xb
+    xp = (x[0], x[1])
+    rss_p = g2(xp)
+    # the single take-up, between the pair's grid neighbours
+    g1: dict[float, float] = {}
+
+    def gs(v: float) -> float:
+        if v not in g1:
+            g1[v] = f(math.exp(v))[0]
+        return g1[v]
+    xs = _golden(gs, bracket(min(x))[0], bracket(max(x))[1])
+    prob = eng.prob
+    k = sum(o.cand.cols.shape[1] for o in sel) + prob.nuis.shape[1]
+    s2 = max(1.0, rss_p / max(prob.N - k - 2, 1))
+    if gs(xs) - rss_p <= math.log(prob.N) * s2:
+        s.cand.scan_value = float(math.exp(xs))
+        return False
+    rss, cols, off = f((math.exp(xp[0]), math.exp(xp[1])))
+    level = rss + CHI2_95 * s2
+    ci = {}
+    for c, name in ((0, "takeup_plus_mm"), (1, "takeup_minus_mm")):
+        def gc(v: float, c: int = c) -> float:
+            return g2((v, xp[1]) if c == 0 else (xp[0], v))
+        a, a_closed = _edge(gc, xp[c], -0.15, lo_b, level)
+        b, b_closed = _edge(gc, xp[c], 0.15, hi_b, level)
+        ci[name] = (math.exp(a), math.exp(b), bool(a_closed), bool(b_closed))
+    s.cand.scan_value = (float(math.exp(xp[0])), float(math.exp(xp[1])))
+    s.cand.cols, s.cand.offset = cols, off
+    s.stats.pop("scan_ci", None)
+    s.stats["scan_ci_pair"] = ci
+    return True
 
 
 def drift_headline_weights(eng: Engine, spec: Any, idx: list[int]) -> np.ndarray:

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from abbe.diagnose.backlash_pair import scan_entries
 from abbe.diagnose.candidates import Cand, Engine
 from abbe.diagnose.results import DiagnoseOptions
 from abbe.diagnose.candidate_eval import heldout_need
@@ -35,7 +36,8 @@ def _summ(st: dict[str, Any], c: Cand, opts: DiagnoseOptions) -> dict[str, Any]:
             d["unit"] = c.spec.params[c.param_idx[0]].unit
         d["observable_rms_um"] = round(float(st["observable_rms_um"]), 4)
         if c.scan_value is not None:
-            d["scan"] = {c.spec.scan or "scan": round(float(c.scan_value), 4)}
+            d["scan"] = {k: round(v, 4) for k, v in
+                         scan_entries(c.scan_value, c.spec.scan or "scan").items()}
         d["heldout_in_time"] = bool(st.get("heldout_in_time"))
         if st.get("redundant_with"):
             d["redundancy"] = round(float(st["redundancy"]), 4)
