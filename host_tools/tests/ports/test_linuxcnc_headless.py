@@ -67,3 +67,16 @@ def test_kinds_headless_copy_of_the_installed_sample(tmp_path: Path, name: str):
                                  for ln in ini.read_text().splitlines() if ln.startswith("#INCLUDE")]
     sims = [h for t in texts for h in halfiles(t) if "basic_sim.tcl" in h]
     assert all(h.endswith(OPTION) for h in sims), sims
+
+
+@pytest.mark.parametrize("script", ["trt_sim_check.py", "kinds_sim.py"])
+def test_the_drive_copy_imports_without_the_test_folder(tmp_path: Path, script: str):
+    """Each of these files also runs as a copy beside sim_drive.py in the drive's work folder
+    (the LinuxCNC user's run), where lcnc_common is not: a top-level import of it failed
+    every sample there (CI, the run before this test)."""
+    import subprocess
+    shutil.copy(TESTS / script, tmp_path / script)
+    env = {k: v for k, v in __import__("os").environ.items() if k != "PYTHONPATH"}
+    r = subprocess.run([sys.executable, "-c", f"import {Path(script).stem}"], cwd=tmp_path,
+                       capture_output=True, text=True, env=env, timeout=60)
+    assert r.returncode == 0, r.stderr

@@ -56,8 +56,6 @@ from pathlib import Path
 
 import numpy as np
 
-from lcnc_common import headless_halfile
-
 HERE = Path(__file__).resolve().parent
 SAMPLES = Path("/usr/share/doc/linuxcnc/examples/sample-configs/sim/axis/vismach/5axis")
 JOINT_TOL_MM = 1e-6
@@ -289,6 +287,9 @@ def headless(case: Case, cfg: Path, ini_name: str) -> Path:
 
 
 def _headless_ini(case: Case, ini: Path) -> None:
+    # here, not at the top: this file also runs as a copy beside sim_drive.py (the drive),
+    # where lcnc_common is not
+    from lcnc_common import headless_halfile
     out, section = [], ""
     text = ini.read_text()
     for line in text.splitlines():

@@ -25,8 +25,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-from lcnc_common import headless_halfile
-
 HERE = Path(__file__).resolve().parent
 SAMPLE = Path("/usr/share/doc/linuxcnc/examples/sample-configs/sim/axis/vismach/5axis/"
               "table-rotary-tilting")
@@ -72,6 +70,9 @@ def headless_ini(text: str, pins: dict[str, float], home: dict[int, float],
                  kind: str = "xyzac-trt") -> str:
     """The sample INI of `kind` (xyzac-trt / xyzbc-trt) without GUI lines, linuxcncrsh as
     display, our values."""
+    # here, not at the top: this file also runs as a copy beside sim_drive.py (the drive),
+    # where lcnc_common is not
+    from lcnc_common import headless_halfile
     offsets = ("y-offset", "z-offset") if kind == "xyzac-trt" else ("x-offset", "z-offset")
     out, section = [], ""
     for line in text.splitlines():
