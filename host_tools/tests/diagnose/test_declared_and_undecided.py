@@ -112,29 +112,36 @@ def test_undecided_follows_the_noise_not_a_fixed_share() -> None:
     assert _undecided("scale_z", 35.0, "ppm", far, OPTS.evidence_log_min) is None
 
 
-def test_the_machine_file_states_the_declared_uncertainty(monkeypatch) -> None:
-    """``[tool] offset_sigma_mm`` reaches the selection as the declared quantity's prior, and
-    the JSON says which uncertainty was used and where it came from."""
+def _diagnose_machine(monkeypatch, tool_mm: tuple, sigma: float | None):
+    """run.diagnose_machine on a model whose tool is ``tool_mm`` and a machine file whose
+    ``[tool] offset_sigma_mm`` is ``sigma`` (None: not stated), the diagnosis itself faked:
+    (its result, the options the diagnosis got, the table)."""
     import abbe.diagnose.checks as checks
     import abbe.diagnose.run as run
     from abbe.model.table import Table
     seen = {}
 
     def fake_diagnose(table, chks, opts, table_cov=None):
-        seen["sigma"] = opts.declared_tool_sigma_mm
+        seen["opts"] = opts
         return SimpleNamespace()
     table = Table.__new__(Table)
-    table.tool_offset_mm = (0.0, 0.0, 120.0)
+    table.tool_offset_mm = tool_mm
     table.reference_mm = (0.0, 0.0, 0.0)
     monkeypatch.setattr(run, "diagnose", fake_diagnose)
     monkeypatch.setattr(run, "check_model_matches", lambda *a, **k: None)
     monkeypatch.setattr(checks, "laser_check", lambda *a, **k: "a check")
+    m = SimpleNamespace(ballbar={}, laser={"X": None}, tool_offset_sigma_mm=sigma,
+                        reference_mm=(0.0, 0.0, 0.0))
+    return run.diagnose_machine(m, table), seen["opts"], table
+
+
+def test_the_machine_file_states_the_declared_uncertainty(monkeypatch) -> None:
+    """``[tool] offset_sigma_mm`` reaches the selection as the declared quantity's prior, and
+    the JSON says which uncertainty was used and where it came from."""
     for sigma, want, source in ((None, OPTS.declared_tool_sigma_mm, "default"),
                                 (0.5, 0.5, "machine file")):
-        m = SimpleNamespace(ballbar={}, laser={"X": None}, tool_offset_sigma_mm=sigma,
-                            reference_mm=(0.0, 0.0, 0.0))
-        res = run.diagnose_machine(m, table)
-        assert seen["sigma"] == want
+        res, opts, _ = _diagnose_machine(monkeypatch, (0.0, 0.0, 120.0), sigma)
+        assert opts.declared_tool_sigma_mm == want
         assert res.declared["tool_offset_sigma_mm"] == want
         assert res.declared["tool_offset_sigma_source"].startswith(source)
         assert res.declared["tool_offset_mm"] == [0.0, 0.0, 120.0]
@@ -146,31 +153,13 @@ def test_a_zero_tool_is_declared_only_when_the_machine_file_states_its_uncertain
     JSON says so (it once stated "0.01 mm, a presetter" for it, which the evidence did not
     use); a machine file that states ``[tool] offset_sigma_mm`` declares even a zero tool:
     the evidence then uses the declared prior (log odds log(0.01 / 0.99))."""
-    import math
-
-    import abbe.diagnose.checks as checks
-    import abbe.diagnose.run as run
     from abbe.diagnose.evidence import candidate_prior, tool_is_declared
-    from abbe.model.table import Table
-    seen = {}
-
-    def fake_diagnose(table, chks, opts, table_cov=None):
-        seen["opts"] = opts
-        return SimpleNamespace()
-    table = Table.__new__(Table)
-    table.tool_offset_mm = (0.0, 0.0, 0.0)
-    table.reference_mm = (0.0, 0.0, 0.0)
-    monkeypatch.setattr(run, "diagnose", fake_diagnose)
-    monkeypatch.setattr(run, "check_model_matches", lambda *a, **k: None)
-    monkeypatch.setattr(checks, "laser_check", lambda *a, **k: "a check")
     tool = by_key()["tool_offset"]
     for sigma, declared in ((None, False), (0.05, True)):
-        m = SimpleNamespace(ballbar={}, laser={"X": None}, tool_offset_sigma_mm=sigma,
-                            reference_mm=(0.0, 0.0, 0.0))
-        res = run.diagnose_machine(m, table)
+        res, opts, table = _diagnose_machine(monkeypatch, (0.0, 0.0, 0.0), sigma)
         assert res.declared["tool_offset_declared"] is declared
-        assert tool_is_declared(table.tool_offset_mm, seen["opts"]) is declared
-        pr = candidate_prior(tool, [0, 1, 2], np.zeros(3), 100.0, seen["opts"])
+        assert tool_is_declared(table.tool_offset_mm, opts) is declared
+        pr = candidate_prior(tool, [0, 1, 2], np.zeros(3), 100.0, opts)
         assert pr["declared"] is declared
         if declared:
             assert res.declared["tool_offset_sigma_mm"] == 0.05
