@@ -46,6 +46,7 @@ REPO = Path(__file__).resolve().parents[3]
 VENDOR = Path(os.environ.get("ABBE_KLIPPER_VENDOR", REPO / "third_party" / "klipper"))
 WORK = REPO / "build-klipper"
 PY = sys.executable
+DRAINED = Path(__file__).resolve().parent / "klippy_drained.py"
 ABBE = [PY, "-m", "abbe.cli"]
 
 # fine steps (1.25 um on X, Y; 0.3125 um on Z) so that the corrections (2-10 um)
@@ -144,7 +145,10 @@ def run_klippy(tree: Path, dict_path: Path, name: str, cfg: str, gcode: str,
     # at once (toolhead.flush_step_generation), so the stream is complete.
     (d / "program.gcode").write_text(gcode + "\nSET_KINEMATIC_POSITION\n")
     out = d / "mcu.serial"
-    res = subprocess.run([PY, str(tree / "klippy" / "klippy.py"), str(d / "printer.cfg"),
+    # klippy.py through klippy_drained.py: Klipper unchanged, but its exit waits until
+    # the serial queue's thread has written every message to the file (on a busy
+    # machine it had not: streams short by whole moves, or empty; see that file)
+    res = subprocess.run([PY, str(DRAINED), str(tree / "klippy"), str(d / "printer.cfg"),
                           "-i", str(d / "program.gcode"), "-o", str(out), "-v",
                           "-d", str(dict_path), "-l", str(d / "klippy.log")],
                          cwd=tree, capture_output=True, text=True, timeout=300)
