@@ -167,7 +167,8 @@ step "libFuzzer run (build-fuzz)" fuzz
 step "Python import contracts (lint-imports)" import_contracts
 step "pytest host_tools/tests" pytest_all
 step "wheel: build, install outside the checkout, run abbe there" wheel_test
-# CI time: Klipper's step (batch mode: no wall clock) and the proofs (CPU bound) run in the
+# CI time: Klipper's step (batch mode: print time is not wall time, and klippy_drained.py makes
+# its output complete however late the serial thread writes) and the proofs (CPU bound) run in the
 # background, one after the other, while LinuxCNC's steps (wall-clock bound: real-time simulator
 # runs) run; their logs and outcomes appear after LinuxCNC's programs step (step_join). The
 # proofs on one job (prove.sh's default is 2): one core stays for LinuxCNC's real-time thread.

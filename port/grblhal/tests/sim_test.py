@@ -51,6 +51,7 @@ import math
 import os
 import queue
 import signal
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -832,8 +833,11 @@ def main() -> int:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(C.summary, indent=2) + "\n")
     if C.failed:
-        print(f"[grblhal] FAILED: {len(C.failed)} checks (outputs in {work})")
+        print(f"[grblhal] FAILED: {len(C.failed)} checks (outputs kept in {work})")
         return 1
+    for s_ in list(Sim.running):  # every Simulator stopped before its folder goes
+        s_.kill()
+    shutil.rmtree(work, ignore_errors=True)  # kept only when a check failed
     print(f"[grblhal] OK: every check passed in {C.summary['duration_s']} s")
     return 0
 

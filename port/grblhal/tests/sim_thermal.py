@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import shutil
 import sys
 import tempfile
 import time
@@ -266,6 +267,10 @@ def main() -> int:
     summary["failed"] = C.failed
     if args.json:
         args.json.write_text(json.dumps(summary, indent=2))
+    if C.failed:
+        print(f"[grblhal thermal] outputs kept in {work}")
+    else:
+        shutil.rmtree(work, ignore_errors=True)
     print(f"[grblhal thermal] {'FAIL' if C.failed else 'ok'}: {len(C.failed)} failed")
     return 1 if C.failed else 0
 
