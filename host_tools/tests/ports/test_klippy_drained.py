@@ -26,6 +26,8 @@ class SerialReader:
         if self.left is not None and self.left > 0:
             self.left -= 1
         held = 0 if self.left == 0 else 24
+        if os.environ.get("FAKE_OLD_STATS"):  # a Klipper whose stats lack the fields
+            return "bytes_write=7197 bytes_read=0"
         return ("bytes_write=7197 bytes_read=0 ready_bytes=0 upcoming_bytes=%d" % held)
     def disconnect(self):
         print("klipper disconnect, queue held %s" % self.stats(0).split()[-1], flush=True)
@@ -50,8 +52,8 @@ def _fake_klippy(tmp_path: Path) -> Path:
     return d
 
 
-def _run(klippy_dir: Path, arg: str, drain_s: str) -> subprocess.CompletedProcess:
-    env = dict(os.environ, ABBE_KLIPPY_DRAIN_S=drain_s)
+def _run(klippy_dir: Path, arg: str, drain_s: str, **extra: str) -> subprocess.CompletedProcess:
+    env = dict(os.environ, ABBE_KLIPPY_DRAIN_S=drain_s, **extra)
     return subprocess.run([sys.executable, str(LAUNCHER), str(klippy_dir), arg],
                           capture_output=True, text=True, env=env, timeout=60)
 
@@ -70,6 +72,15 @@ def test_a_queue_that_never_drains_is_an_error_not_a_short_file(tmp_path):
     assert res.returncode == 3
     assert "still holds 24 bytes" in res.stderr and "incomplete" in res.stderr
     # Klipper's disconnect (which would drop the 24 bytes) never ran
+    assert "klipper disconnect" not in res.stdout
+
+
+def test_stats_the_launcher_cannot_read_are_an_error_not_a_short_file(tmp_path):
+    # klippy would log an exception from its disconnect handler and exit 0: the launcher
+    # must exit 3 itself
+    res = _run(_fake_klippy(tmp_path), "5", "30", FAKE_OLD_STATS="1")
+    assert res.returncode == 3
+    assert "without ready_bytes/upcoming_bytes" in res.stderr
     assert "klipper disconnect" not in res.stdout
 
 

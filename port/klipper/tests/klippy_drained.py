@@ -55,18 +55,25 @@ def main() -> int:
 
     disconnect = serialhdl.SerialReader.disconnect
 
+    def give_up(why: str) -> None:
+        # os._exit, not an exception: klippy runs its disconnect handlers under a bare
+        # `except` that logs and goes on, which would exit 0 with the file incomplete
+        sys.stderr.write(f"klippy_drained: {why}: the output file may be incomplete\n")
+        sys.stderr.flush()
+        os._exit(EXIT_NOT_DRAINED)
+
     def drained_disconnect(reader):
         if reader.serialqueue is not None:
             deadline = time.monotonic() + DRAIN_LIMIT_S
-            left = queued_bytes(reader.stats(0.0))
-            while left and time.monotonic() < deadline:
-                time.sleep(POLL_S)
+            try:
                 left = queued_bytes(reader.stats(0.0))
+                while left and time.monotonic() < deadline:
+                    time.sleep(POLL_S)
+                    left = queued_bytes(reader.stats(0.0))
+            except ValueError as exc:
+                give_up(str(exc))
             if left:
-                sys.stderr.write(f"klippy_drained: the serial queue still holds {left} bytes "
-                                 f"after {DRAIN_LIMIT_S:.0f} s: the output file is incomplete\n")
-                sys.stderr.flush()
-                os._exit(EXIT_NOT_DRAINED)
+                give_up(f"the serial queue still holds {left} bytes after {DRAIN_LIMIT_S:.0f} s")
         disconnect(reader)
 
     serialhdl.SerialReader.disconnect = drained_disconnect
