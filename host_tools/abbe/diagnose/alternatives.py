@@ -86,7 +86,7 @@ def _tool_components(eng: Engine, c: Cand, alts: list[Cand], W: np.ndarray, Qc: 
     for a in alts:
         Z, coef, d = _alt_fit(a, W, Qc, rbc, rss_c, rw)
         s2 = max(1.0, (rss_c - d) / max(prob.N - Qc.shape[1] - Z.shape[1], 1))
-        ev = _evidence(eng, a, coef, Z, d / s2, s2, contribution_rms(prob, a.cols @ coef))
+        ev = _evidence(eng, a, coef, Z, d / s2, s2, contribution_rms(prob, a.cols @ coef), W)
         fits.append((a, coef, d, s2, float(ev["log_evidence"]), Z.shape[1]))
     base = next(f for f in fits if len(f[0].param_idx) == k_min)
     best_c = None
@@ -123,7 +123,7 @@ def _lateral_evidence(eng: Engine, base: tuple[Any, ...], full: tuple[Any, ...],
     (a lateral change cancelling part of t_z's: the team suite's `tool_offset+scale_x`,
     seed 759937823, t_x -37.5 mm dropped and t_z 172 mm for 140.2, docs/diagnose-validation.md)."""
     from abbe.diagnose.evidence import candidate_prior, log_evidence
-    from abbe.diagnose.candidate_eval import tool_lever_mm
+    from abbe.diagnose.candidate_eval import table_cov_of, tool_lever_mm
     b_c, f_c = base[0], full[0]
     extra = [j for j, i in enumerate(f_c.param_idx) if i not in b_c.param_idx]
     idx = [f_c.param_idx[j] for j in extra]
@@ -136,6 +136,9 @@ def _lateral_evidence(eng: Engine, base: tuple[Any, ...], full: tuple[Any, ...],
     contrib = contribution_rms(eng.prob, f_c.cols[:, extra] @ coef)
     declared = np.asarray(eng.table.tool_offset_mm, dtype=float)
     pr = candidate_prior(f_c.spec, idx, declared, tool_lever_mm(eng, idx, coef), eng.opts)
-    ev = log_evidence(coef, cov_w, drss, contrib, pr["half_width"], pr["sigma_model_um"],
-                      eng.opts.prior_log_odds, pr["declared_cov"], max(f_c.n_scan, 1))
+    cov_t = table_cov_of(eng, Z, W)
+    ev = log_evidence(coef, cov_w, drss, contrib, pr["half_width"],
+                      pr["sigma_model_um"] if cov_t is None else 0.0,
+                      eng.opts.prior_log_odds, pr["declared_cov"], max(f_c.n_scan, 1),
+                      cov_table=cov_t)
     return float(ev["log_evidence"])

@@ -227,10 +227,15 @@ def _evidence(eng: Engine, cand: Cand, coef: np.ndarray, Z: np.ndarray, drss: fl
     cov_w = s2 * np.linalg.pinv(Z.T @ Z) if Z.shape[1] else np.zeros((0, 0))
     typ = np.array([spec.params[i].typical for i in cand.param_idx], dtype=float) \
         if spec.kind != "tool_offset" else None
-    # the table's own fit error along the signature (a tool offset: the model's angular
-    # uncertainty above, its own assumed figure, instead)
-    cov_t = table_cov_of(eng, Z, W) if spec.kind != "tool_offset" and W is not None else None
-    ev = log_evidence(coef, cov_w, drss, contrib_um, pr["half_width"], pr["sigma_model_um"],
+    # the table's own fit error along the signature, for every candidate: a tool offset's
+    # signature is the table's angular terms times the change, so their fitted error is
+    # the first thing it can take (issue 36, the second generator's servo_mismatch_xy_4:
+    # a declared tool moved 117 mm by the commissioning laser's noise). Where the table
+    # states that error (model.json), it replaces the assumed model-angle figure
+    # (sigma_model_um), which stood for it: docs/effects.md §3
+    cov_t = table_cov_of(eng, Z, W) if W is not None else None
+    sigma_m = pr["sigma_model_um"] if cov_t is None else 0.0
+    ev = log_evidence(coef, cov_w, drss, contrib_um, pr["half_width"], sigma_m,
                       pr["prior_log_odds"], pr["declared_cov"], max(cand.n_scan, 1), typ,
                       cov_t)
     ev["declared"] = pr["declared"]

@@ -105,6 +105,33 @@ def test_issue36_clean3_a_lateral_change_is_judged_on_lateral_arms(tmp_path) -> 
     assert tool["log_evidence"] < 2.94, tool
 
 
+def test_issue36_the_tables_own_fit_error_moves_no_declared_tool(tmp_path) -> None:
+    """Issue 36, the nineteenth round's ``servo_mismatch_xy_4`` (seed 926288747): the same
+    machine with no effect at all was named a tool offset of 128.6 mm for the declared and
+    right 61.574 mm. The commissioning laser's noise had left the fitted table's angular
+    terms wrong by about their own uncertainty (0.1 urad), and a tool change multiplies
+    exactly those terms: the tool's evidence was judged against an assumed model-angle
+    figure only, not against the table's covariance (model.json) that every other
+    candidate carries. With it (t_y's standard deviation 37 mm from the table alone) the
+    declared tool stays; the servo mismatch beside it is still named, within 10 %."""
+    from abbe.diagnose.run import diagnose_machine
+    from cases.independent2.suite import Case, build, score
+    b = build(Case("twin", "clean", (), 926288747), tmp_path / "twin")
+    assert abs(b.declared_tool_mm - 61.574) < 1e-9 and b.truth == {}
+    res = diagnose_machine(b.machine, b.model)
+    s = score(b, res)
+    assert not s["tool_changed_where_right"], s
+    assert s["named"] == [], s
+    tool = res.to_json()["candidates"]["tool_offset"]
+    assert tool["log_evidence"] < 2.94, tool
+    b = build(Case("servo_mismatch_xy_4", "single", ("servo_mismatch_xy",), 926288747),
+              tmp_path / "servo")
+    s = score(b, diagnose_machine(b.machine, b.model))
+    assert not s["tool_changed_where_right"], s
+    assert s["exact"], s
+    assert s["values"] and all(v[3] for v in s["values"]), s["values"]
+
+
 def test_issue36_a_scale_of_x_is_never_called_y_alone(tmp_path) -> None:
     """Issue 36's second case: a thermal drift with a scale error of X, seen on circles (which
     see only kx - ky): the answer names scale_x or is undecided with scale_x among the
