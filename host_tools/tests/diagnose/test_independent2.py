@@ -132,6 +132,21 @@ def test_issue36_the_tables_own_fit_error_moves_no_declared_tool(tmp_path) -> No
     assert s["values"] and all(v[3] for v in s["values"]), s["values"]
 
 
+def test_issue36_the_tables_error_is_not_counted_twice_against_a_wrong_tool(tmp_path) -> None:
+    """The other side of the test above: the table's covariance *replaces* the assumed
+    model-angle figure it stood for. Counting both (tried first: the twentieth round,
+    second generator seed 1052841905) missed `tool_offset_0` (case seed 312009980), a tool
+    of 86.4 mm the machine file does not declare (seen 0.37 um): log K 6.4 -> 1.4. With
+    the table's error alone it is 4.3: the tool is named, the truth within its interval
+    or 10 %."""
+    from abbe.diagnose.run import diagnose_machine
+    from cases.independent2.suite import Case, build, score
+    b = build(Case("tool_offset_0", "single", ("tool_offset",), 312009980), tmp_path)
+    s = score(b, diagnose_machine(b.machine, b.model))
+    assert s["exact"], s
+    assert s["values"] and all(v[3] for v in s["values"]), s["values"]
+
+
 def test_issue36_a_scale_of_x_is_never_called_y_alone(tmp_path) -> None:
     """Issue 36's second case: a thermal drift with a scale error of X, seen on circles (which
     see only kx - ky): the answer names scale_x or is undecided with scale_x among the
