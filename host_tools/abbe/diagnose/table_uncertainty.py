@@ -230,6 +230,36 @@ def _json_kind(v: Any) -> str:
     return "null" if v is None else show_value(v)
 
 
+#: singular values of a term's basis over its travel below this share of the largest are
+#: directions the table can show only through coefficients 1e6 times larger
+#: (:func:`visible_part`)
+VISIBLE_RCOND = 1e-6
+
+
+def visible_part(C: np.ndarray, ax: Any, n_grid: int = 200) -> np.ndarray:
+    """The part of a term's coefficient covariance ``C`` its values over the travel show:
+    P C P with P the projector on the basis' row space over the travel, its singular
+    directions below ``VISIBLE_RCOND`` of the largest left out.
+
+    A full structure of trend and harmonics on a short travel is nearly dependent
+    (X of degree 7 and 4 harmonics of 508 mm over 391 mm: singular values down to 2e-6 of
+    the largest), and the order selection's left-out shapes (:func:`post_selection_covariance`)
+    can give C eigenvalues of 6e12 um² along such a direction: cancelled over the travel
+    (the term's value u stays 0.18 um), but a derivative J that is not exactly the basis
+    (a circle's set-up projected out, the servo lag moving the positions) does not cancel
+    it, and 1e-6 of it came back as 1.5 um on a circle (docs/effects.md §3, "What the
+    table shows"). Dropping those directions changes the value u over the travel by at
+    most 0.03 um on that term."""
+    lo, hi = ax.travel_mm
+    B = basis_matrix(ax, np.linspace(float(lo), float(hi), n_grid))
+    if B.shape[1] != C.shape[0]:
+        return C
+    _, sv, Vt = np.linalg.svd(B, full_matrices=False)
+    keep = sv > VISIBLE_RCOND * float(sv[0]) if sv.size else np.zeros(0, dtype=bool)
+    P = Vt[keep].T @ Vt[keep]
+    return P @ C @ P
+
+
 def table_factor(eng: Any, table: Table, pp: Any,
                  cov: dict[tuple[str, str], np.ndarray]) -> np.ndarray | None:
     """A factor M (N, r) of the predictions' covariance the table's coefficient covariance
@@ -256,6 +286,7 @@ def table_factor(eng: Any, table: Table, pp: Any,
             co[k] = old + 1.0     # one um / urad
             J[:, k] = prob.predict(eng.ev, t, pp) - y0
             co[k] = old
+        C = visible_part(C, t.axes[a])
         w, V = np.linalg.eigh(0.5 * (C + C.T))
         keep = w > 0.0
         if np.any(keep):
