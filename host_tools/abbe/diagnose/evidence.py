@@ -16,7 +16,9 @@ model plus this effect" against "the model as it is", computed from
 * the **model's own uncertainty** along the signature: a tool offset multiplies the
   model's angular terms, whose error (``model_angle_sigma_urad`` x the lever) gives
   the same signature, so its amplitude's variance is sigma_w^2 + sigma_m^2, not the
-  white-noise sigma_w^2 alone; what stays below it is lack of fit / model error;
+  white-noise sigma_w^2 alone; what stays below it is lack of fit / model error (an
+  assumed figure: where ``model.json`` states the table's error, the next item replaces
+  it, candidate_eval._evidence);
 * the **fitted table's own error** (``model.json``'s coefficient covariance C_t, the
   checks' derivative J by the coefficients: abbe.diagnose.table_uncertainty): the
   readings' covariance J C J^T carried to the candidate's fitted amplitude (the same
