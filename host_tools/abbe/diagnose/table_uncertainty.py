@@ -242,7 +242,7 @@ def visible_part(C: np.ndarray, ax: Any, n_grid: int = 200) -> np.ndarray:
     directions below ``VISIBLE_RCOND`` of the largest left out.
 
     A full structure of trend and harmonics on a short travel is nearly dependent
-    (X of degree 7 and 4 harmonics of 508 mm over 391 mm: singular values down to 2e-6 of
+    (Z of degree 7 and 4 harmonics of 508 mm over 391 mm: singular values down to 2e-6 of
     the largest), and the order selection's left-out shapes (:func:`post_selection_covariance`)
     can give C eigenvalues of 6e12 um² along such a direction: cancelled over the travel
     (the term's value u stays 0.18 um), but a derivative J that is not exactly the basis
