@@ -43,13 +43,17 @@ def summarise(rows: list[dict]) -> dict:
         "by_kind": {k: [sum(r["exact"] for r in eff if r["kind"] == k),
                         sum(r["undecided"] for r in eff if r["kind"] == k),
                         sum(1 for r in eff if r["kind"] == k)] for k in ("single", "pair", "limit")},
-        "clean": len(clean), "clean_with_a_name": sum(bool(r["named"]) for r in clean),
+        # a candidate reported possibly present counts as a name on a clean machine (strict)
+        "clean": len(clean), "clean_with_a_name": sum(bool(r["named"] or r.get("possible"))
+                                                      for r in clean),
+        "clean_with_possible_only": sum(bool(r.get("possible")) and not r["named"] for r in clean),
         "declared_tool_changed_where_right": sum(r["tool_changed_where_right"] for r in rows),
         "values_ok": [sum(v[3] for v in vals), len(vals)],
         "errors": [r["case"] + ": " + r["error"] for r in rows if r.get("error")],
         "misses": [f"{r['case']}: truth {r['truth']} named {r['named']}" for r in eff
                    if not (r["exact"] or r["undecided"])] +
-                  [f"{r['case']}: named {r['named']}" for r in clean if r["named"]],
+                  [f"{r['case']}: named {r['named']} possibly {r.get('possible', [])}"
+                   for r in clean if r["named"] or r.get("possible")],
     }
 
 

@@ -93,6 +93,9 @@ def log_evidence(theta: np.ndarray, cov_white: np.ndarray, drss: float, contrib_
             s_tab = contrib_um * math.sqrt(tt) / th2
             out["sigma_table_um"] = float(s_tab)
             out["sigma_model_um"] = float(math.hypot(sigma_model_um, s_tab))
+    # the change's own standard uncertainty (white, inflated, the table's error): its
+    # interval where it is reported but not named (tested.possibly_present)
+    theta_sd = np.sqrt(np.clip(np.diag(C), 0.0, None))
     if declared_cov is not None:
         C = C + np.asarray(declared_cov, dtype=float).reshape(k, k)
     # the covariance must be a proper (positive definite) one: a parameter the data do
@@ -116,6 +119,7 @@ def log_evidence(theta: np.ndarray, cov_white: np.ndarray, drss: float, contrib_
             quad_t = float(theta @ np.linalg.solve(T + C, theta))
             out["log_evidence_typical"] = float(-0.5 * logdet_t - 0.5 * quad_t - log_n0
                                                 + prior_log_odds - math.log(max(n_scan, 1)))
+    out["theta_sd"] = [float(x) for x in theta_sd]
     out.update({"log_evidence": float(logk), "log_lr": float(drss / (2.0 * f2)),
                 "inflation": float(math.sqrt(f2))})
     return out

@@ -54,7 +54,10 @@ def format_text(res: DiagnoseResult, model_path: str | None = None) -> str:
         for o in outl:
             L.append(f"  - {o.message()}")
     L.append("")
-    if not res.effects and not res.tentative:
+    if not res.effects and not res.tentative and res.possible:
+        L.append("RESULT: nothing named; the data cannot decide whether "
+                 + " / ".join(p["key"] for p in res.possible) + " is present (see below).")
+    elif not res.effects and not res.tentative:
         L.append("RESULT: nothing is missing.")
     elif not res.effects:
         L.append("RESULT: nothing in the catalogue explains the residual (see the notes).")
@@ -143,6 +146,13 @@ def format_text(res: DiagnoseResult, model_path: str | None = None) -> str:
                    else "same signature at one height")
             L.append(f"    AMBIGUOUS with {a['key']} ({how}); to separate them run: "
                      f"{a['separating_test']}")
+    for p in res.possible:
+        L.append("")
+        ci = (f" [{p['ci95'][0]}, {p['ci95'][1]}]" if p.get("ci95") else "")
+        L.append(f"POSSIBLY PRESENT (not named, not in the table): {p['key']} = {p['value']}"
+                 f"{ci} {p['unit']}")
+        L.append("    " + p["statement"])
+        L.append("    to decide: " + p["test"])
     L.append("")
     L.append("gap (residual after nuisance removal, um-valued samples):")
     if res.heldout_split:

@@ -241,6 +241,9 @@ class DiagnoseResult:
     #: what the machine file declares and the prior it is judged with (the tool offset, mm;
     #: its 1-sigma uncertainty and where that comes from), or None (no machine file)
     declared: dict[str, Any] | None = None
+    #: candidates possibly present, not named ("nothing, or B": tested.possibly_present;
+    #: key, value, unit, ci95, log_evidence, log_evidence_typical, statement, test)
+    possible: list[dict[str, Any]] = field(default_factory=list)
     #: the final fit, kept for the uncertainty (FitState)
     fit_state: FitState | None = field(default=None, repr=False)
     #: U (k = 2) of the named effects and gaps with the budget (diagnosis_uncertainty)
@@ -261,7 +264,7 @@ class DiagnoseResult:
     @property
     def nothing_missing(self) -> bool:
         """No effect named and the model explains the checks down to the noise."""
-        return not self.effects and not self.tentative
+        return not self.effects and not self.tentative and not self.possible
 
     def _gap_U(self, which: str) -> dict[str, Any]:
         g = (self.gap_uncertainty or {}).get(which)
@@ -273,8 +276,9 @@ class DiagnoseResult:
     def to_json(self, model_path: str | None = None) -> dict[str, Any]:
         return {
             "effects": [e.to_json() for e in self.effects],
-            "state": ("nothing missing" if not self.effects else
-                      "undecided" if any(e.undecided for e in self.effects) else "named"),
+            "state": ("undecided" if any(e.undecided for e in self.effects) or self.possible
+                      else "nothing missing" if not self.effects else "named"),
+            "possibly_present": self.possible,
             "gap": {**{k: (None if v is None else {**v.to_json(), **self._gap_U(k)})
                        for k, v in self.gap.items()},
                     "held_out_split": self.heldout_split},

@@ -57,7 +57,7 @@ from abbe.diagnose.entangled import first_of_entangled
 from abbe.diagnose.final_fit import (_backward, _final_contribution, _finish, _gap_grew, _gap_key,
                                      _gap_text, _lack_of_fit, _linear_fit)
 from abbe.diagnose.heldout import heldout_removal, heldout_rss
-from abbe.diagnose.tested import _companions, _summ
+from abbe.diagnose.tested import _companions, _summ, possibly_present
 from abbe.diagnose.undecided import share_undecided
 from abbe.diagnose.effects import PredParams, catalogue
 from abbe.diagnose.evaluator import Evaluator
@@ -312,9 +312,12 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
         if e.undecided:
             notes.append("UNDECIDED: " + e.undecided["statement"] + " (values: " + ", ".join(
                 f"{a['key']} {a['value']} {a['unit']}" for a in e.undecided["alternatives"]) + ")")
+    possible = possibly_present(eng, effects, tested, by_key_spec)
+    for p in possible:
+        notes.append("POSSIBLY PRESENT: " + p["statement"] + "; to decide: " + p["test"])
     lof = _lack_of_fit(eng, r_after)
     tentative = lof > LACK_OF_FIT_LIMIT
-    if not effects and not tentative:
+    if not effects and not tentative and not possible:
         obs = ", ".join(c.spec.key for c in pool) or "none"
         notes.insert(0, "Nothing is missing: no candidate effect is significant against the "
                         f"noise on these checks (tested: {obs}).")
@@ -368,4 +371,4 @@ def diagnose(table: Table, checks: list[Check], options: DiagnoseOptions | None 
         residual_after=[clean_after[prob.slice(i)] for i in range(len(checks))],
         noise=noise_rep, tested=tested, not_observable=not_obs, notes=notes,
         backend=eng.ev.backend, drift_unit=eng.drift_unit, lack_of_fit=lof, tentative=tentative,
-        heldout_split=ho_split)
+        heldout_split=ho_split, possible=possible)

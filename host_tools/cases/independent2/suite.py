@@ -362,8 +362,10 @@ def score(b: BuiltCase, res: Any) -> dict[str, Any]:
         return "thermal_drift_x" if k.startswith("thermal_drift") else k
     names = {canon(k) for k in names}
     undecided_ok = {canon(k) for k in undecided_ok}
-    exact = names == expected
-    undecided = (not exact) and expected <= (names | undecided_ok) and all(
+    # a candidate reported possibly present (never a name): one of the candidates
+    possible = {canon(p["key"]) for p in d.get("possibly_present") or []}
+    exact = names == expected and not possible
+    undecided = (not exact) and expected <= (names | undecided_ok | possible) and all(
         n in expected or n in undecided_ok for n in names)
     tool_changed = any(e["key"] == "tool_offset" or e["id"] == "tool_offset" for e in effects)
     values_ok = []
@@ -377,7 +379,7 @@ def score(b: BuiltCase, res: Any) -> dict[str, Any]:
             values_ok.append((k, v, tv, ok))
     below = unobservable(b)
     return {"case": b.case.name, "kind": b.case.kind, "truth": sorted(expected), "named": sorted(names),
-            "exact": exact, "undecided": undecided,
+            "exact": exact, "undecided": undecided, "possible": sorted(possible),
             "unobservable": below,
             "seen_um": {k: round(v, 4) for k, v in b.seen_um.items()},
             "false_names": sorted(names - expected - undecided_ok) if b.case.kind != "clean" else sorted(names),
