@@ -148,9 +148,10 @@ def format_text(res: DiagnoseResult, model_path: str | None = None) -> str:
                      f"{a['separating_test']}")
     for p in res.possible:
         L.append("")
-        ci = (f" [{p['ci95'][0]}, {p['ci95'][1]}]" if p.get("ci95") else "")
-        L.append(f"POSSIBLY PRESENT (not named, not in the table): {p['key']} = {p['value']}"
-                 f"{ci} {p['unit']}")
+        ci = (f" [{_fmt(p['ci95'][0])}, {_fmt(p['ci95'][1])}]" if p.get("ci95") else "")
+        L.append(f"POSSIBLY PRESENT (not named, not in the table): {p['key']}, "
+                 f"{_fmt(p['contribution_rms_um'])} um RMS on the checks (its first parameter "
+                 f"{_fmt(p['value'])}{ci} {p['unit']}, 95 % interval)")
         L.append("    " + p["statement"])
         L.append("    to decide: " + p["test"])
     L.append("")

@@ -7,6 +7,7 @@ once the effects are named: a companion "A alone, or A + B" (docs/effects.md §3
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -67,18 +68,13 @@ def _companions(eng: Engine, effects: list[Any], tested: dict[str, dict[str, Any
         a = by_key.get(v.get("redundant_with") or "")
         if a is None or v.get("selected") or k in by_key or v.get("value") is None:
             continue
-        lk, lt, g = v.get("log_evidence"), v.get("log_evidence_typical"), v.get("heldout_gain")
-        if lk is None or lt is None or g is None or lk >= lo or lt <= -lo:
-            continue
-        if not g >= v["heldout_need"] or v.get("redundancy", 0.0) < 0.5:
+        spec = by_key_spec[k]
+        if not _held_out_below_threshold(v, spec, lo) or v["log_evidence_typical"] <= -lo \
+                or v.get("redundancy", 0.0) < 0.5:
             continue
         if any(x.get("key") == k for x in (a.undecided or {}).get("alternatives", [])):
             continue
-        spec = by_key_spec[k]
-        if spec.kind == "tool_offset":
-            continue   # a declared quantity is judged by its own prior only (never "maybe")
-        if spec.kind == "thermal" and not v.get("heldout_in_time"):
-            continue   # a drift's held-out gain must come from a split in time (early / late runs)
+        lk, lt = v["log_evidence"], v["log_evidence_typical"]
         if {spec.kind, by_key_spec[a.key].kind} == {"thermal", "scale"} and spec.axis == a.axis:
             test = (f"the laser line of {spec.axis} again in the reverse time order of its runs "
                     "and targets, or after a dwell of about the warm-up time (a scale error "
@@ -112,18 +108,14 @@ def possibly_present(eng: Engine, effects: list[Any], tested: dict[str, dict[str
     for k, v in tested.items():
         if k in named or v.get("selected") or v.get("value") is None:
             continue
-        lk, lt, g = v.get("log_evidence"), v.get("log_evidence_typical"), v.get("heldout_gain")
-        if lk is None or lt is None or g is None or not (lk < lo <= lt):
-            continue
-        if not g >= v["heldout_need"] or v.get("observable_rms_um", 0.0) < eng.opts.min_effect_um:
+        if not _held_out_below_threshold(v, by_key_spec[k], lo) \
+                or v["log_evidence_typical"] < lo \
+                or v.get("observable_rms_um", 0.0) < eng.opts.min_effect_um:
             continue
         if v.get("redundant_with") and v.get("redundancy", 0.0) >= 0.5:
             continue   # reproduced by a named effect: "A alone, or A + B" (_companions)
         spec = by_key_spec[k]
-        if spec.kind == "tool_offset":
-            continue
-        if spec.kind == "thermal" and not v.get("heldout_in_time"):
-            continue
+        lk, lt, g = v["log_evidence"], v["log_evidence_typical"], v["heldout_gain"]
         q = 2.0 * float(v.get("log_lr", 0.0))
         kk = max(int(v.get("k", 1)), 1)
         n_more = _data_factor(lk, q, kk, lo)
@@ -146,10 +138,23 @@ def possibly_present(eng: Engine, effects: list[Any], tested: dict[str, dict[str
     return sorted(out, key=lambda d: -float(d["log_evidence_typical"]))
 
 
+def _held_out_below_threshold(v: dict[str, Any], spec: Any, lo: float) -> bool:
+    """What a companion and a possibly present candidate share (docs/effects.md §3): the
+    record ``v`` has both evidence ratios and a held-out gain, its evidence is below the
+    threshold ``lo`` under the selection's prior, the held-out gain passes the arbiter; a
+    declared quantity (the tool offset) is judged by its own prior only, never "maybe", and
+    a drift's held-out gain must come from a split in time (early / late runs)."""
+    lk, lt, g = v.get("log_evidence"), v.get("log_evidence_typical"), v.get("heldout_gain")
+    if lk is None or lt is None or g is None or not lk < lo or not g >= v["heldout_need"]:
+        return False
+    if spec.kind == "tool_offset":
+        return False
+    return not (spec.kind == "thermal" and not v.get("heldout_in_time"))
+
+
 def _data_factor(log_k: float, q: float, k: int, lo: float) -> float | None:
     """The smallest n (>= 1, a whole number) with log K + (n - 1) q / 2 - k log(n) / 2 >= lo
     (:func:`possibly_present`), or None when q is not positive or n exceeds 1000."""
-    import math
     if not q > 0:
         return None
     for n in range(1, 1001):
