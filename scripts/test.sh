@@ -36,8 +36,8 @@
 #      bad tables refused (port/klipper/tests/klipper_batch.py; SKIPPED without the snapshot)
 #  14. the README's demo command (scripts/demo.sh), run twice: into a new
 #      demo-out/ and over the old one
-# CI time: the proofs and step 13 (Klipper) run in the background, one after the other, during
-# steps 9-11 (LinuxCNC: wall-clock bound; scripts/lib/steps.sh step_bg); their output and
+# CI time: the proofs and step 13 (Klipper) run in the background, one after the other, from
+# step 7 (pytest) on, into steps 9-11 (LinuxCNC; scripts/lib/steps.sh step_bg); their output and
 # summary lines come after step 11's, before step 12 (grblHAL). Runs every step even after a failure; exits non-zero
 # if any step failed. The
 # summary says PASS, SKIPPED (what is missing; a failure under CI=true) or FAIL
@@ -165,18 +165,20 @@ step "Cortex-M4F build and ctest under QEMU (build-m4f)" cross m4f cortex-m4f
 step "Cortex-M3 build and ctest under QEMU (build-m3)" cross m3 cortex-m3
 step "libFuzzer run (build-fuzz)" fuzz
 step "Python import contracts (lint-imports)" import_contracts
-step "pytest host_tools/tests" pytest_all
-step "wheel: build, install outside the checkout, run abbe there" wheel_test
 # CI time: Klipper's step (batch mode: print time is not wall time, and klippy_drained.py makes
 # its output complete however late the serial thread writes) and the proofs (CPU bound) run in the
-# background, one after the other, while LinuxCNC's steps (wall-clock bound: real-time simulator
-# runs) run; their logs and outcomes appear after LinuxCNC's programs step (step_join). The
-# proofs on one job (prove.sh's default is 2): one core stays for LinuxCNC's real-time thread.
-# grblHAL's step stays in the foreground after them: its programs run on wall time (a 230 s
-# deadline, dwell brackets) and failed once here when it shared the machine with LinuxCNC.
+# background, one after the other, from pytest on: pytest and the wheel take one core, the proofs
+# the other (prove.sh's default is 2 jobs; its long proofs are bounded by steps, not wall time),
+# and they end during LinuxCNC's steps (wall-clock bound: real-time simulator runs), so
+# LinuxCNC's last steps run beside nothing. Their logs and outcomes appear after LinuxCNC's
+# programs step (step_join). grblHAL's step stays in the foreground after them: its programs run
+# on wall time (a 230 s deadline, dwell brackets) and failed once here when it shared the machine
+# with LinuxCNC.
 step_bg "Klipper module in Klipper's batch mode" klipper_batch
 step_bg "proofs: Frama-C Eva, MISRA C:2012, clang-tidy (scripts/prove.sh, docs/proofs.md)" \
     ./scripts/prove.sh --lint --jobs 1
+step "pytest host_tools/tests" pytest_all
+step "wheel: build, install outside the checkout, run abbe there" wheel_test
 step "LinuxCNC component: halrun and simulator tests" lcnc_component
 step "clang Cortex-M4F and M3 builds and ctest under QEMU (build-m{4f,3}-clang)" cross_clang
 step "measurement programs in LinuxCNC's simulator" lcnc_programs

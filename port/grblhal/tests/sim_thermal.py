@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from sim_test import STEPS_PER_MM, Checks, Sim  # noqa: E402
+from sim_driver import STEPS_PER_MM, Checks, Sim  # noqa: E402
 
 from abbe.formats.thermal_blob import block_size, write_thermal_blob  # noqa: E402
 from abbe.model.thermal import (  # noqa: E402

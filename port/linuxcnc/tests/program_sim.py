@@ -273,21 +273,8 @@ def check_rtest(rec: dict, trt_joints) -> dict:
                       joints[:, [3, 4]])
     miss = np.max(np.abs(joints[:, :3] - want), axis=1)
     check(held < 1e-6, f"TCP: X Y Z left the ball by {held:.3g} mm")
-    # linuxcnc.stat is a userspace copy of motion's status, not taken atomically: under load
-    # one sample can hold joints of two servo periods (a torn copy; CI once saw 10 um). Such
-    # a sample stands alone, misses by no more than the joints move in one period, and is
-    # rare; anything else (two in a row, a larger miss, more than 0.2 %) fails.
-    bad = np.flatnonzero(miss >= 1e-4)
-    for k in bad:
-        alone = 0 < k < len(miss) - 1 and miss[k - 1] < 1e-4 and miss[k + 1] < 1e-4
-        # what the joints move between its neighbours' samples (its own may be the torn one)
-        span = float(np.max(np.abs(joints[k + 1, :3] - joints[k - 1, :3]))) if alone else 0.0
-        check(alone and miss[k] <= span + 1e-4,
-              f"the joints miss trt's inverse kinematics by {miss[k]:.3g} mm at sample {k}")
-    check(len(bad) <= 0.002 * len(miss), f"{len(bad)} of {len(miss)} samples miss trt's "
-          "inverse kinematics")
-    dev = float(np.max(np.delete(miss, bad)))
-    check(dev < 1e-4, f"the joints miss trt's inverse kinematics by {dev:.3g} mm")
+    torn = torn_states(joints, miss, t[tcp])
+    dev = float(np.max(miss[miss < 1e-4]))  # every other state failed torn_states
     # stat's axes and joints may be a servo period apart (150 deg/s here: 0.15 deg per ms)
     lag = float(np.max(np.abs(joints[:, [3, 4]] - abc[:, [0, 2]])))
     check(lag < 0.5, f"the rotary joints are {lag} deg from the A / C axes")
@@ -298,10 +285,50 @@ def check_rtest(rec: dict, trt_joints) -> dict:
     check(bool(np.all((allj[:, :4] >= np.array(JOINT_LO) - 1e-6)
                       & (allj[:, :4] <= np.array(JOINT_HI) + 1e-6))), "a joint left its travel")
     return {"samples_tcp": int(tcp.sum()), "seconds": rec["seconds"], "xyz_held_mm": held,
-            "joints_vs_trt_mm": dev, "torn_samples": int(len(bad)),
+            "joints_vs_trt_mm": dev, "torn_states": torn,
             "rotary_axes_vs_joints_deg": lag, "c_span_deg": c_span,
             "a_span_deg": a_span,
             "linear_joint_travel_mm": float(np.max(np.ptp(joints[:, :3], axis=0)))}
+
+
+def torn_states(joints, miss, t_s) -> list[dict]:
+    """The recorded states whose joints miss the inverse kinematics (>= 0.1 um) because they
+    mix two moments; anything else fails.
+
+    linuxcnc.stat holds what task last copied from motion: task's cycle is 10 ms in this
+    sample config, so one state repeats over ~5 polls of ~2 ms (recorded here: 12,687 of
+    16,069 polls under TCP repeat the one before). Under load a state can hold joints of two
+    moments (CI saw misses of 10 and 15.7 um). The rule before this one asked for a lone
+    poll whose miss stayed within its neighbours' move; a mixed state that repeats over
+    several polls fails it, the likely cause of the 15.7 um failure (its log does not tell).
+    A state counts as such a mix when it stands alone between two states that meet the
+    kinematics and each of its joints (X Y Z mm, A C deg) lies between that joint's values
+    in those two states (within 0.1 um or 0.1 mdeg): every value is one the joint held in
+    between. Two mixed states in a row, a joint outside that bracket, or more than 0.2 % of
+    the states fail.
+    """
+    import numpy as np
+    tol = 1e-4
+    new_state = np.r_[True, np.any(np.diff(joints, axis=0) != 0, axis=1)]
+    starts = np.flatnonzero(new_state)
+    state_miss = np.maximum.reduceat(miss, starts)
+    bad = np.flatnonzero(state_miss >= tol)
+    found = []
+    for r in bad:
+        where = f"state {r} (t = {t_s[starts[r]]:.4f} s, polls from {starts[r]})"
+        alone = 0 < r < len(starts) - 1 and state_miss[r - 1] < tol and state_miss[r + 1] < tol
+        check(alone, f"the joints miss trt's inverse kinematics by {state_miss[r]:.3g} mm at "
+              f"{where}, next to another state that misses: {state_miss[max(r - 2, 0):r + 3]}")
+        prev, cur, nxt = (joints[starts[q]] for q in (r - 1, r, r + 1))
+        lo, hi = np.minimum(prev, nxt) - tol, np.maximum(prev, nxt) + tol
+        out = np.flatnonzero((cur < lo) | (cur > hi))
+        check(out.size == 0, f"the joints miss trt's inverse kinematics by "
+              f"{state_miss[r]:.3g} mm at {where}, joints {out.tolist()} outside their values "
+              f"before and after: {prev.tolist()} / {cur.tolist()} / {nxt.tolist()}")
+        found.append({"t_s": float(t_s[starts[r]]), "miss_mm": float(state_miss[r])})
+    check(len(bad) <= 0.002 * len(starts), f"{len(bad)} of {len(starts)} recorded states miss "
+          "trt's inverse kinematics")
+    return found
 
 
 if __name__ == "__main__":
