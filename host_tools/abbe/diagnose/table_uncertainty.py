@@ -294,13 +294,12 @@ def table_factor(eng: Any, table: Table, pp: Any,
     return np.hstack(blocks) if blocks else np.zeros((y0.size, 0))
 
 
-def table_u(eng: Any, table: Table, pp: Any, sens: np.ndarray,
-            cov: dict[tuple[str, str], np.ndarray]) -> float:
+def table_u(M: np.ndarray | None, sens: np.ndarray) -> float:
     """Standard uncertainty of a figure whose change is ``sens`` . dy (dy the readings'
-    change, ``sens`` (N,)) due to the table's coefficient covariance ``cov``:
-    sqrt(|sens M|²), M the factor of :func:`table_factor` (sqrt(g C g^T) per term, g the
-    term's derivative through ``sens``, summed in quadrature)."""
-    M = table_factor(eng, table, pp, cov)
+    change, ``sens`` (N,)) due to the table's coefficient covariance: sqrt(|sens M|²), ``M``
+    the factor :func:`table_factor` gives (sqrt(g C g^T) per term, g the term's derivative
+    through ``sens``, summed in quadrature); 0 without one. One factor serves every figure
+    of a diagnosis (it depends on the table and the prediction parameters only)."""
     if M is None:
         return 0.0
     g = np.asarray(sens, dtype=np.float64) @ M

@@ -104,6 +104,7 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
         tau_avg = drift_tau_average(eng, st.selected, st.values, st.W, st.s2)
         L_free = {a: free_scale_L(st, X, freed_columns(st, freed_with(inp, st, a)))
                   for a in free_scale_axes(inp, st)}
+        table_M: np.ndarray | None = None   # the table line's factor, made once (table_u)
         k0 = 0
         for s, v in zip(st.selected, st.values):
             n = len(v)
@@ -125,10 +126,13 @@ def diagnosis_uncertainty(res: Any, laser_budget: Any, ballbar_budget: Any,
                 _, f = tool_model_cov(eng, s.cand, np.asarray(v, dtype=np.float64), C)
                 lines[TABLE_LINE] = math.sqrt(max(f * f - 1.0, 0.0)) * u_fit
             elif table_cov:
-                from abbe.diagnose.table_uncertainty import table_u
+                from abbe.diagnose.table_uncertainty import table_factor, table_u
                 # the derivative by the model's own coefficients (the table as loaded: the
-                # effects may add rows), at the final prediction parameters
-                lines[TABLE_LINE] = table_u(eng, eng.table, p_fin, sens, table_cov)
+                # effects may add rows), at the final prediction parameters: one factor
+                # for every effect
+                if table_M is None:
+                    table_M = table_factor(eng, eng.table, p_fin, table_cov)
+                lines[TABLE_LINE] = table_u(table_M, sens)
                 extra += lines[TABLE_LINE] ** 2
             extra_u[s.cand.spec.key] = math.sqrt(max(extra, 0.0))
             ta = tau_avg.get(s.cand.spec.key)
