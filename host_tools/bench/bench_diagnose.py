@@ -142,8 +142,8 @@ def summarize(title: str, rows: list[dict], errors: int, times: list[float]) -> 
             raw = not sc["misses"] and not sc["extra"] and not possible \
                 and sc.get("outliers_ok", True)
             n_exact_raw += raw
-            ok = raw or (not set(sc["misses"]) - below and not sc["extra"] and not possible
-                         and sc.get("outliers_ok", True))
+            ok = (not set(sc["misses"]) - below and not sc["extra"] and not possible
+                  and sc.get("outliers_ok", True))   # raw implies ok
             if ok and not raw:
                 partly.append(sc)
             n_exact += ok

@@ -108,13 +108,13 @@ def possibly_present(eng: Engine, effects: list[Any], tested: dict[str, dict[str
     for k, v in tested.items():
         if k in named or v.get("selected") or v.get("value") is None:
             continue
-        if not _held_out_below_threshold(v, by_key_spec[k], lo) \
+        spec = by_key_spec[k]
+        if not _held_out_below_threshold(v, spec, lo) \
                 or v["log_evidence_typical"] < lo \
                 or v.get("observable_rms_um", 0.0) < eng.opts.min_effect_um:
             continue
         if v.get("redundant_with") and v.get("redundancy", 0.0) >= 0.5:
             continue   # reproduced by a named effect: "A alone, or A + B" (_companions)
-        spec = by_key_spec[k]
         lk, lt, g = v["log_evidence"], v["log_evidence_typical"], v["heldout_gain"]
         q = 2.0 * float(v.get("log_lr", 0.0))
         kk = max(int(v.get("k", 1)), 1)

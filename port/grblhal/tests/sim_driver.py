@@ -1,5 +1,5 @@
 """Drive grblHAL's Simulator (grblHAL_sim) for the plugin's checks: one process per
-session under `timeout -s KILL`, G-code line by line, and its step and block records.
+session under `timeout -s KILL`, G-code line by line, and its sampled steps (step.out).
 
 Shared by sim_test.py (the plugin against the Python reference) and sim_thermal.py (the
 thermal block). Steps at $100..$102 (250 steps/mm, the Simulator's default), positions mm.
